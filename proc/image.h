@@ -1,0 +1,62 @@
+/* A 2-D single-channel image that owns its pixels: the unit of exchange between proc/,
+ * the simulator, the drivers and the file system. Rows may be padded (stride >= row bytes)
+ * so that frames from a camera can be wrapped without repacking. */
+#pragma once
+#include <glib.h>
+#include <stdint.h>
+
+G_BEGIN_DECLS
+
+typedef enum {
+  DS_SAMPLE_U8 = 1,
+  DS_SAMPLE_U16 = 2,
+  DS_SAMPLE_F32 = 3,
+} DsSampleType;
+
+/* Largest side we accept; 8192x8192 float32 is 256 MiB and must still work. */
+#define DS_IMAGE_MAX_SIDE 65536u
+
+typedef struct {
+  guint width;
+  guint height;
+  gsize stride;        /* bytes from one row to the next */
+  DsSampleType type;
+  guint bit_depth;     /* significant bits of integer samples (1..16); 32 for float */
+  guint8 *data;        /* owned, 64-byte aligned */
+} DsImage;
+
+gsize ds_sample_size (DsSampleType type);
+const char *ds_sample_type_name (DsSampleType type);
+
+/* Zero-filled image with the tightest 64-byte-aligned stride. bit_depth defaults to the
+ * full width of the sample type. Fails with DS_PROC_ERROR_TOO_LARGE or INVALID_ARGUMENT. */
+DsImage *ds_image_new (DsSampleType type, guint width, guint height, GError **error);
+/* As ds_image_new but with an explicit stride (>= width * sample size). */
+DsImage *ds_image_new_with_stride (DsSampleType type, guint width, guint height, gsize stride,
+                                   GError **error);
+DsImage *ds_image_copy (const DsImage *src, GError **error);
+void ds_image_free (DsImage *image);
+G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsImage, ds_image_free)
+
+static inline void *
+ds_image_row (const DsImage *image, guint y)
+{
+  return image->data + (gsize) y * image->stride;
+}
+
+/* TRUE when both have the same width, height and sample type. */
+gboolean ds_image_same_shape (const DsImage *a, const DsImage *b);
+
+/* Reads PNG (8/16-bit), TIFF (8/16-bit, float32) and whatever else OpenCV decodes.
+ * A colour file whose channels are all equal (grey saved as RGB) is read as grey; a colour
+ * file with differing channels is refused (DS_PROC_ERROR_FORMAT) rather than converted,
+ * because mixing channels of different spectral response would falsify the separation.
+ * bit_depth of a 16-bit file is 16 (PNG carries no narrower depth through OpenCV).
+ * The error names the file. */
+DsImage *ds_image_read (const char *path, GError **error);
+
+/* Writes by extension (.png for u8/u16, .tif/.tiff for u8/u16/f32). The file appears whole
+ * or not at all: written to a temporary file in the same folder, fsynced, then renamed. */
+gboolean ds_image_write (const DsImage *image, const char *path, GError **error);
+
+G_END_DECLS
