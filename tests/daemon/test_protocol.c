@@ -1,0 +1,208 @@
+/* The protocol's parsing and building, against literal wire text written in the test. */
+#include "daemon/protocol.h"
+
+#include <string.h>
+
+static DsRequest *
+parse (const char *line, JsonNode **id, GError **error)
+{
+  return ds_request_parse (line, strlen (line), id, error);
+}
+
+static void
+test_request_minimal (void)
+{
+  g_autoptr (GError) error = NULL;
+  g_autoptr (DsRequest) req = parse ("{\"id\":7,\"cmd\":\"hello\"}", NULL, &error);
+  g_assert_no_error (error);
+  g_assert_cmpstr (req->cmd, ==, "hello");
+  g_assert_cmpint (json_node_get_int (req->id), ==, 7);
+  g_assert_cmpuint (json_object_get_size (req->args), ==, 0);
+}
+
+static void
+test_request_errors (void)
+{
+  struct { const char *line; DsProtocolError code; gboolean has_id; } cases[] = {
+    { "not json", DS_PROTOCOL_ERROR_BAD_JSON, FALSE },
+    { "[1,2]", DS_PROTOCOL_ERROR_BAD_REQUEST, FALSE },
+    { "{\"id\":1}", DS_PROTOCOL_ERROR_BAD_REQUEST, TRUE },
+    { "{\"id\":\"a\",\"cmd\":3}", DS_PROTOCOL_ERROR_BAD_REQUEST, TRUE },
+    { "{\"id\":2,\"cmd\":\"x\",\"args\":[]}", DS_PROTOCOL_ERROR_BAD_REQUEST, TRUE },
+    { "{\"id\":2,\"cmd\":\"x\",\"extra\":1}", DS_PROTOCOL_ERROR_BAD_REQUEST, TRUE },
+    { "{\"id\":{\"a\":1},\"cmd\":\"x\"}", DS_PROTOCOL_ERROR_BAD_REQUEST, FALSE },
+    { "{\"cmd\":\"x\",\"args\":{\"a\":[[[[[[[[1]]]]]]]]}}", DS_PROTOCOL_ERROR_TOO_DEEP, FALSE },
+  };
+  for (guint i = 0; i < G_N_ELEMENTS (cases); i++) {
+    g_autoptr (GError) error = NULL;
+    JsonNode *id = NULL;
+    DsRequest *req = parse (cases[i].line, &id, &error);
+    g_assert_null (req);
+    g_assert_error (error, DS_PROTOCOL_ERROR, (gint) cases[i].code);
+    g_assert_true ((id != NULL) == cases[i].has_id);
+    if (id)
+      json_node_unref (id);
+  }
+}
+
+static void
+test_depth_counts_only_outside_strings (void)
+{
+  /* Brackets inside strings (with escaped quotes) must not count towards the depth limit. */
+  g_autoptr (GError) error = NULL;
+  g_autoptr (DsRequest) req =
+    parse ("{\"cmd\":\"x\",\"args\":{\"s\":\"[[[[[[[[[[\\\"[[[[[[[[[[\"}}", NULL, &error);
+  g_assert_no_error (error);
+  /* Exactly the limit is accepted, one more is refused. */
+  GString *ok = g_string_new ("{\"cmd\":\"x\",\"args\":{\"a\":");
+  for (int i = 0; i < DS_PROTOCOL_MAX_DEPTH - 2; i++)
+    g_string_append_c (ok, '[');
+  for (int i = 0; i < DS_PROTOCOL_MAX_DEPTH - 2; i++)
+    g_string_append_c (ok, ']');
+  g_string_append (ok, "}}");
+  g_autoptr (DsRequest) r1 = parse (ok->str, NULL, &error);
+  g_assert_no_error (error);
+  g_string_insert_c (ok, strlen ("{\"cmd\":\"x\",\"args\":{\"a\":"), '[');
+  g_string_insert_c (ok, ok->len - 2, ']');
+  g_autoptr (DsRequest) r2 = parse (ok->str, NULL, &error);
+  g_assert_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_TOO_DEEP);
+  g_string_free (ok, TRUE);
+}
+
+static void
+test_line_limit_and_bytes (void)
+{
+  g_autoptr (GError) error = NULL;
+  gsize n = DS_PROTOCOL_MAX_LINE + 1;
+  g_autofree char *big = g_malloc (n);
+  memset (big, ' ', n);
+  g_assert_null (ds_request_parse (big, n, NULL, &error));
+  g_assert_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_LINE_TOO_LONG);
+  g_clear_error (&error);
+  const char bad_utf8[] = "{\"cmd\":\"\xff\"}";
+  g_assert_null (ds_request_parse (bad_utf8, sizeof bad_utf8 - 1, NULL, &error));
+  g_assert_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_JSON);
+  g_clear_error (&error);
+  const char nul[] = "{\"cmd\":\"a\"}\0x";
+  g_assert_null (ds_request_parse (nul, sizeof nul - 1, NULL, &error));
+  g_assert_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_JSON);
+}
+
+static void
+test_typed_arguments (void)
+{
+  g_autoptr (GError) error = NULL;
+  g_autoptr (DsRequest) req = parse ("{\"cmd\":\"capture\",\"args\":{\"phases\":8,\"exposure_us\":1500.5,"
+                                     "\"estimator\":\"sine\",\"keep\":true,\"neg\":-1,\"frac\":2.5}}",
+                                     NULL, &error);
+  g_assert_no_error (error);
+  guint64 u = 0;
+  g_assert_true (ds_request_get_uint (req, "phases", 2, 64, 4, &u, &error));
+  g_assert_cmpuint (u, ==, 8);
+  g_assert_true (ds_request_get_uint (req, "averages", 1, 16, 3, &u, &error));
+  g_assert_cmpuint (u, ==, 3);
+  g_assert_false (ds_request_get_uint (req, "phases", 2, 4, 4, &u, &error));
+  g_assert_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT);
+  g_assert_nonnull (strstr (error->message, "phases"));
+  g_clear_error (&error);
+  g_assert_false (ds_request_get_uint (req, "neg", 0, 10, 0, &u, &error));
+  g_clear_error (&error);
+  g_assert_false (ds_request_get_uint (req, "frac", 0, 10, 0, &u, &error));
+  g_clear_error (&error);
+  double d = 0;
+  g_assert_true (ds_request_get_double (req, "exposure_us", 1, 1e6, 1000, &d, &error));
+  g_assert_cmpfloat (d, ==, 1500.5);
+  g_assert_true (ds_request_get_double (req, "phases", 0, 100, 0, &d, &error));
+  g_assert_cmpfloat (d, ==, 8.0);
+  g_assert_false (ds_request_get_double (req, "estimator", 0, 1, 0, &d, &error));
+  g_clear_error (&error);
+  const char *const est[] = { "maxmin", "sine", "robust", NULL };
+  const char *choice = NULL;
+  g_assert_true (ds_request_get_choice (req, "estimator", est, "maxmin", &choice, &error));
+  g_assert_true (choice == est[1]);
+  gboolean keep = FALSE;
+  g_assert_true (ds_request_get_bool (req, "keep", FALSE, &keep, &error));
+  g_assert_true (keep);
+  const char *const allowed[] = { "phases", "exposure_us", "estimator", "keep", "neg", NULL };
+  g_assert_false (ds_request_check_keys (req, allowed, &error));
+  g_assert_nonnull (strstr (error->message, "frac"));
+}
+
+static void
+test_reply_round_trip (void)
+{
+  g_autoptr (JsonNode) id = json_node_new (JSON_NODE_VALUE);
+  json_node_set_string (id, "req-1");
+  g_autoptr (JsonBuilder) b = json_builder_new ();
+  json_builder_begin_object (b);
+  json_builder_set_member_name (b, "phases");
+  json_builder_add_int_value (b, 8);
+  json_builder_end_object (b);
+  g_autoptr (JsonNode) result = json_builder_get_root (b);
+  DsPayloadInfo p[] = { { "transmissive", "f32", 3, 2, 24 }, { "mask", "u8", 3, 2, 6 } };
+  gsize len = 0;
+  g_autofree char *line = ds_reply_build_ok (id, result, p, 2, &len);
+  g_assert_cmpuint (len, ==, strlen (line));
+  g_assert_true (line[len - 1] == '\n');
+  g_assert_null (memchr (line, '\n', len - 1));
+  g_autoptr (GError) error = NULL;
+  g_autoptr (DsReply) r = ds_reply_parse (line, len - 1, &error);
+  g_assert_no_error (error);
+  g_assert_true (r->ok);
+  g_assert_cmpstr (json_node_get_string (r->id), ==, "req-1");
+  g_assert_cmpint (json_object_get_int_member (json_node_get_object (r->body), "phases"), ==, 8);
+  g_assert_cmpuint (r->n_payloads, ==, 2);
+  g_assert_cmpstr (r->payloads[1].name, ==, "mask");
+  g_assert_cmpuint (r->payloads[0].bytes, ==, 24);
+}
+
+static void
+test_error_reply_and_event (void)
+{
+  g_autoptr (GError) e = g_error_new (DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BUSY, "a set \"is\"\nrunning");
+  gsize len = 0;
+  g_autofree char *line = ds_reply_build_error (NULL, e, &len);
+  g_assert_null (memchr (line, '\n', len - 1));
+  g_autoptr (GError) error = NULL;
+  g_autoptr (DsReply) r = ds_reply_parse (line, len - 1, &error);
+  g_assert_no_error (error);
+  g_assert_false (r->ok);
+  g_assert_cmpint (r->error_code, ==, DS_PROTOCOL_ERROR_BUSY);
+  g_assert_cmpstr (r->error_message, ==, "a set \"is\"\nrunning");
+  g_assert_cmpstr (ds_protocol_error_name (DS_PROTOCOL_ERROR_BUSY), ==, "busy");
+
+  g_autofree char *ev = ds_event_build ("result", 42, NULL, NULL, 0, &len);
+  g_autoptr (DsReply) re = ds_reply_parse (ev, len - 1, &error);
+  g_assert_no_error (error);
+  g_assert_cmpstr (re->event, ==, "result");
+  g_assert_cmpuint (re->seq, ==, 42);
+}
+
+static void
+test_reply_payload_consistency (void)
+{
+  /* A byte count that does not match the shape would desynchronize the stream: refused. */
+  const char *bad = "{\"ok\":true,\"payloads\":[{\"name\":\"t\",\"dtype\":\"f32\",\"width\":3,\"height\":2,\"bytes\":23}]}";
+  g_autoptr (GError) error = NULL;
+  g_assert_null (ds_reply_parse (bad, strlen (bad), &error));
+  g_assert_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_REPLY);
+  g_clear_error (&error);
+  const char *dtype = "{\"ok\":true,\"payloads\":[{\"name\":\"t\",\"dtype\":\"f64\",\"width\":1,\"height\":1,\"bytes\":8}]}";
+  g_assert_null (ds_reply_parse (dtype, strlen (dtype), &error));
+  g_assert_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_REPLY);
+}
+
+int
+main (int argc, char **argv)
+{
+  g_test_init (&argc, &argv, NULL);
+  g_test_add_func ("/protocol/request/minimal", test_request_minimal);
+  g_test_add_func ("/protocol/request/errors", test_request_errors);
+  g_test_add_func ("/protocol/request/depth", test_depth_counts_only_outside_strings);
+  g_test_add_func ("/protocol/request/limits", test_line_limit_and_bytes);
+  g_test_add_func ("/protocol/request/typed-arguments", test_typed_arguments);
+  g_test_add_func ("/protocol/reply/round-trip", test_reply_round_trip);
+  g_test_add_func ("/protocol/reply/error-and-event", test_error_reply_and_event);
+  g_test_add_func ("/protocol/reply/payload-consistency", test_reply_payload_consistency);
+  return g_test_run ();
+}
