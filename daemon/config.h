@@ -1,0 +1,87 @@
+/* descatterd's configuration: a GKeyFile (etc/descatterd.conf documents every key), checked
+ * against one table of keys with types and ranges, so that the parser, `--check` and the
+ * documentation cannot disagree. Loading is pure (no device is touched): main thread. */
+#pragma once
+#include <glib.h>
+
+G_BEGIN_DECLS
+
+#define DS_CONFIG_ERROR (ds_config_error_quark ())
+GQuark ds_config_error_quark (void);
+
+typedef enum {
+  DS_CONFIG_ERROR_IO = 1,
+  DS_CONFIG_ERROR_SYNTAX = 2,
+  DS_CONFIG_ERROR_UNKNOWN_GROUP = 3,
+  DS_CONFIG_ERROR_UNKNOWN_KEY = 4,
+  DS_CONFIG_ERROR_BAD_VALUE = 5,
+  DS_CONFIG_ERROR_INCONSISTENT = 6,
+} DsConfigError;
+
+typedef struct {
+  /* [daemon] */
+  char *socket_path;
+  guint socket_mode;
+  char *tcp_listen;       /* "host:port" or NULL (off) */
+  char *tcp_token_file;
+  guint max_clients;
+  guint64 max_queued_bytes;
+  char *spool_dir;        /* NULL: no recording */
+  guint64 spool_max_bytes;
+  /* [camera] */
+  char *camera_backend;   /* "sim" | "aravis" */
+  char *camera_address;
+  char *pixel_format;
+  double exposure_us;
+  double gain_db;
+  char *roi;              /* "x,y,w,h" or NULL (full sensor) */
+  char *camera_trigger;   /* "software" | "line0".."line3" */
+  guint grab_timeout_ms;
+  /* [illuminator] */
+  char *illuminator_backend; /* "sim" | "modbus" | "gpio" */
+  char *modbus_uri;
+  guint modbus_unit_id;
+  guint modbus_timeout_ms;
+  char *gpio_chip;
+  char *gpio_lines;
+  int gpio_enable_line;   /* -1: none */
+  char *pattern;          /* "square" | "sine" */
+  double period_px;
+  double duty;
+  double black_level;
+  double intensity;
+  guint settle_timeout_ms;
+  /* [trigger] */
+  char *trigger_backend;  /* "software" | "gpio" */
+  int trigger_gpio_line;
+  guint trigger_pulse_us;
+  gboolean trigger_active_low;
+  /* [acquisition] */
+  guint phases;
+  guint averages;
+  char *estimator;
+  gboolean dark_frame;
+  guint phase_retries;
+  gboolean verify_phase;
+  double phase_tolerance_deg;
+  /* [sim] */
+  char *sim_scene;
+  guint64 sim_seed;
+} DsConfig;
+
+/* Built-in defaults: the simulated lab (`descatterd --sim`). */
+DsConfig *ds_config_new_default (void);
+/* Defaults, then the file over them. Errors name the file, group, key (and line for syntax
+ * errors) and the allowed values. */
+DsConfig *ds_config_load_file (const char *path, GError **error);
+DsConfig *ds_config_load_data (const char *data, const char *name_for_errors, GError **error);
+DsConfig *ds_config_copy (const DsConfig *config);
+void ds_config_free (DsConfig *config);
+G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsConfig, ds_config_free)
+
+/* The effective configuration as a key file text (what `descatterd --check` prints). */
+char *ds_config_to_data (const DsConfig *config);
+/* Markdown table of every key with type, range, default and meaning (docs/configuration.md). */
+char *ds_config_describe_keys (void);
+
+G_END_DECLS
