@@ -395,9 +395,13 @@ ds_server_get_stats (const DsServer *server, DsServerStats *stats)
 {
   *stats = server->stats;
   stats->queued_bytes = 0;
+  stats->max_client_queued_bytes = 0;
   GHashTableIter it;
   gpointer key;
   g_hash_table_iter_init (&it, server->clients);
-  while (g_hash_table_iter_next (&it, &key, NULL))
-    stats->queued_bytes += ds_connection_queued_bytes (key);
+  while (g_hash_table_iter_next (&it, &key, NULL)) {
+    gsize q = ds_connection_queued_bytes (key);
+    stats->queued_bytes += q;
+    stats->max_client_queued_bytes = MAX (stats->max_client_queued_bytes, q);
+  }
 }

@@ -57,6 +57,7 @@ typedef struct {
   guint64 published;        /* events produced */
   guint64 dropped;          /* event deliveries lost to slow clients, all clients ever */
   gsize queued_bytes;       /* now, all clients */
+  gsize max_client_queued_bytes; /* now, the fullest client's queue (bounded by the cap) */
 } DsServerStats;
 
 void ds_server_get_stats (const DsServer *server, DsServerStats *stats);

@@ -109,6 +109,56 @@ ds_image_free (DsImage *image)
   g_free (image);
 }
 
+GBytes *
+ds_image_to_packed_bytes (const DsImage *image)
+{
+  gsize row = (gsize) image->width * ds_sample_size (image->type);
+  if (row == image->stride)
+    return g_bytes_new (image->data, row * image->height);
+  guint8 *buf = g_malloc (row * image->height);
+  for (guint y = 0; y < image->height; y++)
+    memcpy (buf + y * row, ds_image_row (image, y), row);
+  return g_bytes_new_take (buf, row * image->height);
+}
+
+DsImage *
+ds_image_convert_f32_clamped (const DsImage *src, DsSampleType to, double max_value, GError **error)
+{
+  double type_max = to == DS_SAMPLE_U8 ? 255.0 : 65535.0;
+  if (src->type != DS_SAMPLE_F32 || (to != DS_SAMPLE_U8 && to != DS_SAMPLE_U16) || !(max_value >= 1.0) ||
+      max_value > type_max) {
+    g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT,
+                 "conversion from %s to %s with maximum %g is not supported", ds_sample_type_name (src->type),
+                 ds_sample_type_name (to), max_value);
+    return NULL;
+  }
+  DsImage *dst = ds_image_new (to, src->width, src->height, error);
+  if (!dst)
+    return NULL;
+  guint bits = 1;
+  while (bits < 16 && (double) ((1u << bits) - 1) < max_value)
+    bits++;
+  dst->bit_depth = bits;
+  const float top = (float) max_value;
+  for (guint y = 0; y < src->height; y++) {
+    const float *in = ds_image_row (src, y);
+    if (to == DS_SAMPLE_U8) {
+      guint8 *out = ds_image_row (dst, y);
+      for (guint x = 0; x < src->width; x++) {
+        float v = in[x] > 0.0f ? in[x] : 0.0f; /* also maps NaN to 0: comparisons with NaN fail */
+        out[x] = (guint8) (v < top ? v + 0.5f : top);
+      }
+    } else {
+      guint16 *out = ds_image_row (dst, y);
+      for (guint x = 0; x < src->width; x++) {
+        float v = in[x] > 0.0f ? in[x] : 0.0f;
+        out[x] = (guint16) (v < top ? v + 0.5f : top);
+      }
+    }
+  }
+  return dst;
+}
+
 gboolean
 ds_image_same_shape (const DsImage *a, const DsImage *b)
 {

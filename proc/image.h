@@ -44,6 +44,16 @@ ds_image_row (const DsImage *image, guint y)
   return image->data + (gsize) y * image->stride;
 }
 
+/* The pixels with rows packed back to back (no stride padding), little-endian as in memory on
+ * the platforms we build for: the wire and file layout of a payload. */
+GBytes *ds_image_to_packed_bytes (const DsImage *image);
+
+/* Float to integer samples for files and wire formats that want integers: rounded to nearest,
+ * clamped to 0..max_value (<= the type's range), NaN to 0. `to` is DS_SAMPLE_U8 or U16; the
+ * result's bit_depth is the bits max_value needs. */
+DsImage *ds_image_convert_f32_clamped (const DsImage *src, DsSampleType to, double max_value,
+                                       GError **error);
+
 /* TRUE when both have the same width, height and sample type. */
 gboolean ds_image_same_shape (const DsImage *a, const DsImage *b);
 

@@ -326,8 +326,10 @@ test_slow_subscriber_loses_results_not_memory (void)
     g_bytes_unref (payload);
     StatsCall sc = { .h = h };
     harness_call (h, do_stats, &sc);
-    /* Memory held for the slow client never exceeds its cap. */
-    g_assert_cmpuint (sc.stats.queued_bytes, <=, cap);
+    /* Memory held for any one client never exceeds its cap (the fast client's queue may lag
+     * its reads by one write completion, so the total is not the measure). */
+    g_assert_cmpuint (sc.stats.max_client_queued_bytes, <=, cap);
+    g_assert_cmpuint (sc.stats.queued_bytes, <=, 2 * cap);
   }
   StatsCall sc = { .h = h };
   harness_call (h, do_stats, &sc);

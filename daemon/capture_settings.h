@@ -1,0 +1,35 @@
+/* The settings a phase set is taken with. A result carries the settings it was taken with, so
+ * that results are never mixed across settings (a SIGHUP or a client's capture arguments
+ * change them between sets, never within one). Plain data: any thread. */
+#pragma once
+#include <glib.h>
+#include <json-glib/json-glib.h>
+
+#include "daemon/config.h"
+#include "proc/separation.h"
+
+G_BEGIN_DECLS
+
+typedef struct {
+  guint phases;          /* N */
+  guint averages;        /* M frames per phase */
+  double exposure_us;
+  double gain_db;
+  DsEstimator estimator;
+  DsPatternKind pattern;
+  double period_px;
+  double duty;
+  double black_level;
+  gboolean dark_frame;
+  guint phase_retries;
+  gboolean verify_phase;
+  double phase_tolerance_deg; /* resolved: never NAN here */
+} DsCaptureSettings;
+
+/* The configuration's acquisition defaults. */
+void ds_capture_settings_from_config (DsCaptureSettings *settings, const DsConfig *config);
+/* As a JSON object for result metadata and `status`. */
+JsonNode *ds_capture_settings_to_json (const DsCaptureSettings *settings);
+gboolean ds_capture_settings_equal (const DsCaptureSettings *a, const DsCaptureSettings *b);
+
+G_END_DECLS

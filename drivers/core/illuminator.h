@@ -1,0 +1,67 @@
+/* The illuminator interface: the stripe projector's controller (modbus, gpio, sim).
+ *
+ * Threads: created, used and closed by the acquisition thread only; no concurrent calls.
+ * Errors: DS_ILLUMINATOR_ERROR with DsDeviceError codes; messages name the register or line. */
+#pragma once
+#include <glib.h>
+
+#include "drivers/core/device_error.h"
+
+G_BEGIN_DECLS
+
+typedef enum {
+  DS_STRIPES_SQUARE = 0,
+  DS_STRIPES_SINE = 1,
+} DsStripeKind;
+
+typedef struct {
+  DsStripeKind kind;
+  double period_px;        /* stripe period as seen by the camera, pixels */
+  double duty;             /* lit fraction (0, 1) */
+  double black_level;      /* off-stripe leakage [0, 1) */
+  double intensity;        /* 0..1 of the maximum */
+  guint n_phases;          /* phases per period, >= 2 */
+} DsStripePattern;
+
+typedef struct {
+  gboolean ready;
+  gboolean enabled;
+  gboolean fault;
+  gboolean over_temperature;
+  int applied_phase;       /* -1 when off or unknown */
+  guint64 apply_count;     /* patterns applied since power-up (wraps at the device's width) */
+  double temperature_c;    /* NAN if the device has no sensor */
+  guint firmware_version;
+} DsIlluminatorStatus;
+
+typedef struct DsIlluminatorOps DsIlluminatorOps;
+
+typedef struct {
+  const DsIlluminatorOps *ops;
+  gpointer backend;
+} DsIlluminator;
+
+struct DsIlluminatorOps {
+  const char *name;        /* "modbus", "gpio", "sim" */
+  /* Loads the pattern geometry (not yet lit). Blocks for a few register writes (< timeout).
+   * Fails INVALID (out of the device's range), TIMEOUT, DISCONNECTED, FAULT. */
+  gboolean (*set_pattern) (gpointer backend, const DsStripePattern *pattern, GError **error);
+  /* Lights phase k (0 <= k < n_phases) and returns only when the device reports that phase
+   * applied (read back), or fails within timeout_ms: TIMEOUT (never applied), BUSY (stuck not
+   * ready), FAULT (fault/over-temperature bit, exception response), INVALID (the device
+   * applied a different phase: the message says which). */
+  gboolean (*set_phase) (gpointer backend, guint phase, guint timeout_ms, GError **error);
+  /* Illuminator off (dark frames, shutdown). Same blocking and errors as set_phase. */
+  gboolean (*off) (gpointer backend, guint timeout_ms, GError **error);
+  /* One round trip. Fails TIMEOUT, DISCONNECTED, INCOMPLETE (short read). */
+  gboolean (*get_status) (gpointer backend, DsIlluminatorStatus *status, GError **error);
+  /* Reopens the link after DISCONNECTED/TIMEOUT; the caller decides when. */
+  gboolean (*reconnect) (gpointer backend, GError **error);
+  /* Turns off (best effort) and frees everything. */
+  void (*close) (gpointer backend);
+};
+
+void ds_illuminator_close (DsIlluminator *illuminator); /* NULL-safe; frees the struct too */
+G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsIlluminator, ds_illuminator_close)
+
+G_END_DECLS
