@@ -98,6 +98,8 @@ static const KeySpec keys[] = {
   { "sim", "scene", K_STRING, F (sim_scene), NULL, 0, 0, NULL,
     "scene file for the simulated devices; empty = the built-in demo scene" },
   { "sim", "seed", K_UINT64, F (sim_seed), "1", 0, 1e18, NULL, "noise seed of the simulation" },
+  { "sim", "faults", K_STRING, F (sim_faults), NULL, 0, 0, NULL,
+    "injected faults of the simulated devices, e.g. stale=0.05,incomplete=0.02 (docs/reliability.md); empty = none" },
 };
 
 static gpointer

@@ -67,6 +67,7 @@ typedef struct {
   /* [sim] */
   char *sim_scene;
   guint64 sim_seed;
+  char *sim_faults;       /* "name=value,..." or NULL */
 } DsConfig;
 
 /* Built-in defaults: the simulated lab (`descatterd --sim`). */

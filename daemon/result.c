@@ -3,10 +3,9 @@
 #include <math.h>
 
 static const char *const drop_names[DS_DROP_N_REASONS] = {
-  [DS_DROP_TIMEOUT] = "timeout",         [DS_DROP_INCOMPLETE] = "incomplete",
-  [DS_DROP_FRAME_GAP] = "frame_gap",     [DS_DROP_WRONG_PHASE] = "wrong_phase",
-  [DS_DROP_STALE] = "stale",             [DS_DROP_DEVICE] = "device_error",
-  [DS_DROP_ABORTED] = "aborted",
+  [DS_DROP_INCOMPLETE] = "incomplete",   [DS_DROP_FRAME_GAP] = "frame_gap",
+  [DS_DROP_WRONG_PHASE] = "wrong_phase", [DS_DROP_STALE] = "stale",
+  [DS_DROP_UNVERIFIABLE] = "unverifiable", [DS_DROP_ABORTED] = "aborted",
 };
 
 const char *
@@ -16,14 +15,24 @@ ds_drop_reason_name (DsDropReason reason)
 }
 
 void
+ds_frame_counters_drop (DsFrameCounters *c, DsDropReason reason, guint64 n)
+{
+  g_return_if_fail ((guint) reason < DS_DROP_N_REASONS);
+  c->dropped += n;
+  c->by_reason[reason] += n;
+}
+
+void
 ds_frame_counters_add (DsFrameCounters *total, const DsFrameCounters *part)
 {
   total->acquired += part->acquired;
   total->folded += part->folded;
-  total->retried += part->retried;
   total->dropped += part->dropped;
   for (guint i = 0; i < DS_DROP_N_REASONS; i++)
     total->by_reason[i] += part->by_reason[i];
+  total->retries += part->retries;
+  total->timeouts += part->timeouts;
+  total->device_errors += part->device_errors;
 }
 
 JsonNode *
@@ -35,8 +44,12 @@ ds_frame_counters_to_json (const DsFrameCounters *c)
   json_builder_add_int_value (b, (gint64) c->acquired);
   json_builder_set_member_name (b, "folded");
   json_builder_add_int_value (b, (gint64) c->folded);
-  json_builder_set_member_name (b, "retried");
-  json_builder_add_int_value (b, (gint64) c->retried);
+  json_builder_set_member_name (b, "retries");
+  json_builder_add_int_value (b, (gint64) c->retries);
+  json_builder_set_member_name (b, "timeouts");
+  json_builder_add_int_value (b, (gint64) c->timeouts);
+  json_builder_set_member_name (b, "device_errors");
+  json_builder_add_int_value (b, (gint64) c->device_errors);
   json_builder_set_member_name (b, "dropped");
   json_builder_add_int_value (b, (gint64) c->dropped);
   json_builder_set_member_name (b, "dropped_by_reason");

@@ -1,0 +1,36 @@
+# descatterd: the service (sequencer, devices, service wiring, spool) and its executable.
+# Built once every part it wires together exists in the tree.
+set(DS_DEFAULT_SCENE_NAME milk-disc)
+set(DS_DEFAULT_SCENE_FILE ${CMAKE_SOURCE_DIR}/etc/scenes/${DS_DEFAULT_SCENE_NAME}.scene)
+
+if(TARGET ds_sim AND TARGET ds_drivers_simdev AND TARGET ds_drivers_aravis
+   AND TARGET ds_drivers_modbus AND EXISTS ${CMAKE_SOURCE_DIR}/proc/stripe_phase.h
+   AND EXISTS ${DS_DEFAULT_SCENE_FILE})
+  # The built-in scene of `descatterd --sim`, embedded so the binary runs from anywhere.
+  set(_scene_header ${CMAKE_CURRENT_BINARY_DIR}/daemon/default_scene.h)
+  add_custom_command(
+    OUTPUT ${_scene_header}
+    COMMAND ${CMAKE_COMMAND} -DIN=${DS_DEFAULT_SCENE_FILE} -DOUT=${_scene_header}
+            -DNAME=${DS_DEFAULT_SCENE_NAME} -P ${CMAKE_CURRENT_LIST_DIR}/cmake/embed_scene.cmake
+    DEPENDS ${DS_DEFAULT_SCENE_FILE} ${CMAKE_CURRENT_LIST_DIR}/cmake/embed_scene.cmake
+    COMMENT "Embedding the default scene")
+  add_library(ds_daemon_core STATIC
+    ${CMAKE_CURRENT_LIST_DIR}/sequencer.c
+    ${CMAKE_CURRENT_LIST_DIR}/phase_check.c
+    ${CMAKE_CURRENT_LIST_DIR}/devices.c
+    ${CMAKE_CURRENT_LIST_DIR}/spool.c
+    ${CMAKE_CURRENT_LIST_DIR}/service.c
+    ${_scene_header})
+  target_include_directories(ds_daemon_core PRIVATE ${CMAKE_CURRENT_BINARY_DIR})
+  target_compile_definitions(ds_daemon_core PRIVATE PROJECT_VERSION="${PROJECT_VERSION}")
+  target_link_libraries(ds_daemon_core PUBLIC ds_result ds_server ds_config ds_proc ds_sim
+                        ds_drivers_core ds_drivers_simdev ds_drivers_aravis ds_drivers_modbus
+                        PkgConfig::SYSTEMD)
+  if(TARGET ds_drivers_gpio AND EXISTS ${CMAKE_SOURCE_DIR}/drivers/gpio/gpio_backends.h)
+    target_link_libraries(ds_daemon_core PUBLIC ds_drivers_gpio)
+    target_compile_definitions(ds_daemon_core PRIVATE DESCATTER_HAVE_GPIO=1)
+  endif()
+  add_executable(descatterd ${CMAKE_CURRENT_LIST_DIR}/descatterd.c)
+  target_link_libraries(descatterd PRIVATE ds_daemon_core)
+  install(TARGETS descatterd RUNTIME DESTINATION sbin)
+endif()
