@@ -24,6 +24,7 @@ typedef struct {
   guint phase_retries;
   gboolean verify_phase;
   double phase_tolerance_deg; /* resolved: never NAN here */
+  gboolean keep_extrema;      /* also compute max, min and mean (asked for by a client) */
 } DsCaptureSettings;
 
 /* The configuration's acquisition defaults. */

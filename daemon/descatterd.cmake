@@ -3,7 +3,15 @@
 set(DS_DEFAULT_SCENE_NAME milk-disc)
 set(DS_DEFAULT_SCENE_FILE ${CMAKE_SOURCE_DIR}/etc/scenes/${DS_DEFAULT_SCENE_NAME}.scene)
 
-if(TARGET ds_sim AND TARGET ds_drivers_simdev AND TARGET ds_drivers_aravis
+# The acquisition thread alone (tested against scripted devices in tests/daemon).
+if(TARGET ds_drivers_core AND EXISTS ${CMAKE_SOURCE_DIR}/proc/stripe_phase.h)
+  add_library(ds_sequencer STATIC
+    ${CMAKE_CURRENT_LIST_DIR}/sequencer.c
+    ${CMAKE_CURRENT_LIST_DIR}/phase_check.c)
+  target_link_libraries(ds_sequencer PUBLIC ds_result ds_drivers_core ds_proc)
+endif()
+
+if(TARGET ds_sequencer AND TARGET ds_sim AND TARGET ds_drivers_simdev AND TARGET ds_drivers_aravis
    AND TARGET ds_drivers_modbus AND EXISTS ${CMAKE_SOURCE_DIR}/proc/stripe_phase.h
    AND EXISTS ${DS_DEFAULT_SCENE_FILE})
   # The built-in scene of `descatterd --sim`, embedded so the binary runs from anywhere.
@@ -15,15 +23,13 @@ if(TARGET ds_sim AND TARGET ds_drivers_simdev AND TARGET ds_drivers_aravis
     DEPENDS ${DS_DEFAULT_SCENE_FILE} ${CMAKE_CURRENT_LIST_DIR}/cmake/embed_scene.cmake
     COMMENT "Embedding the default scene")
   add_library(ds_daemon_core STATIC
-    ${CMAKE_CURRENT_LIST_DIR}/sequencer.c
-    ${CMAKE_CURRENT_LIST_DIR}/phase_check.c
     ${CMAKE_CURRENT_LIST_DIR}/devices.c
     ${CMAKE_CURRENT_LIST_DIR}/spool.c
     ${CMAKE_CURRENT_LIST_DIR}/service.c
     ${_scene_header})
   target_include_directories(ds_daemon_core PRIVATE ${CMAKE_CURRENT_BINARY_DIR})
   target_compile_definitions(ds_daemon_core PRIVATE PROJECT_VERSION="${PROJECT_VERSION}")
-  target_link_libraries(ds_daemon_core PUBLIC ds_result ds_server ds_config ds_proc ds_sim
+  target_link_libraries(ds_daemon_core PUBLIC ds_sequencer ds_result ds_server ds_config ds_proc ds_sim
                         ds_drivers_core ds_drivers_simdev ds_drivers_aravis ds_drivers_modbus
                         PkgConfig::SYSTEMD)
   if(TARGET ds_drivers_gpio AND EXISTS ${CMAKE_SOURCE_DIR}/drivers/gpio/gpio_backends.h)

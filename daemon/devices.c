@@ -31,8 +31,19 @@ parse_roi (const char *roi, DsCameraSettings *cs, GError **error)
   return TRUE;
 }
 
+/* The simulated illuminator can only project what the scene declares: its geometry replaces
+ * the configuration's [illuminator] pattern keys. */
+static void
+pattern_from_scene (const DsScene *scene, DsStripePattern *p)
+{
+  p->kind = ds_scene_pattern_is_sine (scene) ? DS_STRIPES_SINE : DS_STRIPES_SQUARE;
+  p->period_px = ds_scene_period_px (scene);
+  p->duty = ds_scene_duty (scene);
+  p->black_level = ds_scene_black_level (scene);
+}
+
 static DsSimLab *
-open_sim_lab (const DsConfig *config, GError **error)
+open_sim_lab (const DsConfig *config, DsStripePattern *pattern, GError **error)
 {
   g_autoptr (DsScene) scene = NULL;
   if (config->sim_scene && *config->sim_scene)
@@ -42,6 +53,7 @@ open_sim_lab (const DsConfig *config, GError **error)
                                 "built-in scene (" DS_DEFAULT_SCENE_NAME ")", error);
   if (!scene)
     return NULL;
+  pattern_from_scene (scene, pattern);
   DsRenderer *renderer = ds_renderer_new (scene, NULL, error);
   if (!renderer)
     return NULL;
@@ -53,10 +65,11 @@ ds_devices_open (const DsConfig *config, GError **error)
 {
   g_autoptr (DsDevices) dev = g_new0 (DsDevices, 1);
   DsSimLab *lab = NULL;
+  DsStripePattern scene_pattern = { 0 };
   gboolean want_lab = strcmp (config->camera_backend, "sim") == 0 ||
                       strcmp (config->illuminator_backend, "sim") == 0;
   if (want_lab) {
-    lab = open_sim_lab (config, error);
+    lab = open_sim_lab (config, &scene_pattern, error);
     if (!lab) {
       g_prefix_error (error, "simulated lab: ");
       return NULL;
@@ -123,6 +136,12 @@ ds_devices_open (const DsConfig *config, GError **error)
   dev->pattern.black_level = config->black_level;
   dev->pattern.intensity = config->intensity;
   dev->pattern.n_phases = config->phases;
+  if (strcmp (config->illuminator_backend, "sim") == 0) {
+    dev->pattern.kind = scene_pattern.kind;
+    dev->pattern.period_px = scene_pattern.period_px;
+    dev->pattern.duty = scene_pattern.duty;
+    dev->pattern.black_level = scene_pattern.black_level;
+  }
   dev->grab_timeout_ms = config->grab_timeout_ms;
   dev->settle_timeout_ms = config->settle_timeout_ms;
   dev->description = g_strdup_printf ("camera=%s illuminator=%s trigger=%s",

@@ -420,6 +420,7 @@ prepare_phase_set (DsSequencer *seq, const DsCaptureSettings *s, guint width, gu
   p.pattern = s->pattern;
   p.duty = s->duty;
   p.black_level = s->black_level;
+  p.keep_extrema = s->keep_extrema;
   if (seq->set && width == seq->set_width && height == seq->set_height &&
       memcmp (&p, &seq->set_params, sizeof p) == 0) {
     ds_phase_set_reset (seq->set);
@@ -515,8 +516,16 @@ account (DsSequencer *seq, const DsFrameCounters *c, gboolean ok)
 }
 
 static void
-run_set (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag)
+run_set (DsSequencer *seq, const DsCaptureSettings *requested, guint64 tag)
 {
+  /* The stripe geometry is the illuminator's (configured for real devices, the scene's for
+   * the simulated lab), never a per-capture choice: the set records what was projected. */
+  DsCaptureSettings settings = *requested;
+  const DsCaptureSettings *s = &settings;
+  settings.pattern = seq->dev->pattern.kind == DS_STRIPES_SINE ? DS_PATTERN_SINE : DS_PATTERN_SQUARE;
+  settings.period_px = seq->dev->pattern.period_px;
+  settings.duty = seq->dev->pattern.duty;
+  settings.black_level = seq->dev->pattern.black_level;
   DsFrameCounters c = { 0 };
   guint folded = 0, dark_frames = 0;
   g_autoptr (GError) error = NULL;

@@ -330,6 +330,7 @@ handle_capture (DsService *svc, DsConnection *conn, DsRequest *req)
     ds_server_reply_error (svc->server, conn, req->id, error);
     return;
   }
+  s.keep_extrema = extrema;
   if (!svc->ready) {
     g_set_error (&error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BUSY, "capture: the devices are not open yet");
     ds_server_reply_error (svc->server, conn, req->id, error);

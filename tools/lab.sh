@@ -53,6 +53,8 @@ case "${1:-}" in
     echo "== test suite under AddressSanitizer + UndefinedBehaviorSanitizer =="
     (cd build-asan && ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
        ctest --output-on-failure -j "$jobs" -LE "nosan|bench")
+    echo "== fuzzing: each libFuzzer target for 20 s (tools/fuzz.sh 600 for a long run) =="
+    tools/fuzz.sh 20
     build build
     echo "== test suite, plain build =="
     cd build && ctest --output-on-failure -j "$jobs"

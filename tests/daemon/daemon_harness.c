@@ -1,0 +1,122 @@
+#include "daemon_harness.h"
+
+#include <glib/gstdio.h>
+#include <signal.h>
+#include <string.h>
+
+TestDaemon *
+test_daemon_start (const char *config_text, const char *const *extra_args)
+{
+  TestDaemon *d = g_new0 (TestDaemon, 1);
+  g_autoptr (GError) error = NULL;
+  d->dir = g_dir_make_tmp ("descatterd-test-XXXXXX", &error);
+  g_assert_no_error (error);
+  d->socket_path = g_build_filename (d->dir, "descatterd.sock", NULL);
+  d->config_path = g_build_filename (d->dir, "descatterd.conf", NULL);
+  g_file_set_contents (d->config_path, config_text, -1, &error);
+  g_assert_no_error (error);
+  g_autoptr (GPtrArray) argv = g_ptr_array_new ();
+  g_ptr_array_add (argv, (gpointer) DESCATTERD_PATH);
+  g_ptr_array_add (argv, (gpointer) "--config");
+  g_ptr_array_add (argv, d->config_path);
+  g_ptr_array_add (argv, (gpointer) "--socket");
+  g_ptr_array_add (argv, d->socket_path);
+  g_ptr_array_add (argv, (gpointer) "--no-socket-activation");
+  for (guint i = 0; extra_args && extra_args[i]; i++)
+    g_ptr_array_add (argv, (gpointer) extra_args[i]);
+  g_ptr_array_add (argv, NULL);
+  d->proc = g_subprocess_newv ((const char *const *) argv->pdata, G_SUBPROCESS_FLAGS_NONE, &error);
+  g_assert_no_error (error);
+  /* Ready = `status` answers ready (the simulated lab may take seconds to build). */
+  for (guint i = 0; i < 1200; i++) {
+    g_assert_false (g_subprocess_get_if_exited (d->proc));
+    g_autoptr (DsClient) c = ds_client_connect (d->socket_path, NULL);
+    if (c) {
+      g_autoptr (DsMessage) m = ds_client_call (c, "status", NULL, NULL, NULL, NULL);
+      if (m && m->reply->ok &&
+          json_object_get_boolean_member_with_default (json_node_get_object (m->reply->body), "ready", FALSE))
+        return d;
+    }
+    g_usleep (100 * 1000);
+  }
+  g_error ("descatterd did not become ready within 120 s");
+  return NULL;
+}
+
+int
+test_daemon_stop (TestDaemon *d)
+{
+  if (!d->proc)
+    return -1;
+  g_subprocess_send_signal (d->proc, SIGTERM);
+  g_autoptr (GError) error = NULL;
+  g_subprocess_wait (d->proc, NULL, &error);
+  g_assert_no_error (error);
+  int status = g_subprocess_get_if_exited (d->proc) ? g_subprocess_get_exit_status (d->proc) : 128 + g_subprocess_get_term_sig (d->proc);
+  g_clear_object (&d->proc);
+  return status;
+}
+
+static void
+remove_tree (const char *path)
+{
+  GDir *dir = g_dir_open (path, 0, NULL);
+  if (dir) {
+    const char *name;
+    while ((name = g_dir_read_name (dir))) {
+      g_autofree char *child = g_build_filename (path, name, NULL);
+      if (g_file_test (child, G_FILE_TEST_IS_DIR) && !g_file_test (child, G_FILE_TEST_IS_SYMLINK))
+        remove_tree (child);
+      else
+        g_unlink (child);
+    }
+    g_dir_close (dir);
+  }
+  g_rmdir (path);
+}
+
+void
+test_daemon_free (TestDaemon *d)
+{
+  if (!d)
+    return;
+  if (d->proc)
+    test_daemon_stop (d);
+  remove_tree (d->dir);
+  g_free (d->dir);
+  g_free (d->socket_path);
+  g_free (d->config_path);
+  g_free (d);
+}
+
+DsClient *
+test_daemon_connect (TestDaemon *d)
+{
+  g_autoptr (GError) error = NULL;
+  DsClient *c = ds_client_connect (d->socket_path, &error);
+  g_assert_no_error (error);
+  return c;
+}
+
+DsMessage *
+test_daemon_call_ok (DsClient *c, const char *cmd, JsonObject *args)
+{
+  g_autoptr (GError) error = NULL;
+  DsMessage *m = ds_client_call (c, cmd, args, NULL, NULL, &error);
+  g_assert_no_error (error);
+  if (!m->reply->ok)
+    g_error ("%s failed: %s: %s", cmd, ds_protocol_error_name (m->reply->error_code), m->reply->error_message);
+  return m;
+}
+
+gint64
+test_json_int (JsonNode *node, const char *path)
+{
+  g_auto (GStrv) parts = g_strsplit (path, ".", -1);
+  for (guint i = 0; parts[i]; i++) {
+    g_assert_true (JSON_NODE_HOLDS_OBJECT (node));
+    node = json_object_get_member (json_node_get_object (node), parts[i]);
+    g_assert_nonnull (node);
+  }
+  return json_node_get_int (node);
+}

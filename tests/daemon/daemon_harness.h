@@ -1,0 +1,26 @@
+/* Runs a real descatterd process for integration tests: a configuration written to a temporary
+ * folder, a UNIX socket there, readiness awaited through `status`. */
+#pragma once
+#include <gio/gio.h>
+
+#include "daemon/client.h"
+
+typedef struct {
+  char *dir;          /* temporary folder: config, socket, spool, outputs */
+  char *socket_path;
+  char *config_path;
+  GSubprocess *proc;
+} TestDaemon;
+
+/* config_text: a complete descatterd.conf body ([daemon] socket is added by the harness).
+ * extra_args: NULL-terminated, may be NULL. Fails the test if the daemon is not ready within
+ * the timeout. */
+TestDaemon *test_daemon_start (const char *config_text, const char *const *extra_args);
+/* SIGTERM and wait; returns the exit status. */
+int test_daemon_stop (TestDaemon *d);
+void test_daemon_free (TestDaemon *d);
+DsClient *test_daemon_connect (TestDaemon *d);
+/* Calls cmd and asserts ok; returns the message. */
+DsMessage *test_daemon_call_ok (DsClient *c, const char *cmd, JsonObject *args);
+/* The integer at a dotted path in a JSON object ("frames.acquired"). */
+gint64 test_json_int (JsonNode *node, const char *path);

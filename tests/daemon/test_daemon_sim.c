@@ -1,0 +1,300 @@
+/* descatterd end to end on the in-process simulated lab: a real daemon process, real sockets,
+ * the simulator's ground truth as the independent expectation. */
+#include <glib/gstdio.h>
+#include <math.h>
+#include <signal.h>
+#include <string.h>
+
+#include "daemon_harness.h"
+#include "drivers/sim/renderer.h"
+#include "drivers/sim/scene.h"
+
+static char *
+config_text (const char *extra)
+{
+  return g_strdup_printf ("[camera]\nbackend=sim\n[illuminator]\nbackend=sim\n"
+                          "[sim]\nscene=%s\nseed=7\n%s",
+                          SCENE_FILE, extra ? extra : "");
+}
+
+static const float *
+payload_f32 (const DsMessage *m, const char *name, guint *w, guint *h)
+{
+  for (guint i = 0; i < m->reply->n_payloads; i++)
+    if (strcmp (m->reply->payloads[i].name, name) == 0) {
+      *w = m->reply->payloads[i].width;
+      *h = m->reply->payloads[i].height;
+      g_assert_cmpstr (m->reply->payloads[i].dtype, ==, "f32");
+      return g_bytes_get_data (m->payloads[i], NULL);
+    }
+  g_error ("no payload %s", name);
+  return NULL;
+}
+
+static const guint8 *
+payload_mask (const DsMessage *m)
+{
+  for (guint i = 0; i < m->reply->n_payloads; i++)
+    if (strcmp (m->reply->payloads[i].name, "mask") == 0)
+      return g_bytes_get_data (m->payloads[i], NULL);
+  g_error ("no mask payload");
+  return NULL;
+}
+
+static void
+assert_accounting (JsonNode *status)
+{
+  gint64 acquired = test_json_int (status, "frames.acquired");
+  gint64 folded = test_json_int (status, "frames.folded");
+  gint64 dropped = test_json_int (status, "frames.dropped");
+  g_assert_cmpint (acquired, ==, folded + dropped);
+}
+
+/* A capture through the socket equals the scene's ground truth within the noise model:
+ * transmissive and scattered are compared with the renderer's noise-free truth over the
+ * valid pixels. The bound is derived from the sensor model (see comments), not measured. */
+static void
+test_capture_matches_truth (void)
+{
+  g_autoptr (GError) error = NULL;
+  g_autoptr (DsScene) scene = ds_scene_load (SCENE_FILE, &error);
+  g_assert_no_error (error);
+  double exposure = ds_scene_default_exposure_us (scene);
+  g_autofree char *conf = config_text (NULL);
+  TestDaemon *d = test_daemon_start (conf, NULL);
+  g_autoptr (DsClient) c = test_daemon_connect (d);
+  g_autoptr (JsonObject) args = json_object_new ();
+  json_object_set_int_member (args, "phases", 8);
+  json_object_set_boolean_member (args, "dark_frame", TRUE);
+  json_object_set_double_member (args, "exposure_us", exposure);
+  g_autoptr (DsMessage) m = test_daemon_call_ok (c, "capture", args);
+  guint w, h;
+  const float *t = payload_f32 (m, "transmissive", &w, &h);
+  const float *g = payload_f32 (m, "scattered", &w, &h);
+  const guint8 *mask = payload_mask (m);
+
+  g_autoptr (DsRenderer) r = ds_renderer_new (scene, NULL, &error);
+  g_assert_no_error (error);
+  DsImage *tt = NULL, *tg = NULL;
+  g_assert_true (ds_renderer_truth (r, exposure, 0.0, &tt, &tg, &error));
+  g_autoptr (DsImage) truth_t = tt;
+  g_autoptr (DsImage) truth_g = tg;
+  g_assert_cmpuint (truth_t->width, ==, w);
+  g_assert_cmpuint (truth_t->height, ==, h);
+
+  /* Noise of one frame at a pixel with signal S DN: var = K*S + sigma_r^2 (photon transfer).
+   * max - min of N/2 lit and N/2 unlit frames: each of max and min is an order statistic of
+   * N/2 samples; its standard deviation is below sigma and its bias below
+   * E[max of N/2 normals] * sigma (1.03 sigma for N = 8). So |error of Ld| has RMS at most
+   * sqrt(2 * (1.03^2 + 1)) sigma ~ 2 sigma, plus the dark frame's noise (averaged, small).
+   * The bound allows 3 sigma of the brightest frame's noise plus 2 % of the truth for the
+   * finite stripe period (global light not quite uniform across a period). */
+  double K = ds_scene_system_gain (scene), sr = ds_scene_read_noise_dn (scene);
+  double se_t = 0, se_g = 0, allowed_t = 0, allowed_g = 0;
+  guint64 n = 0;
+  for (gsize i = 0; i < (gsize) w * h; i++) {
+    if (mask[i] != 0)
+      continue;
+    const float *ttr = (const float *) ds_image_row (truth_t, (guint) (i / w)) + i % w;
+    const float *tgr = (const float *) ds_image_row (truth_g, (guint) (i / w)) + i % w;
+    double brightest = *ttr + *tgr;
+    double sigma = sqrt (K * brightest + sr * sr);
+    double et = t[i] - *ttr, eg = g[i] - *tgr;
+    se_t += et * et;
+    se_g += eg * eg;
+    allowed_t += pow (3 * sigma + 0.02 * (*ttr + 0.5 * *tgr), 2);
+    allowed_g += pow (3 * sigma * 2 + 0.02 * (*tgr + *ttr), 2);
+    n++;
+  }
+  g_assert_cmpuint (n, >, (guint64) w * h / 2); /* most pixels are valid */
+  g_test_message ("rms error: transmissive %.2f DN (allowed %.2f), scattered %.2f DN (allowed %.2f)",
+                  sqrt (se_t / n), sqrt (allowed_t / n), sqrt (se_g / n), sqrt (allowed_g / n));
+  g_assert_cmpfloat (se_t, <, allowed_t);
+  g_assert_cmpfloat (se_g, <, allowed_g);
+
+  JsonObject *meta = json_node_get_object (m->reply->body);
+  g_assert_cmpint (test_json_int (m->reply->body, "settings.phases"), ==, 8);
+  g_assert_true (json_object_get_boolean_member (json_object_get_object_member (meta, "separation"), "dark_subtracted"));
+  g_autoptr (DsMessage) st = test_daemon_call_ok (c, "status", NULL);
+  assert_accounting (st->reply->body);
+  g_assert_cmpint (test_daemon_stop (d), ==, 0);
+  test_daemon_free (d);
+}
+
+/* Continuous mode with two subscribers: the fast one sees every result in order, the slow one
+ * (which does not read at all for a while) loses results, counted by the daemon, and sees
+ * whole results with gaps in seq when it reads again; acquisition goes on meanwhile. */
+static void
+test_continuous_slow_subscriber (void)
+{
+  /* A queue cap of about two results: beyond the socket buffers, the slow client's results drop. */
+  g_autofree char *conf = config_text ("[daemon]\nmax-queued-bytes=1048576\n[acquisition]\nphases=4\n");
+  g_autofree char *conf2 = g_strdup_printf ("%s", conf);
+  TestDaemon *d = test_daemon_start (conf2, NULL);
+  g_autoptr (DsClient) fast = test_daemon_connect (d);
+  g_autoptr (DsClient) slow = test_daemon_connect (d);
+  g_autoptr (DsClient) ctl = test_daemon_connect (d);
+  g_autoptr (DsMessage) s1 = test_daemon_call_ok (fast, "subscribe", NULL);
+  g_autoptr (DsMessage) s2 = test_daemon_call_ok (slow, "subscribe", NULL);
+  g_autoptr (DsMessage) started = test_daemon_call_ok (ctl, "start", NULL);
+  guint64 last = 0;
+  const guint wanted = 12;
+  for (guint i = 0; i < wanted;) {
+    g_autoptr (GError) error = NULL;
+    g_autoptr (DsMessage) ev = ds_client_read (fast, 60000, &error);
+    g_assert_no_error (error);
+    if (g_strcmp0 (ev->reply->event, "result") != 0)
+      continue;
+    g_assert_cmpuint (ev->reply->seq, ==, last + 1);
+    last = ev->reply->seq;
+    g_assert_cmpuint (ev->reply->n_payloads, ==, 3);
+    i++;
+  }
+  g_autoptr (DsMessage) stopped = test_daemon_call_ok (ctl, "stop", NULL);
+  g_autoptr (DsMessage) st = test_daemon_call_ok (ctl, "status", NULL);
+  g_assert_cmpint (test_json_int (st->reply->body, "sets_done"), >=, wanted);
+  g_assert_cmpint (test_json_int (st->reply->body, "clients.results_dropped"), >, 0);
+  assert_accounting (st->reply->body);
+  /* The slow client now reads: whole results, seq increasing with at least one gap. */
+  guint64 prev = 0;
+  gboolean gap = FALSE;
+  guint seen = 0;
+  for (;;) {
+    g_autoptr (GError) error = NULL;
+    g_autoptr (DsMessage) ev = ds_client_read (slow, 2000, &error);
+    if (!ev)
+      break;
+    if (g_strcmp0 (ev->reply->event, "result") != 0)
+      continue;
+    g_assert_cmpuint (ev->reply->n_payloads, ==, 3);
+    g_assert_cmpuint (g_bytes_get_size (ev->payloads[0]), ==, ev->reply->payloads[0].bytes);
+    if (prev && ev->reply->seq > prev + 1)
+      gap = TRUE;
+    g_assert_cmpuint (ev->reply->seq, >, prev);
+    prev = ev->reply->seq;
+    seen++;
+  }
+  g_assert_true (gap || seen < last);
+  g_assert_cmpint (test_daemon_stop (d), ==, 0);
+  test_daemon_free (d);
+}
+
+/* Bad requests get clear errors and the connection stays usable. */
+static void
+test_bad_requests (void)
+{
+  g_autofree char *conf = config_text (NULL);
+  TestDaemon *d = test_daemon_start (conf, NULL);
+  g_autoptr (DsClient) c = test_daemon_connect (d);
+  struct {
+    const char *cmd;
+    const char *json_args;
+    DsProtocolError code;
+    const char *says;
+  } cases[] = {
+    { "capture", "{\"phases\": 1}", DS_PROTOCOL_ERROR_BAD_ARGUMENT, "phases" },
+    { "capture", "{\"phases\": 2, \"estimator\": \"sine\"}", DS_PROTOCOL_ERROR_BAD_ARGUMENT, "3" },
+    { "capture", "{\"exposure_us\": -5}", DS_PROTOCOL_ERROR_BAD_ARGUMENT, "exposure_us" },
+    { "capture", "{\"outputs\": [\"nope\"]}", DS_PROTOCOL_ERROR_BAD_ARGUMENT, "outputs" },
+    { "capture", "{\"path\": \"/etc/passwd\"}", DS_PROTOCOL_ERROR_BAD_ARGUMENT, "path" },
+    { "selfdestruct", "{}", DS_PROTOCOL_ERROR_UNKNOWN_COMMAND, "selfdestruct" },
+  };
+  for (guint i = 0; i < G_N_ELEMENTS (cases); i++) {
+    g_autoptr (JsonNode) node = json_from_string (cases[i].json_args, NULL);
+    g_autoptr (GError) error = NULL;
+    g_autoptr (DsMessage) m = ds_client_call (c, cases[i].cmd, json_node_get_object (node), NULL, NULL, &error);
+    g_assert_no_error (error);
+    g_assert_false (m->reply->ok);
+    g_assert_cmpint (m->reply->error_code, ==, cases[i].code);
+    g_assert_nonnull (strstr (m->reply->error_message, cases[i].says));
+  }
+  g_autoptr (DsMessage) ok = test_daemon_call_ok (c, "status", NULL);
+  g_assert_cmpint (test_daemon_stop (d), ==, 0);
+  test_daemon_free (d);
+}
+
+/* SIGHUP: a bad file is refused and the running configuration kept; a good one applies. */
+static void
+test_reload (void)
+{
+  g_autofree char *conf = config_text ("[acquisition]\nphases=6\n");
+  TestDaemon *d = test_daemon_start (conf, NULL);
+  g_autoptr (DsClient) c = test_daemon_connect (d);
+  g_assert_true (g_file_set_contents (d->config_path, "[acquisition]\nphases=banana\n", -1, NULL));
+  GPid pid = (GPid) g_ascii_strtoll (g_subprocess_get_identifier (d->proc), NULL, 10);
+  kill (pid, SIGHUP);
+  g_usleep (300000);
+  g_autoptr (DsMessage) m1 = test_daemon_call_ok (c, "config", NULL);
+  const char *text = json_object_get_string_member (json_node_get_object (m1->reply->body), "text");
+  g_assert_nonnull (strstr (text, "phases=6"));
+  g_autofree char *good = config_text ("[acquisition]\nphases=10\n");
+  g_assert_true (g_file_set_contents (d->config_path, good, -1, NULL));
+  kill (pid, SIGHUP);
+  g_usleep (300000);
+  g_autoptr (DsMessage) m2 = test_daemon_call_ok (c, "config", NULL);
+  text = json_object_get_string_member (json_node_get_object (m2->reply->body), "text");
+  g_assert_nonnull (strstr (text, "phases=10"));
+  /* And a capture without arguments now uses 10 phases. */
+  g_autoptr (DsMessage) cap = test_daemon_call_ok (c, "capture", NULL);
+  g_assert_cmpint (test_json_int (cap->reply->body, "settings.phases"), ==, 10);
+  g_assert_cmpint (test_daemon_stop (d), ==, 0);
+  test_daemon_free (d);
+}
+
+/* SIGTERM in the middle of continuous acquisition: clean exit (status 0) and every set in the
+ * spool is complete (sidecar + all images), with no temporary files left. */
+static void
+test_sigterm_mid_set_leaves_whole_files (void)
+{
+  g_autofree char *tmp = g_dir_make_tmp ("descatter-spool-XXXXXX", NULL);
+  g_autofree char *spool = g_build_filename (tmp, "spool", NULL);
+  g_autofree char *extra = g_strdup_printf ("[daemon]\nspool-dir=%s\n[acquisition]\nphases=8\n", spool);
+  g_autofree char *conf = config_text (extra);
+  TestDaemon *d = test_daemon_start (conf, NULL);
+  g_autoptr (DsClient) c = test_daemon_connect (d);
+  g_autoptr (DsMessage) sub = test_daemon_call_ok (c, "subscribe", NULL);
+  g_autoptr (DsMessage) st = test_daemon_call_ok (c, "start", NULL);
+  /* Wait for two results, then stop while the third set is being acquired. */
+  for (guint got = 0; got < 2;) {
+    g_autoptr (DsMessage) ev = ds_client_read (c, 60000, NULL);
+    g_assert_nonnull (ev);
+    if (g_strcmp0 (ev->reply->event, "result") == 0)
+      got++;
+  }
+  g_usleep (20000);
+  g_assert_cmpint (test_daemon_stop (d), ==, 0);
+  g_autoptr (GDir) dir = g_dir_open (spool, 0, NULL);
+  g_assert_nonnull (dir);
+  const char *name;
+  guint sidecars = 0, files = 0;
+  while ((name = g_dir_read_name (dir))) {
+    files++;
+    g_assert_false (g_str_has_prefix (name, "."));  /* no temporary file left */
+    if (!g_str_has_suffix (name, ".json"))
+      continue;
+    sidecars++;
+    g_autofree char *stem = g_strndup (name, strlen (name) - 5);
+    const char *parts[] = { "-transmissive.tiff", "-scattered.tiff", "-mask.png" };
+    for (guint i = 0; i < G_N_ELEMENTS (parts); i++) {
+      g_autofree char *p = g_strdup_printf ("%s/%s%s", spool, stem, parts[i]);
+      g_assert_true (g_file_test (p, G_FILE_TEST_EXISTS));
+    }
+  }
+  g_assert_cmpuint (sidecars, >=, 2);
+  g_assert_cmpuint (files, ==, 4 * sidecars); /* nothing without its sidecar */
+  test_daemon_free (d);
+  g_autofree char *cmd = g_strdup_printf ("rm -rf '%s'", tmp);
+  g_assert_cmpint (system (cmd), ==, 0);
+}
+
+int
+main (int argc, char **argv)
+{
+  g_test_init (&argc, &argv, NULL);
+  g_test_add_func ("/daemon-sim/capture-matches-truth", test_capture_matches_truth);
+  g_test_add_func ("/daemon-sim/continuous-slow-subscriber", test_continuous_slow_subscriber);
+  g_test_add_func ("/daemon-sim/bad-requests", test_bad_requests);
+  g_test_add_func ("/daemon-sim/reload", test_reload);
+  g_test_add_func ("/daemon-sim/sigterm-mid-set", test_sigterm_mid_set_leaves_whole_files);
+  return g_test_run ();
+}

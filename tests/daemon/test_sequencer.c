@@ -1,0 +1,484 @@
+/* The sequencer's contract (design.md) against scripted devices written here: frames that fail
+ * verification are never folded, every frame is accounted for, sets carry their settings, a
+ * lost camera is reconnected. The devices implement the project's own interfaces
+ * (drivers/core), so this is not a mock of any library. The expected separation is the closed
+ * form of the synthetic scene: Ld and Lg per pixel known exactly. */
+#include <math.h>
+#include <string.h>
+
+#include "daemon/sequencer.h"
+
+#define W 64
+#define H 16
+#define PERIOD 8.0
+
+/* ---- the scripted lab: one applied phase shared by illuminator and camera ---- */
+
+typedef struct {
+  GMutex lock;
+  int applied_phase;       /* -1 off */
+  guint n_phases;
+  guint64 frame_id;
+  gboolean triggered;
+  int last_lit_phase;      /* phase of the previous frame (for stale frames) */
+  /* scripted faults: count down to zero, then happen once (0 = never) */
+  guint stale_in, incomplete_in, wrong_phase_in, gap_in, disconnect_in, timeout_in;
+  guint64 dead_after;      /* every grab times out once this many frames were delivered (0 = never) */
+  gboolean disconnected;
+  guint reconnects;
+  double ld, lg;           /* scene: direct and global in DN */
+} Lab;
+
+static gboolean
+fault_now (guint *counter)
+{
+  if (*counter == 0)
+    return FALSE;
+  return --(*counter) == 0;
+}
+
+/* Square stripes, duty 1/2, black 0, stripes centred at x = (j + k/N) P: the project's
+ * convention (docs/estimators.md). */
+static guint16
+pixel_value (const Lab *lab, int phase, guint x)
+{
+  if (phase < 0)
+    return (guint16) lround (lab->lg * 0.0 + 2.0); /* illuminator off: only a dark offset of 2 DN */
+  double u = x / PERIOD - (double) phase / lab->n_phases;
+  u -= floor (u + 0.5);
+  double lit = fabs (u) < 0.25 ? 1.0 : 0.0;
+  return (guint16) lround (lab->ld * lit + lab->lg * 0.5 + 2.0);
+}
+
+static DsFrame *
+render (Lab *lab, int phase)
+{
+  DsFrame *f = g_new0 (DsFrame, 1);
+  f->image = ds_image_new (DS_SAMPLE_U16, W, H, NULL);
+  f->image->bit_depth = 12;
+  for (guint y = 0; y < H; y++) {
+    guint16 *row = ds_image_row (f->image, y);
+    for (guint x = 0; x < W; x++)
+      row[x] = pixel_value (lab, phase, x);
+  }
+  f->frame_id = ++lab->frame_id;
+  f->host_time_us = g_get_monotonic_time ();
+  return f;
+}
+
+static gboolean cam_configure (gpointer b, const DsCameraSettings *s, GError **e) { (void) b; (void) s; (void) e; return TRUE; }
+static gboolean cam_start (gpointer b, GError **e) { (void) b; (void) e; return TRUE; }
+static void cam_stop (gpointer b) { (void) b; }
+
+static gboolean
+cam_trigger (gpointer b, GError **e)
+{
+  Lab *lab = b;
+  if (lab->disconnected) {
+    g_set_error (e, DS_CAMERA_ERROR, DS_DEVICE_ERROR_DISCONNECTED, "camera gone");
+    return FALSE;
+  }
+  lab->triggered = TRUE;
+  return TRUE;
+}
+
+static DsFrame *
+cam_grab (gpointer b, guint timeout_ms, GError **e)
+{
+  (void) timeout_ms;
+  Lab *lab = b;
+  if (lab->disconnected) {
+    g_set_error (e, DS_CAMERA_ERROR, DS_DEVICE_ERROR_DISCONNECTED, "camera gone");
+    return NULL;
+  }
+  if (!lab->triggered || fault_now (&lab->timeout_in) ||
+      (lab->dead_after && lab->frame_id >= lab->dead_after)) {
+    lab->triggered = FALSE;
+    g_set_error (e, DS_CAMERA_ERROR, DS_DEVICE_ERROR_TIMEOUT, "no frame");
+    return NULL;
+  }
+  lab->triggered = FALSE;
+  if (fault_now (&lab->disconnect_in)) {
+    lab->disconnected = TRUE;
+    g_set_error (e, DS_CAMERA_ERROR, DS_DEVICE_ERROR_DISCONNECTED, "camera gone");
+    return NULL;
+  }
+  if (fault_now (&lab->incomplete_in)) {
+    lab->frame_id++;
+    g_set_error (e, DS_CAMERA_ERROR, DS_DEVICE_ERROR_INCOMPLETE, "missing packets");
+    return NULL;
+  }
+  int phase = lab->applied_phase;
+  if (fault_now (&lab->stale_in))
+    phase = lab->last_lit_phase; /* a frame of the previous phase, delivered late */
+  DsFrame *f = render (lab, phase);
+  if (fault_now (&lab->gap_in)) {
+    f->frame_id++;
+    f->ids_skipped = 1;
+  }
+  lab->last_lit_phase = lab->applied_phase;
+  return f;
+}
+
+static guint cam_flush (gpointer b) { (void) b; return 0; }
+
+static gboolean
+cam_reconnect (gpointer b, GError **e)
+{
+  (void) e;
+  Lab *lab = b;
+  lab->disconnected = FALSE;
+  lab->reconnects++;
+  return TRUE;
+}
+
+static void cam_stats (gpointer b, DsCameraStats *s) { (void) b; memset (s, 0, sizeof *s); }
+
+static void
+cam_info (gpointer b, DsCameraInfo *i)
+{
+  (void) b;
+  memset (i, 0, sizeof *i);
+  i->sensor_width = W;
+  i->sensor_height = H;
+  i->connected = TRUE;
+}
+
+static void cam_close (gpointer b) { (void) b; }
+
+static const DsCameraOps cam_ops = { "scripted", cam_configure, cam_start, cam_trigger, cam_grab,
+                                     cam_flush, cam_stop, cam_reconnect, cam_stats, cam_info,
+                                     cam_close };
+
+static gboolean ill_pattern (gpointer b, const DsStripePattern *p, GError **e)
+{
+  (void) e;
+  ((Lab *) b)->n_phases = p->n_phases;
+  return TRUE;
+}
+
+static gboolean
+ill_phase (gpointer b, guint phase, guint timeout_ms, GError **e)
+{
+  (void) timeout_ms;
+  (void) e;
+  Lab *lab = b;
+  lab->applied_phase = (int) phase;
+  if (fault_now (&lab->wrong_phase_in))
+    lab->applied_phase = (int) ((phase + 1) % lab->n_phases);
+  return TRUE;
+}
+
+static gboolean ill_off (gpointer b, guint t, GError **e) { (void) t; (void) e; ((Lab *) b)->applied_phase = -1; return TRUE; }
+
+static gboolean
+ill_status (gpointer b, DsIlluminatorStatus *s, GError **e)
+{
+  (void) e;
+  memset (s, 0, sizeof *s);
+  s->ready = TRUE;
+  s->applied_phase = ((Lab *) b)->applied_phase;
+  s->temperature_c = NAN;
+  return TRUE;
+}
+
+static gboolean ill_reconnect (gpointer b, GError **e) { (void) b; (void) e; return TRUE; }
+static void ill_close (gpointer b) { (void) b; }
+
+static const DsIlluminatorOps ill_ops = { "scripted", ill_pattern, ill_phase, ill_off, ill_status,
+                                          ill_reconnect, ill_close };
+
+static DsDevices *
+open_scripted (gpointer data, GError **error)
+{
+  (void) error;
+  Lab *lab = data;
+  DsDevices *d = g_new0 (DsDevices, 1);
+  d->camera = g_new0 (DsCamera, 1);
+  d->camera->ops = &cam_ops;
+  d->camera->backend = lab;
+  d->illuminator = g_new0 (DsIlluminator, 1);
+  d->illuminator->ops = &ill_ops;
+  d->illuminator->backend = lab;
+  d->trigger = ds_software_trigger_new (d->camera);
+  d->pattern = (DsStripePattern) { .kind = DS_STRIPES_SQUARE, .period_px = PERIOD, .duty = 0.5,
+                                   .black_level = 0, .intensity = 1, .n_phases = 8 };
+  d->grab_timeout_ms = 100;
+  d->settle_timeout_ms = 100;
+  d->description = g_strdup ("scripted");
+  return d;
+}
+
+/* ---- harness ---- */
+
+typedef struct {
+  GMainLoop *loop;
+  gboolean ready;
+  DsResult *result;
+  GError *failure;
+  guint progress;
+  guint device_events;
+} Outcome;
+
+static void
+on_event (const DsSequencerEvent *ev, gpointer data)
+{
+  Outcome *o = data;
+  switch (ev->kind) {
+  case DS_SEQUENCER_EVENT_READY:
+    o->ready = ev->error == NULL;
+    g_main_loop_quit (o->loop);
+    break;
+  case DS_SEQUENCER_EVENT_RESULT:
+    o->result = ds_result_ref (ev->result);
+    g_main_loop_quit (o->loop);
+    break;
+  case DS_SEQUENCER_EVENT_FAILED:
+  case DS_SEQUENCER_EVENT_DARK:
+    if (ev->error)
+      o->failure = g_error_copy (ev->error);
+    g_main_loop_quit (o->loop);
+    break;
+  case DS_SEQUENCER_EVENT_PROGRESS:
+    o->progress++;
+    break;
+  case DS_SEQUENCER_EVENT_DEVICE:
+    o->device_events++;
+    break;
+  }
+}
+
+static void
+default_settings (DsCaptureSettings *s, guint n)
+{
+  memset (s, 0, sizeof *s);
+  s->phases = n;
+  s->averages = 1;
+  s->exposure_us = 1000;
+  s->estimator = DS_ESTIMATOR_MAXMIN;
+  s->pattern = DS_PATTERN_SQUARE;
+  s->period_px = PERIOD;
+  s->duty = 0.5;
+  s->phase_retries = 3;
+  s->verify_phase = TRUE;
+  s->phase_tolerance_deg = 90.0 / n;
+}
+
+typedef struct {
+  Lab lab;
+  Outcome out;
+  DsSequencer *seq;
+} Fixture;
+
+static void
+fixture_setup (Fixture *f, gconstpointer data)
+{
+  (void) data;
+  memset (f, 0, sizeof *f);
+  f->lab.applied_phase = -1;
+  f->lab.ld = 1000;
+  f->lab.lg = 600;
+  f->out.loop = g_main_loop_new (NULL, FALSE);
+  DsCaptureSettings s;
+  default_settings (&s, 8);
+  f->seq = ds_sequencer_new (open_scripted, &f->lab, &s, g_main_context_default (), on_event, &f->out);
+  g_main_loop_run (f->out.loop);
+  g_assert_true (f->out.ready);
+}
+
+static void
+fixture_teardown (Fixture *f, gconstpointer data)
+{
+  (void) data;
+  ds_sequencer_free (f->seq);
+  g_clear_pointer (&f->out.result, ds_result_unref);
+  g_clear_error (&f->out.failure);
+  g_main_loop_unref (f->out.loop);
+}
+
+static void
+capture (Fixture *f, const DsCaptureSettings *s)
+{
+  g_clear_pointer (&f->out.result, ds_result_unref);
+  g_clear_error (&f->out.failure);
+  g_assert_true (ds_sequencer_capture (f->seq, s, 7));
+  g_main_loop_run (f->out.loop);
+}
+
+/* The separation equals the scene: Ld = 1000, Lg = 600 (the 2 DN offset cancels in max-min
+ * and is the only error in 2*min: Lg + 4). */
+static void
+assert_scene_recovered (const DsResult *r)
+{
+  const DsSeparation *sep = ds_result_separation (r);
+  for (guint y = 0; y < H; y++) {
+    const float *t = ds_image_row (sep->transmissive, y);
+    const float *g = ds_image_row (sep->scattered, y);
+    for (guint x = 0; x < W; x++) {
+      g_assert_cmpfloat_with_epsilon (t[x], 1000.0, 1e-3);
+      g_assert_cmpfloat_with_epsilon (g[x], 604.0, 1e-3);
+    }
+  }
+}
+
+static void
+assert_accounting (Fixture *f)
+{
+  DsSequencerStatus st;
+  ds_sequencer_get_status (f->seq, &st);
+  guint64 sum = 0;
+  for (guint i = 0; i < DS_DROP_N_REASONS; i++)
+    sum += st.frames.by_reason[i];
+  g_assert_cmpuint (st.frames.dropped, ==, sum);
+  g_assert_cmpuint (st.frames.acquired, ==, st.frames.folded + st.frames.dropped);
+}
+
+static void
+test_clean_set (Fixture *f, gconstpointer d)
+{
+  (void) d;
+  DsCaptureSettings s;
+  default_settings (&s, 8);
+  capture (f, &s);
+  g_assert_no_error (f->out.failure);
+  g_assert_nonnull (f->out.result);
+  assert_scene_recovered (f->out.result);
+  g_assert_cmpuint (f->out.progress, ==, 8);
+  g_assert_cmpuint (ds_result_settings (f->out.result)->phases, ==, 8);
+  assert_accounting (f);
+}
+
+/* Each fault makes one frame unusable; the set still equals the scene exactly, so the bad
+ * frame was not folded, and the drop is counted with its reason. */
+static void
+test_fault_is_dropped_not_folded (Fixture *f, gconstpointer data)
+{
+  const char *fault = data;
+  DsCaptureSettings s;
+  default_settings (&s, 8);
+  capture (f, &s); /* learn the stripe-phase offset on a clean set */
+  g_assert_nonnull (f->out.result);
+  DsDropReason reason = DS_DROP_N_REASONS;
+  if (strcmp (fault, "stale") == 0) {
+    f->lab.stale_in = 4;
+    reason = DS_DROP_WRONG_PHASE;
+  } else if (strcmp (fault, "wrong-phase") == 0) {
+    f->lab.wrong_phase_in = 3;
+    reason = DS_DROP_WRONG_PHASE;
+  } else if (strcmp (fault, "incomplete") == 0) {
+    f->lab.incomplete_in = 5;
+    reason = DS_DROP_INCOMPLETE;
+  } else if (strcmp (fault, "gap") == 0) {
+    f->lab.gap_in = 2;
+    reason = DS_DROP_FRAME_GAP;
+  } else if (strcmp (fault, "timeout") == 0)
+    f->lab.timeout_in = 6;
+  DsSequencerStatus before;
+  ds_sequencer_get_status (f->seq, &before);
+  capture (f, &s);
+  g_assert_no_error (f->out.failure);
+  assert_scene_recovered (f->out.result);
+  DsSequencerStatus after;
+  ds_sequencer_get_status (f->seq, &after);
+  if (reason != DS_DROP_N_REASONS)
+    g_assert_cmpuint (after.frames.by_reason[reason] - before.frames.by_reason[reason], ==, 1);
+  else
+    g_assert_cmpuint (after.frames.timeouts - before.frames.timeouts, ==, 1);
+  g_assert_cmpuint (after.frames.retries - before.frames.retries, ==, 1);
+  assert_accounting (f);
+}
+
+/* A fault on every attempt exhausts the retries: the set fails with a reason naming the phase,
+ * and the frame already folded (phase 0) is counted as aborted. */
+static void
+test_retries_exhausted_fail_the_set (Fixture *f, gconstpointer d)
+{
+  (void) d;
+  DsCaptureSettings s;
+  default_settings (&s, 4);
+  s.phase_retries = 2;
+  f->lab.dead_after = f->lab.frame_id + 1; /* phase 0 gets its frame, then nothing */
+  capture (f, &s);
+  g_assert_null (f->out.result);
+  g_assert_nonnull (f->out.failure);
+  g_assert_nonnull (strstr (f->out.failure->message, "phase 1"));
+  g_assert_nonnull (strstr (f->out.failure->message, "retries exhausted"));
+  DsSequencerStatus st;
+  ds_sequencer_get_status (f->seq, &st);
+  g_assert_cmpuint (st.frames.by_reason[DS_DROP_ABORTED], ==, 1);
+  g_assert_cmpuint (st.frames.folded, ==, 0);
+  g_assert_cmpuint (st.frames.timeouts, ==, 3);
+  g_assert_cmpuint (st.sets_failed, ==, 1);
+  assert_accounting (f);
+}
+
+/* The camera vanishes mid-set: the set fails with the reason, the sequencer reconnects, and
+ * the next set succeeds. */
+static void
+test_disconnect_reconnects (Fixture *f, gconstpointer d)
+{
+  (void) d;
+  DsCaptureSettings s;
+  default_settings (&s, 8);
+  f->lab.disconnect_in = 3;
+  capture (f, &s);
+  g_assert_null (f->out.result);
+  g_assert_nonnull (f->out.failure);
+  g_assert_nonnull (strstr (f->out.failure->message, "camera gone"));
+  capture (f, &s);
+  g_assert_no_error (f->out.failure);
+  assert_scene_recovered (f->out.result);
+  g_assert_cmpuint (f->lab.reconnects, ==, 1);
+  assert_accounting (f);
+}
+
+/* Averages: M frames per phase, all folded; the closed form is unchanged. */
+static void
+test_averages (Fixture *f, gconstpointer d)
+{
+  (void) d;
+  DsCaptureSettings s;
+  default_settings (&s, 4);
+  s.averages = 3;
+  capture (f, &s);
+  g_assert_no_error (f->out.failure);
+  assert_scene_recovered (f->out.result);
+  DsSequencerStatus st;
+  ds_sequencer_get_status (f->seq, &st);
+  g_assert_cmpuint (st.frames.folded, ==, 12);
+}
+
+/* Dark frame: measured with the illuminator off (2 DN here) and subtracted: Lg exact. */
+static void
+test_dark_frame (Fixture *f, gconstpointer d)
+{
+  (void) d;
+  DsCaptureSettings s;
+  default_settings (&s, 8);
+  s.dark_frame = TRUE;
+  capture (f, &s);
+  g_assert_no_error (f->out.failure);
+  const DsSeparation *sep = ds_result_separation (f->out.result);
+  g_assert_true (sep->meta.dark_subtracted);
+  const float *g = ds_image_row (sep->scattered, 3);
+  g_assert_cmpfloat_with_epsilon (g[5], 600.0, 1e-3);
+  assert_accounting (f);
+}
+
+int
+main (int argc, char **argv)
+{
+  g_test_init (&argc, &argv, NULL);
+#define ADD(name, fn, data) g_test_add ("/sequencer/" name, Fixture, data, fixture_setup, fn, fixture_teardown)
+  ADD ("clean-set", test_clean_set, NULL);
+  ADD ("fault/stale", test_fault_is_dropped_not_folded, "stale");
+  ADD ("fault/wrong-phase", test_fault_is_dropped_not_folded, "wrong-phase");
+  ADD ("fault/incomplete", test_fault_is_dropped_not_folded, "incomplete");
+  ADD ("fault/frame-gap", test_fault_is_dropped_not_folded, "gap");
+  ADD ("fault/timeout", test_fault_is_dropped_not_folded, "timeout");
+  ADD ("retries-exhausted", test_retries_exhausted_fail_the_set, NULL);
+  ADD ("disconnect-reconnect", test_disconnect_reconnects, NULL);
+  ADD ("averages", test_averages, NULL);
+  ADD ("dark-frame", test_dark_frame, NULL);
+  return g_test_run ();
+}
