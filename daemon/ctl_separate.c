@@ -11,6 +11,8 @@
  *   transmissive.tiff, scattered.tiff   float32, unclipped (noise may make them negative;
  *                            the mask says where)
  *   mask.png                 u8 quality flags (proc/separation.h, docs/estimators.md)
+ *   transmissive-preview.png, scattered-preview.png   8-bit pictures for people (0.5th..99.5th
+ *                            percentile), unless --no-preview; not for measurement
  *   max.tiff, min.tiff, mean.tiff       float32, with --extrema
  *   sigma_transmissive.tiff, sigma_scattered.tiff   with a noise model (--system-gain)
  *   separation.json          inputs, parameters, metadata; written last, so a folder with it is
@@ -23,6 +25,7 @@
 
 #include "daemon/ctl_commands.h"
 #include "proc/phase_folder.h"
+#include "proc/preview.h"
 #include "proc/proc_error.h"
 #include "proc/separation.h"
 
@@ -37,6 +40,7 @@ typedef struct {
   char *out;
   gboolean extrema;
   gboolean quiet;
+  gboolean no_preview;
 } Options;
 
 static gboolean
@@ -254,6 +258,14 @@ separate (const char *dir, const Options *o, gboolean *usage, GError **error)
       !write_image (sep->scattered, out, "scattered.tiff", written, error) ||
       !write_image (sep->mask, out, "mask.png", written, error))
     return FALSE;
+  if (!o->no_preview) {
+    g_autoptr (DsImage) pt = ds_preview_u8 (sep->transmissive, 0.5, 99.5, error);
+    if (!pt || !write_image (pt, out, "transmissive-preview.png", written, error))
+      return FALSE;
+    g_autoptr (DsImage) ps = ds_preview_u8 (sep->scattered, 0.5, 99.5, error);
+    if (!ps || !write_image (ps, out, "scattered-preview.png", written, error))
+      return FALSE;
+  }
   if (o->extrema && sep->max && sep->min && sep->mean &&
       (!write_image (sep->max, out, "max.tiff", written, error) ||
        !write_image (sep->min, out, "min.tiff", written, error) ||
@@ -303,6 +315,7 @@ ds_ctl_separate (int argc, char **argv)
     { "saturation", 0, 0, G_OPTION_ARG_DOUBLE, &o.saturation, "saturation level in DN (default 2^depth - 1)", "DN" },
     { "out", 'o', 0, G_OPTION_ARG_FILENAME, &o.out, "output folder (default: DIR)", "OUT" },
     { "extrema", 0, 0, G_OPTION_ARG_NONE, &o.extrema, "also write max, min and mean (float32 TIFF)", NULL },
+    { "no-preview", 0, 0, G_OPTION_ARG_NONE, &o.no_preview, "do not write the 8-bit preview pictures", NULL },
     { "quiet", 'q', 0, G_OPTION_ARG_NONE, &o.quiet, "print nothing on success", NULL },
     { NULL },
   };

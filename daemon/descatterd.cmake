@@ -38,5 +38,5 @@ if(TARGET ds_sequencer AND TARGET ds_sim AND TARGET ds_drivers_simdev AND TARGET
   endif()
   add_executable(descatterd ${CMAKE_CURRENT_LIST_DIR}/descatterd.c)
   target_link_libraries(descatterd PRIVATE ds_daemon_core)
-  install(TARGETS descatterd RUNTIME DESTINATION sbin)
+  install(TARGETS descatterd RUNTIME DESTINATION bin)
 endif()

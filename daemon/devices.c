@@ -54,7 +54,9 @@ open_sim_lab (const DsConfig *config, DsStripePattern *pattern, GError **error)
   if (!scene)
     return NULL;
   pattern_from_scene (scene, pattern);
-  DsRenderer *renderer = ds_renderer_new (scene, NULL, error);
+  /* The unit sets DESCATTER_CACHE_DIR (systemd CacheDirectory=): scattering kernels survive
+   * restarts there. */
+  DsRenderer *renderer = ds_renderer_new (scene, g_getenv ("DESCATTER_CACHE_DIR"), error);
   if (!renderer)
     return NULL;
   return ds_sim_lab_new (renderer, config->sim_seed);

@@ -194,6 +194,17 @@ ds_result_to_json (DsResult *r)
   json_builder_set_member_name (b, "compute_after_last_frame");
   json_builder_add_double_value (b, (double) (r->finished_us - r->acquired_us) / 1000.0);
   json_builder_end_object (b);
+  /* CLOCK_MONOTONIC is one clock for the whole machine: a local client can measure the
+   * latency from the last frame to its own receipt of the result. */
+  json_builder_set_member_name (b, "monotonic_us");
+  json_builder_begin_object (b);
+  json_builder_set_member_name (b, "started");
+  json_builder_add_int_value (b, r->started_us);
+  json_builder_set_member_name (b, "last_frame");
+  json_builder_add_int_value (b, r->acquired_us);
+  json_builder_set_member_name (b, "finished");
+  json_builder_add_int_value (b, r->finished_us);
+  json_builder_end_object (b);
   json_builder_end_object (b);
   return json_builder_get_root (b);
 }

@@ -56,6 +56,7 @@ struct DsSequencer {
   DsPhaseCheck phase_check;
   double phase_check_period;
   gboolean need_reconnect;
+  gint64 last_frame_us;     /* arrival of the last folded frame */
 };
 
 const char *
@@ -404,6 +405,7 @@ acquire_phase (DsSequencer *seq, const DsCaptureSettings *s, guint k, DsFrameCou
       return FALSE;
     }
     stage_add (seq, DS_STAGE_FOLD, t);
+    seq->last_frame_us = frame->host_time_us ? (gint64) frame->host_time_us : t;
     (*folded)++;
     done++;
   }
@@ -582,7 +584,7 @@ run_set (DsSequencer *seq, const DsCaptureSettings *requested, guint64 tag)
     }
     emit_progress (seq, tag, k, s->phases);
   }
-  acquired = g_get_monotonic_time ();
+  acquired = seq->last_frame_us;
   sep = ds_phase_set_finalize (seq->set, &error);
   if (!sep)
     goto failed;

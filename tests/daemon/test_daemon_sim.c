@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "daemon_harness.h"
+#include "truth_check.h"
 #include "drivers/sim/renderer.h"
 #include "drivers/sim/scene.h"
 
@@ -15,30 +16,6 @@ config_text (const char *extra)
   return g_strdup_printf ("[camera]\nbackend=sim\n[illuminator]\nbackend=sim\n"
                           "[sim]\nscene=%s\nseed=7\n%s",
                           SCENE_FILE, extra ? extra : "");
-}
-
-static const float *
-payload_f32 (const DsMessage *m, const char *name, guint *w, guint *h)
-{
-  for (guint i = 0; i < m->reply->n_payloads; i++)
-    if (strcmp (m->reply->payloads[i].name, name) == 0) {
-      *w = m->reply->payloads[i].width;
-      *h = m->reply->payloads[i].height;
-      g_assert_cmpstr (m->reply->payloads[i].dtype, ==, "f32");
-      return g_bytes_get_data (m->payloads[i], NULL);
-    }
-  g_error ("no payload %s", name);
-  return NULL;
-}
-
-static const guint8 *
-payload_mask (const DsMessage *m)
-{
-  for (guint i = 0; i < m->reply->n_payloads; i++)
-    if (strcmp (m->reply->payloads[i].name, "mask") == 0)
-      return g_bytes_get_data (m->payloads[i], NULL);
-  g_error ("no mask payload");
-  return NULL;
 }
 
 static void
@@ -68,10 +45,6 @@ test_capture_matches_truth (void)
   json_object_set_boolean_member (args, "dark_frame", TRUE);
   json_object_set_double_member (args, "exposure_us", exposure);
   g_autoptr (DsMessage) m = test_daemon_call_ok (c, "capture", args);
-  guint w, h;
-  const float *t = payload_f32 (m, "transmissive", &w, &h);
-  const float *g = payload_f32 (m, "scattered", &w, &h);
-  const guint8 *mask = payload_mask (m);
 
   g_autoptr (DsRenderer) r = ds_renderer_new (scene, NULL, &error);
   g_assert_no_error (error);
@@ -79,38 +52,15 @@ test_capture_matches_truth (void)
   g_assert_true (ds_renderer_truth (r, exposure, 0.0, &tt, &tg, &error));
   g_autoptr (DsImage) truth_t = tt;
   g_autoptr (DsImage) truth_g = tg;
-  g_assert_cmpuint (truth_t->width, ==, w);
-  g_assert_cmpuint (truth_t->height, ==, h);
 
-  /* Noise of one frame at a pixel with signal S DN: var = K*S + sigma_r^2 (photon transfer).
-   * max - min of N/2 lit and N/2 unlit frames: each of max and min is an order statistic of
-   * N/2 samples; its standard deviation is below sigma and its bias below
-   * E[max of N/2 normals] * sigma (1.03 sigma for N = 8). So |error of Ld| has RMS at most
-   * sqrt(2 * (1.03^2 + 1)) sigma ~ 2 sigma, plus the dark frame's noise (averaged, small).
-   * The bound allows 3 sigma of the brightest frame's noise plus 2 % of the truth for the
-   * finite stripe period (global light not quite uniform across a period). */
-  double K = ds_scene_system_gain (scene), sr = ds_scene_read_noise_dn (scene);
-  double se_t = 0, se_g = 0, allowed_t = 0, allowed_g = 0;
-  guint64 n = 0;
-  for (gsize i = 0; i < (gsize) w * h; i++) {
-    if (mask[i] != 0)
-      continue;
-    const float *ttr = (const float *) ds_image_row (truth_t, (guint) (i / w)) + i % w;
-    const float *tgr = (const float *) ds_image_row (truth_g, (guint) (i / w)) + i % w;
-    double brightest = *ttr + *tgr;
-    double sigma = sqrt (K * brightest + sr * sr);
-    double et = t[i] - *ttr, eg = g[i] - *tgr;
-    se_t += et * et;
-    se_g += eg * eg;
-    allowed_t += pow (3 * sigma + 0.02 * (*ttr + 0.5 * *tgr), 2);
-    allowed_g += pow (3 * sigma * 2 + 0.02 * (*tgr + *ttr), 2);
-    n++;
-  }
-  g_assert_cmpuint (n, >, (guint64) w * h / 2); /* most pixels are valid */
-  g_test_message ("rms error: transmissive %.2f DN (allowed %.2f), scattered %.2f DN (allowed %.2f)",
-                  sqrt (se_t / n), sqrt (allowed_t / n), sqrt (se_g / n), sqrt (allowed_g / n));
-  g_assert_cmpfloat (se_t, <, allowed_t);
-  g_assert_cmpfloat (se_g, <, allowed_g);
+  TruthCheck tc;
+  truth_check (m, scene, truth_t, truth_g, &tc);
+  g_test_message ("rms error: transmissive %.2f DN (allowed %.2f), scattered %.2f DN (allowed %.2f), %"
+                  G_GUINT64_FORMAT " of %" G_GUINT64_FORMAT " pixels valid",
+                  tc.rms_transmissive, tc.allowed_transmissive, tc.rms_scattered,
+                  tc.allowed_scattered, tc.valid, tc.pixels);
+  g_assert_cmpuint (tc.valid, >, tc.pixels / 2); /* most pixels are valid */
+  g_assert_true (truth_check_passed (&tc));
 
   JsonObject *meta = json_node_get_object (m->reply->body);
   g_assert_cmpint (test_json_int (m->reply->body, "settings.phases"), ==, 8);

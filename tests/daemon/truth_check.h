@@ -1,0 +1,17 @@
+/* Compares a result message (transmissive, scattered, mask payloads) with the simulator's
+ * noise-free truth, against an error bound derived from the sensor's noise model. */
+#pragma once
+#include "daemon/client.h"
+#include "drivers/sim/renderer.h"
+#include "drivers/sim/scene.h"
+
+typedef struct {
+  double rms_transmissive, allowed_transmissive; /* DN, over valid pixels */
+  double rms_scattered, allowed_scattered;
+  guint64 valid, pixels;
+} TruthCheck;
+
+/* The truth for this exposure/gain must have the result's size. */
+void truth_check (const DsMessage *m, const DsScene *scene, const DsImage *truth_t,
+                  const DsImage *truth_g, TruthCheck *out);
+gboolean truth_check_passed (const TruthCheck *c);
