@@ -20,3 +20,4 @@ int ds_ctl_stop (int argc, char **argv);
 int ds_ctl_dark (int argc, char **argv);
 int ds_ctl_config (int argc, char **argv);
 int ds_ctl_separate (int argc, char **argv);
+int ds_ctl_study (int argc, char **argv);

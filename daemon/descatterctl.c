@@ -19,6 +19,7 @@ static const struct {
   { "dark", ds_ctl_dark, "calibrate the dark frame (illuminator off)" },
   { "config", ds_ctl_config, "print the daemon's effective configuration" },
   { "separate", ds_ctl_separate, "separate a folder of phase images offline (no daemon)" },
+  { "study", ds_ctl_study, "accuracy against acquisition time on simulated scenes (no daemon)" },
 };
 
 static void

@@ -4,10 +4,12 @@ set(DS_DEFAULT_SCENE_NAME milk-disc)
 set(DS_DEFAULT_SCENE_FILE ${CMAKE_SOURCE_DIR}/etc/scenes/${DS_DEFAULT_SCENE_NAME}.scene)
 
 # The acquisition thread alone (tested against scripted devices in tests/daemon).
-if(TARGET ds_drivers_core AND EXISTS ${CMAKE_SOURCE_DIR}/proc/stripe_phase.h)
+if(TARGET ds_drivers_core AND EXISTS ${CMAKE_SOURCE_DIR}/proc/stripe_phase.h
+   AND EXISTS ${CMAKE_SOURCE_DIR}/proc/separation.cmake)
   add_library(ds_sequencer STATIC
     ${CMAKE_CURRENT_LIST_DIR}/sequencer.c
-    ${CMAKE_CURRENT_LIST_DIR}/phase_check.c)
+    ${CMAKE_CURRENT_LIST_DIR}/phase_check.c
+    ${CMAKE_CURRENT_LIST_DIR}/devices_close.c)
   target_link_libraries(ds_sequencer PUBLIC ds_result ds_drivers_core ds_proc)
 endif()
 

@@ -151,18 +151,3 @@ ds_devices_open (const DsConfig *config, GError **error)
                                       config->trigger_backend);
   return g_steal_pointer (&dev);
 }
-
-void
-ds_devices_close (DsDevices *dev)
-{
-  if (!dev)
-    return;
-  /* Trigger first: the software trigger borrows the camera. */
-  ds_trigger_close (dev->trigger);
-  ds_illuminator_close (dev->illuminator);
-  ds_camera_close (dev->camera);
-  if (dev->owner && dev->free_owner)
-    dev->free_owner (dev->owner);
-  g_free (dev->description);
-  g_free (dev);
-}

@@ -368,7 +368,7 @@ acquire_phase (DsSequencer *seq, const DsCaptureSettings *s, guint k, DsFrameCou
     gint64 t = g_get_monotonic_time ();
     DsDropReason reason = DS_DROP_N_REASONS;
     g_autofree char *detail = NULL;
-    if (frame->host_time_us != 0 && frame->host_time_us < applied_at) {
+    if (frame->host_time_us != 0 && (gint64) frame->host_time_us < applied_at) {
       reason = DS_DROP_STALE;
       detail = g_strdup ("frame arrived before the phase was applied");
     } else if (frame->ids_skipped > 0) {
@@ -401,7 +401,6 @@ acquire_phase (DsSequencer *seq, const DsCaptureSettings *s, guint k, DsFrameCou
     t = g_get_monotonic_time ();
     if (!ds_phase_set_accumulate (seq->set, k, frame->image, error)) {
       ds_frame_counters_drop (c, DS_DROP_ABORTED, 1);
-      g_prefix_error (error, "phase %u: ", k);
       return FALSE;
     }
     stage_add (seq, DS_STAGE_FOLD, t);
@@ -451,13 +450,14 @@ acquire_dark (DsSequencer *seq, const DsCaptureSettings *s, DsFrameCounters *c, 
   flush_stale (seq, c);
   gint64 off_at = g_get_monotonic_time ();
   g_autofree double *sum = NULL;
-  guint w = 0, h = 0, got = 0, retries_left = s->phase_retries;
+  guint w = 0, h = 0, got = 0, retries_left = s->phase_retries, bit_depth = 16;
+  DsSampleType type = DS_SAMPLE_U16;
   while (got < s->averages) {
     GError *why = NULL;
     if (!check_quit (seq, error))
       return NULL;
     g_autoptr (DsFrame) f = trigger_and_grab (seq, c, &why);
-    if (f && f->host_time_us != 0 && f->host_time_us < off_at) {
+    if (f && f->host_time_us != 0 && (gint64) f->host_time_us < off_at) {
       ds_frame_counters_drop (c, DS_DROP_STALE, 1);
       why = g_error_new (DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_DEVICE, "stale frame");
       g_clear_pointer (&f, ds_frame_free);
@@ -476,6 +476,8 @@ acquire_dark (DsSequencer *seq, const DsCaptureSettings *s, DsFrameCounters *c, 
     if (!sum) {
       w = img->width;
       h = img->height;
+      type = img->type;
+      bit_depth = img->bit_depth;
       sum = g_new0 (double, (gsize) w * h);
     } else if (img->width != w || img->height != h) {
       ds_frame_counters_drop (c, DS_DROP_ABORTED, 1);
@@ -494,13 +496,24 @@ acquire_dark (DsSequencer *seq, const DsCaptureSettings *s, DsFrameCounters *c, 
     }
     got++;
   }
-  DsImage *dark = ds_image_new (DS_SAMPLE_F32, w, h, error);
+  /* The dark frame has the frames' own sample type, as the accumulator subtracts like from
+   * like; averaging M integer frames rounds to the nearest DN (an unbiased error below the
+   * read noise). */
+  DsImage *dark = ds_image_new (type, w, h, error);
   if (!dark)
     return NULL;
+  dark->bit_depth = bit_depth;
   for (guint y = 0; y < h; y++) {
-    float *row = (float *) ds_image_row (dark, y);
-    for (guint x = 0; x < w; x++)
-      row[x] = (float) (sum[(gsize) y * w + x] / got);
+    void *row = ds_image_row (dark, y);
+    for (guint x = 0; x < w; x++) {
+      double v = sum[(gsize) y * w + x] / got;
+      if (type == DS_SAMPLE_F32)
+        ((float *) row)[x] = (float) v;
+      else if (type == DS_SAMPLE_U16)
+        ((guint16 *) row)[x] = (guint16) CLAMP (v + 0.5, 0, 65535);
+      else
+        ((guint8 *) row)[x] = (guint8) CLAMP (v + 0.5, 0, 255);
+    }
   }
   return dark;
 }
@@ -640,9 +653,11 @@ run_dark (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag)
   g_mutex_unlock (&seq->lock);
   double total = 0;
   for (guint y = 0; y < dark->height; y++) {
-    const float *row = (const float *) ds_image_row (dark, y);
+    const void *row = ds_image_row (dark, y);
     for (guint x = 0; x < dark->width; x++)
-      total += row[x];
+      total += dark->type == DS_SAMPLE_U16 ? ((const guint16 *) row)[x]
+               : dark->type == DS_SAMPLE_U8 ? ((const guint8 *) row)[x]
+                                            : ((const float *) row)[x];
   }
   g_clear_pointer (&seq->dark, ds_image_free);
   seq->dark = dark;

@@ -16,7 +16,7 @@ packages=(
   libmodbus-dev mbpoll
   libgpiod-dev gpiod
   libopencv-dev
-  python3-numpy
+  python3-numpy python3-matplotlib
   clang libclang-rt-14-dev valgrind
 )
 

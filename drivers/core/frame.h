@@ -26,6 +26,8 @@ typedef struct {
   gboolean started;
   guint64 last;            /* extended id of the last frame */
   guint bits;              /* width of the raw id: 16 or 64 */
+  guint last_raw;          /* last raw 16-bit id (the extended id's low bits do not follow it
+                              because the raw sequence skips 0) */
 } DsFrameIdTracker;
 
 void ds_frame_id_tracker_init (DsFrameIdTracker *tracker, guint bits);

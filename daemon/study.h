@@ -1,0 +1,58 @@
+/* The accuracy-versus-time study (docs/accuracy.md): sweeps estimator, phases N, averages M,
+ * exposure and noise seed over simulated scenes, measuring the error against the simulator's
+ * truth and the acquisition time from a timing model of the rig. Also the model that picks
+ * an operating point for a target error or a time budget from the study's table. */
+#pragma once
+#include <glib.h>
+
+#include "proc/separation.h"
+
+G_BEGIN_DECLS
+
+/* What one phase set costs on the rig: per phase the illuminator settles, then per frame the
+ * camera is triggered, exposes and reads out over the link (no overlap: the sequencer verifies
+ * each frame before the next trigger). */
+typedef struct {
+  double settle_ms;          /* illuminator: phase write to applied */
+  double trigger_overhead_us;/* trigger round trip and frame start */
+  double link_mbit_s;        /* GigE: 1000 */
+  double link_efficiency;    /* payload share of the link (GVSP headers, gaps): 0.9 */
+  guint bytes_per_pixel;     /* 2 for Mono12/16 */
+} DsRigTiming;
+
+void ds_rig_timing_init (DsRigTiming *t);
+/* Acquisition time of one set (ms), including an optional dark frame set of M frames. */
+double ds_rig_timing_set_ms (const DsRigTiming *t, guint width, guint height, guint n_phases,
+                             guint averages, double exposure_us, gboolean dark_frame);
+
+typedef struct {
+  const char *scene;         /* file name */
+  DsEstimator estimator;
+  guint phases, averages;
+  double exposure_factor, exposure_us;
+  guint64 seed;
+  double rel_rmse_transmissive, rel_rmse_scattered;
+  double stripe_residue;     /* first-harmonic amplitude / mean left in transmissive */
+  guint64 valid, masked, saturated;
+  double acquisition_ms;     /* model */
+  double compute_ms;         /* measured: accumulate + finalize */
+} DsStudyPoint;
+
+typedef struct {
+  guint *phases; guint n_phases;
+  guint *averages; guint n_averages;
+  double *exposure_factors; guint n_exposures;
+  guint n_seeds;
+  DsEstimator *estimators; guint n_estimators;
+  DsRigTiming timing;
+  gboolean dark_frame;
+} DsStudyPlan;
+
+typedef void (*DsStudyPointFunc) (const DsStudyPoint *point, gpointer user_data);
+
+/* Runs the plan on one scene file; every point goes to `emit` as it is measured. Frames are
+ * rendered once per (N, M, exposure, seed) and folded into one phase set per estimator. */
+gboolean ds_study_run_scene (const char *scene_path, const DsStudyPlan *plan,
+                             DsStudyPointFunc emit, gpointer user_data, GError **error);
+
+G_END_DECLS
