@@ -25,6 +25,13 @@ typedef struct {
   gboolean verify_phase;
   double phase_tolerance_deg; /* resolved: never NAN here */
   gboolean keep_extrema;      /* also compute max, min and mean (asked for by a client) */
+  /* Automatic operating point (docs/accuracy.md): when either is > 0, a preview frame and the
+   * model choose estimator, phases, averages and exposure; the choice is recorded below. */
+  double target_error;        /* relative RMSE of transmissive; 0 = none */
+  double time_budget_ms;      /* 0 = none */
+  gboolean automatic;         /* the fields below are valid */
+  double predicted_error, predicted_time_ms;
+  double preview_signal_dn, preview_direct_fraction;
 } DsCaptureSettings;
 
 /* The configuration's acquisition defaults. */

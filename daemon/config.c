@@ -92,6 +92,12 @@ static const KeySpec keys[] = {
     "retries of one phase before the set fails" },
   { "acquisition", "verify-phase", K_BOOL, F (verify_phase), "true", 0, 0, NULL,
     "measure the stripe phase in each frame and refuse frames lit with the wrong phase" },
+  { "acquisition", "operating-model", K_STRING, F (operating_model), NULL, 0, 0, NULL,
+    "model for captures with target_error/time_budget_ms (descatterctl study); empty = the built-in one" },
+  { "acquisition", "settle-ms", K_DOUBLE, F (timing_settle_ms), "3", 0, 10000, NULL,
+    "illuminator settle time, for the acquisition-time model of automatic captures" },
+  { "acquisition", "link-mbit", K_DOUBLE, F (timing_link_mbit), "1000", 1, 100000, NULL,
+    "camera link bandwidth, for the acquisition-time model of automatic captures" },
   { "acquisition", "phase-tolerance-deg", K_DOUBLE, F (phase_tolerance_deg), "", 1, 180, NULL,
     "largest accepted stripe-phase error; empty = a quarter of the phase step" },
 

@@ -64,6 +64,9 @@ typedef struct {
   guint phase_retries;
   gboolean verify_phase;
   double phase_tolerance_deg;
+  char *operating_model;  /* NULL: built-in */
+  double timing_settle_ms;
+  double timing_link_mbit;
   /* [sim] */
   char *sim_scene;
   guint64 sim_seed;

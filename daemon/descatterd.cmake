@@ -10,7 +10,7 @@ if(TARGET ds_drivers_core AND EXISTS ${CMAKE_SOURCE_DIR}/proc/stripe_phase.h
     ${CMAKE_CURRENT_LIST_DIR}/sequencer.c
     ${CMAKE_CURRENT_LIST_DIR}/phase_check.c
     ${CMAKE_CURRENT_LIST_DIR}/devices_close.c)
-  target_link_libraries(ds_sequencer PUBLIC ds_result ds_drivers_core ds_proc)
+  target_link_libraries(ds_sequencer PUBLIC ds_result ds_drivers_core ds_proc ds_operating)
   target_compile_definitions(ds_sequencer PRIVATE G_LOG_DOMAIN="descatterd" G_LOG_USE_STRUCTURED=1)
 endif()
 
@@ -33,6 +33,7 @@ if(TARGET ds_sequencer AND TARGET ds_sim AND TARGET ds_drivers_simdev AND TARGET
   target_include_directories(ds_daemon_core PRIVATE ${CMAKE_CURRENT_BINARY_DIR})
   # Structured logging: under systemd GLib writes to the journal with these fields.
   target_compile_definitions(ds_daemon_core PRIVATE PROJECT_VERSION="${PROJECT_VERSION}"
+                             DS_DEFAULT_OPERATING_MODEL="${CMAKE_SOURCE_DIR}/etc/operating-model.csv"
                              G_LOG_DOMAIN="descatterd" G_LOG_USE_STRUCTURED=1)
   target_link_libraries(ds_daemon_core PUBLIC ds_sequencer ds_result ds_server ds_config ds_proc ds_sim
                         ds_drivers_core ds_drivers_simdev ds_drivers_aravis ds_drivers_modbus

@@ -6,6 +6,7 @@ static const char *const drop_names[DS_DROP_N_REASONS] = {
   [DS_DROP_INCOMPLETE] = "incomplete",   [DS_DROP_FRAME_GAP] = "frame_gap",
   [DS_DROP_WRONG_PHASE] = "wrong_phase", [DS_DROP_STALE] = "stale",
   [DS_DROP_UNVERIFIABLE] = "unverifiable", [DS_DROP_ABORTED] = "aborted",
+  [DS_DROP_PREVIEW] = "preview",
 };
 
 const char *

@@ -21,6 +21,7 @@ typedef enum {
   DS_DROP_STALE,          /* exposed before the phase was applied (flushed or too early) */
   DS_DROP_UNVERIFIABLE,   /* the stripe phase could not be measured (no modulation) */
   DS_DROP_ABORTED,        /* folded into a set that then failed or was abandoned */
+  DS_DROP_PREVIEW,        /* a preview for the automatic operating point, never folded */
   DS_DROP_N_REASONS
 } DsDropReason;
 

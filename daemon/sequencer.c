@@ -3,6 +3,7 @@
 #include <math.h>
 #include <string.h>
 
+#include "daemon/operating_point.h"
 #include "daemon/phase_check.h"
 #include "daemon/protocol.h"
 
@@ -57,6 +58,8 @@ struct DsSequencer {
   double phase_check_period;
   gboolean need_reconnect;
   gint64 last_frame_us;     /* arrival of the last folded frame */
+  const DsOperatingModel *model; /* set before the thread uses it; read-only */
+  DsRigTiming timing;
 };
 
 const char *
@@ -530,6 +533,119 @@ account (DsSequencer *seq, const DsFrameCounters *c, gboolean ok)
   g_mutex_unlock (&seq->lock);
 }
 
+static double
+image_mean (const DsImage *img)
+{
+  double total = 0;
+  for (guint y = 0; y < img->height; y++) {
+    const void *row = ds_image_row (img, y);
+    for (guint x = 0; x < img->width; x++)
+      total += img->type == DS_SAMPLE_U16  ? ((const guint16 *) row)[x]
+               : img->type == DS_SAMPLE_U8 ? ((const guint8 *) row)[x]
+                                           : ((const float *) row)[x];
+  }
+  return total / ((double) img->width * img->height);
+}
+
+static gint
+compare_float (gconstpointer a, gconstpointer b)
+{
+  float x = *(const float *) a, y = *(const float *) b;
+  return (x > y) - (x < y);
+}
+
+/* The 99.9th percentile of a frame (sampled): what saturates first when exposure grows. */
+static double
+image_high_percentile (const DsImage *img)
+{
+  GArray *v = g_array_new (FALSE, FALSE, sizeof (float));
+  guint step = MAX (1u, img->width * img->height / 20000);
+  guint i = 0;
+  for (guint y = 0; y < img->height; y++) {
+    const void *row = ds_image_row (img, y);
+    for (guint x = 0; x < img->width; x++, i++)
+      if (i % step == 0) {
+        float f = img->type == DS_SAMPLE_U16  ? ((const guint16 *) row)[x]
+                  : img->type == DS_SAMPLE_U8 ? ((const guint8 *) row)[x]
+                                              : ((const float *) row)[x];
+        g_array_append_val (v, f);
+      }
+  }
+  g_array_sort (v, compare_float);
+  double p = v->len ? g_array_index (v, float, (guint) (0.999 * (v->len - 1))) : 0;
+  g_array_unref (v);
+  return p;
+}
+
+/* Automatic operating point: one dark and one phase-0 preview frame at the requested base
+ * exposure give the scene's signal and direct fraction; the model then picks estimator, N, M
+ * and exposure (docs/accuracy.md). The two frames are counted as `preview` drops. */
+static gboolean
+choose_operating_point (DsSequencer *seq, DsCaptureSettings *s, DsFrameCounters *c, GError **error)
+{
+  if (!seq->model) {
+    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_FAILED,
+                 "automatic operating point: no operating model loaded");
+    return FALSE;
+  }
+  DsCaptureSettings one = *s;
+  one.averages = 1;
+  guint64 before = c->acquired, dropped_before = c->dropped;
+  g_autoptr (DsImage) dark = acquire_dark (seq, &one, c, error);
+  if (!dark)
+    return FALSE;
+  if (!apply_pattern (seq, s, error) ||
+      !seq->dev->illuminator->ops->set_phase (seq->dev->illuminator->backend, 0,
+                                              seq->dev->settle_timeout_ms, error)) {
+    c->device_errors++;
+    g_prefix_error (error, "preview: illuminator: ");
+    fatal_device_error (seq, *error);
+    return FALSE;
+  }
+  flush_stale (seq, c);
+  g_autoptr (DsFrame) preview = trigger_and_grab (seq, c, error);
+  if (!preview) {
+    g_prefix_error (error, "preview: ");
+    fatal_device_error (seq, *error);
+    return FALSE;
+  }
+  ds_frame_counters_drop (c, DS_DROP_PREVIEW, (c->acquired - before) - (c->dropped - dropped_before));
+  double a = s->duty, b = s->black_level;
+  gboolean sine = s->pattern == DS_PATTERN_SINE;
+  double m = sine ? b + (1 - b) / 2 : a + b * (1 - a);
+  double h = sine ? (1 - b) / 2 : (1 - b) * (2 / G_PI) * sin (G_PI * a);
+  double dark_dn = image_mean (dark);
+  DsSceneStats st;
+  if (!ds_scene_stats_from_frame (preview->image, dark_dn, s->period_px, m, h, s->exposure_us, &st, error)) {
+    g_prefix_error (error, "preview: ");
+    return FALSE;
+  }
+  /* The largest exposure that keeps the brightest pixels below 90 % of full scale. */
+  double full = preview->image->type == DS_SAMPLE_F32 ? INFINITY : (double) ((1u << preview->image->bit_depth) - 1);
+  double high = image_high_percentile (preview->image) - dark_dn;
+  double max_exposure = high > 0 && isfinite (full) ? s->exposure_us * (0.9 * full - dark_dn) / high : 4 * s->exposure_us;
+  max_exposure = CLAMP (max_exposure, s->exposure_us * 0.5, s->exposure_us * 4);
+  DsCameraInfo info = { 0 };
+  seq->dev->camera->ops->get_info (seq->dev->camera->backend, &info);
+  guint w = seq->dev->camera_settings.roi_width ? seq->dev->camera_settings.roi_width : info.sensor_width;
+  guint hh = seq->dev->camera_settings.roi_width ? seq->dev->camera_settings.roi_height : info.sensor_height;
+  DsOperatingPoint op;
+  if (!ds_operating_point_choose (seq->model, &st, &seq->timing, w, hh, max_exposure, s->target_error,
+                                  s->time_budget_ms, &op, error))
+    return FALSE;
+  s->estimator = op.estimator;
+  s->phases = op.phases;
+  s->averages = op.averages;
+  s->exposure_us = op.exposure_us;
+  s->automatic = TRUE;
+  s->predicted_error = op.predicted_error;
+  s->predicted_time_ms = op.predicted_time_ms;
+  s->preview_signal_dn = st.signal_dn;
+  s->preview_direct_fraction = st.direct_fraction;
+  s->phase_tolerance_deg = MIN (s->phase_tolerance_deg, 90.0 / op.phases);
+  return TRUE;
+}
+
 static void
 run_set (DsSequencer *seq, const DsCaptureSettings *requested, guint64 tag)
 {
@@ -542,8 +658,16 @@ run_set (DsSequencer *seq, const DsCaptureSettings *requested, guint64 tag)
   settings.duty = seq->dev->pattern.duty;
   settings.black_level = seq->dev->pattern.black_level;
   DsFrameCounters c = { 0 };
-  guint folded = 0, dark_frames = 0;
   g_autoptr (GError) error = NULL;
+  if (settings.target_error > 0 || settings.time_budget_ms > 0) {
+    if (!ensure_camera (seq, s, &error) || !choose_operating_point (seq, &settings, &c, &error)) {
+      account (seq, &c, FALSE);
+      record_error (seq, error);
+      emit (seq, DS_SEQUENCER_EVENT_FAILED, tag, NULL, g_steal_pointer (&error), NULL);
+      return;
+    }
+  }
+  guint folded = 0, dark_frames = 0;
   gint64 started = g_get_monotonic_time ();
   g_autoptr (DsSeparation) sep = NULL;
   gint64 acquired = 0;
@@ -913,4 +1037,14 @@ ds_sequencer_get_status (DsSequencer *seq, DsSequencerStatus *status)
   *status = seq->status;
   status->pending = (guint) g_atomic_int_get (&seq->pending);
   g_mutex_unlock (&seq->lock);
+}
+
+void
+ds_sequencer_set_operating_model (DsSequencer *seq, const DsOperatingModel *model, double settle_ms,
+                                  double link_mbit)
+{
+  seq->model = model;
+  ds_rig_timing_init (&seq->timing);
+  seq->timing.settle_ms = settle_ms;
+  seq->timing.link_mbit_s = link_mbit;
 }

@@ -6,6 +6,7 @@
 
 #include "daemon/capture_settings.h"
 #include "daemon/devices.h"
+#include "daemon/operating_point.h"
 #include "daemon/protocol.h"
 #include "daemon/sequencer.h"
 #include "daemon/server.h"
@@ -46,6 +47,8 @@ struct DsService {
   gint64 started_us;
   guint64 results_published;
   guint64 spool_errors;
+  DsOperatingModel *model;  /* NULL when no model file could be read (automatic captures fail) */
+  char *model_error;
 };
 
 static void
@@ -254,6 +257,14 @@ settings_from_request (DsService *svc, const DsRequest *req, DsCaptureSettings *
   if (!ds_request_get_bool (req, "verify_phase", s->verify_phase, &bval, error))
     return FALSE;
   s->verify_phase = bval;
+  if (!ds_request_get_double (req, "target_error", 0.0, 1.0, 0.0, &s->target_error, error) ||
+      !ds_request_get_double (req, "time_budget_ms", 0.0, 3.6e6, 0.0, &s->time_budget_ms, error))
+    return FALSE;
+  if ((s->target_error > 0 || s->time_budget_ms > 0) && !svc->model) {
+    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_FAILED,
+                 "automatic operating point unavailable: %s", svc->model_error);
+    return FALSE;
+  }
   /* An explicit tolerance in the configuration stays; otherwise it follows N. */
   if (isnan (svc->config->phase_tolerance_deg))
     s->phase_tolerance_deg = 90.0 / s->phases;
@@ -316,7 +327,7 @@ handle_capture (DsService *svc, DsConnection *conn, DsRequest *req)
 {
   static const char *const keys[] = { "phases", "averages", "exposure_us", "gain_db", "estimator",
                                       "dark_frame", "verify_phase", "format", "outputs",
-                                      "progress", NULL };
+                                      "progress", "target_error", "time_budget_ms", NULL };
   g_autoptr (GError) error = NULL;
   DsCaptureSettings s;
   const char *format;
@@ -696,8 +707,22 @@ ds_service_new (DsConfig *config, const DsServiceOptions *options, GMainLoop *lo
   /* The thread opens the devices from its own copy: a reload never races with it. It lives
    * as long as the sequencer (freed after the thread joined). */
   svc->open_data.config = ds_config_copy (svc->config);
+  {
+    const char *model_path = svc->config->operating_model && *svc->config->operating_model
+                                 ? svc->config->operating_model
+                                 : DS_DEFAULT_OPERATING_MODEL;
+    g_autoptr (GError) model_error = NULL;
+    svc->model = ds_operating_model_load (model_path, &model_error);
+    if (!svc->model) {
+      svc->model_error = g_strdup (model_error->message);
+      g_message ("automatic operating point off: %s", model_error->message);
+    }
+  }
   svc->sequencer = ds_sequencer_new (open_devices, &svc->open_data, &defaults,
                                      g_main_loop_get_context (loop), on_sequencer_event, svc);
+  if (svc->model)
+    ds_sequencer_set_operating_model (svc->sequencer, svc->model, svc->config->timing_settle_ms,
+                                      svc->config->timing_link_mbit);
   if (sd_watchdog_enabled (0, &svc->watchdog_usec) > 0)
     svc->watchdog_source = g_timeout_add ((guint) (svc->watchdog_usec / 4000), watchdog_tick, svc);
   return svc;
@@ -776,6 +801,8 @@ ds_service_free (DsService *svc)
     g_source_remove (svc->watchdog_source);
   /* Joins the acquisition thread: no event arrives after this. */
   g_clear_pointer (&svc->sequencer, ds_sequencer_free);
+  g_clear_pointer (&svc->model, ds_operating_model_free);
+  g_free (svc->model_error);
   if (svc->pending) {
     GHashTableIter it;
     gpointer value;

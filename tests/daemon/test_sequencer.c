@@ -6,6 +6,7 @@
 #include <math.h>
 #include <string.h>
 
+#include "daemon/operating_point.h"
 #include "daemon/sequencer.h"
 
 #define W 64
@@ -44,7 +45,8 @@ pixel_value (const Lab *lab, int phase, guint x)
 {
   if (phase < 0)
     return (guint16) lround (lab->lg * 0.0 + 2.0); /* illuminator off: only a dark offset of 2 DN */
-  double u = x / PERIOD - (double) phase / lab->n_phases;
+  /* Sampled at pixel centres: exactly half of each period's 8 pixels are lit. */
+  double u = (x + 0.5) / PERIOD - (double) phase / lab->n_phases;
   u -= floor (u + 0.5);
   double lit = fabs (u) < 0.25 ? 1.0 : 0.0;
   return (guint16) lround (lab->ld * lit + lab->lg * 0.5 + 2.0);
@@ -465,6 +467,43 @@ test_dark_frame (Fixture *f, gconstpointer d)
   assert_accounting (f);
 }
 
+/* Automatic operating point: a dark and a preview frame (counted as `preview` drops) measure
+ * the scene; the model's choice meets the target and is recorded with the result. */
+static void
+test_automatic_operating_point (Fixture *f, gconstpointer d)
+{
+  (void) d;
+  /* Noise part a and systematic part b chosen so that only N >= 8 with M = 2 meets 0.01 at
+   * the base exposure for this scene (S = 1600 DN, f ~ 0.63). */
+  static const DsModelRow rows[] = {
+    { "s", DS_ESTIMATOR_MAXMIN, 4, 1, 4e-4, 1e-5, 1600, 0.625, 1000 },
+    { "s", DS_ESTIMATOR_MAXMIN, 8, 1, 2e-4, 1e-5, 1600, 0.625, 1000 },
+    { "s", DS_ESTIMATOR_MAXMIN, 8, 2, 2e-5, 1e-5, 1600, 0.625, 1000 },
+  };
+  g_autoptr (DsOperatingModel) model = ds_operating_model_new (rows, G_N_ELEMENTS (rows), 1.0);
+  ds_sequencer_set_operating_model (f->seq, model, 3.0, 1000.0);
+  DsCaptureSettings s;
+  default_settings (&s, 8);
+  s.target_error = 0.01;
+  capture (f, &s);
+  g_assert_no_error (f->out.failure);
+  const DsCaptureSettings *used = ds_result_settings (f->out.result);
+  g_assert_true (used->automatic);
+  g_assert_cmpfloat (used->predicted_error, <=, 0.01);
+  g_assert_cmpfloat_with_epsilon (used->preview_signal_dn, 1600.0, 16.0);
+  g_assert_cmpfloat (fabs (used->preview_direct_fraction - 0.625), <, 0.05);
+  assert_scene_recovered (f->out.result);
+  DsSequencerStatus st;
+  ds_sequencer_get_status (f->seq, &st);
+  g_assert_cmpuint (st.frames.by_reason[DS_DROP_PREVIEW], ==, 2);
+  assert_accounting (f);
+  /* An impossible target fails with the reason. */
+  s.target_error = 1e-6;
+  capture (f, &s);
+  g_assert_null (f->out.result);
+  g_assert_nonnull (strstr (f->out.failure->message, "no operating point"));
+}
+
 int
 main (int argc, char **argv)
 {
@@ -480,5 +519,6 @@ main (int argc, char **argv)
   ADD ("disconnect-reconnect", test_disconnect_reconnects, NULL);
   ADD ("averages", test_averages, NULL);
   ADD ("dark-frame", test_dark_frame, NULL);
+  ADD ("automatic-operating-point", test_automatic_operating_point, NULL);
   return g_test_run ();
 }
