@@ -55,7 +55,11 @@ typedef struct {
   gboolean keep_extrema;   /* also output max, min and mean */
 } DsSeparationParams;
 
+/* Largest amplification of noise an estimator may apply: 1/(1-b) for the black level, and
+ * 1/m and 1/h (pattern mean, first-harmonic gain) for the scattered and sine outputs. */
 #define DS_MAX_CONDITION 100.0
+/* Largest N (and largest M): 32-bit integer sums stay exact for 16-bit samples up to here. */
+#define DS_MAX_PHASES 65535u
 
 /* The defaults that reproduce the ICCP 2013 authors' scripts: maxmin, square, a = 1/2, b = 0. */
 void ds_separation_params_init (DsSeparationParams *params, guint n_phases);
@@ -74,6 +78,7 @@ typedef struct {
   guint64 valid_pixels;     /* pixels with no bit set */
   double noise_dn;          /* per-set noise estimate (DN, one frame): from the model if given,
                                otherwise from the data; NAN if neither is possible */
+  double saturation_level;  /* the level applied (DN); NAN when none applies (float input) */
 } DsSeparationMeta;
 
 typedef struct {
@@ -97,17 +102,27 @@ DsPhaseSet *ds_phase_set_new (const DsSeparationParams *params, guint width, gui
 void ds_phase_set_free (DsPhaseSet *set);
 G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsPhaseSet, ds_phase_set_free)
 
-/* Dark frame (illuminator off), subtracted in signed arithmetic. Optional; set before finalize. */
+/* Dark frame (illuminator off), subtracted in signed arithmetic. Optional; set before finalize
+ * (before or after the frames). It must have the set's size and the frames' sample type.
+ * The set keeps a copy across ds_phase_set_reset; dark NULL forgets it. */
 gboolean ds_phase_set_set_dark (DsPhaseSet *set, const DsImage *dark, GError **error);
 
 /* Folds one frame lit with phase k (0 <= k < N). Frames of one phase arrive consecutively
  * (M averages); a phase once left cannot be revisited. Frames must all have the set's size
- * and one sample type/bit depth. On error nothing is folded. */
+ * and one sample type/bit depth. On error nothing is folded.
+ * Averaging is decided by the first phase: if it receives a second frame, every phase's frames
+ * are summed and the phase mean folded when the phase changes (phases may then differ in M);
+ * otherwise each frame is folded at once and a later phase may not take a second frame. */
 gboolean ds_phase_set_accumulate (DsPhaseSet *set, guint phase, const DsImage *frame,
                                   GError **error);
 
 /* Computes the result; every phase must have at least one frame. The set can then be reset. */
 DsSeparation *ds_phase_set_finalize (DsPhaseSet *set, GError **error);
+/* As ds_phase_set_finalize, but takes ownership of `reuse` (a previous result nobody needs any
+ * more; may be NULL) and writes into its planes where they have the right shape, sparing the
+ * allocation and first-touch page faults of new ones (for continuous acquisition at a high
+ * rate). `reuse` is freed in every case, also on error. */
+DsSeparation *ds_phase_set_finalize_reusing (DsPhaseSet *set, DsSeparation *reuse, GError **error);
 /* Forgets all frames (keeps dark, params and memory) for the next set. */
 void ds_phase_set_reset (DsPhaseSet *set);
 

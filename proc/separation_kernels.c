@@ -1,0 +1,100 @@
+/* The separation's hot row loops, kept apart so they can be built for the auto-vectoriser
+ * (proc/separation.cmake) and, on x86-64, also for AVX2, picked at load time: frames fold at
+ * memory speed. Contiguous arrays, restrict pointers, selects instead of branches. */
+#include "proc/separation_internal.h"
+
+#if defined(__x86_64__) && defined(__has_attribute)
+#if __has_attribute(target_clones) && !defined(__SANITIZE_ADDRESS__)
+#define DS_CLONES __attribute__ ((target_clones ("avx2", "default")))
+#endif
+#endif
+#ifndef DS_CLONES
+#define DS_CLONES
+#endif
+
+#define DEFINE_INT_KERNELS(T, NAME)                                                               \
+  DS_CLONES void ds_fold_first_##NAME (const T *restrict in, guint16 *restrict mx,                \
+                                       guint16 *restrict mn, guint32 *restrict sum, gsize w)      \
+  {                                                                                               \
+    for (gsize x = 0; x < w; x++)                                                                 \
+      mx[x] = mn[x] = in[x];                                                                      \
+    if (sum)                                                                                      \
+      for (gsize x = 0; x < w; x++)                                                               \
+        sum[x] = in[x];                                                                           \
+  }                                                                                               \
+  DS_CLONES void ds_fold_extrema_##NAME (const T *restrict in, guint16 *restrict mx,              \
+                                         guint16 *restrict mn, gsize w)                           \
+  {                                                                                               \
+    for (gsize x = 0; x < w; x++) {                                                               \
+      guint16 v = in[x];                                                                          \
+      mx[x] = v > mx[x] ? v : mx[x];                                                              \
+      mn[x] = v < mn[x] ? v : mn[x];                                                              \
+    }                                                                                             \
+  }                                                                                               \
+  DS_CLONES void ds_fold_extrema_sum_##NAME (const T *restrict in, guint16 *restrict mx,          \
+                                             guint16 *restrict mn, guint32 *restrict sum,         \
+                                             gsize w)                                             \
+  {                                                                                               \
+    for (gsize x = 0; x < w; x++) {                                                               \
+      guint16 v = in[x];                                                                          \
+      mx[x] = v > mx[x] ? v : mx[x];                                                              \
+      mn[x] = v < mn[x] ? v : mn[x];                                                              \
+      sum[x] += v;                                                                                \
+    }                                                                                             \
+  }                                                                                               \
+  void ds_fold_harmonic_##NAME (const T *restrict in, double c, double s, double *restrict cs,    \
+                                double *restrict sn, gsize w)                                     \
+  {                                                                                               \
+    for (gsize x = 0; x < w; x++) {                                                               \
+      cs[x] += c * in[x];                                                                         \
+      sn[x] += s * in[x];                                                                         \
+    }                                                                                             \
+  }                                                                                               \
+  void ds_copy_plane_##NAME (const T *restrict in, float *restrict out, gsize w)                  \
+  {                                                                                               \
+    for (gsize x = 0; x < w; x++)                                                                 \
+      out[x] = in[x];                                                                             \
+  }
+
+DEFINE_INT_KERNELS (guint8, u8)
+DEFINE_INT_KERNELS (guint16, u16)
+
+DS_CLONES void
+ds_maxmin_fast_row (const guint16 *restrict hi, const guint16 *restrict lo,
+                    const float *restrict dark, float *restrict t, float *restrict g,
+                    guint8 *restrict mk, gsize w, const DsMaxminFast *k)
+{
+  const float inv1b = k->inv1b, b = k->b, invm = k->invm, m = k->m;
+  const float sat = k->sat, floor_ = k->floor, lowmod = k->lowmod;
+  for (gsize x = 0; x < w; x++) {
+    float h = hi[x], l = lo[x], d = dark[x];
+    float ld = (h - l) * inv1b;
+    float lg = ((l - d) - b * ld) * invm;
+    float mean = m * (ld + lg);
+    guint8 bits = (guint8) ((h >= sat ? DS_MASK_SATURATED : 0) | (d > l ? DS_MASK_DARK_EXCEEDS : 0) |
+                            (mean <= floor_ ? DS_MASK_DARK : 0) |
+                            (h - l < lowmod ? DS_MASK_LOW_MODULATION : 0) |
+                            (lg < 0 ? DS_MASK_NEGATIVE : 0));
+    t[x] = ld;
+    g[x] = lg;
+    mk[x] = bits;
+  }
+}
+
+DS_CLONES void
+ds_count_mask_row (const guint8 *restrict mk, gsize w, guint64 counts[DS_MASK_N_BITS + 1])
+{
+  guint32 c[DS_MASK_N_BITS + 1] = { 0 };
+  for (gsize x = 0; x < w; x++) {
+    guint8 v = mk[x];
+    c[0] += v == 0;
+    c[1] += v & 1;
+    c[2] += (v >> 1) & 1;
+    c[3] += (v >> 2) & 1;
+    c[4] += (v >> 3) & 1;
+    c[5] += (v >> 4) & 1;
+    c[6] += (v >> 5) & 1;
+  }
+  for (int i = 0; i <= DS_MASK_N_BITS; i++)
+    counts[i] += c[i];
+}

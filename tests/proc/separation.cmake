@@ -1,0 +1,10 @@
+# Separation core (proc/separation*.c): estimators and API; hard numerical cases.
+foreach(_ds_sep_test test_separation test_separation_hard)
+  if(EXISTS ${CMAKE_CURRENT_LIST_DIR}/${_ds_sep_test}.c)
+    add_executable(${_ds_sep_test} ${CMAKE_CURRENT_LIST_DIR}/${_ds_sep_test}.c)
+    target_link_libraries(${_ds_sep_test} PRIVATE ds_proc)
+    string(REPLACE "test_" "" _ds_sep_name ${_ds_sep_test})
+    add_test(NAME proc/${_ds_sep_name} COMMAND ${_ds_sep_test})
+    set_tests_properties(proc/${_ds_sep_name} PROPERTIES LABELS proc TIMEOUT 120)
+  endif()
+endforeach()
