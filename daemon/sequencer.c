@@ -107,6 +107,18 @@ pending_event_dispatch (gpointer data)
   return G_SOURCE_REMOVE;
 }
 
+/* Every event goes through one priority, so they are dispatched in the order they were
+ * posted (a progress event never overtakes the result that follows it). */
+static void
+post (DsSequencer *seq, PendingEvent *p)
+{
+  GSource *src = g_idle_source_new ();
+  g_source_set_priority (src, G_PRIORITY_DEFAULT);
+  g_source_set_callback (src, pending_event_dispatch, p, pending_event_free);
+  g_source_attach (src, seq->context);
+  g_source_unref (src);
+}
+
 /* Takes ownership of result and error. */
 static void
 emit (DsSequencer *seq, DsSequencerEventKind kind, guint64 tag, DsResult *result, GError *error,
@@ -119,11 +131,7 @@ emit (DsSequencer *seq, DsSequencerEventKind kind, guint64 tag, DsResult *result
   p->result = result;
   p->error = error;
   p->message = g_strdup (message);
-  GSource *src = g_idle_source_new ();
-  g_source_set_priority (src, G_PRIORITY_DEFAULT);
-  g_source_set_callback (src, pending_event_dispatch, p, pending_event_free);
-  g_source_attach (src, seq->context);
-  g_source_unref (src);
+  post (seq, p);
 }
 
 static void
@@ -135,10 +143,7 @@ emit_progress (DsSequencer *seq, guint64 tag, guint phase, guint n)
   p->tag = tag;
   p->phase = phase;
   p->n_phases = n;
-  GSource *src = g_idle_source_new ();
-  g_source_set_callback (src, pending_event_dispatch, p, pending_event_free);
-  g_source_attach (src, seq->context);
-  g_source_unref (src);
+  post (seq, p);
 }
 
 /* ---- status ---- */
@@ -792,10 +797,7 @@ run_dark (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag)
   p->kind = DS_SEQUENCER_EVENT_DARK;
   p->tag = tag;
   p->dark_mean_dn = total / ((double) dark->width * dark->height);
-  GSource *src = g_idle_source_new ();
-  g_source_set_callback (src, pending_event_dispatch, p, pending_event_free);
-  g_source_attach (src, seq->context);
-  g_source_unref (src);
+  post (seq, p);
 }
 
 /* Reopens a lost camera (or illuminator) with capped exponential backoff, until it works or
