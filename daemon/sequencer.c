@@ -715,7 +715,9 @@ run_set (DsSequencer *seq, const DsCaptureSettings *requested, guint64 tag)
     guint h = cs->roi_width ? cs->roi_height : info.sensor_height;
     if (!prepare_phase_set (seq, s, w, h, &error))
       goto failed;
-    if (use_dark && !ds_phase_set_set_dark (seq->set, use_dark, &error))
+    /* The phase set is reused between sets: forget an earlier dark frame when this set has
+     * none (or one for other settings). */
+    if (!ds_phase_set_set_dark (seq->set, use_dark, &error))
       goto failed;
   }
   for (guint k = 0; k < s->phases; k++) {

@@ -20,6 +20,16 @@ ds_harmonic_gain_theory (DsPatternKind pattern, double duty, double black_level)
   return (1.0 - black_level) * (2.0 / G_PI) * sin (G_PI * duty);
 }
 
+double
+ds_harmonic_gain_sampled (DsPatternKind pattern, double duty, double black_level, guint n_phases)
+{
+  double lit = duty * n_phases;
+  if (pattern != DS_PATTERN_SQUARE || n_phases < 2 || fabs (lit - round (lit)) > 1e-9 || round (lit) < 1)
+    return ds_harmonic_gain_theory (pattern, duty, black_level);
+  return (1.0 - black_level) * 2.0 * sin (G_PI * round (lit) / n_phases) /
+         (n_phases * sin (G_PI / n_phases));
+}
+
 gboolean
 ds_harmonic_gain_from_separation (const DsSeparation *ref, double *h_out, GError **error)
 {

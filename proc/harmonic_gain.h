@@ -22,6 +22,13 @@ double ds_pattern_mean (DsPatternKind pattern, double duty, double black_level);
  * n = jN +- 1 into it (a per-pixel ripple that averages out over a period). */
 double ds_harmonic_gain_theory (DsPatternKind pattern, double duty, double black_level);
 
+/* h as the N-step DFT sees sharp square stripes: when aN is an integer L, every pixel is lit
+ * in exactly L phases (barring a pixel exactly on an edge) and the sampled gain is
+ * (1 - b) 2 sin (pi L / N) / (N sin (pi / N)), exact at every pixel (N = 4, a = 1/2: 11 % above
+ * the continuous value). Otherwise, and for sine stripes, ds_harmonic_gain_theory. */
+double ds_harmonic_gain_sampled (DsPatternKind pattern, double duty, double black_level,
+                                 guint n_phases);
+
 /* h measured from a separation of a non-scattering reference (Lg = 0) made with the sine
  * estimator and keep_extrema: per pixel A = Ld * h_used and M = mean, so h = m * A / M;
  * returned as m * sum(A) / sum(M) over pixels with M > 0 and no mask bit but NEGATIVE (a

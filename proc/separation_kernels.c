@@ -3,13 +3,22 @@
  * memory speed. Contiguous arrays, restrict pointers, selects instead of branches. */
 #include "proc/separation_internal.h"
 
-#if defined(__x86_64__) && defined(__has_attribute)
+#if defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define DS_NO_CLONES 1 /* clang's spelling of __SANITIZE_ADDRESS__ */
+#endif
+#endif
+#if defined(__x86_64__) && defined(__has_attribute) && !defined(DS_NO_CLONES)
 #if __has_attribute(target_clones) && !defined(__SANITIZE_ADDRESS__)
+/* Measured on the benchmark machine (AMD EPYC, tests/bench/separation): AVX-512 speeds up the
+ * finalize row (float maths) but slows the u16 fold (memory bound), so each gets its own list. */
 #define DS_CLONES __attribute__ ((target_clones ("avx2", "default")))
+#define DS_CLONES_WIDE __attribute__ ((target_clones ("arch=x86-64-v4", "avx2", "default")))
 #endif
 #endif
 #ifndef DS_CLONES
 #define DS_CLONES
+#define DS_CLONES_WIDE
 #endif
 
 #define DEFINE_INT_KERNELS(T, NAME)                                                               \
@@ -59,7 +68,7 @@
 DEFINE_INT_KERNELS (guint8, u8)
 DEFINE_INT_KERNELS (guint16, u16)
 
-DS_CLONES void
+DS_CLONES_WIDE void
 ds_maxmin_fast_row (const guint16 *restrict hi, const guint16 *restrict lo,
                     const float *restrict dark, float *restrict t, float *restrict g,
                     guint8 *restrict mk, gsize w, const DsMaxminFast *k)
@@ -81,7 +90,7 @@ ds_maxmin_fast_row (const guint16 *restrict hi, const guint16 *restrict lo,
   }
 }
 
-DS_CLONES void
+DS_CLONES_WIDE void
 ds_count_mask_row (const guint8 *restrict mk, gsize w, guint64 counts[DS_MASK_N_BITS + 1])
 {
   guint32 c[DS_MASK_N_BITS + 1] = { 0 };

@@ -221,6 +221,35 @@ test_sine_on_square_theoretical_h (void)
   }
 }
 
+/* sine on sharp square stripes with the sampled gain: exact at every pixel (N = 8, a = 1/2,
+ * 4 lit phases; h_8 = 2 sin(pi/2) / (8 sin(pi/8)) written out here). */
+static void
+test_sine_on_square_sampled_h (void)
+{
+  const guint w = 31, h = 3, n = 8;
+  double ld[w * h], lg[w * h];
+  fill_truth (ld, lg, w, h, 500, 800, FALSE);
+  TestPattern pat = { DS_PATTERN_SQUARE, 10.37, 0.5, 0.1 };
+  double h8 = 0.9 * 2.0 / (8 * sin (G_PI / 8));
+  g_assert_cmpfloat_with_epsilon (ds_harmonic_gain_sampled (DS_PATTERN_SQUARE, 0.5, 0.1, n), h8, 1e-12);
+  g_assert_cmpfloat_with_epsilon (ds_harmonic_gain_sampled (DS_PATTERN_SQUARE, 0.3, 0.1, n),
+                                  ds_harmonic_gain_theory (DS_PATTERN_SQUARE, 0.3, 0.1), 1e-12);
+  DsSeparationParams p;
+  ds_separation_params_init (&p, n);
+  p.estimator = DS_ESTIMATOR_SINE;
+  p.black_level = 0.1;
+  p.harmonic_gain = h8;
+  g_autoptr (GError) error = NULL;
+  g_autoptr (DsSeparation) sep = test_separate (&p, DS_SAMPLE_F32, w, h, 0, &pat, ld, lg, 0, 0, NULL, &error);
+  g_assert_no_error (error);
+  for (guint i = 0; i < w * h; i++) {
+    if (i % w == 0) /* x = 0 lies on an edge for k = 2 (see above) */
+      continue;
+    g_assert_cmpfloat (fabs (test_pixel_f32 (sep->transmissive, i % w, i / w) - ld[i]), <, 1e-5 * ld[i]);
+    g_assert_cmpfloat (fabs (test_pixel_f32 (sep->scattered, i % w, i / w) - lg[i]), <, 1e-5 * ld[i] + 1e-5 * lg[i]);
+  }
+}
+
 /* sine with N < 3: a clear error at creation. */
 static void
 test_sine_needs_three (void)
@@ -277,7 +306,7 @@ test_harmonic_gain (void)
   g_assert_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT);
 }
 
-/* robust: exact on a noise-free square scene. */
+/* robust: exact on a noise-free square scene, with and without black level. */
 static void
 test_robust_noise_free (void)
 {
@@ -285,15 +314,17 @@ test_robust_noise_free (void)
   double ld[w * h], lg[w * h];
   fill_truth (ld, lg, w, h, 800, 1200, TRUE);
   const guint ns[] = { 2, 3, 8, 16 };
-  for (guint i = 0; i < G_N_ELEMENTS (ns); i++) {
-    TestPattern pat = { DS_PATTERN_SQUARE, 10.0, 0.5, 0.0 };
+  for (guint i = 0; i < 2 * G_N_ELEMENTS (ns); i++) {
+    double b = i % 2 ? 0.2 : 0.0;
+    TestPattern pat = { DS_PATTERN_SQUARE, 10.0, 0.5, b };
     DsSeparationParams p;
-    ds_separation_params_init (&p, ns[i]);
+    ds_separation_params_init (&p, ns[i / 2]);
     p.estimator = DS_ESTIMATOR_ROBUST;
+    p.black_level = b;
     g_autoptr (GError) error = NULL;
-    g_autoptr (DsSeparation) sep = test_separate (&p, DS_SAMPLE_U16, w, h, 0, &pat, ld, lg, 0, 0, NULL, &error);
+    g_autoptr (DsSeparation) sep = test_separate (&p, DS_SAMPLE_F32, w, h, 0, &pat, ld, lg, 0, 0, NULL, &error);
     g_assert_no_error (error);
-    assert_close_images (sep, ld, lg, 1e-6, 1e-3);
+    assert_close_images (sep, ld, lg, 1e-5, 1e-3);
   }
 }
 
@@ -531,6 +562,16 @@ test_reset_and_reuse (void)
     g_assert_no_error (error);
     assert_close_images (sep, a, b, 1e-6, 1e-3);
   }
+  /* a recycled result of another shape is not used, only freed */
+  DsSeparationParams p1;
+  ds_separation_params_init (&p1, 2);
+  g_autoptr (DsPhaseSet) tiny = ds_phase_set_new (&p1, 1, 1, NULL);
+  g_autoptr (DsImage) px = ds_image_new (DS_SAMPLE_U16, 1, 1, NULL);
+  g_assert_true (ds_phase_set_accumulate (tiny, 0, px, NULL));
+  g_assert_true (ds_phase_set_accumulate (tiny, 1, px, NULL));
+  sep = ds_phase_set_finalize_reusing (tiny, sep, NULL);
+  g_assert_nonnull (sep);
+  g_assert_cmpuint (sep->transmissive->width, ==, 1);
   ds_separation_free (sep);
   ds_separation_free (NULL);
 }
@@ -546,6 +587,7 @@ main (int argc, char **argv)
   g_test_add_func ("/separation/sine/sine-pattern", test_sine_on_sine_pattern);
   g_test_add_func ("/separation/sine/textbook", test_sine_textbook);
   g_test_add_func ("/separation/sine/square-theoretical-h", test_sine_on_square_theoretical_h);
+  g_test_add_func ("/separation/sine/square-sampled-h", test_sine_on_square_sampled_h);
   g_test_add_func ("/separation/sine/needs-three", test_sine_needs_three);
   g_test_add_func ("/separation/harmonic-gain", test_harmonic_gain);
   g_test_add_func ("/separation/robust/noise-free", test_robust_noise_free);
