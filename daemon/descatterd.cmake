@@ -1,7 +1,5 @@
 # descatterd: the service (sequencer, devices, service wiring, spool) and its executable.
 # Built once every part it wires together exists in the tree.
-set(DS_DEFAULT_SCENE_NAME milk-disc)
-set(DS_DEFAULT_SCENE_FILE ${CMAKE_SOURCE_DIR}/etc/scenes/${DS_DEFAULT_SCENE_NAME}.scene)
 
 # The acquisition thread alone (tested against scripted devices in tests/daemon).
 if(TARGET ds_drivers_core AND EXISTS ${CMAKE_SOURCE_DIR}/proc/stripe_phase.h
@@ -14,8 +12,7 @@ if(TARGET ds_drivers_core AND EXISTS ${CMAKE_SOURCE_DIR}/proc/stripe_phase.h
   target_compile_definitions(ds_sequencer PRIVATE G_LOG_DOMAIN="descatterd" G_LOG_USE_STRUCTURED=1)
 endif()
 
-if(TARGET ds_sequencer AND TARGET ds_sim AND TARGET ds_drivers_simdev AND TARGET ds_drivers_aravis
-   AND TARGET ds_drivers_modbus AND EXISTS ${CMAKE_SOURCE_DIR}/proc/stripe_phase.h
+if(TARGET ds_sequencer AND TARGET ds_sim AND TARGET ds_drivers_simdev
    AND EXISTS ${DS_DEFAULT_SCENE_FILE})
   # The built-in scene of `descatterd --sim`, embedded so the binary runs from anywhere.
   set(_scene_header ${CMAKE_CURRENT_BINARY_DIR}/daemon/default_scene.h)
@@ -36,8 +33,15 @@ if(TARGET ds_sequencer AND TARGET ds_sim AND TARGET ds_drivers_simdev AND TARGET
                              DS_DEFAULT_OPERATING_MODEL="${CMAKE_SOURCE_DIR}/etc/operating-model.csv"
                              G_LOG_DOMAIN="descatterd" G_LOG_USE_STRUCTURED=1)
   target_link_libraries(ds_daemon_core PUBLIC ds_sequencer ds_result ds_server ds_config ds_proc ds_sim
-                        ds_drivers_core ds_drivers_simdev ds_drivers_aravis ds_drivers_modbus
-                        PkgConfig::SYSTEMD)
+                        ds_drivers_core ds_drivers_simdev PkgConfig::SYSTEMD)
+  # Hardware backends as they exist in the tree (each can be built on its own).
+  foreach(backend aravis modbus)
+    if(TARGET ds_drivers_${backend})
+      string(TOUPPER ${backend} _up)
+      target_link_libraries(ds_daemon_core PUBLIC ds_drivers_${backend})
+      target_compile_definitions(ds_daemon_core PRIVATE DESCATTER_HAVE_${_up}=1)
+    endif()
+  endforeach()
   if(TARGET ds_drivers_gpio AND EXISTS ${CMAKE_SOURCE_DIR}/drivers/gpio/gpio_backends.h)
     target_link_libraries(ds_daemon_core PUBLIC ds_drivers_gpio)
     target_compile_definitions(ds_daemon_core PRIVATE DESCATTER_HAVE_GPIO=1)

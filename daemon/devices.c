@@ -3,8 +3,12 @@
 #include <stdio.h>
 #include <string.h>
 
+#ifdef DESCATTER_HAVE_ARAVIS
 #include "drivers/aravis/aravis_camera.h"
+#endif
+#ifdef DESCATTER_HAVE_MODBUS
 #include "drivers/modbus/modbus_illuminator.h"
+#endif
 #include "drivers/sim/renderer.h"
 #include "drivers/sim/scene.h"
 #include "drivers/simdev/sim_lab.h"
@@ -56,10 +60,17 @@ open_sim_lab (const DsConfig *config, DsStripePattern *pattern, GError **error)
   pattern_from_scene (scene, pattern);
   /* The unit sets DESCATTER_CACHE_DIR (systemd CacheDirectory=): scattering kernels survive
    * restarts there. */
+  DsSimFaults faults;
+  if (!ds_sim_faults_parse (config->sim_faults, &faults, error)) {
+    g_prefix_error (error, "[sim] ");
+    return NULL;
+  }
   DsRenderer *renderer = ds_renderer_new (scene, g_getenv ("DESCATTER_CACHE_DIR"), error);
   if (!renderer)
     return NULL;
-  return ds_sim_lab_new (renderer, config->sim_seed);
+  DsSimLab *lab = ds_sim_lab_new (renderer, config->sim_seed);
+  ds_sim_lab_set_faults (lab, &faults);
+  return lab;
 }
 
 DsDevices *
@@ -81,17 +92,27 @@ ds_devices_open (const DsConfig *config, GError **error)
   }
   if (strcmp (config->camera_backend, "sim") == 0)
     dev->camera = ds_sim_camera_new (lab);
-  else
+  else {
+#ifdef DESCATTER_HAVE_ARAVIS
     dev->camera = ds_aravis_camera_open (config->camera_address, 8, error);
+#else
+    g_set_error (error, DS_CONFIG_ERROR, DS_CONFIG_ERROR_BAD_VALUE, "this build has no Aravis backend");
+#endif
+  }
   if (!dev->camera) {
     g_prefix_error (error, "[camera] backend=%s: ", config->camera_backend);
     return NULL;
   }
   if (strcmp (config->illuminator_backend, "sim") == 0)
     dev->illuminator = ds_sim_illuminator_new (lab);
-  else if (strcmp (config->illuminator_backend, "modbus") == 0)
+  else if (strcmp (config->illuminator_backend, "modbus") == 0) {
+#ifdef DESCATTER_HAVE_MODBUS
     dev->illuminator = ds_modbus_illuminator_open (config->modbus_uri, config->modbus_unit_id,
                                                    config->modbus_timeout_ms, error);
+#else
+    g_set_error (error, DS_CONFIG_ERROR, DS_CONFIG_ERROR_BAD_VALUE, "this build has no Modbus backend");
+#endif
+  }
   else {
 #ifdef DESCATTER_HAVE_GPIO
     dev->illuminator = ds_gpio_illuminator_open_from_config (config->gpio_chip, config->gpio_lines,

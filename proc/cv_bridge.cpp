@@ -14,6 +14,9 @@
 
 namespace {
 
+/* The attribute lets -Wformat check callers (and lets clang accept the vsnprintf below). */
+void set_err (char *err, size_t errlen, const char *fmt, ...) __attribute__ ((format (printf, 3, 4)));
+
 void
 set_err (char *err, size_t errlen, const char *fmt, ...)
 {

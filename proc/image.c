@@ -70,13 +70,13 @@ ds_image_new_with_stride (DsSampleType type, guint width, guint height, gsize st
   img->stride = stride;
   img->type = type;
   img->bit_depth = full_depth (type);
-  /* 64-byte alignment (as image.h promises) lets row loops vectorise on aligned loads; a
-   * failed allocation of a huge image is an error, not an abort. */
-  void *mem = NULL;
-  if (posix_memalign (&mem, 64, bytes ? bytes : 64) == 0) {
-    memset (mem, 0, bytes);
-    img->data = mem;
-  }
+  /* 64-byte alignment (as image.h promises) lets row loops vectorise on aligned loads.
+   * calloc rather than memalign + memset: large blocks come zeroed from fresh pages that are
+   * not touched until used, so callers can still ask for huge pages before the first write.
+   * A failed allocation of a huge image is an error, not an abort. */
+  gsize padded;
+  if (g_size_checked_add (&padded, bytes, 64) && (img->allocation = calloc (1, padded)))
+    img->data = (guint8 *) (((guintptr) img->allocation + 63) & ~(guintptr) 63);
   if (!img->data) {
     g_free (img);
     g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_TOO_LARGE, "cannot allocate %zu bytes for a %ux%u image",
@@ -111,7 +111,7 @@ ds_image_free (DsImage *image)
 {
   if (!image)
     return;
-  free (image->data);
+  free (image->allocation);
   g_free (image);
 }
 

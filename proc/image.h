@@ -23,6 +23,7 @@ typedef struct {
   DsSampleType type;
   guint bit_depth;     /* significant bits of integer samples (1..16); 32 for float */
   guint8 *data;        /* owned, 64-byte aligned */
+  void *allocation;    /* what data points into (freed with the image) */
 } DsImage;
 
 gsize ds_sample_size (DsSampleType type);
