@@ -672,7 +672,7 @@ run_set (DsSequencer *seq, const DsCaptureSettings *requested, guint64 tag)
       return;
     }
   }
-  guint folded = 0, dark_frames = 0;
+  guint folded = 0;
   gint64 started = g_get_monotonic_time ();
   g_autoptr (DsSeparation) sep = NULL;
   gint64 acquired = 0;
@@ -696,11 +696,9 @@ run_set (DsSequencer *seq, const DsCaptureSettings *requested, guint64 tag)
   }
   g_autoptr (DsImage) dark = NULL;
   if (s->dark_frame) {
-    guint before = (guint) c.acquired;
     dark = acquire_dark (seq, s, &c, &error);
     if (!dark)
       goto failed;
-    dark_frames = (guint) c.acquired - before;
   }
   const DsImage *use_dark = dark;
   if (!use_dark && seq->dark && seq->dark_exposure_us == s->exposure_us && seq->dark_gain_db == s->gain_db)
@@ -741,9 +739,10 @@ run_set (DsSequencer *seq, const DsCaptureSettings *requested, guint64 tag)
   }
   gint64 finished = g_get_monotonic_time ();
   stage_add (seq, DS_STAGE_SET, started);
-  c.folded += folded;
-  /* Dark frames were consumed by the set (not folded into a phase): account them as folded. */
-  c.folded += dark_frames;
+  /* Every frame not dropped went into the result: folded into a phase, or averaged into its
+   * dark frame. */
+  c.folded = c.acquired - c.dropped;
+  (void) folded;
   account (seq, &c, TRUE);
   DsResult *result = ds_result_new (++seq->next_set_id, g_steal_pointer (&sep), s, &c, started,
                                     acquired, finished);
@@ -752,7 +751,8 @@ run_set (DsSequencer *seq, const DsCaptureSettings *requested, guint64 tag)
   return;
 
 failed:
-  ds_frame_counters_drop (&c, DS_DROP_ABORTED, folded + dark_frames);
+  /* Whatever was not dropped already (folded frames, dark frames) goes down with the set. */
+  ds_frame_counters_drop (&c, DS_DROP_ABORTED, c.acquired - c.dropped);
   account (seq, &c, FALSE);
   record_error (seq, error);
   refresh_device_status (seq);

@@ -37,6 +37,9 @@ ds_server_new (const DsServerLimits *limits, DsServerRequestFunc on_request, gpo
   s->on_request = on_request;
   s->user_data = user_data;
   s->service = g_socket_service_new ();
+  /* GLib's default backlog (10) refuses bursts of clients connecting at once; the client
+   * limit is enforced after accept, with a clear `limit` error instead. */
+  g_socket_listener_set_backlog (G_SOCKET_LISTENER (s->service), 256);
   s->clients = g_hash_table_new_full (g_direct_hash, g_direct_equal,
                                       (GDestroyNotify) ds_connection_unref, NULL);
   return s;

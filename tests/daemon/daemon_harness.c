@@ -2,7 +2,16 @@
 
 #include <glib/gstdio.h>
 #include <signal.h>
+#include <sys/prctl.h>
 #include <string.h>
+#include <unistd.h>
+
+static void
+die_with_parent (gpointer data)
+{
+  (void) data;
+  prctl (PR_SET_PDEATHSIG, SIGTERM);
+}
 
 TestDaemon *
 test_daemon_start (const char *config_text, const char *const *extra_args)
@@ -25,11 +34,15 @@ test_daemon_start (const char *config_text, const char *const *extra_args)
   for (guint i = 0; extra_args && extra_args[i]; i++)
     g_ptr_array_add (argv, (gpointer) extra_args[i]);
   g_ptr_array_add (argv, NULL);
-  d->proc = g_subprocess_newv ((const char *const *) argv->pdata, G_SUBPROCESS_FLAGS_NONE, &error);
+  g_autoptr (GSubprocessLauncher) launcher = g_subprocess_launcher_new (G_SUBPROCESS_FLAGS_NONE);
+  /* The daemon dies with the test, even when an assertion aborts it. */
+  g_subprocess_launcher_set_child_setup (launcher, die_with_parent, NULL, NULL);
+  d->proc = g_subprocess_launcher_spawnv (launcher, (const char *const *) argv->pdata, &error);
   g_assert_no_error (error);
   /* Ready = `status` answers ready (the simulated lab may take seconds to build). */
   for (guint i = 0; i < 1200; i++) {
-    g_assert_false (g_subprocess_get_if_exited (d->proc));
+    /* The identifier goes away once the process has exited (and been reaped). */
+    g_assert_nonnull (g_subprocess_get_identifier (d->proc));
     g_autoptr (DsClient) c = ds_client_connect (d->socket_path, NULL);
     if (c) {
       g_autoptr (DsMessage) m = ds_client_call (c, "status", NULL, NULL, NULL, NULL);
@@ -120,3 +133,51 @@ test_json_int (JsonNode *node, const char *path)
   }
   return json_node_get_int (node);
 }
+
+TestLabsim *
+test_labsim_start (const char *labsim_path, const char *scene_path, const char *const *fault_args)
+{
+  TestLabsim *l = g_new0 (TestLabsim, 1);
+  l->modbus_port = 20000 + (guint) (getpid () % 20000);
+  g_autofree char *modbus = g_strdup_printf ("127.0.0.1:%u", l->modbus_port);
+  g_autoptr (GPtrArray) argv = g_ptr_array_new ();
+  g_ptr_array_add (argv, (gpointer) labsim_path);
+  g_ptr_array_add (argv, (gpointer) "--scene");
+  g_ptr_array_add (argv, (gpointer) scene_path);
+  g_ptr_array_add (argv, (gpointer) "--camera-address");
+  g_ptr_array_add (argv, (gpointer) "127.0.0.1");
+  g_ptr_array_add (argv, (gpointer) "--modbus");
+  g_ptr_array_add (argv, modbus);
+  for (guint i = 0; fault_args && fault_args[i]; i++)
+    g_ptr_array_add (argv, (gpointer) fault_args[i]);
+  g_ptr_array_add (argv, NULL);
+  g_autoptr (GError) error = NULL;
+  g_autoptr (GSubprocessLauncher) launcher = g_subprocess_launcher_new (G_SUBPROCESS_FLAGS_STDOUT_PIPE);
+  g_subprocess_launcher_set_child_setup (launcher, die_with_parent, NULL, NULL);
+  l->proc = g_subprocess_launcher_spawnv (launcher, (const char *const *) argv->pdata, &error);
+  g_assert_no_error (error);
+  l->out = g_data_input_stream_new (g_subprocess_get_stdout_pipe (l->proc));
+  for (;;) {
+    g_autofree char *line = g_data_input_stream_read_line (l->out, NULL, NULL, &error);
+    g_assert_no_error (error);
+    g_assert_nonnull (line); /* labsim exited before it was ready */
+    if (strstr (line, "ready"))
+      break;
+  }
+  return l;
+}
+
+void
+test_labsim_stop (TestLabsim *l)
+{
+  g_subprocess_send_signal (l->proc, SIGTERM);
+  g_autoptr (GError) error = NULL;
+  g_subprocess_wait (l->proc, NULL, &error);
+  g_assert_no_error (error);
+  g_assert_true (g_subprocess_get_if_exited (l->proc));
+  g_assert_cmpint (g_subprocess_get_exit_status (l->proc), ==, 0);
+  g_object_unref (l->out);
+  g_object_unref (l->proc);
+  g_free (l);
+}
+

@@ -24,3 +24,16 @@ DsClient *test_daemon_connect (TestDaemon *d);
 DsMessage *test_daemon_call_ok (DsClient *c, const char *cmd, JsonObject *args);
 /* The integer at a dotted path in a JSON object ("frames.acquired"). */
 gint64 test_json_int (JsonNode *node, const char *path);
+
+/* descatter-labsim as a process: started with the scene and extra (fault) arguments, ready
+ * once it prints its ready line. The Modbus port is chosen per test process. */
+typedef struct {
+  GSubprocess *proc;
+  GDataInputStream *out;
+  guint modbus_port;
+} TestLabsim;
+
+TestLabsim *test_labsim_start (const char *labsim_path, const char *scene_path,
+                               const char *const *extra_args);
+/* SIGTERM; asserts a clean exit. */
+void test_labsim_stop (TestLabsim *labsim);

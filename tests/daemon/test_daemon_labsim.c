@@ -15,59 +15,8 @@ static const char *labsim_path, *scene_path;
 static double scene_exposure_us;
 static DsScene *the_scene;
 
-typedef struct {
-  GSubprocess *proc;
-  GDataInputStream *out;
-  guint modbus_port;
-} Labsim;
-
-static Labsim *
-labsim_start (const char *const *fault_args)
-{
-  Labsim *l = g_new0 (Labsim, 1);
-  l->modbus_port = 20000 + (guint) (getpid () % 20000);
-  g_autofree char *modbus = g_strdup_printf ("127.0.0.1:%u", l->modbus_port);
-  g_autoptr (GPtrArray) argv = g_ptr_array_new ();
-  g_ptr_array_add (argv, (gpointer) labsim_path);
-  g_ptr_array_add (argv, (gpointer) "--scene");
-  g_ptr_array_add (argv, (gpointer) scene_path);
-  g_ptr_array_add (argv, (gpointer) "--camera-address");
-  g_ptr_array_add (argv, (gpointer) "127.0.0.1");
-  g_ptr_array_add (argv, (gpointer) "--modbus");
-  g_ptr_array_add (argv, modbus);
-  for (guint i = 0; fault_args && fault_args[i]; i++)
-    g_ptr_array_add (argv, (gpointer) fault_args[i]);
-  g_ptr_array_add (argv, NULL);
-  g_autoptr (GError) error = NULL;
-  l->proc = g_subprocess_newv ((const char *const *) argv->pdata, G_SUBPROCESS_FLAGS_STDOUT_PIPE, &error);
-  g_assert_no_error (error);
-  l->out = g_data_input_stream_new (g_subprocess_get_stdout_pipe (l->proc));
-  for (;;) {
-    g_autofree char *line = g_data_input_stream_read_line (l->out, NULL, NULL, &error);
-    g_assert_no_error (error);
-    g_assert_nonnull (line); /* labsim exited before it was ready */
-    if (strstr (line, "ready"))
-      break;
-  }
-  return l;
-}
-
-static void
-labsim_stop (Labsim *l)
-{
-  g_subprocess_send_signal (l->proc, SIGTERM);
-  g_autoptr (GError) error = NULL;
-  g_subprocess_wait (l->proc, NULL, &error);
-  g_assert_no_error (error);
-  g_assert_true (g_subprocess_get_if_exited (l->proc));
-  g_assert_cmpint (g_subprocess_get_exit_status (l->proc), ==, 0);
-  g_object_unref (l->out);
-  g_object_unref (l->proc);
-  g_free (l);
-}
-
 static char *
-daemon_config (const Labsim *l, const char *extra)
+daemon_config (const TestLabsim *l, const char *extra)
 {
   return g_strdup_printf ("[camera]\nbackend=aravis\naddress=127.0.0.1\npixel-format=Mono16\n"
                           "exposure-us=%g\ngrab-timeout-ms=2000\n"
@@ -82,7 +31,7 @@ daemon_config (const Labsim *l, const char *extra)
 static void
 test_capture_over_the_wire (void)
 {
-  Labsim *l = labsim_start (NULL);
+  TestLabsim *l = test_labsim_start (labsim_path, scene_path, NULL);
   g_autofree char *conf = daemon_config (l, NULL);
   TestDaemon *d = test_daemon_start (conf, NULL);
   g_autoptr (DsClient) c = test_daemon_connect (d);
@@ -106,7 +55,7 @@ test_capture_over_the_wire (void)
                    test_json_int (st->reply->body, "frames.folded") + test_json_int (st->reply->body, "frames.dropped"));
   g_assert_cmpint (test_daemon_stop (d), ==, 0);
   test_daemon_free (d);
-  labsim_stop (l);
+  test_labsim_stop (l);
 }
 
 /* Packet loss and Modbus delays: sets are retried or failed with a reason, never wrong; the
@@ -116,7 +65,7 @@ test_faults_over_the_wire (void)
 {
   const char *faults[] = { "--gvsp-lost-ratio", "0.002", "--modbus-delay-ms", "400",
                            "--modbus-delay-every", "7", NULL };
-  Labsim *l = labsim_start (faults);
+  TestLabsim *l = test_labsim_start (labsim_path, scene_path, faults);
   g_autofree char *conf = daemon_config (l, NULL);
   TestDaemon *d = test_daemon_start (conf, NULL);
   g_autoptr (DsClient) c = test_daemon_connect (d);
@@ -151,7 +100,7 @@ test_faults_over_the_wire (void)
                    test_json_int (st->reply->body, "frames.folded") + test_json_int (st->reply->body, "frames.dropped"));
   g_assert_cmpint (test_daemon_stop (d), ==, 0);
   test_daemon_free (d);
-  labsim_stop (l);
+  test_labsim_stop (l);
 }
 
 int

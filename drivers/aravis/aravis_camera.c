@@ -1,0 +1,551 @@
+#include "drivers/aravis/aravis_camera.h"
+
+#include <arv.h>
+#include <math.h>
+#include <string.h>
+
+#include "proc/pixfmt.h"
+
+typedef struct {
+  char *address;           /* what the caller opened, used again by reconnect */
+  guint n_buffers;
+  ArvCamera *camera;
+  gulong control_lost_id;
+  ArvStream *stream;
+  guint stream_payload;    /* payload the pool was allocated for */
+  gboolean stream_running; /* its receiving thread runs (Aravis asserts on a double stop) */
+  gint lost;               /* atomic: set by "control-lost" (Aravis heartbeat thread) */
+  gboolean configured, started;
+  DsCameraSettings settings;
+  DsPixelFormat fmt;
+  double exposure_us, gain_db; /* read back after configure */
+  DsFrameIdTracker ids;
+  DsCameraStats stats;     /* missing_packets / resend_requests: of streams already closed */
+  DsCameraInfo info;
+} AravisCam;
+
+static void
+on_control_lost (ArvDevice *device, gpointer data)
+{
+  (void) device;
+  AravisCam *c = data;
+  g_atomic_int_set (&c->lost, 1);
+}
+
+/* Statistics of the live stream (GV streams only: other stream types lack these infos). */
+static void
+stream_packet_stats (AravisCam *c, guint64 *missing, guint64 *resend)
+{
+  *missing = *resend = 0;
+  if (c->stream && ARV_IS_GV_STREAM (c->stream)) {
+    *missing = arv_stream_get_info_uint64_by_name (c->stream, "n_missing_packets");
+    *resend = arv_stream_get_info_uint64_by_name (c->stream, "n_resend_requests");
+  }
+}
+
+static void
+destroy_stream (AravisCam *c)
+{
+  if (!c->stream)
+    return;
+  guint64 missing, resend;
+  stream_packet_stats (c, &missing, &resend);
+  c->stats.missing_packets += missing;
+  c->stats.resend_requests += resend;
+  /* The GV stream's finalize stops its thread unconditionally (and asserts that it runs). */
+  if (!c->stream_running)
+    arv_stream_start_thread (c->stream);
+  c->stream_running = FALSE;
+  g_clear_object (&c->stream); /* frees the buffers of both queues */
+  c->stream_payload = 0;
+}
+
+static void
+close_device (AravisCam *c)
+{
+  destroy_stream (c);
+  if (c->camera) {
+    if (c->control_lost_id)
+      g_signal_handler_disconnect (arv_camera_get_device (c->camera), c->control_lost_id);
+    c->control_lost_id = 0;
+    g_clear_object (&c->camera);
+  }
+  c->started = FALSE;
+}
+
+static gboolean
+fail (GError **error, DsDeviceError code, GError *cause, const char *fmt, ...) G_GNUC_PRINTF (4, 5);
+
+/* Sets a DS_CAMERA_ERROR whose message ends with Aravis's own message, and frees cause. */
+static gboolean
+fail (GError **error, DsDeviceError code, GError *cause, const char *fmt, ...)
+{
+  va_list ap;
+  va_start (ap, fmt);
+  g_autofree char *msg = g_strdup_vprintf (fmt, ap);
+  va_end (ap);
+  g_set_error (error, DS_CAMERA_ERROR, code, "aravis camera: %s%s%s", msg, cause ? ": " : "",
+               cause ? cause->message : "");
+  g_clear_error (&cause);
+  return FALSE;
+}
+
+static gboolean
+open_device (AravisCam *c, GError **error)
+{
+  GError *e = NULL;
+  ArvCamera *cam = arv_camera_new (c->address, &e);
+  if (!cam)
+    return fail (error, DS_DEVICE_ERROR_DISCONNECTED, e, "no camera answers at \"%s\"", c->address);
+  c->camera = cam;
+  g_atomic_int_set (&c->lost, 0);
+  c->control_lost_id = g_signal_connect (arv_camera_get_device (cam), "control-lost",
+                                         G_CALLBACK (on_control_lost), c);
+  memset (&c->info, 0, sizeof c->info);
+  const char *s;
+  if ((s = arv_camera_get_vendor_name (cam, NULL)))
+    g_strlcpy (c->info.vendor, s, sizeof c->info.vendor);
+  if ((s = arv_camera_get_model_name (cam, NULL)))
+    g_strlcpy (c->info.model, s, sizeof c->info.model);
+  if ((s = arv_camera_get_device_serial_number (cam, NULL)))
+    g_strlcpy (c->info.serial, s, sizeof c->info.serial);
+  g_strlcpy (c->info.address, c->address, sizeof c->info.address);
+  gint w = 0, h = 0;
+  arv_camera_get_sensor_size (cam, &w, &h, NULL);
+  c->info.sensor_width = (guint) MAX (w, 0);
+  c->info.sensor_height = (guint) MAX (h, 0);
+  /* GigE Vision 1.x block ids are 16 bits; other transports count with 64. */
+  ds_frame_id_tracker_init (&c->ids, arv_camera_is_gv_device (cam) ? 16 : 64);
+  return TRUE;
+}
+
+static gboolean
+check_connected (AravisCam *c, GError **error)
+{
+  if (!c->camera || g_atomic_int_get (&c->lost))
+    return fail (error, DS_DEVICE_ERROR_DISCONNECTED, NULL, "control of \"%s\" lost: reconnect",
+                 c->address);
+  return TRUE;
+}
+
+/* Aravis errors on a live link: a GVCP timeout means the camera stopped answering. */
+static DsDeviceError
+code_of (const GError *e)
+{
+  if (e && e->domain == ARV_DEVICE_ERROR &&
+      (e->code == ARV_DEVICE_ERROR_TIMEOUT || e->code == ARV_DEVICE_ERROR_NOT_CONNECTED))
+    return DS_DEVICE_ERROR_TIMEOUT;
+  return DS_DEVICE_ERROR_INVALID;
+}
+
+static gboolean
+apply_settings (AravisCam *c, const DsCameraSettings *s, GError **error)
+{
+  GError *e = NULL;
+  DsPixelFormat fmt;
+  if (!ds_pixfmt_from_name (s->pixel_format, &fmt))
+    return fail (error, DS_DEVICE_ERROR_INVALID, NULL,
+                 "pixel format \"%s\" unknown (Mono8, Mono10, Mono12, Mono16, Mono10p, Mono12p, "
+                 "Mono12Packed)", s->pixel_format);
+  ArvCamera *cam = c->camera;
+  arv_camera_set_acquisition_mode (cam, ARV_ACQUISITION_MODE_CONTINUOUS, &e);
+  if (e)
+    return fail (error, code_of (e), e, "AcquisitionMode Continuous");
+  arv_camera_set_pixel_format_from_string (cam, ds_pixfmt_name (fmt), &e);
+  if (e)
+    return fail (error, e->domain == ARV_DEVICE_ERROR ? code_of (e) : DS_DEVICE_ERROR_UNSUPPORTED, e,
+                 "PixelFormat %s", ds_pixfmt_name (fmt));
+
+  guint sw = c->info.sensor_width, sh = c->info.sensor_height;
+  guint x = s->roi_x, y = s->roi_y, w = s->roi_width, h = s->roi_height;
+  if (w == 0) {
+    x = y = 0;
+    w = sw;
+    h = sh;
+  }
+  if (h == 0 || (guint64) x + w > sw || (guint64) y + h > sh)
+    return fail (error, DS_DEVICE_ERROR_INVALID, NULL, "ROI %u,%u %ux%u outside the %ux%u sensor", x, y,
+                 w, h, sw, sh);
+  /* Offsets can only grow once the size leaves room: shrink first. */
+  arv_camera_set_region (cam, 0, 0, (gint) w, (gint) h, &e);
+  if (!e)
+    arv_camera_set_region (cam, (gint) x, (gint) y, (gint) w, (gint) h, &e);
+  if (e)
+    return fail (error, code_of (e), e, "ROI %u,%u %ux%u", x, y, w, h);
+  gint rx = 0, ry = 0, rw = 0, rh = 0;
+  arv_camera_get_region (cam, &rx, &ry, &rw, &rh, &e);
+  if (e)
+    return fail (error, code_of (e), e, "reading ROI back");
+  if ((guint) rx != x || (guint) ry != y || (guint) rw != w || (guint) rh != h)
+    return fail (error, DS_DEVICE_ERROR_INVALID, NULL,
+                 "ROI %u,%u %ux%u not on the camera's increments (it applied %d,%d %dx%d)", x, y, w, h,
+                 rx, ry, rw, rh);
+
+  double lo = 0, hi = 0;
+  arv_camera_get_exposure_time_bounds (cam, &lo, &hi, &e);
+  if (e)
+    return fail (error, code_of (e), e, "ExposureTime bounds");
+  if (!(s->exposure_us >= lo && s->exposure_us <= hi))
+    return fail (error, DS_DEVICE_ERROR_INVALID, NULL, "exposure %g µs outside [%g, %g]", s->exposure_us,
+                 lo, hi);
+  if (arv_camera_is_exposure_auto_available (cam, NULL))
+    arv_camera_set_exposure_time_auto (cam, ARV_AUTO_OFF, NULL);
+  arv_camera_set_exposure_time (cam, s->exposure_us, &e);
+  if (e)
+    return fail (error, code_of (e), e, "ExposureTime %g µs", s->exposure_us);
+  c->exposure_us = arv_camera_get_exposure_time (cam, NULL);
+
+  c->gain_db = 0;
+  if (arv_camera_is_gain_available (cam, NULL)) {
+    arv_camera_get_gain_bounds (cam, &lo, &hi, &e);
+    if (e)
+      return fail (error, code_of (e), e, "Gain bounds");
+    if (!(s->gain_db >= lo && s->gain_db <= hi))
+      return fail (error, DS_DEVICE_ERROR_INVALID, NULL, "gain %g dB outside [%g, %g]", s->gain_db, lo,
+                   hi);
+    if (arv_camera_is_gain_auto_available (cam, NULL))
+      arv_camera_set_gain_auto (cam, ARV_AUTO_OFF, NULL);
+    arv_camera_set_gain (cam, s->gain_db, &e);
+    if (e)
+      return fail (error, code_of (e), e, "Gain %g dB", s->gain_db);
+    c->gain_db = arv_camera_get_gain (cam, NULL);
+  } else if (s->gain_db != 0)
+    return fail (error, DS_DEVICE_ERROR_UNSUPPORTED, NULL, "gain %g dB asked, the camera has no Gain",
+                 s->gain_db);
+
+  g_autofree char *source = s->trigger_source == DS_CAMERA_TRIGGER_LINE
+                                ? g_strdup_printf ("Line%u", s->trigger_line)
+                                : g_strdup ("Software");
+  /* arv_camera_set_trigger turns every other trigger off, then FrameStart: Mode On, rising
+   * edge, this source. */
+  arv_camera_set_trigger (cam, source, &e);
+  if (e)
+    return fail (error, e->domain == ARV_DEVICE_ERROR ? code_of (e) : DS_DEVICE_ERROR_UNSUPPORTED, e,
+                 "TriggerSource %s", source);
+  /* The largest GVSP packet the path carries (jumbo frames where the NIC has them): fewer
+   * packets per frame, fewer to lose. Best effort: the camera's default still works. */
+  if (arv_camera_is_gv_device (cam)) {
+    arv_camera_gv_auto_packet_size (cam, &e);
+    if (e)
+      g_debug ("aravis camera %s: packet size negotiation failed: %s", c->address, e->message);
+    g_clear_error (&e);
+  }
+  c->fmt = fmt;
+  return TRUE;
+}
+
+static gboolean
+cam_configure (gpointer b, const DsCameraSettings *s, GError **error)
+{
+  AravisCam *c = b;
+  if (!check_connected (c, error))
+    return FALSE;
+  if (c->started)
+    return fail (error, DS_DEVICE_ERROR_INVALID, NULL, "configure while acquiring: stop first");
+  /* A new configuration gets a new pool: payload and packet size may change, and the GV stream
+   * takes them at creation. stop/start without configure keeps the pool. */
+  destroy_stream (c);
+  if (!apply_settings (c, s, error)) {
+    c->configured = FALSE;
+    return FALSE;
+  }
+  c->settings = *s;
+  c->configured = TRUE;
+  return TRUE;
+}
+
+static gboolean
+create_pool (AravisCam *c, guint payload, GError **error)
+{
+  GError *e = NULL;
+  ArvStream *stream = arv_camera_create_stream (c->camera, NULL, NULL, &e);
+  if (!stream)
+    return fail (error, code_of (e) == DS_DEVICE_ERROR_TIMEOUT ? DS_DEVICE_ERROR_DISCONNECTED
+                                                               : DS_DEVICE_ERROR_FAULT,
+                 e, "creating the stream");
+  if (ARV_IS_GV_STREAM (stream))
+    g_object_set (stream, "socket-buffer", ARV_GV_STREAM_SOCKET_BUFFER_AUTO, "packet-resend",
+                  ARV_GV_STREAM_PACKET_RESEND_ALWAYS, NULL);
+  for (guint i = 0; i < c->n_buffers; i++)
+    arv_stream_push_buffer (stream, arv_buffer_new_allocate (payload));
+  c->stream = stream;
+  c->stream_payload = payload;
+  c->stream_running = TRUE; /* created streams start receiving at once */
+  return TRUE;
+}
+
+/* Every buffer the stream delivered goes back to its input queue. Their ids still count for
+ * continuity: a flushed frame is accounted for by the caller, not a gap. */
+static guint
+drain_output (AravisCam *c)
+{
+  guint n = 0;
+  ArvBuffer *buf;
+  while (c->stream && (buf = arv_stream_try_pop_buffer (c->stream))) {
+    guint64 raw_id = arv_buffer_get_frame_id (buf);
+    guint32 skipped = 0;
+    if (raw_id) {
+      ds_frame_id_tracker_update (&c->ids, raw_id, &skipped);
+      c->stats.ids_skipped += skipped;
+    }
+    arv_stream_push_buffer (c->stream, buf);
+    n++;
+  }
+  return n;
+}
+
+static gboolean
+cam_start (gpointer b, GError **error)
+{
+  AravisCam *c = b;
+  if (!check_connected (c, error))
+    return FALSE;
+  if (!c->configured)
+    return fail (error, DS_DEVICE_ERROR_INVALID, NULL, "start before configure");
+  if (c->started)
+    return TRUE;
+  GError *e = NULL;
+  guint payload = arv_camera_get_payload (c->camera, &e);
+  if (e)
+    return fail (error, code_of (e), e, "PayloadSize");
+  if (c->stream && c->stream_payload != payload)
+    destroy_stream (c); /* the camera changed its payload on its own */
+  if (!c->stream) {
+    if (!create_pool (c, payload, error))
+      return FALSE;
+  } else if (!c->stream_running) {
+    arv_stream_start_thread (c->stream);
+    c->stream_running = TRUE;
+  }
+  arv_camera_start_acquisition (c->camera, &e);
+  if (e) {
+    arv_stream_stop_thread (c->stream, FALSE);
+    c->stream_running = FALSE;
+    drain_output (c);
+    return fail (error, code_of (e), e, "AcquisitionStart");
+  }
+  c->started = TRUE;
+  return TRUE;
+}
+
+static void
+cam_stop (gpointer b)
+{
+  AravisCam *c = b;
+  if (!c->started)
+    return;
+  if (c->camera && !g_atomic_int_get (&c->lost))
+    arv_camera_stop_acquisition (c->camera, NULL);
+  /* Stopping the thread hands frames in progress to the output queue; all go back to the
+   * input queue, so the pool is whole while stopped. */
+  if (c->stream && c->stream_running) {
+    arv_stream_stop_thread (c->stream, FALSE);
+    c->stream_running = FALSE;
+  }
+  drain_output (c);
+  c->started = FALSE;
+}
+
+static gboolean
+cam_trigger (gpointer b, GError **error)
+{
+  AravisCam *c = b;
+  if (!check_connected (c, error))
+    return FALSE;
+  if (!c->started)
+    return fail (error, DS_DEVICE_ERROR_INVALID, NULL, "trigger before start");
+  if (c->settings.trigger_source == DS_CAMERA_TRIGGER_LINE)
+    return fail (error, DS_DEVICE_ERROR_INVALID, NULL,
+                 "triggered by Line%u, not by software: pulse the trigger device",
+                 c->settings.trigger_line);
+  GError *e = NULL;
+  arv_camera_software_trigger (c->camera, &e);
+  if (e)
+    return fail (error, code_of (e), e, "TriggerSoftware");
+  return TRUE;
+}
+
+static const char *
+status_name (ArvBufferStatus st)
+{
+  switch (st) {
+  case ARV_BUFFER_STATUS_SUCCESS: return "success";
+  case ARV_BUFFER_STATUS_CLEARED: return "cleared";
+  case ARV_BUFFER_STATUS_TIMEOUT: return "timeout (frame retention expired)";
+  case ARV_BUFFER_STATUS_MISSING_PACKETS: return "missing packets";
+  case ARV_BUFFER_STATUS_WRONG_PACKET_ID: return "wrong packet id";
+  case ARV_BUFFER_STATUS_SIZE_MISMATCH: return "size mismatch";
+  case ARV_BUFFER_STATUS_FILLING: return "still filling";
+  case ARV_BUFFER_STATUS_ABORTED: return "aborted";
+  default: return "unknown";
+  }
+}
+
+static DsFrame *
+cam_grab (gpointer b, guint timeout_ms, GError **error)
+{
+  AravisCam *c = b;
+  if (!check_connected (c, error))
+    return NULL;
+  if (!c->started) {
+    fail (error, DS_DEVICE_ERROR_INVALID, NULL, "grab before start");
+    return NULL;
+  }
+  ArvBuffer *buf = arv_stream_timeout_pop_buffer (c->stream, (guint64) timeout_ms * 1000);
+  if (!buf) {
+    if (!check_connected (c, error))
+      return NULL;
+    c->stats.timeouts++;
+    fail (error, DS_DEVICE_ERROR_TIMEOUT, NULL, "no frame within %u ms", timeout_ms);
+    return NULL;
+  }
+  ArvBufferStatus st = arv_buffer_get_status (buf);
+  guint64 raw_id = arv_buffer_get_frame_id (buf);
+  guint32 skipped = 0;
+  guint64 id = raw_id ? ds_frame_id_tracker_update (&c->ids, raw_id, &skipped) : 0;
+  c->stats.ids_skipped += skipped;
+  if (st != ARV_BUFFER_STATUS_SUCCESS) {
+    arv_stream_push_buffer (c->stream, buf);
+    c->stats.failures++;
+    /* Every failed buffer is a frame that exists but is not whole (Aravis's TIMEOUT status is
+     * a frame whose missing packets never came): INCOMPLETE. TIMEOUT is kept for "no frame". */
+    fail (error, DS_DEVICE_ERROR_INCOMPLETE, NULL, "frame %" G_GUINT64_FORMAT ": %s", raw_id,
+          status_name (st));
+    return NULL;
+  }
+  DsPixelFormat fmt;
+  guint32 pfnc = (guint32) arv_buffer_get_image_pixel_format (buf);
+  gint w = arv_buffer_get_image_width (buf), h = arv_buffer_get_image_height (buf);
+  size_t size = 0;
+  const void *data = arv_buffer_get_image_data (buf, &size);
+  if (!ds_pixfmt_from_pfnc (pfnc, &fmt) || w <= 0 || h <= 0 || !data) {
+    arv_stream_push_buffer (c->stream, buf);
+    c->stats.failures++;
+    fail (error, DS_DEVICE_ERROR_INVALID, NULL,
+          "frame %" G_GUINT64_FORMAT ": pixel format 0x%08x %dx%d is not a monochrome image", raw_id,
+          pfnc, w, h);
+    return NULL;
+  }
+  GError *e = NULL;
+  DsImage *img = ds_pixfmt_unpack (fmt, data, size, (guint) w, (guint) h, 0, &e);
+  guint64 ts = arv_buffer_get_timestamp (buf);
+  if (!ts)
+    ts = arv_buffer_get_system_timestamp (buf);
+  arv_stream_push_buffer (c->stream, buf);
+  if (!img) {
+    c->stats.failures++;
+    fail (error, DS_DEVICE_ERROR_INCOMPLETE, e, "frame %" G_GUINT64_FORMAT, raw_id);
+    return NULL;
+  }
+  DsFrame *f = g_new0 (DsFrame, 1);
+  f->image = img;
+  f->frame_id = id;
+  f->ids_skipped = skipped;
+  f->timestamp_ns = ts;
+  f->host_time_us = (guint64) g_get_monotonic_time ();
+  f->exposure_us = c->exposure_us;
+  f->gain_db = c->gain_db;
+  c->stats.completed++;
+  return f;
+}
+
+static guint
+cam_flush (gpointer b)
+{
+  AravisCam *c = b;
+  return drain_output (c);
+}
+
+static gboolean
+cam_reconnect (gpointer b, GError **error)
+{
+  AravisCam *c = b;
+  close_device (c);
+  if (!open_device (c, error))
+    return FALSE;
+  c->stats.reconnects++;
+  if (c->configured && !apply_settings (c, &c->settings, error)) {
+    g_prefix_error (error, "reapplying settings after reconnect: ");
+    return FALSE;
+  }
+  return TRUE;
+}
+
+static void
+cam_get_stats (gpointer b, DsCameraStats *s)
+{
+  AravisCam *c = b;
+  *s = c->stats;
+  guint64 missing, resend;
+  stream_packet_stats (c, &missing, &resend);
+  s->missing_packets += missing;
+  s->resend_requests += resend;
+}
+
+static void
+cam_get_info (gpointer b, DsCameraInfo *i)
+{
+  AravisCam *c = b;
+  *i = c->info;
+  i->connected = c->camera && !g_atomic_int_get (&c->lost);
+}
+
+static void
+cam_close (gpointer b)
+{
+  AravisCam *c = b;
+  cam_stop (c);
+  close_device (c);
+  g_free (c->address);
+  g_free (c);
+}
+
+static const DsCameraOps aravis_camera_ops = {
+  .name = "aravis", .configure = cam_configure, .start = cam_start, .trigger = cam_trigger,
+  .grab = cam_grab, .flush = cam_flush, .stop = cam_stop, .reconnect = cam_reconnect,
+  .get_stats = cam_get_stats, .get_info = cam_get_info, .close = cam_close,
+};
+
+DsCamera *
+ds_aravis_camera_open (const char *address_or_id, guint n_buffers, GError **error)
+{
+  if (!address_or_id || !*address_or_id || n_buffers < 2 || n_buffers > 1024) {
+    fail (error, DS_DEVICE_ERROR_INVALID, NULL, "open \"%s\" with %u buffers: need an address and 2..1024 buffers",
+          address_or_id ? address_or_id : "(null)", n_buffers);
+    return NULL;
+  }
+  AravisCam *c = g_new0 (AravisCam, 1);
+  c->address = g_strdup (address_or_id);
+  c->n_buffers = n_buffers;
+  if (!open_device (c, error)) {
+    g_free (c->address);
+    g_free (c);
+    return NULL;
+  }
+  DsCamera *cam = g_new0 (DsCamera, 1);
+  cam->ops = &aravis_camera_ops;
+  cam->backend = c;
+  return cam;
+}
+
+gboolean
+ds_aravis_camera_is_aravis (const DsCamera *camera)
+{
+  return camera && camera->ops == &aravis_camera_ops;
+}
+
+void
+ds_aravis_camera_pool_counts (const DsCamera *camera, guint *n_input, guint *n_output, guint *n_pool)
+{
+  *n_input = *n_output = *n_pool = 0;
+  if (!ds_aravis_camera_is_aravis (camera))
+    return;
+  AravisCam *c = camera->backend;
+  if (!c->stream)
+    return;
+  gint in = 0, out = 0;
+  arv_stream_get_n_buffers (c->stream, &in, &out);
+  *n_input = (guint) MAX (in, 0);
+  *n_output = (guint) MAX (out, 0);
+  *n_pool = c->n_buffers;
+}

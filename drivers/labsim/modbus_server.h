@@ -1,0 +1,58 @@
+/* The lab's illuminator controller: a Modbus TCP server (libmodbus) with the register map of
+ * drivers/modbus/registers.h and docs/registers.md, a settle time between a write and the
+ * pattern being lit, and fault knobs. Used by descatter-labsim and, in-process, by the Modbus
+ * backend's tests.
+ *
+ * Threads: the server answers from its own thread. Every function here may be called from
+ * any thread; the state is behind one mutex. */
+#pragma once
+#include <glib.h>
+
+G_BEGIN_DECLS
+
+typedef struct DsModbusServer DsModbusServer;
+
+typedef struct {
+  guint settle_us;          /* write -> pattern lit; default 3000 */
+  guint delay_ms;           /* extra response delay ... */
+  guint delay_every;        /* ... on every Nth request (0: never, 1: all) */
+  double exception_rate;    /* fraction of requests answered with exception_code instead */
+  guint exception_code;     /* MODBUS_EXCEPTION_*; 0 means SLAVE_OR_SERVER_BUSY */
+  guint drop_every;         /* close the connection instead of answering every Nth request */
+  guint short_every;        /* answer every Nth read of 2+ registers with one register short */
+  gboolean stuck_not_ready; /* writes are accepted and never applied: APPLYING forever */
+  gboolean wrong_phase;     /* applies PHASE + 1 (mod NUM_PHASES) instead of PHASE */
+  gboolean fault;           /* STATUS.FAULT set, nothing is applied */
+  gboolean over_temperature;/* STATUS.OVER_TEMPERATURE set, TEMPERATURE 85 degC, nothing applied */
+  guint64 seed;             /* for exception_rate */
+} DsModbusServerConfig;
+
+void ds_modbus_server_config_init (DsModbusServerConfig *config);
+
+/* What is lit now (the settle time is taken into account at the moment of the call). */
+typedef struct {
+  gboolean enabled;         /* a pattern is lit */
+  guint phase, n_phases;    /* the lit phase; n_phases as applied */
+  guint pattern_kind;
+  guint period_centipx, duty_permille, black_permille, intensity_permille;
+  guint apply_count;        /* mod 2^16, as the register */
+  gboolean ready;
+  guint64 requests;         /* requests received (answered, refused or dropped) */
+  guint64 connections;      /* connections accepted */
+} DsModbusServerState;
+
+/* Listens on address:port (port 0: any free port; see ds_modbus_server_port). Fails with a
+ * G_IO_ERROR naming the address. */
+DsModbusServer *ds_modbus_server_new (const char *address, guint port,
+                                      const DsModbusServerConfig *config, GError **error);
+guint ds_modbus_server_port (const DsModbusServer *server);
+/* Changes the knobs at run time (the register state is kept). */
+void ds_modbus_server_set_config (DsModbusServer *server, const DsModbusServerConfig *config);
+void ds_modbus_server_get_state (DsModbusServer *server, DsModbusServerState *state);
+/* Closes every client connection now (the listener stays): a "dropped connection". */
+void ds_modbus_server_drop_clients (DsModbusServer *server);
+/* Stops the thread, closes every socket. NULL-safe. */
+void ds_modbus_server_free (DsModbusServer *server);
+G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsModbusServer, ds_modbus_server_free)
+
+G_END_DECLS

@@ -1,0 +1,303 @@
+/* The renderer: builds the stage list from the scene, runs it per frame. Stages live in
+ * stage_<name>.c; the scattering kernels come from the transport (transport.h) unless given. */
+#include "drivers/sim/renderer.h"
+
+#include <math.h>
+#include <string.h>
+
+#include "drivers/sim/stage.h"
+#ifdef DS_SIM_HAVE_TRANSPORT
+#include "drivers/sim/transport.h"
+#endif
+
+struct DsRenderer {
+  DsScene *scene;          /* own copy */
+  const DsSceneSpec *spec;
+  DsStage *stages[DS_RENDER_N_STAGES];
+  guint n_stages;
+  DsStage *by_kind[DS_RENDER_N_STAGES];
+  gint *runs;              /* atomic counters per stage kind */
+  DsSensorModel sensor;
+  guint margin;            /* scene rendered around the frame for the scattering kernels */
+};
+
+void
+ds_stage_free (DsStage *st)
+{
+  if (!st)
+    return;
+  if (st->free_data)
+    st->free_data (st->data);
+  g_free (st->reason);
+  g_free (st);
+}
+
+const char *
+ds_render_stage_name (DsRenderStage s)
+{
+  static const char *const names[DS_RENDER_N_STAGES] = { "stripe-pattern", "boundary-fresnel",
+                                                         "ballistic-attenuation", "object-transmittance",
+                                                         "scattering", "ambient", "sensor" };
+  return (guint) s < DS_RENDER_N_STAGES ? names[s] : "unknown";
+}
+
+static void
+add_stage (DsRenderer *r, DsStage *st)
+{
+  r->stages[r->n_stages++] = st;
+  r->by_kind[st->kind] = st;
+}
+
+/* Kernel radius: the lateral spread of light through thickness d is of the order of d (a few
+ * transport lengths at most); twice that, capped so the kernel fits in the frame. */
+G_GNUC_UNUSED static guint
+psf_radius (const DsSceneSpec *s, double pitch_mm, double d)
+{
+  guint r = (guint) ceil (2.0 * d / pitch_mm);
+  guint cap = (MIN (s->width, s->height) - 1) / 2;
+  return MIN (MAX (r, 4u), cap);
+}
+
+static gboolean
+transport_kernels (const DsSceneSpec *s, double pitch_mm, gboolean split, double z, const char *cache_dir,
+                   DsImage **full, DsImage **before, DsImage **after, GError **error)
+{
+#ifdef DS_SIM_HAVE_TRANSPORT
+  DsTransportModel model = s->diffusion ? DS_TRANSPORT_DIFFUSION : DS_TRANSPORT_MONTE_CARLO;
+  DsSlab slab = { .mua = s->mua, .mus = s->mus, .g = s->g, .thickness_mm = s->thickness_mm,
+                  .n_medium = s->n_medium, .n_above = 1.0, .n_below = 1.0 };
+  DsPsfGrid grid = { .pixel_pitch_mm = pitch_mm, .acceptance_half_angle_deg = s->acceptance_half_angle_deg };
+  gboolean cached = FALSE;
+  if (!split) {
+    grid.radius_px = psf_radius (s, pitch_mm, s->thickness_mm);
+    *full = ds_slab_psf_cached (model, &slab, &grid, s->photons, s->mc_seed, cache_dir, &cached, error);
+    return *full != NULL;
+  }
+  /* Before the plane: no interface there and every direction counts (the object plane is not
+   * a lens). After it: light enters from inside the medium. */
+  DsSlab a = slab, b = slab;
+  a.thickness_mm = z;
+  a.n_below = s->n_medium;
+  b.thickness_mm = s->thickness_mm - z;
+  b.n_above = s->n_medium;
+  DsPsfGrid ga = grid, gb = grid;
+  ga.radius_px = psf_radius (s, pitch_mm, z);
+  ga.acceptance_half_angle_deg = 90.0;
+  gb.radius_px = psf_radius (s, pitch_mm, b.thickness_mm);
+  *before = ds_slab_psf_cached (model, &a, &ga, s->photons, s->mc_seed, cache_dir, &cached, error);
+  if (!*before)
+    return FALSE;
+  *after = ds_slab_psf_cached (model, &b, &gb, s->photons, s->mc_seed + 1, cache_dir, &cached, error);
+  return *after != NULL;
+#else
+  (void) s, (void) pitch_mm, (void) split, (void) z, (void) cache_dir, (void) full, (void) before, (void) after;
+  g_set_error (error, DS_SIM_ERROR, DS_SIM_ERROR_INVALID,
+               "scene %s scatters (mus > 0) but this build has no light transport: pass kernels", s->path);
+  return FALSE;
+#endif
+}
+
+static DsRenderer *
+build (const DsScene *scene, gboolean compute, const char *cache_dir, const DsImage *psf_full,
+       const DsImage *psf_before, const DsImage *psf_after, GError **error)
+{
+  g_autoptr (DsRenderer) r = g_new0 (DsRenderer, 1);
+  r->runs = g_new0 (gint, DS_RENDER_N_STAGES);
+  /* The renderer keeps its own copy: it may outlive the caller's scene. */
+  r->scene = ds_scene_copy (scene);
+  r->spec = ds_scene_spec (r->scene);
+  const DsSceneSpec *s = r->spec;
+  double pitch_mm = ds_scene_object_pitch_mm (r->scene);
+  add_stage (r, ds_stage_pattern_new (s, pitch_mm));
+  if (s->has_medium && s->n_medium != 1.0)
+    add_stage (r, ds_stage_boundary_new (1.0, s->n_medium));
+  double sigma_t = s->has_medium ? s->mua + s->mus : 0.0;
+  if (sigma_t > 0)
+    add_stage (r, ds_stage_ballistic_new (sigma_t, s->thickness_mm));
+  /* Kernels first: their radius is the margin of scene around the frame that is rendered. */
+  gboolean scatters = s->has_medium && s->mus > 0;
+  double z = s->n_objects ? s->objects[0].depth_mm : 0.0;
+  gboolean split = s->n_objects && z > 0 && z < s->thickness_mm;
+  g_autoptr (DsImage) full = NULL, before = NULL, after = NULL;
+  const char *how = "given";
+  if (scatters && compute) {
+    if (!transport_kernels (s, pitch_mm, split, z, cache_dir, &full, &before, &after, error))
+      return NULL;
+    psf_full = full;
+    psf_before = before;
+    psf_after = after;
+    how = s->diffusion ? "diffusion (multipole)" : "Monte Carlo";
+  }
+  r->margin = scatters ? ds_stage_scattering_margin (split ? NULL : psf_full, split ? psf_before : NULL,
+                                                     split ? psf_after : NULL) : 0;
+  DsStage *objects = NULL;
+  if (s->n_objects) {
+    objects = ds_stage_objects_new (s, r->margin, error);
+    if (!objects)
+      return NULL;
+    add_stage (r, objects);
+  }
+  if (scatters) {
+    DsStage *st = ds_stage_scattering_new (s, objects, psf_full, psf_before, psf_after, how, error);
+    if (!st)
+      return NULL;
+    add_stage (r, st);
+  }
+  if (s->has_ambient) {
+    double pitch_um = pitch_mm * 1000.0;
+    add_stage (r, ds_stage_ambient_new (s->ambient_level * pitch_um * pitch_um));
+  }
+  r->sensor = (DsSensorModel) { .bit_depth = s->bit_depth, .quantum_efficiency = s->quantum_efficiency,
+                                .system_gain = s->system_gain, .read_noise_e = s->read_noise_e,
+                                .dark_current_e_s = s->dark_current_e_s, .full_well_e = s->full_well_e };
+  add_stage (r, ds_stage_sensor_new (&r->sensor));
+  return g_steal_pointer (&r);
+}
+
+DsRenderer *
+ds_renderer_new (const DsScene *scene, const char *psf_cache_dir, GError **error)
+{
+  return build (scene, TRUE, psf_cache_dir, NULL, NULL, NULL, error);
+}
+
+DsRenderer *
+ds_renderer_new_with_kernels (const DsScene *scene, const DsImage *psf_full, const DsImage *psf_before,
+                              const DsImage *psf_after, GError **error)
+{
+  return build (scene, FALSE, NULL, psf_full, psf_before, psf_after, error);
+}
+
+void
+ds_renderer_free (DsRenderer *r)
+{
+  if (!r)
+    return;
+  for (guint i = 0; i < r->n_stages; i++)
+    ds_stage_free (r->stages[i]);
+  g_free (r->runs);
+  ds_scene_free (r->scene);
+  g_free (r);
+}
+
+guint ds_renderer_n_stages (const DsRenderer *r) { return r->n_stages; }
+DsRenderStage ds_renderer_stage (const DsRenderer *r, guint i) { return i < r->n_stages ? r->stages[i]->kind : DS_RENDER_N_STAGES; }
+const char *ds_renderer_stage_name (const DsRenderer *r, guint i) { return i < r->n_stages ? ds_render_stage_name (r->stages[i]->kind) : NULL; }
+const char *ds_renderer_stage_reason (const DsRenderer *r, guint i) { return i < r->n_stages ? r->stages[i]->reason : NULL; }
+gboolean ds_renderer_has_stage (const DsRenderer *r, DsRenderStage s) { return (guint) s < DS_RENDER_N_STAGES && r->by_kind[s]; }
+guint64 ds_renderer_stage_runs (const DsRenderer *r, DsRenderStage s) { return (guint) s < DS_RENDER_N_STAGES ? (guint64) g_atomic_int_get (&r->runs[s]) : 0; }
+const DsScene *ds_renderer_scene (const DsRenderer *r) { return r->scene; }
+
+static void
+light_clear (DsLight *l)
+{
+  ds_image_free (l->incident);
+  ds_image_free (l->direct);
+  ds_image_free (l->scattered);
+  ds_image_free (l->frame);
+  memset (l, 0, sizeof *l);
+}
+
+/* Runs the stages in order; ambient and sensor only when asked (the truth has neither). */
+static gboolean
+run_stages (const DsRenderer *r, DsLight *l, const DsStageArgs *a, gboolean with_ambient, gboolean with_sensor,
+            double *secs, GError **error)
+{
+  const DsSceneSpec *s = r->spec;
+  l->margin = r->margin;
+  l->incident = ds_image_new (DS_SAMPLE_F32, s->width + 2 * r->margin, s->height + 2 * r->margin, error);
+  l->direct = l->incident ? ds_image_new (DS_SAMPLE_F32, s->width, s->height, error) : NULL;
+  l->scattered = l->direct ? ds_image_new (DS_SAMPLE_F32, s->width, s->height, error) : NULL;
+  if (!l->scattered)
+    return FALSE;
+  for (guint i = 0; i < r->n_stages; i++) {
+    const DsStage *st = r->stages[i];
+    if ((st->kind == DS_RENDER_STAGE_AMBIENT && !with_ambient) || (st->kind == DS_RENDER_STAGE_SENSOR && !with_sensor))
+      continue;
+    gint64 t0 = g_get_monotonic_time ();
+    if (!st->apply (st, l, a, error))
+      return FALSE;
+    g_atomic_int_inc (&r->runs[st->kind]);
+    if (secs)
+      secs[st->kind] += (double) (g_get_monotonic_time () - t0) / 1e6;
+  }
+  return TRUE;
+}
+
+static gboolean
+check_request (const DsRenderRequest *req, GError **error)
+{
+  if (req->illuminator_on && (req->n_phases < 1 || req->phase >= req->n_phases)) {
+    g_set_error (error, DS_SIM_ERROR, DS_SIM_ERROR_INVALID, "render: phase %u of %u (phase < phases, phases >= 1)",
+                 req->phase, req->n_phases);
+    return FALSE;
+  }
+  if (!(req->exposure_us > 0) || !(req->exposure_us <= 1e7) || !(req->gain_db >= 0) || !(req->gain_db <= 48)) {
+    g_set_error (error, DS_SIM_ERROR, DS_SIM_ERROR_INVALID,
+                 "render: exposure %g us must be in (0, 1e7] and gain %g dB in [0, 48]", req->exposure_us, req->gain_db);
+    return FALSE;
+  }
+  return TRUE;
+}
+
+static DsImage *
+render (const DsRenderer *r, const DsRenderRequest *req, gboolean expected, double *secs, GError **error)
+{
+  if (!check_request (req, error))
+    return NULL;
+  DsStageArgs a = { .phase = req->phase, .n_phases = req->n_phases, .illuminator_on = req->illuminator_on,
+                    .expected = expected, .exposure_us = req->exposure_us, .gain_db = req->gain_db,
+                    .seed = req->seed };
+  DsLight l = { 0 };
+  DsImage *out = NULL;
+  if (run_stages (r, &l, &a, TRUE, TRUE, secs, error))
+    out = g_steal_pointer (&l.frame);
+  light_clear (&l);
+  return out;
+}
+
+DsImage *
+ds_renderer_render_timed (const DsRenderer *r, const DsRenderRequest *req, double *secs, GError **error)
+{
+  return render (r, req, FALSE, secs, error);
+}
+
+DsImage *
+ds_renderer_render (const DsRenderer *r, const DsRenderRequest *req, GError **error)
+{
+  return render (r, req, FALSE, NULL, error);
+}
+
+DsImage *
+ds_renderer_render_expected (const DsRenderer *r, const DsRenderRequest *req, GError **error)
+{
+  return render (r, req, TRUE, NULL, error);
+}
+
+gboolean
+ds_renderer_truth (const DsRenderer *r, double exposure_us, double gain_db, DsImage **transmissive,
+                   DsImage **scattered, GError **error)
+{
+  DsRenderRequest req = { .phase = 0, .n_phases = 1, .illuminator_on = TRUE, .exposure_us = exposure_us,
+                          .gain_db = gain_db };
+  if (!check_request (&req, error))
+    return FALSE;
+  DsStageArgs a = { .n_phases = 1, .illuminator_on = TRUE, .full = TRUE, .exposure_us = exposure_us,
+                    .gain_db = gain_db };
+  DsLight l = { 0 };
+  if (!run_stages (r, &l, &a, FALSE, FALSE, NULL, error)) {
+    light_clear (&l);
+    return FALSE;
+  }
+  double scale = r->sensor.quantum_efficiency * ds_sensor_gain_dn_per_e (&r->sensor, gain_db);
+  DsImage *imgs[] = { l.direct, l.scattered };
+  for (guint i = 0; i < 2; i++)
+    for (guint y = 0; y < imgs[i]->height; y++) {
+      float *row = ds_image_row (imgs[i], y);
+      for (guint x = 0; x < imgs[i]->width; x++)
+        row[x] = (float) (row[x] * scale);
+    }
+  *transmissive = g_steal_pointer (&l.direct);
+  *scattered = g_steal_pointer (&l.scattered);
+  light_clear (&l);
+  return TRUE;
+}

@@ -1,0 +1,76 @@
+/* The scene renderer: frames of the stripe-lit scene as the camera would record them, and the
+ * noise-free truth. Built from what the scene declares: a stage the scene does not call for is
+ * not in the list and costs nothing (docs/scene-format.md, "Stages").
+ *
+ * Threads: ds_renderer_new may take seconds (Monte Carlo kernels, cached on disk); after that
+ * the renderer is immutable (only atomic run counters change) and every function here may be
+ * called from any thread at once. All randomness of a frame comes from its request's seed. */
+#pragma once
+#include <glib.h>
+
+#include "drivers/sim/scene.h"
+#include "proc/image.h"
+
+G_BEGIN_DECLS
+
+typedef struct DsRenderer DsRenderer;
+
+/* In the order they run. */
+typedef enum {
+  DS_RENDER_STAGE_PATTERN = 0, /* stripe pattern: always */
+  DS_RENDER_STAGE_BOUNDARY,    /* Fresnel transmittance: medium index != outside index */
+  DS_RENDER_STAGE_BALLISTIC,   /* Beer-Lambert attenuation: a medium with sigma_t > 0 */
+  DS_RENDER_STAGE_OBJECTS,     /* object transmittance: objects declared */
+  DS_RENDER_STAGE_SCATTERING,  /* PSF convolution: a medium with sigma_s > 0 */
+  DS_RENDER_STAGE_AMBIENT,     /* pattern-independent light: [ambient] declared */
+  DS_RENDER_STAGE_SENSOR,      /* EMVA 1288 model: always (the scene declares a sensor) */
+  DS_RENDER_N_STAGES
+} DsRenderStage;
+
+/* psf_cache_dir: where Monte Carlo kernels are cached; NULL = the transport's default. */
+DsRenderer *ds_renderer_new (const DsScene *scene, const char *psf_cache_dir, GError **error);
+/* As ds_renderer_new with the scattering kernels given instead of computed (tests, or
+ * transport not built): psf_full for a scene without an object plane inside the medium,
+ * psf_before + psf_after when the objects split it. f32, odd square, centred; copied. */
+DsRenderer *ds_renderer_new_with_kernels (const DsScene *scene, const DsImage *psf_full,
+                                          const DsImage *psf_before, const DsImage *psf_after,
+                                          GError **error);
+void ds_renderer_free (DsRenderer *renderer);
+G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsRenderer, ds_renderer_free)
+
+typedef struct {
+  guint phase, n_phases;
+  gboolean illuminator_on;
+  double exposure_us;
+  double gain_db;
+  guint64 seed;
+} DsRenderRequest;
+
+/* u16 frame with the sensor's bit depth. */
+DsImage *ds_renderer_render (const DsRenderer *r, const DsRenderRequest *req, GError **error);
+/* As render, adding each stage's time (s) into stage_seconds[DS_RENDER_N_STAGES]. */
+DsImage *ds_renderer_render_timed (const DsRenderer *r, const DsRenderRequest *req,
+                                   double *stage_seconds, GError **error);
+/* The frame's expectation: f32 DN, noise-free, before quantization and clipping (ambient and
+ * dark signal included). The mean of many render() calls over seeds converges to it where
+ * nothing saturates. */
+DsImage *ds_renderer_render_expected (const DsRenderer *r, const DsRenderRequest *req, GError **error);
+/* f32 DN, noise-free, no ambient or dark: Ld = direct and Lg = scattered light under full
+ * uniform illumination (the pattern's "on" level everywhere). */
+gboolean ds_renderer_truth (const DsRenderer *r, double exposure_us, double gain_db,
+                            DsImage **transmissive, DsImage **scattered, GError **error);
+
+/* The stages built for this scene, in order, with the reason each is there. */
+guint ds_renderer_n_stages (const DsRenderer *r);
+DsRenderStage ds_renderer_stage (const DsRenderer *r, guint i);
+const char *ds_renderer_stage_name (const DsRenderer *r, guint i);
+const char *ds_renderer_stage_reason (const DsRenderer *r, guint i);
+/* The name of a stage kind ("stripe-pattern", "scattering", ...). */
+const char *ds_render_stage_name (DsRenderStage stage);
+gboolean ds_renderer_has_stage (const DsRenderer *r, DsRenderStage stage);
+/* How many times a stage ran (all threads): proof that an undeclared stage costs nothing. */
+guint64 ds_renderer_stage_runs (const DsRenderer *r, DsRenderStage stage);
+
+const DsScene *ds_renderer_scene (const DsRenderer *r);
+
+G_END_DECLS

@@ -1,0 +1,408 @@
+/* The Aravis backend against Aravis's own GigE Vision fake camera, run in this process on
+ * 127.0.0.1 with a fill pattern the test controls: real GVCP/GVSP over loopback, no mocks.
+ * Expectations are independent of the backend: the pixels the fill pattern wrote, ids counted
+ * by the camera, the pool size the test asked for. */
+#include <arv.h>
+#include <string.h>
+
+#include "drivers/aravis/aravis_camera.h"
+
+#define ADDRESS "127.0.0.1"
+#define N_BUFFERS 6
+
+/* Frame n (counted by the fill callback) carries n in its first pixel and
+ * (x + 3y + 7n) mod (max + 1) elsewhere. */
+typedef struct {
+  gint n;                  /* atomic: frames filled so far */
+  gint width, height;      /* atomic: the ROI the test configured */
+} Fill;
+
+static guint
+pattern_value (guint x, guint y, guint n, guint max)
+{
+  return (x + 3 * y + 7 * n) % (max + 1);
+}
+
+static void
+fill (ArvBuffer *buffer, void *data, guint32 exposure_us, guint32 gain, ArvPixelFormat pf)
+{
+  (void) exposure_us;
+  (void) gain;
+  Fill *f = data;
+  guint n = (guint) g_atomic_int_add (&f->n, 1);
+  size_t size = 0;
+  /* The whole buffer: the fake camera allocated it for the configured ROI, and describes its
+   * size and image part only after the pattern is drawn (size reads 0 here). */
+  guint8 *p = (guint8 *) arv_buffer_get_data (buffer, &size);
+  guint w = (guint) g_atomic_int_get (&f->width), h = (guint) g_atomic_int_get (&f->height);
+  gboolean wide = pf == ARV_PIXEL_FORMAT_MONO_16;
+  guint max = wide ? 65535 : 255;
+  if (!p || (size && size < (gsize) w * h * (wide ? 2 : 1)))
+    return;
+  for (guint y = 0; y < h; y++)
+    for (guint x = 0; x < w; x++) {
+      guint v = x == 0 && y == 0 ? n % (max + 1) : pattern_value (x, y, n, max);
+      gsize i = (gsize) y * w + x;
+      if (wide) {
+        p[2 * i] = (guint8) (v & 0xff);
+        p[2 * i + 1] = (guint8) (v >> 8);
+      } else
+        p[i] = (guint8) v;
+    }
+}
+
+typedef struct {
+  ArvGvFakeCamera *gv;
+  Fill fill;
+  DsCamera *cam;
+} Rig;
+
+static ArvGvFakeCamera *
+start_fake (Fill *f)
+{
+  ArvGvFakeCamera *gv = arv_gv_fake_camera_new (ADDRESS, "DSTEST01");
+  g_assert_nonnull (gv);
+  g_assert_true (arv_gv_fake_camera_is_running (gv)); /* UDP 3956 on 127.0.0.1 was free */
+  ArvFakeCamera *fake = arv_gv_fake_camera_get_fake_camera (gv);
+  /* The fake checks for software triggers once per tick; 25 Hz would make the test slow. */
+  arv_fake_camera_set_trigger_frequency (fake, 400.0);
+  arv_fake_camera_set_fill_pattern (fake, fill, f);
+  return gv;
+}
+
+static void
+rig_setup (Rig *r, gconstpointer data)
+{
+  (void) data;
+  r->gv = start_fake (&r->fill);
+  g_autoptr (GError) error = NULL;
+  r->cam = ds_aravis_camera_open (ADDRESS, N_BUFFERS, &error);
+  g_assert_no_error (error);
+  g_assert_nonnull (r->cam);
+}
+
+static void
+rig_teardown (Rig *r, gconstpointer data)
+{
+  (void) data;
+  ds_camera_close (r->cam);
+  g_clear_object (&r->gv);
+}
+
+static DsCameraSettings
+settings (const char *fmt, guint w, guint h)
+{
+  DsCameraSettings s = { 0 };
+  s.exposure_us = 2000;
+  s.gain_db = 0;
+  s.roi_x = 8;
+  s.roi_y = 4;
+  s.roi_width = w;
+  s.roi_height = h;
+  g_strlcpy (s.pixel_format, fmt, sizeof s.pixel_format);
+  s.trigger_source = DS_CAMERA_TRIGGER_SOFTWARE;
+  return s;
+}
+
+static void
+configure_and_start (Rig *r, const DsCameraSettings *s)
+{
+  DsCamera *cam = r->cam;
+  g_autoptr (GError) error = NULL;
+  g_atomic_int_set (&r->fill.width, (gint) s->roi_width);
+  g_atomic_int_set (&r->fill.height, (gint) s->roi_height);
+  cam->ops->configure (cam->backend, s, &error);
+  g_assert_no_error (error);
+  cam->ops->start (cam->backend, &error);
+  g_assert_no_error (error);
+}
+
+static DsFrame *
+trigger_and_grab (DsCamera *cam, GError **error)
+{
+  if (!cam->ops->trigger (cam->backend, error))
+    return NULL;
+  return cam->ops->grab (cam->backend, 2000, error);
+}
+
+/* Checks every pixel against the fill pattern; returns the frame's n. */
+static guint
+check_pixels (const DsFrame *f, guint max)
+{
+  const DsImage *im = f->image;
+  guint n = max == 255 ? ((guint8 *) ds_image_row (im, 0))[0] : ((guint16 *) ds_image_row (im, 0))[0];
+  for (guint y = 0; y < im->height; y++)
+    for (guint x = 0; x < im->width; x++) {
+      if (x == 0 && y == 0)
+        continue;
+      guint got = max == 255 ? ((guint8 *) ds_image_row (im, y))[x] : ((guint16 *) ds_image_row (im, y))[x];
+      if (got != pattern_value (x, y, n, max))
+        g_error ("pixel %u,%u of frame %u: %u, the fill pattern wrote %u", x, y, n, got,
+                 pattern_value (x, y, n, max));
+    }
+  return n;
+}
+
+static void
+test_pixels (Rig *r, const char *fmt, guint max, DsSampleType type)
+{
+  DsCameraSettings s = settings (fmt, 40, 24);
+  configure_and_start (r, &s);
+  gint prev_n = -1;
+  for (guint i = 0; i < 8; i++) {
+    g_autoptr (GError) error = NULL;
+    g_autoptr (DsFrame) f = trigger_and_grab (r->cam, &error);
+    g_assert_no_error (error);
+    g_assert_cmpuint (f->image->width, ==, 40);
+    g_assert_cmpuint (f->image->height, ==, 24);
+    g_assert_cmpint (f->image->type, ==, type);
+    g_assert_cmpfloat (f->exposure_us, ==, 2000);
+    guint n = check_pixels (f, max);
+    if (prev_n >= 0)
+      g_assert_cmpuint (n, ==, (guint) prev_n + 1); /* one exposure per trigger */
+    prev_n = (gint) n;
+  }
+  DsCameraStats st;
+  r->cam->ops->get_stats (r->cam->backend, &st);
+  g_assert_cmpuint (st.completed, ==, 8);
+  g_assert_cmpuint (st.failures, ==, 0);
+  DsCameraInfo info;
+  r->cam->ops->get_info (r->cam->backend, &info);
+  g_assert_true (info.connected);
+  g_assert_cmpstr (info.serial, ==, "DSTEST01");
+  r->cam->ops->stop (r->cam->backend);
+}
+
+static void
+test_mono8 (Rig *r, gconstpointer data)
+{
+  (void) data;
+  test_pixels (r, "Mono8", 255, DS_SAMPLE_U8);
+}
+
+static void
+test_mono16 (Rig *r, gconstpointer data)
+{
+  (void) data;
+  test_pixels (r, "Mono16", 65535, DS_SAMPLE_U16);
+}
+
+static void
+test_bad_settings (Rig *r, gconstpointer data)
+{
+  (void) data;
+  g_autoptr (GError) error = NULL;
+  DsCameraSettings s = settings ("Mono9", 40, 24);
+  g_assert_false (r->cam->ops->configure (r->cam->backend, &s, &error));
+  g_assert_error (error, DS_CAMERA_ERROR, DS_DEVICE_ERROR_INVALID);
+  g_clear_error (&error);
+  s = settings ("Mono8", 100000, 24);
+  g_assert_false (r->cam->ops->configure (r->cam->backend, &s, &error));
+  g_assert_error (error, DS_CAMERA_ERROR, DS_DEVICE_ERROR_INVALID);
+  g_assert_nonnull (strstr (error->message, "ROI"));
+  g_clear_error (&error);
+  s = settings ("Mono8", 40, 24);
+  s.exposure_us = -5;
+  g_assert_false (r->cam->ops->configure (r->cam->backend, &s, &error));
+  g_assert_error (error, DS_CAMERA_ERROR, DS_DEVICE_ERROR_INVALID);
+  g_clear_error (&error);
+  /* The fake camera has Line0 only. */
+  s = settings ("Mono8", 40, 24);
+  s.trigger_source = DS_CAMERA_TRIGGER_LINE;
+  s.trigger_line = 1;
+  g_assert_false (r->cam->ops->configure (r->cam->backend, &s, &error));
+  g_assert_error (error, DS_CAMERA_ERROR, DS_DEVICE_ERROR_UNSUPPORTED);
+  g_assert_nonnull (strstr (error->message, "Line1"));
+  g_clear_error (&error);
+  /* A line-triggered camera refuses software triggers. */
+  s.trigger_line = 0;
+  configure_and_start (r, &s);
+  g_assert_false (r->cam->ops->trigger (r->cam->backend, &error));
+  g_assert_error (error, DS_CAMERA_ERROR, DS_DEVICE_ERROR_INVALID);
+  r->cam->ops->stop (r->cam->backend);
+}
+
+/* The fake camera's ids start near 65400 and wrap 65535 -> 1. */
+static void
+test_ids_across_wrap (Rig *r, gconstpointer data)
+{
+  (void) data;
+  DsCameraSettings s = settings ("Mono8", 16, 8);
+  configure_and_start (r, &s);
+  guint64 first = 0, last = 0;
+  for (guint i = 0; i < 400 && !(first && last > 65536 + 3); i++) {
+    g_autoptr (GError) error = NULL;
+    g_autoptr (DsFrame) f = trigger_and_grab (r->cam, &error);
+    g_assert_no_error (error);
+    g_assert_cmpuint (f->ids_skipped, ==, 0);
+    if (first)
+      g_assert_cmpuint (f->frame_id, ==, last + 1);
+    else
+      first = f->frame_id;
+    last = f->frame_id;
+  }
+  /* The fake's first id is within 400 of the wrap: the loop must have crossed it. */
+  g_assert_cmpuint (last, >, 65536 + 3);
+  DsCameraStats st;
+  r->cam->ops->get_stats (r->cam->backend, &st);
+  g_assert_cmpuint (st.ids_skipped, ==, 0);
+  r->cam->ops->stop (r->cam->backend);
+}
+
+/* GVSP packet loss: every failure is typed, good frames still hold the right pixels, and the
+ * pool is whole afterwards. */
+static void
+test_packet_loss (Rig *r, gconstpointer data)
+{
+  (void) data;
+  /* 256x64 Mono8 is a dozen or more GVSP packets (after packet-size negotiation): with 5 % of
+   * them lost about half of the frames or more lose at least one. */
+  g_object_set (r->gv, "gvsp-lost-ratio", 0.05, NULL);
+  DsCameraSettings s = settings ("Mono8", 256, 64);
+  configure_and_start (r, &s);
+  guint ok = 0, incomplete = 0, timeouts = 0;
+  for (guint i = 0; i < 40; i++) {
+    g_autoptr (GError) error = NULL;
+    g_autoptr (DsFrame) f = trigger_and_grab (r->cam, &error);
+    if (f) {
+      check_pixels (f, 255);
+      ok++;
+      continue;
+    }
+    g_assert_true (error->domain == DS_CAMERA_ERROR);
+    if (error->code == DS_DEVICE_ERROR_INCOMPLETE)
+      incomplete++;
+    else if (error->code == DS_DEVICE_ERROR_TIMEOUT)
+      timeouts++;
+    else
+      g_error ("unexpected error under packet loss: %s", error->message);
+    guint in, out, pool;
+    ds_aravis_camera_pool_counts (r->cam, &in, &out, &pool);
+    g_assert_cmpuint (in + out, <=, pool);
+  }
+  g_test_message ("40 frames at 5%% packet loss: %u good, %u incomplete, %u timeouts", ok, incomplete,
+                  timeouts);
+  g_assert_cmpuint (ok, >, 0);
+  g_assert_cmpuint (incomplete, >, 0);
+  DsCameraStats st;
+  r->cam->ops->get_stats (r->cam->backend, &st);
+  g_assert_cmpuint (st.completed, ==, ok);
+  g_assert_cmpuint (st.failures, ==, incomplete);
+  g_assert_cmpuint (st.timeouts, ==, timeouts);
+  g_assert_cmpuint (st.missing_packets, >, 0);
+  g_assert_cmpuint (st.resend_requests, >, 0); /* asked, though the fake never resends */
+  r->cam->ops->stop (r->cam->backend);
+  guint in, out, pool;
+  ds_aravis_camera_pool_counts (r->cam, &in, &out, &pool);
+  g_assert_cmpuint (pool, ==, N_BUFFERS);
+  g_assert_cmpuint (in, ==, N_BUFFERS);
+  g_assert_cmpuint (out, ==, 0);
+  /* And the camera still works once the link is clean again. */
+  g_object_set (r->gv, "gvsp-lost-ratio", 0.0, NULL);
+  configure_and_start (r, &s);
+  g_autoptr (GError) error = NULL;
+  g_autoptr (DsFrame) f = trigger_and_grab (r->cam, &error);
+  g_assert_no_error (error);
+  check_pixels (f, 255);
+}
+
+static void
+test_flush (Rig *r, gconstpointer data)
+{
+  (void) data;
+  DsCameraSettings s = settings ("Mono8", 16, 8);
+  configure_and_start (r, &s);
+  g_autoptr (GError) error = NULL;
+  for (guint i = 0; i < 3; i++) {
+    g_assert_true (r->cam->ops->trigger (r->cam->backend, &error));
+    g_assert_no_error (error);
+    /* wait for the frame to land so that flush has something to drop */
+    for (guint t = 0; t < 200; t++) {
+      guint in, out, pool;
+      ds_aravis_camera_pool_counts (r->cam, &in, &out, &pool);
+      if (out == i + 1)
+        break;
+      g_usleep (10000);
+    }
+  }
+  g_assert_cmpuint (r->cam->ops->flush (r->cam->backend), ==, 3);
+  g_assert_null (r->cam->ops->grab (r->cam->backend, 50, &error));
+  g_assert_error (error, DS_CAMERA_ERROR, DS_DEVICE_ERROR_TIMEOUT);
+  g_clear_error (&error);
+  DsCameraStats st;
+  r->cam->ops->get_stats (r->cam->backend, &st);
+  g_assert_cmpuint (st.timeouts, ==, 1);
+  /* Flushed frames are not gaps: the next one follows without a skip. */
+  g_autoptr (DsFrame) f = trigger_and_grab (r->cam, &error);
+  g_assert_no_error (error);
+  g_assert_cmpuint (f->ids_skipped, ==, 0);
+}
+
+/* The camera vanishes: Aravis's heartbeat reports control lost, the backend fails
+ * DISCONNECTED, and reconnect works once the camera is back. */
+static void
+test_disconnect_reconnect (Rig *r, gconstpointer data)
+{
+  (void) data;
+  DsCameraSettings s = settings ("Mono8", 16, 8);
+  configure_and_start (r, &s);
+  g_clear_object (&r->gv);
+  DsCameraInfo info = { .connected = TRUE };
+  for (guint i = 0; i < 300 && info.connected; i++) {
+    g_usleep (100 * 1000);
+    r->cam->ops->get_info (r->cam->backend, &info);
+  }
+  g_assert_false (info.connected);
+  g_autoptr (GError) error = NULL;
+  g_assert_false (r->cam->ops->trigger (r->cam->backend, &error));
+  g_assert_error (error, DS_CAMERA_ERROR, DS_DEVICE_ERROR_DISCONNECTED);
+  g_clear_error (&error);
+  g_assert_null (r->cam->ops->grab (r->cam->backend, 100, &error));
+  g_assert_error (error, DS_CAMERA_ERROR, DS_DEVICE_ERROR_DISCONNECTED);
+  g_clear_error (&error);
+  r->cam->ops->stop (r->cam->backend);
+  /* Still gone: reconnect fails DISCONNECTED. */
+  g_assert_false (r->cam->ops->reconnect (r->cam->backend, &error));
+  g_assert_error (error, DS_CAMERA_ERROR, DS_DEVICE_ERROR_DISCONNECTED);
+  g_clear_error (&error);
+  r->fill.n = 0;
+  r->gv = start_fake (&r->fill);
+  g_assert_true (r->cam->ops->reconnect (r->cam->backend, &error));
+  g_assert_no_error (error);
+  g_assert_true (r->cam->ops->start (r->cam->backend, &error));
+  g_assert_no_error (error);
+  g_autoptr (DsFrame) f = trigger_and_grab (r->cam, &error);
+  g_assert_no_error (error);
+  g_assert_cmpuint (f->image->width, ==, 16); /* the last settings were reapplied */
+  check_pixels (f, 255);
+  DsCameraStats st;
+  r->cam->ops->get_stats (r->cam->backend, &st);
+  g_assert_cmpuint (st.reconnects, ==, 1);
+}
+
+static void
+test_open_bad_arguments (void)
+{
+  g_autoptr (GError) error = NULL;
+  DsCamera *cam = ds_aravis_camera_open ("", 4, &error);
+  g_assert_null (cam);
+  g_assert_error (error, DS_CAMERA_ERROR, DS_DEVICE_ERROR_INVALID);
+}
+
+int
+main (int argc, char **argv)
+{
+  g_test_init (&argc, &argv, NULL);
+  g_test_add_func ("/aravis/open-bad-arguments", test_open_bad_arguments);
+#define ADD(path, fn) g_test_add (path, Rig, NULL, rig_setup, fn, rig_teardown)
+  ADD ("/aravis/mono8-pixels", test_mono8);
+  ADD ("/aravis/mono16-pixels", test_mono16);
+  ADD ("/aravis/bad-settings", test_bad_settings);
+  ADD ("/aravis/ids-across-wrap", test_ids_across_wrap);
+  ADD ("/aravis/packet-loss", test_packet_loss);
+  ADD ("/aravis/flush", test_flush);
+  ADD ("/aravis/disconnect-reconnect", test_disconnect_reconnect);
+  int rc = g_test_run ();
+  arv_shutdown ();
+  return rc;
+}

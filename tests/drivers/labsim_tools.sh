@@ -1,0 +1,87 @@
+#!/bin/sh
+# descatter-labsim against programs written elsewhere: mbpoll reads and writes its registers,
+# arv-tool-0.8 reads its camera's features, arv-camera-test-0.8 streams frames from it.
+# Usage: labsim_tools.sh LABSIM SCENE. Binds UDP 3956 (ctest RESOURCE_LOCK gige_port_3956).
+set -eu
+labsim=$1
+scene=$2
+tmp=$(mktemp -d)
+serial="DSLS$(($$ % 100000))"
+pid=
+cleanup() {
+  [ -n "$pid" ] && kill -TERM "$pid" 2>/dev/null || true
+  rm -rf "$tmp"
+}
+trap cleanup EXIT
+fail() { echo "FAIL: $*" >&2; exit 1; }
+
+"$labsim" --scene "$scene" --camera-address 127.0.0.1 --camera-serial "$serial" \
+  --modbus 127.0.0.1:0 >"$tmp/out" 2>"$tmp/err" &
+pid=$!
+for _ in $(seq 1 100); do
+  grep -q ready "$tmp/out" 2>/dev/null && break
+  kill -0 "$pid" 2>/dev/null || fail "labsim exited: $(cat "$tmp/err")"
+  sleep 0.1
+done
+port=$(sed -n 's/.*ready camera=127.0.0.1 modbus=127.0.0.1:\([0-9]*\).*/\1/p' "$tmp/out")
+[ -n "$port" ] || fail "no ready line: $(cat "$tmp/out")"
+echo "labsim ready, modbus port $port"
+
+# --- mbpoll: input registers from 0 (PDU addressing), then write PHASE=2, ENABLE=1. ----------
+mb() { mbpoll -m tcp -p "$port" -0 -1 -o 1 "$@"; } # host, then values to write
+mb -t 3 -r 0 -c 6 127.0.0.1 >"$tmp/in" || fail "mbpoll read: $(cat "$tmp/in")"
+grep -q '^\[0\]:[[:space:]]*17491$' "$tmp/in" || fail "MAGIC is not 0x4453 (17491): $(cat "$tmp/in")"
+grep -q '^\[3\]:[[:space:]]*65535' "$tmp/in" || fail "APPLIED_PHASE is not off after power-up"
+mb -t 4 -r 0 127.0.0.1 2 1 >"$tmp/w" || fail "mbpoll write: $(cat "$tmp/w")"
+sleep 0.1 # settle time is 3 ms
+mb -t 3 -r 2 -c 3 127.0.0.1 >"$tmp/in2" || fail "mbpoll read back"
+grep -q '^\[2\]:[[:space:]]*17$' "$tmp/in2" || fail "STATUS is not READY|ENABLED (17): $(cat "$tmp/in2")"
+grep -q '^\[3\]:[[:space:]]*2$' "$tmp/in2" || fail "APPLIED_PHASE is not 2: $(cat "$tmp/in2")"
+grep -q '^\[4\]:[[:space:]]*1$' "$tmp/in2" || fail "APPLY_COUNT is not 1: $(cat "$tmp/in2")"
+# A value out of range (NUM_PHASES = 1) is refused and changes nothing.
+mb -t 4 -r 2 127.0.0.1 1 >"$tmp/bad" 2>&1 && fail "NUM_PHASES=1 was accepted"
+mb -t 4 -r 2 127.0.0.1 >"$tmp/np"
+grep -q '^\[2\]:[[:space:]]*4$' "$tmp/np" || fail "NUM_PHASES changed: $(cat "$tmp/np")"
+echo "mbpoll: ok"
+
+# --- arv-tool: the camera's features as labsim serves them. ---------------------------------
+timeout 20 arv-tool-0.8 -a 127.0.0.1 control DeviceID Width Height PixelFormat >"$tmp/ctl" 2>&1 ||
+  fail "arv-tool control: $(cat "$tmp/ctl")"
+grep -q "DeviceID = $serial" "$tmp/ctl" ||
+  fail "the camera on 127.0.0.1 is not labsim's $serial (another device on UDP 3956?): $(cat "$tmp/ctl")"
+w=$(sed -n 's/^width=//p' "$scene")
+h=$(sed -n 's/^height=//p' "$scene")
+grep -q "Width = $w " "$tmp/ctl" || fail "Width is not the scene's $w: $(cat "$tmp/ctl")"
+grep -q "Height = $h " "$tmp/ctl" || fail "Height is not the scene's $h: $(cat "$tmp/ctl")"
+timeout 20 arv-tool-0.8 -a 127.0.0.1 features >"$tmp/feat" 2>&1 || fail "arv-tool features"
+grep -q "TriggerSoftware" "$tmp/feat" || fail "no TriggerSoftware feature: $(cat "$tmp/feat")"
+echo "arv-tool: ok"
+
+# --- arv-camera-test: free-running stream for 3 s. ------------------------------------------
+timeout -s INT 3 arv-camera-test-0.8 -n 127.0.0.1 -f 20 >"$tmp/stream" 2>&1 || true
+n=$(sed -n 's/^n_completed_buffers *= *//p' "$tmp/stream")
+[ -n "$n" ] && [ "$n" -gt 0 ] || fail "arv-camera-test completed no buffer: $(cat "$tmp/stream")"
+grep -q "image width *= *$w" "$tmp/stream" || fail "arv-camera-test width: $(cat "$tmp/stream")"
+echo "arv-camera-test: $n frames"
+
+kill -TERM "$pid"
+wait "$pid" || fail "labsim exit status $? after SIGTERM: $(cat "$tmp/err")"
+pid=
+echo "labsim: clean exit"
+
+# --- the GVSP loss knob is seen by a client we did not write. --------------------------------
+"$labsim" --scene "$scene" --camera-address 127.0.0.1 --camera-serial "$serial" \
+  --modbus 127.0.0.1:0 --gvsp-lost-ratio 0.05 >"$tmp/out2" 2>"$tmp/err2" &
+pid=$!
+for _ in $(seq 1 100); do
+  grep -q ready "$tmp/out2" 2>/dev/null && break
+  kill -0 "$pid" 2>/dev/null || fail "labsim exited: $(cat "$tmp/err2")"
+  sleep 0.1
+done
+timeout -s INT 3 arv-camera-test-0.8 -n 127.0.0.1 -f 20 >"$tmp/stream2" 2>&1 || true
+missing=$(sed -n 's/^n_missing_packets *= *//p' "$tmp/stream2")
+[ -n "$missing" ] && [ "$missing" -gt 0 ] || fail "--gvsp-lost-ratio 0.05: no missing packet: $(cat "$tmp/stream2")"
+echo "arv-camera-test with 5% GVSP loss: $missing missing packets"
+kill -TERM "$pid"
+wait "$pid" || fail "labsim exit status $? after SIGTERM: $(cat "$tmp/err2")"
+pid=

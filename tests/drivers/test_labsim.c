@@ -1,0 +1,318 @@
+/* descatter-labsim is real: a GigE Vision camera that plain Aravis streams from, and a Modbus TCP
+ * controller that the Modbus backend drives; each frame shows the stripe phase the Modbus client
+ * set, measured in the frame itself (proc/stripe_phase.h), and a dark frame shows no stripes.
+ * Usage: test_labsim LABSIM SCENE. Binds UDP 3956 (RESOURCE_LOCK gige_port_3956). */
+#include <arv.h>
+#include <math.h>
+#include <signal.h>
+#include <stdio.h>
+#include <string.h>
+#include <sys/prctl.h>
+#include <unistd.h>
+
+#include "drivers/modbus/modbus_illuminator.h"
+#include "drivers/sim/scene.h"
+#include "proc/pixfmt.h"
+#include "proc/stripe_phase.h"
+
+static const char *labsim_path, *scene_path;
+
+typedef struct {
+  GSubprocess *proc;
+  guint modbus_port;
+  char serial[32];
+} Labsim;
+
+static void
+die_with_parent (gpointer data)
+{
+  (void) data;
+  prctl (PR_SET_PDEATHSIG, SIGTERM);
+}
+
+static void
+labsim_start (Labsim *l, const char *const *extra)
+{
+  g_snprintf (l->serial, sizeof l->serial, "DSLT%05u", (guint) (getpid () % 100000));
+  g_autoptr (GError) error = NULL;
+  g_autoptr (GPtrArray) argv = g_ptr_array_new ();
+  const char *fixed[] = { labsim_path, "--scene", scene_path, "--camera-address", "127.0.0.1",
+                          "--camera-serial", l->serial, "--modbus", "127.0.0.1:0" };
+  for (guint i = 0; i < G_N_ELEMENTS (fixed); i++)
+    g_ptr_array_add (argv, (gpointer) fixed[i]);
+  for (guint i = 0; extra && extra[i]; i++)
+    g_ptr_array_add (argv, (gpointer) extra[i]);
+  g_ptr_array_add (argv, NULL);
+  /* A failed assertion aborts this process: labsim must not outlive it holding UDP 3956. */
+  g_autoptr (GSubprocessLauncher) launcher = g_subprocess_launcher_new (G_SUBPROCESS_FLAGS_STDOUT_PIPE);
+  g_subprocess_launcher_set_child_setup (launcher, die_with_parent, NULL, NULL);
+  l->proc = g_subprocess_launcher_spawnv (launcher, (const char *const *) argv->pdata, &error);
+  g_assert_no_error (error);
+  g_autoptr (GDataInputStream) out = g_data_input_stream_new (g_subprocess_get_stdout_pipe (l->proc));
+  for (;;) {
+    g_autofree char *line = g_data_input_stream_read_line (out, NULL, NULL, &error);
+    g_assert_no_error (error);
+    if (!line)
+      g_error ("descatter-labsim exited before its ready line");
+    const char *m = strstr (line, "ready camera=127.0.0.1 modbus=127.0.0.1:");
+    if (m) {
+      l->modbus_port = (guint) g_ascii_strtoull (m + strlen ("ready camera=127.0.0.1 modbus=127.0.0.1:"), NULL, 10);
+      break;
+    }
+  }
+  g_assert_cmpuint (l->modbus_port, >, 0);
+}
+
+static void
+labsim_stop (Labsim *l)
+{
+  g_subprocess_send_signal (l->proc, SIGTERM);
+  g_autoptr (GError) error = NULL;
+  g_assert_true (g_subprocess_wait (l->proc, NULL, &error));
+  g_assert_true (g_subprocess_get_if_exited (l->proc));
+  g_assert_cmpint (g_subprocess_get_exit_status (l->proc), ==, 0);
+  g_clear_object (&l->proc);
+}
+
+static ArvCamera *
+open_camera (const Labsim *l)
+{
+  g_autoptr (GError) error = NULL;
+  ArvCamera *cam = arv_camera_new ("127.0.0.1", &error);
+  g_assert_no_error (error);
+  g_autofree char *serial = g_strdup (arv_camera_get_device_serial_number (cam, &error));
+  if (g_strcmp0 (serial, l->serial) != 0)
+    g_error ("the GigE Vision device answering on 127.0.0.1:3956 is \"%s\", not labsim's \"%s\": another "
+             "camera (arv-fake-gv-camera?) holds the port", serial, l->serial);
+  return cam;
+}
+
+static DsImage *
+grab_one (ArvCamera *cam, ArvStream *stream, guint width, guint height)
+{
+  g_autoptr (GError) error = NULL;
+  arv_camera_software_trigger (cam, &error);
+  g_assert_no_error (error);
+  ArvBuffer *buf = arv_stream_timeout_pop_buffer (stream, 5000000);
+  g_assert_nonnull (buf);
+  g_assert_cmpint (arv_buffer_get_status (buf), ==, ARV_BUFFER_STATUS_SUCCESS);
+  g_assert_cmpint (arv_buffer_get_image_width (buf), ==, (int) width);
+  g_assert_cmpint (arv_buffer_get_image_height (buf), ==, (int) height);
+  size_t size = 0;
+  const void *data = arv_buffer_get_image_data (buf, &size);
+  DsImage *img = ds_pixfmt_unpack (DS_PIXFMT_MONO16, data, size, width, height, 0, &error);
+  g_assert_no_error (error);
+  arv_stream_push_buffer (stream, buf);
+  return img;
+}
+
+static void
+test_phase_over_the_wire (void)
+{
+  g_autoptr (GError) error = NULL;
+  g_autoptr (DsScene) scene = ds_scene_load (scene_path, &error);
+  g_assert_no_error (error);
+  guint width = ds_scene_width (scene), height = ds_scene_height (scene);
+  double period = ds_scene_period_px (scene);
+  Labsim l = { 0 };
+  labsim_start (&l, NULL);
+
+  ArvCamera *cam = open_camera (&l);
+  arv_camera_set_pixel_format_from_string (cam, "Mono16", &error);
+  g_assert_no_error (error);
+  arv_camera_set_trigger (cam, "Software", &error);
+  g_assert_no_error (error);
+  arv_camera_set_exposure_time (cam, ds_scene_default_exposure_us (scene), &error);
+  g_assert_no_error (error);
+  ArvStream *stream = arv_camera_create_stream (cam, NULL, NULL, &error);
+  g_assert_no_error (error);
+  guint payload = arv_camera_get_payload (cam, &error);
+  g_assert_cmpuint (payload, ==, width * height * 2);
+  for (guint i = 0; i < 4; i++)
+    arv_stream_push_buffer (stream, arv_buffer_new (payload, NULL));
+  arv_camera_start_acquisition (cam, &error);
+  g_assert_no_error (error);
+
+  g_autofree char *uri = g_strdup_printf ("tcp://127.0.0.1:%u", l.modbus_port);
+  DsIlluminator *ill = ds_modbus_illuminator_open (uri, 1, 300, &error);
+  g_assert_no_error (error);
+  const guint n = 4;
+  DsStripePattern pattern = { .kind = ds_scene_pattern_is_sine (scene) ? DS_STRIPES_SINE : DS_STRIPES_SQUARE,
+                              .period_px = period, .duty = ds_scene_duty (scene),
+                              .black_level = ds_scene_black_level (scene), .intensity = 1, .n_phases = n };
+  g_assert_true (ill->ops->set_pattern (ill->backend, &pattern, &error));
+  g_assert_no_error (error);
+
+  /* Rows above the scene's objects: stripes over the medium only. */
+  DsRegion region = { 0, 0, width, MIN (height, 40u) };
+  const guint order[] = { 0, 1, 2, 3, 2, 0, 3, 1 };
+  double phase0 = NAN, amplitude = 0;
+  for (guint i = 0; i < G_N_ELEMENTS (order); i++) {
+    guint k = order[i];
+    g_assert_true (ill->ops->set_phase (ill->backend, k, 1000, &error));
+    g_assert_no_error (error);
+    g_autoptr (DsImage) img = grab_one (cam, stream, width, height);
+    DsStripePhase sp;
+    g_assert_true (ds_stripe_phase_measure (img, period, &region, &sp, &error));
+    g_assert_no_error (error);
+    g_assert_true (sp.reliable);
+    if (i == 0) {
+      phase0 = sp.phase;
+      amplitude = sp.amplitude;
+    }
+    double rel = ds_stripe_phase_diff (sp.phase, phase0);
+    double want = ds_stripe_phase_diff ((double) k / n, 0);
+    g_test_message ("phase %u: measured %.3f cycles (%.3f from phase 0), expected %.3f", k, sp.phase, rel, want);
+    /* Half a phase step tells every phase apart. */
+    g_assert_cmpfloat (fabs (ds_stripe_phase_diff (rel, want)), <, 0.5 / n);
+  }
+  /* Dark: the pattern is gone (ambient light only). */
+  g_assert_true (ill->ops->off (ill->backend, 1000, &error));
+  g_autoptr (DsImage) dark = grab_one (cam, stream, width, height);
+  DsStripePhase sp;
+  g_assert_true (ds_stripe_phase_measure (dark, period, &region, &sp, &error));
+  g_assert_cmpfloat (sp.amplitude, <, 0.1 * amplitude);
+
+  ds_illuminator_close (ill);
+  arv_camera_stop_acquisition (cam, NULL);
+  g_object_unref (stream);
+  g_object_unref (cam);
+  labsim_stop (&l);
+}
+
+static double
+image_mean (const DsImage *img)
+{
+  double sum = 0;
+  for (guint y = 0; y < img->height; y++) {
+    const guint8 *row = ds_image_row (img, y);
+    for (guint x = 0; x < img->width; x++)
+      sum += img->type == DS_SAMPLE_U8 ? row[x] : ((const guint16 *) (const void *) row)[x];
+  }
+  return sum / ((double) img->width * img->height);
+}
+
+/* One lit frame in Mono16 and one in Mono8 (a fresh stream each): Mono8 carries the top 8 of
+ * the sensor's bits, so its mean is the Mono16 mean / 2^(depth - 8), to within the truncation
+ * (at most 1 DN) and the frames' different noise. */
+static void
+test_mono8 (void)
+{
+  g_autoptr (GError) error = NULL;
+  g_autoptr (DsScene) scene = ds_scene_load (scene_path, &error);
+  g_assert_no_error (error);
+  guint width = ds_scene_width (scene), height = ds_scene_height (scene);
+  Labsim l = { 0 };
+  labsim_start (&l, NULL);
+  ArvCamera *cam = open_camera (&l);
+  arv_camera_set_trigger (cam, "Software", &error);
+  g_assert_no_error (error);
+  double means[2];
+  const char *formats[2] = { "Mono16", "Mono8" };
+  for (guint f = 0; f < 2; f++) {
+    arv_camera_set_pixel_format_from_string (cam, formats[f], &error);
+    g_assert_no_error (error);
+    ArvStream *stream = arv_camera_create_stream (cam, NULL, NULL, &error);
+    g_assert_no_error (error);
+    guint payload = arv_camera_get_payload (cam, &error);
+    g_assert_cmpuint (payload, ==, width * height * (f == 0 ? 2 : 1));
+    for (guint i = 0; i < 2; i++)
+      arv_stream_push_buffer (stream, arv_buffer_new (payload, NULL));
+    arv_camera_start_acquisition (cam, &error);
+    g_assert_no_error (error);
+    arv_camera_software_trigger (cam, &error);
+    g_assert_no_error (error);
+    ArvBuffer *buf = arv_stream_timeout_pop_buffer (stream, 5000000);
+    g_assert_nonnull (buf);
+    g_assert_cmpint (arv_buffer_get_status (buf), ==, ARV_BUFFER_STATUS_SUCCESS);
+    size_t size = 0;
+    const void *data = arv_buffer_get_image_data (buf, &size);
+    g_autoptr (DsImage) img = ds_pixfmt_unpack (f == 0 ? DS_PIXFMT_MONO16 : DS_PIXFMT_MONO8, data, size,
+                                                width, height, 0, &error);
+    g_assert_no_error (error);
+    means[f] = image_mean (img);
+    arv_stream_push_buffer (stream, buf);
+    arv_camera_stop_acquisition (cam, NULL);
+    g_object_unref (stream);
+  }
+  double scale = ldexp (1.0, (int) ds_scene_bit_depth (scene) - 8);
+  g_test_message ("mean Mono16 %.2f DN, Mono8 %.2f DN (x%.0f = %.2f)", means[0], means[1], scale,
+                  means[1] * scale);
+  g_assert_cmpfloat (means[0], >, 4 * scale); /* a frame with light in it */
+  g_assert_cmpfloat (fabs (means[0] / scale - means[1]), <, 1.0 + 0.02 * means[1]);
+  g_object_unref (cam);
+  labsim_stop (&l);
+}
+
+/* --camera-vanish-after 3 --camera-vanish-for 1: three frames, then the camera stops
+ * answering; a second later the same camera is back and streams again. */
+static void
+test_camera_vanishes (void)
+{
+  const char *extra[] = { "--camera-vanish-after", "3", "--camera-vanish-for", "1", NULL };
+  Labsim l = { 0 };
+  labsim_start (&l, extra);
+  g_autoptr (GError) error = NULL;
+  ArvCamera *cam = open_camera (&l);
+  arv_camera_set_trigger (cam, "Software", &error);
+  g_assert_no_error (error);
+  ArvStream *stream = arv_camera_create_stream (cam, NULL, NULL, &error);
+  g_assert_no_error (error);
+  guint payload = arv_camera_get_payload (cam, &error);
+  for (guint i = 0; i < 4; i++)
+    arv_stream_push_buffer (stream, arv_buffer_new (payload, NULL));
+  arv_camera_start_acquisition (cam, &error);
+  g_assert_no_error (error);
+  guint got = 0;
+  for (guint i = 0; i < 6; i++) {
+    GError *e = NULL;
+    arv_camera_software_trigger (cam, &e);
+    if (e) {
+      g_error_free (e);
+      break;
+    }
+    ArvBuffer *buf = arv_stream_timeout_pop_buffer (stream, 1000000);
+    if (!buf)
+      break;
+    if (arv_buffer_get_status (buf) == ARV_BUFFER_STATUS_SUCCESS)
+      got++;
+    arv_stream_push_buffer (stream, buf);
+    if (got == 3)
+      g_usleep (300000); /* let labsim's main loop notice the count */
+  }
+  g_assert_cmpuint (got, ==, 3);
+  arv_camera_stop_acquisition (cam, NULL);
+  g_object_unref (stream);
+  g_object_unref (cam);
+  /* Back within a few seconds: poll by opening. */
+  ArvCamera *again = NULL;
+  for (guint i = 0; i < 50 && !again; i++) {
+    g_usleep (200000);
+    GError *e = NULL;
+    again = arv_camera_new ("127.0.0.1", &e);
+    if (e)
+      g_error_free (e);
+  }
+  g_assert_nonnull (again);
+  g_assert_cmpstr (arv_camera_get_device_serial_number (again, NULL), ==, l.serial);
+  g_object_unref (again);
+  labsim_stop (&l);
+}
+
+int
+main (int argc, char **argv)
+{
+  g_test_init (&argc, &argv, NULL);
+  if (argc < 3) {
+    fprintf (stderr, "usage: test_labsim LABSIM SCENE\n");
+    return 2;
+  }
+  labsim_path = argv[1];
+  scene_path = argv[2];
+  g_test_add_func ("/labsim/phase-over-the-wire", test_phase_over_the_wire);
+  g_test_add_func ("/labsim/mono8", test_mono8);
+  g_test_add_func ("/labsim/camera-vanishes", test_camera_vanishes);
+  int status = g_test_run ();
+  arv_shutdown ();
+  return status;
+}

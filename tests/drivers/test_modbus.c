@@ -1,0 +1,449 @@
+/* The Modbus illuminator backend against the lab's Modbus TCP controller (libmodbus on both
+ * ends, a real TCP connection on 127.0.0.1 and a free port). Expectations come from the
+ * server's own model of what is lit (ds_modbus_server_get_state), from the register map and
+ * from the documented error mapping, never from what the backend printed. */
+#include <errno.h>
+#include <modbus.h>
+#include <string.h>
+
+#include "drivers/labsim/modbus_server.h"
+#include "drivers/modbus/modbus_illuminator.h"
+#include "drivers/modbus/registers.h"
+
+typedef struct {
+  DsModbusServer *server;
+  DsModbusServerConfig cfg;
+  DsIlluminator *ill;
+  char *uri;
+} Fixture;
+
+static const DsStripePattern four_phases = {
+  .kind = DS_STRIPES_SQUARE, .period_px = 6.0, .duty = 0.5, .black_level = 0.0, .intensity = 1.0, .n_phases = 4,
+};
+
+static void
+fixture_setup (Fixture *f, gconstpointer data)
+{
+  (void) data;
+  ds_modbus_server_config_init (&f->cfg);
+  g_autoptr (GError) error = NULL;
+  f->server = ds_modbus_server_new ("127.0.0.1", 0, &f->cfg, &error);
+  g_assert_no_error (error);
+  f->uri = g_strdup_printf ("tcp://127.0.0.1:%u", ds_modbus_server_port (f->server));
+  f->ill = ds_modbus_illuminator_open (f->uri, 1, 100, &error);
+  g_assert_no_error (error);
+  g_assert_nonnull (f->ill);
+}
+
+static void
+fixture_teardown (Fixture *f, gconstpointer data)
+{
+  (void) data;
+  ds_illuminator_close (f->ill);
+  ds_modbus_server_free (f->server);
+  g_free (f->uri);
+}
+
+static void
+reconfigure (Fixture *f)
+{
+  ds_modbus_server_set_config (f->server, &f->cfg);
+}
+
+static void
+test_uri (void)
+{
+  DsModbusUri u;
+  g_autoptr (GError) error = NULL;
+  g_assert_true (ds_modbus_uri_parse ("tcp://192.168.1.20:1502", &u, &error));
+  g_assert_cmpint (u.transport, ==, DS_MODBUS_TCP);
+  g_assert_cmpstr (u.host, ==, "192.168.1.20");
+  g_assert_cmpuint (u.port, ==, 1502);
+  g_assert_true (ds_modbus_uri_parse ("tcp://illuminator.lab", &u, &error));
+  g_assert_cmpuint (u.port, ==, 502);
+  g_assert_true (ds_modbus_uri_parse ("rtu:/dev/ttyUSB0?baud=115200&parity=N&data=8&stop=1", &u, &error));
+  g_assert_cmpint (u.transport, ==, DS_MODBUS_RTU);
+  g_assert_cmpstr (u.device, ==, "/dev/ttyUSB0");
+  g_assert_cmpuint (u.baud, ==, 115200);
+  g_assert_cmpint (u.parity, ==, 'N');
+  g_assert_cmpuint (u.data_bits, ==, 8);
+  g_assert_cmpuint (u.stop_bits, ==, 1);
+  g_assert_true (ds_modbus_uri_parse ("rtu:/dev/ttyS1", &u, &error));
+  g_assert_cmpuint (u.baud, ==, 19200); /* Modbus serial default: 19200 8E1 */
+  g_assert_cmpint (u.parity, ==, 'E');
+  g_assert_no_error (error);
+
+  /* Each bad URI is refused with a message naming the part that is wrong. */
+  const struct { const char *uri, *names; } bad[] = {
+    { "tcp://:1502", "host" },
+    { "tcp://127.0.0.1:0", "port" },
+    { "tcp://127.0.0.1:70000", "port" },
+    { "tcp://127.0.0.1:15x", "port" },
+    { "tcp://a b:1", "host" },
+    { "udp://127.0.0.1:502", "scheme" },
+    { "rtu:ttyUSB0", "device" },
+    { "rtu:/dev/ttyUSB0?baud=fast", "baud" },
+    { "rtu:/dev/ttyUSB0?parity=X", "parity" },
+    { "rtu:/dev/ttyUSB0?data=9", "data" },
+    { "rtu:/dev/ttyUSB0?stop=3", "stop" },
+    { "rtu:/dev/ttyUSB0?speed=9600", "speed" },
+    { "rtu:/dev/ttyUSB0?baud", "baud" },
+  };
+  for (guint i = 0; i < G_N_ELEMENTS (bad); i++) {
+    g_clear_error (&error);
+    g_assert_false (ds_modbus_uri_parse (bad[i].uri, &u, &error));
+    g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_INVALID);
+    if (!strstr (error->message, bad[i].names))
+      g_error ("%s: message \"%s\" does not name \"%s\"", bad[i].uri, error->message, bad[i].names);
+  }
+}
+
+static void
+test_pattern_registers (void)
+{
+  guint16 regs[8];
+  g_autoptr (GError) error = NULL;
+  DsStripePattern p = { .kind = DS_STRIPES_SINE, .period_px = 12.34, .duty = 0.25, .black_level = 0.02,
+                        .intensity = 0.8, .n_phases = 8 };
+  g_assert_true (ds_modbus_pattern_to_registers (&p, regs, &error));
+  /* docs/registers.md units: 1/100 px and permille. */
+  const guint16 expect[8] = { 0, 0, 8, 1, 1234, 250, 20, 800 };
+  for (guint i = 0; i < 8; i++)
+    g_assert_cmpuint (regs[i], ==, expect[i]);
+  p.period_px = 1.5;
+  g_assert_false (ds_modbus_pattern_to_registers (&p, regs, &error));
+  g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_INVALID);
+  g_assert_nonnull (strstr (error->message, "PERIOD_CENTIPX"));
+  g_clear_error (&error);
+  p.period_px = 6;
+  p.n_phases = 65;
+  g_assert_false (ds_modbus_pattern_to_registers (&p, regs, &error));
+  g_assert_nonnull (strstr (error->message, "NUM_PHASES"));
+}
+
+/* set_pattern, every phase, off: after each call the controller lights exactly what was asked,
+ * and APPLY_COUNT advanced by one per applied write. */
+static void
+test_sequence (Fixture *f, gconstpointer data)
+{
+  (void) data;
+  g_autoptr (GError) error = NULL;
+  DsModbusServerState st;
+  g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &four_phases, &error));
+  g_assert_no_error (error);
+  ds_modbus_server_get_state (f->server, &st);
+  guint count = st.apply_count;
+  for (guint round = 0; round < 2; round++)
+    for (guint k = 0; k < 4; k++) {
+      g_assert_true (f->ill->ops->set_phase (f->ill->backend, k, 500, &error));
+      g_assert_no_error (error);
+      ds_modbus_server_get_state (f->server, &st);
+      g_assert_true (st.enabled);
+      g_assert_cmpuint (st.phase, ==, k);
+      g_assert_cmpuint (st.n_phases, ==, 4);
+      g_assert_cmpuint (st.period_centipx, ==, 600);
+      g_assert_cmpuint (st.duty_permille, ==, 500);
+      g_assert_cmpuint (st.apply_count, ==, (count + 1) & 0xffff);
+      count = st.apply_count;
+      DsIlluminatorStatus s;
+      g_assert_true (f->ill->ops->get_status (f->ill->backend, &s, &error));
+      g_assert_true (s.ready && s.enabled && !s.fault && !s.over_temperature);
+      g_assert_cmpint (s.applied_phase, ==, (int) k);
+      g_assert_cmpuint (s.apply_count, ==, count);
+      g_assert_cmpfloat_with_epsilon (s.temperature_c, 35.2, 1e-9);
+      g_assert_cmpuint (s.firmware_version, ==, 0x0102);
+    }
+  g_assert_true (f->ill->ops->off (f->ill->backend, 500, &error));
+  ds_modbus_server_get_state (f->server, &st);
+  g_assert_false (st.enabled);
+  DsIlluminatorStatus s;
+  g_assert_true (f->ill->ops->get_status (f->ill->backend, &s, &error));
+  g_assert_cmpint (s.applied_phase, ==, -1);
+  g_assert_false (s.enabled);
+  /* A phase outside the pattern is refused before anything is written. */
+  ds_modbus_server_get_state (f->server, &st);
+  guint64 requests = st.requests;
+  g_assert_false (f->ill->ops->set_phase (f->ill->backend, 4, 500, &error));
+  g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_INVALID);
+  ds_modbus_server_get_state (f->server, &st);
+  g_assert_cmpuint (st.requests, ==, requests);
+}
+
+/* A long settle time: set_phase returns only once the controller has lit the phase, which the
+ * controller's model does no earlier than settle_us after the write. */
+static void
+test_settle (Fixture *f, gconstpointer data)
+{
+  (void) data;
+  g_autoptr (GError) error = NULL;
+  f->cfg.settle_us = 60000;
+  reconfigure (f);
+  g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &four_phases, &error));
+  for (guint k = 0; k < 4; k++) {
+    g_assert_true (f->ill->ops->set_phase (f->ill->backend, (k + 1) % 4, 1000, &error));
+    g_assert_no_error (error);
+    DsModbusServerState st;
+    ds_modbus_server_get_state (f->server, &st);
+    g_assert_true (st.ready);
+    g_assert_true (st.enabled);
+    g_assert_cmpuint (st.phase, ==, (k + 1) % 4);
+  }
+  /* A deadline shorter than the settle time cannot be met: TIMEOUT or BUSY, never success. */
+  g_assert_false (f->ill->ops->set_phase (f->ill->backend, 2, 10, &error));
+  g_assert_true (g_error_matches (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_BUSY) ||
+                 g_error_matches (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_TIMEOUT));
+}
+
+/* Exception responses become the documented codes, name a register and are retried only when
+ * retrying can help (busy), and then a bounded number of times. */
+static void
+test_exceptions (Fixture *f, gconstpointer data)
+{
+  (void) data;
+  const struct { guint exception; DsDeviceError code; guint attempts; const char *text; } cases[] = {
+    { MODBUS_EXCEPTION_ILLEGAL_FUNCTION, DS_DEVICE_ERROR_UNSUPPORTED, 1, "illegal function" },
+    { MODBUS_EXCEPTION_ILLEGAL_DATA_ADDRESS, DS_DEVICE_ERROR_INVALID, 1, "illegal data address" },
+    { MODBUS_EXCEPTION_ILLEGAL_DATA_VALUE, DS_DEVICE_ERROR_INVALID, 1, "illegal data value" },
+    { MODBUS_EXCEPTION_SLAVE_OR_SERVER_FAILURE, DS_DEVICE_ERROR_FAULT, 1, "failure" },
+    { MODBUS_EXCEPTION_SLAVE_OR_SERVER_BUSY, DS_DEVICE_ERROR_BUSY, DS_MODBUS_MAX_ATTEMPTS, "busy" },
+  };
+  g_autoptr (GError) error = NULL;
+  g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &four_phases, &error));
+  for (guint i = 0; i < G_N_ELEMENTS (cases); i++) {
+    f->cfg.exception_rate = 1.0;
+    f->cfg.exception_code = cases[i].exception;
+    reconfigure (f);
+    DsModbusServerState before, after;
+    ds_modbus_server_get_state (f->server, &before);
+    g_clear_error (&error);
+    g_assert_false (f->ill->ops->set_phase (f->ill->backend, 1, 500, &error));
+    g_assert_error (error, DS_ILLUMINATOR_ERROR, cases[i].code);
+    g_assert_nonnull (strstr (error->message, "STATUS")); /* the first register set_phase reads */
+    g_assert_nonnull (strstr (error->message, cases[i].text));
+    ds_modbus_server_get_state (f->server, &after);
+    g_assert_cmpuint (after.requests - before.requests, ==, cases[i].attempts);
+    g_assert_false (after.enabled);
+  }
+  /* The controller's own range check, seen from a plain libmodbus client: exception 03 and
+   * nothing changes. */
+  f->cfg.exception_rate = 0;
+  reconfigure (f);
+  modbus_t *raw = modbus_new_tcp ("127.0.0.1", (int) ds_modbus_server_port (f->server));
+  g_assert_cmpint (modbus_connect (raw), ==, 0);
+  g_assert_cmpint (modbus_write_register (raw, DS_MB_HOLD_NUM_PHASES, 1), ==, -1);
+  g_assert_cmpint (errno, ==, EMBXILVAL);
+  g_assert_cmpint (modbus_write_register (raw, DS_MB_HOLD_PHASE, 4), ==, -1); /* NUM_PHASES is 4 */
+  g_assert_cmpint (errno, ==, EMBXILVAL);
+  guint16 regs[DS_MB_HOLD_COUNT + 1];
+  g_assert_cmpint (modbus_read_registers (raw, 0, DS_MB_HOLD_COUNT + 1, regs), ==, -1);
+  g_assert_cmpint (errno, ==, EMBXILADD);
+  g_assert_cmpint (modbus_read_registers (raw, 0, DS_MB_HOLD_COUNT, regs), ==, DS_MB_HOLD_COUNT);
+  g_assert_cmpuint (regs[DS_MB_HOLD_NUM_PHASES], ==, 4);
+  modbus_close (raw);
+  modbus_free (raw);
+  g_clear_error (&error);
+  g_assert_true (f->ill->ops->set_phase (f->ill->backend, 3, 500, &error));
+  g_assert_no_error (error);
+}
+
+/* Fault and over-temperature bits: FAULT naming STATUS. */
+static void
+test_fault_bits (Fixture *f, gconstpointer data)
+{
+  (void) data;
+  g_autoptr (GError) error = NULL;
+  g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &four_phases, &error));
+  f->cfg.over_temperature = TRUE;
+  reconfigure (f);
+  g_assert_false (f->ill->ops->set_phase (f->ill->backend, 0, 200, &error));
+  g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_FAULT);
+  g_assert_nonnull (strstr (error->message, "STATUS"));
+  g_assert_nonnull (strstr (error->message, "over-temperature"));
+  DsIlluminatorStatus s;
+  g_clear_error (&error);
+  g_assert_true (f->ill->ops->get_status (f->ill->backend, &s, &error));
+  g_assert_true (s.over_temperature && !s.ready);
+  g_assert_cmpfloat_with_epsilon (s.temperature_c, 85.0, 1e-9);
+  f->cfg.over_temperature = FALSE;
+  f->cfg.fault = TRUE;
+  reconfigure (f);
+  g_assert_false (f->ill->ops->set_phase (f->ill->backend, 0, 200, &error));
+  g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_FAULT);
+  g_assert_nonnull (strstr (error->message, "fault"));
+  f->cfg.fault = FALSE;
+  reconfigure (f);
+  g_clear_error (&error);
+  g_assert_true (f->ill->ops->set_phase (f->ill->backend, 0, 200, &error));
+}
+
+/* Answers later than the response timeout: TIMEOUT after a bounded number of attempts; with
+ * only some answers late, the retries (on a fresh connection) get through. */
+static void
+test_delay (Fixture *f, gconstpointer data)
+{
+  (void) data;
+  g_autoptr (GError) error = NULL;
+  g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &four_phases, &error));
+  f->cfg.delay_ms = 300; /* timeout is 100 ms */
+  f->cfg.delay_every = 1;
+  reconfigure (f);
+  DsModbusServerState before, after;
+  ds_modbus_server_get_state (f->server, &before);
+  DsIlluminatorStatus s;
+  g_assert_false (f->ill->ops->get_status (f->ill->backend, &s, &error));
+  g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_TIMEOUT);
+  g_assert_nonnull (strstr (error->message, "MAGIC")); /* get_status reads from register 0 */
+  ds_modbus_server_get_state (f->server, &after);
+  g_assert_cmpuint (after.requests - before.requests, <=, DS_MODBUS_MAX_ATTEMPTS);
+  g_assert_cmpuint (after.requests - before.requests, >=, 2);
+
+  f->cfg.delay_every = 3;
+  reconfigure (f);
+  for (guint k = 0; k < 4; k++) {
+    g_clear_error (&error);
+    g_assert_true (f->ill->ops->set_phase (f->ill->backend, k, 2000, &error));
+    g_assert_no_error (error);
+    DsModbusServerState st;
+    ds_modbus_server_get_state (f->server, &st);
+    g_assert_cmpuint (st.phase, ==, k);
+    g_assert_true (st.enabled);
+  }
+}
+
+/* The controller drops the connection: the next access reconnects on its own; with every
+ * request dropped, DISCONNECTED; reconnect () works once the controller is back. */
+static void
+test_dropped_connection (Fixture *f, gconstpointer data)
+{
+  (void) data;
+  g_autoptr (GError) error = NULL;
+  g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &four_phases, &error));
+  g_assert_true (f->ill->ops->set_phase (f->ill->backend, 0, 500, &error));
+  DsModbusServerState st;
+  ds_modbus_server_get_state (f->server, &st);
+  guint64 connections = st.connections;
+  ds_modbus_server_drop_clients (f->server);
+  g_assert_true (f->ill->ops->set_phase (f->ill->backend, 1, 500, &error));
+  g_assert_no_error (error);
+  ds_modbus_server_get_state (f->server, &st);
+  g_assert_cmpuint (st.phase, ==, 1);
+  g_assert_cmpuint (st.connections, ==, connections + 1);
+
+  f->cfg.drop_every = 1;
+  reconfigure (f);
+  g_assert_false (f->ill->ops->set_phase (f->ill->backend, 2, 500, &error));
+  g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_DISCONNECTED);
+  g_assert_nonnull (strstr (error->message, "STATUS"));
+  f->cfg.drop_every = 0;
+  reconfigure (f);
+  g_clear_error (&error);
+  g_assert_true (f->ill->ops->reconnect (f->ill->backend, &error));
+  g_assert_true (f->ill->ops->set_phase (f->ill->backend, 2, 500, &error));
+  g_assert_no_error (error);
+  ds_modbus_server_get_state (f->server, &st);
+  g_assert_cmpuint (st.phase, ==, 2);
+}
+
+/* Answers one register short: INCOMPLETE after the bounded attempts; once the controller
+ * answers in full again, the next access works. */
+static void
+test_short_read (Fixture *f, gconstpointer data)
+{
+  (void) data;
+  g_autoptr (GError) error = NULL;
+  f->cfg.short_every = 1;
+  reconfigure (f);
+  DsModbusServerState before, after;
+  ds_modbus_server_get_state (f->server, &before);
+  DsIlluminatorStatus s;
+  g_assert_false (f->ill->ops->get_status (f->ill->backend, &s, &error));
+  g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_INCOMPLETE);
+  g_assert_nonnull (strstr (error->message, "MAGIC"));
+  g_assert_nonnull (strstr (error->message, "short"));
+  ds_modbus_server_get_state (f->server, &after);
+  g_assert_cmpuint (after.requests - before.requests, ==, DS_MODBUS_MAX_ATTEMPTS);
+  f->cfg.short_every = 2; /* every other answer short: the retry gets a full one */
+  reconfigure (f);
+  g_clear_error (&error);
+  for (guint i = 0; i < 4; i++) {
+    g_assert_true (f->ill->ops->get_status (f->ill->backend, &s, &error));
+    g_assert_no_error (error);
+    g_assert_cmpuint (s.firmware_version, ==, 0x0102);
+  }
+}
+
+/* The controller never becomes ready: BUSY naming STATUS, within the deadline. */
+static void
+test_stuck_not_ready (Fixture *f, gconstpointer data)
+{
+  (void) data;
+  g_autoptr (GError) error = NULL;
+  g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &four_phases, &error));
+  f->cfg.stuck_not_ready = TRUE;
+  reconfigure (f);
+  g_assert_false (f->ill->ops->set_phase (f->ill->backend, 1, 50, &error));
+  g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_BUSY);
+  g_assert_nonnull (strstr (error->message, "STATUS"));
+  DsModbusServerState st;
+  ds_modbus_server_get_state (f->server, &st);
+  g_assert_false (st.enabled);
+}
+
+/* The controller lights another phase than the one written: INVALID naming APPLIED_PHASE and
+ * both phases. */
+static void
+test_wrong_phase (Fixture *f, gconstpointer data)
+{
+  (void) data;
+  g_autoptr (GError) error = NULL;
+  g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &four_phases, &error));
+  f->cfg.wrong_phase = TRUE;
+  reconfigure (f);
+  g_assert_false (f->ill->ops->set_phase (f->ill->backend, 1, 200, &error));
+  g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_INVALID);
+  g_assert_nonnull (strstr (error->message, "APPLIED_PHASE reads 2, expected 1"));
+}
+
+/* Open refuses what is not our controller or not there. */
+static void
+test_open_errors (void)
+{
+  g_autoptr (GError) error = NULL;
+  /* A free port with nobody listening. */
+  DsModbusServerConfig cfg;
+  ds_modbus_server_config_init (&cfg);
+  DsModbusServer *s = ds_modbus_server_new ("127.0.0.1", 0, &cfg, &error);
+  g_assert_no_error (error);
+  g_autofree char *uri = g_strdup_printf ("tcp://127.0.0.1:%u", ds_modbus_server_port (s));
+  ds_modbus_server_free (s);
+  g_assert_null (ds_modbus_illuminator_open (uri, 1, 100, &error));
+  g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_DISCONNECTED);
+  g_clear_error (&error);
+  g_assert_null (ds_modbus_illuminator_open ("tcp://127.0.0.1:1502", 300, 100, &error));
+  g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_INVALID);
+  g_assert_nonnull (strstr (error->message, "unit id"));
+  g_clear_error (&error);
+  g_assert_null (ds_modbus_illuminator_open ("tcp://127.0.0.1:1502", 1, 1, &error));
+  g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_INVALID);
+  g_assert_nonnull (strstr (error->message, "timeout"));
+}
+
+int
+main (int argc, char **argv)
+{
+  g_test_init (&argc, &argv, NULL);
+  g_test_add_func ("/modbus/uri", test_uri);
+  g_test_add_func ("/modbus/pattern-registers", test_pattern_registers);
+  g_test_add_func ("/modbus/open-errors", test_open_errors);
+#define ADD(path, fn) g_test_add ("/modbus/" path, Fixture, NULL, fixture_setup, fn, fixture_teardown)
+  ADD ("sequence", test_sequence);
+  ADD ("settle", test_settle);
+  ADD ("exceptions", test_exceptions);
+  ADD ("fault-bits", test_fault_bits);
+  ADD ("delay", test_delay);
+  ADD ("dropped-connection", test_dropped_connection);
+  ADD ("short-read", test_short_read);
+  ADD ("stuck-not-ready", test_stuck_not_ready);
+  ADD ("wrong-phase", test_wrong_phase);
+  return g_test_run ();
+}

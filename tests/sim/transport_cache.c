@@ -1,0 +1,219 @@
+/* The PSF cache: a hit returns the computed data bit for bit, anything damaged is recomputed,
+ * every shaping parameter is part of the key; and the `slab` subcommand's interface. */
+#include <glib/gstdio.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "drivers/sim/sim_error.h"
+#include "drivers/sim/transport.h"
+
+static const DsSlab slab = { 0.1, 4.0, 0.7, 1.0, 1.33, 1.0, 1.0 };
+static const DsPsfGrid grid = { 0.1, 8, 30.0 };
+
+static void
+assert_same (const DsImage *a, const DsImage *b)
+{
+  g_assert_true (ds_image_same_shape (a, b));
+  for (guint y = 0; y < a->height; y++)
+    g_assert_cmpmem (ds_image_row (a, y), a->width * sizeof (float), ds_image_row (b, y),
+                     b->width * sizeof (float));
+}
+
+static char *
+only_file (const char *dir)
+{
+  g_autoptr (GDir) d = g_dir_open (dir, 0, NULL);
+  g_assert_nonnull (d);
+  const char *name = g_dir_read_name (d);
+  g_assert_nonnull (name);
+  g_assert_null (g_dir_read_name (d));
+  return g_build_filename (dir, name, NULL);
+}
+
+static void
+remove_tree (const char *dir)
+{
+  g_autoptr (GDir) d = g_dir_open (dir, 0, NULL);
+  const char *name;
+  while (d && (name = g_dir_read_name (d))) {
+    g_autofree char *p = g_build_filename (dir, name, NULL);
+    if (g_file_test (p, G_FILE_TEST_IS_DIR))
+      remove_tree (p);
+    else
+      g_unlink (p);
+  }
+  g_rmdir (dir);
+}
+
+static DsImage *
+cached (DsTransportModel model, const DsSlab *s, guint64 seed, const char *dir, gboolean *hit)
+{
+  g_autoptr (GError) error = NULL;
+  DsImage *psf = ds_slab_psf_cached (model, s, &grid, 3000, seed, dir, hit, &error);
+  g_assert_no_error (error);
+  g_assert_nonnull (psf);
+  return psf;
+}
+
+static void
+test_hit_and_keys (void)
+{
+  g_autofree char *dir = g_dir_make_tmp ("ds-psf-XXXXXX", NULL);
+  g_autofree char *sub = g_build_filename (dir, "a", "b", NULL); /* created on demand */
+  gboolean hit = TRUE;
+  g_autoptr (DsImage) first = cached (DS_TRANSPORT_MONTE_CARLO, &slab, 9, sub, &hit);
+  g_assert_false (hit);
+  g_autoptr (DsImage) direct = ds_slab_psf_monte_carlo (&slab, &grid, 3000, 9, NULL);
+  assert_same (first, direct);
+  g_autoptr (DsImage) again = cached (DS_TRANSPORT_MONTE_CARLO, &slab, 9, sub, &hit);
+  g_assert_true (hit);
+  assert_same (first, again);
+  /* Another seed, another slab parameter, another model: misses. */
+  g_autoptr (DsImage) other_seed = cached (DS_TRANSPORT_MONTE_CARLO, &slab, 10, sub, &hit);
+  g_assert_false (hit);
+  DsSlab s2 = slab;
+  s2.n_below = 1.5;
+  g_autoptr (DsImage) other_slab = cached (DS_TRANSPORT_MONTE_CARLO, &s2, 9, sub, &hit);
+  g_assert_false (hit);
+  g_autoptr (DsImage) diffusion = cached (DS_TRANSPORT_DIFFUSION, &slab, 9, sub, &hit);
+  g_assert_false (hit);
+  /* Diffusion does not depend on photons or seed, so they are not part of its key. */
+  g_autoptr (DsImage) diffusion2 = cached (DS_TRANSPORT_DIFFUSION, &slab, 12345, sub, &hit);
+  g_assert_true (hit);
+  assert_same (diffusion, diffusion2);
+  remove_tree (dir);
+}
+
+static void
+test_corrupt_recomputed (void)
+{
+  g_autofree char *dir = g_dir_make_tmp ("ds-psf-XXXXXX", NULL);
+  gboolean hit = TRUE;
+  g_autoptr (DsImage) good = cached (DS_TRANSPORT_MONTE_CARLO, &slab, 9, dir, &hit);
+  g_assert_false (hit);
+  g_autofree char *path = only_file (dir);
+  g_autofree char *bytes = NULL;
+  gsize len = 0;
+  g_assert_true (g_file_get_contents (path, &bytes, &len, NULL));
+  /* A flipped bit in the data, a truncated file, garbage of the right length, an empty file. */
+  for (int kind = 0; kind < 4; kind++) {
+    g_autofree char *bad = g_memdup2 (bytes, len);
+    gsize bad_len = len;
+    if (kind == 0)
+      bad[len / 2] ^= 0x10;
+    else if (kind == 1)
+      bad_len = len - 7;
+    else if (kind == 2)
+      memset (bad, 0x7f, len);
+    else
+      bad_len = 0;
+    g_assert_true (g_file_set_contents (path, bad, (gssize) bad_len, NULL));
+    g_autoptr (DsImage) psf = cached (DS_TRANSPORT_MONTE_CARLO, &slab, 9, dir, &hit);
+    g_assert_false (hit);
+    assert_same (good, psf);
+    /* The recomputed PSF replaced the damaged file. */
+    g_autoptr (DsImage) next = cached (DS_TRANSPORT_MONTE_CARLO, &slab, 9, dir, &hit);
+    g_assert_true (hit);
+  }
+  remove_tree (dir);
+}
+
+static void
+test_default_dir_and_unwritable (void)
+{
+  g_autofree char *dir = g_dir_make_tmp ("ds-psf-XXXXXX", NULL);
+  g_setenv ("XDG_CACHE_HOME", dir, TRUE);
+  gboolean hit = TRUE;
+  g_autoptr (DsImage) a = cached (DS_TRANSPORT_DIFFUSION, &slab, 1, NULL, &hit);
+  g_assert_false (hit);
+  g_autofree char *psf_dir = g_build_filename (dir, "descatter", "psf", NULL);
+  g_autofree char *path = only_file (psf_dir);
+  g_assert_true (g_str_has_suffix (path, ".psf"));
+  /* A cache folder that cannot exist (below a regular file): computed, not cached, said so. */
+  g_autofree char *file = g_build_filename (dir, "plain", NULL);
+  g_assert_true (g_file_set_contents (file, "x", 1, NULL));
+  g_autofree char *below = g_build_filename (file, "psf", NULL);
+  g_test_expect_message (NULL, G_LOG_LEVEL_MESSAGE, "psf cache: cannot create*");
+  g_autoptr (DsImage) b = cached (DS_TRANSPORT_DIFFUSION, &slab, 1, below, &hit);
+  g_test_assert_expected_messages ();
+  g_assert_false (hit);
+  assert_same (a, b);
+  /* Bad input is an error, not a crash, before any file is touched. */
+  DsSlab bad = slab;
+  bad.g = 1.5;
+  g_autoptr (GError) error = NULL;
+  g_assert_null (ds_slab_psf_cached (DS_TRANSPORT_MONTE_CARLO, &bad, &grid, 100, 1, dir, &hit, &error));
+  g_assert_error (error, DS_SIM_ERROR, DS_SIM_ERROR_INVALID);
+  g_clear_error (&error);
+  g_assert_null (ds_slab_psf_cached ((DsTransportModel) 7, &slab, &grid, 100, 1, dir, &hit, &error));
+  g_assert_error (error, DS_SIM_ERROR, DS_SIM_ERROR_INVALID);
+  remove_tree (dir);
+}
+
+static int
+slab_main (const char *args)
+{
+  g_auto (GStrv) strings = g_strsplit (args, " ", -1);
+  /* Option parsing removes what it consumed from argv: hand it a copy of the pointers so
+   * that every string is still freed here. */
+  guint n = g_strv_length (strings);
+  g_autofree char **argv = g_memdup2 (strings, (n + 1) * sizeof (char *));
+  return ds_sim_slab_main ((int) n, argv);
+}
+
+static void
+test_cli (void)
+{
+  if (g_test_subprocess ()) {
+    exit (slab_main ("slab --mua 1 --mus 9 --g 0.75 --thickness 0.2 --n 1 --photons 20000 --seed 3"));
+  }
+  g_test_trap_subprocess (NULL, 0, G_TEST_SUBPROCESS_DEFAULT);
+  g_test_trap_assert_passed ();
+  g_test_trap_assert_stdout ("*total diffuse reflectance  0.0*+-*total transmittance        0.6*+-*"
+                             "ballistic transmittance    0.13*+-*absorbed fraction          0.2*+-*");
+}
+
+/* Missing parameter, out-of-range g, unknown option, stray argument, n < 1: exit status 1
+ * with a message naming the command. */
+static const char *bad_args[] = { "slab --mus 9 --g 0.75 --thickness 0.2 --n 1",
+                                  "slab --mua 1 --mus 9 --g 1.5 --thickness 0.2 --n 1",
+                                  "slab --mua 1 --mus 9 --g 0.5 --thickness 0.2 --n 1 --bogus 3",
+                                  "slab --mua 1 --mus 9 --g 0.5 --thickness 0.2 --n 1 extra",
+                                  "slab --mua 1 --mus 9 --g 0.5 --thickness 0.2 --n 0.5" };
+
+static void
+test_cli_errors (void)
+{
+  for (guint i = 0; i < G_N_ELEMENTS (bad_args); i++) {
+    g_autofree char *path = g_strdup_printf ("/sim/transport/cli-errors/subprocess/%u", i);
+    g_test_trap_subprocess (path, 0, G_TEST_SUBPROCESS_DEFAULT);
+    g_test_trap_assert_failed ();
+    g_test_trap_assert_stderr ("*descatter-sim slab: *");
+  }
+}
+
+static void
+run_bad (gconstpointer data)
+{
+  /* Only meaningful inside test_cli_errors' subprocesses. */
+  if (g_test_subprocess ())
+    exit (slab_main (data));
+}
+
+int
+main (int argc, char **argv)
+{
+  g_test_init (&argc, &argv, NULL);
+  g_test_add_func ("/sim/transport/cache/hit-and-keys", test_hit_and_keys);
+  g_test_add_func ("/sim/transport/cache/corrupt-recomputed", test_corrupt_recomputed);
+  g_test_add_func ("/sim/transport/cache/default-dir-and-unwritable", test_default_dir_and_unwritable);
+  g_test_add_func ("/sim/transport/cli", test_cli);
+  g_test_add_func ("/sim/transport/cli-errors", test_cli_errors);
+  for (guint i = 0; i < G_N_ELEMENTS (bad_args); i++) {
+    g_autofree char *path = g_strdup_printf ("/sim/transport/cli-errors/subprocess/%u", i);
+    g_test_add_data_func (path, bad_args[i], run_bad);
+  }
+  return g_test_run ();
+}
