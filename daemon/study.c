@@ -89,8 +89,13 @@ run_point (const PointContext *c, guint n, guint m, guint64 seed, DsStudyPointFu
           dst[x] += (float) src[x] / (float) m;
       }
     }
+    /* The accumulator subtracts like from like: the averaged dark frame as rounded u16. */
+    g_autoptr (DsImage) dark16 = ds_image_convert_f32_clamped (dark, DS_SAMPLE_U16, 65535.0, error);
+    if (!dark16)
+      goto out;
+    dark16->bit_depth = ds_scene_bit_depth (c->scene);
     for (guint r = 0; r < n_runs; r++)
-      if (!ds_phase_set_set_dark (runs[r].set, dark, error))
+      if (!ds_phase_set_set_dark (runs[r].set, dark16, error))
         goto out;
     for (guint k = 0; k < n; k++)
       for (guint j = 0; j < m; j++) {
@@ -130,6 +135,18 @@ run_point (const PointContext *c, guint n, guint m, guint64 seed, DsStudyPointFu
     pt.valid = et.valid;
     pt.masked = et.masked;
     pt.saturated = count_saturated (sep->mask);
+    {
+      double st = 0, sg = 0;
+      for (guint y = 0; y < h; y++) {
+        const float *a = ds_image_row (c->truth_t, y), *b = ds_image_row (c->truth_g, y);
+        for (guint x = 0; x < w; x++) {
+          st += a[x];
+          sg += b[x];
+        }
+      }
+      pt.signal_dn = (st + sg) / ((double) w * h);
+      pt.direct_fraction = st + sg > 0 ? st / (st + sg) : 0;
+    }
     pt.acquisition_ms = ds_rig_timing_set_ms (&c->plan->timing, w, h, n, m, c->exposure,
                                               c->plan->dark_frame);
     pt.compute_ms = runs[r].compute_us / 1000.0;

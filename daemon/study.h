@@ -19,6 +19,8 @@ typedef struct {
   double rel_rmse_transmissive, rel_rmse_scattered;
   double stripe_residue;     /* first-harmonic amplitude / mean left in transmissive */
   guint64 valid, masked, saturated;
+  double signal_dn;          /* mean Ld + Lg of the truth at this exposure */
+  double direct_fraction;    /* mean Ld / mean (Ld + Lg) */
   double acquisition_ms;     /* model */
   double compute_ms;         /* measured: accumulate + finalize */
 } DsStudyPoint;

@@ -237,6 +237,67 @@ test_sigterm_mid_set_leaves_whole_files (void)
   g_assert_cmpint (system (cmd), ==, 0);
 }
 
+/* Automatic operating point: a capture asking for a target error picks its own estimator, N, M
+ * and exposure from the study's model (etc/operating-model.csv); the error it achieves against
+ * the simulator's truth stays within the error it predicted. */
+static void
+test_automatic_operating_point (void)
+{
+  g_autoptr (GError) error = NULL;
+  g_autoptr (DsScene) scene = ds_scene_load (SCENE_FILE, &error);
+  g_assert_no_error (error);
+  g_autofree char *conf = config_text (NULL);
+  TestDaemon *d = test_daemon_start (conf, NULL);
+  g_autoptr (DsClient) c = test_daemon_connect (d);
+  g_autoptr (JsonObject) args = json_object_new ();
+  json_object_set_double_member (args, "target_error", 0.05);
+  json_object_set_double_member (args, "exposure_us", ds_scene_default_exposure_us (scene));
+  g_autoptr (DsMessage) m = test_daemon_call_ok (c, "capture", args);
+  JsonObject *settings = json_object_get_object_member (json_node_get_object (m->reply->body), "settings");
+  JsonObject *op = json_object_get_object_member (settings, "operating_point");
+  g_assert_nonnull (op);
+  double predicted = json_object_get_double_member (op, "predicted_error");
+  double exposure = json_object_get_double_member (settings, "exposure_us");
+  g_assert_cmpfloat (predicted, <=, 0.05);
+  g_autoptr (DsRenderer) r = ds_renderer_new (scene, NULL, &error);
+  g_assert_no_error (error);
+  DsImage *tt = NULL, *tg = NULL;
+  g_assert_true (ds_renderer_truth (r, exposure, 0.0, &tt, &tg, &error));
+  g_autoptr (DsImage) truth_t = tt;
+  g_autoptr (DsImage) truth_g = tg;
+  /* Relative RMSE of transmissive over the valid pixels, as the study defines it. */
+  const float *t = NULL;
+  const guint8 *mask = NULL;
+  for (guint i = 0; i < m->reply->n_payloads; i++) {
+    if (strcmp (m->reply->payloads[i].name, "transmissive") == 0)
+      t = g_bytes_get_data (m->payloads[i], NULL);
+    if (strcmp (m->reply->payloads[i].name, "mask") == 0)
+      mask = g_bytes_get_data (m->payloads[i], NULL);
+  }
+  g_assert_nonnull (t);
+  g_assert_nonnull (mask);
+  double se = 0, st = 0;
+  guint w = truth_t->width;
+  for (guint y = 0; y < truth_t->height; y++) {
+    const float *tr = ds_image_row (truth_t, y);
+    for (guint x = 0; x < w; x++) {
+      if (mask[(gsize) y * w + x] & 0x29) /* saturated, non-finite, dark exceeds: as the study */
+        continue;
+      double e = t[(gsize) y * w + x] - tr[x];
+      se += e * e;
+      st += (double) tr[x] * tr[x];
+    }
+  }
+  double achieved = sqrt (se / st);
+  g_test_message ("automatic: %s N=%" G_GINT64_FORMAT " M=%" G_GINT64_FORMAT ", predicted %.4f, achieved %.4f",
+                  json_object_get_string_member (settings, "estimator"),
+                  json_object_get_int_member (settings, "phases"), json_object_get_int_member (settings, "averages"),
+                  predicted, achieved);
+  g_assert_cmpfloat (achieved, <=, predicted);
+  g_assert_cmpint (test_daemon_stop (d), ==, 0);
+  test_daemon_free (d);
+}
+
 int
 main (int argc, char **argv)
 {
@@ -246,5 +307,6 @@ main (int argc, char **argv)
   g_test_add_func ("/daemon-sim/bad-requests", test_bad_requests);
   g_test_add_func ("/daemon-sim/reload", test_reload);
   g_test_add_func ("/daemon-sim/sigterm-mid-set", test_sigterm_mid_set_leaves_whole_files);
+  g_test_add_func ("/daemon-sim/automatic-operating-point", test_automatic_operating_point);
   return g_test_run ();
 }

@@ -183,7 +183,8 @@ main (int argc, char **argv)
   double seconds = argc > 2 ? g_ascii_strtod (argv[2], NULL) : 10;
   const guint64 queue_cap = 1 << 20;
   g_autofree char *conf = g_strdup_printf (
-      "[daemon]\nmax-clients=80\nmax-queued-bytes=%" G_GUINT64_FORMAT "\n"
+      /* 64 workers hold up to two connections each (garbage and hang-up clients), plus churn. */
+      "[daemon]\nmax-clients=160\nmax-queued-bytes=%" G_GUINT64_FORMAT "\n"
       "[camera]\nbackend=sim\n[illuminator]\nbackend=sim\n[acquisition]\nphases=4\n"
       "[sim]\nscene=%s\n", queue_cap, argv[1]);
   TestDaemon *d = test_daemon_start (conf, NULL);
