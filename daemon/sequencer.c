@@ -5,6 +5,7 @@
 
 #include "daemon/operating_point.h"
 #include "daemon/phase_check.h"
+#include "proc/stripe_phase.h"
 #include "daemon/protocol.h"
 
 typedef enum {
@@ -469,6 +470,17 @@ acquire_dark (DsSequencer *seq, const DsCaptureSettings *s, DsFrameCounters *c, 
       ds_frame_counters_drop (c, DS_DROP_STALE, 1);
       why = g_error_new (DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_DEVICE, "stale frame");
       g_clear_pointer (&f, ds_frame_free);
+    }
+    if (f && s->verify_phase && s->period_px > 2) {
+      /* A dark frame must show no stripes: one exposed while the pattern was still on would
+       * be subtracted from every phase. */
+      DsStripePhase sp;
+      if (ds_stripe_phase_measure (f->image, s->period_px, NULL, &sp, NULL) && sp.reliable) {
+        ds_frame_counters_drop (c, DS_DROP_WRONG_PHASE, 1);
+        why = g_error_new (DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_DEVICE,
+                           "dark frame shows stripes (snr %.1f): the illuminator was not off", sp.snr);
+        g_clear_pointer (&f, ds_frame_free);
+      }
     }
     if (!f) {
       if (fatal_device_error (seq, why) || retries_left == 0) {

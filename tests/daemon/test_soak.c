@@ -2,8 +2,10 @@
  * (issue 7): every set is either correct (within the noise-model bound against the
  * simulator's truth) or failed with a reason; the counters add up (acquired = folded +
  * dropped); the daemon's RSS stops growing.
- * Usage: test_soak SCENE SETS FAULTS   (ctest: a reduced run; the full 1000-set run is in
- * docs/reliability.md). */
+ * Usage: test_soak SCENE SETS FAULTS [LABSIM]   (ctest: reduced runs; the full 1000-set runs
+ * are in docs/reliability.md). With LABSIM, the daemon drives descatter-labsim over GigE Vision
+ * and Modbus TCP and FAULTS are labsim's fault options (space-separated); otherwise FAULTS is
+ * the in-process simulated devices' [sim] faults string. */
 #include <stdio.h>
 #include <string.h>
 
@@ -42,10 +44,22 @@ main (int argc, char **argv)
   g_autoptr (DsImage) truth_t = tt;
   g_autoptr (DsImage) truth_g = tg;
 
-  g_autofree char *conf = g_strdup_printf (
-      "[camera]\nbackend=sim\nexposure-us=%g\ngrab-timeout-ms=300\n[illuminator]\nbackend=sim\n"
-      "[acquisition]\nphases=8\ndark-frame=true\nphase-retries=4\n"
-      "[sim]\nscene=%s\nseed=11\nfaults=%s\n", exposure, scene_path, argv[3]);
+  TestLabsim *lab = NULL;
+  g_autofree char *conf = NULL;
+  if (argc > 4) {
+    g_auto (GStrv) fault_args = g_strsplit (argv[3], " ", -1);
+    lab = test_labsim_start (argv[4], scene_path, (const char *const *) fault_args);
+    conf = g_strdup_printf (
+        "[camera]\nbackend=aravis\naddress=127.0.0.1\npixel-format=Mono16\nexposure-us=%g\n"
+        "grab-timeout-ms=1000\n[illuminator]\nbackend=modbus\nmodbus-uri=tcp://127.0.0.1:%u\n"
+        "modbus-timeout-ms=200\nperiod-px=%g\nduty=%g\n"
+        "[acquisition]\nphases=8\ndark-frame=true\nphase-retries=4\n",
+        exposure, lab->modbus_port, ds_scene_period_px (scene), ds_scene_duty (scene));
+  } else
+    conf = g_strdup_printf (
+        "[camera]\nbackend=sim\nexposure-us=%g\ngrab-timeout-ms=300\n[illuminator]\nbackend=sim\n"
+        "[acquisition]\nphases=8\ndark-frame=true\nphase-retries=4\n"
+        "[sim]\nscene=%s\nseed=11\nfaults=%s\n", exposure, scene_path, argv[3]);
   TestDaemon *d = test_daemon_start (conf, NULL);
   g_autoptr (DsClient) sub = test_daemon_connect (d);
   g_autoptr (DsClient) ctl = test_daemon_connect (d);
@@ -95,11 +109,15 @@ main (int argc, char **argv)
   g_assert_cmpuint (wrong, ==, 0);
   g_assert_cmpuint (correct, >, 0);
   g_assert_cmpint (acquired, ==, folded + dropped);
-  g_assert_cmpint (dropped, >, 0); /* the faults happened */
+  /* The faults happened (in-process: dropped frames; labsim: dropped frames, device errors or
+   * failed sets). */
+  g_assert_cmpint (dropped + failed + test_json_int (status->reply->body, "frames.device_errors"), >, 0);
   /* Bounded growth: after the first fifth, the heap may not grow by more than a few results'
    * worth (allocator slack), whatever the number of sets. */
   g_assert_cmpuint (rss_late, <, rss_early + 32 * 1024);
   g_assert_cmpint (test_daemon_stop (d), ==, 0);
   test_daemon_free (d);
+  if (lab)
+    test_labsim_stop (lab);
   return 0;
 }
