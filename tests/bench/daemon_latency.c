@@ -35,7 +35,7 @@ main (int argc, char **argv)
   }
   gboolean quick = argc > 2 && strcmp (argv[2], "--quick") == 0;
   g_autofree char *conf = g_strdup_printf (
-      "[camera]\nbackend=sim\n[illuminator]\nbackend=sim\n[acquisition]\nphases=8\n[sim]\nscene=%s\n", argv[1]);
+      "[daemon]\nmax-clients=64\n[camera]\nbackend=sim\n[illuminator]\nbackend=sim\n[acquisition]\nphases=8\n[sim]\nscene=%s\n", argv[1]);
   TestDaemon *d = test_daemon_start (conf, NULL);
   g_autoptr (DsClient) c = test_daemon_connect (d);
 
