@@ -315,6 +315,9 @@ ds_ctl_study (int argc, char **argv)
   }
   const char *dir = out ? out : "study";
   g_mkdir_with_parents (dir, 0755);
+  g_autofree char *examples = g_build_filename (dir, "examples", NULL);
+  g_mkdir_with_parents (examples, 0755);
+  plan.examples_dir = examples;
   g_autofree char *csv_path = g_build_filename (dir, "study.csv", NULL);
   g_autofree char *tmp_path = g_strconcat (csv_path, ".tmp", NULL);
   StudyOut o = { .csv = fopen (tmp_path, "w"), .points = g_array_new (FALSE, FALSE, sizeof (DsStudyPoint)),

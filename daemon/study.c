@@ -6,6 +6,7 @@
 #include "drivers/sim/renderer.h"
 #include "drivers/sim/scene.h"
 #include "proc/metrics.h"
+#include "proc/preview.h"
 
 typedef struct {
   DsPhaseSet *set;
@@ -130,6 +131,19 @@ run_point (const PointContext *c, guint n, guint m, guint64 seed, DsStudyPointFu
         !ds_metrics_stripe_residue (sep->transmissive, ds_scene_period_px (c->scene),
                                     &pt.stripe_residue, error))
       goto out;
+    if (c->plan->examples_dir && seed == 1 && m == 1 && c->exposure_factor == 1.0 &&
+        (n == c->plan->phases[0] || n == c->plan->phases[c->plan->n_phases - 1])) {
+      const DsImage *imgs[] = { sep->transmissive, sep->scattered };
+      const char *names[] = { "transmissive", "scattered" };
+      for (guint i = 0; i < 2; i++) {
+        g_autoptr (DsImage) pv = ds_preview_u8 (imgs[i], 0.5, 99.5, error);
+        g_autofree char *stem = g_strndup (c->scene_name, strcspn (c->scene_name, "."));
+        g_autofree char *path = g_strdup_printf ("%s/%s-%s-N%u-%s.png", c->plan->examples_dir, stem,
+                                                 ds_estimator_name (runs[r].estimator), n, names[i]);
+        if (!pv || !ds_image_write (pv, path, error))
+          goto out;
+      }
+    }
     pt.rel_rmse_transmissive = et.relative_rmse;
     pt.rel_rmse_scattered = eg.relative_rmse;
     pt.valid = et.valid;

@@ -33,6 +33,8 @@ typedef struct {
   DsEstimator *estimators; guint n_estimators;
   DsRigTiming timing;
   gboolean dark_frame;
+  const char *examples_dir;  /* NULL: none; else 8-bit previews of both components for the
+                                smallest and largest N at M = 1, base exposure, first seed */
 } DsStudyPlan;
 
 typedef void (*DsStudyPointFunc) (const DsStudyPoint *point, gpointer user_data);
