@@ -5,6 +5,7 @@
 
 #include "daemon/operating_point.h"
 #include "daemon/phase_check.h"
+#include "proc/image_stats.h"
 #include "proc/stripe_phase.h"
 #include "daemon/protocol.h"
 
@@ -335,7 +336,7 @@ fatal_device_error (DsSequencer *seq, const GError *e)
  * as phase k). */
 static gboolean
 acquire_phase (DsSequencer *seq, const DsCaptureSettings *s, guint k, DsFrameCounters *c,
-               guint *folded, GError **error)
+               GError **error)
 {
   guint retries_left = s->phase_retries;
   guint done = 0;
@@ -414,7 +415,6 @@ acquire_phase (DsSequencer *seq, const DsCaptureSettings *s, guint k, DsFrameCou
     }
     stage_add (seq, DS_STAGE_FOLD, t);
     seq->last_frame_us = frame->host_time_us ? (gint64) frame->host_time_us : t;
-    (*folded)++;
     done++;
   }
   return TRUE;
@@ -550,50 +550,6 @@ account (DsSequencer *seq, const DsFrameCounters *c, gboolean ok)
   g_mutex_unlock (&seq->lock);
 }
 
-static double
-image_mean (const DsImage *img)
-{
-  double total = 0;
-  for (guint y = 0; y < img->height; y++) {
-    const void *row = ds_image_row (img, y);
-    for (guint x = 0; x < img->width; x++)
-      total += img->type == DS_SAMPLE_U16  ? ((const guint16 *) row)[x]
-               : img->type == DS_SAMPLE_U8 ? ((const guint8 *) row)[x]
-                                           : ((const float *) row)[x];
-  }
-  return total / ((double) img->width * img->height);
-}
-
-static gint
-compare_float (gconstpointer a, gconstpointer b)
-{
-  float x = *(const float *) a, y = *(const float *) b;
-  return (x > y) - (x < y);
-}
-
-/* The 99.9th percentile of a frame (sampled): what saturates first when exposure grows. */
-static double
-image_high_percentile (const DsImage *img)
-{
-  GArray *v = g_array_new (FALSE, FALSE, sizeof (float));
-  guint step = MAX (1u, img->width * img->height / 20000);
-  guint i = 0;
-  for (guint y = 0; y < img->height; y++) {
-    const void *row = ds_image_row (img, y);
-    for (guint x = 0; x < img->width; x++, i++)
-      if (i % step == 0) {
-        float f = img->type == DS_SAMPLE_U16  ? ((const guint16 *) row)[x]
-                  : img->type == DS_SAMPLE_U8 ? ((const guint8 *) row)[x]
-                                              : ((const float *) row)[x];
-        g_array_append_val (v, f);
-      }
-  }
-  g_array_sort (v, compare_float);
-  double p = v->len ? g_array_index (v, float, (guint) (0.999 * (v->len - 1))) : 0;
-  g_array_unref (v);
-  return p;
-}
-
 /* Automatic operating point: one dark and one phase-0 preview frame at the requested base
  * exposure give the scene's signal and direct fraction; the model then picks estimator, N, M
  * and exposure (docs/accuracy.md). The two frames are counted as `preview` drops. */
@@ -631,7 +587,7 @@ choose_operating_point (DsSequencer *seq, DsCaptureSettings *s, DsFrameCounters 
   gboolean sine = s->pattern == DS_PATTERN_SINE;
   double m = sine ? b + (1 - b) / 2 : a + b * (1 - a);
   double h = sine ? (1 - b) / 2 : (1 - b) * (2 / G_PI) * sin (G_PI * a);
-  double dark_dn = image_mean (dark);
+  double dark_dn = ds_image_mean (dark);
   DsSceneStats st;
   if (!ds_scene_stats_from_frame (preview->image, dark_dn, s->period_px, m, h, s->exposure_us, &st, error)) {
     g_prefix_error (error, "preview: ");
@@ -639,7 +595,7 @@ choose_operating_point (DsSequencer *seq, DsCaptureSettings *s, DsFrameCounters 
   }
   /* The largest exposure that keeps the brightest pixels below 90 % of full scale. */
   double full = preview->image->type == DS_SAMPLE_F32 ? INFINITY : (double) ((1u << preview->image->bit_depth) - 1);
-  double high = image_high_percentile (preview->image) - dark_dn;
+  double high = ds_image_percentile (preview->image, 99.9) - dark_dn;
   double max_exposure = high > 0 && isfinite (full) ? s->exposure_us * (0.9 * full - dark_dn) / high : 4 * s->exposure_us;
   max_exposure = CLAMP (max_exposure, s->exposure_us * 0.5, s->exposure_us * 4);
   DsCameraInfo info = { 0 };
@@ -684,7 +640,6 @@ run_set (DsSequencer *seq, const DsCaptureSettings *requested, guint64 tag)
       return;
     }
   }
-  guint folded = 0;
   gint64 started = g_get_monotonic_time ();
   g_autoptr (DsSeparation) sep = NULL;
   gint64 acquired = 0;
@@ -731,7 +686,7 @@ run_set (DsSequencer *seq, const DsCaptureSettings *requested, guint64 tag)
       goto failed;
   }
   for (guint k = 0; k < s->phases; k++) {
-    if (!acquire_phase (seq, s, k, &c, &folded, &error)) {
+    if (!acquire_phase (seq, s, k, &c, &error)) {
       if (seq->phase_check.provisional)
         ds_phase_check_abandon (&seq->phase_check);
       goto failed;
@@ -754,7 +709,6 @@ run_set (DsSequencer *seq, const DsCaptureSettings *requested, guint64 tag)
   /* Every frame not dropped went into the result: folded into a phase, or averaged into its
    * dark frame. */
   c.folded = c.acquired - c.dropped;
-  (void) folded;
   account (seq, &c, TRUE);
   DsResult *result = ds_result_new (++seq->next_set_id, g_steal_pointer (&sep), s, &c, started,
                                     acquired, finished);
@@ -794,14 +748,7 @@ run_dark (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag)
   ds_frame_counters_add (&seq->status.frames, &c);
   seq->status.has_dark = TRUE;
   g_mutex_unlock (&seq->lock);
-  double total = 0;
-  for (guint y = 0; y < dark->height; y++) {
-    const void *row = ds_image_row (dark, y);
-    for (guint x = 0; x < dark->width; x++)
-      total += dark->type == DS_SAMPLE_U16 ? ((const guint16 *) row)[x]
-               : dark->type == DS_SAMPLE_U8 ? ((const guint8 *) row)[x]
-                                            : ((const float *) row)[x];
-  }
+  double mean = ds_image_mean (dark);
   g_clear_pointer (&seq->dark, ds_image_free);
   seq->dark = dark;
   seq->dark_exposure_us = s->exposure_us;
@@ -810,7 +757,7 @@ run_dark (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag)
   p->seq = seq;
   p->kind = DS_SEQUENCER_EVENT_DARK;
   p->tag = tag;
-  p->dark_mean_dn = total / ((double) dark->width * dark->height);
+  p->dark_mean_dn = mean;
   post (seq, p);
 }
 

@@ -8,17 +8,6 @@
 
 #include "../daemon/daemon_harness.h"
 
-static guint64
-rss_kib (TestDaemon *d)
-{
-  g_autofree char *path = g_strdup_printf ("/proc/%s/status", g_subprocess_get_identifier (d->proc));
-  g_autofree char *text = NULL;
-  if (!g_file_get_contents (path, &text, NULL, NULL))
-    return 0;
-  const char *p = strstr (text, "VmRSS:");
-  return p ? g_ascii_strtoull (p + 6, NULL, 10) : 0;
-}
-
 static int
 compare_double (const void *a, const void *b)
 {
@@ -76,7 +65,7 @@ main (int argc, char **argv)
     }
     /* Let a few results go out; the subscribers never read (worst case: full queues). */
     g_usleep (quick ? 1500000 : 5000000);
-    printf ("memory: %2u stuck subscribers -> RSS %" G_GUINT64_FORMAT " KiB\n", counts[k], rss_kib (d));
+    printf ("memory: %2u stuck subscribers -> RSS %" G_GUINT64_FORMAT " KiB\n", counts[k], test_daemon_rss_kib (d));
   }
   g_ptr_array_unref (subs);
   g_autoptr (DsMessage) stopped = test_daemon_call_ok (c, "stop", NULL);

@@ -122,6 +122,17 @@ test_daemon_call_ok (DsClient *c, const char *cmd, JsonObject *args)
   return m;
 }
 
+guint64
+test_daemon_rss_kib (TestDaemon *d)
+{
+  g_autofree char *path = g_strdup_printf ("/proc/%s/status", g_subprocess_get_identifier (d->proc));
+  g_autofree char *text = NULL;
+  g_assert_true (g_file_get_contents (path, &text, NULL, NULL));
+  const char *p = strstr (text, "VmRSS:");
+  g_assert_nonnull (p);
+  return g_ascii_strtoull (p + 6, NULL, 10);
+}
+
 gint64
 test_json_int (JsonNode *node, const char *path)
 {

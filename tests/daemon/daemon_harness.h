@@ -22,6 +22,8 @@ void test_daemon_free (TestDaemon *d);
 DsClient *test_daemon_connect (TestDaemon *d);
 /* Calls cmd and asserts ok; returns the message. */
 DsMessage *test_daemon_call_ok (DsClient *c, const char *cmd, JsonObject *args);
+/* The daemon's resident set size (VmRSS of /proc/PID/status), KiB. */
+guint64 test_daemon_rss_kib (TestDaemon *d);
 /* The integer at a dotted path in a JSON object ("frames.acquired"). */
 gint64 test_json_int (JsonNode *node, const char *path);
 

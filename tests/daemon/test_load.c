@@ -161,17 +161,6 @@ worker_main (gpointer data)
   return NULL;
 }
 
-static guint64
-rss_kib (TestDaemon *d)
-{
-  g_autofree char *path = g_strdup_printf ("/proc/%s/status", g_subprocess_get_identifier (d->proc));
-  g_autofree char *text = NULL;
-  g_assert_true (g_file_get_contents (path, &text, NULL, NULL));
-  const char *p = strstr (text, "VmRSS:");
-  g_assert_nonnull (p);
-  return g_ascii_strtoull (p + 6, NULL, 10);
-}
-
 int
 main (int argc, char **argv)
 {
@@ -192,7 +181,7 @@ main (int argc, char **argv)
   g_autoptr (DsMessage) st0 = test_daemon_call_ok (ctl, "start", NULL);
   /* Baseline once continuous acquisition runs with no other client. */
   g_usleep (1000000);
-  guint64 rss0 = rss_kib (d);
+  guint64 rss0 = test_daemon_rss_kib (d);
   g_autoptr (DsMessage) s0 = test_daemon_call_ok (ctl, "status", NULL);
   gint64 sets0 = test_json_int (s0->reply->body, "sets_done");
 
@@ -210,7 +199,7 @@ main (int argc, char **argv)
   g_assert_cmpuint (k, ==, n);
   guint64 rss_peak = 0;
   while (g_get_monotonic_time () < deadline) {
-    rss_peak = MAX (rss_peak, rss_kib (d));
+    rss_peak = MAX (rss_peak, test_daemon_rss_kib (d));
     g_usleep (200000);
   }
   for (guint i = 0; i < n; i++)

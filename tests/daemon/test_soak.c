@@ -12,17 +12,6 @@
 #include "daemon_harness.h"
 #include "truth_check.h"
 
-static guint64
-rss_kib (TestDaemon *d)
-{
-  g_autofree char *path = g_strdup_printf ("/proc/%s/status", g_subprocess_get_identifier (d->proc));
-  g_autofree char *text = NULL;
-  g_assert_true (g_file_get_contents (path, &text, NULL, NULL));
-  const char *p = strstr (text, "VmRSS:");
-  g_assert_nonnull (p);
-  return g_ascii_strtoull (p + 6, NULL, 10);
-}
-
 int
 main (int argc, char **argv)
 {
@@ -94,9 +83,9 @@ main (int argc, char **argv)
       devices++;
     guint done = correct + failed;
     if (done == MAX (sets / 5, 2) && !rss_early)
-      rss_early = rss_kib (d);
+      rss_early = test_daemon_rss_kib (d);
   }
-  rss_late = rss_kib (d);
+  rss_late = test_daemon_rss_kib (d);
   g_autoptr (DsMessage) stop = test_daemon_call_ok (ctl, "stop", NULL);
   g_autoptr (DsMessage) status = test_daemon_call_ok (ctl, "status", NULL);
   gint64 acquired = test_json_int (status->reply->body, "frames.acquired");
