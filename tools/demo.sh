@@ -11,13 +11,16 @@ out=${2:-out}
 mkdir -p "$out"
 out=$(cd "$out" && pwd)
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+# The build tree's programs find the scenes and the operating model in etc/ (installed ones in
+# their data dir).
+export DESCATTER_DATA_DIR="$here/etc"
 run=$(mktemp -d)
 trap 'kill "$pid" 2>/dev/null || true; wait "$pid" 2>/dev/null || true; rm -rf "$run"' EXIT
 
 sock="$run/descatterd.sock"
-"$build/daemon/descatterd" --sim --socket "$sock" --no-socket-activation >"$run/daemon.log" 2>&1 &
+"$build/bin/descatterd" --sim --socket "$sock" --no-socket-activation >"$run/daemon.log" 2>&1 &
 pid=$!
-ctl() { "$build/daemon/descatterctl" --address "$sock" "$@"; }
+ctl() { "$build/bin/descatterctl" --address "$sock" "$@"; }
 
 # Ready when `status` says so (the simulated devices render their scattering kernels first).
 for _ in $(seq 600); do
@@ -36,8 +39,8 @@ kill -TERM "$pid"; wait "$pid" || true
 
 echo "== offline: descatter-sim render + descatterctl separate =="
 scene="$here/etc/scenes/milk-disc.scene"
-"$build/drivers/sim/descatter-sim" render "$scene" --phases 8 --out "$out/phases"
-"$build/daemon/descatterctl" separate "$out/phases" --out "$out/separated"
+"$build/bin/descatter-sim" render "$scene" --phases 8 --out "$out/phases"
+"$build/bin/descatterctl" separate "$out/phases" --out "$out/separated"
 echo
 echo "demo: images in $out:"
 (cd "$out" && ls capture/*.png capture/*.tiff separated/* | sed 's/^/  /')

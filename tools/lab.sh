@@ -43,19 +43,19 @@ case "${1:-}" in
   deps) install_deps ;;
   demo)
     install_deps
-    build build
+    build build -DDESCATTER_WERROR=ON
     exec tools/demo.sh build out
     ;;
   test)
     install_deps
     # Sanitized suite first, the plain one last so that its summary closes the output.
-    build build-asan -DDESCATTER_SANITIZE=ON
+    build build-asan -DDESCATTER_SANITIZE=ON -DDESCATTER_WERROR=ON
     echo "== test suite under AddressSanitizer + UndefinedBehaviorSanitizer =="
     (cd build-asan && ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
        ctest --output-on-failure -j "$jobs" -LE "nosan|bench")
     echo "== fuzzing: each libFuzzer target for 20 s (tools/fuzz.sh 600 for a long run) =="
     tools/fuzz.sh 20
-    build build
+    build build -DDESCATTER_WERROR=ON
     echo "== test suite, plain build =="
     cd build && ctest --output-on-failure -j "$jobs"
     ;;

@@ -8,9 +8,7 @@
 #include <string.h>
 
 #include "drivers/sim/renderer.h"
-#ifdef DS_SIM_HAVE_TRANSPORT
 #include "drivers/sim/transport.h"
-#endif
 
 static int
 usage (void)
@@ -128,9 +126,7 @@ main (int argc, char **argv)
     return cmd_describe (argc - 1, argv + 1);
   if (strcmp (argv[1], "render") == 0)
     return cmd_render (argc - 1, argv + 1);
-#ifdef DS_SIM_HAVE_TRANSPORT
   if (strcmp (argv[1], "slab") == 0)
     return ds_sim_slab_main (argc - 1, argv + 1);
-#endif
   return usage ();
 }

@@ -6,9 +6,7 @@
 #include <string.h>
 
 #include "drivers/sim/stage.h"
-#ifdef DS_SIM_HAVE_TRANSPORT
 #include "drivers/sim/transport.h"
-#endif
 
 struct DsRenderer {
   DsScene *scene;          /* own copy */
@@ -62,7 +60,6 @@ static gboolean
 transport_kernels (const DsSceneSpec *s, double pitch_mm, gboolean split, double z, const char *cache_dir,
                    DsImage **full, DsImage **before, DsImage **after, GError **error)
 {
-#ifdef DS_SIM_HAVE_TRANSPORT
   DsTransportModel model = s->diffusion ? DS_TRANSPORT_DIFFUSION : DS_TRANSPORT_MONTE_CARLO;
   DsSlab slab = { .mua = s->mua, .mus = s->mus, .g = s->g, .thickness_mm = s->thickness_mm,
                   .n_medium = s->n_medium, .n_above = 1.0, .n_below = 1.0 };
@@ -89,12 +86,6 @@ transport_kernels (const DsSceneSpec *s, double pitch_mm, gboolean split, double
     return FALSE;
   *after = ds_slab_psf_cached (model, &b, &gb, s->photons, s->mc_seed + 1, cache_dir, &cached, error);
   return *after != NULL;
-#else
-  (void) s, (void) pitch_mm, (void) split, (void) z, (void) cache_dir, (void) full, (void) before, (void) after;
-  g_set_error (error, DS_SIM_ERROR, DS_SIM_ERROR_INVALID,
-               "scene %s scatters (mus > 0) but this build has no light transport: pass kernels", s->path);
-  return FALSE;
-#endif
 }
 
 static DsRenderer *

@@ -1,6 +1,6 @@
 /* Benchmark (not a test): phase-set wall time against the sum of exposure and transfer on
  * descatter-labsim (real GigE Vision and Modbus TCP on loopback), and against the rig timing
- * model of the accuracy study (daemon/rig_timing.h). Goal: efficiency >= 0.9, where
+ * model of the accuracy study (daemon/operating/rig_timing.h). Goal: efficiency >= 0.9, where
  *   efficiency = N (M) (exposure + transfer) / wall time of the set.
  * with transfer the payload size over the link rate the model assumes (1 Gbit/s at 90 %), so
  * the figure says how much the sequencer adds on top of the camera itself.
@@ -9,7 +9,7 @@
 #include <string.h>
 
 #include "../daemon/daemon_harness.h"
-#include "daemon/rig_timing.h"
+#include "daemon/operating/rig_timing.h"
 #include "drivers/sim/scene.h"
 
 int

@@ -3,7 +3,7 @@
 #pragma once
 #include <gio/gio.h>
 
-#include "daemon/client.h"
+#include "daemon/protocol/client.h"
 
 typedef struct {
   char *dir;          /* temporary folder: config, socket, spool, outputs */

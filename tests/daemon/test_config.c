@@ -1,6 +1,6 @@
 /* descatterd's configuration parser: defaults, errors that point at the mistake, round trip,
  * and the shipped example (etc/descatterd.conf) documenting every key. */
-#include "daemon/config.h"
+#include "daemon/service/config.h"
 
 #include <math.h>
 #include <string.h>

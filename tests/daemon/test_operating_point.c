@@ -3,7 +3,7 @@
 #include <math.h>
 #include <string.h>
 
-#include "daemon/operating_point.h"
+#include "daemon/operating/operating_point.h"
 
 static const DsModelRow rows[] = {
   /* scene, estimator, N, M, a, b, S, f, base exposure */

@@ -1,5 +1,5 @@
 /* The protocol's parsing and building, against literal wire text written in the test. */
-#include "daemon/protocol.h"
+#include "daemon/protocol/protocol.h"
 
 #include <string.h>
 

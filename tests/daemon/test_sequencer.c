@@ -6,8 +6,8 @@
 #include <math.h>
 #include <string.h>
 
-#include "daemon/operating_point.h"
-#include "daemon/sequencer.h"
+#include "daemon/operating/operating_point.h"
+#include "daemon/service/sequencer.h"
 
 #define W 64
 #define H 16

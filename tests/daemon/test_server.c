@@ -1,7 +1,7 @@
 /* The socket server over real UNIX and TCP sockets: framing, limits, subscriptions, slow
  * subscribers, authentication. The server runs in its own thread and main context, the test
  * drives plain blocking sockets, as a client program would. */
-#include "daemon/server.h"
+#include "daemon/service/server.h"
 
 #include <gio/gunixsocketaddress.h>
 #include <glib/gstdio.h>

@@ -1,7 +1,7 @@
 /* Compares a result message (transmissive, scattered, mask payloads) with the simulator's
  * noise-free truth, against an error bound derived from the sensor's noise model. */
 #pragma once
-#include "daemon/client.h"
+#include "daemon/protocol/client.h"
 #include "drivers/sim/renderer.h"
 #include "drivers/sim/scene.h"
 

@@ -3,7 +3,7 @@
  * byte count disagrees with its shape. */
 #include <stdint.h>
 
-#include "daemon/protocol.h"
+#include "daemon/protocol/protocol.h"
 
 int LLVMFuzzerTestOneInput (const uint8_t *data, size_t size);
 

@@ -6,7 +6,7 @@
 #include <math.h>
 #include <string.h>
 
-#include "daemon/ctl_commands.h"
+#include "daemon/ctl/ctl_commands.h"
 #include "proc/image.h"
 
 #define W 37 /* odd on purpose */

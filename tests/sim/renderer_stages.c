@@ -6,9 +6,7 @@
 #include <string.h>
 
 #include "drivers/sim/renderer.h"
-#ifdef DS_SIM_HAVE_TRANSPORT
 #include "drivers/sim/transport.h"
-#endif
 
 /* 64x48 px, 0.1 mm pixels (5 um / 0.05): 1 photon/um^2/ms is 1e4 photons/px/ms. */
 #define PX_PHOTONS_PER_MS 1e4
@@ -278,7 +276,6 @@ test_edge_blur (void)
   g_assert_cmpfloat (fabs ((hi - 0.55) - (0.55 - lo)), <, 1e-3);
 }
 
-#ifdef DS_SIM_HAVE_TRANSPORT
 static void
 test_monte_carlo_kernel (void)
 {
@@ -322,7 +319,6 @@ test_monte_carlo_kernel (void)
   g_assert_cmpuint (files, >=, 1);
   g_rmdir (cache);
 }
-#endif
 
 static void
 test_split_plane (void)
@@ -530,9 +526,7 @@ main (int argc, char **argv)
   g_test_add_func ("/sim/renderer/clear-object-changes-nothing", test_clear_object_changes_nothing);
   g_test_add_func ("/sim/renderer/edge-blur", test_edge_blur);
   g_test_add_func ("/sim/renderer/split-plane", test_split_plane);
-#ifdef DS_SIM_HAVE_TRANSPORT
   g_test_add_func ("/sim/renderer/monte-carlo-kernel", test_monte_carlo_kernel);
-#endif
   g_test_add_func ("/sim/renderer/deterministic", test_deterministic);
   g_test_add_func ("/sim/renderer/concurrent", test_concurrent);
   g_test_add_func ("/sim/renderer/undeclared-stage", test_undeclared_stage);

@@ -1,0 +1,345 @@
+/* `descatterctl separate DIR`: offline separation of a folder of phase images (the ICCP 2013
+ * authors' layout, see proc/phase_folder.h). No daemon involved.
+ *
+ * Outputs (in --out, default DIR itself, which is what the authors' scripts do; a rerun skips
+ * them as inputs):
+ *   direct.png, global.png   the transmissive and scattered components at the input's sample
+ *                            type, rounded and clamped to 0..2^depth-1: with the defaults
+ *                            (maxmin, a = 1/2, b = 0) exactly max - min and 2 * min after black
+ *                            subtraction, drop-in for the scripts' outputs. Float input gives
+ *                            direct.tiff / global.tiff instead.
+ *   transmissive.tiff, scattered.tiff   float32, unclipped (noise may make them negative;
+ *                            the mask says where)
+ *   mask.png                 u8 quality flags (proc/separation.h, docs/estimators.md)
+ *   transmissive-preview.png, scattered-preview.png   8-bit pictures for people (0.5th..99.5th
+ *                            percentile), unless --no-preview; not for measurement
+ *   max.tiff, min.tiff, mean.tiff       float32, with --extrema
+ *   sigma_transmissive.tiff, sigma_scattered.tiff   with a noise model (--system-gain)
+ *   separation.json          inputs, parameters, metadata; written last, so a folder with it is
+ *                            complete. Every file is written atomically. */
+#include <errno.h>
+#include <glib/gstdio.h>
+#include <json-glib/json-glib.h>
+#include <math.h>
+#include <stdio.h>
+
+#include "daemon/ctl/ctl_commands.h"
+#include "proc/phase_folder.h"
+#include "proc/preview.h"
+#include "proc/proc_error.h"
+#include "proc/separation.h"
+
+static const char *const mask_bit_names[DS_MASK_N_BITS] = {
+  "saturated", "dark", "low_modulation", "nonfinite", "negative", "dark_exceeds",
+};
+
+typedef struct {
+  char *estimator;
+  char *pattern;
+  double duty, black_level, harmonic_gain, system_gain, read_noise, saturation;
+  char *out;
+  gboolean extrema;
+  gboolean quiet;
+  gboolean no_preview;
+} Options;
+
+static gboolean
+write_image (const DsImage *img, const char *dir, const char *name, GPtrArray *written, GError **error)
+{
+  g_autofree char *path = g_build_filename (dir, name, NULL);
+  if (!ds_image_write (img, path, error))
+    return FALSE;
+  g_ptr_array_add (written, g_strdup (name));
+  return TRUE;
+}
+
+/* A float component at the input's integer type, as the authors' scripts store it. */
+static gboolean
+write_like_input (const DsImage *component, const DsPhaseFolder *folder, const char *stem,
+                  const char *dir, GPtrArray *written, GError **error)
+{
+  if (folder->type == DS_SAMPLE_F32) {
+    g_autofree char *name = g_strconcat (stem, ".tiff", NULL);
+    return write_image (component, dir, name, written, error);
+  }
+  double top = (double) ((1u << MIN (folder->bit_depth, 16u)) - 1u);
+  g_autoptr (DsImage) img = ds_image_convert_f32_clamped (component, folder->type, top, error);
+  if (!img)
+    return FALSE;
+  img->bit_depth = folder->bit_depth;
+  g_autofree char *name = g_strconcat (stem, ".png", NULL);
+  return write_image (img, dir, name, written, error);
+}
+
+static JsonNode *
+build_sidecar (const DsPhaseFolder *folder, const DsSeparationParams *params, const DsSeparation *sep,
+               GPtrArray *written)
+{
+  g_autoptr (JsonBuilder) b = json_builder_new ();
+  json_builder_begin_object (b);
+  json_builder_set_member_name (b, "tool");
+  json_builder_add_string_value (b, "descatterctl separate");
+
+  json_builder_set_member_name (b, "inputs");
+  json_builder_begin_object (b);
+  json_builder_set_member_name (b, "folder");
+  json_builder_add_string_value (b, folder->dir);
+  json_builder_set_member_name (b, "phases");
+  json_builder_begin_array (b);
+  for (guint k = 0; k < folder->phase_files->len; k++)
+    json_builder_add_string_value (b, folder->phase_files->pdata[k]);
+  json_builder_end_array (b);
+  json_builder_set_member_name (b, "black");
+  if (folder->black_file)
+    json_builder_add_string_value (b, folder->black_file);
+  else
+    json_builder_add_null_value (b);
+  json_builder_set_member_name (b, "skipped");
+  json_builder_begin_array (b);
+  for (guint i = 0; i < folder->skipped->len; i++)
+    json_builder_add_string_value (b, folder->skipped->pdata[i]);
+  if (folder->white_file)
+    json_builder_add_string_value (b, folder->white_file);
+  json_builder_end_array (b);
+  json_builder_set_member_name (b, "width");
+  json_builder_add_int_value (b, folder->width);
+  json_builder_set_member_name (b, "height");
+  json_builder_add_int_value (b, folder->height);
+  json_builder_set_member_name (b, "sample_type");
+  json_builder_add_string_value (b, ds_sample_type_name (folder->type));
+  json_builder_set_member_name (b, "bit_depth");
+  json_builder_add_int_value (b, folder->bit_depth);
+  json_builder_end_object (b);
+
+  json_builder_set_member_name (b, "params");
+  json_builder_begin_object (b);
+  json_builder_set_member_name (b, "estimator");
+  json_builder_add_string_value (b, ds_estimator_name (params->estimator));
+  json_builder_set_member_name (b, "pattern");
+  json_builder_add_string_value (b, params->pattern == DS_PATTERN_SINE ? "sine" : "square");
+  json_builder_set_member_name (b, "duty");
+  json_builder_add_double_value (b, params->duty);
+  json_builder_set_member_name (b, "black_level");
+  json_builder_add_double_value (b, params->black_level);
+  json_builder_set_member_name (b, "harmonic_gain");
+  json_builder_add_double_value (b, params->harmonic_gain);
+  json_builder_set_member_name (b, "saturation_level");
+  json_builder_add_double_value (b, params->saturation_level);
+  json_builder_set_member_name (b, "system_gain");
+  json_builder_add_double_value (b, params->system_gain);
+  json_builder_set_member_name (b, "read_noise_dn");
+  json_builder_add_double_value (b, params->read_noise_dn);
+  json_builder_end_object (b);
+
+  const DsSeparationMeta *m = &sep->meta;
+  json_builder_set_member_name (b, "meta");
+  json_builder_begin_object (b);
+  json_builder_set_member_name (b, "n_phases");
+  json_builder_add_int_value (b, m->n_phases);
+  json_builder_set_member_name (b, "frames_per_phase");
+  json_builder_add_int_value (b, m->frames_per_phase);
+  json_builder_set_member_name (b, "estimator");
+  json_builder_add_string_value (b, ds_estimator_name (m->estimator));
+  json_builder_set_member_name (b, "duty");
+  json_builder_add_double_value (b, m->duty);
+  json_builder_set_member_name (b, "black_level");
+  json_builder_add_double_value (b, m->black_level);
+  json_builder_set_member_name (b, "pattern_mean");
+  json_builder_add_double_value (b, m->pattern_mean);
+  json_builder_set_member_name (b, "harmonic_gain");
+  json_builder_add_double_value (b, m->harmonic_gain);
+  json_builder_set_member_name (b, "dark_subtracted");
+  json_builder_add_boolean_value (b, m->dark_subtracted);
+  json_builder_set_member_name (b, "flagged");
+  json_builder_begin_object (b);
+  for (int i = 0; i < DS_MASK_N_BITS; i++) {
+    json_builder_set_member_name (b, mask_bit_names[i]);
+    json_builder_add_int_value (b, (gint64) m->flagged[i]);
+  }
+  json_builder_end_object (b);
+  json_builder_set_member_name (b, "valid_pixels");
+  json_builder_add_int_value (b, (gint64) m->valid_pixels);
+  json_builder_set_member_name (b, "noise_dn");
+  if (isfinite (m->noise_dn))
+    json_builder_add_double_value (b, m->noise_dn);
+  else
+    json_builder_add_null_value (b); /* JSON has no NaN */
+  json_builder_end_object (b);
+
+  json_builder_set_member_name (b, "outputs");
+  json_builder_begin_array (b);
+  for (guint i = 0; i < written->len; i++)
+    json_builder_add_string_value (b, written->pdata[i]);
+  json_builder_end_array (b);
+  json_builder_end_object (b);
+  return json_builder_get_root (b);
+}
+
+/* *usage is set when the failure is a bad option value (exit status 2) rather than the data. */
+static gboolean
+separate (const char *dir, const Options *o, gboolean *usage, GError **error)
+{
+  g_autoptr (DsPhaseFolder) folder = ds_phase_folder_open (dir, error);
+  if (!folder)
+    return FALSE;
+  guint n = ds_phase_folder_n_phases (folder);
+  *usage = TRUE;
+
+  DsSeparationParams params;
+  ds_separation_params_init (&params, n);
+  if (o->estimator && !ds_estimator_from_name (o->estimator, &params.estimator)) {
+    g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT,
+                 "--estimator %s: unknown (maxmin, sine or robust)", o->estimator);
+    return FALSE;
+  }
+  if (o->pattern) {
+    if (g_ascii_strcasecmp (o->pattern, "square") == 0)
+      params.pattern = DS_PATTERN_SQUARE;
+    else if (g_ascii_strcasecmp (o->pattern, "sine") == 0)
+      params.pattern = DS_PATTERN_SINE;
+    else {
+      g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT,
+                   "--pattern %s: unknown (square or sine)", o->pattern);
+      return FALSE;
+    }
+  }
+  if (!isnan (o->duty))
+    params.duty = o->duty;
+  if (!isnan (o->black_level))
+    params.black_level = o->black_level;
+  if (!isnan (o->harmonic_gain))
+    params.harmonic_gain = o->harmonic_gain;
+  if (!isnan (o->system_gain))
+    params.system_gain = o->system_gain;
+  if (!isnan (o->read_noise))
+    params.read_noise_dn = o->read_noise;
+  if (!isnan (o->saturation))
+    params.saturation_level = o->saturation;
+  params.keep_extrema = o->extrema;
+  if (!ds_separation_params_validate (&params, error))
+    return FALSE;
+  *usage = FALSE;
+
+  /* Frames are read and folded one at a time: memory stays at one frame plus accumulators. */
+  g_autoptr (DsImage) first = ds_phase_folder_read (folder, 0, error);
+  if (!first)
+    return FALSE;
+  g_autoptr (DsPhaseSet) set = ds_phase_set_new (&params, first->width, first->height, error);
+  if (!set)
+    return FALSE;
+  if (folder->black_file) {
+    g_autoptr (DsImage) black = ds_phase_folder_read_black (folder, error);
+    if (!black || !ds_phase_set_set_dark (set, black, error))
+      return FALSE;
+  }
+  for (guint k = 0; k < n; k++) {
+    g_autoptr (DsImage) frame = k == 0 ? g_steal_pointer (&first) : ds_phase_folder_read (folder, k, error);
+    if (!frame)
+      return FALSE;
+    if (!ds_phase_set_accumulate (set, k, frame, error)) {
+      g_prefix_error (error, "%s: ", (const char *) folder->phase_files->pdata[k]);
+      return FALSE;
+    }
+  }
+  g_autoptr (DsSeparation) sep = ds_phase_set_finalize (set, error);
+  if (!sep)
+    return FALSE;
+
+  const char *out = o->out ? o->out : dir;
+  if (g_mkdir_with_parents (out, 0755) != 0) {
+    int e = errno;
+    g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_IO, "%s: cannot create folder: %s", out, g_strerror (e));
+    return FALSE;
+  }
+  g_autoptr (GPtrArray) written = g_ptr_array_new_with_free_func (g_free);
+  if (!write_like_input (sep->transmissive, folder, "direct", out, written, error) ||
+      !write_like_input (sep->scattered, folder, "global", out, written, error) ||
+      !write_image (sep->transmissive, out, "transmissive.tiff", written, error) ||
+      !write_image (sep->scattered, out, "scattered.tiff", written, error) ||
+      !write_image (sep->mask, out, "mask.png", written, error))
+    return FALSE;
+  if (!o->no_preview) {
+    g_autoptr (DsImage) pt = ds_preview_u8 (sep->transmissive, 0.5, 99.5, error);
+    if (!pt || !write_image (pt, out, "transmissive-preview.png", written, error))
+      return FALSE;
+    g_autoptr (DsImage) ps = ds_preview_u8 (sep->scattered, 0.5, 99.5, error);
+    if (!ps || !write_image (ps, out, "scattered-preview.png", written, error))
+      return FALSE;
+  }
+  if (o->extrema && sep->max && sep->min && sep->mean &&
+      (!write_image (sep->max, out, "max.tiff", written, error) ||
+       !write_image (sep->min, out, "min.tiff", written, error) ||
+       !write_image (sep->mean, out, "mean.tiff", written, error)))
+    return FALSE;
+  if (sep->sigma_transmissive && sep->sigma_scattered &&
+      (!write_image (sep->sigma_transmissive, out, "sigma_transmissive.tiff", written, error) ||
+       !write_image (sep->sigma_scattered, out, "sigma_scattered.tiff", written, error)))
+    return FALSE;
+
+  g_autoptr (JsonNode) root = build_sidecar (folder, &params, sep, written);
+  g_autoptr (JsonGenerator) gen = json_generator_new ();
+  json_generator_set_pretty (gen, TRUE);
+  json_generator_set_root (gen, root);
+  g_autofree char *text = json_generator_to_data (gen, NULL);
+  g_autofree char *jpath = g_build_filename (out, "separation.json", NULL);
+  if (!g_file_set_contents_full (jpath, text, -1,
+                                 G_FILE_SET_CONTENTS_CONSISTENT | G_FILE_SET_CONTENTS_DURABLE, 0644,
+                                 error))
+    return FALSE;
+
+  if (!o->quiet) {
+    printf ("separated %u phases (%s, a = %g, b = %g%s) of %ux%u %s: %s\n", n,
+            ds_estimator_name (params.estimator), params.duty, params.black_level,
+            folder->black_file ? ", black subtracted" : "", folder->width, folder->height,
+            ds_sample_type_name (folder->type), out);
+    for (int i = 0; i < DS_MASK_N_BITS; i++)
+      if (sep->meta.flagged[i])
+        printf ("  flagged %-15s %" G_GUINT64_FORMAT " pixels\n", mask_bit_names[i], sep->meta.flagged[i]);
+  }
+  return TRUE;
+}
+
+int
+ds_ctl_separate (int argc, char **argv)
+{
+  Options o = { .duty = NAN, .black_level = NAN, .harmonic_gain = NAN, .system_gain = NAN,
+                .read_noise = NAN, .saturation = NAN };
+  GOptionEntry entries[] = {
+    { "estimator", 'e', 0, G_OPTION_ARG_STRING, &o.estimator, "maxmin (default), sine or robust", "NAME" },
+    { "pattern", 0, 0, G_OPTION_ARG_STRING, &o.pattern, "stripe profile: square (default) or sine", "KIND" },
+    { "duty", 'a', 0, G_OPTION_ARG_DOUBLE, &o.duty, "lit fraction of a period (default 0.5)", "A" },
+    { "black-level", 'b', 0, G_OPTION_ARG_DOUBLE, &o.black_level, "off-stripe leakage relative to on (default 0)", "B" },
+    { "harmonic-gain", 0, 0, G_OPTION_ARG_DOUBLE, &o.harmonic_gain, "first-harmonic gain h for sine (default: theory)", "H" },
+    { "system-gain", 0, 0, G_OPTION_ARG_DOUBLE, &o.system_gain, "sensor gain K in DN per electron (enables uncertainty)", "K" },
+    { "read-noise", 0, 0, G_OPTION_ARG_DOUBLE, &o.read_noise, "temporal dark noise in DN", "DN" },
+    { "saturation", 0, 0, G_OPTION_ARG_DOUBLE, &o.saturation, "saturation level in DN (default 2^depth - 1)", "DN" },
+    { "out", 'o', 0, G_OPTION_ARG_FILENAME, &o.out, "output folder (default: DIR)", "OUT" },
+    { "extrema", 0, 0, G_OPTION_ARG_NONE, &o.extrema, "also write max, min and mean (float32 TIFF)", NULL },
+    { "no-preview", 0, 0, G_OPTION_ARG_NONE, &o.no_preview, "do not write the 8-bit preview pictures", NULL },
+    { "quiet", 'q', 0, G_OPTION_ARG_NONE, &o.quiet, "print nothing on success", NULL },
+    { NULL },
+  };
+  g_autoptr (GOptionContext) ctx = g_option_context_new ("DIR - separate a folder of phase images");
+  g_option_context_set_summary (ctx, "Writes direct.png, global.png, transmissive.tiff, scattered.tiff, "
+                                     "mask.png and separation.json.");
+  g_option_context_add_main_entries (ctx, entries, NULL);
+  g_autoptr (GError) error = NULL;
+  int status;
+  gboolean usage = FALSE;
+  if (!g_option_context_parse (ctx, &argc, &argv, &error)) {
+    fprintf (stderr, "descatterctl separate: %s\n", error->message);
+    status = 2;
+  } else if (argc != 2) {
+    fprintf (stderr, "descatterctl separate: expected one folder, got %d arguments\n", argc - 1);
+    status = 2;
+  } else if (!separate (argv[1], &o, &usage, &error)) {
+    fprintf (stderr, "descatterctl separate: %s\n", error->message);
+    status = usage ? 2 : 1;
+  } else {
+    status = 0;
+  }
+  g_free (o.estimator);
+  g_free (o.pattern);
+  g_free (o.out);
+  return status;
+}

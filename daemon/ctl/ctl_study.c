@@ -1,0 +1,359 @@
+/* `descatterctl study`: the accuracy-versus-time sweep (docs/accuracy.md). Writes
+ * OUT/study.csv (one row per point) and OUT/pareto.md (per scene, the points no other point
+ * beats in both acquisition time and transmissive error, seeds averaged). Plots are drawn from
+ * the CSV by tools/plot_study.py. */
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+#include <glib/gstdio.h>
+
+#include "daemon/ctl/ctl_commands.h"
+#include "daemon/operating/operating_point.h"
+#include "daemon/ctl/study.h"
+#include "daemon/operating/data_dir.h"
+
+typedef struct {
+  FILE *csv;
+  GArray *points;   /* DsStudyPoint (scene pointer not kept: index into names) */
+  GPtrArray *names;
+  guint done;
+  gboolean quiet;
+} StudyOut;
+
+static void
+on_point (const DsStudyPoint *p, gpointer data)
+{
+  StudyOut *o = data;
+  fprintf (o->csv, "%s,%s,%u,%u,%g,%.1f,%" G_GUINT64_FORMAT ",%.6g,%.6g,%.6g,%" G_GUINT64_FORMAT ",%" G_GUINT64_FORMAT ",%" G_GUINT64_FORMAT ",%.3f,%.3f,%.2f,%.5f\n",
+           p->scene, ds_estimator_name (p->estimator), p->phases, p->averages, p->exposure_factor,
+           p->exposure_us, p->seed, p->rel_rmse_transmissive, p->rel_rmse_scattered,
+           p->stripe_residue, p->valid, p->masked, p->saturated, p->acquisition_ms, p->compute_ms,
+           p->signal_dn, p->direct_fraction);
+  fflush (o->csv);
+  DsStudyPoint copy = *p;
+  guint idx = 0;
+  while (idx < o->names->len && strcmp (g_ptr_array_index (o->names, idx), p->scene) != 0)
+    idx++;
+  if (idx == o->names->len)
+    g_ptr_array_add (o->names, g_strdup (p->scene));
+  copy.scene = g_ptr_array_index (o->names, idx);
+  g_array_append_val (o->points, copy);
+  o->done++;
+  if (!o->quiet)
+    fprintf (stderr, "\rstudy: %u points", o->done);
+}
+
+typedef struct {
+  const char *scene;
+  DsEstimator estimator;
+  guint phases, averages;
+  double exposure_factor;
+  double err_t, err_g, residue, time_ms;
+  guint n;
+} Aggregate;
+
+static int
+compare_time (const void *a, const void *b)
+{
+  const Aggregate *x = a, *y = b;
+  if (x->time_ms != y->time_ms)
+    return x->time_ms < y->time_ms ? -1 : 1;
+  return x->err_t < y->err_t ? -1 : x->err_t > y->err_t;
+}
+
+static gboolean
+write_pareto (StudyOut *o, const char *path, GError **error)
+{
+  GString *md = g_string_new ("# Pareto fronts: acquisition time against transmissive error\n\n"
+                              "Made by `descatterctl study`; seeds averaged. A point is on the "
+                              "front when no other point is both faster and more accurate.\n");
+  for (guint s = 0; s < o->names->len; s++) {
+    const char *scene = g_ptr_array_index (o->names, s);
+    GArray *agg = g_array_new (FALSE, TRUE, sizeof (Aggregate));
+    for (guint i = 0; i < o->points->len; i++) {
+      const DsStudyPoint *p = &g_array_index (o->points, DsStudyPoint, i);
+      if (p->scene != scene)
+        continue;
+      guint j = 0;
+      for (; j < agg->len; j++) {
+        Aggregate *a = &g_array_index (agg, Aggregate, j);
+        if (a->estimator == p->estimator && a->phases == p->phases && a->averages == p->averages &&
+            a->exposure_factor == p->exposure_factor)
+          break;
+      }
+      if (j == agg->len) {
+        Aggregate a = { .scene = scene, .estimator = p->estimator, .phases = p->phases,
+                        .averages = p->averages, .exposure_factor = p->exposure_factor,
+                        .time_ms = p->acquisition_ms };
+        g_array_append_val (agg, a);
+      }
+      Aggregate *a = &g_array_index (agg, Aggregate, j);
+      a->err_t += p->rel_rmse_transmissive;
+      a->err_g += p->rel_rmse_scattered;
+      a->residue += p->stripe_residue;
+      a->n++;
+    }
+    for (guint j = 0; j < agg->len; j++) {
+      Aggregate *a = &g_array_index (agg, Aggregate, j);
+      a->err_t /= a->n;
+      a->err_g /= a->n;
+      a->residue /= a->n;
+    }
+    g_array_sort (agg, compare_time);
+    g_string_append_printf (md, "\n## %s\n\n| estimator | N | M | exposure | time (ms) | rel. RMSE transmissive | rel. RMSE scattered | stripe residue |\n|---|---|---|---|---|---|---|---|\n", scene);
+    double best = INFINITY;
+    for (guint j = 0; j < agg->len; j++) {
+      Aggregate *a = &g_array_index (agg, Aggregate, j);
+      if (a->err_t >= best)
+        continue;
+      best = a->err_t;
+      g_string_append_printf (md, "| %s | %u | %u | %g× | %.1f | %.4f | %.4f | %.4f |\n",
+                              ds_estimator_name (a->estimator), a->phases, a->averages,
+                              a->exposure_factor, a->time_ms, a->err_t, a->err_g, a->residue);
+    }
+    g_array_unref (agg);
+  }
+  gboolean ok = g_file_set_contents_full (path, md->str, -1, G_FILE_SET_CONTENTS_CONSISTENT, 0644, error);
+  g_string_free (md, TRUE);
+  return ok;
+}
+
+/* The operating model (daemon/operating_point.h): per scene and (estimator, N, M), a least-
+ * squares fit of err^2 = a / e + b over the exposure factors e (seeds averaged), a, b >= 0.
+ * The safety factor is the worst ratio of a measured error (any seed) to its fit. */
+static gboolean
+write_model (StudyOut *o, const char *path, GError **error)
+{
+  GArray *rows = g_array_new (FALSE, TRUE, sizeof (DsModelRow));
+  double safety = 1.0;
+  for (guint i = 0; i < o->points->len; i++) {
+    const DsStudyPoint *p = &g_array_index (o->points, DsStudyPoint, i);
+    gboolean done = FALSE;
+    for (guint j = 0; j < rows->len && !done; j++) {
+      DsModelRow *r = &g_array_index (rows, DsModelRow, j);
+      done = strcmp (r->scene, p->scene) == 0 && r->estimator == p->estimator && r->phases == p->phases &&
+             r->averages == p->averages;
+    }
+    if (done)
+      continue;
+    /* Gather this configuration's points: x = 1/e, y = mean over seeds of err^2. */
+    double xs[16], ys[16], ns[16];
+    guint k = 0;
+    for (guint j = 0; j < o->points->len; j++) {
+      const DsStudyPoint *q = &g_array_index (o->points, DsStudyPoint, j);
+      if (strcmp (q->scene, p->scene) != 0 || q->estimator != p->estimator || q->phases != p->phases ||
+          q->averages != p->averages || !isfinite (q->rel_rmse_transmissive))
+        continue;
+      guint m = 0;
+      while (m < k && xs[m] != 1.0 / q->exposure_factor)
+        m++;
+      if (m == k) {
+        if (k == G_N_ELEMENTS (xs))
+          continue;
+        xs[k] = 1.0 / q->exposure_factor;
+        ys[k] = ns[k] = 0;
+        k++;
+      }
+      ys[m] += q->rel_rmse_transmissive * q->rel_rmse_transmissive;
+      ns[m] += 1;
+    }
+    if (k == 0)
+      continue;
+    double sx = 0, sy = 0, sxx = 0, sxy = 0;
+    for (guint m = 0; m < k; m++) {
+      ys[m] /= ns[m];
+      sx += xs[m];
+      sy += ys[m];
+      sxx += xs[m] * xs[m];
+      sxy += xs[m] * ys[m];
+    }
+    double a, b;
+    double det = k * sxx - sx * sx;
+    if (k >= 2 && det > 0) {
+      a = (k * sxy - sx * sy) / det;
+      b = (sy - a * sx) / k;
+    } else {
+      a = sy / sx; /* one exposure: all noise (the conservative reading at longer exposures is
+                      wrong, so the study always runs several) */
+      b = 0;
+    }
+    if (a < 0) {
+      a = 0;
+      b = sy / k;
+    }
+    if (b < 0) {
+      b = 0;
+      a = sxy / sxx;
+    }
+    DsModelRow r = { .estimator = p->estimator, .phases = p->phases, .averages = p->averages,
+                     .a = a, .b = b, .signal_dn = p->signal_dn / p->exposure_factor,
+                     .direct_fraction = MAX (p->direct_fraction, 1e-4),
+                     .base_exposure_us = p->exposure_us / p->exposure_factor };
+    g_strlcpy (r.scene, p->scene, sizeof r.scene);
+    g_array_append_val (rows, r);
+    for (guint j = 0; j < o->points->len; j++) {
+      const DsStudyPoint *q = &g_array_index (o->points, DsStudyPoint, j);
+      if (strcmp (q->scene, p->scene) != 0 || q->estimator != p->estimator || q->phases != p->phases ||
+          q->averages != p->averages || !isfinite (q->rel_rmse_transmissive))
+        continue;
+      double pred = sqrt (a / q->exposure_factor + b);
+      if (pred > 0)
+        safety = MAX (safety, q->rel_rmse_transmissive / pred);
+    }
+  }
+  gboolean ok = rows->len > 0 && ds_operating_model_write ((const DsModelRow *) rows->data, rows->len,
+                                                           safety, path, error);
+  if (rows->len == 0)
+    g_set_error (error, G_FILE_ERROR, G_FILE_ERROR_INVAL, "no points to fit a model to");
+  g_array_unref (rows);
+  return ok;
+}
+
+static gboolean
+parse_uint_list (const char *text, guint **out, guint *n)
+{
+  g_auto (GStrv) parts = g_strsplit (text, ",", -1);
+  *n = g_strv_length (parts);
+  *out = g_new0 (guint, *n);
+  for (guint i = 0; i < *n; i++) {
+    guint64 v;
+    if (!g_ascii_string_to_unsigned (parts[i], 10, 1, 1024, &v, NULL))
+      return FALSE;
+    (*out)[i] = (guint) v;
+  }
+  return *n > 0;
+}
+
+static gboolean
+parse_double_list (const char *text, double **out, guint *n)
+{
+  g_auto (GStrv) parts = g_strsplit (text, ",", -1);
+  *n = g_strv_length (parts);
+  *out = g_new0 (double, *n);
+  for (guint i = 0; i < *n; i++) {
+    char *end = NULL;
+    (*out)[i] = g_ascii_strtod (parts[i], &end);
+    if (!end || *end || !((*out)[i] > 0))
+      return FALSE;
+  }
+  return *n > 0;
+}
+
+int
+ds_ctl_study (int argc, char **argv)
+{
+  g_autofree char *out = NULL, *phases = NULL, *averages = NULL, *exposures = NULL,
+                  *estimators = NULL;
+  g_auto (GStrv) scenes = NULL;
+  int seeds = 0;
+  gboolean quick = FALSE, quiet = FALSE;
+  DsStudyPlan plan = { 0 };
+  ds_rig_timing_init (&plan.timing);
+  GOptionEntry entries[] = {
+    { "scene", 's', 0, G_OPTION_ARG_FILENAME_ARRAY, &scenes, "Scene file (repeat; default: every etc/scenes/*.scene)", "FILE" },
+    { "out", 'o', 0, G_OPTION_ARG_FILENAME, &out, "Output folder (default study/)", "DIR" },
+    { "phases", 0, 0, G_OPTION_ARG_STRING, &phases, "N values (default 2,3,4,6,8,12,16,24,32)", "LIST" },
+    { "averages", 0, 0, G_OPTION_ARG_STRING, &averages, "M values (default 1,2,4,8)", "LIST" },
+    { "exposures", 0, 0, G_OPTION_ARG_STRING, &exposures, "exposure factors of the scene's base (default 1,2,4)", "LIST" },
+    { "estimators", 0, 0, G_OPTION_ARG_STRING, &estimators, "default maxmin,sine,robust", "LIST" },
+    { "seeds", 0, 0, G_OPTION_ARG_INT, &seeds, "noise seeds per point (default 3)", "K" },
+    { "quick", 0, 0, G_OPTION_ARG_NONE, &quick, "Reduced sweep (CI): N 4,8; M 1,2; exposure 1; 1 seed", NULL },
+    { "settle-ms", 0, 0, G_OPTION_ARG_DOUBLE, &plan.timing.settle_ms, "illuminator settle time (default 3)", "MS" },
+    { "trigger-us", 0, 0, G_OPTION_ARG_DOUBLE, &plan.timing.trigger_overhead_us, "trigger overhead (default 200)", "US" },
+    { "link-mbit", 0, 0, G_OPTION_ARG_DOUBLE, &plan.timing.link_mbit_s, "camera link (default 1000)", "MBIT" },
+    { "quiet", 'q', 0, G_OPTION_ARG_NONE, &quiet, "No progress", NULL },
+    { NULL },
+  };
+  g_autoptr (GOptionContext) ctx = g_option_context_new (NULL);
+  g_option_context_set_summary (ctx, "Sweeps estimator, N, M, exposure and seeds over simulated scenes; "
+                                     "writes study.csv and pareto.md (docs/accuracy.md).");
+  g_option_context_add_main_entries (ctx, entries, NULL);
+  g_autoptr (GError) error = NULL;
+  if (!g_option_context_parse (ctx, &argc, &argv, &error)) {
+    fprintf (stderr, "descatterctl study: %s\n", error->message);
+    return 2;
+  }
+  const char *def_n = quick ? "4,8" : "2,3,4,6,8,12,16,24,32";
+  const char *def_m = quick ? "1,2" : "1,2,4,8";
+  const char *def_e = quick ? "1" : "1,2,4";
+  g_autofree guint *n_list = NULL, *m_list = NULL;
+  g_autofree double *e_list = NULL;
+  if (!parse_uint_list (phases ? phases : def_n, &n_list, &plan.n_phases) ||
+      !parse_uint_list (averages ? averages : def_m, &m_list, &plan.n_averages) ||
+      !parse_double_list (exposures ? exposures : def_e, &e_list, &plan.n_exposures)) {
+    fprintf (stderr, "descatterctl study: --phases/--averages/--exposures take comma-separated positive numbers\n");
+    return 2;
+  }
+  plan.phases = n_list;
+  plan.averages = m_list;
+  plan.exposure_factors = e_list;
+  plan.n_seeds = seeds > 0 ? (guint) seeds : quick ? 1 : 3;
+  plan.dark_frame = TRUE;
+  g_auto (GStrv) est_names = g_strsplit (estimators ? estimators : "maxmin,sine,robust", ",", -1);
+  DsEstimator est[4];
+  plan.n_estimators = 0;
+  for (guint i = 0; est_names[i] && plan.n_estimators < 4; i++)
+    if (!ds_estimator_from_name (est_names[i], &est[plan.n_estimators++])) {
+      fprintf (stderr, "descatterctl study: unknown estimator \"%s\"\n", est_names[i]);
+      return 2;
+    }
+  plan.estimators = est;
+  g_autoptr (GPtrArray) files = g_ptr_array_new_with_free_func (g_free);
+  if (scenes)
+    for (guint i = 0; scenes[i]; i++)
+      g_ptr_array_add (files, g_strdup (scenes[i]));
+  else {
+    g_autofree char *scene_dir = ds_data_path ("scenes");
+    g_autoptr (GDir) dir = g_dir_open (scene_dir, 0, &error);
+    if (!dir) {
+      fprintf (stderr, "descatterctl study: %s (give --scene)\n", error->message);
+      return 1;
+    }
+    const char *name;
+    while ((name = g_dir_read_name (dir)))
+      if (g_str_has_suffix (name, ".scene") && !strstr (name, "1024"))
+        g_ptr_array_add (files, g_build_filename (scene_dir, name, NULL));
+    g_ptr_array_sort (files, (GCompareFunc) g_strcmp0);
+  }
+  const char *dir = out ? out : "study";
+  g_mkdir_with_parents (dir, 0755);
+  g_autofree char *examples = g_build_filename (dir, "examples", NULL);
+  g_mkdir_with_parents (examples, 0755);
+  plan.examples_dir = examples;
+  g_autofree char *csv_path = g_build_filename (dir, "study.csv", NULL);
+  g_autofree char *tmp_path = g_strconcat (csv_path, ".tmp", NULL);
+  StudyOut o = { .csv = fopen (tmp_path, "w"), .points = g_array_new (FALSE, FALSE, sizeof (DsStudyPoint)),
+                 .names = g_ptr_array_new_with_free_func (g_free), .quiet = quiet };
+  if (!o.csv) {
+    fprintf (stderr, "descatterctl study: cannot write %s\n", tmp_path);
+    return 1;
+  }
+  fprintf (o.csv, "scene,estimator,phases,averages,exposure_factor,exposure_us,seed,rel_rmse_transmissive,"
+                  "rel_rmse_scattered,stripe_residue,valid,masked,saturated,acquisition_ms,compute_ms,signal_dn,direct_fraction\n");
+  int status = 0;
+  for (guint i = 0; i < files->len && status == 0; i++)
+    if (!ds_study_run_scene (g_ptr_array_index (files, i), &plan, on_point, &o, &error)) {
+      fprintf (stderr, "\ndescatterctl study: %s\n", error->message);
+      status = 1;
+    }
+  /* The CSV appears whole or not at all. */
+  if (fclose (o.csv) != 0 || (status == 0 && g_rename (tmp_path, csv_path) != 0))
+    status = 1;
+  if (status == 0) {
+    g_autofree char *md = g_build_filename (dir, "pareto.md", NULL);
+    if (!write_pareto (&o, md, &error)) {
+      fprintf (stderr, "descatterctl study: %s\n", error->message);
+      status = 1;
+    } else if (!quiet)
+      fprintf (stderr, "\nstudy: %u points in %s, fronts in %s\n", o.done, csv_path, md);
+    g_autofree char *model = g_build_filename (dir, "operating-model.csv", NULL);
+    if (status == 0 && !write_model (&o, model, &error)) {
+      fprintf (stderr, "descatterctl study: %s\n", error->message);
+      status = 1;
+    }
+  } else
+    g_unlink (tmp_path);
+  g_array_unref (o.points);
+  g_ptr_array_unref (o.names);
+  return status;
+}

@@ -1,0 +1,47 @@
+/* The accuracy-versus-time study (docs/accuracy.md): sweeps estimator, phases N, averages M,
+ * exposure and noise seed over simulated scenes, measuring the error against the simulator's
+ * truth and the acquisition time from a timing model of the rig. Also the model that picks
+ * an operating point for a target error or a time budget from the study's table. */
+#pragma once
+#include <glib.h>
+
+#include "daemon/operating/rig_timing.h"
+#include "proc/separation.h"
+
+G_BEGIN_DECLS
+
+typedef struct {
+  const char *scene;         /* file name */
+  DsEstimator estimator;
+  guint phases, averages;
+  double exposure_factor, exposure_us;
+  guint64 seed;
+  double rel_rmse_transmissive, rel_rmse_scattered;
+  double stripe_residue;     /* first-harmonic amplitude / mean left in transmissive */
+  guint64 valid, masked, saturated;
+  double signal_dn;          /* mean Ld + Lg of the truth at this exposure */
+  double direct_fraction;    /* mean Ld / mean (Ld + Lg) */
+  double acquisition_ms;     /* model */
+  double compute_ms;         /* measured: accumulate + finalize */
+} DsStudyPoint;
+
+typedef struct {
+  guint *phases; guint n_phases;
+  guint *averages; guint n_averages;
+  double *exposure_factors; guint n_exposures;
+  guint n_seeds;
+  DsEstimator *estimators; guint n_estimators;
+  DsRigTiming timing;
+  gboolean dark_frame;
+  const char *examples_dir;  /* NULL: none; else 8-bit previews of both components for the
+                                smallest and largest N at M = 1, base exposure, first seed */
+} DsStudyPlan;
+
+typedef void (*DsStudyPointFunc) (const DsStudyPoint *point, gpointer user_data);
+
+/* Runs the plan on one scene file; every point goes to `emit` as it is measured. Frames are
+ * rendered once per (N, M, exposure, seed) and folded into one phase set per estimator. */
+gboolean ds_study_run_scene (const char *scene_path, const DsStudyPlan *plan,
+                             DsStudyPointFunc emit, gpointer user_data, GError **error);
+
+G_END_DECLS

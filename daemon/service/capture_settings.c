@@ -1,0 +1,76 @@
+#include "daemon/service/capture_settings.h"
+
+#include <math.h>
+#include <string.h>
+
+void
+ds_capture_settings_from_config (DsCaptureSettings *s, const DsConfig *c)
+{
+  memset (s, 0, sizeof *s);
+  s->phases = c->phases;
+  s->averages = c->averages;
+  s->exposure_us = c->exposure_us;
+  s->gain_db = c->gain_db;
+  if (!ds_estimator_from_name (c->estimator, &s->estimator))
+    s->estimator = DS_ESTIMATOR_MAXMIN; /* unreachable: the config parser checked the name */
+  s->pattern = strcmp (c->pattern, "sine") == 0 ? DS_PATTERN_SINE : DS_PATTERN_SQUARE;
+  s->period_px = c->period_px;
+  s->duty = c->duty;
+  s->black_level = c->black_level;
+  s->dark_frame = c->dark_frame;
+  s->phase_retries = c->phase_retries;
+  s->verify_phase = c->verify_phase;
+  /* A quarter of the phase step: a frame lit one phase off is then always refused. */
+  s->phase_tolerance_deg = isnan (c->phase_tolerance_deg) ? 90.0 / c->phases : c->phase_tolerance_deg;
+}
+
+JsonNode *
+ds_capture_settings_to_json (const DsCaptureSettings *s)
+{
+  g_autoptr (JsonBuilder) b = json_builder_new ();
+  json_builder_begin_object (b);
+#define INT(k, v) (json_builder_set_member_name (b, k), json_builder_add_int_value (b, (gint64) (v)))
+#define DBL(k, v) (json_builder_set_member_name (b, k), json_builder_add_double_value (b, v))
+#define STR(k, v) (json_builder_set_member_name (b, k), json_builder_add_string_value (b, v))
+#define BOOL(k, v) (json_builder_set_member_name (b, k), json_builder_add_boolean_value (b, v))
+  INT ("phases", s->phases);
+  INT ("averages", s->averages);
+  DBL ("exposure_us", s->exposure_us);
+  DBL ("gain_db", s->gain_db);
+  STR ("estimator", ds_estimator_name (s->estimator));
+  STR ("pattern", s->pattern == DS_PATTERN_SINE ? "sine" : "square");
+  DBL ("period_px", s->period_px);
+  DBL ("duty", s->duty);
+  DBL ("black_level", s->black_level);
+  BOOL ("dark_frame", s->dark_frame);
+  INT ("phase_retries", s->phase_retries);
+  BOOL ("verify_phase", s->verify_phase);
+  if (s->automatic) {
+    json_builder_set_member_name (b, "operating_point");
+    json_builder_begin_object (b);
+    DBL ("target_error", s->target_error);
+    DBL ("time_budget_ms", s->time_budget_ms);
+    DBL ("predicted_error", s->predicted_error);
+    DBL ("predicted_time_ms", s->predicted_time_ms);
+    DBL ("preview_signal_dn", s->preview_signal_dn);
+    DBL ("preview_direct_fraction", s->preview_direct_fraction);
+    json_builder_end_object (b);
+  }
+  DBL ("phase_tolerance_deg", s->phase_tolerance_deg);
+#undef INT
+#undef DBL
+#undef STR
+#undef BOOL
+  json_builder_end_object (b);
+  return json_builder_get_root (b);
+}
+
+gboolean
+ds_capture_settings_equal (const DsCaptureSettings *a, const DsCaptureSettings *b)
+{
+  return a->phases == b->phases && a->averages == b->averages && a->exposure_us == b->exposure_us &&
+         a->gain_db == b->gain_db && a->estimator == b->estimator && a->pattern == b->pattern &&
+         a->period_px == b->period_px && a->duty == b->duty && a->black_level == b->black_level &&
+         a->dark_frame == b->dark_frame && a->phase_retries == b->phase_retries &&
+         a->verify_phase == b->verify_phase && a->phase_tolerance_deg == b->phase_tolerance_deg;
+}

@@ -1,0 +1,43 @@
+/* The settings a phase set is taken with. A result carries the settings it was taken with, so
+ * that results are never mixed across settings (a SIGHUP or a client's capture arguments
+ * change them between sets, never within one). Plain data: any thread. */
+#pragma once
+#include <glib.h>
+#include <json-glib/json-glib.h>
+
+#include "daemon/service/config.h"
+#include "proc/separation.h"
+
+G_BEGIN_DECLS
+
+typedef struct {
+  guint phases;          /* N */
+  guint averages;        /* M frames per phase */
+  double exposure_us;
+  double gain_db;
+  DsEstimator estimator;
+  DsPatternKind pattern;
+  double period_px;
+  double duty;
+  double black_level;
+  gboolean dark_frame;
+  guint phase_retries;
+  gboolean verify_phase;
+  double phase_tolerance_deg; /* resolved: never NAN here */
+  gboolean keep_extrema;      /* also compute max, min and mean (asked for by a client) */
+  /* Automatic operating point (docs/accuracy.md): when either is > 0, a preview frame and the
+   * model choose estimator, phases, averages and exposure; the choice is recorded below. */
+  double target_error;        /* relative RMSE of transmissive; 0 = none */
+  double time_budget_ms;      /* 0 = none */
+  gboolean automatic;         /* the fields below are valid */
+  double predicted_error, predicted_time_ms;
+  double preview_signal_dn, preview_direct_fraction;
+} DsCaptureSettings;
+
+/* The configuration's acquisition defaults. */
+void ds_capture_settings_from_config (DsCaptureSettings *settings, const DsConfig *config);
+/* As a JSON object for result metadata and `status`. */
+JsonNode *ds_capture_settings_to_json (const DsCaptureSettings *settings);
+gboolean ds_capture_settings_equal (const DsCaptureSettings *a, const DsCaptureSettings *b);
+
+G_END_DECLS

@@ -1,0 +1,439 @@
+#include "daemon/service/config.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stddef.h>
+#include <stdlib.h>
+#include <string.h>
+
+G_DEFINE_QUARK (ds-config-error-quark, ds_config_error)
+
+typedef enum { K_STRING, K_CHOICE, K_UINT, K_UINT64, K_INT, K_DOUBLE, K_BOOL, K_MODE } KeyType;
+
+typedef struct {
+  const char *group;
+  const char *key;
+  KeyType type;
+  size_t offset;
+  const char *def;      /* textual default, NULL = unset */
+  double min, max;      /* numeric range */
+  const char *choices;  /* '|'-separated for K_CHOICE */
+  const char *doc;
+} KeySpec;
+
+#define F(field) offsetof (DsConfig, field)
+
+static const KeySpec keys[] = {
+  { "daemon", "socket", K_STRING, F (socket_path), "/run/descatterd/descatterd.sock", 0, 0, NULL,
+    "UNIX socket path (ignored when systemd passes sockets)" },
+  { "daemon", "socket-mode", K_MODE, F (socket_mode), "0660", 0, 0777, NULL,
+    "permissions of the UNIX socket (octal); the group decides who may connect" },
+  { "daemon", "tcp-listen", K_STRING, F (tcp_listen), NULL, 0, 0, NULL,
+    "host:port for TCP, empty = off; a non-loopback host needs tcp-token-file" },
+  { "daemon", "tcp-token-file", K_STRING, F (tcp_token_file), NULL, 0, 0, NULL,
+    "file holding the token TCP clients must send in hello" },
+  { "daemon", "max-clients", K_UINT, F (max_clients), "32", 1, 1024, NULL,
+    "connections served at once" },
+  { "daemon", "max-queued-bytes", K_UINT64, F (max_queued_bytes), "268435456", 65536, 17179869184.0, NULL,
+    "bytes queued per client before its stream results are dropped" },
+  { "daemon", "spool-dir", K_STRING, F (spool_dir), NULL, 0, 0, NULL,
+    "record every result here (float32 TIFF + JSON), empty = off" },
+  { "daemon", "spool-max-bytes", K_UINT64, F (spool_max_bytes), "10737418240", 1048576, 1e15, NULL,
+    "oldest recordings are removed beyond this size" },
+
+  { "camera", "backend", K_CHOICE, F (camera_backend), "sim", 0, 0, "sim|aravis", "camera driver" },
+  { "camera", "address", K_STRING, F (camera_address), NULL, 0, 0, NULL,
+    "aravis: camera IP address or device id" },
+  { "camera", "pixel-format", K_CHOICE, F (pixel_format), "Mono16", 0, 0,
+    "Mono8|Mono10|Mono12|Mono16|Mono10p|Mono12p|Mono12Packed", "pixel format on the wire" },
+  { "camera", "exposure-us", K_DOUBLE, F (exposure_us), "5000", 1, 10e6, NULL, "exposure time (µs)" },
+  { "camera", "gain-db", K_DOUBLE, F (gain_db), "0", 0, 48, NULL, "analogue gain (dB)" },
+  { "camera", "roi", K_STRING, F (roi), NULL, 0, 0, NULL, "x,y,width,height; empty = full sensor" },
+  { "camera", "trigger", K_CHOICE, F (camera_trigger), "software", 0, 0, "software|line0|line1|line2|line3",
+    "trigger source of the camera" },
+  { "camera", "grab-timeout-ms", K_UINT, F (grab_timeout_ms), "2000", 10, 600000, NULL,
+    "deadline for a frame after its trigger, beyond the exposure" },
+
+  { "illuminator", "backend", K_CHOICE, F (illuminator_backend), "sim", 0, 0, "sim|modbus|gpio",
+    "illuminator driver" },
+  { "illuminator", "modbus-uri", K_STRING, F (modbus_uri), NULL, 0, 0, NULL,
+    "tcp://host:port or rtu:/dev/ttyUSB0?baud=115200&parity=N&data=8&stop=1" },
+  { "illuminator", "modbus-unit-id", K_UINT, F (modbus_unit_id), "1", 0, 247, NULL, "Modbus unit id" },
+  { "illuminator", "modbus-timeout-ms", K_UINT, F (modbus_timeout_ms), "200", 5, 10000, NULL,
+    "response timeout per Modbus request" },
+  { "illuminator", "gpio-chip", K_STRING, F (gpio_chip), NULL, 0, 0, NULL, "gpio: chip name or path" },
+  { "illuminator", "gpio-lines", K_STRING, F (gpio_lines), NULL, 0, 0, NULL,
+    "gpio: comma-separated line offsets, one per stripe group" },
+  { "illuminator", "gpio-enable-line", K_INT, F (gpio_enable_line), "-1", -1, 4095, NULL,
+    "gpio: enable line offset, -1 = none" },
+  { "illuminator", "pattern", K_CHOICE, F (pattern), "square", 0, 0, "square|sine", "stripe profile" },
+  { "illuminator", "period-px", K_DOUBLE, F (period_px), "16", 2, 4096, NULL,
+    "stripe period as seen by the camera (pixels)" },
+  { "illuminator", "duty", K_DOUBLE, F (duty), "0.5", 0.01, 0.99, NULL, "lit fraction of a period" },
+  { "illuminator", "black-level", K_DOUBLE, F (black_level), "0", 0, 0.99, NULL,
+    "off-stripe leakage relative to on (b)" },
+  { "illuminator", "intensity", K_DOUBLE, F (intensity), "1", 0, 1, NULL, "drive level" },
+  { "illuminator", "settle-timeout-ms", K_UINT, F (settle_timeout_ms), "500", 1, 60000, NULL,
+    "deadline for a phase to be applied and read back" },
+
+  { "trigger", "backend", K_CHOICE, F (trigger_backend), "software", 0, 0, "software|gpio",
+    "how frames are triggered" },
+  { "trigger", "gpio-line", K_INT, F (trigger_gpio_line), "-1", -1, 4095, NULL, "gpio: trigger line offset" },
+  { "trigger", "pulse-us", K_UINT, F (trigger_pulse_us), "100", 1, 1000000, NULL, "gpio: pulse width" },
+  { "trigger", "active-low", K_BOOL, F (trigger_active_low), "false", 0, 0, NULL, "gpio: pulse polarity" },
+
+  { "acquisition", "phases", K_UINT, F (phases), "8", 2, 64, NULL, "phases per set (N)" },
+  { "acquisition", "averages", K_UINT, F (averages), "1", 1, 64, NULL, "frames averaged per phase (M)" },
+  { "acquisition", "estimator", K_CHOICE, F (estimator), "maxmin", 0, 0, "maxmin|sine|robust",
+    "separation estimator" },
+  { "acquisition", "dark-frame", K_BOOL, F (dark_frame), "true", 0, 0, NULL,
+    "take a frame with the illuminator off and subtract it" },
+  { "acquisition", "phase-retries", K_UINT, F (phase_retries), "3", 0, 20, NULL,
+    "retries of one phase before the set fails" },
+  { "acquisition", "verify-phase", K_BOOL, F (verify_phase), "true", 0, 0, NULL,
+    "measure the stripe phase in each frame and refuse frames lit with the wrong phase" },
+  { "acquisition", "operating-model", K_STRING, F (operating_model), NULL, 0, 0, NULL,
+    "model for captures with target_error/time_budget_ms (descatterctl study); empty = the built-in one" },
+  { "acquisition", "settle-ms", K_DOUBLE, F (timing_settle_ms), "3", 0, 10000, NULL,
+    "illuminator settle time, for the acquisition-time model of automatic captures" },
+  { "acquisition", "link-mbit", K_DOUBLE, F (timing_link_mbit), "1000", 1, 100000, NULL,
+    "camera link bandwidth, for the acquisition-time model of automatic captures" },
+  { "acquisition", "phase-tolerance-deg", K_DOUBLE, F (phase_tolerance_deg), "", 1, 180, NULL,
+    "largest accepted stripe-phase error; empty = a quarter of the phase step" },
+
+  { "sim", "scene", K_STRING, F (sim_scene), NULL, 0, 0, NULL,
+    "scene file for the simulated devices; empty = the built-in demo scene" },
+  { "sim", "seed", K_UINT64, F (sim_seed), "1", 0, 1e18, NULL, "noise seed of the simulation" },
+  { "sim", "faults", K_STRING, F (sim_faults), NULL, 0, 0, NULL,
+    "injected faults of the simulated devices, e.g. stale=0.05,incomplete=0.02 (docs/reliability.md); empty = none" },
+};
+
+static gpointer
+field (DsConfig *c, const KeySpec *k)
+{
+  return (guint8 *) c + k->offset;
+}
+
+static gboolean
+bad_value (GError **error, const char *name, const KeySpec *k, const char *value, const char *why)
+{
+  g_set_error (error, DS_CONFIG_ERROR, DS_CONFIG_ERROR_BAD_VALUE, "%s: [%s] %s = \"%s\": %s", name, k->group,
+               k->key, value, why);
+  return FALSE;
+}
+
+static gboolean
+parse_value (DsConfig *c, const KeySpec *k, const char *raw, const char *name, GError **error)
+{
+  g_autofree char *v = g_strstrip (g_strdup (raw));
+  char *end = NULL;
+  switch (k->type) {
+  case K_STRING: {
+    char **p = field (c, k);
+    g_free (*p);
+    *p = v[0] ? g_strdup (v) : NULL;
+    return TRUE;
+  }
+  case K_CHOICE: {
+    g_auto (GStrv) options = g_strsplit (k->choices, "|", -1);
+    if (!g_strv_contains ((const char *const *) options, v)) {
+      g_autofree char *why = g_strdup_printf ("must be one of %s", k->choices);
+      return bad_value (error, name, k, v, why);
+    }
+    char **p = field (c, k);
+    g_free (*p);
+    *p = g_strdup (v);
+    return TRUE;
+  }
+  case K_UINT:
+  case K_UINT64:
+  case K_INT:
+  case K_MODE: {
+    errno = 0;
+    long long n = strtoll (v, &end, k->type == K_MODE ? 8 : 10);
+    if (!v[0] || *end || errno) {
+      const char *what = k->type == K_MODE ? "an octal mode" : "an integer";
+      g_autofree char *why = g_strdup_printf ("must be %s in %.0f..%.0f", what, k->min, k->max);
+      return bad_value (error, name, k, v, why);
+    }
+    if ((double) n < k->min || (double) n > k->max) {
+      g_autofree char *why = g_strdup_printf ("outside %.0f..%.0f", k->min, k->max);
+      return bad_value (error, name, k, v, why);
+    }
+    if (k->type == K_UINT64)
+      *(guint64 *) field (c, k) = (guint64) n;
+    else if (k->type == K_INT)
+      *(int *) field (c, k) = (int) n;
+    else
+      *(guint *) field (c, k) = (guint) n;
+    return TRUE;
+  }
+  case K_DOUBLE: {
+    if (!v[0]) { /* empty: "automatic", stored as NAN */
+      *(double *) field (c, k) = NAN;
+      return TRUE;
+    }
+    double d = g_ascii_strtod (v, &end);
+    if (*end || !isfinite (d) || d < k->min || d > k->max) {
+      g_autofree char *why = g_strdup_printf ("must be a number in %g..%g", k->min, k->max);
+      return bad_value (error, name, k, v, why);
+    }
+    *(double *) field (c, k) = d;
+    return TRUE;
+  }
+  case K_BOOL:
+    if (g_strcmp0 (v, "true") == 0 || g_strcmp0 (v, "false") == 0) {
+      *(gboolean *) field (c, k) = v[0] == 't';
+      return TRUE;
+    }
+    return bad_value (error, name, k, v, "must be true or false");
+  }
+  return FALSE;
+}
+
+DsConfig *
+ds_config_new_default (void)
+{
+  DsConfig *c = g_new0 (DsConfig, 1);
+  for (guint i = 0; i < G_N_ELEMENTS (keys); i++) {
+    gboolean ok = parse_value (c, &keys[i], keys[i].def ? keys[i].def : "", "defaults", NULL);
+    g_assert (ok); /* the table's own defaults are in range */
+  }
+  return c;
+}
+
+void
+ds_config_free (DsConfig *config)
+{
+  if (!config)
+    return;
+  for (guint i = 0; i < G_N_ELEMENTS (keys); i++)
+    if (keys[i].type == K_STRING || keys[i].type == K_CHOICE)
+      g_free (*(char **) field (config, &keys[i]));
+  g_free (config);
+}
+
+DsConfig *
+ds_config_copy (const DsConfig *config)
+{
+  DsConfig *c = g_memdup2 (config, sizeof *config);
+  for (guint i = 0; i < G_N_ELEMENTS (keys); i++)
+    if (keys[i].type == K_STRING || keys[i].type == K_CHOICE) {
+      char **p = field (c, &keys[i]);
+      *p = g_strdup (*p);
+    }
+  return c;
+}
+
+static const KeySpec *
+find_key (const char *group, const char *key)
+{
+  for (guint i = 0; i < G_N_ELEMENTS (keys); i++)
+    if (strcmp (keys[i].group, group) == 0 && strcmp (keys[i].key, key) == 0)
+      return &keys[i];
+  return NULL;
+}
+
+static gboolean
+group_known (const char *group)
+{
+  for (guint i = 0; i < G_N_ELEMENTS (keys); i++)
+    if (strcmp (keys[i].group, group) == 0)
+      return TRUE;
+  return FALSE;
+}
+
+/* Cross-key rules that no single range can express. */
+static gboolean
+check_consistency (const DsConfig *c, const char *name, GError **error)
+{
+#define INCONSISTENT(...)                                                                          \
+  do {                                                                                             \
+    g_autofree char *msg_ = g_strdup_printf (__VA_ARGS__);                                         \
+    g_set_error (error, DS_CONFIG_ERROR, DS_CONFIG_ERROR_INCONSISTENT, "%s: %s", name, msg_);      \
+    return FALSE;                                                                                  \
+  } while (0)
+  if (strcmp (c->camera_backend, "aravis") == 0 && !c->camera_address)
+    INCONSISTENT ("[camera] backend = aravis needs [camera] address");
+  if (strcmp (c->illuminator_backend, "modbus") == 0 && !c->modbus_uri)
+    INCONSISTENT ("[illuminator] backend = modbus needs [illuminator] modbus-uri");
+  if (strcmp (c->illuminator_backend, "gpio") == 0 && (!c->gpio_chip || !c->gpio_lines))
+    INCONSISTENT ("[illuminator] backend = gpio needs [illuminator] gpio-chip and gpio-lines");
+  if (strcmp (c->trigger_backend, "gpio") == 0 && (c->trigger_gpio_line < 0 || !c->gpio_chip))
+    INCONSISTENT ("[trigger] backend = gpio needs [trigger] gpio-line and [illuminator] gpio-chip");
+  if (strcmp (c->trigger_backend, "gpio") == 0 && strcmp (c->camera_trigger, "software") == 0)
+    INCONSISTENT ("[trigger] backend = gpio pulses a line, so [camera] trigger must name a line, not software");
+  if (strcmp (c->estimator, "sine") == 0 && c->phases < 3)
+    INCONSISTENT ("[acquisition] estimator = sine needs phases >= 3 (got %u)", c->phases);
+  if (c->tcp_listen) {
+    const char *colon = strrchr (c->tcp_listen, ':');
+    char *end = NULL;
+    long port = colon ? strtol (colon + 1, &end, 10) : -1;
+    if (!colon || colon == c->tcp_listen || !end || *end || port < 0 || port > 65535)
+      INCONSISTENT ("[daemon] tcp-listen = \"%s\" must be host:port", c->tcp_listen);
+  }
+#undef INCONSISTENT
+  return TRUE;
+}
+
+/* GKeyFile keeps no line numbers; a person fixing a file wants one, so find it in the text. */
+static guint
+find_line (const char *data, const char *group, const char *key)
+{
+  g_auto (GStrv) lines = g_strsplit (data, "\n", -1);
+  gboolean in_group = FALSE;
+  for (guint i = 0; lines[i]; i++) {
+    char *l = g_strstrip (lines[i]);
+    if (l[0] == '[') {
+      char *close = strchr (l, ']');
+      in_group = close && (gsize) (close - l - 1) == strlen (group) && strncmp (l + 1, group, strlen (group)) == 0;
+      if (in_group && !key)
+        return i + 1;
+      continue;
+    }
+    if (!in_group || !key)
+      continue;
+    char *eq = strchr (l, '=');
+    if (!eq)
+      continue;
+    *eq = '\0';
+    if (strcmp (g_strstrip (l), key) == 0)
+      return i + 1;
+  }
+  return 0;
+}
+
+static void
+add_line (GError *error, const char *data, const char *group, const char *key)
+{
+  guint line = find_line (data, group, key);
+  if (line) {
+    char *msg = g_strdup_printf ("%s (line %u)", error->message, line);
+    g_free (error->message);
+    error->message = msg;
+  }
+}
+
+static DsConfig *
+load_keyfile (GKeyFile *kf, const char *data, const char *name, GError **error)
+{
+  g_autoptr (DsConfig) c = ds_config_new_default ();
+  gsize n_groups = 0;
+  g_auto (GStrv) groups = g_key_file_get_groups (kf, &n_groups);
+  for (gsize g = 0; g < n_groups; g++) {
+    if (!group_known (groups[g])) {
+      GError *local = g_error_new (DS_CONFIG_ERROR, DS_CONFIG_ERROR_UNKNOWN_GROUP,
+                                   "%s: unknown group [%s] (known: daemon, camera, illuminator, trigger, "
+                                   "acquisition, sim)", name, groups[g]);
+      add_line (local, data, groups[g], NULL);
+      g_propagate_error (error, local);
+      return NULL;
+    }
+    gsize n_keys = 0;
+    g_auto (GStrv) names = g_key_file_get_keys (kf, groups[g], &n_keys, NULL);
+    for (gsize i = 0; i < n_keys; i++) {
+      const KeySpec *k = find_key (groups[g], names[i]);
+      if (!k) {
+        GError *local = g_error_new (DS_CONFIG_ERROR, DS_CONFIG_ERROR_UNKNOWN_KEY, "%s: [%s] unknown key \"%s\"",
+                                     name, groups[g], names[i]);
+        add_line (local, data, groups[g], names[i]);
+        g_propagate_error (error, local);
+        return NULL;
+      }
+      g_autofree char *raw = g_key_file_get_value (kf, groups[g], names[i], NULL);
+      GError *local = NULL;
+      if (!parse_value (c, k, raw, name, &local)) {
+        add_line (local, data, groups[g], names[i]);
+        g_propagate_error (error, local);
+        return NULL;
+      }
+    }
+  }
+  if (!check_consistency (c, name, error))
+    return NULL;
+  return g_steal_pointer (&c);
+}
+
+DsConfig *
+ds_config_load_data (const char *data, const char *name_for_errors, GError **error)
+{
+  g_autoptr (GKeyFile) kf = g_key_file_new ();
+  g_autoptr (GError) local = NULL;
+  if (!g_key_file_load_from_data (kf, data, (gsize) -1, G_KEY_FILE_NONE, &local)) {
+    g_set_error (error, DS_CONFIG_ERROR, DS_CONFIG_ERROR_SYNTAX, "%s: %s", name_for_errors, local->message);
+    return NULL;
+  }
+  return load_keyfile (kf, data, name_for_errors, error);
+}
+
+DsConfig *
+ds_config_load_file (const char *path, GError **error)
+{
+  g_autofree char *data = NULL;
+  g_autoptr (GError) local = NULL;
+  if (!g_file_get_contents (path, &data, NULL, &local)) {
+    g_set_error (error, DS_CONFIG_ERROR, DS_CONFIG_ERROR_IO, "%s: %s", path, local->message);
+    return NULL;
+  }
+  return ds_config_load_data (data, path, error);
+}
+
+static char *
+format_value (const DsConfig *c, const KeySpec *k)
+{
+  gpointer p = field ((DsConfig *) c, k);
+  switch (k->type) {
+  case K_STRING:
+  case K_CHOICE: return g_strdup (*(char **) p ? *(char **) p : "");
+  case K_UINT: return g_strdup_printf ("%u", *(guint *) p);
+  case K_MODE: return g_strdup_printf ("%04o", *(guint *) p);
+  case K_UINT64: return g_strdup_printf ("%" G_GUINT64_FORMAT, *(guint64 *) p);
+  case K_INT: return g_strdup_printf ("%d", *(int *) p);
+  case K_DOUBLE: {
+    double d = *(double *) p;
+    if (isnan (d))
+      return g_strdup ("");
+    char buf[G_ASCII_DTOSTR_BUF_SIZE];
+    return g_strdup (g_ascii_dtostr (buf, sizeof buf, d));
+  }
+  case K_BOOL: return g_strdup (*(gboolean *) p ? "true" : "false");
+  }
+  return g_strdup ("");
+}
+
+char *
+ds_config_to_data (const DsConfig *config)
+{
+  GString *out = g_string_new (NULL);
+  const char *group = NULL;
+  for (guint i = 0; i < G_N_ELEMENTS (keys); i++) {
+    if (!group || strcmp (group, keys[i].group) != 0) {
+      g_string_append_printf (out, "%s[%s]\n", group ? "\n" : "", keys[i].group);
+      group = keys[i].group;
+    }
+    g_autofree char *v = format_value (config, &keys[i]);
+    g_string_append_printf (out, "%s=%s\n", keys[i].key, v);
+  }
+  return g_string_free (out, FALSE);
+}
+
+char *
+ds_config_describe_keys (void)
+{
+  GString *out = g_string_new ("| group | key | values | default | meaning |\n|---|---|---|---|---|\n");
+  for (guint i = 0; i < G_N_ELEMENTS (keys); i++) {
+    const KeySpec *k = &keys[i];
+    g_autofree char *range = NULL;
+    switch (k->type) {
+    case K_STRING: range = g_strdup ("text"); break;
+    case K_CHOICE: range = g_strdelimit (g_strdup (k->choices), "|", '/'); break;
+    case K_BOOL: range = g_strdup ("true/false"); break;
+    case K_MODE: range = g_strdup ("octal mode"); break;
+    case K_DOUBLE: range = g_strdup_printf ("%g..%g", k->min, k->max); break;
+    default: range = g_strdup_printf ("%.0f..%.0f", k->min, k->max); break;
+    }
+    g_string_append_printf (out, "| %s | %s | %s | %s | %s |\n", k->group, k->key, range,
+                            k->def && k->def[0] ? k->def : "(empty)", k->doc);
+  }
+  return g_string_free (out, FALSE);
+}

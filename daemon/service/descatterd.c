@@ -1,0 +1,111 @@
+/* descatterd: the lab service. Parses options, loads the configuration and runs the main
+ * loop; everything else is DsService (daemon/service.c). */
+#include <glib-unix.h>
+#include <locale.h>
+#include <stdio.h>
+#include <systemd/sd-daemon.h>
+
+#include "daemon/service/config.h"
+#include "daemon/service/service.h"
+
+#define DEFAULT_CONFIG "/etc/descatterd/descatterd.conf"
+
+typedef struct {
+  GMainLoop *loop;
+  DsService *service;
+} Signals;
+
+static gboolean
+on_term (gpointer data)
+{
+  Signals *s = data;
+  g_message ("stopping");
+  sd_notify (0, "STOPPING=1");
+  g_main_loop_quit (s->loop);
+  return G_SOURCE_CONTINUE;
+}
+
+static gboolean
+on_hup (gpointer data)
+{
+  Signals *s = data;
+  g_autoptr (GError) error = NULL;
+  sd_notify (0, "RELOADING=1");
+  if (ds_service_reload (s->service, &error))
+    g_message ("configuration reloaded");
+  else
+    g_warning ("%s", error->message);
+  sd_notify (0, "READY=1");
+  return G_SOURCE_CONTINUE;
+}
+
+int
+main (int argc, char **argv)
+{
+  setlocale (LC_ALL, "");
+  g_autofree char *config_path = NULL, *socket_path = NULL, *tcp = NULL, *scene = NULL;
+  gboolean sim = FALSE, check = FALSE, no_systemd = FALSE;
+  GOptionEntry entries[] = {
+    { "config", 'c', 0, G_OPTION_ARG_FILENAME, &config_path, "Configuration file (default " DEFAULT_CONFIG ")", "FILE" },
+    { "sim", 0, 0, G_OPTION_ARG_NONE, &sim, "Run on the built-in simulated lab (no configuration file)", NULL },
+    { "check", 0, 0, G_OPTION_ARG_NONE, &check, "Validate the configuration, print the effective settings and exit", NULL },
+    { "socket", 's', 0, G_OPTION_ARG_FILENAME, &socket_path, "UNIX socket path (overrides [daemon] socket)", "PATH" },
+    { "tcp", 0, 0, G_OPTION_ARG_STRING, &tcp, "TCP listen address host:port (overrides [daemon] tcp-listen)", "ADDR" },
+    { "scene", 0, 0, G_OPTION_ARG_FILENAME, &scene, "Scene file for the simulated lab (overrides [sim] scene)", "FILE" },
+    { "no-socket-activation", 0, 0, G_OPTION_ARG_NONE, &no_systemd, "Ignore sockets passed by systemd", NULL },
+    { NULL },
+  };
+  g_autoptr (GOptionContext) ctx = g_option_context_new ("- near-infrared descattering lab service");
+  g_option_context_add_main_entries (ctx, entries, NULL);
+  g_autoptr (GError) error = NULL;
+  if (!g_option_context_parse (ctx, &argc, &argv, &error)) {
+    fprintf (stderr, "descatterd: %s\n", error->message);
+    return 2;
+  }
+  if (sim && config_path) {
+    fprintf (stderr, "descatterd: --sim and --config exclude each other\n");
+    return 2;
+  }
+  g_autoptr (DsConfig) config = NULL;
+  if (sim)
+    config = ds_config_new_default ();
+  else {
+    if (!config_path)
+      config_path = g_strdup (DEFAULT_CONFIG);
+    config = ds_config_load_file (config_path, &error);
+  }
+  if (!config) {
+    fprintf (stderr, "descatterd: %s\n", error->message);
+    return 1;
+  }
+  if (check) {
+    g_autofree char *text = ds_config_to_data (config);
+    printf ("# effective configuration (%s)\n%s", config_path ? config_path : "built-in", text);
+    return 0;
+  }
+  g_autoptr (GMainLoop) loop = g_main_loop_new (NULL, FALSE);
+  DsServiceOptions opts = { .config_path = config_path, .socket_path = socket_path,
+                            .tcp_listen = tcp, .scene_path = scene,
+                            .no_systemd_sockets = no_systemd };
+  g_autoptr (DsService) service = ds_service_new (g_steal_pointer (&config), &opts, loop, &error);
+  if (!service) {
+    fprintf (stderr, "descatterd: %s\n", error->message);
+    return 1;
+  }
+  Signals sig = { loop, service };
+  guint s1 = g_unix_signal_add (SIGTERM, on_term, &sig);
+  guint s2 = g_unix_signal_add (SIGINT, on_term, &sig);
+  guint s3 = g_unix_signal_add (SIGHUP, on_hup, &sig);
+  if (ds_service_socket_path (service))
+    printf ("descatterd: listening on %s\n", ds_service_socket_path (service));
+  if (ds_service_tcp_port (service))
+    printf ("descatterd: listening on tcp port %u\n", ds_service_tcp_port (service));
+  fflush (stdout);
+  g_main_loop_run (loop);
+  g_source_remove (s1);
+  g_source_remove (s2);
+  g_source_remove (s3);
+  gboolean failed = ds_service_devices_failed (service);
+  g_clear_pointer (&service, ds_service_free);
+  return failed ? 1 : 0;
+}

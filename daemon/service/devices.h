@@ -1,0 +1,33 @@
+/* The devices the acquisition thread drives, opened from the configuration. Which backend sits
+ * behind each interface is decided here and nowhere else: the sequencer only sees the ops.
+ *
+ * Threads: ds_devices_open and ds_devices_close run on the acquisition thread (opening may
+ * block for seconds: device discovery, the simulator's scattering kernels). */
+#pragma once
+#include <glib.h>
+
+#include "daemon/service/config.h"
+#include "drivers/core/camera.h"
+#include "drivers/core/illuminator.h"
+#include "drivers/core/trigger.h"
+
+G_BEGIN_DECLS
+
+typedef struct {
+  DsCamera *camera;
+  DsIlluminator *illuminator;
+  DsTrigger *trigger;
+  DsCameraSettings camera_settings; /* from [camera]; exposure/gain overridden per set */
+  DsStripePattern pattern;          /* from [illuminator]; n_phases set per set */
+  guint grab_timeout_ms;
+  guint settle_timeout_ms;
+  char *description;                /* "camera=sim illuminator=sim trigger=software" */
+  gpointer owner;                   /* backend state shared by several devices (the sim lab) */
+  GDestroyNotify free_owner;
+} DsDevices;
+
+DsDevices *ds_devices_open (const DsConfig *config, GError **error);
+void ds_devices_close (DsDevices *devices);
+G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsDevices, ds_devices_close)
+
+G_END_DECLS

@@ -1,0 +1,18 @@
+/* Closing is backend-independent (it goes through the ops), so it lives apart from the
+ * configuration-to-backend mapping in devices.c: the sequencer and its tests need only this. */
+#include "daemon/service/devices.h"
+
+void
+ds_devices_close (DsDevices *dev)
+{
+  if (!dev)
+    return;
+  /* Trigger first: the software trigger borrows the camera. */
+  ds_trigger_close (dev->trigger);
+  ds_illuminator_close (dev->illuminator);
+  ds_camera_close (dev->camera);
+  if (dev->owner && dev->free_owner)
+    dev->free_owner (dev->owner);
+  g_free (dev->description);
+  g_free (dev);
+}

@@ -1,0 +1,72 @@
+/* One finished phase set as the daemon publishes it: the separation, the settings it was taken
+ * with, and its accounting. Reference-counted and immutable once published, so every client
+ * (and the spool) shares one copy. Created by the acquisition thread, then handed to the main
+ * thread; the lazily built wire payloads are made on the main thread only. */
+#pragma once
+#include <glib.h>
+#include <json-glib/json-glib.h>
+
+#include "daemon/service/capture_settings.h"
+#include "daemon/protocol/protocol.h"
+#include "proc/separation.h"
+
+G_BEGIN_DECLS
+
+/* Why an acquired frame was not folded. Stable names: `status` and result metadata report
+ * them. A grab that times out produced no frame and is counted in `timeouts` instead. */
+typedef enum {
+  DS_DROP_INCOMPLETE = 0, /* missing packets / short buffer */
+  DS_DROP_FRAME_GAP,      /* frame ids not continuous: a frame in between was lost */
+  DS_DROP_WRONG_PHASE,    /* stripe phase measured in the frame disagrees with the applied one */
+  DS_DROP_STALE,          /* exposed before the phase was applied (flushed or too early) */
+  DS_DROP_UNVERIFIABLE,   /* the stripe phase could not be measured (no modulation) */
+  DS_DROP_ABORTED,        /* folded into a set that then failed or was abandoned */
+  DS_DROP_PREVIEW,        /* a preview for the automatic operating point, never folded */
+  DS_DROP_N_REASONS
+} DsDropReason;
+
+const char *ds_drop_reason_name (DsDropReason reason);
+
+/* Frame accounting. Invariant (tested): acquired == folded + dropped, and dropped is the sum
+ * of by_reason. `folded` counts only frames of published results. */
+typedef struct {
+  guint64 acquired;       /* frames that came out of the camera (complete or not) */
+  guint64 folded;         /* frames folded into a published result */
+  guint64 dropped;        /* frames not folded, = sum of by_reason */
+  guint64 by_reason[DS_DROP_N_REASONS];
+  guint64 retries;        /* re-acquisitions (a frame or a phase) after a drop or device error */
+  guint64 timeouts;       /* grabs that returned no frame in time */
+  guint64 device_errors;  /* illuminator/camera/trigger operations that failed */
+} DsFrameCounters;
+
+/* Counts one dropped frame. */
+void ds_frame_counters_drop (DsFrameCounters *counters, DsDropReason reason, guint64 n);
+void ds_frame_counters_add (DsFrameCounters *total, const DsFrameCounters *part);
+JsonNode *ds_frame_counters_to_json (const DsFrameCounters *counters);
+
+typedef struct DsResult DsResult;
+
+/* Takes ownership of sep. */
+DsResult *ds_result_new (guint64 set_id, DsSeparation *sep, const DsCaptureSettings *settings,
+                         const DsFrameCounters *counters, gint64 started_us, gint64 acquired_us,
+                         gint64 finished_us);
+DsResult *ds_result_ref (DsResult *result);
+void ds_result_unref (DsResult *result);
+G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsResult, ds_result_unref)
+
+guint64 ds_result_set_id (const DsResult *result);
+const DsSeparation *ds_result_separation (const DsResult *result);
+const DsCaptureSettings *ds_result_settings (const DsResult *result);
+
+/* Metadata: set id, settings, separation meta, counters, timings (acquisition, compute). */
+JsonNode *ds_result_to_json (DsResult *result);
+
+typedef enum { DS_OUTPUT_F32 = 0, DS_OUTPUT_U16 = 1 } DsOutputFormat;
+
+/* Wire payloads: transmissive, scattered (f32, or u16 clamped and rounded), mask (u8), and
+ * max/min/mean when the set kept them and `extrema` is asked. Built once per format and
+ * shared. Returns the number of payloads; infos/bytes point into the result. */
+guint ds_result_payloads (DsResult *result, DsOutputFormat format, gboolean extrema,
+                          const DsPayloadInfo **infos, GBytes *const **bytes);
+
+G_END_DECLS

@@ -1,0 +1,105 @@
+/* The sequencer: the acquisition thread that owns the devices and turns commands into phase
+ * sets (design.md, "Sequencer contract").
+ *
+ * Threads: ds_sequencer_new/free and every request function are called from the main thread;
+ * requests are queued (GAsyncQueue) and never block. The thread reports back through
+ * DsSequencerEventFunc, always invoked in the GMainContext given to ds_sequencer_new. The
+ * thread is the only one that touches a driver. */
+#pragma once
+#include <glib.h>
+
+#include "daemon/service/capture_settings.h"
+#include "daemon/service/devices.h"
+#include "daemon/service/result.h"
+
+G_BEGIN_DECLS
+
+typedef enum {
+  DS_SEQUENCER_EVENT_READY = 0,   /* devices open (error set if opening failed: the thread ends) */
+  DS_SEQUENCER_EVENT_RESULT,      /* a set finished: result set; tag of the capture or 0 */
+  DS_SEQUENCER_EVENT_FAILED,      /* a set failed: error says why; tag of the capture or 0 */
+  DS_SEQUENCER_EVENT_PROGRESS,    /* phase (0-based) of n_phases done for tag */
+  DS_SEQUENCER_EVENT_DARK,        /* dark frame calibrated (dark_mean_dn) or error */
+  DS_SEQUENCER_EVENT_DEVICE,      /* a device state change worth logging: message */
+} DsSequencerEventKind;
+
+typedef struct {
+  DsSequencerEventKind kind;
+  guint64 tag;
+  DsResult *result;   /* borrowed for the callback; ref it to keep it */
+  const GError *error;
+  guint phase, n_phases;
+  double dark_mean_dn;
+  const char *message;
+} DsSequencerEvent;
+
+typedef void (*DsSequencerEventFunc) (const DsSequencerEvent *event, gpointer user_data);
+
+/* Opens the devices itself (on the new thread) through `open_devices`, so that a slow device
+ * never blocks the main loop. */
+typedef DsDevices *(*DsDevicesOpenFunc) (gpointer data, GError **error);
+
+typedef struct DsSequencer DsSequencer;
+
+DsSequencer *ds_sequencer_new (DsDevicesOpenFunc open_devices, gpointer open_data,
+                               const DsCaptureSettings *defaults, GMainContext *context,
+                               DsSequencerEventFunc on_event, gpointer user_data);
+/* Stops the thread (an ongoing set is abandoned between two frames, at most one grab
+ * timeout later), closes the devices and joins. No event is delivered after this returns. */
+void ds_sequencer_free (DsSequencer *seq);
+G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsSequencer, ds_sequencer_free)
+
+/* One set with these settings; answered by a RESULT or FAILED event with `tag`. Returns FALSE
+ * (busy) when max_pending captures are already queued. */
+gboolean ds_sequencer_capture (DsSequencer *seq, const DsCaptureSettings *settings, guint64 tag);
+/* Continuous mode: sets back to back with these settings until stopped (tag 0 events). */
+void ds_sequencer_start (DsSequencer *seq, const DsCaptureSettings *settings);
+void ds_sequencer_stop (DsSequencer *seq);
+/* Measures the dark frame (illuminator off, `averages` frames) used by later sets. */
+gboolean ds_sequencer_dark (DsSequencer *seq, const DsCaptureSettings *settings, guint64 tag);
+/* The model for captures with a target error or time budget (daemon/operating_point.h).
+ * Borrowed: must outlive the sequencer. Call before the first such capture (main thread). */
+struct DsOperatingModel;
+void ds_sequencer_set_operating_model (DsSequencer *seq, const struct DsOperatingModel *model,
+                                       double settle_ms, double link_mbit);
+/* New defaults (SIGHUP); continuous mode picks them up at its next set. */
+void ds_sequencer_set_defaults (DsSequencer *seq, const DsCaptureSettings *defaults);
+
+typedef struct {
+  double total_ms;
+  guint64 count;
+} DsStageTime;
+
+typedef enum {
+  DS_STAGE_SET_PHASE = 0,
+  DS_STAGE_TRIGGER,
+  DS_STAGE_GRAB,
+  DS_STAGE_VERIFY,
+  DS_STAGE_FOLD,
+  DS_STAGE_FINALIZE,
+  DS_STAGE_SET,
+  DS_STAGE_N
+} DsStage;
+
+const char *ds_stage_name (DsStage stage);
+
+typedef struct {
+  char state[32];               /* opening, idle, acquiring, continuous, reconnecting, failed */
+  gboolean continuous;
+  gboolean has_dark;
+  guint pending;
+  guint64 sets_done, sets_failed;
+  DsFrameCounters frames;
+  DsStageTime stages[DS_STAGE_N];
+  DsCameraStats camera_stats;
+  DsCameraInfo camera_info;
+  DsIlluminatorStatus illuminator;
+  char devices[128];
+  char last_error[256];
+  double phase_offset_cycles;   /* learned stripe-phase offset of phase 0; NAN until learned */
+  gint64 heartbeat_us;          /* the thread's last sign of life (g_get_monotonic_time) */
+} DsSequencerStatus;
+
+void ds_sequencer_get_status (DsSequencer *seq, DsSequencerStatus *status);
+
+G_END_DECLS

@@ -1,0 +1,412 @@
+#include "daemon/service/server.h"
+
+#include "build_info.h"
+
+#include <errno.h>
+#include <gio/gunixsocketaddress.h>
+#include <glib/gstdio.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <systemd/sd-daemon.h>
+
+typedef struct {
+  DsServer *server;
+  gboolean subscribed;
+  gboolean authenticated;
+  gboolean is_tcp;
+} ClientState;
+
+struct DsServer {
+  DsServerLimits limits;
+  DsServerRequestFunc on_request;
+  gpointer user_data;
+  GSocketService *service;
+  GHashTable *clients; /* DsConnection* -> NULL (set); holds a reference */
+  guint16 tcp_port;
+  char *unix_path;     /* removed on free when we created it */
+  guint64 seq;
+  DsServerStats stats;
+};
+
+DsServer *
+ds_server_new (const DsServerLimits *limits, DsServerRequestFunc on_request, gpointer user_data)
+{
+  DsServer *s = g_new0 (DsServer, 1);
+  s->limits = *limits;
+  s->limits.token = g_strdup (limits->token);
+  if (s->limits.max_line == 0 || s->limits.max_line > DS_PROTOCOL_MAX_LINE)
+    s->limits.max_line = DS_PROTOCOL_MAX_LINE;
+  s->on_request = on_request;
+  s->user_data = user_data;
+  s->service = g_socket_service_new ();
+  /* GLib's default backlog (10) refuses bursts of clients connecting at once; the client
+   * limit is enforced after accept, with a clear `limit` error instead. */
+  g_socket_listener_set_backlog (G_SOCKET_LISTENER (s->service), 256);
+  s->clients = g_hash_table_new_full (g_direct_hash, g_direct_equal,
+                                      (GDestroyNotify) ds_connection_unref, NULL);
+  return s;
+}
+
+void
+ds_server_shutdown (DsServer *server)
+{
+  if (server->service) {
+    g_socket_service_stop (server->service);
+    g_socket_listener_close (G_SOCKET_LISTENER (server->service));
+  }
+  GList *conns = g_hash_table_get_keys (server->clients);
+  for (GList *l = conns; l; l = l->next)
+    ds_connection_close (l->data);
+  g_list_free (conns);
+}
+
+void
+ds_server_free (DsServer *server)
+{
+  if (!server)
+    return;
+  ds_server_shutdown (server);
+  /* Connections may still have closing callbacks queued; they hold their own references. */
+  GList *conns = g_hash_table_get_keys (server->clients);
+  for (GList *l = conns; l; l = l->next) {
+    ClientState *st = ds_connection_get_data (l->data);
+    if (st)
+      st->server = NULL;
+  }
+  g_list_free (conns);
+  g_hash_table_destroy (server->clients);
+  g_clear_object (&server->service);
+  if (server->unix_path)
+    g_unlink (server->unix_path);
+  g_free (server->unix_path);
+  g_free (server->limits.token);
+  g_free (server);
+}
+
+static void
+send_line (DsConnection *conn, char *line, gsize len, GBytes *const *payloads, guint n, gboolean droppable,
+           gboolean *sent)
+{
+  g_autoptr (GBytes) b = g_bytes_new_take (line, len);
+  gboolean ok = ds_connection_send (conn, b, payloads, n, droppable);
+  if (sent)
+    *sent = ok;
+}
+
+void
+ds_server_reply_ok (DsServer *server, DsConnection *conn, JsonNode *id, JsonNode *result,
+                    const DsPayloadInfo *infos, GBytes *const *payloads, guint n_payloads)
+{
+  (void) server;
+  gsize len = 0;
+  char *line = ds_reply_build_ok (id, result, infos, n_payloads, &len);
+  send_line (conn, line, len, payloads, n_payloads, FALSE, NULL);
+}
+
+void
+ds_server_reply_error (DsServer *server, DsConnection *conn, JsonNode *id, const GError *error)
+{
+  if (server)
+    server->stats.bad_requests++;
+  gsize len = 0;
+  char *line = ds_reply_build_error (id, error, &len);
+  send_line (conn, line, len, NULL, 0, FALSE, NULL);
+}
+
+guint
+ds_server_publish (DsServer *server, const char *event, JsonNode *body, const DsPayloadInfo *infos,
+                   GBytes *const *payloads, guint n_payloads)
+{
+  gsize len = 0;
+  g_autofree char *text = ds_event_build (event, ++server->seq, body, infos, n_payloads, &len);
+  /* One line shared by all subscribers, like the payloads. */
+  g_autoptr (GBytes) line = g_bytes_new (text, len);
+  server->stats.published++;
+  guint delivered = 0;
+  GHashTableIter it;
+  gpointer key;
+  g_hash_table_iter_init (&it, server->clients);
+  while (g_hash_table_iter_next (&it, &key, NULL)) {
+    DsConnection *c = key;
+    ClientState *st = ds_connection_get_data (c);
+    if (!st || !st->subscribed || ds_connection_is_closed (c))
+      continue;
+    if (ds_connection_send (c, line, payloads, n_payloads, TRUE))
+      delivered++;
+    else
+      server->stats.dropped++;
+  }
+  return delivered;
+}
+
+static gboolean
+token_equal (const char *expected, const char *given)
+{
+  /* Constant time in the length of the expected token: no early exit on the first mismatch. */
+  gsize n = strlen (expected), m = given ? strlen (given) : 0;
+  guint8 diff = (guint8) (n != m);
+  for (gsize i = 0; i < n; i++)
+    diff |= (guint8) (expected[i] ^ (i < m ? given[i] : 0));
+  return diff == 0;
+}
+
+static void
+handle_hello (DsServer *s, DsConnection *conn, ClientState *st, DsRequest *req)
+{
+  g_autoptr (GError) error = NULL;
+  const char *const allowed[] = { "token", "client", NULL };
+  if (!ds_request_check_keys (req, allowed, &error)) {
+    ds_server_reply_error (s, conn, req->id, error);
+    return;
+  }
+  if (st->is_tcp && s->limits.token) {
+    JsonNode *t = json_object_get_member (req->args, "token");
+    const char *given = t && JSON_NODE_HOLDS_VALUE (t) ? json_node_get_string (t) : NULL;
+    if (!token_equal (s->limits.token, given)) {
+      g_set_error (&error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_UNAUTHORIZED, "hello: wrong or missing token");
+      ds_server_reply_error (s, conn, req->id, error);
+      ds_connection_close_after_flush (conn);
+      return;
+    }
+  }
+  st->authenticated = TRUE;
+  g_autoptr (JsonBuilder) b = json_builder_new ();
+  json_builder_begin_object (b);
+  json_builder_set_member_name (b, "server");
+  json_builder_add_string_value (b, "descatterd");
+  json_builder_set_member_name (b, "version");
+  json_builder_add_string_value (b, DS_VERSION);
+  json_builder_set_member_name (b, "protocol");
+  json_builder_add_int_value (b, DS_PROTOCOL_VERSION);
+  json_builder_set_member_name (b, "max_line");
+  json_builder_add_int_value (b, (gint64) s->limits.max_line);
+  json_builder_end_object (b);
+  g_autoptr (JsonNode) result = json_builder_get_root (b);
+  ds_server_reply_ok (s, conn, req->id, result, NULL, NULL, 0);
+}
+
+static void
+handle_subscription (DsServer *s, DsConnection *conn, ClientState *st, DsRequest *req, gboolean on)
+{
+  g_autoptr (GError) error = NULL;
+  const char *const allowed[] = { NULL };
+  if (!ds_request_check_keys (req, allowed, &error)) {
+    ds_server_reply_error (s, conn, req->id, error);
+    return;
+  }
+  if (st->subscribed != on)
+    s->stats.subscribers += on ? 1 : (guint) -1;
+  st->subscribed = on;
+  g_autoptr (JsonBuilder) b = json_builder_new ();
+  json_builder_begin_object (b);
+  json_builder_set_member_name (b, "subscribed");
+  json_builder_add_boolean_value (b, on);
+  json_builder_set_member_name (b, "next_seq");
+  json_builder_add_int_value (b, (gint64) s->seq + 1);
+  json_builder_end_object (b);
+  g_autoptr (JsonNode) result = json_builder_get_root (b);
+  ds_server_reply_ok (s, conn, req->id, result, NULL, NULL, 0);
+}
+
+static void
+on_line (DsConnection *conn, const char *line, gsize len, gboolean too_long, gpointer user_data)
+{
+  ClientState *st = user_data;
+  DsServer *s = st->server;
+  if (!s)
+    return;
+  s->stats.requests++;
+  g_autoptr (GError) error = NULL;
+  if (too_long) {
+    g_set_error (&error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_LINE_TOO_LONG,
+                 "request line longer than %zu bytes; discarded up to its newline", s->limits.max_line);
+    ds_server_reply_error (s, conn, NULL, error);
+    return;
+  }
+  if (len == 0)
+    return; /* blank lines are keep-alives */
+  JsonNode *id = NULL;
+  g_autoptr (DsRequest) req = ds_request_parse (line, len, &id, &error);
+  if (!req) {
+    ds_server_reply_error (s, conn, id, error);
+    if (id)
+      json_node_unref (id);
+    return;
+  }
+  if (strcmp (req->cmd, "hello") == 0) {
+    handle_hello (s, conn, st, req);
+    return;
+  }
+  if (!st->authenticated) {
+    g_set_error (&error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_UNAUTHORIZED,
+                 "%s: send hello with the token first", req->cmd);
+    ds_server_reply_error (s, conn, req->id, error);
+    return;
+  }
+  if (strcmp (req->cmd, "subscribe") == 0 || strcmp (req->cmd, "unsubscribe") == 0) {
+    handle_subscription (s, conn, st, req, req->cmd[0] == 's');
+    return;
+  }
+  s->on_request (s, conn, req, s->user_data);
+}
+
+static void
+on_closed (DsConnection *conn, gpointer user_data)
+{
+  ClientState *st = user_data;
+  DsServer *s = st->server;
+  if (!s)
+    return;
+  if (st->subscribed)
+    s->stats.subscribers--;
+  st->subscribed = FALSE;
+  s->stats.clients--;
+  g_hash_table_remove (s->clients, conn);
+}
+
+static gboolean
+on_incoming (GSocketService *service, GSocketConnection *sc, GObject *source, gpointer user_data)
+{
+  (void) service;
+  (void) source;
+  DsServer *s = user_data;
+  GSocketAddress *remote = g_socket_connection_get_remote_address (sc, NULL);
+  gboolean is_tcp = remote && G_IS_INET_SOCKET_ADDRESS (remote);
+  g_clear_object (&remote);
+  ClientState *st = g_new0 (ClientState, 1);
+  st->server = s;
+  st->is_tcp = is_tcp;
+  /* UNIX clients were let in by the socket's file permissions; TCP ones need the token when
+   * one is configured. */
+  st->authenticated = !(is_tcp && s->limits.token);
+  DsConnectionLimits cl = { .max_line = s->limits.max_line, .max_queued_bytes = s->limits.max_queued_bytes };
+  DsConnection *conn = ds_connection_new (G_IO_STREAM (sc), &cl, on_line, on_closed, st);
+  ds_connection_set_data (conn, st, g_free);
+  s->stats.accepted++;
+  if (s->stats.clients >= s->limits.max_clients) {
+    s->stats.refused++;
+    g_autoptr (GError) error = g_error_new (DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_LIMIT,
+                                            "too many clients (limit %u)", s->limits.max_clients);
+    ds_server_reply_error (NULL, conn, NULL, error);
+    st->server = NULL;
+    ds_connection_close_after_flush (conn);
+    ds_connection_unref (conn);
+    return TRUE;
+  }
+  s->stats.clients++;
+  g_hash_table_add (s->clients, conn);
+  ds_connection_start (conn);
+  return TRUE;
+}
+
+static gboolean
+ensure_started (DsServer *s)
+{
+  if (!g_signal_handler_find (s->service, G_SIGNAL_MATCH_FUNC, 0, 0, NULL, on_incoming, s))
+    g_signal_connect (s->service, "incoming", G_CALLBACK (on_incoming), s);
+  g_socket_service_start (s->service);
+  return TRUE;
+}
+
+gboolean
+ds_server_listen_unix (DsServer *server, const char *path, guint mode, GError **error)
+{
+  struct stat stbuf;
+  if (lstat (path, &stbuf) == 0) {
+    if (!S_ISSOCK (stbuf.st_mode)) {
+      g_set_error (error, G_IO_ERROR, G_IO_ERROR_EXISTS, "%s exists and is not a socket; not replacing it",
+                   path);
+      return FALSE;
+    }
+    /* A socket file may be left over from a crash; replace it only if nobody answers. */
+    g_autoptr (GSocketClient) probe = g_socket_client_new ();
+    g_autoptr (GSocketAddress) addr = g_unix_socket_address_new (path);
+    g_autoptr (GSocketConnection) live =
+      g_socket_client_connect (probe, G_SOCKET_CONNECTABLE (addr), NULL, NULL);
+    if (live) {
+      g_set_error (error, G_IO_ERROR, G_IO_ERROR_ADDRESS_IN_USE,
+                   "%s: another daemon is listening there", path);
+      return FALSE;
+    }
+    g_unlink (path);
+  }
+  g_autoptr (GSocketAddress) addr = g_unix_socket_address_new (path);
+  if (!g_socket_listener_add_address (G_SOCKET_LISTENER (server->service), addr, G_SOCKET_TYPE_STREAM,
+                                      G_SOCKET_PROTOCOL_DEFAULT, NULL, NULL, error)) {
+    g_prefix_error (error, "%s: ", path);
+    return FALSE;
+  }
+  if (chmod (path, mode) != 0) {
+    g_set_error (error, G_IO_ERROR, g_io_error_from_errno (errno), "%s: chmod %o: %s", path, mode,
+                 g_strerror (errno));
+    return FALSE;
+  }
+  g_free (server->unix_path);
+  server->unix_path = g_strdup (path);
+  return ensure_started (server);
+}
+
+gboolean
+ds_server_listen_tcp (DsServer *server, const char *address, guint16 port, GError **error)
+{
+  g_autoptr (GInetAddress) ia = g_inet_address_new_from_string (address);
+  if (!ia) {
+    g_set_error (error, G_IO_ERROR, G_IO_ERROR_INVALID_ARGUMENT, "TCP address \"%s\" is not an IP address",
+                 address);
+    return FALSE;
+  }
+  if (!g_inet_address_get_is_loopback (ia) && !server->limits.token) {
+    g_set_error (error, G_IO_ERROR, G_IO_ERROR_PERMISSION_DENIED,
+                 "TCP on %s (not loopback) requires a token file", address);
+    return FALSE;
+  }
+  g_autoptr (GSocketAddress) sa = g_inet_socket_address_new (ia, port);
+  g_autoptr (GSocketAddress) effective = NULL;
+  if (!g_socket_listener_add_address (G_SOCKET_LISTENER (server->service), sa, G_SOCKET_TYPE_STREAM,
+                                      G_SOCKET_PROTOCOL_TCP, NULL, &effective, error)) {
+    g_prefix_error (error, "%s:%u: ", address, port);
+    return FALSE;
+  }
+  server->tcp_port = g_inet_socket_address_get_port (G_INET_SOCKET_ADDRESS (effective));
+  return ensure_started (server);
+}
+
+guint16
+ds_server_tcp_port (const DsServer *server)
+{
+  return server->tcp_port;
+}
+
+guint
+ds_server_adopt_systemd_sockets (DsServer *server, GError **error)
+{
+  int n = sd_listen_fds (TRUE);
+  if (n < 0) {
+    g_set_error (error, G_IO_ERROR, g_io_error_from_errno (-n), "sd_listen_fds: %s", g_strerror (-n));
+    return 0;
+  }
+  for (int i = 0; i < n; i++) {
+    g_autoptr (GSocket) sock = g_socket_new_from_fd (SD_LISTEN_FDS_START + i, error);
+    if (!sock || !g_socket_listener_add_socket (G_SOCKET_LISTENER (server->service), sock, NULL, error))
+      return 0;
+  }
+  if (n > 0)
+    ensure_started (server);
+  return (guint) n;
+}
+
+void
+ds_server_get_stats (const DsServer *server, DsServerStats *stats)
+{
+  *stats = server->stats;
+  stats->queued_bytes = 0;
+  stats->max_client_queued_bytes = 0;
+  GHashTableIter it;
+  gpointer key;
+  g_hash_table_iter_init (&it, server->clients);
+  while (g_hash_table_iter_next (&it, &key, NULL)) {
+    gsize q = ds_connection_queued_bytes (key);
+    stats->queued_bytes += q;
+    stats->max_client_queued_bytes = MAX (stats->max_client_queued_bytes, q);
+  }
+}

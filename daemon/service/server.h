@@ -1,0 +1,67 @@
+/* The socket side of descatterd: listeners (UNIX, optional TCP, systemd socket activation),
+ * client limits, request dispatch and fan-out of results to subscribers. Main thread only;
+ * nothing here blocks. */
+#pragma once
+#include <gio/gio.h>
+
+#include "daemon/service/connection.h"
+#include "daemon/protocol/protocol.h"
+
+G_BEGIN_DECLS
+
+typedef struct DsServer DsServer;
+
+typedef struct {
+  guint max_clients;        /* connections beyond this get a `limit` error and are closed */
+  gsize max_line;           /* request line bytes (<= DS_PROTOCOL_MAX_LINE) */
+  gsize max_queued_bytes;   /* per client; a subscriber over it loses results */
+  char *token;              /* required from TCP clients when set (hello {"token": ...}) */
+} DsServerLimits;
+
+/* Called for each well-formed request. The handler answers exactly once, now or later, with
+ * ds_server_reply_ok/error (holding the connection with ds_connection_hold when later).
+ * `hello`, `subscribe` and `unsubscribe` are handled by the server itself. */
+typedef void (*DsServerRequestFunc) (DsServer *server, DsConnection *conn, DsRequest *request,
+                                     gpointer user_data);
+
+DsServer *ds_server_new (const DsServerLimits *limits, DsServerRequestFunc on_request,
+                         gpointer user_data);
+void ds_server_free (DsServer *server);
+G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsServer, ds_server_free)
+
+/* Binds a UNIX socket, replacing a stale socket file but never a live one or a non-socket. */
+gboolean ds_server_listen_unix (DsServer *server, const char *path, guint mode, GError **error);
+/* Binds TCP. A non-loopback address is refused unless a token is configured. */
+gboolean ds_server_listen_tcp (DsServer *server, const char *address, guint16 port, GError **error);
+/* Adopts sockets passed by systemd (sd_listen_fds); returns how many. */
+guint ds_server_adopt_systemd_sockets (DsServer *server, GError **error);
+/* The port actually bound by the last TCP listen (useful with port 0 in tests). */
+guint16 ds_server_tcp_port (const DsServer *server);
+
+void ds_server_reply_ok (DsServer *server, DsConnection *conn, JsonNode *id, JsonNode *result,
+                         const DsPayloadInfo *infos, GBytes *const *payloads, guint n_payloads);
+void ds_server_reply_error (DsServer *server, DsConnection *conn, JsonNode *id, const GError *error);
+
+/* Sends an event to every subscribed connection; slow ones lose it (counted). Returns how
+ * many received it. */
+guint ds_server_publish (DsServer *server, const char *event, JsonNode *body,
+                         const DsPayloadInfo *infos, GBytes *const *payloads, guint n_payloads);
+
+typedef struct {
+  guint clients;
+  guint subscribers;
+  guint64 accepted;
+  guint64 refused;          /* over max_clients */
+  guint64 requests;
+  guint64 bad_requests;
+  guint64 published;        /* events produced */
+  guint64 dropped;          /* event deliveries lost to slow clients, all clients ever */
+  gsize queued_bytes;       /* now, all clients */
+  gsize max_client_queued_bytes; /* now, the fullest client's queue (bounded by the cap) */
+} DsServerStats;
+
+void ds_server_get_stats (const DsServer *server, DsServerStats *stats);
+/* Closes every connection and listener (daemon stop). */
+void ds_server_shutdown (DsServer *server);
+
+G_END_DECLS

@@ -1,0 +1,847 @@
+#include "daemon/service/service.h"
+
+#include "build_info.h"
+#include "daemon/operating/data_dir.h"
+
+#include <math.h>
+#include <string.h>
+#include <systemd/sd-daemon.h>
+
+#include "daemon/service/capture_settings.h"
+#include "daemon/service/devices.h"
+#include "daemon/operating/operating_point.h"
+#include "daemon/protocol/protocol.h"
+#include "daemon/service/sequencer.h"
+#include "daemon/service/server.h"
+#include "daemon/service/spool.h"
+
+/* A capture or dark request waiting for the acquisition thread. */
+typedef struct {
+  guint64 tag;
+  DsConnection *conn; /* ref + hold */
+  JsonNode *id;
+  DsOutputFormat format;
+  gboolean extrema;
+  guint outputs;      /* bit i: payload i of the result's payload set */
+  gboolean progress;
+} PendingCapture;
+
+typedef struct {
+  DsConfig *config;
+} OpenData;
+
+struct DsService {
+  OpenData open_data;
+  DsConfig *config;
+  char *config_path;
+  DsServiceOptions options;
+  char *scene_override;
+  GMainLoop *loop;
+  DsServer *server;
+  DsSequencer *sequencer;
+  DsSpool *spool;
+  char *socket_path;
+  GHashTable *pending;   /* tag -> PendingCapture */
+  guint64 next_tag;
+  gboolean ready;
+  gboolean devices_failed;
+  guint watchdog_source;
+  guint64 watchdog_usec;
+  gint64 started_us;
+  guint64 results_published;
+  guint64 spool_errors;
+  DsOperatingModel *model;  /* NULL when no model file could be read (automatic captures fail) */
+  char *model_error;
+};
+
+static void
+pending_capture_free (gpointer data)
+{
+  PendingCapture *p = data;
+  if (p->conn) {
+    ds_connection_release (p->conn);
+    ds_connection_unref (p->conn);
+  }
+  if (p->id)
+    json_node_unref (p->id);
+  g_free (p);
+}
+
+/* ---- devices are opened on the acquisition thread from a copy of the configuration ---- */
+
+static DsDevices *
+open_devices (gpointer data, GError **error)
+{
+  OpenData *od = data;
+  return ds_devices_open (od->config, error);
+}
+
+/* ---- replies ---- */
+
+static const char *const output_names[] = { "transmissive", "scattered", "mask", "max", "min", "mean" };
+
+static void
+reply_result (DsService *svc, PendingCapture *p, DsResult *result)
+{
+  const DsPayloadInfo *infos;
+  GBytes *const *bytes;
+  guint n = ds_result_payloads (result, p->format, p->extrema, &infos, &bytes);
+  DsPayloadInfo sel_infos[8];
+  GBytes *sel_bytes[8];
+  guint m = 0;
+  for (guint i = 0; i < n && m < G_N_ELEMENTS (sel_infos); i++)
+    for (guint j = 0; j < G_N_ELEMENTS (output_names); j++)
+      if (strcmp (infos[i].name, output_names[j]) == 0 && (p->outputs & (1u << j))) {
+        sel_infos[m] = infos[i];
+        sel_bytes[m++] = bytes[i];
+      }
+  g_autoptr (JsonNode) meta = ds_result_to_json (result);
+  ds_server_reply_ok (svc->server, p->conn, p->id, meta, sel_infos, sel_bytes, m);
+}
+
+static void
+send_progress (DsService *svc, PendingCapture *p, guint phase, guint n)
+{
+  (void) svc;
+  if (!p->progress || ds_connection_is_closed (p->conn))
+    return;
+  g_autoptr (JsonBuilder) b = json_builder_new ();
+  json_builder_begin_object (b);
+  json_builder_set_member_name (b, "id");
+  json_builder_add_value (b, p->id ? json_node_copy (p->id) : json_node_new (JSON_NODE_NULL));
+  json_builder_set_member_name (b, "phase");
+  json_builder_add_int_value (b, phase);
+  json_builder_set_member_name (b, "phases");
+  json_builder_add_int_value (b, n);
+  json_builder_end_object (b);
+  g_autoptr (JsonNode) body = json_builder_get_root (b);
+  gsize len;
+  g_autofree char *line = ds_event_build ("progress", 0, body, NULL, 0, &len);
+  g_autoptr (GBytes) bytes = g_bytes_new (line, len);
+  ds_connection_send (p->conn, bytes, NULL, 0, TRUE);
+}
+
+static void
+notify_status (DsService *svc, const char *text)
+{
+  (void) svc;
+  sd_notifyf (0, "STATUS=%s", text);
+}
+
+static void
+publish_result (DsService *svc, DsResult *result)
+{
+  const DsPayloadInfo *infos;
+  GBytes *const *bytes;
+  guint n = ds_result_payloads (result, DS_OUTPUT_F32, FALSE, &infos, &bytes);
+  g_autoptr (JsonNode) meta = ds_result_to_json (result);
+  ds_server_publish (svc->server, "result", meta, infos, bytes, n);
+  svc->results_published++;
+  if (svc->spool) {
+    g_autoptr (GError) error = NULL;
+    if (!ds_spool_record (svc->spool, result, &error)) {
+      svc->spool_errors++;
+      g_warning ("%s", error->message);
+    }
+  }
+}
+
+static void
+on_sequencer_event (const DsSequencerEvent *ev, gpointer user_data)
+{
+  DsService *svc = user_data;
+  PendingCapture *p = ev->tag ? g_hash_table_lookup (svc->pending, &ev->tag) : NULL;
+  switch (ev->kind) {
+  case DS_SEQUENCER_EVENT_READY:
+    if (ev->error) {
+      g_critical ("devices: %s", ev->error->message);
+      sd_notifyf (0, "STATUS=devices failed: %s", ev->error->message);
+      svc->devices_failed = TRUE;
+      /* Without devices the service is of no use; systemd restarts it (Restart=on-failure). */
+      g_main_loop_quit (svc->loop);
+      return;
+    }
+    svc->ready = TRUE;
+    g_message ("devices open: %s", ev->message);
+    sd_notifyf (0, "READY=1\nSTATUS=ready: %s", ev->message);
+    return;
+  case DS_SEQUENCER_EVENT_PROGRESS:
+    if (p)
+      send_progress (svc, p, ev->phase, ev->n_phases);
+    return;
+  case DS_SEQUENCER_EVENT_RESULT: {
+    g_autofree char *st = g_strdup_printf ("set %" G_GUINT64_FORMAT " done",
+                                           ds_result_set_id (ev->result));
+    notify_status (svc, st);
+    if (p)
+      reply_result (svc, p, ev->result);
+    publish_result (svc, ev->result);
+    break;
+  }
+  case DS_SEQUENCER_EVENT_FAILED:
+    g_warning ("phase set failed: %s", ev->error->message);
+    notify_status (svc, "last set failed");
+    if (p)
+      ds_server_reply_error (svc->server, p->conn, p->id, ev->error);
+    {
+      g_autoptr (JsonBuilder) b = json_builder_new ();
+      json_builder_begin_object (b);
+      json_builder_set_member_name (b, "reason");
+      json_builder_add_string_value (b, ev->error->message);
+      json_builder_end_object (b);
+      g_autoptr (JsonNode) body = json_builder_get_root (b);
+      ds_server_publish (svc->server, "failed", body, NULL, NULL, 0);
+    }
+    break;
+  case DS_SEQUENCER_EVENT_DARK:
+    if (p) {
+      if (ev->error)
+        ds_server_reply_error (svc->server, p->conn, p->id, ev->error);
+      else {
+        g_autoptr (JsonBuilder) b = json_builder_new ();
+        json_builder_begin_object (b);
+        json_builder_set_member_name (b, "dark_mean_dn");
+        json_builder_add_double_value (b, ev->dark_mean_dn);
+        json_builder_end_object (b);
+        g_autoptr (JsonNode) body = json_builder_get_root (b);
+        ds_server_reply_ok (svc->server, p->conn, p->id, body, NULL, NULL, 0);
+      }
+    }
+    break;
+  case DS_SEQUENCER_EVENT_DEVICE:
+    g_message ("%s", ev->message);
+    notify_status (svc, ev->message);
+    {
+      g_autoptr (JsonBuilder) b = json_builder_new ();
+      json_builder_begin_object (b);
+      json_builder_set_member_name (b, "message");
+      json_builder_add_string_value (b, ev->message);
+      json_builder_end_object (b);
+      g_autoptr (JsonNode) body = json_builder_get_root (b);
+      ds_server_publish (svc->server, "device", body, NULL, NULL, 0);
+    }
+    return;
+  }
+  if (p)
+    g_hash_table_remove (svc->pending, &ev->tag);
+}
+
+/* ---- requests ---- */
+
+/* Capture settings from the defaults overlaid with the request's arguments. */
+static gboolean
+settings_from_request (DsService *svc, const DsRequest *req, DsCaptureSettings *s, GError **error)
+{
+  ds_capture_settings_from_config (s, svc->config);
+  guint64 u;
+  double d;
+  gboolean bval;
+  const char *choice;
+  static const char *const estimators[] = { "maxmin", "sine", "robust", NULL };
+  if (!ds_request_get_uint (req, "phases", 2, 64, s->phases, &u, error))
+    return FALSE;
+  s->phases = (guint) u;
+  if (!ds_request_get_uint (req, "averages", 1, 64, s->averages, &u, error))
+    return FALSE;
+  s->averages = (guint) u;
+  if (!ds_request_get_double (req, "exposure_us", 1.0, 10e6, s->exposure_us, &d, error))
+    return FALSE;
+  s->exposure_us = d;
+  if (!ds_request_get_double (req, "gain_db", 0.0, 48.0, s->gain_db, &d, error))
+    return FALSE;
+  s->gain_db = d;
+  if (!ds_request_get_choice (req, "estimator", estimators, ds_estimator_name (s->estimator),
+                              &choice, error))
+    return FALSE;
+  ds_estimator_from_name (choice, &s->estimator);
+  if (!ds_request_get_bool (req, "dark_frame", s->dark_frame, &bval, error))
+    return FALSE;
+  s->dark_frame = bval;
+  if (!ds_request_get_bool (req, "verify_phase", s->verify_phase, &bval, error))
+    return FALSE;
+  s->verify_phase = bval;
+  if (!ds_request_get_double (req, "target_error", 0.0, 1.0, 0.0, &s->target_error, error) ||
+      !ds_request_get_double (req, "time_budget_ms", 0.0, 3.6e6, 0.0, &s->time_budget_ms, error))
+    return FALSE;
+  if ((s->target_error > 0 || s->time_budget_ms > 0) && !svc->model) {
+    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_FAILED,
+                 "automatic operating point unavailable: %s", svc->model_error);
+    return FALSE;
+  }
+  /* An explicit tolerance in the configuration stays; otherwise it follows N. */
+  if (isnan (svc->config->phase_tolerance_deg))
+    s->phase_tolerance_deg = 90.0 / s->phases;
+  /* The estimator's own constraints (sine needs N >= 3, ...), with its message. */
+  DsSeparationParams p;
+  ds_separation_params_init (&p, s->phases);
+  p.estimator = s->estimator;
+  p.pattern = s->pattern;
+  p.duty = s->duty;
+  p.black_level = s->black_level;
+  g_autoptr (GError) local = NULL;
+  if (!ds_separation_params_validate (&p, &local)) {
+    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT, "%s", local->message);
+    return FALSE;
+  }
+  return TRUE;
+}
+
+static gboolean
+outputs_from_request (const DsRequest *req, guint *outputs, gboolean *extrema, GError **error)
+{
+  *outputs = 0x7; /* transmissive, scattered, mask */
+  *extrema = FALSE;
+  JsonNode *node = json_object_get_member (req->args, "outputs");
+  if (!node)
+    return TRUE;
+  if (!JSON_NODE_HOLDS_ARRAY (node)) {
+    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT,
+                 "\"outputs\" must be an array of names (transmissive, scattered, mask, max, min, mean)");
+    return FALSE;
+  }
+  JsonArray *arr = json_node_get_array (node);
+  *outputs = 0;
+  for (guint i = 0; i < json_array_get_length (arr); i++) {
+    JsonNode *el = json_array_get_element (arr, i);
+    const char *name = JSON_NODE_HOLDS_VALUE (el) && json_node_get_value_type (el) == G_TYPE_STRING
+                           ? json_node_get_string (el)
+                           : NULL;
+    guint j = 0;
+    while (name && j < G_N_ELEMENTS (output_names) && strcmp (name, output_names[j]) != 0)
+      j++;
+    if (!name || j == G_N_ELEMENTS (output_names)) {
+      g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT,
+                   "\"outputs\"[%u] is not one of transmissive, scattered, mask, max, min, mean", i);
+      return FALSE;
+    }
+    *outputs |= 1u << j;
+    if (j >= 3)
+      *extrema = TRUE;
+  }
+  if (*outputs == 0) {
+    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT, "\"outputs\" is empty");
+    return FALSE;
+  }
+  return TRUE;
+}
+
+static void
+handle_capture (DsService *svc, DsConnection *conn, DsRequest *req)
+{
+  static const char *const keys[] = { "phases", "averages", "exposure_us", "gain_db", "estimator",
+                                      "dark_frame", "verify_phase", "format", "outputs",
+                                      "progress", "target_error", "time_budget_ms", NULL };
+  g_autoptr (GError) error = NULL;
+  DsCaptureSettings s;
+  const char *format;
+  static const char *const formats[] = { "f32", "u16", NULL };
+  guint outputs;
+  gboolean extrema, progress;
+  if (!ds_request_check_keys (req, keys, &error) || !settings_from_request (svc, req, &s, &error) ||
+      !ds_request_get_choice (req, "format", formats, "f32", &format, &error) ||
+      !outputs_from_request (req, &outputs, &extrema, &error) ||
+      !ds_request_get_bool (req, "progress", FALSE, &progress, &error)) {
+    ds_server_reply_error (svc->server, conn, req->id, error);
+    return;
+  }
+  s.keep_extrema = extrema;
+  if (!svc->ready) {
+    g_set_error (&error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BUSY, "capture: the devices are not open yet");
+    ds_server_reply_error (svc->server, conn, req->id, error);
+    return;
+  }
+  guint64 tag = ++svc->next_tag;
+  if (!ds_sequencer_capture (svc->sequencer, &s, tag)) {
+    g_set_error (&error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BUSY,
+                 "capture: too many captures queued; try again later");
+    ds_server_reply_error (svc->server, conn, req->id, error);
+    return;
+  }
+  PendingCapture *p = g_new0 (PendingCapture, 1);
+  p->tag = tag;
+  p->conn = ds_connection_ref (conn);
+  ds_connection_hold (conn);
+  p->id = req->id ? json_node_copy (req->id) : NULL;
+  p->format = strcmp (format, "u16") == 0 ? DS_OUTPUT_U16 : DS_OUTPUT_F32;
+  p->extrema = extrema;
+  p->outputs = outputs;
+  p->progress = progress;
+  g_hash_table_insert (svc->pending, &p->tag, p);
+}
+
+static void
+handle_dark (DsService *svc, DsConnection *conn, DsRequest *req)
+{
+  static const char *const keys[] = { "averages", "exposure_us", "gain_db", NULL };
+  g_autoptr (GError) error = NULL;
+  DsCaptureSettings s;
+  if (!ds_request_check_keys (req, keys, &error) || !settings_from_request (svc, req, &s, &error)) {
+    ds_server_reply_error (svc->server, conn, req->id, error);
+    return;
+  }
+  guint64 tag = ++svc->next_tag;
+  if (!svc->ready || !ds_sequencer_dark (svc->sequencer, &s, tag)) {
+    g_set_error (&error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BUSY,
+                 "dark: %s", svc->ready ? "too many requests queued" : "the devices are not open yet");
+    ds_server_reply_error (svc->server, conn, req->id, error);
+    return;
+  }
+  PendingCapture *p = g_new0 (PendingCapture, 1);
+  p->tag = tag;
+  p->conn = ds_connection_ref (conn);
+  ds_connection_hold (conn);
+  p->id = req->id ? json_node_copy (req->id) : NULL;
+  g_hash_table_insert (svc->pending, &p->tag, p);
+}
+
+static void
+handle_start (DsService *svc, DsConnection *conn, DsRequest *req)
+{
+  static const char *const keys[] = { "phases", "averages", "exposure_us", "gain_db", "estimator",
+                                      "dark_frame", "verify_phase", NULL };
+  g_autoptr (GError) error = NULL;
+  DsCaptureSettings s;
+  if (!ds_request_check_keys (req, keys, &error) || !settings_from_request (svc, req, &s, &error)) {
+    ds_server_reply_error (svc->server, conn, req->id, error);
+    return;
+  }
+  /* Without arguments continuous mode follows the configuration (and its reloads). */
+  ds_sequencer_start (svc->sequencer, json_object_get_size (req->args) ? &s : NULL);
+  g_autoptr (JsonNode) body = ds_capture_settings_to_json (&s);
+  ds_server_reply_ok (svc->server, conn, req->id, body, NULL, NULL, 0);
+}
+
+static void
+handle_stop (DsService *svc, DsConnection *conn, DsRequest *req)
+{
+  static const char *const keys[] = { NULL };
+  g_autoptr (GError) error = NULL;
+  if (!ds_request_check_keys (req, keys, &error)) {
+    ds_server_reply_error (svc->server, conn, req->id, error);
+    return;
+  }
+  ds_sequencer_stop (svc->sequencer);
+  ds_server_reply_ok (svc->server, conn, req->id, NULL, NULL, NULL, 0);
+}
+
+static void
+handle_config (DsService *svc, DsConnection *conn, DsRequest *req)
+{
+  static const char *const keys[] = { "action", NULL };
+  static const char *const actions[] = { "get", NULL };
+  g_autoptr (GError) error = NULL;
+  const char *action;
+  if (!ds_request_check_keys (req, keys, &error) ||
+      !ds_request_get_choice (req, "action", actions, "get", &action, &error)) {
+    ds_server_reply_error (svc->server, conn, req->id, error);
+    return;
+  }
+  g_autofree char *text = ds_config_to_data (svc->config);
+  g_autoptr (JsonBuilder) b = json_builder_new ();
+  json_builder_begin_object (b);
+  json_builder_set_member_name (b, "path");
+  if (svc->config_path)
+    json_builder_add_string_value (b, svc->config_path);
+  else
+    json_builder_add_null_value (b);
+  json_builder_set_member_name (b, "text");
+  json_builder_add_string_value (b, text);
+  json_builder_end_object (b);
+  g_autoptr (JsonNode) body = json_builder_get_root (b);
+  ds_server_reply_ok (svc->server, conn, req->id, body, NULL, NULL, 0);
+}
+
+static void
+add_uint (JsonBuilder *b, const char *k, guint64 v)
+{
+  json_builder_set_member_name (b, k);
+  json_builder_add_int_value (b, (gint64) v);
+}
+
+static void
+add_double (JsonBuilder *b, const char *k, double v)
+{
+  json_builder_set_member_name (b, k);
+  if (isfinite (v))
+    json_builder_add_double_value (b, v);
+  else
+    json_builder_add_null_value (b);
+}
+
+static void
+add_string (JsonBuilder *b, const char *k, const char *v)
+{
+  json_builder_set_member_name (b, k);
+  json_builder_add_string_value (b, v);
+}
+
+static JsonNode *
+status_to_json (DsService *svc)
+{
+  DsSequencerStatus st;
+  ds_sequencer_get_status (svc->sequencer, &st);
+  DsServerStats ss;
+  ds_server_get_stats (svc->server, &ss);
+  g_autoptr (JsonBuilder) b = json_builder_new ();
+  json_builder_begin_object (b);
+  add_string (b, "version", DS_VERSION);
+  add_double (b, "uptime_s", (double) (g_get_monotonic_time () - svc->started_us) / 1e6);
+  add_string (b, "state", st.state);
+  json_builder_set_member_name (b, "ready");
+  json_builder_add_boolean_value (b, svc->ready);
+  json_builder_set_member_name (b, "continuous");
+  json_builder_add_boolean_value (b, st.continuous);
+  add_uint (b, "pending", st.pending);
+  add_uint (b, "sets_done", st.sets_done);
+  add_uint (b, "sets_failed", st.sets_failed);
+  add_string (b, "last_error", st.last_error);
+  json_builder_set_member_name (b, "has_dark");
+  json_builder_add_boolean_value (b, st.has_dark);
+  add_double (b, "phase_offset_cycles", st.phase_offset_cycles);
+  json_builder_set_member_name (b, "frames");
+  json_builder_add_value (b, ds_frame_counters_to_json (&st.frames));
+  json_builder_set_member_name (b, "stage_mean_ms");
+  json_builder_begin_object (b);
+  for (guint i = 0; i < DS_STAGE_N; i++)
+    add_double (b, ds_stage_name (i), st.stages[i].count ? st.stages[i].total_ms / st.stages[i].count : NAN);
+  json_builder_end_object (b);
+  json_builder_set_member_name (b, "devices");
+  json_builder_begin_object (b);
+  add_string (b, "backends", st.devices);
+  json_builder_set_member_name (b, "camera");
+  json_builder_begin_object (b);
+  add_string (b, "vendor", st.camera_info.vendor);
+  add_string (b, "model", st.camera_info.model);
+  add_string (b, "serial", st.camera_info.serial);
+  add_string (b, "address", st.camera_info.address);
+  add_uint (b, "width", st.camera_info.sensor_width);
+  add_uint (b, "height", st.camera_info.sensor_height);
+  json_builder_set_member_name (b, "connected");
+  json_builder_add_boolean_value (b, st.camera_info.connected);
+  add_uint (b, "completed", st.camera_stats.completed);
+  add_uint (b, "failures", st.camera_stats.failures);
+  add_uint (b, "missing_packets", st.camera_stats.missing_packets);
+  add_uint (b, "resend_requests", st.camera_stats.resend_requests);
+  add_uint (b, "timeouts", st.camera_stats.timeouts);
+  add_uint (b, "ids_skipped", st.camera_stats.ids_skipped);
+  add_uint (b, "reconnects", st.camera_stats.reconnects);
+  json_builder_end_object (b);
+  json_builder_set_member_name (b, "illuminator");
+  json_builder_begin_object (b);
+  json_builder_set_member_name (b, "ready");
+  json_builder_add_boolean_value (b, st.illuminator.ready);
+  json_builder_set_member_name (b, "fault");
+  json_builder_add_boolean_value (b, st.illuminator.fault);
+  json_builder_set_member_name (b, "over_temperature");
+  json_builder_add_boolean_value (b, st.illuminator.over_temperature);
+  json_builder_set_member_name (b, "applied_phase");
+  json_builder_add_int_value (b, st.illuminator.applied_phase);
+  add_uint (b, "apply_count", st.illuminator.apply_count);
+  add_double (b, "temperature_c", st.illuminator.temperature_c);
+  json_builder_end_object (b);
+  json_builder_end_object (b);
+  json_builder_set_member_name (b, "clients");
+  json_builder_begin_object (b);
+  add_uint (b, "connected", ss.clients);
+  add_uint (b, "subscribers", ss.subscribers);
+  add_uint (b, "accepted", ss.accepted);
+  add_uint (b, "refused", ss.refused);
+  add_uint (b, "requests", ss.requests);
+  add_uint (b, "bad_requests", ss.bad_requests);
+  add_uint (b, "results_published", svc->results_published);
+  add_uint (b, "results_dropped", ss.dropped);
+  add_uint (b, "queued_bytes", ss.queued_bytes);
+  json_builder_end_object (b);
+  if (svc->spool) {
+    json_builder_set_member_name (b, "spool");
+    json_builder_begin_object (b);
+    add_uint (b, "bytes", ds_spool_bytes (svc->spool));
+    add_uint (b, "sets_removed", ds_spool_sets_removed (svc->spool));
+    add_uint (b, "errors", svc->spool_errors);
+    json_builder_end_object (b);
+  }
+  json_builder_end_object (b);
+  return json_builder_get_root (b);
+}
+
+static void
+handle_status (DsService *svc, DsConnection *conn, DsRequest *req)
+{
+  static const char *const keys[] = { NULL };
+  g_autoptr (GError) error = NULL;
+  if (!ds_request_check_keys (req, keys, &error)) {
+    ds_server_reply_error (svc->server, conn, req->id, error);
+    return;
+  }
+  g_autoptr (JsonNode) body = status_to_json (svc);
+  ds_server_reply_ok (svc->server, conn, req->id, body, NULL, NULL, 0);
+}
+
+static void
+on_request (DsServer *server, DsConnection *conn, DsRequest *req, gpointer user_data)
+{
+  DsService *svc = user_data;
+  static const struct {
+    const char *cmd;
+    void (*handle) (DsService *, DsConnection *, DsRequest *);
+  } commands[] = {
+    { "status", handle_status }, { "capture", handle_capture }, { "dark", handle_dark },
+    { "start", handle_start },   { "stop", handle_stop },       { "config", handle_config },
+  };
+  for (guint i = 0; i < G_N_ELEMENTS (commands); i++)
+    if (strcmp (req->cmd, commands[i].cmd) == 0) {
+      commands[i].handle (svc, conn, req);
+      return;
+    }
+  g_autoptr (GError) error = g_error_new (DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_UNKNOWN_COMMAND,
+                                          "unknown command \"%s\" (commands: hello, status, capture, "
+                                          "subscribe, unsubscribe, start, stop, dark, config)",
+                                          req->cmd);
+  ds_server_reply_error (server, conn, req->id, error);
+}
+
+/* ---- watchdog: pinged only while the acquisition thread shows signs of life ---- */
+
+static gboolean
+watchdog_tick (gpointer data)
+{
+  DsService *svc = data;
+  DsSequencerStatus st;
+  ds_sequencer_get_status (svc->sequencer, &st);
+  gint64 age = g_get_monotonic_time () - st.heartbeat_us;
+  if ((guint64) age < svc->watchdog_usec / 2)
+    sd_notify (0, "WATCHDOG=1");
+  else
+    g_warning ("acquisition thread silent for %.1f s: not pinging the watchdog", (double) age / 1e6);
+  return G_SOURCE_CONTINUE;
+}
+
+/* ---- lifecycle ---- */
+
+static char *
+read_token (const char *path, GError **error)
+{
+  g_autofree char *text = NULL;
+  if (!g_file_get_contents (path, &text, NULL, error)) {
+    g_prefix_error (error, "tcp-token-file: ");
+    return NULL;
+  }
+  g_strstrip (text);
+  if (strlen (text) < 16) {
+    g_set_error (error, DS_CONFIG_ERROR, DS_CONFIG_ERROR_BAD_VALUE,
+                 "tcp-token-file %s: the token must be at least 16 characters", path);
+    return NULL;
+  }
+  return g_steal_pointer (&text);
+}
+
+static gboolean
+start_listening (DsService *svc, GError **error)
+{
+  guint adopted = 0;
+  if (!svc->options.no_systemd_sockets) {
+    adopted = ds_server_adopt_systemd_sockets (svc->server, error);
+    if (*error)
+      return FALSE;
+  }
+  if (adopted == 0) {
+    const char *path = svc->options.socket_path ? svc->options.socket_path : svc->config->socket_path;
+    g_autofree char *dir = g_path_get_dirname (path);
+    g_mkdir_with_parents (dir, 0755);
+    if (!ds_server_listen_unix (svc->server, path, svc->config->socket_mode, error))
+      return FALSE;
+    svc->socket_path = g_strdup (path);
+  }
+  const char *tcp = svc->options.tcp_listen ? svc->options.tcp_listen : svc->config->tcp_listen;
+  if (tcp && *tcp) {
+    const char *colon = strrchr (tcp, ':');
+    guint64 port = 0;
+    if (!colon || !g_ascii_string_to_unsigned (colon + 1, 10, 0, 65535, &port, NULL)) {
+      g_set_error (error, DS_CONFIG_ERROR, DS_CONFIG_ERROR_BAD_VALUE,
+                   "tcp-listen \"%s\": expected host:port", tcp);
+      return FALSE;
+    }
+    g_autofree char *host = g_strndup (tcp, (gsize) (colon - tcp));
+    if (!ds_server_listen_tcp (svc->server, host, (guint16) port, error))
+      return FALSE;
+  }
+  return TRUE;
+}
+
+DsService *
+ds_service_new (DsConfig *config, const DsServiceOptions *options, GMainLoop *loop, GError **error)
+{
+  g_autoptr (DsConfig) owned = config;
+  /* Freed by ds_service_free on any early return: it copes with a service half built. */
+  g_autoptr (DsService) svc = g_new0 (DsService, 1);
+  svc->options = *options;
+  svc->config_path = g_strdup (options->config_path);
+  svc->scene_override = g_strdup (options->scene_path);
+  svc->options.config_path = svc->config_path;
+  svc->options.scene_path = svc->scene_override;
+  svc->socket_path = NULL;
+  svc->loop = g_main_loop_ref (loop);
+  svc->started_us = g_get_monotonic_time ();
+  svc->pending = g_hash_table_new_full (g_int64_hash, g_int64_equal, NULL, pending_capture_free);
+  svc->config = g_steal_pointer (&owned);
+  if (svc->scene_override) {
+    g_free (svc->config->sim_scene);
+    svc->config->sim_scene = g_strdup (svc->scene_override);
+  }
+  g_autofree char *token = NULL;
+  if (svc->config->tcp_token_file && *svc->config->tcp_token_file) {
+    token = read_token (svc->config->tcp_token_file, error);
+    if (!token)
+      return NULL;
+  }
+  DsServerLimits limits = { .max_clients = svc->config->max_clients,
+                            .max_line = DS_PROTOCOL_MAX_LINE,
+                            .max_queued_bytes = svc->config->max_queued_bytes,
+                            .token = token };
+  svc->server = ds_server_new (&limits, on_request, svc);
+  if (!start_listening (svc, error))
+    return NULL;
+  if (svc->config->spool_dir && *svc->config->spool_dir) {
+    svc->spool = ds_spool_new (svc->config->spool_dir, svc->config->spool_max_bytes, error);
+    if (!svc->spool)
+      return NULL;
+  }
+  DsCaptureSettings defaults;
+  ds_capture_settings_from_config (&defaults, svc->config);
+  /* The thread opens the devices from its own copy: a reload never races with it. It lives
+   * as long as the sequencer (freed after the thread joined). */
+  svc->open_data.config = ds_config_copy (svc->config);
+  {
+    g_autofree char *model_path = svc->config->operating_model && *svc->config->operating_model
+                                      ? g_strdup (svc->config->operating_model)
+                                      : ds_data_path ("operating-model.csv");
+    g_autoptr (GError) model_error = NULL;
+    svc->model = ds_operating_model_load (model_path, &model_error);
+    if (!svc->model) {
+      svc->model_error = g_strdup (model_error->message);
+      g_message ("automatic operating point off: %s", model_error->message);
+    }
+  }
+  svc->sequencer = ds_sequencer_new (open_devices, &svc->open_data, &defaults,
+                                     g_main_loop_get_context (loop), on_sequencer_event, svc);
+  if (svc->model)
+    ds_sequencer_set_operating_model (svc->sequencer, svc->model, svc->config->timing_settle_ms,
+                                      svc->config->timing_link_mbit);
+  if (sd_watchdog_enabled (0, &svc->watchdog_usec) > 0)
+    svc->watchdog_source = g_timeout_add ((guint) (svc->watchdog_usec / 4000), watchdog_tick, svc);
+  return g_steal_pointer (&svc);
+}
+
+/* Device settings cannot change under a running acquisition thread: a reload that touches
+ * them is refused (restart the service instead), the rest applies from the next set. */
+static gboolean
+device_settings_equal (const DsConfig *a, const DsConfig *b)
+{
+  g_autofree char *ta = NULL, *tb = NULL;
+  g_autoptr (DsConfig) ca = ds_config_copy (a);
+  g_autoptr (DsConfig) cb = ds_config_copy (b);
+  /* Compare everything but [acquisition] (which applies per set): blank those fields. */
+  DsConfig *cs[] = { ca, cb };
+  for (guint i = 0; i < 2; i++) {
+    cs[i]->phases = 0;
+    cs[i]->averages = 0;
+    g_free (cs[i]->estimator);
+    cs[i]->estimator = g_strdup ("maxmin");
+    cs[i]->dark_frame = FALSE;
+    cs[i]->phase_retries = 0;
+    cs[i]->verify_phase = FALSE;
+    cs[i]->phase_tolerance_deg = 0;
+    cs[i]->exposure_us = 0;
+    cs[i]->gain_db = 0;
+  }
+  ta = ds_config_to_data (ca);
+  tb = ds_config_to_data (cb);
+  return strcmp (ta, tb) == 0;
+}
+
+gboolean
+ds_service_reload (DsService *svc, GError **error)
+{
+  if (!svc->config_path) {
+    g_set_error (error, DS_CONFIG_ERROR, DS_CONFIG_ERROR_IO,
+                 "reload: running on the built-in configuration (no --config file)");
+    return FALSE;
+  }
+  g_autoptr (DsConfig) fresh = ds_config_load_file (svc->config_path, error);
+  if (!fresh) {
+    g_prefix_error (error, "reload refused, keeping the running configuration: ");
+    return FALSE;
+  }
+  if (svc->scene_override) {
+    g_free (fresh->sim_scene);
+    fresh->sim_scene = g_strdup (svc->scene_override);
+  }
+  if (!device_settings_equal (svc->config, fresh)) {
+    g_set_error (error, DS_CONFIG_ERROR, DS_CONFIG_ERROR_INCONSISTENT,
+                 "reload refused, keeping the running configuration: %s changes device, socket or "
+                 "spool settings, which need a restart (only [acquisition], exposure-us and "
+                 "gain-db apply on reload)",
+                 svc->config_path);
+    return FALSE;
+  }
+  ds_config_free (svc->config);
+  svc->config = g_steal_pointer (&fresh);
+  DsCaptureSettings defaults;
+  ds_capture_settings_from_config (&defaults, svc->config);
+  ds_sequencer_set_defaults (svc->sequencer, &defaults);
+  return TRUE;
+}
+
+void
+ds_service_free (DsService *svc)
+{
+  if (!svc)
+    return;
+  if (svc->watchdog_source)
+    g_source_remove (svc->watchdog_source);
+  /* Joins the acquisition thread: no event arrives after this. */
+  g_clear_pointer (&svc->sequencer, ds_sequencer_free);
+  g_clear_pointer (&svc->model, ds_operating_model_free);
+  g_free (svc->model_error);
+  if (svc->pending) {
+    GHashTableIter it;
+    gpointer value;
+    g_hash_table_iter_init (&it, svc->pending);
+    g_autoptr (GError) cancelled = g_error_new (DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_CANCELLED,
+                                                "the daemon is stopping");
+    while (g_hash_table_iter_next (&it, NULL, &value)) {
+      PendingCapture *p = value;
+      ds_server_reply_error (svc->server, p->conn, p->id, cancelled);
+    }
+    g_hash_table_destroy (svc->pending);
+  }
+  if (svc->server)
+    ds_server_shutdown (svc->server);
+  g_clear_pointer (&svc->server, ds_server_free);
+  g_clear_pointer (&svc->spool, ds_spool_free);
+  g_clear_pointer (&svc->open_data.config, ds_config_free);
+  g_clear_pointer (&svc->config, ds_config_free);
+  g_main_loop_unref (svc->loop);
+  g_free (svc->config_path);
+  g_free (svc->scene_override);
+  g_free (svc->socket_path);
+  g_free (svc);
+}
+
+const char *
+ds_service_socket_path (const DsService *svc)
+{
+  return svc->socket_path;
+}
+
+guint16
+ds_service_tcp_port (const DsService *svc)
+{
+  return ds_server_tcp_port (svc->server);
+}
+
+gboolean
+ds_service_devices_failed (const DsService *svc)
+{
+  return svc->devices_failed;
+}

@@ -1,1 +1,0 @@
-target_sources(ds_proc PRIVATE ${CMAKE_CURRENT_LIST_DIR}/pixfmt.c)

@@ -1,2 +1,0 @@
-# The scene parser's fuzz target needs the simulator library.
-set(DS_FUZZ_LIBS_scene ds_sim)
