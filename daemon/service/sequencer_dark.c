@@ -1,0 +1,129 @@
+/* The dark frame: the illuminator off, M frames averaged, each checked for being exposed after
+ * the light went off and for showing no stripes. */
+#include "daemon/protocol/protocol.h"
+#include "daemon/service/sequencer_private.h"
+#include "proc/image_stats.h"
+#include "proc/stripe_phase.h"
+
+/* Averages `n` frames with the illuminator off into an f32 image. */
+DsImage *
+ds_seq_acquire_dark (DsSequencer *seq, const DsCaptureSettings *s, DsFrameCounters *c, GError **error)
+{
+  if (!seq->dev->illuminator->ops->off (seq->dev->illuminator->backend, seq->dev->settle_timeout_ms,
+                                        error)) {
+    c->device_errors++;
+    g_prefix_error (error, "dark frame: illuminator off: ");
+    return NULL;
+  }
+  ds_seq_flush_stale (seq, c);
+  gint64 off_at = g_get_monotonic_time ();
+  g_autofree double *sum = NULL;
+  guint w = 0, h = 0, got = 0, retries_left = s->phase_retries, bit_depth = 16;
+  DsSampleType type = DS_SAMPLE_U16;
+  while (got < s->averages) {
+    GError *why = NULL;
+    if (!ds_seq_check_quit (seq, error))
+      return NULL;
+    g_autoptr (DsFrame) f = ds_seq_trigger_and_grab (seq, c, &why);
+    if (f && f->host_time_us != 0 && (gint64) f->host_time_us < off_at) {
+      ds_frame_counters_drop (c, DS_DROP_STALE, 1);
+      why = g_error_new (DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_DEVICE, "stale frame");
+      g_clear_pointer (&f, ds_frame_free);
+    }
+    if (f && s->verify_phase && s->period_px > 2) {
+      /* A dark frame must show no stripes: one exposed while the pattern was still on would
+       * be subtracted from every phase. */
+      DsStripePhase sp;
+      if (ds_stripe_phase_measure (f->image, s->period_px, NULL, &sp, NULL) && sp.reliable) {
+        ds_frame_counters_drop (c, DS_DROP_WRONG_PHASE, 1);
+        why = g_error_new (DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_DEVICE,
+                           "dark frame shows stripes (snr %.1f): the illuminator was not off", sp.snr);
+        g_clear_pointer (&f, ds_frame_free);
+      }
+    }
+    if (!f) {
+      if (ds_seq_fatal_device_error (seq, why) || retries_left == 0) {
+        g_propagate_prefixed_error (error, why, "dark frame: ");
+        return NULL;
+      }
+      retries_left--;
+      c->retries++;
+      g_clear_error (&why);
+      continue;
+    }
+    const DsImage *img = f->image;
+    if (!sum) {
+      w = img->width;
+      h = img->height;
+      type = img->type;
+      bit_depth = img->bit_depth;
+      sum = g_new0 (double, (gsize) w * h);
+    } else if (img->width != w || img->height != h) {
+      ds_frame_counters_drop (c, DS_DROP_ABORTED, 1);
+      g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_DEVICE,
+                   "dark frame: frame size changed from %ux%u to %ux%u", w, h, img->width,
+                   img->height);
+      return NULL;
+    }
+    for (guint y = 0; y < h; y++) {
+      const guint8 *row = ds_image_row (img, y);
+      double *out = sum + (gsize) y * w;
+      for (guint x = 0; x < w; x++)
+        out[x] += img->type == DS_SAMPLE_U8    ? ((const guint8 *) row)[x]
+                  : img->type == DS_SAMPLE_U16 ? ((const guint16 *) row)[x]
+                                               : ((const float *) row)[x];
+    }
+    got++;
+  }
+  /* The dark frame has the frames' own sample type, as the accumulator subtracts like from
+   * like; averaging M integer frames rounds to the nearest DN (an unbiased error below the
+   * read noise). */
+  DsImage *dark = ds_image_new (type, w, h, error);
+  if (!dark)
+    return NULL;
+  dark->bit_depth = bit_depth;
+  for (guint y = 0; y < h; y++) {
+    void *row = ds_image_row (dark, y);
+    for (guint x = 0; x < w; x++) {
+      double v = sum[(gsize) y * w + x] / got;
+      if (type == DS_SAMPLE_F32)
+        ((float *) row)[x] = (float) v;
+      else if (type == DS_SAMPLE_U16)
+        ((guint16 *) row)[x] = (guint16) CLAMP (v + 0.5, 0, 65535);
+      else
+        ((guint8 *) row)[x] = (guint8) CLAMP (v + 0.5, 0, 255);
+    }
+  }
+  return dark;
+}
+
+void
+ds_seq_run_dark (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag)
+{
+  DsFrameCounters c = { 0 };
+  g_autoptr (GError) error = NULL;
+  DsImage *dark = NULL;
+  if (!ds_seq_ensure_camera (seq, s, &error)) {
+    g_prefix_error (&error, "camera: ");
+    ds_seq_fatal_device_error (seq, error);
+  } else
+    dark = ds_seq_acquire_dark (seq, s, &c, &error);
+  if (!dark) {
+    ds_frame_counters_drop (&c, DS_DROP_ABORTED, c.acquired - c.dropped);
+    ds_seq_account (seq, &c, FALSE);
+    ds_seq_record_error (seq, error);
+    ds_seq_emit (seq, DS_SEQUENCER_EVENT_DARK, tag, NULL, g_steal_pointer (&error), NULL);
+    return;
+  }
+  c.folded = c.acquired - c.dropped;
+  g_mutex_lock (&seq->lock);
+  ds_frame_counters_add (&seq->status.frames, &c);
+  seq->status.has_dark = TRUE;
+  g_mutex_unlock (&seq->lock);
+  double mean = ds_image_mean (dark);
+  g_clear_pointer (&seq->dark, ds_image_free);
+  seq->dark = dark;
+  seq->dark_exposure_us = s->exposure_us;
+  seq->dark_gain_db = s->gain_db;
+  ds_seq_emit_dark (seq, tag, mean);
+}

@@ -1,0 +1,145 @@
+/* Device operations as the sequencer uses them: each counts what happened (frames acquired,
+ * timeouts, device errors, stale drops), and one policy says which errors end a set. */
+#include "daemon/protocol/protocol.h"
+#include "daemon/service/sequencer_private.h"
+
+static gboolean
+is_code (const GError *error, int code)
+{
+  return error && (error->domain == DS_CAMERA_ERROR || error->domain == DS_ILLUMINATOR_ERROR ||
+                   error->domain == DS_TRIGGER_ERROR) && error->code == code;
+}
+
+gboolean
+ds_seq_ensure_camera (DsSequencer *seq, const DsCaptureSettings *s, GError **error)
+{
+  DsCamera *cam = seq->dev->camera;
+  if (seq->camera_configured && seq->camera_exposure_us == s->exposure_us &&
+      seq->camera_gain_db == s->gain_db) {
+    if (!seq->camera_started) {
+      if (!cam->ops->start (cam->backend, error))
+        return FALSE;
+      seq->camera_started = TRUE;
+    }
+    return TRUE;
+  }
+  if (seq->camera_started) {
+    cam->ops->stop (cam->backend);
+    seq->camera_started = FALSE;
+  }
+  DsCameraSettings cs = seq->dev->camera_settings;
+  cs.exposure_us = s->exposure_us;
+  cs.gain_db = s->gain_db;
+  if (!cam->ops->configure (cam->backend, &cs, error)) {
+    seq->camera_configured = FALSE;
+    return FALSE;
+  }
+  seq->camera_configured = TRUE;
+  seq->camera_exposure_us = s->exposure_us;
+  seq->camera_gain_db = s->gain_db;
+  if (!cam->ops->start (cam->backend, error))
+    return FALSE;
+  seq->camera_started = TRUE;
+  return TRUE;
+}
+
+gboolean
+ds_seq_apply_pattern (DsSequencer *seq, const DsCaptureSettings *s, GError **error)
+{
+  DsStripePattern p = seq->dev->pattern;
+  p.kind = s->pattern == DS_PATTERN_SINE ? DS_STRIPES_SINE : DS_STRIPES_SQUARE;
+  p.period_px = s->period_px;
+  p.duty = s->duty;
+  p.black_level = s->black_level;
+  p.n_phases = s->phases;
+  return seq->dev->illuminator->ops->set_pattern (seq->dev->illuminator->backend, &p, error);
+}
+
+/* One frame: trigger and grab. Counts what happened. Returns NULL with error set. */
+DsFrame *
+ds_seq_trigger_and_grab (DsSequencer *seq, DsFrameCounters *c, GError **error)
+{
+  gint64 t = g_get_monotonic_time ();
+  if (!seq->dev->trigger->ops->fire (seq->dev->trigger->backend, error)) {
+    c->device_errors++;
+    return NULL;
+  }
+  ds_seq_stage_add (seq, DS_STAGE_TRIGGER, t);
+  t = g_get_monotonic_time ();
+  GError *local = NULL;
+  DsFrame *frame = seq->dev->camera->ops->grab (seq->dev->camera->backend,
+                                                seq->dev->grab_timeout_ms, &local);
+  ds_seq_stage_add (seq, DS_STAGE_GRAB, t);
+  if (frame) {
+    c->acquired++;
+    return frame;
+  }
+  if (is_code (local, DS_DEVICE_ERROR_TIMEOUT))
+    c->timeouts++;
+  else if (is_code (local, DS_DEVICE_ERROR_INCOMPLETE)) {
+    c->acquired++;
+    ds_frame_counters_drop (c, DS_DROP_INCOMPLETE, 1);
+  } else
+    c->device_errors++;
+  g_propagate_error (error, local);
+  return NULL;
+}
+
+void
+ds_seq_flush_stale (DsSequencer *seq, DsFrameCounters *c)
+{
+  guint n = seq->dev->camera->ops->flush (seq->dev->camera->backend);
+  c->acquired += n;
+  ds_frame_counters_drop (c, DS_DROP_STALE, n);
+}
+
+gboolean
+ds_seq_check_quit (DsSequencer *seq, GError **error)
+{
+  if (!g_atomic_int_get (&seq->quit))
+    return TRUE;
+  g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_CANCELLED, "the daemon is stopping");
+  return FALSE;
+}
+
+gboolean
+ds_seq_fatal_device_error (DsSequencer *seq, const GError *e)
+{
+  if (is_code (e, DS_DEVICE_ERROR_DISCONNECTED)) {
+    seq->need_reconnect = TRUE;
+    return TRUE;
+  }
+  return is_code (e, DS_DEVICE_ERROR_INVALID) || is_code (e, DS_DEVICE_ERROR_UNSUPPORTED);
+}
+
+/* Reopens a lost camera (or illuminator) with capped exponential backoff, until it works or
+ * the daemon stops. Commands wait in the queue meanwhile. */
+void
+ds_seq_reconnect (DsSequencer *seq)
+{
+  ds_seq_set_state (seq, "reconnecting");
+  ds_seq_emit (seq, DS_SEQUENCER_EVENT_DEVICE, 0, NULL, NULL, "device disconnected: reconnecting");
+  guint delay_ms = 100;
+  while (!g_atomic_int_get (&seq->quit)) {
+    g_autoptr (GError) e1 = NULL;
+    g_autoptr (GError) e2 = NULL;
+    gboolean cam_ok = seq->dev->camera->ops->reconnect (seq->dev->camera->backend, &e1);
+    gboolean ill_ok = cam_ok && seq->dev->illuminator->ops->reconnect (seq->dev->illuminator->backend, &e2);
+    ds_seq_heartbeat (seq);
+    if (cam_ok && ill_ok) {
+      seq->camera_started = FALSE;
+      seq->camera_configured = FALSE;
+      seq->need_reconnect = FALSE;
+      g_mutex_lock (&seq->lock);
+      seq->status.camera_stats.reconnects++;
+      g_mutex_unlock (&seq->lock);
+      ds_seq_emit (seq, DS_SEQUENCER_EVENT_DEVICE, 0, NULL, NULL, "devices reconnected");
+      return;
+    }
+    ds_seq_record_error (seq, e1 ? e1 : e2);
+    /* Sleep in slices so that quitting stays prompt. */
+    for (guint slept = 0; slept < delay_ms && !g_atomic_int_get (&seq->quit); slept += 50)
+      g_usleep (50 * 1000);
+    delay_ms = MIN (delay_ms * 2, 2000);
+  }
+}

@@ -1,0 +1,132 @@
+/* Private to daemon/service/sequencer*.c: the acquisition thread's state and the helpers its
+ * files share. Each file has one concern:
+ *   sequencer.c          the thread, its command queue and the public requests
+ *   sequencer_report.c   events to the main context, status, accounting
+ *   sequencer_devices.c  device operations with their counting (trigger, grab, flush,
+ *                        camera settings, reconnect) and the retry/fail policy
+ *   sequencer_set.c      the set runner: one phase set from settings to result
+ *   sequencer_phase.c    the frames of one phase: apply, acquire, verify, fold
+ *   sequencer_verify.c   frame verification (stale, frame gap, stripe phase)
+ *   sequencer_dark.c     dark-frame acquisition
+ *   sequencer_auto.c     the automatic operating point (preview frames)
+ * Everything here runs on the acquisition thread unless it says otherwise. */
+#pragma once
+#include <glib.h>
+
+#include "daemon/operating/operating_point.h"
+#include "daemon/operating/rig_timing.h"
+#include "daemon/service/phase_check.h"
+#include "daemon/service/sequencer.h"
+
+G_BEGIN_DECLS
+
+struct DsSequencer {
+  GThread *thread;
+  GAsyncQueue *queue;
+  GMainContext *context;
+  DsSequencerEventFunc on_event;
+  gpointer user_data;
+  DsDevicesOpenFunc open_devices;
+  gpointer open_data;
+  gint quit;     /* atomic */
+  gint pending;  /* atomic: captures and darks queued */
+  /* Delivery of events after free must not happen: events hold a ref on this. */
+  gint alive;    /* atomic: cleared by free before joining */
+
+  GMutex lock;   /* protects status and defaults */
+  DsSequencerStatus status;
+  DsCaptureSettings defaults;
+
+  /* Acquisition thread only. */
+  DsDevices *dev;
+  DsPhaseSet *set;
+  DsSeparationParams set_params;
+  guint set_width, set_height;
+  DsImage *dark;
+  double dark_exposure_us, dark_gain_db;
+  gboolean camera_configured, camera_started;
+  double camera_exposure_us, camera_gain_db;
+  gboolean continuous;
+  DsCaptureSettings continuous_settings;
+  gboolean continuous_uses_defaults;
+  guint64 next_set_id;
+  DsPhaseCheck phase_check;
+  double phase_check_period;
+  gboolean need_reconnect;
+  gint64 last_frame_us;     /* arrival of the last folded frame */
+  const DsOperatingModel *model; /* set before the thread uses it; read-only */
+  DsRigTiming timing;
+};
+
+/* ---- sequencer_report.c: events (any order of posting is the order of dispatch) ---- */
+
+/* Takes ownership of result and error. */
+void ds_seq_emit (DsSequencer *seq, DsSequencerEventKind kind, guint64 tag, DsResult *result,
+                  GError *error, const char *message);
+void ds_seq_emit_progress (DsSequencer *seq, guint64 tag, guint phase, guint n);
+void ds_seq_emit_dark (DsSequencer *seq, guint64 tag, double dark_mean_dn);
+
+/* Status (under seq->lock). */
+void ds_seq_set_state (DsSequencer *seq, const char *state);
+void ds_seq_heartbeat (DsSequencer *seq);
+void ds_seq_stage_add (DsSequencer *seq, DsStage stage, gint64 since_us);
+void ds_seq_record_error (DsSequencer *seq, const GError *error);
+void ds_seq_refresh_device_status (DsSequencer *seq);
+/* Adds a set's (or a dark frame's) counters to the totals; ok counts the set as done. */
+void ds_seq_account (DsSequencer *seq, const DsFrameCounters *c, gboolean ok);
+
+/* ---- sequencer_devices.c ---- */
+
+gboolean ds_seq_ensure_camera (DsSequencer *seq, const DsCaptureSettings *s, GError **error);
+gboolean ds_seq_apply_pattern (DsSequencer *seq, const DsCaptureSettings *s, GError **error);
+/* One frame: trigger and grab. Counts what happened. Returns NULL with error set. */
+DsFrame *ds_seq_trigger_and_grab (DsSequencer *seq, DsFrameCounters *c, GError **error);
+/* Drops (and counts as stale) every frame already delivered but not grabbed. */
+void ds_seq_flush_stale (DsSequencer *seq, DsFrameCounters *c);
+/* FALSE with CANCELLED when the daemon is stopping. */
+gboolean ds_seq_check_quit (DsSequencer *seq, GError **error);
+/* TRUE when retrying cannot help (invalid, unsupported) or the device is gone (disconnected:
+ * marks it for reconnection). */
+gboolean ds_seq_fatal_device_error (DsSequencer *seq, const GError *e);
+/* Reopens lost devices with capped backoff until they work or the daemon stops. */
+void ds_seq_reconnect (DsSequencer *seq);
+
+/* ---- sequencer_set.c ---- */
+
+void ds_seq_run_set (DsSequencer *seq, const DsCaptureSettings *requested, guint64 tag);
+
+/* ---- sequencer_phase.c ---- */
+
+/* Acquires the M frames of phase k and folds them into seq->set. */
+gboolean ds_seq_acquire_phase (DsSequencer *seq, const DsCaptureSettings *s, guint k,
+                               DsFrameCounters *c, GError **error);
+
+/* ---- sequencer_verify.c ---- */
+
+typedef struct {
+  DsDropReason reason;     /* DS_DROP_N_REASONS: the frame may be folded */
+  char *detail;            /* why, when dropped (owned) */
+  gboolean reapply_phase;  /* the illuminator may show another phase: apply k again */
+} DsFrameVerdict;
+
+/* Verifies a frame lit (as far as the sequencer knows) with phase k, applied at applied_at_us,
+ * in the order of docs/design.md: stale, frame gap, stripe phase. */
+void ds_seq_verify_frame (DsSequencer *seq, const DsCaptureSettings *s, guint k,
+                          const DsFrame *frame, gint64 applied_at_us, DsFrameVerdict *verdict);
+void ds_frame_verdict_clear (DsFrameVerdict *verdict);
+
+/* ---- sequencer_dark.c ---- */
+
+/* Averages s->averages frames with the illuminator off into an image of the frames' type. */
+DsImage *ds_seq_acquire_dark (DsSequencer *seq, const DsCaptureSettings *s, DsFrameCounters *c,
+                              GError **error);
+void ds_seq_run_dark (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag);
+
+/* ---- sequencer_auto.c ---- */
+
+/* Picks estimator, N, M and exposure for a target error or time budget from a dark and a
+ * preview frame; rewrites *s. */
+gboolean ds_seq_choose_operating_point (DsSequencer *seq, DsCaptureSettings *s, DsFrameCounters *c,
+                                        GError **error);
+
+G_END_DECLS

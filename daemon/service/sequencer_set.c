@@ -1,0 +1,142 @@
+/* The set runner: one phase set from its settings to a published result or a failure, with
+ * every frame of it accounted for. */
+#include <math.h>
+#include <string.h>
+
+#include "daemon/service/sequencer_private.h"
+
+static gboolean
+prepare_phase_set (DsSequencer *seq, const DsCaptureSettings *s, guint width, guint height,
+                   GError **error)
+{
+  DsSeparationParams p;
+  ds_separation_params_init (&p, s->phases);
+  p.estimator = s->estimator;
+  p.pattern = s->pattern;
+  p.duty = s->duty;
+  p.black_level = s->black_level;
+  p.keep_extrema = s->keep_extrema;
+  if (seq->set && width == seq->set_width && height == seq->set_height &&
+      memcmp (&p, &seq->set_params, sizeof p) == 0) {
+    ds_phase_set_reset (seq->set);
+    return TRUE;
+  }
+  g_clear_pointer (&seq->set, ds_phase_set_free);
+  seq->set = ds_phase_set_new (&p, width, height, error);
+  if (!seq->set)
+    return FALSE;
+  seq->set_params = p;
+  seq->set_width = width;
+  seq->set_height = height;
+  return TRUE;
+}
+
+/* The frames of one set, from configuring the camera to the finalized separation. Returns NULL
+ * with error set; the caller accounts for the frames in `c` either way. Early returns only: no
+ * jump may cross an auto-cleanup declaration (-Wjump-misses-init). */
+static DsSeparation *
+acquire_set (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag, DsFrameCounters *c,
+             gint64 *last_frame_us, GError **error)
+{
+  if (seq->phase_check_period != s->period_px || !seq->phase_check.offset_known) {
+    if (seq->phase_check_period != s->period_px)
+      ds_phase_check_init (&seq->phase_check, s->period_px, s->phase_tolerance_deg);
+    seq->phase_check_period = s->period_px;
+  }
+  seq->phase_check.tolerance_cycles = s->phase_tolerance_deg / 360.0;
+
+  if (!ds_seq_ensure_camera (seq, s, error)) {
+    g_prefix_error (error, "camera: ");
+    ds_seq_fatal_device_error (seq, *error);
+    return NULL;
+  }
+  if (!ds_seq_apply_pattern (seq, s, error)) {
+    g_prefix_error (error, "illuminator: ");
+    ds_seq_fatal_device_error (seq, *error);
+    return NULL;
+  }
+  g_autoptr (DsImage) dark = NULL;
+  if (s->dark_frame) {
+    dark = ds_seq_acquire_dark (seq, s, c, error);
+    if (!dark)
+      return NULL;
+  }
+  const DsImage *use_dark = dark;
+  if (!use_dark && seq->dark && seq->dark_exposure_us == s->exposure_us && seq->dark_gain_db == s->gain_db)
+    use_dark = seq->dark;
+
+  /* The frame size the camera delivers: its ROI, or the whole sensor. */
+  DsCameraSettings *cs = &seq->dev->camera_settings;
+  DsCameraInfo info = { 0 };
+  seq->dev->camera->ops->get_info (seq->dev->camera->backend, &info);
+  guint w = cs->roi_width ? cs->roi_width : info.sensor_width;
+  guint h = cs->roi_width ? cs->roi_height : info.sensor_height;
+  if (!prepare_phase_set (seq, s, w, h, error))
+    return NULL;
+  /* The phase set is reused between sets: forget an earlier dark frame when this set has
+   * none (or one for other settings). */
+  if (!ds_phase_set_set_dark (seq->set, use_dark, error))
+    return NULL;
+  for (guint k = 0; k < s->phases; k++) {
+    if (!ds_seq_acquire_phase (seq, s, k, c, error)) {
+      if (seq->phase_check.provisional)
+        ds_phase_check_abandon (&seq->phase_check);
+      return NULL;
+    }
+    ds_seq_emit_progress (seq, tag, k, s->phases);
+  }
+  *last_frame_us = seq->last_frame_us;
+  return ds_phase_set_finalize (seq->set, error);
+}
+
+void
+ds_seq_run_set (DsSequencer *seq, const DsCaptureSettings *requested, guint64 tag)
+{
+  /* The stripe geometry is the illuminator's (configured for real devices, the scene's for
+   * the simulated lab), never a per-capture choice: the set records what was projected. */
+  DsCaptureSettings settings = *requested;
+  const DsCaptureSettings *s = &settings;
+  settings.pattern = seq->dev->pattern.kind == DS_STRIPES_SINE ? DS_PATTERN_SINE : DS_PATTERN_SQUARE;
+  settings.period_px = seq->dev->pattern.period_px;
+  settings.duty = seq->dev->pattern.duty;
+  settings.black_level = seq->dev->pattern.black_level;
+  DsFrameCounters c = { 0 };
+  g_autoptr (GError) error = NULL;
+  if (settings.target_error > 0 || settings.time_budget_ms > 0) {
+    if (!ds_seq_ensure_camera (seq, s, &error) || !ds_seq_choose_operating_point (seq, &settings, &c, &error)) {
+      ds_seq_account (seq, &c, FALSE);
+      ds_seq_record_error (seq, error);
+      ds_seq_emit (seq, DS_SEQUENCER_EVENT_FAILED, tag, NULL, g_steal_pointer (&error), NULL);
+      return;
+    }
+  }
+  gint64 started = g_get_monotonic_time ();
+  gint64 acquired = 0;
+  g_autoptr (DsSeparation) sep = acquire_set (seq, s, tag, &c, &acquired, &error);
+  if (!sep) {
+    /* Whatever was not dropped already (folded frames, dark frames) goes down with the set. */
+    ds_frame_counters_drop (&c, DS_DROP_ABORTED, c.acquired - c.dropped);
+    ds_seq_account (seq, &c, FALSE);
+    ds_seq_record_error (seq, error);
+    ds_seq_refresh_device_status (seq);
+    ds_seq_emit (seq, DS_SEQUENCER_EVENT_FAILED, tag, NULL, g_steal_pointer (&error), NULL);
+    return;
+  }
+  ds_seq_stage_add (seq, DS_STAGE_FINALIZE, acquired);
+  if (seq->phase_check.provisional) {
+    ds_phase_check_confirm (&seq->phase_check);
+    g_mutex_lock (&seq->lock);
+    seq->status.phase_offset_cycles = seq->phase_check.offset_cycles;
+    g_mutex_unlock (&seq->lock);
+  }
+  gint64 finished = g_get_monotonic_time ();
+  ds_seq_stage_add (seq, DS_STAGE_SET, started);
+  /* Every frame not dropped went into the result: folded into a phase, or averaged into its
+   * dark frame. */
+  c.folded = c.acquired - c.dropped;
+  ds_seq_account (seq, &c, TRUE);
+  DsResult *result = ds_result_new (++seq->next_set_id, g_steal_pointer (&sep), s, &c, started,
+                                    acquired, finished);
+  ds_seq_refresh_device_status (seq);
+  ds_seq_emit (seq, DS_SEQUENCER_EVENT_RESULT, tag, result, NULL, NULL);
+}

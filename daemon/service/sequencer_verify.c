@@ -1,0 +1,40 @@
+/* Frame verification (docs/design.md, "The sequencer contract"): a frame is folded into phase
+ * k only if it arrived after k was applied, no frame id is missing before it, and the stripe
+ * phase measured in it is k's. Checked in that order; the first failure is the reason. */
+#include <math.h>
+
+#include "daemon/service/sequencer_private.h"
+
+void
+ds_seq_verify_frame (DsSequencer *seq, const DsCaptureSettings *s, guint k, const DsFrame *frame,
+                     gint64 applied_at_us, DsFrameVerdict *v)
+{
+  v->reason = DS_DROP_N_REASONS;
+  v->detail = NULL;
+  v->reapply_phase = FALSE;
+  if (frame->host_time_us != 0 && (gint64) frame->host_time_us < applied_at_us) {
+    v->reason = DS_DROP_STALE;
+    v->detail = g_strdup ("frame arrived before the phase was applied");
+  } else if (frame->ids_skipped > 0) {
+    v->reason = DS_DROP_FRAME_GAP;
+    v->detail = g_strdup_printf ("%u frame id(s) missing before id %" G_GUINT64_FORMAT,
+                                 frame->ids_skipped, frame->frame_id);
+  } else if (s->verify_phase) {
+    double measured = NAN;
+    DsPhaseVerdict pv = ds_phase_check_frame (&seq->phase_check, frame->image, k, s->phases,
+                                              &measured, &v->detail);
+    if (pv == DS_PHASE_VERDICT_WRONG) {
+      v->reason = DS_DROP_WRONG_PHASE;
+      v->reapply_phase = TRUE; /* the illuminator may have applied another phase */
+    } else if (pv == DS_PHASE_VERDICT_UNVERIFIABLE)
+      v->reason = DS_DROP_UNVERIFIABLE;
+    else
+      g_clear_pointer (&v->detail, g_free);
+  }
+}
+
+void
+ds_frame_verdict_clear (DsFrameVerdict *v)
+{
+  g_clear_pointer (&v->detail, g_free);
+}
