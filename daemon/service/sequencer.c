@@ -65,6 +65,7 @@ thread_main (gpointer data)
   g_strlcpy (seq->status.devices, seq->dev->description, sizeof seq->status.devices);
   g_mutex_unlock (&seq->lock);
   ds_seq_refresh_device_status (seq);
+  seq->worker = ds_fold_worker_new (seq);
   ds_seq_set_state (seq, "idle");
   ds_seq_emit (seq, DS_SEQUENCER_EVENT_READY, 0, NULL, NULL, seq->dev->description);
 
@@ -129,6 +130,7 @@ thread_main (gpointer data)
   g_autoptr (GError) off_error = NULL;
   seq->dev->illuminator->ops->off (seq->dev->illuminator->backend, seq->dev->settle_timeout_ms,
                                    &off_error);
+  g_clear_pointer (&seq->worker, ds_fold_worker_free);
   return NULL;
 }
 

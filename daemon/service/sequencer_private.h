@@ -5,7 +5,9 @@
  *   sequencer_devices.c  device operations with their counting (trigger, grab, flush,
  *                        camera settings, reconnect) and the retry/fail policy
  *   sequencer_set.c      the set runner: one phase set from settings to result
- *   sequencer_phase.c    the frames of one phase: apply, acquire, verify, fold
+ *   sequencer_pipeline.c the N x M frames of a set, pipelined: the next phase is applied and
+ *                        exposed while the worker verifies and folds the previous frame
+ *   sequencer_worker.c   the verify-and-fold worker thread
  *   sequencer_verify.c   frame verification (stale, frame gap, stripe phase)
  *   sequencer_dark.c     dark-frame acquisition
  *   sequencer_auto.c     the automatic operating point (preview frames)
@@ -19,6 +21,8 @@
 #include "daemon/service/sequencer.h"
 
 G_BEGIN_DECLS
+
+typedef struct DsFoldWorker DsFoldWorker;
 
 struct DsSequencer {
   GThread *thread;
@@ -56,6 +60,7 @@ struct DsSequencer {
   gint64 last_frame_us;     /* arrival of the last folded frame */
   const DsOperatingModel *model; /* set before the thread uses it; read-only */
   DsRigTiming timing;
+  DsFoldWorker *worker;     /* verifies and folds while the next frame is acquired */
 };
 
 /* ---- sequencer_report.c: events (any order of posting is the order of dispatch) ---- */
@@ -95,11 +100,13 @@ void ds_seq_reconnect (DsSequencer *seq);
 
 void ds_seq_run_set (DsSequencer *seq, const DsCaptureSettings *requested, guint64 tag);
 
-/* ---- sequencer_phase.c ---- */
+/* ---- sequencer_pipeline.c ---- */
 
-/* Acquires the M frames of phase k and folds them into seq->set. */
-gboolean ds_seq_acquire_phase (DsSequencer *seq, const DsCaptureSettings *s, guint k,
-                               DsFrameCounters *c, GError **error);
+/* Acquires the N x M frames of a set and folds them into seq->set (which is prepared); emits
+ * progress per completed phase. FALSE with error when the set fails; every frame is counted in
+ * c (the ones neither folded nor dropped are the caller's to count as aborted). */
+gboolean ds_seq_acquire_phases (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag,
+                                DsFrameCounters *c, GError **error);
 
 /* ---- sequencer_verify.c ---- */
 
@@ -114,6 +121,27 @@ typedef struct {
 void ds_seq_verify_frame (DsSequencer *seq, const DsCaptureSettings *s, guint k,
                           const DsFrame *frame, gint64 applied_at_us, DsFrameVerdict *verdict);
 void ds_frame_verdict_clear (DsFrameVerdict *verdict);
+
+/* ---- sequencer_worker.c ---- */
+
+typedef struct {
+  const DsCaptureSettings *settings; /* borrowed for the job */
+  guint phase;
+  DsFrame *frame;                    /* borrowed: the acquisition thread frees it after collect */
+  gint64 applied_at_us;
+  DsFrameVerdict verdict;            /* out */
+  gboolean folded;                   /* out: verified and folded */
+  GError *fold_error;                /* out: verified, but the fold failed */
+} DsFoldJob;
+
+DsFoldWorker *ds_fold_worker_new (DsSequencer *seq);
+/* Waits for a job in progress, then stops and joins the thread. */
+void ds_fold_worker_free (DsFoldWorker *worker);
+/* Hands one frame over (never blocks); the previous job must have been collected. */
+void ds_fold_worker_submit (DsFoldWorker *worker, const DsCaptureSettings *s, guint phase,
+                            DsFrame *frame, gint64 applied_at_us);
+/* Waits for the submitted job and moves its outcome (verdict, fold error) to *job. */
+void ds_fold_worker_collect (DsFoldWorker *worker, DsFoldJob *job);
 
 /* ---- sequencer_dark.c ---- */
 

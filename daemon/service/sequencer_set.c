@@ -77,13 +77,10 @@ acquire_set (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag, DsFrameC
    * none (or one for other settings). */
   if (!ds_phase_set_set_dark (seq->set, use_dark, error))
     return NULL;
-  for (guint k = 0; k < s->phases; k++) {
-    if (!ds_seq_acquire_phase (seq, s, k, c, error)) {
-      if (seq->phase_check.provisional)
-        ds_phase_check_abandon (&seq->phase_check);
-      return NULL;
-    }
-    ds_seq_emit_progress (seq, tag, k, s->phases);
+  if (!ds_seq_acquire_phases (seq, s, tag, c, error)) {
+    if (seq->phase_check.provisional)
+      ds_phase_check_abandon (&seq->phase_check);
+    return NULL;
   }
   *last_frame_us = seq->last_frame_us;
   return ds_phase_set_finalize (seq->set, error);

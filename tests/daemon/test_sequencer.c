@@ -24,6 +24,14 @@ typedef struct {
   int last_lit_phase;      /* phase of the previous frame (for stale frames) */
   /* scripted faults: count down to zero, then happen once (0 = never) */
   guint stale_in, incomplete_in, wrong_phase_in, gap_in, disconnect_in, timeout_in;
+  /* late_in: that grab times out, but its frame (lit by the phase applied then) was only
+   * delayed: it is delivered at the next trigger, ahead of that trigger's own frame, so after
+   * the sequencer applied another phase and flushed. */
+  guint late_in;
+  DsFrame *withheld, *delivered;
+  guint withheld_at_phase_log; /* released only by a trigger after a later set_phase */
+  int phase_log[64];       /* every set_phase, in order */
+  guint n_phase_log;
   guint64 dead_after;      /* every grab times out once this many frames were delivered (0 = never) */
   gboolean disconnected;
   guint reconnects;
@@ -80,6 +88,8 @@ cam_trigger (gpointer b, GError **e)
     g_set_error (e, DS_CAMERA_ERROR, DS_DEVICE_ERROR_DISCONNECTED, "camera gone");
     return FALSE;
   }
+  if (lab->withheld && !lab->delivered && lab->n_phase_log > lab->withheld_at_phase_log)
+    lab->delivered = g_steal_pointer (&lab->withheld);
   lab->triggered = TRUE;
   return TRUE;
 }
@@ -91,6 +101,20 @@ cam_grab (gpointer b, guint timeout_ms, GError **e)
   Lab *lab = b;
   if (lab->disconnected) {
     g_set_error (e, DS_CAMERA_ERROR, DS_DEVICE_ERROR_DISCONNECTED, "camera gone");
+    return NULL;
+  }
+  if (lab->delivered) {
+    /* The delayed frame comes first; this trigger's own frame stays pending. */
+    DsFrame *f = g_steal_pointer (&lab->delivered);
+    f->host_time_us = g_get_monotonic_time ();
+    return f;
+  }
+  if (lab->triggered && fault_now (&lab->late_in)) {
+    lab->triggered = FALSE;
+    lab->withheld = render (lab, lab->applied_phase);
+    lab->withheld_at_phase_log = lab->n_phase_log;
+    lab->last_lit_phase = lab->applied_phase;
+    g_set_error (e, DS_CAMERA_ERROR, DS_DEVICE_ERROR_TIMEOUT, "no frame (delayed)");
     return NULL;
   }
   if (!lab->triggered || fault_now (&lab->timeout_in) ||
@@ -146,7 +170,13 @@ cam_info (gpointer b, DsCameraInfo *i)
   i->connected = TRUE;
 }
 
-static void cam_close (gpointer b) { (void) b; }
+static void
+cam_close (gpointer b)
+{
+  Lab *lab = b;
+  g_clear_pointer (&lab->withheld, ds_frame_free);
+  g_clear_pointer (&lab->delivered, ds_frame_free);
+}
 
 static const DsCameraOps cam_ops = { "scripted", cam_configure, cam_start, cam_trigger, cam_grab,
                                      cam_flush, cam_stop, cam_reconnect, cam_stats, cam_info,
@@ -165,6 +195,8 @@ ill_phase (gpointer b, guint phase, guint timeout_ms, GError **e)
   (void) timeout_ms;
   (void) e;
   Lab *lab = b;
+  if (lab->n_phase_log < G_N_ELEMENTS (lab->phase_log))
+    lab->phase_log[lab->n_phase_log++] = (int) phase;
   lab->applied_phase = (int) phase;
   if (fault_now (&lab->wrong_phase_in))
     lab->applied_phase = (int) ((phase + 1) % lab->n_phases);
@@ -504,6 +536,123 @@ test_automatic_operating_point (Fixture *f, gconstpointer d)
   g_assert_nonnull (strstr (f->out.failure->message, "no operating point"));
 }
 
+/* ---- the pipeline's hazards (docs/design.md, "The pipeline") ---- */
+
+static void
+assert_phase_log (const Lab *lab, guint from, const int *expected, guint n)
+{
+  g_assert_cmpuint (lab->n_phase_log - from, ==, n);
+  for (guint i = 0; i < n; i++)
+    g_assert_cmpint (lab->phase_log[from + i], ==, expected[i]);
+}
+
+/* A frame of phase 2 is delayed so long that it arrives after phase 3 was applied and the
+ * stale buffers were flushed: it has a fresh id and a timestamp after the application, so
+ * only its stripe phase gives it away. It must not be folded into phase 3. */
+static void
+test_pipeline_late_frame (Fixture *f, gconstpointer d)
+{
+  (void) d;
+  DsCaptureSettings s;
+  default_settings (&s, 8);
+  capture (f, &s);
+  g_assert_nonnull (f->out.result);
+  DsSequencerStatus before, after;
+  ds_sequencer_get_status (f->seq, &before);
+  guint log0 = f->lab.n_phase_log;
+  f->lab.late_in = 3; /* the first frame of phase 2 */
+  capture (f, &s);
+  g_assert_no_error (f->out.failure);
+  assert_scene_recovered (f->out.result);
+  ds_sequencer_get_status (f->seq, &after);
+  g_assert_cmpuint (after.frames.timeouts - before.frames.timeouts, ==, 1);
+  g_assert_cmpuint (after.frames.by_reason[DS_DROP_WRONG_PHASE] - before.frames.by_reason[DS_DROP_WRONG_PHASE], ==, 1);
+  g_assert_cmpuint (after.frames.folded - before.frames.folded, ==, 8);
+  /* Phase 3 was applied again after the verdict; phase 4's frame, grabbed meanwhile, kept. */
+  static const int expected[] = { 0, 1, 2, 3, 4, 3, 5, 6, 7 };
+  assert_phase_log (&f->lab, log0, expected, G_N_ELEMENTS (expected));
+  assert_accounting (f);
+}
+
+/* The verdict on phase 3's frame (it shows phase 2) comes after the illuminator moved to
+ * phase 4 and phase 4's frame was grabbed: phase 3 is applied again and re-acquired, the frame
+ * of phase 4 is folded after it, not thrown away. */
+static void
+test_pipeline_drop_after_move (Fixture *f, gconstpointer data)
+{
+  guint bad = GPOINTER_TO_UINT (data); /* 1-based grab that shows the previous phase */
+  DsCaptureSettings s;
+  default_settings (&s, 8);
+  capture (f, &s);
+  g_assert_nonnull (f->out.result);
+  DsSequencerStatus before, after;
+  ds_sequencer_get_status (f->seq, &before);
+  guint log0 = f->lab.n_phase_log;
+  f->lab.stale_in = bad;
+  capture (f, &s);
+  g_assert_no_error (f->out.failure);
+  assert_scene_recovered (f->out.result);
+  ds_sequencer_get_status (f->seq, &after);
+  g_assert_cmpuint (after.frames.acquired - before.frames.acquired, ==, 9);
+  g_assert_cmpuint (after.frames.by_reason[DS_DROP_WRONG_PHASE] - before.frames.by_reason[DS_DROP_WRONG_PHASE], ==, 1);
+  int expected[9];
+  guint n = 0, b = bad - 1; /* the phase whose frame is bad */
+  if (b < 7) {
+    for (guint k = 0; k <= b + 1; k++)
+      expected[n++] = (int) k;
+    expected[n++] = (int) b; /* judged while phase b+1 was applied: back to b */
+    for (guint k = b + 2; k < 8; k++)
+      expected[n++] = (int) k;
+  } else {
+    for (guint k = 0; k < 8; k++)
+      expected[n++] = (int) k;
+    expected[n++] = 7; /* nothing was grabbed after the last frame: phase 7 applied again */
+  }
+  assert_phase_log (&f->lab, log0, expected, n);
+  assert_accounting (f);
+}
+
+/* With M frames per phase a dropped frame is replaced within the phase: no phase is applied
+ * again, and the phase still gets exactly M folded frames. */
+static void
+test_pipeline_averages_drop (Fixture *f, gconstpointer d)
+{
+  (void) d;
+  DsCaptureSettings s;
+  default_settings (&s, 4);
+  s.averages = 3;
+  guint log0 = f->lab.n_phase_log;
+  f->lab.gap_in = 5; /* the second frame of phase 1 */
+  capture (f, &s);
+  g_assert_no_error (f->out.failure);
+  assert_scene_recovered (f->out.result);
+  DsSequencerStatus st;
+  ds_sequencer_get_status (f->seq, &st);
+  g_assert_cmpuint (st.frames.folded, ==, 12);
+  g_assert_cmpuint (st.frames.acquired, ==, 13);
+  g_assert_cmpuint (st.frames.by_reason[DS_DROP_FRAME_GAP], ==, 1);
+  g_assert_cmpuint (ds_result_separation (f->out.result)->meta.frames_per_phase, ==, 3);
+  static const int expected[] = { 0, 1, 2, 3 };
+  assert_phase_log (&f->lab, log0, expected, G_N_ELEMENTS (expected));
+  assert_accounting (f);
+}
+
+/* The daemon stops while a frame is in the worker: the set ends cancelled, the worker is
+ * joined, nothing leaks (ASan) and every frame is accounted for. */
+static void
+test_pipeline_quit_mid_set (Fixture *f, gconstpointer d)
+{
+  (void) d;
+  DsCaptureSettings s;
+  default_settings (&s, 8);
+  s.averages = 100000;
+  g_assert_true (ds_sequencer_capture (f->seq, &s, 9));
+  /* Let it run a little, then stop: the thread sees quit between two frames. */
+  g_usleep (20000);
+  ds_sequencer_free (f->seq);
+  f->seq = NULL;
+}
+
 int
 main (int argc, char **argv)
 {
@@ -520,5 +669,11 @@ main (int argc, char **argv)
   ADD ("averages", test_averages, NULL);
   ADD ("dark-frame", test_dark_frame, NULL);
   ADD ("automatic-operating-point", test_automatic_operating_point, NULL);
+  ADD ("pipeline/late-frame-after-next-phase", test_pipeline_late_frame, NULL);
+  ADD ("pipeline/drop-after-illuminator-moved", test_pipeline_drop_after_move, GUINT_TO_POINTER (4));
+  ADD ("pipeline/first-frame-dropped", test_pipeline_drop_after_move, GUINT_TO_POINTER (1));
+  ADD ("pipeline/last-frame-dropped", test_pipeline_drop_after_move, GUINT_TO_POINTER (8));
+  ADD ("pipeline/averages-drop-within-phase", test_pipeline_averages_drop, NULL);
+  ADD ("pipeline/quit-mid-set", test_pipeline_quit_mid_set, NULL);
   return g_test_run ();
 }

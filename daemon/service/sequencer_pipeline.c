@@ -1,0 +1,232 @@
+/* The pipeline: the N phases of a set (M frames each) acquired so that verifying and folding
+ * frame i overlaps with moving the illuminator to the phase of frame i+1 and exposing it.
+ * Why each overlap keeps the sequencer contract is argued in docs/design.md ("The pipeline");
+ * in short:
+ *   - the illuminator leaves phase k only after the last frame of k was received, so its
+ *     exposure is over; a trigger goes out only after set_phase returned (phase applied) and
+ *     stale buffers were flushed;
+ *   - each frame carries the time its own phase was applied and is verified against that phase
+ *     (stale, frame gap, stripe phase) before it is folded, exactly as without the pipeline;
+ *   - frames are verified and folded in the order they were grabbed (one job at a time);
+ *   - when the verdict on frame i is a drop after the illuminator already moved on, the frame
+ *     grabbed meanwhile is kept back, phase k is applied again and re-acquired, and the kept
+ *     frame is folded after it (it was exposed while its own phase was applied).
+ * Every frame ends in exactly one counter: folded (via the set), or dropped with its reason. */
+#include "daemon/protocol/protocol.h"
+#include "daemon/service/sequencer_private.h"
+
+typedef struct {
+  DsSequencer *seq;
+  const DsCaptureSettings *s;
+  guint64 tag;
+  DsFrameCounters *c;
+  guint *accepted;        /* frames of each phase verified and folded */
+  guint *retries_left;    /* per phase */
+  /* The frame in the worker (at most one). */
+  gboolean in_flight;
+  guint in_flight_phase;
+  DsFrame *in_flight_frame;
+  /* A frame grabbed while the verdict on the previous one was a drop of an earlier phase:
+   * folded once that phase is complete again. */
+  DsFrame *held;
+  guint held_phase;
+  gint64 held_applied_at;
+  gboolean failing;       /* the set failed: collect the last job without reporting progress */
+} Pipeline;
+
+/* Consumes one retry of phase k after `why`; fails with `why` when none are left. */
+static gboolean
+use_retry (Pipeline *pl, guint k, GError **why, GError **error)
+{
+  if (pl->retries_left[k] == 0) {
+    g_propagate_prefixed_error (error, g_steal_pointer (why), "phase %u: retries exhausted: ", k);
+    return FALSE;
+  }
+  pl->retries_left[k]--;
+  pl->c->retries++;
+  g_clear_error (why);
+  return TRUE;
+}
+
+/* Waits for the frame in the worker and accounts for it. *dropped_phase receives its phase when
+ * verification dropped it, else G_MAXUINT; *reapply when the illuminator must apply that phase
+ * again. FALSE with error when the set must fail (fold error, retries exhausted). */
+static gboolean
+collect (Pipeline *pl, guint *dropped_phase, gboolean *reapply, GError **error)
+{
+  *dropped_phase = G_MAXUINT;
+  *reapply = FALSE;
+  if (!pl->in_flight)
+    return TRUE;
+  DsFoldJob job;
+  ds_fold_worker_collect (pl->seq->worker, &job);
+  pl->in_flight = FALSE;
+  guint k = pl->in_flight_phase;
+  g_autoptr (DsFrame) frame = g_steal_pointer (&pl->in_flight_frame);
+  if (job.verdict.reason != DS_DROP_N_REASONS) {
+    ds_frame_counters_drop (pl->c, job.verdict.reason, 1);
+    GError *why = g_error_new (DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_DEVICE, "frame dropped (%s): %s",
+                               ds_drop_reason_name (job.verdict.reason),
+                               job.verdict.detail ? job.verdict.detail : "");
+    *dropped_phase = k;
+    *reapply = job.verdict.reapply_phase;
+    ds_frame_verdict_clear (&job.verdict);
+    if (!use_retry (pl, k, &why, &why)) {
+      g_propagate_prefixed_error (error, why, "phase %u: ", k);
+      return FALSE;
+    }
+    return TRUE;
+  }
+  if (!job.folded) {
+    ds_frame_counters_drop (pl->c, DS_DROP_ABORTED, 1);
+    g_propagate_error (error, job.fold_error);
+    return FALSE;
+  }
+  gint64 arrival = frame->host_time_us ? (gint64) frame->host_time_us : g_get_monotonic_time ();
+  pl->seq->last_frame_us = MAX (pl->seq->last_frame_us, arrival);
+  if (++pl->accepted[k] == pl->s->averages && !pl->failing)
+    ds_seq_emit_progress (pl->seq, pl->tag, k, pl->s->phases);
+  return TRUE;
+}
+
+static void
+submit (Pipeline *pl, guint k, DsFrame *frame, gint64 applied_at)
+{
+  pl->in_flight = TRUE;
+  pl->in_flight_phase = k;
+  pl->in_flight_frame = frame;
+  ds_fold_worker_submit (pl->seq->worker, pl->s, k, frame, applied_at);
+}
+
+/* Frames phase k has or will have once the worker answers. */
+static guint
+frames_of (const Pipeline *pl, guint k)
+{
+  return pl->accepted[k] + (pl->in_flight && pl->in_flight_phase == k) +
+         (pl->held && pl->held_phase == k);
+}
+
+static gboolean
+run (Pipeline *pl, GError **error)
+{
+  DsSequencer *seq = pl->seq;
+  const DsCaptureSettings *s = pl->s;
+  int applied = -1;       /* the phase the illuminator shows, -1 unknown */
+  gint64 applied_at = 0;
+  guint k = 0;
+  for (;;) {
+    if (!ds_seq_check_quit (seq, error))
+      return FALSE;
+    guint dropped;
+    if (k >= s->phases) {
+      /* Every phase has its frames, the last one perhaps still in the worker. */
+      if (!pl->in_flight)
+        return TRUE;
+      gboolean re;
+      if (!collect (pl, &dropped, &re, error))
+        return FALSE;
+      if (dropped != G_MAXUINT) {
+        k = dropped;
+        if (re && applied == (int) dropped)
+          applied = -1;
+      }
+      continue;
+    }
+    if (pl->held && pl->held_phase == k) {
+      /* Phase k-1 is complete again: the frame kept back goes to the worker. */
+      gboolean re;
+      if (!collect (pl, &dropped, &re, error))
+        return FALSE;
+      if (dropped != G_MAXUINT) {
+        k = dropped;
+        if (re && applied == (int) dropped)
+          applied = -1;
+        continue;
+      }
+      DsFrame *f = g_steal_pointer (&pl->held);
+      submit (pl, k, f, pl->held_applied_at);
+      continue;
+    }
+    if (frames_of (pl, k) >= s->averages) {
+      k++;
+      continue;
+    }
+    GError *why = NULL;
+    if (applied != (int) k) {
+      /* Overlaps with the worker verifying and folding the previous phase's last frame. */
+      gint64 t = g_get_monotonic_time ();
+      if (!seq->dev->illuminator->ops->set_phase (seq->dev->illuminator->backend, k,
+                                                  seq->dev->settle_timeout_ms, &why)) {
+        pl->c->device_errors++;
+        applied = -1;
+        g_prefix_error (&why, "illuminator: ");
+        if (ds_seq_fatal_device_error (seq, why) || !use_retry (pl, k, &why, &why)) {
+          g_propagate_prefixed_error (error, why, "phase %u: ", k);
+          return FALSE;
+        }
+        continue;
+      }
+      ds_seq_stage_add (seq, DS_STAGE_SET_PHASE, t);
+      ds_seq_flush_stale (seq, pl->c);
+      applied = (int) k;
+      applied_at = g_get_monotonic_time ();
+    }
+    DsFrame *frame = ds_seq_trigger_and_grab (seq, pl->c, &why);
+    if (!frame) {
+      g_prefix_error (&why, "camera: ");
+      if (ds_seq_fatal_device_error (seq, why) || !use_retry (pl, k, &why, &why)) {
+        g_propagate_prefixed_error (error, why, "phase %u: ", k);
+        return FALSE;
+      }
+      /* After a lost frame the illuminator's state is still right, but a late buffer of the
+       * lost trigger may arrive: flush before the next trigger. */
+      ds_seq_flush_stale (seq, pl->c);
+      continue;
+    }
+    gboolean re;
+    if (!collect (pl, &dropped, &re, error)) {
+      ds_frame_free (frame); /* acquired, not dropped: the caller counts it as aborted */
+      return FALSE;
+    }
+    if (dropped != G_MAXUINT && re && applied == (int) dropped)
+      applied = -1;
+    if (dropped != G_MAXUINT && dropped < k) {
+      /* The illuminator moved on before the verdict came: keep this frame (exposed while k
+       * was applied), go back to the dropped phase. */
+      g_assert (!pl->held);
+      pl->held = frame;
+      pl->held_phase = k;
+      pl->held_applied_at = applied_at;
+      k = dropped;
+      continue;
+    }
+    submit (pl, k, frame, applied_at);
+  }
+}
+
+gboolean
+ds_seq_acquire_phases (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag,
+                       DsFrameCounters *c, GError **error)
+{
+  g_autofree guint *accepted = g_new0 (guint, s->phases);
+  g_autofree guint *retries_left = g_new (guint, s->phases);
+  for (guint k = 0; k < s->phases; k++)
+    retries_left[k] = s->phase_retries;
+  seq->last_frame_us = 0;
+  Pipeline pl = { .seq = seq, .s = s, .tag = tag, .c = c, .accepted = accepted,
+                  .retries_left = retries_left };
+  gboolean ok = run (&pl, error);
+  pl.failing = !ok;
+  if (pl.in_flight) {
+    /* A failing set still waits for its last job: the worker must be idle before the phase
+     * set is touched again, and the frame is counted like any other. */
+    guint dropped;
+    gboolean re;
+    g_autoptr (GError) ignored = NULL;
+    collect (&pl, &dropped, &re, &ignored);
+  }
+  /* A frame kept back and never folded is acquired but not dropped: the caller counts it as
+   * aborted with the rest of the failed set. */
+  g_clear_pointer (&pl.held, ds_frame_free);
+  return ok;
+}
