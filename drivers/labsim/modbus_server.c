@@ -1,48 +1,17 @@
-#include "drivers/labsim/modbus_server.h"
+/* The controller's device model and its answer to one request PDU, whatever the transport.
+ * The answers follow docs/registers.md, written out here rather than through libmodbus's
+ * modbus_reply, so that every fault (short, silent, bad CRC) can be made on any answer. */
+#include "drivers/labsim/modbus_server_private.h"
 
-#include <errno.h>
 #include <gio/gio.h>
 #include <glib-unix.h>
-#include <modbus.h>
-#include <netinet/in.h>
 #include <poll.h>
 #include <string.h>
-#include <sys/socket.h>
 #include <unistd.h>
 
-#include "drivers/modbus/registers.h"
-
-/* One thread per connection, so that a delayed answer to one client (a fault knob) does not
- * hold up the others, as on a real multi-connection controller. */
-typedef struct {
-  DsModbusServer *server;
-  int fd;
-  modbus_t *ctx;
-  GThread *thread;
-  gboolean done;
-} Client;
-
-struct DsModbusServer {
-  GMutex lock;
-  DsModbusServerConfig cfg;
-  modbus_mapping_t *map;   /* holding = what was written; input = filled before each read */
-  char *address;
-  modbus_t *listen_ctx;
-  int listen_fd;
-  guint port;
-  int wake[2];             /* pipe written once at shutdown, never drained: wakes every thread */
-  gboolean quit;
-  GPtrArray *clients;      /* Client* */
-  GThread *thread;         /* accepts connections */
-  GRand *rand;
-
-  /* The device model. */
-  guint16 applied[DS_MB_HOLD_COUNT];
-  gboolean pending;
-  gint64 pending_at_us;
-  guint16 apply_count;
-  guint64 requests, connections;
-};
+/* Function codes and exception codes of the Modbus application protocol. */
+enum { FC_READ_HOLDING = 0x03, FC_READ_INPUT = 0x04, FC_WRITE_SINGLE = 0x06, FC_WRITE_MULTIPLE = 0x10 };
+enum { EX_ILLEGAL_FUNCTION = 1, EX_ILLEGAL_ADDRESS = 2, EX_ILLEGAL_VALUE = 3, EX_BUSY = 6 };
 
 void
 ds_modbus_server_config_init (DsModbusServerConfig *config)
@@ -52,6 +21,18 @@ ds_modbus_server_config_init (DsModbusServerConfig *config)
   config->seed = 1;
 }
 
+guint16
+ds_modbus_crc16 (const guint8 *data, gsize len)
+{
+  guint16 crc = 0xFFFF;
+  for (gsize i = 0; i < len; i++) {
+    crc ^= data[i];
+    for (int b = 0; b < 8; b++)
+      crc = (crc & 1) ? (guint16) ((crc >> 1) ^ 0xA001) : (guint16) (crc >> 1);
+  }
+  return crc;
+}
+
 /* Applies a write whose settle time has passed. Called with the lock held. */
 static void
 advance (DsModbusServer *s, gint64 now)
@@ -59,7 +40,7 @@ advance (DsModbusServer *s, gint64 now)
   if (!s->pending || now < s->pending_at_us || s->cfg.stuck_not_ready || s->cfg.fault ||
       s->cfg.over_temperature)
     return;
-  memcpy (s->applied, s->map->tab_registers, sizeof s->applied);
+  memcpy (s->applied, s->hold, sizeof s->applied);
   if (s->cfg.wrong_phase && s->applied[DS_MB_HOLD_ENABLE] && s->applied[DS_MB_HOLD_NUM_PHASES] > 0)
     s->applied[DS_MB_HOLD_PHASE] = (guint16) ((s->applied[DS_MB_HOLD_PHASE] + 1) %
                                               s->applied[DS_MB_HOLD_NUM_PHASES]);
@@ -74,9 +55,8 @@ lit (const DsModbusServer *s)
 }
 
 static void
-fill_inputs (DsModbusServer *s)
+inputs (const DsModbusServer *s, guint16 *in)
 {
-  guint16 *in = s->map->tab_input_registers;
   gboolean busy = s->pending || s->cfg.stuck_not_ready;
   guint16 status = 0;
   if (!busy && !s->cfg.fault && !s->cfg.over_temperature)
@@ -108,194 +88,132 @@ valid (const guint16 *h)
          h[DS_MB_HOLD_BLACK_PERMILLE] <= 999 && h[DS_MB_HOLD_INTENSITY_PERMILLE] <= 1000;
 }
 
-/* A well-formed Modbus TCP answer carrying one register fewer than asked for. */
-static gboolean
-send_short_answer (DsModbusServer *s, modbus_t *ctx, const uint8_t *q, int hl)
+static DsMbVerdict
+exception (const guint8 *pdu, guint code, DsMbAnswer *a)
 {
-  guint addr = (guint) (q[hl + 1] << 8 | q[hl + 2]);
-  guint nb = (guint) (q[hl + 3] << 8 | q[hl + 4]);
-  gboolean input = q[hl] == MODBUS_FC_READ_INPUT_REGISTERS;
-  guint limit = input ? DS_MB_INPUT_COUNT : DS_MB_HOLD_COUNT;
-  if (nb < 2 || addr + nb > limit)
-    return modbus_reply_exception (ctx, q, MODBUS_EXCEPTION_ILLEGAL_DATA_ADDRESS) >= 0;
-  if (input)
-    fill_inputs (s);
-  const guint16 *regs = input ? s->map->tab_input_registers : s->map->tab_registers;
-  guint8 rsp[7 + 2 + 2 * 125];
-  guint n = nb - 1, len = 0;
-  rsp[len++] = q[0]; /* transaction id */
-  rsp[len++] = q[1];
-  rsp[len++] = 0;    /* protocol id */
-  rsp[len++] = 0;
-  rsp[len++] = (guint8) ((3 + 2 * n) >> 8);
-  rsp[len++] = (guint8) ((3 + 2 * n) & 0xff);
-  rsp[len++] = q[6]; /* unit id */
-  rsp[len++] = q[hl];
-  rsp[len++] = (guint8) (2 * n);
-  for (guint i = 0; i < n; i++) {
-    rsp[len++] = (guint8) (regs[addr + i] >> 8);
-    rsp[len++] = (guint8) (regs[addr + i] & 0xff);
-  }
-  return send (modbus_get_socket (ctx), rsp, len, MSG_NOSIGNAL) == (ssize_t) len;
+  a->pdu[0] = (guint8) (pdu[0] | 0x80);
+  a->pdu[1] = (guint8) code;
+  a->len = 2;
+  return DS_MB_VERDICT_REPLY;
 }
 
-/* Answers one request on the current socket. Returns FALSE when the connection must close. */
-static gboolean
-handle_request (DsModbusServer *s, modbus_t *ctx, const uint8_t *q, int len)
+static guint
+be16 (const guint8 *p)
 {
-  int hl = modbus_get_header_length (ctx);
-  if (len < hl + 1)
-    return FALSE;
-  guint8 fc = q[hl];
-  guint n = (guint) ++s->requests;
+  return (guint) (p[0] << 8 | p[1]);
+}
+
+/* Reads: the registers asked for, or one fewer when `short_by_one` (a well-formed answer that
+ * carries less than asked: the client must notice). */
+static DsMbVerdict
+answer_read (DsModbusServer *s, const guint8 *pdu, gsize len, gboolean short_by_one, DsMbAnswer *a)
+{
+  if (len != 5)
+    return DS_MB_VERDICT_CLOSE;
+  guint addr = be16 (pdu + 1), nb = be16 (pdu + 3);
+  gboolean input = pdu[0] == FC_READ_INPUT;
+  guint limit = input ? DS_MB_INPUT_COUNT : DS_MB_HOLD_COUNT;
+  if (nb < 1 || nb > 125)
+    return exception (pdu, EX_ILLEGAL_VALUE, a);
+  if (addr + nb > limit)
+    return exception (pdu, EX_ILLEGAL_ADDRESS, a);
+  guint16 in[DS_MB_INPUT_COUNT];
+  inputs (s, in);
+  const guint16 *regs = input ? in : s->hold;
+  guint n = short_by_one && nb >= 2 ? nb - 1 : nb;
+  a->pdu[0] = pdu[0];
+  a->pdu[1] = (guint8) (2 * n);
+  for (guint i = 0; i < n; i++) {
+    a->pdu[2 + 2 * i] = (guint8) (regs[addr + i] >> 8);
+    a->pdu[3 + 2 * i] = (guint8) (regs[addr + i] & 0xff);
+  }
+  a->len = 2 + 2 * n;
+  return DS_MB_VERDICT_REPLY;
+}
+
+/* Writes: checked on the registers as they would be after the write; one apply is scheduled
+ * per accepted write request. */
+static DsMbVerdict
+answer_write (DsModbusServer *s, const guint8 *pdu, gsize len, gint64 now, DsMbAnswer *a)
+{
+  guint16 tentative[DS_MB_HOLD_COUNT];
+  memcpy (tentative, s->hold, sizeof tentative);
+  guint addr = len >= 3 ? be16 (pdu + 1) : 0;
+  if (pdu[0] == FC_WRITE_SINGLE) {
+    if (len != 5)
+      return DS_MB_VERDICT_CLOSE;
+    if (addr >= DS_MB_HOLD_COUNT)
+      return exception (pdu, EX_ILLEGAL_ADDRESS, a);
+    tentative[addr] = (guint16) be16 (pdu + 3);
+  } else {
+    if (len < 6)
+      return DS_MB_VERDICT_CLOSE;
+    guint nb = be16 (pdu + 3);
+    if (nb < 1 || nb > 123 || pdu[5] != 2 * nb || len != 6 + 2 * (gsize) nb)
+      return exception (pdu, EX_ILLEGAL_VALUE, a);
+    if (addr + nb > DS_MB_HOLD_COUNT)
+      return exception (pdu, EX_ILLEGAL_ADDRESS, a);
+    for (guint i = 0; i < nb; i++)
+      tentative[addr + i] = (guint16) be16 (pdu + 6 + 2 * i);
+  }
+  if (!valid (tentative))
+    return exception (pdu, EX_ILLEGAL_VALUE, a);
+  memcpy (s->hold, tentative, sizeof s->hold);
+  s->pending = TRUE;
+  s->pending_at_us = now + s->cfg.settle_us;
+  /* Both answers echo the first five bytes of the request (address and value or count). */
+  memcpy (a->pdu, pdu, 5);
+  a->len = 5;
+  return DS_MB_VERDICT_REPLY;
+}
+
+/* Called with the lock held; releases it for the delay knob. */
+static DsMbVerdict
+answer_locked (DsModbusServer *s, const guint8 *pdu, gsize len, gboolean rtu, DsMbAnswer *a)
+{
+  guint64 n = ++s->requests;
   DsModbusServerConfig cfg = s->cfg;
   if (cfg.drop_every && n % cfg.drop_every == 0)
-    return FALSE;
+    /* A serial peer cannot hang up: it just does not answer. */
+    return rtu ? DS_MB_VERDICT_SILENT : DS_MB_VERDICT_CLOSE;
+  if (cfg.silent_every && n % cfg.silent_every == 0)
+    return DS_MB_VERDICT_SILENT;
   if (cfg.delay_every && n % cfg.delay_every == 0 && cfg.delay_ms) {
     g_mutex_unlock (&s->lock);
     struct pollfd p = { .fd = s->wake[0], .events = POLLIN };
     (void) poll (&p, 1, (int) cfg.delay_ms);
     g_mutex_lock (&s->lock);
     if (s->quit)
-      return FALSE;
+      return DS_MB_VERDICT_CLOSE;
   }
-  if (cfg.exception_rate > 0 && g_rand_double (s->rand) < cfg.exception_rate) {
-    modbus_reply_exception (ctx, q, cfg.exception_code ? cfg.exception_code
-                                                          : MODBUS_EXCEPTION_SLAVE_OR_SERVER_BUSY);
-    return TRUE;
-  }
+  a->bad_crc = rtu && cfg.bad_crc_every && n % cfg.bad_crc_every == 0;
+  if (cfg.exception_rate > 0 && g_rand_double (s->rand) < cfg.exception_rate)
+    return exception (pdu, cfg.exception_code ? cfg.exception_code : EX_BUSY, a);
   gint64 now = g_get_monotonic_time ();
   advance (s, now);
-  if (cfg.short_every && n % cfg.short_every == 0 && len >= hl + 5 &&
-      (fc == MODBUS_FC_READ_HOLDING_REGISTERS || fc == MODBUS_FC_READ_INPUT_REGISTERS) &&
-      modbus_get_header_length (ctx) == 7)
-    return send_short_answer (s, ctx, q, hl);
-  guint16 tentative[DS_MB_HOLD_COUNT];
-  memcpy (tentative, s->map->tab_registers, sizeof tentative);
-  gboolean is_write = FALSE;
-  switch (fc) {
-  case MODBUS_FC_READ_HOLDING_REGISTERS:
-    break;
-  case MODBUS_FC_READ_INPUT_REGISTERS:
-    fill_inputs (s);
-    break;
-  case MODBUS_FC_WRITE_SINGLE_REGISTER: {
-    if (len < hl + 5)
-      return FALSE;
-    guint addr = (guint) (q[hl + 1] << 8 | q[hl + 2]);
-    if (addr < DS_MB_HOLD_COUNT) {
-      tentative[addr] = (guint16) (q[hl + 3] << 8 | q[hl + 4]);
-      is_write = TRUE;
-    }
-    break;
-  }
-  case MODBUS_FC_WRITE_MULTIPLE_REGISTERS: {
-    if (len < hl + 6)
-      return FALSE;
-    guint addr = (guint) (q[hl + 1] << 8 | q[hl + 2]);
-    guint nb = (guint) (q[hl + 3] << 8 | q[hl + 4]);
-    if (addr + nb <= DS_MB_HOLD_COUNT && len >= hl + 6 + (int) (2 * nb)) {
-      for (guint i = 0; i < nb; i++)
-        tentative[addr + i] = (guint16) (q[hl + 6 + 2 * i] << 8 | q[hl + 7 + 2 * i]);
-      is_write = TRUE;
-    }
-    break;
-  }
+  switch (pdu[0]) {
+  case FC_READ_HOLDING:
+  case FC_READ_INPUT:
+    return answer_read (s, pdu, len, cfg.short_every && n % cfg.short_every == 0, a);
+  case FC_WRITE_SINGLE:
+  case FC_WRITE_MULTIPLE:
+    return answer_write (s, pdu, len, now, a);
   default:
-    modbus_reply_exception (ctx, q, MODBUS_EXCEPTION_ILLEGAL_FUNCTION);
-    return TRUE;
+    return exception (pdu, EX_ILLEGAL_FUNCTION, a);
   }
-  if (is_write && !valid (tentative)) {
-    modbus_reply_exception (ctx, q, MODBUS_EXCEPTION_ILLEGAL_DATA_VALUE);
-    return TRUE;
-  }
-  /* Out-of-range addresses and counts are refused by libmodbus (exception 02). */
-  if (modbus_reply (ctx, q, len, s->map) < 0)
-    return FALSE;
-  if (is_write) {
-    s->pending = TRUE;
-    s->pending_at_us = now + cfg.settle_us;
-  }
-  return TRUE;
 }
 
-static gpointer
-client_thread (gpointer data)
+DsMbVerdict
+ds_modbus_server_answer (DsModbusServer *s, const guint8 *pdu, gsize len, gboolean rtu, DsMbAnswer *a)
 {
-  Client *c = data;
-  DsModbusServer *s = c->server;
-  uint8_t query[MODBUS_TCP_MAX_ADU_LENGTH];
-  for (;;) {
-    struct pollfd fds[2] = { { .fd = s->wake[0], .events = POLLIN }, { .fd = c->fd, .events = POLLIN } };
-    if (poll (fds, 2, -1) < 0 && errno != EINTR)
-      break;
-    if (fds[0].revents)
-      break;
-    if (!fds[1].revents)
-      continue;
-    int len = modbus_receive (c->ctx, query);
-    if (len < 0)
-      break;
-    if (len == 0)
-      continue; /* a request for another unit: ignored */
-    g_mutex_lock (&s->lock);
-    gboolean keep = !s->quit && handle_request (s, c->ctx, query, len);
-    g_mutex_unlock (&s->lock);
-    if (!keep)
-      break;
-  }
-  /* Closed here, so the peer sees the drop at once. */
-  shutdown (c->fd, SHUT_RDWR);
+  a->len = 0;
+  a->bad_crc = FALSE;
+  if (len < 1)
+    return DS_MB_VERDICT_CLOSE;
   g_mutex_lock (&s->lock);
-  c->done = TRUE;
+  DsMbVerdict v = answer_locked (s, pdu, len, rtu, a);
   g_mutex_unlock (&s->lock);
-  return NULL;
-}
-
-static void
-client_free (gpointer data)
-{
-  Client *c = data;
-  g_thread_join (c->thread);
-  modbus_free (c->ctx);
-  close (c->fd);
-  g_free (c);
-}
-
-static gpointer
-accept_thread (gpointer data)
-{
-  DsModbusServer *s = data;
-  for (;;) {
-    struct pollfd fds[2] = { { .fd = s->wake[0], .events = POLLIN }, { .fd = s->listen_fd, .events = POLLIN } };
-    if (poll (fds, 2, -1) < 0 && errno != EINTR)
-      break;
-    if (fds[0].revents)
-      break;
-    if (!(fds[1].revents & POLLIN))
-      continue;
-    int fd = accept4 (s->listen_fd, NULL, NULL, SOCK_CLOEXEC);
-    if (fd < 0)
-      continue;
-    /* Reap finished connections so a long run with dropped links stays bounded. */
-    g_mutex_lock (&s->lock);
-    for (guint i = s->clients->len; i-- > 0;) {
-      Client *old = g_ptr_array_index (s->clients, i);
-      if (old->done)
-        g_ptr_array_remove_index_fast (s->clients, i); /* joins: the thread has returned */
-    }
-    Client *c = g_new0 (Client, 1);
-    c->server = s;
-    c->fd = fd;
-    c->ctx = modbus_new_tcp (s->address, (int) s->port);
-    modbus_set_indication_timeout (c->ctx, 1, 0);
-    modbus_set_socket (c->ctx, fd);
-    s->connections++;
-    g_ptr_array_add (s->clients, c);
-    c->thread = g_thread_new ("modbus-client", client_thread, c);
-    g_mutex_unlock (&s->lock);
-  }
-  return NULL;
+  return v;
 }
 
 DsModbusServer *
@@ -304,54 +222,54 @@ ds_modbus_server_new (const char *address, guint port, const DsModbusServerConfi
 {
   DsModbusServer *s = g_new0 (DsModbusServer, 1);
   g_mutex_init (&s->lock);
-  s->listen_fd = -1;
   s->wake[0] = s->wake[1] = -1;
-  s->address = g_strdup (address);
-  s->clients = g_ptr_array_new_with_free_func (client_free);
   if (config)
     s->cfg = *config;
   else
     ds_modbus_server_config_init (&s->cfg);
   s->rand = g_rand_new_with_seed ((guint32) s->cfg.seed);
-  s->listen_ctx = modbus_new_tcp (address, (int) port);
-  s->map = modbus_mapping_new (0, 0, DS_MB_HOLD_COUNT, DS_MB_INPUT_COUNT);
-  if (!s->listen_ctx || !s->map) {
-    g_set_error (error, G_IO_ERROR, G_IO_ERROR_FAILED, "Modbus server %s:%u: %s", address, port,
-                 modbus_strerror (errno));
-    ds_modbus_server_free (s);
-    return NULL;
-  }
-  s->listen_fd = modbus_tcp_listen (s->listen_ctx, 8);
-  if (s->listen_fd < 0) {
-    int e = errno;
-    g_set_error (error, G_IO_ERROR, g_io_error_from_errno (e), "Modbus server %s:%u: cannot listen: %s",
-                 address, port, g_strerror (e));
-    ds_modbus_server_free (s);
-    return NULL;
-  }
-  struct sockaddr_in sa;
-  socklen_t sl = sizeof sa;
-  if (getsockname (s->listen_fd, (struct sockaddr *) &sa, &sl) == 0)
-    s->port = ntohs (sa.sin_port);
   if (!g_unix_open_pipe (s->wake, FD_CLOEXEC, error)) {
     ds_modbus_server_free (s);
     return NULL;
   }
   /* Power-up state: dark, four phases of 6 px square stripes, nothing applied yet. */
-  guint16 *h = s->map->tab_registers;
-  h[DS_MB_HOLD_NUM_PHASES] = 4;
-  h[DS_MB_HOLD_PERIOD_CENTIPX] = 600;
-  h[DS_MB_HOLD_DUTY_PERMILLE] = 500;
-  h[DS_MB_HOLD_INTENSITY_PERMILLE] = 1000;
-  memcpy (s->applied, h, sizeof s->applied);
-  s->thread = g_thread_new ("modbus-accept", accept_thread, s);
+  s->hold[DS_MB_HOLD_NUM_PHASES] = 4;
+  s->hold[DS_MB_HOLD_PERIOD_CENTIPX] = 600;
+  s->hold[DS_MB_HOLD_DUTY_PERMILLE] = 500;
+  s->hold[DS_MB_HOLD_INTENSITY_PERMILLE] = 1000;
+  memcpy (s->applied, s->hold, sizeof s->applied);
+  if (address) {
+    s->tcp = ds_modbus_tcp_new (s, address, port, error);
+    if (!s->tcp) {
+      ds_modbus_server_free (s);
+      return NULL;
+    }
+  }
   return s;
 }
 
 guint
 ds_modbus_server_port (const DsModbusServer *server)
 {
-  return server->port;
+  return server->tcp ? ds_modbus_tcp_port (server->tcp) : 0;
+}
+
+gboolean
+ds_modbus_server_add_rtu (DsModbusServer *s, const DsModbusRtuConfig *config, GError **error)
+{
+  if (s->rtu) {
+    g_set_error (error, G_IO_ERROR, G_IO_ERROR_EXISTS, "Modbus server: already serving a serial line (%s)",
+                 ds_modbus_rtu_path (s->rtu));
+    return FALSE;
+  }
+  s->rtu = ds_modbus_rtu_new (s, config, error);
+  return s->rtu != NULL;
+}
+
+const char *
+ds_modbus_server_rtu_path (const DsModbusServer *server)
+{
+  return server->rtu ? ds_modbus_rtu_path (server->rtu) : NULL;
 }
 
 void
@@ -386,13 +304,8 @@ ds_modbus_server_get_state (DsModbusServer *s, DsModbusServerState *st)
 void
 ds_modbus_server_drop_clients (DsModbusServer *s)
 {
-  g_mutex_lock (&s->lock);
-  for (guint i = 0; i < s->clients->len; i++) {
-    Client *c = g_ptr_array_index (s->clients, i);
-    if (!c->done)
-      shutdown (c->fd, SHUT_RDWR);
-  }
-  g_mutex_unlock (&s->lock);
+  if (s->tcp)
+    ds_modbus_tcp_drop_clients (s->tcp);
 }
 
 void
@@ -405,21 +318,13 @@ ds_modbus_server_free (DsModbusServer *s)
   g_mutex_unlock (&s->lock);
   if (s->wake[1] >= 0)
     (void) !write (s->wake[1], "q", 1);
-  if (s->thread)
-    g_thread_join (s->thread);
-  g_ptr_array_unref (s->clients); /* joins every connection thread */
-  if (s->listen_fd >= 0)
-    close (s->listen_fd);
+  g_clear_pointer (&s->tcp, ds_modbus_tcp_free);
+  g_clear_pointer (&s->rtu, ds_modbus_rtu_free);
   for (int i = 0; i < 2; i++)
     if (s->wake[i] >= 0)
       close (s->wake[i]);
-  if (s->map)
-    modbus_mapping_free (s->map);
-  if (s->listen_ctx)
-    modbus_free (s->listen_ctx);
   if (s->rand)
     g_rand_free (s->rand);
-  g_free (s->address);
   g_mutex_clear (&s->lock);
   g_free (s);
 }

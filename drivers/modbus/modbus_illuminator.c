@@ -187,6 +187,10 @@ connect_link (ModbusIlluminator *m, GError **error)
     return FALSE;
   }
   m->connected = TRUE;
+  /* A serial line keeps whatever a late answer left in its input queue across close and open:
+   * start from a quiet line. */
+  if (m->uri.transport == DS_MODBUS_RTU)
+    modbus_flush (m->ctx);
   return TRUE;
 }
 
@@ -279,6 +283,11 @@ mb_access (ModbusIlluminator *m, Access access, int addr, int nb, guint16 *regs,
         break;
       g_usleep ((gulong) backoff);
     }
+    /* RTU has no transaction id: a late answer to an earlier request still waiting on the line
+     * would be taken for this one's. (One arriving during this attempt can only be the answer to
+     * an identical earlier attempt of this access: its data is from within the access.) */
+    if (m->connected && m->uri.transport == DS_MODBUS_RTU)
+      modbus_flush (m->ctx);
     made++;
     g_autoptr (GError) link_error = NULL;
     if (!connect_link (m, &link_error)) {
@@ -525,6 +534,11 @@ ds_modbus_illuminator_open (const char *uri, guint unit_id, guint response_timeo
   modbus_set_slave (m->ctx, (int) unit_id);
   modbus_set_error_recovery (m->ctx, MODBUS_ERROR_RECOVERY_NONE);
   modbus_set_response_timeout (m->ctx, response_timeout_ms / 1000, (response_timeout_ms % 1000) * 1000);
+  /* Between two bytes of one answer (libmodbus waits 0.5 s by default): a stalled answer must
+   * not stretch an attempt far past the response timeout. Generous for USB serial adapters,
+   * whose latency timer holds bytes up to 16 ms. */
+  guint byte_ms = MIN (response_timeout_ms, 50u);
+  modbus_set_byte_timeout (m->ctx, 0, byte_ms * 1000);
   if (!connect_link (m, error) || !check_magic (m, error)) {
     modbus_close_backend (m);
     return NULL;

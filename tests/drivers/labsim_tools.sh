@@ -1,6 +1,8 @@
 #!/bin/sh
-# descatter-labsim against programs written elsewhere: mbpoll reads and writes its registers,
-# arv-tool-0.8 reads its camera's features, arv-camera-test-0.8 streams frames from it.
+# descatter-labsim against programs written elsewhere: mbpoll reads and writes its registers over
+# Modbus TCP and over Modbus RTU (on one end of a socat pty pair, mbpoll on the other; and on the
+# pty labsim creates itself), arv-tool-0.8 reads its camera's features, arv-camera-test-0.8
+# streams frames from it.
 # Usage: labsim_tools.sh LABSIM SCENE. Binds UDP 3956 (ctest RESOURCE_LOCK gige_port_3956).
 set -eu
 labsim=$1
@@ -8,15 +10,26 @@ scene=$2
 tmp=$(mktemp -d)
 serial="DSLS$(($$ % 100000))"
 pid=
+socat_pid=
 cleanup() {
   [ -n "$pid" ] && kill -TERM "$pid" 2>/dev/null || true
+  [ -n "$socat_pid" ] && kill -TERM "$socat_pid" 2>/dev/null || true
   rm -rf "$tmp"
 }
 trap cleanup EXIT
 fail() { echo "FAIL: $*" >&2; exit 1; }
 
+# A serial line: two ptys joined by socat, as a USB-RS485 adapter pair would be.
+socat pty,raw,echo=0,link="$tmp/ttyA" pty,raw,echo=0,link="$tmp/ttyB" 2>"$tmp/socat.err" &
+socat_pid=$!
+for _ in $(seq 1 100); do
+  [ -e "$tmp/ttyA" ] && [ -e "$tmp/ttyB" ] && break
+  sleep 0.05
+done
+[ -e "$tmp/ttyB" ] || fail "socat made no pty pair: $(cat "$tmp/socat.err")"
+
 "$labsim" --scene "$scene" --camera-address 127.0.0.1 --camera-serial "$serial" \
-  --modbus 127.0.0.1:0 >"$tmp/out" 2>"$tmp/err" &
+  --modbus 127.0.0.1:0 --modbus-rtu "rtu:$tmp/ttyA?baud=19200&parity=E" >"$tmp/out" 2>"$tmp/err" &
 pid=$!
 for _ in $(seq 1 100); do
   grep -q ready "$tmp/out" 2>/dev/null && break
@@ -43,6 +56,24 @@ mb -t 4 -r 2 127.0.0.1 1 >"$tmp/bad" 2>&1 && fail "NUM_PHASES=1 was accepted"
 mb -t 4 -r 2 127.0.0.1 >"$tmp/np"
 grep -q '^\[2\]:[[:space:]]*4$' "$tmp/np" || fail "NUM_PHASES changed: $(cat "$tmp/np")"
 echo "mbpoll: ok"
+
+# --- mbpoll -m rtu on the far end of the serial line (19200 8E1, the Modbus serial default). ----
+grep -q "rtu=$tmp/ttyA" "$tmp/out" || fail "the ready line does not name the serial line: $(cat "$tmp/out")"
+rtu() { timeout 10 mbpoll -m rtu -b 19200 -P even -a 1 -0 -1 -o 0.5 "$@"; }
+rtu -t 3 -r 0 -c 6 "$tmp/ttyB" >"$tmp/rin" 2>&1 || fail "mbpoll rtu read: $(cat "$tmp/rin")"
+grep -q '^\[0\]:[[:space:]]*17491$' "$tmp/rin" || fail "RTU: MAGIC is not 17491: $(cat "$tmp/rin")"
+rtu -t 4 -r 0 "$tmp/ttyB" 3 1 >"$tmp/rw" 2>&1 || fail "mbpoll rtu write: $(cat "$tmp/rw")"
+sleep 0.1
+rtu -t 3 -r 2 -c 3 "$tmp/ttyB" >"$tmp/rin2" 2>&1 || fail "mbpoll rtu read back: $(cat "$tmp/rin2")"
+grep -q '^\[3\]:[[:space:]]*3$' "$tmp/rin2" || fail "RTU: APPLIED_PHASE is not 3: $(cat "$tmp/rin2")"
+grep -q '^\[4\]:[[:space:]]*2$' "$tmp/rin2" || fail "RTU: APPLY_COUNT is not 2 (one write over TCP, one over RTU): $(cat "$tmp/rin2")"
+# The controller's range check answers exception 03 over RTU as well ...
+rtu -t 4 -r 2 "$tmp/ttyB" 1 >"$tmp/rbad" 2>&1 && fail "RTU: NUM_PHASES=1 was accepted"
+grep -qi "illegal data value" "$tmp/rbad" || fail "RTU: no exception 03 for NUM_PHASES=1: $(cat "$tmp/rbad")"
+# ... and a request for another unit on the line gets no answer at all.
+rtu -a 9 -o 0.3 -t 3 -r 0 -c 1 "$tmp/ttyB" >"$tmp/runit" 2>&1 && fail "RTU: unit 9 answered: $(cat "$tmp/runit")"
+grep -qi "timed out" "$tmp/runit" || fail "RTU: unit 9: expected a timeout: $(cat "$tmp/runit")"
+echo "mbpoll -m rtu: ok"
 
 # --- arv-tool: the camera's features as labsim serves them. ---------------------------------
 timeout 20 arv-tool-0.8 -a 127.0.0.1 control DeviceID Width Height PixelFormat >"$tmp/ctl" 2>&1 ||
@@ -71,7 +102,8 @@ echo "labsim: clean exit"
 
 # --- the GVSP loss knob is seen by a client we did not write. --------------------------------
 "$labsim" --scene "$scene" --camera-address 127.0.0.1 --camera-serial "$serial" \
-  --modbus 127.0.0.1:0 --gvsp-lost-ratio 0.05 >"$tmp/out2" 2>"$tmp/err2" &
+  --modbus 127.0.0.1:0 --gvsp-lost-ratio 0.05 --modbus-rtu pty --modbus-rtu-link "$tmp/ttyLAB" \
+  >"$tmp/out2" 2>"$tmp/err2" &
 pid=$!
 for _ in $(seq 1 100); do
   grep -q ready "$tmp/out2" 2>/dev/null && break
@@ -82,6 +114,11 @@ timeout -s INT 3 arv-camera-test-0.8 -n 127.0.0.1 -f 20 >"$tmp/stream2" 2>&1 || 
 missing=$(sed -n 's/^n_missing_packets *= *//p' "$tmp/stream2")
 [ -n "$missing" ] && [ "$missing" -gt 0 ] || fail "--gvsp-lost-ratio 0.05: no missing packet: $(cat "$tmp/stream2")"
 echo "arv-camera-test with 5% GVSP loss: $missing missing packets"
+# labsim's own pty, through its link (any baud: a pty has none).
+timeout 10 mbpoll -m rtu -b 115200 -P none -a 1 -0 -1 -o 0.5 -t 3 -r 0 -c 1 "$tmp/ttyLAB" >"$tmp/rpty" 2>&1 ||
+  fail "mbpoll on labsim's pty: $(cat "$tmp/rpty")"
+grep -q '^\[0\]:[[:space:]]*17491$' "$tmp/rpty" || fail "pty: MAGIC is not 17491: $(cat "$tmp/rpty")"
+echo "mbpoll -m rtu on labsim's own pty: ok"
 kill -TERM "$pid"
 wait "$pid" || fail "labsim exit status $? after SIGTERM: $(cat "$tmp/err2")"
 pid=

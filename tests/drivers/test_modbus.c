@@ -1,8 +1,11 @@
-/* The Modbus illuminator backend against the lab's Modbus TCP controller (libmodbus on both
- * ends, a real TCP connection on 127.0.0.1 and a free port). Expectations come from the
- * server's own model of what is lit (ds_modbus_server_get_state), from the register map and
- * from the documented error mapping, never from what the backend printed. */
+/* The Modbus illuminator backend against the lab's Modbus controller: over TCP (a real
+ * connection on 127.0.0.1 and a free port) and over RTU (a real serial line: a pseudo-terminal,
+ * whose slave the backend opens as it would /dev/ttyUSB0). Expectations come from the server's
+ * own model of what is lit (ds_modbus_server_get_state), from the register map and from the
+ * documented error mapping and time bounds (docs/registers.md), never from what the backend
+ * printed. */
 #include <errno.h>
+#include <glib/gstdio.h>
 #include <modbus.h>
 #include <string.h>
 
@@ -15,6 +18,7 @@ typedef struct {
   DsModbusServerConfig cfg;
   DsIlluminator *ill;
   char *uri;
+  char *dir;               /* RTU: where the line's symlink lives */
 } Fixture;
 
 static const DsStripePattern four_phases = {
@@ -35,6 +39,30 @@ fixture_setup (Fixture *f, gconstpointer data)
   g_assert_nonnull (f->ill);
 }
 
+/* The same controller on a serial line only: a pty, reached through a symlink that survives
+ * the line going away and coming back. */
+#define RTU_TIMEOUT_MS 100
+static void
+fixture_setup_rtu (Fixture *f, gconstpointer data)
+{
+  (void) data;
+  ds_modbus_server_config_init (&f->cfg);
+  g_autoptr (GError) error = NULL;
+  f->server = ds_modbus_server_new (NULL, 0, &f->cfg, &error);
+  g_assert_no_error (error);
+  f->dir = g_dir_make_tmp ("ds-rtu-XXXXXX", &error);
+  g_assert_no_error (error);
+  g_autofree char *link = g_build_filename (f->dir, "ttyLAB", NULL);
+  DsModbusRtuConfig rc = { .device = "pty", .link = link, .unit_id = 1 };
+  g_assert_true (ds_modbus_server_add_rtu (f->server, &rc, &error));
+  g_assert_no_error (error);
+  g_assert_cmpstr (ds_modbus_server_rtu_path (f->server), ==, link);
+  f->uri = g_strdup_printf ("rtu:%s?baud=115200&parity=N&data=8&stop=1", link);
+  f->ill = ds_modbus_illuminator_open (f->uri, 1, RTU_TIMEOUT_MS, &error);
+  g_assert_no_error (error);
+  g_assert_nonnull (f->ill);
+}
+
 static void
 fixture_teardown (Fixture *f, gconstpointer data)
 {
@@ -42,6 +70,10 @@ fixture_teardown (Fixture *f, gconstpointer data)
   ds_illuminator_close (f->ill);
   ds_modbus_server_free (f->server);
   g_free (f->uri);
+  if (f->dir) {
+    g_rmdir (f->dir);
+    g_free (f->dir);
+  }
 }
 
 static void
@@ -131,7 +163,14 @@ test_sequence (Fixture *f, gconstpointer data)
   DsModbusServerState st;
   g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &four_phases, &error));
   g_assert_no_error (error);
-  ds_modbus_server_get_state (f->server, &st);
+  /* set_pattern's own write applies after the settle time: count from then on. */
+  for (guint i = 0; i < 200; i++) {
+    ds_modbus_server_get_state (f->server, &st);
+    if (st.ready)
+      break;
+    g_usleep (1000);
+  }
+  g_assert_true (st.ready);
   guint count = st.apply_count;
   for (guint round = 0; round < 2; round++)
     for (guint k = 0; k < 4; k++) {
@@ -224,10 +263,16 @@ test_exceptions (Fixture *f, gconstpointer data)
     g_assert_cmpuint (after.requests - before.requests, ==, cases[i].attempts);
     g_assert_false (after.enabled);
   }
-  /* The controller's own range check, seen from a plain libmodbus client: exception 03 and
-   * nothing changes. */
   f->cfg.exception_rate = 0;
   reconfigure (f);
+  if (f->dir) { /* RTU: the raw client below speaks TCP */
+    g_clear_error (&error);
+    g_assert_true (f->ill->ops->set_phase (f->ill->backend, 3, 500, &error));
+    g_assert_no_error (error);
+    return;
+  }
+  /* The controller's own range check, seen from a plain libmodbus client: exception 03 and
+   * nothing changes. */
   modbus_t *raw = modbus_new_tcp ("127.0.0.1", (int) ds_modbus_server_port (f->server));
   g_assert_cmpint (modbus_connect (raw), ==, 0);
   g_assert_cmpint (modbus_write_register (raw, DS_MB_HOLD_NUM_PHASES, 1), ==, -1);
@@ -284,7 +329,11 @@ test_delay (Fixture *f, gconstpointer data)
   (void) data;
   g_autoptr (GError) error = NULL;
   g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &four_phases, &error));
-  f->cfg.delay_ms = 300; /* timeout is 100 ms */
+  /* The timeout is 100 ms. A serial line is one conversation: while the controller sits on a
+   * late answer the retries wait behind it, so over RTU "late for the whole access" means later
+   * than the access's 3 x 100 + 100 ms. */
+  gboolean rtu = f->dir != NULL;
+  f->cfg.delay_ms = rtu ? 500 : 300;
   f->cfg.delay_every = 1;
   reconfigure (f);
   DsModbusServerState before, after;
@@ -295,10 +344,16 @@ test_delay (Fixture *f, gconstpointer data)
   g_assert_nonnull (strstr (error->message, "MAGIC")); /* get_status reads from register 0 */
   ds_modbus_server_get_state (f->server, &after);
   g_assert_cmpuint (after.requests - before.requests, <=, DS_MODBUS_MAX_ATTEMPTS);
-  g_assert_cmpuint (after.requests - before.requests, >=, 2);
+  /* Over RTU the retries are still queued on the line behind the late answer. */
+  g_assert_cmpuint (after.requests - before.requests, >=, rtu ? 1 : 2);
 
+  /* Only some answers late: the retries get through (over RTU the late answer itself may be
+   * taken by the retry of the same request, which is as good). */
+  f->cfg.delay_ms = rtu ? 150 : 300;
   f->cfg.delay_every = 3;
   reconfigure (f);
+  if (rtu)
+    g_usleep (800000); /* the line's backlog of late answers and queued retries drains */
   for (guint k = 0; k < 4; k++) {
     g_clear_error (&error);
     g_assert_true (f->ill->ops->set_phase (f->ill->backend, k, 2000, &error));
@@ -428,6 +483,136 @@ test_open_errors (void)
   g_assert_nonnull (strstr (error->message, "timeout"));
 }
 
+
+/* ---- RTU: what a serial line adds ------------------------------------------------------- */
+
+/* docs/registers.md: one register access takes at most 3 attempts of one response timeout
+ * each, all within 3 x timeout + 100 ms. The slack covers a loaded machine, not a hang. */
+static void
+assert_within_access_bound (gint64 start_us, guint timeout_ms)
+{
+  gint64 took_ms = (g_get_monotonic_time () - start_us) / 1000;
+  gint64 bound_ms = 3 * (gint64) timeout_ms + 100;
+  g_test_message ("failed after %" G_GINT64_FORMAT " ms (bound %" G_GINT64_FORMAT " ms)", took_ms, bound_ms);
+  g_assert_cmpint (took_ms, <=, bound_ms + 400);
+}
+
+/* The controller stays silent: TIMEOUT naming the register after the bounded attempts, within
+ * the bound; once it answers again, the next access works on the same line. */
+static void
+test_rtu_timeout (Fixture *f, gconstpointer data)
+{
+  (void) data;
+  g_autoptr (GError) error = NULL;
+  f->cfg.silent_every = 1;
+  reconfigure (f);
+  DsModbusServerState before, after;
+  ds_modbus_server_get_state (f->server, &before);
+  DsIlluminatorStatus st;
+  gint64 t0 = g_get_monotonic_time ();
+  g_assert_false (f->ill->ops->get_status (f->ill->backend, &st, &error));
+  assert_within_access_bound (t0, RTU_TIMEOUT_MS);
+  g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_TIMEOUT);
+  g_assert_nonnull (strstr (error->message, "MAGIC"));
+  g_assert_nonnull (strstr (error->message, f->uri));
+  ds_modbus_server_get_state (f->server, &after);
+  g_assert_cmpuint (after.requests - before.requests, ==, DS_MODBUS_MAX_ATTEMPTS);
+  f->cfg.silent_every = 0;
+  reconfigure (f);
+  g_clear_error (&error);
+  g_assert_true (f->ill->ops->get_status (f->ill->backend, &st, &error));
+  g_assert_no_error (error);
+  g_assert_cmpuint (st.firmware_version, ==, 0x0102);
+}
+
+/* Answers with a corrupted CRC are never taken: INCOMPLETE after the bounded attempts when every
+ * answer is bad; with every other answer bad, the retries get through and the phase is lit. */
+static void
+test_rtu_bad_crc (Fixture *f, gconstpointer data)
+{
+  (void) data;
+  g_autoptr (GError) error = NULL;
+  g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &four_phases, &error));
+  f->cfg.bad_crc_every = 1;
+  reconfigure (f);
+  gint64 t0 = g_get_monotonic_time ();
+  g_assert_false (f->ill->ops->set_phase (f->ill->backend, 2, 500, &error));
+  assert_within_access_bound (t0, RTU_TIMEOUT_MS);
+  g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_INCOMPLETE);
+  g_assert_nonnull (strstr (error->message, "STATUS"));
+  g_assert_nonnull (strstr (error->message, "CRC"));
+  DsModbusServerState st;
+  ds_modbus_server_get_state (f->server, &st);
+  g_assert_false (st.enabled);
+  f->cfg.bad_crc_every = 2;
+  reconfigure (f);
+  for (guint k = 0; k < 4; k++) {
+    g_clear_error (&error);
+    g_assert_true (f->ill->ops->set_phase (f->ill->backend, k, 500, &error));
+    g_assert_no_error (error);
+    ds_modbus_server_get_state (f->server, &st);
+    g_assert_true (st.enabled);
+    g_assert_cmpuint (st.phase, ==, k);
+  }
+}
+
+/* The line goes away (the adapter unplugged: the device node disappears) and comes back under
+ * the same name: DISCONNECTED within the bound while it is away, reconnect works once it is
+ * back, and the controller lights what it is asked. */
+static void
+test_rtu_line_away (Fixture *f, gconstpointer data)
+{
+  (void) data;
+  g_autoptr (GError) error = NULL;
+  g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &four_phases, &error));
+  g_assert_true (f->ill->ops->set_phase (f->ill->backend, 1, 500, &error));
+  const char *path = ds_modbus_server_rtu_path (f->server);
+  ds_modbus_server_rtu_vanish (f->server, 600);
+  for (guint i = 0; i < 100 && g_file_test (path, G_FILE_TEST_EXISTS); i++)
+    g_usleep (10000);
+  g_assert_false (g_file_test (path, G_FILE_TEST_EXISTS));
+  gint64 t0 = g_get_monotonic_time ();
+  g_assert_false (f->ill->ops->set_phase (f->ill->backend, 2, 500, &error));
+  assert_within_access_bound (t0, RTU_TIMEOUT_MS);
+  g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_DISCONNECTED);
+  g_assert_nonnull (strstr (error->message, "STATUS"));
+  g_assert_nonnull (strstr (error->message, path));
+  /* Back within a few seconds: the caller's reconnect (the sequencer's backoff) finds it. */
+  gboolean back = FALSE;
+  for (guint i = 0; i < 60 && !back; i++) {
+    g_clear_error (&error);
+    back = f->ill->ops->reconnect (f->ill->backend, &error);
+    if (!back) {
+      g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_DISCONNECTED);
+      g_usleep (50000);
+    }
+  }
+  g_assert_true (back);
+  g_clear_error (&error);
+  g_assert_true (f->ill->ops->set_phase (f->ill->backend, 3, 500, &error));
+  g_assert_no_error (error);
+  DsModbusServerState st;
+  ds_modbus_server_get_state (f->server, &st);
+  g_assert_true (st.enabled);
+  g_assert_cmpuint (st.phase, ==, 3);
+}
+
+/* A controller with another unit id on the line never answers: open fails TIMEOUT within the
+ * bound, naming MAGIC, instead of driving a foreign device. */
+static void
+test_rtu_other_unit (Fixture *f, gconstpointer data)
+{
+  (void) data;
+  g_autoptr (GError) error = NULL;
+  gint64 t0 = g_get_monotonic_time ();
+  DsIlluminator *other = ds_modbus_illuminator_open (f->uri, 7, RTU_TIMEOUT_MS, &error);
+  assert_within_access_bound (t0, RTU_TIMEOUT_MS);
+  g_assert_null (other);
+  g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_TIMEOUT);
+  g_assert_nonnull (strstr (error->message, "MAGIC"));
+  g_assert_nonnull (strstr (error->message, "unit 7"));
+}
+
 int
 main (int argc, char **argv)
 {
@@ -445,5 +630,18 @@ main (int argc, char **argv)
   ADD ("short-read", test_short_read);
   ADD ("stuck-not-ready", test_stuck_not_ready);
   ADD ("wrong-phase", test_wrong_phase);
+#define ADD_RTU(path, fn) g_test_add ("/modbus/rtu/" path, Fixture, NULL, fixture_setup_rtu, fn, fixture_teardown)
+  ADD_RTU ("sequence", test_sequence);
+  ADD_RTU ("settle", test_settle);
+  ADD_RTU ("exceptions", test_exceptions);
+  ADD_RTU ("fault-bits", test_fault_bits);
+  ADD_RTU ("delay", test_delay);
+  ADD_RTU ("short-read", test_short_read);
+  ADD_RTU ("stuck-not-ready", test_stuck_not_ready);
+  ADD_RTU ("wrong-phase", test_wrong_phase);
+  ADD_RTU ("timeout", test_rtu_timeout);
+  ADD_RTU ("bad-crc", test_rtu_bad_crc);
+  ADD_RTU ("line-away", test_rtu_line_away);
+  ADD_RTU ("other-unit", test_rtu_other_unit);
   return g_test_run ();
 }

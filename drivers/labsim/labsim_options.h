@@ -1,0 +1,42 @@
+/* descatter-labsim's command line: every option in one struct, parsed and range-checked in one
+ * place (labsim_options.c). Adding a fault knob: a field here, an entry in the option table
+ * and, for a number, a row in the range table there. */
+#pragma once
+#include <glib.h>
+
+G_BEGIN_DECLS
+
+typedef struct {
+  char *scene_path;
+  char *psf_cache_dir;
+  gint64 seed;
+
+  /* camera */
+  char *camera_address;
+  char *camera_serial;
+  double gvsp_lost_ratio;
+  int vanish_after;        /* frames */
+  double vanish_for;       /* s */
+
+  /* illuminator controller */
+  char *modbus_address;    /* HOST:PORT */
+  char *modbus_host;       /* split from modbus_address */
+  guint modbus_port;
+  char *modbus_rtu;        /* NULL: no serial side; "pty" or a device */
+  char *modbus_rtu_link;
+  int modbus_unit_id;
+  double settle_ms;
+  int delay_ms, delay_every;
+  double exception_rate;
+  int exception_code;
+  int drop_every, short_every, silent_every, bad_crc_every;
+  int rtu_vanish_after;    /* requests */
+  double rtu_vanish_for;   /* s */
+  gboolean stuck, wrong_phase, fault, over_temp;
+} DsLabsimOptions;
+
+/* Parses argv (removing what it took). FALSE with a message naming the option on bad input. */
+gboolean ds_labsim_options_parse (DsLabsimOptions *options, int *argc, char ***argv, GError **error);
+void ds_labsim_options_clear (DsLabsimOptions *options);
+
+G_END_DECLS
