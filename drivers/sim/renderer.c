@@ -215,6 +215,17 @@ run_stages (const DsRenderer *r, DsLight *l, const DsStageArgs *a, gboolean with
 }
 
 static gboolean
+check_exposure (double exposure_us, double gain_db, GError **error)
+{
+  if (!(exposure_us > 0) || !(exposure_us <= 1e7) || !(gain_db >= 0) || !(gain_db <= 48)) {
+    g_set_error (error, DS_SIM_ERROR, DS_SIM_ERROR_INVALID,
+                 "render: exposure %g us must be in (0, 1e7] and gain %g dB in [0, 48]", exposure_us, gain_db);
+    return FALSE;
+  }
+  return TRUE;
+}
+
+static gboolean
 check_request (const DsRenderRequest *req, GError **error)
 {
   if (req->illuminator_on && (req->n_phases < 1 || req->phase >= req->n_phases)) {
@@ -222,12 +233,7 @@ check_request (const DsRenderRequest *req, GError **error)
                  req->phase, req->n_phases);
     return FALSE;
   }
-  if (!(req->exposure_us > 0) || !(req->exposure_us <= 1e7) || !(req->gain_db >= 0) || !(req->gain_db <= 48)) {
-    g_set_error (error, DS_SIM_ERROR, DS_SIM_ERROR_INVALID,
-                 "render: exposure %g us must be in (0, 1e7] and gain %g dB in [0, 48]", req->exposure_us, req->gain_db);
-    return FALSE;
-  }
-  return TRUE;
+  return check_exposure (req->exposure_us, req->gain_db, error);
 }
 
 static DsImage *
@@ -262,6 +268,47 @@ DsImage *
 ds_renderer_render_expected (const DsRenderer *r, const DsRenderRequest *req, GError **error)
 {
   return render (r, req, TRUE, NULL, error);
+}
+
+DsImage *
+ds_renderer_render_photons (const DsRenderer *r, const DsRenderRequest *req, GError **error)
+{
+  if (!check_request (req, error))
+    return NULL;
+  DsStageArgs a = { .phase = req->phase, .n_phases = req->n_phases, .illuminator_on = req->illuminator_on,
+                    .exposure_us = req->exposure_us, .gain_db = req->gain_db, .seed = req->seed };
+  DsLight l = { 0 };
+  DsImage *out = NULL;
+  if (run_stages (r, &l, &a, TRUE, FALSE, NULL, error)) {
+    ds_stage_sensor_photons (&l);
+    out = g_steal_pointer (&l.direct);
+  }
+  light_clear (&l);
+  return out;
+}
+
+DsImage *
+ds_renderer_expose (const DsRenderer *r, const DsImage *photons, const DsRenderRequest *req, GError **error)
+{
+  if (!check_exposure (req->exposure_us, req->gain_db, error))
+    return NULL;
+  const DsSceneSpec *s = r->spec;
+  if (!photons || photons->type != DS_SAMPLE_F32 || photons->width != s->width || photons->height != s->height) {
+    g_set_error (error, DS_SIM_ERROR, DS_SIM_ERROR_INVALID, "expose: photons must be an f32 image of %ux%u",
+                 s->width, s->height);
+    return NULL;
+  }
+  g_autoptr (DsImage) frame = ds_image_new (DS_SAMPLE_U16, s->width, s->height, error);
+  if (!frame || !ds_sensor_expose (&r->sensor, photons, 0.0, req->exposure_us, req->gain_db, req->seed, frame, error))
+    return NULL;
+  g_atomic_int_inc (&r->runs[DS_RENDER_STAGE_SENSOR]);
+  return g_steal_pointer (&frame);
+}
+
+double
+ds_renderer_saturation_dn (const DsRenderer *r, double gain_db)
+{
+  return ds_sensor_saturation_dn (&r->sensor, gain_db);
 }
 
 gboolean

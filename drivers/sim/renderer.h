@@ -55,6 +55,20 @@ DsImage *ds_renderer_render_timed (const DsRenderer *r, const DsRenderRequest *r
  * dark signal included). The mean of many render() calls over seeds converges to it where
  * nothing saturates. */
 DsImage *ds_renderer_render_expected (const DsRenderer *r, const DsRenderRequest *req, GError **error);
+/* The light of a frame before the sensor: f32 photons per pixel reaching it in the exposure
+ * (direct + scattered + ambient). With ds_renderer_expose it is render() in two steps, same
+ * bits: a caller that shows the same light many times (labsim) renders it once and exposes it
+ * per frame. */
+DsImage *ds_renderer_render_photons (const DsRenderer *r, const DsRenderRequest *req, GError **error);
+/* The sensor model (EMVA 1288, docs/scene-format.md) on photons from ds_renderer_render_photons:
+ * a u16 frame with the sensor's bit depth, noise from req->seed, dark signal from
+ * req->exposure_us, gain req->gain_db (phase fields unused). Fails INVALID on a request out of
+ * range or photons of the wrong type or size. */
+DsImage *ds_renderer_expose (const DsRenderer *r, const DsImage *photons, const DsRenderRequest *req,
+                             GError **error);
+/* The lowest DN that means "clipped" at this gain (full well or ADC top, whichever is lower):
+ * frames.json's saturation_dn (docs/phase-folder.md). */
+double ds_renderer_saturation_dn (const DsRenderer *r, double gain_db);
 /* f32 DN, noise-free, no ambient or dark: Ld = direct and Lg = scattered light under full
  * uniform illumination (the pattern's "on" level everywhere). */
 gboolean ds_renderer_truth (const DsRenderer *r, double exposure_us, double gain_db,

@@ -117,6 +117,12 @@ ds_sensor_max_dn (const DsSensorModel *m)
 }
 
 double
+ds_sensor_saturation_dn (const DsSensorModel *m, double gain_db)
+{
+  return MIN (floor (ds_sensor_gain_dn_per_e (m, gain_db) * m->full_well_e + 0.5), ds_sensor_max_dn (m));
+}
+
+double
 ds_sensor_mean_dn (const DsSensorModel *m, double photons, double exposure_us, double gain_db)
 {
   return ds_sensor_gain_dn_per_e (m, gain_db) * (m->quantum_efficiency * photons + ds_sensor_dark_e (m, exposure_us));
@@ -147,9 +153,12 @@ ds_sensor_expose (const DsSensorModel *m, const DsImage *photons, double extra_p
     for (guint x = 0; x < out->width; x++) {
       double p = (ph ? ph[x] : 0.0) + extra_photons;
       double e = rng_poisson (&rng, m->quantum_efficiency * (p > 0 ? p : 0)) + rng_poisson (&rng, dark);
+      /* The pixel's output swing ends at the saturation capacity: a full pixel reads the same
+       * value every time, so "at or above saturation_dn" is exactly "clipped". */
+      e += m->read_noise_e * rng_normal (&rng);
       if (e > m->full_well_e)
         e = m->full_well_e;
-      double dn = floor (k * (e + m->read_noise_e * rng_normal (&rng)) + 0.5);
+      double dn = floor (k * e + 0.5);
       o[x] = (guint16) (dn < 0 ? 0 : dn > max_dn ? max_dn : dn);
     }
   }

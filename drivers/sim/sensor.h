@@ -1,7 +1,7 @@
 /* The camera sensor after the EMVA 1288 linear model: photons -> electrons (quantum efficiency,
- * Poisson shot noise), dark electrons (Poisson, dark current x exposure), full-well clip,
- * read noise (Gaussian, electrons), system gain K (DN per electron, times the analog gain),
- * rounding to whole DN and clipping to the ADC range. Pure functions: any thread. */
+ * Poisson shot noise), dark electrons (Poisson, dark current x exposure), read noise
+ * (Gaussian, electrons), the clip at the full well (saturation capacity), system gain K (DN per
+ * electron, times the analog gain), rounding to whole DN and clipping to the ADC range. Pure functions: any thread. */
 #pragma once
 #include <glib.h>
 
@@ -24,6 +24,10 @@ double ds_sensor_gain_dn_per_e (const DsSensorModel *m, double gain_db);
 double ds_sensor_dark_e (const DsSensorModel *m, double exposure_us);
 /* Largest DN the ADC gives. */
 double ds_sensor_max_dn (const DsSensorModel *m);
+/* The lowest DN that means "clipped" at this gain: the full well (EMVA 1288 saturation
+ * capacity) in DN or the ADC's top, whichever is lower. A pixel that is full reads exactly
+ * this; one that is not reads less (or, rounding at the very edge, this). */
+double ds_sensor_saturation_dn (const DsSensorModel *m, double gain_db);
 
 /* One noisy exposure: photons (f32, mean photons per pixel reaching the pixel during the
  * exposure; may be NULL) plus extra_photons everywhere. Writes out (u16, same size, its

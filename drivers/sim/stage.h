@@ -63,5 +63,7 @@ DsStage *ds_stage_scattering_new (const DsSceneSpec *s, const DsStage *objects, 
 guint ds_stage_scattering_margin (const DsImage *psf_full, const DsImage *psf_before, const DsImage *psf_after);
 DsStage *ds_stage_ambient_new (double photons_per_px_per_ms);
 DsStage *ds_stage_sensor_new (const DsSensorModel *m);
+/* Folds scattered light and ambient into l->direct: the photons the sensor sees. */
+void ds_stage_sensor_photons (DsLight *l);
 
 G_END_DECLS

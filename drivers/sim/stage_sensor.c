@@ -6,13 +6,8 @@ sensor_apply (const DsStage *st, DsLight *l, const DsStageArgs *a, GError **erro
 {
   const DsSensorModel *m = st->data;
   guint w = l->direct->width, h = l->direct->height;
-  /* Photons at the pixel: direct + scattered (+ ambient, uniform). */
-  for (guint y = 0; y < h; y++) {
-    float *dr = ds_image_row (l->direct, y);
-    const float *sc = ds_image_row (l->scattered, y);
-    for (guint x = 0; x < w; x++)
-      dr[x] += sc[x];
-  }
+  /* Photons at the pixel: direct + scattered + ambient (uniform), kept in l->direct. */
+  ds_stage_sensor_photons (l);
   if (a->expected) {
     l->frame = ds_image_new (DS_SAMPLE_F32, w, h, error);
     if (!l->frame)
@@ -21,12 +16,24 @@ sensor_apply (const DsStage *st, DsLight *l, const DsStageArgs *a, GError **erro
       const float *p = ds_image_row (l->direct, y);
       float *o = ds_image_row (l->frame, y);
       for (guint x = 0; x < w; x++)
-        o[x] = (float) ds_sensor_mean_dn (m, p[x] + l->ambient, a->exposure_us, a->gain_db);
+        o[x] = (float) ds_sensor_mean_dn (m, p[x], a->exposure_us, a->gain_db);
     }
     return TRUE;
   }
   l->frame = ds_image_new (DS_SAMPLE_U16, w, h, error);
-  return l->frame && ds_sensor_expose (m, l->direct, l->ambient, a->exposure_us, a->gain_db, a->seed, l->frame, error);
+  return l->frame && ds_sensor_expose (m, l->direct, 0.0, a->exposure_us, a->gain_db, a->seed, l->frame, error);
+}
+
+void
+ds_stage_sensor_photons (DsLight *l)
+{
+  for (guint y = 0; y < l->direct->height; y++) {
+    float *dr = ds_image_row (l->direct, y);
+    const float *sc = ds_image_row (l->scattered, y);
+    for (guint x = 0; x < l->direct->width; x++)
+      dr[x] = (float) ((double) (dr[x] + sc[x]) + l->ambient);
+  }
+  l->ambient = 0;
 }
 
 DsStage *

@@ -1,6 +1,9 @@
 /* descatter-sim render/describe: the folder it writes is the layout the phase-folder loader
- * (and so `descatterctl separate`) reads; black.png exactly when the scene has ambient light. */
+ * (and so `descatterctl separate`) reads; black.png exactly when the scene has ambient light;
+ * frames.json as docs/phase-folder.md specifies, its saturation level the one the frames clip at. */
 #include <glib/gstdio.h>
+#include <json-glib/json-glib.h>
+#include <math.h>
 #include <string.h>
 
 #include "proc/phase_folder.h"
@@ -19,7 +22,7 @@ run (const char *const *args, int *status)
 }
 
 static void
-check_render (const char *scene, gboolean expect_black)
+check_render (const char *scene, gboolean expect_black, double expect_exposure, double expect_period)
 {
   g_autoptr (GError) error = NULL;
   g_autofree char *dir = g_dir_make_tmp ("ds-sim-cli-XXXXXX", &error);
@@ -56,9 +59,53 @@ check_render (const char *scene, gboolean expect_black)
     g_assert_cmpuint (im->width, ==, 256);
     g_assert_cmpuint (im->height, ==, 192);
   }
+  /* The sidecar: every key docs/phase-folder.md names, with the scene's values (12-bit scenes,
+   * K 0.25 DN/e- x 20000 e- = 5000 DN above the ADC's 4095: the ADC clips first). */
+  g_autoptr (JsonParser) parser = json_parser_new ();
+  g_autofree char *sidecar = g_build_filename (dir, "frames.json", NULL);
+  g_assert_true (json_parser_load_from_file (parser, sidecar, &error));
+  g_assert_no_error (error);
+  JsonObject *o = json_node_get_object (json_parser_get_root (parser));
+  g_assert_cmpstr (json_object_get_string_member (o, "format"), ==, "descatter-phase-folder");
+  g_assert_cmpint (json_object_get_int_member (o, "version"), ==, 1);
+  JsonObject *prod = json_object_get_object_member (o, "producer");
+  g_assert_cmpstr (json_object_get_string_member (prod, "program"), ==, "descatter-sim");
+  g_assert_cmpstr (json_object_get_string_member (prod, "backend"), ==, "descatter-sim");
+  g_assert_nonnull (json_object_get_string_member (prod, "version"));
+  g_assert_nonnull (json_object_get_string_member (prod, "git"));
+  g_autoptr (GDateTime) when = g_date_time_new_from_iso8601 (json_object_get_string_member (o, "time_utc"), NULL);
+  g_assert_nonnull (when);
+  g_assert_cmpint (json_object_get_int_member (o, "width"), ==, 256);
+  g_assert_cmpint (json_object_get_int_member (o, "height"), ==, 192);
+  g_assert_cmpint (json_object_get_int_member (o, "bit_depth"), ==, 12);
+  g_assert_cmpint (json_object_get_int_member (o, "saturation_dn"), ==, 4095);
+  g_assert_cmpstr (json_object_get_string_member (o, "pixel_format"), ==, "Mono12");
+  g_assert_cmpfloat (json_object_get_double_member (o, "exposure_us"), ==, expect_exposure);
+  g_assert_cmpfloat (json_object_get_double_member (o, "gain_db"), ==, 0);
+  JsonObject *pat = json_object_get_object_member (o, "pattern");
+  g_assert_cmpstr (json_object_get_string_member (pat, "kind"), ==, "square");
+  g_assert_cmpfloat (json_object_get_double_member (pat, "period_px"), ==, expect_period);
+  g_assert_cmpfloat (json_object_get_double_member (pat, "duty"), ==, 0.5);
+  g_assert_cmpfloat (json_object_get_double_member (pat, "black_level"), ==, 0);
+  g_assert_cmpfloat (json_object_get_double_member (pat, "phase_offset_cycles"), ==, 0);
+  g_assert_cmpint (json_object_get_int_member (o, "n_phases"), ==, 4);
+  JsonArray *frames = json_object_get_array_member (o, "frames");
+  g_assert_cmpuint (json_array_get_length (frames), ==, 4);
+  for (guint k = 0; k < 4; k++) {
+    JsonObject *fr = json_array_get_object_element (frames, k);
+    g_autofree char *name = g_strdup_printf ("phase-%02u.png", k);
+    g_assert_cmpstr (json_object_get_string_member (fr, "file"), ==, name);
+    g_assert_cmpint (json_object_get_int_member (fr, "phase"), ==, k);
+  }
+  if (expect_black) {
+    JsonArray *bf = json_object_get_array_member (json_object_get_object_member (o, "black"), "files");
+    g_assert_cmpuint (json_array_get_length (bf), ==, 1);
+    g_assert_cmpstr (json_array_get_string_element (bf, 0), ==, "black.png");
+  } else
+    g_assert_false (json_object_has_member (o, "black"));
   /* Clean up: every file we expect, then the folder (fails if anything else was left). */
   const char *files[] = { "phase-00.png", "phase-01.png", "phase-02.png", "phase-03.png", "black.png",
-                          "truth_transmissive.tiff", "truth_scattered.tiff" };
+                          "truth_transmissive.tiff", "truth_scattered.tiff", "frames.json" };
   for (guint i = 0; i < G_N_ELEMENTS (files); i++) {
     g_autofree char *p = g_build_filename (dir, files[i], NULL);
     g_unlink (p);
@@ -69,13 +116,68 @@ check_render (const char *scene, gboolean expect_black)
 static void
 test_render_milk (void)
 {
-  check_render ("milk-disc", TRUE);
+  check_render ("milk-disc", TRUE, 5000, 6);
 }
 
 static void
 test_render_clear (void)
 {
-  check_render ("clear-grid", FALSE);
+  check_render ("clear-grid", FALSE, 5000, 12);
+}
+
+/* A 14-bit sensor whose full well (20000 e- x K 0.25 = 5000 DN, x 10^(6/20) at 6 dB: 9976 DN) is
+ * below the ADC's 16383: lit stripes saturate, and every saturated pixel reads exactly the
+ * sidecar's saturation_dn while no pixel exceeds it. */
+static void
+test_render_saturation (void)
+{
+  g_autoptr (GError) error = NULL;
+  g_autofree char *dir = g_dir_make_tmp ("ds-sim-sat-XXXXXX", &error);
+  g_assert_no_error (error);
+  g_autofree char *scene = g_build_filename (dir, "sat.scene", NULL);
+  const char *text = "[sensor]\nwidth=64\nheight=32\nbit-depth=14\nsystem-gain=0.25\nfull-well-e=20000\n"
+                     "quantum-efficiency=0.5\nexposure-us=1000\n[illuminator]\nperiod-px=8\nirradiance=10\n";
+  g_assert_true (g_file_set_contents (scene, text, -1, &error));
+  g_autofree char *out = g_build_filename (dir, "out", NULL);
+  const double gains[] = { 0, 6 };
+  const double expect[] = { 5000, 9976 };
+  for (guint i = 0; i < 2; i++) {
+    g_autofree char *gain = g_strdup_printf ("%g", gains[i]);
+    const char *args[] = { DS_SIM_BIN, "render", scene, "--phases", "2", "--out", out, "--gain-db", gain, NULL };
+    int status = -1;
+    g_autofree char *stdout_text = run (args, &status);
+    g_assert_true (g_spawn_check_wait_status (status, NULL));
+    g_autoptr (JsonParser) parser = json_parser_new ();
+    g_autofree char *sidecar = g_build_filename (out, "frames.json", NULL);
+    g_assert_true (json_parser_load_from_file (parser, sidecar, &error));
+    JsonObject *o = json_node_get_object (json_parser_get_root (parser));
+    g_assert_cmpint (json_object_get_int_member (o, "bit_depth"), ==, 14);
+    g_assert_cmpstr (json_object_get_string_member (o, "pixel_format"), ==, "Mono14");
+    gint64 sat = json_object_get_int_member (o, "saturation_dn");
+    g_assert_cmpint (sat, ==, (gint64) expect[i]);
+    g_assert_cmpfloat (json_object_get_double_member (o, "gain_db"), ==, gains[i]);
+    /* 10 photons/um^2/ms x 100 um^2 x 1 ms x QE 0.5 = 5e5 e-: lit pixels are full. */
+    g_autofree char *p0 = g_build_filename (out, "phase-00.png", NULL);
+    g_autoptr (DsImage) im = ds_image_read (p0, &error);
+    g_assert_no_error (error);
+    guint saturated = 0;
+    for (guint y = 0; y < im->height; y++)
+      for (guint x = 0; x < im->width; x++) {
+        guint v = ((guint16 *) ds_image_row (im, y))[x];
+        g_assert_cmpuint (v, <=, sat);
+        saturated += v == sat;
+      }
+    g_assert_cmpuint (saturated, >=, 64 * 32 / 2 - 32); /* half the columns, less the edge pixels */
+  }
+  const char *files[] = { "phase-00.png", "phase-01.png", "truth_transmissive.tiff", "truth_scattered.tiff",
+                          "frames.json" };
+  for (guint i = 0; i < G_N_ELEMENTS (files); i++) {
+    g_autofree char *p = g_build_filename (out, files[i], NULL);
+    g_assert_cmpint (g_unlink (p), ==, 0);
+  }
+  g_assert_cmpint (g_rmdir (out), ==, 0);
+  g_unlink (scene);
+  g_assert_cmpint (g_rmdir (dir), ==, 0);
 }
 
 static void
@@ -99,6 +201,7 @@ main (int argc, char **argv)
   g_test_init (&argc, &argv, NULL);
   g_test_add_func ("/sim/cli/render-milk", test_render_milk);
   g_test_add_func ("/sim/cli/render-clear", test_render_clear);
+  g_test_add_func ("/sim/cli/render-saturation", test_render_saturation);
   g_test_add_func ("/sim/cli/describe", test_describe);
   return g_test_run ();
 }

@@ -376,6 +376,25 @@ test_deterministic (void)
   g_assert_cmpmem (a->data, bytes, b->data, bytes);
   g_assert_true (memcmp (a->data, c->data, bytes) != 0);
   g_assert_cmpuint (a->bit_depth, ==, 16);
+  /* In two steps (light once, then the sensor per frame, as labsim does): the same bits. The
+   * light is the expectation before the sensor: K (QE photons + dark) is the expected frame. */
+  req.seed = 5;
+  g_autoptr (DsImage) light = ds_renderer_render_photons (r, &req, &error);
+  g_assert_no_error (error);
+  g_autoptr (DsImage) two = ds_renderer_expose (r, light, &req, &error);
+  g_assert_no_error (error);
+  g_assert_cmpmem (a->data, bytes, two->data, two->stride * two->height);
+  g_assert_cmpuint (two->bit_depth, ==, 16);
+  g_autoptr (DsImage) mean = ds_renderer_render_expected (r, &req, &error);
+  for (guint y = 0; y < 48; y += 5)
+    for (guint x = 0; x < 64; x++) {
+      double expect = K * (QE * px (light, x, y) + 1000 * 800e-6);
+      g_assert_cmpfloat (fabs (px (mean, x, y) - expect), <, 1e-5 * expect);
+    }
+  g_autoptr (DsImage) wrong = ds_image_new (DS_SAMPLE_F32, 32, 48, &error);
+  g_assert_null (ds_renderer_expose (r, wrong, &req, &error));
+  g_assert_error (error, DS_SIM_ERROR, DS_SIM_ERROR_INVALID);
+  g_clear_error (&error);
   /* Bad requests fail with a reason. */
   req.phase = 3;
   g_autoptr (DsImage) bad = ds_renderer_render (r, &req, &error);

@@ -95,17 +95,38 @@ test_saturation (void)
   /* Full well 20000 e- at K 0.25 is 5000 DN, above a 12-bit ADC: the ADC clips at 4095. */
   DsSensorModel m = { .bit_depth = 12, .quantum_efficiency = 0.5, .system_gain = 0.25, .read_noise_e = 5,
                       .dark_current_e_s = 0, .full_well_e = 20000 };
+  g_assert_cmpfloat (ds_sensor_saturation_dn (&m, 0), ==, 4095);
   g_autoptr (DsImage) f = expose_flat (&m, 1e6, 1000, 0, 4);
   double mean, var;
   stats (f, &mean, &var);
   g_assert_cmpfloat (mean, ==, 4095);
   g_assert_cmpuint (f->bit_depth, ==, 12);
-  /* Full well below the ADC's top: K 0.1 -> 2000 DN +- read noise (0.5 DN) */
+  /* Full well below the ADC's top (K 0.1: 2000 DN): a full pixel reads exactly 2000 every time,
+   * read noise included (EMVA 1288's saturation capacity: the output stops there). */
   m.system_gain = 0.1;
+  g_assert_cmpfloat (ds_sensor_saturation_dn (&m, 0), ==, 2000);
   g_autoptr (DsImage) g = expose_flat (&m, 1e6, 1000, 0, 5);
   stats (g, &mean, &var);
-  g_assert_cmpfloat (fabs (mean - 2000), <, 0.05);
-  g_assert_cmpfloat (var, <, 0.25 + 1.0 / 12 + 0.05);
+  g_assert_cmpfloat (mean, ==, 2000);
+  g_assert_cmpfloat (var, ==, 0);
+  /* At 6 dB K doubles (x 1.9953): 3990.5 DN rounds to 3991, still below the ADC's 4095. */
+  g_assert_cmpfloat (ds_sensor_saturation_dn (&m, 6), ==, floor (0.1 * pow (10, 6.0 / 20) * 20000 + 0.5));
+  /* Just below full well (mean 19900 e-, sigma = sqrt(19900 + 25) = 141 e-): the pixels at 2000 are
+   * the ones whose electrons reached the full well, P(N > 100 / 141.2) = 0.2394 (less the half
+   * DN rounding up to 2000: P(N > 95 / 141.2) = 0.2504 at most); none exceeds it. */
+  g_autoptr (DsImage) h = expose_flat (&m, 2 * 19900, 1000, 0, 6);
+  guint64 at = 0, above = 0;
+  for (guint y = 0; y < h->height; y++) {
+    const guint16 *r = ds_image_row (h, y);
+    for (guint x = 0; x < h->width; x++) {
+      at += r[x] == 2000;
+      above += r[x] > 2000;
+    }
+  }
+  double frac = (double) at / (512.0 * 512.0);
+  g_assert_cmpuint (above, ==, 0);
+  g_assert_cmpfloat (frac, >, 0.2394 - 0.005);
+  g_assert_cmpfloat (frac, <, 0.2504 + 0.005);
 }
 
 static void
