@@ -5,6 +5,7 @@
 #include <stdio.h>
 #include <systemd/sd-daemon.h>
 
+#include "build_info.h"
 #include "daemon/service/config.h"
 #include "daemon/service/service.h"
 
@@ -44,8 +45,9 @@ main (int argc, char **argv)
 {
   setlocale (LC_ALL, "");
   g_autofree char *config_path = NULL, *socket_path = NULL, *tcp = NULL, *scene = NULL;
-  gboolean sim = FALSE, check = FALSE, no_systemd = FALSE;
+  gboolean sim = FALSE, check = FALSE, no_systemd = FALSE, version = FALSE;
   GOptionEntry entries[] = {
+    { "version", 'V', 0, G_OPTION_ARG_NONE, &version, "Print the version and exit", NULL },
     { "config", 'c', 0, G_OPTION_ARG_FILENAME, &config_path, "Configuration file (default " DEFAULT_CONFIG ")", "FILE" },
     { "sim", 0, 0, G_OPTION_ARG_NONE, &sim, "Run on the built-in simulated lab (no configuration file)", NULL },
     { "check", 0, 0, G_OPTION_ARG_NONE, &check, "Validate the configuration, print the effective settings and exit", NULL },
@@ -61,6 +63,10 @@ main (int argc, char **argv)
   if (!g_option_context_parse (ctx, &argc, &argv, &error)) {
     fprintf (stderr, "descatterd: %s\n", error->message);
     return 2;
+  }
+  if (version) {
+    printf ("descatterd %s (%s)\n", DS_VERSION, DS_GIT_DESCRIBE);
+    return 0;
   }
   if (sim && config_path) {
     fprintf (stderr, "descatterd: --sim and --config exclude each other\n");

@@ -2,6 +2,8 @@
 
 #include <math.h>
 
+#include "build_info.h"
+
 static const char *const drop_names[DS_DROP_N_REASONS] = {
   [DS_DROP_INCOMPLETE] = "incomplete",   [DS_DROP_FRAME_GAP] = "frame_gap",
   [DS_DROP_WRONG_PHASE] = "wrong_phase", [DS_DROP_STALE] = "stale",
@@ -153,6 +155,16 @@ ds_result_to_json (DsResult *r)
   json_builder_begin_object (b);
   json_builder_set_member_name (b, "set_id");
   json_builder_add_int_value (b, (gint64) r->set_id);
+  /* Which build made the result: a figure is traced to the code that computed it. */
+  json_builder_set_member_name (b, "software");
+  json_builder_begin_object (b);
+  json_builder_set_member_name (b, "name");
+  json_builder_add_string_value (b, "descatterd");
+  json_builder_set_member_name (b, "version");
+  json_builder_add_string_value (b, DS_VERSION);
+  json_builder_set_member_name (b, "build");
+  json_builder_add_string_value (b, DS_GIT_DESCRIBE);
+  json_builder_end_object (b);
   json_builder_set_member_name (b, "width");
   json_builder_add_int_value (b, r->sep->transmissive->width);
   json_builder_set_member_name (b, "height");

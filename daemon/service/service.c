@@ -52,6 +52,7 @@ struct DsService {
   guint64 spool_errors;
   DsOperatingModel *model;  /* NULL when no model file could be read (automatic captures fail) */
   char *model_error;
+  char *model_path;         /* the file the model was (or failed to be) read from */
 };
 
 static void
@@ -398,7 +399,7 @@ static void
 handle_start (DsService *svc, DsConnection *conn, DsRequest *req)
 {
   static const char *const keys[] = { "phases", "averages", "exposure_us", "gain_db", "estimator",
-                                      "dark_frame", "verify_phase", NULL };
+                                      "dark_frame", "verify_phase", "target_error", "time_budget_ms", NULL };
   g_autoptr (GError) error = NULL;
   DsCaptureSettings s;
   if (!ds_request_check_keys (req, keys, &error) || !settings_from_request (svc, req, &s, &error)) {
@@ -436,7 +437,19 @@ handle_config (DsService *svc, DsConnection *conn, DsRequest *req)
     ds_server_reply_error (svc->server, conn, req->id, error);
     return;
   }
-  g_autofree char *text = ds_config_to_data (svc->config);
+  /* The configuration in effect: the file with the command line's overrides (--socket, --tcp;
+   * --scene is already in svc->config), so that what is printed is what the daemon uses. */
+  g_autoptr (DsConfig) effective = ds_config_copy (svc->config);
+  const char *socket_in_use = svc->socket_path ? svc->socket_path : svc->options.socket_path;
+  if (socket_in_use) {
+    g_free (effective->socket_path);
+    effective->socket_path = g_strdup (socket_in_use);
+  }
+  if (svc->options.tcp_listen) {
+    g_free (effective->tcp_listen);
+    effective->tcp_listen = g_strdup (svc->options.tcp_listen);
+  }
+  g_autofree char *text = ds_config_to_data (effective);
   g_autoptr (JsonBuilder) b = json_builder_new ();
   json_builder_begin_object (b);
   json_builder_set_member_name (b, "path");
@@ -485,6 +498,7 @@ status_to_json (DsService *svc)
   g_autoptr (JsonBuilder) b = json_builder_new ();
   json_builder_begin_object (b);
   add_string (b, "version", DS_VERSION);
+  add_string (b, "build", DS_GIT_DESCRIBE);
   add_double (b, "uptime_s", (double) (g_get_monotonic_time () - svc->started_us) / 1e6);
   add_string (b, "state", st.state);
   json_builder_set_member_name (b, "ready");
@@ -500,6 +514,15 @@ status_to_json (DsService *svc)
   add_double (b, "phase_offset_cycles", st.phase_offset_cycles);
   json_builder_set_member_name (b, "frames");
   json_builder_add_value (b, ds_frame_counters_to_json (&st.frames));
+  /* Without a model, captures with target_error/time_budget_ms are refused: say so up front. */
+  json_builder_set_member_name (b, "operating_model");
+  json_builder_begin_object (b);
+  json_builder_set_member_name (b, "loaded");
+  json_builder_add_boolean_value (b, svc->model != NULL);
+  add_string (b, "path", svc->model_path ? svc->model_path : "");
+  if (!svc->model)
+    add_string (b, "error", svc->model_error ? svc->model_error : "not loaded");
+  json_builder_end_object (b);
   json_builder_set_member_name (b, "stage_mean_ms");
   json_builder_begin_object (b);
   for (guint i = 0; i < DS_STAGE_N; i++)
@@ -712,11 +735,11 @@ ds_service_new (DsConfig *config, const DsServiceOptions *options, GMainLoop *lo
    * as long as the sequencer (freed after the thread joined). */
   svc->open_data.config = ds_config_copy (svc->config);
   {
-    g_autofree char *model_path = svc->config->operating_model && *svc->config->operating_model
-                                      ? g_strdup (svc->config->operating_model)
-                                      : ds_data_path ("operating-model.csv");
+    svc->model_path = svc->config->operating_model && *svc->config->operating_model
+                          ? g_strdup (svc->config->operating_model)
+                          : ds_data_path ("operating-model.csv");
     g_autoptr (GError) model_error = NULL;
-    svc->model = ds_operating_model_load (model_path, &model_error);
+    svc->model = ds_operating_model_load (svc->model_path, &model_error);
     if (!svc->model) {
       svc->model_error = g_strdup (model_error->message);
       g_message ("automatic operating point off: %s", model_error->message);
@@ -803,6 +826,7 @@ ds_service_free (DsService *svc)
   g_clear_pointer (&svc->sequencer, ds_sequencer_free);
   g_clear_pointer (&svc->model, ds_operating_model_free);
   g_free (svc->model_error);
+  g_free (svc->model_path);
   if (svc->pending) {
     GHashTableIter it;
     gpointer value;

@@ -9,6 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "build_info.h"
 #include "drivers/labsim/lab_camera.h"
 #include "drivers/labsim/labsim_options.h"
 #include "drivers/labsim/modbus_server.h"
@@ -147,6 +148,11 @@ main (int argc, char **argv)
     fprintf (stderr, "descatter-labsim: %s\n", error->message);
     ds_labsim_options_clear (&o);
     return 2;
+  }
+  if (o.version) {
+    printf ("descatter-labsim %s (%s)\n", DS_VERSION, DS_GIT_DESCRIBE);
+    ds_labsim_options_clear (&o);
+    return 0;
   }
   int status = run (&o);
   ds_labsim_options_clear (&o);

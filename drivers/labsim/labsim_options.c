@@ -51,6 +51,7 @@ ds_labsim_options_parse (DsLabsimOptions *o, int *argc, char ***argv, GError **e
   o->modbus_unit_id = 1;
   o->rtu_vanish_for = 1.0;
   const GOptionEntry main_entries[] = {
+    { "version", 'V', 0, G_OPTION_ARG_NONE, &o->version, "Print the version and exit", NULL },
     { "scene", 0, 0, G_OPTION_ARG_FILENAME, &o->scene_path, "Scene file (required)", "FILE" },
     { "psf-cache-dir", 0, 0, G_OPTION_ARG_FILENAME, &o->psf_cache_dir, "Scattering kernel cache", "DIR" },
     { "seed", 0, 0, G_OPTION_ARG_INT64, &o->seed, "Noise seed of the first frame (default 1)", "N" },
@@ -115,6 +116,8 @@ ds_labsim_options_parse (DsLabsimOptions *o, int *argc, char ***argv, GError **e
   g_option_context_add_group (ctx, modbus);
   if (!g_option_context_parse (ctx, argc, argv, error))
     return FALSE;
+  if (o->version)
+    return TRUE;
   if (!o->scene_path) {
     g_set_error (error, G_OPTION_ERROR, G_OPTION_ERROR_FAILED, "--scene FILE is required");
     return FALSE;

@@ -7,6 +7,7 @@
 G_BEGIN_DECLS
 
 typedef struct {
+  gboolean version;        /* --version: print it and exit; nothing else is checked */
   char *scene_path;
   char *psf_cache_dir;
   gint64 seed;
