@@ -1,133 +1,67 @@
-/* descatterctl's commands that talk to the daemon. */
-#include <stdio.h>
+/* descatterctl's commands that talk to the daemon (status: ctl_status.c). */
+#include <errno.h>
+#include <glib/gstdio.h>
 #include <string.h>
 #include <unistd.h>
 
-#include "daemon/protocol/client.h"
 #include "daemon/ctl/ctl_commands.h"
 #include "daemon/ctl/ctl_output.h"
 
-/* The one process-wide option of the CLI, set once by main before any command runs. */
-static char *ctl_address;
-
-void
-ds_ctl_set_address (const char *address)
-{
-  g_free (ctl_address);
-  ctl_address = g_strdup (address);
-}
-
-const char *
-ds_ctl_address (void)
-{
-  if (ctl_address)
-    return ctl_address;
-  const char *env = g_getenv ("DESCATTER_ADDRESS");
-  return env && *env ? env : DS_CTL_DEFAULT_ADDRESS;
-}
-
-static gboolean
-parse_options (int *argc, char ***argv, GOptionEntry *entries, const char *summary)
-{
-  g_autoptr (GOptionContext) ctx = g_option_context_new (NULL);
-  g_option_context_set_summary (ctx, summary);
-  g_option_context_add_main_entries (ctx, entries, NULL);
-  g_autoptr (GError) error = NULL;
-  if (!g_option_context_parse (ctx, argc, argv, &error)) {
-    fprintf (stderr, "descatterctl %s: %s\n", (*argv)[0], error->message);
-    return FALSE;
-  }
-  if (*argc > 1) {
-    fprintf (stderr, "descatterctl %s: unexpected argument \"%s\"\n", (*argv)[0], (*argv)[1]);
-    return FALSE;
-  }
-  return TRUE;
-}
-
-static void
-print_json (JsonNode *node)
-{
-  if (!node) {
-    printf ("{}\n");
-    return;
-  }
-  g_autofree char *text = json_to_string (node, TRUE);
-  printf ("%s\n", text);
-}
-
-/* Calls cmd; prints a failed reply's error. Returns the message only when ok. */
-static DsMessage *
-call (DsClient *client, const char *cmd, JsonObject *args, DsClientEventFunc on_event, gpointer data)
-{
-  g_autoptr (GError) error = NULL;
-  DsMessage *m = ds_client_call (client, cmd, args, on_event, data, &error);
-  if (!m) {
-    fprintf (stderr, "descatterctl %s: %s\n", cmd, error->message);
-    return NULL;
-  }
-  if (!m->reply->ok) {
-    fprintf (stderr, "descatterctl %s: %s: %s\n", cmd, ds_protocol_error_name (m->reply->error_code),
-             m->reply->error_message);
-    ds_message_free (m);
-    return NULL;
-  }
-  return m;
-}
-
-static DsClient *
-connect_or_complain (const char *cmd)
-{
-  g_autoptr (GError) error = NULL;
-  DsClient *c = ds_client_connect (ds_ctl_address (), &error);
-  if (!c)
-    fprintf (stderr, "descatterctl %s: %s (is descatterd running? --address)\n", cmd, error->message);
-  return c;
-}
-
 static int
-simple_command (int argc, char **argv, const char *cmd, const char *summary)
+simple_command (const DsCtlTarget *target, int argc, char **argv, const char *cmd, const char *summary)
 {
   GOptionEntry entries[] = { { NULL } };
-  if (!parse_options (&argc, &argv, entries, summary))
+  if (!ds_ctl_parse_options (&argc, &argv, entries, summary))
     return 2;
-  g_autoptr (DsClient) c = connect_or_complain (cmd);
+  g_autoptr (DsClient) c = ds_ctl_connect (target, cmd);
   if (!c)
     return 1;
-  g_autoptr (DsMessage) m = call (c, cmd, NULL, NULL, NULL);
+  g_autoptr (DsMessage) m = ds_ctl_call (c, cmd, NULL, NULL, NULL);
   if (!m)
     return 1;
-  print_json (m->reply->body);
+  ds_ctl_print_json (m->reply->body);
   return 0;
 }
 
 int
-ds_ctl_hello (int argc, char **argv)
-{
-  return simple_command (argc, argv, "hello", "Prints the daemon's protocol version and identity.");
-}
-
-int
-ds_ctl_status (int argc, char **argv)
-{
-  return simple_command (argc, argv, "status", "Prints devices, frame counters, timings and clients.");
-}
-
-int
-ds_ctl_stop (int argc, char **argv)
-{
-  return simple_command (argc, argv, "stop", "Stops continuous acquisition.");
-}
-
-int
-ds_ctl_config (int argc, char **argv)
+ds_ctl_hello (const DsCtlTarget *target, int argc, char **argv)
 {
   GOptionEntry entries[] = { { NULL } };
-  if (!parse_options (&argc, &argv, entries, "Prints the daemon's effective configuration."))
+  if (!ds_ctl_parse_options (&argc, &argv, entries, "Prints the daemon's protocol version, version and build."))
     return 2;
-  g_autoptr (DsClient) c = connect_or_complain ("config");
+  g_autoptr (DsClient) c = ds_ctl_connect (target, "hello");
   if (!c)
     return 1;
-  g_autoptr (DsMessage) m = call (c, "config", NULL, NULL, NULL);
+  /* A hello without the token would undo the authentication: the daemon closes the line. */
+  g_autoptr (JsonObject) args = json_object_new ();
+  if (target->token)
+    json_object_set_string_member (args, "token", target->token);
+  json_object_set_string_member (args, "client", "descatterctl");
+  g_autoptr (DsMessage) m = ds_ctl_call (c, "hello", args, NULL, NULL);
+  if (!m)
+    return 1;
+  ds_ctl_print_json (m->reply->body);
+  return 0;
+}
+
+int
+ds_ctl_stop (const DsCtlTarget *target, int argc, char **argv)
+{
+  return simple_command (target, argc, argv, "stop", "Stops continuous acquisition.");
+}
+
+int
+ds_ctl_config (const DsCtlTarget *target, int argc, char **argv)
+{
+  GOptionEntry entries[] = { { NULL } };
+  if (!ds_ctl_parse_options (&argc, &argv, entries,
+                             "Prints the daemon's effective configuration (the file with the "
+                             "daemon's command-line overrides applied)."))
+    return 2;
+  g_autoptr (DsClient) c = ds_ctl_connect (target, "config");
+  if (!c)
+    return 1;
+  g_autoptr (DsMessage) m = ds_ctl_call (c, "config", NULL, NULL, NULL);
   if (!m)
     return 1;
   JsonObject *o = json_node_get_object (m->reply->body);
@@ -135,49 +69,64 @@ ds_ctl_config (int argc, char **argv)
   return 0;
 }
 
-/* Acquisition options shared by capture, start and dark. */
+/* Acquisition options shared by capture and start. Numbers stay text until sent
+ * (ds_ctl_args_int): NULL is "not given", every typed value goes to the daemon. */
 typedef struct {
-  int phases, averages;
-  double exposure_us, gain_db;
-  char *estimator;
-  gboolean dark_frame, no_verify;
+  char *phases, *averages, *exposure_us, *gain_db, *target_error, *time_budget_ms, *estimator;
+  gboolean dark_frame, no_dark_frame, no_verify;
 } AcqOptions;
 
 static void
-acq_options_free (AcqOptions *o)
+acq_options_clear (AcqOptions *o)
 {
+  g_free (o->phases);
+  g_free (o->averages);
+  g_free (o->exposure_us);
+  g_free (o->gain_db);
+  g_free (o->target_error);
+  g_free (o->time_budget_ms);
   g_free (o->estimator);
 }
+G_DEFINE_AUTO_CLEANUP_CLEAR_FUNC (AcqOptions, acq_options_clear)
 
+/* NULL (message printed) when an option is malformed or contradicts another. */
 static JsonObject *
-acq_args (const AcqOptions *o)
+acq_args (const AcqOptions *o, const char *cmd)
 {
-  JsonObject *args = json_object_new ();
-  if (o->phases)
-    json_object_set_int_member (args, "phases", o->phases);
-  if (o->averages)
-    json_object_set_int_member (args, "averages", o->averages);
-  if (o->exposure_us > 0)
-    json_object_set_double_member (args, "exposure_us", o->exposure_us);
-  if (o->gain_db >= 0)
-    json_object_set_double_member (args, "gain_db", o->gain_db);
+  g_autoptr (JsonObject) args = json_object_new ();
+  if (!ds_ctl_args_int (args, cmd, "phases", "phases", o->phases) ||
+      !ds_ctl_args_int (args, cmd, "averages", "averages", o->averages) ||
+      !ds_ctl_args_double (args, cmd, "exposure-us", "exposure_us", o->exposure_us) ||
+      !ds_ctl_args_double (args, cmd, "gain-db", "gain_db", o->gain_db) ||
+      !ds_ctl_args_double (args, cmd, "target-error", "target_error", o->target_error) ||
+      !ds_ctl_args_double (args, cmd, "time-budget-ms", "time_budget_ms", o->time_budget_ms))
+    return NULL;
+  if (o->dark_frame && o->no_dark_frame) {
+    fprintf (stderr, "descatterctl %s: --dark-frame and --no-dark-frame exclude each other\n", cmd);
+    return NULL;
+  }
   if (o->estimator)
     json_object_set_string_member (args, "estimator", o->estimator);
-  if (o->dark_frame)
-    json_object_set_boolean_member (args, "dark_frame", TRUE);
+  if (o->dark_frame || o->no_dark_frame)
+    json_object_set_boolean_member (args, "dark_frame", o->dark_frame);
   if (o->no_verify)
     json_object_set_boolean_member (args, "verify_phase", FALSE);
-  return args;
+  return g_steal_pointer (&args);
 }
 
-#define ACQ_ENTRIES(o)                                                                             \
-  { "phases", 'n', 0, G_OPTION_ARG_INT, &(o).phases, "Phases N (2..64)", "N" },                   \
-  { "averages", 'm', 0, G_OPTION_ARG_INT, &(o).averages, "Frames averaged per phase (1..64)", "M" }, \
-  { "exposure-us", 'e', 0, G_OPTION_ARG_DOUBLE, &(o).exposure_us, "Exposure (µs)", "E" },          \
-  { "gain-db", 'g', 0, G_OPTION_ARG_DOUBLE, &(o).gain_db, "Gain (dB)", "G" },                      \
-  { "estimator", 0, 0, G_OPTION_ARG_STRING, &(o).estimator, "maxmin, sine or robust", "NAME" },     \
-  { "dark-frame", 0, 0, G_OPTION_ARG_NONE, &(o).dark_frame, "Take a dark frame with this set", NULL }, \
-  { "no-verify", 0, 0, G_OPTION_ARG_NONE, &(o).no_verify, "Do not verify the stripe phase of each frame", NULL }
+#define ACQ_ENTRIES(o)                                                                                     \
+  { "phases", 'n', 0, G_OPTION_ARG_STRING, &(o).phases, "Phases N (2..64)", "N" },                         \
+  { "averages", 'm', 0, G_OPTION_ARG_STRING, &(o).averages, "Frames averaged per phase (1..64)", "M" },    \
+  { "exposure-us", 'e', 0, G_OPTION_ARG_STRING, &(o).exposure_us, "Exposure (µs, 1..1e7)", "E" },          \
+  { "gain-db", 'g', 0, G_OPTION_ARG_STRING, &(o).gain_db, "Gain (dB, 0..48)", "G" },                       \
+  { "estimator", 0, 0, G_OPTION_ARG_STRING, &(o).estimator, "maxmin, sine or robust", "NAME" },            \
+  { "dark-frame", 0, 0, G_OPTION_ARG_NONE, &(o).dark_frame, "Take a dark frame with each set", NULL },     \
+  { "no-dark-frame", 0, 0, G_OPTION_ARG_NONE, &(o).no_dark_frame, "Take no dark frame (overrides the configuration)", NULL }, \
+  { "no-verify", 0, 0, G_OPTION_ARG_NONE, &(o).no_verify, "Do not verify the stripe phase of each frame", NULL }, \
+  { "target-error", 0, 0, G_OPTION_ARG_STRING, &(o).target_error,                                           \
+    "Automatic operating point: the relative error to reach (0..1; docs/accuracy.md)", "ERR" },              \
+  { "time-budget-ms", 0, 0, G_OPTION_ARG_STRING, &(o).time_budget_ms,                                       \
+    "Automatic operating point: the acquisition time allowed per set (ms)", "MS" }
 
 static void
 on_progress (const DsMessage *ev, gpointer data)
@@ -188,33 +137,92 @@ on_progress (const DsMessage *ev, gpointer data)
   JsonObject *o = json_node_get_object (ev->reply->body);
   gint64 k = json_object_get_int_member_with_default (o, "phase", 0);
   gint64 n = json_object_get_int_member_with_default (o, "phases", 0);
-  fprintf (stderr, *tty ? "\rphase %" G_GINT64_FORMAT "/%" G_GINT64_FORMAT " acquired" : "phase %" G_GINT64_FORMAT "/%" G_GINT64_FORMAT " acquired\n",
-           k + 1, n);
+  fprintf (stderr, "%sphase %" G_GINT64_FORMAT "/%" G_GINT64_FORMAT " acquired%s", *tty ? "\r" : "",
+           k + 1, n, *tty ? "" : "\n");
   fflush (stderr);
 }
 
-int
-ds_ctl_capture (int argc, char **argv)
+/* TRUE when dir does not exist, or is an empty folder. */
+static gboolean
+dir_is_free (const char *dir, gboolean *exists, GError **error)
 {
-  AcqOptions o = { .gain_db = -1 };
+  *exists = g_file_test (dir, G_FILE_TEST_EXISTS);
+  if (!*exists)
+    return TRUE;
+  if (!g_file_test (dir, G_FILE_TEST_IS_DIR)) {
+    g_set_error (error, G_FILE_ERROR, G_FILE_ERROR_NOTDIR, "%s exists and is not a folder", dir);
+    return FALSE;
+  }
+  g_autoptr (GDir) d = g_dir_open (dir, 0, error);
+  if (!d)
+    return FALSE;
+  const char *first = g_dir_read_name (d);
+  if (first) {
+    g_set_error (error, G_FILE_ERROR, G_FILE_ERROR_EXIST,
+                 "%s already holds files (%s...): its results would be overwritten; "
+                 "--force to write into it anyway, or choose another folder", dir, first);
+    return FALSE;
+  }
+  return TRUE;
+}
+
+/* The folder results go to, created before anything is acquired so that a refusal wastes no
+ * acquisition. --out: refused when it holds files, unless --force. No --out (capture): a new
+ * folder capture-YYYYmmdd-HHMMSS in the current directory, which the final line names. */
+static char *
+prepare_out_dir (const char *cmd, const char *out, gboolean force)
+{
+  g_autoptr (GError) error = NULL;
+  if (out) {
+    gboolean exists;
+    if (!force && !dir_is_free (out, &exists, &error)) {
+      fprintf (stderr, "descatterctl %s: --out %s\n", cmd, error->message);
+      return NULL;
+    }
+    if (g_mkdir_with_parents (out, 0755) != 0) {
+      fprintf (stderr, "descatterctl %s: cannot create %s: %s\n", cmd, out, g_strerror (errno));
+      return NULL;
+    }
+    return g_strdup (out);
+  }
+  g_autoptr (GDateTime) now = g_date_time_new_now_local ();
+  g_autofree char *base = g_date_time_format (now, "capture-%Y%m%d-%H%M%S");
+  for (guint k = 1; k < 100; k++) {
+    g_autofree char *dir = k == 1 ? g_strdup (base) : g_strdup_printf ("%s-%u", base, k);
+    if (g_mkdir (dir, 0755) == 0)
+      return g_steal_pointer (&dir);
+    if (errno != EEXIST) {
+      fprintf (stderr, "descatterctl %s: cannot create ./%s: %s (--out DIR)\n", cmd, dir, g_strerror (errno));
+      return NULL;
+    }
+  }
+  fprintf (stderr, "descatterctl %s: cannot find a free folder name %s-N (--out DIR)\n", cmd, base);
+  return NULL;
+}
+
+int
+ds_ctl_capture (const DsCtlTarget *target, int argc, char **argv)
+{
+  g_auto (AcqOptions) o = { 0 };
   g_autofree char *out = NULL, *format = NULL;
-  gboolean extrema = FALSE, quiet = FALSE;
+  gboolean extrema = FALSE, quiet = FALSE, force = FALSE;
   GOptionEntry entries[] = {
     ACQ_ENTRIES (o),
     { "format", 'f', 0, G_OPTION_ARG_STRING, &format, "f32 (default) or u16", "FMT" },
     { "extrema", 0, 0, G_OPTION_ARG_NONE, &extrema, "Also fetch max, min and mean", NULL },
-    { "out", 'o', 0, G_OPTION_ARG_FILENAME, &out, "Output folder (default .)", "DIR" },
+    { "out", 'o', 0, G_OPTION_ARG_FILENAME, &out,
+      "Output folder (default: a new capture-DATE-TIME folder here)", "DIR" },
+    { "force", 0, 0, G_OPTION_ARG_NONE, &force, "Write into --out even when it holds files", NULL },
     { "quiet", 'q', 0, G_OPTION_ARG_NONE, &quiet, "No progress line", NULL },
     { NULL },
   };
-  if (!parse_options (&argc, &argv, entries,
-                      "Acquires one phase set and writes transmissive/scattered (TIFF), the mask, "
-                      "PNG previews and result.json.")) {
-    acq_options_free (&o);
+  if (!ds_ctl_parse_options (&argc, &argv, entries,
+                             "Acquires one phase set and writes transmissive/scattered (TIFF), the mask, "
+                             "PNG previews and result.json."))
     return 2;
-  }
-  g_autoptr (JsonObject) args = acq_args (&o);
-  acq_options_free (&o);
+  g_autoptr (JsonObject) args = acq_args (&o, "capture");
+  if (!args)
+    return 2;
   if (format)
     json_object_set_string_member (args, "format", format);
   if (extrema) {
@@ -225,98 +233,151 @@ ds_ctl_capture (int argc, char **argv)
     json_object_set_array_member (args, "outputs", outs);
   }
   json_object_set_boolean_member (args, "progress", !quiet);
-  g_autoptr (DsClient) c = connect_or_complain ("capture");
+  g_autoptr (DsClient) c = ds_ctl_connect (target, "capture");
   if (!c)
     return 1;
+  g_autofree char *dir = prepare_out_dir ("capture", out, force);
+  if (!dir)
+    return 1;
   gboolean tty = isatty (2);
-  g_autoptr (DsMessage) m = call (c, "capture", args, on_progress, &tty);
+  g_autoptr (DsMessage) m = ds_ctl_call (c, "capture", args, on_progress, &tty);
   if (tty && !quiet)
     fprintf (stderr, "\n");
-  if (!m)
+  if (!m) {
+    if (!out)
+      g_rmdir (dir); /* the folder we made is still empty */
     return 1;
+  }
   g_autoptr (GError) error = NULL;
-  const char *dir = out ? out : ".";
   if (!ds_ctl_write_result (m, dir, "", &error)) {
     fprintf (stderr, "descatterctl capture: writing %s: %s\n", dir, error->message);
     return 1;
   }
   JsonObject *body = json_node_get_object (m->reply->body);
-  printf ("set %" G_GINT64_FORMAT " written to %s\n", json_object_get_int_member_with_default (body, "set_id", 0), dir);
+  printf ("set %" G_GINT64_FORMAT " written to %s/%s\n", json_object_get_int_member_with_default (body, "set_id", 0),
+          dir, out ? "" : " (a new folder here: no --out given)");
   return 0;
 }
 
 int
-ds_ctl_start (int argc, char **argv)
+ds_ctl_start (const DsCtlTarget *target, int argc, char **argv)
 {
-  AcqOptions o = { .gain_db = -1 };
+  g_auto (AcqOptions) o = { 0 };
   GOptionEntry entries[] = { ACQ_ENTRIES (o), { NULL } };
-  if (!parse_options (&argc, &argv, entries, "Starts continuous acquisition (results go to subscribers).")) {
-    acq_options_free (&o);
+  if (!ds_ctl_parse_options (&argc, &argv, entries,
+                             "Starts continuous acquisition (results go to subscribers: "
+                             "descatterctl stream). Without options the configuration's settings "
+                             "apply, and follow its reloads."))
     return 2;
-  }
-  g_autoptr (JsonObject) args = acq_args (&o);
-  acq_options_free (&o);
-  g_autoptr (DsClient) c = connect_or_complain ("start");
+  g_autoptr (JsonObject) args = acq_args (&o, "start");
+  if (!args)
+    return 2;
+  g_autoptr (DsClient) c = ds_ctl_connect (target, "start");
   if (!c)
     return 1;
-  g_autoptr (DsMessage) m = call (c, "start", args, NULL, NULL);
+  g_autoptr (DsMessage) m = ds_ctl_call (c, "start", args, NULL, NULL);
   if (!m)
     return 1;
-  print_json (m->reply->body);
+  ds_ctl_print_json (m->reply->body);
   return 0;
 }
 
 int
-ds_ctl_dark (int argc, char **argv)
+ds_ctl_dark (const DsCtlTarget *target, int argc, char **argv)
 {
-  int averages = 0;
-  double exposure = 0, gain = -1;
+  g_autofree char *averages = NULL, *exposure = NULL, *gain = NULL;
   GOptionEntry entries[] = {
-    { "averages", 'm', 0, G_OPTION_ARG_INT, &averages, "Frames averaged (1..64)", "M" },
-    { "exposure-us", 'e', 0, G_OPTION_ARG_DOUBLE, &exposure, "Exposure (µs)", "E" },
-    { "gain-db", 'g', 0, G_OPTION_ARG_DOUBLE, &gain, "Gain (dB)", "G" },
+    { "averages", 'm', 0, G_OPTION_ARG_STRING, &averages, "Frames averaged (1..64)", "M" },
+    { "exposure-us", 'e', 0, G_OPTION_ARG_STRING, &exposure, "Exposure (µs, 1..1e7)", "E" },
+    { "gain-db", 'g', 0, G_OPTION_ARG_STRING, &gain, "Gain (dB, 0..48)", "G" },
     { NULL },
   };
-  if (!parse_options (&argc, &argv, entries, "Measures the dark frame (illuminator off) used by later sets."))
+  if (!ds_ctl_parse_options (&argc, &argv, entries, "Measures the dark frame (illuminator off) used by later sets."))
     return 2;
   g_autoptr (JsonObject) args = json_object_new ();
-  if (averages)
-    json_object_set_int_member (args, "averages", averages);
-  if (exposure > 0)
-    json_object_set_double_member (args, "exposure_us", exposure);
-  if (gain >= 0)
-    json_object_set_double_member (args, "gain_db", gain);
-  g_autoptr (DsClient) c = connect_or_complain ("dark");
+  if (!ds_ctl_args_int (args, "dark", "averages", "averages", averages) ||
+      !ds_ctl_args_double (args, "dark", "exposure-us", "exposure_us", exposure) ||
+      !ds_ctl_args_double (args, "dark", "gain-db", "gain_db", gain))
+    return 2;
+  g_autoptr (DsClient) c = ds_ctl_connect (target, "dark");
   if (!c)
     return 1;
-  g_autoptr (DsMessage) m = call (c, "dark", args, NULL, NULL);
+  g_autoptr (DsMessage) m = ds_ctl_call (c, "dark", args, NULL, NULL);
   if (!m)
     return 1;
-  print_json (m->reply->body);
+  ds_ctl_print_json (m->reply->body);
   return 0;
 }
 
-int
-ds_ctl_stream (int argc, char **argv)
+/* A subscriber of an idle daemon would wait with no output: say why, and how to start. */
+static void
+note_when_idle (DsClient *c)
 {
-  int count = 0, delay_ms = 0;
-  g_autofree char *out = NULL;
+  g_autoptr (GError) error = NULL;
+  g_autoptr (DsMessage) m = ds_client_call (c, "status", NULL, NULL, NULL, &error);
+  if (!m || !m->reply->ok || !m->reply->body || !JSON_NODE_HOLDS_OBJECT (m->reply->body))
+    return;
+  JsonObject *st = json_node_get_object (m->reply->body);
+  if (json_object_get_boolean_member_with_default (st, "continuous", FALSE) ||
+      json_object_get_int_member_with_default (st, "pending", 0) > 0)
+    return;
+  const char *state = json_object_get_string_member_with_default (st, "state", "?");
+  const char *last_error = json_object_get_string_member_with_default (st, "last_error", "");
+  if (strcmp (state, "failed") == 0)
+    fprintf (stderr, "descatterctl stream: the daemon's devices failed (%s); no results will come "
+                     "until it is restarted\n", *last_error ? last_error : "see descatterctl status");
+  else
+    fprintf (stderr, "descatterctl stream: descatterd is not acquiring (state %s): results come "
+                     "while continuous acquisition runs (`descatterctl start`, `descatterctl stop`) "
+                     "or other clients capture; waiting (Ctrl-C to end)\n", state);
+}
+
+int
+ds_ctl_stream (const DsCtlTarget *target, int argc, char **argv)
+{
+  g_autofree char *count_text = NULL, *delay_text = NULL, *out = NULL;
+  gboolean force = FALSE;
   GOptionEntry entries[] = {
-    { "count", 'c', 0, G_OPTION_ARG_INT, &count, "Stop after this many results (default: forever)", "N" },
+    { "count", 'c', 0, G_OPTION_ARG_STRING, &count_text, "Stop after this many results (default: forever)", "N" },
     { "out", 'o', 0, G_OPTION_ARG_FILENAME, &out, "Write each result to DIR/set-NNNNNN-*", "DIR" },
-    { "delay-ms", 0, 0, G_OPTION_ARG_INT, &delay_ms, "Wait this long before reading each message (simulates a slow client)", "MS" },
+    { "force", 0, 0, G_OPTION_ARG_NONE, &force, "Write into --out even when it holds files", NULL },
+    { "delay-ms", 0, 0, G_OPTION_ARG_STRING, &delay_text, "Wait this long before reading each message (simulates a slow client)", "MS" },
     { NULL },
   };
-  if (!parse_options (&argc, &argv, entries, "Subscribes to results and prints (or writes) each one."))
+  if (!ds_ctl_parse_options (&argc, &argv, entries,
+                             "Subscribes to results and prints (or writes) each one; `failed` and "
+                             "`device` events are printed as they come."))
     return 2;
-  g_autoptr (DsClient) c = connect_or_complain ("stream");
+  gint64 count = 0, delay_ms = 0;
+  if ((count_text && !ds_ctl_parse_int ("stream", "count", count_text, &count)) ||
+      (delay_text && !ds_ctl_parse_int ("stream", "delay-ms", delay_text, &delay_ms)))
+    return 2;
+  if (count_text && count < 1) {
+    fprintf (stderr, "descatterctl stream: --count must be at least 1 (leave it out to stream forever)\n");
+    return 2;
+  }
+  if (delay_ms < 0 || delay_ms > 3600 * 1000) {
+    fprintf (stderr, "descatterctl stream: --delay-ms must be in 0..3600000\n");
+    return 2;
+  }
+  g_autoptr (DsClient) c = ds_ctl_connect (target, "stream");
   if (!c)
     return 1;
-  g_autoptr (DsMessage) sub = call (c, "subscribe", NULL, NULL, NULL);
+  g_autofree char *dir = out ? prepare_out_dir ("stream", out, force) : NULL;
+  if (out && !dir)
+    return 1;
+  /* Before subscribing: a status reply waited for later would drop the events before it. */
+  note_when_idle (c);
+  g_autoptr (DsMessage) sub = ds_ctl_call (c, "subscribe", NULL, NULL, NULL);
   if (!sub)
     return 1;
+  /* seq counts every result the daemon publishes: a gap is results this client lost. */
   guint64 last_seq = 0;
-  for (int got = 0; count == 0 || got < count;) {
+  if (sub->reply->body && JSON_NODE_HOLDS_OBJECT (sub->reply->body)) {
+    gint64 next = json_object_get_int_member_with_default (json_node_get_object (sub->reply->body), "next_seq", 0);
+    last_seq = next > 0 ? (guint64) next - 1 : 0;
+  }
+  for (gint64 got = 0; count == 0 || got < count;) {
     if (delay_ms > 0)
       g_usleep ((gulong) delay_ms * 1000);
     g_autoptr (GError) error = NULL;
@@ -335,15 +396,15 @@ ds_ctl_stream (int argc, char **argv)
     }
     JsonObject *body = json_node_get_object (m->reply->body);
     gint64 set_id = json_object_get_int_member_with_default (body, "set_id", 0);
-    guint64 lost = last_seq && m->reply->seq > last_seq + 1 ? m->reply->seq - last_seq - 1 : 0;
+    guint64 lost = m->reply->seq > last_seq + 1 ? m->reply->seq - last_seq - 1 : 0;
     last_seq = m->reply->seq;
     printf ("result seq=%" G_GUINT64_FORMAT " set=%" G_GINT64_FORMAT " lost=%" G_GUINT64_FORMAT "\n",
             m->reply->seq, set_id, lost);
     fflush (stdout);
-    if (out) {
+    if (dir) {
       g_autofree char *prefix = g_strdup_printf ("set-%06" G_GINT64_FORMAT "-", set_id);
-      if (!ds_ctl_write_result (m, out, prefix, &error)) {
-        fprintf (stderr, "descatterctl stream: writing %s: %s\n", out, error->message);
+      if (!ds_ctl_write_result (m, dir, prefix, &error)) {
+        fprintf (stderr, "descatterctl stream: writing %s: %s\n", dir, error->message);
         return 1;
       }
     }

@@ -8,6 +8,7 @@
 #include <glib/gstdio.h>
 
 #include "daemon/ctl/ctl_commands.h"
+#include "daemon/ctl/ctl_progress.h"
 #include "daemon/operating/operating_point.h"
 #include "daemon/ctl/study.h"
 #include "daemon/operating/data_dir.h"
@@ -17,7 +18,9 @@ typedef struct {
   GArray *points;   /* DsStudyPoint (scene pointer not kept: index into names) */
   GPtrArray *names;
   guint done;
-  gboolean quiet;
+  DsCtlProgress *progress; /* one item per rendered set: (scene, exposure, N, M, seed) */
+  const char *last_scene;
+  DsStudyPoint last;
 } StudyOut;
 
 static void
@@ -39,8 +42,15 @@ on_point (const DsStudyPoint *p, gpointer data)
   copy.scene = g_ptr_array_index (o->names, idx);
   g_array_append_val (o->points, copy);
   o->done++;
-  if (!o->quiet)
-    fprintf (stderr, "\rstudy: %u points", o->done);
+  /* A set's points (one per estimator) come together once the set is done: the first of them
+   * marks the set's end. Its cost is its frame count. */
+  if (copy.scene != o->last_scene || p->phases != o->last.phases || p->averages != o->last.averages ||
+      p->exposure_factor != o->last.exposure_factor || p->seed != o->last.seed) {
+    g_autofree char *extra = g_strdup_printf ("%u points", o->done);
+    ds_ctl_progress_advance (o->progress, (double) p->phases * p->averages, extra);
+  }
+  o->last_scene = copy.scene;
+  o->last = *p;
 }
 
 typedef struct {
@@ -322,8 +332,16 @@ ds_ctl_study (int argc, char **argv)
   plan.examples_dir = examples;
   g_autofree char *csv_path = g_build_filename (dir, "study.csv", NULL);
   g_autofree char *tmp_path = g_strconcat (csv_path, ".tmp", NULL);
+  guint sum_n = 0, sum_m = 0;
+  for (guint i = 0; i < plan.n_phases; i++)
+    sum_n += plan.phases[i];
+  for (guint i = 0; i < plan.n_averages; i++)
+    sum_m += plan.averages[i];
+  guint n_sets = files->len * plan.n_exposures * plan.n_phases * plan.n_averages * plan.n_seeds;
+  double frames = (double) files->len * plan.n_exposures * plan.n_seeds * sum_n * sum_m;
+  g_autoptr (DsCtlProgress) progress = ds_ctl_progress_new ("study", "sets", n_sets, frames, quiet);
   StudyOut o = { .csv = fopen (tmp_path, "w"), .points = g_array_new (FALSE, FALSE, sizeof (DsStudyPoint)),
-                 .names = g_ptr_array_new_with_free_func (g_free), .quiet = quiet };
+                 .names = g_ptr_array_new_with_free_func (g_free), .progress = progress };
   if (!o.csv) {
     fprintf (stderr, "descatterctl study: cannot write %s\n", tmp_path);
     return 1;
@@ -332,10 +350,12 @@ ds_ctl_study (int argc, char **argv)
                   "rel_rmse_scattered,stripe_residue,valid,masked,saturated,acquisition_ms,compute_ms,signal_dn,direct_fraction\n");
   int status = 0;
   for (guint i = 0; i < files->len && status == 0; i++)
-    if (!ds_study_run_scene (g_ptr_array_index (files, i), &plan, on_point, &o, &error)) {
-      fprintf (stderr, "\ndescatterctl study: %s\n", error->message);
+    if (!ds_study_run_scene (g_ptr_array_index (files, i), &plan, on_point, &o, &error))
       status = 1;
-    }
+  g_clear_pointer (&progress, ds_ctl_progress_free); /* ends the progress line */
+  o.progress = NULL;
+  if (status != 0)
+    fprintf (stderr, "descatterctl study: %s\n", error->message);
   /* The CSV appears whole or not at all. */
   if (fclose (o.csv) != 0 || (status == 0 && g_rename (tmp_path, csv_path) != 0))
     status = 1;
@@ -345,7 +365,7 @@ ds_ctl_study (int argc, char **argv)
       fprintf (stderr, "descatterctl study: %s\n", error->message);
       status = 1;
     } else if (!quiet)
-      fprintf (stderr, "\nstudy: %u points in %s, fronts in %s\n", o.done, csv_path, md);
+      fprintf (stderr, "study: %u points in %s, fronts in %s\n", o.done, csv_path, md);
     g_autofree char *model = g_build_filename (dir, "operating-model.csv", NULL);
     if (status == 0 && !write_model (&o, model, &error)) {
       fprintf (stderr, "descatterctl study: %s\n", error->message);
