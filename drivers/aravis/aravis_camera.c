@@ -99,6 +99,10 @@ open_device (AravisCam *c, GError **error)
     return fail (error, DS_DEVICE_ERROR_DISCONNECTED, e, "no camera answers at \"%s\"", c->address);
   c->camera = cam;
   g_atomic_int_set (&c->lost, 0);
+  /* A camera may still be acquiring for a session that is gone (ours before a reconnect, or a
+   * crashed one): it would keep streaming to that session's port. Stopping first makes the
+   * next AcquisitionStart take the stream channel as configured now. */
+  arv_camera_stop_acquisition (cam, NULL);
   c->control_lost_id = g_signal_connect (arv_camera_get_device (cam), "control-lost",
                                          G_CALLBACK (on_control_lost), c);
   memset (&c->info, 0, sizeof c->info);
