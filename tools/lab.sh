@@ -13,7 +13,7 @@ packages=(
   build-essential cmake pkg-config
   libglib2.0-dev libjson-glib-dev libsystemd-dev
   libaravis-dev aravis-tools aravis-tools-cli libusb-1.0-0-dev
-  libmodbus-dev mbpoll socat python3-pymodbus python3-serial
+  libmodbus-dev mbpoll socat python3-pymodbus python3-serial python3-serial-asyncio
   libgpiod-dev gpiod
   libopencv-dev
   python3-numpy python3-matplotlib

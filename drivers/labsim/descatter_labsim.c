@@ -10,6 +10,7 @@
 #include <string.h>
 
 #include "build_info.h"
+#include "drivers/labsim/external_light.h"
 #include "drivers/labsim/lab_camera.h"
 #include "drivers/labsim/labsim_options.h"
 #include "drivers/labsim/modbus_server.h"
@@ -18,6 +19,7 @@
 
 typedef struct {
   DsModbusServer *modbus;
+  DsExternalLight *external; /* --light-from: another controller lights the scene */
 } Lab;
 
 /* What the controller has lit right now, as the renderer wants it. */
@@ -25,6 +27,10 @@ static void
 illumination (gpointer data, DsRenderRequest *req)
 {
   Lab *lab = data;
+  if (lab->external) {
+    ds_external_light_read (lab->external, req);
+    return;
+  }
   DsModbusServerState st;
   ds_modbus_server_get_state (lab->modbus, &st);
   req->illuminator_on = st.enabled;
@@ -94,6 +100,11 @@ run (const DsLabsimOptions *o)
     fprintf (stderr, "descatter-labsim: %s\n", error->message);
     return 1;
   }
+  if (o->light_from && !(lab.external = ds_external_light_new (o->light_from, &error))) {
+    fprintf (stderr, "descatter-labsim: %s\n", error->message);
+    ds_modbus_server_free (lab.modbus);
+    return 1;
+  }
   const char *camera_address = o->camera_address ? o->camera_address : "127.0.0.1";
   DsLabCameraConfig ccfg = {
     .address = camera_address,
@@ -107,6 +118,7 @@ run (const DsLabsimOptions *o)
   if (!camera) {
     fprintf (stderr, "descatter-labsim: %s\n", error->message);
     ds_modbus_server_free (lab.modbus);
+    ds_external_light_free (lab.external);
     return 1;
   }
 
@@ -134,6 +146,7 @@ run (const DsLabsimOptions *o)
   DsModbusServerState st;
   ds_modbus_server_get_state (lab.modbus, &st);
   ds_modbus_server_free (lab.modbus);
+  ds_external_light_free (lab.external);
   fprintf (stderr, "descatter-labsim: stopped after %" G_GUINT64_FORMAT " frames, %" G_GUINT64_FORMAT
                    " Modbus requests\n", frames, st.requests);
   return 0;

@@ -66,6 +66,9 @@ ds_labsim_options_parse (DsLabsimOptions *o, int *argc, char ***argv, GError **e
     { "camera-vanish-after", 0, 0, G_OPTION_ARG_INT, &o->vanish_after,
       "Fault: the camera disappears after N frames ...", "N" },
     { "camera-vanish-for", 0, 0, G_OPTION_ARG_DOUBLE, &o->vanish_for, "... for S seconds (default 2)", "S" },
+    { "light-from", 0, 0, G_OPTION_ARG_STRING, &o->light_from,
+      "The camera sees the phase another controller lights (its registers read over Modbus TCP)",
+      "tcp://HOST:PORT" },
     { NULL },
   };
   const GOptionEntry modbus_entries[] = {
@@ -166,5 +169,6 @@ ds_labsim_options_clear (DsLabsimOptions *o)
   g_free (o->modbus_host);
   g_free (o->modbus_rtu);
   g_free (o->modbus_rtu_link);
+  g_free (o->light_from);
   memset (o, 0, sizeof *o);
 }

@@ -34,6 +34,7 @@ typedef struct {
   int rtu_vanish_after;    /* requests */
   double rtu_vanish_for;   /* s */
   gboolean stuck, wrong_phase, fault, over_temp;
+  char *light_from;        /* NULL: the camera sees labsim's own controller */
 } DsLabsimOptions;
 
 /* Parses argv (removing what it took). FALSE with a message naming the option on bad input. */

@@ -1,0 +1,72 @@
+#include "drivers/labsim/external_light.h"
+
+#include <errno.h>
+#include <gio/gio.h>
+#include <modbus.h>
+
+#include "drivers/modbus/modbus_illuminator.h"
+#include "drivers/modbus/registers.h"
+
+struct DsExternalLight {
+  char *uri;
+  modbus_t *ctx;
+  gboolean connected;
+  gboolean warned;         /* one warning per outage */
+};
+
+DsExternalLight *
+ds_external_light_new (const char *uri, GError **error)
+{
+  DsModbusUri u;
+  GError *e = NULL;
+  if (!ds_modbus_uri_parse (uri, &u, &e) || u.transport != DS_MODBUS_TCP) {
+    g_set_error (error, G_IO_ERROR, G_IO_ERROR_INVALID_ARGUMENT, "--light-from \"%s\": %s", uri,
+                 e ? e->message : "expected tcp://HOST:PORT");
+    g_clear_error (&e);
+    return NULL;
+  }
+  DsExternalLight *l = g_new0 (DsExternalLight, 1);
+  l->uri = g_strdup (uri);
+  char port[16];
+  g_snprintf (port, sizeof port, "%u", u.port);
+  l->ctx = modbus_new_tcp_pi (u.host, port);
+  modbus_set_response_timeout (l->ctx, 0, 200000);
+  return l;
+}
+
+void
+ds_external_light_read (DsExternalLight *l, DsRenderRequest *req)
+{
+  guint16 applied = DS_MB_PHASE_OFF, n_phases = 0;
+  gboolean ok = (l->connected || modbus_connect (l->ctx) == 0);
+  l->connected = ok;
+  ok = ok && modbus_read_input_registers (l->ctx, DS_MB_INPUT_APPLIED_PHASE, 1, &applied) == 1 &&
+       modbus_read_registers (l->ctx, DS_MB_HOLD_NUM_PHASES, 1, &n_phases) == 1;
+  if (!ok) {
+    if (!l->warned)
+      g_warning ("light from %s: cannot read the controller (%s): frames are dark", l->uri,
+                 modbus_strerror (errno));
+    l->warned = TRUE;
+    if (l->connected)
+      modbus_close (l->ctx);
+    l->connected = FALSE;
+    req->illuminator_on = FALSE;
+    return;
+  }
+  l->warned = FALSE;
+  req->illuminator_on = applied != DS_MB_PHASE_OFF && n_phases >= 1 && applied < n_phases;
+  req->phase = req->illuminator_on ? applied : 0;
+  req->n_phases = MAX (n_phases, 1u);
+}
+
+void
+ds_external_light_free (DsExternalLight *l)
+{
+  if (!l)
+    return;
+  if (l->connected)
+    modbus_close (l->ctx);
+  modbus_free (l->ctx);
+  g_free (l->uri);
+  g_free (l);
+}

@@ -1,0 +1,293 @@
+/* descatterd over Modbus RTU, end to end, against two controllers on a serial line:
+ *  - descatter-labsim's own RTU side (on a pty it creates), with its serial fault knobs;
+ *  - tests/drivers/pymodbus_controller.py, docs/registers.md implemented with Debian's pymodbus
+ *    serial server on one end of a socat pty pair, descatterd on the other; labsim's camera
+ *    sees the phase that controller lights (--light-from).
+ * Every set either equals the scene's truth within the noise model or fails with a message that
+ * names what went wrong; after each fault the daemon recovers on its own.
+ * Usage: test_daemon_rtu LABSIM SCENE PYMODBUS_CONTROLLER. Binds UDP 3956. */
+#include <glib/gstdio.h>
+#include <signal.h>
+#include <stdio.h>
+#include <string.h>
+#include <sys/prctl.h>
+#include <unistd.h>
+
+#include "../daemon/daemon_harness.h"
+#include "../daemon/truth_check.h"
+
+static const char *labsim_path, *scene_path, *controller_path;
+static DsScene *the_scene;
+static DsImage *truth_t, *truth_g;
+
+static void
+die_with_parent (gpointer data)
+{
+  (void) data;
+  prctl (PR_SET_PDEATHSIG, SIGTERM);
+}
+
+/* A helper process that dies with the test; waits for a line containing `ready` (NULL: do not
+ * wait) and returns it. */
+static GSubprocess *
+spawn (const char *const *argv, const char *ready, char **ready_line)
+{
+  g_autoptr (GError) error = NULL;
+  g_autoptr (GSubprocessLauncher) launcher = g_subprocess_launcher_new (
+      ready ? G_SUBPROCESS_FLAGS_STDOUT_PIPE : G_SUBPROCESS_FLAGS_STDOUT_SILENCE);
+  g_subprocess_launcher_set_child_setup (launcher, die_with_parent, NULL, NULL);
+  GSubprocess *p = g_subprocess_launcher_spawnv (launcher, argv, &error);
+  g_assert_no_error (error);
+  if (!ready)
+    return p;
+  g_autoptr (GDataInputStream) out = g_data_input_stream_new (g_subprocess_get_stdout_pipe (p));
+  for (;;) {
+    char *line = g_data_input_stream_read_line (out, NULL, NULL, &error);
+    g_assert_no_error (error);
+    if (!line)
+      g_error ("%s exited before it was ready", argv[0]);
+    if (strstr (line, ready)) {
+      if (ready_line)
+        *ready_line = line;
+      else
+        g_free (line);
+      return p;
+    }
+    g_free (line);
+  }
+}
+
+static void
+stop (GSubprocess *p)
+{
+  g_subprocess_send_signal (p, SIGTERM);
+  g_subprocess_wait (p, NULL, NULL);
+  g_object_unref (p);
+}
+
+static char *
+daemon_config (const char *uri)
+{
+  return g_strdup_printf ("[camera]\nbackend=aravis\naddress=127.0.0.1\npixel-format=Mono16\n"
+                          "exposure-us=%g\ngrab-timeout-ms=2000\n"
+                          "[illuminator]\nbackend=modbus\nmodbus-uri=%s\nmodbus-timeout-ms=100\n"
+                          "settle-timeout-ms=500\nperiod-px=%g\nduty=%g\n"
+                          "[acquisition]\nphases=4\ndark-frame=true\nphase-retries=2\n",
+                          ds_scene_default_exposure_us (the_scene), uri, ds_scene_period_px (the_scene),
+                          ds_scene_duty (the_scene));
+}
+
+typedef struct {
+  guint ok, failed;
+  gboolean failed_before_last_ok; /* a failure was followed by a correct set: recovery */
+} Tally;
+
+/* One capture: correct against the truth, or failed with a message naming `must_name` (NULL:
+ * any reason). Returns the error message of a failure (owned by the caller), NULL when correct. */
+static char *
+capture (DsClient *c, Tally *t, const char *must_name)
+{
+  g_autoptr (GError) error = NULL;
+  gint64 t0 = g_get_monotonic_time ();
+  g_autoptr (DsMessage) m = ds_client_call (c, "capture", NULL, NULL, NULL, &error);
+  g_assert_no_error (error);
+  double s = (double) (g_get_monotonic_time () - t0) / 1e6;
+  if (m->reply->ok) {
+    TruthCheck tc;
+    truth_check (m, the_scene, truth_t, truth_g, &tc);
+    g_test_message ("set correct in %.2f s: rms %.2f/%.2f DN (allowed %.2f/%.2f)", s, tc.rms_transmissive,
+                    tc.rms_scattered, tc.allowed_transmissive, tc.allowed_scattered);
+    g_assert_true (truth_check_passed (&tc));
+    if (t->failed)
+      t->failed_before_last_ok = TRUE;
+    t->ok++;
+    return NULL;
+  }
+  g_test_message ("set failed in %.2f s: %s", s, m->reply->error_message);
+  if (must_name && !strstr (m->reply->error_message, must_name))
+    g_error ("the failure \"%s\" does not name \"%s\"", m->reply->error_message, must_name);
+  g_assert_nonnull (strstr (m->reply->error_message, "illuminator"));
+  t->failed++;
+  return g_strdup (m->reply->error_message);
+}
+
+static void
+assert_accounting (DsClient *c)
+{
+  g_autoptr (DsMessage) st = test_daemon_call_ok (c, "status", NULL);
+  g_assert_cmpint (test_json_int (st->reply->body, "frames.acquired"), ==,
+                   test_json_int (st->reply->body, "frames.folded") + test_json_int (st->reply->body, "frames.dropped"));
+}
+
+/* labsim's controller on its own pty: a clean set, then answers with bad CRCs, silences and the
+ * line going away for a second. */
+static void
+test_labsim_rtu (void)
+{
+  g_autoptr (GError) error = NULL;
+  g_autofree char *dir = g_dir_make_tmp ("ds-rtu-XXXXXX", &error);
+  g_assert_no_error (error);
+  g_autofree char *link = g_build_filename (dir, "ttyLAB", NULL);
+  const char *args[] = { "--modbus-rtu", "pty", "--modbus-rtu-link", link, NULL };
+  TestLabsim *l = test_labsim_start (labsim_path, scene_path, args);
+  g_autofree char *uri = g_strdup_printf ("rtu:%s?baud=115200&parity=N", link);
+  g_autofree char *conf = daemon_config (uri);
+  TestDaemon *d = test_daemon_start (conf, NULL);
+  g_autoptr (DsClient) c = test_daemon_connect (d);
+  Tally t = { 0 };
+  g_free (capture (c, &t, NULL));
+  g_free (capture (c, &t, NULL));
+  g_assert_cmpuint (t.ok, ==, 2);
+  assert_accounting (c);
+  g_assert_cmpint (test_daemon_stop (d), ==, 0);
+  test_daemon_free (d);
+  test_labsim_stop (l);
+
+  /* Faults on the line: every 13th answer has a bad CRC, every 17th never comes; after 150
+   * requests the line is away for a second. */
+  const char *faults[] = { "--modbus-rtu", "pty", "--modbus-rtu-link", link, "--modbus-bad-crc-every", "13",
+                           "--modbus-silent-every", "17", "--modbus-rtu-vanish-after", "150",
+                           "--modbus-rtu-vanish-for", "1", NULL };
+  g_clear_pointer (&c, ds_client_free);
+  l = test_labsim_start (labsim_path, scene_path, faults);
+  d = test_daemon_start (conf, NULL);
+  c = test_daemon_connect (d);
+  memset (&t, 0, sizeof t);
+  for (guint i = 0; i < 7; i++)
+    g_free (capture (c, &t, "Modbus"));
+  g_test_message ("labsim RTU with faults: %u sets correct, %u failed", t.ok, t.failed);
+  g_autoptr (DsMessage) st = test_daemon_call_ok (c, "status", NULL);
+  g_assert_cmpint (test_json_int (st->reply->body, "frames.device_errors"), >, 0);
+  g_assert_cmpuint (t.ok, >=, 3);
+  g_assert_true (t.failed == 0 || t.failed_before_last_ok);
+  assert_accounting (c);
+  g_assert_cmpint (test_daemon_stop (d), ==, 0);
+  test_daemon_free (d);
+  test_labsim_stop (l);
+  g_rmdir (dir);
+}
+
+typedef struct {
+  char *dir, *a, *b;
+  GSubprocess *socat, *controller;
+  guint light_port;
+} Line;
+
+/* The serial line (socat pty pair, links a and b) and the controller on end a. */
+static void
+line_up (Line *ln)
+{
+  g_autofree char *pa = g_strdup_printf ("pty,raw,echo=0,link=%s", ln->a);
+  g_autofree char *pb = g_strdup_printf ("pty,raw,echo=0,link=%s", ln->b);
+  const char *socat[] = { "socat", pa, pb, NULL };
+  ln->socat = spawn (socat, NULL, NULL);
+  for (guint i = 0; i < 200 && !(g_file_test (ln->a, G_FILE_TEST_EXISTS) && g_file_test (ln->b, G_FILE_TEST_EXISTS)); i++)
+    g_usleep (10000);
+  g_assert_true (g_file_test (ln->b, G_FILE_TEST_EXISTS));
+  g_autofree char *port = g_strdup_printf ("%u", ln->light_port);
+  const char *ctl[] = { "/usr/bin/python3", controller_path, ln->a, "--baud", "115200", "--parity", "N",
+                        "--light-port", port, "--busy-count", "4", NULL };
+  g_autofree char *ready = NULL;
+  ln->controller = spawn (ctl, "ready", &ready);
+  const char *lp = strstr (ready, "light=127.0.0.1:");
+  g_assert_nonnull (lp);
+  ln->light_port = (guint) g_ascii_strtoull (lp + strlen ("light=127.0.0.1:"), NULL, 10);
+}
+
+static void
+line_down (Line *ln)
+{
+  stop (ln->controller);
+  stop (ln->socat);
+  ln->controller = ln->socat = NULL;
+  for (guint i = 0; i < 200 && g_file_test (ln->b, G_FILE_TEST_EXISTS); i++)
+    g_usleep (10000);
+}
+
+/* A controller written elsewhere: sets are correct; exception 06 beyond the retries, silence
+ * and the whole line going away each fail one set with a clear reason, and the next set is
+ * correct again. */
+static void
+test_pymodbus_controller (void)
+{
+  g_autoptr (GError) error = NULL;
+  Line ln = { 0 };
+  ln.dir = g_dir_make_tmp ("ds-pymodbus-XXXXXX", &error);
+  g_assert_no_error (error);
+  ln.a = g_build_filename (ln.dir, "ttyA", NULL);
+  ln.b = g_build_filename (ln.dir, "ttyB", NULL);
+  line_up (&ln);
+  g_autofree char *light = g_strdup_printf ("tcp://127.0.0.1:%u", ln.light_port);
+  const char *args[] = { "--light-from", light, NULL };
+  TestLabsim *l = test_labsim_start (labsim_path, scene_path, args);
+  g_autofree char *uri = g_strdup_printf ("rtu:%s?baud=115200&parity=N", ln.b);
+  g_autofree char *conf = daemon_config (uri);
+  TestDaemon *d = test_daemon_start (conf, NULL);
+  g_autoptr (DsClient) c = test_daemon_connect (d);
+  Tally t = { 0 };
+  g_free (capture (c, &t, NULL));
+  g_free (capture (c, &t, NULL));
+  g_assert_cmpuint (t.ok, ==, 2);
+
+  /* Busy for 4 requests: more than one access's 3 attempts (the set's first access, loading the
+   * pattern, fails: the sequencer does not retry that), fewer than two accesses' (the next set
+   * gets through on a retry). */
+  g_subprocess_send_signal (ln.controller, SIGUSR1);
+  g_autofree char *busy = capture (c, &t, "exception 06");
+  g_assert_nonnull (busy);
+  g_free (capture (c, &t, NULL));
+  g_assert_cmpuint (t.ok, ==, 3);
+
+  /* Silent for 1.5 s: longer than the phase's three tries of 3 x 100 + 100 ms. */
+  g_subprocess_send_signal (ln.controller, SIGUSR2);
+  g_autofree char *silent = capture (c, &t, "timed out");
+  g_assert_nonnull (silent);
+  g_usleep (1500000);
+  g_free (capture (c, &t, NULL));
+  g_assert_cmpuint (t.ok, ==, 4);
+
+  /* The peer goes away (controller and line) and comes back under the same names. */
+  line_down (&ln);
+  g_autofree char *away = capture (c, &t, ln.b);
+  g_assert_nonnull (away);
+  line_up (&ln);
+  g_free (capture (c, &t, NULL));
+  g_free (capture (c, &t, NULL));
+  g_assert_cmpuint (t.ok, ==, 6);
+  g_assert_cmpuint (t.failed, ==, 3);
+  assert_accounting (c);
+  g_assert_cmpint (test_daemon_stop (d), ==, 0);
+  test_daemon_free (d);
+  test_labsim_stop (l);
+  line_down (&ln);
+  g_rmdir (ln.dir);
+  g_free (ln.dir);
+  g_free (ln.a);
+  g_free (ln.b);
+}
+
+int
+main (int argc, char **argv)
+{
+  g_test_init (&argc, &argv, NULL);
+  if (argc < 4) {
+    fprintf (stderr, "usage: test_daemon_rtu LABSIM SCENE PYMODBUS_CONTROLLER\n");
+    return 2;
+  }
+  labsim_path = argv[1];
+  scene_path = argv[2];
+  controller_path = argv[3];
+  g_autoptr (GError) error = NULL;
+  the_scene = ds_scene_load (scene_path, &error);
+  g_assert_no_error (error);
+  g_autoptr (DsRenderer) r = ds_renderer_new (the_scene, NULL, &error);
+  g_assert_no_error (error);
+  g_assert_true (ds_renderer_truth (r, ds_scene_default_exposure_us (the_scene), 0, &truth_t, &truth_g, &error));
+  g_test_add_func ("/daemon-rtu/labsim", test_labsim_rtu);
+  g_test_add_func ("/daemon-rtu/pymodbus-controller", test_pymodbus_controller);
+  int status = g_test_run ();
+  ds_image_free (truth_t);
+  ds_image_free (truth_g);
+  ds_scene_free (the_scene);
+  return status;
+}
