@@ -213,20 +213,37 @@ DsImage *
 ds_pixfmt_unpack (DsPixelFormat fmt, const void *data, gsize size, guint width, guint height,
                   gsize stride, GError **error)
 {
+  if (check_geometry (fmt, width, height, stride, error) == 0)
+    return NULL;
+  g_autoptr (DsImage) img = ds_image_new (fmt == DS_PIXFMT_MONO8 ? DS_SAMPLE_U8 : DS_SAMPLE_U16,
+                                          width, height, error);
+  if (!img || !ds_pixfmt_unpack_into (fmt, data, size, stride, img, error))
+    return NULL;
+  return g_steal_pointer (&img);
+}
+
+gboolean
+ds_pixfmt_unpack_into (DsPixelFormat fmt, const void *data, gsize size, gsize stride, DsImage *img,
+                       GError **error)
+{
+  guint width = img->width, height = img->height;
   gsize need = check_geometry (fmt, width, height, stride, error);
   if (need == 0)
-    return NULL;
+    return FALSE;
+  DsSampleType type = fmt == DS_PIXFMT_MONO8 ? DS_SAMPLE_U8 : DS_SAMPLE_U16;
+  if (img->type != type) {
+    g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT,
+                 "%s unpacks to %s samples, the image has %s", formats[fmt].name,
+                 ds_sample_type_name (type), ds_sample_type_name (img->type));
+    return FALSE;
+  }
   if (!data || size < need) {
     g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_SIZE_MISMATCH,
                  "%s %ux%u (stride %zu) needs %zu bytes, got %zu", formats[fmt].name, width, height,
                  stride, need, data ? size : 0);
-    return NULL;
+    return FALSE;
   }
   const guint8 *src = data;
-  DsImage *img = ds_image_new (fmt == DS_PIXFMT_MONO8 ? DS_SAMPLE_U8 : DS_SAMPLE_U16, width, height,
-                               error);
-  if (!img)
-    return NULL;
   img->bit_depth = formats[fmt].depth;
   const guint d = formats[fmt].depth;
   for (guint y = 0; y < height; y++) {
@@ -254,8 +271,7 @@ ds_pixfmt_unpack (DsPixelFormat fmt, const void *data, gsize size, guint width, 
                          y, out[x], d - 1);
             break;
           }
-        ds_image_free (img);
-        return NULL;
+        return FALSE;
       }
       break;
     }
@@ -272,7 +288,7 @@ ds_pixfmt_unpack (DsPixelFormat fmt, const void *data, gsize size, guint width, 
     }
     }
   }
-  return img;
+  return TRUE;
 }
 
 GBytes *

@@ -61,6 +61,12 @@ gsize ds_pixfmt_image_bytes (DsPixelFormat fmt, guint width, guint height, gsize
 DsImage *ds_pixfmt_unpack (DsPixelFormat fmt, const void *data, gsize size, guint width,
                            guint height, gsize stride, GError **error);
 
+/* As ds_pixfmt_unpack, into an image the caller provides (a pooled one: no allocation per
+ * frame). Its width and height say the frame's; its type must be U8 for Mono8, U16 otherwise;
+ * bit_depth is set. On error the image's pixels are unspecified. */
+gboolean ds_pixfmt_unpack_into (DsPixelFormat fmt, const void *data, gsize size, gsize stride,
+                                DsImage *image, GError **error);
+
 /* The inverse: image (U8 for Mono8, U16 otherwise) to a payload with the given stride
  * (0 = continuous bitstream); padding bytes and unused bits are 0. Fails FORMAT when the
  * sample type does not fit the format or a value does not fit the depth (names the pixel). */

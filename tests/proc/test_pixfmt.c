@@ -277,6 +277,28 @@ test_round_trip (void)
   g_assert_error (e2, DS_PROC_ERROR, DS_PROC_ERROR_FORMAT);
 }
 
+/* Unpacking into a provided (pooled) image: the pixels of the hand-derived Mono12p example,
+ * into an image that held other pixels before; a mismatched sample type is refused. */
+static void
+test_unpack_into (void)
+{
+  static const guint8 cont[] = { 0x23, 0x61, 0x45, 0x89, 0xC7, 0xAB, 0xEF, 0x1D, 0x00 };
+  static const guint16 px6[] = { 0x123, 0x456, 0x789, 0xABC, 0xDEF, 0x001 };
+  g_autoptr (DsImage) img = ds_image_new (DS_SAMPLE_U16, 3, 2, NULL);
+  for (guint y = 0; y < 2; y++)
+    memset (ds_image_row (img, y), 0xff, 6);
+  g_autoptr (GError) error = NULL;
+  g_assert_true (ds_pixfmt_unpack_into (DS_PIXFMT_MONO12P, cont, sizeof cont, 0, img, &error));
+  g_assert_no_error (error);
+  g_assert_cmpuint (img->bit_depth, ==, 12);
+  for (guint y = 0; y < 2; y++)
+    for (guint x = 0; x < 3; x++)
+      g_assert_cmphex (((guint16 *) ds_image_row (img, y))[x], ==, px6[y * 3 + x]);
+  g_autoptr (DsImage) u8 = ds_image_new (DS_SAMPLE_U8, 3, 2, NULL);
+  g_assert_false (ds_pixfmt_unpack_into (DS_PIXFMT_MONO12P, cont, sizeof cont, 0, u8, &error));
+  g_assert_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT);
+}
+
 int
 main (int argc, char **argv)
 {
@@ -288,5 +310,6 @@ main (int argc, char **argv)
   g_test_add_func ("/pixfmt/mono12packed", test_mono12packed);
   g_test_add_func ("/pixfmt/short-buffers", test_short_buffers);
   g_test_add_func ("/pixfmt/round-trip", test_round_trip);
+  g_test_add_func ("/pixfmt/unpack-into", test_unpack_into);
   return g_test_run ();
 }
