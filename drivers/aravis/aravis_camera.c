@@ -22,6 +22,7 @@ typedef struct {
   DsFrameIdTracker ids;
   DsCameraStats stats;     /* missing_packets / resend_requests: of streams already closed */
   DsCameraInfo info;
+  DsFramePool *frames;     /* frame headers and unpacked images, reused */
 } AravisCam;
 
 static void
@@ -270,8 +271,9 @@ create_pool (AravisCam *c, guint payload, GError **error)
   if (ARV_IS_GV_STREAM (stream))
     g_object_set (stream, "socket-buffer", ARV_GV_STREAM_SOCKET_BUFFER_AUTO, "packet-resend",
                   ARV_GV_STREAM_PACKET_RESEND_ALWAYS, NULL);
+  /* Each buffer knows its stream (user data), so that a frame lending it can give it back. */
   for (guint i = 0; i < c->n_buffers; i++)
-    arv_stream_push_buffer (stream, arv_buffer_new_allocate (payload));
+    arv_stream_push_buffer (stream, arv_buffer_new_full (payload, NULL, stream, NULL));
   c->stream = stream;
   c->stream_payload = payload;
   c->stream_running = TRUE; /* created streams start receiving at once */
@@ -385,6 +387,18 @@ status_name (ArvBufferStatus st)
   }
 }
 
+/* A lent buffer comes back (ds_frame_free on the acquisition thread): into its stream's input
+ * queue, whatever became of the backend's stream pointer meanwhile; the frame held a
+ * reference on the stream. */
+static void
+return_buffer (gpointer data)
+{
+  ArvBuffer *buf = data;
+  ArvStream *stream = ARV_STREAM ((gpointer) arv_buffer_get_user_data (buf));
+  arv_stream_push_buffer (stream, buf);
+  g_object_unref (stream);
+}
+
 static DsFrame *
 cam_grab (gpointer b, guint timeout_ms, GError **error)
 {
@@ -430,19 +444,34 @@ cam_grab (gpointer b, guint timeout_ms, GError **error)
           pfnc, w, h);
     return NULL;
   }
-  GError *e = NULL;
-  DsImage *img = ds_pixfmt_unpack (fmt, data, size, (guint) w, (guint) h, 0, &e);
   guint64 ts = arv_buffer_get_timestamp (buf);
   if (!ts)
     ts = arv_buffer_get_system_timestamp (buf);
-  arv_stream_push_buffer (c->stream, buf);
-  if (!img) {
-    c->stats.failures++;
-    fail (error, DS_DEVICE_ERROR_INCOMPLETE, e, "frame %" G_GUINT64_FORMAT, raw_id);
-    return NULL;
+  DsFrame *f = NULL;
+  gsize bytes = (fmt == DS_PIXFMT_MONO8 ? 1u : 2u) * (gsize) w;
+  if ((fmt == DS_PIXFMT_MONO8 || fmt == DS_PIXFMT_MONO16) && G_BYTE_ORDER == G_LITTLE_ENDIAN &&
+      size >= bytes * (gsize) h) {
+    /* The samples are already what DsImage holds: fold straight from the camera's buffer,
+     * which goes back to the stream when the frame is freed. */
+    ArvStream *stream = ARV_STREAM ((gpointer) arv_buffer_get_user_data (buf));
+    g_object_ref (stream);
+    f = ds_frame_pool_take_borrowed (c->frames, fmt == DS_PIXFMT_MONO8 ? DS_SAMPLE_U8 : DS_SAMPLE_U16,
+                                     (guint) w, (guint) h, bytes, fmt == DS_PIXFMT_MONO8 ? 8 : 16,
+                                     (void *) data, return_buffer, buf);
+  } else {
+    /* Packed or narrower formats: unpacked into a pooled image, the buffer returned at once. */
+    GError *e = NULL;
+    f = ds_frame_pool_take (c->frames, fmt == DS_PIXFMT_MONO8 ? DS_SAMPLE_U8 : DS_SAMPLE_U16, (guint) w,
+                            (guint) h, &e);
+    if (f && !ds_pixfmt_unpack_into (fmt, data, size, 0, f->image, &e))
+      g_clear_pointer (&f, ds_frame_free);
+    arv_stream_push_buffer (c->stream, buf);
+    if (!f) {
+      c->stats.failures++;
+      fail (error, DS_DEVICE_ERROR_INCOMPLETE, e, "frame %" G_GUINT64_FORMAT, raw_id);
+      return NULL;
+    }
   }
-  DsFrame *f = g_new0 (DsFrame, 1);
-  f->image = img;
   f->frame_id = id;
   f->ids_skipped = skipped;
   f->timestamp_ns = ts;
@@ -500,6 +529,7 @@ cam_close (gpointer b)
   AravisCam *c = b;
   cam_stop (c);
   close_device (c);
+  ds_frame_pool_unref (c->frames);
   g_free (c->address);
   g_free (c);
 }
@@ -520,8 +550,10 @@ ds_aravis_camera_open (const char *address_or_id, guint n_buffers, GError **erro
   }
   AravisCam *c = g_new0 (AravisCam, 1);
   c->address = g_strdup (address_or_id);
+  c->frames = ds_frame_pool_new ();
   c->n_buffers = n_buffers;
   if (!open_device (c, error)) {
+    ds_frame_pool_unref (c->frames);
     g_free (c->address);
     g_free (c);
     return NULL;

@@ -1,5 +1,8 @@
 /* One frame as delivered by a camera backend. The image is already unpacked (proc/pixfmt) so
- * that everything above drivers/ sees DsImage only. */
+ * that everything above drivers/ sees DsImage only. A backend may lend its own memory (the
+ * Aravis buffer itself, for Mono8/Mono16): then the image borrows those pixels, and
+ * ds_frame_free gives them back. Frames taken from a DsFramePool go back to it when freed, so
+ * that acquiring a frame allocates nothing once the pool is warm. */
 #pragma once
 #include <glib.h>
 
@@ -7,18 +10,47 @@
 
 G_BEGIN_DECLS
 
+typedef struct DsFramePool DsFramePool;
+
 typedef struct {
-  DsImage *image;          /* owned; u8 or u16 with the sensor's bit depth */
+  DsImage *image;          /* owned, or borrowing the backend's pixels (see release); u8 or u16
+                              with the sensor's bit depth */
   guint64 frame_id;        /* the camera's id, extended across 16-bit wrap (monotonic) */
   guint64 timestamp_ns;    /* camera timestamp if it has one, else host receive time */
   guint64 host_time_us;    /* g_get_monotonic_time () at arrival */
   double exposure_us;      /* as configured when the frame was exposed */
   double gain_db;
   guint32 ids_skipped;     /* frame ids missing between the previous frame and this one */
+  /* Private to frame.c and the backend that made the frame. */
+  DsFramePool *pool;       /* where the frame goes back to; NULL: freed */
+  GDestroyNotify release;  /* borrowed pixels: hands them back to the backend */
+  gpointer release_data;
 } DsFrame;
 
+/* Gives a borrowed image's pixels back (returns the camera buffer), then frees the frame or
+ * returns it to its pool. Call it from the thread that drives the camera (a backend's release
+ * may touch its stream). */
 void ds_frame_free (DsFrame *frame);
 G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsFrame, ds_frame_free)
+
+/* A pool of frames for one backend. Thread-safe; reference-counted so that frames outliving
+ * their backend (a frame still held when the camera closes) stay valid. */
+DsFramePool *ds_frame_pool_new (void);
+DsFramePool *ds_frame_pool_ref (DsFramePool *pool);
+void ds_frame_pool_unref (DsFramePool *pool);
+G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsFramePool, ds_frame_pool_unref)
+/* A frame whose image owns width x height pixels of `type`: one of the pool's when one of that
+ * shape is free (its pixels are stale: overwrite them all), else a new one. Fields other than
+ * the image are zeroed. Fails only when the image cannot be allocated (DS_PROC_ERROR). */
+DsFrame *ds_frame_pool_take (DsFramePool *pool, DsSampleType type, guint width, guint height,
+                             GError **error);
+/* A frame whose image borrows `pixels` (rows `stride` bytes apart, at least width * sample
+ * size); release (release_data) is called once, when the frame is freed. */
+DsFrame *ds_frame_pool_take_borrowed (DsFramePool *pool, DsSampleType type, guint width,
+                                      guint height, gsize stride, guint bit_depth, void *pixels,
+                                      GDestroyNotify release, gpointer release_data);
+/* Frames waiting in the pool, and frames of the pool given out and not yet freed. */
+void ds_frame_pool_counts (DsFramePool *pool, guint *n_free, guint *n_out);
 
 /* Extends 16-bit (GigE Vision 1.x) frame ids to 64 bits across wrap-around and counts gaps.
  * Id 0 is invalid in GigE Vision and is skipped by the wrap. */

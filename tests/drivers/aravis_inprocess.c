@@ -380,6 +380,47 @@ test_disconnect_reconnect (Rig *r, gconstpointer data)
   g_assert_cmpuint (st.reconnects, ==, 1);
 }
 
+/* Mono16 frames lend the camera's buffer: while a frame is held its buffer is out of the
+ * stream and its pixels stay those of its own exposure (later frames do not overwrite them);
+ * freeing a frame gives the buffer back; a frame held past the camera's close stays valid. */
+static void
+test_lent_buffers (Rig *r, gconstpointer data)
+{
+  (void) data;
+  DsCameraSettings s = settings ("Mono16", 40, 24);
+  configure_and_start (r, &s);
+  DsFrame *held[N_BUFFERS - 2];
+  guint held_n[N_BUFFERS - 2];
+  for (guint i = 0; i < G_N_ELEMENTS (held); i++) {
+    g_autoptr (GError) error = NULL;
+    held[i] = trigger_and_grab (r->cam, &error);
+    g_assert_no_error (error);
+    held_n[i] = check_pixels (held[i], 65535);
+    guint in, out, pool;
+    ds_aravis_camera_pool_counts (r->cam, &in, &out, &pool);
+    g_assert_cmpuint (in + out, <=, pool - (i + 1));
+  }
+  /* Two buffers are left for the stream: frames keep coming, through those two. */
+  for (guint i = 0; i < 6; i++) {
+    g_autoptr (GError) error = NULL;
+    g_autoptr (DsFrame) f = trigger_and_grab (r->cam, &error);
+    g_assert_no_error (error);
+    check_pixels (f, 65535);
+  }
+  for (guint i = 0; i < G_N_ELEMENTS (held); i++)
+    g_assert_cmpuint (check_pixels (held[i], 65535), ==, held_n[i]);
+  for (guint i = 0; i + 1 < G_N_ELEMENTS (held); i++)
+    ds_frame_free (held[i]);
+  r->cam->ops->stop (r->cam->backend);
+  guint in, out, pool;
+  ds_aravis_camera_pool_counts (r->cam, &in, &out, &pool);
+  g_assert_cmpuint (in + out, ==, pool - 1); /* the one still held */
+  DsFrame *last = held[G_N_ELEMENTS (held) - 1];
+  ds_camera_close (g_steal_pointer (&r->cam));
+  g_assert_cmpuint (check_pixels (last, 65535), ==, held_n[G_N_ELEMENTS (held) - 1]);
+  ds_frame_free (last); /* gives the buffer back to a stream only this frame still holds */
+}
+
 static void
 test_open_bad_arguments (void)
 {
@@ -402,6 +443,7 @@ main (int argc, char **argv)
   ADD ("/aravis/packet-loss", test_packet_loss);
   ADD ("/aravis/flush", test_flush);
   ADD ("/aravis/disconnect-reconnect", test_disconnect_reconnect);
+  ADD ("/aravis/lent-buffers", test_lent_buffers);
   int rc = g_test_run ();
   arv_shutdown ();
   return rc;
