@@ -3,6 +3,7 @@
 #include <math.h>
 
 #include "build_info.h"
+#include "daemon/service/result_planes.h"
 
 static const char *const drop_names[DS_DROP_N_REASONS] = {
   [DS_DROP_INCOMPLETE] = "incomplete",   [DS_DROP_FRAME_GAP] = "frame_gap",
@@ -76,7 +77,8 @@ typedef struct {
 struct DsResult {
   gint ref;
   guint64 set_id;
-  DsSeparation *sep;
+  DsResultPlanes *planes;  /* shared with the payloads sent from it */
+  const DsSeparation *sep; /* the planes' separation */
   DsCaptureSettings settings;
   DsFrameCounters counters;
   gint64 started_us, acquired_us, finished_us;
@@ -84,12 +86,13 @@ struct DsResult {
 };
 
 DsResult *
-ds_result_new (guint64 set_id, DsSeparation *sep, const DsCaptureSettings *settings,
+ds_result_new (guint64 set_id, DsSeparation *sep, DsPlanePool *pool, const DsCaptureSettings *settings,
                const DsFrameCounters *counters, gint64 started_us, gint64 acquired_us, gint64 finished_us)
 {
   DsResult *r = g_new0 (DsResult, 1);
   r->ref = 1;
   r->set_id = set_id;
+  r->planes = ds_result_planes_new (sep, pool);
   r->sep = sep;
   r->settings = *settings;
   r->counters = *counters;
@@ -115,7 +118,7 @@ ds_result_unref (DsResult *result)
     for (guint e = 0; e < 2; e++)
       for (guint i = 0; i < result->payloads[f][e].n; i++)
         g_bytes_unref (result->payloads[f][e].bytes[i]);
-  ds_separation_free (result->sep);
+  ds_result_planes_unref (result->planes);
   g_free (result);
 }
 
@@ -222,20 +225,30 @@ ds_result_to_json (DsResult *r)
   return json_builder_get_root (b);
 }
 
+/* f32 planes and the mask go out as they are (GBytes over the planes, no copy); u16 is a
+ * conversion, made once per result and format. */
 static void
-add_payload (PayloadSet *ps, const char *name, const DsImage *img, DsOutputFormat format)
+add_payload (DsResult *r, PayloadSet *ps, const char *name, const DsImage *img, DsOutputFormat format)
 {
-  g_autoptr (DsImage) converted = NULL;
-  if (format == DS_OUTPUT_U16 && img->type == DS_SAMPLE_F32) {
-    converted = ds_image_convert_f32_clamped (img, DS_SAMPLE_U16, 65535.0, NULL);
-    img = converted;
-  }
   DsPayloadInfo *info = &ps->infos[ps->n];
   info->name = name;
-  info->dtype = img->type == DS_SAMPLE_F32 ? "f32" : img->type == DS_SAMPLE_U16 ? "u16" : "u8";
   info->width = img->width;
   info->height = img->height;
-  ps->bytes[ps->n] = ds_image_to_packed_bytes (img);
+  if (format == DS_OUTPUT_U16 && img->type == DS_SAMPLE_F32) {
+    DsImage *converted = ds_image_convert_f32_clamped (img, DS_SAMPLE_U16, 65535.0, NULL);
+    gsize row = (gsize) converted->width * 2;
+    if (converted->stride == row)
+      ps->bytes[ps->n] = g_bytes_new_with_free_func (converted->data, row * converted->height,
+                                                     (GDestroyNotify) ds_image_free, converted);
+    else {
+      ps->bytes[ps->n] = ds_image_to_packed_bytes (converted);
+      ds_image_free (converted);
+    }
+    info->dtype = "u16";
+  } else {
+    ps->bytes[ps->n] = ds_result_planes_bytes (r->planes, img);
+    info->dtype = img->type == DS_SAMPLE_F32 ? "f32" : img->type == DS_SAMPLE_U16 ? "u16" : "u8";
+  }
   info->bytes = g_bytes_get_size (ps->bytes[ps->n]);
   ps->n++;
 }
@@ -247,13 +260,13 @@ ds_result_payloads (DsResult *r, DsOutputFormat format, gboolean extrema, const 
   extrema = extrema && r->sep->max != NULL;
   PayloadSet *ps = &r->payloads[format == DS_OUTPUT_U16][extrema ? 1 : 0];
   if (!ps->built) {
-    add_payload (ps, "transmissive", r->sep->transmissive, format);
-    add_payload (ps, "scattered", r->sep->scattered, format);
-    add_payload (ps, "mask", r->sep->mask, format);
+    add_payload (r, ps, "transmissive", r->sep->transmissive, format);
+    add_payload (r, ps, "scattered", r->sep->scattered, format);
+    add_payload (r, ps, "mask", r->sep->mask, format);
     if (extrema) {
-      add_payload (ps, "max", r->sep->max, format);
-      add_payload (ps, "min", r->sep->min, format);
-      add_payload (ps, "mean", r->sep->mean, format);
+      add_payload (r, ps, "max", r->sep->max, format);
+      add_payload (r, ps, "min", r->sep->min, format);
+      add_payload (r, ps, "mean", r->sep->mean, format);
     }
     ps->built = TRUE;
   }

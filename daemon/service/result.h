@@ -45,9 +45,12 @@ void ds_frame_counters_add (DsFrameCounters *total, const DsFrameCounters *part)
 JsonNode *ds_frame_counters_to_json (const DsFrameCounters *counters);
 
 typedef struct DsResult DsResult;
+typedef struct DsPlanePool DsPlanePool;
 
-/* Takes ownership of sep. */
-DsResult *ds_result_new (guint64 set_id, DsSeparation *sep, const DsCaptureSettings *settings,
+/* Takes ownership of sep; when the result and every payload sent from it are gone, sep goes
+ * back to pool (daemon/service/result_planes.h), or is freed when pool is NULL. */
+DsResult *ds_result_new (guint64 set_id, DsSeparation *sep, DsPlanePool *pool,
+                         const DsCaptureSettings *settings,
                          const DsFrameCounters *counters, gint64 started_us, gint64 acquired_us,
                          gint64 finished_us);
 DsResult *ds_result_ref (DsResult *result);
@@ -65,7 +68,9 @@ typedef enum { DS_OUTPUT_F32 = 0, DS_OUTPUT_U16 = 1 } DsOutputFormat;
 
 /* Wire payloads: transmissive, scattered (f32, or u16 clamped and rounded), mask (u8), and
  * max/min/mean when the set kept them and `extrema` is asked. Built once per format and
- * shared. Returns the number of payloads; infos/bytes point into the result. */
+ * shared; f32 and u8 payloads are the result's planes themselves (no copy), and a client may
+ * keep the bytes after the result is gone. Returns the number of payloads; infos/bytes point
+ * into the result. Main thread. */
 guint ds_result_payloads (DsResult *result, DsOutputFormat format, gboolean extrema,
                           const DsPayloadInfo **infos, GBytes *const **bytes);
 

@@ -149,6 +149,8 @@ ds_sequencer_new (DsDevicesOpenFunc open_devices, gpointer open_data,
   seq->alive = 1;
   seq->defaults = *defaults;
   seq->phase_check_period = NAN;
+  /* Two sets of planes kept: one being written while the previous result is still sent. */
+  seq->planes = ds_plane_pool_new (2);
   g_mutex_init (&seq->lock);
   g_strlcpy (seq->status.state, "opening", sizeof seq->status.state);
   seq->status.phase_offset_cycles = NAN;
@@ -187,6 +189,7 @@ ds_sequencer_free (DsSequencer *seq)
     ds_devices_close (seq->dev);
   g_clear_pointer (&seq->set, ds_phase_set_free);
   g_clear_pointer (&seq->dark, ds_image_free);
+  g_clear_pointer (&seq->planes, ds_plane_pool_unref);
   g_async_queue_unref (seq->queue);
   g_main_context_unref (seq->context);
   g_mutex_clear (&seq->lock);

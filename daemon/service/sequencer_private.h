@@ -18,6 +18,7 @@
 #include "daemon/operating/operating_point.h"
 #include "daemon/operating/rig_timing.h"
 #include "daemon/service/phase_check.h"
+#include "daemon/service/result_planes.h"
 #include "daemon/service/sequencer.h"
 
 G_BEGIN_DECLS
@@ -61,6 +62,7 @@ struct DsSequencer {
   const DsOperatingModel *model; /* set before the thread uses it; read-only */
   DsRigTiming timing;
   DsFoldWorker *worker;     /* verifies and folds while the next frame is acquired */
+  DsPlanePool *planes;      /* result planes, back from results nobody holds any more */
 };
 
 /* ---- sequencer_report.c: events (any order of posting is the order of dispatch) ---- */

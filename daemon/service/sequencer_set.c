@@ -77,13 +77,19 @@ acquire_set (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag, DsFrameC
    * none (or one for other settings). */
   if (!ds_phase_set_set_dark (seq->set, use_dark, error))
     return NULL;
+  /* The result's planes now, before the first frame: reused ones, or new ones touched here,
+   * so that no page fault falls between the last frame and the result. */
+  DsSeparation *planes = ds_plane_pool_take (seq->planes, w, h, error);
+  if (!planes)
+    return NULL;
   if (!ds_seq_acquire_phases (seq, s, tag, c, error)) {
+    ds_plane_pool_give (seq->planes, planes);
     if (seq->phase_check.provisional)
       ds_phase_check_abandon (&seq->phase_check);
     return NULL;
   }
   *last_frame_us = seq->last_frame_us;
-  return ds_phase_set_finalize (seq->set, error);
+  return ds_phase_set_finalize_reusing (seq->set, planes, error);
 }
 
 void
@@ -132,7 +138,7 @@ ds_seq_run_set (DsSequencer *seq, const DsCaptureSettings *requested, guint64 ta
    * dark frame. */
   c.folded = c.acquired - c.dropped;
   ds_seq_account (seq, &c, TRUE);
-  DsResult *result = ds_result_new (++seq->next_set_id, g_steal_pointer (&sep), s, &c, started,
+  DsResult *result = ds_result_new (++seq->next_set_id, g_steal_pointer (&sep), seq->planes, s, &c, started,
                                     acquired, finished);
   ds_seq_refresh_device_status (seq);
   ds_seq_emit (seq, DS_SEQUENCER_EVENT_RESULT, tag, result, NULL, NULL);

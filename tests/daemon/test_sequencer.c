@@ -653,6 +653,29 @@ test_pipeline_quit_mid_set (Fixture *f, gconstpointer d)
   f->seq = NULL;
 }
 
+/* Result planes: once nobody holds a result, the next set of that size writes into the same
+ * planes (no fresh memory after the last frame); while a result is held, a set gets others. */
+static void
+test_result_planes_reused (Fixture *f, gconstpointer d)
+{
+  (void) d;
+  DsCaptureSettings s;
+  default_settings (&s, 8);
+  capture (f, &s);
+  const void *first = ds_result_separation (f->out.result)->transmissive->data;
+  DsResult *held = ds_result_ref (f->out.result);
+  capture (f, &s); /* drops the fixture's ref on the first result; `held` keeps it */
+  assert_scene_recovered (f->out.result);
+  const void *second = ds_result_separation (f->out.result)->transmissive->data;
+  g_assert_true (second != first);
+  assert_scene_recovered (held);
+  ds_result_unref (held);
+  capture (f, &s);
+  assert_scene_recovered (f->out.result);
+  const void *third = ds_result_separation (f->out.result)->transmissive->data;
+  g_assert_true (third == first || third == second);
+}
+
 int
 main (int argc, char **argv)
 {
@@ -675,5 +698,6 @@ main (int argc, char **argv)
   ADD ("pipeline/last-frame-dropped", test_pipeline_drop_after_move, GUINT_TO_POINTER (8));
   ADD ("pipeline/averages-drop-within-phase", test_pipeline_averages_drop, NULL);
   ADD ("pipeline/quit-mid-set", test_pipeline_quit_mid_set, NULL);
+  ADD ("result-planes-reused", test_result_planes_reused, NULL);
   return g_test_run ();
 }
