@@ -18,6 +18,8 @@ packages=(
   libopencv-dev
   python3-numpy python3-matplotlib
   clang libclang-rt-14-dev valgrind
+  libtiff-dev libhdf5-dev libsoup-3.0-dev
+  chromium python3-h5py python3-prometheus-client python3-websocket python3-tifffile
 )
 
 install_deps() {
