@@ -1,0 +1,224 @@
+#include "daemon/output/hdf5_util.h"
+
+#include <string.h>
+
+#include "daemon/output/output_error.h"
+#include "daemon/output/result_meta.h"
+#include "proc/separation.h"
+
+void
+ds_h5_quiet (void)
+{
+  H5Eset_auto2 (H5E_DEFAULT, NULL, NULL);
+}
+
+typedef struct {
+  char func[64];
+  char desc[192];
+} H5Message;
+
+static herr_t
+innermost (unsigned n, const H5E_error2_t *err, void *data)
+{
+  H5Message *m = data;
+  if (n == 0) {
+    g_strlcpy (m->func, err->func_name ? err->func_name : "", sizeof m->func);
+    g_strlcpy (m->desc, err->desc ? err->desc : "", sizeof m->desc);
+  }
+  return 0;
+}
+
+gboolean
+ds_h5_fail (GError **error, const char *what)
+{
+  H5Message m = { { 0 }, { 0 } };
+  H5Ewalk2 (H5E_DEFAULT, H5E_WALK_DOWNWARD, innermost, &m);
+  H5Eclear2 (H5E_DEFAULT);
+  g_set_error (error, DS_OUTPUT_ERROR, DS_OUTPUT_ERROR_HDF5, "%s: %s%s%s", what, m.desc[0] ? m.desc : "HDF5 error",
+               m.func[0] ? " in " : "", m.func);
+  return FALSE;
+}
+
+hid_t
+ds_h5_group (hid_t parent, const char *name, const char *nx_class)
+{
+  hid_t g = H5Gcreate2 (parent, name, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+  if (g < 0)
+    return g;
+  if (nx_class && !ds_h5_attr_string (g, "NX_class", nx_class)) {
+    H5Gclose (g);
+    return -1;
+  }
+  return g;
+}
+
+static hid_t
+utf8_vlen_type (void)
+{
+  hid_t t = H5Tcopy (H5T_C_S1);
+  H5Tset_size (t, H5T_VARIABLE);
+  H5Tset_cset (t, H5T_CSET_UTF8);
+  return t;
+}
+
+gboolean
+ds_h5_attr_string (hid_t obj, const char *name, const char *value)
+{
+  hid_t t = utf8_vlen_type ();
+  hid_t s = H5Screate (H5S_SCALAR);
+  hid_t a = H5Acreate2 (obj, name, t, s, H5P_DEFAULT, H5P_DEFAULT);
+  herr_t r = a >= 0 ? H5Awrite (a, t, &value) : -1;
+  if (a >= 0)
+    H5Aclose (a);
+  H5Sclose (s);
+  H5Tclose (t);
+  return r >= 0;
+}
+
+gboolean
+ds_h5_attr_strings (hid_t obj, const char *name, const char *const *values, guint n)
+{
+  hid_t t = utf8_vlen_type ();
+  hsize_t dims[1] = { n };
+  hid_t s = H5Screate_simple (1, dims, NULL);
+  hid_t a = H5Acreate2 (obj, name, t, s, H5P_DEFAULT, H5P_DEFAULT);
+  herr_t r = a >= 0 ? H5Awrite (a, t, values) : -1;
+  if (a >= 0)
+    H5Aclose (a);
+  H5Sclose (s);
+  H5Tclose (t);
+  return r >= 0;
+}
+
+static gboolean
+attr_scalar (hid_t obj, const char *name, hid_t file_type, hid_t mem_type, const void *value)
+{
+  hid_t s = H5Screate (H5S_SCALAR);
+  hid_t a = H5Acreate2 (obj, name, file_type, s, H5P_DEFAULT, H5P_DEFAULT);
+  herr_t r = a >= 0 ? H5Awrite (a, mem_type, value) : -1;
+  if (a >= 0)
+    H5Aclose (a);
+  H5Sclose (s);
+  return r >= 0;
+}
+
+gboolean
+ds_h5_attr_double (hid_t obj, const char *name, double value)
+{
+  return attr_scalar (obj, name, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, &value);
+}
+
+gboolean
+ds_h5_attr_int (hid_t obj, const char *name, gint64 value)
+{
+  return attr_scalar (obj, name, H5T_STD_I64LE, H5T_NATIVE_INT64, &value);
+}
+
+gboolean
+ds_h5_attr_ints (hid_t obj, const char *name, const gint32 *values, guint n)
+{
+  hsize_t dims[1] = { n };
+  hid_t s = H5Screate_simple (1, dims, NULL);
+  hid_t a = H5Acreate2 (obj, name, H5T_STD_I32LE, s, H5P_DEFAULT, H5P_DEFAULT);
+  herr_t r = a >= 0 ? H5Awrite (a, H5T_NATIVE_INT32, values) : -1;
+  if (a >= 0)
+    H5Aclose (a);
+  H5Sclose (s);
+  return r >= 0;
+}
+
+gboolean
+ds_h5_string_dataset (hid_t parent, const char *name, const char *value)
+{
+  hid_t t = utf8_vlen_type ();
+  hid_t s = H5Screate (H5S_SCALAR);
+  hid_t d = H5Dcreate2 (parent, name, t, s, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+  herr_t r = d >= 0 ? H5Dwrite (d, t, H5S_ALL, H5S_ALL, H5P_DEFAULT, &value) : -1;
+  if (d >= 0)
+    H5Dclose (d);
+  H5Sclose (s);
+  H5Tclose (t);
+  return r >= 0;
+}
+
+gboolean
+ds_h5_double_dataset (hid_t parent, const char *name, double value, const char *units)
+{
+  hid_t s = H5Screate (H5S_SCALAR);
+  hid_t d = H5Dcreate2 (parent, name, H5T_IEEE_F64LE, s, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+  herr_t r = d >= 0 ? H5Dwrite (d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, &value) : -1;
+  gboolean ok = r >= 0 && (!units || ds_h5_attr_string (d, "units", units));
+  if (d >= 0)
+    H5Dclose (d);
+  H5Sclose (s);
+  return ok;
+}
+
+hid_t
+ds_h5_file_type (DsSampleType type)
+{
+  return type == DS_SAMPLE_F32 ? H5T_IEEE_F32LE : type == DS_SAMPLE_U16 ? H5T_STD_U16LE : H5T_STD_U8LE;
+}
+
+hid_t
+ds_h5_mem_type (DsSampleType type)
+{
+  return type == DS_SAMPLE_F32 ? H5T_NATIVE_FLOAT : type == DS_SAMPLE_U16 ? H5T_NATIVE_UINT16 : H5T_NATIVE_UINT8;
+}
+
+hid_t
+ds_h5_image_dataset (hid_t parent, const char *name, const DsImage *img, const char *units, const char *long_name)
+{
+  hsize_t dims[2] = { img->height, img->width };
+  hid_t fs = H5Screate_simple (2, dims, NULL);
+  hid_t d = H5Dcreate2 (parent, name, ds_h5_file_type (img->type), fs, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+  H5Sclose (fs);
+  if (d < 0)
+    return d;
+  /* The image's rows may be padded: describe its memory as a strided block, no copy. */
+  gsize ss = ds_sample_size (img->type);
+  hsize_t mdims[2] = { img->height, img->stride / ss };
+  hid_t ms = H5Screate_simple (2, mdims, NULL);
+  hsize_t start[2] = { 0, 0 }, count[2] = { img->height, img->width };
+  herr_t r = img->stride % ss == 0 ? H5Sselect_hyperslab (ms, H5S_SELECT_SET, start, NULL, count, NULL) : -1;
+  if (r >= 0)
+    r = H5Dwrite (d, ds_h5_mem_type (img->type), ms, H5S_ALL, H5P_DEFAULT, img->data);
+  H5Sclose (ms);
+  if (r < 0 || (units && !ds_h5_attr_string (d, "units", units)) ||
+      (long_name && !ds_h5_attr_string (d, "long_name", long_name))) {
+    H5Dclose (d);
+    return -1;
+  }
+  return d;
+}
+
+gboolean
+ds_h5_mask_legend (hid_t dataset)
+{
+  gint32 masks[DS_MASK_N_BITS];
+  g_autoptr (GString) meanings = g_string_new (NULL);
+  for (guint i = 0; i < DS_MASK_N_BITS; i++) {
+    masks[i] = 1 << i;
+    g_string_append_printf (meanings, "%s%s", i ? " " : "", ds_mask_bit_name (i));
+  }
+  return ds_h5_attr_ints (dataset, "flag_masks", masks, DS_MASK_N_BITS) &&
+         ds_h5_attr_string (dataset, "flag_meanings", meanings->str);
+}
+
+gboolean
+ds_h5_nxdata_image (hid_t parent, const char *name, const DsImage *img, const char *plane)
+{
+  hid_t g = ds_h5_group (parent, name, "NXdata");
+  if (g < 0)
+    return FALSE;
+  static const char *const no_axes[] = { ".", "." };
+  gboolean ok = ds_h5_attr_string (g, "signal", "data") && ds_h5_attr_strings (g, "axes", no_axes, 2);
+  hid_t d = ok ? ds_h5_image_dataset (g, "data", img, ds_output_plane_units (plane), ds_output_plane_long_name (plane))
+               : -1;
+  if (d >= 0 && strcmp (plane, "mask") == 0)
+    ok = ds_h5_mask_legend (d);
+  if (d >= 0)
+    H5Dclose (d);
+  H5Gclose (g);
+  return ok && d >= 0;
+}

@@ -1,0 +1,222 @@
+#include "daemon/output/result_meta.h"
+
+#include <math.h>
+#include <string.h>
+
+#include "build_info.h"
+
+static const struct {
+  const char *name;
+  const char *meaning;
+} mask_bits[DS_MASK_N_BITS] = {
+  { "saturated", "some raw sample at or above the saturation level" },
+  { "dark", "mean signal below the noise floor" },
+  { "low_modulation", "stripe modulation not distinguishable from noise" },
+  { "nonfinite", "NaN or Inf in an input frame; the outputs of the pixel are 0" },
+  { "negative", "a component came out below zero (noise); left unclipped" },
+  { "dark_exceeds", "the dark frame is brighter than some phase at this pixel" },
+};
+
+const char *
+ds_mask_bit_name (guint bit)
+{
+  return bit < DS_MASK_N_BITS ? mask_bits[bit].name : "unknown";
+}
+
+const char *
+ds_mask_bit_meaning (guint bit)
+{
+  return bit < DS_MASK_N_BITS ? mask_bits[bit].meaning : "";
+}
+
+char *
+ds_output_time_string (GDateTime *time)
+{
+  g_autoptr (GDateTime) utc = g_date_time_to_utc (time);
+  g_autofree char *base = g_date_time_format (utc, "%Y-%m-%dT%H:%M:%S");
+  return g_strdup_printf ("%s.%03dZ", base, g_date_time_get_microsecond (utc) / 1000);
+}
+
+JsonNode *
+ds_output_producer_json (const char *program)
+{
+  g_autoptr (JsonBuilder) b = json_builder_new ();
+  json_builder_begin_object (b);
+  json_builder_set_member_name (b, "program");
+  json_builder_add_string_value (b, program);
+  json_builder_set_member_name (b, "version");
+  json_builder_add_string_value (b, DS_VERSION);
+  json_builder_set_member_name (b, "git");
+  json_builder_add_string_value (b, DS_GIT_DESCRIBE);
+  json_builder_set_member_name (b, "host");
+  json_builder_add_string_value (b, g_get_host_name ());
+  json_builder_end_object (b);
+  return json_builder_get_root (b);
+}
+
+static void
+add_double_or_null (JsonBuilder *b, const char *key, double v)
+{
+  json_builder_set_member_name (b, key);
+  if (isfinite (v))
+    json_builder_add_double_value (b, v);
+  else
+    json_builder_add_null_value (b); /* JSON has no NaN */
+}
+
+JsonNode *
+ds_output_separation_json (const DsSeparationMeta *m)
+{
+  g_autoptr (JsonBuilder) b = json_builder_new ();
+  json_builder_begin_object (b);
+  json_builder_set_member_name (b, "estimator");
+  json_builder_add_string_value (b, ds_estimator_name (m->estimator));
+  json_builder_set_member_name (b, "phases");
+  json_builder_add_int_value (b, m->n_phases);
+  json_builder_set_member_name (b, "frames_per_phase");
+  json_builder_add_int_value (b, m->frames_per_phase);
+  add_double_or_null (b, "duty", m->duty);
+  add_double_or_null (b, "black_level", m->black_level);
+  add_double_or_null (b, "pattern_mean", m->pattern_mean);
+  add_double_or_null (b, "harmonic_gain", m->harmonic_gain);
+  add_double_or_null (b, "saturation_level", m->saturation_level);
+  json_builder_set_member_name (b, "dark_subtracted");
+  json_builder_add_boolean_value (b, m->dark_subtracted);
+  add_double_or_null (b, "noise_dn", m->noise_dn);
+  json_builder_set_member_name (b, "valid_pixels");
+  json_builder_add_int_value (b, (gint64) m->valid_pixels);
+  json_builder_set_member_name (b, "flagged");
+  json_builder_begin_object (b);
+  for (guint i = 0; i < DS_MASK_N_BITS; i++) {
+    json_builder_set_member_name (b, mask_bits[i].name);
+    json_builder_add_int_value (b, (gint64) m->flagged[i]);
+  }
+  json_builder_end_object (b);
+  json_builder_end_object (b);
+  return json_builder_get_root (b);
+}
+
+JsonNode *
+ds_output_mask_bits_json (void)
+{
+  g_autoptr (JsonBuilder) b = json_builder_new ();
+  json_builder_begin_object (b);
+  for (guint i = 0; i < DS_MASK_N_BITS; i++) {
+    json_builder_set_member_name (b, mask_bits[i].name);
+    json_builder_begin_object (b);
+    json_builder_set_member_name (b, "bit");
+    json_builder_add_int_value (b, i);
+    json_builder_set_member_name (b, "value");
+    json_builder_add_int_value (b, 1 << i);
+    json_builder_set_member_name (b, "meaning");
+    json_builder_add_string_value (b, mask_bits[i].meaning);
+    json_builder_end_object (b);
+  }
+  json_builder_end_object (b);
+  return json_builder_get_root (b);
+}
+
+/* "counts" are the sensor's digital numbers (DN) after dark subtraction: the unit name NeXus
+ * and UDUNITS readers know. */
+static const struct {
+  const char *plane, *units, *long_name;
+} planes[] = {
+  { "transmissive", "counts", "transmissive (direct, unscattered) component, dark-subtracted" },
+  { "scattered", "counts", "scattered (global) component, dark-subtracted" },
+  { "mask", "", "quality flags, one bit each (legend: mask_bits)" },
+  { "max", "counts", "per-pixel maximum over the phases, dark-subtracted" },
+  { "min", "counts", "per-pixel minimum over the phases, dark-subtracted" },
+  { "mean", "counts", "per-pixel mean over the phases (the plain average), dark-subtracted" },
+  { "sigma_transmissive", "counts", "1-sigma uncertainty of the transmissive component" },
+  { "sigma_scattered", "counts", "1-sigma uncertainty of the scattered component" },
+  { "phases", "counts", "raw phase frames as the camera delivered them" },
+  { "black", "counts", "dark frame (illuminator off) subtracted from every phase" },
+};
+
+const char *
+ds_output_plane_units (const char *plane)
+{
+  for (guint i = 0; i < G_N_ELEMENTS (planes); i++)
+    if (strcmp (planes[i].plane, plane) == 0)
+      return planes[i].units;
+  return NULL;
+}
+
+const char *
+ds_output_plane_long_name (const char *plane)
+{
+  for (guint i = 0; i < G_N_ELEMENTS (planes); i++)
+    if (strcmp (planes[i].plane, plane) == 0)
+      return planes[i].long_name;
+  return NULL;
+}
+
+JsonNode *
+ds_output_planes_json (const char *const *pairs)
+{
+  g_autoptr (JsonBuilder) b = json_builder_new ();
+  json_builder_begin_object (b);
+  for (guint i = 0; pairs[i] && pairs[i + 1]; i += 2) {
+    const char *units = ds_output_plane_units (pairs[i]);
+    if (!units)
+      continue;
+    json_builder_set_member_name (b, pairs[i]);
+    json_builder_begin_object (b);
+    json_builder_set_member_name (b, "units");
+    json_builder_add_string_value (b, units);
+    json_builder_set_member_name (b, "long_name");
+    json_builder_add_string_value (b, ds_output_plane_long_name (pairs[i]));
+    json_builder_set_member_name (b, "dtype");
+    json_builder_add_string_value (b, pairs[i + 1]);
+    json_builder_end_object (b);
+  }
+  json_builder_end_object (b);
+  return json_builder_get_root (b);
+}
+
+char *
+ds_output_sha256_hex (const char *text)
+{
+  return g_compute_checksum_for_string (G_CHECKSUM_SHA256, text, -1);
+}
+
+JsonNode *
+ds_json_path (JsonNode *root, const char *dotted)
+{
+  g_auto (GStrv) parts = g_strsplit (dotted, ".", -1);
+  JsonNode *node = root;
+  for (guint i = 0; parts[i] && node; i++) {
+    if (!JSON_NODE_HOLDS_OBJECT (node))
+      return NULL;
+    node = json_object_get_member (json_node_get_object (node), parts[i]);
+  }
+  return node;
+}
+
+const char *
+ds_json_path_string (JsonNode *root, const char *dotted, const char *fallback)
+{
+  JsonNode *n = root ? ds_json_path (root, dotted) : NULL;
+  return n && JSON_NODE_HOLDS_VALUE (n) && json_node_get_value_type (n) == G_TYPE_STRING ? json_node_get_string (n)
+                                                                                        : fallback;
+}
+
+double
+ds_json_path_double (JsonNode *root, const char *dotted, double fallback)
+{
+  JsonNode *n = root ? ds_json_path (root, dotted) : NULL;
+  if (!n || !JSON_NODE_HOLDS_VALUE (n))
+    return fallback;
+  GType t = json_node_get_value_type (n);
+  return t == G_TYPE_DOUBLE || t == G_TYPE_INT64 ? json_node_get_double (n) : fallback;
+}
+
+gint64
+ds_json_path_int (JsonNode *root, const char *dotted, gint64 fallback)
+{
+  JsonNode *n = root ? ds_json_path (root, dotted) : NULL;
+  if (!n || !JSON_NODE_HOLDS_VALUE (n))
+    return fallback;
+  GType t = json_node_get_value_type (n);
+  return t == G_TYPE_INT64 ? json_node_get_int (n) : t == G_TYPE_DOUBLE ? (gint64) json_node_get_double (n) : fallback;
+}
