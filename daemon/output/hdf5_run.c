@@ -79,7 +79,7 @@ create_layout (DsHdf5Run *run, const DsResultPlanes *first)
     return FALSE;
   g_autofree char *title = g_strdup_printf ("descatter run from set %" G_GINT64_FORMAT,
                                             ds_json_path_int (first->meta, "set_id", 0));
-  gboolean ok = ds_hdf5_write_entry_fields (entry, first->meta, title) && ds_hdf5_write_instrument (entry, first->meta);
+  gboolean ok = ds_hdf5_write_entry_fields (entry, first->meta, title, FALSE) && ds_hdf5_write_instrument (entry, first->meta);
   guint h = run->height, w = run->width;
   if (ok) {
     run->d[D_TRANS] = image_block (entry, "transmissive", "transmissive", H5T_IEEE_F32LE, h, w);

@@ -40,10 +40,10 @@ ds_hdf5_write_root_attrs (hid_t file, const char *file_name)
 }
 
 gboolean
-ds_hdf5_write_entry_fields (hid_t entry, JsonNode *meta, const char *title)
+ds_hdf5_write_entry_fields (hid_t entry, JsonNode *meta, const char *title, gboolean with_end)
 {
   const char *start = ds_json_path_string (meta, "time_utc", NULL);
-  const char *end = ds_json_path_string (meta, "time_utc_end", NULL);
+  const char *end = with_end ? ds_json_path_string (meta, "time_utc_end", NULL) : NULL;
   g_autofree char *json = json_to_string (meta, TRUE);
   gboolean ok = ds_h5_attr_string (entry, "default", "transmissive") && ds_h5_string_dataset (entry, "title", title) &&
                 (!start || ds_h5_string_dataset (entry, "start_time", start)) &&
@@ -204,7 +204,7 @@ fill_file (hid_t file, const DsResultPlanes *r, const char *path)
   const char *names[5];
   const DsImage *images[5];
   guint n = ds_result_planes_optional (r, names, images);
-  gboolean ok = ds_hdf5_write_entry_fields (entry, r->meta, title) && ds_hdf5_write_instrument (entry, r->meta) &&
+  gboolean ok = ds_hdf5_write_entry_fields (entry, r->meta, title, TRUE) && ds_hdf5_write_instrument (entry, r->meta) &&
                 ds_h5_nxdata_image (entry, "transmissive", r->transmissive, "transmissive") &&
                 ds_h5_nxdata_image (entry, "scattered", r->scattered, "scattered") &&
                 ds_h5_nxdata_image (entry, "mask", r->mask, "mask");

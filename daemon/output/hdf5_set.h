@@ -19,8 +19,8 @@ G_BEGIN_DECLS
 gboolean ds_hdf5_write_set (const DsResultPlanes *result, const char *path, GError **error);
 
 /* Shared with the growing run file: entry-level NeXus fields and the instrument group built
- * from the metadata (result_meta.h keys). */
-gboolean ds_hdf5_write_entry_fields (hid_t entry, JsonNode *meta, const char *title);
+ * from the metadata (result_meta.h keys); end_time only with_end (a run writes its own). */
+gboolean ds_hdf5_write_entry_fields (hid_t entry, JsonNode *meta, const char *title, gboolean with_end);
 gboolean ds_hdf5_write_instrument (hid_t entry, JsonNode *meta);
 /* The root group's NeXus attributes. */
 gboolean ds_hdf5_write_root_attrs (hid_t file, const char *file_name);

@@ -6,34 +6,51 @@
 #include "daemon/output/result_meta.h"
 #include "proc/separation.h"
 
-void
-ds_h5_quiet (void)
-{
-  H5Eset_auto2 (H5E_DEFAULT, NULL, NULL);
-}
-
 typedef struct {
   char func[64];
   char desc[192];
 } H5Message;
 
+/* The innermost message of the last failed HDF5 call on this thread. HDF5 clears its error stack
+ * at the start of every call, so the stack must be read when the failing call returns: HDF5
+ * calls the "automatic" error function right then. */
+static _Thread_local H5Message last_error;
+
 static herr_t
 innermost (unsigned n, const H5E_error2_t *err, void *data)
 {
   H5Message *m = data;
-  if (n == 0) {
+  /* Downward: the API function first, the deepest cause (with errno, if any) last. */
+  if (n == 0)
     g_strlcpy (m->func, err->func_name ? err->func_name : "", sizeof m->func);
-    g_strlcpy (m->desc, err->desc ? err->desc : "", sizeof m->desc);
-  }
+  g_strlcpy (m->desc, err->desc ? err->desc : "", sizeof m->desc);
   return 0;
+}
+
+static herr_t
+note_error (hid_t stack, void *data)
+{
+  (void) data;
+  H5Message m = { { 0 }, { 0 } };
+  H5Ewalk2 (stack, H5E_WALK_DOWNWARD, innermost, &m);
+  /* The first failure is the cause; calls failing after it (cleanup) would hide it. */
+  if (!last_error.desc[0])
+    last_error = m;
+  return 0;
+}
+
+void
+ds_h5_quiet (void)
+{
+  H5Eset_auto2 (H5E_DEFAULT, note_error, NULL);
+  memset (&last_error, 0, sizeof last_error);
 }
 
 gboolean
 ds_h5_fail (GError **error, const char *what)
 {
-  H5Message m = { { 0 }, { 0 } };
-  H5Ewalk2 (H5E_DEFAULT, H5E_WALK_DOWNWARD, innermost, &m);
-  H5Eclear2 (H5E_DEFAULT);
+  H5Message m = last_error;
+  memset (&last_error, 0, sizeof last_error);
   g_set_error (error, DS_OUTPUT_ERROR, DS_OUTPUT_ERROR_HDF5, "%s: %s%s%s", what, m.desc[0] ? m.desc : "HDF5 error",
                m.func[0] ? " in " : "", m.func);
   return FALSE;

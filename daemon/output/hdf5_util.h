@@ -10,9 +10,11 @@
 
 G_BEGIN_DECLS
 
-/* Silences HDF5's automatic printing of errors on this thread (errors become GErrors). */
+/* Replaces HDF5's automatic printing of errors on this thread by a note of the first failure,
+ * and forgets an earlier note: call it at the start of each operation. */
 void ds_h5_quiet (void);
-/* Sets error from the HDF5 error stack of this thread: "what: <HDF5's innermost message>". */
+/* Sets error from the first HDF5 failure noted since ds_h5_quiet: "what: <HDF5's innermost
+ * message> in <function>". */
 gboolean ds_h5_fail (GError **error, const char *what);
 
 hid_t ds_h5_group (hid_t parent, const char *name, const char *nx_class);

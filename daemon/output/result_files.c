@@ -18,7 +18,7 @@ static const struct {
   DsFileKinds kind;
 } kind_names[] = {
   { "tiff", DS_FILES_TIFF },       { "png16", DS_FILES_PNG16 }, { "preview", DS_FILES_PREVIEW },
-  { "hdf5", DS_FILES_HDF5 },       { "phases", DS_FILES_PHASES }, { "hdf5-run", DS_FILES_HDF5_RUN },
+  { "hdf5", DS_FILES_HDF5 },       { "hdf5-run", DS_FILES_HDF5_RUN },
 };
 
 gboolean
@@ -144,7 +144,7 @@ write_tiff_plane (Written *w, const DsResultPlanes *r, const char *stem, const c
   g_autofree char *name = ds_result_file_name (stem, plane, "tiff");
   g_autofree char *path = g_build_filename (w->dir, name, NULL);
   /* The metadata of the whole result, plus which plane this file is. */
-  g_autoptr (JsonNode) desc = json_node_copy (r->meta);
+  g_autoptr (JsonNode) desc = ds_json_deep_copy (r->meta);
   json_object_set_string_member (json_node_get_object (desc), "plane", plane);
   g_autofree char *text = json_to_string (desc, FALSE);
   DsTiffTags tags = { .description = text, .time = when, .document_name = plane };
@@ -253,7 +253,7 @@ ds_result_write_files (const DsResultPlanes *r, const char *dir, const char *ste
   g_autofree char *json_name = stem && *stem ? g_strconcat (stem, ".json", NULL) : g_strdup ("result.json");
   if (ok) {
     json_builder_end_object (files);
-    g_autoptr (JsonNode) sidecar = json_node_copy (r->meta);
+    g_autoptr (JsonNode) sidecar = ds_json_deep_copy (r->meta);
     json_object_set_member (json_node_get_object (sidecar), "files", json_builder_get_root (files));
     g_autofree char *text = json_to_string (sidecar, TRUE);
     g_autofree char *path = g_build_filename (dir, json_name, NULL);

@@ -28,9 +28,10 @@ typedef enum {
   DS_FILES_HDF5_RUN = 1 << 5, /* one growing NeXus file per run (hdf5_run.h; the caller's) */
 } DsFileKinds;
 
-#define DS_FILES_ALL_NAMES "tiff, png16, preview, hdf5, phases, hdf5-run"
+#define DS_FILES_ALL_NAMES "tiff, png16, preview, hdf5, hdf5-run"
 
-/* "tiff,png16,preview": kinds by name; the error names an unknown one and lists the rest. */
+/* "tiff,png16,preview": kinds by name (phases is not named: it follows save_phases); the error
+ * names an unknown one and lists the rest. */
 gboolean ds_file_kinds_parse (const char *list, guint *kinds, GError **error);
 char *ds_file_kinds_to_string (guint kinds);
 

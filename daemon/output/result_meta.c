@@ -181,6 +181,32 @@ ds_output_sha256_hex (const char *text)
 }
 
 JsonNode *
+ds_json_deep_copy (JsonNode *node)
+{
+  if (JSON_NODE_HOLDS_OBJECT (node)) {
+    JsonObject *src = json_node_get_object (node), *dst = json_object_new ();
+    JsonObjectIter it;
+    const char *name;
+    JsonNode *member;
+    json_object_iter_init (&it, src);
+    while (json_object_iter_next (&it, &name, &member))
+      json_object_set_member (dst, name, ds_json_deep_copy (member));
+    JsonNode *out = json_node_new (JSON_NODE_OBJECT);
+    json_node_take_object (out, dst);
+    return out;
+  }
+  if (JSON_NODE_HOLDS_ARRAY (node)) {
+    JsonArray *src = json_node_get_array (node), *dst = json_array_sized_new (json_array_get_length (src));
+    for (guint i = 0; i < json_array_get_length (src); i++)
+      json_array_add_element (dst, ds_json_deep_copy (json_array_get_element (src, i)));
+    JsonNode *out = json_node_new (JSON_NODE_ARRAY);
+    json_node_take_array (out, dst);
+    return out;
+  }
+  return json_node_copy (node); /* values and null: nothing shared */
+}
+
+JsonNode *
 ds_json_path (JsonNode *root, const char *dotted)
 {
   g_auto (GStrv) parts = g_strsplit (dotted, ".", -1);

@@ -44,6 +44,10 @@ JsonNode *ds_output_planes_json (const char *const *plane_dtype_pairs);
 /* SHA-256 (hex) of a text: the effective configuration's fingerprint. */
 char *ds_output_sha256_hex (const char *text);
 
+/* A copy sharing nothing with node (json_node_copy shares objects and arrays): safe to modify,
+ * and to hand to another thread. */
+JsonNode *ds_json_deep_copy (JsonNode *node);
+
 /* Helpers for reading metadata back: the member at a dotted path ("camera.serial"), or NULL. */
 JsonNode *ds_json_path (JsonNode *root, const char *dotted);
 const char *ds_json_path_string (JsonNode *root, const char *dotted, const char *fallback);

@@ -47,6 +47,7 @@ sample_result_new (guint w, guint h, guint set, gboolean with_raw, gboolean with
   }
   g_autofree char *meta = g_strdup_printf (
     "{\"format\": \"" DS_RESULT_FORMAT "\", \"version\": 1, \"set_id\": %u, \"time_utc\": \"2026-01-02T03:04:%02u.006Z\","
+    " \"time_utc_end\": \"2026-01-02T03:04:%02u.500Z\","
     " \"width\": %u, \"height\": %u,"
     " \"producer\": {\"program\": \"sample\", \"version\": \"0.0\", \"git\": \"g\", \"host\": \"h\"},"
     " \"camera\": {\"backend\": \"test\", \"vendor\": \"V\", \"model\": \"M\", \"serial\": \"S%u\","
@@ -54,7 +55,7 @@ sample_result_new (guint w, guint h, guint set, gboolean with_raw, gboolean with
     " \"pattern\": {\"kind\": \"square\", \"period_px\": 8.0, \"duty\": 0.5, \"black_level\": 0.0, \"phase_offset_cycles\": 0.25},"
     " \"settings\": {\"phases\": %u, \"exposure_us\": 1500.0, \"gain_db\": 0.0, \"estimator\": \"maxmin\"},"
     " \"separation\": {\"estimator\": \"maxmin\", \"saturation_level\": 4095.0}}",
-    set + 1, set % 60, w, h, set, SAMPLE_PHASES);
+    set + 1, set % 60, set % 60, w, h, set, SAMPLE_PHASES);
   JsonNode *node = json_from_string (meta, NULL);
   g_assert_nonnull (node);
   s->planes = (DsResultPlanes){ .transmissive = t, .scattered = g, .mask = m, .mean = mean, .raw = s->raw, .meta = node };

@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "daemon/output/hdf5_run.h"
+#include "daemon/output/hdf5_set.h"
 #include "daemon/output/output_error.h"
 #include "daemon/output/phase_folder_write.h"
 #include "daemon/output/result_files.h"
@@ -138,7 +139,8 @@ test_write_all_kinds (void)
   g_autofree char *stem = ds_result_stem (s->planes.meta);
   g_assert_cmpstr (stem, ==, "set-20260102T030407Z-000008");
   guint kinds = 0;
-  g_assert_true (ds_file_kinds_parse ("tiff, png16,preview,hdf5,phases", &kinds, NULL));
+  g_assert_true (ds_file_kinds_parse ("tiff, png16,preview,hdf5", &kinds, NULL));
+  kinds |= DS_FILES_PHASES;
   g_autoptr (GPtrArray) written = g_ptr_array_new_with_free_func (g_free);
   g_autoptr (GError) error = NULL;
   g_assert_true (ds_result_write_files (&s->planes, dir, stem, kinds, written, &error));
@@ -147,6 +149,9 @@ test_write_all_kinds (void)
                              "-global.png", "-transmissive-preview.png", "-scattered-preview.png", ".h5", "-phases",
                              ".json" };
   g_assert_cmpuint (written->len, ==, G_N_ELEMENTS (expected));
+  /* The caller's metadata is untouched (it may be shared with other writers and threads). */
+  g_assert_false (json_object_has_member (json_node_get_object (s->planes.meta), "files"));
+  g_assert_false (json_object_has_member (json_node_get_object (s->planes.meta), "plane"));
   g_autofree char *jpath = g_strdup_printf ("%s/%s.json", dir, stem);
   g_autoptr (JsonNode) side = read_json (jpath);
   for (guint i = 0; i < G_N_ELEMENTS (expected); i++) {
@@ -276,6 +281,14 @@ test_hdf5_run_close_and_refuse (void)
   g_clear_error (&error);
   g_assert_cmpuint (ds_hdf5_run_sets (run), ==, 1);
   g_autofree char *partial = g_strdup (ds_hdf5_run_partial_path (run));
+  /* The library's own reason reaches the message. */
+  g_autofree char *nowhere = g_build_filename (dir, "missing", "set.h5", NULL);
+  g_assert_false (ds_hdf5_write_set (&a->planes, nowhere, &error));
+  g_assert_error (error, DS_OUTPUT_ERROR, DS_OUTPUT_ERROR_HDF5);
+  g_assert_nonnull (strstr (error->message, nowhere));
+  g_assert_null (strstr (error->message, "HDF5 error"));
+  g_test_message ("%s", error->message);
+  g_clear_error (&error);
   g_assert_true (ds_hdf5_run_close (run, &error));
   g_assert_no_error (error);
   g_assert_true (g_file_test (path, G_FILE_TEST_EXISTS));

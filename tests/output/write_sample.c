@@ -19,6 +19,7 @@ main (int argc, char **argv)
     guint kinds = 0;
     if (!ds_file_kinds_parse (argv[3], &kinds, &error))
       return fprintf (stderr, "%s\n", error->message), 2;
+    kinds |= DS_FILES_PHASES;
     for (guint set = 0; set < (guint) atoi (argv[4]); set++) {
       g_autoptr (SampleResult) s = sample_result_new (24, 10, set, TRUE, TRUE);
       g_autofree char *stem = ds_result_stem (s->planes.meta);
