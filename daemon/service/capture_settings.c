@@ -20,6 +20,8 @@ ds_capture_settings_from_config (DsCaptureSettings *s, const DsConfig *c)
   s->dark_frame = c->dark_frame;
   s->phase_retries = c->phase_retries;
   s->verify_phase = c->verify_phase;
+  /* A spool that records raw frames needs every set to keep them. */
+  s->save_phases = c->spool_dir && c->spool_save_phases;
   /* A quarter of the phase step: a frame lit one phase off is then always refused. */
   s->phase_tolerance_deg = isnan (c->phase_tolerance_deg) ? 90.0 / c->phases : c->phase_tolerance_deg;
 }
@@ -45,6 +47,7 @@ ds_capture_settings_to_json (const DsCaptureSettings *s)
   BOOL ("dark_frame", s->dark_frame);
   INT ("phase_retries", s->phase_retries);
   BOOL ("verify_phase", s->verify_phase);
+  BOOL ("save_phases", s->save_phases);
   if (s->automatic) {
     json_builder_set_member_name (b, "operating_point");
     json_builder_begin_object (b);
@@ -72,5 +75,6 @@ ds_capture_settings_equal (const DsCaptureSettings *a, const DsCaptureSettings *
          a->gain_db == b->gain_db && a->estimator == b->estimator && a->pattern == b->pattern &&
          a->period_px == b->period_px && a->duty == b->duty && a->black_level == b->black_level &&
          a->dark_frame == b->dark_frame && a->phase_retries == b->phase_retries &&
-         a->verify_phase == b->verify_phase && a->phase_tolerance_deg == b->phase_tolerance_deg;
+         a->verify_phase == b->verify_phase && a->phase_tolerance_deg == b->phase_tolerance_deg &&
+         a->save_phases == b->save_phases;
 }

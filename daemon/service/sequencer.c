@@ -141,6 +141,8 @@ ds_sequencer_new (DsDevicesOpenFunc open_devices, gpointer open_data,
 {
   DsSequencer *seq = g_new0 (DsSequencer, 1);
   seq->queue = g_async_queue_new_full (g_free);
+  seq->dark_ids = g_array_new (FALSE, FALSE, sizeof (guint64));
+  seq->stored_dark_ids = g_array_new (FALSE, FALSE, sizeof (guint64));
   seq->context = g_main_context_ref (context);
   seq->on_event = on_event;
   seq->user_data = user_data;
@@ -190,6 +192,9 @@ ds_sequencer_free (DsSequencer *seq)
   g_clear_pointer (&seq->set, ds_phase_set_free);
   g_clear_pointer (&seq->dark, ds_image_free);
   g_clear_pointer (&seq->planes, ds_plane_pool_unref);
+  g_clear_pointer (&seq->raw, ds_raw_frames_free);
+  g_array_unref (seq->dark_ids);
+  g_array_unref (seq->stored_dark_ids);
   g_async_queue_unref (seq->queue);
   g_main_context_unref (seq->context);
   g_mutex_clear (&seq->lock);
@@ -235,6 +240,15 @@ void
 ds_sequencer_set_defaults (DsSequencer *seq, const DsCaptureSettings *defaults)
 {
   push (seq, CMD_DEFAULTS, defaults, 0);
+}
+
+void
+ds_sequencer_set_frame_hook (DsSequencer *seq, DsSequencerFrameFunc func, gpointer user_data)
+{
+  g_mutex_lock (&seq->lock);
+  seq->frame_hook = func;
+  seq->frame_hook_data = user_data;
+  g_mutex_unlock (&seq->lock);
 }
 
 void

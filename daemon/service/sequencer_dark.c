@@ -17,6 +17,7 @@ ds_seq_acquire_dark (DsSequencer *seq, const DsCaptureSettings *s, DsFrameCounte
   }
   ds_seq_flush_stale (seq, c);
   gint64 off_at = g_get_monotonic_time ();
+  g_array_set_size (seq->dark_ids, 0);
   g_autofree double *sum = NULL;
   guint w = 0, h = 0, got = 0, retries_left = s->phase_retries, bit_depth = 16;
   DsSampleType type = DS_SAMPLE_U16;
@@ -73,6 +74,7 @@ ds_seq_acquire_dark (DsSequencer *seq, const DsCaptureSettings *s, DsFrameCounte
                   : img->type == DS_SAMPLE_U16 ? ((const guint16 *) row)[x]
                                                : ((const float *) row)[x];
     }
+    g_array_append_val (seq->dark_ids, f->frame_id);
     got++;
   }
   /* The dark frame has the frames' own sample type, as the accumulator subtracts like from
@@ -123,6 +125,8 @@ ds_seq_run_dark (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag)
   double mean = ds_image_mean (dark);
   g_clear_pointer (&seq->dark, ds_image_free);
   seq->dark = dark;
+  g_array_set_size (seq->stored_dark_ids, 0);
+  g_array_append_vals (seq->stored_dark_ids, seq->dark_ids->data, seq->dark_ids->len);
   seq->dark_exposure_us = s->exposure_us;
   seq->dark_gain_db = s->gain_db;
   ds_seq_emit_dark (seq, tag, mean);

@@ -16,6 +16,7 @@
 #include <glib.h>
 
 #include "daemon/operating/operating_point.h"
+#include "daemon/output/raw_frames.h"
 #include "daemon/operating/rig_timing.h"
 #include "daemon/service/phase_check.h"
 #include "daemon/service/result_planes.h"
@@ -63,6 +64,14 @@ struct DsSequencer {
   DsRigTiming timing;
   DsFoldWorker *worker;     /* verifies and folds while the next frame is acquired */
   DsPlanePool *planes;      /* result planes, back from results nobody holds any more */
+  /* The raw frames of the set in progress when it keeps them (save_phases): filled by the
+   * worker between submit and collect, attached to the result by the set runner. */
+  DsRawFrames *raw;
+  gboolean raw_incomplete;  /* a copy failed: the set's raw frames are not published */
+  GArray *dark_ids;         /* guint64 ids of the frames of the last dark acquired */
+  GArray *stored_dark_ids;  /* ... of seq->dark */
+  DsSequencerFrameFunc frame_hook; /* under lock when set; read by the worker */
+  gpointer frame_hook_data;
 };
 
 /* ---- sequencer_report.c: events (any order of posting is the order of dispatch) ---- */

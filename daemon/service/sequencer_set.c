@@ -82,6 +82,14 @@ acquire_set (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag, DsFrameC
   DsSeparation *planes = ds_plane_pool_take (seq->planes, w, h, error);
   if (!planes)
     return NULL;
+  g_clear_pointer (&seq->raw, ds_raw_frames_free);
+  seq->raw_incomplete = FALSE;
+  if (s->save_phases) {
+    seq->raw = ds_raw_frames_new (s->phases);
+    GArray *ids = dark ? seq->dark_ids : seq->stored_dark_ids;
+    if (use_dark && !ds_raw_frames_set_black (seq->raw, use_dark, (const guint64 *) ids->data, ids->len, NULL))
+      seq->raw_incomplete = TRUE;
+  }
   if (!ds_seq_acquire_phases (seq, s, tag, c, error)) {
     ds_plane_pool_give (seq->planes, planes);
     if (seq->phase_check.provisional)
@@ -140,6 +148,9 @@ ds_seq_run_set (DsSequencer *seq, const DsCaptureSettings *requested, guint64 ta
   ds_seq_account (seq, &c, TRUE);
   DsResult *result = ds_result_new (++seq->next_set_id, g_steal_pointer (&sep), seq->planes, s, &c, started,
                                     acquired, finished);
+  if (seq->raw && !seq->raw_incomplete)
+    ds_result_set_raw_frames (result, g_steal_pointer (&seq->raw));
+  g_clear_pointer (&seq->raw, ds_raw_frames_free);
   ds_seq_refresh_device_status (seq);
   ds_seq_emit (seq, DS_SEQUENCER_EVENT_RESULT, tag, result, NULL, NULL);
 }

@@ -31,8 +31,20 @@ run_job (DsSequencer *seq, DsFoldJob *job)
     return;
   t = g_get_monotonic_time ();
   job->folded = ds_phase_set_accumulate (seq->set, job->phase, job->frame->image, &job->fold_error);
-  if (job->folded)
-    ds_seq_stage_add (seq, DS_STAGE_FOLD, t);
+  if (!job->folded)
+    return;
+  ds_seq_stage_add (seq, DS_STAGE_FOLD, t);
+  /* Copies made here overlap with the next exposure instead of delaying it. */
+  const DsFrame *f = job->frame;
+  if (seq->raw && !seq->raw_incomplete &&
+      !ds_raw_frames_add (seq->raw, job->phase, f->frame_id, f->timestamp_ns, f->image, NULL))
+    seq->raw_incomplete = TRUE;
+  g_mutex_lock (&seq->lock);
+  DsSequencerFrameFunc hook = seq->frame_hook;
+  gpointer hook_data = seq->frame_hook_data;
+  g_mutex_unlock (&seq->lock);
+  if (hook)
+    hook (f, job->phase, job->settings->phases, hook_data);
 }
 
 static gpointer
