@@ -1,10 +1,22 @@
-/* Writing a result message (reply to capture, or a streamed result event) to a folder: each
- * payload as a file a tool can read (f32 -> TIFF, u8/u16 -> PNG), an 8-bit PNG preview of
- * each float component for people, and the metadata as JSON. Every file is written atomically;
- * the JSON is written last, so a folder with the JSON is complete. */
+/* Writing result messages (a capture's reply, a streamed result event) to files through the one
+ * writer of daemon/output: the message's payloads become planes (and raw frames, when the daemon
+ * sent them), its metadata goes with them unchanged, and the files follow the naming scheme of
+ * the spool (result_files.h). */
 #pragma once
+#include "daemon/output/hdf5_run.h"
+#include "daemon/output/result_files.h"
 #include "daemon/protocol/client.h"
 
-/* prefix: "" or e.g. "set-000042-" (files become PREFIXtransmissive.tiff ...). */
-gboolean ds_ctl_write_result (const DsMessage *message, const char *dir, const char *prefix,
+typedef struct DsCtlResult DsCtlResult;
+
+/* Planes from the payloads: transmissive, scattered (f32, or u16 widened exactly to f32), mask,
+ * optional max/min/mean, and raw frames listed in the metadata's raw_frames. Fails when a
+ * required payload is missing or a raw frame's payload is absent. */
+DsCtlResult *ds_ctl_result_new (const DsMessage *message, GError **error);
+void ds_ctl_result_free (DsCtlResult *result);
+G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsCtlResult, ds_ctl_result_free)
+const DsResultPlanes *ds_ctl_result_planes (const DsCtlResult *result);
+
+/* The files of `kinds` in dir with the set's stem; `written` receives the basenames. */
+gboolean ds_ctl_write_result (const DsMessage *message, const char *dir, guint kinds, GPtrArray *written,
                               GError **error);

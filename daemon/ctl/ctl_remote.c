@@ -1,11 +1,13 @@
 /* descatterctl's commands that talk to the daemon (status: ctl_status.c). */
 #include <errno.h>
 #include <glib/gstdio.h>
+#include <signal.h>
 #include <string.h>
 #include <unistd.h>
 
 #include "daemon/ctl/ctl_commands.h"
 #include "daemon/ctl/ctl_output.h"
+#include "daemon/output/result_meta.h"
 
 static int
 simple_command (const DsCtlTarget *target, int argc, char **argv, const char *cmd, const char *summary)
@@ -200,29 +202,54 @@ prepare_out_dir (const char *cmd, const char *out, gboolean force)
   return NULL;
 }
 
+/* --files: the kinds of result files (daemon/output/result_files.h). */
+static gboolean
+parse_files (const char *cmd, const char *list, const char *fallback, guint *kinds)
+{
+  g_autoptr (GError) error = NULL;
+  if (!ds_file_kinds_parse (list ? list : fallback, kinds, &error)) {
+    fprintf (stderr, "descatterctl %s: --files: %s\n", cmd, error->message);
+    return FALSE;
+  }
+  return TRUE;
+}
+
 int
 ds_ctl_capture (const DsCtlTarget *target, int argc, char **argv)
 {
   g_auto (AcqOptions) o = { 0 };
-  g_autofree char *out = NULL, *format = NULL;
-  gboolean extrema = FALSE, quiet = FALSE, force = FALSE;
+  g_autofree char *out = NULL, *format = NULL, *files = NULL;
+  gboolean extrema = FALSE, quiet = FALSE, force = FALSE, save_phases = FALSE;
   GOptionEntry entries[] = {
     ACQ_ENTRIES (o),
-    { "format", 'f', 0, G_OPTION_ARG_STRING, &format, "f32 (default) or u16", "FMT" },
+    { "format", 'f', 0, G_OPTION_ARG_STRING, &format, "Wire format: f32 (default) or u16", "FMT" },
     { "extrema", 0, 0, G_OPTION_ARG_NONE, &extrema, "Also fetch max, min and mean", NULL },
+    { "files", 0, 0, G_OPTION_ARG_STRING, &files,
+      "Files to write: any of " DS_FILES_ALL_NAMES " (default tiff,png16,preview)", "LIST" },
+    { "save-phases", 0, 0, G_OPTION_ARG_NONE, &save_phases,
+      "Also fetch the raw phase and dark frames and write them as a phase folder (descatterctl separate reads it)",
+      NULL },
     { "out", 'o', 0, G_OPTION_ARG_FILENAME, &out,
       "Output folder (default: a new capture-DATE-TIME folder here)", "DIR" },
     { "force", 0, 0, G_OPTION_ARG_NONE, &force, "Write into --out even when it holds files", NULL },
     { "quiet", 'q', 0, G_OPTION_ARG_NONE, &quiet, "No progress line", NULL },
     { NULL },
   };
+  guint kinds = 0;
   if (!ds_ctl_parse_options (&argc, &argv, entries,
-                             "Acquires one phase set and writes transmissive/scattered (TIFF), the mask, "
-                             "PNG previews and result.json."))
+                             "Acquires one phase set and writes set-<UTC>-<id>-transmissive.tiff, "
+                             "-scattered.tiff (float32 with tags), -mask.png, -direct.png/-global.png "
+                             "(16-bit), previews and the sidecar set-<UTC>-<id>.json (docs/operations.md, "
+                             "\"Result files\").") ||
+      !parse_files ("capture", files, "tiff,png16,preview", &kinds))
     return 2;
   g_autoptr (JsonObject) args = acq_args (&o, "capture");
   if (!args)
     return 2;
+  if (save_phases) {
+    json_object_set_boolean_member (args, "save_phases", TRUE);
+    kinds |= DS_FILES_PHASES;
+  }
   if (format)
     json_object_set_string_member (args, "format", format);
   if (extrema) {
@@ -249,13 +276,19 @@ ds_ctl_capture (const DsCtlTarget *target, int argc, char **argv)
     return 1;
   }
   g_autoptr (GError) error = NULL;
-  if (!ds_ctl_write_result (m, dir, "", &error)) {
+  if (save_phases && !ds_json_path (m->reply->body, "raw_frames")) {
+    fprintf (stderr, "descatterctl capture: the daemon sent no raw frames (too old for --save-phases?)\n");
+    return 1;
+  }
+  g_autoptr (GPtrArray) written = g_ptr_array_new_with_free_func (g_free);
+  if (!ds_ctl_write_result (m, dir, kinds, written, &error)) {
     fprintf (stderr, "descatterctl capture: writing %s: %s\n", dir, error->message);
     return 1;
   }
   JsonObject *body = json_node_get_object (m->reply->body);
-  printf ("set %" G_GINT64_FORMAT " written to %s/%s\n", json_object_get_int_member_with_default (body, "set_id", 0),
-          dir, out ? "" : " (a new folder here: no --out given)");
+  printf ("set %" G_GINT64_FORMAT " written to %s/%s: %s\n", json_object_get_int_member_with_default (body, "set_id", 0),
+          dir, out ? "" : " (a new folder here: no --out given)",
+          written->len ? (const char *) written->pdata[written->len - 1] : "");
   return 0;
 }
 
@@ -332,14 +365,62 @@ note_when_idle (DsClient *c)
                      "or other clients capture; waiting (Ctrl-C to end)\n", state);
 }
 
+/* SIGINT/SIGTERM end `stream` between two messages, so that a growing HDF5 file is closed and
+ * renamed. A signal handler can only set a flag: this one is the process's. */
+static volatile sig_atomic_t stream_stop;
+
+static void
+on_stop_signal (int sig)
+{
+  (void) sig;
+  stream_stop = 1;
+}
+
+/* Appends a streamed result to the stream's growing HDF5 file (opened at the first one). */
+static gboolean
+append_to_run (DsHdf5Run **run, const DsMessage *m, const char *dir, GError **error)
+{
+  g_autoptr (DsCtlResult) r = ds_ctl_result_new (m, error);
+  if (!r)
+    return FALSE;
+  const DsResultPlanes *planes = ds_ctl_result_planes (r);
+  if (!*run) {
+    g_autofree char *stem = ds_result_stem (planes->meta);
+    g_autofree char *name = g_strdup_printf ("run-%s.h5", stem + strlen ("set-"));
+    g_autofree char *path = g_build_filename (dir, name, NULL);
+    *run = ds_hdf5_run_open (path, planes, error);
+    if (!*run)
+      return FALSE;
+  }
+  return ds_hdf5_run_append (*run, planes, error);
+}
+
+static int
+close_run (DsHdf5Run *run, int status)
+{
+  if (!run)
+    return status;
+  g_autoptr (GError) error = NULL;
+  g_autofree char *path = g_strdup (ds_hdf5_run_path (run));
+  if (!ds_hdf5_run_close (run, &error)) {
+    fprintf (stderr, "descatterctl stream: %s\n", error->message);
+    return 1;
+  }
+  fprintf (stderr, "descatterctl stream: run written to %s\n", path);
+  return status;
+}
+
 int
 ds_ctl_stream (const DsCtlTarget *target, int argc, char **argv)
 {
-  g_autofree char *count_text = NULL, *delay_text = NULL, *out = NULL;
+  g_autofree char *count_text = NULL, *delay_text = NULL, *out = NULL, *files = NULL;
   gboolean force = FALSE;
   GOptionEntry entries[] = {
-    { "count", 'c', 0, G_OPTION_ARG_STRING, &count_text, "Stop after this many results (default: forever)", "N" },
-    { "out", 'o', 0, G_OPTION_ARG_FILENAME, &out, "Write each result to DIR/set-NNNNNN-*", "DIR" },
+    { "count", 'c', 0, G_OPTION_ARG_STRING, &count_text, "Stop after this many results (default: until interrupted)", "N" },
+    { "out", 'o', 0, G_OPTION_ARG_FILENAME, &out, "Write each result to DIR (set-<UTC>-<id>-*)", "DIR" },
+    { "files", 0, 0, G_OPTION_ARG_STRING, &files,
+      "Files to write with --out: any of " DS_FILES_ALL_NAMES " (default tiff); hdf5-run: one growing file for "
+      "the whole stream", "LIST" },
     { "force", 0, 0, G_OPTION_ARG_NONE, &force, "Write into --out even when it holds files", NULL },
     { "delay-ms", 0, 0, G_OPTION_ARG_STRING, &delay_text, "Wait this long before reading each message (simulates a slow client)", "MS" },
     { NULL },
@@ -347,6 +428,9 @@ ds_ctl_stream (const DsCtlTarget *target, int argc, char **argv)
   if (!ds_ctl_parse_options (&argc, &argv, entries,
                              "Subscribes to results and prints (or writes) each one; `failed` and "
                              "`device` events are printed as they come."))
+    return 2;
+  guint kinds = 0;
+  if (!parse_files ("stream", files, "tiff", &kinds))
     return 2;
   gint64 count = 0, delay_ms = 0;
   if ((count_text && !ds_ctl_parse_int ("stream", "count", count_text, &count)) ||
@@ -377,14 +461,21 @@ ds_ctl_stream (const DsCtlTarget *target, int argc, char **argv)
     gint64 next = json_object_get_int_member_with_default (json_node_get_object (sub->reply->body), "next_seq", 0);
     last_seq = next > 0 ? (guint64) next - 1 : 0;
   }
-  for (gint64 got = 0; count == 0 || got < count;) {
+  struct sigaction sa = { .sa_handler = on_stop_signal };
+  sigaction (SIGINT, &sa, NULL);
+  sigaction (SIGTERM, &sa, NULL);
+  DsHdf5Run *run = NULL;
+  for (gint64 got = 0; (count == 0 || got < count) && !stream_stop;) {
     if (delay_ms > 0)
       g_usleep ((gulong) delay_ms * 1000);
     g_autoptr (GError) error = NULL;
-    g_autoptr (DsMessage) m = ds_client_read (c, 0, &error);
+    /* Wake up now and then to notice a stop signal. */
+    g_autoptr (DsMessage) m = ds_client_read (c, 500, &error);
+    if (!m && g_error_matches (error, G_IO_ERROR, G_IO_ERROR_TIMED_OUT))
+      continue;
     if (!m) {
       fprintf (stderr, "descatterctl stream: %s\n", error->message);
-      return 1;
+      return close_run (run, 1);
     }
     if (!m->reply->event)
       continue;
@@ -401,14 +492,15 @@ ds_ctl_stream (const DsCtlTarget *target, int argc, char **argv)
     printf ("result seq=%" G_GUINT64_FORMAT " set=%" G_GINT64_FORMAT " lost=%" G_GUINT64_FORMAT "\n",
             m->reply->seq, set_id, lost);
     fflush (stdout);
-    if (dir) {
-      g_autofree char *prefix = g_strdup_printf ("set-%06" G_GINT64_FORMAT "-", set_id);
-      if (!ds_ctl_write_result (m, dir, prefix, &error)) {
-        fprintf (stderr, "descatterctl stream: writing %s: %s\n", dir, error->message);
-        return 1;
-      }
+    if (dir && (kinds & ~DS_FILES_HDF5_RUN) && !ds_ctl_write_result (m, dir, kinds, NULL, &error)) {
+      fprintf (stderr, "descatterctl stream: writing %s: %s\n", dir, error->message);
+      return close_run (run, 1);
+    }
+    if (dir && (kinds & DS_FILES_HDF5_RUN) && !append_to_run (&run, m, dir, &error)) {
+      fprintf (stderr, "descatterctl stream: writing %s: %s\n", dir, error->message);
+      return close_run (run, 1);
     }
     got++;
   }
-  return 0;
+  return close_run (run, 0);
 }

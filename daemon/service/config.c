@@ -8,7 +8,8 @@
 
 G_DEFINE_QUARK (ds-config-error-quark, ds_config_error)
 
-typedef enum { K_STRING, K_CHOICE, K_UINT, K_UINT64, K_INT, K_DOUBLE, K_BOOL, K_MODE } KeyType;
+/* K_CHOICES: a comma-separated subset of `choices` (stored normalized, "a,b"). */
+typedef enum { K_STRING, K_CHOICE, K_UINT, K_UINT64, K_INT, K_DOUBLE, K_BOOL, K_MODE, K_CHOICES } KeyType;
 
 typedef struct {
   const char *group;
@@ -40,6 +41,22 @@ static const KeySpec keys[] = {
     "record every result here (float32 TIFF + JSON), empty = off" },
   { "daemon", "spool-max-bytes", K_UINT64, F (spool_max_bytes), "10737418240", 1048576, 1e15, NULL,
     "oldest recordings are removed beyond this size" },
+  { "daemon", "spool-formats", K_CHOICES, F (spool_formats), "tiff", 0, 0, "tiff|png16|preview|hdf5|hdf5-run",
+    "files per recorded set: float32 TIFF (+ mask PNG), 16-bit direct/global PNG, 8-bit previews, one HDF5 "
+    "(NeXus) file per set, or one growing HDF5 file per continuous run" },
+  { "daemon", "spool-save-phases", K_BOOL, F (spool_save_phases), "false", 0, 0, NULL,
+    "also record every set's raw phase and dark frames (a phase folder; in the HDF5 files too)" },
+  { "daemon", "spool-max-pending", K_UINT, F (spool_max_pending), "8", 1, 1024, NULL,
+    "results waiting for the disk before further ones are not recorded (counted) rather than delay "
+    "acquisition" },
+
+  { "http", "listen", K_STRING, F (http_listen), NULL, 0, 0, NULL,
+    "host:port of the live view and /metrics (HTTP + WebSocket), empty = off; a non-loopback host "
+    "needs token-file" },
+  { "http", "token-file", K_STRING, F (http_token_file), NULL, 0, 0, NULL,
+    "file holding the token HTTP clients must present (?token= or Authorization: Bearer)" },
+  { "http", "live-fps", K_DOUBLE, F (http_live_fps), "10", 0.1, 100, NULL,
+    "most raw frames per second copied for the live view" },
 
   { "camera", "backend", K_CHOICE, F (camera_backend), "sim", 0, 0, "sim|aravis", "camera driver" },
   { "camera", "address", K_STRING, F (camera_address), NULL, 0, 0, NULL,
@@ -108,6 +125,12 @@ static const KeySpec keys[] = {
     "injected faults of the simulated devices, e.g. stale=0.05,incomplete=0.02 (docs/reliability.md); empty = none" },
 };
 
+static gboolean
+is_text (const KeySpec *k)
+{
+  return k->type == K_STRING || k->type == K_CHOICE || k->type == K_CHOICES;
+}
+
 static gpointer
 field (DsConfig *c, const KeySpec *k)
 {
@@ -132,6 +155,26 @@ parse_value (DsConfig *c, const KeySpec *k, const char *raw, const char *name, G
     char **p = field (c, k);
     g_free (*p);
     *p = v[0] ? g_strdup (v) : NULL;
+    return TRUE;
+  }
+  case K_CHOICES: {
+    g_auto (GStrv) options = g_strsplit (k->choices, "|", -1);
+    g_auto (GStrv) parts = g_strsplit (v, ",", -1);
+    GString *norm = g_string_new (NULL);
+    for (guint i = 0; parts[i]; i++) {
+      const char *part = g_strstrip (parts[i]);
+      if (!*part)
+        continue;
+      if (!g_strv_contains ((const char *const *) options, part)) {
+        g_string_free (norm, TRUE);
+        g_autofree char *why = g_strdup_printf ("\"%s\" is not one of %s (a comma-separated list)", part, k->choices);
+        return bad_value (error, name, k, v, why);
+      }
+      g_string_append_printf (norm, "%s%s", norm->len ? "," : "", part);
+    }
+    char **p = field (c, k);
+    g_free (*p);
+    *p = g_string_free (norm, FALSE);
     return TRUE;
   }
   case K_CHOICE: {
@@ -208,7 +251,7 @@ ds_config_free (DsConfig *config)
   if (!config)
     return;
   for (guint i = 0; i < G_N_ELEMENTS (keys); i++)
-    if (keys[i].type == K_STRING || keys[i].type == K_CHOICE)
+    if (is_text (&keys[i]))
       g_free (*(char **) field (config, &keys[i]));
   g_free (config);
 }
@@ -218,7 +261,7 @@ ds_config_copy (const DsConfig *config)
 {
   DsConfig *c = g_memdup2 (config, sizeof *config);
   for (guint i = 0; i < G_N_ELEMENTS (keys); i++)
-    if (keys[i].type == K_STRING || keys[i].type == K_CHOICE) {
+    if (is_text (&keys[i])) {
       char **p = field (c, &keys[i]);
       *p = g_strdup (*p);
     }
@@ -265,6 +308,15 @@ check_consistency (const DsConfig *c, const char *name, GError **error)
     INCONSISTENT ("[trigger] backend = gpio pulses a line, so [camera] trigger must name a line, not software");
   if (strcmp (c->estimator, "sine") == 0 && c->phases < 3)
     INCONSISTENT ("[acquisition] estimator = sine needs phases >= 3 (got %u)", c->phases);
+  if (c->spool_dir && (!c->spool_formats || !*c->spool_formats))
+    INCONSISTENT ("[daemon] spool-formats is empty: name at least one of tiff, png16, preview, hdf5, hdf5-run");
+  if (c->http_listen) {
+    const char *colon = strrchr (c->http_listen, ':');
+    char *end = NULL;
+    long port = colon ? strtol (colon + 1, &end, 10) : -1;
+    if (!colon || colon == c->http_listen || !end || *end || port < 0 || port > 65535)
+      INCONSISTENT ("[http] listen = \"%s\" must be host:port", c->http_listen);
+  }
   if (c->tcp_listen) {
     const char *colon = strrchr (c->tcp_listen, ':');
     char *end = NULL;
@@ -323,8 +375,8 @@ load_keyfile (GKeyFile *kf, const char *data, const char *name, GError **error)
   for (gsize g = 0; g < n_groups; g++) {
     if (!group_known (groups[g])) {
       GError *local = g_error_new (DS_CONFIG_ERROR, DS_CONFIG_ERROR_UNKNOWN_GROUP,
-                                   "%s: unknown group [%s] (known: daemon, camera, illuminator, trigger, "
-                                   "acquisition, sim)", name, groups[g]);
+                                   "%s: unknown group [%s] (known: daemon, http, camera, illuminator, "
+                                   "trigger, acquisition, sim)", name, groups[g]);
       add_line (local, data, groups[g], NULL);
       g_propagate_error (error, local);
       return NULL;
@@ -384,7 +436,8 @@ format_value (const DsConfig *c, const KeySpec *k)
   gpointer p = field ((DsConfig *) c, k);
   switch (k->type) {
   case K_STRING:
-  case K_CHOICE: return g_strdup (*(char **) p ? *(char **) p : "");
+  case K_CHOICE:
+  case K_CHOICES: return g_strdup (*(char **) p ? *(char **) p : "");
   case K_UINT: return g_strdup_printf ("%u", *(guint *) p);
   case K_MODE: return g_strdup_printf ("%04o", *(guint *) p);
   case K_UINT64: return g_strdup_printf ("%" G_GUINT64_FORMAT, *(guint64 *) p);
@@ -427,6 +480,7 @@ ds_config_describe_keys (void)
     switch (k->type) {
     case K_STRING: range = g_strdup ("text"); break;
     case K_CHOICE: range = g_strdelimit (g_strdup (k->choices), "|", '/'); break;
+    case K_CHOICES: range = g_strdup_printf ("comma-separated: %s", k->choices); break;
     case K_BOOL: range = g_strdup ("true/false"); break;
     case K_MODE: range = g_strdup ("octal mode"); break;
     case K_DOUBLE: range = g_strdup_printf ("%g..%g", k->min, k->max); break;

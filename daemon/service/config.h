@@ -28,6 +28,13 @@ typedef struct {
   guint64 max_queued_bytes;
   char *spool_dir;        /* NULL: no recording */
   guint64 spool_max_bytes;
+  char *spool_formats;    /* comma-separated DsFileKinds names (daemon/output/result_files.h) */
+  gboolean spool_save_phases;
+  guint spool_max_pending;
+  /* [http] */
+  char *http_listen;      /* "host:port" or NULL (off) */
+  char *http_token_file;
+  double http_live_fps;
   /* [camera] */
   char *camera_backend;   /* "sim" | "aravis" */
   char *camera_address;

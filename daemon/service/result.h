@@ -6,8 +6,11 @@
 #include <glib.h>
 #include <json-glib/json-glib.h>
 
+#include "daemon/output/raw_frames.h"
+#include "daemon/output/result_planes.h"
 #include "daemon/service/capture_settings.h"
 #include "daemon/protocol/protocol.h"
+#include "drivers/core/camera.h"
 #include "proc/separation.h"
 
 G_BEGIN_DECLS
@@ -61,8 +64,35 @@ guint64 ds_result_set_id (const DsResult *result);
 const DsSeparation *ds_result_separation (const DsResult *result);
 const DsCaptureSettings *ds_result_settings (const DsResult *result);
 
-/* Metadata: set id, settings, separation meta, counters, timings (acquisition, compute). */
+/* What a result cannot know by itself: where and with what it was taken. Stamped by the service
+ * (main thread) before the result is used (docs/operations.md, "Result metadata"). */
+typedef struct {
+  char program[32];              /* "descatterd" */
+  char config_sha256[65];        /* of the effective configuration text */
+  char camera_backend[16], illuminator_backend[16], trigger_backend[16];
+  DsCameraInfo camera;
+  char pixel_format[32];         /* as configured (aravis) or "simulated" */
+  guint roi_x, roi_y, roi_width, roi_height; /* roi_width 0: the full sensor */
+  double illuminator_temperature_c;          /* NAN: unknown */
+  double phase_offset_cycles;                /* NAN: not learned */
+} DsResultProvenance;
+
+void ds_result_set_provenance (DsResult *result, const DsResultProvenance *provenance);
+
+/* The raw frames of the set (capture with save_phases); takes ownership. Acquisition thread,
+ * before the result is emitted. */
+void ds_result_set_raw_frames (DsResult *result, DsRawFrames *raw);
+const DsRawFrames *ds_result_raw_frames (const DsResult *result);
+
+/* Metadata (docs/operations.md, "Result metadata"): format, set id, UTC times, producer (with
+ * host and the configuration's hash), camera (backend, identity, pixel format, ROI), pattern,
+ * settings, separation, planes (units, long names), mask_bits, frames, timings, raw_frames.
+ * Built once (main thread) and shared: the caller gets a reference and must not modify it. */
 JsonNode *ds_result_to_json (DsResult *result);
+
+/* The planes and metadata for the file writers (daemon/output). planes->meta is a new copy
+ * the caller unrefs; the images stay the result's. Main thread (builds the metadata). */
+void ds_result_planes (DsResult *result, DsResultPlanes *planes);
 
 typedef enum { DS_OUTPUT_F32 = 0, DS_OUTPUT_U16 = 1 } DsOutputFormat;
 
@@ -73,5 +103,8 @@ typedef enum { DS_OUTPUT_F32 = 0, DS_OUTPUT_U16 = 1 } DsOutputFormat;
  * into the result. Main thread. */
 guint ds_result_payloads (DsResult *result, DsOutputFormat format, gboolean extrema,
                           const DsPayloadInfo **infos, GBytes *const **bytes);
+/* The raw frames as payloads named like their phase-folder files ("phase-03-0", "black"), in
+ * the order of the metadata's raw_frames.frames; 0 without raw frames. Main thread. */
+guint ds_result_raw_payloads (DsResult *result, const DsPayloadInfo **infos, GBytes *const **bytes);
 
 G_END_DECLS

@@ -7,8 +7,11 @@
 #include <string.h>
 #include <systemd/sd-daemon.h>
 
+#include "daemon/output/result_files.h"
+#include "daemon/output/result_meta.h"
 #include "daemon/service/capture_settings.h"
 #include "daemon/service/devices.h"
+#include "daemon/service/provenance.h"
 #include "daemon/operating/operating_point.h"
 #include "daemon/protocol/protocol.h"
 #include "daemon/service/sequencer.h"
@@ -24,6 +27,7 @@ typedef struct {
   gboolean extrema;
   guint outputs;      /* bit i: payload i of the result's payload set */
   gboolean progress;
+  gboolean save_phases; /* the raw frames go back with the reply */
 } PendingCapture;
 
 typedef struct {
@@ -49,7 +53,8 @@ struct DsService {
   guint64 watchdog_usec;
   gint64 started_us;
   guint64 results_published;
-  guint64 spool_errors;
+  char config_sha256[65];    /* of the effective configuration: in every result */
+  gboolean in_run;           /* continuous acquisition started and not stopped */
   DsOperatingModel *model;  /* NULL when no model file could be read (automatic captures fail) */
   char *model_error;
   char *model_path;         /* the file the model was (or failed to be) read from */
@@ -87,17 +92,23 @@ reply_result (DsService *svc, PendingCapture *p, DsResult *result)
   const DsPayloadInfo *infos;
   GBytes *const *bytes;
   guint n = ds_result_payloads (result, p->format, p->extrema, &infos, &bytes);
-  DsPayloadInfo sel_infos[8];
-  GBytes *sel_bytes[8];
-  guint m = 0;
-  for (guint i = 0; i < n && m < G_N_ELEMENTS (sel_infos); i++)
+  g_autoptr (GArray) sel_infos = g_array_new (FALSE, FALSE, sizeof (DsPayloadInfo));
+  g_autoptr (GPtrArray) sel_bytes = g_ptr_array_new ();
+  for (guint i = 0; i < n; i++)
     for (guint j = 0; j < G_N_ELEMENTS (output_names); j++)
       if (strcmp (infos[i].name, output_names[j]) == 0 && (p->outputs & (1u << j))) {
-        sel_infos[m] = infos[i];
-        sel_bytes[m++] = bytes[i];
+        g_array_append_val (sel_infos, infos[i]);
+        g_ptr_array_add (sel_bytes, bytes[i]);
       }
+  if (p->save_phases) {
+    guint r = ds_result_raw_payloads (result, &infos, &bytes);
+    g_array_append_vals (sel_infos, infos, r);
+    for (guint i = 0; i < r; i++)
+      g_ptr_array_add (sel_bytes, bytes[i]);
+  }
   g_autoptr (JsonNode) meta = ds_result_to_json (result);
-  ds_server_reply_ok (svc->server, p->conn, p->id, meta, sel_infos, sel_bytes, m);
+  ds_server_reply_ok (svc->server, p->conn, p->id, meta, (const DsPayloadInfo *) sel_infos->data,
+                      (GBytes *const *) sel_bytes->pdata, sel_infos->len);
 }
 
 static void
@@ -138,13 +149,9 @@ publish_result (DsService *svc, DsResult *result)
   g_autoptr (JsonNode) meta = ds_result_to_json (result);
   ds_server_publish (svc->server, "result", meta, infos, bytes, n);
   svc->results_published++;
-  if (svc->spool) {
-    g_autoptr (GError) error = NULL;
-    if (!ds_spool_record (svc->spool, result, &error)) {
-      svc->spool_errors++;
-      g_warning ("%s", error->message);
-    }
-  }
+  /* Queued to the spool's writer thread: a slow disk never delays the loop. */
+  if (svc->spool && !ds_spool_record (svc->spool, result, svc->in_run))
+    g_warning ("spool: set %" G_GUINT64_FORMAT " not recorded: the disk is behind", ds_result_set_id (result));
 }
 
 static void
@@ -171,6 +178,11 @@ on_sequencer_event (const DsSequencerEvent *ev, gpointer user_data)
       send_progress (svc, p, ev->phase, ev->n_phases);
     return;
   case DS_SEQUENCER_EVENT_RESULT: {
+    DsSequencerStatus status;
+    ds_sequencer_get_status (svc->sequencer, &status);
+    DsResultProvenance prov;
+    ds_provenance_fill (&prov, svc->config, svc->config_sha256, &status);
+    ds_result_set_provenance (ev->result, &prov);
     g_autofree char *st = g_strdup_printf ("set %" G_GUINT64_FORMAT " done",
                                            ds_result_set_id (ev->result));
     notify_status (svc, st);
@@ -229,6 +241,8 @@ on_sequencer_event (const DsSequencerEvent *ev, gpointer user_data)
 
 /* ---- requests ---- */
 
+#define DS_SAVE_PHASES_MAX_FRAMES 256
+
 /* Capture settings from the defaults overlaid with the request's arguments. */
 static gboolean
 settings_from_request (DsService *svc, const DsRequest *req, DsCaptureSettings *s, GError **error)
@@ -261,6 +275,16 @@ settings_from_request (DsService *svc, const DsRequest *req, DsCaptureSettings *
   if (!ds_request_get_bool (req, "verify_phase", s->verify_phase, &bval, error))
     return FALSE;
   s->verify_phase = bval;
+  if (!ds_request_get_bool (req, "save_phases", s->save_phases, &bval, error))
+    return FALSE;
+  s->save_phases = bval;
+  /* Every raw frame is a payload and a line of metadata: keep a reply within bounds. */
+  if (s->save_phases && s->phases * s->averages > DS_SAVE_PHASES_MAX_FRAMES) {
+    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT,
+                 "\"save_phases\": phases x averages = %u exceeds %u frames per set", s->phases * s->averages,
+                 DS_SAVE_PHASES_MAX_FRAMES);
+    return FALSE;
+  }
   if (!ds_request_get_double (req, "target_error", 0.0, 1.0, 0.0, &s->target_error, error) ||
       !ds_request_get_double (req, "time_budget_ms", 0.0, 3.6e6, 0.0, &s->time_budget_ms, error))
     return FALSE;
@@ -331,7 +355,7 @@ handle_capture (DsService *svc, DsConnection *conn, DsRequest *req)
 {
   static const char *const keys[] = { "phases", "averages", "exposure_us", "gain_db", "estimator",
                                       "dark_frame", "verify_phase", "format", "outputs",
-                                      "progress", "target_error", "time_budget_ms", NULL };
+                                      "progress", "target_error", "time_budget_ms", "save_phases", NULL };
   g_autoptr (GError) error = NULL;
   DsCaptureSettings s;
   const char *format;
@@ -367,6 +391,8 @@ handle_capture (DsService *svc, DsConnection *conn, DsRequest *req)
   p->extrema = extrema;
   p->outputs = outputs;
   p->progress = progress;
+  /* Asked for explicitly: frames kept only for the spool stay off the wire. */
+  p->save_phases = s.save_phases && json_object_has_member (req->args, "save_phases");
   g_hash_table_insert (svc->pending, &p->tag, p);
 }
 
@@ -399,7 +425,8 @@ static void
 handle_start (DsService *svc, DsConnection *conn, DsRequest *req)
 {
   static const char *const keys[] = { "phases", "averages", "exposure_us", "gain_db", "estimator",
-                                      "dark_frame", "verify_phase", "target_error", "time_budget_ms", NULL };
+                                      "dark_frame", "verify_phase", "target_error", "time_budget_ms",
+                                      "save_phases", NULL };
   g_autoptr (GError) error = NULL;
   DsCaptureSettings s;
   if (!ds_request_check_keys (req, keys, &error) || !settings_from_request (svc, req, &s, &error)) {
@@ -408,6 +435,7 @@ handle_start (DsService *svc, DsConnection *conn, DsRequest *req)
   }
   /* Without arguments continuous mode follows the configuration (and its reloads). */
   ds_sequencer_start (svc->sequencer, json_object_get_size (req->args) ? &s : NULL);
+  svc->in_run = TRUE;
   g_autoptr (JsonNode) body = ds_capture_settings_to_json (&s);
   ds_server_reply_ok (svc->server, conn, req->id, body, NULL, NULL, 0);
 }
@@ -422,6 +450,10 @@ handle_stop (DsService *svc, DsConnection *conn, DsRequest *req)
     return;
   }
   ds_sequencer_stop (svc->sequencer);
+  /* The set in progress still completes: it goes into the run file, which closes after it. */
+  svc->in_run = FALSE;
+  if (svc->spool)
+    ds_spool_end_run (svc->spool);
   ds_server_reply_ok (svc->server, conn, req->id, NULL, NULL, NULL, 0);
 }
 
@@ -576,11 +608,19 @@ status_to_json (DsService *svc)
   add_uint (b, "queued_bytes", ss.queued_bytes);
   json_builder_end_object (b);
   if (svc->spool) {
+    DsSpoolStats sp;
+    ds_spool_get_stats (svc->spool, &sp);
     json_builder_set_member_name (b, "spool");
     json_builder_begin_object (b);
-    add_uint (b, "bytes", ds_spool_bytes (svc->spool));
-    add_uint (b, "sets_removed", ds_spool_sets_removed (svc->spool));
-    add_uint (b, "errors", svc->spool_errors);
+    add_uint (b, "bytes", sp.bytes);
+    add_uint (b, "sets_written", sp.sets_written);
+    add_uint (b, "sets_removed", sp.sets_removed);
+    add_uint (b, "errors", sp.errors);
+    add_uint (b, "dropped", sp.dropped);
+    add_uint (b, "pending", sp.pending);
+    json_builder_set_member_name (b, "run_open");
+    json_builder_add_boolean_value (b, sp.run_open);
+    add_string (b, "last_error", sp.last_error);
     json_builder_end_object (b);
   }
   json_builder_end_object (b);
@@ -691,6 +731,14 @@ start_listening (DsService *svc, GError **error)
   return TRUE;
 }
 
+static void
+update_config_hash (DsService *svc)
+{
+  g_autofree char *text = ds_config_to_data (svc->config);
+  g_autofree char *hash = ds_output_sha256_hex (text);
+  g_strlcpy (svc->config_sha256, hash, sizeof svc->config_sha256);
+}
+
 DsService *
 ds_service_new (DsConfig *config, const DsServiceOptions *options, GMainLoop *loop, GError **error)
 {
@@ -725,10 +773,19 @@ ds_service_new (DsConfig *config, const DsServiceOptions *options, GMainLoop *lo
   if (!start_listening (svc, error))
     return NULL;
   if (svc->config->spool_dir && *svc->config->spool_dir) {
-    svc->spool = ds_spool_new (svc->config->spool_dir, svc->config->spool_max_bytes, error);
+    guint kinds = 0;
+    if (!ds_file_kinds_parse (svc->config->spool_formats, &kinds, error)) {
+      g_prefix_error (error, "[daemon] spool-formats: ");
+      return NULL;
+    }
+    if (svc->config->spool_save_phases)
+      kinds |= DS_FILES_PHASES;
+    svc->spool = ds_spool_new (svc->config->spool_dir, svc->config->spool_max_bytes, kinds,
+                               svc->config->spool_max_pending, error);
     if (!svc->spool)
       return NULL;
   }
+  update_config_hash (svc);
   DsCaptureSettings defaults;
   ds_capture_settings_from_config (&defaults, svc->config);
   /* The thread opens the devices from its own copy: a reload never races with it. It lives
@@ -809,6 +866,7 @@ ds_service_reload (DsService *svc, GError **error)
   }
   ds_config_free (svc->config);
   svc->config = g_steal_pointer (&fresh);
+  update_config_hash (svc);
   DsCaptureSettings defaults;
   ds_capture_settings_from_config (&defaults, svc->config);
   ds_sequencer_set_defaults (svc->sequencer, &defaults);

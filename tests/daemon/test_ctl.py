@@ -101,24 +101,31 @@ def refused_values(d, tmp):
     check(not [n for n in os.listdir(tmp) if n.startswith("capture-")], "no refused capture left a folder")
 
 
+def result_json(folder):
+    """The newest result sidecar (set-<UTC>-<id>.json, docs/operations.md) in folder, or None."""
+    names = sorted(n for n in os.listdir(folder) if n.startswith("set-") and n.endswith(".json")) \
+        if os.path.isdir(folder) else []
+    return os.path.join(folder, names[-1]) if names else None
+
+
 def out_folders(d, tmp):
     out = os.path.join(tmp, "shot")
     r = d.ctl("capture", "-n", "4", "-q", "--out", out)
-    check(r.returncode == 0 and os.path.exists(os.path.join(out, "result.json")), "capture --out writes a result")
-    first = open(os.path.join(out, "result.json")).read()
+    check(r.returncode == 0 and result_json(out), "capture --out writes a result")
+    first = open(result_json(out)).read()
     r = d.ctl("capture", "-n", "4", "-q", "--out", out)
     check(r.returncode != 0 and "--force" in r.stderr, "a second capture into the same --out is refused")
-    check(open(os.path.join(out, "result.json")).read() == first, "the refused capture left the first result as it was")
+    check(open(result_json(out)).read() == first, "the refused capture left the first result as it was")
     r = d.ctl("capture", "-n", "4", "-q", "--out", out, "--force")
-    second = json.load(open(os.path.join(out, "result.json")))
-    check(r.returncode == 0 and second["set_id"] != json.loads(first)["set_id"], "--force replaces it")
+    second = json.load(open(result_json(out)))
+    check(r.returncode == 0 and second["set_id"] != json.loads(first)["set_id"], "--force writes the new set beside it")
     here = os.path.join(tmp, "cwd")
     os.mkdir(here)
     r = d.ctl("capture", "-n", "4", "-q", cwd=here)
     made = os.listdir(here)
     check(r.returncode == 0 and len(made) == 1 and made[0].startswith("capture-") and made[0] in r.stdout
           and "no --out" in r.stdout, f"without --out a new folder is made and named: {r.stdout.strip()}")
-    check(os.path.exists(os.path.join(here, made[0], "result.json")), "... and holds the result, not the cwd")
+    check(result_json(os.path.join(here, made[0])), "... and holds the result, not the cwd")
 
 
 def dark_and_versions(d, tmp):
@@ -127,7 +134,7 @@ def dark_and_versions(d, tmp):
     for flag in ("--no-dark-frame", "--dark-frame"):
         out = os.path.join(tmp, "dark" + flag)
         r = d.ctl("capture", "-n", "4", "-q", flag, "--out", out)
-        results[flag] = json.load(open(os.path.join(out, "result.json"))) if r.returncode == 0 else None
+        results[flag] = json.load(open(result_json(out))) if r.returncode == 0 else None
     nd, wd = results["--no-dark-frame"], results["--dark-frame"]
     check(nd is not None and nd["settings"]["dark_frame"] is False and nd["separation"]["dark_subtracted"] is False,
           "--no-dark-frame: no dark frame taken or subtracted")
@@ -136,8 +143,8 @@ def dark_and_versions(d, tmp):
     r = d.ctl("capture", "--dark-frame", "--no-dark-frame")
     check(r.returncode == 2 and "exclude" in r.stderr, "--dark-frame with --no-dark-frame is a usage error")
     check(hello["version"] == VERSION and hello.get("build"), f"hello names version and build: {hello}")
-    sw = (nd or {}).get("software", {})
-    check(sw.get("version") == VERSION and sw.get("build") == hello.get("build"),
+    sw = (nd or {}).get("producer", {})
+    check(sw.get("version") == VERSION and sw.get("git") == hello.get("build"),
           f"the result's metadata names the same version and build: {sw}")
 
 
@@ -168,7 +175,8 @@ def stream_and_start(d):
     r = d.ctl("stream", "--count", "2", "--out", out, timeout=300)
     lines = [x for x in r.stdout.splitlines() if x.startswith("result ")]
     check(r.returncode == 0 and len(lines) == 2 and "not acquiring" not in r.stderr, "stream gets results while started")
-    metas = [json.load(open(os.path.join(out, n))) for n in sorted(os.listdir(out)) if n.endswith("result.json")]
+    metas = [json.load(open(os.path.join(out, n))) for n in sorted(os.listdir(out))
+             if n.startswith("set-") and n.endswith(".json")]
     check(len(metas) == 2 and all(m["settings"].get("operating_point", {}).get("target_error") == 0.2 for m in metas)
           and all(m["settings"]["dark_frame"] is False for m in metas),
           "the started sets follow --target-error and --no-dark-frame")
@@ -178,7 +186,7 @@ def stream_and_start(d):
 def automatic_capture(d, tmp):
     out = os.path.join(tmp, "auto")
     r = d.ctl("capture", "-q", "--target-error", "0.1", "--time-budget-ms", "5000", "--out", out)
-    meta = json.load(open(os.path.join(out, "result.json"))) if r.returncode == 0 else {}
+    meta = json.load(open(result_json(out))) if r.returncode == 0 else {}
     op = meta.get("settings", {}).get("operating_point")
     check(op is not None, f"capture --target-error/--time-budget-ms picks an operating point: {r.stderr.strip()}")
 

@@ -53,6 +53,16 @@ test_capture_over_the_wire (void)
   g_autoptr (DsMessage) st = test_daemon_call_ok (c, "status", NULL);
   g_assert_cmpint (test_json_int (st->reply->body, "frames.acquired"), ==,
                    test_json_int (st->reply->body, "frames.folded") + test_json_int (st->reply->body, "frames.dropped"));
+  /* The result says it came over GigE Vision from this camera: it cannot pass for a simulated
+   * one (whose backend is "sim" and vendor "descatter"). */
+  JsonObject *cam = json_object_get_object_member (json_node_get_object (m->reply->body), "camera");
+  JsonObject *dev = json_object_get_object_member (
+    json_object_get_object_member (json_node_get_object (st->reply->body), "devices"), "camera");
+  g_assert_cmpstr (json_object_get_string_member (cam, "backend"), ==, "aravis");
+  g_assert_cmpstr (json_object_get_string_member (cam, "vendor"), ==, json_object_get_string_member (dev, "vendor"));
+  g_assert_cmpstr (json_object_get_string_member (cam, "model"), ==, json_object_get_string_member (dev, "model"));
+  g_assert_cmpstr (json_object_get_string_member (cam, "vendor"), !=, "descatter");
+  g_assert_cmpstr (json_object_get_string_member (cam, "pixel_format"), !=, "simulated");
   g_assert_cmpint (test_daemon_stop (d), ==, 0);
   test_daemon_free (d);
   test_labsim_stop (l);
