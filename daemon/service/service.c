@@ -457,6 +457,25 @@ handle_stop (DsService *svc, DsConnection *conn, DsRequest *req)
   ds_server_reply_ok (svc->server, conn, req->id, NULL, NULL, NULL, 0);
 }
 
+/* The configuration in effect: the file with the command line's overrides (--socket, --tcp;
+ * --scene is already in svc->config), so that what is printed (and hashed into every result) is
+ * what the daemon uses. */
+static char *
+effective_config_text (DsService *svc)
+{
+  g_autoptr (DsConfig) effective = ds_config_copy (svc->config);
+  const char *socket_in_use = svc->socket_path ? svc->socket_path : svc->options.socket_path;
+  if (socket_in_use) {
+    g_free (effective->socket_path);
+    effective->socket_path = g_strdup (socket_in_use);
+  }
+  if (svc->options.tcp_listen) {
+    g_free (effective->tcp_listen);
+    effective->tcp_listen = g_strdup (svc->options.tcp_listen);
+  }
+  return ds_config_to_data (effective);
+}
+
 static void
 handle_config (DsService *svc, DsConnection *conn, DsRequest *req)
 {
@@ -469,19 +488,7 @@ handle_config (DsService *svc, DsConnection *conn, DsRequest *req)
     ds_server_reply_error (svc->server, conn, req->id, error);
     return;
   }
-  /* The configuration in effect: the file with the command line's overrides (--socket, --tcp;
-   * --scene is already in svc->config), so that what is printed is what the daemon uses. */
-  g_autoptr (DsConfig) effective = ds_config_copy (svc->config);
-  const char *socket_in_use = svc->socket_path ? svc->socket_path : svc->options.socket_path;
-  if (socket_in_use) {
-    g_free (effective->socket_path);
-    effective->socket_path = g_strdup (socket_in_use);
-  }
-  if (svc->options.tcp_listen) {
-    g_free (effective->tcp_listen);
-    effective->tcp_listen = g_strdup (svc->options.tcp_listen);
-  }
-  g_autofree char *text = ds_config_to_data (effective);
+  g_autofree char *text = effective_config_text (svc);
   g_autoptr (JsonBuilder) b = json_builder_new ();
   json_builder_begin_object (b);
   json_builder_set_member_name (b, "path");
@@ -734,7 +741,7 @@ start_listening (DsService *svc, GError **error)
 static void
 update_config_hash (DsService *svc)
 {
-  g_autofree char *text = ds_config_to_data (svc->config);
+  g_autofree char *text = effective_config_text (svc);
   g_autofree char *hash = ds_output_sha256_hex (text);
   g_strlcpy (svc->config_sha256, hash, sizeof svc->config_sha256);
 }

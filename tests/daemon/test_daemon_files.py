@@ -42,7 +42,7 @@ class Daemon:
                                      stdout=self.log, stderr=self.log)
         deadline = time.time() + 120
         while True:
-            r = self.ctl("status", check=False)
+            r = self.ctl("status", "--json", check=False)
             if r.returncode == 0 and json.loads(r.stdout)["ready"]:
                 break
             assert self.proc.poll() is None, "descatterd exited"
@@ -54,7 +54,7 @@ class Daemon:
                               check=check, timeout=120)
 
     def status(self):
-        return json.loads(self.ctl("status").stdout)
+        return json.loads(self.ctl("status", "--json").stdout)
 
     def stop(self):
         self.proc.terminate()
