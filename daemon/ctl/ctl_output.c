@@ -6,7 +6,7 @@
 #include "daemon/output/result_meta.h"
 
 struct DsCtlResult {
-  DsResultPlanes planes;
+  DsOutputResult planes;
   GPtrArray *images;   /* owned DsImage */
   DsRawFrames *raw;
 };
@@ -23,7 +23,7 @@ ds_ctl_result_free (DsCtlResult *r)
   g_free (r);
 }
 
-const DsResultPlanes *
+const DsOutputResult *
 ds_ctl_result_planes (const DsCtlResult *r)
 {
   return &r->planes;

@@ -15,7 +15,7 @@ typedef struct DsCtlResult DsCtlResult;
 DsCtlResult *ds_ctl_result_new (const DsMessage *message, GError **error);
 void ds_ctl_result_free (DsCtlResult *result);
 G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsCtlResult, ds_ctl_result_free)
-const DsResultPlanes *ds_ctl_result_planes (const DsCtlResult *result);
+const DsOutputResult *ds_ctl_result_planes (const DsCtlResult *result);
 
 /* The files of `kinds` in dir with the set's stem; `written` receives the basenames. */
 gboolean ds_ctl_write_result (const DsMessage *message, const char *dir, guint kinds, GPtrArray *written,

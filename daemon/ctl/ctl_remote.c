@@ -383,7 +383,7 @@ append_to_run (DsHdf5Run **run, const DsMessage *m, const char *dir, GError **er
   g_autoptr (DsCtlResult) r = ds_ctl_result_new (m, error);
   if (!r)
     return FALSE;
-  const DsResultPlanes *planes = ds_ctl_result_planes (r);
+  const DsOutputResult *planes = ds_ctl_result_planes (r);
   if (!*run) {
     g_autofree char *stem = ds_result_stem (planes->meta);
     g_autofree char *name = g_strdup_printf ("run-%s.h5", stem + strlen ("set-"));

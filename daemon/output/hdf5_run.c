@@ -69,7 +69,7 @@ image_block (hid_t parent, const char *group, const char *plane, hid_t type, gui
 }
 
 static gboolean
-create_layout (DsHdf5Run *run, const DsResultPlanes *first)
+create_layout (DsHdf5Run *run, const DsOutputResult *first)
 {
   g_autofree char *base = g_path_get_basename (run->path);
   if (!ds_hdf5_write_root_attrs (run->file, base))
@@ -143,7 +143,7 @@ run_free (DsHdf5Run *run)
 }
 
 DsHdf5Run *
-ds_hdf5_run_open (const char *path, const DsResultPlanes *first, GError **error)
+ds_hdf5_run_open (const char *path, const DsOutputResult *first, GError **error)
 {
   ds_h5_quiet ();
   DsHdf5Run *run = g_new0 (DsHdf5Run, 1);
@@ -255,7 +255,7 @@ append_phases (DsHdf5Run *run, const DsRawFrames *raw)
 }
 
 gboolean
-ds_hdf5_run_append (DsHdf5Run *run, const DsResultPlanes *r, GError **error)
+ds_hdf5_run_append (DsHdf5Run *run, const DsOutputResult *r, GError **error)
 {
   ds_h5_quiet ();
   const DsImage *planes[] = { r->transmissive, r->scattered, r->mask };

@@ -15,7 +15,7 @@
  *
  * One thread uses a run (the spool's writer thread, or descatterctl). */
 #pragma once
-#include "daemon/output/result_planes.h"
+#include "daemon/output/output_result.h"
 
 G_BEGIN_DECLS
 
@@ -23,10 +23,10 @@ typedef struct DsHdf5Run DsHdf5Run;
 
 /* Creates PATH.partial laid out for results shaped like `first` (raw phases kept when first
  * has them), without appending it. */
-DsHdf5Run *ds_hdf5_run_open (const char *path, const DsResultPlanes *first, GError **error);
+DsHdf5Run *ds_hdf5_run_open (const char *path, const DsOutputResult *first, GError **error);
 /* Appends one set and flushes. Fails INVALID (and appends nothing) when the planes' size
  * differs from the run's: the caller closes the run and starts another. */
-gboolean ds_hdf5_run_append (DsHdf5Run *run, const DsResultPlanes *result, GError **error);
+gboolean ds_hdf5_run_append (DsHdf5Run *run, const DsOutputResult *result, GError **error);
 guint64 ds_hdf5_run_sets (const DsHdf5Run *run);
 /* The final name (PATH) and the name while open (PATH.partial). */
 const char *ds_hdf5_run_path (const DsHdf5Run *run);

@@ -11,7 +11,7 @@
 #include "daemon/output/result_meta.h"
 
 guint
-ds_result_planes_optional (const DsResultPlanes *r, const char **names, const DsImage **images)
+ds_output_result_optional (const DsOutputResult *r, const char **names, const DsImage **images)
 {
   const char *all_names[] = { "max", "min", "mean", "sigma_transmissive", "sigma_scattered" };
   const DsImage *all[] = { r->max, r->min, r->mean, r->sigma_transmissive, r->sigma_scattered };
@@ -192,7 +192,7 @@ write_phases (hid_t entry, const DsRawFrames *raw)
 }
 
 static gboolean
-fill_file (hid_t file, const DsResultPlanes *r, const char *path)
+fill_file (hid_t file, const DsOutputResult *r, const char *path)
 {
   g_autofree char *base = g_path_get_basename (path);
   if (!ds_hdf5_write_root_attrs (file, base))
@@ -203,7 +203,7 @@ fill_file (hid_t file, const DsResultPlanes *r, const char *path)
   g_autofree char *title = g_strdup_printf ("descatter set %" G_GINT64_FORMAT, ds_json_path_int (r->meta, "set_id", 0));
   const char *names[5];
   const DsImage *images[5];
-  guint n = ds_result_planes_optional (r, names, images);
+  guint n = ds_output_result_optional (r, names, images);
   gboolean ok = ds_hdf5_write_entry_fields (entry, r->meta, title, TRUE) && ds_hdf5_write_instrument (entry, r->meta) &&
                 ds_h5_nxdata_image (entry, "transmissive", r->transmissive, "transmissive") &&
                 ds_h5_nxdata_image (entry, "scattered", r->scattered, "scattered") &&
@@ -217,7 +217,7 @@ fill_file (hid_t file, const DsResultPlanes *r, const char *path)
 }
 
 gboolean
-ds_hdf5_write_set (const DsResultPlanes *r, const char *path, GError **error)
+ds_hdf5_write_set (const DsOutputResult *r, const char *path, GError **error)
 {
   ds_h5_quiet ();
   g_autofree char *tmp = ds_atomic_temp_path (path);

@@ -12,11 +12,11 @@
 #pragma once
 #include <hdf5.h>
 
-#include "daemon/output/result_planes.h"
+#include "daemon/output/output_result.h"
 
 G_BEGIN_DECLS
 
-gboolean ds_hdf5_write_set (const DsResultPlanes *result, const char *path, GError **error);
+gboolean ds_hdf5_write_set (const DsOutputResult *result, const char *path, GError **error);
 
 /* Shared with the growing run file: entry-level NeXus fields and the instrument group built
  * from the metadata (result_meta.h keys); end_time only with_end (a run writes its own). */

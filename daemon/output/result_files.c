@@ -138,7 +138,7 @@ record (Written *w, const char *name, const char *kind, const char *plane, doubl
 }
 
 static gboolean
-write_tiff_plane (Written *w, const DsResultPlanes *r, const char *stem, const char *plane, const DsImage *img,
+write_tiff_plane (Written *w, const DsOutputResult *r, const char *stem, const char *plane, const DsImage *img,
                   GDateTime *when, GError **error)
 {
   g_autofree char *name = ds_result_file_name (stem, plane, "tiff");
@@ -167,14 +167,14 @@ write_png (Written *w, const char *stem, const char *part, const char *kind, con
 }
 
 static gboolean
-write_all (Written *w, const DsResultPlanes *r, const char *stem, guint kinds, GError **error)
+write_all (Written *w, const DsOutputResult *r, const char *stem, guint kinds, GError **error)
 {
   const char *t = ds_json_path_string (r->meta, "time_utc", NULL);
   g_autoptr (GDateTime) when = t ? g_date_time_new_from_iso8601 (t, NULL) : NULL;
   if (kinds & DS_FILES_TIFF) {
     const char *names[5];
     const DsImage *images[5];
-    guint n = ds_result_planes_optional (r, names, images);
+    guint n = ds_output_result_optional (r, names, images);
     if (!write_tiff_plane (w, r, stem, "transmissive", r->transmissive, when, error) ||
         !write_tiff_plane (w, r, stem, "scattered", r->scattered, when, error) ||
         !write_png (w, stem, "mask", "png", "mask", r->mask, NAN, error))
@@ -237,7 +237,7 @@ remove_path (const char *path)
 }
 
 gboolean
-ds_result_write_files (const DsResultPlanes *r, const char *dir, const char *stem, guint kinds, GPtrArray *written,
+ds_result_write_files (const DsOutputResult *r, const char *dir, const char *stem, guint kinds, GPtrArray *written,
                        GError **error)
 {
   if (g_mkdir_with_parents (dir, 0755) != 0) {

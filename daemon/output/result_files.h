@@ -15,7 +15,7 @@
 #pragma once
 #include <glib.h>
 
-#include "daemon/output/result_planes.h"
+#include "daemon/output/output_result.h"
 
 G_BEGIN_DECLS
 
@@ -43,7 +43,7 @@ char *ds_result_file_name (const char *stem, const char *part, const char *ext);
 
 /* Writes the files of `kinds` (DS_FILES_HDF5_RUN is ignored here) and the JSON sidecar last.
  * `written` (may be NULL) receives the basenames, sidecar included. */
-gboolean ds_result_write_files (const DsResultPlanes *result, const char *dir, const char *stem, guint kinds,
+gboolean ds_result_write_files (const DsOutputResult *result, const char *dir, const char *stem, guint kinds,
                                 GPtrArray *written, GError **error);
 
 /* 16-bit copy of a float plane, scaled by the largest power of two (2^-16..2^16) that keeps

@@ -360,10 +360,10 @@ ds_result_to_json (DsResult *r)
 }
 
 void
-ds_result_planes (DsResult *r, DsResultPlanes *planes)
+ds_result_to_output (DsResult *r, DsOutputResult *planes)
 {
   g_autoptr (JsonNode) meta = ds_result_to_json (r);
-  *planes = (DsResultPlanes){
+  *planes = (DsOutputResult){
     .transmissive = r->sep->transmissive, .scattered = r->sep->scattered, .mask = r->sep->mask,
     .max = r->sep->max, .min = r->sep->min, .mean = r->sep->mean,
     .sigma_transmissive = r->sep->sigma_transmissive, .sigma_scattered = r->sep->sigma_scattered,

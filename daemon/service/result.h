@@ -7,7 +7,7 @@
 #include <json-glib/json-glib.h>
 
 #include "daemon/output/raw_frames.h"
-#include "daemon/output/result_planes.h"
+#include "daemon/output/output_result.h"
 #include "daemon/service/capture_settings.h"
 #include "daemon/protocol/protocol.h"
 #include "drivers/core/camera.h"
@@ -92,7 +92,7 @@ JsonNode *ds_result_to_json (DsResult *result);
 
 /* The planes and metadata for the file writers (daemon/output). planes->meta is a new copy
  * the caller unrefs; the images stay the result's. Main thread (builds the metadata). */
-void ds_result_planes (DsResult *result, DsResultPlanes *planes);
+void ds_result_to_output (DsResult *result, DsOutputResult *planes);
 
 typedef enum { DS_OUTPUT_F32 = 0, DS_OUTPUT_U16 = 1 } DsOutputFormat;
 

@@ -21,7 +21,7 @@ typedef enum { JOB_RECORD, JOB_END_RUN, JOB_FLUSH, JOB_QUIT } JobKind;
 typedef struct {
   JobKind kind;
   DsResult *result;        /* ref; keeps the planes alive */
-  DsResultPlanes planes;   /* meta: a copy owned by the job */
+  DsOutputResult planes;   /* meta: a copy owned by the job */
   gboolean in_run;
   gboolean *done;          /* JOB_FLUSH: set under the lock, then signalled */
 } Job;
@@ -267,7 +267,7 @@ close_run (DsSpool *spool)
 }
 
 static gboolean
-append_to_run (DsSpool *spool, const DsResultPlanes *planes, GError **error)
+append_to_run (DsSpool *spool, const DsOutputResult *planes, GError **error)
 {
   for (guint attempt = 0; attempt < 2; attempt++) {
     if (!spool->run) {
@@ -451,7 +451,7 @@ ds_spool_record (DsSpool *spool, DsResult *result, gboolean in_run)
   job->kind = JOB_RECORD;
   job->result = ds_result_ref (result);
   /* The metadata is built here, on the main thread; the writer gets its own copy. */
-  ds_result_planes (result, &job->planes);
+  ds_result_to_output (result, &job->planes);
   job->in_run = in_run;
   g_async_queue_push (spool->jobs, job);
   return TRUE;

@@ -58,7 +58,7 @@ sample_result_new (guint w, guint h, guint set, gboolean with_raw, gboolean with
     set + 1, set % 60, set % 60, w, h, set, SAMPLE_PHASES);
   JsonNode *node = json_from_string (meta, NULL);
   g_assert_nonnull (node);
-  s->planes = (DsResultPlanes){ .transmissive = t, .scattered = g, .mask = m, .mean = mean, .raw = s->raw, .meta = node };
+  s->planes = (DsOutputResult){ .transmissive = t, .scattered = g, .mask = m, .mean = mean, .raw = s->raw, .meta = node };
   return s;
 }
 

@@ -2,10 +2,10 @@
  * written from it with readers that share no code with the writers (Python's tifffile and h5py
  * recompute the same formulas; see sample_result.py). */
 #pragma once
-#include "daemon/output/result_planes.h"
+#include "daemon/output/output_result.h"
 
 typedef struct {
-  DsResultPlanes planes;
+  DsOutputResult planes;
   DsImage *images[6];
   DsRawFrames *raw;
 } SampleResult;

@@ -16,9 +16,9 @@ typedef struct {
   const DsImage *sigma_transmissive, *sigma_scattered; /* f32; optional */
   const DsRawFrames *raw;                  /* optional: the phase and black frames */
   JsonNode *meta;                          /* the result metadata (an object) */
-} DsResultPlanes;
+} DsOutputResult;
 
 /* The optional planes present, by name, in a fixed order; returns how many (<= 5). */
-guint ds_result_planes_optional (const DsResultPlanes *r, const char **names, const DsImage **images);
+guint ds_output_result_optional (const DsOutputResult *r, const char **names, const DsImage **images);
 
 G_END_DECLS
