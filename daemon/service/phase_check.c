@@ -12,6 +12,12 @@ ds_phase_check_init (DsPhaseCheck *check, double period_px, double tolerance_deg
                             .min_confidence = DS_STRIPE_PHASE_MIN_SNR };
 }
 
+/* Rows kept for the measurement: the stripes vary along x only, so the rows are averaged into
+ * one profile, and beyond a few hundred rows more of them only buy noise margin the check does
+ * not need, at a cost (a pass over a 4 MP frame) that sits between the last frame and the
+ * result. A view of every step-th row: no copy. */
+#define PHASE_CHECK_MIN_ROWS 256
+
 DsPhaseVerdict
 ds_phase_check_frame (DsPhaseCheck *check, const DsImage *frame, guint k, guint n,
                       double *measured_cycles, char **why)
@@ -19,7 +25,14 @@ ds_phase_check_frame (DsPhaseCheck *check, const DsImage *frame, guint k, guint 
   DsStripePhase sp;
   g_autoptr (GError) error = NULL;
   *measured_cycles = NAN;
-  if (!ds_stripe_phase_measure (frame, check->period_px, NULL, &sp, &error)) {
+  DsImage rows = *frame;
+  guint step = frame->height / PHASE_CHECK_MIN_ROWS;
+  if (step > 1) {
+    rows.stride = frame->stride * step;
+    rows.height = frame->height / step;
+    rows.allocation = NULL;
+  }
+  if (!ds_stripe_phase_measure (&rows, check->period_px, NULL, &sp, &error)) {
     *why = g_strdup_printf ("stripe phase not measurable: %s", error->message);
     return DS_PHASE_VERDICT_UNVERIFIABLE;
   }

@@ -27,7 +27,8 @@ typedef struct {
 } DsPhaseCheck;
 
 void ds_phase_check_init (DsPhaseCheck *check, double period_px, double tolerance_deg);
-/* Checks frame (lit with phase k of n). *measured_cycles receives the measured phase. `why`
+/* Checks frame (lit with phase k of n), measuring on at least 256 of its rows evenly spread
+ * (all rows of a frame with fewer than 512). *measured_cycles receives the measured phase. `why`
  * receives a message when the verdict is not OK. */
 DsPhaseVerdict ds_phase_check_frame (DsPhaseCheck *check, const DsImage *frame, guint k, guint n,
                                      double *measured_cycles, char **why);

@@ -148,9 +148,11 @@ typedef struct {
 DsFoldWorker *ds_fold_worker_new (DsSequencer *seq);
 /* Waits for a job in progress, then stops and joins the thread. */
 void ds_fold_worker_free (DsFoldWorker *worker);
-/* Hands one frame over (never blocks); the previous job must have been collected. */
+/* Hands one frame over (never blocks); the previous job must have been collected. With `here`
+ * the job runs on the calling thread before this returns (for a frame nothing will overlap
+ * with); collect it all the same. */
 void ds_fold_worker_submit (DsFoldWorker *worker, const DsCaptureSettings *s, guint phase,
-                            DsFrame *frame, gint64 applied_at_us);
+                            DsFrame *frame, gint64 applied_at_us, gboolean here);
 /* Waits for the submitted job and moves its outcome (verdict, fold error) to *job. */
 void ds_fold_worker_collect (DsFoldWorker *worker, DsFoldJob *job);
 

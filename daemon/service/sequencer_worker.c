@@ -100,14 +100,23 @@ ds_fold_worker_free (DsFoldWorker *w)
 
 void
 ds_fold_worker_submit (DsFoldWorker *w, const DsCaptureSettings *s, guint phase, DsFrame *frame,
-                       gint64 applied_at_us)
+                       gint64 applied_at_us, gboolean here)
 {
   g_mutex_lock (&w->lock);
   g_assert (!w->has_job && !w->done);
   w->job = (DsFoldJob) { .settings = s, .phase = phase, .frame = frame,
                          .applied_at_us = applied_at_us };
-  w->has_job = TRUE;
-  g_cond_broadcast (&w->cond);
+  if (here) {
+    /* Nothing to overlap with (the last frame of a set): no hand-over, no wake-up latency.
+     * The worker is idle (no job), so the phase set is this thread's. */
+    g_mutex_unlock (&w->lock);
+    run_job (w->seq, &w->job);
+    g_mutex_lock (&w->lock);
+    w->done = TRUE;
+  } else {
+    w->has_job = TRUE;
+    g_cond_broadcast (&w->cond);
+  }
   g_mutex_unlock (&w->lock);
 }
 

@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "daemon/operating/operating_point.h"
+#include "daemon/service/phase_check.h"
 #include "daemon/service/sequencer.h"
 
 #define W 64
@@ -676,6 +677,35 @@ test_result_planes_reused (Fixture *f, gconstpointer d)
   g_assert_true (third == first || third == second);
 }
 
+/* Phase verification of a tall frame measures on a subset of its rows: a frame of phase 3 (with
+ * a small pattern that differs from row to row) still verifies as 3, and one of phase 2 is
+ * still caught. */
+static void
+test_phase_check_tall_frame (void)
+{
+  Lab lab = { .n_phases = 8, .ld = 1000, .lg = 600 };
+  DsPhaseCheck check;
+  ds_phase_check_init (&check, PERIOD, 90.0 / 8);
+  /* The first frame (phase 0) teaches the offset, as in the first set; then a frame of phase 3
+   * and one of phase 2 are checked as phase 3. */
+  static const int lit[] = { 0, 3, 2 };
+  for (guint i = 0; i < G_N_ELEMENTS (lit); i++) {
+    int phase = lit[i];
+    g_autoptr (DsImage) img = ds_image_new (DS_SAMPLE_U16, W, 1024, NULL);
+    img->bit_depth = 12;
+    for (guint y = 0; y < 1024; y++) {
+      guint16 *row = ds_image_row (img, y);
+      for (guint x = 0; x < W; x++)
+        row[x] = (guint16) (pixel_value (&lab, phase, x) + (y * 7 + x * 13) % 5);
+    }
+    double measured;
+    g_autofree char *why = NULL;
+    DsPhaseVerdict v = ds_phase_check_frame (&check, img, phase == 0 ? 0 : 3, 8, &measured, &why);
+    DsPhaseVerdict expected = phase == 2 ? DS_PHASE_VERDICT_WRONG : DS_PHASE_VERDICT_OK;
+    g_assert_cmpint (v, ==, expected);
+  }
+}
+
 int
 main (int argc, char **argv)
 {
@@ -699,5 +729,6 @@ main (int argc, char **argv)
   ADD ("pipeline/averages-drop-within-phase", test_pipeline_averages_drop, NULL);
   ADD ("pipeline/quit-mid-set", test_pipeline_quit_mid_set, NULL);
   ADD ("result-planes-reused", test_result_planes_reused, NULL);
+  g_test_add_func ("/sequencer/phase-check-tall-frame", test_phase_check_tall_frame);
   return g_test_run ();
 }
