@@ -1,0 +1,33 @@
+/* A fast rig for the daemon's rate benchmarks: Aravis's own GigE Vision fake camera
+ * (ArvGvFakeCamera, served from this process on 127.0.0.1) whose fill is a memcpy of a frame
+ * prebuilt per stripe phase, its software trigger polled at 2 kHz, and the lab's Modbus TCP
+ * illuminator controller (drivers/labsim/modbus_server.h) in-process, whose lit phase chooses
+ * the frame. The frames are the closed-form scene of tests/daemon/test_sequencer.c: square
+ * stripes, period 16 px, duty 1/2, direct 1000 DN, global 600 DN, dark offset 2 DN, 12 bits in
+ * Mono16; so maxmin gives transmissive 1000 and scattered 604 exactly (no noise).
+ * Nothing here depends on labsim's renderer. */
+#pragma once
+#include <glib.h>
+
+#include "drivers/labsim/modbus_server.h"
+
+G_BEGIN_DECLS
+
+#define FAKE_RIG_PERIOD_PX 16.0
+#define FAKE_RIG_DIRECT_DN 1000.0
+#define FAKE_RIG_GLOBAL_DN 600.0
+#define FAKE_RIG_DARK_DN 2.0
+#define FAKE_RIG_SCATTERED_EXPECTED (FAKE_RIG_GLOBAL_DN + 2 * FAKE_RIG_DARK_DN)
+
+typedef struct FakeRig FakeRig;
+
+/* Serves a width x height Mono16 camera for n_phases phases; settle_us is the illuminator's
+ * settle time. Fails (NULL, message on stderr) when UDP 3956 on 127.0.0.1 is taken. */
+FakeRig *fake_rig_new (guint width, guint height, guint n_phases, guint settle_us);
+void fake_rig_free (FakeRig *rig);
+guint fake_rig_modbus_port (const FakeRig *rig);
+void fake_rig_set_settle_us (FakeRig *rig, guint settle_us);
+/* Frames the camera filled so far. */
+guint64 fake_rig_frames (FakeRig *rig);
+
+G_END_DECLS
