@@ -13,6 +13,7 @@ ds_seq_acquire_dark (DsSequencer *seq, const DsCaptureSettings *s, DsFrameCounte
                                         error)) {
     c->device_errors++;
     g_prefix_error (error, "dark frame: illuminator off: ");
+    ds_seq_fatal_device_error (seq, *error); /* a lost illuminator is reconnected */
     return NULL;
   }
   ds_seq_flush_stale (seq, c);

@@ -29,6 +29,8 @@ typedef struct {
    * delayed: it is delivered at the next trigger, ahead of that trigger's own frame, so after
    * the sequencer applied another phase and flushed. */
   guint late_in;
+  guint off_lost_in;       /* that `off` fails DISCONNECTED */
+  guint ill_reconnects;
   DsFrame *withheld, *delivered;
   guint withheld_at_phase_log; /* released only by a trigger after a later set_phase */
   int phase_log[64];       /* every set_phase, in order */
@@ -204,7 +206,18 @@ ill_phase (gpointer b, guint phase, guint timeout_ms, GError **e)
   return TRUE;
 }
 
-static gboolean ill_off (gpointer b, guint t, GError **e) { (void) t; (void) e; ((Lab *) b)->applied_phase = -1; return TRUE; }
+static gboolean
+ill_off (gpointer b, guint t, GError **e)
+{
+  (void) t;
+  Lab *lab = b;
+  if (fault_now (&lab->off_lost_in)) {
+    g_set_error (e, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_DISCONNECTED, "illuminator gone");
+    return FALSE;
+  }
+  lab->applied_phase = -1;
+  return TRUE;
+}
 
 static gboolean
 ill_status (gpointer b, DsIlluminatorStatus *s, GError **e)
@@ -217,7 +230,7 @@ ill_status (gpointer b, DsIlluminatorStatus *s, GError **e)
   return TRUE;
 }
 
-static gboolean ill_reconnect (gpointer b, GError **e) { (void) b; (void) e; return TRUE; }
+static gboolean ill_reconnect (gpointer b, GError **e) { (void) e; ((Lab *) b)->ill_reconnects++; return TRUE; }
 static void ill_close (gpointer b) { (void) b; }
 
 static const DsIlluminatorOps ill_ops = { "scripted", ill_pattern, ill_phase, ill_off, ill_status,
@@ -500,6 +513,25 @@ test_dark_frame (Fixture *f, gconstpointer d)
   assert_accounting (f);
 }
 
+/* The illuminator is lost while switching off for the dark frame: the set fails naming it,
+ * the devices are reconnected, and the next set succeeds. */
+static void
+test_dark_frame_illuminator_lost (Fixture *f, gconstpointer d)
+{
+  (void) d;
+  DsCaptureSettings s;
+  default_settings (&s, 8);
+  s.dark_frame = TRUE;
+  f->lab.off_lost_in = 1;
+  capture (f, &s);
+  g_assert_null (f->out.result);
+  g_assert_nonnull (strstr (f->out.failure->message, "illuminator gone"));
+  capture (f, &s);
+  g_assert_no_error (f->out.failure);
+  g_assert_cmpuint (f->lab.ill_reconnects, ==, 1);
+  assert_accounting (f);
+}
+
 /* Automatic operating point: a dark and a preview frame (counted as `preview` drops) measure
  * the scene; the model's choice meets the target and is recorded with the result. */
 static void
@@ -721,6 +753,7 @@ main (int argc, char **argv)
   ADD ("disconnect-reconnect", test_disconnect_reconnects, NULL);
   ADD ("averages", test_averages, NULL);
   ADD ("dark-frame", test_dark_frame, NULL);
+  ADD ("dark-frame-illuminator-lost", test_dark_frame_illuminator_lost, NULL);
   ADD ("automatic-operating-point", test_automatic_operating_point, NULL);
   ADD ("pipeline/late-frame-after-next-phase", test_pipeline_late_frame, NULL);
   ADD ("pipeline/drop-after-illuminator-moved", test_pipeline_drop_after_move, GUINT_TO_POINTER (4));
