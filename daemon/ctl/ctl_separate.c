@@ -3,20 +3,21 @@
  *
  * Outputs (in --out, default DIR itself, which is what the authors' scripts do; a rerun skips
  * them as inputs):
- *   direct.png, global.png   the transmissive and scattered components at the input's sample
- *                            type, rounded and clamped to 0..2^depth-1: with the defaults
- *                            (maxmin, a = 1/2, b = 0) exactly max - min and 2 * min after black
- *                            subtraction, drop-in for the scripts' outputs. Float input gives
- *                            direct.tiff / global.tiff instead.
+ *   direct.png, global.png   the transmissive and scattered components as 16-bit PNG, scaled
+ *                            by the power of two that makes them visible (value = file / scale;
+ *                            the scale is in separation.json's "files"), the layout of the
+ *                            authors' scripts. Float input gives direct.tiff / global.tiff.
  *   transmissive.tiff, scattered.tiff   float32, unclipped (noise may make them negative;
- *                            the mask says where)
+ *                            the mask says where); tags carry separation.json's metadata
  *   mask.png                 u8 quality flags (proc/separation.h, docs/estimators.md)
  *   transmissive-preview.png, scattered-preview.png   8-bit pictures for people (0.5th..99.5th
  *                            percentile), unless --no-preview; not for measurement
  *   max.tiff, min.tiff, mean.tiff       float32, with --extrema
  *   sigma_transmissive.tiff, sigma_scattered.tiff   with a noise model (--system-gain)
- *   separation.json          inputs, parameters, metadata; written last, so a folder with it is
- *                            complete. Every file is written atomically. */
+ *   separation.json          inputs, parameters, and the metadata keys of the daemon's results
+ *                            (producer, separation, planes, mask_bits; daemon/output/result_meta.h);
+ *                            written last, so a folder with it is complete. Every file is written
+ *                            atomically. */
 #include <errno.h>
 #include <glib/gstdio.h>
 #include <json-glib/json-glib.h>
@@ -24,6 +25,9 @@
 #include <stdio.h>
 
 #include "daemon/ctl/ctl_commands.h"
+#include "daemon/output/result_files.h"
+#include "daemon/output/result_meta.h"
+#include "daemon/output/tiff_file.h"
 #include "proc/phase_folder.h"
 #include "proc/preview.h"
 #include "proc/proc_error.h"
@@ -43,42 +47,99 @@ typedef struct {
   gboolean no_preview;
 } Options;
 
-static gboolean
-write_image (const DsImage *img, const char *dir, const char *name, GPtrArray *written, GError **error)
+/* Where the outputs go and what they are: the sidecar lists every file with its kind. */
+typedef struct {
+  const char *dir;
+  JsonNode *meta;      /* the metadata the TIFF tags carry */
+  GPtrArray *written;  /* basenames */
+  JsonBuilder *files;  /* inside an object: name -> {kind, plane, scale} */
+} Outputs;
+
+static void
+record (Outputs *o, const char *name, const char *kind, const char *plane, double scale)
 {
-  g_autofree char *path = g_build_filename (dir, name, NULL);
+  g_ptr_array_add (o->written, g_strdup (name));
+  json_builder_set_member_name (o->files, name);
+  json_builder_begin_object (o->files);
+  json_builder_set_member_name (o->files, "kind");
+  json_builder_add_string_value (o->files, kind);
+  if (plane) {
+    json_builder_set_member_name (o->files, "plane");
+    json_builder_add_string_value (o->files, plane);
+  }
+  if (!isnan (scale)) {
+    json_builder_set_member_name (o->files, "scale");
+    json_builder_add_double_value (o->files, scale);
+  }
+  json_builder_end_object (o->files);
+}
+
+/* Float planes go to TIFF with the metadata in their tags; the rest to PNG. */
+static gboolean
+write_image (Outputs *o, const DsImage *img, const char *name, const char *plane, GError **error)
+{
+  g_autofree char *path = g_build_filename (o->dir, name, NULL);
+  if (img->type == DS_SAMPLE_F32) {
+    g_autoptr (JsonNode) desc = ds_json_deep_copy (o->meta);
+    json_object_set_string_member (json_node_get_object (desc), "plane", plane);
+    g_autofree char *text = json_to_string (desc, FALSE);
+    DsTiffTags tags = { .description = text, .document_name = plane };
+    if (!ds_tiff_write (img, path, &tags, error))
+      return FALSE;
+    record (o, name, "tiff", plane, NAN);
+    return TRUE;
+  }
   if (!ds_image_write (img, path, error))
     return FALSE;
-  g_ptr_array_add (written, g_strdup (name));
+  record (o, name, "png", plane, NAN);
   return TRUE;
 }
 
-/* A float component at the input's integer type, as the authors' scripts store it. */
+/* direct/global as the authors' scripts store them: 16-bit PNG for integer input, scaled so
+ * that they are visible (the scale is recorded); float input keeps float TIFF. */
 static gboolean
-write_like_input (const DsImage *component, const DsPhaseFolder *folder, const char *stem,
-                  const char *dir, GPtrArray *written, GError **error)
+write_like_input (Outputs *o, const DsImage *component, const DsPhaseFolder *folder, const char *stem,
+                  const char *plane, GError **error)
 {
   if (folder->type == DS_SAMPLE_F32) {
     g_autofree char *name = g_strconcat (stem, ".tiff", NULL);
-    return write_image (component, dir, name, written, error);
+    return write_image (o, component, name, plane, error);
   }
-  double top = (double) ((1u << MIN (folder->bit_depth, 16u)) - 1u);
-  g_autoptr (DsImage) img = ds_image_convert_f32_clamped (component, folder->type, top, error);
+  double scale;
+  g_autoptr (DsImage) img = ds_png16_scaled (component, &scale, error);
   if (!img)
     return FALSE;
-  img->bit_depth = folder->bit_depth;
   g_autofree char *name = g_strconcat (stem, ".png", NULL);
-  return write_image (img, dir, name, written, error);
+  g_autofree char *path = g_build_filename (o->dir, name, NULL);
+  if (!ds_image_write (img, path, error))
+    return FALSE;
+  record (o, name, "png16", plane, scale);
+  return TRUE;
 }
 
+/* The metadata of the outputs, with the keys of the daemon's results where they say the same
+ * thing (daemon/output/result_meta.h); the list of files is added once they are written. */
 static JsonNode *
-build_sidecar (const DsPhaseFolder *folder, const DsSeparationParams *params, const DsSeparation *sep,
-               GPtrArray *written)
+build_sidecar (const DsPhaseFolder *folder, const DsSeparationParams *params, const DsSeparation *sep)
 {
   g_autoptr (JsonBuilder) b = json_builder_new ();
   json_builder_begin_object (b);
+  json_builder_set_member_name (b, "format");
+  json_builder_add_string_value (b, DS_RESULT_FORMAT);
+  json_builder_set_member_name (b, "version");
+  json_builder_add_int_value (b, DS_RESULT_FORMAT_VERSION);
   json_builder_set_member_name (b, "tool");
   json_builder_add_string_value (b, "descatterctl separate");
+  json_builder_set_member_name (b, "producer");
+  json_builder_add_value (b, ds_output_producer_json ("descatterctl separate"));
+  g_autoptr (GDateTime) now = g_date_time_new_now_utc ();
+  g_autofree char *stamp = ds_output_time_string (now);
+  json_builder_set_member_name (b, "processed_utc");
+  json_builder_add_string_value (b, stamp);
+  json_builder_set_member_name (b, "width");
+  json_builder_add_int_value (b, sep->transmissive->width);
+  json_builder_set_member_name (b, "height");
+  json_builder_add_int_value (b, sep->transmissive->height);
 
   json_builder_set_member_name (b, "inputs");
   json_builder_begin_object (b);
@@ -131,46 +192,14 @@ build_sidecar (const DsPhaseFolder *folder, const DsSeparationParams *params, co
   json_builder_add_double_value (b, params->read_noise_dn);
   json_builder_end_object (b);
 
-  const DsSeparationMeta *m = &sep->meta;
-  json_builder_set_member_name (b, "meta");
-  json_builder_begin_object (b);
-  json_builder_set_member_name (b, "n_phases");
-  json_builder_add_int_value (b, m->n_phases);
-  json_builder_set_member_name (b, "frames_per_phase");
-  json_builder_add_int_value (b, m->frames_per_phase);
-  json_builder_set_member_name (b, "estimator");
-  json_builder_add_string_value (b, ds_estimator_name (m->estimator));
-  json_builder_set_member_name (b, "duty");
-  json_builder_add_double_value (b, m->duty);
-  json_builder_set_member_name (b, "black_level");
-  json_builder_add_double_value (b, m->black_level);
-  json_builder_set_member_name (b, "pattern_mean");
-  json_builder_add_double_value (b, m->pattern_mean);
-  json_builder_set_member_name (b, "harmonic_gain");
-  json_builder_add_double_value (b, m->harmonic_gain);
-  json_builder_set_member_name (b, "dark_subtracted");
-  json_builder_add_boolean_value (b, m->dark_subtracted);
-  json_builder_set_member_name (b, "flagged");
-  json_builder_begin_object (b);
-  for (int i = 0; i < DS_MASK_N_BITS; i++) {
-    json_builder_set_member_name (b, mask_bit_names[i]);
-    json_builder_add_int_value (b, (gint64) m->flagged[i]);
-  }
-  json_builder_end_object (b);
-  json_builder_set_member_name (b, "valid_pixels");
-  json_builder_add_int_value (b, (gint64) m->valid_pixels);
-  json_builder_set_member_name (b, "noise_dn");
-  if (isfinite (m->noise_dn))
-    json_builder_add_double_value (b, m->noise_dn);
-  else
-    json_builder_add_null_value (b); /* JSON has no NaN */
-  json_builder_end_object (b);
-
-  json_builder_set_member_name (b, "outputs");
-  json_builder_begin_array (b);
-  for (guint i = 0; i < written->len; i++)
-    json_builder_add_string_value (b, written->pdata[i]);
-  json_builder_end_array (b);
+  json_builder_set_member_name (b, "separation");
+  json_builder_add_value (b, ds_output_separation_json (&sep->meta));
+  const char *planes[] = { "transmissive", "f32", "scattered", "f32", "mask", "u8", "max", "f32", "min", "f32",
+                           "mean", "f32", "sigma_transmissive", "f32", "sigma_scattered", "f32", NULL };
+  json_builder_set_member_name (b, "planes");
+  json_builder_add_value (b, ds_output_planes_json (planes));
+  json_builder_set_member_name (b, "mask_bits");
+  json_builder_add_value (b, ds_output_mask_bits_json ());
   json_builder_end_object (b);
   return json_builder_get_root (b);
 }
@@ -252,31 +281,42 @@ separate (const char *dir, const Options *o, gboolean *usage, GError **error)
     return FALSE;
   }
   g_autoptr (GPtrArray) written = g_ptr_array_new_with_free_func (g_free);
-  if (!write_like_input (sep->transmissive, folder, "direct", out, written, error) ||
-      !write_like_input (sep->scattered, folder, "global", out, written, error) ||
-      !write_image (sep->transmissive, out, "transmissive.tiff", written, error) ||
-      !write_image (sep->scattered, out, "scattered.tiff", written, error) ||
-      !write_image (sep->mask, out, "mask.png", written, error))
+  g_autoptr (JsonNode) root = build_sidecar (folder, &params, sep);
+  g_autoptr (JsonBuilder) files = json_builder_new ();
+  json_builder_begin_object (files);
+  Outputs w = { .dir = out, .meta = root, .written = written, .files = files };
+  if (!write_like_input (&w, sep->transmissive, folder, "direct", "transmissive", error) ||
+      !write_like_input (&w, sep->scattered, folder, "global", "scattered", error) ||
+      !write_image (&w, sep->transmissive, "transmissive.tiff", "transmissive", error) ||
+      !write_image (&w, sep->scattered, "scattered.tiff", "scattered", error) ||
+      !write_image (&w, sep->mask, "mask.png", "mask", error))
     return FALSE;
   if (!o->no_preview) {
     g_autoptr (DsImage) pt = ds_preview_u8 (sep->transmissive, 0.5, 99.5, error);
-    if (!pt || !write_image (pt, out, "transmissive-preview.png", written, error))
+    if (!pt || !write_image (&w, pt, "transmissive-preview.png", "transmissive", error))
       return FALSE;
     g_autoptr (DsImage) ps = ds_preview_u8 (sep->scattered, 0.5, 99.5, error);
-    if (!ps || !write_image (ps, out, "scattered-preview.png", written, error))
+    if (!ps || !write_image (&w, ps, "scattered-preview.png", "scattered", error))
       return FALSE;
   }
   if (o->extrema && sep->max && sep->min && sep->mean &&
-      (!write_image (sep->max, out, "max.tiff", written, error) ||
-       !write_image (sep->min, out, "min.tiff", written, error) ||
-       !write_image (sep->mean, out, "mean.tiff", written, error)))
+      (!write_image (&w, sep->max, "max.tiff", "max", error) ||
+       !write_image (&w, sep->min, "min.tiff", "min", error) ||
+       !write_image (&w, sep->mean, "mean.tiff", "mean", error)))
     return FALSE;
   if (sep->sigma_transmissive && sep->sigma_scattered &&
-      (!write_image (sep->sigma_transmissive, out, "sigma_transmissive.tiff", written, error) ||
-       !write_image (sep->sigma_scattered, out, "sigma_scattered.tiff", written, error)))
+      (!write_image (&w, sep->sigma_transmissive, "sigma_transmissive.tiff", "sigma_transmissive", error) ||
+       !write_image (&w, sep->sigma_scattered, "sigma_scattered.tiff", "sigma_scattered", error)))
     return FALSE;
 
-  g_autoptr (JsonNode) root = build_sidecar (folder, &params, sep, written);
+  /* The list of files completes the sidecar. */
+  JsonObject *ro = json_node_get_object (root);
+  JsonArray *outputs = json_array_new ();
+  for (guint i = 0; i < written->len; i++)
+    json_array_add_string_element (outputs, written->pdata[i]);
+  json_object_set_array_member (ro, "outputs", outputs);
+  json_builder_end_object (files);
+  json_object_set_member (ro, "files", json_builder_get_root (files));
   g_autoptr (JsonGenerator) gen = json_generator_new ();
   json_generator_set_pretty (gen, TRUE);
   json_generator_set_root (gen, root);

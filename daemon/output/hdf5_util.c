@@ -213,13 +213,11 @@ gboolean
 ds_h5_mask_legend (hid_t dataset)
 {
   gint32 masks[DS_MASK_N_BITS];
-  g_autoptr (GString) meanings = g_string_new (NULL);
-  for (guint i = 0; i < DS_MASK_N_BITS; i++) {
+  for (guint i = 0; i < DS_MASK_N_BITS; i++)
     masks[i] = 1 << i;
-    g_string_append_printf (meanings, "%s%s", i ? " " : "", ds_mask_bit_name (i));
-  }
+  g_autofree char *meanings = ds_output_mask_flag_meanings ();
   return ds_h5_attr_ints (dataset, "flag_masks", masks, DS_MASK_N_BITS) &&
-         ds_h5_attr_string (dataset, "flag_meanings", meanings->str);
+         ds_h5_attr_string (dataset, "flag_meanings", meanings);
 }
 
 gboolean

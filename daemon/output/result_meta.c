@@ -17,10 +17,20 @@ static const struct {
   { "dark_exceeds", "the dark frame is brighter than some phase at this pixel" },
 };
 
-const char *
-ds_mask_bit_name (guint bit)
+/* proc's ds_mask_bit_name once it lands; until then this list is the one the files use. */
+static const char *
+bit_name (guint bit)
 {
   return bit < DS_MASK_N_BITS ? mask_bits[bit].name : "unknown";
+}
+
+char *
+ds_output_mask_flag_meanings (void)
+{
+  GString *s = g_string_new (NULL);
+  for (guint i = 0; i < DS_MASK_N_BITS; i++)
+    g_string_append_printf (s, "%s%s", i ? " " : "", bit_name (i));
+  return g_string_free (s, FALSE);
 }
 
 const char *
@@ -88,7 +98,7 @@ ds_output_separation_json (const DsSeparationMeta *m)
   json_builder_set_member_name (b, "flagged");
   json_builder_begin_object (b);
   for (guint i = 0; i < DS_MASK_N_BITS; i++) {
-    json_builder_set_member_name (b, mask_bits[i].name);
+    json_builder_set_member_name (b, bit_name (i));
     json_builder_add_int_value (b, (gint64) m->flagged[i]);
   }
   json_builder_end_object (b);
@@ -102,7 +112,7 @@ ds_output_mask_bits_json (void)
   g_autoptr (JsonBuilder) b = json_builder_new ();
   json_builder_begin_object (b);
   for (guint i = 0; i < DS_MASK_N_BITS; i++) {
-    json_builder_set_member_name (b, mask_bits[i].name);
+    json_builder_set_member_name (b, bit_name (i));
     json_builder_begin_object (b);
     json_builder_set_member_name (b, "bit");
     json_builder_add_int_value (b, i);

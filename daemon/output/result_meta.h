@@ -19,9 +19,12 @@ G_BEGIN_DECLS
 #define DS_RESULT_FORMAT "descatter-result"
 #define DS_RESULT_FORMAT_VERSION 1
 
-/* Stable mask bit names (docs/estimators.md, "Quality mask"), bit i = value 1 << i. */
-const char *ds_mask_bit_name (guint bit);
+/* What mask bit i (value 1 << i) means, in words (docs/estimators.md, "Quality mask"); its
+ * stable name is ds_mask_bit_name (proc/separation.h). */
 const char *ds_mask_bit_meaning (guint bit);
+/* "saturated dark low_modulation ...": the names in bit order, space-separated (CF's
+ * flag_meanings). */
+char *ds_output_mask_flag_meanings (void);
 
 /* "2026-11-25T16:02:11.123Z". */
 char *ds_output_time_string (GDateTime *time);

@@ -122,7 +122,13 @@ def check_reprocessing(d, tmp, estimator, averages):
     assert fj["n_phases"] == 6 and len(fj["frames"]) == 6 * averages, fj
     assert len(fj["black"]["frame_ids"]) >= 1 and fj["black"]["files"] == ["black.png"]
     sep = json.load(open(os.path.join(out, "offline", "separation.json")))
-    if averages > 1 and sep["meta"]["n_phases"] != 6:
+    # `separate` and the daemon say the same things with the same keys.
+    meta = sidecar(out, stem)
+    assert set(sep["separation"]) == set(meta["separation"]), set(sep["separation"]) ^ set(meta["separation"])
+    assert sep["mask_bits"] == meta["mask_bits"]
+    assert all(sep["planes"][p] == meta["planes"][p] for p in meta["planes"])
+    assert set(sep["producer"]) >= {"program", "version", "git", "host"}
+    if averages > 1 and sep["separation"]["phases"] != 6:
         print(f"reprocessing M={averages}: skipped, this `separate` does not read frames.json yet")
         return
     for plane, ext in (("transmissive", "tiff"), ("scattered", "tiff"), ("mask", "png")):

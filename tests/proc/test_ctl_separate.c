@@ -102,11 +102,28 @@ remove_tree (const char *dir)
   g_rmdir (dir);
 }
 
+/* The scale of a 16-bit PNG output, from separation.json's list of files. */
+static double
+png_scale (const char *out, const char *name)
+{
+  g_autofree char *path = g_build_filename (out, "separation.json", NULL);
+  g_autoptr (JsonParser) parser = json_parser_new ();
+  g_assert_true (json_parser_load_from_file (parser, path, NULL));
+  JsonObject *files = json_object_get_object_member (json_node_get_object (json_parser_get_root (parser)), "files");
+  return json_object_get_double_member (json_object_get_object_member (files, name), "scale");
+}
+
 static void
 check_outputs (const char *out, double a, double b)
 {
   (void) a;
   (void) b;
+  /* direct.png and global.png are scaled to be visible: value = file / scale, scale a power
+   * of two that puts the largest value in the upper half of 16 bits. */
+  double sd = png_scale (out, "direct.png"), sg = png_scale (out, "global.png");
+  int e;
+  g_assert_cmpfloat (frexp (sd, &e), ==, 0.5);
+  g_assert_cmpfloat (frexp (sg, &e), ==, 0.5);
   g_autoptr (DsImage) direct = read_out (out, "direct.png");
   g_autoptr (DsImage) global = read_out (out, "global.png");
   g_autoptr (DsImage) trans = read_out (out, "transmissive.tiff");
@@ -122,8 +139,8 @@ check_outputs (const char *out, double a, double b)
       double ld = ld_at (x, y), lg = lg_at (x, y);
       g_assert_cmpfloat_with_epsilon (((float *) ds_image_row (trans, y))[x], ld, 1e-4 * ld);
       g_assert_cmpfloat_with_epsilon (((float *) ds_image_row (scat, y))[x], lg, 1e-4 * lg);
-      g_assert_cmpuint (((guint16 *) ds_image_row (direct, y))[x], ==, (guint) ld);
-      g_assert_cmpuint (((guint16 *) ds_image_row (global, y))[x], ==, (guint) lg);
+      g_assert_cmpuint (((guint16 *) ds_image_row (direct, y))[x], ==, (guint) (ld * sd));
+      g_assert_cmpuint (((guint16 *) ds_image_row (global, y))[x], ==, (guint) (lg * sg));
       /* Clean, well-modulated, unsaturated data: no flag may be set. */
       g_assert_cmpuint (((guint8 *) ds_image_row (mask, y))[x], ==, 0);
     }
@@ -148,8 +165,9 @@ test_defaults_with_black (void)
   g_assert_cmpstr (json_array_get_string_element (phases, 0), ==, "img_1.png");
   g_assert_cmpstr (json_array_get_string_element (phases, 7), ==, "img_10.png");
   g_assert_cmpstr (json_object_get_string_member (inputs, "black"), ==, "black.png");
-  JsonObject *meta = json_object_get_object_member (root, "meta");
-  g_assert_cmpint (json_object_get_int_member (meta, "n_phases"), ==, N);
+  /* The daemon's metadata keys (daemon/output/result_meta.h). */
+  JsonObject *meta = json_object_get_object_member (root, "separation");
+  g_assert_cmpint (json_object_get_int_member (meta, "phases"), ==, N);
   g_assert_true (json_object_get_boolean_member (meta, "dark_subtracted"));
   g_assert_cmpstr (json_object_get_string_member (meta, "estimator"), ==, "maxmin");
   JsonObject *params = json_object_get_object_member (root, "params");
