@@ -1,0 +1,300 @@
+"""The blocking client of descatterd (docs/protocol.md, docs/python.md).
+
+    import descatter
+    with descatter.Client("/run/descatterd/descatterd.sock") as c:
+        r = c.capture(phases=8)
+        print(r.set_id, r.transmissive.mean())
+        with c.subscribe() as sub:
+            c.start(phases=8)
+            for ev in sub:
+                ...
+
+One thread at a time per client. Every wait for the daemon is bounded by `timeout` seconds of
+silence (captures ask for progress events, so a long set keeps the line alive); a reply that
+does not come in time raises descatter.Timeout.
+"""
+import collections
+import os
+import select
+import socket
+
+from . import wire
+from ._version import __version__
+from .errors import BadReply, Timeout, error_from_reply
+from .events import ProgressEvent, Result, make_event
+
+DEFAULT_ADDRESS = "/run/descatterd/descatterd.sock"
+DEFAULT_TIMEOUT = 60.0
+_ACQ_KEYS = ("phases", "averages", "exposure_us", "gain_db", "estimator", "dark_frame", "verify_phase",
+             "target_error", "time_budget_ms")
+
+
+def resolve(address, token):
+    """The address and token in use: given, else $DESCATTER_ADDRESS / $DESCATTER_TOKEN (as for
+    descatterctl), else the default socket and no token."""
+    address = address or os.environ.get("DESCATTER_ADDRESS") or DEFAULT_ADDRESS
+    if token is None:
+        token = os.environ.get("DESCATTER_TOKEN") or None
+    return address, token
+
+
+def split_address(address):
+    """("tcp", (host, port)) or ("unix", path) for "tcp:HOST:PORT", "unix:PATH" or a path."""
+    if address.startswith("tcp:"):
+        host, sep, port = address[4:].rpartition(":")
+        if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
+            raise ValueError(f"address {address!r}: expected tcp:HOST:PORT")
+        return "tcp", (host.strip("[]"), int(port))
+    return "unix", address[5:] if address.startswith("unix:") else address
+
+
+def acquisition_args(kwargs, allowed):
+    """The arguments given (None = not given: the daemon's configuration decides)."""
+    unknown = set(kwargs) - set(allowed)
+    if unknown:
+        raise TypeError(f"unknown argument(s): {', '.join(sorted(unknown))}")
+    return {k: v for k, v in kwargs.items() if v is not None}
+
+
+class Client:
+    def __init__(self, address=None, token=None, timeout=DEFAULT_TIMEOUT):
+        """address: a UNIX socket path, "unix:PATH" or "tcp:HOST:PORT"; token: the daemon's TCP
+        token (sent in hello at once); timeout: seconds of silence allowed while waiting."""
+        self.address, self.token = resolve(address, token)
+        self.timeout = timeout
+        kind, where = split_address(self.address)
+        if kind == "tcp":
+            self._sock = socket.create_connection(where, timeout=timeout)
+        else:
+            self._sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+            self._sock.settimeout(timeout)
+            try:
+                self._sock.connect(where)
+            except OSError:
+                self._sock.close()
+                raise
+        self._sock.setblocking(True)
+        self._sock.settimeout(None)
+        self._buf = bytearray()
+        self._next_id = 0
+        self._events = collections.deque()  # events read while waiting for a reply
+        self._subscribed = False
+        self._last_seq = None
+        self._broken = None
+        if self.token:
+            try:
+                self.hello()
+            except BaseException:
+                self.close()
+                raise
+
+    # -- connection --------------------------------------------------------------------------
+
+    def close(self):
+        if self._sock is not None:
+            self._sock.close()
+            self._sock = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def _fail(self, exc):
+        """The stream is out of sync: nothing more can be read from this connection."""
+        self._broken = str(exc)
+        self.close()
+        raise exc
+
+    def _fill(self, timeout, mid_message):
+        if self._sock is None:
+            raise ConnectionError(f"connection closed ({self._broken or 'closed by the caller'})")
+        ready, _, _ = select.select([self._sock], [], [], timeout)
+        if not ready:
+            exc = Timeout(f"no message from descatterd in {timeout:g} s")
+            if mid_message:
+                self._fail(exc)
+            raise exc
+        chunk = self._sock.recv(1 << 20)
+        if not chunk:
+            self._fail(ConnectionError("descatterd closed the connection"))
+        self._buf += chunk
+
+    def _read_line(self, timeout):
+        start = 0
+        while True:
+            nl = self._buf.find(b"\n", start)
+            if nl >= 0:
+                line = bytes(self._buf[:nl])
+                del self._buf[:nl + 1]
+                return line
+            if len(self._buf) > wire.MAX_LINE + 1:
+                self._fail(BadReply(f"a line longer than {wire.MAX_LINE} bytes"))
+            start = len(self._buf)
+            self._fill(timeout, mid_message=bool(self._buf))
+
+    def _read_into(self, view, timeout):
+        n = min(len(view), len(self._buf))
+        view[:n] = self._buf[:n]
+        del self._buf[:n]
+        while n < len(view):
+            ready, _, _ = select.select([self._sock], [], [], timeout)
+            if not ready:
+                self._fail(Timeout(f"payload stalled for {timeout:g} s"))
+            got = self._sock.recv_into(view[n:])
+            if got == 0:
+                self._fail(ConnectionError("descatterd closed the connection mid-payload"))
+            n += got
+
+    def read_message(self, timeout=None):
+        """The next message as (header dict, {payload name: writable numpy array}). timeout:
+        seconds to wait for it (None: the client's); a timeout before the message started
+        leaves the connection usable."""
+        timeout = self.timeout if timeout is None else timeout
+        try:
+            header = wire.decode_header(self._read_line(timeout))
+            images = {}
+            for name, dtype, shape, nbytes in wire.payload_specs(header):
+                array, view = wire.new_array(dtype, shape)
+                if nbytes:
+                    self._read_into(view, timeout)
+                images[name] = array
+            return header, images
+        except BadReply as e:
+            self._fail(e)
+
+    # -- requests ----------------------------------------------------------------------------
+
+    def _queue_event(self, header, images, on_progress):
+        ev, self._last_seq = make_event(header, images, self._last_seq)
+        if isinstance(ev, ProgressEvent):
+            if on_progress:
+                on_progress(ev)
+        elif self._subscribed:
+            self._events.append(ev)
+
+    def call(self, cmd, timeout=None, on_progress=None, **args):
+        """Sends a command and returns (result dict, images). A reply with ok=false raises the
+        exception of its code (descatter.BadArgument, descatter.Busy, ...). Events that arrive
+        meanwhile are kept for the subscription (progress events go to on_progress)."""
+        self._next_id += 1
+        rid = self._next_id
+        if self._sock is None:
+            raise ConnectionError(f"connection closed ({self._broken or 'closed by the caller'})")
+        self._sock.sendall(wire.encode_request(rid, cmd, args))
+        while True:
+            header, images = self.read_message(timeout)
+            if "event" in header:
+                self._queue_event(header, images, on_progress)
+                continue
+            if header.get("id") != rid:
+                continue  # a reply to an earlier request that timed out on our side
+            if not header.get("ok"):
+                raise error_from_reply(header.get("error", {}))
+            return header.get("result") or {}, images
+
+    def hello(self):
+        args = {"client": f"descatter-python/{__version__}"}
+        if self.token:
+            args["token"] = self.token
+        return self.call("hello", **args)[0]
+
+    def status(self):
+        return self.call("status")[0]
+
+    def config(self):
+        """{"path": the file, "text": the effective configuration}."""
+        return self.call("config")[0]
+
+    def capture(self, *, format=None, outputs=None, on_progress=None, timeout=None, **settings):
+        """One phase set: phases, averages, exposure_us, gain_db, estimator, dark_frame,
+        verify_phase, target_error, time_budget_ms (None or absent: the configuration's);
+        format "f32"/"u16"; outputs, e.g. ["transmissive", "scattered", "mask", "max"]."""
+        args = acquisition_args(settings, _ACQ_KEYS)
+        if format is not None:
+            args["format"] = format
+        if outputs is not None:
+            args["outputs"] = list(outputs)
+        meta, images = self.call("capture", timeout=timeout, on_progress=on_progress, progress=True, **args)
+        return Result(meta, images)
+
+    def start(self, **settings):
+        """Continuous acquisition (results go to subscribers); no settings: the configuration's,
+        following its reloads. Returns the settings used."""
+        return self.call("start", **acquisition_args(settings, _ACQ_KEYS))[0]
+
+    def stop(self):
+        return self.call("stop")[0]
+
+    def dark(self, *, averages=None, exposure_us=None, gain_db=None, timeout=None):
+        """Measures the dark frame; returns {"dark_mean_dn": ...}."""
+        args = acquisition_args(dict(averages=averages, exposure_us=exposure_us, gain_db=gain_db),
+                                ("averages", "exposure_us", "gain_db"))
+        return self.call("dark", timeout=timeout, **args)[0]
+
+    def calibrate(self, timeout=None, **args):
+        """The daemon's calibration on the rig (descatterctl calibrate); a daemon without it
+        raises descatter.UnknownCommand."""
+        return Result(*self.call("calibrate", timeout=timeout, **args))
+
+    # -- subscription ------------------------------------------------------------------------
+
+    def subscribe(self):
+        """Subscribes; returns a Subscription (a context manager that unsubscribes on exit,
+        and an iterator of events)."""
+        result, _ = self.call("subscribe")
+        self._subscribed = True
+        nxt = result.get("next_seq")
+        self._last_seq = nxt - 1 if isinstance(nxt, int) else None
+        return Subscription(self)
+
+    def unsubscribe(self):
+        self._subscribed = False
+        result = self.call("unsubscribe")[0]
+        self._events.clear()
+        return result
+
+
+class Subscription:
+    """Events of a subscribed client, in order: ResultEvent, FailedEvent, DeviceEvent (and plain
+    Event for kinds a newer daemon adds). Each carries `seq` and `lost` (events this client
+    missed before it); `lost_total` sums them."""
+
+    def __init__(self, client):
+        self.client = client
+        self.lost_total = 0
+
+    def next(self, timeout=None):
+        """The next event; waits at most timeout seconds (None: for ever), then raises
+        descatter.Timeout with the connection still usable."""
+        c = self.client
+        while not c._events:
+            if not c._subscribed:
+                raise RuntimeError("not subscribed")
+            header, images = c.read_message(timeout if timeout is not None else 365 * 86400.0)
+            if "event" in header:
+                c._queue_event(header, images, None)
+        ev = c._events.popleft()
+        self.lost_total += ev.lost
+        return ev
+
+    def __iter__(self):
+        while True:
+            yield self.next()
+
+    def results(self):
+        """Only the results (failed and device events are skipped: use next() to see them)."""
+        for ev in self:
+            if ev.kind == "result":
+                yield ev
+
+    def close(self):
+        if self.client._sock is not None and self.client._subscribed:
+            self.client.unsubscribe()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
