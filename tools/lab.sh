@@ -20,6 +20,7 @@ packages=(
   clang libclang-rt-14-dev valgrind
   libtiff-dev libhdf5-dev libsoup-3.0-dev
   chromium python3-h5py python3-prometheus-client python3-websocket python3-tifffile
+  scdoc groff-base systemd           # man pages, their check, systemd-analyze verify
 )
 
 install_deps() {

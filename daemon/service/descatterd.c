@@ -9,7 +9,7 @@
 #include "daemon/service/config.h"
 #include "daemon/service/service.h"
 
-#define DEFAULT_CONFIG "/etc/descatterd/descatterd.conf"
+#define DEFAULT_CONFIG DS_SYSCONF_DIR "/descatterd.conf"
 
 typedef struct {
   GMainLoop *loop;
