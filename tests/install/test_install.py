@@ -6,14 +6,16 @@ man pages and the Python package. Then: no installed file names the source or bu
 units point at the installed programs and keep one hardening; the installed configuration
 passes `descatterd --check`; the man pages render without warnings; the staged Python package
 imports with the build's version.
-Usage: test_install.py CMAKE BUILD_DIR SOURCE_DIR PREFIX VERSION"""
+Usage: test_install.py CMAKE BUILD_DIR SOURCE_DIR PREFIX VERSION plain|sanitized
+(a sanitized build's binaries carry source locations by design: the path check is for the
+plain build, whose binaries are the product)."""
 import os
 import re
 import subprocess
 import sys
 import tempfile
 
-CMAKE, BUILD, SRC, PREFIX, VERSION = sys.argv[1:6]
+CMAKE, BUILD, SRC, PREFIX, VERSION, KIND = sys.argv[1:7]
 failures = []
 
 
@@ -95,12 +97,15 @@ def main():
         # Nothing installed names the trees it was built from.
         leaks = []
         scratch = tempfile.mkdtemp(dir=stage)
-        for f in sorted(files):
+        for f in sorted(files) if KIND == "plain" else []:
             data = without_debug_info(os.path.join(stage, f), scratch)
             for tree in {os.path.realpath(SRC), os.path.realpath(BUILD), SRC, BUILD}:
                 if tree.encode() + b"/" in data:
                     leaks.append(f"{f} names {tree}")
-        check(not leaks, f"no installed file names the source or build tree {leaks[:5]}")
+        if KIND == "plain":
+            check(not leaks, f"no installed file names the source or build tree {leaks[:5]}")
+        else:
+            print("skip a sanitized build's binaries name their sources (ASan's reports)")
 
         # Units: the installed programs, one hardening for the main unit and the rig template.
         for u in ("descatterd.service", "descatterd@.service"):
