@@ -73,7 +73,7 @@ nonzero_counts (JsonObject *o)
 static void
 print_summary (JsonObject *st)
 {
-  const char *version = str_of (st, "version"), *build = str_of (st, "build");
+  const char *version = str_of (st, "version"), *build = str_of (st, "git");
   printf ("descatterd %s", version ? version : "(version unknown)");
   if (build)
     printf (" (%s)", build);

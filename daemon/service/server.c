@@ -176,7 +176,7 @@ handle_hello (DsServer *s, DsConnection *conn, ClientState *st, DsRequest *req)
   json_builder_add_string_value (b, "descatterd");
   json_builder_set_member_name (b, "version");
   json_builder_add_string_value (b, DS_VERSION);
-  json_builder_set_member_name (b, "build");
+  json_builder_set_member_name (b, "git");
   json_builder_add_string_value (b, DS_GIT_DESCRIBE);
   json_builder_set_member_name (b, "protocol");
   json_builder_add_int_value (b, DS_PROTOCOL_VERSION);

@@ -537,7 +537,7 @@ status_to_json (DsService *svc)
   g_autoptr (JsonBuilder) b = json_builder_new ();
   json_builder_begin_object (b);
   add_string (b, "version", DS_VERSION);
-  add_string (b, "build", DS_GIT_DESCRIBE);
+  add_string (b, "git", DS_GIT_DESCRIBE);
   add_double (b, "uptime_s", (double) (g_get_monotonic_time () - svc->started_us) / 1e6);
   add_string (b, "state", st.state);
   json_builder_set_member_name (b, "ready");

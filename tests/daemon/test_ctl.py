@@ -142,9 +142,9 @@ def dark_and_versions(d, tmp):
           "--dark-frame: one taken and subtracted")
     r = d.ctl("capture", "--dark-frame", "--no-dark-frame")
     check(r.returncode == 2 and "exclude" in r.stderr, "--dark-frame with --no-dark-frame is a usage error")
-    check(hello["version"] == VERSION and hello.get("build"), f"hello names version and build: {hello}")
+    check(hello["version"] == VERSION and hello.get("git"), f"hello names version and git describe: {hello}")
     sw = (nd or {}).get("producer", {})
-    check(sw.get("version") == VERSION and sw.get("git") == hello.get("build"),
+    check(sw.get("version") == VERSION and sw.get("git") == hello.get("git"),
           f"the result's metadata names the same version and build: {sw}")
 
 

@@ -85,7 +85,7 @@ def basics(d):
         before = mx.copy()
         t[:] = -1
         check(t.flags.writeable and (t == -1).all() and np.array_equal(mx, before), "arrays are writable and separate")
-        check(r.meta["software"]["version"] == descatter.__version__, "the result names the daemon's version")
+        check(r.meta["producer"]["version"] == descatter.__version__ and r.meta["producer"]["git"] == hello["git"], "the result names the daemon's version")
         r16 = c.capture(phases=4, format="u16")
         check(r16.transmissive.dtype == np.dtype("<u2"), "format u16")
         try:
