@@ -113,6 +113,9 @@ run (const DsLabsimOptions *o)
     .vanish_after_frames = (guint) o->vanish_after,
     .vanish_for_s = o->vanish_for,
     .seed = (guint64) o->seed,
+    .noiseless = o->noiseless,
+    .line_miss_every = (guint) o->line_miss_every,
+    .line_double_every = (guint) o->line_double_every,
   };
   DsLabCamera *camera = ds_lab_camera_new (&ccfg, renderer, illumination, &lab, &error);
   if (!camera) {

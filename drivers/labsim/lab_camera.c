@@ -2,89 +2,172 @@
 
 #include <arv.h>
 #include <gio/gio.h>
+#include <glib/gstdio.h>
 #include <string.h>
+#include <unistd.h>
+
+#include "drivers/labsim/lab_camera_fill.h"
+#include "labsim_camera_xml.h"
+
+/* labsim's own registers (labsim-camera.xml): the trigger is routed here. */
+#define REG_TRIGGER_SOURCE 0x8000
+#define REG_TRIGGER_ACTIVATION 0x8004
+#define REG_TRIGGER_SOFTWARE 0x8008
+#define SOURCE_SOFTWARE 16
+
+typedef struct {
+  guint line;
+  gboolean rising;
+} LineEdge;
 
 struct DsLabCamera {
   DsLabCameraConfig cfg;
   char *address, *serial;
-  const DsRenderer *renderer;
-  DsLabIlluminationFunc illumination;
-  gpointer user_data;
-  guint sensor_width, sensor_height, bit_depth;
+  DsLabFill *fill;
+  guint sensor_width, sensor_height;
   double default_exposure_us;
 
+  GMutex gv_lock;          /* gv: swapped on the main thread, used by the trigger router */
   ArvGvFakeCamera *gv;     /* NULL while vanished */
-  GMutex lock;             /* frames: counted on the camera thread */
-  guint64 frames;
   gint vanish_requested;   /* atomic: set once by the camera thread */
   guint vanish_source, appear_source;
+
+  /* The trigger router: software commands and line edges become frames. */
+  GMutex trig_lock;
+  GCond trig_cond;
+  GArray *edges;           /* LineEdge, under trig_lock */
+  gboolean quit;           /* under trig_lock */
+  GThread *router;
+  DsLabTriggerStats trig;  /* under trig_lock */
 };
 
-/* Renders what is lit now and writes it into the buffer's image region. */
+/* Called on Aravis's camera thread for every triggered frame. */
 static void
-fill_pattern (ArvBuffer *buffer, void *data, guint32 exposure_time_us, guint32 gain,
+fill_pattern (ArvBuffer *buffer, void *data, guint32 exposure_time_us, guint32 gain_centi_db,
               ArvPixelFormat pixel_format)
 {
   DsLabCamera *c = data;
-  (void) gain;
-  /* The data size reads 0 here (the received size is set after the fill); the fake camera has
-   * checked that the buffer holds width * height pixels of this format before calling us. */
-  guint8 *out = (guint8 *) arv_buffer_get_data (buffer, NULL);
-  gint x0 = 0, y0 = 0, w = 0, h = 0;
-  arv_buffer_get_image_region (buffer, &x0, &y0, &w, &h);
-  guint bpp = ARV_PIXEL_FORMAT_BIT_PER_PIXEL (pixel_format) / 8;
-  if (!out || w <= 0 || h <= 0 || bpp == 0)
-    return;
-  memset (out, 0, (gsize) w * (gsize) h * bpp);
-
-  g_mutex_lock (&c->lock);
-  guint64 n = c->frames++;
-  g_mutex_unlock (&c->lock);
-  DsRenderRequest req = {
-    .phase = 0, .n_phases = 4, .illuminator_on = FALSE,
-    .exposure_us = exposure_time_us > 0 ? exposure_time_us : c->default_exposure_us,
-    .gain_db = 0, .seed = c->cfg.seed + n,
-  };
-  c->illumination (c->user_data, &req);
-  g_autoptr (GError) error = NULL;
-  g_autoptr (DsImage) img = ds_renderer_render (c->renderer, &req, &error);
-  if (!img) {
-    g_warning ("labsim camera: frame %" G_GUINT64_FORMAT ": %s", n, error->message);
-    return;
-  }
-  guint shift = img->bit_depth > 8 ? img->bit_depth - 8 : 0;
-  for (gint y = 0; y < h; y++) {
-    guint sy = (guint) (y0 + y);
-    if (sy >= img->height)
-      break;
-    const guint16 *src = ds_image_row (img, sy);
-    guint8 *dst = out + (gsize) y * (gsize) w * bpp;
-    for (gint x = 0; x < w; x++) {
-      guint sx = (guint) (x0 + x);
-      if (sx >= img->width)
-        break;
-      guint16 v = src[sx];
-      if (pixel_format == ARV_PIXEL_FORMAT_MONO_16) {
-        dst[2 * x] = (guint8) (v & 0xff);
-        dst[2 * x + 1] = (guint8) (v >> 8);
-      } else {
-        guint8 v8 = (guint8) MIN (v >> shift, 255u);
-        for (guint b = 0; b < bpp; b++)
-          dst[bpp * (guint) x + b] = v8;
-      }
-    }
-  }
-
+  guint64 n = ds_lab_fill_buffer (c->fill, buffer, exposure_time_us > 0 ? exposure_time_us : c->default_exposure_us,
+                                  gain_centi_db / 100.0, (guint32) pixel_format);
   if (c->cfg.vanish_after_frames && n + 1 == c->cfg.vanish_after_frames)
     g_atomic_int_set (&c->vanish_requested, 1);
 }
 
+/* ---- trigger router ------------------------------------------------------------------------ */
+
+/* One frame more for the camera thread: its software-trigger register is a flag, so frames
+ * are handed over one at a time, each once the previous one was taken. */
+static gboolean
+hand_over (ArvFakeCamera *fake)
+{
+  guint32 busy = 0;
+  arv_fake_camera_read_register (fake, ARV_FAKE_CAMERA_REGISTER_TRIGGER_SOFTWARE, &busy);
+  if (busy)
+    return FALSE;
+  arv_fake_camera_write_register (fake, ARV_FAKE_CAMERA_REGISTER_TRIGGER_SOFTWARE, 1);
+  return TRUE;
+}
+
+static gpointer
+router_thread (gpointer data)
+{
+  DsLabCamera *c = data;
+  guint pending = 0;
+  g_autoptr (GArray) edges = g_array_new (FALSE, FALSE, sizeof (LineEdge));
+  for (;;) {
+    g_mutex_lock (&c->trig_lock);
+    /* The software command is a register the client writes: polled at 1 kHz, like the fake
+     * camera's own trigger; line edges wake the router at once. */
+    gint64 until = g_get_monotonic_time () + (pending ? 200 : 1000);
+    while (!c->quit && c->edges->len == 0 && g_cond_wait_until (&c->trig_cond, &c->trig_lock, until))
+      ;
+    if (c->quit) {
+      g_mutex_unlock (&c->trig_lock);
+      break;
+    }
+    g_array_append_vals (edges, c->edges->data, c->edges->len);
+    g_array_set_size (c->edges, 0);
+    g_mutex_unlock (&c->trig_lock);
+
+    g_mutex_lock (&c->gv_lock);
+    ArvFakeCamera *fake = c->gv ? arv_gv_fake_camera_get_fake_camera (c->gv) : NULL;
+    guint32 source = SOURCE_SOFTWARE, activation = 0, sw = 0;
+    if (fake) {
+      arv_fake_camera_read_register (fake, REG_TRIGGER_SOURCE, &source);
+      arv_fake_camera_read_register (fake, REG_TRIGGER_ACTIVATION, &activation);
+      arv_fake_camera_read_register (fake, REG_TRIGGER_SOFTWARE, &sw);
+      if (sw)
+        arv_fake_camera_write_register (fake, REG_TRIGGER_SOFTWARE, 0);
+    }
+    g_mutex_lock (&c->trig_lock);
+    if (sw && source == SOURCE_SOFTWARE) {
+      pending++;
+      c->trig.software++;
+    } else if (sw)
+      c->trig.software_ignored++; /* a real camera ignores TriggerSoftware with a line source */
+    for (guint i = 0; i < edges->len; i++) {
+      LineEdge *e = &g_array_index (edges, LineEdge, i);
+      if (!fake || source != e->line || e->rising != (activation == 0))
+        continue;
+      guint64 k = ++c->trig.line;
+      if (c->cfg.line_miss_every && k % c->cfg.line_miss_every == 0) {
+        c->trig.line_missed++;
+        continue;
+      }
+      pending++;
+      if (c->cfg.line_double_every && k % c->cfg.line_double_every == 0) {
+        pending++;
+        c->trig.line_doubled++;
+      }
+    }
+    g_array_set_size (edges, 0);
+    g_mutex_unlock (&c->trig_lock);
+    if (!fake)
+      pending = 0;
+    else if (pending && hand_over (fake))
+      pending--;
+    g_mutex_unlock (&c->gv_lock);
+  }
+  return NULL;
+}
+
+void
+ds_lab_camera_line_edge (DsLabCamera *c, guint line, gboolean rising)
+{
+  LineEdge e = { line, rising };
+  g_mutex_lock (&c->trig_lock);
+  g_array_append_val (c->edges, e);
+  g_cond_signal (&c->trig_cond);
+  g_mutex_unlock (&c->trig_lock);
+}
+
+void
+ds_lab_camera_trigger_stats (DsLabCamera *c, DsLabTriggerStats *stats)
+{
+  g_mutex_lock (&c->trig_lock);
+  *stats = c->trig;
+  g_mutex_unlock (&c->trig_lock);
+}
+
+/* ---- the device ---------------------------------------------------------------------------- */
+
 static gboolean
 appear (DsLabCamera *c, GError **error)
 {
+  /* The fake camera reads its GenICam description from a file, once, when it is made. */
+  g_autofree char *xml_path = NULL;
+  int fd = g_file_open_tmp ("labsim-camera-XXXXXX.xml", &xml_path, error);
+  if (fd < 0)
+    return FALSE;
+  close (fd);
+  if (!g_file_set_contents (xml_path, ds_labsim_camera_xml, -1, error)) {
+    g_unlink (xml_path);
+    return FALSE;
+  }
   ArvGvFakeCamera *gv = g_object_new (ARV_TYPE_GV_FAKE_CAMERA, "interface-name", c->address,
-                                      "serial-number", c->serial, "gvsp-lost-ratio",
-                                      c->cfg.gvsp_lost_ratio, NULL);
+                                      "serial-number", c->serial, "genicam-filename", xml_path,
+                                      "gvsp-lost-ratio", c->cfg.gvsp_lost_ratio, NULL);
+  g_unlink (xml_path);
   if (!gv || !arv_gv_fake_camera_is_running (gv)) {
     g_set_error (error, G_IO_ERROR, G_IO_ERROR_FAILED,
                  "GigE Vision fake camera on %s: cannot serve (UDP port 3956 in use, or no such "
@@ -93,6 +176,9 @@ appear (DsLabCamera *c, GError **error)
     return FALSE;
   }
   ArvFakeCamera *fake = arv_gv_fake_camera_get_fake_camera (gv);
+  static const char vendor[32] = "descatter", model[32] = "labsim";
+  arv_fake_camera_write_memory (fake, 0x48 /* GigE Vision bootstrap: manufacturer name */, sizeof vendor, vendor);
+  arv_fake_camera_write_memory (fake, 0x68 /* model name */, sizeof model, model);
   arv_fake_camera_write_register (fake, ARV_FAKE_CAMERA_REGISTER_SENSOR_WIDTH, c->sensor_width);
   arv_fake_camera_write_register (fake, ARV_FAKE_CAMERA_REGISTER_SENSOR_HEIGHT, c->sensor_height);
   arv_fake_camera_write_register (fake, ARV_FAKE_CAMERA_REGISTER_WIDTH, c->sensor_width);
@@ -100,11 +186,19 @@ appear (DsLabCamera *c, GError **error)
   arv_fake_camera_write_register (fake, ARV_FAKE_CAMERA_REGISTER_PIXEL_FORMAT, ARV_PIXEL_FORMAT_MONO_16);
   arv_fake_camera_write_register (fake, ARV_FAKE_CAMERA_REGISTER_EXPOSURE_TIME_US,
                                   (guint32) c->default_exposure_us);
-  /* The software trigger is polled at this rate: 25 Hz by default would add up to 40 ms per
-   * frame; 1 kHz keeps the trigger-to-fill latency at about a millisecond. */
+  arv_fake_camera_write_register (fake, ARV_FAKE_CAMERA_REGISTER_GAIN_RAW, 0);
+  /* The fake camera takes every frame from its software-trigger register (source 1): the
+   * router decides what may set it. */
+  arv_fake_camera_write_register (fake, ARV_FAKE_CAMERA_REGISTER_TRIGGER_SOURCE, 1);
+  arv_fake_camera_write_register (fake, REG_TRIGGER_SOURCE, SOURCE_SOFTWARE);
+  arv_fake_camera_write_register (fake, REG_TRIGGER_ACTIVATION, 0);
+  arv_fake_camera_write_register (fake, REG_TRIGGER_SOFTWARE, 0);
+  /* Triggers are polled at this rate: 25 Hz by default would add up to 40 ms per frame. */
   arv_fake_camera_set_trigger_frequency (fake, 1000.0);
   arv_fake_camera_set_fill_pattern (fake, fill_pattern, c);
+  g_mutex_lock (&c->gv_lock);
   c->gv = gv;
+  g_mutex_unlock (&c->gv_lock);
   return TRUE;
 }
 
@@ -121,6 +215,15 @@ appear_cb (gpointer data)
   return G_SOURCE_REMOVE;
 }
 
+static void
+disappear (DsLabCamera *c)
+{
+  g_mutex_lock (&c->gv_lock);
+  ArvGvFakeCamera *gv = g_steal_pointer (&c->gv);
+  g_mutex_unlock (&c->gv_lock);
+  g_clear_object (&gv); /* joins the camera thread: no fill runs after this */
+}
+
 /* Watches for the camera thread's request to vanish: the fake camera cannot be destroyed from
  * its own thread. */
 static gboolean
@@ -131,7 +234,7 @@ vanish_watch (gpointer data)
     return G_SOURCE_CONTINUE;
   g_message ("labsim camera: vanishing for %.1f s after %u frames", c->cfg.vanish_for_s,
              c->cfg.vanish_after_frames);
-  g_clear_object (&c->gv);
+  disappear (c);
   c->appear_source = g_timeout_add ((guint) (c->cfg.vanish_for_s * 1000), appear_cb, c);
   c->vanish_source = 0;
   return G_SOURCE_REMOVE;
@@ -142,18 +245,19 @@ ds_lab_camera_new (const DsLabCameraConfig *config, const DsRenderer *renderer,
                    DsLabIlluminationFunc illumination, gpointer user_data, GError **error)
 {
   DsLabCamera *c = g_new0 (DsLabCamera, 1);
-  g_mutex_init (&c->lock);
+  g_mutex_init (&c->gv_lock);
+  g_mutex_init (&c->trig_lock);
+  g_cond_init (&c->trig_cond);
+  c->edges = g_array_new (FALSE, FALSE, sizeof (LineEdge));
   c->cfg = *config;
   c->address = g_strdup (config->address ? config->address : "127.0.0.1");
   c->serial = g_strdup (config->serial ? config->serial : "DSLAB01");
-  c->renderer = renderer;
-  c->illumination = illumination;
-  c->user_data = user_data;
   const DsScene *scene = ds_renderer_scene (renderer);
   c->sensor_width = ds_scene_width (scene);
   c->sensor_height = ds_scene_height (scene);
-  c->bit_depth = ds_scene_bit_depth (scene);
   c->default_exposure_us = ds_scene_default_exposure_us (scene);
+  c->fill = ds_lab_fill_new (renderer, illumination, user_data, config->seed, config->noiseless);
+  c->router = g_thread_new ("labsim-trigger", router_thread, c);
   if (!appear (c, error)) {
     ds_lab_camera_free (c);
     return NULL;
@@ -166,16 +270,16 @@ ds_lab_camera_new (const DsLabCameraConfig *config, const DsRenderer *renderer,
 guint64
 ds_lab_camera_frames (DsLabCamera *c)
 {
-  g_mutex_lock (&c->lock);
-  guint64 n = c->frames;
-  g_mutex_unlock (&c->lock);
-  return n;
+  return ds_lab_fill_frames (c->fill);
 }
 
 gboolean
 ds_lab_camera_present (DsLabCamera *c)
 {
-  return c->gv != NULL;
+  g_mutex_lock (&c->gv_lock);
+  gboolean present = c->gv != NULL;
+  g_mutex_unlock (&c->gv_lock);
+  return present;
 }
 
 void
@@ -187,9 +291,20 @@ ds_lab_camera_free (DsLabCamera *c)
     g_source_remove (c->vanish_source);
   if (c->appear_source)
     g_source_remove (c->appear_source);
-  g_clear_object (&c->gv); /* joins the camera thread: no fill runs after this */
+  if (c->router) {
+    g_mutex_lock (&c->trig_lock);
+    c->quit = TRUE;
+    g_cond_signal (&c->trig_cond);
+    g_mutex_unlock (&c->trig_lock);
+    g_thread_join (c->router);
+  }
+  disappear (c);
+  ds_lab_fill_free (c->fill);
+  g_array_unref (c->edges);
   g_free (c->address);
   g_free (c->serial);
-  g_mutex_clear (&c->lock);
+  g_cond_clear (&c->trig_cond);
+  g_mutex_clear (&c->trig_lock);
+  g_mutex_clear (&c->gv_lock);
   g_free (c);
 }

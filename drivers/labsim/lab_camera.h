@@ -1,14 +1,22 @@
 /* The lab's camera: Aravis's GigE Vision fake camera (ArvGvFakeCamera, real GVCP/GVSP on UDP
- * port 3956 of one address) whose images come from the scene renderer, lit with whatever the
- * illuminator shows at the moment the frame is filled (right after its trigger).
+ * port 3956 of one address) described by labsim's own GenICam XML (labsim-camera.xml), whose
+ * images come from the scene renderer, lit with whatever the illuminator shows at the moment the
+ * frame is filled (right after its trigger).
  *
- * Pixel formats: Mono16 carries the sensor's DN unchanged (bit depth <= 16); Mono8 the top
- * 8 bits; RGB8 and the Bayer formats of the fake camera's XML get the Mono8 value in every
- * sample. The ROI (Width, Height, OffsetX, OffsetY) crops the rendered frame; pixels outside
- * the scene are 0. Gain is 0 dB (the fake camera's XML has no gain feature).
+ * Pixel formats: Mono8, Mono10, Mono12, Mono16, Mono10p, Mono12p, Mono12Packed, each carrying
+ * the sensor's value less the low bits it lacks (lab_camera_fill.h says the byte layouts).
+ * The ROI (Width in steps of 4, Height, OffsetX, OffsetY) crops the rendered frame. Gain is the
+ * Gain feature in dB (0..24), exposure ExposureTime in µs.
  *
- * Threads: new/vanish/appear/free on the main thread (the one running the default main
- * context, which the vanish timers use); frames are filled on Aravis's camera thread. */
+ * Trigger: TriggerMode On with TriggerSource Software (TriggerSoftware command) or Line0..3: a
+ * frame per edge at that line input (ds_lab_camera_line_edge), rising or falling as
+ * TriggerActivation says. descatter-labsim wires the projector's sync output or the simulated
+ * GPIO chip's lines to these inputs (docs/drivers.md, "Wiring"). A software command with a line
+ * source is ignored, as on a real camera.
+ *
+ * Threads: new/free on the main thread (the one running the default main context, which the
+ * vanish timers use); frames are filled on Aravis's camera thread; triggers are routed on a
+ * thread of the camera's own; ds_lab_camera_line_edge and the getters from any thread. */
 #pragma once
 #include <glib.h>
 
@@ -28,14 +36,28 @@ typedef struct {
   double gvsp_lost_ratio;    /* fraction of GVSP packets not sent, 0..1 */
   guint vanish_after_frames; /* 0: never; else the camera disappears after this many frames ... */
   double vanish_for_s;       /* ... for this long, then comes back (once) */
-  guint64 seed;              /* noise seed of the first frame; +1 per frame */
+  guint64 seed;              /* noise seed */
+  gboolean noiseless;        /* frames are the rendered expectation, rounded (no sensor noise) */
+  guint line_miss_every;     /* fault: every Nth accepted line trigger makes no frame */
+  guint line_double_every;   /* fault: every Nth accepted line trigger makes two frames */
 } DsLabCameraConfig;
+
+typedef struct {
+  guint64 software;          /* software triggers that made a frame */
+  guint64 software_ignored;  /* software triggers while a line was the source */
+  guint64 line;              /* line edges matching source and activation */
+  guint64 line_missed;       /* of those, dropped by line_miss_every */
+  guint64 line_doubled;      /* of those, doubled by line_double_every */
+} DsLabTriggerStats;
 
 /* renderer is borrowed and must outlive the camera. Fails (G_IO_ERROR) when the fake camera
  * cannot serve on the address (e.g. port 3956 in use). */
 DsLabCamera *ds_lab_camera_new (const DsLabCameraConfig *config, const DsRenderer *renderer,
                                 DsLabIlluminationFunc illumination, gpointer user_data,
                                 GError **error);
+/* An edge at line input `line` (0..3). Non-blocking; any thread. */
+void ds_lab_camera_line_edge (DsLabCamera *camera, guint line, gboolean rising);
+void ds_lab_camera_trigger_stats (DsLabCamera *camera, DsLabTriggerStats *stats);
 guint64 ds_lab_camera_frames (DsLabCamera *camera);   /* frames filled so far */
 gboolean ds_lab_camera_present (DsLabCamera *camera); /* FALSE while vanished */
 void ds_lab_camera_free (DsLabCamera *camera);

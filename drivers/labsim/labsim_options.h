@@ -18,6 +18,8 @@ typedef struct {
   double gvsp_lost_ratio;
   int vanish_after;        /* frames */
   double vanish_for;       /* s */
+  gboolean noiseless;
+  int line_miss_every, line_double_every;
 
   /* illuminator controller */
   char *modbus_address;    /* HOST:PORT */

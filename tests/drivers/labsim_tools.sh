@@ -86,7 +86,18 @@ grep -q "Width = $w " "$tmp/ctl" || fail "Width is not the scene's $w: $(cat "$t
 grep -q "Height = $h " "$tmp/ctl" || fail "Height is not the scene's $h: $(cat "$tmp/ctl")"
 timeout 20 arv-tool-0.8 -a 127.0.0.1 features >"$tmp/feat" 2>&1 || fail "arv-tool features"
 grep -q "TriggerSoftware" "$tmp/feat" || fail "no TriggerSoftware feature: $(cat "$tmp/feat")"
-echo "arv-tool: ok"
+# Its pixel formats: listed, and each one set and read back with the payload it implies.
+for f in Mono8 Mono10 Mono12 Mono16 Mono10p Mono12p Mono12Packed; do
+  grep -q "EnumEntry *: '$f'" "$tmp/feat" || fail "PixelFormat does not list $f: $(cat "$tmp/feat")"
+done
+for fb in Mono8:8 Mono10:16 Mono12:16 Mono16:16 Mono10p:10 Mono12p:12 Mono12Packed:12; do
+  f=${fb%%:*} bits=${fb#*:}
+  timeout 20 arv-tool-0.8 -a 127.0.0.1 control "PixelFormat=$f" PayloadSize >"$tmp/pf" 2>&1 || fail "arv-tool PixelFormat=$f: $(cat "$tmp/pf")"
+  grep -q "PixelFormat = $f\$" "$tmp/pf" || fail "PixelFormat=$f not taken: $(cat "$tmp/pf")"
+  grep -q "PayloadSize = $((w * h * bits / 8))\$" "$tmp/pf" || fail "$f: payload is not $w x $h x $bits / 8: $(cat "$tmp/pf")"
+done
+timeout 20 arv-tool-0.8 -a 127.0.0.1 control PixelFormat=Mono16 >/dev/null 2>&1
+echo "arv-tool: ok (pixel formats listed and set)"
 
 # --- arv-camera-test: free-running stream for 3 s. ------------------------------------------
 timeout -s INT 3 arv-camera-test-0.8 -n 127.0.0.1 -f 20 >"$tmp/stream" 2>&1 || true

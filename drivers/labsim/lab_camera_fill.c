@@ -1,0 +1,308 @@
+#include "drivers/labsim/lab_camera_fill.h"
+
+#include <math.h>
+#include <string.h>
+
+#include "drivers/sim/rng.h"
+#include "drivers/sim/sensor.h"
+
+#define PFNC_MONO8 0x01080001u
+#define PFNC_MONO10 0x01100003u
+#define PFNC_MONO12 0x01100005u
+#define PFNC_MONO16 0x01100007u
+#define PFNC_MONO10P 0x010A0046u
+#define PFNC_MONO12P 0x010C0047u
+#define PFNC_MONO12PACKED 0x010C0006u
+
+/* Normal deviates drawn once; a row takes BANK_SIZE - width of them from a random offset. */
+#define BANK_BITS 21
+#define BANK_SIZE (1u << BANK_BITS)
+/* Beyond this, the cache of noise-free frames is emptied (a study sweeping settings). */
+#define CACHE_MAX_BYTES ((gsize) 1 << 30)
+
+typedef struct {
+  gboolean on;
+  guint phase, n_phases;
+  double exposure_us, gain_db;
+} LightKey;
+
+typedef struct {
+  float *mean;             /* expected DN, before quantisation */
+  float *sigma;            /* noise sigma, DN */
+} Expected;
+
+struct DsLabFill {
+  const DsRenderer *renderer;
+  DsLabIlluminationFunc illumination;
+  gpointer user_data;
+  guint64 seed;
+  gboolean noiseless;
+  guint width, height, depth;
+  DsSensorModel sensor;
+  float *bank;
+  GHashTable *cache;       /* LightKey* -> Expected* (camera thread only) */
+  gsize cache_bytes;
+  guint16 *frame;          /* the current frame's values, width x height */
+  GMutex lock;             /* frames */
+  guint64 frames;
+};
+
+static guint
+key_hash (gconstpointer p)
+{
+  const LightKey *k = p;
+  return (guint) (k->on * 7919u + k->phase * 131u + k->n_phases * 31u) ^ (guint) (k->exposure_us * 16) ^
+         (guint) (k->gain_db * 1000) << 7;
+}
+
+static gboolean
+key_equal (gconstpointer a, gconstpointer b)
+{
+  const LightKey *x = a, *y = b;
+  return x->on == y->on && x->phase == y->phase && x->n_phases == y->n_phases && x->exposure_us == y->exposure_us &&
+         x->gain_db == y->gain_db;
+}
+
+static void
+expected_free (gpointer p)
+{
+  Expected *e = p;
+  g_free (e->mean);
+  g_free (e->sigma);
+  g_free (e);
+}
+
+DsLabFill *
+ds_lab_fill_new (const DsRenderer *renderer, DsLabIlluminationFunc illumination, gpointer user_data, guint64 seed,
+                 gboolean noiseless)
+{
+  DsLabFill *f = g_new0 (DsLabFill, 1);
+  f->renderer = renderer;
+  f->illumination = illumination;
+  f->user_data = user_data;
+  f->seed = seed;
+  f->noiseless = noiseless;
+  const DsScene *scene = ds_renderer_scene (renderer);
+  const DsSceneSpec *s = ds_scene_spec (scene);
+  f->width = ds_scene_width (scene);
+  f->height = ds_scene_height (scene);
+  f->depth = ds_scene_bit_depth (scene);
+  f->sensor = (DsSensorModel) { .bit_depth = s->bit_depth, .quantum_efficiency = s->quantum_efficiency,
+                                .system_gain = s->system_gain, .read_noise_e = s->read_noise_e,
+                                .dark_current_e_s = s->dark_current_e_s, .full_well_e = s->full_well_e };
+  g_mutex_init (&f->lock);
+  f->cache = g_hash_table_new_full (key_hash, key_equal, g_free, expected_free);
+  f->frame = g_new0 (guint16, (gsize) f->width * f->height);
+  f->bank = g_new (float, BANK_SIZE);
+  DsRng rng;
+  ds_rng_seed (&rng, seed ^ 0x6e6f697365ull /* "noise" */);
+  for (guint i = 0; i < BANK_SIZE; i++)
+    f->bank[i] = (float) ds_rng_normal (&rng);
+  return f;
+}
+
+/* The noise-free frame of a lighting state, rendered on first use. */
+static const Expected *
+expected_for (DsLabFill *f, const LightKey *key, GError **error)
+{
+  Expected *e = g_hash_table_lookup (f->cache, key);
+  if (e)
+    return e;
+  DsRenderRequest req = { .phase = key->phase, .n_phases = key->n_phases, .illuminator_on = key->on,
+                          .exposure_us = key->exposure_us, .gain_db = key->gain_db };
+  g_autoptr (DsImage) img = ds_renderer_render_expected (f->renderer, &req, error);
+  if (!img)
+    return NULL;
+  gsize n = (gsize) f->width * f->height;
+  if (f->cache_bytes + 2 * n * sizeof (float) > CACHE_MAX_BYTES) {
+    g_hash_table_remove_all (f->cache);
+    f->cache_bytes = 0;
+  }
+  e = g_new0 (Expected, 1);
+  e->mean = g_new (float, n);
+  e->sigma = g_new (float, n);
+  /* Variance in DN^2 = K^2 (mean electrons + read^2) with mean electrons = mean DN / K. */
+  double k = ds_sensor_gain_dn_per_e (&f->sensor, key->gain_db);
+  double read2 = k * k * f->sensor.read_noise_e * f->sensor.read_noise_e;
+  for (guint y = 0; y < f->height; y++) {
+    const float *row = ds_image_row (img, y);
+    for (guint x = 0; x < f->width; x++) {
+      double m = row[x];
+      e->mean[(gsize) y * f->width + x] = (float) m;
+      e->sigma[(gsize) y * f->width + x] = (float) sqrt (k * MAX (m, 0.0) + read2);
+    }
+  }
+  g_hash_table_insert (f->cache, g_memdup2 (key, sizeof *key), e);
+  f->cache_bytes += 2 * n * sizeof (float);
+  return e;
+}
+
+/* mean + sigma z, clipped at full well, rounded, clipped to the ADC range. */
+static void
+expose (DsLabFill *f, const Expected *e, double gain_db, guint64 frame_seed)
+{
+  /* A full pixel reads exactly this (ds_renderer_saturation_dn: full well or ADC top). */
+  float top = (float) ds_renderer_saturation_dn (f->renderer, gain_db);
+  DsRng rng;
+  /* ds_rng_seed mixes its seed through splitmix64: neighbouring frames get unrelated offsets. */
+  ds_rng_seed (&rng, f->seed * 0x9E3779B97F4A7C15ull + frame_seed);
+  for (guint y = 0; y < f->height; y++) {
+    const float *m = e->mean + (gsize) y * f->width;
+    const float *s = e->sigma + (gsize) y * f->width;
+    guint16 *o = f->frame + (gsize) y * f->width;
+    const float *z = f->bank + (ds_rng_next (&rng) % (BANK_SIZE - f->width));
+    if (f->noiseless)
+      z = NULL;
+    for (guint x = 0; x < f->width; x++) {
+      float v = m[x] + (z ? s[x] * z[x] : 0.0f);
+      v = v < 0.0f ? 0.0f : v > top ? top : v;
+      o[x] = (guint16) (v + 0.5f);
+    }
+  }
+}
+
+guint
+ds_lab_pixel_bits (guint32 pf)
+{
+  switch (pf) {
+  case PFNC_MONO8: return 8;
+  case PFNC_MONO10:
+  case PFNC_MONO12:
+  case PFNC_MONO16: return 16;
+  case PFNC_MONO10P: return 10;
+  case PFNC_MONO12P:
+  case PFNC_MONO12PACKED: return 12;
+  default: return 0;
+  }
+}
+
+/* Significant bits of the format's values. */
+static guint
+value_bits (guint32 pf)
+{
+  switch (pf) {
+  case PFNC_MONO8: return 8;
+  case PFNC_MONO10:
+  case PFNC_MONO10P: return 10;
+  case PFNC_MONO12:
+  case PFNC_MONO12P:
+  case PFNC_MONO12PACKED: return 12;
+  default: return 16;
+  }
+}
+
+gboolean
+ds_lab_pack (guint32 pf, const guint16 *values, gsize stride, guint depth, guint w, guint h, guint8 *out,
+             gsize out_size)
+{
+  guint bits = ds_lab_pixel_bits (pf);
+  if (!bits || (guint64) w * h * bits / 8 > out_size)
+    return FALSE;
+  guint vb = value_bits (pf);
+  guint shift = depth > vb ? depth - vb : 0;
+  gsize o = 0;
+  guint64 acc = 0;
+  guint nacc = 0;
+  gboolean half = FALSE;   /* Mono12Packed: a first pixel of a pair is waiting */
+  guint pending = 0;
+  for (guint y = 0; y < h; y++) {
+    const guint16 *row = values + (gsize) y * stride;
+    for (guint x = 0; x < w; x++) {
+      guint v = row[x] >> shift;
+      switch (pf) {
+      case PFNC_MONO8:
+        out[o++] = (guint8) v;
+        break;
+      case PFNC_MONO10:
+      case PFNC_MONO12:
+      case PFNC_MONO16:
+        out[o++] = (guint8) (v & 0xff);
+        out[o++] = (guint8) (v >> 8);
+        break;
+      case PFNC_MONO12PACKED:
+        if (!half) {
+          pending = v;
+          half = TRUE;
+        } else {
+          out[o++] = (guint8) (pending >> 4);
+          out[o++] = (guint8) ((v & 0xf) << 4 | (pending & 0xf));
+          out[o++] = (guint8) (v >> 4);
+          half = FALSE;
+        }
+        break;
+      default: /* Mono10p, Mono12p: least significant bit first */
+        acc |= (guint64) v << nacc;
+        nacc += bits;
+        while (nacc >= 8) {
+          out[o++] = (guint8) (acc & 0xff);
+          acc >>= 8;
+          nacc -= 8;
+        }
+        break;
+      }
+    }
+  }
+  if (half && o + 2 <= out_size) {
+    out[o++] = (guint8) (pending >> 4);
+    out[o++] = (guint8) (pending & 0xf);
+  }
+  if (nacc > 0 && o < out_size)
+    out[o] = (guint8) (acc & 0xff);
+  return TRUE;
+}
+
+guint64
+ds_lab_fill_buffer (DsLabFill *f, ArvBuffer *buffer, double exposure_us, double gain_db, guint32 pf)
+{
+  g_mutex_lock (&f->lock);
+  guint64 n = f->frames++;
+  g_mutex_unlock (&f->lock);
+  /* The data size reads 0 here (the received size is set after the fill); the fake camera has
+   * checked that the buffer holds the payload of this format before calling us. */
+  guint8 *out = (guint8 *) arv_buffer_get_data (buffer, NULL);
+  gint x0 = 0, y0 = 0, w = 0, h = 0;
+  arv_buffer_get_image_region (buffer, &x0, &y0, &w, &h);
+  guint bits = ds_lab_pixel_bits (pf);
+  if (!out || w <= 0 || h <= 0 || !bits || x0 < 0 || y0 < 0 || (guint) (x0 + w) > f->width ||
+      (guint) (y0 + h) > f->height) {
+    g_warning ("labsim camera: frame %" G_GUINT64_FORMAT ": region %d,%d %dx%d or format 0x%08x not served",
+               n, x0, y0, w, h, pf);
+    return n;
+  }
+  DsRenderRequest req = { .phase = 0, .n_phases = 4, .illuminator_on = FALSE };
+  f->illumination (f->user_data, &req);
+  LightKey key = { .on = req.illuminator_on, .phase = req.illuminator_on ? req.phase : 0,
+                   .n_phases = req.illuminator_on ? req.n_phases : 0, .exposure_us = exposure_us, .gain_db = gain_db };
+  g_autoptr (GError) error = NULL;
+  const Expected *e = expected_for (f, &key, &error);
+  if (!e) {
+    g_warning ("labsim camera: frame %" G_GUINT64_FORMAT ": %s", n, error->message);
+    memset (out, 0, (gsize) w * h * bits / 8);
+    return n;
+  }
+  expose (f, e, gain_db, n);
+  ds_lab_pack (pf, f->frame + (gsize) y0 * f->width + x0, f->width, f->depth, (guint) w, (guint) h, out,
+               (gsize) w * h * bits / 8);
+  return n;
+}
+
+guint64
+ds_lab_fill_frames (DsLabFill *f)
+{
+  g_mutex_lock (&f->lock);
+  guint64 n = f->frames;
+  g_mutex_unlock (&f->lock);
+  return n;
+}
+
+void
+ds_lab_fill_free (DsLabFill *f)
+{
+  if (!f)
+    return;
+  g_hash_table_unref (f->cache);
+  g_free (f->frame);
+  g_free (f->bank);
+  g_mutex_clear (&f->lock);
+  g_free (f);
+}
