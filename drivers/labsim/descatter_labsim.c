@@ -19,6 +19,8 @@
 
 typedef struct {
   DsModbusServer *modbus;
+  DsLabCamera *camera;
+  int sync_line;
   DsExternalLight *external; /* --light-from: another controller lights the scene */
 } Lab;
 
@@ -36,6 +38,16 @@ illumination (gpointer data, DsRenderRequest *req)
   req->illuminator_on = st.enabled;
   req->phase = st.phase;
   req->n_phases = st.n_phases;
+}
+
+/* The projector's sync output, wired to a camera line: one pulse per applied pattern. */
+static void
+on_apply (gpointer data, const DsModbusServerState *state)
+{
+  (void) state;
+  Lab *lab = data;
+  ds_lab_camera_line_edge (lab->camera, (guint) lab->sync_line, TRUE);
+  ds_lab_camera_line_edge (lab->camera, (guint) lab->sync_line, FALSE);
 }
 
 static gboolean
@@ -125,6 +137,10 @@ run (const DsLabsimOptions *o)
     return 1;
   }
 
+  lab.camera = camera;
+  lab.sync_line = o->sync_line;
+  if (o->sync_line >= 0)
+    ds_modbus_server_set_apply_callback (lab.modbus, on_apply, &lab);
   g_autoptr (GMainLoop) loop = g_main_loop_new (NULL, FALSE);
   guint sig_term = g_unix_signal_add (SIGTERM, on_signal, loop);
   guint sig_int = g_unix_signal_add (SIGINT, on_signal, loop);
@@ -144,6 +160,7 @@ run (const DsLabsimOptions *o)
 
   g_source_remove (sig_term);
   g_source_remove (sig_int);
+  ds_modbus_server_set_apply_callback (lab.modbus, NULL, NULL);
   guint64 frames = ds_lab_camera_frames (camera);
   ds_lab_camera_free (camera);
   DsModbusServerState st;

@@ -50,6 +50,7 @@ ds_labsim_options_parse (DsLabsimOptions *o, int *argc, char ***argv, GError **e
   o->exception_code = 6;
   o->modbus_unit_id = 1;
   o->rtu_vanish_for = 1.0;
+  o->sync_line = 0;
   const GOptionEntry main_entries[] = {
     { "version", 'V', 0, G_OPTION_ARG_NONE, &o->version, "Print the version and exit", NULL },
     { "scene", 0, 0, G_OPTION_ARG_FILENAME, &o->scene_path, "Scene file (required)", "FILE" },
@@ -68,6 +69,9 @@ ds_labsim_options_parse (DsLabsimOptions *o, int *argc, char ***argv, GError **e
     { "camera-vanish-for", 0, 0, G_OPTION_ARG_DOUBLE, &o->vanish_for, "... for S seconds (default 2)", "S" },
     { "noiseless", 0, 0, G_OPTION_ARG_NONE, &o->noiseless,
       "Frames are the scene's expected values rounded to whole DN, without sensor noise", NULL },
+    { "sync-line", 0, 0, G_OPTION_ARG_INT, &o->sync_line,
+      "The projector's sync output (a pulse per applied pattern) drives this camera line "
+      "(default 0; -1: not wired)", "N" },
     { "line-miss-every", 0, 0, G_OPTION_ARG_INT, &o->line_miss_every,
       "Fault: every Nth line trigger makes no frame (a missed trigger)", "N" },
     { "line-double-every", 0, 0, G_OPTION_ARG_INT, &o->line_double_every,
@@ -135,6 +139,7 @@ ds_labsim_options_parse (DsLabsimOptions *o, int *argc, char ***argv, GError **e
     { "gvsp-lost-ratio", NULL, &o->gvsp_lost_ratio, 0, 1 },
     { "camera-vanish-after", &o->vanish_after, NULL, 0, G_MAXINT },
     { "camera-vanish-for", NULL, &o->vanish_for, 0, 3600 },
+    { "sync-line", &o->sync_line, NULL, -1, 3 },
     { "line-miss-every", &o->line_miss_every, NULL, 0, G_MAXINT },
     { "line-double-every", &o->line_double_every, NULL, 0, G_MAXINT },
     { "modbus-unit-id", &o->modbus_unit_id, NULL, 1, 247 },

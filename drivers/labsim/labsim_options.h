@@ -19,6 +19,7 @@ typedef struct {
   int vanish_after;        /* frames */
   double vanish_for;       /* s */
   gboolean noiseless;
+  int sync_line;           /* the projector's sync output drives this camera line; -1: none */
   int line_miss_every, line_double_every;
 
   /* illuminator controller */

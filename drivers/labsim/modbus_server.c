@@ -161,6 +161,7 @@ answer_write (DsModbusServer *s, const guint8 *pdu, gsize len, gint64 now, DsMbA
   memcpy (s->hold, tentative, sizeof s->hold);
   s->pending = TRUE;
   s->pending_at_us = now + s->cfg.settle_us;
+  g_cond_signal (&s->pending_cond);
   /* Both answers echo the first five bytes of the request (address and value or count). */
   memcpy (a->pdu, pdu, 5);
   a->len = 5;
@@ -216,6 +217,8 @@ ds_modbus_server_answer (DsModbusServer *s, const guint8 *pdu, gsize len, gboole
   return v;
 }
 
+static gpointer sync_thread (gpointer data);
+
 DsModbusServer *
 ds_modbus_server_new (const char *address, guint port, const DsModbusServerConfig *config,
                       GError **error)
@@ -238,6 +241,8 @@ ds_modbus_server_new (const char *address, guint port, const DsModbusServerConfi
   s->hold[DS_MB_HOLD_DUTY_PERMILLE] = 500;
   s->hold[DS_MB_HOLD_INTENSITY_PERMILLE] = 1000;
   memcpy (s->applied, s->hold, sizeof s->applied);
+  g_cond_init (&s->pending_cond);
+  s->sync_thread = g_thread_new ("modbus-sync", sync_thread, s);
   if (address) {
     s->tcp = ds_modbus_tcp_new (s, address, port, error);
     if (!s->tcp) {
@@ -281,11 +286,9 @@ ds_modbus_server_set_config (DsModbusServer *server, const DsModbusServerConfig 
   g_mutex_unlock (&server->lock);
 }
 
-void
-ds_modbus_server_get_state (DsModbusServer *s, DsModbusServerState *st)
+static void
+state_locked (DsModbusServer *s, DsModbusServerState *st)
 {
-  g_mutex_lock (&s->lock);
-  advance (s, g_get_monotonic_time ());
   st->enabled = lit (s);
   st->phase = s->applied[DS_MB_HOLD_PHASE];
   st->n_phases = s->applied[DS_MB_HOLD_NUM_PHASES];
@@ -298,6 +301,57 @@ ds_modbus_server_get_state (DsModbusServer *s, DsModbusServerState *st)
   st->ready = !s->pending && !s->cfg.stuck_not_ready && !s->cfg.fault && !s->cfg.over_temperature;
   st->requests = s->requests;
   st->connections = s->connections;
+}
+
+void
+ds_modbus_server_get_state (DsModbusServer *s, DsModbusServerState *st)
+{
+  g_mutex_lock (&s->lock);
+  advance (s, g_get_monotonic_time ());
+  state_locked (s, st);
+  g_mutex_unlock (&s->lock);
+}
+
+/* Applies each write when its settle time is over, whether or not anyone asks, and tells the
+ * sync output: a projector lights the pattern on its own clock. */
+static gpointer
+sync_thread (gpointer data)
+{
+  DsModbusServer *s = data;
+  g_mutex_lock (&s->lock);
+  guint16 told = s->apply_count;
+  while (!s->quit) {
+    if (s->apply_count != told) {
+      told = s->apply_count;
+      DsModbusServerState st;
+      state_locked (s, &st);
+      DsModbusApplyFunc func = s->on_apply;
+      gpointer user = s->on_apply_data;
+      g_mutex_unlock (&s->lock);
+      if (func)
+        func (user, &st);
+      g_mutex_lock (&s->lock);
+      continue;
+    }
+    gint64 now = g_get_monotonic_time ();
+    if (s->pending && !s->cfg.stuck_not_ready && !s->cfg.fault && !s->cfg.over_temperature) {
+      if (now >= s->pending_at_us)
+        advance (s, now);
+      else
+        g_cond_wait_until (&s->pending_cond, &s->lock, s->pending_at_us);
+    } else
+      g_cond_wait_until (&s->pending_cond, &s->lock, now + 50000); /* knobs may change */
+  }
+  g_mutex_unlock (&s->lock);
+  return NULL;
+}
+
+void
+ds_modbus_server_set_apply_callback (DsModbusServer *s, DsModbusApplyFunc func, gpointer user_data)
+{
+  g_mutex_lock (&s->lock);
+  s->on_apply = func;
+  s->on_apply_data = user_data;
   g_mutex_unlock (&s->lock);
 }
 
@@ -315,7 +369,10 @@ ds_modbus_server_free (DsModbusServer *s)
     return;
   g_mutex_lock (&s->lock);
   s->quit = TRUE;
+  g_cond_broadcast (&s->pending_cond);
   g_mutex_unlock (&s->lock);
+  if (s->sync_thread)
+    g_thread_join (s->sync_thread);
   if (s->wake[1] >= 0)
     (void) !write (s->wake[1], "q", 1);
   g_clear_pointer (&s->tcp, ds_modbus_tcp_free);
@@ -325,6 +382,8 @@ ds_modbus_server_free (DsModbusServer *s)
       close (s->wake[i]);
   if (s->rand)
     g_rand_free (s->rand);
+  if (s->sync_thread)
+    g_cond_clear (&s->pending_cond);
   g_mutex_clear (&s->lock);
   g_free (s);
 }

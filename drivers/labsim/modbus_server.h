@@ -78,6 +78,11 @@ void ds_modbus_server_rtu_vanish (DsModbusServer *server, guint ms);
 /* Changes the knobs at run time (the register state is kept). */
 void ds_modbus_server_set_config (DsModbusServer *server, const DsModbusServerConfig *config);
 void ds_modbus_server_get_state (DsModbusServer *server, DsModbusServerState *state);
+/* The projector's sync output: called on the server's own thread each time a write is applied
+ * (the pattern lit, changed or turned dark), at the end of its settle time, with what is lit
+ * now. NULL to disconnect. Set it before clients write. */
+typedef void (*DsModbusApplyFunc) (gpointer user_data, const DsModbusServerState *state);
+void ds_modbus_server_set_apply_callback (DsModbusServer *server, DsModbusApplyFunc func, gpointer user_data);
 /* Closes every TCP client connection now (the listener stays): a "dropped connection". */
 void ds_modbus_server_drop_clients (DsModbusServer *server);
 /* Stops the thread, closes every socket. NULL-safe. */

@@ -42,6 +42,12 @@ struct DsModbusServer {
   guint16 apply_count;
   guint64 requests, connections;
 
+  /* The sync output: a thread that applies each write at the end of its settle time. */
+  GCond pending_cond;
+  DsModbusApplyFunc on_apply;
+  gpointer on_apply_data;
+  GThread *sync_thread;
+
   DsModbusTcp *tcp;        /* NULL: no TCP side */
   DsModbusRtu *rtu;        /* NULL: no serial side */
 };

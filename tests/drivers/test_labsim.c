@@ -299,6 +299,103 @@ test_camera_vanishes (void)
   labsim_stop (&l);
 }
 
+
+/* The projector-sync wiring: with TriggerSource Line0 the camera exposes once per pattern the
+ * controller applies (its sync output drives Line0), never on a software command; the
+ * missed- and double-trigger knobs remove and add exactly the frames they say. */
+static guint
+frames_for_applies (ArvStream *stream, DsIlluminator *ill, guint applies, double period,
+                    guint n, gboolean check_phase)
+{
+  g_autoptr (GError) error = NULL;
+  guint got = 0;
+  double phase0 = NAN;
+  for (guint i = 0; i < applies; i++) {
+    g_assert_true (ill->ops->set_phase (ill->backend, i % n, 1000, &error));
+    g_assert_no_error (error);
+    ArvBuffer *buf;
+    /* Frames of this apply: the first within a second, any second one shortly after. */
+    guint64 wait_us = 1000000;
+    while ((buf = arv_stream_timeout_pop_buffer (stream, wait_us))) {
+      g_assert_cmpint (arv_buffer_get_status (buf), ==, ARV_BUFFER_STATUS_SUCCESS);
+      if (check_phase) {
+        size_t size = 0;
+        const void *data = arv_buffer_get_data (buf, &size);
+        g_autoptr (DsImage) img = ds_pixfmt_unpack (DS_PIXFMT_MONO16, data, size, (guint) arv_buffer_get_image_width (buf),
+                                                    (guint) arv_buffer_get_image_height (buf), 0, &error);
+        g_assert_no_error (error);
+        DsRegion region = { 0, 0, img->width, MIN (img->height, 40u) };
+        DsStripePhase sp;
+        g_assert_true (ds_stripe_phase_measure (img, period, &region, &sp, &error));
+        if (i == 0)
+          phase0 = sp.phase;
+        double want = ds_stripe_phase_diff ((double) (i % n) / n, 0);
+        g_assert_cmpfloat (fabs (ds_stripe_phase_diff (ds_stripe_phase_diff (sp.phase, phase0), want)), <, 0.5 / n);
+      }
+      arv_stream_push_buffer (stream, buf);
+      got++;
+      wait_us = 150000;
+    }
+  }
+  return got;
+}
+
+static void
+run_projector_sync (const char *const *extra, guint applies, guint expect_frames, gboolean check_phase)
+{
+  g_autoptr (GError) error = NULL;
+  g_autoptr (DsScene) scene = ds_scene_load (scene_path, &error);
+  g_assert_no_error (error);
+  Labsim l = { 0 };
+  labsim_start (&l, extra);
+  ArvCamera *cam = open_camera (&l);
+  arv_camera_set_pixel_format_from_string (cam, "Mono16", &error);
+  arv_camera_set_trigger (cam, "Line0", &error);
+  g_assert_no_error (error);
+  g_assert_cmpstr (arv_camera_get_trigger_source (cam, NULL), ==, "Line0");
+  ArvStream *stream = arv_camera_create_stream (cam, NULL, NULL, &error);
+  g_assert_no_error (error);
+  guint payload = arv_camera_get_payload (cam, &error);
+  for (guint i = 0; i < 4; i++)
+    arv_stream_push_buffer (stream, arv_buffer_new (payload, NULL));
+  arv_camera_start_acquisition (cam, &error);
+  g_assert_no_error (error);
+  g_autofree char *uri = g_strdup_printf ("tcp://127.0.0.1:%u", l.modbus_port);
+  DsIlluminator *ill = ds_modbus_illuminator_open (uri, 1, 300, &error);
+  g_assert_no_error (error);
+  const guint n = 4;
+  DsStripePattern pattern = { .kind = ds_scene_pattern_is_sine (scene) ? DS_STRIPES_SINE : DS_STRIPES_SQUARE,
+                              .period_px = ds_scene_period_px (scene), .duty = ds_scene_duty (scene),
+                              .black_level = ds_scene_black_level (scene), .intensity = 1, .n_phases = n };
+  g_assert_true (ill->ops->set_pattern (ill->backend, &pattern, &error));
+  /* set_pattern's own write is an apply too: its frame (dark) is not counted below. */
+  ArvBuffer *first = arv_stream_timeout_pop_buffer (stream, 1000000);
+  if (first)
+    arv_stream_push_buffer (stream, first);
+  /* A software command with a line source makes no frame. */
+  arv_camera_software_trigger (cam, &error);
+  g_assert_no_error (error);
+  g_assert_null (arv_stream_timeout_pop_buffer (stream, 300000));
+  guint got = frames_for_applies (stream, ill, applies, ds_scene_period_px (scene), n, check_phase);
+  g_test_message ("%u applies: %u frames (expected %u)", applies, got, expect_frames);
+  g_assert_cmpuint (got, ==, expect_frames);
+  ds_illuminator_close (ill);
+  arv_camera_stop_acquisition (cam, NULL);
+  g_object_unref (stream);
+  g_object_unref (cam);
+  labsim_stop (&l);
+}
+
+static void
+test_projector_sync (void)
+{
+  run_projector_sync (NULL, 8, 8, TRUE);
+  /* Line triggers counted from set_pattern's apply (1): applies 2..13 are line triggers 2..13;
+   * every 4th is missed (4, 8, 12), every 5th doubled (5, 10). */
+  const char *faults[] = { "--line-miss-every", "4", "--line-double-every", "5", NULL };
+  run_projector_sync (faults, 12, 12 - 3 + 2, FALSE);
+}
+
 int
 main (int argc, char **argv)
 {
@@ -312,6 +409,7 @@ main (int argc, char **argv)
   g_test_add_func ("/labsim/phase-over-the-wire", test_phase_over_the_wire);
   g_test_add_func ("/labsim/mono8", test_mono8);
   g_test_add_func ("/labsim/camera-vanishes", test_camera_vanishes);
+  g_test_add_func ("/labsim/projector-sync", test_projector_sync);
   int status = g_test_run ();
   arv_shutdown ();
   return status;
