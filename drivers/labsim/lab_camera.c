@@ -176,7 +176,7 @@ appear (DsLabCamera *c, GError **error)
     return FALSE;
   }
   ArvFakeCamera *fake = arv_gv_fake_camera_get_fake_camera (gv);
-  static const char vendor[32] = "descatter", model[32] = "labsim";
+  static const char vendor[32] = "descatter-labsim", model[32] = "labsim-camera";
   arv_fake_camera_write_memory (fake, 0x48 /* GigE Vision bootstrap: manufacturer name */, sizeof vendor, vendor);
   arv_fake_camera_write_memory (fake, 0x68 /* model name */, sizeof model, model);
   arv_fake_camera_write_register (fake, ARV_FAKE_CAMERA_REGISTER_SENSOR_WIDTH, c->sensor_width);
