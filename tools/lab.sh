@@ -3,6 +3,9 @@
 #   tools/lab.sh demo   install what is missing, build, run the main job
 #   tools/lab.sh test   install what is missing, build plain and sanitized, run every test
 #   tools/lab.sh deps   only install what is missing
+#   tools/lab.sh package  build the Debian packages into build-deb/ (debhelper, lintian)
+#   tools/lab.sh package-test  build them, install them with apt-get and test the installed
+#                              system with the source tree hidden (tools/package_test.sh)
 # Idempotent: packages already present are not touched, builds are incremental.
 set -euo pipefail
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -21,6 +24,7 @@ packages=(
   libtiff-dev libhdf5-dev libsoup-3.0-dev
   chromium python3-h5py python3-prometheus-client python3-websocket python3-tifffile
   scdoc groff-base systemd           # man pages, their check, systemd-analyze verify
+  debhelper dh-python lintian        # the Debian packages (tools/lab.sh package)
 )
 
 install_deps() {
@@ -42,8 +46,31 @@ build() { # build DIR [cmake args...]
   cmake --build "$dir" -j "$jobs"
 }
 
+package() { # the Debian packages, from a clean copy of the tracked tree, into build-deb/
+  local version changelog out=build-deb
+  version=$(sed -n 's/^project(descatter VERSION \([0-9.]*\).*/\1/p' CMakeLists.txt)
+  changelog=$(dpkg-parsechangelog -S Version)
+  if [ "$version" != "$changelog" ]; then
+    echo "lab.sh: debian/changelog says $changelog, CMakeLists.txt $version: add a changelog entry" >&2
+    return 1
+  fi
+  rm -rf "$out" && mkdir -p "$out/descatter-$version"
+  git ls-files -z --cached --others --exclude-standard |
+    tar --null -T - --ignore-failed-read -cf - 2>/dev/null | tar -xf - -C "$out/descatter-$version"
+  echo "== Debian packages (build-deb/) =="
+  (cd "$out/descatter-$version" &&
+     DESCATTER_GIT_DESCRIBE=$(git -C "$here" describe --always --dirty --tags) \
+     DEB_BUILD_OPTIONS="parallel=$jobs nocheck" dpkg-buildpackage -b -uc -us >../build.log 2>&1) ||
+    { tail -40 "$out/build.log"; echo "lab.sh: dpkg-buildpackage failed (build-deb/build.log)" >&2; return 1; }
+  ls "$out"/*.deb
+  # Every tag lintian still reports is justified in debian/*.lintian-overrides.
+  lintian --fail-on error,warning,info --display-info "$out"/*.changes
+}
+
 case "${1:-}" in
   deps) install_deps ;;
+  package) install_deps && package ;;
+  package-test) install_deps && package && tools/package_test.sh "$here"/build-deb ;;
   demo)
     install_deps
     build build -DDESCATTER_WERROR=ON
@@ -58,9 +85,12 @@ case "${1:-}" in
        ctest --output-on-failure -j "$jobs" -LE "nosan|bench")
     echo "== fuzzing: each libFuzzer target for 20 s (tools/fuzz.sh 600 for a long run) =="
     tools/fuzz.sh 20
+    package
+    echo "== the packages installed with apt-get, tested with the source tree hidden =="
+    tools/package_test.sh "$here"/build-deb
     build build -DDESCATTER_WERROR=ON
     echo "== test suite, plain build =="
     cd build && ctest --output-on-failure -j "$jobs"
     ;;
-  *) echo "usage: tools/lab.sh demo|test|deps" >&2; exit 2 ;;
+  *) echo "usage: tools/lab.sh demo|test|deps|package|package-test" >&2; exit 2 ;;
 esac
