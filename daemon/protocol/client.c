@@ -2,6 +2,8 @@
 
 #include <string.h>
 
+#include "daemon/protocol/json_text.h"
+
 struct DsClient {
   GSocketConnection *conn;
   GDataInputStream *in;
@@ -133,9 +135,12 @@ ds_client_call (DsClient *c, const char *cmd, JsonObject *args, DsClientEventFun
   }
   json_builder_end_object (b);
   g_autoptr (JsonNode) root = json_builder_get_root (b);
-  g_autofree char *text = json_to_string (root, FALSE);
-  g_autofree char *line = g_strconcat (text, "\n", NULL);
-  if (!g_output_stream_write_all (c->out, line, strlen (line), NULL, NULL, error)) {
+  GString *line = g_string_new (NULL);
+  ds_json_write (line, root);
+  g_string_append_c (line, '\n');
+  gboolean sent = g_output_stream_write_all (c->out, line->str, line->len, NULL, NULL, error);
+  g_string_free (line, TRUE);
+  if (!sent) {
     g_prefix_error (error, "sending %s: ", cmd);
     return NULL;
   }

@@ -1,5 +1,7 @@
 #include "daemon/protocol/protocol.h"
 
+#include "daemon/protocol/json_text.h"
+
 #include <math.h>
 #include <string.h>
 
@@ -52,39 +54,6 @@ ds_dtype_size (const char *dtype)
   return 0;
 }
 
-/* json-glib's parser recurses once per nesting level; a 64 KiB line of '[' would exhaust the
- * stack before any depth check on the tree could run. So the depth is measured on the raw
- * text first, skipping string contents. */
-static gboolean
-check_depth (const char *line, gsize len, GError **error)
-{
-  guint depth = 0;
-  gboolean in_string = FALSE, escaped = FALSE;
-  for (gsize i = 0; i < len; i++) {
-    char c = line[i];
-    if (in_string) {
-      if (escaped)
-        escaped = FALSE;
-      else if (c == '\\')
-        escaped = TRUE;
-      else if (c == '"')
-        in_string = FALSE;
-      continue;
-    }
-    if (c == '"')
-      in_string = TRUE;
-    else if (c == '{' || c == '[') {
-      if (++depth > DS_PROTOCOL_MAX_DEPTH) {
-        g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_TOO_DEEP,
-                     "JSON nested deeper than %d levels (at byte %zu)", DS_PROTOCOL_MAX_DEPTH, i);
-        return FALSE;
-      }
-    } else if ((c == '}' || c == ']') && depth > 0)
-      depth--;
-  }
-  return TRUE;
-}
-
 static JsonNode *
 parse_object_line (const char *line, gsize len, GError **error)
 {
@@ -93,8 +62,10 @@ parse_object_line (const char *line, gsize len, GError **error)
                  "line of %zu bytes exceeds the limit of %d", len, DS_PROTOCOL_MAX_LINE);
     return NULL;
   }
-  if (memchr (line, '\0', len)) {
-    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_JSON, "line contains a NUL byte");
+  const char *nul = memchr (line, '\0', len);
+  if (nul) {
+    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_JSON, "NUL byte at byte %zu",
+                 (gsize) (nul - line));
     return NULL;
   }
   const char *end = NULL;
@@ -103,22 +74,17 @@ parse_object_line (const char *line, gsize len, GError **error)
                  (gsize) (end - line));
     return NULL;
   }
-  if (!check_depth (line, len, error))
+  /* Strict (json_text.h): json-glib's parser accepts what JSON does not, and drops a second
+   * request on the same line without a word. */
+  g_autoptr (JsonNode) root = ds_json_parse_strict (line, len, DS_PROTOCOL_MAX_DEPTH, error);
+  if (!root)
     return NULL;
-  g_autoptr (JsonParser) parser = json_parser_new_immutable ();
-  g_autoptr (GError) local = NULL;
-  if (!json_parser_load_from_data (parser, line, (gssize) len, &local)) {
-    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_JSON, "not valid JSON: %s",
-                 local->message);
-    return NULL;
-  }
-  JsonNode *root = json_parser_get_root (parser);
-  if (!root || !JSON_NODE_HOLDS_OBJECT (root)) {
+  if (!JSON_NODE_HOLDS_OBJECT (root)) {
     g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_REQUEST,
                  "a message must be one JSON object");
     return NULL;
   }
-  return json_node_copy (root);
+  return g_steal_pointer (&root);
 }
 
 void
@@ -144,7 +110,9 @@ ds_request_parse (const char *line, gsize len, JsonNode **id_out, GError **error
     return NULL;
   JsonObject *obj = json_node_get_object (root);
   JsonNode *id = json_object_get_member (obj, "id");
-  if (id && !JSON_NODE_HOLDS_VALUE (id) && !JSON_NODE_HOLDS_NULL (id)) {
+  GType id_type = id && JSON_NODE_HOLDS_VALUE (id) ? json_node_get_value_type (id) : G_TYPE_INVALID;
+  if (id && !JSON_NODE_HOLDS_NULL (id) && id_type != G_TYPE_INT64 && id_type != G_TYPE_DOUBLE &&
+      id_type != G_TYPE_STRING) {
     g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_REQUEST,
                  "\"id\" must be a number or a string");
     return NULL;
@@ -324,11 +292,10 @@ static char *
 finish_line (JsonBuilder *b, gsize *len)
 {
   g_autoptr (JsonNode) root = json_builder_get_root (b);
-  g_autoptr (JsonGenerator) gen = json_generator_new ();
-  json_generator_set_root (gen, root);
+  /* json_text.h: every string escaped, so the line holds no raw newline and is valid JSON
+   * whatever a client put in its id or a camera in its vendor name. */
   gsize n = 0;
-  char *text = json_generator_to_data (gen, &n);
-  /* Compact output never contains a raw newline (strings escape it), so one line it is. */
+  char *text = ds_json_to_text (root, &n);
   char *line = g_realloc (text, n + 2);
   line[n] = '\n';
   line[n + 1] = '\0';

@@ -128,6 +128,131 @@ test_typed_arguments (void)
   g_assert_nonnull (strstr (error->message, "frac"));
 }
 
+/* Issue 10: what a hostile client sent and json-glib's lenient parser let through. Each line
+ * is refused with the code docs/protocol.md gives, never read as something else. */
+static void
+test_request_strict_json (void)
+{
+  struct { const char *line; DsProtocolError code; } cases[] = {
+    /* a second request on the same line was silently dropped */
+    { "{\"cmd\":\"status\"}{\"cmd\":\"stop\"}", DS_PROTOCOL_ERROR_BAD_JSON },
+    { "{\"cmd\":\"status\"} {\"cmd\":\"stop\"}", DS_PROTOCOL_ERROR_BAD_JSON },
+    { "{\"cmd\":\"status\"} x", DS_PROTOCOL_ERROR_BAD_JSON },
+    /* single-quoted pseudo-JSON was accepted */
+    { "{'cmd':'status'}", DS_PROTOCOL_ERROR_BAD_JSON },
+    { "{\"cmd\":'status'}", DS_PROTOCOL_ERROR_BAD_JSON },
+    /* 1e999 came back as inf.0 */
+    { "{\"id\":1e999,\"cmd\":\"status\"}", DS_PROTOCOL_ERROR_BAD_JSON },
+    { "{\"id\":-1e400,\"cmd\":\"status\"}", DS_PROTOCOL_ERROR_BAD_JSON },
+    /* json-glib read 99999999999999999999 as -1 */
+    { "{\"id\":99999999999999999999,\"cmd\":\"status\"}", DS_PROTOCOL_ERROR_BAD_JSON },
+    /* lone surrogates */
+    { "{\"id\":\"\\ud800\",\"cmd\":\"status\"}", DS_PROTOCOL_ERROR_BAD_JSON },
+    { "{\"id\":\"\\udc00x\",\"cmd\":\"status\"}", DS_PROTOCOL_ERROR_BAD_JSON },
+    { "{\"id\":\"\\ud800\\u0041\",\"cmd\":\"status\"}", DS_PROTOCOL_ERROR_BAD_JSON },
+    /* raw control characters inside strings */
+    { "{\"id\":\"a\tb\",\"cmd\":\"status\"}", DS_PROTOCOL_ERROR_BAD_JSON },
+    { "{\"id\":\"a\x01" "b\",\"cmd\":\"status\"}", DS_PROTOCOL_ERROR_BAD_JSON },
+    /* an embedded NUL ran the prefix ("maxmin") */
+    { "{\"cmd\":\"capture\",\"args\":{\"estimator\":\"maxmin\\u0000junk\"}}", DS_PROTOCOL_ERROR_BAD_JSON },
+    { "{\"cmd\":\"status\\u0000x\"}", DS_PROTOCOL_ERROR_BAD_JSON },
+    /* ambiguous or lenient forms */
+    { "{\"cmd\":\"status\",\"cmd\":\"stop\"}", DS_PROTOCOL_ERROR_BAD_JSON },
+    { "{\"cmd\":\"capture\",\"args\":{\"phases\":8,\"phases\":4}}", DS_PROTOCOL_ERROR_BAD_JSON },
+    { "/* c */{\"cmd\":\"status\"}", DS_PROTOCOL_ERROR_BAD_JSON },
+    { "{\"cmd\":\"capture\",\"args\":{\"phases\":0x10}}", DS_PROTOCOL_ERROR_BAD_JSON },
+    { "{\"cmd\":\"capture\",\"args\":{\"phases\":010}}", DS_PROTOCOL_ERROR_BAD_JSON },
+    { "{\"cmd\":\"capture\",\"args\":{\"gain_db\":.5}}", DS_PROTOCOL_ERROR_BAD_JSON },
+    { "{\"cmd\":\"capture\",\"args\":{\"gain_db\":+1}}", DS_PROTOCOL_ERROR_BAD_JSON },
+    { "{\"cmd\":\"capture\",\"args\":{\"gain_db\":NaN}}", DS_PROTOCOL_ERROR_BAD_JSON },
+    { "{\"cmd\":\"capture\",\"args\":{\"gain_db\":1.}}", DS_PROTOCOL_ERROR_BAD_JSON },
+    { "{\"cmd\":\"capture\",\"args\":{\"gain_db\":1e}}", DS_PROTOCOL_ERROR_BAD_JSON },
+    { "{\"cmd\":\"capture\",}", DS_PROTOCOL_ERROR_BAD_JSON },
+    { "{\"cmd\":\"capture\",\"args\":{\"outputs\":[\"mask\",]}}", DS_PROTOCOL_ERROR_BAD_JSON },
+    { "{cmd:\"status\"}", DS_PROTOCOL_ERROR_BAD_JSON },
+    { "{\"cmd\":\"st\\x41tus\"}", DS_PROTOCOL_ERROR_BAD_JSON },
+    { "{\"cmd\":\"status\\u12\"}", DS_PROTOCOL_ERROR_BAD_JSON },
+    { "{\"cmd\":\"status", DS_PROTOCOL_ERROR_BAD_JSON },
+    { "{\"cmd\":tru}", DS_PROTOCOL_ERROR_BAD_JSON },
+    { "", DS_PROTOCOL_ERROR_BAD_JSON },
+    { "   ", DS_PROTOCOL_ERROR_BAD_JSON },
+    /* valid JSON, not a request */
+    { "\"status\"", DS_PROTOCOL_ERROR_BAD_REQUEST },
+    { "{\"id\":true,\"cmd\":\"status\"}", DS_PROTOCOL_ERROR_BAD_REQUEST },
+    { "{\"id\":[1],\"cmd\":\"status\"}", DS_PROTOCOL_ERROR_BAD_REQUEST },
+  };
+  for (guint i = 0; i < G_N_ELEMENTS (cases); i++) {
+    g_autoptr (GError) error = NULL;
+    JsonNode *id = NULL;
+    DsRequest *req = parse (cases[i].line, &id, &error);
+    if (req || !g_error_matches (error, DS_PROTOCOL_ERROR, (gint) cases[i].code))
+      g_error ("line %u <%s>: expected %s, got %s", i, cases[i].line,
+               ds_protocol_error_name (cases[i].code),
+               req ? "accepted" : ds_protocol_error_name ((DsProtocolError) error->code));
+    if (id)
+      json_node_unref (id);
+  }
+  /* What strict JSON allows still passes: escapes, surrogate pairs, exponents, whitespace. */
+  g_autoptr (GError) error = NULL;
+  g_autoptr (DsRequest) ok = parse (" {\"id\" : \"\\ud83d\\ude00\\t\\u00e9\\/\" ,\r\n\"cmd\":\"st\\u0061tus\","
+                                    "\"args\":{\"a\":-0.5e+2,\"b\":[],\"c\":{},\"d\":null,\"e\":false}} ",
+                                    NULL, &error);
+  g_assert_no_error (error);
+  g_assert_cmpstr (ok->cmd, ==, "status");
+  g_assert_cmpstr (json_node_get_string (ok->id), ==, "\xf0\x9f\x98\x80\t\xc3\xa9/");
+  g_assert_cmpfloat (json_object_get_double_member (ok->args, "a"), ==, -50.0);
+  g_assert_false (json_object_get_boolean_member (ok->args, "e"));
+}
+
+/* Every reply is valid JSON whatever the request's id holds: the reply is read back with the
+ * same strict parser and must give the id back unchanged. */
+static void
+test_reply_always_valid_json (void)
+{
+  const char *const ids[] = {
+    "\"\\u0001\\u001f\\u007f\\b\\f\\n\\r\\t\"", /* control characters, escaped in the request */
+    "\"\\\"\\\\ quote and backslash\"",
+    "\"\\u2028\\u2029 line separators\"",
+    "\"\\ud83d\\ude00 astral\"",
+    "-9223372036854775808",
+    "9223372036854775807",
+    "1.7976931348623157e308",
+    "5e-324",
+    "0.1",
+    "-0.0",
+    "3.0",
+  };
+  for (guint i = 0; i < G_N_ELEMENTS (ids); i++) {
+    g_autofree char *line = g_strdup_printf ("{\"id\":%s,\"cmd\":\"status\"}", ids[i]);
+    g_autoptr (GError) error = NULL;
+    g_autoptr (DsRequest) req = parse (line, NULL, &error);
+    g_assert_no_error (error);
+    gsize len = 0;
+    g_autofree char *ok = ds_reply_build_ok (req->id, NULL, NULL, 0, &len);
+    g_autoptr (GError) e = g_error_new (DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_FAILED, "x\x01y");
+    gsize elen = 0;
+    g_autofree char *err = ds_reply_build_error (req->id, e, &elen);
+    const char *lines[] = { ok, err };
+    gsize lens[] = { len, elen };
+    for (guint k = 0; k < 2; k++) {
+      g_assert_null (memchr (lines[k], '\n', lens[k] - 1));
+      for (gsize j = 0; j + 1 < lens[k]; j++)
+        g_assert_cmpuint ((guchar) lines[k][j], >=, 0x20);
+      g_autoptr (DsReply) r = ds_reply_parse (lines[k], lens[k] - 1, &error);
+      g_assert_no_error (error);
+      g_assert_true (json_node_equal (r->id, req->id));
+    }
+  }
+  /* Invalid UTF-8 in a message (a camera's vendor string) becomes U+FFFD, not invalid JSON. */
+  g_autoptr (GError) e = g_error_new (DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_DEVICE, "camera \xff\xfe");
+  gsize len = 0;
+  g_autofree char *line = ds_reply_build_error (NULL, e, &len);
+  g_autoptr (GError) error = NULL;
+  g_autoptr (DsReply) r = ds_reply_parse (line, len - 1, &error);
+  g_assert_no_error (error);
+  g_assert_cmpstr (r->error_message, ==, "camera \xef\xbf\xbd\xef\xbf\xbd");
+}
+
 static void
 test_reply_round_trip (void)
 {
@@ -201,6 +326,8 @@ main (int argc, char **argv)
   g_test_add_func ("/protocol/request/depth", test_depth_counts_only_outside_strings);
   g_test_add_func ("/protocol/request/limits", test_line_limit_and_bytes);
   g_test_add_func ("/protocol/request/typed-arguments", test_typed_arguments);
+  g_test_add_func ("/protocol/request/strict-json", test_request_strict_json);
+  g_test_add_func ("/protocol/reply/always-valid-json", test_reply_always_valid_json);
   g_test_add_func ("/protocol/reply/round-trip", test_reply_round_trip);
   g_test_add_func ("/protocol/reply/error-and-event", test_error_reply_and_event);
   g_test_add_func ("/protocol/reply/payload-consistency", test_reply_payload_consistency);
