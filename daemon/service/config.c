@@ -34,7 +34,14 @@ static const KeySpec keys[] = {
   { "daemon", "tcp-token-file", K_STRING, F (tcp_token_file), NULL, 0, 0, NULL,
     "file holding the token TCP clients must send in hello" },
   { "daemon", "max-clients", K_UINT, F (max_clients), "32", 1, 1024, NULL,
-    "connections served at once" },
+    "connections served at once; when full, the connection quiet longest makes room (docs/protocol.md)" },
+  { "daemon", "max-tcp-clients", K_UINT, F (max_tcp_clients), "0", 0, 1023, NULL,
+    "of which TCP at most, so that local clients always find room; 0 = half of max-clients" },
+  { "daemon", "idle-timeout-ms", K_UINT, F (idle_timeout_ms), "60000", 0, 86400000, NULL,
+    "a connection without a complete request for this long is closed (subscribers and "
+    "connections waiting for a reply excepted); 0 = never" },
+  { "daemon", "auth-timeout-ms", K_UINT, F (auth_timeout_ms), "5000", 100, 600000, NULL,
+    "a TCP connection that owes the token must send hello within this time" },
   { "daemon", "max-queued-bytes", K_UINT64, F (max_queued_bytes), "268435456", 65536, 17179869184.0, NULL,
     "bytes queued per client before its stream results are dropped" },
   { "daemon", "spool-dir", K_STRING, F (spool_dir), NULL, 0, 0, NULL,
@@ -306,6 +313,9 @@ check_consistency (const DsConfig *c, const char *name, GError **error)
     INCONSISTENT ("[trigger] backend = gpio needs [trigger] gpio-line and [illuminator] gpio-chip");
   if (strcmp (c->trigger_backend, "gpio") == 0 && strcmp (c->camera_trigger, "software") == 0)
     INCONSISTENT ("[trigger] backend = gpio pulses a line, so [camera] trigger must name a line, not software");
+  if (c->max_tcp_clients && c->max_tcp_clients >= c->max_clients)
+    INCONSISTENT ("[daemon] max-tcp-clients = %u must be below max-clients = %u, so that local "
+                  "clients always find room", c->max_tcp_clients, c->max_clients);
   if (strcmp (c->estimator, "sine") == 0 && c->phases < 3)
     INCONSISTENT ("[acquisition] estimator = sine needs phases >= 3 (got %u)", c->phases);
   if (c->spool_dir && (!c->spool_formats || !*c->spool_formats))

@@ -25,6 +25,9 @@ typedef struct {
   char *tcp_listen;       /* "host:port" or NULL (off) */
   char *tcp_token_file;
   guint max_clients;
+  guint max_tcp_clients;  /* 0: half of max_clients */
+  guint idle_timeout_ms;  /* 0: never */
+  guint auth_timeout_ms;
   guint64 max_queued_bytes;
   char *spool_dir;        /* NULL: no recording */
   guint64 spool_max_bytes;

@@ -24,6 +24,7 @@ struct DsConnection {
 
   GQueue out_queue;        /* GBytes, in order */
   gsize queued;            /* bytes in out_queue */
+  gint64 progress_us;      /* last write completed, or output queued into an empty queue */
   gboolean writing;
   gboolean close_after_flush;
   gboolean peer_eof;
@@ -103,6 +104,26 @@ ds_connection_dropped (const DsConnection *conn)
 }
 
 gboolean
+ds_connection_is_busy (const DsConnection *conn)
+{
+  return conn->holds > 0 || conn->writing || conn->queued > 0;
+}
+
+gint64
+ds_connection_stalled_us (const DsConnection *conn)
+{
+  return conn->queued ? g_get_monotonic_time () - conn->progress_us : 0;
+}
+
+gboolean
+ds_connection_has_unread_input (const DsConnection *conn)
+{
+  if (conn->closed || conn->peer_eof || !G_IS_SOCKET_CONNECTION (conn->stream))
+    return FALSE;
+  return g_socket_get_available_bytes (g_socket_connection_get_socket (G_SOCKET_CONNECTION (conn->stream))) > 0;
+}
+
+gboolean
 ds_connection_is_closed (const DsConnection *conn)
 {
   return conn->closed;
@@ -136,6 +157,7 @@ ds_connection_close (DsConnection *conn)
                        TRUE, NULL);
   /* The connection's own context, not the global default: the server may run elsewhere. */
   g_autoptr (GSource) idle = g_idle_source_new ();
+  g_source_set_priority (idle, G_PRIORITY_DEFAULT);
   g_source_set_callback (idle, notify_closed_idle, ds_connection_ref (conn),
                          (GDestroyNotify) ds_connection_unref);
   g_source_attach (idle, conn->context);
@@ -181,6 +203,7 @@ write_done (GObject *source, GAsyncResult *res, gpointer data)
   GBytes *head = g_queue_pop_head (&c->out_queue);
   gsize size = g_bytes_get_size (head);
   c->queued -= (gsize) n;
+  c->progress_us = g_get_monotonic_time ();
   if ((gsize) n < size) /* partial write: keep the rest at the head */
     g_queue_push_head (&c->out_queue, g_bytes_new_from_bytes (head, (gsize) n, size - (gsize) n));
   g_bytes_unref (head);
@@ -222,6 +245,8 @@ ds_connection_send (DsConnection *conn, GBytes *line, GBytes *const *payloads, g
     ds_connection_close (conn);
     return FALSE;
   }
+  if (conn->queued == 0)
+    conn->progress_us = g_get_monotonic_time ();
   g_queue_push_tail (&conn->out_queue, g_bytes_ref (line));
   for (guint i = 0; i < n_payloads; i++)
     if (g_bytes_get_size (payloads[i]) > 0)

@@ -38,7 +38,9 @@ void ds_connection_start (DsConnection *conn);
 gboolean ds_connection_send (DsConnection *conn, GBytes *line, GBytes *const *payloads,
                              guint n_payloads, gboolean droppable);
 
-/* Closes now; queued data is discarded. on_closed runs (once) from an idle callback. */
+/* Closes now; queued data is discarded. on_closed runs (once) from an idle callback of the
+ * connection's context (at default priority, so a freed place is seen before the next accept
+ * is processed). */
 void ds_connection_close (DsConnection *conn);
 
 /* Closes once everything queued so far has been written (e.g. after a fatal error reply). */
@@ -51,6 +53,13 @@ void ds_connection_hold (DsConnection *conn);
 void ds_connection_release (DsConnection *conn);
 
 gsize ds_connection_queued_bytes (const DsConnection *conn);
+/* TRUE while a request is being answered (a hold) or output waits to be written: such a
+ * connection is not idle, whatever time passed since its last request. */
+gboolean ds_connection_is_busy (const DsConnection *conn);
+/* How long queued output has waited without a byte written (µs); 0 when nothing waits. */
+gint64 ds_connection_stalled_us (const DsConnection *conn);
+/* TRUE when the peer has sent bytes not read yet (a request the server has not seen). */
+gboolean ds_connection_has_unread_input (const DsConnection *conn);
 guint64 ds_connection_dropped (const DsConnection *conn);
 gboolean ds_connection_is_closed (const DsConnection *conn);
 

@@ -14,12 +14,17 @@
 typedef struct {
   GMainLoop *loop;
   DsService *service;
+  gboolean stopping;
 } Signals;
 
 static gboolean
 on_term (gpointer data)
 {
   Signals *s = data;
+  /* A second signal while replies are still being written changes nothing. */
+  if (s->stopping)
+    return G_SOURCE_CONTINUE;
+  s->stopping = TRUE;
   g_message ("stopping");
   sd_notify (0, "STOPPING=1");
   g_main_loop_quit (s->loop);
@@ -31,6 +36,8 @@ on_hup (gpointer data)
 {
   Signals *s = data;
   g_autoptr (GError) error = NULL;
+  if (s->stopping)
+    return G_SOURCE_CONTINUE;
   sd_notify (0, "RELOADING=1");
   if (ds_service_reload (s->service, &error))
     g_message ("configuration reloaded");
@@ -98,7 +105,7 @@ main (int argc, char **argv)
     fprintf (stderr, "descatterd: %s\n", error->message);
     return 1;
   }
-  Signals sig = { loop, service };
+  Signals sig = { loop, service, FALSE };
   guint s1 = g_unix_signal_add (SIGTERM, on_term, &sig);
   guint s2 = g_unix_signal_add (SIGINT, on_term, &sig);
   guint s3 = g_unix_signal_add (SIGHUP, on_hup, &sig);
@@ -108,10 +115,13 @@ main (int argc, char **argv)
     printf ("descatterd: listening on tcp port %u\n", ds_service_tcp_port (service));
   fflush (stdout);
   g_main_loop_run (loop);
+  sig.stopping = TRUE;
+  gboolean failed = ds_service_devices_failed (service);
+  /* The handlers stay until the service is gone: stopping runs the main context to write the
+   * last replies, and a second SIGTERM meanwhile must not kill the process with them unsent. */
+  g_clear_pointer (&service, ds_service_free);
   g_source_remove (s1);
   g_source_remove (s2);
   g_source_remove (s3);
-  gboolean failed = ds_service_devices_failed (service);
-  g_clear_pointer (&service, ds_service_free);
   return failed ? 1 : 0;
 }

@@ -14,19 +14,33 @@ typedef struct {
   gboolean subscribed;
   gboolean authenticated;
   gboolean is_tcp;
+  gboolean leaving;     /* being closed by the server (timeout, eviction): its place is free */
+  gint64 accepted_us;
+  gint64 active_us;     /* last complete request, or last moment it was busy being answered */
+  gint64 leaving_us;
 } ClientState;
+
+/* How long a connection the server is closing may take to read its last error line. */
+#define LEAVING_GRACE_US (2 * G_USEC_PER_SEC)
+/* How long, at stop, output may wait without a byte going out before its peer is given up. */
+#define DRAIN_STALL_US (500 * 1000)
 
 struct DsServer {
   DsServerLimits limits;
   DsServerRequestFunc on_request;
   gpointer user_data;
   GSocketService *service;
+  GMainContext *context; /* where the server was created: connections, sweep, drain */
+  GSource *sweep;
   GHashTable *clients; /* DsConnection* -> NULL (set); holds a reference */
   guint16 tcp_port;
   char *unix_path;     /* removed on free when we created it */
   guint64 seq;
+  gboolean draining;
   DsServerStats stats;
 };
+
+static gboolean sweep_connections (gpointer data);
 
 DsServer *
 ds_server_new (const DsServerLimits *limits, DsServerRequestFunc on_request, gpointer user_data)
@@ -44,16 +58,36 @@ ds_server_new (const DsServerLimits *limits, DsServerRequestFunc on_request, gpo
   g_socket_listener_set_backlog (G_SOCKET_LISTENER (s->service), 256);
   s->clients = g_hash_table_new_full (g_direct_hash, g_direct_equal,
                                       (GDestroyNotify) ds_connection_unref, NULL);
+  if (s->limits.max_tcp_clients == 0 || s->limits.max_tcp_clients > s->limits.max_clients)
+    s->limits.max_tcp_clients = MAX (1, s->limits.max_clients / 2);
+  if (s->limits.evict_quiet_ms == 0)
+    s->limits.evict_quiet_ms = 1000;
+  s->context = g_main_context_ref_thread_default ();
+  /* One timer for all connections; its period bounds how late a timeout is noticed. */
+  guint shortest = 1000;
+  if (s->limits.idle_timeout_ms)
+    shortest = MIN (shortest, s->limits.idle_timeout_ms);
+  if (s->limits.auth_timeout_ms)
+    shortest = MIN (shortest, s->limits.auth_timeout_ms);
+  s->sweep = g_timeout_source_new (CLAMP (shortest / 4, 20, 250));
+  g_source_set_callback (s->sweep, sweep_connections, s, NULL);
+  g_source_attach (s->sweep, s->context);
   return s;
 }
 
-void
-ds_server_shutdown (DsServer *server)
+static void
+stop_listening (DsServer *server)
 {
   if (server->service) {
     g_socket_service_stop (server->service);
     g_socket_listener_close (G_SOCKET_LISTENER (server->service));
   }
+}
+
+void
+ds_server_shutdown (DsServer *server)
+{
+  stop_listening (server);
   GList *conns = g_hash_table_get_keys (server->clients);
   for (GList *l = conns; l; l = l->next)
     ds_connection_close (l->data);
@@ -76,6 +110,9 @@ ds_server_free (DsServer *server)
   g_list_free (conns);
   g_hash_table_destroy (server->clients);
   g_clear_object (&server->service);
+  g_source_destroy (server->sweep);
+  g_source_unref (server->sweep);
+  g_main_context_unref (server->context);
   if (server->unix_path)
     g_unlink (server->unix_path);
   g_free (server->unix_path);
@@ -159,9 +196,18 @@ handle_hello (DsServer *s, DsConnection *conn, ClientState *st, DsRequest *req)
     ds_server_reply_error (s, conn, req->id, error);
     return;
   }
+  for (guint i = 0; allowed[i]; i++) {
+    JsonNode *v = json_object_get_member (req->args, allowed[i]);
+    if (v && (!JSON_NODE_HOLDS_VALUE (v) || json_node_get_value_type (v) != G_TYPE_STRING)) {
+      g_set_error (&error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT, "hello: \"%s\" must be a string",
+                   allowed[i]);
+      ds_server_reply_error (s, conn, req->id, error);
+      return;
+    }
+  }
   if (st->is_tcp && s->limits.token) {
     JsonNode *t = json_object_get_member (req->args, "token");
-    const char *given = t && JSON_NODE_HOLDS_VALUE (t) ? json_node_get_string (t) : NULL;
+    const char *given = t ? json_node_get_string (t) : NULL;
     if (!token_equal (s->limits.token, given)) {
       g_set_error (&error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_UNAUTHORIZED, "hello: wrong or missing token");
       ds_server_reply_error (s, conn, req->id, error);
@@ -196,8 +242,6 @@ handle_subscription (DsServer *s, DsConnection *conn, ClientState *st, DsRequest
     ds_server_reply_error (s, conn, req->id, error);
     return;
   }
-  if (st->subscribed != on)
-    s->stats.subscribers += on ? 1 : (guint) -1;
   st->subscribed = on;
   g_autoptr (JsonBuilder) b = json_builder_new ();
   json_builder_begin_object (b);
@@ -210,13 +254,129 @@ handle_subscription (DsServer *s, DsConnection *conn, ClientState *st, DsRequest
   ds_server_reply_ok (s, conn, req->id, result, NULL, NULL, 0);
 }
 
+/* ---- the connection policy (docs/protocol.md, "Connections") ---- */
+
+static gboolean
+holds_place (DsConnection *conn, const ClientState *st)
+{
+  return st && !st->leaving && !ds_connection_is_closed (conn);
+}
+
+static void
+count_places (DsServer *s, guint *all, guint *tcp)
+{
+  *all = *tcp = 0;
+  GHashTableIter it;
+  gpointer key;
+  g_hash_table_iter_init (&it, s->clients);
+  while (g_hash_table_iter_next (&it, &key, NULL)) {
+    ClientState *st = ds_connection_get_data (key);
+    if (!holds_place (key, st))
+      continue;
+    (*all)++;
+    *tcp += st->is_tcp;
+  }
+}
+
+/* Says why on the connection (an error line with a null id), then closes it once that is
+ * written; its place is free at once. */
+static void
+dismiss (DsConnection *conn, ClientState *st, DsProtocolError code, const char *why)
+{
+  g_autoptr (GError) error = g_error_new_literal (DS_PROTOCOL_ERROR, code, why);
+  gsize len = 0;
+  char *line = ds_reply_build_error (NULL, error, &len);
+  g_autoptr (GBytes) b = g_bytes_new_take (line, len);
+  ds_connection_send (conn, b, NULL, 0, FALSE);
+  st->leaving = TRUE;
+  st->leaving_us = g_get_monotonic_time ();
+  st->subscribed = FALSE;
+  ds_connection_close_after_flush (conn);
+}
+
+static gboolean
+sweep_connections (gpointer data)
+{
+  DsServer *s = data;
+  gint64 now = g_get_monotonic_time ();
+  GHashTableIter it;
+  gpointer key;
+  g_hash_table_iter_init (&it, s->clients);
+  while (g_hash_table_iter_next (&it, &key, NULL)) {
+    DsConnection *conn = key;
+    ClientState *st = ds_connection_get_data (conn);
+    if (!st || ds_connection_is_closed (conn))
+      continue;
+    if (st->leaving) {
+      /* It does not read its last line: it gets no longer than this. */
+      if (now - st->leaving_us > LEAVING_GRACE_US)
+        ds_connection_close (conn);
+      continue;
+    }
+    if (ds_connection_is_busy (conn)) {
+      st->active_us = now;
+      continue;
+    }
+    if (st->is_tcp && !st->authenticated && s->limits.auth_timeout_ms &&
+        now - st->accepted_us > (gint64) s->limits.auth_timeout_ms * 1000) {
+      g_autofree char *why = g_strdup_printf ("no hello with the token within %u ms: closed",
+                                              s->limits.auth_timeout_ms);
+      s->stats.timed_out++;
+      dismiss (conn, st, DS_PROTOCOL_ERROR_UNAUTHORIZED, why);
+      continue;
+    }
+    if (!st->subscribed && s->limits.idle_timeout_ms &&
+        now - st->active_us > (gint64) s->limits.idle_timeout_ms * 1000) {
+      g_autofree char *why = g_strdup_printf ("no complete request for %u ms (idle-timeout-ms): closed",
+                                              s->limits.idle_timeout_ms);
+      s->stats.timed_out++;
+      dismiss (conn, st, DS_PROTOCOL_ERROR_LIMIT, why);
+    }
+  }
+  return G_SOURCE_CONTINUE;
+}
+
+/* The connection to close so that a newcomer fits, or NULL: one that owes the token, else the
+ * one quiet longest; never a subscriber, one being answered, or one quiet for less than
+ * evict_quiet_ms (a newcomer gets that long to send its first request). A TCP newcomer only
+ * ever displaces TCP connections. */
+static DsConnection *
+find_room (DsServer *s, gboolean newcomer_tcp)
+{
+  gint64 now = g_get_monotonic_time ();
+  gint64 quiet_us = (gint64) s->limits.evict_quiet_ms * 1000;
+  DsConnection *unauthenticated = NULL, *quiet = NULL;
+  gint64 oldest_accept = G_MAXINT64, oldest_active = G_MAXINT64;
+  GHashTableIter it;
+  gpointer key;
+  g_hash_table_iter_init (&it, s->clients);
+  while (g_hash_table_iter_next (&it, &key, NULL)) {
+    ClientState *st = ds_connection_get_data (key);
+    if (!holds_place (key, st) || (newcomer_tcp && !st->is_tcp) || ds_connection_is_busy (key))
+      continue;
+    if (st->is_tcp && !st->authenticated && now - st->accepted_us >= quiet_us &&
+        st->accepted_us < oldest_accept) {
+      oldest_accept = st->accepted_us;
+      unauthenticated = key;
+    }
+    if (!st->subscribed && now - st->active_us >= quiet_us && st->active_us < oldest_active) {
+      oldest_active = st->active_us;
+      quiet = key;
+    }
+  }
+  return unauthenticated ? unauthenticated : quiet;
+}
+
 static void
 on_line (DsConnection *conn, const char *line, gsize len, gboolean too_long, gpointer user_data)
 {
   ClientState *st = user_data;
   DsServer *s = st->server;
-  if (!s)
+  if (!s || st->leaving)
     return;
+  if (!too_long && len == 0)
+    return; /* blank lines are ignored: not answered, and not a sign of life either */
+  st->active_us = g_get_monotonic_time ();
   s->stats.requests++;
   g_autoptr (GError) error = NULL;
   if (too_long) {
@@ -225,14 +385,18 @@ on_line (DsConnection *conn, const char *line, gsize len, gboolean too_long, gpo
     ds_server_reply_error (s, conn, NULL, error);
     return;
   }
-  if (len == 0)
-    return; /* blank lines are keep-alives */
   JsonNode *id = NULL;
   g_autoptr (DsRequest) req = ds_request_parse (line, len, &id, &error);
   if (!req) {
     ds_server_reply_error (s, conn, id, error);
     if (id)
       json_node_unref (id);
+    return;
+  }
+  if (s->draining) {
+    g_set_error (&error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_CANCELLED, "%s: the daemon is stopping",
+                 req->cmd);
+    ds_server_reply_error (s, conn, req->id, error);
     return;
   }
   if (strcmp (req->cmd, "hello") == 0) {
@@ -259,10 +423,7 @@ on_closed (DsConnection *conn, gpointer user_data)
   DsServer *s = st->server;
   if (!s)
     return;
-  if (st->subscribed)
-    s->stats.subscribers--;
   st->subscribed = FALSE;
-  s->stats.clients--;
   g_hash_table_remove (s->clients, conn);
 }
 
@@ -278,6 +439,7 @@ on_incoming (GSocketService *service, GSocketConnection *sc, GObject *source, gp
   ClientState *st = g_new0 (ClientState, 1);
   st->server = s;
   st->is_tcp = is_tcp;
+  st->accepted_us = st->active_us = g_get_monotonic_time ();
   /* UNIX clients were let in by the socket's file permissions; TCP ones need the token when
    * one is configured. */
   st->authenticated = !(is_tcp && s->limits.token);
@@ -285,20 +447,79 @@ on_incoming (GSocketService *service, GSocketConnection *sc, GObject *source, gp
   DsConnection *conn = ds_connection_new (G_IO_STREAM (sc), &cl, on_line, on_closed, st);
   ds_connection_set_data (conn, st, g_free);
   s->stats.accepted++;
-  if (s->stats.clients >= s->limits.max_clients) {
-    s->stats.refused++;
-    g_autoptr (GError) error = g_error_new (DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_LIMIT,
-                                            "too many clients (limit %u)", s->limits.max_clients);
-    ds_server_reply_error (NULL, conn, NULL, error);
-    st->server = NULL;
-    ds_connection_close_after_flush (conn);
-    ds_connection_unref (conn);
-    return TRUE;
+  guint all, tcp;
+  count_places (s, &all, &tcp);
+  if (all >= s->limits.max_clients || (is_tcp && tcp >= s->limits.max_tcp_clients)) {
+    DsConnection *victim = find_room (s, is_tcp);
+    if (!victim) {
+      s->stats.refused++;
+      g_autoptr (GError) error = g_error_new (
+          DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_LIMIT,
+          "too many clients (%u of max-clients %u, %u of max-tcp-clients %u), none quiet for %u ms to make room",
+          all, s->limits.max_clients, tcp, s->limits.max_tcp_clients, s->limits.evict_quiet_ms);
+      ds_server_reply_error (NULL, conn, NULL, error);
+      st->server = NULL;
+      ds_connection_close_after_flush (conn);
+      ds_connection_unref (conn);
+      return TRUE;
+    }
+    ClientState *vst = ds_connection_get_data (victim);
+    g_autofree char *why = g_strdup_printf (
+        "closed to make room for a new connection (quiet for %.1f s while the server was full)",
+        (double) (g_get_monotonic_time () - vst->active_us) / 1e6);
+    s->stats.evicted++;
+    dismiss (victim, vst, DS_PROTOCOL_ERROR_LIMIT, why);
   }
-  s->stats.clients++;
   g_hash_table_add (s->clients, conn);
   ds_connection_start (conn);
   return TRUE;
+}
+
+static gboolean
+keep_waking (gpointer data)
+{
+  (void) data;
+  return G_SOURCE_CONTINUE;
+}
+
+void
+ds_server_begin_stop (DsServer *server)
+{
+  server->draining = TRUE;
+}
+
+void
+ds_server_drain (DsServer *server, guint timeout_ms)
+{
+  server->draining = TRUE;
+  gint64 deadline = g_get_monotonic_time () + (gint64) timeout_ms * 1000;
+  /* Wakes the blocking iteration below even when no connection makes progress. */
+  g_autoptr (GSource) wake = g_timeout_source_new (20);
+  g_source_set_callback (wake, keep_waking, NULL, NULL);
+  g_source_attach (wake, server->context);
+  for (;;) {
+    /* Everything ready now: accepts from the backlog, requests already sent, writes. */
+    while (g_main_context_iteration (server->context, FALSE))
+      ;
+    gboolean open = FALSE;
+    GHashTableIter it;
+    gpointer key;
+    g_hash_table_iter_init (&it, server->clients);
+    while (g_hash_table_iter_next (&it, &key, NULL)) {
+      DsConnection *conn = key;
+      if (!ds_connection_is_busy (conn) && !ds_connection_has_unread_input (conn))
+        ds_connection_close_after_flush (conn);
+      /* A peer that reads nothing (a stuck subscriber) does not hold the stop up. */
+      if (ds_connection_stalled_us (conn) > DRAIN_STALL_US)
+        ds_connection_close (conn);
+      open |= !ds_connection_is_closed (conn);
+    }
+    if (!open || g_get_monotonic_time () >= deadline)
+      break;
+    g_main_context_iteration (server->context, TRUE);
+  }
+  g_source_destroy (wake);
+  stop_listening (server);
 }
 
 static gboolean
@@ -403,10 +624,15 @@ ds_server_get_stats (const DsServer *server, DsServerStats *stats)
   *stats = server->stats;
   stats->queued_bytes = 0;
   stats->max_client_queued_bytes = 0;
+  count_places ((DsServer *) server, &stats->clients, &stats->tcp_clients);
+  stats->subscribers = 0;
   GHashTableIter it;
   gpointer key;
   g_hash_table_iter_init (&it, server->clients);
   while (g_hash_table_iter_next (&it, &key, NULL)) {
+    ClientState *st = ds_connection_get_data (key);
+    if (holds_place (key, st) && st->subscribed)
+      stats->subscribers++;
     gsize q = ds_connection_queued_bytes (key);
     stats->queued_bytes += q;
     stats->max_client_queued_bytes = MAX (stats->max_client_queued_bytes, q);

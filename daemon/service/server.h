@@ -11,11 +11,21 @@ G_BEGIN_DECLS
 
 typedef struct DsServer DsServer;
 
+/* The connection policy (docs/protocol.md, "Connections"): a full table makes room by closing
+ * the connection that has been quiet longest (unauthenticated TCP first, never a subscriber
+ * nor one being answered); a connection without a complete request for idle_timeout_ms is
+ * closed; a TCP connection that owes the token has auth_timeout_ms to send it; TCP never
+ * takes more than max_tcp_clients places, so local UNIX clients always find room. */
 typedef struct {
-  guint max_clients;        /* connections beyond this get a `limit` error and are closed */
+  guint max_clients;        /* connections at once; beyond, room is made or `limit` refused */
+  guint max_tcp_clients;    /* of which TCP at most (0: half of max_clients) */
   gsize max_line;           /* request line bytes (<= DS_PROTOCOL_MAX_LINE) */
   gsize max_queued_bytes;   /* per client; a subscriber over it loses results */
   char *token;              /* required from TCP clients when set (hello {"token": ...}) */
+  guint idle_timeout_ms;    /* 0: never; subscribers and connections being answered are exempt */
+  guint auth_timeout_ms;    /* 0: never */
+  guint evict_quiet_ms;     /* quiet at least this long before a connection may make room
+                             * (0: 1000); a newcomer gets this long to send its request */
 } DsServerLimits;
 
 /* Called for each well-formed request. The handler answers exactly once, now or later, with
@@ -51,7 +61,10 @@ typedef struct {
   guint clients;
   guint subscribers;
   guint64 accepted;
-  guint64 refused;          /* over max_clients */
+  guint tcp_clients;
+  guint64 refused;          /* over max_clients with nobody to make room */
+  guint64 evicted;          /* closed to make room for a newcomer */
+  guint64 timed_out;        /* closed for idle_timeout_ms or auth_timeout_ms */
   guint64 requests;
   guint64 bad_requests;
   guint64 published;        /* events produced */
@@ -61,7 +74,14 @@ typedef struct {
 } DsServerStats;
 
 void ds_server_get_stats (const DsServer *server, DsServerStats *stats);
-/* Closes every connection and listener (daemon stop). */
+/* Daemon stop, first step: every request from now on is answered `cancelled`. */
+void ds_server_begin_stop (DsServer *server);
+/* Second step, for at most timeout_ms of running the server's main context: what clients sent
+ * before the stop (connections still in the listen backlog included) is read and answered,
+ * the replies already queued (a capture's `cancelled`, a result) are written out, then each
+ * connection and the listeners are closed. */
+void ds_server_drain (DsServer *server, guint timeout_ms);
+/* Closes every connection and listener now, discarding what is queued. */
 void ds_server_shutdown (DsServer *server);
 
 G_END_DECLS

@@ -605,9 +605,12 @@ status_to_json (DsService *svc)
   json_builder_set_member_name (b, "clients");
   json_builder_begin_object (b);
   add_uint (b, "connected", ss.clients);
+  add_uint (b, "tcp", ss.tcp_clients);
   add_uint (b, "subscribers", ss.subscribers);
   add_uint (b, "accepted", ss.accepted);
   add_uint (b, "refused", ss.refused);
+  add_uint (b, "evicted", ss.evicted);
+  add_uint (b, "timed_out", ss.timed_out);
   add_uint (b, "requests", ss.requests);
   add_uint (b, "bad_requests", ss.bad_requests);
   add_uint (b, "results_published", svc->results_published);
@@ -773,9 +776,12 @@ ds_service_new (DsConfig *config, const DsServiceOptions *options, GMainLoop *lo
       return NULL;
   }
   DsServerLimits limits = { .max_clients = svc->config->max_clients,
+                            .max_tcp_clients = svc->config->max_tcp_clients,
                             .max_line = DS_PROTOCOL_MAX_LINE,
                             .max_queued_bytes = svc->config->max_queued_bytes,
-                            .token = token };
+                            .token = token,
+                            .idle_timeout_ms = svc->config->idle_timeout_ms,
+                            .auth_timeout_ms = svc->config->auth_timeout_ms };
   svc->server = ds_server_new (&limits, on_request, svc);
   if (!start_listening (svc, error))
     return NULL;
@@ -887,6 +893,10 @@ ds_service_free (DsService *svc)
     return;
   if (svc->watchdog_source)
     g_source_remove (svc->watchdog_source);
+  /* Freeing the sequencer runs the main context once more: requests arriving meanwhile are
+   * answered `cancelled` by the server, never handed to a half-freed service. */
+  if (svc->server)
+    ds_server_begin_stop (svc->server);
   /* Joins the acquisition thread: no event arrives after this. */
   g_clear_pointer (&svc->sequencer, ds_sequencer_free);
   g_clear_pointer (&svc->model, ds_operating_model_free);
@@ -904,6 +914,11 @@ ds_service_free (DsService *svc)
     }
     g_hash_table_destroy (svc->pending);
   }
+  /* The replies just queued (and results still being written) reach their clients before the
+   * connections close: a waiting client gets `cancelled`, never a bare EOF. Bounded, so that a
+   * client that does not read cannot hold the stop beyond TimeoutStopSec. */
+  if (svc->server)
+    ds_server_drain (svc->server, 3000);
   if (svc->server)
     ds_server_shutdown (svc->server);
   g_clear_pointer (&svc->server, ds_server_free);

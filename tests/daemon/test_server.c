@@ -77,6 +77,8 @@ harness_start (gboolean tcp, const char *token, guint max_clients, gsize max_que
   h->limits.max_line = 1024;
   h->limits.max_queued_bytes = max_queued;
   h->limits.token = (char *) token;
+  /* Nobody is displaced to make room in these tests (test_connections.c covers that). */
+  h->limits.evict_quiet_ms = 600000;
   h->tcp = tcp;
   h->ctx = g_main_context_new ();
   h->loop = g_main_loop_new (h->ctx, FALSE);
@@ -408,6 +410,10 @@ test_tcp_token (void)
   client_send (c, "{\"id\":1,\"cmd\":\"echo\"}\n");
   g_autoptr (DsReply) r1 = client_read (c, NULL);
   g_assert_cmpint (r1->error_code, ==, DS_PROTOCOL_ERROR_UNAUTHORIZED);
+  /* A token of another type is refused as such, not compared as an empty string. */
+  client_send (c, "{\"id\":1,\"cmd\":\"hello\",\"args\":{\"token\":12345678901234567}}\n");
+  g_autoptr (DsReply) r0 = client_read (c, NULL);
+  g_assert_cmpint (r0->error_code, ==, DS_PROTOCOL_ERROR_BAD_ARGUMENT);
   client_send (c, "{\"id\":2,\"cmd\":\"hello\",\"args\":{\"token\":\"s3cret-tokeX\"}}\n");
   g_autoptr (DsReply) r2 = client_read (c, NULL);
   g_assert_cmpint (r2->error_code, ==, DS_PROTOCOL_ERROR_UNAUTHORIZED);
