@@ -1,12 +1,18 @@
 #include "daemon/service/config.h"
 
 #include <errno.h>
+#include <fcntl.h>
+#include <glib/gstdio.h>
+#include <unistd.h>
 #include <math.h>
 #include <stddef.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/un.h>
 
 G_DEFINE_QUARK (ds-config-error-quark, ds_config_error)
+
+G_STATIC_ASSERT (sizeof (((struct sockaddr_un *) NULL)->sun_path) == DS_CONFIG_MAX_SOCKET_PATH);
 
 /* K_CHOICES: a comma-separated subset of `choices` (stored normalized, "a,b"). */
 typedef enum { K_STRING, K_CHOICE, K_UINT, K_UINT64, K_INT, K_DOUBLE, K_BOOL, K_MODE, K_CHOICES } KeyType;
@@ -65,7 +71,9 @@ static const KeySpec keys[] = {
   { "http", "live-fps", K_DOUBLE, F (http_live_fps), "10", 0.1, 100, NULL,
     "most raw frames per second copied for the live view" },
 
-  { "camera", "backend", K_CHOICE, F (camera_backend), "sim", 0, 0, "sim|aravis", "camera driver" },
+  { "camera", "backend", K_CHOICE, F (camera_backend), NULL, 0, 0, "aravis|sim",
+    "camera driver: aravis (GigE Vision) or sim (the simulated lab); no default, so that a file "
+    "never runs simulated devices by omission" },
   { "camera", "address", K_STRING, F (camera_address), NULL, 0, 0, NULL,
     "aravis: camera IP address or device id" },
   { "camera", "pixel-format", K_CHOICE, F (pixel_format), "Mono16", 0, 0,
@@ -78,8 +86,8 @@ static const KeySpec keys[] = {
   { "camera", "grab-timeout-ms", K_UINT, F (grab_timeout_ms), "2000", 10, 600000, NULL,
     "deadline for a frame after its trigger, beyond the exposure" },
 
-  { "illuminator", "backend", K_CHOICE, F (illuminator_backend), "sim", 0, 0, "sim|modbus|gpio",
-    "illuminator driver" },
+  { "illuminator", "backend", K_CHOICE, F (illuminator_backend), NULL, 0, 0, "modbus|gpio|sim",
+    "illuminator driver: modbus, gpio, or sim (the simulated lab); no default" },
   { "illuminator", "modbus-uri", K_STRING, F (modbus_uri), NULL, 0, 0, NULL,
     "tcp://host:port or rtu:/dev/ttyUSB0?baud=115200&parity=N&data=8&stop=1" },
   { "illuminator", "modbus-unit-id", K_UINT, F (modbus_unit_id), "1", 0, 247, NULL, "Modbus unit id" },
@@ -185,6 +193,11 @@ parse_value (DsConfig *c, const KeySpec *k, const char *raw, const char *name, G
     return TRUE;
   }
   case K_CHOICE: {
+    if (!v[0] && !(k->def && k->def[0])) { /* a choice without a default may stay unset */
+      char **p = field (c, k);
+      g_clear_pointer (p, g_free);
+      return TRUE;
+    }
     g_auto (GStrv) options = g_strsplit (k->choices, "|", -1);
     if (!g_strv_contains ((const char *const *) options, v)) {
       g_autofree char *why = g_strdup_printf ("must be one of %s", k->choices);
@@ -252,6 +265,32 @@ ds_config_new_default (void)
   return c;
 }
 
+DsConfig *
+ds_config_new_sim (void)
+{
+  DsConfig *c = ds_config_new_default ();
+  c->camera_backend = g_strdup ("sim");
+  c->illuminator_backend = g_strdup ("sim");
+  return c;
+}
+
+gboolean
+ds_config_parse_roi (const char *roi, guint v[4], GError **error)
+{
+  g_auto (GStrv) parts = roi ? g_strsplit (roi, ",", -1) : NULL;
+  gboolean ok = parts && g_strv_length (parts) == 4;
+  for (guint i = 0; ok && i < 4; i++) {
+    guint64 n = 0;
+    ok = g_ascii_string_to_unsigned (g_strstrip (parts[i]), 10, 0, 65535, &n, NULL) && (i < 2 || n > 0);
+    v[i] = (guint) n;
+  }
+  if (!ok)
+    g_set_error (error, DS_CONFIG_ERROR, DS_CONFIG_ERROR_BAD_VALUE,
+                 "[camera] roi = \"%s\": expected x,y,width,height (four integers 0..65535, width and "
+                 "height above 0), or empty for the full sensor", roi ? roi : "");
+  return ok;
+}
+
 void
 ds_config_free (DsConfig *config)
 {
@@ -293,6 +332,29 @@ group_known (const char *group)
   return FALSE;
 }
 
+gboolean
+ds_config_parse_host_port (const char *text, char **host, guint16 *port)
+{
+  const char *colon = text ? strrchr (text, ':') : NULL;
+  guint64 p = 0;
+  if (!colon || colon == text || !g_ascii_string_to_unsigned (colon + 1, 10, 0, 65535, &p, NULL))
+    return FALSE;
+  g_autofree char *h = g_strndup (text, (gsize) (colon - text));
+  /* [::1]:7420 as well as 127.0.0.1:7420 */
+  if (h[0] == '[' && h[strlen (h) - 1] == ']') {
+    char *inner = g_strndup (h + 1, strlen (h) - 2);
+    g_free (h);
+    h = inner;
+  }
+  if (!g_hostname_is_ip_address (h))
+    return FALSE;
+  if (port)
+    *port = (guint16) p;
+  if (host)
+    *host = g_steal_pointer (&h);
+  return TRUE;
+}
+
 /* Cross-key rules that no single range can express. */
 static gboolean
 check_consistency (const DsConfig *c, const char *name, GError **error)
@@ -303,6 +365,22 @@ check_consistency (const DsConfig *c, const char *name, GError **error)
     g_set_error (error, DS_CONFIG_ERROR, DS_CONFIG_ERROR_INCONSISTENT, "%s: %s", name, msg_);      \
     return FALSE;                                                                                  \
   } while (0)
+  if (!c->camera_backend)
+    INCONSISTENT ("[camera] backend is not set: aravis for a GigE Vision camera, or sim for the "
+                  "simulated lab (descatterd --sim runs that without a file)");
+  if (!c->illuminator_backend)
+    INCONSISTENT ("[illuminator] backend is not set: modbus or gpio for a stripe projector, or sim "
+                  "for the simulated lab (descatterd --sim runs that without a file)");
+  gboolean sim_camera = strcmp (c->camera_backend, "sim") == 0;
+  gboolean sim_illuminator = strcmp (c->illuminator_backend, "sim") == 0;
+  if (sim_camera != sim_illuminator)
+    INCONSISTENT ("[camera] backend = %s with [illuminator] backend = %s: the simulated camera sees only "
+                  "the simulated illuminator's stripes and the simulated illuminator lights only the "
+                  "simulated scene; use sim for both, or real devices for both",
+                  c->camera_backend, c->illuminator_backend);
+  if (!sim_camera && (c->sim_scene || c->sim_faults))
+    INCONSISTENT ("[sim] %s is set but no device is simulated ([camera] backend = %s): it would be "
+                  "ignored; remove it", c->sim_scene ? "scene" : "faults", c->camera_backend);
   if (strcmp (c->camera_backend, "aravis") == 0 && !c->camera_address)
     INCONSISTENT ("[camera] backend = aravis needs [camera] address");
   if (strcmp (c->illuminator_backend, "modbus") == 0 && !c->modbus_uri)
@@ -313,6 +391,30 @@ check_consistency (const DsConfig *c, const char *name, GError **error)
     INCONSISTENT ("[trigger] backend = gpio needs [trigger] gpio-line and [illuminator] gpio-chip");
   if (strcmp (c->trigger_backend, "gpio") == 0 && strcmp (c->camera_trigger, "software") == 0)
     INCONSISTENT ("[trigger] backend = gpio pulses a line, so [camera] trigger must name a line, not software");
+  if (strcmp (c->trigger_backend, "software") == 0 && strcmp (c->camera_trigger, "software") != 0)
+    INCONSISTENT ("[camera] trigger = %s waits for a pulse on that line, but [trigger] backend = software "
+                  "sends none: set [trigger] backend = gpio with its gpio-line, or [camera] trigger = software",
+                  c->camera_trigger);
+  if (strcmp (c->trigger_backend, "gpio") == 0 && sim_camera)
+    INCONSISTENT ("[trigger] backend = gpio pulses a real line, which the simulated camera cannot see");
+  guint roi[4];
+  if (c->roi && !ds_config_parse_roi (c->roi, roi, error)) {
+    g_prefix_error (error, "%s: ", name);
+    return FALSE;
+  }
+  /* Paths: a relative one depends on the directory the daemon happens to start in (/ under
+   * systemd); a socket path must fit sockaddr_un or bind would cut it short. */
+  const struct { const char *group, *key, *value; } paths[] = {
+    { "daemon", "socket", c->socket_path },        { "daemon", "spool-dir", c->spool_dir },
+    { "daemon", "tcp-token-file", c->tcp_token_file }, { "acquisition", "operating-model", c->operating_model },
+    { "sim", "scene", c->sim_scene },              { "http", "token-file", c->http_token_file },
+  };
+  for (guint i = 0; i < G_N_ELEMENTS (paths); i++)
+    if (paths[i].value && !g_path_is_absolute (paths[i].value))
+      INCONSISTENT ("[%s] %s = \"%s\" must be an absolute path", paths[i].group, paths[i].key, paths[i].value);
+  if (c->socket_path && strlen (c->socket_path) >= DS_CONFIG_MAX_SOCKET_PATH)
+    INCONSISTENT ("[daemon] socket = \"%s\" is %zu bytes long; a UNIX socket path has at most %d",
+                  c->socket_path, strlen (c->socket_path), DS_CONFIG_MAX_SOCKET_PATH - 1);
   if (c->max_tcp_clients && c->max_tcp_clients >= c->max_clients)
     INCONSISTENT ("[daemon] max-tcp-clients = %u must be below max-clients = %u, so that local "
                   "clients always find room", c->max_tcp_clients, c->max_clients);
@@ -327,13 +429,9 @@ check_consistency (const DsConfig *c, const char *name, GError **error)
     if (!colon || colon == c->http_listen || !end || *end || port < 0 || port > 65535)
       INCONSISTENT ("[http] listen = \"%s\" must be host:port", c->http_listen);
   }
-  if (c->tcp_listen) {
-    const char *colon = strrchr (c->tcp_listen, ':');
-    char *end = NULL;
-    long port = colon ? strtol (colon + 1, &end, 10) : -1;
-    if (!colon || colon == c->tcp_listen || !end || *end || port < 0 || port > 65535)
-      INCONSISTENT ("[daemon] tcp-listen = \"%s\" must be host:port", c->tcp_listen);
-  }
+  if (c->tcp_listen && !ds_config_parse_host_port (c->tcp_listen, NULL, NULL))
+    INCONSISTENT ("[daemon] tcp-listen = \"%s\" must be IP:PORT (a numeric address, port 0..65535)",
+                  c->tcp_listen);
 #undef INCONSISTENT
   return TRUE;
 }
@@ -416,28 +514,117 @@ load_keyfile (GKeyFile *kf, const char *data, const char *name, GError **error)
   return g_steal_pointer (&c);
 }
 
+/* What GKeyFile passes over in silence: a NUL byte ends its text (the keys after it, even
+ * invalid ones, would be ignored), and a key given twice keeps its last value. */
+static gboolean
+check_text (const char *data, gsize len, const char *name, GError **error)
+{
+  const char *nul = memchr (data, '\0', len);
+  const char *bad = NULL;
+  if (nul || !g_utf8_validate (data, (gssize) len, &bad)) {
+    const char *at = nul ? nul : bad;
+    guint line = 1;
+    for (const char *p = data; p < at; p++)
+      line += *p == '\n';
+    g_set_error (error, DS_CONFIG_ERROR, DS_CONFIG_ERROR_SYNTAX, "%s: line %u: %s (a configuration is UTF-8 text)",
+                 name, line, nul ? "NUL byte" : "not UTF-8");
+    return FALSE;
+  }
+  g_autoptr (GHashTable) seen = g_hash_table_new_full (g_str_hash, g_str_equal, g_free, NULL);
+  g_autofree char *group = g_strdup ("");
+  g_auto (GStrv) lines = g_strsplit (data, "\n", -1);
+  for (guint i = 0; lines[i]; i++) {
+    char *l = g_strstrip (lines[i]);
+    if (l[0] == '[') {
+      char *close = strchr (l, ']');
+      g_free (group);
+      group = close ? g_strndup (l + 1, (gsize) (close - l - 1)) : g_strdup (l);
+      continue;
+    }
+    char *eq = strchr (l, '=');
+    if (l[0] == '#' || !eq)
+      continue;
+    *eq = '\0';
+    char *full = g_strdup_printf ("[%s] %s", group, g_strstrip (l));
+    guint first = GPOINTER_TO_UINT (g_hash_table_lookup (seen, full));
+    if (first) {
+      g_set_error (error, DS_CONFIG_ERROR, DS_CONFIG_ERROR_SYNTAX, "%s: %s is set twice (lines %u and %u)", name,
+                   full, first, i + 1);
+      g_free (full);
+      return FALSE;
+    }
+    g_hash_table_insert (seen, full, GUINT_TO_POINTER (i + 1));
+  }
+  return TRUE;
+}
+
+static DsConfig *
+load_text (const char *data, gsize len, const char *name, GError **error)
+{
+  if (!check_text (data, len, name, error))
+    return NULL;
+  g_autoptr (GKeyFile) kf = g_key_file_new ();
+  g_autoptr (GError) local = NULL;
+  if (!g_key_file_load_from_data (kf, data, len, G_KEY_FILE_NONE, &local)) {
+    g_set_error (error, DS_CONFIG_ERROR, DS_CONFIG_ERROR_SYNTAX, "%s: %s", name, local->message);
+    return NULL;
+  }
+  return load_keyfile (kf, data, name, error);
+}
+
 DsConfig *
 ds_config_load_data (const char *data, const char *name_for_errors, GError **error)
 {
-  g_autoptr (GKeyFile) kf = g_key_file_new ();
-  g_autoptr (GError) local = NULL;
-  if (!g_key_file_load_from_data (kf, data, (gsize) -1, G_KEY_FILE_NONE, &local)) {
-    g_set_error (error, DS_CONFIG_ERROR, DS_CONFIG_ERROR_SYNTAX, "%s: %s", name_for_errors, local->message);
-    return NULL;
-  }
-  return load_keyfile (kf, data, name_for_errors, error);
+  return load_text (data, strlen (data), name_for_errors, error);
 }
 
 DsConfig *
 ds_config_load_file (const char *path, GError **error)
 {
-  g_autofree char *data = NULL;
-  g_autoptr (GError) local = NULL;
-  if (!g_file_get_contents (path, &data, NULL, &local)) {
-    g_set_error (error, DS_CONFIG_ERROR, DS_CONFIG_ERROR_IO, "%s: %s", path, local->message);
+  /* Read with a bound: `--check --config /dev/zero` must end, with an error. */
+  int fd = g_open (path, O_RDONLY | O_CLOEXEC, 0);
+  if (fd < 0) {
+    int e = errno;
+    g_set_error (error, DS_CONFIG_ERROR, DS_CONFIG_ERROR_IO, "%s: %s", path, g_strerror (e));
     return NULL;
   }
-  return ds_config_load_data (data, path, error);
+  GByteArray *buf = g_byte_array_sized_new (4096);
+  guint8 chunk[16384];
+  gboolean too_big = FALSE;
+  int read_errno = 0;
+  for (;;) {
+    gssize n = read (fd, chunk, sizeof chunk);
+    if (n < 0 && errno == EINTR)
+      continue;
+    if (n < 0)
+      read_errno = errno;
+    if (n <= 0)
+      break;
+    if (buf->len + (gsize) n > DS_CONFIG_MAX_BYTES) {
+      too_big = TRUE;
+      break;
+    }
+    g_byte_array_append (buf, chunk, (guint) n);
+  }
+  close (fd);
+  g_autoptr (GBytes) bytes = g_byte_array_free_to_bytes (buf);
+  if (read_errno) {
+    g_set_error (error, DS_CONFIG_ERROR, DS_CONFIG_ERROR_IO, "%s: %s", path, g_strerror (read_errno));
+    return NULL;
+  }
+  if (too_big) {
+    g_set_error (error, DS_CONFIG_ERROR, DS_CONFIG_ERROR_IO,
+                 "%s: more than %d bytes: not a configuration file", path, DS_CONFIG_MAX_BYTES);
+    return NULL;
+  }
+  gsize len = 0;
+  const guint8 *data = g_bytes_get_data (bytes, &len);
+  /* A terminated copy: the line lookups split it as a string (check_text finds a NUL within). */
+  g_autofree char *text = g_malloc (len + 1);
+  if (len)
+    memcpy (text, data, len);
+  text[len] = '\0';
+  return load_text (text, len, path, error);
 }
 
 static char *

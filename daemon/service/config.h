@@ -83,8 +83,10 @@ typedef struct {
   char *sim_faults;       /* "name=value,..." or NULL */
 } DsConfig;
 
-/* Built-in defaults: the simulated lab (`descatterd --sim`). */
+/* The table's defaults; the device backends are left unset (a file must choose them). */
 DsConfig *ds_config_new_default (void);
+/* The defaults with simulated camera and illuminator: `descatterd --sim`. */
+DsConfig *ds_config_new_sim (void);
 /* Defaults, then the file over them. Errors name the file, group, key (and line for syntax
  * errors) and the allowed values. */
 DsConfig *ds_config_load_file (const char *path, GError **error);
@@ -92,6 +94,16 @@ DsConfig *ds_config_load_data (const char *data, const char *name_for_errors, GE
 DsConfig *ds_config_copy (const DsConfig *config);
 void ds_config_free (DsConfig *config);
 G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsConfig, ds_config_free)
+
+/* "x,y,width,height" -> v (width, height > 0). BAD_VALUE naming the key otherwise. */
+gboolean ds_config_parse_roi (const char *roi, guint v[4], GError **error);
+/* "IP:PORT" (IPv6 in brackets allowed) -> host (newly allocated, may be NULL) and port. */
+gboolean ds_config_parse_host_port (const char *text, char **host, guint16 *port);
+
+/* A configuration file larger than this is refused (it is not one). */
+#define DS_CONFIG_MAX_BYTES (1024 * 1024)
+/* sockaddr_un's sun_path, terminator included. */
+#define DS_CONFIG_MAX_SOCKET_PATH 108
 
 /* The effective configuration as a key file text (what `descatterd --check` prints). */
 char *ds_config_to_data (const DsConfig *config);

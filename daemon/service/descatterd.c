@@ -7,6 +7,7 @@
 
 #include "build_info.h"
 #include "daemon/service/config.h"
+#include "daemon/service/preflight.h"
 #include "daemon/service/service.h"
 
 #define DEFAULT_CONFIG DS_SYSCONF_DIR "/descatterd.conf"
@@ -81,7 +82,7 @@ main (int argc, char **argv)
   }
   g_autoptr (DsConfig) config = NULL;
   if (sim)
-    config = ds_config_new_default ();
+    config = ds_config_new_sim ();
   else {
     if (!config_path)
       config_path = g_strdup (DEFAULT_CONFIG);
@@ -92,8 +93,21 @@ main (int argc, char **argv)
     return 1;
   }
   if (check) {
-    g_autofree char *text = ds_config_to_data (config);
-    printf ("# effective configuration (%s)\n%s", config_path ? config_path : "built-in", text);
+    /* The very checks start-up runs (preflight.h), with the same overrides. */
+    DsPreflightOverrides ov = { .config_name = config_path, .socket_path = socket_path, .tcp_listen = tcp,
+                                .scene_path = scene };
+    g_autoptr (DsPreflight) pf = ds_preflight_run (config, &ov, &error);
+    if (!pf) {
+      fprintf (stderr, "descatterd: %s\n", error->message);
+      return 1;
+    }
+    g_autofree char *text = ds_config_to_data (pf->config);
+    printf ("# effective configuration (%s)\n", config_path ? config_path : "built-in");
+    if (pf->model_note)
+      printf ("# automatic operating point off: %s\n", pf->model_note);
+    else
+      printf ("# operating model: %s\n", pf->model_path);
+    printf ("%s", text);
     return 0;
   }
   g_autoptr (GMainLoop) loop = g_main_loop_new (NULL, FALSE);

@@ -1,6 +1,5 @@
 #include "daemon/service/devices.h"
 
-#include <stdio.h>
 #include <string.h>
 
 #include "drivers/aravis/aravis_camera.h"
@@ -14,14 +13,11 @@
 static gboolean
 parse_roi (const char *roi, DsCameraSettings *cs, GError **error)
 {
+  guint v[4];
   if (!roi || !*roi)
     return TRUE;
-  guint v[4];
-  if (sscanf (roi, "%u,%u,%u,%u", &v[0], &v[1], &v[2], &v[3]) != 4 || v[2] == 0 || v[3] == 0) {
-    g_set_error (error, DS_CONFIG_ERROR, DS_CONFIG_ERROR_BAD_VALUE,
-                 "[camera] roi \"%s\": expected x,y,width,height with width, height > 0", roi);
+  if (!ds_config_parse_roi (roi, v, error))
     return FALSE;
-  }
   cs->roi_x = v[0];
   cs->roi_y = v[1];
   cs->roi_width = v[2];

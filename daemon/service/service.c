@@ -12,6 +12,7 @@
 #include "daemon/service/capture_settings.h"
 #include "daemon/service/devices.h"
 #include "daemon/service/provenance.h"
+#include "daemon/service/preflight.h"
 #include "daemon/operating/operating_point.h"
 #include "daemon/protocol/protocol.h"
 #include "daemon/service/sequencer.h"
@@ -691,25 +692,8 @@ watchdog_tick (gpointer data)
 
 /* ---- lifecycle ---- */
 
-static char *
-read_token (const char *path, GError **error)
-{
-  g_autofree char *text = NULL;
-  if (!g_file_get_contents (path, &text, NULL, error)) {
-    g_prefix_error (error, "tcp-token-file: ");
-    return NULL;
-  }
-  g_strstrip (text);
-  if (strlen (text) < 16) {
-    g_set_error (error, DS_CONFIG_ERROR, DS_CONFIG_ERROR_BAD_VALUE,
-                 "tcp-token-file %s: the token must be at least 16 characters", path);
-    return NULL;
-  }
-  return g_steal_pointer (&text);
-}
-
 static gboolean
-start_listening (DsService *svc, GError **error)
+start_listening (DsService *svc, const DsPreflight *pf, GError **error)
 {
   guint adopted = 0;
   if (!svc->options.no_systemd_sockets) {
@@ -718,26 +702,15 @@ start_listening (DsService *svc, GError **error)
       return FALSE;
   }
   if (adopted == 0) {
-    const char *path = svc->options.socket_path ? svc->options.socket_path : svc->config->socket_path;
+    const char *path = svc->config->socket_path; /* --socket already applied */
     g_autofree char *dir = g_path_get_dirname (path);
     g_mkdir_with_parents (dir, 0755);
     if (!ds_server_listen_unix (svc->server, path, svc->config->socket_mode, error))
       return FALSE;
     svc->socket_path = g_strdup (path);
   }
-  const char *tcp = svc->options.tcp_listen ? svc->options.tcp_listen : svc->config->tcp_listen;
-  if (tcp && *tcp) {
-    const char *colon = strrchr (tcp, ':');
-    guint64 port = 0;
-    if (!colon || !g_ascii_string_to_unsigned (colon + 1, 10, 0, 65535, &port, NULL)) {
-      g_set_error (error, DS_CONFIG_ERROR, DS_CONFIG_ERROR_BAD_VALUE,
-                   "tcp-listen \"%s\": expected host:port", tcp);
-      return FALSE;
-    }
-    g_autofree char *host = g_strndup (tcp, (gsize) (colon - tcp));
-    if (!ds_server_listen_tcp (svc->server, host, (guint16) port, error))
-      return FALSE;
-  }
+  if (pf->tcp_host && !ds_server_listen_tcp (svc->server, pf->tcp_host, pf->tcp_port, error))
+    return FALSE;
   return TRUE;
 }
 
@@ -749,10 +722,24 @@ update_config_hash (DsService *svc)
   g_strlcpy (svc->config_sha256, hash, sizeof svc->config_sha256);
 }
 
+static DsPreflightOverrides
+overrides_of (const DsServiceOptions *options)
+{
+  return (DsPreflightOverrides) { .config_name = options->config_path,
+                                  .socket_path = options->socket_path,
+                                  .tcp_listen = options->tcp_listen,
+                                  .scene_path = options->scene_path };
+}
+
 DsService *
 ds_service_new (DsConfig *config, const DsServiceOptions *options, GMainLoop *loop, GError **error)
 {
   g_autoptr (DsConfig) owned = config;
+  /* Exactly what `descatterd --check` runs: nothing is bound or opened before it passed. */
+  DsPreflightOverrides ov = overrides_of (options);
+  g_autoptr (DsPreflight) pf = ds_preflight_run (owned, &ov, error);
+  if (!pf)
+    return NULL;
   /* Freed by ds_service_free on any early return: it copes with a service half built. */
   g_autoptr (DsService) svc = g_new0 (DsService, 1);
   svc->options = *options;
@@ -764,26 +751,16 @@ ds_service_new (DsConfig *config, const DsServiceOptions *options, GMainLoop *lo
   svc->loop = g_main_loop_ref (loop);
   svc->started_us = g_get_monotonic_time ();
   svc->pending = g_hash_table_new_full (g_int64_hash, g_int64_equal, NULL, pending_capture_free);
-  svc->config = g_steal_pointer (&owned);
-  if (svc->scene_override) {
-    g_free (svc->config->sim_scene);
-    svc->config->sim_scene = g_strdup (svc->scene_override);
-  }
-  g_autofree char *token = NULL;
-  if (svc->config->tcp_token_file && *svc->config->tcp_token_file) {
-    token = read_token (svc->config->tcp_token_file, error);
-    if (!token)
-      return NULL;
-  }
+  svc->config = g_steal_pointer (&pf->config);
   DsServerLimits limits = { .max_clients = svc->config->max_clients,
                             .max_tcp_clients = svc->config->max_tcp_clients,
                             .max_line = DS_PROTOCOL_MAX_LINE,
                             .max_queued_bytes = svc->config->max_queued_bytes,
-                            .token = token,
+                            .token = pf->token, /* copied by the server */
                             .idle_timeout_ms = svc->config->idle_timeout_ms,
                             .auth_timeout_ms = svc->config->auth_timeout_ms };
   svc->server = ds_server_new (&limits, on_request, svc);
-  if (!start_listening (svc, error))
+  if (!start_listening (svc, pf, error))
     return NULL;
   if (svc->config->spool_dir && *svc->config->spool_dir) {
     guint kinds = 0;
@@ -804,16 +781,11 @@ ds_service_new (DsConfig *config, const DsServiceOptions *options, GMainLoop *lo
   /* The thread opens the devices from its own copy: a reload never races with it. It lives
    * as long as the sequencer (freed after the thread joined). */
   svc->open_data.config = ds_config_copy (svc->config);
-  {
-    svc->model_path = svc->config->operating_model && *svc->config->operating_model
-                          ? g_strdup (svc->config->operating_model)
-                          : ds_data_path ("operating-model.csv");
-    g_autoptr (GError) model_error = NULL;
-    svc->model = ds_operating_model_load (svc->model_path, &model_error);
-    if (!svc->model) {
-      svc->model_error = g_strdup (model_error->message);
-      g_message ("automatic operating point off: %s", model_error->message);
-    }
+  svc->model_path = g_strdup (pf->model_path);
+  svc->model = g_steal_pointer (&pf->model);
+  if (!svc->model) {
+    svc->model_error = g_strdup (pf->model_note);
+    g_message ("automatic operating point off: %s", pf->model_note);
   }
   svc->sequencer = ds_sequencer_new (open_devices, &svc->open_data, &defaults,
                                      g_main_loop_get_context (loop), on_sequencer_event, svc);
@@ -865,10 +837,14 @@ ds_service_reload (DsService *svc, GError **error)
     g_prefix_error (error, "reload refused, keeping the running configuration: ");
     return FALSE;
   }
-  if (svc->scene_override) {
-    g_free (fresh->sim_scene);
-    fresh->sim_scene = g_strdup (svc->scene_override);
+  DsPreflightOverrides ov = overrides_of (&svc->options);
+  g_autoptr (DsPreflight) pf = ds_preflight_run (fresh, &ov, error);
+  if (!pf) {
+    g_prefix_error (error, "reload refused, keeping the running configuration: ");
+    return FALSE;
   }
+  g_clear_pointer (&fresh, ds_config_free);
+  fresh = g_steal_pointer (&pf->config);
   if (!device_settings_equal (svc->config, fresh)) {
     g_set_error (error, DS_CONFIG_ERROR, DS_CONFIG_ERROR_INCONSISTENT,
                  "reload refused, keeping the running configuration: %s changes device, socket or "

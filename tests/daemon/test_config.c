@@ -3,14 +3,21 @@
 #include "daemon/service/config.h"
 
 #include <math.h>
+#include <glib/gstdio.h>
 #include <string.h>
 
 static const char *example_path;
 
+#define SIM "[camera]\nbackend=sim\n[illuminator]\nbackend=sim\n"
+
 static void
 test_defaults_are_the_simulated_lab (void)
 {
-  g_autoptr (DsConfig) c = ds_config_new_default ();
+  /* The devices are never chosen by default: only --sim picks the simulated lab. */
+  g_autoptr (DsConfig) d = ds_config_new_default ();
+  g_assert_null (d->camera_backend);
+  g_assert_null (d->illuminator_backend);
+  g_autoptr (DsConfig) c = ds_config_new_sim ();
   g_assert_cmpstr (c->camera_backend, ==, "sim");
   g_assert_cmpstr (c->illuminator_backend, ==, "sim");
   g_assert_cmpuint (c->phases, ==, 8);
@@ -25,6 +32,7 @@ test_values_override_defaults (void)
 {
   g_autoptr (GError) error = NULL;
   g_autoptr (DsConfig) c = ds_config_load_data ("[acquisition]\nphases = 12\nestimator=sine\n"
+                                                "[camera]\nbackend=aravis\naddress=10.0.0.2\n"
                                                 "[illuminator]\nbackend=modbus\nmodbus-uri=tcp://127.0.0.1:1502\n"
                                                 "duty=0.25\n[daemon]\nsocket-mode=0600\n",
                                                 "t.conf", &error);
@@ -70,12 +78,12 @@ test_errors_name_the_place (void)
                 (const char *const[]) { "dark-frame", "true or false", NULL });
   expect_error ("[daemon]\nsocket-mode=0999\n", DS_CONFIG_ERROR_BAD_VALUE,
                 (const char *const[]) { "socket-mode", "octal", NULL });
-  expect_error ("[camera]\nbackend=aravis\n", DS_CONFIG_ERROR_INCONSISTENT,
-                (const char *const[]) { "address", NULL });
-  expect_error ("[acquisition]\nestimator=sine\nphases=2\n", DS_CONFIG_ERROR_INCONSISTENT,
+  expect_error ("[camera]\nbackend=aravis\n[illuminator]\nbackend=modbus\nmodbus-uri=tcp://a:1\n",
+                DS_CONFIG_ERROR_INCONSISTENT, (const char *const[]) { "address", NULL });
+  expect_error (SIM "[acquisition]\nestimator=sine\nphases=2\n", DS_CONFIG_ERROR_INCONSISTENT,
                 (const char *const[]) { "sine", "phases >= 3", NULL });
-  expect_error ("[daemon]\ntcp-listen=127.0.0.1\n", DS_CONFIG_ERROR_INCONSISTENT,
-                (const char *const[]) { "tcp-listen", "host:port", NULL });
+  expect_error (SIM "[daemon]\ntcp-listen=127.0.0.1\n", DS_CONFIG_ERROR_INCONSISTENT,
+                (const char *const[]) { "tcp-listen", "IP:PORT", NULL });
   expect_error ("[daemon\nsocket=x\n", DS_CONFIG_ERROR_SYNTAX, (const char *const[]) { NULL });
 }
 
@@ -83,7 +91,8 @@ static void
 test_round_trip (void)
 {
   g_autoptr (GError) error = NULL;
-  g_autoptr (DsConfig) a = ds_config_load_data ("[camera]\nexposure-us=1234.5\nroi=0,0,64,32\n[sim]\nseed=99\n"
+  g_autoptr (DsConfig) a = ds_config_load_data ("[camera]\nbackend=sim\nexposure-us=1234.5\nroi=0,0,64,32\n"
+                                                "[illuminator]\nbackend=sim\n[sim]\nseed=99\n"
                                                 "[acquisition]\nphase-tolerance-deg=10\n",
                                                 "a.conf", &error);
   g_assert_no_error (error);
@@ -107,7 +116,12 @@ test_example_documents_every_key (void)
   g_autofree char *data = NULL;
   g_assert_true (g_file_get_contents (example_path, &data, NULL, NULL));
   g_autoptr (GError) error = NULL;
-  g_autoptr (DsConfig) c = ds_config_load_data (data, example_path, &error);
+  /* As shipped it names no device (a lab must choose): refused, saying so. */
+  g_assert_null (ds_config_load_data (data, example_path, &error));
+  g_assert_nonnull (strstr (error->message, "backend is not set"));
+  g_clear_error (&error);
+  g_autofree char *chosen = g_strconcat (data, "\n" SIM, NULL);
+  g_autoptr (DsConfig) c = ds_config_load_data (chosen, example_path, &error);
   g_assert_no_error (error);
   /* Every key of the table appears in the example, set or commented out. */
   g_autofree char *defaults = ds_config_to_data (c);
@@ -124,6 +138,94 @@ test_example_documents_every_key (void)
   }
 }
 
+/* Issue 10: what --check passed and the daemon then refused or, worse, ran with. Each is
+ * refused at load, naming the key and what is allowed. */
+static void
+test_refusals (void)
+{
+  const struct { const char *text; int code; const char *must[3]; } cases[] = {
+    /* no device chosen: never simulated by omission */
+    { "[acquisition]\nphases=8\n", DS_CONFIG_ERROR_INCONSISTENT, { "[camera] backend is not set", "--sim" } },
+    { "[camera]\nbackend=sim\n", DS_CONFIG_ERROR_INCONSISTENT, { "[illuminator] backend is not set" } },
+    /* contradictions, with both keys named */
+    { "[camera]\nbackend=aravis\naddress=10.0.0.2\n[illuminator]\nbackend=sim\n", DS_CONFIG_ERROR_INCONSISTENT,
+      { "[camera] backend = aravis", "[illuminator] backend = sim" } },
+    { "[camera]\nbackend=sim\n[illuminator]\nbackend=modbus\nmodbus-uri=tcp://a:1\n", DS_CONFIG_ERROR_INCONSISTENT,
+      { "[camera] backend = sim", "[illuminator] backend = modbus" } },
+    { "[camera]\nbackend=aravis\naddress=10.0.0.2\ntrigger=line0\n[illuminator]\nbackend=modbus\nmodbus-uri=tcp://a:1\n",
+      DS_CONFIG_ERROR_INCONSISTENT, { "[camera] trigger = line0", "[trigger] backend = software" } },
+    { SIM "[camera]\ntrigger=line1\n[trigger]\nbackend=gpio\ngpio-line=4\n[illuminator]\ngpio-chip=gpiochip0\n",
+      DS_CONFIG_ERROR_INCONSISTENT, { "[trigger] backend = gpio", "simulated camera" } },
+    { "[camera]\nbackend=aravis\naddress=10.0.0.2\n[illuminator]\nbackend=modbus\nmodbus-uri=tcp://a:1\n"
+      "[sim]\nfaults=stale=0.1\n", DS_CONFIG_ERROR_INCONSISTENT, { "[sim] faults", "no device is simulated" } },
+    /* roi */
+    { "[camera]\nbackend=sim\nroi=1,2,3\n[illuminator]\nbackend=sim\n", DS_CONFIG_ERROR_BAD_VALUE,
+      { "roi = \"1,2,3\"", "x,y,width,height" } },
+    { "[camera]\nbackend=sim\nroi=0,0,0,0\n[illuminator]\nbackend=sim\n", DS_CONFIG_ERROR_BAD_VALUE,
+      { "roi = \"0,0,0,0\"", "above 0" } },
+    { "[camera]\nbackend=sim\nroi=1,2,3,4,5\n[illuminator]\nbackend=sim\n", DS_CONFIG_ERROR_BAD_VALUE, { "roi" } },
+    { "[camera]\nbackend=sim\nroi=-1,0,10,10\n[illuminator]\nbackend=sim\n", DS_CONFIG_ERROR_BAD_VALUE, { "roi" } },
+    { "[camera]\nbackend=sim\nroi=a,b,c,d\n[illuminator]\nbackend=sim\n", DS_CONFIG_ERROR_BAD_VALUE, { "roi" } },
+    /* paths */
+    { SIM "[daemon]\nsocket=run/descatterd.sock\n", DS_CONFIG_ERROR_INCONSISTENT, { "[daemon] socket", "absolute" } },
+    { SIM "[daemon]\nspool-dir=spool\n", DS_CONFIG_ERROR_INCONSISTENT, { "[daemon] spool-dir", "absolute" } },
+    { SIM "[daemon]\ntcp-token-file=token\n", DS_CONFIG_ERROR_INCONSISTENT, { "tcp-token-file", "absolute" } },
+    { SIM "[sim]\nscene=milk.scene\n", DS_CONFIG_ERROR_INCONSISTENT, { "[sim] scene", "absolute" } },
+    { SIM "[acquisition]\noperating-model=model.csv\n", DS_CONFIG_ERROR_INCONSISTENT, { "operating-model", "absolute" } },
+    { SIM "[daemon]\nsocket=/run/descatterd/a-socket-path-that-is-far-too-long-for-the-sun-path-field-"
+          "of-sockaddr-un-which-holds-108-bytes.sock\n", DS_CONFIG_ERROR_INCONSISTENT, { "[daemon] socket", "at most 107" } },
+    /* TCP */
+    { SIM "[daemon]\ntcp-listen=localhost:7420\n", DS_CONFIG_ERROR_INCONSISTENT, { "tcp-listen", "numeric" } },
+    { SIM "[daemon]\ntcp-listen=127.0.0.1:99999\n", DS_CONFIG_ERROR_INCONSISTENT, { "tcp-listen" } },
+    { SIM "[daemon]\nmax-clients=8\nmax-tcp-clients=8\n", DS_CONFIG_ERROR_INCONSISTENT, { "max-tcp-clients", "below" } },
+    /* what GKeyFile passed over: a key given twice kept its last value */
+    { SIM "[acquisition]\nphases=8\nphases=4\n", DS_CONFIG_ERROR_SYNTAX, { "[acquisition] phases", "lines 6 and 7" } },
+    { SIM "[acquisition]\nphases=8\n[acquisition]\nphases = 4\n", DS_CONFIG_ERROR_SYNTAX, { "set twice" } },
+    { SIM "[acquisition]\nphases=\xff\n", DS_CONFIG_ERROR_SYNTAX, { "line 6", "UTF-8" } },
+  };
+  for (guint i = 0; i < G_N_ELEMENTS (cases); i++) {
+    g_autoptr (GError) error = NULL;
+    g_autoptr (DsConfig) c = ds_config_load_data (cases[i].text, "lab.conf", &error);
+    if (c)
+      g_error ("case %u accepted:\n%s", i, cases[i].text);
+    if (!g_error_matches (error, DS_CONFIG_ERROR, cases[i].code))
+      g_error ("case %u: code %d instead of %d: %s", i, error->code, cases[i].code, error->message);
+    g_assert_nonnull (strstr (error->message, "lab.conf"));
+    for (guint k = 0; k < G_N_ELEMENTS (cases[i].must) && cases[i].must[k]; k++)
+      if (!strstr (error->message, cases[i].must[k]))
+        g_error ("case %u: \"%s\" does not mention \"%s\"", i, error->message, cases[i].must[k]);
+  }
+}
+
+/* A NUL byte ended GKeyFile's text: the keys after it, even invalid ones, were ignored; and
+ * --check read /dev/zero without end. */
+static void
+test_file_limits (void)
+{
+  g_autoptr (GError) error = NULL;
+  g_autofree char *dir = g_dir_make_tmp ("ds-config-XXXXXX", &error);
+  g_assert_no_error (error);
+  g_autofree char *path = g_build_filename (dir, "nul.conf", NULL);
+  const char text[] = SIM "\0[acquisition]\nphases=1\n";
+  g_assert_true (g_file_set_contents (path, text, sizeof text - 1, NULL));
+  g_assert_null (ds_config_load_file (path, &error));
+  g_assert_error (error, DS_CONFIG_ERROR, DS_CONFIG_ERROR_SYNTAX);
+  g_assert_nonnull (strstr (error->message, "line 5: NUL"));
+  g_clear_error (&error);
+  /* Over the size limit (a regular file and a device that never ends). */
+  g_autofree char *big = g_strnfill (DS_CONFIG_MAX_BYTES + 1, '#');
+  g_assert_true (g_file_set_contents (path, big, -1, NULL));
+  g_assert_null (ds_config_load_file (path, &error));
+  g_assert_error (error, DS_CONFIG_ERROR, DS_CONFIG_ERROR_IO);
+  g_clear_error (&error);
+  g_assert_null (ds_config_load_file ("/dev/zero", &error));
+  g_assert_error (error, DS_CONFIG_ERROR, DS_CONFIG_ERROR_IO);
+  g_assert_nonnull (strstr (error->message, "not a configuration file"));
+  g_clear_error (&error);
+  g_unlink (path);
+  g_rmdir (dir);
+}
+
 int
 main (int argc, char **argv)
 {
@@ -134,5 +236,7 @@ main (int argc, char **argv)
   g_test_add_func ("/config/errors", test_errors_name_the_place);
   g_test_add_func ("/config/round-trip", test_round_trip);
   g_test_add_func ("/config/example", test_example_documents_every_key);
+  g_test_add_func ("/config/refusals", test_refusals);
+  g_test_add_func ("/config/file-limits", test_file_limits);
   return g_test_run ();
 }
