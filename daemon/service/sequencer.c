@@ -32,6 +32,8 @@ ds_stage_name (DsStage stage)
   return (guint) stage < DS_STAGE_N ? names[stage] : "unknown";
 }
 
+G_DEFINE_QUARK (ds-sequencer-error-quark, ds_sequencer_error)
+
 static gpointer
 thread_main (gpointer data)
 {
@@ -52,7 +54,7 @@ thread_main (gpointer data)
         g_atomic_int_dec_and_test (&seq->pending);
         ds_seq_emit (seq, cmd->kind == CMD_DARK ? DS_SEQUENCER_EVENT_DARK : DS_SEQUENCER_EVENT_FAILED,
               cmd->tag, NULL,
-              g_error_new (DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_DEVICE, "devices are not open: %s",
+              g_error_new (DS_SEQUENCER_ERROR, DS_SEQUENCER_ERROR_NOT_READY, "devices are not open: %s",
                            seq->status.last_error),
               NULL);
       }

@@ -14,6 +14,17 @@
 
 G_BEGIN_DECLS
 
+/* Failures that are the sequencer's own, not a device's: on the wire `failed` for a rejected
+ * frame, `device_error` when the devices are not usable (daemon/service/wire_error.c). */
+#define DS_SEQUENCER_ERROR (ds_sequencer_error_quark ())
+GQuark ds_sequencer_error_quark (void);
+
+typedef enum {
+  DS_SEQUENCER_ERROR_FRAME_REJECTED = 1, /* frames kept failing verification (stale, frame gap,
+                                          * wrong phase, stripes in a dark frame, size change) */
+  DS_SEQUENCER_ERROR_NOT_READY = 2,      /* devices not open, or they refuse the configured settings */
+} DsSequencerError;
+
 typedef enum {
   DS_SEQUENCER_EVENT_READY = 0,   /* devices open (error set if opening failed: the thread ends) */
   DS_SEQUENCER_EVENT_RESULT,      /* a set finished: result set; tag of the capture or 0 */

@@ -29,7 +29,7 @@ ds_seq_acquire_dark (DsSequencer *seq, const DsCaptureSettings *s, DsFrameCounte
     g_autoptr (DsFrame) f = ds_seq_trigger_and_grab (seq, c, &why);
     if (f && f->host_time_us != 0 && (gint64) f->host_time_us < off_at) {
       ds_frame_counters_drop (c, DS_DROP_STALE, 1);
-      why = g_error_new (DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_DEVICE, "stale frame");
+      why = g_error_new (DS_SEQUENCER_ERROR, DS_SEQUENCER_ERROR_FRAME_REJECTED, "stale frame");
       g_clear_pointer (&f, ds_frame_free);
     }
     if (f && s->verify_phase && s->period_px > 2) {
@@ -38,7 +38,7 @@ ds_seq_acquire_dark (DsSequencer *seq, const DsCaptureSettings *s, DsFrameCounte
       DsStripePhase sp;
       if (ds_stripe_phase_measure (f->image, s->period_px, NULL, &sp, NULL) && sp.reliable) {
         ds_frame_counters_drop (c, DS_DROP_WRONG_PHASE, 1);
-        why = g_error_new (DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_DEVICE,
+        why = g_error_new (DS_SEQUENCER_ERROR, DS_SEQUENCER_ERROR_FRAME_REJECTED,
                            "dark frame shows stripes (snr %.1f): the illuminator was not off", sp.snr);
         g_clear_pointer (&f, ds_frame_free);
       }
@@ -62,7 +62,7 @@ ds_seq_acquire_dark (DsSequencer *seq, const DsCaptureSettings *s, DsFrameCounte
       sum = g_new0 (double, (gsize) w * h);
     } else if (img->width != w || img->height != h) {
       ds_frame_counters_drop (c, DS_DROP_ABORTED, 1);
-      g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_DEVICE,
+      g_set_error (error, DS_SEQUENCER_ERROR, DS_SEQUENCER_ERROR_FRAME_REJECTED,
                    "dark frame: frame size changed from %ux%u to %ux%u", w, h, img->width,
                    img->height);
       return NULL;

@@ -6,8 +6,7 @@
 static gboolean
 is_code (const GError *error, int code)
 {
-  return error && (error->domain == DS_CAMERA_ERROR || error->domain == DS_ILLUMINATOR_ERROR ||
-                   error->domain == DS_TRIGGER_ERROR) && error->code == code;
+  return g_error_matches (error, DS_DEVICE_ERROR, code);
 }
 
 gboolean
@@ -105,11 +104,20 @@ ds_seq_check_quit (DsSequencer *seq, GError **error)
 gboolean
 ds_seq_fatal_device_error (DsSequencer *seq, const GError *e)
 {
-  if (is_code (e, DS_DEVICE_ERROR_DISCONNECTED)) {
+  /* The one policy (drivers/core/device_error.h); an error that is not a device's (a rejected
+   * frame) is the caller's to retry. */
+  if (!e || e->domain != DS_DEVICE_ERROR)
+    return FALSE;
+  switch (ds_device_error_policy (e)) {
+  case DS_DEVICE_POLICY_RECONNECT:
     seq->need_reconnect = TRUE;
     return TRUE;
+  case DS_DEVICE_POLICY_FAIL:
+    return TRUE;
+  case DS_DEVICE_POLICY_RETRY:
+    break;
   }
-  return is_code (e, DS_DEVICE_ERROR_INVALID) || is_code (e, DS_DEVICE_ERROR_UNSUPPORTED);
+  return FALSE;
 }
 
 /* Reopens a lost camera (or illuminator) with capped exponential backoff, until it works or

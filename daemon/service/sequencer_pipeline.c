@@ -48,6 +48,19 @@ use_retry (Pipeline *pl, guint k, GError **why, GError **error)
   return TRUE;
 }
 
+/* After a device failure in phase k: the policy says whether to retry (then one retry is
+ * used, if any is left) or to fail the set now. Each failure is prefixed once: "phase k: "
+ * when it ends the set at once, "phase k: retries exhausted: " when the retries ran out. */
+static gboolean
+retry_or_fail (Pipeline *pl, guint k, GError **why, GError **error)
+{
+  if (ds_seq_fatal_device_error (pl->seq, *why)) {
+    g_propagate_prefixed_error (error, g_steal_pointer (why), "phase %u: ", k);
+    return FALSE;
+  }
+  return use_retry (pl, k, why, error);
+}
+
 /* Waits for the frame in the worker and accounts for it. *dropped_phase receives its phase when
  * verification dropped it, else G_MAXUINT; *reapply when the illuminator must apply that phase
  * again. FALSE with error when the set must fail (fold error, retries exhausted). */
@@ -65,17 +78,13 @@ collect (Pipeline *pl, guint *dropped_phase, gboolean *reapply, GError **error)
   g_autoptr (DsFrame) frame = g_steal_pointer (&pl->in_flight_frame);
   if (job.verdict.reason != DS_DROP_N_REASONS) {
     ds_frame_counters_drop (pl->c, job.verdict.reason, 1);
-    GError *why = g_error_new (DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_DEVICE, "frame dropped (%s): %s",
+    GError *why = g_error_new (DS_SEQUENCER_ERROR, DS_SEQUENCER_ERROR_FRAME_REJECTED, "frame dropped (%s): %s",
                                ds_drop_reason_name (job.verdict.reason),
                                job.verdict.detail ? job.verdict.detail : "");
     *dropped_phase = k;
     *reapply = job.verdict.reapply_phase;
     ds_frame_verdict_clear (&job.verdict);
-    if (!use_retry (pl, k, &why, &why)) {
-      g_propagate_prefixed_error (error, why, "phase %u: ", k);
-      return FALSE;
-    }
-    return TRUE;
+    return use_retry (pl, k, &why, error);
   }
   if (!job.folded) {
     ds_frame_counters_drop (pl->c, DS_DROP_ABORTED, 1);
@@ -165,10 +174,8 @@ run (Pipeline *pl, GError **error)
         pl->c->device_errors++;
         applied = -1;
         g_prefix_error (&why, "illuminator: ");
-        if (ds_seq_fatal_device_error (seq, why) || !use_retry (pl, k, &why, &why)) {
-          g_propagate_prefixed_error (error, why, "phase %u: ", k);
+        if (!retry_or_fail (pl, k, &why, error))
           return FALSE;
-        }
         continue;
       }
       ds_seq_stage_add (seq, DS_STAGE_SET_PHASE, t);
@@ -179,10 +186,8 @@ run (Pipeline *pl, GError **error)
     DsFrame *frame = ds_seq_trigger_and_grab (seq, pl->c, &why);
     if (!frame) {
       g_prefix_error (&why, "camera: ");
-      if (ds_seq_fatal_device_error (seq, why) || !use_retry (pl, k, &why, &why)) {
-        g_propagate_prefixed_error (error, why, "phase %u: ", k);
+      if (!retry_or_fail (pl, k, &why, error))
         return FALSE;
-      }
       /* After a lost frame the illuminator's state is still right, but a late buffer of the
        * lost trigger may arrive: flush before the next trigger. */
       ds_seq_flush_stale (seq, pl->c);

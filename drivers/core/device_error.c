@@ -1,8 +1,6 @@
 #include "drivers/core/device_error.h"
 
-G_DEFINE_QUARK (ds-camera-error-quark, ds_camera_error)
-G_DEFINE_QUARK (ds-illuminator-error-quark, ds_illuminator_error)
-G_DEFINE_QUARK (ds-trigger-error-quark, ds_trigger_error)
+G_DEFINE_QUARK (ds-device-error-quark, ds_device_error)
 
 const char *
 ds_device_error_name (DsDeviceError code)
@@ -26,19 +24,43 @@ ds_device_error_name (DsDeviceError code)
   return "unknown";
 }
 
-gboolean
-ds_device_error_is_transient (const GError *error)
+DsDevicePolicy
+ds_device_error_policy (const GError *error)
 {
-  if (!error || (error->domain != DS_CAMERA_ERROR && error->domain != DS_ILLUMINATOR_ERROR &&
-                 error->domain != DS_TRIGGER_ERROR))
-    return FALSE;
+  if (!error || error->domain != DS_DEVICE_ERROR)
+    return DS_DEVICE_POLICY_FAIL;
   switch ((DsDeviceError) error->code) {
   case DS_DEVICE_ERROR_TIMEOUT:
   case DS_DEVICE_ERROR_INCOMPLETE:
   case DS_DEVICE_ERROR_BUSY:
   case DS_DEVICE_ERROR_FAULT:
-    return TRUE;
-  default:
-    return FALSE;
+    return DS_DEVICE_POLICY_RETRY;
+  case DS_DEVICE_ERROR_DISCONNECTED:
+    return DS_DEVICE_POLICY_RECONNECT;
+  case DS_DEVICE_ERROR_INVALID:
+  case DS_DEVICE_ERROR_UNSUPPORTED:
+    return DS_DEVICE_POLICY_FAIL;
   }
+  /* A code this build does not know (a newer backend): retrying blindly could loop. */
+  return DS_DEVICE_POLICY_FAIL;
+}
+
+const char *
+ds_device_policy_name (DsDevicePolicy policy)
+{
+  switch (policy) {
+  case DS_DEVICE_POLICY_RETRY:
+    return "retry";
+  case DS_DEVICE_POLICY_RECONNECT:
+    return "reconnect";
+  case DS_DEVICE_POLICY_FAIL:
+    return "fail";
+  }
+  return "fail";
+}
+
+gboolean
+ds_device_error_is_transient (const GError *error)
+{
+  return ds_device_error_policy (error) == DS_DEVICE_POLICY_RETRY;
 }
