@@ -18,6 +18,7 @@
 #include "daemon/service/sequencer.h"
 #include "daemon/service/server.h"
 #include "daemon/service/spool.h"
+#include "daemon/service/wire_error.h"
 
 /* A capture or dark request waiting for the acquisition thread. */
 typedef struct {
@@ -192,26 +193,31 @@ on_sequencer_event (const DsSequencerEvent *ev, gpointer user_data)
     publish_result (svc, ev->result);
     break;
   }
-  case DS_SEQUENCER_EVENT_FAILED:
+  case DS_SEQUENCER_EVENT_FAILED: {
     g_warning ("phase set failed: %s", ev->error->message);
     notify_status (svc, "last set failed");
+    g_autoptr (GError) wire = ds_wire_error_new (ev->error);
     if (p)
-      ds_server_reply_error (svc->server, p->conn, p->id, ev->error);
+      ds_server_reply_error (svc->server, p->conn, p->id, wire);
     {
       g_autoptr (JsonBuilder) b = json_builder_new ();
       json_builder_begin_object (b);
       json_builder_set_member_name (b, "reason");
       json_builder_add_string_value (b, ev->error->message);
+      json_builder_set_member_name (b, "code");
+      json_builder_add_string_value (b, ds_protocol_error_name ((DsProtocolError) wire->code));
       json_builder_end_object (b);
       g_autoptr (JsonNode) body = json_builder_get_root (b);
       ds_server_publish (svc->server, "failed", body, NULL, NULL, 0);
     }
     break;
+  }
   case DS_SEQUENCER_EVENT_DARK:
     if (p) {
-      if (ev->error)
-        ds_server_reply_error (svc->server, p->conn, p->id, ev->error);
-      else {
+      if (ev->error) {
+        g_autoptr (GError) wire = ds_wire_error_new (ev->error);
+        ds_server_reply_error (svc->server, p->conn, p->id, wire);
+      } else {
         g_autoptr (JsonBuilder) b = json_builder_new ();
         json_builder_begin_object (b);
         json_builder_set_member_name (b, "dark_mean_dn");
