@@ -1,5 +1,6 @@
 #include "daemon/service/connection.h"
 
+#include <poll.h>
 #include <string.h>
 
 #define READ_CHUNK 16384
@@ -121,6 +122,20 @@ ds_connection_has_unread_input (const DsConnection *conn)
   if (conn->closed || conn->peer_eof || !G_IS_SOCKET_CONNECTION (conn->stream))
     return FALSE;
   return g_socket_get_available_bytes (g_socket_connection_get_socket (G_SOCKET_CONNECTION (conn->stream))) > 0;
+}
+
+gboolean
+ds_connection_peer_gone (const DsConnection *conn)
+{
+  if (conn->closed || ds_connection_is_busy (conn) || ds_connection_has_unread_input (conn) ||
+      !G_IS_SOCKET_CONNECTION (conn->stream))
+    return FALSE;
+  if (conn->peer_eof)
+    return TRUE;
+  /* POLLRDHUP: the peer shut its side down, even with our EOF read still in flight. */
+  struct pollfd pfd = { .fd = g_socket_get_fd (g_socket_connection_get_socket (G_SOCKET_CONNECTION (conn->stream))),
+                        .events = POLLRDHUP };
+  return poll (&pfd, 1, 0) == 1 && (pfd.revents & (POLLRDHUP | POLLHUP | POLLERR));
 }
 
 gboolean

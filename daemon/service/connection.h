@@ -58,6 +58,9 @@ gsize ds_connection_queued_bytes (const DsConnection *conn);
 gboolean ds_connection_is_busy (const DsConnection *conn);
 /* How long queued output has waited without a byte written (µs); 0 when nothing waits. */
 gint64 ds_connection_stalled_us (const DsConnection *conn);
+/* TRUE when the peer has closed (or shut down its sending side) and nothing it sent waits to
+ * be read or answered: the connection can be closed now, before its EOF is processed. */
+gboolean ds_connection_peer_gone (const DsConnection *conn);
 /* TRUE when the peer has sent bytes not read yet (a request the server has not seen). */
 gboolean ds_connection_has_unread_input (const DsConnection *conn);
 guint64 ds_connection_dropped (const DsConnection *conn);

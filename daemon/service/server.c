@@ -367,6 +367,21 @@ find_room (DsServer *s, gboolean newcomer_tcp)
   return unauthenticated ? unauthenticated : quiet;
 }
 
+static guint
+close_departed (DsServer *s)
+{
+  guint n = 0;
+  GHashTableIter it;
+  gpointer key;
+  g_hash_table_iter_init (&it, s->clients);
+  while (g_hash_table_iter_next (&it, &key, NULL))
+    if (holds_place (key, ds_connection_get_data (key)) && ds_connection_peer_gone (key)) {
+      ds_connection_close (key);
+      n++;
+    }
+  return n;
+}
+
 static void
 on_line (DsConnection *conn, const char *line, gsize len, gboolean too_long, gpointer user_data)
 {
@@ -450,6 +465,12 @@ on_incoming (GSocketService *service, GSocketConnection *sc, GObject *source, gp
   guint all, tcp;
   count_places (s, &all, &tcp);
   if (all >= s->limits.max_clients || (is_tcp && tcp >= s->limits.max_tcp_clients)) {
+    /* A peer that already went away holds its place only until its EOF is read; under load
+     * the accept may come first: close those now. */
+    if (close_departed (s))
+      count_places (s, &all, &tcp);
+  }
+  if (all >= s->limits.max_clients || (is_tcp && tcp >= s->limits.max_tcp_clients)) {
     DsConnection *victim = find_room (s, is_tcp);
     if (!victim) {
       s->stats.refused++;
@@ -492,7 +513,8 @@ void
 ds_server_drain (DsServer *server, guint timeout_ms)
 {
   server->draining = TRUE;
-  gint64 deadline = g_get_monotonic_time () + (gint64) timeout_ms * 1000;
+  gint64 started = g_get_monotonic_time ();
+  gint64 deadline = started + (gint64) timeout_ms * 1000;
   /* Wakes the blocking iteration below even when no connection makes progress. */
   g_autoptr (GSource) wake = g_timeout_source_new (20);
   g_source_set_callback (wake, keep_waking, NULL, NULL);
@@ -509,8 +531,9 @@ ds_server_drain (DsServer *server, guint timeout_ms)
       DsConnection *conn = key;
       if (!ds_connection_is_busy (conn) && !ds_connection_has_unread_input (conn))
         ds_connection_close_after_flush (conn);
-      /* A peer that reads nothing (a stuck subscriber) does not hold the stop up. */
-      if (ds_connection_stalled_us (conn) > DRAIN_STALL_US)
+      /* A peer that reads nothing (a stuck subscriber) does not hold the stop up; counted from
+       * the stop, not from when it stopped reading. */
+      if (MIN (ds_connection_stalled_us (conn), g_get_monotonic_time () - started) > DRAIN_STALL_US)
         ds_connection_close (conn);
       open |= !ds_connection_is_closed (conn);
     }
