@@ -7,6 +7,15 @@
 #include "proc/separation.h"
 
 static const char *const estimator_names[] = { "maxmin", "sine", "robust" };
+static const char *const mask_bit_names[DS_MASK_N_BITS] = {
+  "saturated", "dark", "low_modulation", "nonfinite", "negative", "dark_exceeds",
+};
+
+const char *
+ds_mask_bit_name (guint bit)
+{
+  return bit < DS_MASK_N_BITS ? mask_bit_names[bit] : NULL;
+}
 
 const char *
 ds_estimator_name (DsEstimator estimator)

@@ -33,10 +33,6 @@
 #include "proc/proc_error.h"
 #include "proc/separation.h"
 
-static const char *const mask_bit_names[DS_MASK_N_BITS] = {
-  "saturated", "dark", "low_modulation", "nonfinite", "negative", "dark_exceeds",
-};
-
 typedef struct {
   char *estimator;
   char *pattern;
@@ -334,7 +330,7 @@ separate (const char *dir, const Options *o, gboolean *usage, GError **error)
             ds_sample_type_name (folder->type), out);
     for (int i = 0; i < DS_MASK_N_BITS; i++)
       if (sep->meta.flagged[i])
-        printf ("  flagged %-15s %" G_GUINT64_FORMAT " pixels\n", mask_bit_names[i], sep->meta.flagged[i]);
+        printf ("  flagged %-15s %" G_GUINT64_FORMAT " pixels\n", ds_mask_bit_name (i), sep->meta.flagged[i]);
   }
   return TRUE;
 }
