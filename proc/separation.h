@@ -40,9 +40,11 @@ typedef enum {
 } DsMaskBit;
 #define DS_MASK_N_BITS 6
 
-/* Stable lower-case name of mask bit `bit` (0 = "saturated" ...), as used in JSON metadata;
- * NULL outside 0..DS_MASK_N_BITS-1. The one list: clients and files use these names. */
+/* Stable lower-case name of mask bit `bit` (0 = "saturated" ...), as used in JSON metadata,
+ * and a one-line meaning for legends; NULL outside 0..DS_MASK_N_BITS-1. The one list: clients
+ * and files use these names. */
 const char *ds_mask_bit_name (guint bit);
+const char *ds_mask_bit_meaning (guint bit);
 
 typedef struct {
   DsEstimator estimator;

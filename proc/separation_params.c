@@ -7,14 +7,28 @@
 #include "proc/separation.h"
 
 static const char *const estimator_names[] = { "maxmin", "sine", "robust" };
-static const char *const mask_bit_names[DS_MASK_N_BITS] = {
-  "saturated", "dark", "low_modulation", "nonfinite", "negative", "dark_exceeds",
+static const struct {
+  const char *name;
+  const char *meaning;
+} mask_bits[DS_MASK_N_BITS] = {
+  { "saturated", "some raw sample at or above the saturation level" },
+  { "dark", "mean signal below the noise floor" },
+  { "low_modulation", "stripe modulation not distinguishable from noise" },
+  { "nonfinite", "NaN or Inf in an input frame, or an output beyond float32; the outputs of the pixel are 0" },
+  { "negative", "a component came out below zero (noise); left unclipped" },
+  { "dark_exceeds", "the dark frame is brighter than some phase at this pixel" },
 };
 
 const char *
 ds_mask_bit_name (guint bit)
 {
-  return bit < DS_MASK_N_BITS ? mask_bit_names[bit] : NULL;
+  return bit < DS_MASK_N_BITS ? mask_bits[bit].name : NULL;
+}
+
+const char *
+ds_mask_bit_meaning (guint bit)
+{
+  return bit < DS_MASK_N_BITS ? mask_bits[bit].meaning : NULL;
 }
 
 const char *

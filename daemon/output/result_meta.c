@@ -5,38 +5,13 @@
 
 #include "build_info.h"
 
-static const struct {
-  const char *name;
-  const char *meaning;
-} mask_bits[DS_MASK_N_BITS] = {
-  { "saturated", "some raw sample at or above the saturation level" },
-  { "dark", "mean signal below the noise floor" },
-  { "low_modulation", "stripe modulation not distinguishable from noise" },
-  { "nonfinite", "NaN or Inf in an input frame; the outputs of the pixel are 0" },
-  { "negative", "a component came out below zero (noise); left unclipped" },
-  { "dark_exceeds", "the dark frame is brighter than some phase at this pixel" },
-};
-
-/* proc's ds_mask_bit_name once it lands; until then this list is the one the files use. */
-static const char *
-bit_name (guint bit)
-{
-  return bit < DS_MASK_N_BITS ? mask_bits[bit].name : "unknown";
-}
-
 char *
 ds_output_mask_flag_meanings (void)
 {
   GString *s = g_string_new (NULL);
   for (guint i = 0; i < DS_MASK_N_BITS; i++)
-    g_string_append_printf (s, "%s%s", i ? " " : "", bit_name (i));
+    g_string_append_printf (s, "%s%s", i ? " " : "", ds_mask_bit_name (i));
   return g_string_free (s, FALSE);
-}
-
-const char *
-ds_mask_bit_meaning (guint bit)
-{
-  return bit < DS_MASK_N_BITS ? mask_bits[bit].meaning : "";
 }
 
 char *
@@ -98,7 +73,7 @@ ds_output_separation_json (const DsSeparationMeta *m)
   json_builder_set_member_name (b, "flagged");
   json_builder_begin_object (b);
   for (guint i = 0; i < DS_MASK_N_BITS; i++) {
-    json_builder_set_member_name (b, bit_name (i));
+    json_builder_set_member_name (b, ds_mask_bit_name (i));
     json_builder_add_int_value (b, (gint64) m->flagged[i]);
   }
   json_builder_end_object (b);
@@ -112,14 +87,14 @@ ds_output_mask_bits_json (void)
   g_autoptr (JsonBuilder) b = json_builder_new ();
   json_builder_begin_object (b);
   for (guint i = 0; i < DS_MASK_N_BITS; i++) {
-    json_builder_set_member_name (b, bit_name (i));
+    json_builder_set_member_name (b, ds_mask_bit_name (i));
     json_builder_begin_object (b);
     json_builder_set_member_name (b, "bit");
     json_builder_add_int_value (b, i);
     json_builder_set_member_name (b, "value");
     json_builder_add_int_value (b, 1 << i);
     json_builder_set_member_name (b, "meaning");
-    json_builder_add_string_value (b, mask_bits[i].meaning);
+    json_builder_add_string_value (b, ds_mask_bit_meaning (i));
     json_builder_end_object (b);
   }
   json_builder_end_object (b);

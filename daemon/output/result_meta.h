@@ -19,9 +19,7 @@ G_BEGIN_DECLS
 #define DS_RESULT_FORMAT "descatter-result"
 #define DS_RESULT_FORMAT_VERSION 1
 
-/* What mask bit i (value 1 << i) means, in words (docs/estimators.md, "Quality mask"); its
- * stable name is ds_mask_bit_name (proc/separation.h). */
-const char *ds_mask_bit_meaning (guint bit);
+/* Mask bit names and meanings: ds_mask_bit_name and ds_mask_bit_meaning (proc/separation.h). */
 /* "saturated dark low_modulation ...": the names in bit order, space-separated (CF's
  * flag_meanings). */
 char *ds_output_mask_flag_meanings (void);
