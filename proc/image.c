@@ -106,6 +106,65 @@ ds_image_copy (const DsImage *src, GError **error)
   return dst;
 }
 
+gboolean
+ds_image_view_init (DsImage *view, DsSampleType type, guint bit_depth, guint width, guint height,
+                    gsize stride, const void *data, gsize size, GError **error)
+{
+  gsize ss = ds_sample_size (type);
+  if (ss == 0) {
+    g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT, "image view: invalid sample type %d",
+                 (int) type);
+    return FALSE;
+  }
+  if (bit_depth == 0)
+    bit_depth = full_depth (type);
+  gboolean depth_ok = type == DS_SAMPLE_F32 ? bit_depth == 32 : bit_depth <= full_depth (type);
+  if (!depth_ok) {
+    g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT, "image view: bit depth %u does not fit %s samples",
+                 bit_depth, ds_sample_type_name (type));
+    return FALSE;
+  }
+  if (width == 0 || height == 0 || width > DS_IMAGE_MAX_SIDE || height > DS_IMAGE_MAX_SIDE) {
+    g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT,
+                 "image view of %ux%u: each side must be 1..%u", width, height, DS_IMAGE_MAX_SIDE);
+    return FALSE;
+  }
+  gsize row = (gsize) width * ss;
+  if (stride < row || stride % ss != 0) {
+    g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT,
+                 "image view: stride %zu is not a multiple of %zu bytes at least a row of %u %s samples",
+                 stride, ss, width, ds_sample_type_name (type));
+    return FALSE;
+  }
+  if (!data || ((guintptr) data % ss) != 0) {
+    g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT,
+                 "image view: data at %p is not aligned to its %zu-byte samples", data, ss);
+    return FALSE;
+  }
+  gsize need;
+  if (!g_size_checked_mul (&need, stride, height - 1) || !g_size_checked_add (&need, need, row) || size < need) {
+    g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_SIZE_MISMATCH,
+                 "image view of %ux%u %s with stride %zu needs %zu bytes, got %zu", width, height,
+                 ds_sample_type_name (type), stride, need, size);
+    return FALSE;
+  }
+  *view = (DsImage) {
+    .width = width, .height = height, .stride = stride, .type = type, .bit_depth = bit_depth,
+    .data = (guint8 *) data, .allocation = NULL,
+  };
+  return TRUE;
+}
+
+DsImage *
+ds_image_new_view (DsSampleType type, guint bit_depth, guint width, guint height, gsize stride,
+                   const void *data, gsize size, GError **error)
+{
+  DsImage view;
+  if (!ds_image_view_init (&view, type, bit_depth, width, height, stride, data, size, error))
+    return NULL;
+  return g_memdup2 (&view, sizeof view);
+}
+
 void
 ds_image_free (DsImage *image)
 {

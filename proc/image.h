@@ -1,6 +1,7 @@
-/* A 2-D single-channel image that owns its pixels: the unit of exchange between proc/,
- * the simulator, the drivers and the file system. Rows may be padded (stride >= row bytes)
- * so that frames from a camera can be wrapped without repacking. */
+/* A 2-D single-channel image: the unit of exchange between proc/, the simulator, the drivers
+ * and the file system. It owns its pixels, or is a view over pixels someone else owns (a
+ * camera buffer, a pooled plane). Rows may be padded (stride >= row bytes) so that frames from
+ * a camera can be wrapped without repacking. */
 #pragma once
 #include <glib.h>
 #include <stdint.h>
@@ -22,8 +23,8 @@ typedef struct {
   gsize stride;        /* bytes from one row to the next */
   DsSampleType type;
   guint bit_depth;     /* significant bits of integer samples (1..16); 32 for float */
-  guint8 *data;        /* owned, 64-byte aligned */
-  void *allocation;    /* what data points into (freed with the image) */
+  guint8 *data;        /* owned and 64-byte aligned, or a view's (aligned to the sample) */
+  void *allocation;    /* what data points into (freed with the image); NULL for a view */
 } DsImage;
 
 gsize ds_sample_size (DsSampleType type);
@@ -36,6 +37,23 @@ DsImage *ds_image_new (DsSampleType type, guint width, guint height, GError **er
 DsImage *ds_image_new_with_stride (DsSampleType type, guint width, guint height, gsize stride,
                                    GError **error);
 DsImage *ds_image_copy (const DsImage *src, GError **error);
+
+/* A view: *view describes `data`, which the caller owns and keeps valid and unchanged while
+ * the view is used; nothing is copied. For a DsImage on the stack or inside another struct:
+ * never pass it to ds_image_free. bit_depth 0 = the type's full width. Fails INVALID_ARGUMENT
+ * (a side outside 1..DS_IMAGE_MAX_SIDE, stride below a row, data not aligned to the sample
+ * size, bit depth outside the type), SIZE_MISMATCH (size below (height-1)*stride + a row). */
+gboolean ds_image_view_init (DsImage *view, DsSampleType type, guint bit_depth, guint width,
+                             guint height, gsize stride, const void *data, gsize size,
+                             GError **error);
+/* The same on the heap: ds_image_free frees the DsImage, never the pixels. */
+DsImage *ds_image_new_view (DsSampleType type, guint bit_depth, guint width, guint height,
+                            gsize stride, const void *data, gsize size, GError **error);
+static inline gboolean
+ds_image_is_view (const DsImage *image)
+{
+  return image->allocation == NULL;
+}
 void ds_image_free (DsImage *image);
 G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsImage, ds_image_free)
 

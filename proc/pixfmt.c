@@ -1,5 +1,6 @@
 #include "proc/pixfmt.h"
 
+#include "proc/pixfmt_internal.h"
 #include "proc/proc_error.h"
 
 #include <string.h>
@@ -101,9 +102,8 @@ ds_pixfmt_image_bytes (DsPixelFormat fmt, guint width, guint height, gsize strid
   return total;
 }
 
-/* Checks the arguments shared by unpack and pack; returns the byte count the payload needs. */
-static gsize
-check_geometry (DsPixelFormat fmt, guint width, guint height, gsize stride, GError **error)
+gsize
+ds_pixfmt_check_geometry (DsPixelFormat fmt, guint width, guint height, gsize stride, GError **error)
 {
   if (!valid_format (fmt)) {
     g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_FORMAT, "unknown pixel format %d", (int) fmt);
@@ -129,20 +129,6 @@ check_geometry (DsPixelFormat fmt, guint width, guint height, gsize stride, GErr
   return need;
 }
 
-/* One d-bit pixel starting at bit offset `bit` of an LSB-first bitstream; reads only the bytes
- * holding its bits. */
-static inline guint
-read_bits (const guint8 *p, guint64 bit, guint d)
-{
-  const guint8 *b = p + (bit >> 3);
-  guint shift = (guint) (bit & 7u);
-  guint nbytes = (shift + d + 7u) >> 3;
-  guint32 v = 0;
-  for (guint i = 0; i < nbytes; i++)
-    v |= (guint32) b[i] << (8u * i);
-  return (v >> shift) & ((1u << d) - 1u);
-}
-
 static inline void
 write_bits (guint8 *p, guint64 bit, guint d, guint value)
 {
@@ -152,16 +138,6 @@ write_bits (guint8 *p, guint64 bit, guint d, guint value)
   guint32 v = (guint32) value << shift;
   for (guint i = 0; i < nbytes; i++)
     b[i] |= (guint8) (v >> (8u * i));
-}
-
-/* Mono12Packed pixel q of a run of pairs starting at p. */
-static inline guint
-read_mono12packed (const guint8 *p, guint64 q)
-{
-  const guint8 *b = p + (q >> 1) * 3u;
-  if ((q & 1u) == 0)
-    return ((guint) b[0] << 4) | (b[1] & 0x0Fu);
-  return ((guint) b[2] << 4) | (b[1] >> 4);
 }
 
 static inline void
@@ -177,118 +153,17 @@ write_mono12packed (guint8 *p, guint64 q, guint value)
   }
 }
 
-static void
-unpack_bitstream_row (const guint8 *base, guint64 first_bit, guint d, guint width, guint16 *out)
-{
-  guint x = 0;
-  /* Whole groups (4 x 10 bits = 5 bytes, 2 x 12 bits = 3 bytes) once byte-aligned. */
-  if (d == 12) {
-    while (x < width && ((first_bit + (guint64) x * 12u) & 7u) != 0) {
-      out[x] = (guint16) read_bits (base, first_bit + (guint64) x * 12u, 12);
-      x++;
-    }
-    const guint8 *b = base + ((first_bit + (guint64) x * 12u) >> 3);
-    for (; x + 2 <= width; x += 2, b += 3) {
-      out[x] = (guint16) (b[0] | ((b[1] & 0x0Fu) << 8));
-      out[x + 1] = (guint16) ((b[1] >> 4) | ((guint) b[2] << 4));
-    }
-  } else if (d == 10) {
-    while (x < width && ((first_bit + (guint64) x * 10u) & 7u) != 0) {
-      out[x] = (guint16) read_bits (base, first_bit + (guint64) x * 10u, 10);
-      x++;
-    }
-    const guint8 *b = base + ((first_bit + (guint64) x * 10u) >> 3);
-    for (; x + 4 <= width; x += 4, b += 5) {
-      out[x] = (guint16) (b[0] | ((b[1] & 0x03u) << 8));
-      out[x + 1] = (guint16) ((b[1] >> 2) | ((b[2] & 0x0Fu) << 6));
-      out[x + 2] = (guint16) ((b[2] >> 4) | ((b[3] & 0x3Fu) << 4));
-      out[x + 3] = (guint16) ((b[3] >> 6) | ((guint) b[4] << 2));
-    }
-  }
-  for (; x < width; x++)
-    out[x] = (guint16) read_bits (base, first_bit + (guint64) x * d, d);
-}
-
 DsImage *
 ds_pixfmt_unpack (DsPixelFormat fmt, const void *data, gsize size, guint width, guint height,
                   gsize stride, GError **error)
 {
-  if (check_geometry (fmt, width, height, stride, error) == 0)
+  if (!ds_pixfmt_check_payload (fmt, data, size, width, height, stride, error))
     return NULL;
-  g_autoptr (DsImage) img = ds_image_new (fmt == DS_PIXFMT_MONO8 ? DS_SAMPLE_U8 : DS_SAMPLE_U16,
-                                          width, height, error);
+  g_autoptr (DsImage) img = ds_image_new (fmt == DS_PIXFMT_MONO8 ? DS_SAMPLE_U8 : DS_SAMPLE_U16, width,
+                                          height, error);
   if (!img || !ds_pixfmt_unpack_into (fmt, data, size, stride, img, error))
     return NULL;
   return g_steal_pointer (&img);
-}
-
-gboolean
-ds_pixfmt_unpack_into (DsPixelFormat fmt, const void *data, gsize size, gsize stride, DsImage *img,
-                       GError **error)
-{
-  guint width = img->width, height = img->height;
-  gsize need = check_geometry (fmt, width, height, stride, error);
-  if (need == 0)
-    return FALSE;
-  DsSampleType type = fmt == DS_PIXFMT_MONO8 ? DS_SAMPLE_U8 : DS_SAMPLE_U16;
-  if (img->type != type) {
-    g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT,
-                 "%s unpacks to %s samples, the image has %s", formats[fmt].name,
-                 ds_sample_type_name (type), ds_sample_type_name (img->type));
-    return FALSE;
-  }
-  if (!data || size < need) {
-    g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_SIZE_MISMATCH,
-                 "%s %ux%u (stride %zu) needs %zu bytes, got %zu", formats[fmt].name, width, height,
-                 stride, need, data ? size : 0);
-    return FALSE;
-  }
-  const guint8 *src = data;
-  img->bit_depth = formats[fmt].depth;
-  const guint d = formats[fmt].depth;
-  for (guint y = 0; y < height; y++) {
-    const guint8 *row = src + (gsize) y * stride; /* stride 0: every row indexes from src */
-    guint64 first = stride ? 0 : (guint64) y * width; /* first pixel of the row in the stream */
-    switch (fmt) {
-    case DS_PIXFMT_MONO8:
-      memcpy (ds_image_row (img, y), stride ? row : src + (gsize) first, width);
-      break;
-    case DS_PIXFMT_MONO10:
-    case DS_PIXFMT_MONO12:
-    case DS_PIXFMT_MONO16: {
-      const guint8 *b = stride ? row : src + (gsize) first * 2u;
-      guint16 *out = ds_image_row (img, y);
-      guint over = 0;
-      for (guint x = 0; x < width; x++) {
-        out[x] = (guint16) (b[2 * x] | ((guint) b[2 * x + 1] << 8));
-        over |= out[x];
-      }
-      if (d < 16 && (over >> d) != 0) {
-        for (guint x = 0; x < width; x++)
-          if (out[x] >> d) {
-            g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_FORMAT,
-                         "%s pixel (%u, %u) is 0x%04x: bits above bit %u are set", formats[fmt].name, x,
-                         y, out[x], d - 1);
-            break;
-          }
-        return FALSE;
-      }
-      break;
-    }
-    case DS_PIXFMT_MONO10P:
-    case DS_PIXFMT_MONO12P:
-      unpack_bitstream_row (stride ? row : src, stride ? 0 : first * d, d, width, ds_image_row (img, y));
-      break;
-    case DS_PIXFMT_MONO12PACKED: {
-      guint16 *out = ds_image_row (img, y);
-      const guint8 *b = stride ? row : src;
-      for (guint x = 0; x < width; x++)
-        out[x] = (guint16) read_mono12packed (b, first + x);
-      break;
-    }
-    }
-  }
-  return TRUE;
 }
 
 GBytes *
@@ -298,7 +173,7 @@ ds_pixfmt_pack (DsPixelFormat fmt, const DsImage *image, gsize stride, GError **
     g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT, "no image to pack");
     return NULL;
   }
-  gsize need = check_geometry (fmt, image->width, image->height, stride, error);
+  gsize need = ds_pixfmt_check_geometry (fmt, image->width, image->height, stride, error);
   if (need == 0)
     return NULL;
   DsSampleType want = fmt == DS_PIXFMT_MONO8 ? DS_SAMPLE_U8 : DS_SAMPLE_U16;

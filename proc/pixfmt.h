@@ -61,11 +61,22 @@ gsize ds_pixfmt_image_bytes (DsPixelFormat fmt, guint width, guint height, gsize
 DsImage *ds_pixfmt_unpack (DsPixelFormat fmt, const void *data, gsize size, guint width,
                            guint height, gsize stride, GError **error);
 
-/* As ds_pixfmt_unpack, into an image the caller provides (a pooled one: no allocation per
- * frame). Its width and height say the frame's; its type must be U8 for Mono8, U16 otherwise;
- * bit_depth is set. On error the image's pixels are unspecified. */
+/* As ds_pixfmt_unpack, into an image the caller provides and keeps (a pooled one: no
+ * allocation per frame). Its width and height say the frame's; its type must be U8 for Mono8,
+ * U16 otherwise (INVALID_ARGUMENT), any stride; bit_depth is set. Rows are unpacked with
+ * vectorised group loops. Otherwise the errors of ds_pixfmt_unpack; on error the image's
+ * pixels are unspecified. */
 gboolean ds_pixfmt_unpack_into (DsPixelFormat fmt, const void *data, gsize size, gsize stride,
                                 DsImage *image, GError **error);
+
+/* Mono8 and Mono16 need no unpacking: *view (ds_image_view_init) describes the payload in
+ * place, so a frame can be folded straight from the camera's buffer while the caller holds it.
+ * Fails FORMAT for the other formats and for Mono16 data or stride not on 2-byte boundaries
+ * (unpack those), else as ds_pixfmt_unpack. */
+gboolean ds_pixfmt_view (DsPixelFormat fmt, const void *data, gsize size, guint width, guint height,
+                         gsize stride, DsImage *view, GError **error);
+/* TRUE when ds_pixfmt_view accepts this format, address and stride. */
+gboolean ds_pixfmt_viewable (DsPixelFormat fmt, const void *data, gsize stride);
 
 /* The inverse: image (U8 for Mono8, U16 otherwise) to a payload with the given stride
  * (0 = continuous bitstream); padding bytes and unused bits are 0. Fails FORMAT when the

@@ -280,7 +280,7 @@ test_round_trip (void)
 /* Unpacking into a provided (pooled) image: the pixels of the hand-derived Mono12p example,
  * into an image that held other pixels before; a mismatched sample type is refused. */
 static void
-test_unpack_into (void)
+test_unpack_into_pooled (void)
 {
   static const guint8 cont[] = { 0x23, 0x61, 0x45, 0x89, 0xC7, 0xAB, 0xEF, 0x1D, 0x00 };
   static const guint16 px6[] = { 0x123, 0x456, 0x789, 0xABC, 0xDEF, 0x001 };
@@ -299,6 +299,88 @@ test_unpack_into (void)
   g_assert_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT);
 }
 
+static gboolean
+bits_are_words (DsPixelFormat fmt)
+{
+  return fmt == DS_PIXFMT_MONO10 || fmt == DS_PIXFMT_MONO12 || fmt == DS_PIXFMT_MONO16;
+}
+
+/* Pixel x of row y as the layouts define it, one bit at a time (independent of proc/). */
+static guint
+reference_pixel (DsPixelFormat fmt, const guint8 *p, guint w, gsize stride, guint x, guint y)
+{
+  guint bits = ds_pixfmt_bits_per_pixel (fmt);
+  guint64 q = stride ? x : (guint64) y * w + x;   /* pixel index in its bitstream */
+  const guint8 *base = stride ? p + y * stride : p;
+  if (fmt == DS_PIXFMT_MONO12PACKED) {
+    const guint8 *b = base + (q / 2) * 3;
+    return q % 2 == 0 ? (guint) (b[0] << 4) | (b[1] & 0xF) : (guint) (b[2] << 4) | (b[1] >> 4);
+  }
+  if (bits == 16)
+    return base[2 * q] | (guint) base[2 * q + 1] << 8;
+  guint v = 0;
+  for (guint i = 0; i < bits; i++) {
+    guint64 bit = q * bits + i;
+    v |= (guint) ((base[bit / 8] >> (bit % 8)) & 1u) << i;
+  }
+  return v;
+}
+
+/* unpack_into a caller's image (padded rows, garbage in them) against the bit-by-bit
+ * reference, for widths that start packed rows mid-byte and mid-pair in a continuous stream. */
+static void
+test_unpack_into (void)
+{
+  GRand *rand = g_rand_new_with_seed (77);
+  for (int f = 0; f < DS_PIXFMT_COUNT; f++) {
+    DsPixelFormat fmt = (DsPixelFormat) f;
+    guint depth = ds_pixfmt_bit_depth (fmt);
+    for (guint w = 1; w <= 41; w += (w < 12 ? 1 : 7))
+      for (int s = 0; s < 2; s++) {
+        guint h = 5;
+        gsize stride = s ? ds_pixfmt_row_bytes (fmt, w) + 3 : 0;
+        gsize n = ds_pixfmt_image_bytes (fmt, w, h, stride);
+        guint8 *payload = g_malloc (n);
+        for (gsize i = 0; i < n; i++)
+          payload[i] = (guint8) g_rand_int (rand);
+        if (bits_are_words (fmt)) /* 16-bit words: keep the bits above the depth clear */
+          for (guint y = 0; y < h; y++)
+            for (guint x = 0; x < w; x++) {
+              gsize hi = stride ? y * stride + 2 * x + 1 : 2 * ((gsize) y * w + x) + 1;
+              payload[hi] &= (guint8) ((1u << (depth - 8)) - 1u);
+            }
+        DsSampleType type = fmt == DS_PIXFMT_MONO8 ? DS_SAMPLE_U8 : DS_SAMPLE_U16;
+        g_autoptr (DsImage) dst = ds_image_new_with_stride (type, w, h, w * 2 + 64, NULL);
+        memset (dst->data, 0xA5, dst->stride * h);
+        g_autoptr (GError) error = NULL;
+        g_assert_true (ds_pixfmt_unpack_into (fmt, payload, n, stride, dst, &error));
+        g_assert_no_error (error);
+        g_assert_cmpuint (dst->bit_depth, ==, depth);
+        for (guint y = 0; y < h; y++)
+          for (guint x = 0; x < w; x++) {
+            guint got = type == DS_SAMPLE_U8 ? ((guint8 *) ds_image_row (dst, y))[x]
+                                             : ((guint16 *) ds_image_row (dst, y))[x];
+            if (got != reference_pixel (fmt, payload, w, stride, x, y))
+              g_error ("%s w=%u stride=%zu pixel (%u,%u): got %u, expected %u", ds_pixfmt_name (fmt), w,
+                       stride, x, y, got, reference_pixel (fmt, payload, w, stride, x, y));
+          }
+        g_free (payload);
+      }
+  }
+  g_rand_free (rand);
+
+  /* a payload too short for the image; a Mono12 word above 12 bits names its pixel */
+  guint8 words[8] = { 0x01, 0x00, 0xFF, 0x0F, 0x00, 0x10, 0x00, 0x00 };
+  g_autoptr (DsImage) big = ds_image_new (DS_SAMPLE_U16, 5, 1, NULL);
+  g_autoptr (DsImage) ok = ds_image_new (DS_SAMPLE_U16, 4, 1, NULL);
+  g_autoptr (GError) e1 = NULL, e3 = NULL;
+  g_assert_false (ds_pixfmt_unpack_into (DS_PIXFMT_MONO12, words, 8, 0, big, &e1));
+  g_assert_error (e1, DS_PROC_ERROR, DS_PROC_ERROR_SIZE_MISMATCH);
+  g_assert_false (ds_pixfmt_unpack_into (DS_PIXFMT_MONO12, words, 8, 0, ok, &e3));
+  g_assert_error (e3, DS_PROC_ERROR, DS_PROC_ERROR_FORMAT);
+  g_assert_nonnull (strstr (e3->message, "pixel (2, 0)"));
+}
+
 int
 main (int argc, char **argv)
 {
@@ -310,6 +392,7 @@ main (int argc, char **argv)
   g_test_add_func ("/pixfmt/mono12packed", test_mono12packed);
   g_test_add_func ("/pixfmt/short-buffers", test_short_buffers);
   g_test_add_func ("/pixfmt/round-trip", test_round_trip);
+  g_test_add_func ("/pixfmt/unpack-into-pooled", test_unpack_into_pooled);
   g_test_add_func ("/pixfmt/unpack-into", test_unpack_into);
   return g_test_run ();
 }
