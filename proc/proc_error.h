@@ -16,6 +16,9 @@ typedef enum {
   DS_PROC_ERROR_NOT_ENOUGH_PHASES = 6,/* fewer phases than the estimator needs */
   DS_PROC_ERROR_TOO_LARGE = 7,        /* a size whose byte count would overflow or exceed limits */
   DS_PROC_ERROR_EMPTY = 8,            /* no input at all (empty folder, empty set) */
+  DS_PROC_ERROR_PRECONDITION = 9,     /* the estimator's assumption fails everywhere (sampling) */
+  DS_PROC_ERROR_PHASE_ORDER = 10,     /* frames' measured stripe phases contradict their phase
+                                         indices (swapped, missing or duplicated phases) */
 } DsProcError;
 
 G_END_DECLS

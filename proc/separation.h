@@ -6,7 +6,9 @@
  * maxmin and sine estimators. See docs/estimators.md for the physics and the choices.
  *
  * Threading: a DsPhaseSet is used by one thread at a time (the acquisition thread in the
- * daemon); none of these functions blocks on anything but memory and CPU. */
+ * daemon); none of these functions blocks on anything but memory and CPU. A set may split its
+ * own per-pixel work over worker threads it owns (params.threads); results are bit-identical
+ * for any thread count. */
 #pragma once
 #include <glib.h>
 
@@ -37,14 +39,31 @@ typedef enum {
   DS_MASK_NONFINITE = 1 << 3,      /* NaN or Inf in some (float) input frame */
   DS_MASK_NEGATIVE = 1 << 4,       /* a component came out below zero (noise); left unclipped */
   DS_MASK_DARK_EXCEEDS = 1 << 5,   /* the dark frame is brighter than some phase frame */
+  DS_MASK_UNDERSAMPLED = 1 << 6,   /* no phase lit this pixel fully, or none left it fully dark
+                                      (maxmin, robust: aN or (1-a)N too small for the pixel's
+                                      aperture and the edge blur); the value is biased */
 } DsMaskBit;
-#define DS_MASK_N_BITS 6
+#define DS_MASK_N_BITS 7
 
-/* Stable lower-case name of mask bit `bit` (0 = "saturated" ...), as used in JSON metadata,
- * and a one-line meaning for legends; NULL outside 0..DS_MASK_N_BITS-1. The one list: clients
- * and files use these names. */
+/* Stable lower-case name of mask bit `bit` (0 = "saturated" ... 6 = "undersampled"), as used
+ * in JSON metadata, and a one-line meaning for legends; NULL outside 0..DS_MASK_N_BITS-1. The
+ * one list: clients and files use these names. */
 const char *ds_mask_bit_name (guint bit);
 const char *ds_mask_bit_meaning (guint bit);
+
+/* Where the stripes fall on the sensor, as far as known. Stripes vary along x; phase k of N
+ * lights stripes centred at x = (j + k/N + phase_offset_cycles) P, x the pixel centre's column
+ * (the convention of proc/stripe_phase.h and the simulator). */
+typedef struct {
+  double period_px;          /* P; 0 = unknown: only aN >= 1 and (1-a)N >= 1 can be checked */
+  double edge_blur_px;       /* Gaussian sigma of the stripe edges on the sensor (projector
+                                defocus, lens), in pixels */
+  double pixel_aperture;     /* sensitive width of a pixel along x, in pixels: 1 = full fill
+                                factor (the default), 0 = point sampling */
+  gboolean phase_offset_known;
+  double phase_offset_cycles; /* where phase 0 falls, [0, 1); when unknown and needed (to flag
+                                 undersampled pixels) it is measured on the first frame */
+} DsStripeGeometry;
 
 typedef struct {
   DsEstimator estimator;
@@ -59,7 +78,12 @@ typedef struct {
   double system_gain;      /* K in DN per electron; 0 = no noise model (no uncertainty output) */
   double read_noise_dn;    /* temporal dark noise in DN (EMVA 1288 sigma_d * K) */
   gboolean keep_extrema;   /* also output max, min and mean */
+  guint threads;           /* threads for the per-pixel work, the caller's included; 0 = one per
+                              processor, at most DS_MAX_THREADS. Small frames use one. */
+  DsStripeGeometry geometry; /* for the sampling precondition and robust's windows */
 } DsSeparationParams;
+
+#define DS_MAX_THREADS 16u
 
 /* Largest amplification of noise an estimator may apply: 1/(1-b) for the black level, and
  * 1/m and 1/h (pattern mean, first-harmonic gain) for the scattered and sine outputs. */
@@ -69,8 +93,45 @@ typedef struct {
 
 /* The defaults that reproduce the ICCP 2013 authors' scripts: maxmin, square, a = 1/2, b = 0. */
 void ds_separation_params_init (DsSeparationParams *params, guint n_phases);
-/* Checks ranges and conditioning; the error names the parameter and the allowed range. */
+/* Checks ranges, conditioning and the sampling precondition (ds_separation_check_sampling);
+ * the error names the parameter and the allowed range or the failed condition. */
 gboolean ds_separation_params_validate (const DsSeparationParams *params, GError **error);
+
+/* A pixel counts as fully lit (dark) in a phase when the pattern it integrates is within this
+ * fraction of the lit (dark) level. */
+#define DS_SAMPLING_TOLERANCE 0.01
+
+/* What the pattern sampling does to an estimator, noise aside (docs/estimators.md, "Sampling
+ * precondition"). maxmin and robust assume every pixel is fully lit in some phase and fully
+ * dark in another: with sharp stripes and point pixels aN >= 1 and (1-a)N >= 1; a pixel of
+ * aperture w under edge blur sigma needs the stripe to overlap it by e = w + 2 z sigma
+ * (z = 2.576: the blurred edge within DS_SAMPLING_TOLERANCE), so (a - e/P) N >= 1 and
+ * (1 - a - e/P) N >= 1 for every pixel, and at some positions in the period for some. */
+typedef struct {
+  gboolean applies;          /* maxmin or robust on square stripes: the precondition matters */
+  double lit_phases;         /* (a - e/P) N, or aN without a period */
+  double unlit_phases;       /* (1 - a - e/P) N, or (1 - a) N */
+  double affected_fraction;  /* share of pixel positions across a period that are undersampled
+                                (never fully lit or never fully dark in the phases the estimator
+                                uses); NAN without a period */
+  guint robust_lit_window;   /* phases robust averages for the lit and the unlit level */
+  guint robust_unlit_window;
+  /* The estimator's systematic error over pixel positions across a period, noise-free, for a
+   * pixel with Ld > 0 and Lg = 0, relative to Ld; NAN without a period. sine's comes from its
+   * harmonic gain h against the blurred, pixel-integrated and sampled pattern. */
+  double ld_error_mean, ld_error_worst;  /* (estimated Ld - Ld) / Ld; worst = largest |.| */
+  double lg_error_mean, lg_error_worst;  /* estimated Lg / Ld */
+  char refusal[256];         /* why the configuration is refused; "" when it is not */
+  char warning[256];         /* estimator/pattern mismatch (maxmin or robust on sine stripes) */
+} DsSamplingCheck;
+
+/* Fills *out (always) and returns FALSE with DS_PROC_ERROR_PRECONDITION when a separation
+ * with these parameters must be refused: without a period, maxmin or robust with aN < 1 or
+ * (1-a)N < 1; with a period, when every pixel position is undersampled. When only some are,
+ * it succeeds, and a phase set flags them DS_MASK_UNDERSAMPLED. The params must be otherwise
+ * valid (ranges). Pure function, any thread. */
+gboolean ds_separation_check_sampling (const DsSeparationParams *params, DsSamplingCheck *out,
+                                       GError **error);
 
 typedef struct {
   guint n_phases;
@@ -85,6 +146,7 @@ typedef struct {
   double noise_dn;          /* per-set noise estimate (DN, one frame): from the model if given,
                                otherwise from the data; NAN if neither is possible */
   double saturation_level;  /* the level applied (DN); NAN when none applies (float input) */
+  double phase_offset_cycles; /* offset used to flag undersampled pixels; NAN if none was needed */
 } DsSeparationMeta;
 
 typedef struct {
@@ -97,6 +159,9 @@ typedef struct {
   DsSeparationMeta meta;
 } DsSeparation;
 
+/* An empty result (no planes) for ds_phase_set_finalize_into. */
+DsSeparation *ds_separation_new (void);
+/* Frees the planes (views: only the DsImage, see ds_image_new_view) and the result. */
 void ds_separation_free (DsSeparation *sep);
 G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsSeparation, ds_separation_free)
 
@@ -115,7 +180,9 @@ gboolean ds_phase_set_set_dark (DsPhaseSet *set, const DsImage *dark, GError **e
 
 /* Folds one frame lit with phase k (0 <= k < N). Frames of one phase arrive consecutively
  * (M averages); a phase once left cannot be revisited. Frames must all have the set's size
- * and one sample type/bit depth. On error nothing is folded.
+ * and one sample type/bit depth. On error nothing is folded. The frame is only read, and not
+ * after this returns: it may be a view of a buffer the caller does not own (ds_image_view_init,
+ * ds_pixfmt_view: a camera buffer), folded without a copy.
  * Averaging is decided by the first phase: if it receives a second frame, every phase's frames
  * are summed and the phase mean folded when the phase changes (phases may then differ in M);
  * otherwise each frame is folded at once and a later phase may not take a second frame. */
@@ -124,6 +191,14 @@ gboolean ds_phase_set_accumulate (DsPhaseSet *set, guint phase, const DsImage *f
 
 /* Computes the result; every phase must have at least one frame. The set can then be reset. */
 DsSeparation *ds_phase_set_finalize (DsPhaseSet *set, GError **error);
+/* As ds_phase_set_finalize, into `sep`, which the caller owns and keeps (a pool of results):
+ * planes it already has are written in place and must have the set's size and the plane's
+ * type (f32, mask u8), else INVALID_ARGUMENT names the plane and nothing is written; missing
+ * planes are allocated; planes this configuration does not produce (max/min/mean without
+ * keep_extrema, sigmas without a noise model) are freed, so none is left stale. A plane may
+ * be a view over memory the caller owns (ds_image_new_view). meta is overwritten. On other
+ * errors the planes' contents are unspecified. */
+gboolean ds_phase_set_finalize_into (DsPhaseSet *set, DsSeparation *sep, GError **error);
 /* As ds_phase_set_finalize, but takes ownership of `reuse` (a previous result nobody needs any
  * more; may be NULL) and writes into its planes where they have the right shape, sparing the
  * allocation and first-touch page faults of new ones (for continuous acquisition at a high

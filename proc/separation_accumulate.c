@@ -2,16 +2,18 @@
  *
  * Memory does not grow with N for maxmin and sine. The fast path (integer frames, one per
  * phase) keeps the raw extrema as u16 and, only when something needs the mean, an exact 32-bit
- * sum (exact up to DS_MAX_PHASES frames of 16 bits; widened to double at finalize). The row
- * loops below run over contiguous arrays with restrict pointers so the compiler vectorises them
- * (proc/separation.cmake builds this file with -ftree-vectorize). Float input and averaging (M
- * frames per phase) use float extrema of phase means and a double sum. */
+ * sum (exact up to DS_MAX_PHASES frames of 16 bits; widened to double at finalize); robust keeps
+ * the N raw frames as u16 planes (a copy per frame) and derives the rest at finalize. Float
+ * input and averaging (M frames per phase) use float extrema of phase means and a double sum.
+ * The row loops live in separation_kernels.c; rows are split over the set's worker threads. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "proc/proc_error.h"
 #include "proc/separation_internal.h"
+#include "proc/separation_rows.h"
+#include "proc/stripe_phase.h"
 
 static gboolean
 needs_mean (const DsSeparationParams *p)
@@ -22,18 +24,19 @@ needs_mean (const DsSeparationParams *p)
 static void
 free_state (DsPhaseSet *set)
 {
-  g_clear_pointer (&set->max16, g_free);
-  g_clear_pointer (&set->min16, g_free);
-  g_clear_pointer (&set->sum32, g_free);
-  g_clear_pointer (&set->maxf, g_free);
-  g_clear_pointer (&set->minf, g_free);
-  g_clear_pointer (&set->sumd, g_free);
-  g_clear_pointer (&set->rawmax, g_free);
-  g_clear_pointer (&set->psum, g_free);
-  g_clear_pointer (&set->nonfinite, g_free);
-  g_clear_pointer (&set->cos_sum, g_free);
-  g_clear_pointer (&set->sin_sum, g_free);
-  g_clear_pointer (&set->phase_means, g_free);
+  g_clear_pointer (&set->max16, free);
+  g_clear_pointer (&set->min16, free);
+  g_clear_pointer (&set->sum32, free);
+  g_clear_pointer (&set->maxf, free);
+  g_clear_pointer (&set->minf, free);
+  g_clear_pointer (&set->sumd, free);
+  g_clear_pointer (&set->rawmax, free);
+  g_clear_pointer (&set->psum, free);
+  g_clear_pointer (&set->nonfinite, free);
+  g_clear_pointer (&set->cos_sum, free);
+  g_clear_pointer (&set->sin_sum, free);
+  g_clear_pointer (&set->planes16, free);
+  g_clear_pointer (&set->planesf, free);
 }
 
 static gpointer
@@ -43,8 +46,7 @@ alloc_plane (DsPhaseSet *set, gsize n_elements, gsize element_size, gboolean *ok
     return NULL;
   gsize bytes;
   gpointer p = NULL;
-  /* 64-byte aligned (a cache line): vector loads of a row then never straddle two lines.
-   * g_free releases it (GLib's allocator is the system's). */
+  /* 64-byte aligned (a cache line): vector loads of a row then never straddle two lines. */
   if (g_size_checked_mul (&bytes, n_elements, element_size) && posix_memalign (&p, 64, MAX (bytes, 1)) != 0)
     p = NULL;
   if (!p) {
@@ -65,12 +67,20 @@ alloc_state (DsPhaseSet *set, GError **error)
   gsize n = set->npix;
   gboolean ok = TRUE;
   gboolean is_float = set->type == DS_SAMPLE_F32;
+  gboolean robust = p->estimator == DS_ESTIMATOR_ROBUST;
+  gsize planes;
+  if (!g_size_checked_mul (&planes, n, p->n_phases))
+    planes = G_MAXSIZE;
   free_state (set);
   if (!is_float && !set->averaging) {
-    set->max16 = alloc_plane (set, n, sizeof (guint16), &ok, error);
-    set->min16 = alloc_plane (set, n, sizeof (guint16), &ok, error);
-    if (needs_mean (p))
-      set->sum32 = alloc_plane (set, n, sizeof (guint32), &ok, error);
+    if (robust) {
+      set->planes16 = alloc_plane (set, planes, sizeof (guint16), &ok, error);
+    } else {
+      set->max16 = alloc_plane (set, n, sizeof (guint16), &ok, error);
+      set->min16 = alloc_plane (set, n, sizeof (guint16), &ok, error);
+      if (needs_mean (p))
+        set->sum32 = alloc_plane (set, n, sizeof (guint32), &ok, error);
+    }
   } else {
     set->maxf = alloc_plane (set, n, sizeof (float), &ok, error);
     set->minf = alloc_plane (set, n, sizeof (float), &ok, error);
@@ -79,6 +89,8 @@ alloc_state (DsPhaseSet *set, GError **error)
       set->rawmax = alloc_plane (set, n, sizeof (float), &ok, error);
       set->psum = alloc_plane (set, n, sizeof (double), &ok, error);
     }
+    if (robust)
+      set->planesf = alloc_plane (set, planes, sizeof (float), &ok, error);
   }
   if (is_float)
     set->nonfinite = alloc_plane (set, n, 1, &ok, error);
@@ -86,15 +98,16 @@ alloc_state (DsPhaseSet *set, GError **error)
     set->cos_sum = alloc_plane (set, n, sizeof (double), &ok, error);
     set->sin_sum = alloc_plane (set, n, sizeof (double), &ok, error);
   }
-  if (p->estimator == DS_ESTIMATOR_ROBUST) {
-    gsize planes;
-    if (!g_size_checked_mul (&planes, n, p->n_phases))
-      planes = G_MAXSIZE;
-    set->phase_means = alloc_plane (set, planes, sizeof (float), &ok, error);
-  }
   if (!ok)
     free_state (set);
   return ok;
+}
+
+static guint
+resolve_threads (guint requested)
+{
+  guint t = requested ? requested : (guint) g_get_num_processors ();
+  return CLAMP (t, 1u, DS_MAX_THREADS);
 }
 
 DsPhaseSet *
@@ -121,6 +134,21 @@ ds_phase_set_new (const DsSeparationParams *params, guint width, guint height, G
   set->current = -1;
   set->data_noise_dn = NAN;
   set->range_quantile = ds_separation_range_quantile (params->n_phases, 0.999);
+  set->threads = set->npix >= DS_THREADED_MIN_PIXELS ? resolve_threads (params->threads) : 1;
+  ds_robust_windows (params, &set->robust_hi, &set->robust_lo);
+  set->offset_used = NAN;
+  /* validate ran the check already and it passed; here its numbers are kept */
+  ds_separation_check_sampling (params, &set->sampling, NULL);
+  if (set->sampling.applies && set->sampling.affected_fraction > 0) {
+    set->column_flags = g_new0 (guint8, width);
+    const DsStripeGeometry *g = &params->geometry;
+    if (g->phase_offset_known) {
+      ds_sampling_column_flags (params, g->phase_offset_cycles, width, set->column_flags);
+      set->offset_used = g->phase_offset_cycles;
+    } else {
+      set->flags_need_offset = TRUE;
+    }
+  }
   return set;
 }
 
@@ -130,6 +158,9 @@ ds_phase_set_free (DsPhaseSet *set)
   if (!set)
     return;
   free_state (set);
+  ds_worker_pool_free (set->pool);
+  g_free (set->scratch);
+  g_free (set->column_flags);
   g_free (set->dark);
   g_free (set->count);
   g_free (set);
@@ -144,13 +175,39 @@ ds_phase_set_reset (DsPhaseSet *set)
   set->current = -1;
   set->data_noise_dn = NAN;
   /* typed, type and averaging stay: the next set most likely looks the same and reuses the
-   * memory; the first frame re-checks them. */
+   * memory; the first frame re-checks them. The column flags stay with the offset they were
+   * made for: the illuminator does not move between sets. */
 }
 
 guint
 ds_phase_set_frames_folded (const DsPhaseSet *set)
 {
   return set->frames;
+}
+
+void
+ds_phase_set_run_rows (DsPhaseSet *set, DsRowJob job, gpointer data)
+{
+  if (set->threads > 1 && !set->pool)
+    set->pool = ds_worker_pool_new (set->threads);
+  ds_worker_pool_run (set->pool, set->height, job, data);
+}
+
+void
+ds_phase_set_reserve_scratch (DsPhaseSet *set, gsize doubles)
+{
+  if (set->scratch && set->scratch_doubles >= doubles)
+    return;
+  g_free (set->scratch);
+  /* rounded to whole cache lines so that threads never share one */
+  set->scratch_doubles = (doubles + 7) & ~(gsize) 7;
+  set->scratch = g_new (double, set->scratch_doubles * set->threads);
+}
+
+double *
+ds_phase_set_scratch (DsPhaseSet *set, guint thread)
+{
+  return set->scratch + (gsize) thread * set->scratch_doubles;
 }
 
 static gboolean
@@ -197,56 +254,16 @@ ds_phase_set_set_dark (DsPhaseSet *set, const DsImage *dark, GError **error)
   for (guint y = 0; y < set->height; y++) {
     float *d = set->dark + (gsize) y * set->width;
     const void *row = ds_image_row (dark, y);
-    for (guint x = 0; x < set->width; x++)
-      d[x] = dark->type == DS_SAMPLE_U8    ? ((const guint8 *) row)[x]
-             : dark->type == DS_SAMPLE_U16 ? ((const guint16 *) row)[x]
-                                           : ((const float *) row)[x];
+    if (dark->type == DS_SAMPLE_U8)
+      ds_copy_plane_u8 (row, d, set->width);
+    else if (dark->type == DS_SAMPLE_U16)
+      ds_copy_plane_u16 (row, d, set->width);
+    else
+      memcpy (d, row, set->width * sizeof (float));
   }
   set->dark_type = dark->type;
   set->dark_bit_depth = dark->bit_depth;
   return TRUE;
-}
-
-/* Float input: NaN and Inf are replaced by 0 in the sums and flagged, so one bad sample
- * cannot poison the arithmetic (the pixel's outputs are then 0, see docs/estimators.md). */
-static void
-clean_row_f32 (const float *restrict in, float *restrict out, guint8 *restrict nf, gboolean first,
-               gsize w)
-{
-  for (gsize x = 0; x < w; x++) {
-    float v = in[x];
-    guint8 bad = !isfinite (v);
-    out[x] = bad ? 0.0f : v;
-    nf[x] = first ? bad : (guint8) (nf[x] | bad);
-  }
-}
-
-static void
-fold_float_row (const float *restrict v, float *restrict mx, float *restrict mn,
-                double *restrict sum, gboolean first, gsize w)
-{
-  if (first) {
-    for (gsize x = 0; x < w; x++) {
-      mx[x] = mn[x] = v[x];
-      sum[x] = v[x];
-    }
-    return;
-  }
-  for (gsize x = 0; x < w; x++) {
-    mx[x] = v[x] > mx[x] ? v[x] : mx[x];
-    mn[x] = v[x] < mn[x] ? v[x] : mn[x];
-    sum[x] += v[x];
-  }
-}
-
-static void
-fold_harmonic_f32 (const float *restrict v, double c, double s, double *restrict cs,
-                   double *restrict sn, gboolean first, gsize w)
-{
-  for (gsize x = 0; x < w; x++) {
-    cs[x] = (first ? 0.0 : cs[x]) + c * v[x];
-    sn[x] = (first ? 0.0 : sn[x]) + s * v[x];
-  }
 }
 
 static void
@@ -262,37 +279,55 @@ static void
 fold_values_row (DsPhaseSet *set, guint phase, const float *v, gsize off, gboolean first)
 {
   gsize w = set->width;
-  fold_float_row (v, set->maxf + off, set->minf + off, set->sumd + off, first, w);
+  ds_fold_float_row (v, set->maxf + off, set->minf + off, set->sumd + off, first, w);
   if (set->cos_sum) {
     double c, s;
     phase_angle (set, phase, &c, &s);
-    fold_harmonic_f32 (v, c, s, set->cos_sum + off, set->sin_sum + off, first, w);
+    ds_fold_harmonic_f32 (v, c, s, set->cos_sum + off, set->sin_sum + off, first, w);
   }
-  if (set->phase_means)
-    memcpy (set->phase_means + (gsize) phase * set->npix + off, v, w * sizeof (float));
+  if (set->planesf)
+    memcpy (set->planesf + (gsize) phase * set->npix + off, v, w * sizeof (float));
 }
 
+typedef struct {
+  DsPhaseSet *set;
+  const DsImage *frame;
+  guint phase;
+  gboolean first;          /* first frame (or phase mean) of the set */
+  gboolean first_of_phase; /* averaging */
+  double inv;              /* averaging: 1 / frames of the pending phase */
+} FoldJob;
+
 /* Averaging: the pending phase's mean is folded into the extrema and sums. */
+static void
+fold_pending_rows (gpointer data, guint y0, guint y1, guint thread)
+{
+  FoldJob *j = data;
+  DsPhaseSet *set = j->set;
+  float *row = (float *) ds_phase_set_scratch (set, thread);
+  for (guint y = y0; y < y1; y++) {
+    gsize off = (gsize) y * set->width;
+    const double *ps = set->psum + off;
+    for (guint x = 0; x < set->width; x++)
+      row[x] = (float) (ps[x] * j->inv);
+    fold_values_row (set, j->phase, row, off, j->first);
+  }
+}
+
 static void
 fold_pending_phase (DsPhaseSet *set)
 {
   if (set->current < 0 || !set->averaging)
     return;
-  guint phase = (guint) set->current;
-  double inv = 1.0 / set->count[phase];
-  gboolean first = set->phases_folded == 0;
-  g_autofree float *row = g_new (float, set->width);
-  for (guint y = 0; y < set->height; y++) {
-    gsize off = (gsize) y * set->width;
-    for (guint x = 0; x < set->width; x++)
-      row[x] = (float) (set->psum[off + x] * inv);
-    fold_values_row (set, phase, row, off, first);
-  }
+  FoldJob j = { .set = set, .phase = (guint) set->current, .first = set->phases_folded == 0,
+                .inv = 1.0 / set->count[set->current] };
+  ds_phase_set_reserve_scratch (set, set->width);
+  ds_phase_set_run_rows (set, fold_pending_rows, &j);
   set->phases_folded++;
 }
 
 /* The first phase got a second frame: until now exactly one frame was folded, so its value is
- * still in the extrema; it becomes the running phase sum and averaging starts. */
+ * still in the state; it becomes the running phase sum and averaging starts. */
 static gboolean
 switch_to_averaging (DsPhaseSet *set, GError **error)
 {
@@ -302,18 +337,21 @@ switch_to_averaging (DsPhaseSet *set, GError **error)
     g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_TOO_LARGE, "cannot allocate a phase plane");
     return FALSE;
   }
+  const guint16 *v16 = set->max16 ? set->max16
+                       : set->planes16 ? set->planes16 + (gsize) set->current * n
+                                       : NULL;
   for (gsize i = 0; i < n; i++)
-    first[i] = set->max16 ? set->max16[i] : set->maxf[i];
+    first[i] = v16 ? v16[i] : set->maxf[i];
   guint8 *nf = g_steal_pointer (&set->nonfinite);
   set->averaging = TRUE;
   if (!alloc_state (set, error)) {
-    g_free (nf);
+    free (nf);
     set->averaging = FALSE;
     set->typed = FALSE;
     return FALSE;
   }
   if (nf) {
-    g_free (set->nonfinite);
+    free (set->nonfinite);
     set->nonfinite = nf;
   }
   for (gsize i = 0; i < n; i++) {
@@ -379,6 +417,75 @@ check_frame (DsPhaseSet *set, guint phase, const DsImage *frame, GError **error)
   return TRUE;
 }
 
+/* Integer frame, one per phase. */
+#define FOLD_INT_ROW(T, NAME)                                                                     \
+  do {                                                                                            \
+    const T *in = ds_image_row (frame, y);                                                        \
+    if (set->planes16) {                                                                          \
+      ds_widen_##NAME (in, set->planes16 + (gsize) j->phase * set->npix + off, w);                \
+      break;                                                                                      \
+    }                                                                                             \
+    guint32 *sum = set->sum32 ? set->sum32 + off : NULL;                                          \
+    if (j->first)                                                                                 \
+      ds_fold_first_##NAME (in, set->max16 + off, set->min16 + off, sum, w);                      \
+    else if (sum)                                                                                 \
+      ds_fold_extrema_sum_##NAME (in, set->max16 + off, set->min16 + off, sum, w);                \
+    else                                                                                          \
+      ds_fold_extrema_##NAME (in, set->max16 + off, set->min16 + off, w);                         \
+    if (set->cos_sum)                                                                             \
+      ds_fold_harmonic_##NAME (in, c, s, set->cos_sum + off, set->sin_sum + off, j->first, w);    \
+  } while (0)
+
+static void
+fold_frame_rows (gpointer data, guint y0, guint y1, guint thread)
+{
+  FoldJob *j = data;
+  DsPhaseSet *set = j->set;
+  const DsImage *frame = j->frame;
+  gsize w = set->width;
+  double c = 0, s = 0;
+  if (set->cos_sum)
+    phase_angle (set, j->phase, &c, &s);
+  float *row = (float *) ds_phase_set_scratch (set, thread);
+  for (guint y = y0; y < y1; y++) {
+    gsize off = (gsize) y * w;
+    if (set->averaging) {
+      const void *in = ds_image_row (frame, y);
+      if (frame->type == DS_SAMPLE_U8)
+        ds_copy_plane_u8 (in, row, w);
+      else if (frame->type == DS_SAMPLE_U16)
+        ds_copy_plane_u16 (in, row, w);
+      else
+        ds_clean_row_f32 (in, row, set->nonfinite + off, j->first, w);
+      ds_fold_average_row (row, set->psum + off, set->rawmax + off, j->first_of_phase, j->first, w);
+    } else if (frame->type == DS_SAMPLE_F32) {
+      ds_clean_row_f32 (ds_image_row (frame, y), row, set->nonfinite + off, j->first, w);
+      fold_values_row (set, j->phase, row, off, j->first);
+    } else if (frame->type == DS_SAMPLE_U16) {
+      FOLD_INT_ROW (guint16, u16);
+    } else {
+      FOLD_INT_ROW (guint8, u8);
+    }
+  }
+}
+
+/* The column flags of the sampling precondition need the phase offset: measured on the first
+ * frame whose stripes are clear enough, as the daemon's phase check does. */
+static void
+locate_columns (DsPhaseSet *set, guint phase, const DsImage *frame)
+{
+  const DsStripeGeometry *g = &set->params.geometry;
+  DsStripePhase sp;
+  if (g->period_px > 2 && g->period_px <= frame->width &&
+      ds_stripe_phase_measure (frame, g->period_px, NULL, &sp, NULL) && sp.reliable) {
+    double offset = sp.phase - (double) phase / set->params.n_phases;
+    offset -= floor (offset);
+    ds_sampling_column_flags (&set->params, offset, set->width, set->column_flags);
+    set->offset_used = offset;
+    set->flags_need_offset = FALSE;
+  }
+}
+
 gboolean
 ds_phase_set_accumulate (DsPhaseSet *set, guint phase, const DsImage *frame, GError **error)
 {
@@ -390,7 +497,7 @@ ds_phase_set_accumulate (DsPhaseSet *set, guint phase, const DsImage *frame, GEr
     gboolean layout_same = set->typed && set->type == frame->type;
     set->type = frame->type;
     set->bit_depth = frame->bit_depth;
-    if (!layout_same || !(set->max16 || set->maxf)) {
+    if (!layout_same || !(set->max16 || set->maxf || set->planes16)) {
       set->typed = TRUE;
       if (!alloc_state (set, error)) {
         set->typed = FALSE;
@@ -402,84 +509,19 @@ ds_phase_set_accumulate (DsPhaseSet *set, guint phase, const DsImage *frame, GEr
     if (!switch_to_averaging (set, error))
       return FALSE;
   }
+  if (set->flags_need_offset)
+    locate_columns (set, phase, frame);
 
-  gsize w = set->width;
   gboolean new_phase = (int) phase != set->current;
   if (new_phase && set->averaging)
     fold_pending_phase (set);
 
-  if (set->averaging) {
-    gboolean first_of_phase = set->count[phase] == 0;
-    gboolean first_of_set = set->frames == 0;
-    g_autofree float *row = g_new (float, w);
-    for (guint y = 0; y < set->height; y++) {
-      gsize off = (gsize) y * w;
-      const void *in = ds_image_row (frame, y);
-      if (frame->type == DS_SAMPLE_U8)
-        ds_copy_plane_u8 (in, row, w);
-      else if (frame->type == DS_SAMPLE_U16)
-        ds_copy_plane_u16 (in, row, w);
-      else
-        clean_row_f32 (in, row, set->nonfinite + off, first_of_set, w);
-      double *ps = set->psum + off;
-      float *rm = set->rawmax + off;
-      for (gsize x = 0; x < w; x++) {
-        ps[x] = (first_of_phase ? 0.0 : ps[x]) + row[x];
-        rm[x] = first_of_set || row[x] > rm[x] ? row[x] : rm[x];
-      }
-    }
-  } else if (frame->type == DS_SAMPLE_F32) {
-    gboolean first = set->frames == 0;
-    g_autofree float *row = g_new (float, w);
-    for (guint y = 0; y < set->height; y++) {
-      gsize off = (gsize) y * w;
-      clean_row_f32 (ds_image_row (frame, y), row, set->nonfinite + off, first, w);
-      fold_values_row (set, phase, row, off, first);
-    }
+  FoldJob j = { .set = set, .frame = frame, .phase = phase, .first = set->frames == 0,
+                .first_of_phase = set->count[phase] == 0 };
+  ds_phase_set_reserve_scratch (set, set->width);
+  ds_phase_set_run_rows (set, fold_frame_rows, &j);
+  if (!set->averaging)
     set->phases_folded++;
-  } else {
-    gboolean first = set->frames == 0;
-    double c = 0, s = 0;
-    if (set->cos_sum)
-      phase_angle (set, phase, &c, &s);
-    for (guint y = 0; y < set->height; y++) {
-      gsize off = (gsize) y * w;
-      const void *in = ds_image_row (frame, y);
-      guint32 *sum = set->sum32 ? set->sum32 + off : NULL;
-      if (frame->type == DS_SAMPLE_U16) {
-        if (first)
-          ds_fold_first_u16 (in, set->max16 + off, set->min16 + off, sum, w);
-        else if (sum)
-          ds_fold_extrema_sum_u16 (in, set->max16 + off, set->min16 + off, sum, w);
-        else
-          ds_fold_extrema_u16 (in, set->max16 + off, set->min16 + off, w);
-        if (set->cos_sum) {
-          if (first)
-            memset (set->cos_sum + off, 0, w * sizeof (double)),
-              memset (set->sin_sum + off, 0, w * sizeof (double));
-          ds_fold_harmonic_u16 (in, c, s, set->cos_sum + off, set->sin_sum + off, w);
-        }
-        if (set->phase_means)
-          ds_copy_plane_u16 (in, set->phase_means + (gsize) phase * set->npix + off, w);
-      } else {
-        if (first)
-          ds_fold_first_u8 (in, set->max16 + off, set->min16 + off, sum, w);
-        else if (sum)
-          ds_fold_extrema_sum_u8 (in, set->max16 + off, set->min16 + off, sum, w);
-        else
-          ds_fold_extrema_u8 (in, set->max16 + off, set->min16 + off, w);
-        if (set->cos_sum) {
-          if (first)
-            memset (set->cos_sum + off, 0, w * sizeof (double)),
-              memset (set->sin_sum + off, 0, w * sizeof (double));
-          ds_fold_harmonic_u8 (in, c, s, set->cos_sum + off, set->sin_sum + off, w);
-        }
-        if (set->phase_means)
-          ds_copy_plane_u8 (in, set->phase_means + (gsize) phase * set->npix + off, w);
-      }
-    }
-    set->phases_folded++;
-  }
   set->count[phase]++;
   set->current = (int) phase;
   set->frames++;

@@ -1,6 +1,8 @@
 /* Finalize: the estimators (maxmin, sine, robust), the quality mask, the noise model and the
- * result. Formulas and choices: docs/estimators.md. Per pixel in double precision; integer
- * state is widened here, and the dark frame is subtracted here in signed arithmetic. */
+ * result. Formulas and choices: docs/estimators.md. Per pixel in double precision (the row
+ * kernels of separation_rows.c); integer state is widened there, and the dark frame is
+ * subtracted there in signed arithmetic. Rows are split over the set's worker threads; every
+ * per-set sum is made per row and added in row order, so any split gives the same bits. */
 #include <math.h>
 #include <string.h>
 #include <sys/mman.h>
@@ -8,94 +10,80 @@
 #include "proc/harmonic_gain.h"
 #include "proc/proc_error.h"
 #include "proc/separation_internal.h"
+#include "proc/separation_rows.h"
 
 /* P(Rayleigh noise amplitude > t) = exp(-t^2 / (2 s^2)) = 1e-3 at t = 3.717 s. */
 #define DS_RAYLEIGH_999 3.7169221888498383
 
 typedef struct {
-  double a, b, m, h;
-  guint n, m_frames;
-  gboolean model, integer;
-  double read_var;        /* read noise^2 (+ quantisation) in DN^2 */
-  double gain;            /* K */
-  double data_sigma;      /* one frame, NAN if unknown */
-  double floor;           /* noise at zero signal (DARK test) */
-  double sat;             /* NAN: no saturation test */
-  double range_q;
-} Consts;
+  DsPhaseSet *set;
+  DsSeparation *sep;
+  DsRowConsts c;
+  DsMaxminFast fast;       /* the integer maxmin path without model or extrema */
+  gboolean use_fast;
+  DsRobustTables tables;
+  double *row_mean_sum;    /* per row */
+  guint64 *row_mean_count; /* per row */
+  guint64 *counts;         /* per thread: DS_MASK_N_BITS + 1 */
+  const guint8 *column_flags; /* undersampled columns, NULL if none */
+} FinalizeJob;
 
-typedef struct {
-  double ld, lg, hi, lo, mean, sig_ld, sig_lg;
-  guint8 mask;
-} PixelOut;
-
-static double
-frame_var (const Consts *c, double signal)
-{
-  return c->read_var + c->gain * (signal > 0 ? signal : 0);
-}
-
-/* Robust (square stripes): the phase k_c at which this pixel is lit best comes from the
- * first harmonic of its N phase means (a fit to all N, so noise barely moves it when the
- * modulation is clear); "lit" is the mean of the ceil(aN) - 2 phases centred on k_c, "unlit"
- * the mean of the ceil((1-a)N) - 2 phases centred half a period away (each at least 1). A
- * sharp pattern lights floor(aN) or ceil(aN) consecutive phases (one fewer on a tie), so the
- * windows stay inside the lit and the unlit runs with a margin for blurred edges, and they
- * average several phases instead of picking the noisiest one. N = 2 and 3 reduce to maxmin
- * (one phase each). */
 static void
-robust_levels (const double *v, const double *cos_tab, const double *sin_tab, guint n,
-               double duty, double *hi, double *lo, guint *n_hi, guint *n_lo)
+finalize_rows (gpointer data, guint y0, guint y1, guint thread)
 {
-  double cs = 0, sn = 0;
-  for (guint k = 0; k < n; k++) {
-    cs += v[k] * cos_tab[k];
-    sn += v[k] * sin_tab[k];
-  }
-  double kc = atan2 (sn, cs) / (2 * G_PI) * n; /* v_k ~ cos (2 pi (k - kc) / N) */
-  guint len_hi = (guint) MAX (1.0, ceil (duty * n - 1e-9) - 2);
-  guint len_lo = (guint) MAX (1.0, ceil ((1 - duty) * n - 1e-9) - 2);
-  long start_hi = lround (kc - (len_hi - 1) / 2.0);
-  long start_lo = lround (kc + n / 2.0 - (len_lo - 1) / 2.0);
-  double sh = 0, sl = 0;
-  for (guint j = 0; j < len_hi; j++)
-    sh += v[(guint) (((start_hi + (long) j) % (long) n + n) % n)];
-  for (guint j = 0; j < len_lo; j++)
-    sl += v[(guint) (((start_lo + (long) j) % (long) n + n) % n)];
-  *hi = sh / len_hi;
-  *lo = sl / len_lo;
-  *n_hi = len_hi;
-  *n_lo = len_lo;
-}
-
-/* maxmin on integer frames without noise model or extrema (the daemon's default): the same
- * formulas as the general loop below, in float, on whole rows. */
-static void
-maxmin_fast (const DsPhaseSet *set, DsSeparation *sep, const Consts *c)
-{
-  DsMaxminFast k;
-  k.inv1b = (float) (1.0 / (1.0 - c->b));
-  k.b = (float) c->b;
-  k.invm = (float) (1.0 / c->m);
-  k.m = (float) c->m;
-  k.sat = isnan (c->sat) ? INFINITY : (float) c->sat;
-  k.floor = isnan (c->floor) ? -INFINITY : (float) c->floor;
-  double lowmod = c->range_q * c->data_sigma / sqrt ((double) c->m_frames);
-  k.lowmod = isnan (lowmod) ? -INFINITY : (float) lowmod;
+  FinalizeJob *j = data;
+  DsPhaseSet *set = j->set;
+  DsSeparation *sep = j->sep;
+  const DsRowConsts *c = &j->c;
+  const guint8 *column_flags = j->column_flags;
   guint w = set->width;
-  g_autofree float *zeros = set->dark ? NULL : g_new0 (float, w);
-  guint64 counts[DS_MASK_N_BITS + 1] = { 0 };
-  for (guint y = 0; y < set->height; y++) {
+  guint64 *counts = j->counts + (gsize) thread * (DS_MASK_N_BITS + 1);
+  DsRowBuffers rb;
+  ds_row_buffers_init (&rb, ds_phase_set_scratch (set, thread), w);
+  for (guint y = y0; y < y1; y++) {
     gsize off = (gsize) y * w;
-    guint8 *mk = ds_image_row (sep->mask, y);
-    ds_maxmin_fast_row (set->max16 + off, set->min16 + off, set->dark ? set->dark + off : zeros,
-                        ds_image_row (sep->transmissive, y), ds_image_row (sep->scattered, y), mk,
-                        w, &k);
-    ds_count_mask_row (mk, w, counts);
+    const float *dark = set->dark ? set->dark + off : rb.dark_zero;
+    DsRowOutputs o = {
+      .t = ds_image_row (sep->transmissive, y), .g = ds_image_row (sep->scattered, y),
+      .mk = ds_image_row (sep->mask, y),
+      .mx = sep->max ? ds_image_row (sep->max, y) : NULL,
+      .mn = sep->min ? ds_image_row (sep->min, y) : NULL,
+      .me = sep->mean ? ds_image_row (sep->mean, y) : NULL,
+      .st = sep->sigma_transmissive ? ds_image_row (sep->sigma_transmissive, y) : NULL,
+      .sg = sep->sigma_scattered ? ds_image_row (sep->sigma_scattered, y) : NULL,
+    };
+    if (j->use_fast) {
+      ds_maxmin_fast_row (set->max16 + off, set->min16 + off, dark, o.t, o.g, o.mk, w, &j->fast);
+      if (column_flags)
+        ds_or_mask_row (o.mk, column_flags, w);
+      ds_count_mask_row (o.mk, w, counts);
+      continue;
+    }
+    if (set->max16)
+      ds_row_load_fast (set->max16 + off, set->min16 + off, set->sum32 ? set->sum32 + off : NULL,
+                        c->n, &rb, w);
+    else
+      ds_row_load_float (set->maxf ? set->maxf + off : NULL, set->minf ? set->minf + off : NULL,
+                         set->sumd ? set->sumd + off : NULL, set->rawmax ? set->rawmax + off : NULL,
+                         set->nonfinite ? set->nonfinite + off : NULL, c->n, dark, &rb, w);
+    switch (c->estimator) {
+    case DS_ESTIMATOR_SINE:
+      ds_row_sine (c, set->cos_sum + off, set->sin_sum + off, dark, &rb, w);
+      break;
+    case DS_ESTIMATOR_ROBUST:
+      ds_row_robust (c, &j->tables, set->planes16 ? set->planes16 + off : NULL,
+                     set->planesf ? set->planesf + off : NULL, set->npix, dark, &rb, w);
+      if (!set->rawmax)
+        memcpy (rb.rmax, rb.hi_raw, w * sizeof (double));
+      break;
+    default:
+      ds_row_maxmin (c, dark, &rb, w);
+      break;
+    }
+    j->row_mean_sum[y] = 0;
+    j->row_mean_count[y] = 0;
+    ds_row_tail (c, &rb, dark, column_flags, &o, w, &j->row_mean_sum[y], &j->row_mean_count[y], counts);
   }
-  sep->meta.valid_pixels = counts[0];
-  for (guint bit = 0; bit < DS_MASK_N_BITS; bit++)
-    sep->meta.flagged[bit] = counts[1 + bit];
 }
 
 /* Result planes are fresh memory: first-touch page faults cost more than the arithmetic.
@@ -118,17 +106,48 @@ new_plane (DsSampleType type, guint w, guint h, GError **error)
   return img;
 }
 
-/* A plane from the recycled result when it has the right shape, else a new one. */
-static gboolean
-take_plane (DsImage **dst, DsImage **recycled, DsSampleType type, guint w, guint h, GError **error)
+static const char *const plane_names[] = { "transmissive", "scattered", "mask", "max", "min", "mean",
+                                           "sigma_transmissive", "sigma_scattered" };
+
+static DsImage **
+plane_slot (DsSeparation *sep, guint i)
 {
-  if (recycled && *recycled && (*recycled)->type == type && (*recycled)->width == w &&
-      (*recycled)->height == h) {
-    *dst = g_steal_pointer (recycled);
-    return TRUE;
+  DsImage **slots[] = { &sep->transmissive, &sep->scattered, &sep->mask, &sep->max, &sep->min,
+                        &sep->mean, &sep->sigma_transmissive, &sep->sigma_scattered };
+  return slots[i];
+}
+
+/* Checks the caller's planes, then allocates the missing ones and frees the unwanted ones. */
+static gboolean
+prepare_planes (DsSeparation *sep, const gboolean want[8], guint w, guint h, GError **error)
+{
+  for (guint i = 0; i < G_N_ELEMENTS (plane_names); i++) {
+    DsImage *p = *plane_slot (sep, i);
+    DsSampleType type = i == 2 ? DS_SAMPLE_U8 : DS_SAMPLE_F32;
+    if (p && want[i] && (p->type != type || p->width != w || p->height != h)) {
+      g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT,
+                   "result plane %s is %ux%u %s, the phase set makes %ux%u %s", plane_names[i], p->width,
+                   p->height, ds_sample_type_name (p->type), w, h, ds_sample_type_name (type));
+      return FALSE;
+    }
   }
-  *dst = new_plane (type, w, h, error);
-  return *dst != NULL;
+  for (guint i = 0; i < G_N_ELEMENTS (plane_names); i++) {
+    DsImage **slot = plane_slot (sep, i);
+    if (!want[i]) {
+      g_clear_pointer (slot, ds_image_free);
+    } else if (!*slot) {
+      *slot = new_plane (i == 2 ? DS_SAMPLE_U8 : DS_SAMPLE_F32, w, h, error);
+      if (!*slot)
+        return FALSE;
+    }
+  }
+  return TRUE;
+}
+
+DsSeparation *
+ds_separation_new (void)
+{
+  return g_new0 (DsSeparation, 1);
 }
 
 DsSeparation *
@@ -140,208 +159,144 @@ ds_phase_set_finalize (DsPhaseSet *set, GError **error)
 DsSeparation *
 ds_phase_set_finalize_reusing (DsPhaseSet *set, DsSeparation *reuse, GError **error)
 {
-  g_autoptr (DsSeparation) old = reuse;
+  g_autoptr (DsSeparation) sep = reuse ? reuse : ds_separation_new ();
+  /* a plane of another shape is simply replaced here (the caller gave the result away) */
+  for (guint i = 0; i < G_N_ELEMENTS (plane_names); i++) {
+    DsImage **slot = plane_slot (sep, i);
+    DsSampleType type = i == 2 ? DS_SAMPLE_U8 : DS_SAMPLE_F32;
+    if (*slot && ((*slot)->type != type || (*slot)->width != set->width || (*slot)->height != set->height))
+      g_clear_pointer (slot, ds_image_free);
+  }
+  if (!ds_phase_set_finalize_into (set, sep, error))
+    return NULL;
+  return g_steal_pointer (&sep);
+}
+
+gboolean
+ds_phase_set_finalize_into (DsPhaseSet *set, DsSeparation *sep, GError **error)
+{
   const DsSeparationParams *p = &set->params;
   guint n = p->n_phases;
+  if (!sep) {
+    g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT, "no result to finalize into");
+    return FALSE;
+  }
   if (set->frames == 0) {
     g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_EMPTY, "phase set is empty: no frame folded");
-    return NULL;
+    return FALSE;
   }
   guint m_frames = G_MAXUINT;
   for (guint k = 0; k < n; k++) {
     if (set->count[k] == 0) {
       g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_NOT_ENOUGH_PHASES,
                    "phase %u of N = %u has no frame (%u frames folded)", k, n, set->frames);
-      return NULL;
+      return FALSE;
     }
     m_frames = MIN (m_frames, set->count[k]);
   }
+  gboolean model = p->system_gain > 0, extrema = p->keep_extrema;
+  gboolean want[8] = { TRUE, TRUE, TRUE, extrema, extrema, extrema, model, model };
+  if (!prepare_planes (sep, want, set->width, set->height, error))
+    return FALSE;
   ds_phase_set_fold_pending (set);
 
-  Consts c = { 0 };
-  c.a = p->duty;
-  c.b = p->black_level;
-  c.m = ds_pattern_mean (p->pattern, p->duty, p->black_level);
-  c.h = p->harmonic_gain > 0 ? p->harmonic_gain
-                             : ds_harmonic_gain_theory (p->pattern, p->duty, p->black_level);
-  c.n = n;
-  c.m_frames = m_frames;
-  c.integer = set->type != DS_SAMPLE_F32;
-  c.model = p->system_gain > 0;
-  c.gain = p->system_gain;
-  c.read_var = p->read_noise_dn * p->read_noise_dn + (c.integer ? 1.0 / 12.0 : 0.0);
-  c.data_sigma = set->data_noise_dn;
-  c.floor = c.model ? sqrt (c.read_var) : c.data_sigma;
-  c.sat = p->saturation_level > 0 ? p->saturation_level
-          : c.integer             ? (double) ((1u << set->bit_depth) - 1)
+  FinalizeJob j = { .set = set, .sep = sep };
+  DsRowConsts *c = &j.c;
+  gboolean integer = set->type != DS_SAMPLE_F32;
+  c->n = n;
+  c->m_frames = m_frames;
+  c->b = p->black_level;
+  c->inv1b = 1.0 / (1.0 - p->black_level);
+  c->m = ds_pattern_mean (p->pattern, p->duty, p->black_level);
+  c->h = p->harmonic_gain > 0 ? p->harmonic_gain
+                              : ds_harmonic_gain_theory (p->pattern, p->duty, p->black_level);
+  c->model = model;
+  c->gain = p->system_gain;
+  c->read_var = p->read_noise_dn * p->read_noise_dn + (integer ? 1.0 / 12.0 : 0.0);
+  c->data_sigma = set->data_noise_dn;
+  c->floor = model ? sqrt (c->read_var) : set->data_noise_dn;
+  c->sat = p->saturation_level > 0 ? p->saturation_level
+           : integer              ? (double) ((1u << set->bit_depth) - 1)
                                   : NAN;
-  c.range_q = set->range_quantile;
+  c->range_q = set->range_quantile;
+  c->rayleigh = DS_RAYLEIGH_999 * sqrt (2.0 / n);
+  c->estimator = p->estimator;
+  c->dark = set->dark != NULL;
+  c->extrema = extrema;
+  c->sigmas = model;
+  c->len_hi = p->estimator == DS_ESTIMATOR_ROBUST ? set->robust_hi : 1;
+  c->len_lo = p->estimator == DS_ESTIMATOR_ROBUST ? set->robust_lo : 1;
 
-  guint w = set->width, hgt = set->height;
-  g_autoptr (DsSeparation) sep = g_new0 (DsSeparation, 1);
-  gboolean extrema = p->keep_extrema;
-  gboolean ok = take_plane (&sep->transmissive, old ? &old->transmissive : NULL, DS_SAMPLE_F32, w, hgt, error) &&
-                take_plane (&sep->scattered, old ? &old->scattered : NULL, DS_SAMPLE_F32, w, hgt, error) &&
-                take_plane (&sep->mask, old ? &old->mask : NULL, DS_SAMPLE_U8, w, hgt, error);
-  if (ok && extrema)
-    ok = take_plane (&sep->max, old ? &old->max : NULL, DS_SAMPLE_F32, w, hgt, error) &&
-         take_plane (&sep->min, old ? &old->min : NULL, DS_SAMPLE_F32, w, hgt, error) &&
-         take_plane (&sep->mean, old ? &old->mean : NULL, DS_SAMPLE_F32, w, hgt, error);
-  if (ok && c.model)
-    ok = take_plane (&sep->sigma_transmissive, old ? &old->sigma_transmissive : NULL, DS_SAMPLE_F32, w,
-                     hgt, error) &&
-         take_plane (&sep->sigma_scattered, old ? &old->sigma_scattered : NULL, DS_SAMPLE_F32, w, hgt,
-                     error);
-  if (!ok)
-    return NULL;
+  j.use_fast = set->max16 && p->estimator == DS_ESTIMATOR_MAXMIN && !model && !extrema;
+  if (j.use_fast) {
+    DsMaxminFast *k = &j.fast;
+    k->inv1b = (float) c->inv1b;
+    k->b = (float) c->b;
+    k->invm = (float) (1.0 / c->m);
+    k->m = (float) c->m;
+    k->sat = isnan (c->sat) ? INFINITY : (float) c->sat;
+    k->floor = isnan (c->floor) ? -INFINITY : (float) c->floor;
+    double lowmod = c->range_q * c->data_sigma / sqrt ((double) m_frames);
+    k->lowmod = isnan (lowmod) ? -INFINITY : (float) lowmod;
+  }
+  g_autofree double *tab = NULL;
+  if (p->estimator == DS_ESTIMATOR_ROBUST) {
+    tab = g_new (double, 6 * (gsize) n);
+    for (guint k = 0; k < n; k++) {
+      tab[k] = cos (2 * G_PI * k / n);
+      tab[n + k] = sin (2 * G_PI * k / n);
+    }
+    ds_robust_tables (n, set->robust_hi, set->robust_lo, tab + 2 * n, tab + 3 * n, tab + 4 * n, tab + 5 * n);
+    j.tables = (DsRobustTables) { tab, tab + n, tab + 2 * n, tab + 3 * n, tab + 4 * n, tab + 5 * n,
+                                  set->robust_hi, set->robust_lo };
+  }
+  /* Undersampled columns whose place could not be measured (no frame showed clear stripes):
+   * every column may be one of them. */
+  g_autofree guint8 *all_columns = NULL;
+  j.column_flags = set->column_flags;
+  if (set->flags_need_offset) {
+    all_columns = g_malloc (set->width);
+    memset (all_columns, DS_MASK_UNDERSAMPLED, set->width);
+    j.column_flags = all_columns;
+  }
+  g_autofree double *row_sum = g_new0 (double, set->height);
+  g_autofree guint64 *row_count = g_new0 (guint64, set->height);
+  g_autofree guint64 *counts = g_new0 (guint64, (gsize) set->threads * (DS_MASK_N_BITS + 1));
+  j.row_mean_sum = row_sum;
+  j.row_mean_count = row_count;
+  j.counts = counts;
+  ds_phase_set_reserve_scratch (set, (gsize) DS_ROW_DOUBLES * set->width);
+  ds_phase_set_run_rows (set, finalize_rows, &j);
 
   DsSeparationMeta *meta = &sep->meta;
-  g_autofree double *v = g_new (double, n);
-  g_autofree double *cos_tab = g_new (double, n);
-  g_autofree double *sin_tab = g_new (double, n);
-  for (guint k = 0; k < n; k++) {
-    cos_tab[k] = cos (2 * G_PI * k / n);
-    sin_tab[k] = sin (2 * G_PI * k / n);
+  memset (meta, 0, sizeof *meta);
+  for (guint t = 0; t < set->threads; t++) {
+    const guint64 *ct = counts + (gsize) t * (DS_MASK_N_BITS + 1);
+    meta->valid_pixels += ct[0];
+    for (guint bit = 0; bit < DS_MASK_N_BITS; bit++)
+      meta->flagged[bit] += ct[1 + bit];
   }
   double mean_total = 0;
   guint64 mean_count = 0;
-  gboolean fast = set->max16 && p->estimator == DS_ESTIMATOR_MAXMIN && !c.model && !extrema;
-  if (fast)
-    maxmin_fast (set, sep, &c);
-  for (guint y = 0; y < hgt && !fast; y++) {
-    gsize off = (gsize) y * w;
-    float *t_row = ds_image_row (sep->transmissive, y);
-    float *g_row = ds_image_row (sep->scattered, y);
-    guint8 *m_row = ds_image_row (sep->mask, y);
-    float *mx_row = extrema ? ds_image_row (sep->max, y) : NULL;
-    float *mn_row = extrema ? ds_image_row (sep->min, y) : NULL;
-    float *me_row = extrema ? ds_image_row (sep->mean, y) : NULL;
-    float *st_row = c.model ? ds_image_row (sep->sigma_transmissive, y) : NULL;
-    float *sg_row = c.model ? ds_image_row (sep->sigma_scattered, y) : NULL;
-    for (guint x = 0; x < w; x++) {
-      gsize i = off + x;
-      double hi_raw, lo_raw, mean_raw, rmax;
-      if (set->max16) {
-        hi_raw = set->max16[i];
-        lo_raw = set->min16[i];
-        mean_raw = set->sum32 ? (double) set->sum32[i] / n : NAN;
-        rmax = hi_raw;
-      } else {
-        hi_raw = set->maxf[i];
-        lo_raw = set->minf[i];
-        mean_raw = set->sumd[i] / n;
-        rmax = set->rawmax ? set->rawmax[i] : hi_raw;
-      }
-      double d = set->dark ? set->dark[i] : 0.0;
-      gboolean bad = (set->nonfinite && set->nonfinite[i]) || !isfinite (d);
-      PixelOut o = { 0 };
-      if (bad) {
-        o.mask = DS_MASK_NONFINITE;
-      } else {
-        o.hi = hi_raw - d;
-        o.lo = lo_raw - d;
-        if (o.lo < 0)
-          o.mask |= DS_MASK_DARK_EXCEEDS;
-        if (!isnan (c.sat) && rmax >= c.sat)
-          o.mask |= DS_MASK_SATURATED;
-        double var_hi = 0, var_lo = 0;
-        guint n_hi = 1, n_lo = 1;
-        double amp = 0;
-        switch (p->estimator) {
-        case DS_ESTIMATOR_SINE: {
-          double cs = set->cos_sum[i], sn = set->sin_sum[i];
-          amp = 2.0 / n * sqrt (cs * cs + sn * sn);
-          o.mean = mean_raw - d;
-          o.ld = amp / c.h;
-          o.lg = o.mean / c.m - o.ld;
-          break;
-        }
-        case DS_ESTIMATOR_ROBUST: {
-          for (guint k = 0; k < n; k++)
-            v[k] = set->phase_means[(gsize) k * set->npix + i] - d;
-          double lit, unlit;
-          robust_levels (v, cos_tab, sin_tab, n, p->pattern == DS_PATTERN_SINE ? 0.5 : c.a, &lit,
-                         &unlit, &n_hi, &n_lo);
-          o.mean = mean_raw - d;
-          o.ld = (lit - unlit) / (1.0 - c.b);
-          o.lg = (unlit - c.b * o.ld) / c.m;
-          var_hi = lit;
-          var_lo = unlit;
-          break;
-        }
-        default:
-          o.ld = (o.hi - o.lo) / (1.0 - c.b);
-          o.lg = (o.lo - c.b * o.ld) / c.m;
-          o.mean = isnan (mean_raw) ? c.m * (o.ld + o.lg) : mean_raw - d;
-          var_hi = o.hi;
-          var_lo = o.lo;
-          break;
-        }
-        /* Noise of one phase (mean of M frames) at this pixel's signal. */
-        double sig_frame = c.model ? sqrt (frame_var (&c, o.mean)) : c.data_sigma;
-        double sig_phase = sig_frame / sqrt ((double) c.m_frames);
-        if (!isnan (c.floor) && o.mean <= c.floor)
-          o.mask |= DS_MASK_DARK;
-        if (!isnan (sig_phase)) {
-          gboolean low = p->estimator == DS_ESTIMATOR_SINE
-                             ? amp < DS_RAYLEIGH_999 * sig_phase * sqrt (2.0 / n)
-                             : (hi_raw - lo_raw) < c.range_q * sig_phase;
-          if (low)
-            o.mask |= DS_MASK_LOW_MODULATION;
-        }
-        if (o.ld < 0 || o.lg < 0)
-          o.mask |= DS_MASK_NEGATIVE;
-        if (c.model) {
-          double vd = set->dark ? c.read_var : 0.0;
-          double mf = c.m_frames;
-          if (p->estimator == DS_ESTIMATOR_SINE) {
-            double vbar = frame_var (&c, o.mean) / mf;
-            double va = 2.0 * vbar / n, vm = vbar / n;
-            o.sig_ld = sqrt (va) / c.h;
-            o.sig_lg = sqrt (vm / (c.m * c.m) + va / (c.h * c.h) + vd / (c.m * c.m));
-          } else {
-            double vh = frame_var (&c, var_hi) / (mf * n_hi);
-            double vl = frame_var (&c, var_lo) / (mf * n_lo);
-            double ib = 1.0 - c.b;
-            o.sig_ld = sqrt (vh + vl) / ib;
-            o.sig_lg = sqrt ((vl + c.b * c.b * vh) / (ib * ib * c.m * c.m) + vd / (c.m * c.m));
-          }
-        }
-        mean_total += o.mean;
-        mean_count++;
-      }
-      t_row[x] = (float) o.ld;
-      g_row[x] = (float) o.lg;
-      m_row[x] = o.mask;
-      if (extrema) {
-        mx_row[x] = (float) o.hi;
-        mn_row[x] = (float) o.lo;
-        me_row[x] = (float) o.mean;
-      }
-      if (c.model) {
-        st_row[x] = (float) o.sig_ld;
-        sg_row[x] = (float) o.sig_lg;
-      }
-      if (o.mask == 0)
-        meta->valid_pixels++;
-      else
-        for (guint bit = 0; bit < DS_MASK_N_BITS; bit++)
-          meta->flagged[bit] += (o.mask >> bit) & 1u;
-    }
+  for (guint y = 0; y < set->height; y++) {
+    mean_total += row_sum[y];
+    mean_count += row_count[y];
   }
-
   meta->n_phases = n;
   meta->frames_per_phase = m_frames;
   meta->estimator = p->estimator;
   meta->duty = p->duty;
   meta->black_level = p->black_level;
-  meta->pattern_mean = c.m;
-  meta->harmonic_gain = c.h;
+  meta->pattern_mean = c->m;
+  meta->harmonic_gain = c->h;
   meta->dark_subtracted = set->dark != NULL;
-  meta->saturation_level = c.sat;
-  if (c.model)
-    meta->noise_dn = sqrt (frame_var (&c, mean_count ? mean_total / mean_count : 0));
-  else
-    meta->noise_dn = c.data_sigma;
-  return g_steal_pointer (&sep);
+  meta->saturation_level = c->sat;
+  meta->phase_offset_cycles = set->column_flags && !set->flags_need_offset ? set->offset_used : NAN;
+  if (model) {
+    double s = mean_count ? mean_total / mean_count : 0;
+    meta->noise_dn = sqrt (c->read_var + c->gain * (s > 0 ? s : 0));
+  } else {
+    meta->noise_dn = c->data_sigma;
+  }
+  return TRUE;
 }

@@ -4,8 +4,13 @@
 #include <glib.h>
 
 #include "proc/separation.h"
+#include "proc/worker_pool.h"
 
 G_BEGIN_DECLS
+
+/* Frames smaller than this are folded on the caller's thread alone: waking workers would cost
+ * more than the rows. */
+#define DS_THREADED_MIN_PIXELS (128u * 1024u)
 
 struct DsPhaseSet {
   DsSeparationParams params;
@@ -23,7 +28,8 @@ struct DsPhaseSet {
   guint phases_folded;     /* phase means folded into the extrema */
   int current;             /* phase being received, -1 before the first frame */
 
-  /* Integer input, one frame per phase (the fast path): raw extrema, exact sum. */
+  /* Integer input, one frame per phase (the fast path): raw extrema, exact sum. robust keeps
+   * its N phase planes instead (planes16) and derives extrema and sum from them. */
   guint16 *max16, *min16;
   guint32 *sum32;          /* NULL when nothing needs the mean (maxmin without extrema) */
   /* Float input, or averaging: extrema of phase means, sum of phase means. */
@@ -33,8 +39,9 @@ struct DsPhaseSet {
   double *psum;            /* averaging only: running sum of the current phase */
   guint8 *nonfinite;       /* float input only: some sample was NaN or Inf */
   double *cos_sum, *sin_sum; /* sine: first harmonic of the phase means */
-  float *phase_means;      /* robust: N planes of phase means */
-  gsize alloc_npix;        /* guards against reuse with another layout */
+  guint16 *planes16;       /* robust, integer fast path: N planes of raw frames */
+  float *planesf;          /* robust otherwise: N planes of phase means */
+  guint robust_hi, robust_lo; /* robust's window lengths (ds_robust_windows) */
 
   float *dark;             /* dark frame as float, NULL if none */
   DsSampleType dark_type;
@@ -42,7 +49,27 @@ struct DsPhaseSet {
 
   double data_noise_dn;    /* noise of one raw frame estimated from the first frame; NAN */
   double range_quantile;   /* 0.999 quantile of the range of N unit normals */
+
+  /* Threads: the pool is made on the first frame large enough to share. */
+  guint threads;           /* resolved from params.threads */
+  DsWorkerPool *pool;
+  double *scratch;         /* threads x scratch_doubles, for row buffers */
+  gsize scratch_doubles;
+
+  /* Sampling precondition: columns never fully lit or dark (DS_MASK_UNDERSAMPLED or 0).
+   * NULL when no column is affected or the check does not apply. */
+  DsSamplingCheck sampling;
+  guint8 *column_flags;
+  gboolean flags_need_offset; /* flags are needed but the phase offset is not known yet */
+  double offset_used;
 };
+
+/* Runs job over the set's rows on its threads (the pool is made on first use when the frame
+ * is large enough). */
+void ds_phase_set_run_rows (DsPhaseSet *set, DsRowJob job, gpointer data);
+/* Per-thread row scratch of at least `doubles` doubles, valid until the next call. */
+double *ds_phase_set_scratch (DsPhaseSet *set, guint thread);
+void ds_phase_set_reserve_scratch (DsPhaseSet *set, gsize doubles);
 
 /* Averaging: folds the last phase's mean (finalize calls it once; idempotent). */
 void ds_phase_set_fold_pending (DsPhaseSet *set);
@@ -54,16 +81,41 @@ double ds_separation_frame_noise (const DsImage *frame);
 /* Upper p-quantile of the range (max - min) of n independent unit normals, n >= 2. */
 double ds_separation_range_quantile (guint n, double p);
 
+/* Sampling model (separation_sampling.c). */
+/* Lit fraction (0..1) seen by a pixel centred d pixels from a lit stripe's centre. */
+double ds_sampling_profile (const DsSeparationParams *p, double d);
+/* robust's window lengths: from the period, blur and aperture when the period is known. */
+void ds_robust_windows (const DsSeparationParams *p, guint *len_hi, guint *len_lo);
+/* Tables for ds_robust_start (n entries each). */
+void ds_robust_tables (guint n, guint len_hi, guint len_lo, double *c_hi, double *s_hi, double *c_lo,
+                       double *s_lo);
+/* First phase of robust's window for a pixel whose first harmonic is (cs, sn): the window whose
+ * centre is nearest the harmonic's phase (first one on a tie). */
+guint ds_robust_start (double cs, double sn, const double *c_tab, const double *s_tab, guint n);
+/* flags[x] = DS_MASK_UNDERSAMPLED where column x is undersampled; returns how many are. */
+guint64 ds_sampling_column_flags (const DsSeparationParams *p, double offset_cycles, guint width,
+                                  guint8 *flags);
+
 /* Row kernels (separation_kernels.c). */
 #define DS_DECLARE_INT_KERNELS(T, NAME)                                                           \
   void ds_fold_first_##NAME (const T *in, guint16 *mx, guint16 *mn, guint32 *sum, gsize w);      \
   void ds_fold_extrema_##NAME (const T *in, guint16 *mx, guint16 *mn, gsize w);                  \
   void ds_fold_extrema_sum_##NAME (const T *in, guint16 *mx, guint16 *mn, guint32 *sum, gsize w);\
   void ds_fold_harmonic_##NAME (const T *in, double c, double s, double *cs, double *sn,         \
-                                gsize w);                                                        \
-  void ds_copy_plane_##NAME (const T *in, float *out, gsize w);
+                                gboolean first, gsize w);                                        \
+  void ds_copy_plane_##NAME (const T *in, float *out, gsize w);                                   \
+  void ds_widen_##NAME (const T *in, guint16 *out, gsize w);
 DS_DECLARE_INT_KERNELS (guint8, u8)
 DS_DECLARE_INT_KERNELS (guint16, u16)
+
+/* Float rows: NaN/Inf replaced by 0 and flagged; extrema and sum; first harmonic. */
+void ds_clean_row_f32 (const float *in, float *out, guint8 *nf, gboolean first, gsize w);
+void ds_fold_float_row (const float *v, float *mx, float *mn, double *sum, gboolean first, gsize w);
+void ds_fold_harmonic_f32 (const float *v, double c, double s, double *cs, double *sn,
+                           gboolean first, gsize w);
+/* Averaging: ps (+)= v, rm = max (rm, v). */
+void ds_fold_average_row (const float *v, double *ps, float *rm, gboolean first_of_phase,
+                          gboolean first_of_set, gsize w);
 
 /* maxmin on the integer fast path, no noise model: thresholds prepared once per set
  * (a disabled test carries +-INFINITY so that its comparison is always false). */
@@ -77,5 +129,7 @@ void ds_maxmin_fast_row (const guint16 *hi, const guint16 *lo, const float *dark
                          float *g, guint8 *mk, gsize w, const DsMaxminFast *k);
 /* counts[0] += pixels with no bit; counts[1 + bit] += pixels with that bit. */
 void ds_count_mask_row (const guint8 *mk, gsize w, guint64 counts[DS_MASK_N_BITS + 1]);
+/* mk[x] |= flags[x] */
+void ds_or_mask_row (guint8 *mk, const guint8 *flags, gsize w);
 
 G_END_DECLS

@@ -1,25 +1,11 @@
-/* The separation's hot row loops, kept apart so they can be built for the auto-vectoriser
- * (proc/separation.cmake) and, on x86-64, also for AVX2, picked at load time: frames fold at
+/* The separation's hot fold loops, kept apart so they can be built for the auto-vectoriser
+ * (proc/CMakeLists.txt) and, on x86-64, also for AVX2, picked at load time: frames fold at
  * memory speed. Contiguous arrays, restrict pointers, selects instead of branches. */
-#include "proc/separation_internal.h"
+#include <math.h>
+#include <string.h>
 
-#if defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define DS_NO_CLONES 1 /* clang's spelling of __SANITIZE_ADDRESS__ */
-#endif
-#endif
-#if defined(__x86_64__) && defined(__has_attribute) && !defined(DS_NO_CLONES)
-#if __has_attribute(target_clones) && !defined(__SANITIZE_ADDRESS__)
-/* Measured on the benchmark machine (AMD EPYC, tests/bench/separation): AVX-512 speeds up the
- * finalize row (float maths) but slows the u16 fold (memory bound), so each gets its own list. */
-#define DS_CLONES __attribute__ ((target_clones ("avx2", "default")))
-#define DS_CLONES_WIDE __attribute__ ((target_clones ("arch=x86-64-v4", "avx2", "default")))
-#endif
-#endif
-#ifndef DS_CLONES
-#define DS_CLONES
-#define DS_CLONES_WIDE
-#endif
+#include "proc/separation_internal.h"
+#include "proc/simd.h"
 
 #define DEFINE_INT_KERNELS(T, NAME)                                                               \
   DS_CLONES void ds_fold_first_##NAME (const T *restrict in, guint16 *restrict mx,                \
@@ -51,15 +37,27 @@
       sum[x] += v;                                                                                \
     }                                                                                             \
   }                                                                                               \
-  void ds_fold_harmonic_##NAME (const T *restrict in, double c, double s, double *restrict cs,    \
-                                double *restrict sn, gsize w)                                     \
+  DS_CLONES_WIDE void ds_fold_harmonic_##NAME (const T *restrict in, double c, double s,           \
+                                               double *restrict cs, double *restrict sn,          \
+                                               gboolean first, gsize w)                           \
   {                                                                                               \
-    for (gsize x = 0; x < w; x++) {                                                               \
-      cs[x] += c * in[x];                                                                         \
-      sn[x] += s * in[x];                                                                         \
-    }                                                                                             \
+    if (first)                                                                                    \
+      for (gsize x = 0; x < w; x++) {                                                             \
+        cs[x] = c * in[x];                                                                        \
+        sn[x] = s * in[x];                                                                        \
+      }                                                                                           \
+    else                                                                                          \
+      for (gsize x = 0; x < w; x++) {                                                             \
+        cs[x] += c * in[x];                                                                       \
+        sn[x] += s * in[x];                                                                       \
+      }                                                                                           \
   }                                                                                               \
-  void ds_copy_plane_##NAME (const T *restrict in, float *restrict out, gsize w)                  \
+  DS_CLONES void ds_copy_plane_##NAME (const T *restrict in, float *restrict out, gsize w)        \
+  {                                                                                               \
+    for (gsize x = 0; x < w; x++)                                                                 \
+      out[x] = in[x];                                                                             \
+  }                                                                                               \
+  DS_CLONES void ds_widen_##NAME (const T *restrict in, guint16 *restrict out, gsize w)           \
   {                                                                                               \
     for (gsize x = 0; x < w; x++)                                                                 \
       out[x] = in[x];                                                                             \
@@ -67,6 +65,71 @@
 
 DEFINE_INT_KERNELS (guint8, u8)
 DEFINE_INT_KERNELS (guint16, u16)
+
+/* Float input: NaN and Inf are replaced by 0 in the sums and flagged, so one bad sample
+ * cannot poison the arithmetic (the pixel's outputs are then 0, see docs/estimators.md). */
+DS_CLONES void
+ds_clean_row_f32 (const float *restrict in, float *restrict out, guint8 *restrict nf, gboolean first,
+                  gsize w)
+{
+  for (gsize x = 0; x < w; x++) {
+    float v = in[x];
+    guint8 bad = !isfinite (v);
+    out[x] = bad ? 0.0f : v;
+    nf[x] = first ? bad : (guint8) (nf[x] | bad);
+  }
+}
+
+DS_CLONES void
+ds_fold_float_row (const float *restrict v, float *restrict mx, float *restrict mn,
+                   double *restrict sum, gboolean first, gsize w)
+{
+  if (first) {
+    for (gsize x = 0; x < w; x++) {
+      mx[x] = mn[x] = v[x];
+      sum[x] = v[x];
+    }
+    return;
+  }
+  for (gsize x = 0; x < w; x++) {
+    mx[x] = v[x] > mx[x] ? v[x] : mx[x];
+    mn[x] = v[x] < mn[x] ? v[x] : mn[x];
+    sum[x] += v[x];
+  }
+}
+
+DS_CLONES_WIDE void
+ds_fold_harmonic_f32 (const float *restrict v, double c, double s, double *restrict cs,
+                      double *restrict sn, gboolean first, gsize w)
+{
+  if (first)
+    for (gsize x = 0; x < w; x++) {
+      cs[x] = c * v[x];
+      sn[x] = s * v[x];
+    }
+  else
+    for (gsize x = 0; x < w; x++) {
+      cs[x] += c * v[x];
+      sn[x] += s * v[x];
+    }
+}
+
+DS_CLONES void
+ds_fold_average_row (const float *restrict v, double *restrict ps, float *restrict rm,
+                     gboolean first_of_phase, gboolean first_of_set, gsize w)
+{
+  for (gsize x = 0; x < w; x++) {
+    ps[x] = (first_of_phase ? 0.0 : ps[x]) + v[x];
+    rm[x] = first_of_set || v[x] > rm[x] ? v[x] : rm[x];
+  }
+}
+
+DS_CLONES void
+ds_or_mask_row (guint8 *restrict mk, const guint8 *restrict flags, gsize w)
+{
+  for (gsize x = 0; x < w; x++)
+    mk[x] |= flags[x];
+}
 
 DS_CLONES_WIDE void
 ds_maxmin_fast_row (const guint16 *restrict hi, const guint16 *restrict lo,
@@ -103,6 +166,7 @@ ds_count_mask_row (const guint8 *restrict mk, gsize w, guint64 counts[DS_MASK_N_
     c[4] += (v >> 3) & 1;
     c[5] += (v >> 4) & 1;
     c[6] += (v >> 5) & 1;
+    c[7] += (v >> 6) & 1;
   }
   for (int i = 0; i <= DS_MASK_N_BITS; i++)
     counts[i] += c[i];

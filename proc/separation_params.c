@@ -17,6 +17,7 @@ static const struct {
   { "nonfinite", "NaN or Inf in an input frame, or an output beyond float32; the outputs of the pixel are 0" },
   { "negative", "a component came out below zero (noise); left unclipped" },
   { "dark_exceeds", "the dark frame is brighter than some phase at this pixel" },
+  { "undersampled", "no phase lit the pixel fully or none left it fully dark (sampling precondition); the value is biased" },
 };
 
 const char *
@@ -59,6 +60,8 @@ ds_separation_params_init (DsSeparationParams *params, guint n_phases)
   params->n_phases = n_phases;
   params->duty = 0.5;
   params->black_level = 0.0;
+  params->threads = 0;
+  params->geometry.pixel_aperture = 1.0;
 }
 
 static gboolean
@@ -103,8 +106,19 @@ ds_separation_params_validate (const DsSeparationParams *p, GError **error)
       !check_range ("harmonic_gain h", p->harmonic_gain, 0, 1, FALSE, FALSE, error) ||
       !check_range ("saturation_level", p->saturation_level, 0, G_MAXFLOAT, FALSE, FALSE, error) ||
       !check_range ("system_gain K", p->system_gain, 0, 1e6, FALSE, FALSE, error) ||
-      !check_range ("read_noise_dn", p->read_noise_dn, 0, 1e9, FALSE, FALSE, error))
+      !check_range ("read_noise_dn", p->read_noise_dn, 0, 1e9, FALSE, FALSE, error) ||
+      !check_range ("stripe period_px", p->geometry.period_px, 0, 1e6, FALSE, FALSE, error) ||
+      !check_range ("edge_blur_px", p->geometry.edge_blur_px, 0, 1e4, FALSE, FALSE, error) ||
+      !check_range ("pixel_aperture", p->geometry.pixel_aperture, 0, 64, FALSE, FALSE, error) ||
+      (p->geometry.phase_offset_known &&
+       !check_range ("phase_offset_cycles", p->geometry.phase_offset_cycles, -1e6, 1e6, FALSE, FALSE, error)))
     return FALSE;
+  if (p->geometry.period_px > 0 && p->geometry.period_px <= 2) {
+    g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT,
+                 "stripe period_px = %g: stripes finer than 2 pixels cannot be resolved (0 = unknown)",
+                 p->geometry.period_px);
+    return FALSE;
+  }
 
   double cond = 1.0 / (1.0 - p->black_level);
   if (cond > DS_MAX_CONDITION) {
@@ -130,7 +144,8 @@ ds_separation_params_validate (const DsSeparationParams *p, GError **error)
       return FALSE;
     }
   }
-  return TRUE;
+  DsSamplingCheck check;
+  return ds_separation_check_sampling (p, &check, error);
 }
 
 void

@@ -326,6 +326,52 @@ test_nonfinite (void)
     }
 }
 
+/* Finite inputs near the float range: lit +3e38 and unlit -3e38 give Ld = 6e38, which float32
+ * cannot hold; such pixels are NONFINITE with zero outputs, never a silent Inf. Pixels whose
+ * results fit (1e38 lit, 0 unlit) are exact. All estimators, with extrema and a noise model. */
+static void
+test_near_float_range (void)
+{
+  const guint w = 4, h = 1, n = 4;
+  const DsEstimator est[] = { DS_ESTIMATOR_MAXMIN, DS_ESTIMATOR_SINE, DS_ESTIMATOR_ROBUST };
+  /* column 0: +-3e38; 1: 1e38 / 0; 2: 3e38 everywhere (Lg = 2 * 3e38); 3: ordinary */
+  const float lit[] = { 3e38f, 1e38f, 3e38f, 300 }, unlit[] = { -3e38f, 0, 3e38f, 100 };
+  const gboolean overflow[] = { TRUE, FALSE, TRUE, FALSE };
+  for (guint e = 0; e < 3; e++) {
+    DsSeparationParams p;
+    ds_separation_params_init (&p, n);
+    p.estimator = est[e];
+    p.keep_extrema = TRUE;
+    p.system_gain = 0.5;
+    if (est[e] == DS_ESTIMATOR_SINE)
+      p.harmonic_gain = 0.5; /* any h: the point is the range */
+    g_autoptr (DsPhaseSet) set = ds_phase_set_new (&p, w, h, NULL);
+    for (guint k = 0; k < n; k++) {
+      g_autoptr (DsImage) f = const_frame (DS_SAMPLE_F32, w, h, 32, 0);
+      for (guint x = 0; x < w; x++) /* P = N = 4 pixels: phases 0 and 1 light x = 0, 1 ... */
+        set_f32 (f, x, 0, k < 2 ? lit[x] : unlit[x]);
+      g_assert_true (ds_phase_set_accumulate (set, k, f, NULL));
+    }
+    g_autoptr (DsSeparation) sep = ds_phase_set_finalize (set, NULL);
+    g_assert_nonnull (sep);
+    const DsImage *outs[] = { sep->transmissive, sep->scattered, sep->max, sep->min, sep->mean,
+                              sep->sigma_transmissive, sep->sigma_scattered };
+    for (guint x = 0; x < w; x++) {
+      guint8 mk = test_pixel_u8 (sep->mask, x, 0);
+      g_assert_cmpint (!!(mk & DS_MASK_NONFINITE), ==, overflow[x]);
+      for (guint o = 0; o < G_N_ELEMENTS (outs); o++) {
+        float v = test_pixel_f32 (outs[o], x, 0);
+        g_assert_true (isfinite (v));
+        if (overflow[x])
+          g_assert_cmpfloat (v, ==, 0);
+      }
+    }
+    if (est[e] != DS_ESTIMATOR_SINE)
+      g_assert_cmpfloat (test_pixel_f32 (sep->transmissive, 1, 0), ==, 1e38f);
+    g_assert_true (isfinite (sep->meta.noise_dn));
+  }
+}
+
 /* Odd widths and padded strides (garbage in the padding) give what tight frames give, for u8,
  * u16 and f32 phases and a padded dark frame. */
 static void
@@ -520,6 +566,7 @@ main (int argc, char **argv)
   g_test_add_func ("/separation-hard/1024-full-scale", test_1024_full_scale);
   g_test_add_func ("/separation-hard/black-level-high", test_black_level_high);
   g_test_add_func ("/separation-hard/nonfinite", test_nonfinite);
+  g_test_add_func ("/separation-hard/near-float-range", test_near_float_range);
   g_test_add_func ("/separation-hard/strides", test_strides);
   g_test_add_func ("/separation-hard/one-pixel", test_one_pixel);
   g_test_add_func ("/separation-hard/8192", test_8192);
