@@ -98,7 +98,7 @@ def check_metadata(meta, d, t0, t1, config_hash, version):
     assert planes["mask"]["dtype"] == "u8"
     bits = meta["mask_bits"]
     assert [bits[n]["value"] for n in ("saturated", "dark", "low_modulation", "nonfinite", "negative",
-                                       "dark_exceeds")] == [1, 2, 4, 8, 16, 32], bits
+                                       "dark_exceeds", "undersampled")] == [1, 2, 4, 8, 16, 32, 64], bits
 
 
 def separate_offline(d, folder, out, extra=()):
