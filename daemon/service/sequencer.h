@@ -74,8 +74,9 @@ struct DsOperatingModel;
 void ds_sequencer_set_operating_model (DsSequencer *seq, const struct DsOperatingModel *model,
                                        double settle_ms, double link_mbit);
 /* Called for every frame that was verified and folded (phase of n_phases), on the fold worker
- * thread while the next frame is acquired, before the frame is released: copy what is needed,
- * quickly, and keep no pointer. For the live view (daemon/service/live_view.h). Set it before
+ * thread while the next frame is acquired (the last frame of a set: on the acquisition thread,
+ * in the time between that frame and the result), before the frame is released (its pixels
+ * may be the camera's buffer): copy what is needed, quickly, and keep no pointer. For the live view (daemon/service/live_view.h). Set it before
  * the first set (main thread); NULL removes it. */
 typedef void (*DsSequencerFrameFunc) (const DsFrame *frame, guint phase, guint n_phases, gpointer user_data);
 void ds_sequencer_set_frame_hook (DsSequencer *seq, DsSequencerFrameFunc func, gpointer user_data);
