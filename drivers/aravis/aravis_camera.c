@@ -234,6 +234,9 @@ apply_settings (AravisCam *c, const DsCameraSettings *s, GError **error)
     if (e)
       g_debug ("aravis camera %s: packet size negotiation failed: %s", c->address, e->message);
     g_clear_error (&e);
+    /* Worth knowing when rates differ: a frame takes payload / packet size packets. */
+    g_message ("aravis camera %s: GVSP packet size %u bytes", c->address,
+               arv_camera_gv_get_packet_size (cam, NULL));
   }
   c->fmt = fmt;
   return TRUE;

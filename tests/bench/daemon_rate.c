@@ -83,6 +83,9 @@ bare_loop_here (guint w, guint h, double seconds, guint modbus_port)
   arv_camera_set_region (cam, 0, 0, (gint) w, (gint) h, NULL);
   arv_camera_set_trigger (cam, "Software", NULL);
   arv_camera_gv_auto_packet_size (cam, NULL);
+  /* The negotiated GVSP packet size decides how many packets a frame takes: say it, since the
+   * daemon negotiates its own the same way and a loaded machine can make them differ. */
+  fprintf (stderr, "bare loop: GVSP packet size %u bytes\n", arv_camera_gv_get_packet_size (cam, NULL));
   g_autoptr (DsIlluminator) ill = NULL;
   if (modbus_port) {
     g_autofree char *uri = g_strdup_printf ("tcp://127.0.0.1:%u", modbus_port);
