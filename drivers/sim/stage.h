@@ -45,7 +45,8 @@ void ds_stage_free (DsStage *stage);
 G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsStage, ds_stage_free)
 
 DsStage *ds_stage_pattern_new (const DsSceneSpec *s, double object_pitch_mm);
-/* The pattern's area-sampled, edge-blurred profile at x = x0 .. x0 + count - 1, values in [b, 1]. */
+/* The pattern at pixels x0 .. x0 + count - 1: blurred (edge-blur-px) on the medium, then integrated
+ * over each pixel (square) or taken at its centre (sine); values in [b, 1]. */
 double *ds_stage_pattern_profile (const DsSceneSpec *s, guint phase, guint n_phases, int x0, guint count);
 DsStage *ds_stage_boundary_new (double n_outside, double n_medium);
 double ds_stage_boundary_normal_reflectance (double n1, double n2);

@@ -1,8 +1,9 @@
 /* Stripe pattern stage (always built): the illuminator's light on the medium's entry face.
  * Phase k of N: u = frac(x/P - k/N); square: lit where |u| (wrapped to [-1/2, 1/2)) < a/2;
- * sine: 0.5 (1 + cos 2 pi u); value b + (1 - b) pattern. A pixel integrates square stripes
- * over its width (edges fall on pixels; a point sample there would shift the duty) and takes
- * the sine at its centre; then a Gaussian of sigma edge-blur-px blurs the edges. */
+ * sine: 0.5 (1 + cos 2 pi u); value b + (1 - b) pattern. The projector's defocus (a Gaussian of
+ * sigma edge-blur-px) blurs the continuous pattern on the medium; a pixel then integrates the
+ * blurred square stripes over its width (edges fall on pixels; a point sample there would shift
+ * the duty), in closed form, and takes the sine at its centre. */
 #include <math.h>
 #include <string.h>
 
@@ -13,6 +14,44 @@ typedef struct {
   double photons_per_px_per_ms;
 } PatternData;
 
+/* Integral of the Gaussian-blurred unit step Phi(t / sigma) from -inf to u:
+ * u Phi(u / sigma) + sigma phi(u / sigma). */
+static double
+blurred_step_integral (double u, double sigma)
+{
+  double z = u / sigma;
+  return u * 0.5 * erfc (-z / G_SQRT2) + sigma * exp (-0.5 * z * z) / sqrt (2 * G_PI);
+}
+
+/* Lit fraction of the square stripes over [x0, x1] (pattern units: x in px). Lit intervals are
+ * [P (j + shift) - aP/2, P (j + shift) + aP/2]. Without blur the overlap is exact; with blur each
+ * interval's blurred indicator Phi((x - l)/sigma) - Phi((x - h)/sigma) integrates in closed form.
+ * Only intervals within 8 sigma of the pixel can differ from 0 or their full length. */
+static double
+square_integral (const DsSceneSpec *s, double x0, double x1, double shift)
+{
+  double P = s->period_px, half = s->duty * P / 2, sigma = s->edge_blur_px, reach = 8 * sigma;
+  double lit = 0;
+  for (double j = floor ((x0 - reach) / P - shift) - 1; j <= floor ((x1 + reach) / P - shift) + 1; j++) {
+    double c = P * (j + shift), l = c - half, h = c + half;
+    if (!(sigma > 0)) {
+      double lo = MAX (x0, l), hi = MIN (x1, h);
+      if (hi > lo)
+        lit += hi - lo;
+      continue;
+    }
+    if (h < x0 - reach || l > x1 + reach)
+      continue;
+    if (l > x0 + reach && h < x1 - reach) {
+      lit += h - l;
+      continue;
+    }
+    lit += blurred_step_integral (x1 - l, sigma) - blurred_step_integral (x0 - l, sigma) -
+           blurred_step_integral (x1 - h, sigma) + blurred_step_integral (x0 - h, sigma);
+  }
+  return lit;
+}
+
 /* Pattern in [0, 1] at pixel x (centre at x, covering [x - 1/2, x + 1/2]). */
 static double
 pattern_at (const DsSceneSpec *s, double x, double shift)
@@ -21,16 +60,12 @@ pattern_at (const DsSceneSpec *s, double x, double shift)
   if (s->sine) {
     /* Sampled at the pixel centre: integrating over the pixel would scale the amplitude by
      * sin(pi/P)/(pi/P) (2.5 % at P = 8), which the estimators' theory gain leaves out; real
-     * rigs calibrate it (proc/harmonic_gain.h), the simulator keeps the convention exact. */
-    return 0.5 * (1.0 + cos (2 * G_PI * (x / P - shift)));
+     * rigs calibrate it (proc/harmonic_gain.h), the simulator keeps the convention exact.
+     * A Gaussian blur of a sine is the sine with its amplitude times exp(-2 pi^2 sigma^2 / P^2). */
+    double blur = exp (-2 * G_PI * G_PI * s->edge_blur_px * s->edge_blur_px / (P * P));
+    return 0.5 * (1.0 + blur * cos (2 * G_PI * (x / P - shift)));
   }
-  double u0 = (x - 0.5) / P - shift, u1 = (x + 0.5) / P - shift, lit = 0;
-  for (double j = floor (u0) - 1; j <= floor (u1) + 1; j++) {
-    double lo = MAX (u0, j - s->duty / 2), hi = MIN (u1, j + s->duty / 2);
-    if (hi > lo)
-      lit += hi - lo;
-  }
-  return lit / (u1 - u0);
+  return CLAMP (square_integral (s, x - 0.5, x + 0.5, shift), 0.0, 1.0);
 }
 
 double *
@@ -38,28 +73,8 @@ ds_stage_pattern_profile (const DsSceneSpec *s, guint k, guint n, int x0, guint 
 {
   double shift = n ? (double) k / n : 0.0, b = s->black_level;
   double *p = g_new (double, count);
-  if (!(s->edge_blur_px > 0)) {
-    for (guint i = 0; i < count; i++)
-      p[i] = b + (1.0 - b) * pattern_at (s, (double) x0 + i, shift);
-    return p;
-  }
-  /* The illuminator's pattern goes on beyond the frame: blur the analytic pattern evaluated on
-   * a margin, not a frame padded by reflection. */
-  int rad = (int) ceil (4 * s->edge_blur_px);
-  guint n_ext = count + 2u * (guint) rad;
-  g_autofree double *ext = g_new (double, n_ext);
-  g_autofree double *w = g_new (double, 2 * rad + 1);
-  double norm = 0;
-  for (int d = -rad; d <= rad; d++)
-    norm += w[d + rad] = exp (-0.5 * d * d / (s->edge_blur_px * s->edge_blur_px));
-  for (guint i = 0; i < n_ext; i++)
-    ext[i] = pattern_at (s, (double) x0 + (double) i - rad, shift);
-  for (guint x = 0; x < count; x++) {
-    double acc = 0;
-    for (int d = -rad; d <= rad; d++)
-      acc += w[d + rad] * ext[(int) x + rad + d];
-    p[x] = b + (1.0 - b) * acc / norm;
-  }
+  for (guint i = 0; i < count; i++)
+    p[i] = b + (1.0 - b) * pattern_at (s, (double) x0 + i, shift);
   return p;
 }
 

@@ -251,29 +251,59 @@ test_sine_pattern (void)
   }
 }
 
+/* The projector's Gaussian blur of the square stripes at point t (no pixel yet): a sum over the
+ * lit intervals of Phi((t - l)/sigma) - Phi((t - h)/sigma), written with erf. */
+static double
+blurred_square_at (double t, double period, double duty, double shift, double sigma)
+{
+  double v = 0;
+  for (int j = -40; j <= 40; j++) {
+    double c = period * (j + shift), l = c - duty * period / 2, h = c + duty * period / 2;
+    v += 0.5 * (erf ((t - l) / (sigma * G_SQRT2)) - erf ((t - h) / (sigma * G_SQRT2)));
+  }
+  return v;
+}
+
 static void
 test_edge_blur (void)
 {
-  /* A Gaussian blur of the (periodic) stripes keeps their mean over whole periods,
-   * a + b (1 - a), lowers the lit level and raises the unlit one symmetrically. */
-  g_autoptr (DsScene) s = scene_from ("", "duty=0.5\nblack-level=0.1\nedge-blur-px=1.5\n");
+  /* Defocus is an optical blur of the continuous pattern, before the pixel integrates it: pixel x
+   * sees the mean of the erf expression above over [x - 1/2, x + 1/2] (Simpson, 64 intervals,
+   * against the renderer's closed form), not a blur of the already pixel-sampled pattern. */
+  const double P = 8, duty = 0.35, b = 0.1, sigma = 1.3;
+  g_autoptr (DsScene) s = scene_from ("", "duty=0.35\nblack-level=0.1\nedge-blur-px=1.3\n");
   g_autoptr (GError) error = NULL;
   g_autoptr (DsRenderer) r = ds_renderer_new (s, NULL, &error);
   g_assert_no_error (error);
-  DsRenderRequest req = { .phase = 1, .n_phases = 4, .illuminator_on = TRUE, .exposure_us = EXPOSURE_US };
-  g_autoptr (DsImage) e = ds_renderer_render_expected (r, &req, &error);
-  g_assert_no_error (error);
-  double dark_dn = K * 1.0, sum = 0, hi = 0, lo = G_MAXDOUBLE;
-  for (guint x = 0; x < 64; x++) { /* 8 whole periods */
-    double v = (px (e, x, 10) - dark_dn) / open_dn ();
-    sum += v;
-    hi = MAX (hi, v);
-    lo = MIN (lo, v);
+  double dark_dn = K * 1.0;
+  for (guint k = 0; k < 4; k++) {
+    DsRenderRequest req = { .phase = k, .n_phases = 4, .illuminator_on = TRUE, .exposure_us = EXPOSURE_US };
+    g_autoptr (DsImage) e = ds_renderer_render_expected (r, &req, &error);
+    g_assert_no_error (error);
+    for (guint x = 0; x < 64; x++) {
+      double acc = 0;
+      for (int i = 0; i <= 64; i++) {
+        double t = x - 0.5 + i / 64.0, w = (i == 0 || i == 64) ? 1 : (i % 2 ? 4 : 2);
+        acc += w * blurred_square_at (t, P, duty, k / 4.0, sigma);
+      }
+      double lit = acc / (3 * 64);
+      double expect = (b + (1 - b) * lit) * open_dn () + dark_dn;
+      if (fabs (px (e, x, 10) - expect) > 1e-5 * open_dn ())
+        g_error ("phase %u x %u: %.6g, expected %.6g", k, x, px (e, x, 10), expect);
+    }
   }
-  g_assert_cmpfloat (fabs (sum / 64 - (0.5 + 0.1 * 0.5)), <, 1e-4);
-  g_assert_cmpfloat (hi, <, 0.99);
-  g_assert_cmpfloat (lo, >, 0.11);
-  g_assert_cmpfloat (fabs ((hi - 0.55) - (0.55 - lo)), <, 1e-3);
+  /* The blur of a sine keeps its shape and scales its amplitude by exp(-2 pi^2 sigma^2 / P^2). */
+  g_autoptr (DsScene) s2 = scene_from ("", "pattern=sine\nedge-blur-px=1.3\n");
+  g_autoptr (DsRenderer) r2 = ds_renderer_new (s2, NULL, &error);
+  g_assert_no_error (error);
+  DsRenderRequest req = { .phase = 1, .n_phases = 3, .illuminator_on = TRUE, .exposure_us = EXPOSURE_US };
+  g_autoptr (DsImage) e2 = ds_renderer_render_expected (r2, &req, &error);
+  g_assert_no_error (error);
+  double amp = exp (-2 * G_PI * G_PI * sigma * sigma / (P * P));
+  for (guint x = 0; x < 64; x++) {
+    double expect = 0.5 * (1 + amp * cos (2 * G_PI * (x / P - 1.0 / 3))) * open_dn () + dark_dn;
+    g_assert_cmpfloat (fabs (px (e2, x, 3) - expect), <, 1e-5 * open_dn ());
+  }
 }
 
 static void
