@@ -169,6 +169,116 @@ ds_cv_convolve_f32 (const DsCvView *src, const DsCvView *kernel, int border, DsC
   }
 }
 
+struct DsCvConvPlan {
+  int width, height, side, dft_w, dft_h;
+  std::vector<cv::Mat> spectra; // CCS-packed spectra of the kernels, wrapped to put the centre at (0, 0)
+};
+
+extern "C" DsCvConvPlan *
+ds_cv_conv_plan_new (int width, int height, const DsCvView *kernels, int n_kernels, char *err, size_t errlen)
+{
+  try {
+    if (n_kernels < 1 || !kernels) {
+      set_err (err, errlen, "convolution plan: no kernel");
+      return nullptr;
+    }
+    int side = kernels[0].width;
+    if (side < 1 || side % 2 == 0 || width < side || height < side) {
+      set_err (err, errlen, "convolution plan: kernel %dx%d must be odd, square and fit in %dx%d", kernels[0].width,
+               kernels[0].height, width, height);
+      return nullptr;
+    }
+    auto plan = new DsCvConvPlan ();
+    plan->width = width;
+    plan->height = height;
+    plan->side = side;
+    // A circular convolution of this size equals the linear one wherever the kernel stays inside
+    // the image, which is all dst asks for.
+    plan->dft_w = cv::getOptimalDFTSize (width);
+    plan->dft_h = cv::getOptimalDFTSize (height);
+    int r = side / 2;
+    for (int i = 0; i < n_kernels; i++) {
+      cv::Mat k;
+      if (!wrap (&kernels[i], k, err, errlen) || k.depth () != CV_32F || k.cols != side || k.rows != side) {
+        set_err (err, errlen, "convolution plan: kernel %d is not float32 %dx%d", i, side, side);
+        delete plan;
+        return nullptr;
+      }
+      cv::Mat wrapped = cv::Mat::zeros (plan->dft_h, plan->dft_w, CV_32F);
+      for (int y = 0; y < side; y++)
+        for (int x = 0; x < side; x++) {
+          int wy = (y - r + plan->dft_h) % plan->dft_h, wx = (x - r + plan->dft_w) % plan->dft_w;
+          wrapped.at<float> (wy, wx) += k.at<float> (y, x);
+        }
+      cv::Mat spec;
+      cv::dft (wrapped, spec, 0);
+      plan->spectra.push_back (spec);
+    }
+    return plan;
+  } catch (const std::exception &e) {
+    set_err (err, errlen, "%s", e.what ());
+    return nullptr;
+  } catch (...) {
+    set_err (err, errlen, "unknown OpenCV failure");
+    return nullptr;
+  }
+}
+
+extern "C" int
+ds_cv_conv_plan_apply (const DsCvConvPlan *plan, const DsCvView *srcs, DsCvView *dst, char *err, size_t errlen)
+{
+  try {
+    cv::Mat d;
+    int r = plan->side / 2;
+    if (!wrap (dst, d, err, errlen) || d.depth () != CV_32F || d.cols != plan->width - 2 * r ||
+        d.rows != plan->height - 2 * r) {
+      set_err (err, errlen, "convolution: destination must be float32 %dx%d", plan->width - 2 * r,
+               plan->height - 2 * r);
+      return -1;
+    }
+    cv::Mat sum, padded (plan->dft_h, plan->dft_w, CV_32F), spec, product;
+    for (size_t i = 0; i < plan->spectra.size (); i++) {
+      if (!srcs[i].data)
+        continue;
+      cv::Mat s;
+      if (!wrap (&srcs[i], s, err, errlen) || s.depth () != CV_32F || s.cols != plan->width ||
+          s.rows != plan->height) {
+        set_err (err, errlen, "convolution: source %zu must be float32 %dx%d", i, plan->width, plan->height);
+        return -1;
+      }
+      padded.setTo (0);
+      s.copyTo (padded (cv::Rect (0, 0, s.cols, s.rows)));
+      cv::dft (padded, spec, 0, s.rows);
+      if (sum.empty ())
+        cv::mulSpectrums (spec, plan->spectra[i], sum, 0);
+      else {
+        cv::mulSpectrums (spec, plan->spectra[i], product, 0);
+        sum += product;
+      }
+    }
+    if (sum.empty ()) {
+      set_err (err, errlen, "convolution: no source");
+      return -1;
+    }
+    cv::Mat out;
+    cv::dft (sum, out, cv::DFT_INVERSE | cv::DFT_SCALE | cv::DFT_REAL_OUTPUT);
+    out (cv::Rect (r, r, d.cols, d.rows)).copyTo (d);
+    return 0;
+  } catch (const std::exception &e) {
+    set_err (err, errlen, "%s", e.what ());
+    return -1;
+  } catch (...) {
+    set_err (err, errlen, "unknown OpenCV failure");
+    return -1;
+  }
+}
+
+extern "C" void
+ds_cv_conv_plan_free (DsCvConvPlan *plan)
+{
+  delete plan;
+}
+
 extern "C" int
 ds_cv_resize_f32 (const DsCvView *src, DsCvView *dst, char *err, size_t errlen)
 {

@@ -36,6 +36,21 @@ enum { DS_CV_BORDER_ZERO = 0, DS_CV_BORDER_REFLECT = 1, DS_CV_BORDER_WRAP = 2 };
 int ds_cv_convolve_f32 (const DsCvView *src, const DsCvView *kernel, int border,
                         DsCvView *dst, char *err, size_t errlen);
 
+/* Repeated "valid" convolutions of float32 images of one size with fixed kernels through the
+ * DFT: the plan holds the kernels' spectra (computed once), applying it only transforms the
+ * images. All kernels are float32, square, of one odd side k with their centre at (k/2, k/2).
+ * dst is (width - k + 1) x (height - k + 1): dst(x, y) = sum over offsets (dx, dy) in
+ * [-k/2, k/2]^2 of K(k/2 + dx, k/2 + dy) src(x + k/2 - dx, y + k/2 - dy), the true convolution
+ * where the kernel stays inside src (no border rule needed). Apply is thread-safe. */
+typedef struct DsCvConvPlan DsCvConvPlan;
+DsCvConvPlan *ds_cv_conv_plan_new (int width, int height, const DsCvView *kernels, int n_kernels,
+                                   char *err, size_t errlen);
+/* dst = sum over i of kernel i (*) srcs[i], for the i whose srcs[i].data is not NULL (at least
+ * one); srcs has n_kernels views of width x height. */
+int ds_cv_conv_plan_apply (const DsCvConvPlan *plan, const DsCvView *srcs, DsCvView *dst,
+                           char *err, size_t errlen);
+void ds_cv_conv_plan_free (DsCvConvPlan *plan);
+
 /* Resizes a float32 image with area averaging (downscale) or bilinear (upscale). */
 int ds_cv_resize_f32 (const DsCvView *src, DsCvView *dst, char *err, size_t errlen);
 
