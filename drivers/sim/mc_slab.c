@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "drivers/sim/henyey_greenstein.h"
+#include "drivers/sim/mc_events.h"
 #include "drivers/sim/rng.h"
 #include "drivers/sim/sim_error.h"
 #include "drivers/sim/transport.h"
@@ -69,37 +70,121 @@ ds_psf_grid_validate (const DsPsfGrid *grid, GError **error)
 }
 
 /* What one run accumulates: per-photon sums and sums of squares for standard errors, and
- * optionally the binned lateral exit positions of scattered, accepted transmitted light. */
+ * optionally the binned lateral exit positions of scattered, accepted transmitted light, or
+ * (events) one record per such photon with its path's crossings of the object planes. */
 typedef struct {
   double sum[5], sum2[5]; /* reflectance, transmittance, ballistic, absorbed, in-cone */
   double *bins;           /* side x side or NULL */
   guint radius, side;
   double pitch;
+  const DsSlabPlanes *planes; /* with events: the planes to track (may have none) */
+  GArray *events;         /* float records of DS_MC_EVENT_FLOATS (n_planes), or NULL */
 } Tally;
 
 enum { Q_R, Q_T, Q_B, Q_A, Q_C };
 
-static void
-run_photons (const DsSlab *s, guint64 photons, DsRng *rng_in, double cos_accept, Tally *t)
+/* Per plane: where the photon crossed it first after it last crossed the plane above (phi), and
+ * last of all; whether it was still unscattered at phi; how often it crossed. Every crossing of
+ * plane j re-arms plane j + 1, so at the end phi_j follows the last crossing of plane j - 1: the
+ * points entry, phi_1, last_1, phi_2, last_2, ... exit are in the order the photon met them
+ * (docs/transport.md, "Object planes"). */
+typedef struct {
+  float x[DS_SLAB_MAX_PLANES], y[DS_SLAB_MAX_PLANES];   /* phi */
+  float lx[DS_SLAB_MAX_PLANES], ly[DS_SLAB_MAX_PLANES]; /* last crossing */
+  guint8 crossings[DS_SLAB_MAX_PLANES], ballistic[DS_SLAB_MAX_PLANES], armed[DS_SLAB_MAX_PLANES];
+} PlaneTrack;
+
+static inline void
+cross_plane (const DsSlabPlanes *pl, PlaneTrack *tr, guint j, double x, double y, double z, double ux, double uy,
+             double uz, guint scatterings)
+{
+  double t = (pl->depth_mm[j] - z) / uz;
+  tr->lx[j] = (float) (x + t * ux);
+  tr->ly[j] = (float) (y + t * uy);
+  if (tr->armed[j]) {
+    tr->x[j] = tr->lx[j];
+    tr->y[j] = tr->ly[j];
+    tr->ballistic[j] = scatterings == 0;
+    tr->armed[j] = FALSE;
+  }
+  if (tr->crossings[j] < 255)
+    tr->crossings[j]++;
+  if (j + 1 < pl->n_planes)
+    tr->armed[j + 1] = TRUE;
+}
+
+/* The photon moves from (x, y, z) by `len` along u: every plane it passes, in the order it
+ * meets them. */
+static inline void
+track_planes (const DsSlabPlanes *pl, PlaneTrack *tr, double x, double y, double z, double len, double ux,
+              double uy, double uz, guint scatterings)
+{
+  double z1 = z + len * uz;
+  if (uz > 0) {
+    for (guint j = 0; j < pl->n_planes; j++)
+      if (z < pl->depth_mm[j] && z1 >= pl->depth_mm[j])
+        cross_plane (pl, tr, j, x, y, z, ux, uy, uz, scatterings);
+  } else if (uz < 0) {
+    for (guint j = pl->n_planes; j-- > 0;)
+      if (z >= pl->depth_mm[j] && z1 < pl->depth_mm[j])
+        cross_plane (pl, tr, j, x, y, z, ux, uy, uz, scatterings);
+  }
+}
+
+static inline void
+record_event (Tally *t, const PlaneTrack *tr, double x, double y, double w)
+{
+  guint n = t->planes->n_planes;
+  float rec[DS_MC_EVENT_FLOATS (DS_SLAB_MAX_PLANES)];
+  rec[0] = (float) x;
+  rec[1] = (float) y;
+  rec[2] = (float) w;
+  for (guint j = 0; j < n; j++) {
+    float *p = rec + DS_MC_EVENT_PLANE (j);
+    p[0] = tr->x[j];
+    p[1] = tr->y[j];
+    p[2] = tr->lx[j];
+    p[3] = tr->ly[j];
+    p[4] = (float) (2 * MIN (tr->crossings[j], 127u) + tr->ballistic[j]);
+  }
+  g_array_append_vals (t->events, rec, DS_MC_EVENT_FLOATS (n));
+}
+
+/* One photon history at a time. `tracking` is a constant at each call site, so the compiler
+ * builds a loop without any plane or event work for the totals and plain kernels. */
+static inline __attribute__ ((always_inline)) void
+transport (const DsSlab *s, guint64 photons, DsRng *rng_in, double cos_accept, Tally *t, const gboolean tracking)
 {
   const double mut = s->mua + s->mus;
   const double absorb_fraction = mut > 0 ? s->mua / mut : 0.0;
+  const double inv_mut = mut > 0 ? 1.0 / mut : 0.0;
   const double d = s->thickness_mm;
   const double w0 = 1.0 - ds_fresnel_reflectance (s->n_above, s->n_medium, 1.0);
+  /* Matched faces never reflect: no Fresnel evaluation per exit. */
+  const gboolean match_above = s->n_above == s->n_medium, match_below = s->n_below == s->n_medium;
+  const DsSlabPlanes *pl = tracking ? t->planes : NULL;
   DsRng rng = *rng_in;
   for (guint64 i = 0; i < photons; i++) {
     double x = 0, y = 0, z = 0, ux = 0, uy = 0, uz = 1, w = w0;
     double q[5] = { 0, 0, 0, 0, 0 };
     guint scatterings = 0;
+    PlaneTrack tr;
+    if (tracking) {
+      memset (tr.crossings, 0, sizeof tr.crossings);
+      memset (tr.armed, 1, sizeof tr.armed);
+    }
     for (;;) {
-      double step = mut > 0 ? -log (ds_rng_uniform_open0 (&rng)) / mut : INFINITY;
+      double step = mut > 0 ? -log (ds_rng_uniform_open0 (&rng)) * inv_mut : INFINITY;
       double to_face = uz > 0 ? (d - z) / uz : uz < 0 ? -z / uz : INFINITY;
       if (step >= to_face) {
+        if (tracking)
+          track_planes (pl, &tr, x, y, z, to_face, ux, uy, uz, scatterings);
         x += to_face * ux;
         y += to_face * uy;
         z = uz > 0 ? d : 0.0;
         double n_out = uz > 0 ? s->n_below : s->n_above;
-        if (ds_rng_uniform (&rng) < ds_fresnel_reflectance (s->n_medium, n_out, uz)) {
+        gboolean matched = uz > 0 ? match_below : match_above;
+        if (!matched && ds_rng_uniform (&rng) < ds_fresnel_reflectance (s->n_medium, n_out, uz)) {
           /* Reflected back in. The free path is memoryless: a fresh one is as good as the
            * remainder. */
           uz = -uz;
@@ -111,9 +196,11 @@ run_photons (const DsSlab *s, guint64 photons, DsRng *rng_in, double cos_accept,
           q[Q_T] = w;
           if (scatterings == 0)
             q[Q_B] = w;
-          else if (ds_fresnel_cos_transmitted (s->n_medium, n_out, uz) >= cos_accept) {
+          else if ((matched ? uz : ds_fresnel_cos_transmitted (s->n_medium, n_out, uz)) >= cos_accept) {
             q[Q_C] = w;
-            if (t->bins) {
+            if (tracking && t->events)
+              record_event (t, &tr, x, y, w);
+            else if (!tracking && t->bins) {
               double fx = floor (x / t->pitch + 0.5), fy = floor (y / t->pitch + 0.5);
               if (fabs (fx) <= t->radius && fabs (fy) <= t->radius)
                 t->bins[(gsize) (fy + t->radius) * t->side + (gsize) (fx + t->radius)] += w;
@@ -122,6 +209,8 @@ run_photons (const DsSlab *s, guint64 photons, DsRng *rng_in, double cos_accept,
         }
         break;
       }
+      if (tracking)
+        track_planes (pl, &tr, x, y, z, step, ux, uy, uz, scatterings);
       x += step * ux;
       y += step * uy;
       z += step * uz;
@@ -164,6 +253,16 @@ run_photons (const DsSlab *s, guint64 photons, DsRng *rng_in, double cos_accept,
       t->sum2[k] += q[k] * q[k];
     }
   }
+  *rng_in = rng;
+}
+
+static void
+run_photons (const DsSlab *s, guint64 photons, DsRng *rng, double cos_accept, Tally *t)
+{
+  if (t->events)
+    transport (s, photons, rng, cos_accept, t, TRUE);
+  else
+    transport (s, photons, rng, cos_accept, t, FALSE);
 }
 
 /* Photons are split into a fixed number of chunks, each with its own random stream, and the
@@ -224,6 +323,8 @@ run_chunked (const DsSlab *s, guint64 photons, guint64 seed, double cos_accept, 
       c->tally.bins = nbins ? scratch + (gsize) i * nbins : NULL;
       if (nbins)
         memset (c->tally.bins, 0, nbins * sizeof (double));
+      c->tally.planes = total->planes;
+      c->tally.events = total->events ? g_array_new (FALSE, FALSE, sizeof (float)) : NULL;
     }
     /* A thread that cannot be started runs its chunk here: same result, only slower. */
     for (guint i = 1; i < k; i++)
@@ -243,6 +344,10 @@ run_chunked (const DsSlab *s, guint64 photons, guint64 seed, double cos_accept, 
       }
       for (gsize b = 0; b < nbins; b++)
         total->bins[b] += t->bins[b];
+      if (t->events) {
+        g_array_append_vals (total->events, t->events->data, t->events->len);
+        g_array_unref (t->events);
+      }
     }
   }
   g_free (workers);
@@ -273,23 +378,13 @@ ds_mc_slab_run_cone (const DsSlab *slab, guint64 photons, guint64 seed,
   return ds_mc_slab_run_threads (slab, photons, seed, acceptance_half_angle_deg, 0, out, error);
 }
 
-gboolean
-ds_mc_slab_run_threads (const DsSlab *slab, guint64 photons, guint64 seed,
-                        double acceptance_half_angle_deg, guint threads, DsSlabTally *out,
-                        GError **error)
+static void
+tally_to_result (const Tally *t, const DsSlab *slab, guint64 photons, DsSlabTally *out)
 {
-  DsPsfGrid grid = { 1.0, 0, acceptance_half_angle_deg };
-  if (!ds_slab_validate (slab, error) || !check_photons (photons, error) ||
-      !ds_psf_grid_validate (&grid, error))
-    return FALSE;
-  Tally t;
-  memset (&t, 0, sizeof t);
-  run_chunked (slab, photons, seed, cos_of_half_angle (acceptance_half_angle_deg),
-               resolve_threads (threads), NULL, &t);
   double mean[5], se[5];
   for (int k = 0; k < 5; k++) {
-    mean[k] = t.sum[k] / (double) photons;
-    double var = (t.sum2[k] / (double) photons - mean[k] * mean[k]) * photons / (photons - 1.0);
+    mean[k] = t->sum[k] / (double) photons;
+    double var = (t->sum2[k] / (double) photons - mean[k] * mean[k]) * photons / (photons - 1.0);
     se[k] = sqrt (MAX (var, 0.0) / (double) photons);
   }
   memset (out, 0, sizeof *out);
@@ -305,7 +400,66 @@ ds_mc_slab_run_threads (const DsSlab *slab, guint64 photons, guint64 seed,
   out->se_scattered_in_cone = se[Q_C];
   out->specular = ds_fresnel_reflectance (slab->n_above, slab->n_medium, 1.0);
   out->photons = photons;
+}
+
+gboolean
+ds_mc_slab_run_threads (const DsSlab *slab, guint64 photons, guint64 seed,
+                        double acceptance_half_angle_deg, guint threads, DsSlabTally *out,
+                        GError **error)
+{
+  DsPsfGrid grid = { 1.0, 0, acceptance_half_angle_deg };
+  if (!ds_slab_validate (slab, error) || !check_photons (photons, error) ||
+      !ds_psf_grid_validate (&grid, error))
+    return FALSE;
+  Tally t;
+  memset (&t, 0, sizeof t);
+  run_chunked (slab, photons, seed, cos_of_half_angle (acceptance_half_angle_deg),
+               resolve_threads (threads), NULL, &t);
+  tally_to_result (&t, slab, photons, out);
   return TRUE;
+}
+
+gboolean
+ds_slab_planes_validate (const DsSlab *slab, const DsSlabPlanes *planes, GError **error)
+{
+  if (!planes)
+    return TRUE;
+  if (planes->n_planes > DS_SLAB_MAX_PLANES) {
+    g_set_error (error, DS_SIM_ERROR, DS_SIM_ERROR_INVALID, "slab planes: %u planes, at most %u",
+                 planes->n_planes, DS_SLAB_MAX_PLANES);
+    return FALSE;
+  }
+  for (guint j = 0; j < planes->n_planes; j++) {
+    double z = planes->depth_mm[j];
+    if (!(isfinite (z) && z > 0 && z < slab->thickness_mm) || (j > 0 && !(z > planes->depth_mm[j - 1]))) {
+      g_set_error (error, DS_SIM_ERROR, DS_SIM_ERROR_INVALID,
+                   "slab planes: depth %u = %g mm must be inside (0, %g) mm and deeper than the one before", j, z,
+                   slab->thickness_mm);
+      return FALSE;
+    }
+  }
+  return TRUE;
+}
+
+GArray *
+ds_mc_slab_events (const DsSlab *slab, const DsSlabPlanes *planes, guint64 photons, guint64 seed,
+                   double acceptance_half_angle_deg, guint threads, DsSlabTally *out, GError **error)
+{
+  DsPsfGrid grid = { 1.0, 0, acceptance_half_angle_deg };
+  static const DsSlabPlanes none = { 0 };
+  if (!planes)
+    planes = &none;
+  if (!ds_slab_validate (slab, error) || !check_photons (photons, error) || !ds_psf_grid_validate (&grid, error) ||
+      !ds_slab_planes_validate (slab, planes, error))
+    return NULL;
+  Tally t;
+  memset (&t, 0, sizeof t);
+  t.planes = planes;
+  t.events = g_array_new (FALSE, FALSE, sizeof (float));
+  run_chunked (slab, photons, seed, cos_of_half_angle (acceptance_half_angle_deg), resolve_threads (threads),
+               NULL, &t);
+  tally_to_result (&t, slab, photons, out);
+  return t.events;
 }
 
 gboolean

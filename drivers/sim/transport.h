@@ -105,6 +105,97 @@ double ds_slab_diffusion_cone_fraction (const DsSlab *slab, double acceptance_ha
 
 typedef enum { DS_TRANSPORT_MONTE_CARLO, DS_TRANSPORT_DIFFUSION } DsTransportModel;
 
+/* Object planes inside the slab (docs/transport.md, "Object planes"): thin layers at these
+ * depths whose transmittance acts on the light each time it crosses them. */
+#define DS_SLAB_MAX_PLANES 8
+typedef struct {
+  guint n_planes;
+  double depth_mm[DS_SLAB_MAX_PLANES]; /* strictly increasing, inside (0, thickness) */
+} DsSlabPlanes;
+
+/* Checks the count and that depths increase strictly inside (0, thickness): DS_SIM_ERROR_INVALID
+ * naming the plane. NULL planes are valid (none). */
+gboolean ds_slab_planes_validate (const DsSlab *slab, const DsSlabPlanes *planes, GError **error);
+
+/* One stretch of the slab between consecutive planes: segment 0 starts at the entry face,
+ * segment j at the last crossing of plane j (1-based), the last ends at the exit face; each
+ * ends where the light first crosses the next plane. Light at the start is split by whether it
+ * is still unscattered (it came straight down the beam and crosses the plane once) or not: the
+ * two arrive with different angular distributions, so each has its own kernel. Kernels are per
+ * unit of light of that kind at the start (segment 0: per unit of the incident beam), f32
+ * (2r+1)^2 centred on the start position; `stays_ballistic` is the share of the unscattered
+ * light that is still unscattered at the end (0 for the last segment: kernels count scattered
+ * light only). */
+typedef struct {
+  DsImage *from_ballistic;
+  DsImage *from_scattered;   /* NULL in segment 0: all light enters unscattered */
+  double stays_ballistic;
+} DsSlabSegment;
+
+/* What happens at plane j between the light's first and last crossing. Of the light arriving
+ * unscattered / scattered at its first crossing (per unit of each), `once_*` crosses only once;
+ * the rest crosses again (scattered back up, then down) and `recross_*` is where its last
+ * crossing lies relative to the first, the kernel's sum being that rest's share. Of the light
+ * crossing more than once, `recross_times` is the share crossing 3, 5, >= 7 times. */
+#define DS_SLAB_RECROSS_CLASSES 3
+typedef struct {
+  double once_ballistic, once_scattered;
+  DsImage *recross_ballistic, *recross_scattered;
+  double recross_times[DS_SLAB_RECROSS_CLASSES];
+} DsSlabPlaneCrossing;
+
+/* Everything the renderer needs of the slab's scattering. `full` is the whole slab's kernel (as
+ * ds_slab_psf_*: scattered light within the cone per pixel, fraction of a unit beam); with
+ * planes, the segments and crossings chain it from plane to plane (docs/transport.md, "Object
+ * planes"), all from the same photons. The radius holds `energy_fraction` of the scattered light
+ * within the cone. */
+typedef struct {
+  DsTransportModel model;
+  double pixel_pitch_mm;
+  double acceptance_half_angle_deg;
+  guint radius_px;
+  DsImage *full;
+  DsSlabPlanes planes;
+  DsSlabSegment segments[DS_SLAB_MAX_PLANES + 1];
+  DsSlabPlaneCrossing crossings[DS_SLAB_MAX_PLANES]; /* crossings[j - 1] for plane j */
+  double scattered_in_cone, se_scattered_in_cone; /* all of it, also beyond the kernel */
+  double held;            /* the share of scattered_in_cone inside `full` */
+  double energy_fraction; /* the share the radius was chosen to hold */
+  guint64 photons, records; /* Monte Carlo photons launched, records binned (0 for pure diffusion) */
+  /* (sum w)^2 / sum w^2 of the records behind `full`: the Fourier coefficient of that many
+   * random positions is ~ 1/sqrt(this), the floor below which an MTF is Monte Carlo noise
+   * (0 for diffusion: no noise). */
+  double effective_records;
+} DsSlabKernels;
+
+typedef struct {
+  DsTransportModel model;
+  double pixel_pitch_mm;
+  double acceptance_half_angle_deg; /* in the exit medium */
+  double energy_fraction;           /* (0, 1): e.g. 0.995 */
+  guint64 photons, seed;            /* Monte Carlo (and, with planes, the segments of diffusion) */
+  DsSlabPlanes planes;
+} DsSlabKernelSpec;
+
+/* Monte Carlo: one run records every photon that leaves the far face scattered in the cone
+ * (exit position, weight, and per plane where it first crossed, whether it was unscattered
+ * then, and how often it crossed); the radius is the smallest square holding energy_fraction
+ * of that light (capped at 2048 px, `held` says what it holds), then all kernels are binned.
+ * Diffusion: `full` from the multipole at the radius whose disc holds energy_fraction of its
+ * analytic profile; the segments (a first-crossing distribution diffusion cannot give) from
+ * Monte Carlo with the spec's photons and seed. threads 0: one per processor, same bits. */
+DsSlabKernels *ds_slab_kernels_compute (const DsSlab *slab, const DsSlabKernelSpec *spec, guint threads,
+                                        GError **error);
+/* Through the on-disk cache, as ds_slab_psf_cached. */
+DsSlabKernels *ds_slab_kernels_cached (const DsSlab *slab, const DsSlabKernelSpec *spec, const char *cache_dir,
+                                       gboolean *from_cache, GError **error);
+void ds_slab_kernels_free (DsSlabKernels *k);
+G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsSlabKernels, ds_slab_kernels_free)
+
+/* |sum K(x, y) e^(-2 pi i x / period)| / sum K over a kernel (f32): its modulation transfer at
+ * the stripe frequency, along x. The share of scattered light that still carries the stripes. */
+double ds_kernel_mtf_x (const DsImage *kernel, double period_px);
+
 /* ds_slab_psf_monte_carlo or _diffusion through an on-disk cache. The key is a SHA-256 of
  * every parameter that shapes the PSF (slab, grid, model, code version; photons and seed for
  * Monte Carlo only). Files live under cache_dir (NULL: $XDG_CACHE_HOME/descatter/psf, else

@@ -121,6 +121,70 @@ test_corrupt_recomputed (void)
 }
 
 static void
+assert_same_kernels (const DsSlabKernels *a, const DsSlabKernels *b)
+{
+  g_assert_cmpuint (a->radius_px, ==, b->radius_px);
+  g_assert_cmpuint (a->planes.n_planes, ==, b->planes.n_planes);
+  g_assert_cmpfloat (a->scattered_in_cone, ==, b->scattered_in_cone);
+  g_assert_cmpfloat (a->held, ==, b->held);
+  g_assert_cmpfloat (a->effective_records, ==, b->effective_records);
+  assert_same (a->full, b->full);
+  for (guint j = 0; j <= a->planes.n_planes; j++) {
+    g_assert_cmpfloat (a->segments[j].stays_ballistic, ==, b->segments[j].stays_ballistic);
+    assert_same (a->segments[j].from_ballistic, b->segments[j].from_ballistic);
+    if (j > 0) {
+      assert_same (a->segments[j].from_scattered, b->segments[j].from_scattered);
+      assert_same (a->crossings[j - 1].recross_scattered, b->crossings[j - 1].recross_scattered);
+      g_assert_cmpfloat (a->crossings[j - 1].once_ballistic, ==, b->crossings[j - 1].once_ballistic);
+      g_assert_cmpfloat (a->crossings[j - 1].recross_times[1], ==, b->crossings[j - 1].recross_times[1]);
+    }
+  }
+}
+
+/* The renderer's kernels with their chain through two planes: a hit is the computation bit for
+ * bit, the planes are part of the key, and damage means recomputation. */
+static void
+test_kernels_cached (void)
+{
+  g_autofree char *dir = g_dir_make_tmp ("ds-psf-XXXXXX", NULL);
+  DsSlabKernelSpec spec = { DS_TRANSPORT_MONTE_CARLO, 0.1, 30.0, 0.995, 20000, 4, { 2, { 0.3, 0.7 } } };
+  g_autoptr (GError) error = NULL;
+  gboolean hit = TRUE;
+  g_autoptr (DsSlabKernels) first = ds_slab_kernels_cached (&slab, &spec, dir, &hit, &error);
+  g_assert_no_error (error);
+  g_assert_false (hit);
+  g_autoptr (DsSlabKernels) computed = ds_slab_kernels_compute (&slab, &spec, 1, &error);
+  g_assert_no_error (error);
+  assert_same_kernels (first, computed);
+  g_autoptr (DsSlabKernels) again = ds_slab_kernels_cached (&slab, &spec, dir, &hit, &error);
+  g_assert_true (hit);
+  assert_same_kernels (first, again);
+  spec.planes.depth_mm[1] = 0.8;
+  g_autoptr (DsSlabKernels) moved = ds_slab_kernels_cached (&slab, &spec, dir, &hit, &error);
+  g_assert_false (hit);
+  g_assert_cmpfloat (moved->planes.depth_mm[1], ==, 0.8);
+  spec.planes.depth_mm[1] = 0.7;
+  /* Damage every file: a flipped bit, a truncation. */
+  for (int kind = 0; kind < 2; kind++) {
+    g_autoptr (GDir) d = g_dir_open (dir, 0, NULL);
+    for (const char *name; (name = g_dir_read_name (d));) {
+      g_autofree char *path = g_build_filename (dir, name, NULL);
+      g_autofree char *bytes = NULL;
+      gsize len = 0;
+      g_assert_true (g_file_get_contents (path, &bytes, &len, NULL));
+      if (kind == 0)
+        bytes[len / 3] ^= 0x01;
+      g_assert_true (g_file_set_contents (path, bytes, (gssize) (kind == 1 ? len - 9 : len), NULL));
+    }
+    g_autoptr (DsSlabKernels) k = ds_slab_kernels_cached (&slab, &spec, dir, &hit, &error);
+    g_assert_no_error (error);
+    g_assert_false (hit);
+    assert_same_kernels (first, k);
+  }
+  remove_tree (dir);
+}
+
+static void
 test_default_dir_and_unwritable (void)
 {
   g_autofree char *dir = g_dir_make_tmp ("ds-psf-XXXXXX", NULL);
@@ -208,6 +272,7 @@ main (int argc, char **argv)
   g_test_init (&argc, &argv, NULL);
   g_test_add_func ("/sim/transport/cache/hit-and-keys", test_hit_and_keys);
   g_test_add_func ("/sim/transport/cache/corrupt-recomputed", test_corrupt_recomputed);
+  g_test_add_func ("/sim/transport/cache/kernels", test_kernels_cached);
   g_test_add_func ("/sim/transport/cache/default-dir-and-unwritable", test_default_dir_and_unwritable);
   g_test_add_func ("/sim/transport/cli", test_cli);
   g_test_add_func ("/sim/transport/cli-errors", test_cli_errors);

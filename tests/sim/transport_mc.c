@@ -258,6 +258,68 @@ test_validation (void)
   }
 }
 
+/* Kernels with object planes: tracking the planes draws no random numbers, so the MCML slab's
+ * kernel with two clear planes is the kernel without them, bit for bit, and its tally is the
+ * published one; the chain's bookkeeping adds up to that kernel (every photon is in exactly one
+ * kernel of each segment); the radius holds the asked energy. */
+static void
+test_kernels_with_planes (void)
+{
+  DsSlab mcml = { 1.0, 9.0, 0.75, 0.2, 1.0, 1.0, 1.0 };
+  DsSlabKernelSpec spec = { DS_TRANSPORT_MONTE_CARLO, 0.01, 90.0, 0.995, 300000, 11, { 0 } };
+  g_autoptr (GError) error = NULL;
+  g_autoptr (DsSlabKernels) plain = ds_slab_kernels_compute (&mcml, &spec, 0, &error);
+  g_assert_no_error (error);
+  spec.planes = (DsSlabPlanes) { 2, { 0.05, 0.12 } };
+  g_autoptr (DsSlabKernels) k = ds_slab_kernels_compute (&mcml, &spec, 2, &error);
+  g_assert_no_error (error);
+  g_assert_cmpuint (k->radius_px, ==, plain->radius_px);
+  g_assert_cmpfloat (k->scattered_in_cone, ==, plain->scattered_in_cone);
+  for (guint y = 0; y < k->full->height; y++)
+    g_assert_cmpmem (ds_image_row (k->full, y), k->full->width * 4, ds_image_row (plain->full, y), k->full->width * 4);
+  /* Published Tt = 0.66096 (+- 0.00020), ballistic e^-2: the scattered part, in any direction. */
+  assert_within ("Tt - ballistic", k->scattered_in_cone, hypot (k->se_scattered_in_cone, 0.00020), 0.66096 - exp (-2.0),
+                 0.0005);
+  g_assert_cmpfloat (k->held, >=, 0.995);
+  g_assert_cmpfloat (k->held, <, 0.9999);
+  /* One pixel less and the kernel would hold less than 99.5 %. */
+  double inner = 0;
+  guint r = k->radius_px;
+  for (guint y = 1; y + 1 < k->full->height; y++)
+    for (guint x = 1; x + 1 < k->full->width; x++)
+      inner += ((const float *) ds_image_row (k->full, y))[x];
+  g_assert_cmpfloat (inner, <, 0.995 * k->scattered_in_cone);
+  g_assert_cmpuint (r, >=, 4);
+  /* The chain with every plane clear carries exactly the full kernel's light. */
+  double b = 1, d = 0;
+  for (guint j = 0; j <= 2; j++) {
+    const DsSlabSegment *g = &k->segments[j];
+    if (j > 0) {
+      const DsSlabPlaneCrossing *c = &k->crossings[j - 1];
+      double rb = image_sum (c->recross_ballistic), rs = image_sum (c->recross_scattered);
+      /* Light crossing once, or again: all of it goes on (but for what lands beyond the radius). */
+      g_assert_cmpfloat (fabs (c->once_ballistic + rb - 1), <, 5e-3);
+      g_assert_cmpfloat (fabs (c->once_scattered + rs - 1), <, 5e-3);
+      g_assert_cmpfloat (fabs (c->recross_times[0] + c->recross_times[1] + c->recross_times[2] - 1), <, 1e-9);
+      d = d + b * (1 - c->once_ballistic);
+      b = b * c->once_ballistic;
+    }
+    double nd = d * (g->from_scattered ? image_sum (g->from_scattered) : 0) + b * image_sum (g->from_ballistic);
+    b *= g->stays_ballistic;
+    d = nd;
+  }
+  g_assert_cmpfloat (b, ==, 0); /* the last segment keeps nothing unscattered */
+  g_assert_cmpfloat (fabs (d - image_sum (k->full)), <, 5e-3 * d);
+  /* Planes must lie inside the slab, deeper one after another. */
+  spec.planes = (DsSlabPlanes) { 2, { 0.12, 0.05 } };
+  g_assert_null (ds_slab_kernels_compute (&mcml, &spec, 0, &error));
+  g_assert_error (error, DS_SIM_ERROR, DS_SIM_ERROR_INVALID);
+  g_clear_error (&error);
+  spec.planes = (DsSlabPlanes) { 1, { 0.2 } };
+  g_assert_null (ds_slab_kernels_compute (&mcml, &spec, 0, &error));
+  g_assert_error (error, DS_SIM_ERROR, DS_SIM_ERROR_INVALID);
+}
+
 int
 main (int argc, char **argv)
 {
@@ -269,5 +331,6 @@ main (int argc, char **argv)
   g_test_add_func ("/sim/transport/mc/thin-slab-single-scattering", test_thin_slab_single_scattering);
   g_test_add_func ("/sim/transport/mc/psf-sum-matches-tally", test_psf_sum_matches_tally);
   g_test_add_func ("/sim/transport/mc/validation", test_validation);
+  g_test_add_func ("/sim/transport/mc/kernels-with-planes", test_kernels_with_planes);
   return g_test_run ();
 }
