@@ -5,6 +5,7 @@
 #include <math.h>
 #include <string.h>
 
+#include "drivers/sim/sim_error.h"
 #include "drivers/sim/stage.h"
 #include "drivers/sim/transport.h"
 
@@ -46,51 +47,36 @@ add_stage (DsRenderer *r, DsStage *st)
   r->by_kind[st->kind] = st;
 }
 
-/* Kernel radius: the lateral spread of light through thickness d is of the order of d (a few
- * transport lengths at most); twice that, capped so the kernel fits in the frame. */
-G_GNUC_UNUSED static guint
-psf_radius (const DsSceneSpec *s, double pitch_mm, double d)
+/* The share of the scattered light the kernels must hold: the rest lands beyond their radius
+ * and is lost (docs/scene-format.md, "Stages"). */
+#define DS_RENDER_KERNEL_ENERGY 0.995
+
+static DsSlabKernels *
+transport_kernels (const DsSceneSpec *s, double pitch_mm, const DsSlabPlanes *planes, const char *cache_dir,
+                   GError **error)
 {
-  guint r = (guint) ceil (2.0 * d / pitch_mm);
-  guint cap = (MIN (s->width, s->height) - 1) / 2;
-  return MIN (MAX (r, 4u), cap);
+  DsSlab slab = { .mua = s->mua, .mus = s->mus, .g = s->g, .thickness_mm = s->thickness_mm,
+                  .n_medium = s->n_medium, .n_above = 1.0, .n_below = 1.0 };
+  DsSlabKernelSpec spec = { .model = s->diffusion ? DS_TRANSPORT_DIFFUSION : DS_TRANSPORT_MONTE_CARLO,
+                            .pixel_pitch_mm = pitch_mm, .acceptance_half_angle_deg = s->acceptance_half_angle_deg,
+                            .energy_fraction = DS_RENDER_KERNEL_ENERGY, .photons = s->photons, .seed = s->mc_seed,
+                            .planes = *planes };
+  return ds_slab_kernels_cached (&slab, &spec, cache_dir, NULL, error);
 }
 
 static gboolean
-transport_kernels (const DsSceneSpec *s, double pitch_mm, gboolean split, double z, const char *cache_dir,
-                   DsImage **full, DsImage **before, DsImage **after, GError **error)
+same_planes (const DsSlabPlanes *a, const DsSlabPlanes *b)
 {
-  DsTransportModel model = s->diffusion ? DS_TRANSPORT_DIFFUSION : DS_TRANSPORT_MONTE_CARLO;
-  DsSlab slab = { .mua = s->mua, .mus = s->mus, .g = s->g, .thickness_mm = s->thickness_mm,
-                  .n_medium = s->n_medium, .n_above = 1.0, .n_below = 1.0 };
-  DsPsfGrid grid = { .pixel_pitch_mm = pitch_mm, .acceptance_half_angle_deg = s->acceptance_half_angle_deg };
-  gboolean cached = FALSE;
-  if (!split) {
-    grid.radius_px = psf_radius (s, pitch_mm, s->thickness_mm);
-    *full = ds_slab_psf_cached (model, &slab, &grid, s->photons, s->mc_seed, cache_dir, &cached, error);
-    return *full != NULL;
-  }
-  /* Before the plane: no interface there and every direction counts (the object plane is not
-   * a lens). After it: light enters from inside the medium. */
-  DsSlab a = slab, b = slab;
-  a.thickness_mm = z;
-  a.n_below = s->n_medium;
-  b.thickness_mm = s->thickness_mm - z;
-  b.n_above = s->n_medium;
-  DsPsfGrid ga = grid, gb = grid;
-  ga.radius_px = psf_radius (s, pitch_mm, z);
-  ga.acceptance_half_angle_deg = 90.0;
-  gb.radius_px = psf_radius (s, pitch_mm, b.thickness_mm);
-  *before = ds_slab_psf_cached (model, &a, &ga, s->photons, s->mc_seed, cache_dir, &cached, error);
-  if (!*before)
+  if (a->n_planes != b->n_planes)
     return FALSE;
-  *after = ds_slab_psf_cached (model, &b, &gb, s->photons, s->mc_seed + 1, cache_dir, &cached, error);
-  return *after != NULL;
+  for (guint j = 0; j < a->n_planes; j++)
+    if (fabs (a->depth_mm[j] - b->depth_mm[j]) > DS_SCENE_DEPTH_TOLERANCE_MM)
+      return FALSE;
+  return TRUE;
 }
 
 static DsRenderer *
-build (const DsScene *scene, gboolean compute, const char *cache_dir, const DsImage *psf_full,
-       const DsImage *psf_before, const DsImage *psf_after, GError **error)
+build (const DsScene *scene, const char *cache_dir, const DsSlabKernels *given, GError **error)
 {
   g_autoptr (DsRenderer) r = g_new0 (DsRenderer, 1);
   r->runs = g_new0 (gint, DS_RENDER_N_STAGES);
@@ -105,31 +91,40 @@ build (const DsScene *scene, gboolean compute, const char *cache_dir, const DsIm
   double sigma_t = s->has_medium ? s->mua + s->mus : 0.0;
   if (sigma_t > 0)
     add_stage (r, ds_stage_ballistic_new (sigma_t, s->thickness_mm));
-  /* Kernels first: their radius is the margin of scene around the frame that is rendered. */
+  /* Kernels first: their radius sets the margin of scene around the frame that is rendered. */
   gboolean scatters = s->has_medium && s->mus > 0;
-  double z = s->n_objects ? s->objects[0].depth_mm : 0.0;
-  gboolean split = s->n_objects && z > 0 && z < s->thickness_mm;
-  g_autoptr (DsImage) full = NULL, before = NULL, after = NULL;
+  DsSlabPlanes planes;
+  ds_stage_objects_interior_depths (s, &planes);
+  g_autoptr (DsSlabKernels) computed = NULL;
+  const DsSlabKernels *k = given;
   const char *how = "given";
-  if (scatters && compute) {
-    if (!transport_kernels (s, pitch_mm, split, z, cache_dir, &full, &before, &after, error))
+  if (scatters && !given) {
+    computed = transport_kernels (s, pitch_mm, &planes, cache_dir, error);
+    if (!computed)
       return NULL;
-    psf_full = full;
-    psf_before = before;
-    psf_after = after;
-    how = s->diffusion ? "diffusion (multipole)" : "Monte Carlo";
+    k = computed;
+    how = s->diffusion ? (planes.n_planes ? "diffusion (multipole; planes by Monte Carlo)" : "diffusion (multipole)")
+                       : "Monte Carlo";
   }
-  r->margin = scatters ? ds_stage_scattering_margin (split ? NULL : psf_full, split ? psf_before : NULL,
-                                                     split ? psf_after : NULL) : 0;
+  if (scatters && (!k || !k->full || !same_planes (&k->planes, &planes))) {
+    g_set_error (error, DS_SIM_ERROR, DS_SIM_ERROR_INVALID,
+                 "renderer: the scattering kernels must have the scene's %u object plane(s) inside the medium",
+                 planes.n_planes);
+    return NULL;
+  }
+  guint map_margin = 0;
+  r->margin = 0;
+  if (scatters)
+    ds_stage_scattering_margins (s, k, &r->margin, &map_margin);
   DsStage *objects = NULL;
   if (s->n_objects) {
-    objects = ds_stage_objects_new (s, r->margin, error);
+    objects = ds_stage_objects_new (s, map_margin, error);
     if (!objects)
       return NULL;
     add_stage (r, objects);
   }
   if (scatters) {
-    DsStage *st = ds_stage_scattering_new (s, objects, psf_full, psf_before, psf_after, how, error);
+    DsStage *st = ds_stage_scattering_new (s, objects, k, how, error);
     if (!st)
       return NULL;
     add_stage (r, st);
@@ -148,14 +143,63 @@ build (const DsScene *scene, gboolean compute, const char *cache_dir, const DsIm
 DsRenderer *
 ds_renderer_new (const DsScene *scene, const char *psf_cache_dir, GError **error)
 {
-  return build (scene, TRUE, psf_cache_dir, NULL, NULL, NULL, error);
+  return build (scene, psf_cache_dir, NULL, error);
+}
+
+DsRenderer *
+ds_renderer_new_with_slab_kernels (const DsScene *scene, const DsSlabKernels *kernels, GError **error)
+{
+  if (!kernels) {
+    g_set_error (error, DS_SIM_ERROR, DS_SIM_ERROR_INVALID, "renderer: no kernels given");
+    return NULL;
+  }
+  return build (scene, NULL, kernels, error);
 }
 
 DsRenderer *
 ds_renderer_new_with_kernels (const DsScene *scene, const DsImage *psf_full, const DsImage *psf_before,
                               const DsImage *psf_after, GError **error)
 {
-  return build (scene, FALSE, NULL, psf_full, psf_before, psf_after, error);
+  if (psf_before || psf_after || !psf_full || psf_full->type != DS_SAMPLE_F32 || psf_full->width != psf_full->height ||
+      psf_full->width % 2 == 0) {
+    g_set_error (error, DS_SIM_ERROR, DS_SIM_ERROR_INVALID,
+                 "renderer: one whole-slab kernel (f32, square, odd) is needed; objects inside the medium need "
+                 "ds_renderer_new_with_slab_kernels");
+    return NULL;
+  }
+  g_autoptr (DsSlabKernels) k = g_new0 (DsSlabKernels, 1);
+  k->radius_px = psf_full->width / 2;
+  k->full = ds_image_copy (psf_full, error);
+  if (!k->full)
+    return NULL;
+  double sum = 0;
+  for (guint y = 0; y < psf_full->height; y++)
+    for (guint x = 0; x < psf_full->width; x++)
+      sum += ((const float *) ds_image_row (psf_full, y))[x];
+  k->scattered_in_cone = sum;
+  k->held = 1.0;
+  k->energy_fraction = 1.0;
+  return build (scene, NULL, k, error);
+}
+
+gboolean
+ds_renderer_scattering (const DsRenderer *r, DsRendererScattering *out)
+{
+  memset (out, 0, sizeof *out);
+  const DsStage *st = r->by_kind[DS_RENDER_STAGE_SCATTERING];
+  if (!st)
+    return FALSE;
+  ds_stage_scattering_info (st, &out->kernel_radius_px, &out->margin_px, &out->held, &out->scattered_in_cone,
+                            &out->se_scattered_in_cone, &out->modulated, &out->modulated_noise);
+  const DsSceneSpec *s = r->spec;
+  out->kernel_radius_mm = out->kernel_radius_px * ds_scene_object_pitch_mm (r->scene);
+  double rf = ds_stage_boundary_normal_reflectance (1.0, s->n_medium);
+  out->ballistic = (1 - rf) * (1 - rf) * exp (-(s->mua + s->mus) * s->thickness_mm);
+  DsSlabPlanes planes;
+  ds_stage_objects_interior_depths (s, &planes);
+  out->n_planes = planes.n_planes;
+  memcpy (out->depth_mm, planes.depth_mm, sizeof out->depth_mm);
+  return TRUE;
 }
 
 void
@@ -195,7 +239,8 @@ run_stages (const DsRenderer *r, DsLight *l, const DsStageArgs *a, gboolean with
 {
   const DsSceneSpec *s = r->spec;
   l->margin = r->margin;
-  l->incident = ds_image_new (DS_SAMPLE_F32, s->width + 2 * r->margin, s->height + 2 * r->margin, error);
+  /* The incident light varies along x only: one row covers it. */
+  l->incident = ds_image_new (DS_SAMPLE_F32, s->width + 2 * r->margin, 1, error);
   l->direct = l->incident ? ds_image_new (DS_SAMPLE_F32, s->width, s->height, error) : NULL;
   l->scattered = l->direct ? ds_image_new (DS_SAMPLE_F32, s->width, s->height, error) : NULL;
   if (!l->scattered)

@@ -9,6 +9,7 @@
 #include <glib.h>
 
 #include "drivers/sim/scene.h"
+#include "drivers/sim/transport.h"
 #include "proc/image.h"
 
 G_BEGIN_DECLS
@@ -29,9 +30,12 @@ typedef enum {
 
 /* psf_cache_dir: where Monte Carlo kernels are cached; NULL = the transport's default. */
 DsRenderer *ds_renderer_new (const DsScene *scene, const char *psf_cache_dir, GError **error);
-/* As ds_renderer_new with the scattering kernels given instead of computed (tests, or
- * transport not built): psf_full for a scene without an object plane inside the medium,
- * psf_before + psf_after when the objects split it. f32, odd square, centred; copied. */
+/* As ds_renderer_new with the scattering kernels given instead of computed (tests): their
+ * planes must be the scene's object depths inside the medium; copied from. */
+DsRenderer *ds_renderer_new_with_slab_kernels (const DsScene *scene, const DsSlabKernels *kernels, GError **error);
+/* The same with one whole-slab kernel psf_full (f32, odd square, centred; copied), for a scene
+ * without objects inside the medium. psf_before and psf_after must be NULL: the split-slab
+ * model they fed is gone (docs/scene-format.md, "Objects inside the medium"). */
 DsRenderer *ds_renderer_new_with_kernels (const DsScene *scene, const DsImage *psf_full,
                                           const DsImage *psf_before, const DsImage *psf_after,
                                           GError **error);
@@ -86,5 +90,20 @@ gboolean ds_renderer_has_stage (const DsRenderer *r, DsRenderStage stage);
 guint64 ds_renderer_stage_runs (const DsRenderer *r, DsRenderStage stage);
 
 const DsScene *ds_renderer_scene (const DsRenderer *r);
+
+/* What the scattering stage was built with (describe). FALSE without one. */
+typedef struct {
+  guint kernel_radius_px, margin_px;
+  double kernel_radius_mm;
+  double scattered_in_cone, se_scattered_in_cone; /* fraction of the incident light, all of it */
+  double held;       /* the share of it inside the kernel */
+  double modulated;  /* the kernel's MTF at 1/period along x: the share of the scattered light
+                      * that still carries the stripes */
+  double modulated_noise; /* the Monte Carlo noise floor of that estimate (0 for diffusion) */
+  double ballistic;  /* the direct light's share of the incident light (Fresnel, Beer-Lambert) */
+  guint n_planes;    /* object depths inside the medium */
+  double depth_mm[DS_SLAB_MAX_PLANES];
+} DsRendererScattering;
+gboolean ds_renderer_scattering (const DsRenderer *r, DsRendererScattering *out);
 
 G_END_DECLS

@@ -301,6 +301,37 @@ parse_object (DsSceneSpec *spec, GKeyFile *kf, const char *group, const char *fi
   return TRUE;
 }
 
+/* Objects at up to DS_SCENE_MAX_DEPTHS depths inside the medium: the scattering stage follows
+ * the light from plane to plane (docs/scene-format.md, "Objects inside the medium"). */
+static gboolean
+check_depths (const DsSceneSpec *spec, GPtrArray *objs, const char *file, const char *text, GError **error)
+{
+  double depths[DS_SCENE_MAX_DEPTHS];
+  guint n_depths = 0;
+  for (guint i = 0; spec->has_medium && i < objs->len; i++) {
+    const DsSceneObject *o = g_ptr_array_index (objs, i);
+    if (o->depth_mm <= 0 || o->depth_mm >= spec->thickness_mm)
+      continue;
+    gboolean seen = FALSE;
+    for (guint j = 0; j < n_depths && !seen; j++)
+      seen = fabs (depths[j] - o->depth_mm) <= DS_SCENE_DEPTH_TOLERANCE_MM;
+    if (seen)
+      continue;
+    if (n_depths == DS_SCENE_MAX_DEPTHS) {
+      g_autofree char *grp = g_strconcat ("object.", o->name, NULL);
+      g_autoptr (GString) list = g_string_new (NULL);
+      for (guint j = 0; j < n_depths; j++)
+        g_string_append_printf (list, "%s%g", j ? ", " : "", depths[j]);
+      fail_at (error, DS_SIM_ERROR_INVALID, file, text, grp, "depth-mm",
+               "%g mm would be a depth beyond the %u allowed inside the medium (%s mm; the faces 0 and %g "
+               "do not count)", o->depth_mm, DS_SCENE_MAX_DEPTHS, list->str, spec->thickness_mm);
+      return FALSE;
+    }
+    depths[n_depths++] = o->depth_mm;
+  }
+  return TRUE;
+}
+
 static DsScene *
 load (GKeyFile *kf, const char *file, const char *text, GError **error)
 {
@@ -378,17 +409,8 @@ load (GKeyFile *kf, const char *file, const char *text, GError **error)
       if (!parse_object (spec, kf, gs[i], file, text, o, error))
         goto fail;
     }
-  /* One object plane: the scattering stage splits the slab once (docs/scene-format.md). */
-  for (guint i = 1; i < objs->len; i++) {
-    const DsSceneObject *o0 = g_ptr_array_index (objs, 0), *oi = g_ptr_array_index (objs, i);
-    if (fabs (oi->depth_mm - o0->depth_mm) > 1e-9) {
-      g_autofree char *grp = g_strconcat ("object.", oi->name, NULL);
-      fail_at (error, DS_SIM_ERROR_INVALID, file, text, grp, "depth-mm",
-               "%g mm differs from [object.%s] (%g mm): all objects share one depth", oi->depth_mm, o0->name,
-               o0->depth_mm);
-      goto fail;
-    }
-  }
+  if (!check_depths (spec, objs, file, text, error))
+    goto fail;
   spec->n_objects = objs->len;
   spec->objects = g_new0 (DsSceneObject, MAX (1u, objs->len));
   for (guint i = 0; i < objs->len; i++) {

@@ -8,6 +8,11 @@
 
 G_BEGIN_DECLS
 
+/* Distinct object depths strictly inside the medium (the faces do not count): the slab is split
+ * at each. Depths closer than the tolerance are one plane. */
+#define DS_SCENE_MAX_DEPTHS 8
+#define DS_SCENE_DEPTH_TOLERANCE_MM 1e-9
+
 typedef enum { DS_SHAPE_RECT, DS_SHAPE_DISC, DS_SHAPE_GRID, DS_SHAPE_LINES, DS_SHAPE_MASK } DsShape;
 
 typedef struct {

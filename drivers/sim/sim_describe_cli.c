@@ -1,9 +1,40 @@
 /* `descatter-sim describe`: the stages a scene builds and why, and what its physics means for
  * the method (docs/scene-format.md). */
+#include <math.h>
 #include <stdio.h>
 
 #include "drivers/sim/renderer.h"
 #include "drivers/sim/sim_cli.h"
+
+/* The warning threshold: above this share of the scattered light still carrying the stripes,
+ * or modulated scattered light above this share of the direct light, the separation cannot
+ * tell them apart (docs/scene-format.md, "What the physics does to the method"). */
+#define DS_DESCRIBE_MODULATED_WARN 0.1
+
+static void
+describe_scattering (const DsScene *scene, const DsRendererScattering *sc)
+{
+  const DsSceneSpec *s = ds_scene_spec (scene);
+  printf ("scattered light in the acceptance cone: %.4g +- %.2g of the incident light; the kernel (radius %u px = "
+          "%.3g mm, margin %u px around the frame) holds %.1f %% of it\n",
+          sc->scattered_in_cone, sc->se_scattered_in_cone, sc->kernel_radius_px, sc->kernel_radius_mm,
+          sc->margin_px, 100 * sc->held);
+  printf ("direct light: %.4g of the incident light (scattered / direct = %.3g without objects)\n", sc->ballistic,
+          sc->ballistic > 0 ? sc->held * sc->scattered_in_cone / sc->ballistic : INFINITY);
+  double ratio = sc->ballistic > 0 ? sc->modulated * sc->held * sc->scattered_in_cone / sc->ballistic : INFINITY;
+  printf ("still modulated at the period (%g px): %.1f %% of the scattered light (the kernel's MTF at 1/period; "
+          "Monte Carlo noise alone gives about %.1f %%), %.1f %% of the direct light\n", s->period_px,
+          100 * sc->modulated, 100 * sc->modulated_noise, 100 * ratio);
+  if (!(sc->modulated > DS_DESCRIBE_MODULATED_WARN || ratio > DS_DESCRIBE_MODULATED_WARN))
+    return;
+  if (sc->modulated > 2 * sc->modulated_noise)
+    printf ("warning: the scattered light keeps the stripes (kernel not much wider than the %g px period): the "
+            "estimators count its modulated part, %.0f %% of the direct light, as direct; a longer period or a "
+            "wider-spreading medium fixes it\n", s->period_px, 100 * ratio);
+  else
+    printf ("warning: the kernel's modulation at the period is Monte Carlo noise, yet %.0f %% of the direct light: "
+            "the frames carry it; raise [medium] photons (now %" G_GUINT64_FORMAT ")\n", 100 * ratio, s->photons);
+}
 
 int
 ds_sim_describe_main (int argc, char **argv)
@@ -30,6 +61,9 @@ ds_sim_describe_main (int argc, char **argv)
       n_skipped++;
     }
   printf ("%s\n", n_skipped ? "" : " none");
+  DsRendererScattering sc;
+  if (ds_renderer_scattering (r, &sc))
+    describe_scattering (scene, &sc);
   return 0;
 }
 

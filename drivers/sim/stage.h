@@ -6,17 +6,18 @@
 #include "drivers/sim/renderer.h"
 #include "drivers/sim/scene.h"
 #include "drivers/sim/sensor.h"
+#include "drivers/sim/transport.h"
 #include "proc/image.h"
 
 G_BEGIN_DECLS
 
 /* Photons per pixel in one exposure, split by how they reach the lens. The scene goes on beyond
- * the field of view: `incident` covers the frame plus `margin` pixels on every side (the
- * scattering kernel's radius), so light scattered in from outside the frame is there. */
+ * the field of view: `incident` covers the frame plus `margin` pixels on either side (what the
+ * scattering kernels reach), so light scattered in from outside the frame is there. */
 typedef struct {
   guint margin;
-  DsImage *incident;  /* arriving at the medium's entry face (pattern x irradiance), f32, with margin;
-                       * varies along x only (the scattering stage relies on it) */
+  DsImage *incident;  /* arriving at the medium's entry face (pattern x irradiance), f32, one row of
+                       * width + 2 margin: it varies along x only */
   DsImage *direct;    /* ballistic light reaching the lens, f32 */
   DsImage *scattered; /* scattered light reaching the lens inside its acceptance cone, f32 */
   double ambient;     /* pattern-independent photons per pixel, uniform */
@@ -51,17 +52,30 @@ double *ds_stage_pattern_profile (const DsSceneSpec *s, guint phase, guint n_pha
 DsStage *ds_stage_boundary_new (double n_outside, double n_medium);
 double ds_stage_boundary_normal_reflectance (double n1, double n2);
 DsStage *ds_stage_ballistic_new (double sigma_t, double thickness_mm);
-/* margin: the map covers the frame plus margin pixels on every side (shapes go on; masks are
- * clear outside their image). */
+/* One plane per distinct object depth, shallowest first. margin: each plane's map covers the
+ * frame plus margin pixels on every side (shapes go on; masks are clear outside their image). */
 DsStage *ds_stage_objects_new (const DsSceneSpec *s, guint margin, GError **error);
-/* The transmittance map, with the margin given at construction. */
-const DsImage *ds_stage_objects_map (const DsStage *objects);
-/* objects: the objects stage or NULL. Kernels copied; see ds_renderer_new_with_kernels. */
-DsStage *ds_stage_scattering_new (const DsSceneSpec *s, const DsStage *objects, const DsImage *psf_full,
-                                  const DsImage *psf_before, const DsImage *psf_after, const char *how,
-                                  GError **error);
-/* The margin the kernels need around the frame (their largest radius). */
-guint ds_stage_scattering_margin (const DsImage *psf_full, const DsImage *psf_before, const DsImage *psf_after);
+guint ds_stage_objects_n_planes (const DsStage *objects);
+/* The distinct object depths strictly inside the medium, shallowest first. */
+void ds_stage_objects_interior_depths (const DsSceneSpec *s, DsSlabPlanes *planes);
+double ds_stage_objects_plane_depth (const DsStage *objects, guint plane);
+/* The transmittance map of one plane, with the margin given at construction. */
+const DsImage *ds_stage_objects_plane_map (const DsStage *objects, guint plane);
+/* Block means of a plane's map over f x f blocks aligned on the frame, with block_margin blocks
+ * around it: from the map where it reaches, from the shapes at pixel centres beyond. */
+DsImage *ds_stage_objects_coarse_map (const DsSceneSpec *s, const DsStage *objects, guint plane, guint f,
+                                      guint block_margin, GError **error);
+/* objects: the objects stage or NULL; kernels: copied from, their planes the interior planes
+ * of the objects stage (docs/scene-format.md, "Objects inside the medium"). */
+DsStage *ds_stage_scattering_new (const DsSceneSpec *s, const DsStage *objects, const DsSlabKernels *kernels,
+                                  const char *how, GError **error);
+/* How far beyond the frame the scene must be rendered for these kernels: the incident row, and
+ * the object planes' maps (the scattering stage makes coarser maps farther out itself). */
+void ds_stage_scattering_margins (const DsSceneSpec *s, const DsSlabKernels *kernels, guint *incident_margin,
+                                  guint *map_margin);
+/* What the stage was built with, for describe. */
+void ds_stage_scattering_info (const DsStage *scattering, guint *radius_px, guint *margin_px, double *held,
+                               double *scattered_in_cone, double *se, double *mtf, double *mtf_noise);
 DsStage *ds_stage_ambient_new (double photons_per_px_per_ms);
 DsStage *ds_stage_sensor_new (const DsSensorModel *m);
 /* Folds scattered light and ambient into l->direct: the photons the sensor sees. */

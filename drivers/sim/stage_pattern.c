@@ -89,14 +89,11 @@ pattern_apply (const DsStage *st, DsLight *l, const DsStageArgs *a, GError **err
   g_autofree double *profile =
     a->full ? NULL : ds_stage_pattern_profile (&d->spec, a->phase, a->n_phases, -(int) m, l->incident->width);
   double flux = d->photons_per_px_per_ms * a->exposure_us / 1000.0;
-  for (guint y = 0; y < l->incident->height; y++) {
-    float *in = ds_image_row (l->incident, y);
-    for (guint x = 0; x < l->incident->width; x++)
-      in[x] = (float) (flux * (profile ? profile[x] : 1.0));
-  }
+  float *in = ds_image_row (l->incident, 0);
+  for (guint x = 0; x < l->incident->width; x++)
+    in[x] = (float) (flux * (profile ? profile[x] : 1.0));
   for (guint y = 0; y < l->direct->height; y++)
-    memcpy (ds_image_row (l->direct, y), (float *) ds_image_row (l->incident, y + m) + m,
-            l->direct->width * sizeof (float));
+    memcpy (ds_image_row (l->direct, y), in + m, l->direct->width * sizeof (float));
   return TRUE;
 }
 

@@ -1,73 +1,56 @@
 /* Scattering stage (built when the medium has sigma_s > 0): the light that scatters in the
- * slab and still leaves the far face inside the lens' acceptance cone, as the incident light
- * convolved (DFT, OpenCV bridge) with the slab's point-spread function.
+ * slab and still leaves the far face inside the lens' acceptance cone.
  *
- * Objects on a plane at depth z split the slab (docs/scene-format.md, "Objects inside the
- * medium"):
- *   s1   = incident (*) PSF_before          scattered light reaching the plane, any direction
- *   at_z = (incident T_in exp(-sigma_t z) + s1) O      both pass the object
- *   out  = at_z (*) PSF_after + s1 O exp(-sigma_t (d - z)) T_out kappa
- * The approximation: PSF_after is for a normally incident beam, but s1 arrives diffuse; the
- * last term lets diffuse light that crosses the rest unscattered in, weighted by the share
- * kappa = (sin(theta_accept) / n)^2 of a Lambertian flux inside the acceptance cone. Light the
- * second part sends back into the first is lost. Objects at z = 0 shade the incident light,
- * at z = d the leaving light. */
+ * Without objects inside the medium it is the incident light convolved with the slab's kernel.
+ * The incident light varies along x only (stripes), so that is one row convolved with the
+ * kernel's column sums, exactly. Objects at the entry face shade the incident light first (a 2-D
+ * convolution), objects at the exit face shade what leaves.
+ *
+ * Objects at depths inside the medium (docs/scene-format.md, "Objects inside the medium";
+ * docs/transport.md, "Object planes"): the light is followed from plane to plane with the kernels
+ * of one Monte Carlo run. At plane j the light first crossing it is B (still unscattered) and D
+ * (scattered); the plane's map O acts there; the share crossing once goes on, the rest crosses
+ * again and meets O^2 (O^4, O^6 for 5, 7+ crossings) where it last crosses:
+ *   Xb = O B, Xd = O D,  Z = R^b (*) Xb + R^d (*) Xd
+ *   B' = once_b Xb,      D' = once_d Xd + (t3 O^2 + t5 O^4 + t7 O^6) Z
+ *   B  = beta B',        D  = K^b (*) B' + K^d (*) D'      (at the next plane, or the exit)
+ * The chain is exact except for how the segments' displacements correlate and where the middle
+ * crossings lie, so the stage renders
+ *   out = K_full (*) inc + chain(O) - chain(1)
+ * with chain(1) the same arithmetic on the stripes' single row: with every object clear it is
+ * the object-free light to float rounding, and far from objects too. Negative values (the
+ * factorization's error near an opaque object) are clipped to 0. Convolutions run at two scales
+ * (two_scale.h). */
 #include <math.h>
 #include <string.h>
 
 #include "drivers/sim/sim_error.h"
 #include "drivers/sim/stage.h"
-#include "proc/cv_bridge.h"
-
-typedef enum { PLANE_NONE, PLANE_ENTRY, PLANE_EXIT, PLANE_INSIDE } Plane;
+#include "drivers/sim/two_scale.h"
 
 typedef struct {
-  DsImage *psf_full, *psf_before, *psf_after;
-  double *marginal_full, *marginal_before; /* column sums of the kernels (see convolve_rows) */
-  const DsImage *objects; /* borrowed from the objects stage, NULL without objects */
-  Plane plane;
-  double t_in, t_out, b1, b2, kappa;
+  DsScale sc;
+  guint n;                  /* interior planes */
+  guint R;                  /* kernel radius */
+  guint in_margin;          /* of the incident row */
+  guint top;                /* level of the light entering the chain */
+  double *marg_full;        /* column sums of the whole slab's kernel, 2R + 1 */
+  double *marg_seg0;        /* of segment 0's kernel (entry -> plane 1) */
+  DsScaleKernel *k_entry;   /* the whole kernel (n = 0) or segment 0's (n > 0), objects at the entry */
+  DsScaleStep *step_entry;
+  DsScaleKernel *k_seg_b[DS_SLAB_MAX_PLANES + 1], *k_seg_d[DS_SLAB_MAX_PLANES + 1];
+  DsScaleKernel *k_rc_b[DS_SLAB_MAX_PLANES + 1], *k_rc_d[DS_SLAB_MAX_PLANES + 1];
+  const DsScaleKernel *pair_seg[DS_SLAB_MAX_PLANES + 1][2], *pair_rc[DS_SLAB_MAX_PLANES + 1][2];
+  DsScaleStep *step_seg[DS_SLAB_MAX_PLANES + 1], *step_rc[DS_SLAB_MAX_PLANES + 1];
+  double beta[DS_SLAB_MAX_PLANES + 1], once_b[DS_SLAB_MAX_PLANES + 1], once_d[DS_SLAB_MAX_PLANES + 1];
+  double again[DS_SLAB_MAX_PLANES + 1][7]; /* t3 O^2 + t5 O^4 + t7 O^6 as coefficients of O^0..O^6 */
+  DsScaleMap entry, plane[DS_SLAB_MAX_PLANES + 1]; /* planes 1..n */
+  gboolean has_entry;
+  const DsImage *exit;      /* frame + map margin, or NULL */
+  guint map_margin;
+  guint radius_px;
+  double held, scattered_in_cone, se_scattered_in_cone, mtf, mtf_noise;
 } ScatterData;
-
-static gboolean
-convolve (const DsImage *src, const DsImage *psf, DsImage *dst, GError **error)
-{
-  DsCvView vs = { (int) src->width, (int) src->height, DS_CV_F32, src->stride, src->data };
-  DsCvView vk = { (int) psf->width, (int) psf->height, DS_CV_F32, psf->stride, psf->data };
-  DsCvView vd = { (int) dst->width, (int) dst->height, DS_CV_F32, dst->stride, dst->data };
-  char err[256];
-  if (ds_cv_convolve_f32 (&vs, &vk, DS_CV_BORDER_REFLECT, &vd, err, sizeof err) != 0) {
-    g_set_error (error, DS_SIM_ERROR, DS_SIM_ERROR_NUMERIC, "scattering convolution: %s", err);
-    return FALSE;
-  }
-  return TRUE;
-}
-
-/* The incident light varies along x only (stripes; objects come later), so its 2-D convolution
- * is the 1-D convolution of one row with the kernel's column sums, the same on every row: a
- * few thousand operations per row instead of a DFT. Rows are taken from row 0 of src, which
- * the caller guarantees is like every other row. Reflecting border, as the DFT path. */
-static void
-convolve_rows (const DsImage *src, const double *marginal, guint kw, DsImage *dst)
-{
-  int w = (int) src->width, r = (int) kw / 2;
-  const float *in = ds_image_row (src, 0);
-  float *out0 = ds_image_row (dst, 0);
-  for (int x = 0; x < w; x++) {
-    double acc = 0;
-    for (int d = -r; d <= r; d++) {
-      int i = x - d;
-      if (i < 0)
-        i = -i - 1;
-      else if (i >= w)
-        i = 2 * w - i - 1;
-      acc += in[CLAMP (i, 0, w - 1)] * marginal[d + r];
-    }
-    out0[x] = (float) acc;
-  }
-  for (guint y = 1; y < dst->height; y++)
-    memcpy (ds_image_row (dst, y), out0, dst->width * sizeof (float));
-}
 
 static double *
 column_sums (const DsImage *k)
@@ -81,17 +64,79 @@ column_sums (const DsImage *k)
   return m;
 }
 
-/* dst = a * o * k1 + c * k2 per pixel (o, c may be NULL: 1 and 0). */
+/* out[i] = sum_d m[r + d] in[x - d] for x = x0 + i, i < count (x in frame columns; the incident
+ * row's column 0 is frame column -margin). */
 static void
-combine (DsImage *dst, const DsImage *a, double k1, const DsImage *o, const DsImage *c, double k2)
+row_convolve (const float *in, guint margin, int x0, guint count, const double *m, guint r, float *out)
 {
-  for (guint y = 0; y < dst->height; y++) {
-    float *d = ds_image_row (dst, y);
-    const float *ar = ds_image_row (a, y), *orow = o ? ds_image_row (o, y) : NULL;
-    const float *cr = c ? ds_image_row (c, y) : NULL;
-    for (guint x = 0; x < dst->width; x++)
-      d[x] = (float) (ar[x] * k1 * (orow ? orow[x] : 1.0f) + (cr ? cr[x] * k2 : 0.0));
+  for (guint i = 0; i < count; i++) {
+    double acc = 0;
+    const float *p = in + (x0 + (int) i + (int) margin) + (int) r;
+    for (guint k = 0; k <= 2 * r; k++)
+      acc += m[k] * p[-(int) k];
+    out[i] = (float) acc;
   }
+}
+
+static const double identity[2] = { 0.0, 1.0 };
+
+/* The chain through the interior planes over the frame (level 0). With objects the maps act;
+ * without, every field stays one row (chain(1)). d1_row: segment 0's light at plane 1 (no entry
+ * objects), d1_x0 its first frame column. */
+static DsField *
+chain (const ScatterData *d, const DsLight *l, gboolean objects, const float *d1_row, int d1_x0, GError **error)
+{
+  const DsScale *sc = &d->sc;
+  const float *in = ds_image_row (l->incident, 0);
+  int in_x0 = -(int) d->in_margin;
+  guint L = 2 * d->n;
+  g_autoptr (DsField) b = NULL;
+  g_autoptr (DsField) s = NULL;
+  if (d->has_entry) {
+    g_autoptr (DsField) inc = ds_field_from_row (sc, L + 1, in, in_x0, 1.0, error);
+    g_autoptr (DsField) lit = NULL;
+    if (!inc)
+      return NULL;
+    if (objects && !(lit = ds_field_weigh (sc, inc, &d->entry, identity, 2, L + 1, error)))
+      return NULL;
+    const DsField *src[1] = { objects ? lit : inc };
+    if (!(s = ds_scale_step_apply (d->step_entry, src, error)) || !(b = ds_field_crop (sc, src[0], L, d->beta[0], error)))
+      return NULL;
+  } else {
+    s = ds_field_from_row (sc, L, d1_row, d1_x0, 1.0, error);
+    b = s ? ds_field_from_row (sc, L, in, in_x0, d->beta[0], error) : NULL;
+    if (!b)
+      return NULL;
+  }
+  for (guint j = 1; j <= d->n; j++, L -= 2) {
+    const DsScaleMap *map = &d->plane[j];
+    g_autoptr (DsField) xb = objects ? ds_field_weigh (sc, b, map, identity, 2, L, error) : ds_field_crop (sc, b, L, 1, error);
+    g_autoptr (DsField) xd = xb ? (objects ? ds_field_weigh (sc, s, map, identity, 2, L, error)
+                                           : ds_field_crop (sc, s, L, 1, error)) : NULL;
+    if (!xd)
+      return NULL;
+    const DsField *x[2] = { xb, xd };
+    g_autoptr (DsField) z = ds_scale_step_apply (d->step_rc[j], x, error);
+    g_autoptr (DsField) bp = z ? ds_field_crop (sc, xb, L - 1, d->once_b[j], error) : NULL;
+    g_autoptr (DsField) dp = bp ? ds_field_crop (sc, xd, L - 1, d->once_d[j], error) : NULL;
+    if (!dp)
+      return NULL;
+    if (objects) {
+      g_autoptr (DsField) q = ds_field_weigh (sc, z, map, d->again[j], 7, L - 1, error);
+      if (!q)
+        return NULL;
+      ds_field_add (sc, dp, q, 1.0);
+    } else
+      ds_field_add (sc, dp, z, 1.0);
+    const DsField *y[2] = { bp, dp };
+    g_clear_pointer (&s, ds_field_free);
+    if (!(s = ds_scale_step_apply (d->step_seg[j], y, error)))
+      return NULL;
+    g_clear_pointer (&b, ds_field_free);
+    if (j < d->n && !(b = ds_field_crop (sc, bp, L - 2, d->beta[j], error)))
+      return NULL;
+  }
+  return g_steal_pointer (&s);
 }
 
 static gboolean
@@ -99,122 +144,256 @@ scattering_apply (const DsStage *st, DsLight *l, const DsStageArgs *a, GError **
 {
   (void) a;
   const ScatterData *d = st->data;
-  guint w = l->incident->width, h = l->incident->height, m = l->margin;
-  g_autoptr (DsImage) out = ds_image_new (DS_SAMPLE_F32, w, h, error);
-  if (!out)
-    return FALSE;
-  switch (d->plane) {
-  case PLANE_NONE:
-    convolve_rows (l->incident, d->marginal_full, d->psf_full->width, out);
-    break;
-  case PLANE_ENTRY: {
-    g_autoptr (DsImage) shaded = ds_image_new (DS_SAMPLE_F32, w, h, error);
-    if (!shaded)
+  guint W = l->direct->width, H = l->direct->height, M = d->in_margin;
+  const float *in = ds_image_row (l->incident, 0);
+  g_autofree float *full = g_new (float, W);
+  row_convolve (in, M, 0, W, d->marg_full, d->R, full);
+  if (d->n == 0 && !d->has_entry) {
+    for (guint y = 0; y < H; y++)
+      memcpy (ds_image_row (l->scattered, y), full, W * sizeof (float));
+  } else if (d->n == 0) {
+    g_autoptr (DsField) inc = ds_field_from_row (&d->sc, 1, in, -(int) M, 1.0, error);
+    g_autoptr (DsField) lit = inc ? ds_field_weigh (&d->sc, inc, &d->entry, identity, 2, 1, error) : NULL;
+    const DsField *src[1] = { lit };
+    g_autoptr (DsField) out = lit ? ds_scale_step_apply (d->step_entry, src, error) : NULL;
+    if (!out)
       return FALSE;
-    combine (shaded, l->incident, 1.0, d->objects, NULL, 0);
-    if (!convolve (shaded, d->psf_full, out, error))
+    for (guint y = 0; y < H; y++)
+      memcpy (ds_image_row (l->scattered, y), ds_image_row (out->fine, y), W * sizeof (float));
+  } else {
+    /* Segment 0's light at plane 1, exact along the row, as far as the top field reaches. */
+    g_autofree float *d1 = NULL;
+    int d1_x0 = 0;
+    if (!d->has_entry) {
+      guint reach = ds_scale_row_margin (&d->sc, d->top, 0);
+      d1_x0 = -(int) reach;
+      d1 = g_new (float, W + 2 * reach);
+      row_convolve (in, M, d1_x0, W + 2 * reach, d->marg_seg0, d->R, d1);
+    }
+    g_autoptr (DsField) with = chain (d, l, TRUE, d1, d1_x0, error);
+    g_autoptr (DsField) clear = with ? chain (d, l, FALSE, d1, d1_x0, error) : NULL;
+    if (!clear)
       return FALSE;
-    break;
+    const float *c1 = ds_image_row (clear->fine, 0);
+    for (guint y = 0; y < H; y++) {
+      const float *c = ds_image_row (with->fine, y);
+      float *o = ds_image_row (l->scattered, y);
+      for (guint x = 0; x < W; x++) {
+        double v = (double) full[x] + ((double) c[x] - (double) c1[x]);
+        o[x] = (float) MAX (v, 0.0);
+      }
+    }
   }
-  case PLANE_EXIT:
-    convolve_rows (l->incident, d->marginal_full, d->psf_full->width, out);
-    combine (out, out, 1.0, d->objects, NULL, 0);
-    break;
-  case PLANE_INSIDE: {
-    g_autoptr (DsImage) s1 = ds_image_new (DS_SAMPLE_F32, w, h, error);
-    g_autoptr (DsImage) at_z = s1 ? ds_image_new (DS_SAMPLE_F32, w, h, error) : NULL;
-    if (!at_z)
-      return FALSE;
-    convolve_rows (l->incident, d->marginal_before, d->psf_before->width, s1);
-    combine (s1, s1, 1.0, d->objects, NULL, 0); /* s1 O from here on */
-    combine (at_z, l->incident, d->t_in * d->b1, d->objects, s1, 1.0);
-    if (!convolve (at_z, d->psf_after, out, error))
-      return FALSE;
-    combine (out, out, 1.0, NULL, s1, d->b2 * d->t_out * d->kappa);
-    break;
-  }
-  }
-  for (guint y = 0; y < l->scattered->height; y++)
-    memcpy (ds_image_row (l->scattered, y), (const float *) ds_image_row (out, y + m) + m,
-            l->scattered->width * sizeof (float));
+  if (d->exit)
+    for (guint y = 0; y < H; y++) {
+      float *o = ds_image_row (l->scattered, y);
+      const float *e = (const float *) ds_image_row (d->exit, y + d->map_margin) + d->map_margin;
+      for (guint x = 0; x < W; x++)
+        o[x] *= e[x];
+    }
   return TRUE;
 }
 
-guint
-ds_stage_scattering_margin (const DsImage *psf_full, const DsImage *psf_before, const DsImage *psf_after)
+static gboolean
+has_entry_objects (const DsSceneSpec *s)
 {
-  guint r = 0;
-  const DsImage *k[] = { psf_full, psf_before, psf_after };
-  for (guint i = 0; i < 3; i++)
-    if (k[i])
-      r = MAX (r, MAX (k[i]->width, k[i]->height) / 2);
-  return r;
+  for (guint i = 0; i < s->n_objects; i++)
+    if (s->objects[i].depth_mm <= 0)
+      return TRUE;
+  return FALSE;
+}
+
+/* Level of the light entering the chain: two steps per interior plane, one more for entry objects. */
+static guint
+top_level (guint n, gboolean entry)
+{
+  return 2 * n + (entry ? 1 : 0);
+}
+
+void
+ds_stage_scattering_margins (const DsSceneSpec *s, const DsSlabKernels *k, guint *incident_margin, guint *map_margin)
+{
+  DsScale sc;
+  ds_scale_init (&sc, k->radius_px, s->width, s->height);
+  guint top = top_level (k->planes.n_planes, has_entry_objects (s));
+  /* The row feeds fields up to the top level, segment 0's exact row (radius R) and K_full. */
+  *incident_margin = MAX (ds_scale_row_margin (&sc, top, k->radius_px), k->radius_px);
+  *map_margin = ds_scale_fine_margin (&sc, MAX (top, 1u));
 }
 
 static void
 scatter_free (gpointer p)
 {
   ScatterData *d = p;
-  ds_image_free (d->psf_full);
-  ds_image_free (d->psf_before);
-  ds_image_free (d->psf_after);
-  g_free (d->marginal_full);
-  g_free (d->marginal_before);
+  g_free (d->marg_full);
+  g_free (d->marg_seg0);
+  ds_scale_step_free (d->step_entry);
+  ds_scale_kernel_free (d->k_entry);
+  for (guint j = 0; j <= DS_SLAB_MAX_PLANES; j++) {
+    ds_scale_step_free (d->step_seg[j]);
+    ds_scale_step_free (d->step_rc[j]);
+    ds_scale_kernel_free (d->k_seg_b[j]);
+    ds_scale_kernel_free (d->k_seg_d[j]);
+    ds_scale_kernel_free (d->k_rc_b[j]);
+    ds_scale_kernel_free (d->k_rc_d[j]);
+    ds_image_free (d->plane[j].coarse);
+  }
+  ds_image_free (d->entry.coarse);
   g_free (d);
 }
 
 static gboolean
-check_kernel (const DsImage *k, const char *what, const DsSceneSpec *s, GError **error)
+check_kernel (const DsImage *k, guint side, const char *what, GError **error)
 {
-  if (!k || k->type != DS_SAMPLE_F32 || k->width != k->height || k->width % 2 == 0 || k->width > s->width ||
-      k->height > s->height) {
-    g_set_error (error, DS_SIM_ERROR, DS_SIM_ERROR_INVALID,
-                 "scattering: %s kernel must be f32, square, odd and no larger than the %ux%u frame", what,
-                 s->width, s->height);
+  if (!k || k->type != DS_SAMPLE_F32 || k->width != side || k->height != side) {
+    g_set_error (error, DS_SIM_ERROR, DS_SIM_ERROR_INVALID, "scattering: %s kernel must be f32 %ux%u", what, side,
+                 side);
     return FALSE;
   }
   return TRUE;
 }
 
+static gboolean
+make_map (ScatterData *d, const DsSceneSpec *s, const DsStage *objects, guint plane, guint top, DsScaleMap *map,
+          GError **error)
+{
+  map->fine = ds_stage_objects_plane_map (objects, plane);
+  map->fine_margin = d->map_margin;
+  if (d->sc.f > 1) {
+    map->block_margin = ds_scale_block_margin (&d->sc, top);
+    map->coarse = ds_stage_objects_coarse_map (s, objects, plane, d->sc.f, map->block_margin, error);
+    return map->coarse != NULL;
+  }
+  return TRUE;
+}
+
+static gboolean
+build_chain (ScatterData *d, const DsSlabKernels *k, GError **error)
+{
+  guint n = d->n, side = 2 * d->R + 1;
+  for (guint j = 0; j <= n; j++) {
+    const DsSlabSegment *g = &k->segments[j];
+    g_autofree char *what = g_strdup_printf ("segment %u", j);
+    if (!check_kernel (g->from_ballistic, side, what, error) ||
+        (j > 0 && !check_kernel (g->from_scattered, side, what, error)))
+      return FALSE;
+    d->beta[j] = g->stays_ballistic;
+    if (j == 0)
+      continue;
+    const DsSlabPlaneCrossing *c = &k->crossings[j - 1];
+    g_autofree char *plane = g_strdup_printf ("plane %u re-crossing", j);
+    if (!check_kernel (c->recross_ballistic, side, plane, error) || !check_kernel (c->recross_scattered, side, plane, error))
+      return FALSE;
+    d->once_b[j] = c->once_ballistic;
+    d->once_d[j] = c->once_scattered;
+    for (guint t = 0; t < DS_SLAB_RECROSS_CLASSES; t++)
+      d->again[j][2 * (t + 1)] = c->recross_times[t];
+    /* Level of plane j's light: 2 (n - j + 1); the re-crossing step leaves it one lower, the
+     * segment to the next plane one lower again. */
+    guint L = 2 * (n - j + 1);
+    if (!(d->k_rc_b[j] = ds_scale_kernel_new (&d->sc, c->recross_ballistic, error)) ||
+        !(d->k_rc_d[j] = ds_scale_kernel_new (&d->sc, c->recross_scattered, error)) ||
+        !(d->k_seg_b[j] = ds_scale_kernel_new (&d->sc, g->from_ballistic, error)) ||
+        !(d->k_seg_d[j] = ds_scale_kernel_new (&d->sc, g->from_scattered, error)))
+      return FALSE;
+    d->pair_rc[j][0] = d->k_rc_b[j];
+    d->pair_rc[j][1] = d->k_rc_d[j];
+    d->pair_seg[j][0] = d->k_seg_b[j];
+    d->pair_seg[j][1] = d->k_seg_d[j];
+    if (!(d->step_rc[j] = ds_scale_step_new (&d->sc, L, d->pair_rc[j], 2, error)) ||
+        !(d->step_seg[j] = ds_scale_step_new (&d->sc, L - 1, d->pair_seg[j], 2, error)))
+      return FALSE;
+  }
+  d->marg_seg0 = column_sums (k->segments[0].from_ballistic);
+  return TRUE;
+}
+
 DsStage *
-ds_stage_scattering_new (const DsSceneSpec *s, const DsStage *objects, const DsImage *psf_full,
-                         const DsImage *psf_before, const DsImage *psf_after, const char *how, GError **error)
+ds_stage_scattering_new (const DsSceneSpec *s, const DsStage *objects, const DsSlabKernels *k, const char *how,
+                         GError **error)
 {
   ScatterData *d = g_new0 (ScatterData, 1);
-  d->objects = objects ? ds_stage_objects_map (objects) : NULL;
-  double z = objects ? s->objects[0].depth_mm : 0.0, sigma_t = s->mua + s->mus;
-  d->plane = !objects ? PLANE_NONE : z <= 0 ? PLANE_ENTRY : z >= s->thickness_mm ? PLANE_EXIT : PLANE_INSIDE;
-  double r = (s->n_medium - 1.0) / (s->n_medium + 1.0);
-  d->t_in = d->t_out = 1.0 - r * r;
-  d->b1 = exp (-sigma_t * z);
-  d->b2 = exp (-sigma_t * (s->thickness_mm - z));
-  double sa = sin (s->acceptance_half_angle_deg * G_PI / 180.0) / s->n_medium;
-  d->kappa = sa * sa;
-  gboolean ok;
-  if (d->plane == PLANE_INSIDE)
-    ok = check_kernel (psf_before, "before-object", s, error) && check_kernel (psf_after, "after-object", s, error);
-  else
-    ok = check_kernel (psf_full, "whole-slab", s, error);
+  d->n = k->planes.n_planes;
+  d->R = k->radius_px;
+  ds_scale_init (&d->sc, d->R, s->width, s->height);
+  ds_stage_scattering_margins (s, k, &d->in_margin, &d->map_margin);
+  d->has_entry = objects && has_entry_objects (s);
+  d->top = top_level (d->n, d->has_entry);
+  d->radius_px = k->radius_px;
+  d->held = k->held;
+  d->scattered_in_cone = k->scattered_in_cone;
+  d->se_scattered_in_cone = k->se_scattered_in_cone;
+  gboolean ok = check_kernel (k->full, 2 * d->R + 1, "whole-slab", error);
+  if (ok) {
+    d->mtf = ds_kernel_mtf_x (k->full, s->period_px);
+    d->mtf_noise = k->effective_records > 0 ? 1.0 / sqrt (k->effective_records) : 0.0;
+    d->marg_full = column_sums (k->full);
+  }
+  /* Which of the objects' planes is which: the faces, and the kernels' interior planes in order. */
+  guint found = 0;
+  for (guint i = 0; ok && objects && i < ds_stage_objects_n_planes (objects); i++) {
+    double z = ds_stage_objects_plane_depth (objects, i);
+    if (ds_stage_objects_plane_map (objects, i)->width != s->width + 2 * d->map_margin) {
+      g_set_error (error, DS_SIM_ERROR, DS_SIM_ERROR_INVALID, "scattering: object maps need a margin of %u px",
+                   d->map_margin);
+      ok = FALSE;
+    } else if (z <= 0)
+      ok = make_map (d, s, objects, i, MAX (d->top, 1u), &d->entry, error);
+    else if (z >= s->thickness_mm)
+      d->exit = ds_stage_objects_plane_map (objects, i);
+    else if (found < d->n && fabs (z - k->planes.depth_mm[found]) <= DS_SCENE_DEPTH_TOLERANCE_MM)
+      ok = make_map (d, s, objects, i, d->top, &d->plane[++found], error);
+  }
+  if (ok && found != d->n) {
+    g_set_error (error, DS_SIM_ERROR, DS_SIM_ERROR_INVALID,
+                 "scattering: the kernels' %u planes are not the objects' depths inside the medium", d->n);
+    ok = FALSE;
+  }
+  if (ok && d->n > 0)
+    ok = build_chain (d, k, error);
+  if (ok && d->has_entry) {
+    const DsImage *ke = d->n ? k->segments[0].from_ballistic : k->full;
+    ok = (d->k_entry = ds_scale_kernel_new (&d->sc, ke, error)) &&
+         (d->step_entry = ds_scale_step_new (&d->sc, d->top ? d->top : 1, (const DsScaleKernel *const *) &d->k_entry, 1,
+                                             error));
+  }
   if (!ok) {
-    g_free (d);
+    scatter_free (d);
     return NULL;
   }
-  if (d->plane == PLANE_INSIDE) {
-    d->psf_before = ds_image_copy (psf_before, NULL);
-    d->psf_after = ds_image_copy (psf_after, NULL);
-    d->marginal_before = column_sums (psf_before);
-  } else {
-    d->psf_full = ds_image_copy (psf_full, NULL);
-    d->marginal_full = column_sums (psf_full);
+  GString *where = g_string_new (NULL);
+  if (d->has_entry)
+    g_string_append (where, ", objects at the entry face");
+  if (d->n) {
+    g_string_append_printf (where, ", followed through %u plane%s at", d->n, d->n > 1 ? "s" : "");
+    for (guint j = 0; j < d->n; j++)
+      g_string_append_printf (where, " %g", k->planes.depth_mm[j]);
+    g_string_append (where, " mm");
   }
+  if (d->exit)
+    g_string_append (where, ", objects at the exit face");
   DsStage *st = g_new0 (DsStage, 1);
   st->kind = DS_RENDER_STAGE_SCATTERING;
-  static const char *const planes[] = { "whole slab", "objects at the entry face", "objects at the exit face",
-                                        "slab split at the object plane" };
-  st->reason = g_strdup_printf ("medium sigma_s = %g /mm, g = %g, %g mm: %s PSF%s (%s)", s->mus, s->g,
-                                s->thickness_mm, how, d->plane == PLANE_INSIDE ? "s" : "", planes[d->plane]);
+  st->reason = g_strdup_printf ("medium sigma_s = %g /mm, g = %g, %g mm: %s kernel of radius %u px holding %.1f %% "
+                                "of the scattered light in the cone%s", s->mus, s->g, s->thickness_mm, how, d->R,
+                                100 * d->held, where->str);
+  g_string_free (where, TRUE);
   st->apply = scattering_apply;
   st->data = d;
   st->free_data = scatter_free;
   return st;
+}
+
+void
+ds_stage_scattering_info (const DsStage *st, guint *radius_px, guint *margin_px, double *held,
+                          double *scattered_in_cone, double *se, double *mtf, double *mtf_noise)
+{
+  const ScatterData *d = st->data;
+  *radius_px = d->radius_px;
+  *margin_px = d->in_margin;
+  *held = d->held;
+  *scattered_in_cone = d->scattered_in_cone;
+  *se = d->se_scattered_in_cone;
+  *mtf = d->mtf;
+  *mtf_noise = d->mtf_noise;
 }

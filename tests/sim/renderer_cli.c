@@ -4,6 +4,8 @@
 #include <glib/gstdio.h>
 #include <json-glib/json-glib.h>
 #include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "proc/phase_folder.h"
@@ -180,6 +182,51 @@ test_render_saturation (void)
   g_assert_cmpint (g_rmdir (dir), ==, 0);
 }
 
+/* Energy bookkeeping: without objects, the scattered truth over the frame is, per pixel of
+ * incident light, the slab's scattered transmittance within the acceptance cone that
+ * `descatter-sim slab` tallies for the same medium (an independent run, another seed), within
+ * Monte Carlo error and the 0.5 % the kernel is allowed to leave beyond its radius. */
+static void
+test_energy_bookkeeping (void)
+{
+  g_autoptr (GError) error = NULL;
+  g_autofree char *dir = g_dir_make_tmp ("ds-sim-energy-XXXXXX", &error);
+  g_assert_no_error (error);
+  g_autofree char *scene = g_build_filename (dir, "milk.scene", NULL);
+  /* 1 photon/um^2/ms on (5 um / 0.05)^2 = 1e4 um^2 for 1 ms, QE 0.5, K 0.5: 2500 DN per pixel. */
+  const char *text = "[sensor]\nwidth=64\nheight=48\nbit-depth=16\nquantum-efficiency=0.5\nsystem-gain=0.5\n"
+                     "full-well-e=1e7\nexposure-us=1000\n[illuminator]\nperiod-px=8\nirradiance=1\n"
+                     "[medium]\nthickness-mm=10\nmua=0.002\nmus=0.3\ng=0.7\nn=1.33\nphotons=1000000\nseed=7\n"
+                     "[camera]\nacceptance-half-angle-deg=10\n";
+  g_assert_true (g_file_set_contents (scene, text, -1, &error));
+  g_autofree char *out = g_build_filename (dir, "out", NULL);
+  const char *render[] = { DS_SIM_BIN, "render", scene, "--phases", "2", "--out", out, NULL };
+  int status = -1;
+  g_free (run (render, &status));
+  g_assert_true (g_spawn_check_wait_status (status, NULL));
+  const char *slab[] = { DS_SIM_BIN, "slab", "--mua", "0.002", "--mus", "0.3", "--g", "0.7", "--thickness", "10",
+                         "--n", "1.33", "--acceptance", "10", "--photons", "1000000", "--seed", "3", NULL };
+  g_autofree char *tally = run (slab, &status);
+  g_assert_true (g_spawn_check_wait_status (status, NULL));
+  const char *line = strstr (tally, "scattered transmittance within 10 deg");
+  g_assert_nonnull (line);
+  double t = 0, se = 0;
+  g_assert_cmpint (sscanf (line, "scattered transmittance within 10 deg %lf +- %lf", &t, &se), ==, 2);
+  g_autofree char *p = g_build_filename (out, "truth_scattered.tiff", NULL);
+  g_autoptr (DsImage) truth = ds_image_read (p, &error);
+  g_assert_no_error (error);
+  double sum = 0;
+  for (guint y = 0; y < truth->height; y++)
+    for (guint x = 0; x < truth->width; x++)
+      sum += ((const float *) ds_image_row (truth, y))[x];
+  double per_px = sum / (truth->width * truth->height) / 2500.0;
+  g_test_message ("scattered truth %.5f of the incident light per pixel; descatter-sim slab %.5f +- %.5f", per_px, t, se);
+  g_assert_cmpfloat (per_px, <=, t + 4 * G_SQRT2 * se);
+  g_assert_cmpfloat (per_px, >=, 0.995 * t - 4 * G_SQRT2 * se);
+  g_autofree char *rm = g_strdup_printf ("rm -rf '%s'", dir);
+  g_assert_cmpint (system (rm), ==, 0);
+}
+
 static void
 test_describe (void)
 {
@@ -190,6 +237,22 @@ test_describe (void)
   g_assert_true (g_spawn_check_wait_status (status, NULL));
   g_assert_nonnull (strstr (out, "ballistic-attenuation"));
   g_assert_nonnull (strstr (out, "not built (not declared by the scene): scattering ambient"));
+  /* The kernel's energy and the share of scattered light still modulated; a warning where the
+   * scattered light keeps the stripes (hdr-saturation: a weak, forward-peaked medium whose kernel
+   * is hardly wider than the 8 px period), none where it does not (milk-disc). */
+  g_autofree char *hdr = g_strdup_printf ("%s/hdr-saturation.scene", DS_SCENES_DIR);
+  const char *args_hdr[] = { DS_SIM_BIN, "describe", hdr, NULL };
+  g_autofree char *out_hdr = run (args_hdr, &status);
+  g_assert_true (g_spawn_check_wait_status (status, NULL));
+  g_assert_nonnull (strstr (out_hdr, "holds 99."));
+  g_assert_nonnull (strstr (out_hdr, "still modulated at the period (8 px)"));
+  g_assert_nonnull (strstr (out_hdr, "warning: the scattered light keeps the stripes"));
+  g_autofree char *milk = g_strdup_printf ("%s/milk-disc.scene", DS_SCENES_DIR);
+  const char *args_milk[] = { DS_SIM_BIN, "describe", milk, NULL };
+  g_autofree char *out_milk = run (args_milk, &status);
+  g_assert_true (g_spawn_check_wait_status (status, NULL));
+  g_assert_nonnull (strstr (out_milk, "followed through 1 plane at 5 mm"));
+  g_assert_null (strstr (out_milk, "warning"));
   const char *bad[] = { DS_SIM_BIN, "describe", "/nonexistent.scene", NULL };
   g_free (run (bad, &status));
   g_assert_false (g_spawn_check_wait_status (status, NULL));
@@ -202,6 +265,7 @@ main (int argc, char **argv)
   g_test_add_func ("/sim/cli/render-milk", test_render_milk);
   g_test_add_func ("/sim/cli/render-clear", test_render_clear);
   g_test_add_func ("/sim/cli/render-saturation", test_render_saturation);
+  g_test_add_func ("/sim/cli/energy-bookkeeping", test_energy_bookkeeping);
   g_test_add_func ("/sim/cli/describe", test_describe);
   return g_test_run ();
 }

@@ -1,61 +1,9 @@
-/* The renderer against independent expectations: Beer-Lambert, Fresnel at normal incidence,
- * object shadows, scattering with a known kernel, truth consistent with the frames,
- * determinism, and stages the scene does not declare being absent and changing nothing. */
+/* The renderer's stages against independent expectations: Beer-Lambert, Fresnel at normal
+ * incidence, object shadows, the blurred stripes, determinism, the light/sensor split, and stages
+ * the scene does not declare being absent and changing nothing. Scattering: renderer_scattering.c. */
 #include <glib/gstdio.h>
-#include <math.h>
-#include <string.h>
 
-#include "drivers/sim/renderer.h"
-#include "drivers/sim/transport.h"
-
-/* 64x48 px, 0.1 mm pixels (5 um / 0.05): 1 photon/um^2/ms is 1e4 photons/px/ms. */
-#define PX_PHOTONS_PER_MS 1e4
-#define EXPOSURE_US 1000.0
-#define QE 0.5
-#define K 0.25
-
-static DsScene *
-scene_from (const char *extra, const char *illum)
-{
-  g_autofree char *text = g_strdup_printf (
-    "[sensor]\nwidth=64\nheight=48\nbit-depth=16\nquantum-efficiency=%g\nsystem-gain=%g\nread-noise-e=3\n"
-    "dark-current-e-per-s=1000\nfull-well-e=1e6\nexposure-us=%g\n"
-    "[illuminator]\nperiod-px=8\nirradiance=1\n%s\n%s", QE, K, EXPOSURE_US, illum ? illum : "", extra);
-  g_autoptr (GError) error = NULL;
-  DsScene *s = ds_scene_load_data (text, strlen (text), "renderer-test.scene", &error);
-  g_assert_no_error (error);
-  return s;
-}
-
-/* DN of the "on" level with no medium: photons x QE x K. */
-static double
-open_dn (void)
-{
-  return PX_PHOTONS_PER_MS * EXPOSURE_US / 1000 * QE * K;
-}
-
-static float
-px (const DsImage *im, guint x, guint y)
-{
-  return ((const float *) ds_image_row (im, y))[x];
-}
-
-static void
-truth (const DsRenderer *r, DsImage **t, DsImage **s)
-{
-  g_autoptr (GError) error = NULL;
-  g_assert_true (ds_renderer_truth (r, EXPOSURE_US, 0, t, s, &error));
-  g_assert_no_error (error);
-}
-
-static void
-assert_uniform (const DsImage *im, double expect, double rel)
-{
-  for (guint y = 0; y < im->height; y++)
-    for (guint x = 0; x < im->width; x++)
-      if (fabs (px (im, x, y) - expect) > rel * fabs (expect) + 1e-6)
-        g_error ("pixel (%u, %u) = %g, expected %g", x, y, px (im, x, y), expect);
-}
+#include "tests/sim/renderer_fixture.h"
 
 static void
 test_beer_lambert (void)
@@ -113,147 +61,6 @@ test_object_shadow (void)
 
 /* Square pattern lit fraction of pixel x at phase k of n, or -1 near an edge. */
 static double
-square_lit (double x, guint k, guint n, double period, double duty)
-{
-  double u = x / period - (double) k / n;
-  u -= floor (u + 0.5); /* [-1/2, 1/2) */
-  double edge = fabs (fabs (u) - duty / 2) * period;
-  if (edge < 0.6)
-    return -1;
-  return fabs (u) < duty / 2 ? 1 : 0;
-}
-
-static DsImage *
-gaussian_kernel (guint radius, double sigma, double total)
-{
-  g_autoptr (GError) error = NULL;
-  DsImage *k = ds_image_new (DS_SAMPLE_F32, 2 * radius + 1, 2 * radius + 1, &error);
-  double sum = 0;
-  for (guint y = 0; y < k->height; y++)
-    for (guint x = 0; x < k->width; x++) {
-      double dx = (double) x - radius, dy = (double) y - radius;
-      sum += ((float *) ds_image_row (k, y))[x] = (float) exp (-(dx * dx + dy * dy) / (2 * sigma * sigma));
-    }
-  for (guint y = 0; y < k->height; y++)
-    for (guint x = 0; x < k->width; x++)
-      ((float *) ds_image_row (k, y))[x] *= (float) (total / sum);
-  return k;
-}
-
-static void
-test_truth_consistent (void)
-{
-  /* sigma_s = 1/mm over 1 mm; a kernel holding 30 % of the light, much wider than a period:
-   * Lg is 0.3 of the open level, the direct light exp(-1.05) of it. */
-  g_autoptr (DsScene) s = scene_from ("[medium]\nthickness-mm=1\nmua=0.05\nmus=1\n", "black-level=0.1\nduty=0.5\n");
-  g_autoptr (DsImage) kernel = gaussian_kernel (20, 6, 0.3);
-  g_autoptr (GError) error = NULL;
-  g_autoptr (DsRenderer) r = ds_renderer_new_with_kernels (s, kernel, NULL, NULL, &error);
-  g_assert_no_error (error);
-  g_assert_true (ds_renderer_has_stage (r, DS_RENDER_STAGE_SCATTERING));
-  g_autoptr (DsImage) t = NULL;
-  g_autoptr (DsImage) sc = NULL;
-  truth (r, &t, &sc);
-  double ld = open_dn () * exp (-1.05), lg = open_dn () * 0.3;
-  assert_uniform (t, ld, 1e-5);
-  assert_uniform (sc, lg, 1e-3);
-  /* Frames: b + (1 - b) pattern times Ld, plus Lg times the pattern's mean a + b (1 - a),
-   * plus the dark signal K x dark electrons (1000 e-/s x 1 ms). */
-  double b = 0.1, a = 0.5, dark_dn = K * 1.0;
-  const guint n = 4;
-  for (guint k = 0; k < n; k++) {
-    DsRenderRequest req = { .phase = k, .n_phases = n, .illuminator_on = TRUE, .exposure_us = EXPOSURE_US };
-    g_autoptr (DsImage) e = ds_renderer_render_expected (r, &req, &error);
-    g_assert_no_error (error);
-    guint checked = 0;
-    for (guint y = 0; y < 48; y++)
-      for (guint x = 0; x < 64; x++) {
-        double lit = square_lit (x, k, n, 8, 0.5);
-        if (lit < 0)
-          continue;
-        double expect = (b + (1 - b) * lit) * ld + lg * (a + b * (1 - a)) + dark_dn;
-        if (fabs (px (e, x, y) - expect) > 2e-3 * expect)
-          g_error ("phase %u (%u, %u): %g, expected %g", k, x, y, px (e, x, y), expect);
-        checked++;
-      }
-    g_assert_cmpuint (checked, >, 48 * 32);
-    /* Noisy frames average to the expectation (64 seeds, one row's mean per column). */
-    g_autofree double *acc = g_new0 (double, 64);
-    for (guint seed = 0; seed < 64; seed++) {
-      req.seed = seed;
-      g_autoptr (DsImage) f = ds_renderer_render (r, &req, &error);
-      g_assert_no_error (error);
-      for (guint y = 0; y < 48; y++)
-        for (guint x = 0; x < 64; x++)
-          acc[x] += ((const guint16 *) ds_image_row (f, y))[x];
-    }
-    for (guint x = 0; x < 64; x++) {
-      double mean = acc[x] / (64 * 48), expect = 0;
-      for (guint y = 0; y < 48; y++)
-        expect += px (e, x, y) / 48;
-      /* Shot + read noise per pixel ~ sqrt(K mean + K^2 9) < 12 DN; over 3072 samples < 0.25 DN. */
-      g_assert_cmpfloat (fabs (mean - expect), <, 1.2);
-    }
-  }
-}
-
-static void
-test_clear_object_changes_nothing (void)
-{
-  /* A fully clear object at the entry face takes the 2-D (DFT) convolution path; without it
-   * the renderer convolves one row with the kernel's column sums. Same light either way. */
-  g_autoptr (DsScene) s0 = scene_from ("[medium]\nthickness-mm=1\nmua=0.05\nmus=1\n", "edge-blur-px=0.7\n");
-  g_autoptr (DsScene) s1 = scene_from ("[medium]\nthickness-mm=1\nmua=0.05\nmus=1\n"
-                                       "[object.clear]\nshape=rect\nposition=-100;-100\nsize=300;300\n"
-                                       "transmittance=1\ndepth-mm=0\n", "edge-blur-px=0.7\n");
-  /* An asymmetric kernel: a flipped or transposed convolution would show. */
-  g_autoptr (DsImage) kernel = gaussian_kernel (9, 2.5, 0.3);
-  for (guint y = 0; y < kernel->height; y++)
-    for (guint x = 0; x < kernel->width; x++)
-      ((float *) ds_image_row (kernel, y))[x] *= (float) (1.0 + 0.08 * x + 0.01 * y);
-  g_autoptr (GError) error = NULL;
-  g_autoptr (DsRenderer) r0 = ds_renderer_new_with_kernels (s0, kernel, NULL, NULL, &error);
-  g_autoptr (DsRenderer) r1 = ds_renderer_new_with_kernels (s1, kernel, NULL, NULL, &error);
-  g_assert_no_error (error);
-  DsRenderRequest req = { .phase = 2, .n_phases = 5, .illuminator_on = TRUE, .exposure_us = EXPOSURE_US };
-  g_autoptr (DsImage) a = ds_renderer_render_expected (r0, &req, &error);
-  g_autoptr (DsImage) b = ds_renderer_render_expected (r1, &req, &error);
-  g_assert_no_error (error);
-  for (guint y = 0; y < 48; y++)
-    for (guint x = 0; x < 64; x++)
-      if (fabs (px (a, x, y) - px (b, x, y)) > 1e-4 * px (b, x, y))
-        g_error ("(%u, %u): %g (rows) vs %g (DFT)", x, y, px (a, x, y), px (b, x, y));
-}
-
-static void
-test_sine_pattern (void)
-{
-  /* Sine stripes, b = 0.2, N = 3: frame - dark = (b + (1 - b) 0.5 (1 + cos 2 pi u)) Ld
-   * + (b + (1 - b) / 2) Lg, with Lg uniform (a kernel much wider than the period). */
-  g_autoptr (DsScene) s = scene_from ("[medium]\nthickness-mm=1\nmua=0.05\nmus=1\n",
-                                      "pattern=sine\nblack-level=0.2\n");
-  g_autoptr (DsImage) kernel = gaussian_kernel (20, 6, 0.3);
-  g_autoptr (GError) error = NULL;
-  g_autoptr (DsRenderer) r = ds_renderer_new_with_kernels (s, kernel, NULL, NULL, &error);
-  g_assert_no_error (error);
-  double ld = open_dn () * exp (-1.05), lg = open_dn () * 0.3, b = 0.2, dark_dn = K * 1.0;
-  for (guint k = 0; k < 3; k++) {
-    DsRenderRequest req = { .phase = k, .n_phases = 3, .illuminator_on = TRUE, .exposure_us = EXPOSURE_US };
-    g_autoptr (DsImage) e = ds_renderer_render_expected (r, &req, &error);
-    g_assert_no_error (error);
-    for (guint y = 0; y < 48; y += 7)
-      for (guint x = 0; x < 64; x++) {
-        double p = 0.5 * (1 + cos (2 * G_PI * (x / 8.0 - k / 3.0)));
-        double expect = (b + (1 - b) * p) * ld + (b + (1 - b) / 2) * lg + dark_dn;
-        if (fabs (px (e, x, y) - expect) > 2e-3 * expect)
-          g_error ("phase %u (%u, %u): %g, expected %g", k, x, y, px (e, x, y), expect);
-      }
-  }
-}
-
-/* The projector's Gaussian blur of the square stripes at point t (no pixel yet): a sum over the
- * lit intervals of Phi((t - l)/sigma) - Phi((t - h)/sigma), written with erf. */
-static double
 blurred_square_at (double t, double period, double duty, double shift, double sigma)
 {
   double v = 0;
@@ -304,89 +111,6 @@ test_edge_blur (void)
     double expect = 0.5 * (1 + amp * cos (2 * G_PI * (x / P - 1.0 / 3))) * open_dn () + dark_dn;
     g_assert_cmpfloat (fabs (px (e2, x, 3) - expect), <, 1e-5 * open_dn ());
   }
-}
-
-static void
-test_monte_carlo_kernel (void)
-{
-  /* With the transport's own kernel, the scattered truth of a uniformly lit scene is the
-   * scattered-in-cone fraction that the Monte Carlo totals give (a separate tally), less what
-   * lands beyond the kernel: 1 mm slab, 0.1 mm pixels, kernel radius 20 px = 2 mm. */
-  g_autoptr (DsScene) s = scene_from ("[medium]\nthickness-mm=1\nmua=0.1\nmus=2\ng=0.8\nn=1.4\nphotons=40000\nseed=3\n"
-                                      "[camera]\nacceptance-half-angle-deg=20\n", NULL);
-  g_autoptr (GError) error = NULL;
-  g_autofree char *cache = g_dir_make_tmp ("ds-psf-XXXXXX", &error);
-  g_autoptr (DsRenderer) r = ds_renderer_new (s, cache, &error);
-  g_assert_no_error (error);
-  g_autoptr (DsImage) t = NULL;
-  g_autoptr (DsImage) sc = NULL;
-  truth (r, &t, &sc);
-  DsSlab slab = { .mua = 0.1, .mus = 2, .g = 0.8, .thickness_mm = 1, .n_medium = 1.4, .n_above = 1, .n_below = 1 };
-  DsSlabTally tally;
-  g_assert_true (ds_mc_slab_run_cone (&slab, 200000, 11, 20, &tally, &error));
-  g_assert_no_error (error);
-  double lg = px (sc, 32, 24) / open_dn ();
-  g_test_message ("scattered in cone: renderer %.4f, Monte Carlo totals %.4f +- %.4f", lg, tally.scattered_in_cone,
-                  tally.se_scattered_in_cone);
-  g_assert_cmpfloat (lg, <=, tally.scattered_in_cone + 4 * tally.se_scattered_in_cone + 0.01);
-  g_assert_cmpfloat (lg, >, 0.9 * tally.scattered_in_cone - 0.01);
-  /* Ballistic: Fresnel both faces and Beer-Lambert. */
-  assert_uniform (t, open_dn () * pow (1 - pow (0.4 / 2.4, 2), 2) * exp (-2.1), 1e-5);
-  /* The cache has the kernel now: a second renderer reads the same one. */
-  g_autoptr (DsRenderer) r2 = ds_renderer_new (s, cache, &error);
-  g_assert_no_error (error);
-  g_autoptr (DsImage) t2 = NULL;
-  g_autoptr (DsImage) sc2 = NULL;
-  truth (r2, &t2, &sc2);
-  g_assert_cmpmem (sc->data, sc->stride * sc->height, sc2->data, sc2->stride * sc2->height);
-  g_autoptr (GDir) d = g_dir_open (cache, 0, &error);
-  g_assert_no_error (error);
-  guint files = 0;
-  for (const char *name; (name = g_dir_read_name (d)); files++) {
-    g_autofree char *p = g_build_filename (cache, name, NULL);
-    g_unlink (p);
-  }
-  g_assert_cmpuint (files, >=, 1);
-  g_rmdir (cache);
-}
-
-static void
-test_split_plane (void)
-{
-  /* Opaque object over the left half at mid-depth: deep in its shadow nothing arrives, in the
-   * open half the documented composition of the two kernels. */
-  g_autoptr (DsScene) s = scene_from ("[medium]\nthickness-mm=2\nmua=0\nmus=0.5\nn=1\n"
-                                      "[camera]\nacceptance-half-angle-deg=30\n"
-                                      "[object.o]\nshape=rect\nposition=-10;-10\nsize=42;100\ndepth-mm=1\n", NULL);
-  g_autoptr (DsImage) k1 = gaussian_kernel (5, 1.5, 0.2);
-  g_autoptr (DsImage) k2 = gaussian_kernel (5, 1.5, 0.1);
-  g_autoptr (GError) error = NULL;
-  g_autoptr (DsRenderer) r = ds_renderer_new_with_kernels (s, NULL, k1, k2, &error);
-  g_assert_no_error (error);
-  g_autoptr (DsImage) t = NULL;
-  g_autoptr (DsImage) sc = NULL;
-  truth (r, &t, &sc);
-  double open = open_dn (), b = exp (-0.5), kappa = 0.25; /* sin^2 30 deg, n = 1 */
-  g_assert_cmpfloat (fabs (px (t, 10, 20)), <, 1e-6);
-  g_assert_cmpfloat (fabs (px (sc, 10, 20)), <, 1e-6);
-  g_assert_cmpfloat (fabs (px (t, 55, 20) - open * exp (-1.0)), <, 1e-4 * open);
-  /* s1 = 0.2 open; at the plane: open b + s1; after: 0.1 of that, plus s1 b kappa. */
-  double expect = 0.1 * (open * b + 0.2 * open) + 0.2 * open * b * kappa;
-  g_assert_cmpfloat (fabs (px (sc, 55, 20) - expect), <, 1e-3 * expect);
-  /* Object at the exit face instead: scattered light is cut by it. */
-  g_autoptr (DsScene) s2 = scene_from ("[medium]\nthickness-mm=2\nmua=0\nmus=0.5\n"
-                                       "[object.o]\nshape=rect\nposition=-10;-10\nsize=42;100\ndepth-mm=2\n", NULL);
-  g_autoptr (DsRenderer) r2 = ds_renderer_new_with_kernels (s2, k1, NULL, NULL, &error);
-  g_assert_no_error (error);
-  g_autoptr (DsImage) t2 = NULL;
-  g_autoptr (DsImage) sc2 = NULL;
-  truth (r2, &t2, &sc2);
-  g_assert_cmpfloat (fabs (px (sc2, 10, 20)), <, 1e-6);
-  g_assert_cmpfloat (fabs (px (sc2, 55, 20) - 0.2 * open), <, 1e-3 * open);
-  /* Split scene without both kernels: refused. */
-  g_autoptr (DsRenderer) r3 = ds_renderer_new_with_kernels (s, k1, NULL, NULL, &error);
-  g_assert_null (r3);
-  g_assert_error (error, DS_SIM_ERROR, DS_SIM_ERROR_INVALID);
 }
 
 static void
@@ -570,12 +294,7 @@ main (int argc, char **argv)
   g_test_add_func ("/sim/renderer/beer-lambert", test_beer_lambert);
   g_test_add_func ("/sim/renderer/fresnel-normal", test_fresnel);
   g_test_add_func ("/sim/renderer/object-shadow", test_object_shadow);
-  g_test_add_func ("/sim/renderer/truth-consistent", test_truth_consistent);
-  g_test_add_func ("/sim/renderer/sine-pattern", test_sine_pattern);
-  g_test_add_func ("/sim/renderer/clear-object-changes-nothing", test_clear_object_changes_nothing);
   g_test_add_func ("/sim/renderer/edge-blur", test_edge_blur);
-  g_test_add_func ("/sim/renderer/split-plane", test_split_plane);
-  g_test_add_func ("/sim/renderer/monte-carlo-kernel", test_monte_carlo_kernel);
   g_test_add_func ("/sim/renderer/deterministic", test_deterministic);
   g_test_add_func ("/sim/renderer/concurrent", test_concurrent);
   g_test_add_func ("/sim/renderer/undeclared-stage", test_undeclared_stage);

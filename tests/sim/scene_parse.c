@@ -123,10 +123,24 @@ test_objects (void)
                 (const char *[]) { "test.scene:10", "radius", "not used by shape grid", NULL });
   expect_error ("[medium]\nthickness-mm=2\nmua=0.1\nmus=0\n[object.a]\nshape=grid\npitch=8\ndepth-mm=3\n",
                 DS_SIM_ERROR_INVALID, (const char *[]) { "test.scene:14", "depth-mm", "[0, 2]", NULL });
-  expect_error ("[medium]\nthickness-mm=2\nmua=0.1\nmus=0\n[object.a]\nshape=grid\npitch=8\ndepth-mm=1\n"
-                "[object.b]\nshape=grid\npitch=8\ndepth-mm=0.5\n",
-                DS_SIM_ERROR_INVALID, (const char *[]) { "test.scene:18", "[object.b] depth-mm", NULL });
   g_autoptr (GError) error = NULL;
+  /* Objects at several depths: the slab is split at each (at most 8 inside the medium; the faces
+   * and repeated depths do not add planes). The 9th depth is refused at its object's line. */
+  GString *many = g_string_new ("[medium]\nthickness-mm=10\nmua=0.1\nmus=1\n"
+                                "[object.entry]\nshape=grid\npitch=8\ndepth-mm=0\n"
+                                "[object.exit]\nshape=grid\npitch=8\ndepth-mm=10\n");
+  for (guint i = 1; i <= 8; i++)
+    g_string_append_printf (many, "[object.o%u]\nshape=grid\npitch=8\ndepth-mm=%u\n"
+                                  "[object.again%u]\nshape=lines\npitch=9\ndepth-mm=%u\n", i, i, i, i);
+  g_autoptr (DsScene) eight = load_with (many->str, &error);
+  g_assert_no_error (error);
+  g_assert_cmpuint (ds_scene_spec (eight)->n_objects, ==, 18);
+  guint line = 6 + 4 + 8 + 16 * 4 + 4; /* base, [medium], entry and exit, 16 objects, the header and shape */
+  g_string_append (many, "[object.ninth]\nshape=grid\npitch=8\ndepth-mm=9.5\n");
+  g_autofree char *where = g_strdup_printf ("test.scene:%u", line);
+  expect_error (many->str, DS_SIM_ERROR_INVALID,
+                (const char *[]) { where, "[object.ninth] depth-mm", "9.5 mm", "8 allowed", NULL });
+  g_string_free (many, TRUE);
   g_autoptr (DsScene) s = load_with ("[object.a]\nshape=rect\nposition=1;2\nsize=3;4\ntransmittance=0.5\n"
                                      "[object.m]\nshape=mask\nmask=masks/m.png\n", &error);
   g_assert_no_error (error);
