@@ -108,8 +108,8 @@ static const KeySpec keys[] = {
   { "illuminator", "settle-timeout-ms", K_UINT, F (settle_timeout_ms), "500", 1, 60000, NULL,
     "deadline for a phase to be applied and read back" },
 
-  { "trigger", "backend", K_CHOICE, F (trigger_backend), "software", 0, 0, "software|gpio",
-    "how frames are triggered" },
+  { "trigger", "backend", K_CHOICE, F (trigger_backend), "software", 0, 0, "software|gpio|projector-sync",
+    "how frames are triggered (projector-sync: the illuminator's sync output drives the camera's line)" },
   { "trigger", "gpio-line", K_INT, F (trigger_gpio_line), "-1", -1, 4095, NULL, "gpio: trigger line offset" },
   { "trigger", "pulse-us", K_UINT, F (trigger_pulse_us), "100", 1, 1000000, NULL, "gpio: pulse width" },
   { "trigger", "active-low", K_BOOL, F (trigger_active_low), "false", 0, 0, NULL, "gpio: pulse polarity" },
@@ -418,6 +418,12 @@ check_consistency (const DsConfig *c, const char *name, GError **error)
   if (c->max_tcp_clients && c->max_tcp_clients >= c->max_clients)
     INCONSISTENT ("[daemon] max-tcp-clients = %u must be below max-clients = %u, so that local "
                   "clients always find room", c->max_tcp_clients, c->max_clients);
+  if (strcmp (c->trigger_backend, "projector-sync") == 0 && strcmp (c->camera_trigger, "software") == 0)
+    INCONSISTENT ("[trigger] backend = projector-sync: the sync output drives a camera line, so [camera] trigger "
+                  "must name that line, not software");
+  if (strcmp (c->trigger_backend, "projector-sync") == 0 && sim_camera)
+    INCONSISTENT ("[trigger] backend = projector-sync needs a camera whose line the projector drives; the "
+                  "simulated camera has none");
   if (strcmp (c->estimator, "sine") == 0 && c->phases < 3)
     INCONSISTENT ("[acquisition] estimator = sine needs phases >= 3 (got %u)", c->phases);
   if (c->spool_dir && (!c->spool_formats || !*c->spool_formats))

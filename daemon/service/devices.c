@@ -3,6 +3,7 @@
 #include <string.h>
 
 #include "drivers/aravis/aravis_camera.h"
+#include "drivers/core/projector_sync.h"
 #include "drivers/modbus/modbus_illuminator.h"
 #include "drivers/sim/renderer.h"
 #include "drivers/sim/scene.h"
@@ -111,7 +112,10 @@ ds_devices_open (const DsConfig *config, GError **error)
       g_prefix_error (error, "[trigger] backend=gpio: ");
       return NULL;
     }
-  } else
+  } else if (strcmp (config->trigger_backend, "projector-sync") == 0)
+    /* Applying a phase is the trigger: the illuminator is wrapped so each fire is one apply. */
+    dev->illuminator = ds_projector_sync_wrap (dev->illuminator, &dev->trigger);
+  else
     dev->trigger = ds_software_trigger_new (dev->camera);
 
   DsCameraSettings *cs = &dev->camera_settings;
