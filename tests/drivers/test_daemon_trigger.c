@@ -1,0 +1,119 @@
+/* descatterd's hardware-trigger path end to end: labsim's camera on TriggerSource Line0, driven
+ * by the illuminator controller's sync output ([trigger] backend=projector-sync), over real
+ * GigE Vision and Modbus TCP. Every set equals the scene's truth; a missed sync pulse is a grab
+ * timeout, counted and retried; a double pulse is a surplus frame, dropped with its reason.
+ * Usage: test_daemon_trigger LABSIM SCENE. Binds UDP 3956. */
+#include <stdio.h>
+#include <string.h>
+
+#include "../daemon/daemon_harness.h"
+#include "../daemon/truth_check.h"
+
+static const char *labsim_path, *scene_path;
+static DsScene *the_scene;
+static DsImage *truth_t, *truth_g;
+
+static char *
+daemon_config (const TestLabsim *l)
+{
+  return g_strdup_printf ("[camera]\nbackend=aravis\naddress=127.0.0.1\npixel-format=Mono12p\n"
+                          "exposure-us=%g\ngrab-timeout-ms=500\ntrigger=line0\n"
+                          "[illuminator]\nbackend=modbus\nmodbus-uri=tcp://127.0.0.1:%u\nmodbus-timeout-ms=300\n"
+                          "period-px=%g\nduty=%g\n"
+                          "[trigger]\nbackend=projector-sync\n"
+                          "[acquisition]\nphases=4\naverages=2\ndark-frame=true\nphase-retries=4\n",
+                          ds_scene_default_exposure_us (the_scene), l->modbus_port,
+                          ds_scene_period_px (the_scene), ds_scene_duty (the_scene));
+}
+
+static guint
+captures (DsClient *c, guint n)
+{
+  guint ok = 0;
+  for (guint i = 0; i < n; i++) {
+    g_autoptr (GError) error = NULL;
+    g_autoptr (DsMessage) m = ds_client_call (c, "capture", NULL, NULL, NULL, &error);
+    g_assert_no_error (error);
+    if (!m->reply->ok) {
+      g_test_message ("set failed: %s", m->reply->error_message);
+      continue;
+    }
+    TruthCheck tc;
+    truth_check (m, the_scene, truth_t, truth_g, &tc);
+    g_test_message ("set correct: rms %.2f/%.2f DN (allowed %.2f/%.2f)", tc.rms_transmissive,
+                    tc.rms_scattered, tc.allowed_transmissive, tc.allowed_scattered);
+    g_assert_true (truth_check_passed (&tc));
+    ok++;
+  }
+  return ok;
+}
+
+static void
+run (const char *const *labsim_args, gboolean faults)
+{
+  TestLabsim *l = test_labsim_start (labsim_path, scene_path, labsim_args);
+  g_autofree char *conf = daemon_config (l);
+  TestDaemon *d = test_daemon_start (conf, NULL);
+  g_autoptr (DsClient) c = test_daemon_connect (d);
+  guint ok = captures (c, 3);
+  g_autoptr (DsMessage) st = test_daemon_call_ok (c, "status", NULL);
+  JsonNode *b = st->reply->body;
+  gint64 timeouts = test_json_int (b, "frames.timeouts");
+  gint64 stale = test_json_int (b, "frames.dropped_by_reason.stale");
+  gint64 wrong = test_json_int (b, "frames.dropped_by_reason.wrong_phase");
+  g_test_message ("%u of 3 sets correct; timeouts %" G_GINT64_FORMAT ", stale %" G_GINT64_FORMAT
+                  ", wrong phase %" G_GINT64_FORMAT, ok, timeouts, stale, wrong);
+  g_assert_cmpint (test_json_int (b, "frames.acquired"), ==,
+                   test_json_int (b, "frames.folded") + test_json_int (b, "frames.dropped"));
+  if (!faults) {
+    g_assert_cmpuint (ok, ==, 3);
+    g_assert_cmpint (timeouts, ==, 0);
+    g_assert_cmpint (wrong, ==, 0);
+  } else {
+    g_assert_cmpuint (ok, >=, 2);
+    g_assert_cmpint (timeouts, >, 0);      /* the missed pulses, counted */
+    g_assert_cmpint (stale + wrong, >, 0); /* the surplus frames, dropped with their reason */
+  }
+  g_assert_cmpint (test_daemon_stop (d), ==, 0);
+  test_daemon_free (d);
+  test_labsim_stop (l);
+}
+
+static void
+test_projector_sync (void)
+{
+  run (NULL, FALSE);
+}
+
+/* Every 5th sync pulse makes no frame, every 7th two. */
+static void
+test_missed_and_double (void)
+{
+  const char *args[] = { "--line-miss-every", "5", "--line-double-every", "7", NULL };
+  run (args, TRUE);
+}
+
+int
+main (int argc, char **argv)
+{
+  g_test_init (&argc, &argv, NULL);
+  if (argc < 3) {
+    fprintf (stderr, "usage: test_daemon_trigger LABSIM SCENE\n");
+    return 2;
+  }
+  labsim_path = argv[1];
+  scene_path = argv[2];
+  g_autoptr (GError) error = NULL;
+  the_scene = ds_scene_load (scene_path, &error);
+  g_assert_no_error (error);
+  g_autoptr (DsRenderer) r = ds_renderer_new (the_scene, NULL, &error);
+  g_assert_no_error (error);
+  g_assert_true (ds_renderer_truth (r, ds_scene_default_exposure_us (the_scene), 0, &truth_t, &truth_g, &error));
+  g_test_add_func ("/daemon-trigger/projector-sync", test_projector_sync);
+  g_test_add_func ("/daemon-trigger/missed-and-double", test_missed_and_double);
+  int status = g_test_run ();
+  ds_image_free (truth_t);
+  ds_image_free (truth_g);
+  ds_scene_free (the_scene);
+  return status;
+}
