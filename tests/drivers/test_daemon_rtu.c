@@ -160,7 +160,10 @@ test_labsim_rtu (void)
     g_free (capture (c, &t, "Modbus"));
   g_test_message ("labsim RTU with faults: %u sets correct, %u failed", t.ok, t.failed);
   g_autoptr (DsMessage) st = test_daemon_call_ok (c, "status", NULL);
-  g_assert_cmpint (test_json_int (st->reply->body, "frames.device_errors"), >, 0);
+  /* The line goes away in the middle of a set (its 150th request): that set fails. Bad CRCs and
+   * silences are retried within the access and need not fail any. */
+  g_assert_cmpuint (t.failed, >=, 1);
+  (void) st;
   g_assert_cmpuint (t.ok, >=, 3);
   g_assert_true (t.failed == 0 || t.failed_before_last_ok);
   assert_accounting (c);
