@@ -442,24 +442,20 @@ on_closed (DsConnection *conn, gpointer user_data)
   g_hash_table_remove (s->clients, conn);
 }
 
-static gboolean
-on_incoming (GSocketService *service, GSocketConnection *sc, GObject *source, gpointer user_data)
+/* A new client on `stream`; already authenticated when `trusted` (the live view's bridge),
+ * else as its transport says. */
+static void
+add_client (DsServer *s, GIOStream *stream, gboolean is_tcp, gboolean trusted)
 {
-  (void) service;
-  (void) source;
-  DsServer *s = user_data;
-  GSocketAddress *remote = g_socket_connection_get_remote_address (sc, NULL);
-  gboolean is_tcp = remote && G_IS_INET_SOCKET_ADDRESS (remote);
-  g_clear_object (&remote);
   ClientState *st = g_new0 (ClientState, 1);
   st->server = s;
   st->is_tcp = is_tcp;
   st->accepted_us = st->active_us = g_get_monotonic_time ();
   /* UNIX clients were let in by the socket's file permissions; TCP ones need the token when
    * one is configured. */
-  st->authenticated = !(is_tcp && s->limits.token);
+  st->authenticated = trusted || !(is_tcp && s->limits.token);
   DsConnectionLimits cl = { .max_line = s->limits.max_line, .max_queued_bytes = s->limits.max_queued_bytes };
-  DsConnection *conn = ds_connection_new (G_IO_STREAM (sc), &cl, on_line, on_closed, st);
+  DsConnection *conn = ds_connection_new (stream, &cl, on_line, on_closed, st);
   ds_connection_set_data (conn, st, g_free);
   s->stats.accepted++;
   guint all, tcp;
@@ -482,7 +478,7 @@ on_incoming (GSocketService *service, GSocketConnection *sc, GObject *source, gp
       st->server = NULL;
       ds_connection_close_after_flush (conn);
       ds_connection_unref (conn);
-      return TRUE;
+      return;
     }
     ClientState *vst = ds_connection_get_data (victim);
     g_autofree char *why = g_strdup_printf (
@@ -493,7 +489,25 @@ on_incoming (GSocketService *service, GSocketConnection *sc, GObject *source, gp
   }
   g_hash_table_add (s->clients, conn);
   ds_connection_start (conn);
+}
+
+static gboolean
+on_incoming (GSocketService *service, GSocketConnection *sc, GObject *source, gpointer user_data)
+{
+  (void) service;
+  (void) source;
+  DsServer *s = user_data;
+  GSocketAddress *remote = g_socket_connection_get_remote_address (sc, NULL);
+  gboolean is_tcp = remote && G_IS_INET_SOCKET_ADDRESS (remote);
+  g_clear_object (&remote);
+  add_client (s, G_IO_STREAM (sc), is_tcp, FALSE);
   return TRUE;
+}
+
+void
+ds_server_add_stream (DsServer *server, GIOStream *stream)
+{
+  add_client (server, stream, FALSE, TRUE);
 }
 
 static gboolean

@@ -45,6 +45,10 @@ gboolean ds_server_listen_unix (DsServer *server, const char *path, guint mode, 
 gboolean ds_server_listen_tcp (DsServer *server, const char *address, guint16 port, GError **error);
 /* Adopts sockets passed by systemd (sd_listen_fds); returns how many. */
 guint ds_server_adopt_systemd_sockets (DsServer *server, GError **error);
+/* A client that is already authenticated, on a stream of the daemon's own (the live view's
+ * bridge for the browser's controls, which checked the HTTP token). Limits apply as to any
+ * client. */
+void ds_server_add_stream (DsServer *server, GIOStream *stream);
 /* The port actually bound by the last TCP listen (useful with port 0 in tests). */
 guint16 ds_server_tcp_port (const DsServer *server);
 
