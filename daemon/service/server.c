@@ -1,4 +1,5 @@
 #include "daemon/service/server.h"
+#include "daemon/service/token.h"
 
 #include "build_info.h"
 
@@ -176,17 +177,6 @@ ds_server_publish (DsServer *server, const char *event, JsonNode *body, const Ds
   return delivered;
 }
 
-static gboolean
-token_equal (const char *expected, const char *given)
-{
-  /* Constant time in the length of the expected token: no early exit on the first mismatch. */
-  gsize n = strlen (expected), m = given ? strlen (given) : 0;
-  guint8 diff = (guint8) (n != m);
-  for (gsize i = 0; i < n; i++)
-    diff |= (guint8) (expected[i] ^ (i < m ? given[i] : 0));
-  return diff == 0;
-}
-
 static void
 handle_hello (DsServer *s, DsConnection *conn, ClientState *st, DsRequest *req)
 {
@@ -208,7 +198,7 @@ handle_hello (DsServer *s, DsConnection *conn, ClientState *st, DsRequest *req)
   if (st->is_tcp && s->limits.token) {
     JsonNode *t = json_object_get_member (req->args, "token");
     const char *given = t ? json_node_get_string (t) : NULL;
-    if (!token_equal (s->limits.token, given)) {
+    if (!ds_token_equal (s->limits.token, given)) {
       g_set_error (&error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_UNAUTHORIZED, "hello: wrong or missing token");
       ds_server_reply_error (s, conn, req->id, error);
       ds_connection_close_after_flush (conn);

@@ -19,6 +19,7 @@
 #include "daemon/service/server.h"
 #include "daemon/service/spool.h"
 #include "daemon/service/wire_error.h"
+#include "daemon/service/token.h"
 
 /* A capture or dark request waiting for the acquisition thread. */
 typedef struct {
