@@ -428,13 +428,8 @@ check_consistency (const DsConfig *c, const char *name, GError **error)
     INCONSISTENT ("[acquisition] estimator = sine needs phases >= 3 (got %u)", c->phases);
   if (c->spool_dir && (!c->spool_formats || !*c->spool_formats))
     INCONSISTENT ("[daemon] spool-formats is empty: name at least one of tiff, png16, preview, hdf5, hdf5-run");
-  if (c->http_listen) {
-    const char *colon = strrchr (c->http_listen, ':');
-    char *end = NULL;
-    long port = colon ? strtol (colon + 1, &end, 10) : -1;
-    if (!colon || colon == c->http_listen || !end || *end || port < 0 || port > 65535)
-      INCONSISTENT ("[http] listen = \"%s\" must be host:port", c->http_listen);
-  }
+  if (c->http_listen && !ds_config_parse_host_port (c->http_listen, NULL, NULL))
+    INCONSISTENT ("[http] listen = \"%s\" must be IP:PORT (a numeric address, port 0..65535)", c->http_listen);
   if (c->tcp_listen && !ds_config_parse_host_port (c->tcp_listen, NULL, NULL))
     INCONSISTENT ("[daemon] tcp-listen = \"%s\" must be IP:PORT (a numeric address, port 0..65535)",
                   c->tcp_listen);

@@ -52,7 +52,7 @@ int
 main (int argc, char **argv)
 {
   setlocale (LC_ALL, "");
-  g_autofree char *config_path = NULL, *socket_path = NULL, *tcp = NULL, *scene = NULL;
+  g_autofree char *config_path = NULL, *socket_path = NULL, *tcp = NULL, *scene = NULL, *http = NULL;
   gboolean sim = FALSE, check = FALSE, no_systemd = FALSE, version = FALSE;
   GOptionEntry entries[] = {
     { "version", 'V', 0, G_OPTION_ARG_NONE, &version, "Print the version and exit", NULL },
@@ -61,6 +61,7 @@ main (int argc, char **argv)
     { "check", 0, 0, G_OPTION_ARG_NONE, &check, "Validate the configuration, print the effective settings and exit", NULL },
     { "socket", 's', 0, G_OPTION_ARG_FILENAME, &socket_path, "UNIX socket path (overrides [daemon] socket)", "PATH" },
     { "tcp", 0, 0, G_OPTION_ARG_STRING, &tcp, "TCP listen address host:port (overrides [daemon] tcp-listen)", "ADDR" },
+    { "http", 0, 0, G_OPTION_ARG_STRING, &http, "Live view and /metrics on host:port (overrides [http] listen)", "ADDR" },
     { "scene", 0, 0, G_OPTION_ARG_FILENAME, &scene, "Scene file for the simulated lab (overrides [sim] scene)", "FILE" },
     { "no-socket-activation", 0, 0, G_OPTION_ARG_NONE, &no_systemd, "Ignore sockets passed by systemd", NULL },
     { NULL },
@@ -95,7 +96,7 @@ main (int argc, char **argv)
   if (check) {
     /* The very checks start-up runs (preflight.h), with the same overrides. */
     DsPreflightOverrides ov = { .config_name = config_path, .socket_path = socket_path, .tcp_listen = tcp,
-                                .scene_path = scene };
+                                .scene_path = scene, .http_listen = http };
     g_autoptr (DsPreflight) pf = ds_preflight_run (config, &ov, &error);
     if (!pf) {
       fprintf (stderr, "descatterd: %s\n", error->message);
@@ -112,7 +113,7 @@ main (int argc, char **argv)
   }
   g_autoptr (GMainLoop) loop = g_main_loop_new (NULL, FALSE);
   DsServiceOptions opts = { .config_path = config_path, .socket_path = socket_path,
-                            .tcp_listen = tcp, .scene_path = scene,
+                            .tcp_listen = tcp, .http_listen = http, .scene_path = scene,
                             .no_systemd_sockets = no_systemd };
   g_autoptr (DsService) service = ds_service_new (g_steal_pointer (&config), &opts, loop, &error);
   if (!service) {
@@ -127,6 +128,8 @@ main (int argc, char **argv)
     printf ("descatterd: listening on %s\n", ds_service_socket_path (service));
   if (ds_service_tcp_port (service))
     printf ("descatterd: listening on tcp port %u\n", ds_service_tcp_port (service));
+  if (ds_service_http_url (service))
+    printf ("descatterd: live view and /metrics at %s\n", ds_service_http_url (service));
   fflush (stdout);
   g_main_loop_run (loop);
   sig.stopping = TRUE;

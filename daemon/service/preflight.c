@@ -38,23 +38,22 @@ refuse_with (GError **error, GError *cause, const char *where)
 }
 
 static gboolean
-read_token (const char *path, char **token, GError **error)
+read_token (const char *path, const char *key, char **token, GError **error)
 {
   g_autofree char *text = NULL;
   gsize len = 0;
   GError *e = NULL;
   GStatBuf st;
   if (g_stat (path, &st) == 0 && (!S_ISREG (st.st_mode) || st.st_size > MAX_TOKEN_BYTES))
-    return refuse (error, "[daemon] tcp-token-file = \"%s\": not a regular file of at most %d bytes", path,
-                   MAX_TOKEN_BYTES);
+    return refuse (error, "%s = \"%s\": not a regular file of at most %d bytes", key, path, MAX_TOKEN_BYTES);
   if (!g_file_get_contents (path, &text, &len, &e))
-    return refuse_with (error, e, "[daemon] tcp-token-file");
+    return refuse_with (error, e, key);
   if (memchr (text, '\0', len) || !g_utf8_validate (text, (gssize) len, NULL))
-    return refuse (error, "[daemon] tcp-token-file = \"%s\": the token must be UTF-8 text", path);
+    return refuse (error, "%s = \"%s\": the token must be UTF-8 text", key, path);
   g_strstrip (text);
   if (g_utf8_strlen (text, -1) < 16)
-    return refuse (error, "[daemon] tcp-token-file = \"%s\": the token must be at least 16 characters (has %ld)",
-                   path, g_utf8_strlen (text, -1));
+    return refuse (error, "%s = \"%s\": the token must be at least 16 characters (has %ld)", key, path,
+                   g_utf8_strlen (text, -1));
   *token = g_steal_pointer (&text);
   return TRUE;
 }
@@ -85,6 +84,24 @@ check_tcp (DsPreflight *pf, const char *listen, const char *where, GError **erro
     return refuse (error, "%s \"%s\" is not loopback: it requires [daemon] tcp-token-file", where, listen);
   pf->tcp_host = g_steal_pointer (&host);
   pf->tcp_port = port;
+  return TRUE;
+}
+
+/* The live view and /metrics: as TCP, a non-loopback address needs a token of its own. */
+static gboolean
+check_http (DsPreflight *pf, const char *listen, const char *where, GError **error)
+{
+  g_autofree char *host = NULL;
+  guint16 port = 0;
+  if (!ds_config_parse_host_port (listen, &host, &port))
+    return refuse (error, "%s \"%s\": expected IP:PORT (a numeric address, port 0..65535)", where, listen);
+  g_autoptr (GInetAddress) ia = g_inet_address_new_from_string (host);
+  if (!ia)
+    return refuse (error, "%s \"%s\": %s is not an IP address", where, listen, host);
+  if (!g_inet_address_get_is_loopback (ia) && !pf->http_token)
+    return refuse (error, "%s \"%s\" is not loopback: it requires [http] token-file", where, listen);
+  pf->http_host = g_steal_pointer (&host);
+  pf->http_port = port;
   return TRUE;
 }
 
@@ -141,10 +158,15 @@ run_checks (DsPreflight *pf, const DsConfig *config, const DsPreflightOverrides 
   }
   if (!check_socket_path (c->socket_path, ov && ov->socket_path ? "--socket" : "[daemon] socket", error))
     return FALSE;
-  if (c->tcp_token_file && !read_token (c->tcp_token_file, &pf->token, error))
+  if (c->tcp_token_file && !read_token (c->tcp_token_file, "[daemon] tcp-token-file", &pf->token, error))
     return FALSE;
   const char *tcp = ov && ov->tcp_listen ? ov->tcp_listen : c->tcp_listen;
   if (tcp && *tcp && !check_tcp (pf, tcp, ov && ov->tcp_listen ? "--tcp" : "[daemon] tcp-listen", error))
+    return FALSE;
+  if (c->http_token_file && !read_token (c->http_token_file, "[http] token-file", &pf->http_token, error))
+    return FALSE;
+  const char *http = ov && ov->http_listen ? ov->http_listen : c->http_listen;
+  if (http && *http && !check_http (pf, http, ov && ov->http_listen ? "--http" : "[http] listen", error))
     return FALSE;
   if (c->spool_dir && g_file_test (c->spool_dir, G_FILE_TEST_EXISTS) &&
       !g_file_test (c->spool_dir, G_FILE_TEST_IS_DIR)) {
@@ -198,6 +220,8 @@ ds_preflight_free (DsPreflight *pf)
     return;
   ds_config_free (pf->config);
   g_free (pf->token);
+  g_free (pf->http_token);
+  g_free (pf->http_host);
   g_free (pf->tcp_host);
   g_clear_pointer (&pf->model, ds_operating_model_free);
   g_free (pf->model_path);

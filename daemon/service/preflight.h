@@ -20,6 +20,7 @@ typedef struct {
   const char *socket_path; /* --socket */
   const char *tcp_listen;  /* --tcp */
   const char *scene_path;  /* --scene */
+  const char *http_listen; /* --http */
 } DsPreflightOverrides;
 
 typedef struct {
@@ -27,6 +28,9 @@ typedef struct {
   char *token;               /* read from tcp-token-file, or NULL */
   char *tcp_host;            /* NULL: no TCP */
   guint16 tcp_port;
+  char *http_token;          /* read from [http] token-file, or NULL */
+  char *http_host;           /* NULL: no live view and /metrics */
+  guint16 http_port;
   DsOperatingModel *model;   /* NULL: automatic captures are off, model_note says why */
   char *model_path;
   char *model_note;

@@ -73,12 +73,13 @@ gboolean ds_sequencer_dark (DsSequencer *seq, const DsCaptureSettings *settings,
 struct DsOperatingModel;
 void ds_sequencer_set_operating_model (DsSequencer *seq, const struct DsOperatingModel *model,
                                        double settle_ms, double link_mbit);
-/* Called for every frame that was verified and folded (phase of n_phases), on the fold worker
- * thread while the next frame is acquired (the last frame of a set: on the acquisition thread,
- * in the time between that frame and the result), before the frame is released (its pixels
- * may be the camera's buffer): copy what is needed, quickly, and keep no pointer. For the live view (daemon/service/live_view.h). Set it before
- * the first set (main thread); NULL removes it. */
-typedef void (*DsSequencerFrameFunc) (const DsFrame *frame, guint phase, guint n_phases, gpointer user_data);
+/* Called for every frame that was verified and folded (phase of the set taken with settings), on
+ * the fold worker thread while the next frame is acquired (the last frame of a set: on the
+ * acquisition thread, in the time between that frame and the result), before the frame is
+ * released (its pixels may be the camera's buffer): copy what is needed, quickly, and keep no
+ * pointer. For the live view (daemon/service/live_view.h). Main thread; NULL removes it. */
+typedef void (*DsSequencerFrameFunc) (const DsFrame *frame, guint phase, const DsCaptureSettings *settings,
+                                      gpointer user_data);
 void ds_sequencer_set_frame_hook (DsSequencer *seq, DsSequencerFrameFunc func, gpointer user_data);
 /* New defaults (SIGHUP); continuous mode picks them up at its next set. */
 void ds_sequencer_set_defaults (DsSequencer *seq, const DsCaptureSettings *defaults);

@@ -44,7 +44,7 @@ run_job (DsSequencer *seq, DsFoldJob *job)
   gpointer hook_data = seq->frame_hook_data;
   g_mutex_unlock (&seq->lock);
   if (hook)
-    hook (f, job->phase, job->settings->phases, hook_data);
+    hook (f, job->phase, job->settings, hook_data);
 }
 
 static gpointer

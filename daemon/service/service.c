@@ -11,6 +11,9 @@
 #include "daemon/output/result_meta.h"
 #include "daemon/service/capture_settings.h"
 #include "daemon/service/devices.h"
+#include "daemon/service/http_server.h"
+#include "daemon/service/live_view.h"
+#include "daemon/service/metrics.h"
 #include "daemon/service/provenance.h"
 #include "daemon/service/preflight.h"
 #include "daemon/operating/operating_point.h"
@@ -57,6 +60,9 @@ struct DsService {
   gint64 started_us;
   guint64 results_published;
   char config_sha256[65];    /* of the effective configuration: in every result */
+  DsMetrics *metrics;
+  DsLiveView *live;          /* with http: NULL when [http] listen is off */
+  DsHttpServer *http;
   gboolean in_run;           /* continuous acquisition started and not stopped */
   DsOperatingModel *model;  /* NULL when no model file could be read (automatic captures fail) */
   char *model_error;
@@ -152,6 +158,11 @@ publish_result (DsService *svc, DsResult *result)
   g_autoptr (JsonNode) meta = ds_result_to_json (result);
   ds_server_publish (svc->server, "result", meta, infos, bytes, n);
   svc->results_published++;
+  gint64 last_frame = ds_json_path_int (meta, "monotonic_us.last_frame", 0);
+  if (last_frame > 0)
+    ds_metrics_observe_result (svc->metrics, (double) (g_get_monotonic_time () - last_frame) / 1e6);
+  if (svc->live)
+    ds_live_view_on_result (svc->live, result);
   /* Queued to the spool's writer thread: a slow disk never delays the loop. */
   if (svc->spool && !ds_spool_record (svc->spool, result, svc->in_run))
     g_warning ("spool: set %" G_GUINT64_FORMAT " not recorded: the disk is behind", ds_result_set_id (result));
@@ -625,6 +636,17 @@ status_to_json (DsService *svc)
   add_uint (b, "results_dropped", ss.dropped);
   add_uint (b, "queued_bytes", ss.queued_bytes);
   json_builder_end_object (b);
+  if (svc->http) {
+    DsLiveStats ls;
+    ds_live_view_get_stats (svc->live, &ls);
+    json_builder_set_member_name (b, "http");
+    json_builder_begin_object (b);
+    add_string (b, "url", ds_http_server_url (svc->http));
+    add_uint (b, "live_clients", ls.clients);
+    add_uint (b, "live_updates_sent", ls.sent);
+    add_uint (b, "live_updates_superseded", ls.superseded);
+    json_builder_end_object (b);
+  }
   if (svc->spool) {
     DsSpoolStats sp;
     ds_spool_get_stats (svc->spool, &sp);
@@ -643,6 +665,48 @@ status_to_json (DsService *svc)
   }
   json_builder_end_object (b);
   return json_builder_get_root (b);
+}
+
+static JsonNode *
+live_status (gpointer data)
+{
+  return status_to_json (data);
+}
+
+static char *
+render_metrics (gpointer data)
+{
+  DsService *svc = data;
+  DsSequencerStatus st;
+  ds_sequencer_get_status (svc->sequencer, &st);
+  DsServerStats ss;
+  ds_server_get_stats (svc->server, &ss);
+  DsSpoolStats sp;
+  if (svc->spool)
+    ds_spool_get_stats (svc->spool, &sp);
+  DsLiveStats ls;
+  ds_live_view_get_stats (svc->live, &ls);
+  ds_http_server_get_stats (svc->http, &ls.http_requests, &ls.http_unauthorized);
+  DsMetricsSources src = { .sequencer = &st, .server = &ss, .spool = svc->spool ? &sp : NULL, .live = &ls,
+                           .results_published = svc->results_published,
+                           .uptime_s = (double) (g_get_monotonic_time () - svc->started_us) / 1e6 };
+  return ds_metrics_render (svc->metrics, &src);
+}
+
+/* The live view and /metrics, when [http] listen (or --http) asks for them (checked by preflight). */
+static gboolean
+start_http (DsService *svc, const DsPreflight *pf, GError **error)
+{
+  if (!pf->http_host)
+    return TRUE;
+  svc->live = ds_live_view_new (g_main_loop_get_context (svc->loop), svc->server, svc->config->http_live_fps,
+                                live_status, svc);
+  svc->http = ds_http_server_new (pf->http_host, pf->http_port, pf->http_token, svc->live, render_metrics, svc, error);
+  if (!svc->http)
+    return FALSE;
+  ds_sequencer_set_frame_hook (svc->sequencer, ds_live_view_on_frame, svc->live);
+  g_message ("live view and /metrics at %s", ds_http_server_url (svc->http));
+  return TRUE;
 }
 
 static void
@@ -735,7 +799,8 @@ overrides_of (const DsServiceOptions *options)
   return (DsPreflightOverrides) { .config_name = options->config_path,
                                   .socket_path = options->socket_path,
                                   .tcp_listen = options->tcp_listen,
-                                  .scene_path = options->scene_path };
+                                  .scene_path = options->scene_path,
+                                  .http_listen = options->http_listen };
 }
 
 DsService *
@@ -757,6 +822,7 @@ ds_service_new (DsConfig *config, const DsServiceOptions *options, GMainLoop *lo
   svc->socket_path = NULL;
   svc->loop = g_main_loop_ref (loop);
   svc->started_us = g_get_monotonic_time ();
+  svc->metrics = ds_metrics_new ();
   svc->pending = g_hash_table_new_full (g_int64_hash, g_int64_equal, NULL, pending_capture_free);
   svc->config = g_steal_pointer (&pf->config);
   DsServerLimits limits = { .max_clients = svc->config->max_clients,
@@ -799,6 +865,8 @@ ds_service_new (DsConfig *config, const DsServiceOptions *options, GMainLoop *lo
   if (svc->model)
     ds_sequencer_set_operating_model (svc->sequencer, svc->model, svc->config->timing_settle_ms,
                                       svc->config->timing_link_mbit);
+  if (!start_http (svc, pf, error))
+    return NULL;
   if (sd_watchdog_enabled (0, &svc->watchdog_usec) > 0)
     svc->watchdog_source = g_timeout_add ((guint) (svc->watchdog_usec / 4000), watchdog_tick, svc);
   return g_steal_pointer (&svc);
@@ -880,8 +948,11 @@ ds_service_free (DsService *svc)
    * answered `cancelled` by the server, never handed to a half-freed service. */
   if (svc->server)
     ds_server_begin_stop (svc->server);
-  /* Joins the acquisition thread: no event arrives after this. */
+  /* Joins the acquisition thread: no event (and no frame hook call) arrives after this. */
   g_clear_pointer (&svc->sequencer, ds_sequencer_free);
+  g_clear_pointer (&svc->http, ds_http_server_free);
+  g_clear_pointer (&svc->live, ds_live_view_free);
+  g_clear_pointer (&svc->metrics, ds_metrics_free);
   g_clear_pointer (&svc->model, ds_operating_model_free);
   g_free (svc->model_error);
   g_free (svc->model_path);
@@ -919,6 +990,12 @@ const char *
 ds_service_socket_path (const DsService *svc)
 {
   return svc->socket_path;
+}
+
+const char *
+ds_service_http_url (const DsService *svc)
+{
+  return svc->http ? ds_http_server_url (svc->http) : NULL;
 }
 
 guint16

@@ -12,6 +12,7 @@ typedef struct {
   const char *config_path;     /* NULL: the built-in simulated lab (or the file already loaded) */
   const char *socket_path;     /* overrides [daemon] socket */
   const char *tcp_listen;      /* overrides [daemon] tcp-listen */
+  const char *http_listen;     /* overrides [http] listen */
   const char *scene_path;      /* overrides [sim] scene */
   gboolean no_systemd_sockets; /* ignore LISTEN_FDS (tests) */
 } DsServiceOptions;
@@ -32,6 +33,8 @@ G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsService, ds_service_free)
 /* Where a client connects (the UNIX socket path, or NULL with systemd sockets only). */
 const char *ds_service_socket_path (const DsService *service);
 guint16 ds_service_tcp_port (const DsService *service);
+/* The live view's address ("http://127.0.0.1:8420/"), or NULL when HTTP is off. */
+const char *ds_service_http_url (const DsService *service);
 /* TRUE when the devices could not be opened (the loop was quit; exit with failure). */
 gboolean ds_service_devices_failed (const DsService *service);
 

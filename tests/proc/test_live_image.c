@@ -60,6 +60,45 @@ test_histogram (void)
   g_assert_cmpuint (above, ==, 128 * 4);
 }
 
+static void
+test_weighted_sum (void)
+{
+  g_autoptr (DsImage) a = ds_image_new (DS_SAMPLE_F32, 3, 2, NULL);
+  g_autoptr (DsImage) b = ds_image_new (DS_SAMPLE_F32, 3, 2, NULL);
+  for (guint y = 0; y < 2; y++)
+    for (guint x = 0; x < 3; x++) {
+      ((float *) ds_image_row (a, y))[x] = (float) (x + 1);
+      ((float *) ds_image_row (b, y))[x] = (float) (10 * y + 2);
+    }
+  g_autoptr (DsImage) s = ds_image_weighted_sum (a, 0.5, b, 0.25, NULL);
+  for (guint y = 0; y < 2; y++)
+    for (guint x = 0; x < 3; x++)
+      g_assert_cmpfloat (((float *) ds_image_row (s, y))[x], ==, 0.5 * (x + 1) + 0.25 * (10 * y + 2));
+}
+
+/* Levels of a uniform ramp are its percentiles, within the sampling step. */
+static void
+test_levels (void)
+{
+  g_autoptr (DsImage) img = ds_image_new (DS_SAMPLE_F32, 1000, 100, NULL);
+  for (guint y = 0; y < 100; y++)
+    for (guint x = 0; x < 1000; x++)
+      ((float *) ds_image_row (img, y))[x] = (float) (y * 1000 + x);
+  ((float *) ds_image_row (img, 0))[0] = NAN;
+  double lo, hi;
+  ds_image_levels (img, 1, 99, &lo, &hi);
+  g_assert_cmpfloat (fabs (lo - 1000), <, 100);
+  g_assert_cmpfloat (fabs (hi - 99000), <, 100);
+  /* Integer images: exact. 0..9999 once each: the 10th percentile is 999.9 -> index 999. */
+  g_autoptr (DsImage) u = ds_image_new (DS_SAMPLE_U16, 100, 100, NULL);
+  for (guint y = 0; y < 100; y++)
+    for (guint x = 0; x < 100; x++)
+      ((guint16 *) ds_image_row (u, y))[x] = (guint16) (9999 - (y * 100 + x));
+  ds_image_levels (u, 10, 90, &lo, &hi);
+  g_assert_cmpfloat (lo, ==, 999);
+  g_assert_cmpfloat (hi, ==, 8999);
+}
+
 int
 main (int argc, char **argv)
 {
@@ -67,5 +106,7 @@ main (int argc, char **argv)
   g_test_add_func ("/live-image/downscale", test_downscale);
   g_test_add_func ("/live-image/mask-or", test_mask_or);
   g_test_add_func ("/live-image/histogram", test_histogram);
+  g_test_add_func ("/live-image/weighted-sum", test_weighted_sum);
+  g_test_add_func ("/live-image/levels", test_levels);
   return g_test_run ();
 }

@@ -1,0 +1,428 @@
+#include "daemon/service/live_view.h"
+
+#include <string.h>
+
+#include "daemon/service/live_bridge.h"
+#include "daemon/service/live_encode.h"
+
+/* Pictures no larger than this a side: enough to focus by, small for a network. */
+#define LIVE_MAX_SIDE 640
+#define STATUS_INTERVAL_MS 500
+/* Commands a page may send (the daemon checks their arguments as for any client). */
+static const char *const page_commands[] = { "capture", "start", "stop", "status", "dark", "release", "acquire", NULL };
+
+typedef enum { KIND_STATUS, KIND_RESULT, KIND_FRAME, N_KINDS } Kind;
+
+typedef struct {
+  DsLiveView *live;
+  SoupWebsocketConnection *ws;
+  gboolean busy;            /* an update sent and not acknowledged yet */
+  gboolean dirty[N_KINDS];  /* a newer update of this kind waits */
+  DsLiveBridge *bridge;     /* made at the first command */
+} Client;
+
+struct DsLiveView {
+  GMainContext *context;
+  DsServer *server;
+  DsLiveStatusFunc status_func;
+  gpointer status_data;
+  gint64 frame_interval_us;
+  gint wanting;             /* atomic: clients able to take an update now (not waiting for an
+                               ack): the frame hook copies, and the encoder works, only for them */
+
+  /* Handed from the fold worker (frame) and the main thread (result) to the encoder. */
+  GMutex lock;
+  GCond cond;
+  DsImage *frame;           /* the newest frame not yet encoded, or NULL */
+  DsImage *spare;           /* a frame buffer the encoder gave back */
+  guint frame_phase, frame_phases;
+  guint64 frame_id;
+  double period_px;
+  gint64 last_copy_us;
+  DsResult *result;         /* the newest result not yet encoded */
+  char *result_meta;
+  gboolean quit;
+  GThread *encoder;
+
+  /* Main thread. */
+  GBytes *latest[N_KINDS];
+  GPtrArray *clients;       /* Client * */
+  guint status_source;
+  DsLiveStats stats;
+};
+
+/* ---- main thread: clients ---- */
+
+static void
+set_busy (Client *c, gboolean busy)
+{
+  if (c->busy != busy)
+    g_atomic_int_add (&c->live->wanting, busy ? -1 : 1);
+  c->busy = busy;
+}
+
+static void
+try_send (Client *c)
+{
+  if (c->busy || soup_websocket_connection_get_state (c->ws) != SOUP_WEBSOCKET_STATE_OPEN)
+    return;
+  for (guint k = 0; k < N_KINDS; k++) {
+    if (!c->dirty[k] || !c->live->latest[k])
+      continue;
+    c->dirty[k] = FALSE;
+    set_busy (c, TRUE);
+    c->live->stats.sent++;
+    GBytes *msg = c->live->latest[k];
+    if (k == KIND_STATUS)
+      soup_websocket_connection_send_text (c->ws, g_bytes_get_data (msg, NULL));
+    else
+      soup_websocket_connection_send_message (c->ws, SOUP_WEBSOCKET_DATA_BINARY, msg);
+    return;
+  }
+}
+
+static void
+publish (DsLiveView *lv, Kind kind, GBytes *msg)
+{
+  if (lv->latest[kind])
+    g_bytes_unref (lv->latest[kind]);
+  lv->latest[kind] = msg;
+  for (guint i = 0; i < lv->clients->len; i++) {
+    Client *c = lv->clients->pdata[i];
+    if (c->dirty[kind])
+      lv->stats.superseded++;
+    c->dirty[kind] = TRUE;
+    try_send (c);
+  }
+}
+
+static void
+send_text (Client *c, const char *text)
+{
+  if (soup_websocket_connection_get_state (c->ws) == SOUP_WEBSOCKET_STATE_OPEN)
+    soup_websocket_connection_send_text (c->ws, text);
+}
+
+static void
+on_bridge_line (const char *line, gpointer data)
+{
+  Client *c = data;
+  /* Replies carry "id"/"ok", events "event": the page tells them from its own updates. */
+  send_text (c, line);
+}
+
+static void
+reply_error (Client *c, JsonNode *id, const char *message)
+{
+  g_autoptr (JsonBuilder) b = json_builder_new ();
+  json_builder_begin_object (b);
+  json_builder_set_member_name (b, "id");
+  json_builder_add_value (b, id ? json_node_copy (id) : json_node_new (JSON_NODE_NULL));
+  json_builder_set_member_name (b, "ok");
+  json_builder_add_boolean_value (b, FALSE);
+  json_builder_set_member_name (b, "error");
+  json_builder_begin_object (b);
+  json_builder_set_member_name (b, "code");
+  json_builder_add_string_value (b, "bad_request");
+  json_builder_set_member_name (b, "message");
+  json_builder_add_string_value (b, message);
+  json_builder_end_object (b);
+  json_builder_end_object (b);
+  g_autoptr (JsonNode) root = json_builder_get_root (b);
+  g_autofree char *text = json_to_string (root, FALSE);
+  send_text (c, text);
+}
+
+/* {"ack": true}: the last update is drawn. {"id", "cmd", "args"}: a command for the daemon. */
+static void
+on_message (SoupWebsocketConnection *ws, gint type, GBytes *message, gpointer data)
+{
+  (void) ws;
+  Client *c = data;
+  if (type != SOUP_WEBSOCKET_DATA_TEXT)
+    return;
+  gsize len;
+  const char *text = g_bytes_get_data (message, &len);
+  g_autoptr (JsonParser) parser = json_parser_new ();
+  if (!json_parser_load_from_data (parser, text, (gssize) len, NULL) ||
+      !JSON_NODE_HOLDS_OBJECT (json_parser_get_root (parser))) {
+    reply_error (c, NULL, "not a JSON object");
+    return;
+  }
+  JsonObject *o = json_node_get_object (json_parser_get_root (parser));
+  if (json_object_has_member (o, "ack")) {
+    set_busy (c, FALSE);
+    try_send (c);
+    return;
+  }
+  const char *cmd = json_object_get_string_member_with_default (o, "cmd", NULL);
+  JsonNode *id = json_object_get_member (o, "id");
+  if (!cmd || !g_strv_contains (page_commands, cmd)) {
+    g_autofree char *msg = g_strdup_printf ("\"%s\" is not a command of the live view (capture, start, stop, "
+                                            "status, dark, release, acquire)", cmd ? cmd : "");
+    reply_error (c, id, msg);
+    return;
+  }
+  if (!c->bridge) {
+    g_autoptr (GError) error = NULL;
+    c->bridge = ds_live_bridge_new (c->live->server, on_bridge_line, c, &error);
+    if (!c->bridge) {
+      reply_error (c, id, error->message);
+      return;
+    }
+  }
+  /* The line as the page wrote it: the daemon checks it like any other. */
+  g_autofree char *line = g_strndup (text, len);
+  g_strdelimit (line, "\r\n", ' ');
+  ds_live_bridge_send (c->bridge, line);
+}
+
+static void
+client_free (Client *c)
+{
+  g_signal_handlers_disconnect_by_data (c->ws, c);
+  ds_live_bridge_free (c->bridge);
+  g_object_unref (c->ws);
+  g_free (c);
+}
+
+static void
+on_closed (SoupWebsocketConnection *ws, gpointer data)
+{
+  (void) ws;
+  Client *c = data;
+  DsLiveView *lv = c->live;
+  set_busy (c, TRUE); /* it takes nothing any more */
+  g_ptr_array_remove_fast (lv->clients, c);
+  client_free (c);
+}
+
+void
+ds_live_view_add_client (DsLiveView *lv, SoupWebsocketConnection *ws)
+{
+  Client *c = g_new0 (Client, 1);
+  c->live = lv;
+  c->ws = g_object_ref (ws);
+  /* Pages send acks and short commands only. */
+  soup_websocket_connection_set_max_incoming_payload_size (ws, 64 * 1024);
+  soup_websocket_connection_set_keepalive_interval (ws, 15);
+  g_signal_connect (ws, "message", G_CALLBACK (on_message), c);
+  g_signal_connect (ws, "closed", G_CALLBACK (on_closed), c);
+  g_ptr_array_add (lv->clients, c);
+  c->busy = TRUE;
+  set_busy (c, FALSE);
+  for (guint k = 0; k < N_KINDS; k++)
+    c->dirty[k] = lv->latest[k] != NULL;
+  try_send (c);
+}
+
+static gboolean
+status_tick (gpointer data)
+{
+  DsLiveView *lv = data;
+  if (lv->clients->len == 0)
+    return G_SOURCE_CONTINUE;
+  g_autoptr (JsonNode) status = lv->status_func (lv->status_data);
+  g_autoptr (JsonBuilder) b = json_builder_new ();
+  json_builder_begin_object (b);
+  json_builder_set_member_name (b, "type");
+  json_builder_add_string_value (b, "status");
+  json_builder_set_member_name (b, "status");
+  json_builder_add_value (b, json_node_ref (status));
+  json_builder_end_object (b);
+  g_autoptr (JsonNode) root = json_builder_get_root (b);
+  char *text = json_to_string (root, FALSE);
+  publish (lv, KIND_STATUS, g_bytes_new_take (text, strlen (text) + 1)); /* with its NUL, for send_text */
+  return G_SOURCE_CONTINUE;
+}
+
+/* ---- the encoder thread ---- */
+
+typedef struct {
+  DsLiveView *live;
+  Kind kind;
+  GBytes *msg;
+} Encoded;
+
+static gboolean
+deliver (gpointer data)
+{
+  Encoded *e = data;
+  publish (e->live, e->kind, g_steal_pointer (&e->msg));
+  return G_SOURCE_REMOVE;
+}
+
+static void
+encoded_free (gpointer data)
+{
+  Encoded *e = data;
+  if (e->msg)
+    g_bytes_unref (e->msg);
+  g_free (e);
+}
+
+static void
+post (DsLiveView *lv, Kind kind, GBytes *msg)
+{
+  Encoded *e = g_new0 (Encoded, 1);
+  e->live = lv;
+  e->kind = kind;
+  e->msg = msg;
+  g_main_context_invoke_full (lv->context, G_PRIORITY_DEFAULT, deliver, e, encoded_free);
+}
+
+static gpointer
+encoder_main (gpointer data)
+{
+  DsLiveView *lv = data;
+  g_mutex_lock (&lv->lock);
+  for (;;) {
+    while (!lv->quit && !lv->frame && !lv->result)
+      g_cond_wait (&lv->cond, &lv->lock);
+    if (lv->quit)
+      break;
+    DsImage *frame = g_steal_pointer (&lv->frame);
+    guint phase = lv->frame_phase, phases = lv->frame_phases;
+    guint64 id = lv->frame_id;
+    double period = lv->period_px;
+    DsResult *result = g_steal_pointer (&lv->result);
+    g_autofree char *meta = g_steal_pointer (&lv->result_meta);
+    g_mutex_unlock (&lv->lock);
+    if (result) {
+      post (lv, KIND_RESULT, ds_live_encode_result (ds_result_separation (result), meta, LIVE_MAX_SIDE));
+      ds_result_unref (result);
+    }
+    if (frame)
+      post (lv, KIND_FRAME, ds_live_encode_frame (frame, phase, phases, id, period, LIVE_MAX_SIDE));
+    g_mutex_lock (&lv->lock);
+    if (frame) {
+      /* Back as the next copy's buffer. */
+      if (!lv->spare)
+        lv->spare = frame;
+      else
+        ds_image_free (frame);
+    }
+  }
+  g_mutex_unlock (&lv->lock);
+  return NULL;
+}
+
+/* ---- inputs ---- */
+
+void
+ds_live_view_on_frame (const DsFrame *frame, guint phase, const DsCaptureSettings *settings, gpointer data)
+{
+  DsLiveView *lv = data;
+  if (g_atomic_int_get (&lv->wanting) <= 0)
+    return;
+  gint64 now = g_get_monotonic_time ();
+  g_mutex_lock (&lv->lock);
+  if (now - lv->last_copy_us < lv->frame_interval_us) {
+    g_mutex_unlock (&lv->lock);
+    return;
+  }
+  lv->last_copy_us = now;
+  const DsImage *src = frame->image;
+  DsImage *dst = lv->frame ? lv->frame : g_steal_pointer (&lv->spare);
+  if (dst && !(ds_image_same_shape (dst, src) && dst->stride >= src->width * ds_sample_size (src->type)))
+    g_clear_pointer (&dst, ds_image_free);
+  if (!dst)
+    dst = ds_image_new (src->type, src->width, src->height, NULL);
+  if (dst) {
+    gsize row = src->width * ds_sample_size (src->type);
+    for (guint y = 0; y < src->height; y++)
+      memcpy (ds_image_row (dst, y), ds_image_row (src, y), row);
+    dst->bit_depth = src->bit_depth;
+    lv->frame = dst;
+    lv->frame_phase = phase;
+    lv->frame_phases = settings->phases;
+    lv->frame_id = frame->frame_id;
+    lv->period_px = settings->period_px;
+    g_cond_signal (&lv->cond);
+  }
+  g_mutex_unlock (&lv->lock);
+}
+
+void
+ds_live_view_on_result (DsLiveView *lv, DsResult *result)
+{
+  if (lv->clients->len == 0)
+    return;
+  g_autoptr (JsonNode) meta = ds_result_to_json (result);
+  char *text = json_to_string (meta, FALSE);
+  g_mutex_lock (&lv->lock);
+  if (lv->result) {
+    lv->stats.superseded++; /* the encoder had not taken the previous one yet */
+    ds_result_unref (lv->result);
+  }
+  lv->result = ds_result_ref (result);
+  g_free (lv->result_meta);
+  lv->result_meta = text;
+  g_cond_signal (&lv->cond);
+  g_mutex_unlock (&lv->lock);
+}
+
+DsLiveView *
+ds_live_view_new (GMainContext *context, DsServer *server, double max_fps, DsLiveStatusFunc status, gpointer status_data)
+{
+  DsLiveView *lv = g_new0 (DsLiveView, 1);
+  lv->context = g_main_context_ref (context);
+  lv->server = server;
+  lv->status_func = status;
+  lv->status_data = status_data;
+  lv->frame_interval_us = (gint64) (1e6 / MAX (max_fps, 0.01));
+  g_mutex_init (&lv->lock);
+  g_cond_init (&lv->cond);
+  lv->clients = g_ptr_array_new ();
+  lv->encoder = g_thread_new ("live-encoder", encoder_main, lv);
+  GSource *src = g_timeout_source_new (STATUS_INTERVAL_MS);
+  g_source_set_callback (src, status_tick, lv, NULL);
+  lv->status_source = g_source_attach (src, context);
+  g_source_unref (src);
+  return lv;
+}
+
+void
+ds_live_view_free (DsLiveView *lv)
+{
+  if (!lv)
+    return;
+  GSource *src = g_main_context_find_source_by_id (lv->context, lv->status_source);
+  if (src)
+    g_source_destroy (src);
+  g_mutex_lock (&lv->lock);
+  lv->quit = TRUE;
+  g_cond_signal (&lv->cond);
+  g_mutex_unlock (&lv->lock);
+  g_thread_join (lv->encoder);
+  /* Updates the encoder posted and the loop has not delivered point at lv: deliver them now. */
+  while (g_main_context_iteration (lv->context, FALSE))
+    ;
+  while (lv->clients->len) {
+    Client *c = g_ptr_array_steal_index_fast (lv->clients, lv->clients->len - 1);
+    soup_websocket_connection_close (c->ws, SOUP_WEBSOCKET_CLOSE_GOING_AWAY, "descatterd is stopping");
+    client_free (c);
+  }
+  g_ptr_array_unref (lv->clients);
+  for (guint k = 0; k < N_KINDS; k++)
+    if (lv->latest[k])
+      g_bytes_unref (lv->latest[k]);
+  ds_image_free (lv->frame);
+  ds_image_free (lv->spare);
+  if (lv->result)
+    ds_result_unref (lv->result);
+  g_free (lv->result_meta);
+  g_mutex_clear (&lv->lock);
+  g_cond_clear (&lv->cond);
+  g_main_context_unref (lv->context);
+  g_free (lv);
+}
+
+void
+ds_live_view_get_stats (DsLiveView *lv, DsLiveStats *stats)
+{
+  memset (stats, 0, sizeof *stats);
+  stats->clients = lv->clients->len;
+  stats->sent = lv->stats.sent;
+  stats->superseded = lv->stats.superseded;
+}

@@ -1,0 +1,52 @@
+/* The live view's server side (docs/operations.md, "Live view"): what browsers connected over
+ * WebSocket see, and how a slow one is kept from slowing anything.
+ *
+ *   - raw frames: the sequencer's frame hook (fold worker thread) copies at most max_fps frames
+ *     a second into a slot, and only while someone watches; the encoder thread turns the newest
+ *     into a small picture with the measured stripe period and phase and a histogram;
+ *   - results: every published result (main thread) is encoded the same way (transmissive,
+ *     scattered, plain average, mask);
+ *   - status: the daemon's status document twice a second (frame counters, drop reasons,
+ *     camera and illuminator state).
+ * Each client gets one update at a time and acknowledges it (the page sends {"ack": true} when
+ * it has drawn it); meanwhile newer updates replace older ones of the same kind (counted as
+ * superseded). A browser that stops reading therefore holds at most one update in its socket
+ * and costs nothing else; nothing waits for it. The page's controls go through a protocol
+ * connection of its own (live_bridge.h).
+ *
+ * Threads: ds_live_view_on_frame on the fold worker; ds_live_view_new/free and everything else
+ * on the main thread (the GMainContext given). */
+#pragma once
+#include <glib.h>
+#include <json-glib/json-glib.h>
+#include <libsoup/soup.h>
+
+#include "daemon/service/metrics.h"
+#include "daemon/service/result.h"
+#include "daemon/service/server.h"
+
+G_BEGIN_DECLS
+
+typedef struct DsLiveView DsLiveView;
+
+/* The status document (main thread): a new reference. */
+typedef JsonNode *(*DsLiveStatusFunc) (gpointer user_data);
+
+DsLiveView *ds_live_view_new (GMainContext *context, DsServer *server, double max_fps, DsLiveStatusFunc status,
+                              gpointer status_data);
+/* Closes every client, stops the encoder thread. Remove the frame hook first. */
+void ds_live_view_free (DsLiveView *live);
+G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsLiveView, ds_live_view_free)
+
+/* The sequencer's frame hook (DsSequencerFrameFunc; user_data is the live view). */
+void ds_live_view_on_frame (const DsFrame *frame, guint phase, const DsCaptureSettings *settings,
+                            gpointer user_data);
+/* A published result. */
+void ds_live_view_on_result (DsLiveView *live, DsResult *result);
+/* A browser's WebSocket (the live view takes a reference). */
+void ds_live_view_add_client (DsLiveView *live, SoupWebsocketConnection *ws);
+
+/* Clients, updates sent and superseded (the http_* fields are the HTTP server's). */
+void ds_live_view_get_stats (DsLiveView *live, DsLiveStats *stats);
+
+G_END_DECLS

@@ -1,0 +1,175 @@
+#include "daemon/service/metrics.h"
+
+#include <math.h>
+
+#include "build_info.h"
+
+/* Result latency buckets (seconds): a fast rig publishes within milliseconds of the last frame,
+ * a large frame with the robust estimator within a second or two. */
+static const double bucket_bounds[] = { 0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1, 2.5, 5, 10 };
+#define N_BUCKETS G_N_ELEMENTS (bucket_bounds)
+
+struct DsMetrics {
+  guint64 buckets[N_BUCKETS]; /* observations <= bound (cumulative at render time) */
+  guint64 count;
+  double sum;
+};
+
+DsMetrics *
+ds_metrics_new (void)
+{
+  return g_new0 (DsMetrics, 1);
+}
+
+void
+ds_metrics_free (DsMetrics *metrics)
+{
+  g_free (metrics);
+}
+
+void
+ds_metrics_observe_result (DsMetrics *m, double latency_s)
+{
+  if (!isfinite (latency_s) || latency_s < 0)
+    latency_s = 0;
+  for (guint i = 0; i < N_BUCKETS; i++)
+    if (latency_s <= bucket_bounds[i]) {
+      m->buckets[i]++;
+      break;
+    }
+  m->count++;
+  m->sum += latency_s;
+}
+
+static void
+family (GString *out, const char *name, const char *type, const char *help)
+{
+  g_string_append_printf (out, "# HELP %s %s\n# TYPE %s %s\n", name, help, name, type);
+}
+
+static void
+sample (GString *out, const char *name, const char *labels, double value)
+{
+  char buf[G_ASCII_DTOSTR_BUF_SIZE];
+  /* Counts exactly (doubles hold integers up to 2^53), measurements to 9 significant digits. */
+  const char *fmt = value == floor (value) && fabs (value) < 9007199254740992.0 ? "%.0f" : "%.9g";
+  const char *v = isnan (value) ? "NaN" : isinf (value) ? (value > 0 ? "+Inf" : "-Inf")
+                                                        : g_ascii_formatd (buf, sizeof buf, fmt, value);
+  g_string_append_printf (out, "%s%s%s%s %s\n", name, labels ? "{" : "", labels ? labels : "", labels ? "}" : "", v);
+}
+
+static void
+counter (GString *out, const char *name, const char *help, guint64 value)
+{
+  family (out, name, "counter", help);
+  sample (out, name, NULL, (double) value);
+}
+
+static void
+gauge (GString *out, const char *name, const char *help, double value)
+{
+  family (out, name, "gauge", help);
+  sample (out, name, NULL, value);
+}
+
+/* Label values: the exposition format escapes backslash, quote and newline. */
+static char *
+label_value (const char *v)
+{
+  GString *s = g_string_new (NULL);
+  for (const char *p = v; *p; p++) {
+    if (*p == '\\' || *p == '"')
+      g_string_append_c (s, '\\');
+    if (*p == '\n')
+      g_string_append (s, "\\n");
+    else
+      g_string_append_c (s, *p);
+  }
+  return g_string_free (s, FALSE);
+}
+
+char *
+ds_metrics_render (DsMetrics *m, const DsMetricsSources *src)
+{
+  GString *out = g_string_new (NULL);
+  const DsSequencerStatus *st = src->sequencer;
+  const DsFrameCounters *f = &st->frames;
+
+  g_autofree char *version = label_value (DS_VERSION), *build = label_value (DS_GIT_DESCRIBE);
+  g_autofree char *info = g_strdup_printf ("version=\"%s\",build=\"%s\"", version, build);
+  family (out, "descatter_build_info", "gauge", "The version and build of descatterd (always 1).");
+  sample (out, "descatter_build_info", info, 1);
+  gauge (out, "descatter_uptime_seconds", "Time since descatterd started.", src->uptime_s);
+  g_autofree char *state = label_value (st->state);
+  g_autofree char *state_label = g_strdup_printf ("state=\"%s\"", state);
+  family (out, "descatter_acquisition_state", "gauge", "The acquisition thread's state (the one labelled is 1).");
+  sample (out, "descatter_acquisition_state", state_label, 1);
+
+  family (out, "descatter_sets_total", "counter", "Phase sets completed (done) or failed.");
+  sample (out, "descatter_sets_total", "outcome=\"done\"", (double) st->sets_done);
+  sample (out, "descatter_sets_total", "outcome=\"failed\"", (double) st->sets_failed);
+  counter (out, "descatter_frames_acquired_total", "Frames that came out of the camera.", f->acquired);
+  counter (out, "descatter_frames_folded_total", "Frames folded into published results.", f->folded);
+  family (out, "descatter_frames_dropped_total", "counter", "Frames not folded, by reason (docs/protocol.md, \"Frame accounting\").");
+  for (guint i = 0; i < DS_DROP_N_REASONS; i++) {
+    g_autofree char *l = g_strdup_printf ("reason=\"%s\"", ds_drop_reason_name (i));
+    sample (out, "descatter_frames_dropped_total", l, (double) f->by_reason[i]);
+  }
+  counter (out, "descatter_frame_retries_total", "Re-acquisitions after a drop or a device error.", f->retries);
+  counter (out, "descatter_grab_timeouts_total", "Grabs that returned no frame in time.", f->timeouts);
+  counter (out, "descatter_device_errors_total", "Illuminator, camera or trigger operations that failed.",
+           f->device_errors);
+  counter (out, "descatter_camera_missing_packets_total", "Stream packets the camera library counted as lost.",
+           st->camera_stats.missing_packets);
+  counter (out, "descatter_camera_resend_requests_total", "Packet resends the camera library asked for.",
+           st->camera_stats.resend_requests);
+  counter (out, "descatter_camera_reconnects_total", "Times the devices were reconnected.", st->camera_stats.reconnects);
+  gauge (out, "descatter_illuminator_temperature_celsius", "The illuminator's temperature (NaN: it reports none).",
+         st->illuminator.temperature_c);
+
+  family (out, "descatter_result_latency_seconds", "histogram",
+          "From a set's last frame to its result being published to clients.");
+  guint64 cumulative = 0;
+  for (guint i = 0; i < N_BUCKETS; i++) {
+    cumulative += m->buckets[i];
+    char le[G_ASCII_DTOSTR_BUF_SIZE];
+    g_autofree char *l = g_strdup_printf ("le=\"%s\"", g_ascii_dtostr (le, sizeof le, bucket_bounds[i]));
+    sample (out, "descatter_result_latency_seconds_bucket", l, (double) cumulative);
+  }
+  sample (out, "descatter_result_latency_seconds_bucket", "le=\"+Inf\"", (double) m->count);
+  sample (out, "descatter_result_latency_seconds_sum", NULL, m->sum);
+  sample (out, "descatter_result_latency_seconds_count", NULL, (double) m->count);
+
+  const DsServerStats *ss = src->server;
+  counter (out, "descatter_results_published_total", "Results published to subscribers.", src->results_published);
+  family (out, "descatter_results_dropped_total", "counter",
+          "Result deliveries lost to slow clients: socket subscribers, or live-view updates replaced by newer ones.");
+  sample (out, "descatter_results_dropped_total", "client=\"socket\"", (double) ss->dropped);
+  sample (out, "descatter_results_dropped_total", "client=\"live\"", src->live ? (double) src->live->superseded : 0);
+  family (out, "descatter_clients", "gauge", "Connected clients by kind.");
+  sample (out, "descatter_clients", "kind=\"socket\"", ss->clients);
+  sample (out, "descatter_clients", "kind=\"subscriber\"", ss->subscribers);
+  sample (out, "descatter_clients", "kind=\"live\"", src->live ? src->live->clients : 0);
+  counter (out, "descatter_socket_requests_total", "Requests received on the socket.", ss->requests);
+  counter (out, "descatter_socket_bad_requests_total", "Requests answered with an error.", ss->bad_requests);
+  gauge (out, "descatter_socket_queued_bytes", "Bytes queued to socket clients now.", (double) ss->queued_bytes);
+  if (src->live) {
+    counter (out, "descatter_http_requests_total", "HTTP requests (page, metrics, WebSocket upgrades).",
+             src->live->http_requests);
+    counter (out, "descatter_http_unauthorized_total", "HTTP requests refused for a missing or wrong token.",
+             src->live->http_unauthorized);
+    counter (out, "descatter_live_updates_sent_total", "Live-view updates sent to browsers.", src->live->sent);
+  }
+  if (src->spool) {
+    const DsSpoolStats *sp = src->spool;
+    gauge (out, "descatter_spool_bytes", "Bytes in the spool directory.", (double) sp->bytes);
+    gauge (out, "descatter_spool_pending", "Results waiting for the spool's writer.", sp->pending);
+    family (out, "descatter_spool_sets_total", "counter",
+            "Results by what the spool did with them: written, removed for space, failed, or dropped (writer behind).");
+    sample (out, "descatter_spool_sets_total", "outcome=\"written\"", (double) sp->sets_written);
+    sample (out, "descatter_spool_sets_total", "outcome=\"removed\"", (double) sp->sets_removed);
+    sample (out, "descatter_spool_sets_total", "outcome=\"failed\"", (double) sp->errors);
+    sample (out, "descatter_spool_sets_total", "outcome=\"dropped\"", (double) sp->dropped);
+  }
+  return g_string_free (out, FALSE);
+}

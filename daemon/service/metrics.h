@@ -1,0 +1,43 @@
+/* /metrics: descatterd's counters in the Prometheus text exposition format (version 0.0.4),
+ * for a Prometheus server or anything that parses it (docs/operations.md, "Metrics"). The
+ * result-latency histogram is kept here; everything else is read from the sources at each
+ * scrape. Main thread. */
+#pragma once
+#include <glib.h>
+
+#include "daemon/service/sequencer.h"
+#include "daemon/service/server.h"
+#include "daemon/service/spool.h"
+
+G_BEGIN_DECLS
+
+typedef struct DsMetrics DsMetrics;
+
+DsMetrics *ds_metrics_new (void);
+void ds_metrics_free (DsMetrics *metrics);
+G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsMetrics, ds_metrics_free)
+
+/* One published result, `latency_s` after its last frame arrived. */
+void ds_metrics_observe_result (DsMetrics *metrics, double latency_s);
+
+typedef struct {
+  guint clients;             /* WebSocket clients of the live view */
+  guint64 sent;              /* live updates sent */
+  guint64 superseded;        /* live updates replaced by a newer one before a client took them */
+  guint64 http_requests;
+  guint64 http_unauthorized;
+} DsLiveStats;
+
+typedef struct {
+  const DsSequencerStatus *sequencer;
+  const DsServerStats *server;
+  const DsSpoolStats *spool;  /* NULL: no spool */
+  const DsLiveStats *live;    /* NULL: no HTTP server */
+  guint64 results_published;
+  double uptime_s;
+} DsMetricsSources;
+
+/* The exposition text; the caller frees it. */
+char *ds_metrics_render (DsMetrics *metrics, const DsMetricsSources *sources);
+
+G_END_DECLS
