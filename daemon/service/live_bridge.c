@@ -19,6 +19,7 @@ struct DsLiveBridge {
   GQueue lines;        /* char *, waiting to be written */
   gsize skip_left;     /* payload bytes of the last reply still to skip */
   gboolean writing;
+  gboolean closed;     /* the daemon's side went away */
   DsLiveBridgeLineFunc on_line;
   gpointer user_data;
 };
@@ -77,6 +78,8 @@ on_line (GObject *src, GAsyncResult *res, gpointer data)
   g_autoptr (GError) error = NULL;
   gsize len = 0;
   g_autofree char *line = g_data_input_stream_read_line_finish (G_DATA_INPUT_STREAM (src), res, &len, &error);
+  if (!line)
+    b->closed = TRUE;
   if (!line || g_cancellable_is_cancelled (b->cancel)) {
     bridge_unref (b);
     return;
@@ -85,7 +88,11 @@ on_line (GObject *src, GAsyncResult *res, gpointer data)
   gsize payload = 0;
   for (guint i = 0; reply && i < reply->n_payloads; i++)
     payload += reply->payloads[i].bytes;
-  b->on_line (line, b->user_data);
+  /* Replies to the page's requests carry their id; a line without one is the daemon speaking to
+   * the connection itself (closing it for idleness, say): not the page's business. */
+  gboolean for_page = reply && (reply->event || (reply->id && !JSON_NODE_HOLDS_NULL (reply->id)));
+  if (for_page)
+    b->on_line (line, b->user_data);
   b->skip_left = payload;
   if (payload > 0 && !g_cancellable_is_cancelled (b->cancel))
     skip_next (b);
@@ -176,6 +183,12 @@ ds_live_bridge_free (DsLiveBridge *b)
     return;
   g_cancellable_cancel (b->cancel);
   bridge_unref (b);
+}
+
+gboolean
+ds_live_bridge_is_open (const DsLiveBridge *b)
+{
+  return !b->closed;
 }
 
 void

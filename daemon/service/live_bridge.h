@@ -23,5 +23,8 @@ void ds_live_bridge_free (DsLiveBridge *bridge);
 
 /* Queues one request line (no newline; it is added). */
 void ds_live_bridge_send (DsLiveBridge *bridge, const char *line);
+/* FALSE once the daemon closed the connection (its idle timeout, or a full server making room):
+ * the owner makes a new bridge for the next command. */
+gboolean ds_live_bridge_is_open (const DsLiveBridge *bridge);
 
 G_END_DECLS

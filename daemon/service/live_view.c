@@ -163,6 +163,8 @@ on_message (SoupWebsocketConnection *ws, gint type, GBytes *message, gpointer da
     reply_error (c, id, msg);
     return;
   }
+  if (c->bridge && !ds_live_bridge_is_open (c->bridge))
+    g_clear_pointer (&c->bridge, ds_live_bridge_free);
   if (!c->bridge) {
     g_autoptr (GError) error = NULL;
     c->bridge = ds_live_bridge_new (c->live->server, on_bridge_line, c, &error);

@@ -12,6 +12,7 @@ import struct
 import subprocess
 import sys
 import tempfile
+import time
 import urllib.error
 import urllib.request
 
@@ -165,6 +166,15 @@ def check_websocket(d):
             break
         ws.send('{"ack": true}')
     assert h["id"] == 9 and h["ok"] and "frames" in h["result"], h
+    # The daemon closes an idle connection (idle-timeout-ms); the view makes a new one.
+    time.sleep(1.5)
+    ws.send(json.dumps({"id": 10, "cmd": "status"}))
+    for _ in range(40):
+        kind, h = recv_update(ws)
+        if kind == "reply":
+            break
+        ws.send('{"ack": true}')
+    assert h["id"] == 10 and h["ok"], h
     ws.close()
 
 
@@ -174,7 +184,7 @@ def check_refusals(daemon, ctl, tmp):
     code = d.proc.wait(60)
     d.log.close()
     log = open(d.log_path).read()
-    assert code != 0 and "[http] token-file" in log, (code, log[-500:])
+    assert code != 0 and "[http] listen" in log and "[http] token-file" in log, (code, log[-500:])
 
 
 def main():
@@ -184,7 +194,8 @@ def main():
         token_file = os.path.join(tmp, "token")
         with open(token_file, "w") as f:
             f.write(TOKEN + "\n")
-        d = LiveDaemon(daemon, ctl, tmp, f"[http]\nlisten=127.0.0.1:0\ntoken-file={token_file}\n")
+        d = LiveDaemon(daemon, ctl, tmp, f"[daemon]\nidle-timeout-ms=1000\n"
+                                         f"[http]\nlisten=127.0.0.1:0\ntoken-file={token_file}\n")
         try:
             assert d.url and d.url.startswith("http://127.0.0.1:"), d.url
             check_token(d)
