@@ -76,7 +76,9 @@ void ds_phase_set_fold_pending (DsPhaseSet *set);
 
 /* Noise helpers (separation_noise.c). */
 /* Robust sigma of one frame from the median absolute second difference along y (the stripes
- * vary along x only, so the pattern cancels); NAN if the frame has fewer than 3 rows. */
+ * vary along x only, so the pattern cancels), on a sample of DS_NOISE_SAMPLES differences;
+ * NAN if the frame has fewer than 3 rows or no finite difference. */
+#define DS_NOISE_SAMPLES 16384u
 double ds_separation_frame_noise (const DsImage *frame);
 /* Upper p-quantile of the range (max - min) of n independent unit normals, n >= 2. */
 double ds_separation_range_quantile (guint n, double p);
