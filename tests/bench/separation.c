@@ -1,10 +1,19 @@
-/* Benchmark: accumulate + finalize of N phases of SxS u16 frames on one thread, against
- * baselines measured in the same run: the straightforward numpy script
- * (tests/bench/separation_numpy.py, run as a subprocess), OpenCV's max/min/subtract path
- * (ds_cv_separate_maxmin_u16), and memcpy of the same input bytes. Prints times and ratios;
- * asserts no timing. It does check that our direct/global equal OpenCV's (exit 1 if not).
+/* Benchmark: the separation of N phases of WxH u16 frames against baselines measured in the same
+ * run, at the sizes of issue 13 (4 x 1 MP, 8 x 4 MP, 32 x 4 MP):
+ *   ours     ds_phase_set_accumulate per frame as frames arrive, then ds_phase_set_finalize_into
+ *            pooled planes (the daemon's steady state); one thread and the set's threads;
+ *   numpy    the ICCP 2013 authors' loop, np.maximum/np.minimum per frame
+ *            (tests/bench/separation_numpy.py, run with /usr/bin/python3);
+ *   OpenCV   cv::max/cv::min per frame, subtract, scale (ds_cv_separate_maxmin_u16);
+ *   memcpy   the same input bytes copied into distinct, pre-faulted buffers.
+ * It also times sine and robust against maxmin, the per-set noise estimate against folding one
+ * frame, and unpacking packed pixel formats into a pooled image against a memcpy of the
+ * unpacked frame. Best of R repetitions each; it prints times and ratios and asserts no timing.
+ * It checks its results (exit status 1 on a mismatch): ours equals OpenCV on every pixel, every
+ * thread count gives the bits of one thread (all estimators), unpacking inverts
+ * ds_pixfmt_pack.
  *
- *   bench_separation [--quick] [--size S] [--frames N] [--reps R]
+ *   bench_separation [--quick] [--case NxWxH]... [--reps R] [--threads T]
  * Full run (docs/benchmarks.md): build/tests/bench/bench_separation */
 #include <glib.h>
 #include <math.h>
@@ -13,7 +22,9 @@
 #include <string.h>
 
 #include "proc/cv_bridge.h"
+#include "proc/pixfmt.h"
 #include "proc/separation.h"
+#include "proc/separation_internal.h" /* ds_separation_frame_noise, timed alone */
 
 static double
 now (void)
@@ -21,19 +32,23 @@ now (void)
   return g_get_monotonic_time () / 1e6;
 }
 
+typedef struct {
+  guint n, w, h;
+} Case;
+
 static double
-run_numpy (guint size, guint frames, guint reps)
+run_numpy (const Case *c, guint reps)
 {
-  g_autofree char *s = g_strdup_printf ("%u", size), *f = g_strdup_printf ("%u", frames),
-                  *r = g_strdup_printf ("%u", reps);
-  char *argv[] = { (char *) DS_BENCH_PYTHON, (char *) DS_BENCH_NUMPY_SCRIPT, (char *) "--size", s,
-                   (char *) "--frames", f, (char *) "--reps", r, NULL };
+  g_autofree char *w = g_strdup_printf ("%u", c->w), *h = g_strdup_printf ("%u", c->h),
+                  *f = g_strdup_printf ("%u", c->n), *r = g_strdup_printf ("%u", reps);
+  char *argv[] = { (char *) DS_BENCH_PYTHON, (char *) DS_BENCH_NUMPY_SCRIPT, (char *) "--width", w,
+                   (char *) "--height", h, (char *) "--frames", f, (char *) "--reps", r, NULL };
   g_autofree char *out = NULL, *err = NULL;
   int status = 0;
   g_autoptr (GError) error = NULL;
   if (!g_spawn_sync (NULL, argv, NULL, G_SPAWN_DEFAULT, NULL, NULL, &out, &err, &status, &error) ||
       !g_spawn_check_wait_status (status, NULL)) {
-    fprintf (stderr, "numpy baseline unavailable: %s%s\n", error ? error->message : "", err ? err : "");
+    fprintf (stderr, "numpy baseline failed: %s%s\n", error ? error->message : "", err ? err : "");
     return NAN;
   }
   const char *p = strstr (out, "numpy_seconds ");
@@ -44,31 +59,26 @@ typedef struct {
   double total, accumulate, finalize; /* best of the repetitions, each */
 } Timing;
 
-/* Times accumulate + finalize `reps` times; *sep keeps the last result. */
+/* accumulate + finalize_into, `reps` times; *sep keeps the planes (a pool of one). */
 static gboolean
-time_ours (DsPhaseSet *set, DsImage **frames, guint nframes, guint reps, gboolean reuse, Timing *t,
-           DsSeparation **sep)
+time_set (DsPhaseSet *set, DsImage **frames, guint n, guint reps, Timing *t, DsSeparation *sep)
 {
   *t = (Timing) { INFINITY, INFINITY, INFINITY };
   g_autoptr (GError) error = NULL;
   for (guint r = 0; r < reps; r++) {
-    if (!reuse)
-      g_clear_pointer (sep, ds_separation_free);
     ds_phase_set_reset (set);
     double t0 = now ();
-    for (guint k = 0; k < nframes; k++)
+    for (guint k = 0; k < n; k++)
       if (!ds_phase_set_accumulate (set, k, frames[k], &error)) {
         fprintf (stderr, "accumulate: %s\n", error->message);
         return FALSE;
       }
     double t1 = now ();
-    *sep = reuse ? ds_phase_set_finalize_reusing (set, g_steal_pointer (sep), &error)
-                 : ds_phase_set_finalize (set, &error);
-    double t2 = now ();
-    if (!*sep) {
+    if (!ds_phase_set_finalize_into (set, sep, &error)) {
       fprintf (stderr, "finalize: %s\n", error->message);
       return FALSE;
     }
+    double t2 = now ();
     t->total = MIN (t->total, t2 - t0);
     t->accumulate = MIN (t->accumulate, t1 - t0);
     t->finalize = MIN (t->finalize, t2 - t1);
@@ -76,37 +86,59 @@ time_ours (DsPhaseSet *set, DsImage **frames, guint nframes, guint reps, gboolea
   return TRUE;
 }
 
-int
-main (int argc, char **argv)
+static gboolean
+same_planes (const DsImage *a, const DsImage *b)
 {
-  guint size = 2048, nframes = 8, reps = 5;
-  for (int i = 1; i < argc; i++) {
-    if (strcmp (argv[i], "--quick") == 0) {
-      size = 256;
-      reps = 2;
-    } else if (strcmp (argv[i], "--size") == 0 && i + 1 < argc) {
-      size = (guint) atoi (argv[++i]);
-    } else if (strcmp (argv[i], "--frames") == 0 && i + 1 < argc) {
-      nframes = (guint) atoi (argv[++i]);
-    } else if (strcmp (argv[i], "--reps") == 0 && i + 1 < argc) {
-      reps = (guint) atoi (argv[++i]);
-    } else {
-      fprintf (stderr, "usage: %s [--quick] [--size S] [--frames N] [--reps R]\n", argv[0]);
-      return 2;
-    }
-  }
-  if (size < 1 || nframes < 2 || reps < 1)
-    return 2;
+  if (!a || !b)
+    return a == b;
+  gsize row = (gsize) a->width * ds_sample_size (a->type);
+  for (guint y = 0; y < a->height; y++)
+    if (memcmp (ds_image_row (a, y), ds_image_row (b, y), row) != 0)
+      return FALSE;
+  return TRUE;
+}
 
-  /* Frames: deterministic pseudo-random 16-bit data (xorshift), all bits used. */
-  DsImage **frames = g_new0 (DsImage *, nframes);
-  const guint16 **planes = g_new0 (const guint16 *, nframes);
+static gboolean
+same_result (const DsSeparation *a, const DsSeparation *b)
+{
+  return same_planes (a->transmissive, b->transmissive) && same_planes (a->scattered, b->scattered) &&
+         same_planes (a->mask, b->mask) && memcmp (&a->meta, &b->meta, sizeof a->meta) == 0;
+}
+
+/* One estimator at `threads`: its timing and result. */
+static DsSeparation *
+run_ours (DsEstimator e, guint threads, DsImage **frames, const Case *c, guint reps, Timing *t)
+{
+  DsSeparationParams p;
+  ds_separation_params_init (&p, c->n);
+  p.estimator = e;
+  p.threads = threads;
+  p.saturation_level = 65536.0; /* random data touches 65535: do not count it saturated */
+  g_autoptr (GError) error = NULL;
+  g_autoptr (DsPhaseSet) set = ds_phase_set_new (&p, c->w, c->h, &error);
+  if (!set) {
+    fprintf (stderr, "ds_phase_set_new: %s\n", error->message);
+    return NULL;
+  }
+  DsSeparation *sep = ds_separation_new ();
+  if (!time_set (set, frames, c->n, reps, t, sep))
+    g_clear_pointer (&sep, ds_separation_free);
+  return sep;
+}
+
+/* The main comparison at one size; returns FALSE on a wrong result. */
+static gboolean
+bench_case (const Case *c, guint reps, guint threads, gboolean estimators)
+{
+  gsize npix = (gsize) c->w * c->h;
+  DsImage **frames = g_new0 (DsImage *, c->n);
+  const guint16 **planes = g_new0 (const guint16 *, c->n);
   guint64 state = 0x9E3779B97F4A7C15ull;
-  for (guint k = 0; k < nframes; k++) {
-    frames[k] = ds_image_new (DS_SAMPLE_U16, size, size, NULL);
-    for (guint y = 0; y < size; y++) {
+  for (guint k = 0; k < c->n; k++) {
+    frames[k] = ds_image_new (DS_SAMPLE_U16, c->w, c->h, NULL);
+    for (guint y = 0; y < c->h; y++) {
       guint16 *row = ds_image_row (frames[k], y);
-      for (guint x = 0; x < size; x++) {
+      for (guint x = 0; x < c->w; x++) {
         state ^= state << 13;
         state ^= state >> 7;
         state ^= state << 17;
@@ -115,89 +147,199 @@ main (int argc, char **argv)
     }
     planes[k] = (const guint16 *) frames[k]->data;
   }
-  gsize frame_bytes = frames[0]->stride * size;
+  gsize frame_bytes = frames[0]->stride * c->h;
+  gboolean ok = TRUE;
 
-  /* Ours. */
-  DsSeparationParams params;
-  ds_separation_params_init (&params, nframes);
-  params.saturation_level = 65536.0; /* random data touches 65535: do not count it saturated */
-  g_autoptr (GError) error = NULL;
-  g_autoptr (DsPhaseSet) set = ds_phase_set_new (&params, size, size, &error);
-  if (!set) {
-    fprintf (stderr, "ds_phase_set_new: %s\n", error->message);
-    return 1;
+  Timing one, many;
+  g_autoptr (DsSeparation) sep1 = run_ours (DS_ESTIMATOR_MAXMIN, 1, frames, c, reps, &one);
+  g_autoptr (DsSeparation) sept = run_ours (DS_ESTIMATOR_MAXMIN, threads, frames, c, reps, &many);
+  if (!sep1 || !sept)
+    return FALSE;
+  if (!same_result (sep1, sept)) {
+    fprintf (stderr, "%u threads differ from one thread\n", threads);
+    ok = FALSE;
   }
-  /* Fresh result images per set (ds_phase_set_finalize), then the steady state of continuous
-   * acquisition, where the previous result's planes are reused (finalize_reusing). */
-  Timing fresh, reused;
-  DsSeparation *sep = NULL;
-  if (!time_ours (set, frames, nframes, reps, FALSE, &fresh, &sep) ||
-      !time_ours (set, frames, nframes, reps, TRUE, &reused, &sep))
-    return 1;
-  double best_ours = reused.total;
 
-  /* OpenCV. */
-  float *cv_direct = g_malloc ((gsize) size * size * sizeof (float));
-  float *cv_global = g_malloc ((gsize) size * size * sizeof (float));
+  float *cv_direct = g_malloc (npix * sizeof (float)), *cv_global = g_malloc (npix * sizeof (float));
   double best_cv = INFINITY;
   char err[256];
   for (guint r = 0; r < reps; r++) {
     double t0 = now ();
-    if (ds_cv_separate_maxmin_u16 (planes, (int) nframes, (int) size, (int) size, frames[0]->stride,
+    if (ds_cv_separate_maxmin_u16 (planes, (int) c->n, (int) c->w, (int) c->h, frames[0]->stride,
                                    cv_direct, cv_global, err, sizeof err) != 0) {
       fprintf (stderr, "opencv: %s\n", err);
-      return 1;
+      return FALSE;
     }
     best_cv = MIN (best_cv, now () - t0);
   }
+  guint64 mismatches = 0;
+  for (guint y = 0; y < c->h; y++) {
+    const float *t = ds_image_row (sep1->transmissive, y), *s = ds_image_row (sep1->scattered, y);
+    for (guint x = 0; x < c->w; x++) {
+      gsize i = (gsize) y * c->w + x;
+      mismatches += t[x] != cv_direct[i] || s[x] != cv_global[i];
+    }
+  }
+  if (mismatches) {
+    fprintf (stderr, "%" G_GUINT64_FORMAT " pixels differ from OpenCV\n", mismatches);
+    ok = FALSE;
+  }
 
-  /* memcpy of the same input bytes into distinct, pre-faulted destinations. */
-  guint8 *dst = g_malloc (frame_bytes * nframes);
-  memset (dst, 1, frame_bytes * nframes);
+  guint8 *dst = g_malloc (frame_bytes * c->n);
+  memset (dst, 1, frame_bytes * c->n);
   double best_copy = INFINITY;
   for (guint r = 0; r < reps; r++) {
     double t0 = now ();
-    for (guint k = 0; k < nframes; k++)
+    for (guint k = 0; k < c->n; k++)
       memcpy (dst + k * frame_bytes, frames[k]->data, frame_bytes);
     best_copy = MIN (best_copy, now () - t0);
   }
+  double numpy = run_numpy (c, reps);
 
-  /* Same answer as OpenCV (a correctness check, not a timing one). */
-  guint64 mismatches = 0;
-  for (guint y = 0; y < size; y++) {
-    const float *t = ds_image_row (sep->transmissive, y), *s = ds_image_row (sep->scattered, y);
-    for (guint x = 0; x < size; x++) {
-      gsize i = (gsize) y * size + x;
-      if (fabsf (t[x] - cv_direct[i]) > 1e-3f || fabsf (s[x] - cv_global[i]) > 1e-3f)
-        mismatches++;
+  double mib = frame_bytes * c->n / (1024.0 * 1024.0);
+  printf ("\n%u phases of %ux%u u16 (%.1f MiB in), maxmin, best of %u\n", c->n, c->w, c->h, mib, reps);
+  printf ("  ours, 1 thread:   accumulate %8.2f ms  finalize %6.2f ms  total %8.2f ms\n",
+          one.accumulate * 1e3, one.finalize * 1e3, one.total * 1e3);
+  printf ("  ours, %u threads:  accumulate %8.2f ms  finalize %6.2f ms  total %8.2f ms\n", threads,
+          many.accumulate * 1e3, many.finalize * 1e3, many.total * 1e3);
+  printf ("  numpy loop  %8.2f ms   numpy/ours   %5.2fx (1 thread)  %5.2fx (%u)   target > 1\n",
+          numpy * 1e3, numpy / one.total, numpy / many.total, threads);
+  printf ("  OpenCV      %8.2f ms   opencv/ours  %5.2fx (1 thread)  %5.2fx (%u)   target > 1\n",
+          best_cv * 1e3, best_cv / one.total, best_cv / many.total, threads);
+  printf ("  memcpy      %8.2f ms   ours/memcpy  %5.2fx (1 thread)  %5.2fx (%u)   target <= 1.5 at 4 MP\n",
+          best_copy * 1e3, one.total / best_copy, many.total / best_copy, threads);
+
+  if (estimators) {
+    for (DsEstimator e = DS_ESTIMATOR_SINE; e <= DS_ESTIMATOR_ROBUST; e++) {
+      Timing te1, tet;
+      g_autoptr (DsSeparation) a = run_ours (e, 1, frames, c, reps, &te1);
+      g_autoptr (DsSeparation) b = run_ours (e, threads, frames, c, reps, &tet);
+      if (!a || !b || !same_result (a, b)) {
+        fprintf (stderr, "%s: %u threads differ from one thread\n", ds_estimator_name (e), threads);
+        ok = FALSE;
+        continue;
+      }
+      printf ("  %-6s total %8.2f ms (1 thread, %5.2fx maxmin: accumulate %5.2fx, finalize %5.2fx)  "
+              "%8.2f ms (%u threads)\n",
+              ds_estimator_name (e), te1.total * 1e3, te1.total / one.total, te1.accumulate / one.accumulate,
+              te1.finalize / one.finalize, tet.total * 1e3, threads);
     }
+    /* the noise estimate of a set's first frame, against folding one frame */
+    double best_noise = INFINITY;
+    volatile double sink = 0;
+    for (guint r = 0; r < reps; r++) {
+      double t0 = now ();
+      sink += ds_separation_frame_noise (frames[0]);
+      best_noise = MIN (best_noise, now () - t0);
+    }
+    (void) sink;
+    printf ("  noise estimate %6.3f ms per set (%.2f of one frame's fold at 1 thread)\n", best_noise * 1e3,
+            best_noise / (one.accumulate / c->n));
   }
 
-  double numpy = run_numpy (size, nframes, reps);
-
-  double mib = frame_bytes * nframes / (1024.0 * 1024.0);
-  printf ("separation benchmark: %u phases of %ux%u u16 (%.1f MiB in), one thread, best of %u\n", nframes,
-          size, size, mib, reps);
-  printf ("  ours, fresh result images:  accumulate %7.2f ms, finalize %7.2f ms, total %7.2f ms\n",
-          fresh.accumulate * 1e3, fresh.finalize * 1e3, fresh.total * 1e3);
-  printf ("  ours, reused result images: accumulate %7.2f ms, finalize %7.2f ms, total %7.2f ms\n",
-          reused.accumulate * 1e3, reused.finalize * 1e3, reused.total * 1e3);
-  printf ("  (finalize = last frame in -> result; reused total %.0f MiB/s)\n", mib / best_ours);
-  printf ("  numpy (stack, max, min)      %8.2f ms  numpy/ours   %5.2fx reused, %5.2fx fresh (target >= 5)\n",
-          numpy * 1e3, numpy / best_ours, numpy / fresh.total);
-  printf ("  OpenCV (max, min, subtract)  %8.2f ms  opencv/ours  %5.2fx reused, %5.2fx fresh (target >= 2.5)\n",
-          best_cv * 1e3, best_cv / best_ours, best_cv / fresh.total);
-  printf ("  memcpy of the input          %8.2f ms  ours/memcpy  %5.2fx reused, %5.2fx fresh (target <= 3)\n",
-          best_copy * 1e3, best_ours / best_copy, fresh.total / best_copy);
-  printf ("  pixels differing from OpenCV: %" G_GUINT64_FORMAT "\n", mismatches);
-
-  ds_separation_free (sep);
   g_free (dst);
   g_free (cv_direct);
   g_free (cv_global);
-  for (guint k = 0; k < nframes; k++)
+  for (guint k = 0; k < c->n; k++)
     ds_image_free (frames[k]);
   g_free (frames);
   g_free (planes);
-  return mismatches ? 1 : 0;
+  return ok;
+}
+
+/* Unpacking a WxH frame of each packed format into a pooled image, against a memcpy of the
+ * unpacked frame; checked against the packed original. */
+static gboolean
+bench_unpack (guint w, guint h, guint reps)
+{
+  const DsPixelFormat fmts[] = { DS_PIXFMT_MONO12, DS_PIXFMT_MONO12P, DS_PIXFMT_MONO12PACKED,
+                                 DS_PIXFMT_MONO10P };
+  g_autoptr (DsImage) src = ds_image_new (DS_SAMPLE_U16, w, h, NULL);
+  g_autoptr (DsImage) pooled = ds_image_new (DS_SAMPLE_U16, w, h, NULL);
+  g_autoptr (DsImage) copy = ds_image_new (DS_SAMPLE_U16, w, h, NULL);
+  memset (copy->data, 1, copy->stride * h);
+  memset (pooled->data, 1, pooled->stride * h);
+  guint64 state = 12345;
+  gboolean ok = TRUE;
+  double best_copy = INFINITY;
+  for (guint r = 0; r < reps; r++) {
+    double t0 = now ();
+    memcpy (copy->data, src->data, src->stride * h);
+    best_copy = MIN (best_copy, now () - t0);
+  }
+  printf ("\nunpacking a %ux%u frame into a pooled image (memcpy of the unpacked frame: %.2f ms)\n", w, h,
+          best_copy * 1e3);
+  for (guint f = 0; f < G_N_ELEMENTS (fmts); f++) {
+    guint depth = ds_pixfmt_bit_depth (fmts[f]);
+    for (guint y = 0; y < h; y++) {
+      guint16 *row = ds_image_row (src, y);
+      for (guint x = 0; x < w; x++) {
+        state = state * 6364136223846793005ull + 1442695040888963407ull;
+        row[x] = (guint16) ((state >> 33) & ((1u << depth) - 1u));
+      }
+    }
+    g_autoptr (GBytes) payload = ds_pixfmt_pack (fmts[f], src, 0, NULL);
+    gsize size;
+    const void *data = g_bytes_get_data (payload, &size);
+    double best = INFINITY;
+    g_autoptr (GError) error = NULL;
+    for (guint r = 0; r < reps; r++) {
+      double t0 = now ();
+      if (!ds_pixfmt_unpack_into (fmts[f], data, size, 0, pooled, &error)) {
+        fprintf (stderr, "unpack %s: %s\n", ds_pixfmt_name (fmts[f]), error->message);
+        return FALSE;
+      }
+      best = MIN (best, now () - t0);
+    }
+    gboolean same = same_planes (src, pooled);
+    ok = ok && same;
+    printf ("  %-13s %6.2f ms  %5.2fx memcpy%s\n", ds_pixfmt_name (fmts[f]), best * 1e3, best / best_copy,
+            same ? "" : "  WRONG PIXELS");
+  }
+  return ok;
+}
+
+int
+main (int argc, char **argv)
+{
+  GArray *cases = g_array_new (FALSE, FALSE, sizeof (Case));
+  guint reps = 5, threads = MIN (g_get_num_processors (), DS_MAX_THREADS);
+  gboolean quick = FALSE;
+  for (int i = 1; i < argc; i++) {
+    Case c;
+    if (strcmp (argv[i], "--quick") == 0) {
+      quick = TRUE;
+    } else if (strcmp (argv[i], "--case") == 0 && i + 1 < argc &&
+               sscanf (argv[++i], "%ux%ux%u", &c.n, &c.w, &c.h) == 3 && c.n >= 2 && c.w && c.h) {
+      g_array_append_val (cases, c);
+    } else if (strcmp (argv[i], "--reps") == 0 && i + 1 < argc) {
+      reps = (guint) atoi (argv[++i]);
+    } else if (strcmp (argv[i], "--threads") == 0 && i + 1 < argc) {
+      threads = (guint) atoi (argv[++i]);
+    } else {
+      fprintf (stderr, "usage: %s [--quick] [--case NxWxH]... [--reps R] [--threads T]\n", argv[0]);
+      return 2;
+    }
+  }
+  if (reps < 1 || threads < 1)
+    return 2;
+  threads = MAX (threads, 2u); /* the threaded path is what is checked against one thread */
+  if (cases->len == 0) {
+    /* quick: small, but one case above the size where a set shares its rows with workers */
+    const Case full[] = { { 4, 1024, 1024 }, { 8, 2048, 2048 }, { 32, 2048, 2048 } };
+    const Case small[] = { { 4, 256, 256 }, { 8, 515, 301 } };
+    g_array_append_vals (cases, quick ? small : full, quick ? G_N_ELEMENTS (small) : G_N_ELEMENTS (full));
+  }
+  if (quick)
+    reps = MIN (reps, 2u);
+  printf ("separation benchmark: %u repetitions, %u threads for the threaded runs\n", reps, threads);
+  gboolean ok = TRUE;
+  for (guint i = 0; i < cases->len; i++) {
+    const Case *c = &g_array_index (cases, Case, i);
+    ok = bench_case (c, reps, threads, quick || i < 2) && ok;
+  }
+  ok = bench_unpack (quick ? 301 : 2048, quick ? 97 : 2048, reps) && ok;
+  g_array_free (cases, TRUE);
+  printf ("\nresults %s\n", ok ? "checked: all correct" : "WRONG (see above)");
+  return ok ? 0 : 1;
 }
