@@ -25,6 +25,7 @@
 #include <stdio.h>
 
 #include "daemon/ctl/ctl_commands.h"
+#include "daemon/ctl/ctl_folder.h"
 #include "daemon/output/result_files.h"
 #include "daemon/output/result_meta.h"
 #include "daemon/output/tiff_file.h"
@@ -37,10 +38,13 @@ typedef struct {
   char *estimator;
   char *pattern;
   double duty, black_level, harmonic_gain, system_gain, read_noise, saturation;
+  double period, edge_blur;
+  int bit_depth;
   char *out;
   gboolean extrema;
   gboolean quiet;
   gboolean no_preview;
+  gboolean no_phase_check, strict_phases;
 } Options;
 
 /* Where the outputs go and what they are: the sidecar lists every file with its kind. */
@@ -165,7 +169,7 @@ build_sidecar (const DsPhaseFolder *folder, const DsSeparationParams *params, co
   json_builder_set_member_name (b, "sample_type");
   json_builder_add_string_value (b, ds_sample_type_name (folder->type));
   json_builder_set_member_name (b, "bit_depth");
-  json_builder_add_int_value (b, folder->bit_depth);
+  json_builder_add_int_value (b, folder->ref_bit_depth);
   json_builder_end_object (b);
 
   json_builder_set_member_name (b, "params");
@@ -186,6 +190,13 @@ build_sidecar (const DsPhaseFolder *folder, const DsSeparationParams *params, co
   json_builder_add_double_value (b, params->system_gain);
   json_builder_set_member_name (b, "read_noise_dn");
   json_builder_add_double_value (b, params->read_noise_dn);
+  json_builder_set_member_name (b, "period_px");
+  if (params->geometry.period_px > 0)
+    json_builder_add_double_value (b, params->geometry.period_px);
+  else
+    json_builder_add_null_value (b);
+  json_builder_set_member_name (b, "edge_blur_px");
+  json_builder_add_double_value (b, params->geometry.edge_blur_px);
   json_builder_end_object (b);
 
   json_builder_set_member_name (b, "separation");
@@ -200,6 +211,48 @@ build_sidecar (const DsPhaseFolder *folder, const DsSeparationParams *params, co
   return json_builder_get_root (b);
 }
 
+/* The separation's parameters: frames.json's where it has them, the options over them. */
+static gboolean
+make_params (const DsPhaseFolder *folder, const Options *o, DsSeparationParams *params, GError **error)
+{
+  const DsPhaseFolderSidecar *sc = &folder->sidecar;
+  ds_separation_params_init (params, ds_phase_folder_n_phases (folder));
+  const char *estimator = o->estimator ? o->estimator : sc->estimator;
+  if (estimator && !ds_estimator_from_name (estimator, &params->estimator)) {
+    g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT, "%s %s: unknown (maxmin, sine or robust)",
+                 o->estimator ? "--estimator" : "frames.json settings.estimator", estimator);
+    return FALSE;
+  }
+  if (sc->has_pattern_kind)
+    params->pattern = sc->pattern_kind;
+  if (o->pattern) {
+    if (g_ascii_strcasecmp (o->pattern, "square") == 0)
+      params->pattern = DS_PATTERN_SQUARE;
+    else if (g_ascii_strcasecmp (o->pattern, "sine") == 0)
+      params->pattern = DS_PATTERN_SINE;
+    else {
+      g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT,
+                   "--pattern %s: unknown (square or sine)", o->pattern);
+      return FALSE;
+    }
+  }
+  params->duty = !isnan (o->duty) ? o->duty : !isnan (sc->duty) ? sc->duty : params->duty;
+  params->black_level = !isnan (o->black_level)    ? o->black_level
+                        : !isnan (sc->black_level) ? sc->black_level
+                                                   : params->black_level;
+  params->saturation_level = !isnan (o->saturation) ? o->saturation : !isnan (sc->saturation_dn) ? sc->saturation_dn : 0;
+  if (!isnan (o->harmonic_gain))
+    params->harmonic_gain = o->harmonic_gain;
+  if (!isnan (o->system_gain))
+    params->system_gain = o->system_gain;
+  if (!isnan (o->read_noise))
+    params->read_noise_dn = o->read_noise;
+  if (!isnan (o->edge_blur))
+    params->geometry.edge_blur_px = o->edge_blur;
+  params->keep_extrema = o->extrema;
+  return TRUE;
+}
+
 /* *usage is set when the failure is a bad option value (exit status 2) rather than the data. */
 static gboolean
 separate (const char *dir, const Options *o, gboolean *usage, GError **error)
@@ -207,63 +260,71 @@ separate (const char *dir, const Options *o, gboolean *usage, GError **error)
   g_autoptr (DsPhaseFolder) folder = ds_phase_folder_open (dir, error);
   if (!folder)
     return FALSE;
-  guint n = ds_phase_folder_n_phases (folder);
+  guint n = ds_phase_folder_n_phases (folder), nf = ds_phase_folder_n_frames (folder);
   *usage = TRUE;
-
-  DsSeparationParams params;
-  ds_separation_params_init (&params, n);
-  if (o->estimator && !ds_estimator_from_name (o->estimator, &params.estimator)) {
-    g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT,
-                 "--estimator %s: unknown (maxmin, sine or robust)", o->estimator);
+  if (o->bit_depth && !ds_phase_folder_set_bit_depth (folder, (guint) o->bit_depth, error)) {
+    g_prefix_error (error, "--bit-depth: ");
     return FALSE;
   }
-  if (o->pattern) {
-    if (g_ascii_strcasecmp (o->pattern, "square") == 0)
-      params.pattern = DS_PATTERN_SQUARE;
-    else if (g_ascii_strcasecmp (o->pattern, "sine") == 0)
-      params.pattern = DS_PATTERN_SINE;
-    else {
-      g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT,
-                   "--pattern %s: unknown (square or sine)", o->pattern);
-      return FALSE;
-    }
-  }
-  if (!isnan (o->duty))
-    params.duty = o->duty;
-  if (!isnan (o->black_level))
-    params.black_level = o->black_level;
-  if (!isnan (o->harmonic_gain))
-    params.harmonic_gain = o->harmonic_gain;
-  if (!isnan (o->system_gain))
-    params.system_gain = o->system_gain;
-  if (!isnan (o->read_noise))
-    params.read_noise_dn = o->read_noise;
-  if (!isnan (o->saturation))
-    params.saturation_level = o->saturation;
-  params.keep_extrema = o->extrema;
-  if (!ds_separation_params_validate (&params, error))
+  DsSeparationParams params;
+  if (!make_params (folder, o, &params, error) || !ds_separation_params_validate (&params, error))
     return FALSE;
   *usage = FALSE;
 
-  /* Frames are read and folded one at a time: memory stays at one frame plus accumulators. */
-  g_autoptr (DsImage) first = ds_phase_folder_read (folder, 0, error);
-  if (!first)
+  /* The stripes: the period (given, frames.json's or detected) and the phase every frame shows,
+   * measured as the daemon verifies its frames. */
+  g_auto (DsFolderPhases) phases = { 0 };
+  if (!ds_folder_phases_find (folder, o->period, !o->no_phase_check, o->strict_phases, &phases, error))
     return FALSE;
-  g_autoptr (DsPhaseSet) set = ds_phase_set_new (&params, first->width, first->height, error);
-  if (!set)
-    return FALSE;
-  if (folder->black_file) {
-    g_autoptr (DsImage) black = ds_phase_folder_read_black (folder, error);
-    if (!black || !ds_phase_set_set_dark (set, black, error))
-      return FALSE;
+  if (phases.notice)
+    fprintf (stderr, "descatterctl separate: %s\n", phases.notice);
+  if (!isnan (phases.period_px) && phases.period_px <= 1e6) {
+    params.geometry.period_px = phases.period_px;
+    if (!isnan (phases.offset_cycles)) {
+      params.geometry.phase_offset_known = TRUE;
+      params.geometry.phase_offset_cycles = phases.offset_cycles;
+    }
   }
-  for (guint k = 0; k < n; k++) {
-    g_autoptr (DsImage) frame = k == 0 ? g_steal_pointer (&first) : ds_phase_folder_read (folder, k, error);
-    if (!frame)
-      return FALSE;
-    if (!ds_phase_set_accumulate (set, k, frame, error)) {
-      g_prefix_error (error, "%s: ", (const char *) folder->phase_files->pdata[k]);
-      return FALSE;
+  DsSamplingCheck check;
+  if (!ds_separation_check_sampling (&params, &check, error))
+    return FALSE;
+  if (check.warning[0])
+    fprintf (stderr, "descatterctl separate: warning: %s\n", check.warning);
+
+  /* Frames are read and folded one at a time, phase by phase (phase 0 first, as the daemon does,
+   * unless another phase has more frames: averaging is decided by the first phase folded). */
+  g_autofree guint *count = g_new0 (guint, n);
+  for (guint i = 0; i < nf; i++)
+    count[phases.fold_phase[i]]++;
+  guint start = 0;
+  for (guint k = 1; k < n; k++)
+    if (count[k] > count[start])
+      start = k;
+  if (count[0] == count[start])
+    start = 0;
+  g_autoptr (DsPhaseSet) set = NULL;
+  for (guint kk = 0; kk < n; kk++) {
+    guint k = (start + kk) % n;
+    for (guint i = 0; i < nf; i++) {
+      if (phases.fold_phase[i] != k)
+        continue;
+      g_autoptr (DsImage) frame = ds_phase_folder_read (folder, i, error);
+      if (!frame)
+        return FALSE;
+      if (!set) {
+        set = ds_phase_set_new (&params, frame->width, frame->height, error);
+        if (!set)
+          return FALSE;
+        if (folder->black_file) {
+          g_autoptr (DsImage) black = ds_phase_folder_read_black (folder, error);
+          if (!black || !ds_phase_set_set_dark (set, black, error))
+            return FALSE;
+        }
+      }
+      if (!ds_phase_set_accumulate (set, k, frame, error)) {
+        g_prefix_error (error, "%s: ", ds_phase_folder_frame (folder, i)->file);
+        return FALSE;
+      }
     }
   }
   g_autoptr (DsSeparation) sep = ds_phase_set_finalize (set, error);
@@ -328,6 +389,12 @@ separate (const char *dir, const Options *o, gboolean *usage, GError **error)
             ds_estimator_name (params.estimator), params.duty, params.black_level,
             folder->black_file ? ", black subtracted" : "", folder->width, folder->height,
             ds_sample_type_name (folder->type), out);
+    if (phases.checked)
+      printf ("  stripe period %g px (%s), phase 0 at %.3f cycles, phase order %s\n", phases.period_px,
+              phases.period_source, phases.offset_cycles,
+              phases.verdict == DS_PHASE_ORDER_OK          ? "verified"
+              : phases.verdict == DS_PHASE_ORDER_REORDERED ? "corrected"
+                                                           : "not verified");
     for (int i = 0; i < DS_MASK_N_BITS; i++)
       if (sep->meta.flagged[i])
         printf ("  flagged %-15s %" G_GUINT64_FORMAT " pixels\n", ds_mask_bit_name (i), sep->meta.flagged[i]);
@@ -339,7 +406,7 @@ int
 ds_ctl_separate (int argc, char **argv)
 {
   Options o = { .duty = NAN, .black_level = NAN, .harmonic_gain = NAN, .system_gain = NAN,
-                .read_noise = NAN, .saturation = NAN };
+                .read_noise = NAN, .saturation = NAN, .period = NAN, .edge_blur = NAN };
   GOptionEntry entries[] = {
     { "estimator", 'e', 0, G_OPTION_ARG_STRING, &o.estimator, "maxmin (default), sine or robust", "NAME" },
     { "pattern", 0, 0, G_OPTION_ARG_STRING, &o.pattern, "stripe profile: square (default) or sine", "KIND" },
@@ -348,7 +415,12 @@ ds_ctl_separate (int argc, char **argv)
     { "harmonic-gain", 0, 0, G_OPTION_ARG_DOUBLE, &o.harmonic_gain, "first-harmonic gain h for sine (default: theory)", "H" },
     { "system-gain", 0, 0, G_OPTION_ARG_DOUBLE, &o.system_gain, "sensor gain K in DN per electron (enables uncertainty)", "K" },
     { "read-noise", 0, 0, G_OPTION_ARG_DOUBLE, &o.read_noise, "temporal dark noise in DN", "DN" },
-    { "saturation", 0, 0, G_OPTION_ARG_DOUBLE, &o.saturation, "saturation level in DN (default 2^depth - 1)", "DN" },
+    { "saturation", 0, 0, G_OPTION_ARG_DOUBLE, &o.saturation, "lowest clipped level in DN: full well or ADC maximum (default: frames.json's saturation_dn, else 2^depth - 1)", "DN" },
+    { "bit-depth", 0, 0, G_OPTION_ARG_INT, &o.bit_depth, "significant bits of the integer images, 1..16 (default: frames.json's, else the file's)", "BITS" },
+    { "period", 0, 0, G_OPTION_ARG_DOUBLE, &o.period, "stripe period in pixels (default: frames.json's, else detected in the frames)", "PX" },
+    { "edge-blur", 0, 0, G_OPTION_ARG_DOUBLE, &o.edge_blur, "Gaussian sigma of the stripe edges in pixels, for the sampling check and robust's windows (default 0)", "PX" },
+    { "no-phase-check", 0, 0, G_OPTION_ARG_NONE, &o.no_phase_check, "do not measure which phase each frame shows", NULL },
+    { "strict-phases", 0, 0, G_OPTION_ARG_NONE, &o.strict_phases, "refuse frames that show other phases than given instead of folding them as they show", NULL },
     { "out", 'o', 0, G_OPTION_ARG_FILENAME, &o.out, "output folder (default: DIR)", "OUT" },
     { "extrema", 0, 0, G_OPTION_ARG_NONE, &o.extrema, "also write max, min and mean (float32 TIFF)", NULL },
     { "no-preview", 0, 0, G_OPTION_ARG_NONE, &o.no_preview, "do not write the 8-bit preview pictures", NULL },

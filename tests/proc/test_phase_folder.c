@@ -1,6 +1,7 @@
 /* Phase folders in the ICCP 2013 scripts' layout: order, skipping, errors naming files. */
 #include <glib.h>
 #include <glib/gstdio.h>
+#include <math.h>
 #include <string.h>
 
 #include "proc/phase_folder.h"
@@ -170,6 +171,48 @@ test_errors (void)
   remove_tree (dir);
 }
 
+/* frames.json: its frames (several per phase, in its order) replace the names' guesses, images it
+ * does not list are not phases, its black files are averaged as the daemon averages dark frames
+ * (to the nearest DN), and its bit depth is given to the images. */
+static void
+test_sidecar (void)
+{
+  g_autofree char *dir = g_dir_make_tmp ("ds-folder-XXXXXX", NULL);
+  write_image (dir, "a.png", DS_SAMPLE_U16, 4, 2, 100);
+  write_image (dir, "b.png", DS_SAMPLE_U16, 4, 2, 200);
+  write_image (dir, "c.png", DS_SAMPLE_U16, 4, 2, 300);
+  write_image (dir, "unlisted.png", DS_SAMPLE_U16, 4, 2, 9);
+  write_image (dir, "dark1.png", DS_SAMPLE_U16, 4, 2, 7);
+  write_image (dir, "dark2.png", DS_SAMPLE_U16, 4, 2, 8);
+  g_autofree char *json = g_build_filename (dir, "frames.json", NULL);
+  g_assert_true (g_file_set_contents (json,
+    "{\"format\": \"descatter-phase-folder\", \"version\": 1, \"width\": 4, \"height\": 2,"
+    " \"bit_depth\": 10, \"n_phases\": 2, \"future_key\": [1, 2],"
+    " \"frames\": [{\"file\": \"c.png\", \"phase\": 1, \"frame_id\": 17}, {\"file\": \"a.png\", \"phase\": 0},"
+    " {\"file\": \"b.png\", \"phase\": 0}], \"black\": {\"files\": [\"dark1.png\", \"dark2.png\"]}}", -1, NULL));
+  g_autoptr (GError) error = NULL;
+  g_autoptr (DsPhaseFolder) f = ds_phase_folder_open (dir, &error);
+  g_assert_no_error (error);
+  g_assert_true (f->sidecar.present);
+  g_assert_cmpuint (ds_phase_folder_n_phases (f), ==, 2);
+  g_assert_cmpuint (ds_phase_folder_n_frames (f), ==, 3);
+  g_assert_cmpstr (ds_phase_folder_frame (f, 0)->file, ==, "c.png");
+  g_assert_cmpuint (ds_phase_folder_frame (f, 0)->phase, ==, 1);
+  g_assert_true (ds_phase_folder_frame (f, 0)->has_frame_id);
+  g_assert_cmpuint (ds_phase_folder_frame (f, 0)->frame_id, ==, 17);
+  g_assert_false (ds_phase_folder_frame (f, 1)->has_frame_id);
+  g_assert_true (isnan (f->sidecar.saturation_dn));
+  g_autoptr (DsImage) c = ds_phase_folder_read (f, 0, &error);
+  g_assert_no_error (error);
+  g_assert_cmpuint (c->bit_depth, ==, 10);
+  g_assert_cmpuint (((guint16 *) ds_image_row (c, 1))[3], ==, 300);
+  g_autoptr (DsImage) black = ds_phase_folder_read_black (f, &error);
+  g_assert_no_error (error);
+  g_assert_cmpuint (((guint16 *) ds_image_row (black, 0))[0], ==, 8); /* 7.5 to the nearest DN */
+  g_assert_cmpuint (black->bit_depth, ==, 10);
+  remove_tree (dir);
+}
+
 int
 main (int argc, char **argv)
 {
@@ -177,5 +220,6 @@ main (int argc, char **argv)
   g_test_add_func ("/phase-folder/natural-order", test_natural_order);
   g_test_add_func ("/phase-folder/layout", test_layout);
   g_test_add_func ("/phase-folder/errors", test_errors);
+  g_test_add_func ("/phase-folder/sidecar", test_sidecar);
   return g_test_run ();
 }

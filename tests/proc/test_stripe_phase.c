@@ -3,6 +3,7 @@
 #include <glib.h>
 #include <math.h>
 
+#include "proc/phase_order.h"
 #include "proc/proc_error.h"
 #include "proc/stripe_phase.h"
 
@@ -211,6 +212,92 @@ test_errors (void)
   g_assert_cmpfloat_with_epsilon (ds_stripe_phase_diff (0.05, 0.95), 0.1, 1e-12);
 }
 
+/* The period of rendered stripes, from one frame or from two about half a period apart, under
+ * scattering and noise: within 0.1 %; a frame without stripes gives none. */
+static void
+test_period_detect (void)
+{
+  const struct {
+    Scene s;
+    gboolean pair;
+  } cases[] = {
+    { { .period = 12, .duty = 0.5, .direct = 1000, .global = 3000, .noise = 5 }, FALSE },
+    { { .period = 5.5, .duty = 0.5, .direct = 1000, .global = 1000, .noise = 5 }, TRUE },
+    { { .period = 37.3, .duty = 0.25, .direct = 800, .global = 2000, .noise = 10 }, TRUE },
+    { { .period = 80, .duty = 0.3, .black = 0.1, .direct = 500, .global = 500, .noise = 3 }, FALSE },
+    { { .period = 9.7, .sine = TRUE, .direct = 300, .global = 5000, .noise = 5 }, TRUE },
+  };
+  const guint w = 640, h = 8, n = 4;
+  GRand *r = g_rand_new_with_seed (99);
+  for (guint i = 0; i < G_N_ELEMENTS (cases); i++) {
+    g_autoptr (DsImage) a = render (&cases[i].s, DS_SAMPLE_U16, w, h, 0, n, r);
+    g_autoptr (DsImage) b = cases[i].pair ? render (&cases[i].s, DS_SAMPLE_U16, w, h, 2, n, r) : NULL;
+    double period, snr;
+    g_autoptr (GError) error = NULL;
+    g_assert_true (ds_stripe_period_detect (a, b, &period, &snr, &error));
+    g_assert_no_error (error);
+    g_test_message ("case %u: period %.4f (true %g), snr %.0f", i, period, cases[i].s.period, snr);
+    g_assert_cmpfloat (fabs (period / cases[i].s.period - 1), <, 1e-3);
+  }
+  Scene flat = { .period = 12, .duty = 0.5, .direct = 0, .global = 1000, .noise = 5 };
+  g_autoptr (DsImage) f = render (&flat, DS_SAMPLE_F32, w, h, 0, n, r);
+  double period, snr;
+  g_assert_false (ds_stripe_period_detect (f, NULL, &period, &snr, NULL));
+  g_assert_true (isnan (period));
+  g_assert_cmpfloat (snr, <, 8);
+  g_rand_free (r);
+}
+
+/* The order of phases from measured phases: the offset found by the majority, one swap
+ * reordered, a duplicate or an in-between frame broken, unmeasured frames taken as given. */
+static void
+test_phase_order_check (void)
+{
+  const guint n = 8;
+  const double off = 0.37, tol = 0.25 / n;
+  DsPhaseOrderFrame fr[8];
+  double offset;
+  /* all right, offset unknown: found as the common offset */
+  for (guint k = 0; k < n; k++)
+    fr[k] = (DsPhaseOrderFrame) { .given = k, .measured = TRUE, .phase = fmod (k / 8.0 + off + 0.003 * (k % 3), 1) };
+  g_assert_cmpint (ds_phase_order_check (fr, n, n, tol, FALSE, &offset), ==, DS_PHASE_ORDER_OK);
+  g_assert_cmpfloat (fabs (offset - off - 0.003), <, 0.003);
+  /* frames 0 and 5 swapped: reordered, whichever frame is first */
+  fr[0].phase = fmod (5 / 8.0 + off, 1);
+  fr[5].phase = fmod (0 / 8.0 + off, 1);
+  g_assert_cmpint (ds_phase_order_check (fr, n, n, tol, FALSE, &offset), ==, DS_PHASE_ORDER_REORDERED);
+  g_assert_cmpint (fr[0].found, ==, 5);
+  g_assert_cmpint (fr[5].found, ==, 0);
+  g_assert_cmpint (fr[3].found, ==, 3);
+  /* frame 5 shows phase 4 too: phase 5 has none */
+  fr[0].phase = off;
+  fr[5].phase = fmod (4 / 8.0 + off, 1);
+  g_assert_cmpint (ds_phase_order_check (fr, n, n, tol, FALSE, &offset), ==, DS_PHASE_ORDER_BROKEN);
+  g_assert_cmpint (fr[5].found, ==, 4);
+  /* ... unless it cannot be measured: taken as given */
+  fr[5].measured = FALSE;
+  g_assert_cmpint (ds_phase_order_check (fr, n, n, tol, FALSE, &offset), ==, DS_PHASE_ORDER_OK);
+  g_assert_cmpint (fr[5].found, ==, -1);
+  /* half a step off: between phases */
+  fr[5].measured = TRUE;
+  fr[5].phase = fmod (5.5 / 8.0 + off, 1);
+  g_assert_cmpint (ds_phase_order_check (fr, n, n, tol, FALSE, &offset), ==, DS_PHASE_ORDER_BROKEN);
+  g_assert_cmpint (fr[5].found, ==, -1);
+  g_assert_cmpfloat (fabs (fabs (fr[5].residual) - 0.5 / 8), <, 0.005); /* the offset is the frames' mean */
+  /* a known offset is used as given: every frame off by a whole phase */
+  for (guint k = 0; k < n; k++)
+    fr[k] = (DsPhaseOrderFrame) { .given = k, .measured = TRUE, .phase = fmod ((k + 1) / 8.0 + off, 1) };
+  offset = off;
+  g_assert_cmpint (ds_phase_order_check (fr, n, n, tol, TRUE, &offset), ==, DS_PHASE_ORDER_REORDERED);
+  g_assert_cmpfloat (offset, ==, off);
+  g_assert_cmpint (fr[7].found, ==, 0);
+  /* nothing measured */
+  for (guint k = 0; k < n; k++)
+    fr[k].measured = FALSE;
+  g_assert_cmpint (ds_phase_order_check (fr, n, n, tol, FALSE, &offset), ==, DS_PHASE_ORDER_UNKNOWN);
+  g_assert_true (isnan (offset));
+}
+
 int
 main (int argc, char **argv)
 {
@@ -221,5 +308,7 @@ main (int argc, char **argv)
   g_test_add_func ("/stripe-phase/pure-noise", test_pure_noise);
   g_test_add_func ("/stripe-phase/region-nonfinite", test_region_and_nonfinite);
   g_test_add_func ("/stripe-phase/errors", test_errors);
+  g_test_add_func ("/stripe-period/detect", test_period_detect);
+  g_test_add_func ("/phase-order/check", test_phase_order_check);
   return g_test_run ();
 }
