@@ -36,13 +36,4 @@ typedef enum {
 DsPhaseOrderVerdict ds_phase_order_check (DsPhaseOrderFrame *frames, guint n_frames, guint n_phases,
                                           double tolerance, gboolean offset_known, double *offset);
 
-/* Stripe period of a phase set, from two of its frames about half a period apart in phase
- * (their difference cancels the scene and doubles the stripes), or from one frame (b NULL):
- * the strongest line of the column profile's spectrum between 2.5 pixels and half the width,
- * refined by a least-squares fit; a harmonic of a stronger fundamental is not taken for it.
- * FALSE (no error: nothing to see) when no line stands out: *snr then says how weak the best
- * was. Fails only on invalid arguments. */
-gboolean ds_stripe_period_detect (const DsImage *a, const DsImage *b, double *period_px, double *snr,
-                                  GError **error);
-
 G_END_DECLS

@@ -3,6 +3,7 @@
 
 #include "daemon/ctl/ctl_folder.h"
 #include "proc/proc_error.h"
+#include "proc/stripe_period.h"
 #include "proc/stripe_phase.h"
 
 void

@@ -212,42 +212,6 @@ test_errors (void)
   g_assert_cmpfloat_with_epsilon (ds_stripe_phase_diff (0.05, 0.95), 0.1, 1e-12);
 }
 
-/* The period of rendered stripes, from one frame or from two about half a period apart, under
- * scattering and noise: within 0.1 %; a frame without stripes gives none. */
-static void
-test_period_detect (void)
-{
-  const struct {
-    Scene s;
-    gboolean pair;
-  } cases[] = {
-    { { .period = 12, .duty = 0.5, .direct = 1000, .global = 3000, .noise = 5 }, FALSE },
-    { { .period = 5.5, .duty = 0.5, .direct = 1000, .global = 1000, .noise = 5 }, TRUE },
-    { { .period = 37.3, .duty = 0.25, .direct = 800, .global = 2000, .noise = 10 }, TRUE },
-    { { .period = 80, .duty = 0.3, .black = 0.1, .direct = 500, .global = 500, .noise = 3 }, FALSE },
-    { { .period = 9.7, .sine = TRUE, .direct = 300, .global = 5000, .noise = 5 }, TRUE },
-  };
-  const guint w = 640, h = 8, n = 4;
-  GRand *r = g_rand_new_with_seed (99);
-  for (guint i = 0; i < G_N_ELEMENTS (cases); i++) {
-    g_autoptr (DsImage) a = render (&cases[i].s, DS_SAMPLE_U16, w, h, 0, n, r);
-    g_autoptr (DsImage) b = cases[i].pair ? render (&cases[i].s, DS_SAMPLE_U16, w, h, 2, n, r) : NULL;
-    double period, snr;
-    g_autoptr (GError) error = NULL;
-    g_assert_true (ds_stripe_period_detect (a, b, &period, &snr, &error));
-    g_assert_no_error (error);
-    g_test_message ("case %u: period %.4f (true %g), snr %.0f", i, period, cases[i].s.period, snr);
-    g_assert_cmpfloat (fabs (period / cases[i].s.period - 1), <, 1e-3);
-  }
-  Scene flat = { .period = 12, .duty = 0.5, .direct = 0, .global = 1000, .noise = 5 };
-  g_autoptr (DsImage) f = render (&flat, DS_SAMPLE_F32, w, h, 0, n, r);
-  double period, snr;
-  g_assert_false (ds_stripe_period_detect (f, NULL, &period, &snr, NULL));
-  g_assert_true (isnan (period));
-  g_assert_cmpfloat (snr, <, 8);
-  g_rand_free (r);
-}
-
 /* The order of phases from measured phases: the offset found by the majority, one swap
  * reordered, a duplicate or an in-between frame broken, unmeasured frames taken as given. */
 static void
@@ -308,7 +272,6 @@ main (int argc, char **argv)
   g_test_add_func ("/stripe-phase/pure-noise", test_pure_noise);
   g_test_add_func ("/stripe-phase/region-nonfinite", test_region_and_nonfinite);
   g_test_add_func ("/stripe-phase/errors", test_errors);
-  g_test_add_func ("/stripe-period/detect", test_period_detect);
   g_test_add_func ("/phase-order/check", test_phase_order_check);
   return g_test_run ();
 }
