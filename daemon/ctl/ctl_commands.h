@@ -17,4 +17,5 @@ int ds_ctl_config (const DsCtlTarget *target, int argc, char **argv);
 
 /* Offline: no daemon. */
 int ds_ctl_separate (int argc, char **argv);
+int ds_ctl_calibrate (int argc, char **argv);
 int ds_ctl_study (int argc, char **argv);

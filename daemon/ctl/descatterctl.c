@@ -22,6 +22,7 @@ static const struct {
   { "dark", ds_ctl_dark, NULL, "calibrate the dark frame (illuminator off)" },
   { "config", ds_ctl_config, NULL, "print the daemon's effective configuration" },
   { "separate", NULL, ds_ctl_separate, "separate a folder of phase images offline (no daemon)" },
+  { "calibrate", NULL, ds_ctl_calibrate, "measure the stripe pattern from a reference phase folder (no daemon)" },
   { "study", NULL, ds_ctl_study, "accuracy against acquisition time on simulated scenes (no daemon)" },
 };
 

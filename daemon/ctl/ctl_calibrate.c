@@ -1,0 +1,196 @@
+/* `descatterctl calibrate DIR`: the stripe pattern as the camera sees it, measured offline on a
+ * phase folder of a reference with little scattering (proc/calibration.h), printed as the
+ * configuration lines to use (descatterd.conf's [illuminator] and `descatterctl separate`'s
+ * options), or as JSON. The frames' phase order is checked first, as `separate` checks it. */
+#include <json-glib/json-glib.h>
+#include <math.h>
+#include <stdio.h>
+
+#include "daemon/ctl/ctl_commands.h"
+#include "daemon/ctl/ctl_folder.h"
+#include "proc/calibration.h"
+#include "proc/proc_error.h"
+
+typedef struct {
+  char *pattern;
+  double period, saturation, aperture;
+  int bit_depth;
+  gboolean json, quiet, strict_phases;
+} Options;
+
+static void
+print_json (const char *dir, const DsCalibration *cal)
+{
+  g_autoptr (JsonBuilder) b = json_builder_new ();
+  json_builder_begin_object (b);
+  const struct {
+    const char *key;
+    double v;
+  } nums[] = {
+    { "period_px", cal->period_px },
+    { "phase_offset_cycles", cal->phase_offset_cycles },
+    { "offset_spread_cycles", cal->offset_spread },
+    { "duty", cal->duty },
+    { "black_level", cal->black_level },
+    { "harmonic_gain", cal->harmonic_gain },
+    { "harmonic_gain_theory", cal->harmonic_gain_theory },
+    { "edge_blur_px", cal->edge_blur_px },
+  };
+  json_builder_set_member_name (b, "folder");
+  json_builder_add_string_value (b, dir);
+  json_builder_set_member_name (b, "pattern");
+  json_builder_add_string_value (b, cal->pattern == DS_PATTERN_SINE ? "sine" : "square");
+  json_builder_set_member_name (b, "n_phases");
+  json_builder_add_int_value (b, cal->n_phases);
+  json_builder_set_member_name (b, "frames_per_phase");
+  json_builder_add_int_value (b, cal->frames_per_phase);
+  json_builder_set_member_name (b, "period_measured");
+  json_builder_add_boolean_value (b, cal->period_measured);
+  for (guint i = 0; i < G_N_ELEMENTS (nums); i++) {
+    json_builder_set_member_name (b, nums[i].key);
+    json_builder_add_double_value (b, nums[i].v);
+  }
+  json_builder_set_member_name (b, "pixels_used");
+  json_builder_add_int_value (b, (gint64) cal->pixels_used);
+  json_builder_end_object (b);
+  g_autoptr (JsonNode) root = json_builder_get_root (b);
+  g_autofree char *text = json_to_string (root, TRUE);
+  printf ("%s\n", text);
+}
+
+static void
+print_lines (const char *dir, const DsCalibration *cal)
+{
+  const char *kind = cal->pattern == DS_PATTERN_SINE ? "sine" : "square";
+  printf ("calibration of %s: %u phases x %u frames, %" G_GUINT64_FORMAT " lit pixels\n", dir, cal->n_phases,
+          cal->frames_per_phase, cal->pixels_used);
+  printf ("  stripe period   %.4f px (%s)\n", cal->period_px, cal->period_measured ? "measured" : "given");
+  printf ("  phase 0 at      %.4f cycles (rms over the phases %.4f)\n", cal->phase_offset_cycles, cal->offset_spread);
+  printf ("  duty            %.4f\n", cal->duty);
+  printf ("  black level     %.4f\n", cal->black_level);
+  printf ("  harmonic gain   %.4f (sharp stripes: %.4f)\n", cal->harmonic_gain, cal->harmonic_gain_theory);
+  printf ("  edge blur       %.2f px (Gaussian sigma)\n", cal->edge_blur_px);
+  printf ("\n# descatterd.conf\n[illuminator]\npattern=%s\nperiod-px=%.4f\nduty=%.4f\nblack-level=%.4f\n", kind,
+          cal->period_px, cal->duty, cal->black_level);
+  printf ("\n# descatterctl separate\n--pattern %s --period %.4f --duty %.4f --black-level %.4f "
+          "--harmonic-gain %.4f --edge-blur %.2f\n",
+          kind, cal->period_px, cal->duty, cal->black_level, cal->harmonic_gain, cal->edge_blur_px);
+}
+
+/* *usage is set when the failure is a bad option value (exit status 2) rather than the data. */
+static gboolean
+calibrate (const char *dir, const Options *o, gboolean *usage, GError **error)
+{
+  g_autoptr (DsPhaseFolder) folder = ds_phase_folder_open (dir, error);
+  if (!folder)
+    return FALSE;
+  *usage = TRUE;
+  DsCalibrationHints hints;
+  ds_calibration_hints_init (&hints);
+  if (folder->sidecar.has_pattern_kind)
+    hints.pattern = folder->sidecar.pattern_kind;
+  if (o->pattern) {
+    if (g_ascii_strcasecmp (o->pattern, "square") == 0)
+      hints.pattern = DS_PATTERN_SQUARE;
+    else if (g_ascii_strcasecmp (o->pattern, "sine") == 0)
+      hints.pattern = DS_PATTERN_SINE;
+    else {
+      g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT, "--pattern %s: unknown (square or sine)",
+                   o->pattern);
+      return FALSE;
+    }
+  }
+  if (!isnan (o->period) && !(o->period > 2)) {
+    g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT, "--period %g: must exceed 2 pixels", o->period);
+    return FALSE;
+  }
+  if (o->bit_depth && !ds_phase_folder_set_bit_depth (folder, (guint) o->bit_depth, error)) {
+    g_prefix_error (error, "--bit-depth: ");
+    return FALSE;
+  }
+  hints.saturation_level = !isnan (o->saturation) ? o->saturation
+                           : !isnan (folder->sidecar.saturation_dn) ? folder->sidecar.saturation_dn
+                                                                    : 0;
+  if (!isnan (o->aperture))
+    hints.pixel_aperture = o->aperture;
+  *usage = FALSE;
+
+  g_auto (DsFolderPhases) phases = { 0 };
+  if (!ds_folder_phases_find (folder, o->period, TRUE, o->strict_phases, &phases, error))
+    return FALSE;
+  if (phases.notice && !o->quiet)
+    fprintf (stderr, "descatterctl calibrate: %s\n", phases.notice);
+  if (!isnan (phases.period_px))
+    hints.period_px = phases.period_px;
+  if (folder->sidecar.has_phase_offset) {
+    hints.phase_offset_known = TRUE;
+    hints.phase_offset_cycles = folder->sidecar.phase_offset_cycles;
+  }
+  g_autoptr (DsCalibrator) cal = NULL;
+  for (guint i = 0; i < ds_phase_folder_n_frames (folder); i++) {
+    g_autoptr (DsImage) frame = ds_phase_folder_read (folder, i, error);
+    if (!frame)
+      return FALSE;
+    if (!cal && !(cal = ds_calibrator_new (ds_phase_folder_n_phases (folder), frame->width, frame->height, error)))
+      return FALSE;
+    if (!ds_calibrator_add (cal, phases.fold_phase[i], frame, error)) {
+      g_prefix_error (error, "%s: ", ds_phase_folder_frame (folder, i)->file);
+      return FALSE;
+    }
+  }
+  if (folder->black_file) {
+    g_autoptr (DsImage) black = ds_phase_folder_read_black (folder, error);
+    if (!black || !ds_calibrator_set_dark (cal, black, error))
+      return FALSE;
+  }
+  DsCalibration result;
+  if (!ds_calibrator_finish (cal, &hints, &result, error))
+    return FALSE;
+  /* the period came from ds_folder_phases_find: measured there unless given */
+  result.period_measured = phases.period_source && g_str_equal (phases.period_source, "detected");
+  if (o->json)
+    print_json (dir, &result);
+  else
+    print_lines (dir, &result);
+  return TRUE;
+}
+
+int
+ds_ctl_calibrate (int argc, char **argv)
+{
+  Options o = { .period = NAN, .saturation = NAN, .aperture = NAN };
+  GOptionEntry entries[] = {
+    { "pattern", 0, 0, G_OPTION_ARG_STRING, &o.pattern, "what the illuminator projects: square (default) or sine", "KIND" },
+    { "period", 0, 0, G_OPTION_ARG_DOUBLE, &o.period, "the stripe period in pixels when known (default: measured)", "PX" },
+    { "saturation", 0, 0, G_OPTION_ARG_DOUBLE, &o.saturation, "lowest clipped level in DN; clipped pixels are left out", "DN" },
+    { "bit-depth", 0, 0, G_OPTION_ARG_INT, &o.bit_depth, "significant bits of the integer images, 1..16", "BITS" },
+    { "pixel-aperture", 0, 0, G_OPTION_ARG_DOUBLE, &o.aperture, "sensitive width of a pixel in pixels, for the blur model (default 1)", "PX" },
+    { "strict-phases", 0, 0, G_OPTION_ARG_NONE, &o.strict_phases, "refuse frames that show other phases than given", NULL },
+    { "json", 0, 0, G_OPTION_ARG_NONE, &o.json, "print the measurements as JSON", NULL },
+    { "quiet", 'q', 0, G_OPTION_ARG_NONE, &o.quiet, "no notices on stderr", NULL },
+    { NULL },
+  };
+  g_autoptr (GOptionContext) ctx = g_option_context_new ("DIR - measure the stripe pattern from a reference phase folder");
+  g_option_context_set_summary (ctx, "DIR holds a phase set of a reference with little scattering (descatter-sim "
+                                     "render, capture --save-phases, or the ICCP 2013 layout). Prints the stripe "
+                                     "period, phase offset, duty, black level, harmonic gain and edge blur, and the "
+                                     "configuration lines that use them.");
+  g_option_context_add_main_entries (ctx, entries, NULL);
+  g_autoptr (GError) error = NULL;
+  int status;
+  gboolean usage = FALSE;
+  if (!g_option_context_parse (ctx, &argc, &argv, &error)) {
+    fprintf (stderr, "descatterctl calibrate: %s\n", error->message);
+    status = 2;
+  } else if (argc != 2) {
+    fprintf (stderr, "descatterctl calibrate: expected one folder, got %d arguments\n", argc - 1);
+    status = 2;
+  } else if (!calibrate (argv[1], &o, &usage, &error)) {
+    fprintf (stderr, "descatterctl calibrate: %s\n", error->message);
+    status = usage ? 2 : 1;
+  } else {
+    status = 0;
+  }
+  g_free (o.pattern);
+  return status;
+}

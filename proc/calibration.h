@@ -1,0 +1,64 @@
+/* Calibration of the stripe illuminator as the camera sees it, from a phase set of a reference
+ * with little scattering (a clear sample, or none): the stripe period, where phase 0 falls,
+ * the duty a, the black level b, the first-harmonic gain h the sine estimator needs, and the
+ * edge blur that explains h (docs/estimators.md, "Calibration").
+ *
+ * Frames are added one at a time (several per phase are averaged); memory is N phase planes
+ * of doubles. Used by `descatterctl calibrate` offline and by the daemon's calibrate command.
+ * A DsCalibrator is used by one thread at a time; it blocks on nothing but memory and CPU. */
+#pragma once
+#include <glib.h>
+
+#include "proc/image.h"
+#include "proc/separation.h"
+
+G_BEGIN_DECLS
+
+typedef struct {
+  DsPatternKind pattern;      /* what the illuminator projects (square unless it is known to be
+                                 sine) */
+  double period_px;           /* known period; 0 = measure it */
+  gboolean phase_offset_known;
+  double phase_offset_cycles;
+  double saturation_level;    /* DN at or above which samples are clipped: those pixels are left
+                                 out; 0 = 2^bit_depth - 1 of the frames (none for float) */
+  double pixel_aperture;      /* for the blur model; 0 = 1 pixel */
+} DsCalibrationHints;
+
+void ds_calibration_hints_init (DsCalibrationHints *hints);
+
+typedef struct {
+  guint n_phases, frames_per_phase;
+  DsPatternKind pattern;
+  double period_px;           /* measured (or the hint) */
+  gboolean period_measured;
+  double phase_offset_cycles; /* phase k lights stripes centred at (j + k/N + offset) P */
+  double offset_spread;       /* rms scatter of the per-phase offsets, cycles */
+  double duty;                /* a (square stripes; 0.5 for sine) */
+  double black_level;         /* b: off-stripe light relative to the lit level */
+  double harmonic_gain;       /* h as the N-step first harmonic sees this rig (with b, blur,
+                                 pixel integration and sampling): the sine estimator's gain */
+  double harmonic_gain_theory;/* h for sharp stripes with this a and b */
+  double edge_blur_px;        /* Gaussian sigma that makes the model's h match; 0 if the stripes
+                                 are as sharp as pixels show */
+  guint64 pixels_used;        /* lit, unsaturated, finite pixels the numbers come from */
+} DsCalibration;
+
+typedef struct DsCalibrator DsCalibrator;
+
+/* n_phases >= 3 (the harmonic needs three). Fails INVALID_ARGUMENT, TOO_LARGE. */
+DsCalibrator *ds_calibrator_new (guint n_phases, guint width, guint height, GError **error);
+void ds_calibrator_free (DsCalibrator *cal);
+G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsCalibrator, ds_calibrator_free)
+
+/* A frame lit with phase k; frames of one type and size (SIZE_MISMATCH names them). */
+gboolean ds_calibrator_add (DsCalibrator *cal, guint phase, const DsImage *frame, GError **error);
+/* The illuminator-off frame, subtracted from every phase. */
+gboolean ds_calibrator_set_dark (DsCalibrator *cal, const DsImage *dark, GError **error);
+
+/* Measures. Fails NOT_ENOUGH_PHASES (a phase without frames), EMPTY (no stripes found: give the
+ * period; or no lit, unsaturated pixel), naming what is missing. */
+gboolean ds_calibrator_finish (DsCalibrator *cal, const DsCalibrationHints *hints, DsCalibration *out,
+                               GError **error);
+
+G_END_DECLS
