@@ -128,6 +128,8 @@ run (const DsLabsimOptions *o)
     .noiseless = o->noiseless,
     .line_miss_every = (guint) o->line_miss_every,
     .line_double_every = (guint) o->line_double_every,
+    .pixel_formats = o->pixel_formats,
+    .gain_max_db = o->gain_max_db,
   };
   DsLabCamera *camera = ds_lab_camera_new (&ccfg, renderer, illumination, &lab, &error);
   if (!camera) {

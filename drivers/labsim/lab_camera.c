@@ -151,6 +151,46 @@ ds_lab_camera_trigger_stats (DsLabCamera *c, DsLabTriggerStats *stats)
 
 /* ---- the device ---------------------------------------------------------------------------- */
 
+/* labsim-camera.xml as this camera describes itself: only the PixelFormat entries it offers,
+ * its gain range (a camera that lacks a format, or has less gain, as a lab meets one). */
+static char *
+camera_xml (const DsLabCameraConfig *cfg, GError **error)
+{
+  g_auto (GStrv) keep = cfg->pixel_formats ? g_strsplit (cfg->pixel_formats, ",", -1) : NULL;
+  GString *out = g_string_new (NULL);
+  guint kept = 0;
+  g_auto (GStrv) lines = g_strsplit (ds_labsim_camera_xml, "\n", -1);
+  for (guint i = 0; lines[i]; i++) {
+    const char *entry = strstr (lines[i], "<EnumEntry Name=\"");
+    if (keep && entry && strstr (lines[i], "<Value>0x01")) { /* PixelFormat's entries */
+      const char *name = entry + strlen ("<EnumEntry Name=\"");
+      gsize n = strcspn (name, "\"");
+      gboolean wanted = FALSE;
+      for (guint k = 0; keep[k]; k++)
+        wanted |= strlen (g_strstrip (keep[k])) == n && strncmp (keep[k], name, n) == 0;
+      if (!wanted)
+        continue;
+      kept++;
+    }
+    if (cfg->gain_max_db > 0 && strstr (lines[i], "<pValue>GainConverter</pValue>")) {
+      g_autofree char *max = g_strdup_printf ("<Max>%.1f</Max>", cfg->gain_max_db);
+      g_autoptr (GString) l = g_string_new (lines[i]);
+      g_string_replace (l, "<Max>24.0</Max>", max, 1);
+      g_string_append_printf (out, "%s\n", l->str);
+      continue;
+    }
+    g_string_append_printf (out, "%s%s", lines[i], lines[i + 1] ? "\n" : "");
+  }
+  if (keep && kept != g_strv_length (keep)) {
+    g_set_error (error, G_IO_ERROR, G_IO_ERROR_INVALID_ARGUMENT,
+                 "--pixel-formats \"%s\": only Mono8, Mono10, Mono12, Mono16, Mono10p, Mono12p, Mono12Packed",
+                 cfg->pixel_formats);
+    g_string_free (out, TRUE);
+    return NULL;
+  }
+  return g_string_free (out, FALSE);
+}
+
 static gboolean
 appear (DsLabCamera *c, GError **error)
 {
@@ -160,7 +200,8 @@ appear (DsLabCamera *c, GError **error)
   if (fd < 0)
     return FALSE;
   close (fd);
-  if (!g_file_set_contents (xml_path, ds_labsim_camera_xml, -1, error)) {
+  g_autofree char *xml = camera_xml (&c->cfg, error);
+  if (!xml || !g_file_set_contents (xml_path, xml, -1, error)) {
     g_unlink (xml_path);
     return FALSE;
   }

@@ -40,6 +40,8 @@ typedef struct {
   gboolean noiseless;        /* frames are the rendered expectation, rounded (no sensor noise) */
   guint line_miss_every;     /* fault: every Nth accepted line trigger makes no frame */
   guint line_double_every;   /* fault: every Nth accepted line trigger makes two frames */
+  const char *pixel_formats; /* NULL: every PixelFormat of labsim-camera.xml; else a comma list */
+  double gain_max_db;        /* 0: the description's 24 dB */
 } DsLabCameraConfig;
 
 typedef struct {

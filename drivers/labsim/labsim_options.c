@@ -76,6 +76,11 @@ ds_labsim_options_parse (DsLabsimOptions *o, int *argc, char ***argv, GError **e
       "Fault: every Nth line trigger makes no frame (a missed trigger)", "N" },
     { "line-double-every", 0, 0, G_OPTION_ARG_INT, &o->line_double_every,
       "Fault: every Nth line trigger makes two frames (a double trigger)", "N" },
+    { "pixel-formats", 0, 0, G_OPTION_ARG_STRING, &o->pixel_formats,
+      "The PixelFormat entries the camera offers (default all: Mono8, Mono10, Mono12, Mono16, "
+      "Mono10p, Mono12p, Mono12Packed), as a camera that lacks some would", "LIST" },
+    { "gain-max", 0, 0, G_OPTION_ARG_DOUBLE, &o->gain_max_db,
+      "The camera's gain range is 0..DB (default 24)", "DB" },
     { "light-from", 0, 0, G_OPTION_ARG_STRING, &o->light_from,
       "The camera sees the phase another controller lights (its registers read over Modbus TCP)",
       "tcp://HOST:PORT" },
@@ -142,6 +147,7 @@ ds_labsim_options_parse (DsLabsimOptions *o, int *argc, char ***argv, GError **e
     { "sync-line", &o->sync_line, NULL, -1, 3 },
     { "line-miss-every", &o->line_miss_every, NULL, 0, G_MAXINT },
     { "line-double-every", &o->line_double_every, NULL, 0, G_MAXINT },
+    { "gain-max", NULL, &o->gain_max_db, 0, 24 },
     { "modbus-unit-id", &o->modbus_unit_id, NULL, 1, 247 },
     { "settle-ms", NULL, &o->settle_ms, 0, 10000 },
     { "modbus-delay-ms", &o->delay_ms, NULL, 0, 60000 },
@@ -183,5 +189,6 @@ ds_labsim_options_clear (DsLabsimOptions *o)
   g_free (o->modbus_rtu);
   g_free (o->modbus_rtu_link);
   g_free (o->light_from);
+  g_free (o->pixel_formats);
   memset (o, 0, sizeof *o);
 }

@@ -21,6 +21,8 @@ typedef struct {
   gboolean noiseless;
   int sync_line;           /* the projector's sync output drives this camera line; -1: none */
   int line_miss_every, line_double_every;
+  char *pixel_formats;     /* NULL: every format of labsim-camera.xml; else a comma list of them */
+  double gain_max_db;      /* 0: labsim-camera.xml's 24 dB */
 
   /* illuminator controller */
   char *modbus_address;    /* HOST:PORT */
