@@ -143,6 +143,22 @@ code_of (const GError *e)
   return DS_DEVICE_ERROR_INVALID;
 }
 
+/* What the camera offers ("Mono8, Mono16"), so that a refusal says what is allowed; the
+ * array is Aravis's (freed here), the strings are not. */
+static char *
+offered (const char **entries, guint n)
+{
+  if (!entries || n == 0) {
+    g_free (entries);
+    return g_strdup ("the camera lists none");
+  }
+  GString *out = g_string_new ("the camera offers ");
+  for (guint i = 0; i < n; i++)
+    g_string_append_printf (out, "%s%s", i ? ", " : "", entries[i]);
+  g_free (entries);
+  return g_string_free (out, FALSE);
+}
+
 static gboolean
 apply_settings (AravisCam *c, const DsCameraSettings *s, GError **error)
 {
@@ -157,9 +173,13 @@ apply_settings (AravisCam *c, const DsCameraSettings *s, GError **error)
   if (e)
     return fail (error, code_of (e), e, "AcquisitionMode Continuous");
   arv_camera_set_pixel_format_from_string (cam, ds_pixfmt_name (fmt), &e);
-  if (e)
+  if (e) {
+    guint n = 0;
+    const char **formats = arv_camera_dup_available_pixel_formats_as_strings (cam, &n, NULL);
+    g_autofree char *allowed = offered (formats, n);
     return fail (error, e->domain == ARV_DEVICE_ERROR ? code_of (e) : DS_DEVICE_ERROR_UNSUPPORTED, e,
-                 "PixelFormat %s", ds_pixfmt_name (fmt));
+                 "PixelFormat %s refused (%s)", ds_pixfmt_name (fmt), allowed);
+  }
 
   guint sw = c->info.sensor_width, sh = c->info.sensor_height;
   guint x = s->roi_x, y = s->roi_y, w = s->roi_width, h = s->roi_height;
@@ -224,9 +244,13 @@ apply_settings (AravisCam *c, const DsCameraSettings *s, GError **error)
   /* arv_camera_set_trigger turns every other trigger off, then FrameStart: Mode On, rising
    * edge, this source. */
   arv_camera_set_trigger (cam, source, &e);
-  if (e)
+  if (e) {
+    guint n = 0;
+    const char **sources = arv_camera_dup_available_trigger_sources (cam, &n, NULL);
+    g_autofree char *allowed = offered (sources, n);
     return fail (error, e->domain == ARV_DEVICE_ERROR ? code_of (e) : DS_DEVICE_ERROR_UNSUPPORTED, e,
-                 "TriggerSource %s", source);
+                 "TriggerSource %s refused (%s)", source, allowed);
+  }
   /* The largest GVSP packet the path carries (jumbo frames where the NIC has them): fewer
    * packets per frame, fewer to lose. Best effort: the camera's default still works. */
   if (arv_camera_is_gv_device (cam)) {
@@ -355,6 +379,28 @@ cam_stop (gpointer b)
   c->started = FALSE;
 }
 
+/* A frame or a command timed out: is the camera still there? One read on the control
+ * channel (register 0: the GigE Vision bootstrap's Version, GenCP's on USB3 Vision) answers
+ * within Aravis's control timeout; a camera that does not answer is lost, and says so now
+ * (DISCONNECTED) instead of through retries that each wait a grab timeout until Aravis's
+ * heartbeat gives up (a camera unplug took 10-13 s to show, longer than the watchdog). */
+static gboolean
+still_there (AravisCam *c)
+{
+  if (g_atomic_int_get (&c->lost))
+    return FALSE;
+  GError *e = NULL;
+  guint32 version = 0;
+  arv_device_read_register (arv_camera_get_device (c->camera), 0x0000, &version, &e);
+  if (!e)
+    return TRUE;
+  gboolean gone = code_of (e) == DS_DEVICE_ERROR_TIMEOUT;
+  g_error_free (e);
+  if (gone)
+    g_atomic_int_set (&c->lost, 1);
+  return !gone;
+}
+
 static gboolean
 cam_trigger (gpointer b, GError **error)
 {
@@ -369,6 +415,13 @@ cam_trigger (gpointer b, GError **error)
                  c->settings.trigger_line);
   GError *e = NULL;
   arv_camera_software_trigger (c->camera, &e);
+  /* A control command that timed out went unanswered through all of Aravis's retries: the
+   * camera is gone (asking it again would only wait as long once more). */
+  if (e && code_of (e) == DS_DEVICE_ERROR_TIMEOUT) {
+    g_atomic_int_set (&c->lost, 1);
+    return fail (error, DS_DEVICE_ERROR_DISCONNECTED, e, "TriggerSoftware: \"%s\" does not answer: lost",
+                 c->address);
+  }
   if (e)
     return fail (error, code_of (e), e, "TriggerSoftware");
   return TRUE;
@@ -417,7 +470,12 @@ cam_grab (gpointer b, guint timeout_ms, GError **error)
     if (!check_connected (c, error))
       return NULL;
     c->stats.timeouts++;
-    fail (error, DS_DEVICE_ERROR_TIMEOUT, NULL, "no frame within %u ms", timeout_ms);
+    if (!still_there (c))
+      fail (error, DS_DEVICE_ERROR_DISCONNECTED, NULL,
+            "no frame within %u ms, and \"%s\" does not answer on its control channel: lost", timeout_ms,
+            c->address);
+    else
+      fail (error, DS_DEVICE_ERROR_TIMEOUT, NULL, "no frame within %u ms", timeout_ms);
     return NULL;
   }
   ArvBufferStatus st = arv_buffer_get_status (buf);
