@@ -68,9 +68,13 @@ thread_main (gpointer data)
   g_mutex_unlock (&seq->lock);
   ds_seq_refresh_device_status (seq);
   seq->worker = ds_fold_worker_new (seq);
+  /* Settings applied now, not at the first capture: a pixel format or a gain the camera
+   * refuses shows in status (ready false, with the camera's reason) right after start. */
+  ds_seq_apply_defaults (seq);
   ds_seq_set_state (seq, "idle");
   ds_seq_emit (seq, DS_SEQUENCER_EVENT_READY, 0, NULL, NULL, seq->dev->description);
 
+  guint consecutive_failures = 0;
   for (;;) {
     if (seq->need_reconnect)
       ds_seq_reconnect (seq);
@@ -87,7 +91,22 @@ thread_main (gpointer data)
           g_mutex_unlock (&seq->lock);
         }
         ds_seq_set_state (seq, "continuous");
+        g_mutex_lock (&seq->lock);
+        guint64 failed_before = seq->status.sets_failed;
+        g_mutex_unlock (&seq->lock);
         ds_seq_run_set (seq, &seq->continuous_settings, 0);
+        g_mutex_lock (&seq->lock);
+        gboolean failed = seq->status.sets_failed != failed_before;
+        g_mutex_unlock (&seq->lock);
+        /* Sets that keep failing (a setting the camera refuses fails at once) are spaced out,
+         * 0.1 s doubling to 2 s, instead of spinning: commands and quit still cut the wait. */
+        consecutive_failures = failed ? consecutive_failures + 1 : 0;
+        guint wait_ms = consecutive_failures ? MIN (100u << MIN (consecutive_failures - 1, 5u), 2000u) : 0;
+        for (guint waited = 0; waited < wait_ms && !g_atomic_int_get (&seq->quit) &&
+                               g_async_queue_length (seq->queue) <= 0; waited += 20) {
+          ds_seq_heartbeat (seq);
+          g_usleep (20 * 1000);
+        }
       }
       continue;
     }
@@ -115,6 +134,7 @@ thread_main (gpointer data)
       g_mutex_lock (&seq->lock);
       seq->defaults = cmd->settings;
       g_mutex_unlock (&seq->lock);
+      ds_seq_apply_defaults (seq);
       break;
     case CMD_QUIT:
       break;
@@ -125,7 +145,7 @@ thread_main (gpointer data)
     g_mutex_lock (&seq->lock);
     seq->status.continuous = seq->continuous;
     g_mutex_unlock (&seq->lock);
-    ds_seq_set_state (seq, seq->continuous ? "continuous" : "idle");
+    ds_seq_set_state (seq, seq->need_reconnect ? "reconnecting" : seq->continuous ? "continuous" : "idle");
   }
   if (seq->camera_started)
     seq->dev->camera->ops->stop (seq->dev->camera->backend);
@@ -158,6 +178,7 @@ ds_sequencer_new (DsDevicesOpenFunc open_devices, gpointer open_data,
   g_mutex_init (&seq->lock);
   g_strlcpy (seq->status.state, "opening", sizeof seq->status.state);
   seq->status.phase_offset_cycles = NAN;
+  seq->status.settings_ok = TRUE;
   seq->status.illuminator.applied_phase = -1;
   seq->status.illuminator.temperature_c = NAN;
   seq->status.heartbeat_us = g_get_monotonic_time ();

@@ -117,6 +117,13 @@ typedef struct {
   char last_error[256];
   double phase_offset_cycles;   /* learned stripe-phase offset of phase 0; NAN until learned */
   gint64 heartbeat_us;          /* the thread's last sign of life (g_get_monotonic_time) */
+  gint64 blocking_until_us;     /* inside a device call that may block until then (its own
+                                 * bound: grab timeout, settle timeout...); 0 between calls */
+  /* The configured settings as the devices took them when they opened, reconnected or the
+   * configuration was reloaded: FALSE with the devices' reason (naming the setting and what
+   * the device allows) when they refused one. */
+  gboolean settings_ok;
+  char settings_error[256];
 } DsSequencerStatus;
 
 void ds_sequencer_get_status (DsSequencer *seq, DsSequencerStatus *status);

@@ -22,9 +22,7 @@ ds_seq_choose_operating_point (DsSequencer *seq, DsCaptureSettings *s, DsFrameCo
   g_autoptr (DsImage) dark = ds_seq_acquire_dark (seq, &one, c, error);
   if (!dark)
     return FALSE;
-  if (!ds_seq_apply_pattern (seq, s, error) ||
-      !seq->dev->illuminator->ops->set_phase (seq->dev->illuminator->backend, 0,
-                                              seq->dev->settle_timeout_ms, error)) {
+  if (!ds_seq_apply_pattern (seq, s, error) || !ds_seq_set_phase (seq, 0, error)) {
     c->device_errors++;
     g_prefix_error (error, "preview: illuminator: ");
     ds_seq_fatal_device_error (seq, *error);

@@ -9,6 +9,7 @@
 DsImage *
 ds_seq_acquire_dark (DsSequencer *seq, const DsCaptureSettings *s, DsFrameCounters *c, GError **error)
 {
+  ds_seq_blocking (seq, seq->dev->settle_timeout_ms + DS_SEQ_CONTROL_BOUND_MS);
   if (!seq->dev->illuminator->ops->off (seq->dev->illuminator->backend, seq->dev->settle_timeout_ms,
                                         error)) {
     c->device_errors++;

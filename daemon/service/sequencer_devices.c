@@ -1,5 +1,7 @@
 /* Device operations as the sequencer uses them: each counts what happened (frames acquired,
  * timeouts, device errors, stale drops), and one policy says which errors end a set. */
+#include <string.h>
+
 #include "daemon/protocol/protocol.h"
 #include "daemon/service/sequencer_private.h"
 
@@ -22,6 +24,8 @@ ds_seq_ensure_camera (DsSequencer *seq, const DsCaptureSettings *s, GError **err
     }
     return TRUE;
   }
+  /* Configuring is a few dozen control round trips; any one of them failing ends it. */
+  ds_seq_blocking (seq, 2 * DS_SEQ_CONTROL_BOUND_MS);
   if (seq->camera_started) {
     cam->ops->stop (cam->backend);
     seq->camera_started = FALSE;
@@ -51,7 +55,16 @@ ds_seq_apply_pattern (DsSequencer *seq, const DsCaptureSettings *s, GError **err
   p.duty = s->duty;
   p.black_level = s->black_level;
   p.n_phases = s->phases;
+  ds_seq_blocking (seq, DS_SEQ_CONTROL_BOUND_MS);
   return seq->dev->illuminator->ops->set_pattern (seq->dev->illuminator->backend, &p, error);
+}
+
+gboolean
+ds_seq_set_phase (DsSequencer *seq, guint k, GError **error)
+{
+  ds_seq_blocking (seq, seq->dev->settle_timeout_ms + DS_SEQ_CONTROL_BOUND_MS);
+  return seq->dev->illuminator->ops->set_phase (seq->dev->illuminator->backend, k,
+                                                seq->dev->settle_timeout_ms, error);
 }
 
 /* One frame: trigger and grab. Counts what happened. Returns NULL with error set. */
@@ -59,6 +72,7 @@ DsFrame *
 ds_seq_trigger_and_grab (DsSequencer *seq, DsFrameCounters *c, GError **error)
 {
   gint64 t = g_get_monotonic_time ();
+  ds_seq_blocking (seq, DS_SEQ_CONTROL_BOUND_MS);
   if (!seq->dev->trigger->ops->fire (seq->dev->trigger->backend, error)) {
     c->device_errors++;
     return NULL;
@@ -66,6 +80,9 @@ ds_seq_trigger_and_grab (DsSequencer *seq, DsFrameCounters *c, GError **error)
   ds_seq_stage_add (seq, DS_STAGE_TRIGGER, t);
   t = g_get_monotonic_time ();
   GError *local = NULL;
+  /* The grab's own deadline, then one control round trip asking a silent camera whether it
+   * is still there. */
+  ds_seq_blocking (seq, seq->dev->grab_timeout_ms + DS_SEQ_CONTROL_BOUND_MS);
   DsFrame *frame = seq->dev->camera->ops->grab (seq->dev->camera->backend,
                                                 seq->dev->grab_timeout_ms, &local);
   ds_seq_stage_add (seq, DS_STAGE_GRAB, t);
@@ -111,6 +128,8 @@ ds_seq_fatal_device_error (DsSequencer *seq, const GError *e)
   switch (ds_device_error_policy (e)) {
   case DS_DEVICE_POLICY_RECONNECT:
     seq->need_reconnect = TRUE;
+    /* In status at once, before the failure reaches anyone: not ready until reconnected. */
+    ds_seq_set_state (seq, "reconnecting");
     return TRUE;
   case DS_DEVICE_POLICY_FAIL:
     return TRUE;
@@ -118,6 +137,41 @@ ds_seq_fatal_device_error (DsSequencer *seq, const GError *e)
     break;
   }
   return FALSE;
+}
+
+gboolean
+ds_seq_apply_defaults (DsSequencer *seq)
+{
+  DsCaptureSettings s;
+  g_mutex_lock (&seq->lock);
+  s = seq->defaults;
+  g_mutex_unlock (&seq->lock);
+  /* The stripe geometry is the illuminator's, as a set uses it (sequencer_set.c). */
+  s.pattern = seq->dev->pattern.kind == DS_STRIPES_SINE ? DS_PATTERN_SINE : DS_PATTERN_SQUARE;
+  s.period_px = seq->dev->pattern.period_px;
+  s.duty = seq->dev->pattern.duty;
+  s.black_level = seq->dev->pattern.black_level;
+  g_autoptr (GError) error = NULL;
+  gboolean ok = ds_seq_ensure_camera (seq, &s, &error);
+  if (!ok)
+    g_prefix_error (&error, "camera: ");
+  else if (!(ok = ds_seq_apply_pattern (seq, &s, &error)))
+    g_prefix_error (&error, "illuminator: ");
+  if (!ok)
+    ds_seq_fatal_device_error (seq, error);
+  g_mutex_lock (&seq->lock);
+  /* Reported when it changes (settings_ok starts TRUE: a normal start says nothing). */
+  gboolean changed = seq->status.settings_ok != ok ||
+                     (!ok && strcmp (seq->status.settings_error, error->message) != 0);
+  seq->status.settings_ok = ok;
+  g_strlcpy (seq->status.settings_error, ok ? "" : error->message, sizeof seq->status.settings_error);
+  g_mutex_unlock (&seq->lock);
+  if (changed) {
+    g_autofree char *msg = ok ? g_strdup ("devices took the configured settings")
+                              : g_strdup_printf ("devices refuse the configured settings: %s", error->message);
+    ds_seq_emit (seq, DS_SEQUENCER_EVENT_DEVICE, 0, NULL, NULL, msg);
+  }
+  return ok;
 }
 
 /* Reopens a lost camera (or illuminator) with capped exponential backoff, until it works or
@@ -131,6 +185,7 @@ ds_seq_reconnect (DsSequencer *seq)
   while (!g_atomic_int_get (&seq->quit)) {
     g_autoptr (GError) e1 = NULL;
     g_autoptr (GError) e2 = NULL;
+    ds_seq_blocking (seq, 4 * DS_SEQ_CONTROL_BOUND_MS); /* opening both again */
     gboolean cam_ok = seq->dev->camera->ops->reconnect (seq->dev->camera->backend, &e1);
     gboolean ill_ok = cam_ok && seq->dev->illuminator->ops->reconnect (seq->dev->illuminator->backend, &e2);
     ds_seq_heartbeat (seq);
@@ -142,6 +197,9 @@ ds_seq_reconnect (DsSequencer *seq)
       seq->status.camera_stats.reconnects++;
       g_mutex_unlock (&seq->lock);
       ds_seq_emit (seq, DS_SEQUENCER_EVENT_DEVICE, 0, NULL, NULL, "devices reconnected");
+      /* A camera that came back (or another one at that address) must take the settings
+       * again; a refusal shows in status before the next set. */
+      ds_seq_apply_defaults (seq);
       return;
     }
     ds_seq_record_error (seq, e1 ? e1 : e2);

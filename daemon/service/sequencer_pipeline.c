@@ -169,8 +169,7 @@ run (Pipeline *pl, GError **error)
     if (applied != (int) k) {
       /* Overlaps with the worker verifying and folding the previous phase's last frame. */
       gint64 t = g_get_monotonic_time ();
-      if (!seq->dev->illuminator->ops->set_phase (seq->dev->illuminator->backend, k,
-                                                  seq->dev->settle_timeout_ms, &why)) {
+      if (!ds_seq_set_phase (seq, k, &why)) {
         pl->c->device_errors++;
         applied = -1;
         g_prefix_error (&why, "illuminator: ");

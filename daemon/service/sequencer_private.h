@@ -85,6 +85,13 @@ void ds_seq_emit_dark (DsSequencer *seq, guint64 tag, double dark_mean_dn);
 /* Status (under seq->lock). */
 void ds_seq_set_state (DsSequencer *seq, const char *state);
 void ds_seq_heartbeat (DsSequencer *seq);
+/* Before a device call that may block: a sign of life, and the call's own bound. The watchdog
+ * stays fed while the thread waits that long (a camera timing out is not a wedged thread),
+ * and starves beyond it. The next heartbeat ends the declaration. */
+void ds_seq_blocking (DsSequencer *seq, guint bound_ms);
+/* A control round trip with the libraries' own retries (GVCP, Modbus): what a device call
+ * without a timeout of its own may take before it fails. */
+#define DS_SEQ_CONTROL_BOUND_MS 5000
 void ds_seq_stage_add (DsSequencer *seq, DsStage stage, gint64 since_us);
 void ds_seq_record_error (DsSequencer *seq, const GError *error);
 void ds_seq_refresh_device_status (DsSequencer *seq);
@@ -95,6 +102,8 @@ void ds_seq_account (DsSequencer *seq, const DsFrameCounters *c, gboolean ok);
 
 gboolean ds_seq_ensure_camera (DsSequencer *seq, const DsCaptureSettings *s, GError **error);
 gboolean ds_seq_apply_pattern (DsSequencer *seq, const DsCaptureSettings *s, GError **error);
+/* Lights phase k, within the illuminator's settle timeout. */
+gboolean ds_seq_set_phase (DsSequencer *seq, guint k, GError **error);
 /* One frame: trigger and grab. Counts what happened. Returns NULL with error set. */
 DsFrame *ds_seq_trigger_and_grab (DsSequencer *seq, DsFrameCounters *c, GError **error);
 /* Drops (and counts as stale) every frame already delivered but not grabbed. */
@@ -106,6 +115,10 @@ gboolean ds_seq_check_quit (DsSequencer *seq, GError **error);
 gboolean ds_seq_fatal_device_error (DsSequencer *seq, const GError *e);
 /* Reopens lost devices with capped backoff until they work or the daemon stops. */
 void ds_seq_reconnect (DsSequencer *seq);
+/* Applies the default settings (camera configured and started, pattern loaded) so that a
+ * setting the devices refuse shows in status at once, not at the first capture; records the
+ * outcome (status.settings_ok / settings_error) and reports a change as a device event. */
+gboolean ds_seq_apply_defaults (DsSequencer *seq);
 
 /* ---- sequencer_set.c ---- */
 

@@ -95,6 +95,7 @@ ds_seq_set_state (DsSequencer *seq, const char *state)
   g_mutex_lock (&seq->lock);
   g_strlcpy (seq->status.state, state, sizeof seq->status.state);
   seq->status.heartbeat_us = g_get_monotonic_time ();
+  seq->status.blocking_until_us = 0;
   g_mutex_unlock (&seq->lock);
 }
 
@@ -103,6 +104,16 @@ ds_seq_heartbeat (DsSequencer *seq)
 {
   g_mutex_lock (&seq->lock);
   seq->status.heartbeat_us = g_get_monotonic_time ();
+  seq->status.blocking_until_us = 0;
+  g_mutex_unlock (&seq->lock);
+}
+
+void
+ds_seq_blocking (DsSequencer *seq, guint bound_ms)
+{
+  g_mutex_lock (&seq->lock);
+  seq->status.heartbeat_us = g_get_monotonic_time ();
+  seq->status.blocking_until_us = seq->status.heartbeat_us + (gint64) bound_ms * 1000;
   g_mutex_unlock (&seq->lock);
 }
 
@@ -114,6 +125,7 @@ ds_seq_stage_add (DsSequencer *seq, DsStage stage, gint64 since_us)
   seq->status.stages[stage].total_ms += ms;
   seq->status.stages[stage].count++;
   seq->status.heartbeat_us = g_get_monotonic_time ();
+  seq->status.blocking_until_us = 0;
   g_mutex_unlock (&seq->lock);
 }
 

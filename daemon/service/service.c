@@ -559,8 +559,23 @@ status_to_json (DsService *svc)
   add_string (b, "git", DS_GIT_DESCRIBE);
   add_double (b, "uptime_s", (double) (g_get_monotonic_time () - svc->started_us) / 1e6);
   add_string (b, "state", st.state);
+  /* Ready: devices open, the configured settings taken, no device being reconnected; else
+   * the reason, naming the setting and what the device allows. */
+  g_autofree char *not_ready = NULL;
+  if (!svc->ready)
+    not_ready = strcmp (st.state, "failed") == 0 ? g_strdup_printf ("devices failed to open: %s", st.last_error)
+                                                  : g_strdup ("devices are opening");
+  else if (strcmp (st.state, "reconnecting") == 0)
+    not_ready = g_strdup_printf ("reconnecting: %s", st.last_error);
+  else if (!st.settings_ok)
+    not_ready = g_strdup_printf ("devices refuse the configured settings: %s", st.settings_error);
   json_builder_set_member_name (b, "ready");
-  json_builder_add_boolean_value (b, svc->ready);
+  json_builder_add_boolean_value (b, not_ready == NULL);
+  json_builder_set_member_name (b, "not_ready_reason");
+  if (not_ready)
+    json_builder_add_string_value (b, not_ready);
+  else
+    json_builder_add_null_value (b);
   json_builder_set_member_name (b, "continuous");
   json_builder_add_boolean_value (b, st.continuous);
   add_uint (b, "pending", st.pending);
@@ -753,11 +768,16 @@ watchdog_tick (gpointer data)
   DsService *svc = data;
   DsSequencerStatus st;
   ds_sequencer_get_status (svc->sequencer, &st);
-  gint64 age = g_get_monotonic_time () - st.heartbeat_us;
-  if ((guint64) age < svc->watchdog_usec / 2)
+  gint64 now = g_get_monotonic_time ();
+  gint64 age = now - st.heartbeat_us;
+  /* Alive: a recent sign of life, or inside a device call within that call's own bound (a
+   * camera timing out, a reconnect). A call past its bound is a wedged driver: no ping, and
+   * systemd restarts the service. */
+  if ((guint64) age < svc->watchdog_usec / 2 || now < st.blocking_until_us)
     sd_notify (0, "WATCHDOG=1");
   else
-    g_warning ("acquisition thread silent for %.1f s: not pinging the watchdog", (double) age / 1e6);
+    g_warning ("acquisition thread silent for %.1f s%s: not pinging the watchdog", (double) age / 1e6,
+               st.blocking_until_us ? ", past the bound of the device call it is in" : "");
   return G_SOURCE_CONTINUE;
 }
 
