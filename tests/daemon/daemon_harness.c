@@ -16,6 +16,13 @@ die_with_parent (gpointer data)
 TestDaemon *
 test_daemon_start (const char *config_text, const char *const *extra_args)
 {
+  return test_daemon_start_full (config_text, extra_args, NULL, TRUE);
+}
+
+TestDaemon *
+test_daemon_start_full (const char *config_text, const char *const *extra_args, const char *const *env,
+                        gboolean wait_ready)
+{
   TestDaemon *d = g_new0 (TestDaemon, 1);
   g_autoptr (GError) error = NULL;
   d->dir = g_dir_make_tmp ("descatterd-test-XXXXXX", &error);
@@ -35,19 +42,25 @@ test_daemon_start (const char *config_text, const char *const *extra_args)
     g_ptr_array_add (argv, (gpointer) extra_args[i]);
   g_ptr_array_add (argv, NULL);
   g_autoptr (GSubprocessLauncher) launcher = g_subprocess_launcher_new (G_SUBPROCESS_FLAGS_NONE);
+  for (guint i = 0; env && env[i] && env[i + 1]; i += 2)
+    g_subprocess_launcher_setenv (launcher, env[i], env[i + 1], TRUE);
   /* The daemon dies with the test, even when an assertion aborts it. */
   g_subprocess_launcher_set_child_setup (launcher, die_with_parent, NULL, NULL);
   d->proc = g_subprocess_launcher_spawnv (launcher, (const char *const *) argv->pdata, &error);
   g_assert_no_error (error);
-  /* Ready = `status` answers ready (the simulated lab may take seconds to build). */
+  /* Ready = `status` answers ready (the simulated lab may take seconds to build); or, when not
+   * waiting for that, answers with the devices opened (ready or not, with a reason). */
   for (guint i = 0; i < 1200; i++) {
     /* The identifier goes away once the process has exited (and been reaped). */
     g_assert_nonnull (g_subprocess_get_identifier (d->proc));
     g_autoptr (DsClient) c = ds_client_connect (d->socket_path, NULL);
     if (c) {
       g_autoptr (DsMessage) m = ds_client_call (c, "status", NULL, NULL, NULL, NULL);
-      if (m && m->reply->ok &&
-          json_object_get_boolean_member_with_default (json_node_get_object (m->reply->body), "ready", FALSE))
+      JsonObject *st = m && m->reply->ok ? json_node_get_object (m->reply->body) : NULL;
+      if (st && json_object_get_boolean_member_with_default (st, "ready", FALSE))
+        return d;
+      const char *why = st ? json_object_get_string_member_with_default (st, "not_ready_reason", NULL) : NULL;
+      if (st && !wait_ready && why && !strstr (why, "opening"))
         return d;
     }
     g_usleep (100 * 1000);

@@ -16,6 +16,10 @@ typedef struct {
  * extra_args: NULL-terminated, may be NULL. Fails the test if the daemon is not ready within
  * the timeout. */
 TestDaemon *test_daemon_start (const char *config_text, const char *const *extra_args);
+/* The same with environment variables (NULL-terminated name, value pairs) and, when wait_ready
+ * is FALSE, returning once the devices were opened, ready or not (a refused setting). */
+TestDaemon *test_daemon_start_full (const char *config_text, const char *const *extra_args,
+                                    const char *const *env, gboolean wait_ready);
 /* SIGTERM and wait; returns the exit status. */
 int test_daemon_stop (TestDaemon *d);
 void test_daemon_free (TestDaemon *d);
