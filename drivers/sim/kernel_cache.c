@@ -19,7 +19,7 @@
 #include "drivers/sim/transport.h"
 
 /* Bump whenever the physics or the layout changes: old files then miss. */
-#define DS_KERNELS_CODE_VERSION "ds-kernels-4"
+#define DS_KERNELS_CODE_VERSION "ds-kernels-5"
 #define DS_KERNELS_MAGIC "DSKRN001"
 #define MAGIC_LEN 8
 #define KEY_LEN 64

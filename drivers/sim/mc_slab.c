@@ -163,6 +163,11 @@ transport (const DsSlab *s, guint64 photons, DsRng *rng_in, double cos_accept, T
   /* Matched faces never reflect: no Fresnel evaluation per exit. */
   const gboolean match_above = s->n_above == s->n_medium, match_below = s->n_below == s->n_medium;
   const DsSlabPlanes *pl = tracking ? t->planes : NULL;
+  /* Henyey-Greenstein by CDF inversion (as ds_hg_sample_cos) with its constants hoisted:
+   * cos = (1 + g^2 - t^2) / (2g), t = (1 - g^2) / (1 - g + 2 g xi). */
+  const gboolean isotropic = fabs (s->g) < 1e-6;
+  const double hg_num = 1.0 - s->g * s->g, hg_b = 1.0 - s->g, hg_c = 2.0 * s->g, hg_d = 1.0 + s->g * s->g;
+  const double hg_inv_2g = isotropic ? 0.0 : 1.0 / (2.0 * s->g);
   DsRng rng = *rng_in;
   for (guint64 i = 0; i < photons; i++) {
     double x = 0, y = 0, z = 0, ux = 0, uy = 0, uz = 1, w = w0;
@@ -224,7 +229,13 @@ transport (const DsSlab *s, guint64 photons, DsRng *rng_in, double cos_accept, T
       }
       /* New direction: HG polar angle, uniform azimuth (cos, sin from a point in the unit
        * disc: no trigonometry). */
-      double ct = ds_hg_sample_cos (s->g, ds_rng_uniform (&rng));
+      double xi = ds_rng_uniform (&rng), ct;
+      if (isotropic)
+        ct = 2.0 * xi - 1.0;
+      else {
+        double tt = hg_num / (hg_b + hg_c * xi);
+        ct = CLAMP ((hg_d - tt * tt) * hg_inv_2g, -1.0, 1.0);
+      }
       double st = sqrt (MAX (0.0, 1.0 - ct * ct));
       double a, b, r2;
       do {
@@ -232,15 +243,16 @@ transport (const DsSlab *s, guint64 photons, DsRng *rng_in, double cos_accept, T
         b = 2.0 * ds_rng_uniform (&rng) - 1.0;
         r2 = a * a + b * b;
       } while (r2 > 1.0 || r2 == 0.0);
-      double cp = (a * a - b * b) / r2, sp = 2.0 * a * b / r2;
+      double inv_r2 = 1.0 / r2;
+      double cp = (a * a - b * b) * inv_r2, sp = 2.0 * a * b * inv_r2;
       if (fabs (uz) > 0.99999) {
         ux = st * cp;
         uy = st * sp;
         uz = uz > 0 ? ct : -ct;
       } else {
-        double root = sqrt (1.0 - uz * uz);
-        double nx = st * (ux * uz * cp - uy * sp) / root + ux * ct;
-        double ny = st * (uy * uz * cp + ux * sp) / root + uy * ct;
+        double root = sqrt (1.0 - uz * uz), f = st / root;
+        double nx = f * (ux * uz * cp - uy * sp) + ux * ct;
+        double ny = f * (uy * uz * cp + ux * sp) + uy * ct;
         double nz = -st * cp * root + uz * ct;
         ux = nx;
         uy = ny;

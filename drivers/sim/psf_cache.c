@@ -13,7 +13,7 @@
 #include "drivers/sim/transport.h"
 
 /* Bump whenever the physics or the file layout changes: old files then miss. */
-#define DS_TRANSPORT_CODE_VERSION "ds-transport-3"
+#define DS_TRANSPORT_CODE_VERSION "ds-transport-4"
 #define DS_PSF_MAGIC "DSPSF001"
 #define DS_PSF_MAGIC_LEN 8
 #define DS_PSF_KEY_LEN 64

@@ -23,27 +23,6 @@ ds_rng_seed (DsRng *r, guint64 seed)
     r->s[0] = 1;
 }
 
-static inline guint64
-rotl (guint64 x, int k)
-{
-  return (x << k) | (x >> (64 - k));
-}
-
-guint64
-ds_rng_next (DsRng *r)
-{
-  guint64 *s = r->s;
-  guint64 result = rotl (s[1] * 5, 7) * 9;
-  guint64 t = s[1] << 17;
-  s[2] ^= s[0];
-  s[3] ^= s[1];
-  s[1] ^= s[2];
-  s[0] ^= s[3];
-  s[2] ^= t;
-  s[3] = rotl (s[3], 45);
-  return result;
-}
-
 void
 ds_rng_jump (DsRng *r)
 {
@@ -69,18 +48,6 @@ ds_rng_seed_stream (DsRng *r, guint64 seed, guint64 stream)
   /* A few thousand steps per jump: streams are meant to be few (one per worker). */
   for (guint64 i = 0; i < stream; i++)
     ds_rng_jump (r);
-}
-
-double
-ds_rng_uniform (DsRng *r)
-{
-  return (double) (ds_rng_next (r) >> 11) * 0x1.0p-53;
-}
-
-double
-ds_rng_uniform_open0 (DsRng *r)
-{
-  return (double) ((ds_rng_next (r) >> 11) + 1) * 0x1.0p-53;
 }
 
 double
