@@ -3,6 +3,7 @@
  * baselines measured in the same run: a memcpy of one f32 frame, and the minimal scene
  * (pattern + sensor only) at the same size. Asserts no timing.
  *   bench_render [--quick] [--frames N] [--size S] [--cache-dir DIR] [SCENE...] */
+#include <math.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -57,6 +58,34 @@ bench_scene (const char *label, const DsScene *scene, guint frames, const char *
     }
     for (guint s = 0; s < DS_RENDER_N_STAGES; s++)
       secs[s] = MIN (secs[s], frame_secs[s]);
+  }
+  /* The benchmark checks what it renders: a noisy frame averages to the expected one where the
+   * sensor clips neither at saturation nor at 0 (the model has no black offset: read noise below
+   * 0 DN is cut), within 5 standard errors of shot and read noise over those pixels. */
+  DsRenderRequest req = { .phase = 1, .n_phases = 4, .illuminator_on = TRUE,
+                          .exposure_us = ds_scene_default_exposure_us (scene), .seed = 99 };
+  g_autoptr (DsImage) noisy = ds_renderer_render (r, &req, &error);
+  g_autoptr (DsImage) mean = noisy ? ds_renderer_render_expected (r, &req, &error) : NULL;
+  if (!mean) {
+    fprintf (stderr, "bench_render: %s: %s\n", label, error->message);
+    return FALSE;
+  }
+  double sat = ds_renderer_saturation_dn (r, 0), diff = 0, var = 0, n = 0;
+  double k = ds_scene_system_gain (scene), rn = ds_scene_read_noise_dn (scene), floor_dn = 5 * rn + 1;
+  for (guint y = 0; y < mean->height; y++) {
+    const float *e = ds_image_row (mean, y);
+    const guint16 *f = ds_image_row (noisy, y);
+    for (guint x = 0; x < mean->width; x++)
+      if (e[x] < 0.9 * sat && e[x] > floor_dn) {
+        diff += f[x] - e[x];
+        var += k * MAX (e[x], 0.0f) + rn * rn + 1.0 / 12;
+        n++;
+      }
+  }
+  if (n > 0 && fabs (diff / n) > 5 * sqrt (var) / n + 0.05) {
+    fprintf (stderr, "bench_render: %s: frame mean %.3f DN off its expectation (5 sigma: %.3f)\n", label, diff / n,
+             5 * sqrt (var) / n);
+    return FALSE;
   }
   double total = 0;
   for (guint s = 0; s < DS_RENDER_N_STAGES; s++) {
