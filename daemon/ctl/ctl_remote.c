@@ -53,6 +53,20 @@ ds_ctl_stop (const DsCtlTarget *target, int argc, char **argv)
 }
 
 int
+ds_ctl_release (const DsCtlTarget *target, int argc, char **argv)
+{
+  return simple_command (target, argc, argv, "release",
+                         "Closes the camera and illuminator so that another program (arv-viewer) can open the "
+                         "camera; captures are refused until `descatterctl acquire`.");
+}
+
+int
+ds_ctl_acquire (const DsCtlTarget *target, int argc, char **argv)
+{
+  return simple_command (target, argc, argv, "acquire", "Opens the devices again after `descatterctl release`.");
+}
+
+int
 ds_ctl_config (const DsCtlTarget *target, int argc, char **argv)
 {
   GOptionEntry entries[] = { { NULL } };

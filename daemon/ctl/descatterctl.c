@@ -19,6 +19,8 @@ static const struct {
   { "stream", ds_ctl_stream, NULL, "subscribe and write/print results as they come" },
   { "start", ds_ctl_start, NULL, "start continuous acquisition" },
   { "stop", ds_ctl_stop, NULL, "stop continuous acquisition" },
+  { "release", ds_ctl_release, NULL, "close the devices so that arv-viewer can take the camera" },
+  { "acquire", ds_ctl_acquire, NULL, "open the devices again after release" },
   { "dark", ds_ctl_dark, NULL, "calibrate the dark frame (illuminator off)" },
   { "config", ds_ctl_config, NULL, "print the daemon's effective configuration" },
   { "separate", NULL, ds_ctl_separate, "separate a folder of phase images offline (no daemon)" },

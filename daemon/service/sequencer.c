@@ -13,6 +13,8 @@ typedef enum {
   CMD_START,
   CMD_STOP,
   CMD_DEFAULTS,
+  CMD_RELEASE,
+  CMD_ACQUIRE,
   CMD_QUIT,
 } CommandKind;
 
@@ -33,6 +35,68 @@ ds_stage_name (DsStage stage)
 }
 
 G_DEFINE_QUARK (ds-sequencer-error-quark, ds_sequencer_error)
+
+/* Closes the devices (another program may then open the camera); the thread keeps running and
+ * answers captures with NOT_READY until they are acquired again. */
+static void
+release_devices (DsSequencer *seq, guint64 tag)
+{
+  if (seq->dev) {
+    seq->continuous = FALSE;
+    if (seq->camera_started)
+      seq->dev->camera->ops->stop (seq->dev->camera->backend);
+    g_autoptr (GError) off_error = NULL;
+    seq->dev->illuminator->ops->off (seq->dev->illuminator->backend, seq->dev->settle_timeout_ms, &off_error);
+    g_clear_pointer (&seq->dev, ds_devices_close);
+    seq->camera_started = seq->camera_configured = FALSE;
+    seq->need_reconnect = FALSE;
+    g_mutex_lock (&seq->lock);
+    g_strlcpy (seq->status.devices, "released", sizeof seq->status.devices);
+    seq->status.camera_info.connected = FALSE;
+    seq->status.illuminator.ready = FALSE;
+    seq->status.continuous = FALSE;
+    g_mutex_unlock (&seq->lock);
+  }
+  ds_seq_set_state (seq, "released");
+  ds_seq_emit (seq, DS_SEQUENCER_EVENT_CONTROL, tag, NULL, NULL, "devices released: another program may open the camera");
+}
+
+static void
+acquire_devices (DsSequencer *seq, guint64 tag)
+{
+  if (seq->dev) {
+    ds_seq_emit (seq, DS_SEQUENCER_EVENT_CONTROL, tag, NULL, NULL, "devices already open");
+    return;
+  }
+  ds_seq_set_state (seq, "opening");
+  GError *error = NULL;
+  seq->dev = seq->open_devices (seq->open_data, &error);
+  if (!seq->dev) {
+    ds_seq_record_error (seq, error);
+    ds_seq_set_state (seq, "released");
+    g_prefix_error (&error, "acquire: ");
+    ds_seq_emit (seq, DS_SEQUENCER_EVENT_CONTROL, tag, NULL, error, NULL);
+    return;
+  }
+  g_mutex_lock (&seq->lock);
+  g_strlcpy (seq->status.devices, seq->dev->description, sizeof seq->status.devices);
+  g_mutex_unlock (&seq->lock);
+  ds_seq_refresh_device_status (seq);
+  /* Devices opened again must take the settings again, as at start and after a reconnect. */
+  ds_seq_apply_defaults (seq);
+  ds_seq_set_state (seq, "idle");
+  ds_seq_emit (seq, DS_SEQUENCER_EVENT_CONTROL, tag, NULL, NULL, seq->dev->description);
+}
+
+/* A capture or dark frame while the devices are released. */
+static void
+refuse_released (DsSequencer *seq, const Command *cmd)
+{
+  ds_seq_emit (seq, cmd->kind == CMD_DARK ? DS_SEQUENCER_EVENT_DARK : DS_SEQUENCER_EVENT_FAILED, cmd->tag, NULL,
+               g_error_new (DS_SEQUENCER_ERROR, DS_SEQUENCER_ERROR_NOT_READY,
+                            "the devices are released (another program may hold the camera): send acquire first"),
+               NULL);
+}
 
 static gpointer
 thread_main (gpointer data)
@@ -76,7 +140,7 @@ thread_main (gpointer data)
 
   guint consecutive_failures = 0;
   for (;;) {
-    if (seq->need_reconnect)
+    if (seq->need_reconnect && seq->dev)
       ds_seq_reconnect (seq);
     Command *cmd = seq->continuous ? g_async_queue_try_pop (seq->queue)
                                    : g_async_queue_timeout_pop (seq->queue, G_USEC_PER_SEC / 2);
@@ -111,6 +175,12 @@ thread_main (gpointer data)
       continue;
     }
     CommandKind kind = cmd->kind;
+    if (!seq->dev && (kind == CMD_CAPTURE || kind == CMD_DARK)) {
+      refuse_released (seq, cmd);
+      g_atomic_int_add (&seq->pending, -1);
+      g_free (cmd);
+      continue;
+    }
     switch (kind) {
     case CMD_CAPTURE:
       ds_seq_set_state (seq, "acquiring");
@@ -123,6 +193,11 @@ thread_main (gpointer data)
       g_atomic_int_add (&seq->pending, -1);
       break;
     case CMD_START:
+      if (!seq->dev) {
+        ds_seq_emit (seq, DS_SEQUENCER_EVENT_DEVICE, 0, NULL, NULL,
+                     "continuous acquisition not started: the devices are released (send acquire first)");
+        break;
+      }
       seq->continuous = TRUE;
       seq->continuous_settings = cmd->settings;
       seq->continuous_uses_defaults = cmd->tag == 1;
@@ -134,7 +209,17 @@ thread_main (gpointer data)
       g_mutex_lock (&seq->lock);
       seq->defaults = cmd->settings;
       g_mutex_unlock (&seq->lock);
-      ds_seq_apply_defaults (seq);
+      /* Released devices take the new defaults when they are acquired again. */
+      if (seq->dev)
+        ds_seq_apply_defaults (seq);
+      break;
+    case CMD_RELEASE:
+      release_devices (seq, cmd->tag);
+      g_atomic_int_add (&seq->pending, -1);
+      break;
+    case CMD_ACQUIRE:
+      acquire_devices (seq, cmd->tag);
+      g_atomic_int_add (&seq->pending, -1);
       break;
     case CMD_QUIT:
       break;
@@ -145,13 +230,14 @@ thread_main (gpointer data)
     g_mutex_lock (&seq->lock);
     seq->status.continuous = seq->continuous;
     g_mutex_unlock (&seq->lock);
-    ds_seq_set_state (seq, seq->need_reconnect ? "reconnecting" : seq->continuous ? "continuous" : "idle");
+    ds_seq_set_state (seq, !seq->dev ? "released" : seq->need_reconnect ? "reconnecting"
+                           : seq->continuous ? "continuous" : "idle");
   }
-  if (seq->camera_started)
+  if (seq->dev && seq->camera_started)
     seq->dev->camera->ops->stop (seq->dev->camera->backend);
   g_autoptr (GError) off_error = NULL;
-  seq->dev->illuminator->ops->off (seq->dev->illuminator->backend, seq->dev->settle_timeout_ms,
-                                   &off_error);
+  if (seq->dev)
+    seq->dev->illuminator->ops->off (seq->dev->illuminator->backend, seq->dev->settle_timeout_ms, &off_error);
   g_clear_pointer (&seq->worker, ds_fold_worker_free);
   return NULL;
 }
@@ -244,6 +330,29 @@ ds_sequencer_dark (DsSequencer *seq, const DsCaptureSettings *settings, guint64 
   }
   push (seq, CMD_DARK, settings, tag);
   return TRUE;
+}
+
+static gboolean
+push_counted (DsSequencer *seq, CommandKind kind, guint64 tag)
+{
+  if (g_atomic_int_add (&seq->pending, 1) >= MAX_PENDING) {
+    g_atomic_int_add (&seq->pending, -1);
+    return FALSE;
+  }
+  push (seq, kind, NULL, tag);
+  return TRUE;
+}
+
+gboolean
+ds_sequencer_release (DsSequencer *seq, guint64 tag)
+{
+  return push_counted (seq, CMD_RELEASE, tag);
+}
+
+gboolean
+ds_sequencer_acquire (DsSequencer *seq, guint64 tag)
+{
+  return push_counted (seq, CMD_ACQUIRE, tag);
 }
 
 void

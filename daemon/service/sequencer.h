@@ -32,6 +32,7 @@ typedef enum {
   DS_SEQUENCER_EVENT_PROGRESS,    /* phase (0-based) of n_phases done for tag */
   DS_SEQUENCER_EVENT_DARK,        /* dark frame calibrated (dark_mean_dn) or error */
   DS_SEQUENCER_EVENT_DEVICE,      /* a device state change worth logging: message */
+  DS_SEQUENCER_EVENT_CONTROL,     /* devices released or acquired for `tag` (error set if not) */
 } DsSequencerEventKind;
 
 typedef struct {
@@ -63,6 +64,12 @@ G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsSequencer, ds_sequencer_free)
 /* One set with these settings; answered by a RESULT or FAILED event with `tag`. Returns FALSE
  * (busy) when max_pending captures are already queued. */
 gboolean ds_sequencer_capture (DsSequencer *seq, const DsCaptureSettings *settings, guint64 tag);
+/* Releases the devices so that another program can take the camera (arv-viewer, arv-tool):
+ * continuous acquisition stops, the camera and illuminator are closed (the GigE Vision control
+ * privilege with them); captures fail with NOT_READY until ds_sequencer_acquire reopens them.
+ * Answered by a CONTROL event with `tag`. FALSE (busy) like ds_sequencer_capture. */
+gboolean ds_sequencer_release (DsSequencer *seq, guint64 tag);
+gboolean ds_sequencer_acquire (DsSequencer *seq, guint64 tag);
 /* Continuous mode: sets back to back with these settings until stopped (tag 0 events). */
 void ds_sequencer_start (DsSequencer *seq, const DsCaptureSettings *settings);
 void ds_sequencer_stop (DsSequencer *seq);

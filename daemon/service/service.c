@@ -240,6 +240,28 @@ on_sequencer_event (const DsSequencerEvent *ev, gpointer user_data)
       }
     }
     break;
+  case DS_SEQUENCER_EVENT_CONTROL:
+    if (ev->error)
+      g_warning ("%s", ev->error->message);
+    else
+      g_message ("%s", ev->message);
+    if (p && ev->error) {
+      g_autoptr (GError) wire = ds_wire_error_new (ev->error);
+      ds_server_reply_error (svc->server, p->conn, p->id, wire);
+    } else if (p) {
+      DsSequencerStatus st;
+      ds_sequencer_get_status (svc->sequencer, &st);
+      g_autoptr (JsonBuilder) b = json_builder_new ();
+      json_builder_begin_object (b);
+      json_builder_set_member_name (b, "state");
+      json_builder_add_string_value (b, st.state);
+      json_builder_set_member_name (b, "message");
+      json_builder_add_string_value (b, ev->message);
+      json_builder_end_object (b);
+      g_autoptr (JsonNode) body = json_builder_get_root (b);
+      ds_server_reply_ok (svc->server, p->conn, p->id, body, NULL, NULL, 0);
+    }
+    break;
   case DS_SEQUENCER_EVENT_DEVICE:
     g_message ("%s", ev->message);
     notify_status (svc, ev->message);
@@ -438,6 +460,51 @@ handle_dark (DsService *svc, DsConnection *conn, DsRequest *req)
   ds_connection_hold (conn);
   p->id = req->id ? json_node_copy (req->id) : NULL;
   g_hash_table_insert (svc->pending, &p->tag, p);
+}
+
+/* release / acquire: the devices closed for another program (arv-viewer) and opened again. */
+static void
+handle_control (DsService *svc, DsConnection *conn, DsRequest *req, gboolean release)
+{
+  static const char *const keys[] = { NULL };
+  g_autoptr (GError) error = NULL;
+  if (!ds_request_check_keys (req, keys, &error)) {
+    ds_server_reply_error (svc->server, conn, req->id, error);
+    return;
+  }
+  guint64 tag = ++svc->next_tag;
+  gboolean queued = svc->ready && (release ? ds_sequencer_release (svc->sequencer, tag)
+                                           : ds_sequencer_acquire (svc->sequencer, tag));
+  if (!queued) {
+    g_set_error (&error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BUSY, "%s: %s", req->cmd,
+                 svc->ready ? "too many requests queued" : "the devices are not open yet");
+    ds_server_reply_error (svc->server, conn, req->id, error);
+    return;
+  }
+  /* The set in progress ends the run; the run file closes after it. */
+  if (release) {
+    svc->in_run = FALSE;
+    if (svc->spool)
+      ds_spool_end_run (svc->spool);
+  }
+  PendingCapture *p = g_new0 (PendingCapture, 1);
+  p->tag = tag;
+  p->conn = ds_connection_ref (conn);
+  ds_connection_hold (conn);
+  p->id = req->id ? json_node_copy (req->id) : NULL;
+  g_hash_table_insert (svc->pending, &p->tag, p);
+}
+
+static void
+handle_release (DsService *svc, DsConnection *conn, DsRequest *req)
+{
+  handle_control (svc, conn, req, TRUE);
+}
+
+static void
+handle_acquire (DsService *svc, DsConnection *conn, DsRequest *req)
+{
+  handle_control (svc, conn, req, FALSE);
 }
 
 static void
@@ -747,6 +814,7 @@ on_request (DsServer *server, DsConnection *conn, DsRequest *req, gpointer user_
   } commands[] = {
     { "status", handle_status }, { "capture", handle_capture }, { "dark", handle_dark },
     { "start", handle_start },   { "stop", handle_stop },       { "config", handle_config },
+    { "release", handle_release }, { "acquire", handle_acquire },
   };
   for (guint i = 0; i < G_N_ELEMENTS (commands); i++)
     if (strcmp (req->cmd, commands[i].cmd) == 0) {
@@ -755,7 +823,7 @@ on_request (DsServer *server, DsConnection *conn, DsRequest *req, gpointer user_
     }
   g_autoptr (GError) error = g_error_new (DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_UNKNOWN_COMMAND,
                                           "unknown command \"%s\" (commands: hello, status, capture, "
-                                          "subscribe, unsubscribe, start, stop, dark, config)",
+                                          "subscribe, unsubscribe, start, stop, dark, config, release, acquire)",
                                           req->cmd);
   ds_server_reply_error (server, conn, req->id, error);
 }

@@ -8,6 +8,8 @@
 #include <string.h>
 #include <unistd.h>
 
+#include <arv.h>
+
 #include "daemon_harness.h"
 #include "truth_check.h"
 
@@ -113,6 +115,56 @@ test_faults_over_the_wire (void)
   test_labsim_stop (l);
 }
 
+/* Whether a second program opening the camera gets its control privilege (the GigE Vision
+ * CCP register), and can then write a feature, as arv-viewer would. */
+static gboolean
+another_program_controls (void)
+{
+  g_autoptr (GError) error = NULL;
+  g_autoptr (ArvCamera) cam = arv_camera_new ("127.0.0.1", &error);
+  if (!cam) {
+    g_test_message ("second program: cannot open the camera: %s", error->message);
+    return FALSE;
+  }
+  gboolean controller = arv_gv_device_is_controller (ARV_GV_DEVICE (arv_camera_get_device (cam)));
+  double exposure = arv_camera_get_exposure_time (cam, &error);
+  g_assert_no_error (error);
+  if (controller)
+    arv_camera_set_exposure_time (cam, exposure, &error);
+  g_test_message ("second program: controller %d%s%s", controller, error ? ", writing failed: " : "",
+                  error ? error->message : "");
+  return controller && !error;
+}
+
+/* release hands the camera to another program (arv-viewer, arv-tool) and acquire takes it back:
+ * while descatterd holds the camera nobody else controls it; after release someone else can;
+ * after acquire captures work again. */
+static void
+test_release_for_another_program (void)
+{
+  TestLabsim *l = test_labsim_start (labsim_path, scene_path, NULL);
+  g_autofree char *conf = daemon_config (l, NULL);
+  TestDaemon *d = test_daemon_start (conf, NULL);
+  g_autoptr (DsClient) c = test_daemon_connect (d);
+  g_autoptr (DsMessage) first = test_daemon_call_ok (c, "capture", NULL);
+  g_assert_false (another_program_controls ());
+  g_autoptr (DsMessage) rel = test_daemon_call_ok (c, "release", NULL);
+  g_assert_cmpstr (json_object_get_string_member (json_node_get_object (rel->reply->body), "state"), ==, "released");
+  g_autoptr (GError) error = NULL;
+  g_autoptr (DsMessage) refused = ds_client_call (c, "capture", NULL, NULL, NULL, &error);
+  g_assert_no_error (error);
+  g_assert_false (refused->reply->ok);
+  g_assert_nonnull (strstr (refused->reply->error_message, "acquire"));
+  g_assert_true (another_program_controls ());
+  g_autoptr (DsMessage) acq = test_daemon_call_ok (c, "acquire", NULL);
+  g_assert_cmpstr (json_object_get_string_member (json_node_get_object (acq->reply->body), "state"), ==, "idle");
+  g_autoptr (DsMessage) again = test_daemon_call_ok (c, "capture", NULL);
+  g_assert_false (another_program_controls ());
+  g_assert_cmpint (test_daemon_stop (d), ==, 0);
+  test_daemon_free (d);
+  test_labsim_stop (l);
+}
+
 int
 main (int argc, char **argv)
 {
@@ -128,6 +180,7 @@ main (int argc, char **argv)
   g_assert_no_error (error);
   scene_exposure_us = ds_scene_default_exposure_us (the_scene);
   g_test_add_func ("/daemon-labsim/capture-over-the-wire", test_capture_over_the_wire);
+  g_test_add_func ("/daemon-labsim/release-for-another-program", test_release_for_another_program);
   g_test_add_func ("/daemon-labsim/faults", test_faults_over_the_wire);
   int status = g_test_run ();
   ds_scene_free (the_scene);

@@ -2,8 +2,8 @@
 """The live view in a real browser (headless Chromium over its DevTools protocol) against
 `descatterd` on the simulated lab: the page connects with the token, draws frames with the
 measured stripe period, sees its images change as sets complete (the transmissive canvas's
-pixels differ between two results), and its Capture button makes the daemon take one set whose
-result the page then shows. Optionally saves a screenshot (docs/live-view.png is made so:
+pixels differ between two results), its Capture button makes the daemon take one set whose
+result the page then shows, and Release/Acquire close and reopen the devices. Optionally saves a screenshot (docs/live-view.png is made so:
 tests/daemon/test_live_view.py DESCATTERD DESCATTERCTL docs/live-view.png).
 Usage: test_live_view.py DESCATTERD DESCATTERCTL [SCREENSHOT.png]"""
 import os
@@ -69,6 +69,13 @@ def main():
             b.wait(f"Number({BODY}.replies || 0) > {replies}", "the refusal")
             msg = b.js("document.getElementById('reply').textContent")
             assert b.js(f"{BODY}.lastReply") == "error" and "bad_argument" in msg and "phases" in msg, msg
+            # Release the camera for another program and take it back, from the page.
+            for button, state in (("#release", "released"), ("#acquire", "idle")):
+                replies = int(b.js(f"Number({BODY}.replies || 0)"))
+                b.click(button)
+                b.wait(f"Number({BODY}.replies || 0) > {replies}", f"the reply to {button}")
+                assert b.js(f"{BODY}.lastReply") == "ok", b.js("document.getElementById('reply').textContent")
+                assert d.status()["state"] == state, d.status()["state"]
             assert not b.console, b.console
             if shot:
                 b.js("document.getElementById('phases').value = 6")

@@ -266,6 +266,8 @@ typedef struct {
   GError *failure;
   guint progress;
   guint device_events;
+  GError *control_error;
+  guint control_events;
 } Outcome;
 
 static void
@@ -292,6 +294,13 @@ on_event (const DsSequencerEvent *ev, gpointer data)
     break;
   case DS_SEQUENCER_EVENT_DEVICE:
     o->device_events++;
+    break;
+  case DS_SEQUENCER_EVENT_CONTROL:
+    o->control_events++;
+    g_clear_error (&o->control_error);
+    if (ev->error)
+      o->control_error = g_error_copy (ev->error);
+    g_main_loop_quit (o->loop);
     break;
   }
 }
@@ -341,6 +350,7 @@ fixture_teardown (Fixture *f, gconstpointer data)
   ds_sequencer_free (f->seq);
   g_clear_pointer (&f->out.result, ds_result_unref);
   g_clear_error (&f->out.failure);
+  g_clear_error (&f->out.control_error);
   g_main_loop_unref (f->out.loop);
 }
 
@@ -738,6 +748,37 @@ test_phase_check_tall_frame (void)
   }
 }
 
+/* Released devices are closed (another program may take the camera) and captures refused with
+ * NOT_READY until they are acquired again; then sets work as before. */
+static void
+test_release_acquire (Fixture *f, gconstpointer d)
+{
+  (void) d;
+  g_assert_true (ds_sequencer_release (f->seq, 11));
+  g_main_loop_run (f->out.loop);
+  g_assert_no_error (f->out.control_error);
+  DsSequencerStatus st;
+  ds_sequencer_get_status (f->seq, &st);
+  g_assert_cmpstr (st.state, ==, "released");
+  g_assert_cmpstr (st.devices, ==, "released");
+  DsCaptureSettings s;
+  default_settings (&s, 8);
+  capture (f, &s);
+  g_assert_error (f->out.failure, DS_SEQUENCER_ERROR, DS_SEQUENCER_ERROR_NOT_READY);
+  g_assert_nonnull (strstr (f->out.failure->message, "acquire"));
+  g_assert_null (f->out.result);
+  g_assert_true (ds_sequencer_acquire (f->seq, 12));
+  g_main_loop_run (f->out.loop);
+  g_assert_no_error (f->out.control_error);
+  ds_sequencer_get_status (f->seq, &st);
+  g_assert_cmpstr (st.state, ==, "idle");
+  capture (f, &s);
+  g_assert_no_error (f->out.failure);
+  assert_scene_recovered (f->out.result);
+  g_assert_cmpuint (f->out.control_events, ==, 2);
+  assert_accounting (f);
+}
+
 int
 main (int argc, char **argv)
 {
@@ -763,5 +804,6 @@ main (int argc, char **argv)
   ADD ("pipeline/quit-mid-set", test_pipeline_quit_mid_set, NULL);
   ADD ("result-planes-reused", test_result_planes_reused, NULL);
   g_test_add_func ("/sequencer/phase-check-tall-frame", test_phase_check_tall_frame);
+  ADD ("release-acquire", test_release_acquire, NULL);
   return g_test_run ();
 }
