@@ -37,7 +37,7 @@ on_hup (gpointer data)
 {
   Signals *s = data;
   g_autoptr (GError) error = NULL;
-  if (s->stopping)
+  if (s->stopping || !s->service)
     return G_SOURCE_CONTINUE;
   sd_notify (0, "RELOADING=1");
   if (ds_service_reload (s->service, &error))
@@ -115,15 +115,21 @@ main (int argc, char **argv)
   DsServiceOptions opts = { .config_path = config_path, .socket_path = socket_path,
                             .tcp_listen = tcp, .http_listen = http, .scene_path = scene,
                             .no_systemd_sockets = no_systemd };
-  g_autoptr (DsService) service = ds_service_new (g_steal_pointer (&config), &opts, loop, &error);
-  if (!service) {
-    fprintf (stderr, "descatterd: %s\n", error->message);
-    return 1;
-  }
-  Signals sig = { loop, service, FALSE };
+  /* The handlers come before the service: once its socket exists a client may already send
+   * SIGTERM (a test, systemd), which must stop the daemon cleanly, not kill it. */
+  Signals sig = { loop, NULL, FALSE };
   guint s1 = g_unix_signal_add (SIGTERM, on_term, &sig);
   guint s2 = g_unix_signal_add (SIGINT, on_term, &sig);
   guint s3 = g_unix_signal_add (SIGHUP, on_hup, &sig);
+  g_autoptr (DsService) service = ds_service_new (g_steal_pointer (&config), &opts, loop, &error);
+  if (!service) {
+    fprintf (stderr, "descatterd: %s\n", error->message);
+    g_source_remove (s1);
+    g_source_remove (s2);
+    g_source_remove (s3);
+    return 1;
+  }
+  sig.service = service;
   if (ds_service_socket_path (service))
     printf ("descatterd: listening on %s\n", ds_service_socket_path (service));
   if (ds_service_tcp_port (service))
@@ -131,7 +137,9 @@ main (int argc, char **argv)
   if (ds_service_http_url (service))
     printf ("descatterd: live view and /metrics at %s\n", ds_service_http_url (service));
   fflush (stdout);
-  g_main_loop_run (loop);
+  /* A signal handled while the service started has already asked to stop. */
+  if (!sig.stopping)
+    g_main_loop_run (loop);
   sig.stopping = TRUE;
   gboolean failed = ds_service_devices_failed (service);
   /* The handlers stay until the service is gone: stopping runs the main context to write the
