@@ -27,6 +27,11 @@ typedef struct {
 } DsDevices;
 
 DsDevices *ds_devices_open (const DsConfig *config, GError **error);
+/* The settings the camera is configured with for a set exposed for exposure_us at gain_db:
+ * [camera]'s, with the set's exposure and gain. The sequencer and the rate benchmark's
+ * ceiling (tests/bench/daemon_rate.c) both configure the camera from this. */
+void ds_devices_camera_settings (const DsDevices *devices, double exposure_us, double gain_db,
+                                 DsCameraSettings *out);
 void ds_devices_close (DsDevices *devices);
 G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsDevices, ds_devices_close)
 

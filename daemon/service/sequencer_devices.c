@@ -30,9 +30,8 @@ ds_seq_ensure_camera (DsSequencer *seq, const DsCaptureSettings *s, GError **err
     cam->ops->stop (cam->backend);
     seq->camera_started = FALSE;
   }
-  DsCameraSettings cs = seq->dev->camera_settings;
-  cs.exposure_us = s->exposure_us;
-  cs.gain_db = s->gain_db;
+  DsCameraSettings cs;
+  ds_devices_camera_settings (seq->dev, s->exposure_us, s->gain_db, &cs);
   if (!cam->ops->configure (cam->backend, &cs, error)) {
     seq->camera_configured = FALSE;
     return FALSE;
