@@ -1,9 +1,12 @@
 /* Benchmark: descatterd's acquisition rate, latency and memory at real resolutions against a
  * fast fake GigE Vision camera (fake_rig.h), each figure a ratio to a baseline measured in the
  * same run (docs/benchmarks.md, "Daemon rate"):
- *   rate     frames folded per second in continuous mode / a bare Aravis trigger-and-grab loop
- *            against the same camera (the ceiling); with a 3 ms Modbus settle, against the
- *            same loop that also sets the phase over Modbus before each trigger;
+ *   rate     frames folded per second in continuous mode / the ceiling (rate_ceiling.h): a
+ *            trigger-and-grab loop over the daemon's own devices, opened and configured by the
+ *            daemon's code from the same configuration, with no sequencer; with a 3 ms Modbus
+ *            settle, against the same loop applying the next phase before each trigger. Each
+ *            round runs ceiling, daemon, ceiling and divides by the mean of the two ceilings;
+ *            their ratio to each other shows how much the load moved meanwhile;
  *   latency  last frame -> result ready (the daemon's own monotonic stamps) per megapixel, and
  *            against the library alone finalizing the same set in this process;
  *   memory   peak RSS above idle over one 8-phase capture / the planes that must exist.
@@ -12,10 +15,8 @@
  *
  * Usage: bench-daemon-rate [--quick] [--sizes WxH,WxH] [--seconds S] [--rounds N (<= 8)]
  * Binds UDP 127.0.0.1:3956: run it in a private network namespace, as an unprivileged user
- * (as root Aravis receives through a packet socket with a 5 ms ring timeout), e.g.
- *   unshare -n sh -c 'ip link set lo up && setpriv --reuid=nobody --regid=nogroup \
- *     --clear-groups build/tests/bench/bench-daemon-rate' */
-#include <arv.h>
+ * (as root Aravis receives through a packet socket with a 5 ms ring timeout):
+ * tests/bench/run_rate_bench.sh does both. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -23,8 +24,8 @@
 #include <unistd.h>
 
 #include "../daemon/daemon_harness.h"
-#include "drivers/modbus/modbus_illuminator.h"
 #include "fake_rig.h"
+#include "rate_ceiling.h"
 #include "proc/separation.h"
 
 #define N_PHASES 8
@@ -66,123 +67,28 @@ spread (double *v, guint n)
   return b;
 }
 
-/* ---- the ceiling: a bare Aravis loop, configured as the daemon configures the camera ---- */
+/* ---- the configuration both sides use ---- */
 
-static double
-bare_loop_here (guint w, guint h, double seconds, guint modbus_port)
+/* descatterd.conf for the rig: the daemon runs with it, and the ceiling opens and configures
+ * its devices from it through the daemon's own code (devices.c), so both drive the camera with
+ * the same settings (pixel format, full sensor, exposure, gain, software trigger, packet size,
+ * stream buffers and socket buffer). */
+static char *
+rig_config (guint modbus_port)
 {
-  g_autoptr (GError) e = NULL;
-  g_autoptr (ArvCamera) cam = arv_camera_new ("127.0.0.1", &e);
-  if (!cam) {
-    fprintf (stderr, "bare loop: %s\n", e->message);
-    failures++;
-    return NAN;
-  }
-  arv_camera_set_acquisition_mode (cam, ARV_ACQUISITION_MODE_CONTINUOUS, NULL);
-  arv_camera_set_pixel_format (cam, ARV_PIXEL_FORMAT_MONO_16, NULL);
-  arv_camera_set_region (cam, 0, 0, (gint) w, (gint) h, NULL);
-  arv_camera_set_trigger (cam, "Software", NULL);
-  arv_camera_gv_auto_packet_size (cam, NULL);
-  /* The negotiated GVSP packet size decides how many packets a frame takes: say it, since the
-   * daemon negotiates its own the same way and a loaded machine can make them differ. */
-  fprintf (stderr, "bare loop: GVSP packet size %u bytes\n", arv_camera_gv_get_packet_size (cam, NULL));
-  g_autoptr (DsIlluminator) ill = NULL;
-  if (modbus_port) {
-    g_autofree char *uri = g_strdup_printf ("tcp://127.0.0.1:%u", modbus_port);
-    ill = ds_modbus_illuminator_open (uri, 1, 200, &e);
-    DsStripePattern p = { .kind = DS_STRIPES_SQUARE, .period_px = FAKE_RIG_PERIOD_PX, .duty = 0.5,
-                          .black_level = 0, .intensity = 1, .n_phases = N_PHASES };
-    if (!ill || !ill->ops->set_pattern (ill->backend, &p, &e)) {
-      fprintf (stderr, "bare loop: illuminator: %s\n", e->message);
-      failures++;
-      return NAN;
-    }
-  }
-  guint payload = arv_camera_get_payload (cam, NULL);
-  g_autoptr (ArvStream) stream = arv_camera_create_stream (cam, NULL, NULL, &e);
-  if (!stream) {
-    fprintf (stderr, "bare loop: %s\n", e->message);
-    failures++;
-    return NAN;
-  }
-  g_object_set (stream, "socket-buffer", ARV_GV_STREAM_SOCKET_BUFFER_AUTO, "packet-resend",
-                ARV_GV_STREAM_PACKET_RESEND_ALWAYS, NULL);
-  for (guint i = 0; i < 8; i++)
-    arv_stream_push_buffer (stream, arv_buffer_new_allocate (payload));
-  arv_camera_start_acquisition (cam, NULL);
-  guint64 frames = 0, k = 0;
-  guint lost = 0;
-  gint64 t0 = 0, end = 0;
-  /* The first frames warm up (ARP-free loopback, but socket buffers and page faults). */
-  for (guint i = 0;; i++) {
-    if (i == 3) {
-      t0 = g_get_monotonic_time ();
-      end = t0 + (gint64) (seconds * 1e6);
-      frames = 0;
-    }
-    if (t0 && g_get_monotonic_time () >= end)
-      break;
-    if (ill && !ill->ops->set_phase (ill->backend, (guint) (k++ % N_PHASES), 500, &e)) {
-      fprintf (stderr, "bare loop: set_phase: %s\n", e->message);
-      failures++;
-      break;
-    }
-    arv_camera_software_trigger (cam, NULL);
-    ArvBuffer *b = arv_stream_timeout_pop_buffer (stream, 2000000);
-    if (!b) {
-      /* A lost trigger or frame: trigger again, as the daemon does. */
-      if (++lost > 10) {
-        fprintf (stderr, "bare loop: more than 10 frames lost\n");
-        failures++;
-        break;
-      }
-      continue;
-    }
-    if (arv_buffer_get_status (b) == ARV_BUFFER_STATUS_SUCCESS)
-      frames++;
-    arv_stream_push_buffer (stream, b);
-  }
-  double rate = frames / ((g_get_monotonic_time () - t0) / 1e6);
-  arv_camera_stop_acquisition (cam, NULL);
-  return rate;
-}
-
-/* The loop runs in a process of its own, as the daemon does, so that both receive the same
- * way (and neither shares its process with the fake camera's threads). */
-static const char *self_path;
-
-static double
-bare_loop (guint w, guint h, double seconds, guint modbus_port)
-{
-  g_autofree char *ws = g_strdup_printf ("%u", w), *hs = g_strdup_printf ("%u", h);
-  g_autofree char *ss = g_strdup_printf ("%g", seconds), *ps = g_strdup_printf ("%u", modbus_port);
-  g_autoptr (GError) e = NULL;
-  g_autoptr (GSubprocess) p = g_subprocess_new (G_SUBPROCESS_FLAGS_STDOUT_PIPE, &e, self_path,
-                                                "--bare-loop", ws, hs, ss, ps, NULL);
-  g_autofree char *out = NULL;
-  if (!p || !g_subprocess_communicate_utf8 (p, NULL, NULL, &out, NULL, &e) ||
-      !g_subprocess_get_successful (p)) {
-    fprintf (stderr, "bare loop: %s\n", e ? e->message : "failed");
-    failures++;
-    return NAN;
-  }
-  return g_ascii_strtod (out, NULL);
-}
-
-/* ---- the daemon ---- */
-
-static TestDaemon *
-start_daemon (FakeRig *rig)
-{
-  g_autofree char *conf = g_strdup_printf (
+  return g_strdup_printf (
       "[daemon]\nmax-clients=8\n"
       "[camera]\nbackend=aravis\naddress=127.0.0.1\npixel-format=Mono16\nexposure-us=1000\n"
       "grab-timeout-ms=2000\n"
       "[illuminator]\nbackend=modbus\nmodbus-uri=tcp://127.0.0.1:%u\nperiod-px=%g\nduty=0.5\n"
       "[acquisition]\nphases=%d\ndark-frame=false\n",
-      fake_rig_modbus_port (rig), FAKE_RIG_PERIOD_PX, N_PHASES);
-  return test_daemon_start (conf, NULL);
+      modbus_port, FAKE_RIG_PERIOD_PX, N_PHASES);
 }
+
+/* ---- the daemon ---- */
+
+/* The ceiling runs this program again (rate_ceiling.h). */
+static const char *self_path;
 
 static JsonObject *
 obj (JsonNode *node, const char *member)
@@ -237,8 +143,16 @@ at_set_end (DsClient *c, gint64 *when)
   }
 }
 
-/* Frames folded per second in continuous mode, from the daemon's own counters. */
-static double
+static gint64
+camera_stat (DsMessage *status, const char *name)
+{
+  g_autofree char *path = g_strconcat ("devices.camera.", name, NULL);
+  return test_json_int (status->reply->body, path);
+}
+
+/* Frames folded per second in continuous mode, from the daemon's own counters, and the
+ * camera's transport failures meanwhile (same meaning as the ceiling's). */
+static RateSample
 daemon_rate (DsClient *c, double seconds, double *finalize_ms)
 {
   g_autoptr (DsMessage) started = test_daemon_call_ok (c, "start", NULL);
@@ -250,12 +164,15 @@ daemon_rate (DsClient *c, double seconds, double *finalize_ms)
   g_autoptr (DsMessage) s1 = at_set_end (c, &t1);
   gint64 f1 = test_json_int (s1->reply->body, "frames.folded");
   g_autoptr (DsMessage) stopped = test_daemon_call_ok (c, "stop", NULL);
+  RateSample r = { .fps = (f1 - f0) / ((t1 - t0) / 1e6),
+                   .incomplete = (guint) (camera_stat (s1, "failures") - camera_stat (s0, "failures")),
+                   .lost = (guint) (camera_stat (s1, "timeouts") - camera_stat (s0, "timeouts")) };
   gint64 acquired = test_json_int (s1->reply->body, "frames.acquired");
   gint64 dropped = test_json_int (s1->reply->body, "frames.dropped");
   /* A set may fail on a starved machine (the camera's heartbeat answered too late: control
    * lost, reconnected); its frames are then `aborted`. Reported, not a wrong result. */
   if (test_json_int (s1->reply->body, "sets_failed") > 0)
-    printf ("  (continuous mode: %" G_GINT64_FORMAT " set(s) failed: %s)\n",
+    printf ("    (continuous mode: %" G_GINT64_FORMAT " set(s) failed: %s)\n",
             test_json_int (s1->reply->body, "sets_failed"),
             json_object_get_string_member (json_node_get_object (s1->reply->body), "last_error"));
   /* Frames of the set in progress are acquired but not yet folded or aborted. */
@@ -266,24 +183,96 @@ daemon_rate (DsClient *c, double seconds, double *finalize_ms)
     /* Transport losses happen on a loaded machine (a socket buffer overflows); drops that say
      * the sequencing went wrong must not. */
     JsonObject *by = json_object_get_object_member (obj (s1->reply->body, "frames"), "dropped_by_reason");
-    g_autofree char *why = json_to_string (json_object_get_member (obj (s1->reply->body, "frames"),
-                                                                   "dropped_by_reason"), FALSE);
-    printf ("  (continuous mode: %" G_GINT64_FORMAT " frames dropped: %s)\n", dropped, why);
     static const char *const wrong[] = { "wrong_phase", "unverifiable", "preview" };
     for (guint i = 0; i < G_N_ELEMENTS (wrong); i++)
       CHECK (json_object_get_int_member (by, wrong[i]) == 0, "%s drops on a clean rig", wrong[i]);
   }
-  {
-    JsonObject *sm = obj (s1->reply->body, "stage_mean_ms");
-    printf ("  stage means (ms): set_phase %.2f trigger %.2f grab %.2f verify %.2f fold %.2f "
-            "finalize %.2f\n", json_object_get_double_member (sm, "set_phase"),
-            json_object_get_double_member (sm, "trigger"), json_object_get_double_member (sm, "grab"),
-            json_object_get_double_member (sm, "verify"), json_object_get_double_member (sm, "fold"),
-            json_object_get_double_member (sm, "finalize"));
-  }
+  JsonObject *sm = obj (s1->reply->body, "stage_mean_ms");
+  printf ("    daemon stage means (ms): set_phase %.2f trigger %.2f grab %.2f verify %.2f fold %.2f "
+          "finalize %.2f\n", json_object_get_double_member (sm, "set_phase"),
+          json_object_get_double_member (sm, "trigger"), json_object_get_double_member (sm, "grab"),
+          json_object_get_double_member (sm, "verify"), json_object_get_double_member (sm, "fold"),
+          json_object_get_double_member (sm, "finalize"));
   if (finalize_ms)
-    *finalize_ms = json_object_get_double_member (obj (s1->reply->body, "stage_mean_ms"), "finalize");
-  return (f1 - f0) / ((t1 - t0) / 1e6);
+    *finalize_ms = json_object_get_double_member (sm, "finalize");
+  return r;
+}
+
+/* ---- rounds: ceilings, daemon, ceilings again in reverse order ---- */
+
+/* The ceilings a daemon rate is divided by: the camera alone (trigger and grab: the issue's
+ * "Aravis ceiling"), and the camera with the illuminator applying each phase before the trigger
+ * (what the sequencer contract requires of the devices between two frames of different
+ * phases). */
+typedef enum { CEILING_CAMERA, CEILING_RIG, N_CEILINGS } CeilingKind;
+
+static const char *const ceiling_name[N_CEILINGS] = { "camera alone", "camera + set_phase" };
+
+typedef struct {
+  double ratio[8];       /* daemon / mean of this ceiling's two measurements in the round */
+  double clean[8];       /* the same, rounds where neither lost a frame to the transport */
+  double drift[8];       /* second measurement / first */
+  double fps[8];
+  guint n_clean;
+} CeilingRounds;
+
+typedef struct {
+  gboolean want[N_CEILINGS];
+  double goal[N_CEILINGS]; /* 0: no goal */
+  CeilingRounds c[N_CEILINGS];
+  double daemon_fps[8];
+  guint n;
+} Rounds;
+
+static gboolean
+has_loss (const RateSample *s)
+{
+  return s->incomplete || s->lost;
+}
+
+static void
+rounds_add (Rounds *rs, const RateSample *c1, const RateSample *d, const RateSample *c2)
+{
+  guint i = rs->n++;
+  rs->daemon_fps[i] = d->fps;
+  printf ("    round %u: daemon %.1f frames/s (incomplete/lost %u/%u)\n", i + 1, d->fps,
+          d->incomplete, d->lost);
+  for (guint k = 0; k < N_CEILINGS; k++) {
+    if (!rs->want[k])
+      continue;
+    CeilingRounds *cr = &rs->c[k];
+    cr->fps[i] = 0.5 * (c1[k].fps + c2[k].fps);
+    cr->ratio[i] = d->fps / cr->fps[i];
+    cr->drift[i] = c2[k].fps / c1[k].fps;
+    gboolean clean = !has_loss (d) && !has_loss (&c1[k]) && !has_loss (&c2[k]);
+    if (clean)
+      cr->clean[cr->n_clean++] = cr->ratio[i];
+    printf ("      ceiling, %s: %.1f before, %.1f after (incomplete/lost %u/%u, %u/%u) -> "
+            "ratio %.3f, drift %.3f%s\n", ceiling_name[k], c1[k].fps, c2[k].fps, c1[k].incomplete,
+            c1[k].lost, c2[k].incomplete, c2[k].lost, cr->ratio[i], cr->drift[i],
+            clean ? "" : " (transport loss)");
+  }
+}
+
+static void
+rounds_print (Rounds *rs, const char *what)
+{
+  printf ("  %s: daemon %.1f frames folded/s (median of %u rounds)\n", what,
+          median (rs->daemon_fps, rs->n), rs->n);
+  for (guint k = 0; k < N_CEILINGS; k++) {
+    if (!rs->want[k])
+      continue;
+    CeilingRounds *cr = &rs->c[k];
+    g_autofree char *goal = rs->goal[k] > 0 ? g_strdup_printf ("; goal >= %.2f", rs->goal[k])
+                                            : g_strdup ("");
+    printf ("    / ceiling, %s, %.1f frames/s: ratio %s%s\n", ceiling_name[k],
+            median (cr->fps, rs->n), spread (cr->ratio, rs->n), goal);
+    if (cr->n_clean)
+      printf ("      rounds without transport loss: ratio %s\n", spread (cr->clean, cr->n_clean));
+    else
+      printf ("      rounds without transport loss: none\n");
+    printf ("      drift of this ceiling within a round: %s\n", spread (cr->drift, rs->n));
+  }
 }
 
 /* ---- latency baseline: the library alone ---- */
@@ -332,16 +321,72 @@ status_kib (TestDaemon *d, const char *key)
   return at ? g_ascii_strtoull (at + strlen (key), NULL, 10) : 0;
 }
 
+/* One daemon started on the rig for a round; in the first round of a size it also gives the
+ * latency and memory figures from single captures, before continuous mode. */
+typedef struct {
+  gboolean single_captures;
+  double *lat;
+  guint n_lat;
+  guint64 idle_kib, peak_kib;
+} DaemonExtras;
+
+static gboolean
+measure_round (FakeRig *rig, guint w, guint h, double seconds, Rounds *rs, DaemonExtras *x,
+               gboolean quick)
+{
+  g_autofree char *conf = rig_config (fake_rig_modbus_port (rig));
+  RateSample c1[N_CEILINGS] = { 0 }, c2[N_CEILINGS] = { 0 }, d;
+  for (guint k = 0; k < N_CEILINGS; k++)
+    if (rs->want[k] && !rate_ceiling_measure (self_path, conf, seconds, k == CEILING_RIG, &c1[k])) {
+      failures++;
+      return FALSE;
+    }
+  TestDaemon *td = test_daemon_start (conf, NULL);
+  g_autoptr (DsClient) c = test_daemon_connect (td);
+  if (x && x->single_captures) {
+    x->idle_kib = status_kib (td, "VmRSS:");
+    guint n = quick ? 3 : 11;
+    for (guint i = 0; i < n; i++) {
+      g_autoptr (DsMessage) m = checked_capture (c, w, h);
+      if (i > 0) /* the first set configures the camera and learns the phase offset */
+        x->lat[x->n_lat++] = (test_json_int (m->reply->body, "monotonic_us.finished") -
+                              test_json_int (m->reply->body, "monotonic_us.last_frame")) / 1000.0;
+      if (i == 0)
+        x->peak_kib = status_kib (td, "VmHWM:");
+    }
+  } else {
+    /* The first set configures the camera and learns the phase offset; checked as well. */
+    g_autoptr (DsMessage) m = checked_capture (c, w, h);
+  }
+  d = daemon_rate (c, seconds, NULL);
+  g_clear_pointer (&c, ds_client_free);
+  test_daemon_stop (td);
+  test_daemon_free (td);
+  for (guint k = N_CEILINGS; k-- > 0;)
+    if (rs->want[k] && !rate_ceiling_measure (self_path, conf, seconds, k == CEILING_RIG, &c2[k])) {
+      failures++;
+      return FALSE;
+    }
+  rounds_add (rs, c1, &d, c2);
+  return TRUE;
+}
+
+static void
+print_load (const char *when)
+{
+  double load[3];
+  if (getloadavg (load, 3) == 3)
+    printf ("machine load %s (1/5/15 min): %.2f %.2f %.2f, %ld cores\n", when, load[0], load[1],
+            load[2], sysconf (_SC_NPROCESSORS_ONLN));
+}
+
 int
 main (int argc, char **argv)
 {
   self_path = argv[0];
-  if (argc == 6 && strcmp (argv[1], "--bare-loop") == 0) {
-    double fps = bare_loop_here ((guint) atoi (argv[2]), (guint) atoi (argv[3]),
-                                 g_ascii_strtod (argv[4], NULL), (guint) atoi (argv[5]));
-    printf ("%.3f\n", fps);
-    return failures ? 1 : 0;
-  }
+  int child = rate_ceiling_main (argc, argv);
+  if (child >= 0)
+    return child;
   gboolean quick = FALSE;
   const char *sizes = "1024x1024,2048x2048";
   double seconds = 3.0;
@@ -371,10 +416,7 @@ main (int argc, char **argv)
   if (geteuid () == 0)
     printf ("note: running as root: Aravis then receives through a packet socket (5 ms ring "
             "timeout); the figures are not those of the service (run as an unprivileged user)\n");
-  double load[3] = { 0 };
-  if (getloadavg (load, 3) == 3)
-    printf ("machine load (1/5/15 min): %.2f %.2f %.2f, %ld cores\n", load[0], load[1], load[2],
-            sysconf (_SC_NPROCESSORS_ONLN));
+  print_load ("at the start");
 
   g_auto (GStrv) list = g_strsplit (sizes, ",", -1);
   for (guint si = 0; list[si]; si++) {
@@ -384,81 +426,47 @@ main (int argc, char **argv)
       return 2;
     }
     double mp = (double) w * h / 1e6;
-    if (getloadavg (load, 3) == 3)
-      printf ("%ux%u: load before %.2f\n", w, h, load[0]);
+    printf ("%ux%u Mono16 (%.2f MP), 8 phases:\n", w, h, mp);
     FakeRig *rig = fake_rig_new (w, h, N_PHASES, 0);
     if (!rig)
       return 1;
 
-    /* Rate: alternate ceiling and daemon so that a change of load hits both. */
-    double ratio[8], ceil_fps[8], dmn_fps[8];
-    double fin_ms = NAN;
-    guint64 idle_kib = 0, peak_kib = 0;
+    /* Rate: ceiling, daemon, ceiling in each round, so that a change of load hits both. */
+    Rounds rs = { .want = { TRUE, TRUE }, .goal = { mp > 2 ? 0.90 : 0.95, 0 } };
     double lat[16];
-    guint n_lat = 0;
+    DaemonExtras x = { .single_captures = TRUE, .lat = lat };
     for (guint r = 0; r < rounds; r++) {
-      ceil_fps[r] = bare_loop (w, h, seconds, 0);
-      TestDaemon *d = start_daemon (rig);
-      g_autoptr (DsClient) c = test_daemon_connect (d);
-      if (r == 0) {
-        idle_kib = status_kib (d, "VmRSS:");
-        /* Latency and memory from single captures (no continuous mode yet). */
-        guint n = quick ? 3 : 11;
-        for (guint i = 0; i < n; i++) {
-          g_autoptr (DsMessage) m = checked_capture (c, w, h);
-          if (i > 0) /* the first set configures the camera and learns the phase offset */
-            lat[n_lat++] = (test_json_int (m->reply->body, "monotonic_us.finished") -
-                            test_json_int (m->reply->body, "monotonic_us.last_frame")) / 1000.0;
-          if (i == 0)
-            peak_kib = status_kib (d, "VmHWM:");
-        }
-      }
-      dmn_fps[r] = daemon_rate (c, seconds, &fin_ms);
-      ratio[r] = dmn_fps[r] / ceil_fps[r];
-      g_clear_pointer (&c, ds_client_free);
-      test_daemon_stop (d);
-      test_daemon_free (d);
+      measure_round (rig, w, h, seconds, &rs, r == 0 ? &x : NULL, quick);
+      print_load ("after the round");
     }
+    if (rs.n)
+      rounds_print (&rs, "rate, illuminator settle 0");
     double lib_ms = library_finalize_ms (w, h, quick ? 3 : 9);
-    double lat_ms = median (lat, n_lat);
-    printf ("%ux%u Mono16 (%.2f MP), 8 phases:\n", w, h, mp);
-    printf ("  rate: daemon %.1f frames folded/s, bare Aravis loop %.1f frames/s -> ratio %s; "
-            "goal >= %.2f\n",
-            median (dmn_fps, rounds), median (ceil_fps, rounds), spread (ratio, rounds),
-            mp > 2 ? 0.90 : 0.95);
+    double lat_ms = x.n_lat ? median (lat, x.n_lat) : NAN;
     printf ("  latency, last frame -> result ready: %.2f ms = %.2f ms/MP (goal <= 1); library "
             "finalize alone %.2f ms -> daemon/library %.2f\n",
             lat_ms, lat_ms / mp, lib_ms, lat_ms / lib_ms);
     /* What must exist for an 8-phase maxmin set: max and min accumulators (u16) and the result
      * planes (transmissive, scattered f32, mask u8): 13 bytes per pixel. */
     double minimum_mb = 13.0 * w * h / 1e6;
-    double above_mb = (peak_kib > idle_kib ? peak_kib - idle_kib : 0) * 1024.0 / 1e6;
+    double above_mb = (x.peak_kib > x.idle_kib ? x.peak_kib - x.idle_kib : 0) * 1024.0 / 1e6;
     printf ("  memory: peak RSS above idle over the first capture %.1f MB; minimum %.1f MB "
             "-> %.2fx (goal <= 3)\n", above_mb, minimum_mb, above_mb / minimum_mb);
 
     if (si == 0) {
       /* The illuminator's settle time: 3 ms per phase, set over Modbus TCP. */
       fake_rig_set_settle_us (rig, 3000);
-      double sr[8], sc[8], sd[8];
+      Rounds rp = { .want = { FALSE, TRUE }, .goal = { 0, 0.85 } };
       for (guint r = 0; r < rounds; r++) {
-        sc[r] = bare_loop (w, h, seconds, fake_rig_modbus_port (rig));
-        TestDaemon *d = start_daemon (rig);
-        g_autoptr (DsClient) c = test_daemon_connect (d);
-        g_autoptr (DsMessage) m = checked_capture (c, w, h);
-        sd[r] = daemon_rate (c, seconds, NULL);
-        sr[r] = sd[r] / sc[r];
-        g_clear_pointer (&c, ds_client_free);
-        test_daemon_stop (d);
-        test_daemon_free (d);
+        measure_round (rig, w, h, seconds, &rp, NULL, quick);
+        print_load ("after the round");
       }
-      printf ("  with a Modbus illuminator settling 3 ms: daemon %.1f frames/s, bare loop with "
-              "set_phase %.1f frames/s -> ratio %s; goal >= 0.85\n",
-              median (sd, rounds), median (sc, rounds), spread (sr, rounds));
+      if (rp.n)
+        rounds_print (&rp, "rate, illuminator settle 3 ms");
     }
     fake_rig_free (rig);
   }
-  if (getloadavg (load, 3) == 3)
-    printf ("machine load at the end (1/5/15 min): %.2f %.2f %.2f\n", load[0], load[1], load[2]);
+  print_load ("at the end");
   if (failures)
     fprintf (stderr, "%d check(s) failed\n", failures);
   return failures ? 1 : 0;

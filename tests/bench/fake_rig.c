@@ -87,6 +87,9 @@ fake_rig_new (guint width, guint height, guint n_phases, guint settle_us)
   arv_fake_camera_write_register (fake, ARV_FAKE_CAMERA_REGISTER_HEIGHT, height);
   arv_fake_camera_write_register (fake, ARV_FAKE_CAMERA_REGISTER_PIXEL_FORMAT, ARV_PIXEL_FORMAT_MONO_16);
   arv_fake_camera_write_register (fake, ARV_FAKE_CAMERA_REGISTER_EXPOSURE_TIME_US, 1000);
+  /* 8 KiB GVSP packets, as a GigE Vision link with jumbo frames carries them (and as labsim
+   * serves): the fake camera has no test packet, so Aravis's packet size negotiation keeps it. */
+  arv_fake_camera_write_register (fake, 0xd04 /* GigE Vision SCPS0: stream packet size */, 8192);
   /* The software trigger is polled, not signalled: at 2 kHz the poll adds 0.25 ms on average. */
   arv_fake_camera_set_trigger_frequency (fake, 2000.0);
   arv_fake_camera_set_fill_pattern (fake, fill, rig);

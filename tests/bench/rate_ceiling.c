@@ -1,0 +1,113 @@
+#include "rate_ceiling.h"
+
+#include <gio/gio.h>
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "daemon/service/capture_settings.h"
+#include "daemon/service/config.h"
+#include "daemon/service/devices.h"
+
+/* The loop, configured as the sequencer configures the devices for a set with the
+ * configuration's defaults (ds_devices_open, ds_devices_camera_settings, the camera's configure
+ * and start, the illuminator's set_pattern). Each frame goes back to the camera at once. A
+ * trigger without a frame is fired again, as the daemon does; an incomplete frame is not
+ * counted. */
+static gboolean
+run_here (const char *conf_text, double seconds, gboolean with_phase, RateSample *out)
+{
+  g_autoptr (GError) e = NULL;
+  g_autoptr (DsConfig) config = ds_config_load_data (conf_text, "rate benchmark", &e);
+  g_autoptr (DsDevices) dev = config ? ds_devices_open (config, &e) : NULL;
+  if (!dev) {
+    fprintf (stderr, "ceiling: %s\n", e->message);
+    return FALSE;
+  }
+  DsCaptureSettings s;
+  ds_capture_settings_from_config (&s, config);
+  DsCameraSettings cs;
+  ds_devices_camera_settings (dev, s.exposure_us, s.gain_db, &cs);
+  DsCamera *cam = dev->camera;
+  DsIlluminator *ill = dev->illuminator;
+  if (!cam->ops->configure (cam->backend, &cs, &e) || !cam->ops->start (cam->backend, &e) ||
+      (with_phase && !ill->ops->set_pattern (ill->backend, &dev->pattern, &e))) {
+    fprintf (stderr, "ceiling: %s\n", e->message);
+    return FALSE;
+  }
+  memset (out, 0, sizeof *out);
+  guint64 frames = 0, k = 0;
+  gint64 t0 = 0, end = 0;
+  gboolean ok = TRUE;
+  /* The first frames warm up (socket buffers, page faults of the stream buffers). */
+  for (guint i = 0; ok; i++) {
+    if (i == 3) {
+      t0 = g_get_monotonic_time ();
+      end = t0 + (gint64) (seconds * 1e6);
+      frames = 0;
+      out->incomplete = out->lost = 0;
+    }
+    if (t0 && g_get_monotonic_time () >= end)
+      break;
+    if (with_phase && !ill->ops->set_phase (ill->backend, (guint) (k++ % dev->pattern.n_phases),
+                                            dev->settle_timeout_ms, &e)) {
+      fprintf (stderr, "ceiling: set_phase: %s\n", e->message);
+      ok = FALSE;
+    } else if (!dev->trigger->ops->fire (dev->trigger->backend, &e)) {
+      fprintf (stderr, "ceiling: trigger: %s\n", e->message);
+      ok = FALSE;
+    } else {
+      DsFrame *f = cam->ops->grab (cam->backend, dev->grab_timeout_ms, &e);
+      if (f) {
+        frames++;
+        ds_frame_free (f);
+      } else if (g_error_matches (e, DS_DEVICE_ERROR, DS_DEVICE_ERROR_INCOMPLETE)) {
+        out->incomplete++;
+      } else if (g_error_matches (e, DS_DEVICE_ERROR, DS_DEVICE_ERROR_TIMEOUT) && out->lost < 10) {
+        out->lost++;
+      } else {
+        fprintf (stderr, "ceiling: grab: %s\n", e->message);
+        ok = FALSE;
+      }
+      g_clear_error (&e);
+    }
+  }
+  out->fps = frames / ((g_get_monotonic_time () - t0) / 1e6);
+  cam->ops->stop (cam->backend);
+  return ok;
+}
+
+int
+rate_ceiling_main (int argc, char **argv)
+{
+  if (argc != 5 || strcmp (argv[1], "--ceiling") != 0)
+    return -1;
+  RateSample r;
+  if (!run_here (argv[2], g_ascii_strtod (argv[3], NULL), strcmp (argv[4], "1") == 0, &r))
+    return 1;
+  printf ("%.3f %u %u\n", r.fps, r.incomplete, r.lost);
+  return 0;
+}
+
+gboolean
+rate_ceiling_measure (const char *self_path, const char *conf_text, double seconds,
+                      gboolean with_phase, RateSample *out)
+{
+  g_autofree char *ss = g_strdup_printf ("%g", seconds);
+  g_autoptr (GError) e = NULL;
+  g_autoptr (GSubprocess) p = g_subprocess_new (G_SUBPROCESS_FLAGS_STDOUT_PIPE, &e, self_path,
+                                                "--ceiling", conf_text, ss, with_phase ? "1" : "0",
+                                                NULL);
+  g_autofree char *text = NULL;
+  if (!p || !g_subprocess_communicate_utf8 (p, NULL, NULL, &text, NULL, &e) ||
+      !g_subprocess_get_successful (p)) {
+    fprintf (stderr, "ceiling: %s\n", e ? e->message : "the loop failed");
+    return FALSE;
+  }
+  memset (out, 0, sizeof *out);
+  if (sscanf (text, "%lf %u %u", &out->fps, &out->incomplete, &out->lost) != 3 || !isfinite (out->fps)) {
+    fprintf (stderr, "ceiling: unexpected answer \"%s\"\n", text);
+    return FALSE;
+  }
+  return TRUE;
+}
