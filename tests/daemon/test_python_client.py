@@ -13,6 +13,11 @@ Independent checks:
   sum of its gaps is the daemon's own count of results dropped for it;
 - leaving a subscription's `with` unsubscribes (the daemon's subscriber count), a silent peer
   times out (descatter.Timeout) within the timeout and a timed-out subscription stays usable;
+- save_phases: the raw frames come back as arrays whose per-pixel max, min and mean after the
+  dark frame is subtracted are the daemon's max, min and mean planes, and max - min its
+  transmissive (maxmin), computed here with numpy from the frames alone;
+- release() closes the devices (state "released", captures raise DeviceError naming acquire),
+  acquire() opens them again and captures work; the same through the asyncio client;
 - TCP with a token; the asyncio client; every example of docs/python.md runs."""
 import asyncio
 import os
@@ -265,6 +270,44 @@ def asyncio_client(d):
     asyncio.run(run())
 
 
+def raw_frames_and_release(d):
+    with d.client() as c:
+        r = c.capture(phases=4, estimator="maxmin", dark_frame=True, save_phases=True,
+                      outputs=["transmissive", "scattered", "mask", "max", "min", "mean"])
+        frames = r.raw_frames
+        check([p for p, _, _ in frames] == [0, 1, 2, 3] and all(a.dtype == np.uint16 and a.shape == r.mask.shape
+                                                               for _, _, a in frames),
+              "save_phases: one u16 frame per phase, in order")
+        check(all(isinstance(i, int) for _, i, _ in frames), "save_phases: the camera's frame ids")
+        check(r.black is not None and r.black.shape == r.mask.shape, "save_phases: the dark frame")
+        raw = np.stack([a.astype(np.float64) for _, _, a in frames]) - r.black.astype(np.float64)
+        check(np.array_equal(raw.max(0).astype(np.float32), r.images["max"]) and
+              np.array_equal(raw.min(0).astype(np.float32), r.images["min"]) and
+              np.allclose(raw.mean(0), r.images["mean"], rtol=1e-6, atol=1e-4),
+              "save_phases: max, min, mean of the raw frames minus the dark frame are the daemon's planes")
+        check(np.allclose(raw.max(0) - raw.min(0), r.transmissive, rtol=1e-6, atol=1e-3),
+              "save_phases: max - min of the raw frames is the transmissive (maxmin)")
+        check(c.capture(phases=4).raw_frames == [], "no raw frames unless asked for")
+        rel = c.release()
+        check(rel["state"] == "released" and c.status()["state"] == "released", "release: devices released")
+        try:
+            c.capture(phases=4)
+            check(False, "a capture while released refused")
+        except descatter.DeviceError as e:
+            check("acquire" in e.message, f"a capture while released: DeviceError naming acquire ({e.message})")
+        acq = c.acquire()
+        check(acq["state"] == "idle" and c.capture(phases=4).transmissive is not None, "acquire: captures work again")
+
+    async def run():
+        async with await descatter.aio.connect(d.sock) as c:
+            rel = await c.release()
+            acq = await c.acquire()
+            r = await c.capture(phases=4, save_phases=True)
+            check(rel["state"] == "released" and acq["state"] == "idle" and len(r.raw_frames) == 4,
+                  "asyncio: release, acquire, save_phases")
+    asyncio.run(run())
+
+
 def doc_examples(d):
     blocks = re.findall(r"```python\n(.*?)```", open(DOC).read(), re.S)
     check(len(blocks) >= 4, f"docs/python.md has its examples ({len(blocks)})")
@@ -304,6 +347,7 @@ def main():
             basics(d)
             subscriptions(d)
             asyncio_client(d)
+            raw_frames_and_release(d)
             doc_examples(d)
         finally:
             check(d.stop() == 0, "descatterd exits cleanly")

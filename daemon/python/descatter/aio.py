@@ -164,6 +164,12 @@ class AsyncClient:
                                 ("averages", "exposure_us", "gain_db"))
         return (await self.call("dark", timeout=timeout, **args))[0]
 
+    async def release(self, timeout=None):
+        return (await self.call("release", timeout=timeout))[0]
+
+    async def acquire(self, timeout=None):
+        return (await self.call("acquire", timeout=timeout))[0]
+
     async def calibrate(self, timeout=None, **args):
         return Result(*(await self.call("calibrate", timeout=timeout, **args)))
 

@@ -26,7 +26,7 @@ from .events import ProgressEvent, Result, make_event
 DEFAULT_ADDRESS = "/run/descatterd/descatterd.sock"
 DEFAULT_TIMEOUT = 60.0
 _ACQ_KEYS = ("phases", "averages", "exposure_us", "gain_db", "estimator", "dark_frame", "verify_phase",
-             "target_error", "time_budget_ms")
+             "target_error", "time_budget_ms", "save_phases")
 
 
 def resolve(address, token):
@@ -210,7 +210,8 @@ class Client:
     def capture(self, *, format=None, outputs=None, on_progress=None, timeout=None, **settings):
         """One phase set: phases, averages, exposure_us, gain_db, estimator, dark_frame,
         verify_phase, target_error, time_budget_ms (None or absent: the configuration's);
-        format "f32"/"u16"; outputs, e.g. ["transmissive", "scattered", "mask", "max"]."""
+        format "f32"/"u16"; outputs, e.g. ["transmissive", "scattered", "mask", "max"];
+        save_phases=True: the raw frames too (Result.raw_frames, Result.black)."""
         args = acquisition_args(settings, _ACQ_KEYS)
         if format is not None:
             args["format"] = format
@@ -232,6 +233,16 @@ class Client:
         args = acquisition_args(dict(averages=averages, exposure_us=exposure_us, gain_db=gain_db),
                                 ("averages", "exposure_us", "gain_db"))
         return self.call("dark", timeout=timeout, **args)[0]
+
+    def release(self, timeout=None):
+        """Closes the daemon's devices so that another program (arv-viewer) can take the
+        camera; captures fail with descatter.DeviceError until acquire(). Returns {"state",
+        "message"}."""
+        return self.call("release", timeout=timeout)[0]
+
+    def acquire(self, timeout=None):
+        """Opens the devices again after release(); returns {"state", "message"}."""
+        return self.call("acquire", timeout=timeout)[0]
 
     def calibrate(self, timeout=None, **args):
         """The daemon's calibration on the rig (descatterctl calibrate); a daemon without it

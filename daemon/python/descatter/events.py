@@ -26,6 +26,18 @@ class Result(NamedTuple):
     def mask(self):
         return self.images.get("mask")
 
+    @property
+    def raw_frames(self):
+        """With save_phases: [(phase, frame_id, array)] in acquisition order (meta["raw_frames"]);
+        [] otherwise."""
+        frames = (self.meta.get("raw_frames") or {}).get("frames") or []
+        return [(f["phase"], f.get("frame_id"), self.images[f["payload"]]) for f in frames]
+
+    @property
+    def black(self):
+        """With save_phases and a dark frame: the dark frame the daemon subtracted, else None."""
+        return self.images.get("black") if self.meta.get("raw_frames") else None
+
 
 class Event:
     """A message from a subscription. `seq` counts every event the daemon publishes; `lost` is
