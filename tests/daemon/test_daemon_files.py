@@ -4,7 +4,8 @@ readers that share no code with the writers (tifffile, h5py, PIL, hashlib).
 
   - a capture with --save-phases, reprocessed offline with `descatterctl separate` from its
     phase folder, gives the daemon's transmissive, scattered and mask bit for bit (maxmin and
-    sine); with M = 2 once `separate` reads frames.json;
+    sine, and maxmin with M = 2), both with the parameters passed by hand and with no options
+    (`separate` reads them from frames.json);
   - every result says when (UTC, within the test's own clock readings), where (host), with what
     (backend "sim", the camera, the version `hello` reports, the SHA-256 of the configuration
     text `config` returns), the units of each plane and the mask's legend; TIFF tags and the
@@ -131,16 +132,19 @@ def check_reprocessing(d, tmp, estimator, averages):
     if averages > 1 and sep["separation"]["phases"] != 6:
         print(f"reprocessing M={averages}: skipped, this `separate` does not read frames.json yet")
         return
-    for plane, ext in (("transmissive", "tiff"), ("scattered", "tiff"), ("mask", "png")):
-        daemon_file = os.path.join(out, f"{stem}-{plane}.{ext}")
-        offline_file = os.path.join(out, "offline", f"{plane}.{ext}")
-        if ext == "tiff":
-            a, b = tifffile.imread(daemon_file), tifffile.imread(offline_file)
-        else:
-            a, b = np.array(Image.open(daemon_file)), np.array(Image.open(offline_file))
-        assert a.dtype == b.dtype and a.shape == b.shape, (plane, a.dtype, b.dtype)
-        assert np.array_equal(a, b), (estimator, averages, plane, np.abs(a.astype(float) - b).max())
-    print(f"reprocessing {estimator} M={averages}: bit for bit")
+    # And with no options at all (docs/operations.md's command): everything from frames.json.
+    d.ctl("separate", folder, "--out", os.path.join(out, "plain"), "--quiet")
+    for offline in ("offline", "plain"):
+        for plane, ext in (("transmissive", "tiff"), ("scattered", "tiff"), ("mask", "png")):
+            daemon_file = os.path.join(out, f"{stem}-{plane}.{ext}")
+            offline_file = os.path.join(out, offline, f"{plane}.{ext}")
+            if ext == "tiff":
+                a, b = tifffile.imread(daemon_file), tifffile.imread(offline_file)
+            else:
+                a, b = np.array(Image.open(daemon_file)), np.array(Image.open(offline_file))
+            assert a.dtype == b.dtype and a.shape == b.shape, (offline, plane, a.dtype, b.dtype)
+            assert np.array_equal(a, b), (offline, estimator, averages, plane, np.abs(a.astype(float) - b).max())
+    print(f"reprocessing {estimator} M={averages}: bit for bit, with the sidecar's parameters and with none")
 
 
 def check_capture_files(d, tmp, config_hash, version):
