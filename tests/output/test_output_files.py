@@ -9,6 +9,7 @@ import signal
 import subprocess
 import sys
 import tempfile
+import time
 
 import h5py
 import numpy as np
@@ -153,11 +154,54 @@ def check_run(tool, tmp):
     check_run_file(path + ".partial", 3)
 
 
+def check_killed_writer(tool, tmp):
+    """kill -9 while sets are being written, three times at different moments: every file under
+    its final name is whole (HDF5 opens with all its planes, TIFFs read back in full), every set
+    with a sidecar has all its files; what the kill interrupted is only under hidden temporary
+    names."""
+    for round_, delay in enumerate((0.0, 0.013, 0.031)):
+        out = os.path.join(tmp, f"killed-{round_}")
+        p = subprocess.Popen([tool, "files", out, "tiff,hdf5", "100000"])
+        deadline = time.time() + 60
+        while len([n for n in os.listdir(out) if n.endswith(".json")] if os.path.isdir(out) else []) < 3:
+            assert p.poll() is None and time.time() < deadline, "the writer did not get going"
+            time.sleep(0.005)
+        time.sleep(delay)
+        os.kill(p.pid, signal.SIGKILL)
+        p.wait()
+        names = os.listdir(out)
+        complete = {n[:-5] for n in names if n.endswith(".json")}
+        checked = 0
+        for n in names:
+            if n.startswith("."):
+                continue  # an interrupted temporary: a reader skips it, the spool removes it
+            st = n[:len("set-20260102T030400Z-000001")]
+            set_ = int(st[-6:]) - 1
+            t, s, m, phases, black = expected(set_)
+            path = os.path.join(out, n)
+            if n.endswith(".h5"):
+                with h5py.File(path, "r") as f:
+                    np.testing.assert_array_equal(f["entry/transmissive/data"][()], t)
+                    np.testing.assert_array_equal(f["entry/mask/data"][()], m)
+                    np.testing.assert_array_equal(f["entry/phases/data"][()], np.stack(phases))
+                    assert json.loads(f["entry/metadata/data"][()].decode())["set_id"] == set_ + 1
+                checked += 1
+            elif n.endswith("-transmissive.tiff"):
+                np.testing.assert_array_equal(tifffile.imread(path), t)
+            elif n.endswith(".json"):
+                side = json.load(open(path))
+                assert all(os.path.exists(os.path.join(out, f)) for f in side["files"]), (n, side["files"])
+        assert checked >= 3 and len(complete) >= 3, (checked, len(complete))
+        print(f"killed writer, round {round_}: {checked} whole HDF5 files, {len(complete)} complete sets, "
+              f"{sum(n.startswith('.') for n in names)} interrupted temporaries")
+
+
 def main():
     tool = sys.argv[1]
     with tempfile.TemporaryDirectory() as tmp:
         check_files(tool, tmp)
         check_run(tool, tmp)
+        check_killed_writer(tool, tmp)
     print("ok")
 
 
