@@ -179,6 +179,11 @@ main (int argc, char **argv)
   TestDaemon *d = test_daemon_start (conf, NULL);
   g_autoptr (DsClient) ctl = test_daemon_connect (d);
   g_autoptr (DsMessage) st0 = test_daemon_call_ok (ctl, "start", NULL);
+  /* A subscriber of the test's own that never reads, for the whole run: however slowly a
+   * loaded (or sanitized) daemon completes sets, its queue must overflow and results be
+   * dropped (counted), never buffered without bound. */
+  g_autoptr (DsClient) stuck = test_daemon_connect (d);
+  g_autoptr (DsMessage) stuck_sub = test_daemon_call_ok (stuck, "subscribe", NULL);
   /* Baseline once continuous acquisition runs with no other client. */
   g_usleep (1000000);
   guint64 rss0 = test_daemon_rss_kib (d);
@@ -212,6 +217,13 @@ main (int argc, char **argv)
   }
   g_autoptr (DsMessage) s1 = test_daemon_call_ok (ctl, "status", NULL);
   gint64 sets1 = test_json_int (s1->reply->body, "sets_done");
+  /* The never-reading subscriber overflows after a few more results at the latest (its queue
+   * holds at most queue_cap bytes of ~0.4 MB results, plus what the socket buffers). */
+  for (guint i = 0; i < 600 && test_json_int (s1->reply->body, "clients.results_dropped") == 0; i++) {
+    g_usleep (200000);
+    g_clear_pointer (&s1, ds_message_free);
+    s1 = test_daemon_call_ok (ctl, "status", NULL);
+  }
   g_autoptr (DsMessage) stop = test_daemon_call_ok (ctl, "stop", NULL);
   printf ("load: %.0f s, sets %" G_GINT64_FORMAT ", captures %u, status calls %u, results read %u, "
           "bad lines answered %u; RSS %" G_GUINT64_FORMAT " KiB -> peak %" G_GUINT64_FORMAT " KiB\n",

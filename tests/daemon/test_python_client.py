@@ -148,9 +148,13 @@ def seq_gaps(tmp):
         with d.client() as c:
             sub = c.subscribe()
             c.start(phases=2, dark_frame=False, verify_phase=False)
-            time.sleep(4)  # not reading: the daemon drops what does not fit
             events = []
             with d.client() as other:
+                # Not reading until the daemon has dropped what does not fit, however slowly a
+                # loaded or sanitized daemon completes sets.
+                deadline = time.monotonic() + 120
+                while other.status()["clients"]["results_dropped"] == 0 and time.monotonic() < deadline:
+                    time.sleep(0.2)
                 other.stop()
                 while True:
                     try:

@@ -13,7 +13,8 @@ Fault knobs, armed by signals so a test can place them between two phase sets:
   SIGUSR1   the next --busy-count requests (default 12) get exception 06 (server busy)
   SIGUSR2   no answer at all for --silent-for seconds (default 1.5)
 
-Prints "pymodbus-controller: ready rtu=DEVICE light=HOST:PORT" once serving; on SIGTERM prints
+Prints "pymodbus-controller: ready rtu=DEVICE light=HOST:PORT" once serving, "pymodbus-controller:
+armed busy" (or "armed silent") once a knob is armed; on SIGTERM prints
 "pymodbus-controller: requests=R applies=A" and exits 0.
 """
 import argparse
@@ -113,9 +114,11 @@ class Faults:
 
     def arm_busy(self):
         self.busy_left = self.busy_count
+        print("pymodbus-controller: armed busy", flush=True)
 
     def arm_silent(self):
         self.silent_until = time.monotonic() + self.silent_for
+        print("pymodbus-controller: armed silent", flush=True)
 
     def verdict(self):
         """What the next request gets: 'silent', 'busy' or None."""

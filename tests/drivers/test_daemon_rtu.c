@@ -41,6 +41,8 @@ spawn (const char *const *argv, const char *ready, char **ready_line)
   if (!ready)
     return p;
   g_autoptr (GDataInputStream) out = g_data_input_stream_new (g_subprocess_get_stdout_pipe (p));
+  /* The pipe stays open for what the helper says later (arm). */
+  g_filter_input_stream_set_close_base_stream (G_FILTER_INPUT_STREAM (out), FALSE);
   for (;;) {
     char *line = g_data_input_stream_read_line (out, NULL, NULL, &error);
     g_assert_no_error (error);
@@ -54,6 +56,25 @@ spawn (const char *const *argv, const char *ready, char **ready_line)
       return p;
     }
     g_free (line);
+  }
+}
+
+/* Arms one of the controller's fault knobs and waits until it says so: a signal is handled
+ * when the controller's loop gets to it, and the next set must not start before. */
+static void
+arm (GSubprocess *controller, int sig, const char *ack)
+{
+  g_subprocess_send_signal (controller, sig);
+  g_autoptr (GDataInputStream) out = g_data_input_stream_new (g_subprocess_get_stdout_pipe (controller));
+  g_filter_input_stream_set_close_base_stream (G_FILTER_INPUT_STREAM (out), FALSE);
+  for (;;) {
+    g_autoptr (GError) error = NULL;
+    g_autofree char *line = g_data_input_stream_read_line (out, NULL, NULL, &error);
+    g_assert_no_error (error);
+    if (!line)
+      g_error ("the controller exited instead of saying \"%s\"", ack);
+    if (strstr (line, ack))
+      return;
   }
 }
 
@@ -238,14 +259,14 @@ test_pymodbus_controller (void)
   /* Busy for 4 requests: more than one access's 3 attempts (the set's first access, loading the
    * pattern, fails: the sequencer does not retry that), fewer than two accesses' (the next set
    * gets through on a retry). */
-  g_subprocess_send_signal (ln.controller, SIGUSR1);
+  arm (ln.controller, SIGUSR1, "armed busy");
   g_autofree char *busy = capture (c, &t, "exception 06");
   g_assert_nonnull (busy);
   g_free (capture (c, &t, NULL));
   g_assert_cmpuint (t.ok, ==, 3);
 
   /* Silent for 1.5 s: longer than the phase's three tries of 3 x 100 + 100 ms. */
-  g_subprocess_send_signal (ln.controller, SIGUSR2);
+  arm (ln.controller, SIGUSR2, "armed silent");
   g_autofree char *silent = capture (c, &t, "timed out");
   g_assert_nonnull (silent);
   g_usleep (1500000);
