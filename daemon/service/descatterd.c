@@ -8,6 +8,7 @@
 #include "build_info.h"
 #include "daemon/service/config.h"
 #include "daemon/service/preflight.h"
+#include "daemon/service/probe.h"
 #include "daemon/service/service.h"
 
 #define DEFAULT_CONFIG DS_SYSCONF_DIR "/descatterd.conf"
@@ -53,12 +54,13 @@ main (int argc, char **argv)
 {
   setlocale (LC_ALL, "");
   g_autofree char *config_path = NULL, *socket_path = NULL, *tcp = NULL, *scene = NULL, *http = NULL;
-  gboolean sim = FALSE, check = FALSE, no_systemd = FALSE, version = FALSE;
+  gboolean sim = FALSE, check = FALSE, probe = FALSE, no_systemd = FALSE, version = FALSE;
   GOptionEntry entries[] = {
     { "version", 'V', 0, G_OPTION_ARG_NONE, &version, "Print the version and exit", NULL },
     { "config", 'c', 0, G_OPTION_ARG_FILENAME, &config_path, "Configuration file (default " DEFAULT_CONFIG ")", "FILE" },
     { "sim", 0, 0, G_OPTION_ARG_NONE, &sim, "Run on the built-in simulated lab (no configuration file)", NULL },
     { "check", 0, 0, G_OPTION_ARG_NONE, &check, "Validate the configuration, print the effective settings and exit", NULL },
+    { "probe", 0, 0, G_OPTION_ARG_NONE, &probe, "With --check: also open the devices, give them the configured settings as start does, print what they are and allow, and fail on any refusal", NULL },
     { "socket", 's', 0, G_OPTION_ARG_FILENAME, &socket_path, "UNIX socket path (overrides [daemon] socket)", "PATH" },
     { "tcp", 0, 0, G_OPTION_ARG_STRING, &tcp, "TCP listen address host:port (overrides [daemon] tcp-listen)", "ADDR" },
     { "http", 0, 0, G_OPTION_ARG_STRING, &http, "Live view and /metrics on host:port (overrides [http] listen)", "ADDR" },
@@ -79,6 +81,10 @@ main (int argc, char **argv)
   }
   if (sim && config_path) {
     fprintf (stderr, "descatterd: --sim and --config exclude each other\n");
+    return 2;
+  }
+  if (probe && !check) {
+    fprintf (stderr, "descatterd: --probe is a part of --check: use --check --probe\n");
     return 2;
   }
   g_autoptr (DsConfig) config = NULL;
@@ -109,6 +115,15 @@ main (int argc, char **argv)
     else
       printf ("# operating model: %s\n", pf->model_path);
     printf ("%s", text);
+    fflush (stdout);
+    if (probe) {
+      printf ("# probing the devices\n");
+      if (!ds_probe_run (pf, stdout, &error)) {
+        fprintf (stderr, "descatterd: %s\n", error->message);
+        return 1;
+      }
+      printf ("# the devices took the configured settings\n");
+    }
     return 0;
   }
   g_autoptr (GMainLoop) loop = g_main_loop_new (NULL, FALSE);

@@ -91,6 +91,29 @@ fail (GError **error, DsDeviceError code, GError *cause, const char *fmt, ...)
   return FALSE;
 }
 
+/* What the camera allows, for diagnostics (--check --probe); a feature it lacks or does not
+ * answer about stays empty: configure is what refuses a setting. */
+static void
+read_limits (ArvCamera *cam, DsCameraInfo *info)
+{
+  guint n = 0;
+  const char **formats = arv_camera_dup_available_pixel_formats_as_strings (cam, &n, NULL);
+  for (guint i = 0; formats && i < n; i++) {
+    if (i)
+      g_strlcat (info->pixel_formats, ", ", sizeof info->pixel_formats);
+    g_strlcat (info->pixel_formats, formats[i], sizeof info->pixel_formats);
+  }
+  g_free (formats);
+  GError *e = NULL;
+  info->has_gain = arv_camera_is_gain_available (cam, NULL);
+  if (info->has_gain) {
+    arv_camera_get_gain_bounds (cam, &info->gain_min_db, &info->gain_max_db, &e);
+    g_clear_error (&e);
+  }
+  arv_camera_get_exposure_time_bounds (cam, &info->exposure_min_us, &info->exposure_max_us, &e);
+  g_clear_error (&e);
+}
+
 static gboolean
 open_device (AravisCam *c, GError **error)
 {
@@ -119,6 +142,7 @@ open_device (AravisCam *c, GError **error)
   arv_camera_get_sensor_size (cam, &w, &h, NULL);
   c->info.sensor_width = (guint) MAX (w, 0);
   c->info.sensor_height = (guint) MAX (h, 0);
+  read_limits (cam, &c->info);
   /* GigE Vision 1.x block ids are 16 bits; other transports count with 64. */
   ds_frame_id_tracker_init (&c->ids, arv_camera_is_gv_device (cam) ? 16 : 64);
   return TRUE;

@@ -40,6 +40,12 @@ typedef struct {
   char vendor[64], model[64], serial[64], address[64];
   guint sensor_width, sensor_height;
   gboolean connected;
+  /* What the camera allows, read when it opens (descatterd --check --probe prints it):
+   * its PixelFormat entries ("Mono8, Mono16"; "" when it lists none), and its ranges. */
+  char pixel_formats[256];
+  gboolean has_gain;                       /* FALSE: the camera has no Gain feature */
+  double gain_min_db, gain_max_db;
+  double exposure_min_us, exposure_max_us; /* 0, 0: unknown */
 } DsCameraInfo;
 
 typedef struct DsCameraOps DsCameraOps;

@@ -6,6 +6,10 @@
 
 #include "drivers/sim/rng.h"
 
+/* The simulated camera's ranges, as configure checks them and get_info reports them. */
+#define SIM_EXPOSURE_MAX_US 1e7
+#define SIM_GAIN_MAX_DB 48.0
+
 struct DsSimLab {
   gint ref;
   DsRenderer *renderer;
@@ -195,7 +199,8 @@ cam_configure (gpointer b, const DsCameraSettings *s, GError **error)
                  s->roi_width, s->roi_height, spec->width, spec->height);
     return FALSE;
   }
-  if (!(s->exposure_us > 0 && s->exposure_us <= 1e7) || s->gain_db < 0 || s->gain_db > 48) {
+  if (!(s->exposure_us > 0 && s->exposure_us <= SIM_EXPOSURE_MAX_US) || s->gain_db < 0 ||
+      s->gain_db > SIM_GAIN_MAX_DB) {
     g_set_error (error, DS_CAMERA_ERROR, DS_DEVICE_ERROR_INVALID,
                  "simulated camera: exposure %g µs (0, 1e7], gain %g dB [0, 48]", s->exposure_us, s->gain_db);
     return FALSE;
@@ -372,6 +377,10 @@ cam_get_info (gpointer b, DsCameraInfo *i)
   i->sensor_width = s->width;
   i->sensor_height = s->height;
   i->connected = lab->connected;
+  /* Any pixel format: frames are rendered as floats. */
+  i->has_gain = TRUE;
+  i->gain_max_db = SIM_GAIN_MAX_DB;
+  i->exposure_max_us = SIM_EXPOSURE_MAX_US;
 }
 
 static void
