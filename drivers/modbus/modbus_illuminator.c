@@ -130,9 +130,10 @@ to_register (double v, double scale, guint min, guint max, const char *field, in
 {
   double r = round (v * scale);
   if (!isfinite (v) || r < min || r > max) {
+    /* In the unit the configuration uses first: a lab sets period-px, not centipixels. */
     g_set_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_INVALID,
-                 "pattern %s %g: register %s holds %u..%u (%g per unit)", field, v,
-                 ds_mb_holding_name (reg), min, max, scale);
+                 "pattern %s %g: the controller takes %g..%g (register %s holds %u..%u, %g per unit)",
+                 field, v, min / scale, max / scale, ds_mb_holding_name (reg), min, max, scale);
     return FALSE;
   }
   *out = (guint16) r;

@@ -146,6 +146,8 @@ test_pattern_registers (void)
   g_assert_false (ds_modbus_pattern_to_registers (&p, regs, &error));
   g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_INVALID);
   g_assert_nonnull (strstr (error->message, "PERIOD_CENTIPX"));
+  /* ... and the range in the configuration's unit (pixels), not only the register's. */
+  g_assert_nonnull (strstr (error->message, "2..655.35"));
   g_clear_error (&error);
   p.period_px = 6;
   p.n_phases = 65;
