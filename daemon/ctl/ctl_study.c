@@ -9,7 +9,6 @@
 
 #include "daemon/ctl/ctl_commands.h"
 #include "daemon/ctl/ctl_progress.h"
-#include "daemon/operating/operating_point.h"
 #include "daemon/ctl/study.h"
 #include "daemon/operating/data_dir.h"
 
@@ -125,97 +124,6 @@ write_pareto (StudyOut *o, const char *path, GError **error)
   }
   gboolean ok = g_file_set_contents_full (path, md->str, -1, G_FILE_SET_CONTENTS_CONSISTENT, 0644, error);
   g_string_free (md, TRUE);
-  return ok;
-}
-
-/* The operating model (daemon/operating_point.h): per scene and (estimator, N, M), a least-
- * squares fit of err^2 = a / e + b over the exposure factors e (seeds averaged), a, b >= 0.
- * The safety factor is the worst ratio of a measured error (any seed) to its fit. */
-static gboolean
-write_model (StudyOut *o, const char *path, GError **error)
-{
-  GArray *rows = g_array_new (FALSE, TRUE, sizeof (DsModelRow));
-  double safety = 1.0;
-  for (guint i = 0; i < o->points->len; i++) {
-    const DsStudyPoint *p = &g_array_index (o->points, DsStudyPoint, i);
-    gboolean done = FALSE;
-    for (guint j = 0; j < rows->len && !done; j++) {
-      DsModelRow *r = &g_array_index (rows, DsModelRow, j);
-      done = strcmp (r->scene, p->scene) == 0 && r->estimator == p->estimator && r->phases == p->phases &&
-             r->averages == p->averages;
-    }
-    if (done)
-      continue;
-    /* Gather this configuration's points: x = 1/e, y = mean over seeds of err^2. */
-    double xs[16], ys[16], ns[16];
-    guint k = 0;
-    for (guint j = 0; j < o->points->len; j++) {
-      const DsStudyPoint *q = &g_array_index (o->points, DsStudyPoint, j);
-      if (strcmp (q->scene, p->scene) != 0 || q->estimator != p->estimator || q->phases != p->phases ||
-          q->averages != p->averages || !isfinite (q->rel_rmse_transmissive))
-        continue;
-      guint m = 0;
-      while (m < k && xs[m] != 1.0 / q->exposure_factor)
-        m++;
-      if (m == k) {
-        if (k == G_N_ELEMENTS (xs))
-          continue;
-        xs[k] = 1.0 / q->exposure_factor;
-        ys[k] = ns[k] = 0;
-        k++;
-      }
-      ys[m] += q->rel_rmse_transmissive * q->rel_rmse_transmissive;
-      ns[m] += 1;
-    }
-    if (k == 0)
-      continue;
-    double sx = 0, sy = 0, sxx = 0, sxy = 0;
-    for (guint m = 0; m < k; m++) {
-      ys[m] /= ns[m];
-      sx += xs[m];
-      sy += ys[m];
-      sxx += xs[m] * xs[m];
-      sxy += xs[m] * ys[m];
-    }
-    double a, b;
-    double det = k * sxx - sx * sx;
-    if (k >= 2 && det > 0) {
-      a = (k * sxy - sx * sy) / det;
-      b = (sy - a * sx) / k;
-    } else {
-      a = sy / sx; /* one exposure: all noise (the conservative reading at longer exposures is
-                      wrong, so the study always runs several) */
-      b = 0;
-    }
-    if (a < 0) {
-      a = 0;
-      b = sy / k;
-    }
-    if (b < 0) {
-      b = 0;
-      a = sxy / sxx;
-    }
-    DsModelRow r = { .estimator = p->estimator, .phases = p->phases, .averages = p->averages,
-                     .a = a, .b = b, .signal_dn = p->signal_dn / p->exposure_factor,
-                     .direct_fraction = MAX (p->direct_fraction, 1e-4),
-                     .base_exposure_us = p->exposure_us / p->exposure_factor };
-    g_strlcpy (r.scene, p->scene, sizeof r.scene);
-    g_array_append_val (rows, r);
-    for (guint j = 0; j < o->points->len; j++) {
-      const DsStudyPoint *q = &g_array_index (o->points, DsStudyPoint, j);
-      if (strcmp (q->scene, p->scene) != 0 || q->estimator != p->estimator || q->phases != p->phases ||
-          q->averages != p->averages || !isfinite (q->rel_rmse_transmissive))
-        continue;
-      double pred = sqrt (a / q->exposure_factor + b);
-      if (pred > 0)
-        safety = MAX (safety, q->rel_rmse_transmissive / pred);
-    }
-  }
-  gboolean ok = rows->len > 0 && ds_operating_model_write ((const DsModelRow *) rows->data, rows->len,
-                                                           safety, path, error);
-  if (rows->len == 0)
-    g_set_error (error, G_FILE_ERROR, G_FILE_ERROR_INVAL, "no points to fit a model to");
-  g_array_unref (rows);
   return ok;
 }
 
@@ -366,11 +274,6 @@ ds_ctl_study (int argc, char **argv)
       status = 1;
     } else if (!quiet)
       fprintf (stderr, "study: %u points in %s, fronts in %s\n", o.done, csv_path, md);
-    g_autofree char *model = g_build_filename (dir, "operating-model.csv", NULL);
-    if (status == 0 && !write_model (&o, model, &error)) {
-      fprintf (stderr, "descatterctl study: %s\n", error->message);
-      status = 1;
-    }
   } else
     g_unlink (tmp_path);
   g_array_unref (o.points);

@@ -1,245 +1,403 @@
 #include "daemon/operating/operating_point.h"
 
-#include <errno.h>
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
 
 #include "daemon/protocol/protocol.h"
-#include "proc/stripe_phase.h"
 
-struct DsOperatingModel {
-  GArray *rows; /* DsModelRow */
-  double safety;
-};
+static const DsEstimator all_estimators[] = { DS_ESTIMATOR_MAXMIN, DS_ESTIMATOR_SINE, DS_ESTIMATOR_ROBUST };
 
-DsOperatingModel *
-ds_operating_model_new (const DsModelRow *rows, guint n, double safety)
+void
+ds_operating_model_init (DsOperatingModel *m)
 {
-  DsOperatingModel *m = g_new0 (DsOperatingModel, 1);
-  m->rows = g_array_sized_new (FALSE, FALSE, sizeof (DsModelRow), n);
-  g_array_append_vals (m->rows, rows, n);
-  m->safety = MAX (1.0, safety);
-  return m;
+  static const guint phases[] = { 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64 };
+  static const guint averages[] = { 1, 2, 4, 8, 16 };
+  static const double factors[] = { 0.25, 0.5, 1, 2, 4 };
+  memset (m, 0, sizeof *m);
+  m->safety = 1.0;
+  m->n_phases = G_N_ELEMENTS (phases);
+  memcpy (m->phases, phases, sizeof phases);
+  m->n_averages = G_N_ELEMENTS (averages);
+  memcpy (m->averages, averages, sizeof averages);
+  m->n_exposure_factors = G_N_ELEMENTS (factors);
+  memcpy (m->exposure_factors, factors, sizeof factors);
+  g_strlcpy (m->fitted_on, "nothing (built-in)", sizeof m->fitted_on);
+}
+
+#define GROUP "operating-model"
+
+static gboolean
+load_uints (GKeyFile *kf, const char *path, const char *key, guint lo, guint hi, guint *out, guint *n,
+            GError **error)
+{
+  if (!g_key_file_has_key (kf, GROUP, key, NULL))
+    return TRUE;
+  gsize len = 0;
+  g_autoptr (GError) e = NULL;
+  g_autofree gint *v = g_key_file_get_integer_list (kf, GROUP, key, &len, &e);
+  if (!v || len == 0 || len > DS_OPERATING_MAX_CANDIDATES) {
+    g_set_error (error, G_KEY_FILE_ERROR, G_KEY_FILE_ERROR_INVALID_VALUE,
+                 "%s: [" GROUP "] %s: 1 to %u integers separated by ';' expected", path, key,
+                 DS_OPERATING_MAX_CANDIDATES);
+    return FALSE;
+  }
+  for (gsize i = 0; i < len; i++) {
+    if (v[i] < (gint) lo || v[i] > (gint) hi) {
+      g_set_error (error, G_KEY_FILE_ERROR, G_KEY_FILE_ERROR_INVALID_VALUE,
+                   "%s: [" GROUP "] %s: %d is outside [%u, %u]", path, key, v[i], lo, hi);
+      return FALSE;
+    }
+    out[i] = (guint) v[i];
+  }
+  *n = (guint) len;
+  return TRUE;
 }
 
 void
 ds_operating_model_free (DsOperatingModel *m)
 {
-  if (!m)
-    return;
-  g_array_unref (m->rows);
   g_free (m);
 }
 
-double
-ds_operating_model_safety (const DsOperatingModel *m)
-{
-  return m->safety;
-}
-
-#define HEADER "scene,estimator,phases,averages,a,b,signal_dn,direct_fraction,base_exposure_us"
-
-gboolean
-ds_operating_model_write (const DsModelRow *rows, guint n, double safety, const char *path,
-                          GError **error)
-{
-  GString *s = g_string_new (NULL);
-  g_string_append_printf (s, "# descatter operating model (descatterctl study); safety=%.4f\n" HEADER "\n",
-                          safety);
-  for (guint i = 0; i < n; i++) {
-    char a[G_ASCII_DTOSTR_BUF_SIZE], b[G_ASCII_DTOSTR_BUF_SIZE], sig[G_ASCII_DTOSTR_BUF_SIZE],
-        f[G_ASCII_DTOSTR_BUF_SIZE], e[G_ASCII_DTOSTR_BUF_SIZE];
-    g_string_append_printf (s, "%s,%s,%u,%u,%s,%s,%s,%s,%s\n", rows[i].scene,
-                            ds_estimator_name (rows[i].estimator), rows[i].phases, rows[i].averages,
-                            g_ascii_dtostr (a, sizeof a, rows[i].a), g_ascii_dtostr (b, sizeof b, rows[i].b),
-                            g_ascii_dtostr (sig, sizeof sig, rows[i].signal_dn),
-                            g_ascii_dtostr (f, sizeof f, rows[i].direct_fraction),
-                            g_ascii_dtostr (e, sizeof e, rows[i].base_exposure_us));
-  }
-  gboolean ok = g_file_set_contents_full (path, s->str, (gssize) s->len,
-                                          G_FILE_SET_CONTENTS_CONSISTENT | G_FILE_SET_CONTENTS_DURABLE,
-                                          0644, error);
-  g_string_free (s, TRUE);
-  return ok;
-}
-
-static gboolean
-parse_double (const char *text, double *out)
-{
-  char *end = NULL;
-  errno = 0;
-  *out = g_ascii_strtod (text, &end);
-  return errno == 0 && end && end != text && *end == 0 && isfinite (*out);
-}
+static gboolean load_into (DsOperatingModel *m, const char *path, GError **error);
 
 DsOperatingModel *
 ds_operating_model_load (const char *path, GError **error)
 {
-  g_autofree char *text = NULL;
-  if (!g_file_get_contents (path, &text, NULL, error)) {
-    g_prefix_error (error, "operating model: ");
+  g_autoptr (DsOperatingModel) m = g_new0 (DsOperatingModel, 1);
+  if (!load_into (m, path, error))
     return NULL;
-  }
-  g_auto (GStrv) lines = g_strsplit (text, "\n", -1);
-  g_autoptr (GArray) rows = g_array_new (FALSE, FALSE, sizeof (DsModelRow));
-  double safety = 1.0;
-  gboolean header = FALSE;
-  for (guint i = 0; lines[i]; i++) {
-    const char *l = lines[i];
-    if (!*l)
-      continue;
-    if (l[0] == '#') {
-      const char *p = strstr (l, "safety=");
-      if (p && !parse_double (p + 7, &safety)) {
-        g_set_error (error, G_FILE_ERROR, G_FILE_ERROR_INVAL, "%s:%u: bad safety factor", path, i + 1);
-        return NULL;
-      }
-      continue;
-    }
-    if (!header) {
-      if (strcmp (l, HEADER) != 0) {
-        g_set_error (error, G_FILE_ERROR, G_FILE_ERROR_INVAL,
-                     "%s:%u: expected the header \"" HEADER "\"", path, i + 1);
-        return NULL;
-      }
-      header = TRUE;
-      continue;
-    }
-    g_auto (GStrv) f = g_strsplit (l, ",", -1);
-    DsModelRow r = { 0 };
-    guint64 n, m;
-    if (g_strv_length (f) != 9 || strlen (f[0]) >= sizeof r.scene ||
-        !ds_estimator_from_name (f[1], &r.estimator) ||
-        !g_ascii_string_to_unsigned (f[2], 10, 2, 1024, &n, NULL) ||
-        !g_ascii_string_to_unsigned (f[3], 10, 1, 1024, &m, NULL) || !parse_double (f[4], &r.a) ||
-        !parse_double (f[5], &r.b) || !parse_double (f[6], &r.signal_dn) ||
-        !parse_double (f[7], &r.direct_fraction) || !parse_double (f[8], &r.base_exposure_us) ||
-        r.a < 0 || r.b < 0 || r.signal_dn <= 0 || r.direct_fraction <= 0 || r.base_exposure_us <= 0) {
-      g_set_error (error, G_FILE_ERROR, G_FILE_ERROR_INVAL,
-                   "%s:%u: expected scene,estimator,N>=2,M>=1,a>=0,b>=0,signal>0,fraction>0,exposure>0",
-                   path, i + 1);
-      return NULL;
-    }
-    g_strlcpy (r.scene, f[0], sizeof r.scene);
-    r.phases = (guint) n;
-    r.averages = (guint) m;
-    g_array_append_val (rows, r);
-  }
-  if (rows->len == 0) {
-    g_set_error (error, G_FILE_ERROR, G_FILE_ERROR_INVAL, "%s: no model rows", path);
-    return NULL;
-  }
-  return ds_operating_model_new ((const DsModelRow *) rows->data, rows->len, safety);
+  return g_steal_pointer (&m);
 }
 
-gboolean
-ds_scene_stats_from_frame (const DsImage *frame, double dark_dn, double period_px, double pattern_mean,
-                           double harmonic_gain, double exposure_us, DsSceneStats *out, GError **error)
+static gboolean
+load_into (DsOperatingModel *m, const char *path, GError **error)
 {
-  DsStripePhase sp;
-  if (!ds_stripe_phase_measure (frame, period_px, NULL, &sp, error))
-    return FALSE;
-  double mean = sp.mean - dark_dn;
-  if (!(mean > 0) || !(pattern_mean > 0) || !(harmonic_gain > 0)) {
-    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_DEVICE,
-                 "preview frame: no signal above the dark level (mean %.1f DN, dark %.1f DN)", sp.mean, dark_dn);
+  ds_operating_model_init (m);
+  g_autoptr (GKeyFile) kf = g_key_file_new ();
+  if (!g_key_file_load_from_file (kf, path, G_KEY_FILE_NONE, error)) {
+    g_prefix_error (error, "operating model %s: ", path);
     return FALSE;
   }
-  out->signal_dn = mean / pattern_mean;
-  double ld = sp.amplitude / harmonic_gain;
-  out->direct_fraction = CLAMP (ld / out->signal_dn, 0.001, 1.0);
-  out->exposure_us = exposure_us;
+  if (!g_key_file_has_group (kf, GROUP)) {
+    g_set_error (error, G_KEY_FILE_ERROR, G_KEY_FILE_ERROR_GROUP_NOT_FOUND,
+                 "%s: no [" GROUP "] group (an operating model from before the error model? "
+                 "regenerate it with `descatterctl validate --fit`)", path);
+    return FALSE;
+  }
+  g_auto (GStrv) keys = g_key_file_get_keys (kf, GROUP, NULL, NULL);
+  static const char *const known[] = { "safety", "phases", "averages", "exposure-factors", "fitted-on", NULL };
+  for (guint i = 0; keys && keys[i]; i++)
+    if (!g_strv_contains (known, keys[i])) {
+      g_set_error (error, G_KEY_FILE_ERROR, G_KEY_FILE_ERROR_KEY_NOT_FOUND,
+                   "%s: [" GROUP "] unknown key %s (known: safety, phases, averages, exposure-factors, fitted-on)",
+                   path, keys[i]);
+      return FALSE;
+    }
+  if (g_key_file_has_key (kf, GROUP, "safety", NULL)) {
+    g_autoptr (GError) e = NULL;
+    double v = g_key_file_get_double (kf, GROUP, "safety", &e);
+    if (e || !(v >= 1.0 && v <= 10.0)) {
+      g_set_error (error, G_KEY_FILE_ERROR, G_KEY_FILE_ERROR_INVALID_VALUE,
+                   "%s: [" GROUP "] safety: a number in [1, 10] expected", path);
+      return FALSE;
+    }
+    m->safety = v;
+  }
+  if (!load_uints (kf, path, "phases", 2, DS_MAX_PHASES, m->phases, &m->n_phases, error) ||
+      !load_uints (kf, path, "averages", 1, DS_MAX_PHASES, m->averages, &m->n_averages, error))
+    return FALSE;
+  if (g_key_file_has_key (kf, GROUP, "exposure-factors", NULL)) {
+    gsize len = 0;
+    g_autoptr (GError) e = NULL;
+    g_autofree double *v = g_key_file_get_double_list (kf, GROUP, "exposure-factors", &len, &e);
+    gboolean ok = v && len > 0 && len <= DS_OPERATING_MAX_CANDIDATES;
+    for (gsize i = 0; ok && i < len; i++)
+      ok = v[i] > 0 && v[i] <= 1000;
+    if (!ok) {
+      g_set_error (error, G_KEY_FILE_ERROR, G_KEY_FILE_ERROR_INVALID_VALUE,
+                   "%s: [" GROUP "] exposure-factors: 1 to %u numbers in (0, 1000] separated by ';' expected",
+                   path, DS_OPERATING_MAX_CANDIDATES);
+      return FALSE;
+    }
+    memcpy (m->exposure_factors, v, len * sizeof *v);
+    m->n_exposure_factors = (guint) len;
+  }
+  g_autofree char *fitted = g_key_file_get_string (kf, GROUP, "fitted-on", NULL);
+  if (fitted)
+    g_strlcpy (m->fitted_on, fitted, sizeof m->fitted_on);
   return TRUE;
 }
 
-/* The model rows of one configuration; the one whose scene is closest in direct fraction
- * (in log: fractions span decades in heavy scattering) gives the systematic part. */
-static const DsModelRow *
-closest_row (const DsOperatingModel *m, const DsSceneStats *st, DsEstimator est, guint n, guint mm)
+gboolean
+ds_operating_model_write (const DsOperatingModel *m, const char *path, GError **error)
 {
-  const DsModelRow *best = NULL;
-  double best_d = INFINITY;
-  for (guint i = 0; i < m->rows->len; i++) {
-    const DsModelRow *r = &g_array_index (m->rows, DsModelRow, i);
-    if (r->estimator != est || r->phases != n || r->averages != mm)
-      continue;
-    double d = fabs (log (r->direct_fraction / st->direct_fraction));
-    if (d < best_d) {
-      best_d = d;
-      best = r;
-    }
-  }
-  return best;
+  g_autoptr (GKeyFile) kf = g_key_file_new ();
+  gint phases[DS_OPERATING_MAX_CANDIDATES], averages[DS_OPERATING_MAX_CANDIDATES];
+  for (guint i = 0; i < m->n_phases; i++)
+    phases[i] = (gint) m->phases[i];
+  for (guint i = 0; i < m->n_averages; i++)
+    averages[i] = (gint) m->averages[i];
+  g_key_file_set_double (kf, GROUP, "safety", m->safety);
+  g_key_file_set_integer_list (kf, GROUP, "phases", phases, m->n_phases);
+  g_key_file_set_integer_list (kf, GROUP, "averages", averages, m->n_averages);
+  g_key_file_set_double_list (kf, GROUP, "exposure-factors", (double *) m->exposure_factors,
+                              m->n_exposure_factors);
+  g_key_file_set_string (kf, GROUP, "fitted-on", m->fitted_on);
+  g_key_file_set_comment (kf, NULL, NULL,
+                          " descatter operating model (docs/accuracy.md): the candidates the automatic\n"
+                          " operating point searches, and the factor its predictions are multiplied by.\n"
+                          " Written by `descatterctl validate --fit`.",
+                          NULL);
+  g_autofree char *text = g_key_file_to_data (kf, NULL, NULL);
+  return g_file_set_contents_full (path, text, -1,
+                                   G_FILE_SET_CONTENTS_CONSISTENT | G_FILE_SET_CONTENTS_DURABLE, 0644, error);
 }
 
 double
-ds_operating_model_predict (const DsOperatingModel *m, const DsSceneStats *st, DsEstimator est,
-                            guint n, guint mm, double exposure_us)
+ds_scene_probe_max_exposure (const DsSceneProbe *p)
 {
-  const DsModelRow *r = closest_row (m, st, est, n, mm);
-  if (!r)
-    return INFINITY;
-  double signal = st->signal_dn * exposure_us / st->exposure_us;
-  double noise2 = r->a * (r->direct_fraction * r->direct_fraction * r->signal_dn) /
-                  (st->direct_fraction * st->direct_fraction * signal);
-  return m->safety * sqrt (noise2 + r->b);
+  if (!(p->saturation_dn > 0) || !(p->bright_dn > 0))
+    return 16 * p->exposure_us;
+  double room = 0.9 * p->saturation_dn - p->dark_dn;
+  return room > 0 ? p->exposure_us * room / p->bright_dn : 0;
+}
+
+static gboolean
+predict (const DsOperatingModel *m, DsErrorModel *errors, const DsSceneProbe *probe, const DsRigTiming *t,
+         guint w, guint h, DsEstimator e, guint n, guint mm, double factor, double period,
+         DsOperatingPoint *p)
+{
+  memset (p, 0, sizeof *p);
+  if (!ds_error_model_predict (errors, e, n, mm, factor, period, &p->parts, NULL))
+    return FALSE;
+  p->estimator = e;
+  p->phases = n;
+  p->averages = mm;
+  p->exposure_us = probe->exposure_us * factor;
+  p->period_px = period > 0 ? period : probe->geometry.period_px;
+  p->predicted_error = m->safety * p->parts.total;
+  p->predicted_time_ms = ds_rig_timing_set_ms (t, w, h, n, mm, p->exposure_us, TRUE);
+  p->lower_bound = !probe->leak_measured || probe->blur_source == DS_BLUR_ASSUMED_SHARP;
+  return TRUE;
+}
+
+typedef struct {
+  gboolean found;
+  DsOperatingPoint p;
+} Best;
+
+/* The rule: with a target, the fastest point meeting it (ties: the more accurate); otherwise the
+ * most accurate (ties: the faster). */
+static void
+consider (Best *b, const DsOperatingPoint *p, double target)
+{
+  gboolean better;
+  if (!b->found)
+    better = TRUE;
+  else if (target > 0)
+    better = p->predicted_time_ms < b->p.predicted_time_ms ||
+             (p->predicted_time_ms == b->p.predicted_time_ms && p->predicted_error < b->p.predicted_error);
+  else
+    better = p->predicted_error < b->p.predicted_error ||
+             (p->predicted_error == b->p.predicted_error && p->predicted_time_ms < b->p.predicted_time_ms);
+  if (better) {
+    b->p = *p;
+    b->found = TRUE;
+  }
+}
+
+/* The exposure factors that keep the brightest pixels below the clip level; when none does,
+ * the largest exposure that does. */
+static guint
+usable_factors (const DsOperatingModel *m, const DsSceneProbe *probe, double *out)
+{
+  double max_f = ds_scene_probe_max_exposure (probe) / probe->exposure_us;
+  guint n = 0;
+  for (guint i = 0; i < m->n_exposure_factors; i++)
+    if (m->exposure_factors[i] <= max_f * (1 + 1e-9))
+      out[n++] = m->exposure_factors[i];
+  if (n == 0 && max_f > 0)
+    out[n++] = max_f;
+  return n;
+}
+
+typedef struct {
+  Best in_budget_meeting;   /* the choice */
+  Best least_in_budget;     /* the most accurate within the budget */
+  Best meeting_any_time;    /* the fastest meeting the target, whatever the budget */
+} Search;
+
+static void
+search (const DsOperatingModel *m, DsErrorModel *errors, const DsSceneProbe *probe, const DsRigTiming *t,
+        guint w, guint h, const guint *phases, guint n_phases, const guint *averages, guint n_averages,
+        const double *factors, guint n_factors, double period, double target, double budget, Search *s)
+{
+  for (guint ie = 0; ie < G_N_ELEMENTS (all_estimators); ie++)
+    for (guint in = 0; in < n_phases; in++)
+      for (guint im = 0; im < n_averages; im++)
+        for (guint iff = 0; iff < n_factors; iff++) {
+          DsOperatingPoint p;
+          if (!predict (m, errors, probe, t, w, h, all_estimators[ie], phases[in], averages[im], factors[iff],
+                        period, &p))
+            continue;
+          gboolean in_budget = budget <= 0 || p.predicted_time_ms <= budget;
+          gboolean meets = target <= 0 || p.predicted_error <= target;
+          if (in_budget)
+            consider (&s->least_in_budget, &p, 0);
+          if (meets)
+            consider (&s->meeting_any_time, &p, 1);
+          if (in_budget && meets)
+            consider (&s->in_budget_meeting, &p, target);
+        }
+}
+
+static void
+append_point (GString *s, const DsOperatingPoint *p)
+{
+  g_string_append_printf (s, "%.4f (%s, N=%u, M=%u, %.0f µs", p->predicted_error, ds_estimator_name (p->estimator),
+                          p->phases, p->averages, p->exposure_us);
+  g_string_append_printf (s, ", period %g px: %.0f ms; noise %.4f, sampling %.4f, scattered stripes %+.4f)",
+                          p->period_px, p->predicted_time_ms, p->parts.noise, p->parts.sampling,
+                          p->parts.scattered_stripes);
 }
 
 gboolean
-ds_operating_point_choose (const DsOperatingModel *m, const DsSceneStats *st, const DsRigTiming *timing,
-                           guint width, guint height, double max_exposure_us, double target_error,
-                           double time_budget_ms, DsOperatingPoint *out, GError **error)
+ds_operating_point_choose (const DsOperatingModel *m, DsErrorModel *errors, const DsSceneProbe *probe,
+                           const DsRigTiming *t, guint w, guint h, double target, double budget,
+                           DsOperatingPoint *out, GError **error)
 {
-  static const double factors[] = { 0.5, 1, 2, 4 };
-  gboolean found = FALSE;
-  DsOperatingPoint best = { 0 }, least_error = { .predicted_error = INFINITY };
-  for (guint i = 0; i < m->rows->len; i++) {
-    const DsModelRow *r = &g_array_index (m->rows, DsModelRow, i);
-    /* Each configuration once (rows repeat it per study scene). */
-    gboolean seen = FALSE;
-    for (guint j = 0; j < i && !seen; j++) {
-      const DsModelRow *q = &g_array_index (m->rows, DsModelRow, j);
-      seen = q->estimator == r->estimator && q->phases == r->phases && q->averages == r->averages;
+  double factors[DS_OPERATING_MAX_CANDIDATES];
+  guint n_factors = usable_factors (m, probe, factors);
+  Search s = { 0 };
+  search (m, errors, probe, t, w, h, m->phases, m->n_phases, m->averages, m->n_averages, factors, n_factors,
+          0, target, budget, &s);
+  if (s.in_budget_meeting.found) {
+    *out = s.in_budget_meeting.p;
+    return TRUE;
+  }
+  GString *msg = g_string_new (NULL);
+  if (target > 0)
+    g_string_append_printf (msg, "no operating point reaches a relative error of %.4f", target);
+  else
+    g_string_append (msg, "no operating point");
+  if (budget > 0)
+    g_string_append_printf (msg, " within %.0f ms", budget);
+  if (s.least_in_budget.found) {
+    g_string_append (msg, "; the best reachable is ");
+    append_point (msg, &s.least_in_budget.p);
+    if (s.least_in_budget.p.lower_bound)
+      g_string_append (msg, ", a lower bound");
+  } else
+    g_string_append_printf (msg, "; the fastest candidate does not fit a budget of %.0f ms", budget);
+  if (target > 0 && s.meeting_any_time.found) {
+    g_string_append_printf (msg, ". A time budget of %.0f ms would reach it: ", ceil (s.meeting_any_time.p.predicted_time_ms));
+    append_point (msg, &s.meeting_any_time.p);
+  } else if (target > 0) {
+    /* What else would: more frames than the candidates hold, then more light (which the clip
+     * level may forbid), then another stripe period. */
+    static const guint more_m[] = { 32, 64 };
+    static const double more_f[] = { 8, 16 };
+    Search more = { 0 };
+    search (m, errors, probe, t, w, h, m->phases, m->n_phases, more_m, G_N_ELEMENTS (more_m), factors, n_factors,
+            0, target, 0, &more);
+    if (!more.meeting_any_time.found)
+      search (m, errors, probe, t, w, h, m->phases, m->n_phases, m->averages, m->n_averages, more_f,
+              G_N_ELEMENTS (more_f), 0, target, 0, &more);
+    if (more.meeting_any_time.found) {
+      g_string_append (msg, ". More frames or light would reach it: ");
+      append_point (msg, &more.meeting_any_time.p);
+      if (more.meeting_any_time.p.exposure_us > ds_scene_probe_max_exposure (probe))
+        g_string_append_printf (msg, ", but exposures above %.0f µs clip the brightest pixels: "
+                                     "more illumination or a lower gain",
+                                ds_scene_probe_max_exposure (probe));
     }
-    if (seen)
-      continue;
-    for (guint k = 0; k < G_N_ELEMENTS (factors); k++) {
-      double e = MIN (st->exposure_us * factors[k], max_exposure_us);
-      DsOperatingPoint p = { .estimator = r->estimator, .phases = r->phases, .averages = r->averages,
-                             .exposure_us = e };
-      p.predicted_error = ds_operating_model_predict (m, st, r->estimator, r->phases, r->averages, e);
-      p.predicted_time_ms = ds_rig_timing_set_ms (timing, width, height, r->phases, r->averages, e, TRUE);
-      gboolean in_budget = time_budget_ms <= 0 || p.predicted_time_ms <= time_budget_ms;
-      if (in_budget && p.predicted_error < least_error.predicted_error)
-        least_error = p;
-      if (!in_budget || (target_error > 0 && p.predicted_error > target_error))
+    static const double period_factors[] = { 0.5, 0.67, 0.75, 1.5, 2 };
+    Best other = { 0 };
+    for (guint i = 0; i < G_N_ELEMENTS (period_factors); i++) {
+      double q = probe->geometry.period_px * period_factors[i];
+      if (q < 3)
         continue;
-      /* With a target: the fastest point meeting it. Budget only: the most accurate. */
-      gboolean better = !found ||
-                        (target_error > 0 ? p.predicted_time_ms < best.predicted_time_ms ||
-                                                (p.predicted_time_ms == best.predicted_time_ms &&
-                                                 p.predicted_error < best.predicted_error)
-                                          : p.predicted_error < best.predicted_error);
-      if (better) {
-        best = p;
-        found = TRUE;
-      }
+      Search ps = { 0 };
+      search (m, errors, probe, t, w, h, m->phases, m->n_phases, m->averages, m->n_averages, factors, n_factors, q,
+              target, budget, &ps);
+      if (ps.in_budget_meeting.found)
+        consider (&other, &ps.in_budget_meeting.p, 1);
     }
+    if (other.found) {
+      g_string_append_printf (msg, ". A stripe period of %g px would reach it: ", other.p.period_px);
+      append_point (msg, &other.p);
+    } else if (!more.meeting_any_time.found)
+      g_string_append (msg, ". Neither more time, more light nor another stripe period reaches it");
+    if (!probe->leak_measured)
+      g_string_append_printf (msg, " (scattered light that keeps the stripes: %s)", probe->leak_note);
   }
-  if (!found) {
-    if (isfinite (least_error.predicted_error))
-      g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT,
-                   "no operating point reaches a relative error of %.4f within %.0f ms; the best "
-                   "within the budget is %.4f (%s, N=%u, M=%u, %.0f µs: %.0f ms)",
-                   target_error, time_budget_ms, least_error.predicted_error,
-                   ds_estimator_name (least_error.estimator), least_error.phases,
-                   least_error.averages, least_error.exposure_us, least_error.predicted_time_ms);
-    else
-      g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT,
-                   "no operating point fits a time budget of %.0f ms", time_budget_ms);
-    return FALSE;
-  }
-  *out = best;
-  return TRUE;
+  g_set_error_literal (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT, msg->str);
+  g_string_free (msg, TRUE);
+  return FALSE;
+}
+
+void
+ds_operating_report_to_json (const DsOperatingReport *r, JsonBuilder *b)
+{
+#define DBL(k, v) (json_builder_set_member_name (b, k), json_builder_add_double_value (b, v))
+#define STR(k, v) (json_builder_set_member_name (b, k), json_builder_add_string_value (b, v))
+#define BOOL(k, v) (json_builder_set_member_name (b, k), json_builder_add_boolean_value (b, v))
+  const DsOperatingPoint *p = &r->point;
+  const DsSceneProbe *pr = &r->probe;
+  DBL ("target_error", r->target_error);
+  DBL ("time_budget_ms", r->time_budget_ms);
+  DBL ("predicted_error", p->predicted_error);
+  DBL ("predicted_time_ms", p->predicted_time_ms);
+  DBL ("safety", r->safety);
+  json_builder_set_member_name (b, "parts");
+  json_builder_begin_object (b);
+  DBL ("noise", p->parts.noise);
+  DBL ("systematic", p->parts.systematic);
+  DBL ("sampling", p->parts.sampling);
+  DBL ("scattered_stripes", p->parts.scattered_stripes);
+  json_builder_end_object (b);
+  /* What the prediction contains: noise and the pattern's sampling always; the blur when it was
+   * calibrated or measured; the scattered stripes when measured at two periods. Saturated
+   * pixels are excluded from the error (and from the result's valid pixels), never chosen into. */
+  json_builder_set_member_name (b, "contains");
+  json_builder_begin_array (b);
+  json_builder_add_string_value (b, "noise");
+  json_builder_add_string_value (b, "sampling");
+  if (pr->blur_source != DS_BLUR_ASSUMED_SHARP)
+    json_builder_add_string_value (b, "blur");
+  if (pr->leak_measured)
+    json_builder_add_string_value (b, "scattered_stripes");
+  json_builder_add_string_value (b, "saturation");
+  json_builder_end_array (b);
+  BOOL ("lower_bound", p->lower_bound);
+  json_builder_set_member_name (b, "lower_bound_reasons");
+  json_builder_begin_array (b);
+  if (!pr->leak_measured)
+    json_builder_add_string_value (b, pr->leak_note);
+  if (pr->blur_source == DS_BLUR_ASSUMED_SHARP)
+    json_builder_add_string_value (b, "stripe blur neither calibrated nor measurable from the pilot frames: "
+                                      "assumed sharp");
+  json_builder_end_array (b);
+  json_builder_set_member_name (b, "scene");
+  json_builder_begin_object (b);
+  DBL ("direct_dn", pr->ld_mean);
+  DBL ("direct_spread", pr->ld_spread);
+  DBL ("scattered_dn", pr->lg_mean);
+  DBL ("noise_dn", sqrt (pr->noise_var0 + pr->noise_gain * (pr->ld_mean + pr->lg_mean)));
+  DBL ("blur_px", pr->geometry.blur_px);
+  STR ("blur_source", ds_blur_source_name (pr->blur_source));
+  DBL ("scattered_stripes_at_period", ds_scene_probe_leak (pr, pr->geometry.period_px, 1));
+  STR ("scattered_stripes_note", pr->leak_note);
+  DBL ("clip_dn", pr->saturation_dn);
+  DBL ("saturated_fraction", pr->saturated_fraction);
+  DBL ("exposure_us", pr->exposure_us);
+  json_builder_end_object (b);
+  json_builder_set_member_name (b, "pilot_frames");
+  json_builder_add_int_value (b, r->pilot_frames);
+  DBL ("pilot_ms", r->pilot_ms);
+#undef DBL
+#undef STR
+#undef BOOL
 }

@@ -51,12 +51,7 @@ ds_capture_settings_to_json (const DsCaptureSettings *s)
   if (s->automatic) {
     json_builder_set_member_name (b, "operating_point");
     json_builder_begin_object (b);
-    DBL ("target_error", s->target_error);
-    DBL ("time_budget_ms", s->time_budget_ms);
-    DBL ("predicted_error", s->predicted_error);
-    DBL ("predicted_time_ms", s->predicted_time_ms);
-    DBL ("preview_signal_dn", s->preview_signal_dn);
-    DBL ("preview_direct_fraction", s->preview_direct_fraction);
+    ds_operating_report_to_json (&s->operating, b);
     json_builder_end_object (b);
   }
   DBL ("phase_tolerance_deg", s->phase_tolerance_deg);

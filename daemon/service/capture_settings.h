@@ -5,6 +5,7 @@
 #include <glib.h>
 #include <json-glib/json-glib.h>
 
+#include "daemon/operating/operating_point.h"
 #include "daemon/service/config.h"
 #include "proc/separation.h"
 
@@ -30,9 +31,8 @@ typedef struct {
    * model choose estimator, phases, averages and exposure; the choice is recorded below. */
   double target_error;        /* relative RMSE of transmissive; 0 = none */
   double time_budget_ms;      /* 0 = none */
-  gboolean automatic;         /* the fields below are valid */
-  double predicted_error, predicted_time_ms;
-  double preview_signal_dn, preview_direct_fraction;
+  gboolean automatic;         /* `operating` is valid */
+  DsOperatingReport operating;
 } DsCaptureSettings;
 
 /* The configuration's acquisition defaults. */

@@ -130,7 +130,7 @@ static gboolean
 check_model (DsPreflight *pf, const DsConfig *c, GError **error)
 {
   gboolean configured = c->operating_model && *c->operating_model;
-  pf->model_path = configured ? g_strdup (c->operating_model) : ds_data_path ("operating-model.csv");
+  pf->model_path = configured ? g_strdup (c->operating_model) : ds_data_path ("operating-model.conf");
   GError *e = NULL;
   pf->model = ds_operating_model_load (pf->model_path, &e);
   if (pf->model)

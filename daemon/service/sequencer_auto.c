@@ -1,13 +1,74 @@
 /* The automatic operating point of a capture with a target error or time budget. */
 #include <math.h>
 
+#include "daemon/operating/error_model.h"
 #include "daemon/protocol/protocol.h"
 #include "daemon/service/sequencer_private.h"
-#include "proc/image_stats.h"
+#include "proc/stripe_phase.h"
 
-/* Automatic operating point: one dark and one phase-0 preview frame at the requested base
- * exposure give the scene's signal and direct fraction; the model then picks estimator, N, M
- * and exposure (docs/accuracy.md). The two frames are counted as `preview` drops. */
+/* One pilot frame of phase k of a two-phase pattern already applied. */
+static DsImage *
+pilot_frame (DsSequencer *seq, guint k, DsFrameCounters *c, GError **error)
+{
+  if (!ds_seq_set_phase (seq, k, error)) {
+    c->device_errors++;
+    g_prefix_error (error, "pilot: illuminator: ");
+    ds_seq_fatal_device_error (seq, *error);
+    return NULL;
+  }
+  ds_seq_flush_stale (seq, c);
+  g_autoptr (DsFrame) f = ds_seq_trigger_and_grab (seq, c, error);
+  if (!f) {
+    g_prefix_error (error, "pilot: ");
+    ds_seq_fatal_device_error (seq, *error);
+    return NULL;
+  }
+  return ds_image_copy (f->image, error);
+}
+
+/* The two phases at twice the period, where the illuminator can change it; NULL frames and a
+ * reason otherwise (the prediction is then a lower bound). */
+static gboolean
+coarse_frames (DsSequencer *seq, const DsCaptureSettings *s, DsFrameCounters *c, DsImage **out,
+               char **reason, GError **error)
+{
+  DsStripePattern p = seq->dev->pattern;
+  p.kind = s->pattern == DS_PATTERN_SINE ? DS_STRIPES_SINE : DS_STRIPES_SQUARE;
+  p.period_px = 2 * s->period_px;
+  p.duty = s->duty;
+  p.black_level = s->black_level;
+  p.n_phases = 2;
+  g_autoptr (GError) refused = NULL;
+  ds_seq_blocking (seq, DS_SEQ_CONTROL_BOUND_MS);
+  if (!seq->dev->illuminator->ops->set_pattern (seq->dev->illuminator->backend, &p, &refused)) {
+    if (refused->code != DS_DEVICE_ERROR_INVALID && refused->code != DS_DEVICE_ERROR_UNSUPPORTED) {
+      g_propagate_prefixed_error (error, g_steal_pointer (&refused), "pilot: illuminator: ");
+      c->device_errors++;
+      ds_seq_fatal_device_error (seq, *error);
+      return FALSE;
+    }
+    *reason = g_strdup_printf ("the illuminator cannot change its period: %s", refused->message);
+    return TRUE;
+  }
+  for (guint k = 0; k < 2; k++)
+    if (!(out[k] = pilot_frame (seq, k, c, error)))
+      return FALSE;
+  /* A device that takes the register but keeps its period shows no stripes at 2P. */
+  DsStripePhase sp;
+  if (!ds_stripe_phase_measure (out[0], 2 * s->period_px, NULL, &sp, NULL) || !sp.reliable) {
+    *reason = g_strdup_printf ("the illuminator accepted a period of %g px but the frames show no "
+                               "stripes at it", 2 * s->period_px);
+    g_clear_pointer (&out[0], ds_image_free);
+    g_clear_pointer (&out[1], ds_image_free);
+  }
+  return TRUE;
+}
+
+/* Pilot frames (docs/accuracy.md, "Automatic operating point"): a dark frame, the phases 0 and
+ * 1/2 at the configured period and, where the illuminator can change it, at twice the period,
+ * all at the requested exposure. The probe measures the scene from them and the error model
+ * predicts every candidate; the choice and its prediction are recorded in the settings. The
+ * pilot frames are counted as `preview` drops. */
 gboolean
 ds_seq_choose_operating_point (DsSequencer *seq, DsCaptureSettings *s, DsFrameCounters *c, GError **error)
 {
@@ -16,58 +77,59 @@ ds_seq_choose_operating_point (DsSequencer *seq, DsCaptureSettings *s, DsFrameCo
                  "automatic operating point: no operating model loaded");
     return FALSE;
   }
-  DsCaptureSettings one = *s;
-  one.averages = 1;
+  gint64 started = g_get_monotonic_time ();
+  DsCaptureSettings pilot = *s;
+  pilot.averages = 1;
+  pilot.phases = 2;
   guint64 before = c->acquired, dropped_before = c->dropped;
-  g_autoptr (DsImage) dark = ds_seq_acquire_dark (seq, &one, c, error);
+  g_autoptr (DsImage) dark = ds_seq_acquire_dark (seq, &pilot, c, error);
   if (!dark)
     return FALSE;
-  if (!ds_seq_apply_pattern (seq, s, error) || !ds_seq_set_phase (seq, 0, error)) {
+  if (!ds_seq_apply_pattern (seq, &pilot, error)) {
     c->device_errors++;
-    g_prefix_error (error, "preview: illuminator: ");
+    g_prefix_error (error, "pilot: illuminator: ");
     ds_seq_fatal_device_error (seq, *error);
     return FALSE;
   }
-  ds_seq_flush_stale (seq, c);
-  g_autoptr (DsFrame) preview = ds_seq_trigger_and_grab (seq, c, error);
-  if (!preview) {
-    g_prefix_error (error, "preview: ");
-    ds_seq_fatal_device_error (seq, *error);
+  g_autoptr (DsImage) lit0 = pilot_frame (seq, 0, c, error);
+  g_autoptr (DsImage) lit1 = lit0 ? pilot_frame (seq, 1, c, error) : NULL;
+  if (!lit1)
     return FALSE;
-  }
+  DsImage *coarse[2] = { NULL, NULL };
+  g_autofree char *coarse_missing = NULL;
+  gboolean ok = coarse_frames (seq, s, c, coarse, &coarse_missing, error);
+  g_autoptr (DsImage) coarse0 = coarse[0];
+  g_autoptr (DsImage) coarse1 = coarse[1];
   ds_frame_counters_drop (c, DS_DROP_PREVIEW, (c->acquired - before) - (c->dropped - dropped_before));
-  double a = s->duty, b = s->black_level;
-  gboolean sine = s->pattern == DS_PATTERN_SINE;
-  double m = sine ? b + (1 - b) / 2 : a + b * (1 - a);
-  double h = sine ? (1 - b) / 2 : (1 - b) * (2 / G_PI) * sin (G_PI * a);
-  double dark_dn = ds_image_mean (dark);
-  DsSceneStats st;
-  if (!ds_scene_stats_from_frame (preview->image, dark_dn, s->period_px, m, h, s->exposure_us, &st, error)) {
-    g_prefix_error (error, "preview: ");
+  if (!ok)
     return FALSE;
-  }
-  /* The largest exposure that keeps the brightest pixels below 90 % of full scale. */
-  double full = preview->image->type == DS_SAMPLE_F32 ? INFINITY : (double) ((1u << preview->image->bit_depth) - 1);
-  double high = ds_image_percentile (preview->image, 99.9) - dark_dn;
-  double max_exposure = high > 0 && isfinite (full) ? s->exposure_us * (0.9 * full - dark_dn) / high : 4 * s->exposure_us;
-  max_exposure = CLAMP (max_exposure, s->exposure_us * 0.5, s->exposure_us * 4);
-  DsCameraInfo info = { 0 };
-  seq->dev->camera->ops->get_info (seq->dev->camera->backend, &info);
-  guint w = seq->dev->camera_settings.roi_width ? seq->dev->camera_settings.roi_width : info.sensor_width;
-  guint hh = seq->dev->camera_settings.roi_width ? seq->dev->camera_settings.roi_height : info.sensor_height;
+
+  DsProbeFrames pf = {
+    .dark = dark, .lit = { lit0, lit1 }, .coarse = { coarse0, coarse1 }, .coarse_missing = coarse_missing,
+    .exposure_us = s->exposure_us,
+    .saturation_dn = lit0->type == DS_SAMPLE_F32 ? 0 : (double) ((1u << lit0->bit_depth) - 1),
+    .geometry = { .kind = s->pattern, .period_px = s->period_px, .duty = s->duty, .black_level = s->black_level },
+  };
+  DsOperatingReport *r = &s->operating;
+  memset (r, 0, sizeof *r);
+  if (!ds_scene_probe_measure (&pf, &r->probe, error))
+    return FALSE;
+  g_autoptr (DsErrorModel) errors = ds_error_model_new (&r->probe, 0);
   DsOperatingPoint op;
-  if (!ds_operating_point_choose (seq->model, &st, &seq->timing, w, hh, max_exposure, s->target_error,
-                                  s->time_budget_ms, &op, error))
+  if (!ds_operating_point_choose (seq->model, errors, &r->probe, &seq->timing, lit0->width, lit0->height,
+                                  s->target_error, s->time_budget_ms, &op, error))
     return FALSE;
+  r->target_error = s->target_error;
+  r->time_budget_ms = s->time_budget_ms;
+  r->point = op;
+  r->safety = seq->model->safety;
+  r->pilot_frames = (guint) (c->acquired - before);
+  r->pilot_ms = (g_get_monotonic_time () - started) / 1000.0;
   s->estimator = op.estimator;
   s->phases = op.phases;
   s->averages = op.averages;
   s->exposure_us = op.exposure_us;
   s->automatic = TRUE;
-  s->predicted_error = op.predicted_error;
-  s->predicted_time_ms = op.predicted_time_ms;
-  s->preview_signal_dn = st.signal_dn;
-  s->preview_direct_fraction = st.direct_fraction;
   s->phase_tolerance_deg = MIN (s->phase_tolerance_deg, 90.0 / op.phases);
   return TRUE;
 }

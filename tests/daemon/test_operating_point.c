@@ -1,121 +1,186 @@
-/* The operating-point model against its closed form, the choice rules, and its file format. */
+/* The automatic operating point's choice rules, its refusal with what would reach the target,
+ * its record in the result metadata, and the model file format. The predictions themselves are
+ * tested in test_error_model.c; here a hand-made probe stands for the pilot frames. */
 #include <glib/gstdio.h>
 #include <math.h>
 #include <string.h>
 
 #include "daemon/operating/operating_point.h"
 
-static const DsModelRow rows[] = {
-  /* scene, estimator, N, M, a, b, S, f, base exposure */
-  { "clear", DS_ESTIMATOR_MAXMIN, 4, 1, 4e-4, 1e-6, 2000, 0.8, 1000 },
-  { "clear", DS_ESTIMATOR_MAXMIN, 8, 1, 3e-4, 4e-6, 2000, 0.8, 1000 },
-  { "clear", DS_ESTIMATOR_MAXMIN, 8, 4, 1e-4, 4e-6, 2000, 0.8, 1000 },
-  { "dense", DS_ESTIMATOR_MAXMIN, 4, 1, 9e-2, 1e-3, 3000, 0.05, 1000 },
-  { "dense", DS_ESTIMATOR_MAXMIN, 8, 1, 6e-2, 2e-3, 3000, 0.05, 1000 },
-  { "dense", DS_ESTIMATOR_MAXMIN, 8, 4, 2e-2, 2e-3, 3000, 0.05, 1000 },
-};
-
-/* The prediction is the documented formula: the row of the scene closest in direct fraction,
- * its noise part scaled by (f_s^2 S_s) / (f^2 S(E)) and the safety factor applied. */
-static void
-test_prediction_closed_form (void)
+static DsSceneProbe
+probe_of (double ld, double lg, double read_dn, double leak_per_px)
 {
-  g_autoptr (DsOperatingModel) m = ds_operating_model_new (rows, G_N_ELEMENTS (rows), 1.5);
-  DsSceneStats st = { .signal_dn = 1000, .direct_fraction = 0.6, .exposure_us = 500 };
-  double p = ds_operating_model_predict (m, &st, DS_ESTIMATOR_MAXMIN, 8, 4, 2000);
-  double signal = 1000 * 2000.0 / 500.0;
-  double expect = 1.5 * sqrt (1e-4 * (0.8 * 0.8 * 2000) / (0.6 * 0.6 * signal) + 4e-6);
-  g_assert_cmpfloat_with_epsilon (p, expect, 1e-12);
-  /* A scene with little direct light takes the dense scene's systematic part. */
-  DsSceneStats dense = { .signal_dn = 3000, .direct_fraction = 0.04, .exposure_us = 1000 };
-  p = ds_operating_model_predict (m, &dense, DS_ESTIMATOR_MAXMIN, 4, 1, 1000);
-  expect = 1.5 * sqrt (9e-2 * (0.05 * 0.05 * 3000) / (0.04 * 0.04 * 3000) + 1e-3);
-  g_assert_cmpfloat_with_epsilon (p, expect, 1e-12);
-  /* A configuration not in the model cannot be predicted. */
-  g_assert_true (isinf (ds_operating_model_predict (m, &st, DS_ESTIMATOR_SINE, 8, 1, 1000)));
+  DsSceneProbe p = { 0 };
+  p.geometry = (DsStripeGeometry){ DS_PATTERN_SQUARE, 12, 0.5, 0, 0.3 };
+  p.blur_source = DS_BLUR_CALIBRATED;
+  p.exposure_us = 2000;
+  p.ld_mean = ld;
+  p.ld_spread = 1.1;
+  p.lg_mean = lg;
+  p.leak_per_px = leak_per_px;
+  p.leak_measured = TRUE;
+  g_strlcpy (p.leak_note, "measured", sizeof p.leak_note);
+  p.noise_var0 = read_dn * read_dn;
+  p.noise_gain = 0.25;
+  p.dark_dn = 20;
+  p.saturation_dn = 4095;
+  p.bright_dn = 1000;
+  p.width = 256;
+  p.height = 192;
+  return p;
 }
 
-/* With a target: the fastest configuration that meets it; with only a budget: the most
- * accurate within it; neither possible: an error that says what is achievable. */
+/* With a target: the fastest candidate meeting it; nothing faster meets it (checked against
+ * every candidate). Budget only: the most accurate within it. */
 static void
 test_choice (void)
 {
-  g_autoptr (DsOperatingModel) m = ds_operating_model_new (rows, G_N_ELEMENTS (rows), 1.0);
+  DsOperatingModel m;
+  ds_operating_model_init (&m);
+  m.n_phases = 5; /* 2, 3, 4, 6, 8: keeps the exhaustive check short */
   DsRigTiming t;
   ds_rig_timing_init (&t);
-  DsSceneStats st = { .signal_dn = 2000, .direct_fraction = 0.8, .exposure_us = 1000 };
-  DsOperatingPoint p;
+  DsSceneProbe p = probe_of (400, 800, 3, 0);
+  g_autoptr (DsErrorModel) em = ds_error_model_new (&p, 0);
+  DsOperatingPoint op;
   g_autoptr (GError) error = NULL;
-  g_assert_true (ds_operating_point_choose (m, &st, &t, 256, 192, 4000, 0.02, 0, &p, &error));
-  g_assert_cmpfloat (p.predicted_error, <=, 0.02);
-  /* Nothing faster meets the target: check every configuration and exposure exhaustively. */
-  const double factors[] = { 0.5, 1, 2, 4 };
-  for (guint i = 0; i < 3; i++)
-    for (guint k = 0; k < 4; k++) {
-      double e = MIN (1000 * factors[k], 4000);
-      double err = ds_operating_model_predict (m, &st, rows[i].estimator, rows[i].phases, rows[i].averages, e);
-      double ms = ds_rig_timing_set_ms (&t, 256, 192, rows[i].phases, rows[i].averages, e, TRUE);
-      if (err <= 0.02)
-        g_assert_cmpfloat (ms, >=, p.predicted_time_ms);
-    }
-  /* Budget only: the most accurate within it. */
-  double budget = ds_rig_timing_set_ms (&t, 256, 192, 8, 1, 4000, TRUE);
-  g_assert_true (ds_operating_point_choose (m, &st, &t, 256, 192, 4000, 0, budget, &p, &error));
-  g_assert_cmpfloat (p.predicted_time_ms, <=, budget);
-  g_assert_cmpuint (p.averages, ==, 1); /* M = 4 does not fit */
-  /* Impossible: the message names the best achievable error. */
-  g_assert_false (ds_operating_point_choose (m, &st, &t, 256, 192, 4000, 1e-5, budget, &p, &error));
-  g_assert_nonnull (strstr (error->message, "best within the budget"));
-}
-
-/* Scene statistics from one frame of known Ld, Lg: square stripes duty 1/2 (m = 1/2,
- * h = 2/pi), frame = Ld p(x) + Lg/2 + dark. */
-static void
-test_scene_stats (void)
-{
-  const double ld = 300, lg = 900, dark = 20;
-  const guint w = 128, h = 8;
-  g_autoptr (DsImage) f = ds_image_new (DS_SAMPLE_F32, w, h, NULL);
-  for (guint y = 0; y < h; y++) {
-    float *r = ds_image_row (f, y);
-    for (guint x = 0; x < w; x++) {
-      double u = (x + 0.5) / 16.0;
-      u -= floor (u + 0.5);
-      r[x] = (float) (ld * (fabs (u) < 0.25) + lg * 0.5 + dark);
-    }
-  }
-  DsSceneStats st;
-  g_autoptr (GError) error = NULL;
-  g_assert_true (ds_scene_stats_from_frame (f, dark, 16.0, 0.5, 2.0 / G_PI, 1000, &st, &error));
+  g_assert_true (ds_operating_point_choose (&m, em, &p, &t, 256, 192, 0.02, 0, &op, &error));
   g_assert_no_error (error);
-  /* Pixel-sampled square wave: the first harmonic of 8 lit of 16 samples is
-   * sin(pi/2)/(16 sin(pi/16)) * 2 ... within 2 % of the continuous 2/pi. */
-  g_assert_cmpfloat (fabs (st.signal_dn - (ld + lg)) / (ld + lg), <, 0.02);
-  g_assert_cmpfloat (fabs (st.direct_fraction - ld / (ld + lg)) / (ld / (ld + lg)), <, 0.02);
+  g_assert_cmpfloat (op.predicted_error, <=, 0.02);
+  g_assert_false (op.lower_bound);
+  double max_e = ds_scene_probe_max_exposure (&p);
+  const DsEstimator est[] = { DS_ESTIMATOR_MAXMIN, DS_ESTIMATOR_SINE, DS_ESTIMATOR_ROBUST };
+  for (guint e = 0; e < 3; e++)
+    for (guint i = 0; i < m.n_phases; i++)
+      for (guint j = 0; j < m.n_averages; j++)
+        for (guint k = 0; k < m.n_exposure_factors; k++) {
+          double exposure = p.exposure_us * m.exposure_factors[k];
+          if (exposure > max_e)
+            continue;
+          DsErrorParts parts;
+          if (!ds_error_model_predict (em, est[e], m.phases[i], m.averages[j], m.exposure_factors[k], 0, &parts, NULL))
+            continue;
+          double ms = ds_rig_timing_set_ms (&t, 256, 192, m.phases[i], m.averages[j], exposure, TRUE);
+          if (parts.total <= 0.02)
+            g_assert_cmpfloat (ms, >=, op.predicted_time_ms);
+        }
+  /* The exposure never exceeds what keeps the brightest pixels below the clip level. */
+  g_assert_cmpfloat (op.exposure_us, <=, max_e);
+  /* Budget only: the most accurate within it. */
+  double budget = op.predicted_time_ms;
+  DsOperatingPoint b;
+  g_assert_true (ds_operating_point_choose (&m, em, &p, &t, 256, 192, 0, budget, &b, &error));
+  g_assert_cmpfloat (b.predicted_time_ms, <=, budget);
+  g_assert_cmpfloat (b.predicted_error, <=, op.predicted_error);
+  /* The safety factor multiplies every prediction. */
+  m.safety = 2;
+  g_assert_true (ds_operating_point_choose (&m, em, &p, &t, 256, 192, 0, budget, &b, &error));
+  g_assert_cmpfloat_with_epsilon (b.predicted_error, 2 * b.parts.total, 1e-12);
+}
+
+/* A target the rig cannot reach is refused with the best reachable error and what would reach
+ * it: a larger budget when time is the limit, a finer period when the scattered stripes are. */
+static void
+test_refusal (void)
+{
+  DsOperatingModel m;
+  ds_operating_model_init (&m);
+  DsRigTiming t;
+  ds_rig_timing_init (&t);
+  DsSceneProbe p = probe_of (400, 800, 3, 0);
+  g_autoptr (DsErrorModel) em = ds_error_model_new (&p, 0);
+  DsOperatingPoint op;
+  g_autoptr (GError) error = NULL;
+  g_assert_false (ds_operating_point_choose (&m, em, &p, &t, 256, 192, 0.01, 20, &op, &error));
+  g_test_message ("%s", error->message);
+  g_assert_nonnull (strstr (error->message, "the best reachable is"));
+  g_assert_nonnull (strstr (error->message, "A time budget of"));
+  g_clear_error (&error);
+  /* Scattered light keeps 27 % of the stripes at 12 px, 11 % at 6 px, 5 % at 3 px: no amount of
+   * time helps, a finer period does. */
+  DsSceneProbe leaky = probe_of (400, 2000, 3, 0.02);
+  g_autoptr (DsErrorModel) em2 = ds_error_model_new (&leaky, 0);
+  g_assert_false (ds_operating_point_choose (&m, em2, &leaky, &t, 256, 192, 0.15, 0, &op, &error));
+  g_assert_nonnull (strstr (error->message, "A stripe period of"));
+  g_assert_null (strstr (error->message, "A time budget of"));
+  g_clear_error (&error);
+  /* Not measured: the prediction is a lower bound, and the refusal says why. */
+  leaky.leak_measured = FALSE;
+  g_strlcpy (leaky.leak_note, "not measured (the illuminator cannot change its period)", sizeof leaky.leak_note);
+  g_autoptr (DsErrorModel) em3 = ds_error_model_new (&leaky, 0);
+  g_assert_true (ds_operating_point_choose (&m, em3, &leaky, &t, 256, 192, 0.15, 0, &op, &error));
+  g_assert_true (op.lower_bound);
 }
 
 static void
-test_file_round_trip_and_errors (void)
+test_report_json (void)
+{
+  DsOperatingReport r = { .target_error = 0.05, .safety = 1.2, .pilot_frames = 5, .pilot_ms = 30 };
+  r.probe = probe_of (400, 800, 3, 0.01);
+  r.probe.leak_measured = FALSE;
+  g_strlcpy (r.probe.leak_note, "not measured (no second period)", sizeof r.probe.leak_note);
+  r.point = (DsOperatingPoint){ .estimator = DS_ESTIMATOR_SINE, .phases = 8, .averages = 2, .exposure_us = 4000,
+                                .period_px = 12, .predicted_error = 0.048, .predicted_time_ms = 90,
+                                .lower_bound = TRUE,
+                                .parts = { .total = 0.04, .noise = 0.03, .systematic = 0.0265, .sampling = 0.0265 } };
+  g_autoptr (JsonBuilder) b = json_builder_new ();
+  json_builder_begin_object (b);
+  ds_operating_report_to_json (&r, b);
+  json_builder_end_object (b);
+  g_autoptr (JsonNode) root = json_builder_get_root (b);
+  JsonObject *o = json_node_get_object (root);
+  g_assert_cmpfloat (json_object_get_double_member (o, "predicted_error"), ==, 0.048);
+  g_assert_true (json_object_get_boolean_member (o, "lower_bound"));
+  JsonArray *contains = json_object_get_array_member (o, "contains");
+  gboolean has_noise = FALSE, has_leak = FALSE;
+  for (guint i = 0; i < json_array_get_length (contains); i++) {
+    has_noise |= strcmp (json_array_get_string_element (contains, i), "noise") == 0;
+    has_leak |= strcmp (json_array_get_string_element (contains, i), "scattered_stripes") == 0;
+  }
+  g_assert_true (has_noise);
+  g_assert_false (has_leak);
+  JsonArray *why = json_object_get_array_member (o, "lower_bound_reasons");
+  g_assert_cmpuint (json_array_get_length (why), ==, 1);
+  g_assert_nonnull (strstr (json_array_get_string_element (why, 0), "no second period"));
+  g_assert_cmpfloat (json_object_get_double_member (json_object_get_object_member (o, "parts"), "noise"), ==, 0.03);
+}
+
+static void
+test_model_file (void)
 {
   g_autofree char *dir = g_dir_make_tmp ("opmodel-XXXXXX", NULL);
-  g_autofree char *path = g_build_filename (dir, "model.csv", NULL);
+  g_autofree char *path = g_build_filename (dir, "operating-model.conf", NULL);
+  DsOperatingModel m;
+  ds_operating_model_init (&m);
+  m.safety = 1.25;
+  m.n_averages = 2;
+  g_strlcpy (m.fitted_on, "a;b", sizeof m.fitted_on);
   g_autoptr (GError) error = NULL;
-  g_assert_true (ds_operating_model_write (rows, G_N_ELEMENTS (rows), 1.25, path, &error));
-  g_autoptr (DsOperatingModel) m = ds_operating_model_load (path, &error);
+  g_assert_true (ds_operating_model_write (&m, path, &error));
+  g_autoptr (DsOperatingModel) back = ds_operating_model_load (path, &error);
   g_assert_no_error (error);
-  g_assert_cmpfloat (ds_operating_model_safety (m), ==, 1.25);
-  DsSceneStats st = { .signal_dn = 2000, .direct_fraction = 0.8, .exposure_us = 1000 };
-  g_autoptr (DsOperatingModel) ref = ds_operating_model_new (rows, G_N_ELEMENTS (rows), 1.25);
-  g_assert_cmpfloat (ds_operating_model_predict (m, &st, DS_ESTIMATOR_MAXMIN, 8, 4, 1000), ==,
-                     ds_operating_model_predict (ref, &st, DS_ESTIMATOR_MAXMIN, 8, 4, 1000));
-  /* A damaged row is refused with its line number. */
-  g_assert_true (g_file_set_contents (path,
-                                      "# safety=1\nscene,estimator,phases,averages,a,b,signal_dn,direct_fraction,base_exposure_us\n"
-                                      "x,maxmin,8,1,0.1,0.1,100,0.5,1000\nx,maxmin,1,1,0.1,0.1,100,0.5,1000\n",
-                                      -1, NULL));
-  g_clear_error (&error);
-  g_assert_null (ds_operating_model_load (path, &error));
-  g_assert_nonnull (strstr (error->message, ":4:"));
+  g_assert_cmpfloat (back->safety, ==, 1.25);
+  g_assert_cmpuint (back->n_averages, ==, 2);
+  g_assert_cmpuint (back->n_phases, ==, m.n_phases);
+  g_assert_cmpstr (back->fitted_on, ==, "a;b");
+  /* Damaged files are refused with the file and the key. */
+  const struct {
+    const char *text, *expect;
+  } bad[] = {
+    { "[operating-model]\nsafety=0.5\n", "safety" },
+    { "[operating-model]\nphases=1;4\n", "phases: 1 is outside" },
+    { "[operating-model]\nexposure-factors=1;-2\n", "exposure-factors" },
+    { "[operating-model]\nspeed=3\n", "unknown key speed" },
+    { "# descatter operating model (descatterctl study); safety=1.1\nscene,estimator\n", "" },
+  };
+  for (guint i = 0; i < G_N_ELEMENTS (bad); i++) {
+    g_assert_true (g_file_set_contents (path, bad[i].text, -1, NULL));
+    g_clear_error (&error);
+    g_assert_null (ds_operating_model_load (path, &error));
+    g_assert_nonnull (error);
+    g_assert_nonnull (strstr (error->message, bad[i].expect));
+    g_assert_nonnull (strstr (error->message, path));
+  }
   g_unlink (path);
   g_rmdir (dir);
 }
@@ -124,9 +189,9 @@ int
 main (int argc, char **argv)
 {
   g_test_init (&argc, &argv, NULL);
-  g_test_add_func ("/operating-point/prediction", test_prediction_closed_form);
   g_test_add_func ("/operating-point/choice", test_choice);
-  g_test_add_func ("/operating-point/scene-stats", test_scene_stats);
-  g_test_add_func ("/operating-point/file", test_file_round_trip_and_errors);
+  g_test_add_func ("/operating-point/refusal", test_refusal);
+  g_test_add_func ("/operating-point/report-json", test_report_json);
+  g_test_add_func ("/operating-point/model-file", test_model_file);
   return g_test_run ();
 }

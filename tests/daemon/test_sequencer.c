@@ -542,21 +542,18 @@ test_dark_frame_illuminator_lost (Fixture *f, gconstpointer d)
   assert_accounting (f);
 }
 
-/* Automatic operating point: a dark and a preview frame (counted as `preview` drops) measure
- * the scene; the model's choice meets the target and is recorded with the result. */
+/* Automatic operating point: the pilot frames (a dark frame, two phases at the period and two
+ * at twice the period, counted as `preview` drops) measure the scene; the choice meets the
+ * target and is recorded with the result. This lab keeps its period whatever it is asked, so
+ * the scattered light's share of the stripes cannot be measured: the prediction says it is a
+ * lower bound. */
 static void
 test_automatic_operating_point (Fixture *f, gconstpointer d)
 {
   (void) d;
-  /* Noise part a and systematic part b chosen so that only N >= 8 with M = 2 meets 0.01 at
-   * the base exposure for this scene (S = 1600 DN, f ~ 0.63). */
-  static const DsModelRow rows[] = {
-    { "s", DS_ESTIMATOR_MAXMIN, 4, 1, 4e-4, 1e-5, 1600, 0.625, 1000 },
-    { "s", DS_ESTIMATOR_MAXMIN, 8, 1, 2e-4, 1e-5, 1600, 0.625, 1000 },
-    { "s", DS_ESTIMATOR_MAXMIN, 8, 2, 2e-5, 1e-5, 1600, 0.625, 1000 },
-  };
-  g_autoptr (DsOperatingModel) model = ds_operating_model_new (rows, G_N_ELEMENTS (rows), 1.0);
-  ds_sequencer_set_operating_model (f->seq, model, 3.0, 1000.0);
+  DsOperatingModel model;
+  ds_operating_model_init (&model);
+  ds_sequencer_set_operating_model (f->seq, &model, 3.0, 1000.0);
   DsCaptureSettings s;
   default_settings (&s, 8);
   s.target_error = 0.01;
@@ -564,16 +561,21 @@ test_automatic_operating_point (Fixture *f, gconstpointer d)
   g_assert_no_error (f->out.failure);
   const DsCaptureSettings *used = ds_result_settings (f->out.result);
   g_assert_true (used->automatic);
-  g_assert_cmpfloat (used->predicted_error, <=, 0.01);
-  g_assert_cmpfloat_with_epsilon (used->preview_signal_dn, 1600.0, 16.0);
-  g_assert_cmpfloat (fabs (used->preview_direct_fraction - 0.625), <, 0.05);
+  g_assert_cmpfloat (used->operating.point.predicted_error, <=, 0.01);
+  /* The scene: Ld = 1000, Lg = 600 DN (Lg/2 under the stripes), a dark offset of 2 DN. */
+  g_assert_cmpfloat_with_epsilon (used->operating.probe.ld_mean, f->lab.ld, 0.02 * f->lab.ld);
+  g_assert_cmpfloat_with_epsilon (used->operating.probe.lg_mean, f->lab.lg, 0.02 * f->lab.lg);
+  g_assert_false (used->operating.probe.leak_measured);
+  g_assert_true (used->operating.point.lower_bound);
+  g_assert_nonnull (strstr (used->operating.probe.leak_note, "no stripes at it"));
   assert_scene_recovered (f->out.result);
   DsSequencerStatus st;
   ds_sequencer_get_status (f->seq, &st);
-  g_assert_cmpuint (st.frames.by_reason[DS_DROP_PREVIEW], ==, 2);
+  g_assert_cmpuint (st.frames.by_reason[DS_DROP_PREVIEW], ==, 5);
+  g_assert_cmpuint (used->operating.pilot_frames, ==, 5);
   assert_accounting (f);
-  /* An impossible target fails with the reason. */
-  s.target_error = 1e-6;
+  /* An impossible request fails with the reason: no set of this rig takes 1 ms. */
+  s.time_budget_ms = 1;
   capture (f, &s);
   g_assert_null (f->out.result);
   g_assert_nonnull (strstr (f->out.failure->message, "no operating point"));

@@ -1,0 +1,55 @@
+/* The predicted error of a separation: relative RMSE of the transmissive image against the
+ * direct light, split into its parts, for any estimator, N, M, exposure and stripe period, on
+ * the scene a probe measured (scene_probe.h).
+ *
+ * The prediction separates synthetic phase sets with the real estimators (proc/separation.h):
+ * pixels at every position of the stripe period the sensor has, lit by the blurred,
+ * pixel-integrated pattern (stripe_model.h) plus the scattered light's share of the stripes,
+ * with the noise of the probe's noise model, and Ld drawn from a two-valued distribution with
+ * the probe's mean and spread (blank pixels where objects block the direct light). So the order
+ * statistics of max/min, robust's windows, sine's aliasing of square stripes and the precondition
+ * aN >= 1 are whatever the estimators actually do, at no modelling cost.
+ *
+ * Parts (each a relative RMSE):
+ *   sampling   noise-free, without scattered stripes: pattern against estimator (blur, pixel
+ *              aperture, aN and (1 - a)N, harmonic gain and sine's per-pixel ripple);
+ *   systematic noise-free with scattered stripes;
+ *   noise      sqrt(total^2 - systematic^2): shot and read noise, and max/min's bias from them.
+ *
+ * When the probe could not find the stripes' blur (DS_BLUR_ASSUMED_SHARP), every prediction is
+ * the worse of the sharp pattern and one blurred by DS_ERROR_MODEL_UNKNOWN_BLUR_PX (at most P/8):
+ * a configuration that only works on sharp stripes (maxmin at N = 2) is then not chosen blind.
+ *
+ * Threads: one model per thread (it caches its synthetic sets). */
+#pragma once
+#include <glib.h>
+
+#include "daemon/operating/scene_probe.h"
+#include "proc/separation.h"
+
+G_BEGIN_DECLS
+
+#define DS_ERROR_MODEL_UNKNOWN_BLUR_PX 0.75
+
+typedef struct {
+  double total;         /* relative RMSE of Ld */
+  double noise;
+  double systematic;    /* sampling and scattered stripes together */
+  double sampling;
+  double scattered_stripes; /* sqrt(|systematic^2 - sampling^2|), signed: < 0 when it cancels sampling */
+} DsErrorParts;
+
+typedef struct DsErrorModel DsErrorModel;
+
+/* harmonic_gain: the h the sine estimator will be given (0 = its theoretical value). */
+DsErrorModel *ds_error_model_new (const DsSceneProbe *probe, double harmonic_gain);
+void ds_error_model_free (DsErrorModel *model);
+G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsErrorModel, ds_error_model_free)
+
+/* period_px 0: the probe's period. exposure_factor: of the probe's exposure. Fails (with the
+ * estimator's own error) for configurations it refuses, e.g. sine with N < 3. */
+gboolean ds_error_model_predict (DsErrorModel *model, DsEstimator estimator, guint phases,
+                                 guint averages, double exposure_factor, double period_px,
+                                 DsErrorParts *out, GError **error);
+
+G_END_DECLS

@@ -1,0 +1,315 @@
+#include "daemon/operating/scene_probe.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "daemon/protocol/protocol.h"
+#include "proc/column_stats.h"
+#include "proc/image_stats.h"
+
+const char *
+ds_blur_source_name (DsBlurSource s)
+{
+  switch (s) {
+  case DS_BLUR_CALIBRATED:
+    return "calibrated";
+  case DS_BLUR_MEASURED:
+    return "measured";
+  default:
+    return "assumed sharp";
+  }
+}
+
+double
+ds_scene_probe_leak (const DsSceneProbe *p, double period_px, guint n)
+{
+  return p->leak_measured ? expm1 (p->leak_per_px * period_px / n) : 0.0;
+}
+
+/* One harmonic of the difference of two opposite phases at period Q. */
+typedef struct {
+  double period;
+  guint n;
+  double amplitude, sigma;
+  double offset;             /* phase of the first harmonic at this period (cycles) */
+} Equation;
+
+typedef struct {
+  DsColumnStats stats;
+  DsStripeHarmonics fit;
+  gboolean ok;
+} PairFit;
+
+static gboolean
+fit_pair (const DsImage *a, const DsImage *b, double ceiling, double period, PairFit *out, GError **error)
+{
+  if (!ds_column_stats_compute (a, b, ceiling, &out->stats, error))
+    return FALSE;
+  guint64 n_px = (guint64) a->width * a->height;
+  if (out->stats.excluded * 2 > n_px) {
+    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_DEVICE,
+                 "%.0f %% of the pixels are at the clip level (%.0f DN): lower the exposure or the gain",
+                 100.0 * (double) out->stats.excluded / (double) n_px, ceiling);
+    return FALSE;
+  }
+  guint32 *weight = out->stats.count;
+  if (!ds_stripe_harmonics_fit (out->stats.mean_diff, weight, 0, out->stats.width, period,
+                                DS_STRIPE_MAX_HARMONICS, &out->fit, error))
+    return FALSE;
+  out->ok = TRUE;
+  return TRUE;
+}
+
+/* Amplitude of harmonic n of the model's difference profile, fitted the way the frames are (same
+ * columns, same fit), so that the sampling of integer periods aliases alike. */
+static double
+model_gain (const DsStripeGeometry *g, double period, double sigma, double offset, guint width, guint n)
+{
+  DsStripeGeometry m = *g;
+  m.period_px = period;
+  m.blur_px = sigma;
+  g_autofree double *profile = g_new (double, width);
+  for (guint x = 0; x < width; x++)
+    profile[x] = ds_stripe_value (&m, x, offset) - ds_stripe_value (&m, x, offset + 0.5);
+  DsStripeHarmonics h;
+  if (!ds_stripe_harmonics_fit (profile, NULL, 0, width, period, n, &h, NULL) || h.n_harmonics < n)
+    return 0;
+  return h.amplitude[n];
+}
+
+typedef struct {
+  double log_ld, alpha, residual;
+} Solution;
+
+/* Weighted least squares of log (A / G) = log Ld + alpha x, x = Q / n, alpha >= 0; alpha is
+ * free only when the equations span two periods. */
+static Solution
+solve_linear (const double *y, const double *w, const Equation *eq, guint n_eq, gboolean leak)
+{
+  double sw = 0, sx = 0, sy = 0, sxx = 0, sxy = 0, x[16];
+  for (guint i = 0; i < n_eq; i++) {
+    x[i] = eq[i].period / eq[i].n;
+    sw += w[i];
+    sx += w[i] * x[i];
+    sy += w[i] * y[i];
+    sxx += w[i] * x[i] * x[i];
+    sxy += w[i] * x[i] * y[i];
+  }
+  Solution s = { 0 };
+  double det = sw * sxx - sx * sx;
+  gboolean free_alpha = leak && det > 1e-9 * sw * sxx;
+  if (free_alpha) {
+    s.alpha = (sw * sxy - sx * sy) / det;
+    s.log_ld = (sy - s.alpha * sx) / sw;
+  }
+  if (!free_alpha || s.alpha < 0) {
+    s.alpha = 0;
+    s.log_ld = sw > 0 ? sy / sw : 0;
+  }
+  for (guint i = 0; i < n_eq; i++) {
+    double r = y[i] - (s.log_ld + s.alpha * x[i]);
+    s.residual += w[i] * r * r;
+  }
+  return s;
+}
+
+/* The leak line at one blur. */
+static Solution
+solve_at (const DsStripeGeometry *g, const Equation *eq, guint n_eq, double sigma, guint width,
+          gboolean two_periods)
+{
+  double y[16] = { 0 }, w[16] = { 0 };
+  for (guint i = 0; i < n_eq; i++) {
+    double G = model_gain (g, eq[i].period, sigma, eq[i].offset, width, eq[i].n);
+    y[i] = G > 0 ? log (eq[i].amplitude / G) : 0;
+    /* Variance of log A from the fit, plus a 2 % floor for what the model leaves out. */
+    double rel = eq[i].sigma / eq[i].amplitude;
+    w[i] = G > 0 ? 1.0 / (rel * rel + 0.02 * 0.02) : 0;
+  }
+  return solve_linear (y, w, eq, n_eq, two_periods);
+}
+
+static guint
+collect (const PairFit *f, double period, const DsStripeGeometry *g, guint width, Equation *eq, guint n_eq)
+{
+  double offset = f->fit.phase[1];
+  double g1 = model_gain (g, period, 0, offset, width, 1);
+  for (guint n = 1; n <= f->fit.n_harmonics && n_eq < 16; n += 2) {
+    double a = f->fit.amplitude[n];
+    if (period / n < 2.5 || !(a > 4 * f->fit.sigma_amplitude))
+      continue;
+    if (n > 1 && model_gain (g, period, 0, offset, width, n) < 0.03 * g1)
+      continue;
+    eq[n_eq++] = (Equation){ .period = period, .n = n, .amplitude = a, .sigma = f->fit.sigma_amplitude,
+                             .offset = offset };
+  }
+  return n_eq;
+}
+
+gboolean
+ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **error)
+{
+  memset (out, 0, sizeof *out);
+  const DsImage *l0 = fr->lit[0], *l1 = fr->lit[1];
+  if (!fr->dark || !l0 || !l1 || !ds_image_same_shape (l0, l1) || !ds_image_same_shape (l0, fr->dark) ||
+      (fr->coarse[0] && (!fr->coarse[1] || !ds_image_same_shape (l0, fr->coarse[0]) ||
+                         !ds_image_same_shape (l0, fr->coarse[1])))) {
+    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_FAILED,
+                 "pilot frames: a dark frame and two phases of one size are needed");
+    return FALSE;
+  }
+  out->geometry = fr->geometry;
+  out->exposure_us = fr->exposure_us;
+  out->width = l0->width;
+  out->height = l0->height;
+  out->dark_dn = ds_image_mean (fr->dark);
+  double noise_dark = ds_column_stats_noise_dn (fr->dark, NULL, 0);
+  out->noise_var0 = isfinite (noise_dark) ? noise_dark * noise_dark : 0;
+
+  /* Clip level: the given one, or a pile-up of samples at one value below it (a sensor's full
+   * well reached before the ADC's top). Noise spreads unclipped values over many levels, so a
+   * pile of 0.02 % of the pixels at the very top means clipping, but only when there is noise:
+   * a noise-free frame's flat top is not a clip. */
+  double clip = fr->saturation_dn > 0 ? fr->saturation_dn : INFINITY;
+  for (int i = 0; i < 2 && out->noise_var0 >= 0.25; i++) {
+    const DsImage *f = fr->lit[i];
+    if (f->type == DS_SAMPLE_F32)
+      continue;
+    double top = ds_image_percentile (f, 100), near = ds_image_percentile (f, 99.98);
+    if (top > out->dark_dn && near >= top && top < clip)
+      clip = top;
+  }
+  out->saturation_dn = isfinite (clip) ? clip : 0;
+  double ceiling = out->saturation_dn;
+  out->bright_dn = MAX (ds_image_percentile (l0, 99.9), ds_image_percentile (l1, 99.9)) - out->dark_dn;
+
+  PairFit fine = { 0 }, coarse = { 0 };
+  gboolean ok = fit_pair (l0, l1, ceiling, fr->geometry.period_px, &fine, error);
+  if (ok && fr->coarse[0])
+    ok = fit_pair (fr->coarse[0], fr->coarse[1], ceiling, 2 * fr->geometry.period_px, &coarse, error);
+  if (!ok) {
+    g_prefix_error (error, "pilot frames: ");
+    ds_column_stats_clear (&fine.stats);
+    ds_column_stats_clear (&coarse.stats);
+    return FALSE;
+  }
+  guint64 n_px = (guint64) l0->width * l0->height;
+  out->saturated_fraction = (double) fine.stats.excluded / (double) n_px;
+  out->phase_offset = fine.fit.phase[1];
+
+  /* Noise: one frame's variance is var0 + gain * signal; the difference of the two phases has
+   * twice var0 plus the gain times their summed signal. */
+  double sum_signal = 0, sum_w = 0;
+  for (guint x = 0; x < fine.stats.width; x++) {
+    sum_signal += (fine.stats.mean_sum[x] - 2 * out->dark_dn) * fine.stats.count[x];
+    sum_w += fine.stats.count[x];
+  }
+  double mean_sum = sum_w > 0 ? sum_signal / sum_w : 0;
+  double noise_diff = ds_column_stats_noise_dn (l0, l1, ceiling);
+  double var_diff = isfinite (noise_diff) ? noise_diff * noise_diff : 2 * out->noise_var0;
+  out->noise_gain = mean_sum > 0 ? MAX (0.0, (var_diff - 2 * out->noise_var0) / mean_sum) : 0;
+
+  /* Harmonics -> blur, Ld, alpha. */
+  Equation eq[16];
+  guint n_eq = collect (&fine, fr->geometry.period_px, &fr->geometry, l0->width, eq, 0);
+  gboolean two = coarse.ok;
+  if (two) {
+    guint before = n_eq;
+    n_eq = collect (&coarse, 2 * fr->geometry.period_px, &fr->geometry, l0->width, eq, n_eq);
+    if (n_eq == before)
+      two = FALSE;
+  }
+  /* The transfer's logarithm is linear in x = Q / n only while x is small against the depth
+   * over which forward-scattered light spreads (beyond, it saturates at the whole forward
+   * scattered flux): keep the harmonics with x <= P, which bracket the configured period and
+   * reach down towards 0, unless that leaves a single x. */
+  {
+    guint near = 0;
+    double x_min = INFINITY, x_max = 0;
+    for (guint i = 0; i < n_eq; i++)
+      if (eq[i].period / eq[i].n <= fr->geometry.period_px * 1.001) {
+        x_min = MIN (x_min, eq[i].period / eq[i].n);
+        x_max = MAX (x_max, eq[i].period / eq[i].n);
+        near++;
+      }
+    if (two && near >= 2 && x_max > x_min * 1.05) {
+      guint k = 0;
+      for (guint i = 0; i < n_eq; i++)
+        if (eq[i].period / eq[i].n <= fr->geometry.period_px * 1.001)
+          eq[k++] = eq[i];
+      n_eq = k;
+    }
+  }
+  out->equations = n_eq;
+  if (n_eq == 0) {
+    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_DEVICE,
+                 "pilot frames: no stripe modulation above the noise at period %g px (amplitude %.3g DN, "
+                 "noise %.3g DN): no direct light to separate",
+                 fr->geometry.period_px, fine.fit.amplitude[1], fine.fit.sigma_amplitude);
+    ds_column_stats_clear (&fine.stats);
+    ds_column_stats_clear (&coarse.stats);
+    return FALSE;
+  }
+  double sigma = 0;
+  if (fr->calibrated_gain > 0) {
+    sigma = ds_stripe_blur_from_gain (&fr->geometry, fr->calibrated_gain);
+    sigma = sigma < 0 ? fr->geometry.period_px / 2 : sigma;
+    out->blur_source = DS_BLUR_CALIBRATED;
+  } else if (n_eq >= (two ? 3u : 2u)) {
+    /* Blur and alpha both lower the higher harmonics against the first at a period, but alpha
+     * raises the coarse period against the fine one: with enough harmonics both are found. */
+    double best = INFINITY, hi = MIN (fr->geometry.period_px / 2, 4.0);
+    for (double s = 0; s <= hi + 1e-9; s += 0.025) {
+      Solution so = solve_at (&fr->geometry, eq, n_eq, s, l0->width, two);
+      if (so.residual < best) {
+        best = so.residual;
+        sigma = s;
+      }
+    }
+    out->blur_source = DS_BLUR_MEASURED;
+  } else
+    out->blur_source = DS_BLUR_ASSUMED_SHARP;
+  out->geometry.blur_px = sigma;
+  Solution so = solve_at (&fr->geometry, eq, n_eq, sigma, l0->width, two);
+  out->ld_mean = exp (so.log_ld);
+  out->leak_per_px = so.alpha;
+
+  out->leak_measured = two;
+  out->fit_rms = n_eq > (two ? 2u : 1u) ? sqrt (so.residual / n_eq) : 0;
+  if (two)
+    g_snprintf (out->leak_note, sizeof out->leak_note,
+                "measured at periods %g and %g px: scattered light keeps %.1f %% of the stripes' "
+                "first harmonic at %g px",
+                fr->geometry.period_px, 2 * fr->geometry.period_px,
+                100 * ds_scene_probe_leak (out, fr->geometry.period_px, 1), fr->geometry.period_px);
+  else
+    g_snprintf (out->leak_note, sizeof out->leak_note,
+                "not measured (%s): scattered light that keeps the stripes is not in the prediction, "
+                "which is a lower bound",
+                fr->coarse[0] ? "no modulation at twice the period"
+                              : fr->coarse_missing ? fr->coarse_missing : "no second period");
+
+  /* Lg from the mean: two opposite phases sum to the pattern mean m twice (whole periods). */
+  double m = fr->geometry.kind == DS_PATTERN_SINE
+               ? fr->geometry.black_level + (1 - fr->geometry.black_level) / 2
+               : fr->geometry.duty + fr->geometry.black_level * (1 - fr->geometry.duty);
+  out->lg_mean = MAX (0.0, mean_sum / (2 * m) - out->ld_mean);
+
+  /* Spread of Ld across the scene: per column, mean (D^2) - noise = mean (Ld^2) Dp(x)^2 and
+   * the column's mean D = mean (Ld) Dp(x), whose square carries the noise over count rows. */
+  double num = 0, den = 0;
+  for (guint x = 0; x < fine.stats.width; x++) {
+    guint32 c = fine.stats.count[x];
+    if (!c)
+      continue;
+    double v = 2 * out->noise_var0 + out->noise_gain * MAX (0.0, fine.stats.mean_sum[x] - 2 * out->dark_dn);
+    double d = fine.stats.mean_diff[x];
+    num += (fine.stats.mean_sq_diff[x] - v) * c;
+    den += (d * d - v / c) * c;
+  }
+  out->ld_spread = den > 0 && num > den ? MIN (num / den, 25.0) : 1.0;
+  ds_column_stats_clear (&fine.stats);
+  ds_column_stats_clear (&coarse.stats);
+  return TRUE;
+}

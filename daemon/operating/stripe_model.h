@@ -1,0 +1,60 @@
+/* The stripe pattern as a pixel of the camera sees it, for the automatic operating point: the
+ * projector's defocus blurs the pattern (Gaussian, sigma px), the pixel integrates it over its
+ * width (pixel x covers [x - 1/2, x + 1/2]; x is the column index, as in proc/stripe_phase.h).
+ * Phase shift s (cycles): u = x/P - s, square lit where |u| (wrapped) < a/2, sine
+ * (1 + cos 2 pi u)/2; value b + (1 - b) pattern (proc/harmonic_gain.h's convention).
+ *
+ * Also the least-squares harmonic fit of a column profile (whole periods, mean and harmonics
+ * 1..n jointly, so the square wave's harmonics do not leak into each other).
+ * Pure functions, any thread. */
+#pragma once
+#include <glib.h>
+
+#include "proc/separation.h"
+
+G_BEGIN_DECLS
+
+typedef struct {
+  DsPatternKind kind;
+  double period_px;
+  double duty;          /* square only */
+  double black_level;
+  double blur_px;       /* Gaussian sigma of the projector's defocus on the sensor */
+} DsStripeGeometry;
+
+/* The pattern's value at pixel x for phase shift `shift` (cycles), in [b, 1]. */
+double ds_stripe_value (const DsStripeGeometry *g, double x, double shift);
+
+/* Cosine coefficient of harmonic n (>= 1) of the pattern as pixels see it:
+ * pattern(x) = m + sum_n C_n cos (2 pi n (x/P - shift)), with
+ * C_n = (1 - b) (2 / (n pi)) sin (n pi a) B_n S_n for square stripes (B_n the blur's
+ * exp (-2 pi^2 sigma^2 n^2 / P^2), S_n the pixel's sinc (n / P)), (1 - b)/2 B_1 S_1 for sine. */
+double ds_stripe_harmonic (const DsStripeGeometry *g, guint n);
+
+/* sigma such that the first harmonic C_1 equals h (a calibrated harmonic gain); 0 when h is at
+ * or above the sharp pattern's, -1 when no blur up to P/2 brings it that low. */
+double ds_stripe_blur_from_gain (const DsStripeGeometry *g, double h);
+
+#define DS_STRIPE_MAX_HARMONICS 8
+
+typedef struct {
+  guint n_harmonics;                              /* fitted: 1..n */
+  double mean;
+  double amplitude[DS_STRIPE_MAX_HARMONICS + 1];  /* [n], n >= 1 */
+  double phase[DS_STRIPE_MAX_HARMONICS + 1];      /* [n], cycles: A_n cos (2 pi n (x/P - phase_n)) */
+  double sigma_amplitude;                         /* 1 sigma of each amplitude (residual) */
+  guint columns_used;
+} DsStripeHarmonics;
+
+/* Fits profile[x0 .. x0 + count) (x the column index, weight 0 = missing) with the mean and
+ * harmonics 1..n_harmonics of period P over the largest whole number of periods. Harmonics at
+ * or above the Nyquist frequency (P/n <= 2) are not fitted (n_harmonics is lowered).
+ * Fails INVALID_ARGUMENT with fewer columns than unknowns + 2. */
+gboolean ds_stripe_harmonics_fit (const double *profile, const guint32 *weight, guint x0,
+                                  guint count, double period_px, guint n_harmonics,
+                                  DsStripeHarmonics *out, GError **error);
+
+/* The fitted profile (mean and harmonics) at column x. */
+double ds_stripe_harmonics_eval (const DsStripeHarmonics *h, double period_px, double x);
+
+G_END_DECLS

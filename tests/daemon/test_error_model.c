@@ -1,0 +1,310 @@
+/* The pieces of the automatic operating point against independent expectations: the stripe
+ * pattern against brute-force integration, the harmonic fit against a known series, the probe
+ * against synthetic frames of known Ld, Lg, noise and leak, the error model against the closed
+ * forms of docs/estimators.md (order statistics, the sine estimator's variance) and against a
+ * brute-force count of maxmin's precondition aN >= 1. */
+#include <math.h>
+#include <string.h>
+
+#include "daemon/operating/error_model.h"
+#include "daemon/operating/scene_probe.h"
+#include "daemon/operating/stripe_model.h"
+
+/* The blurred square stripe at pixel x, by brute force: the pixel sampled at 2000 points, each
+ * the lit fraction of the Gaussian-blurred indicator computed with erf. */
+static double
+brute_value (const DsStripeGeometry *g, double x, double shift)
+{
+  const int sub = 2000;
+  double acc = 0, P = g->period_px, half = g->duty * P / 2;
+  for (int i = 0; i < sub; i++) {
+    double t = x - 0.5 + (i + 0.5) / sub, v = 0;
+    for (int j = -3; j <= 3; j++) {
+      double c = P * (floor (t / P - shift) + j + shift);
+      if (g->blur_px > 0)
+        v += 0.5 * (erf ((t - c + half) / (G_SQRT2 * g->blur_px)) - erf ((t - c - half) / (G_SQRT2 * g->blur_px)));
+      else
+        v += fabs (t - c) < half;
+    }
+    acc += v;
+  }
+  return g->black_level + (1 - g->black_level) * acc / sub;
+}
+
+static void
+test_stripe_value (void)
+{
+  DsStripeGeometry g = { DS_PATTERN_SQUARE, 7.3, 0.35, 0.05, 0.0 };
+  for (int b = 0; b < 2; b++) {
+    g.blur_px = b ? 0.8 : 0.0;
+    for (double x = 0; x < 15; x += 1)
+      for (double s = 0; s < 1; s += 0.37)
+        g_assert_cmpfloat_with_epsilon (ds_stripe_value (&g, x, s), brute_value (&g, x, s), 2e-3);
+  }
+  /* The harmonic coefficient is the DFT of the pixel values over many columns of a period
+   * that is not a divisor (every phase position is visited). */
+  g.blur_px = 0.6;
+  for (guint n = 1; n <= 3; n++) {
+    double c = 0, s = 0;
+    const guint cols = 7300;
+    for (guint x = 0; x < cols; x++) {
+      double v = ds_stripe_value (&g, x, 0);
+      c += v * cos (2 * G_PI * n * x / g.period_px);
+      s += v * sin (2 * G_PI * n * x / g.period_px);
+    }
+    g_assert_cmpfloat_with_epsilon (2 * hypot (c, s) / cols, fabs (ds_stripe_harmonic (&g, n)), 2e-3);
+  }
+  /* The blur that gives a harmonic gain is the one that had it. */
+  double h = ds_stripe_harmonic (&g, 1);
+  g.blur_px = 0;
+  g_assert_cmpfloat_with_epsilon (ds_stripe_blur_from_gain (&g, h), 0.6, 1e-6);
+}
+
+static void
+test_harmonics_fit (void)
+{
+  const guint w = 200;
+  const double P = 9.5;
+  double profile[200];
+  for (guint x = 0; x < w; x++)
+    profile[x] = 40 + 10 * cos (2 * G_PI * (x / P - 0.2)) + 3 * cos (2 * G_PI * 3 * (x / P - 0.1));
+  DsStripeHarmonics h;
+  g_autoptr (GError) error = NULL;
+  g_assert_true (ds_stripe_harmonics_fit (profile, NULL, 0, w, P, 4, &h, &error));
+  g_assert_cmpuint (h.n_harmonics, ==, 4);
+  g_assert_cmpfloat_with_epsilon (h.mean, 40, 1e-9);
+  g_assert_cmpfloat_with_epsilon (h.amplitude[1], 10, 1e-9);
+  g_assert_cmpfloat_with_epsilon (h.phase[1], 0.2, 1e-9);
+  g_assert_cmpfloat_with_epsilon (h.amplitude[2], 0, 1e-9);
+  g_assert_cmpfloat_with_epsilon (h.amplitude[3], 3, 1e-9);
+  g_assert_cmpfloat_with_epsilon (fmod (h.phase[3], 1.0 / 3), 0.1, 1e-9);
+  /* Above Nyquist nothing is fitted; too few columns is an error naming them. */
+  g_assert_true (ds_stripe_harmonics_fit (profile, NULL, 0, w, 5.0, 4, &h, &error));
+  g_assert_cmpuint (h.n_harmonics, ==, 2);
+  g_assert_false (ds_stripe_harmonics_fit (profile, NULL, 0, 4, P, 1, &h, &error));
+  g_assert_nonnull (strstr (error->message, "columns"));
+}
+
+/* ---- synthetic pilot frames ---- */
+
+typedef struct {
+  DsStripeGeometry g;
+  double ld, lg, dark;     /* DN */
+  double read_dn, gain;    /* noise: read sigma, shot variance per DN */
+  double leak_per_px;      /* the scattered light's transfer of a harmonic of period x: exp(a x) - 1 */
+  double blocked;          /* fraction of the rows with Ld = 0 (an object) */
+} Synth;
+
+/* Frame of phase `shift` at `period`: the pattern's Fourier series (independent of
+ * ds_stripe_value) with each harmonic's amplitude raised by the leak, plus noise. */
+static DsImage *
+synth_frame (const Synth *s, double period, double shift, gboolean on, GRand *r)
+{
+  const guint w = 240, h = 120;
+  DsImage *f = ds_image_new (DS_SAMPLE_F32, w, h, NULL);
+  DsStripeGeometry g = s->g;
+  g.period_px = period;
+  double m = g.duty + g.black_level * (1 - g.duty);
+  double pattern[240];
+  for (guint x = 0; x < w; x++) {
+    double p = m;
+    for (guint n = 1; n < 400; n++) {
+      double c = (1 - g.black_level) * 2 / (n * G_PI) * sin (n * G_PI * g.duty) *
+                 exp (-2 * G_PI * G_PI * g.blur_px * g.blur_px * n * n / (period * period)) *
+                 sin (G_PI * n / period) / (G_PI * n / period);
+      p += c * exp (s->leak_per_px * period / n) * cos (2 * G_PI * n * (x / period - shift));
+    }
+    pattern[x] = p;
+  }
+  for (guint y = 0; y < h; y++) {
+    float *row = ds_image_row (f, y);
+    double ld = y < s->blocked * h ? 0 : s->ld;
+    for (guint x = 0; x < w; x++) {
+      /* The scattered light's own stripes are the leak above; its mean is Lg m. */
+      double v = on ? ld * pattern[x] + s->lg * m : 0;
+      double var = s->read_dn * s->read_dn + s->gain * v;
+      double u1 = 1 - g_rand_double (r), u2 = g_rand_double (r);
+      row[x] = (float) (s->dark + v + sqrt (var) * sqrt (-2 * log (u1)) * cos (2 * G_PI * u2));
+    }
+  }
+  return f;
+}
+
+static void
+probe_synth (const Synth *s, gboolean two_periods, double calibrated_gain, DsSceneProbe *p)
+{
+  g_autoptr (GRand) r = g_rand_new_with_seed (7);
+  g_autoptr (DsImage) dark = synth_frame (s, s->g.period_px, 0, FALSE, r);
+  g_autoptr (DsImage) l0 = synth_frame (s, s->g.period_px, 0.1, TRUE, r);
+  g_autoptr (DsImage) l1 = synth_frame (s, s->g.period_px, 0.6, TRUE, r);
+  g_autoptr (DsImage) c0 = two_periods ? synth_frame (s, 2 * s->g.period_px, 0.1, TRUE, r) : NULL;
+  g_autoptr (DsImage) c1 = two_periods ? synth_frame (s, 2 * s->g.period_px, 0.6, TRUE, r) : NULL;
+  DsStripeGeometry g = s->g;
+  g.blur_px = 0;
+  DsProbeFrames fr = { .dark = dark, .lit = { l0, l1 }, .coarse = { c0, c1 },
+                       .coarse_missing = "fixed by the test", .exposure_us = 1000, .geometry = g,
+                       .calibrated_gain = calibrated_gain };
+  g_autoptr (GError) error = NULL;
+  g_assert_true (ds_scene_probe_measure (&fr, p, &error));
+  g_assert_no_error (error);
+}
+
+/* Ld, Lg, the noise model and the spread of Ld from two phases; without scattered stripes. */
+static void
+test_probe_plain (void)
+{
+  Synth s = { { DS_PATTERN_SQUARE, 10, 0.5, 0, 0.4 }, 800, 1200, 50, 3.0, 0.25, 0, 0.25 };
+  DsSceneProbe p;
+  probe_synth (&s, TRUE, 0, &p);
+  double ld_mean = s.ld * (1 - s.blocked);
+  g_assert_cmpfloat_with_epsilon (p.ld_mean, ld_mean, 0.02 * ld_mean);
+  g_assert_cmpfloat_with_epsilon (p.lg_mean, s.lg, 0.02 * s.lg);
+  g_assert_cmpfloat_with_epsilon (p.noise_var0, 9.0, 0.9);
+  g_assert_cmpfloat_with_epsilon (p.noise_gain, 0.25, 0.03);
+  /* mean(Ld^2) / mean(Ld)^2 of a quarter blocked: 1 / 0.75 */
+  g_assert_cmpfloat_with_epsilon (p.ld_spread, 1 / 0.75, 0.05);
+  g_assert_cmpfloat_with_epsilon (p.phase_offset, 0.1, 0.01);
+  g_assert_true (p.leak_measured);
+  g_assert_cmpfloat (ds_scene_probe_leak (&p, 10, 1), <, 0.02);
+  /* The blur, measured from the harmonics at two periods. */
+  g_assert_cmpint (p.blur_source, ==, DS_BLUR_MEASURED);
+  g_assert_cmpfloat_with_epsilon (p.geometry.blur_px, 0.4, 0.1);
+}
+
+/* Scattered light that keeps the stripes: the probe's extrapolation over the period recovers
+ * Ld, and the leak at the period, from two periods; with one it says it cannot. */
+static void
+test_probe_leak (void)
+{
+  Synth s = { { DS_PATTERN_SQUARE, 12, 0.5, 0, 0.0 }, 500, 3000, 20, 2.0, 0.25, 0.04, 0 };
+  DsSceneProbe p;
+  DsStripeGeometry sharp = s.g;
+  probe_synth (&s, TRUE, ds_stripe_harmonic (&sharp, 1), &p);
+  g_assert_cmpint (p.blur_source, ==, DS_BLUR_CALIBRATED);
+  g_assert_cmpfloat_with_epsilon (p.ld_mean, s.ld, 0.05 * s.ld);
+  g_assert_cmpfloat_with_epsilon (ds_scene_probe_leak (&p, 12, 1), expm1 (0.04 * 12), 0.1 * expm1 (0.04 * 12));
+  g_assert_true (p.leak_measured);
+  probe_synth (&s, FALSE, ds_stripe_harmonic (&sharp, 1), &p);
+  g_assert_false (p.leak_measured);
+  g_assert_nonnull (strstr (p.leak_note, "fixed by the test"));
+  g_assert_cmpfloat (ds_scene_probe_leak (&p, 12, 1), ==, 0);
+}
+
+/* A probe written by hand: the error model's inputs. */
+static DsSceneProbe
+hand_probe (double period, double duty, double ld, double lg, double var0, double gain)
+{
+  DsSceneProbe p = { 0 };
+  p.geometry = (DsStripeGeometry){ DS_PATTERN_SQUARE, period, duty, 0, 0 };
+  p.blur_source = DS_BLUR_CALIBRATED;
+  p.exposure_us = 1000;
+  p.ld_mean = ld;
+  p.ld_spread = 1;
+  p.lg_mean = lg;
+  p.leak_measured = TRUE;
+  p.noise_var0 = var0;
+  p.noise_gain = gain;
+  p.width = 256;
+  p.height = 192;
+  return p;
+}
+
+/* maxmin's precondition: a pixel fully lit in some phase and fully dark in another. With duty
+ * 0.3 at N = 3, aN = 0.9 < 1: the sampling part is the rms over pixels of max - min - 1 of the
+ * pixel-integrated lit fraction, computed here by brute force. */
+static void
+test_error_model_precondition (void)
+{
+  const double P = 10, a = 0.3;
+  DsSceneProbe p = hand_probe (P, a, 1000, 500, 0, 0);
+  g_autoptr (DsErrorModel) m = ds_error_model_new (&p, 0);
+  DsErrorParts parts;
+  g_autoptr (GError) error = NULL;
+  g_assert_true (ds_error_model_predict (m, DS_ESTIMATOR_MAXMIN, 3, 1, 1, 0, &parts, &error));
+  double se = 0;
+  guint n = 0;
+  for (guint x = 0; x < 256; x++) {
+    double hi = 0, lo = 1;
+    for (guint k = 0; k < 3; k++) {
+      double lit = 0;
+      for (int i = 0; i < 1000; i++) {
+        double u = (x - 0.5 + (i + 0.5) / 1000.0) / P - k / 3.0;
+        u -= floor (u + 0.5);
+        lit += fabs (u) < a / 2;
+      }
+      lit /= 1000;
+      hi = MAX (hi, lit);
+      lo = MIN (lo, lit);
+    }
+    se += (hi - lo - 1) * (hi - lo - 1);
+    n++;
+  }
+  double expect = sqrt (se / n);
+  g_assert_cmpfloat (expect, >, 0.1); /* a 24-58 % error in places: not small */
+  g_assert_cmpfloat_with_epsilon (parts.sampling, expect, 0.01);
+  g_assert_cmpfloat_with_epsilon (parts.total, expect, 0.01);
+  /* With aN >= 1 (N = 4, and wide enough that pixel edges do not matter) maxmin is exact. */
+  g_assert_true (ds_error_model_predict (m, DS_ESTIMATOR_MAXMIN, 8, 1, 1, 0, &parts, &error));
+  g_assert_cmpfloat (parts.sampling, <, 1e-6);
+}
+
+/* Noise parts against closed forms (docs/estimators.md): maxmin's bias and spread at N = 8 are
+ * 2.06 and 0.99 sigma (order statistics of 4 normals); sine's variance is 2 v / (N h^2) for a
+ * pixel of per-frame variance v (here v is the same in every phase: no shot noise). */
+static void
+test_error_model_noise (void)
+{
+  const double sigma = 10, ld = 500;
+  DsSceneProbe p = hand_probe (16, 0.5, ld, 1000, sigma * sigma, 0);
+  g_autoptr (DsErrorModel) m = ds_error_model_new (&p, 0);
+  DsErrorParts parts;
+  g_autoptr (GError) error = NULL;
+  g_assert_true (ds_error_model_predict (m, DS_ESTIMATOR_MAXMIN, 8, 1, 1, 0, &parts, &error));
+  double expect = sqrt (2.06 * 2.06 + 0.99 * 0.99) * sigma / ld;
+  g_assert_cmpfloat_with_epsilon (parts.noise, expect, 0.08 * expect);
+  /* sine, N = 16, M = 4: its gain on sharp square stripes sampled by pixels. */
+  g_assert_true (ds_error_model_predict (m, DS_ESTIMATOR_SINE, 16, 4, 1, 0, &parts, &error));
+  double h = 2 / G_PI * sin (G_PI / 16) / (G_PI / 16);
+  expect = sqrt (2 * sigma * sigma / 4 / (16 * h * h)) / ld;
+  g_assert_cmpfloat_with_epsilon (parts.noise, expect, 0.1 * expect);
+  /* Twice the exposure: the signal doubles, read noise stays. */
+  g_assert_true (ds_error_model_predict (m, DS_ESTIMATOR_SINE, 16, 4, 2, 0, &parts, &error));
+  g_assert_cmpfloat_with_epsilon (parts.noise, expect / 2, 0.1 * expect / 2);
+}
+
+/* The scattered stripes: sine sees the first harmonic raised by the leak L and lowered by the
+ * pixel's aperture sinc(1/P) against its theoretical gain, so its relative error is
+ * (1 + L) sinc(1/P) - 1 (N large enough to ignore aliasing). */
+static void
+test_error_model_leak (void)
+{
+  DsSceneProbe p = hand_probe (12, 0.5, 500, 3000, 0, 0);
+  p.leak_per_px = 0.02;
+  g_autoptr (DsErrorModel) m = ds_error_model_new (&p, 0);
+  DsErrorParts parts;
+  g_autoptr (GError) error = NULL;
+  g_assert_true (ds_error_model_predict (m, DS_ESTIMATOR_SINE, 32, 1, 1, 0, &parts, &error));
+  double leak = expm1 (0.02 * 12), aperture = sin (G_PI / 12) / (G_PI / 12);
+  g_assert_cmpfloat_with_epsilon (parts.systematic, (1 + leak) * aperture - 1, 0.01 * leak);
+  g_assert_cmpfloat (parts.scattered_stripes, >, 0.9 * leak);
+  /* At half the period the leak shrinks as the model says. */
+  g_assert_true (ds_error_model_predict (m, DS_ESTIMATOR_SINE, 32, 1, 1, 6, &parts, &error));
+  g_assert_cmpfloat (parts.scattered_stripes, <, 0.6 * leak);
+  /* An estimator's own refusal comes through with its message. */
+  g_assert_false (ds_error_model_predict (m, DS_ESTIMATOR_SINE, 2, 1, 1, 0, &parts, &error));
+  g_assert_nonnull (strstr (error->message, "sine"));
+}
+
+int
+main (int argc, char **argv)
+{
+  g_test_init (&argc, &argv, NULL);
+  g_test_add_func ("/error-model/stripe-value", test_stripe_value);
+  g_test_add_func ("/error-model/harmonics-fit", test_harmonics_fit);
+  g_test_add_func ("/error-model/probe-plain", test_probe_plain);
+  g_test_add_func ("/error-model/probe-leak", test_probe_leak);
+  g_test_add_func ("/error-model/precondition", test_error_model_precondition);
+  g_test_add_func ("/error-model/noise", test_error_model_noise);
+  g_test_add_func ("/error-model/leak", test_error_model_leak);
+  return g_test_run ();
+}
