@@ -21,3 +21,5 @@ int ds_ctl_config (const DsCtlTarget *target, int argc, char **argv);
 int ds_ctl_separate (int argc, char **argv);
 int ds_ctl_calibrate (int argc, char **argv);
 int ds_ctl_study (int argc, char **argv);
+int ds_ctl_validate (int argc, char **argv);
+int ds_ctl_generate_scenes (int argc, char **argv);

@@ -26,6 +26,8 @@ static const struct {
   { "separate", NULL, ds_ctl_separate, "separate a folder of phase images offline (no daemon)" },
   { "calibrate", NULL, ds_ctl_calibrate, "measure the stripe pattern from a reference phase folder (no daemon)" },
   { "study", NULL, ds_ctl_study, "accuracy against acquisition time on simulated scenes (no daemon)" },
+  { "validate", NULL, ds_ctl_validate, "the automatic operating point against the simulator's truth (no daemon)" },
+  { "generate-scenes", NULL, ds_ctl_generate_scenes, "random scene files for validation (no daemon)" },
 };
 
 static void

@@ -1,0 +1,50 @@
+/* A rig emulated over the scene simulator, for the offline study and the validation of the
+ * automatic operating point: frames as the camera would take them, the same scene at another
+ * stripe period (an illuminator that can change it), the clear reference a user calibrates on,
+ * the truth, and the separation of one configuration as descatterd would compute it.
+ *
+ * Threads: a rig is used by one thread at a time. */
+#pragma once
+#include <glib.h>
+
+#include "drivers/sim/renderer.h"
+#include "drivers/sim/scene.h"
+#include "proc/separation.h"
+
+G_BEGIN_DECLS
+
+typedef struct DsSimRig DsSimRig;
+
+/* The scene file's text is kept, so that variants can be made from it. */
+DsSimRig *ds_sim_rig_new (const char *scene_path, GError **error);
+DsSimRig *ds_sim_rig_new_from_data (const char *text, const char *name, GError **error);
+void ds_sim_rig_free (DsSimRig *rig);
+G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsSimRig, ds_sim_rig_free)
+
+/* The same scene with the stripe period changed (the illuminator's PERIOD register). */
+DsSimRig *ds_sim_rig_with_period (const DsSimRig *rig, double period_px, GError **error);
+/* The clear reference of a calibration: the same illuminator, camera and sensor, no medium,
+ * no objects, no ambient light. */
+DsSimRig *ds_sim_rig_reference (const DsSimRig *rig, GError **error);
+
+const DsScene *ds_sim_rig_scene (const DsSimRig *rig);
+const DsRenderer *ds_sim_rig_renderer (const DsSimRig *rig);
+const char *ds_sim_rig_name (const DsSimRig *rig);   /* file name, or the name given */
+const char *ds_sim_rig_text (const DsSimRig *rig);
+/* The level at and above which a sample is clipped (DN): the sensor's full well or the ADC's
+ * top, whichever is lower. */
+double ds_sim_rig_clip_dn (const DsSimRig *rig);
+
+/* One frame (u16, the sensor's bit depth): phase k of n, or the illuminator off. */
+DsImage *ds_sim_rig_frame (const DsSimRig *rig, guint phase, guint n_phases, gboolean on,
+                           double exposure_us, guint64 seed, GError **error);
+
+/* Renders one set (M dark frames averaged, then M frames per phase) and folds it into one phase
+ * set per parameter block (one render for all of them); seps[i] receives each result.
+ * noise_free: the frames' expectation instead (f32, clipped at the clip level), for the
+ * systematic part of the error. compute_us (may be NULL) receives each set's fold+finalize time. */
+gboolean ds_sim_rig_separate (const DsSimRig *rig, const DsSeparationParams *params, guint n_params,
+                              guint averages, double exposure_us, guint64 seed, gboolean noise_free,
+                              DsSeparation **seps, double *compute_us, GError **error);
+
+G_END_DECLS

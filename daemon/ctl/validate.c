@@ -1,0 +1,221 @@
+#include "daemon/ctl/validate.h"
+
+#include <math.h>
+#include <string.h>
+
+#include "proc/harmonic_gain.h"
+#include "proc/image_stats.h"
+#include "proc/metrics.h"
+
+/* h on the clear reference, as `descatterctl calibrate` measures it: many phases (so that the
+ * square wave's harmonics do not alias into the first), an exposure that keeps the open field
+ * below the clip level. */
+static gboolean
+calibrate_gain (const DsSimRig *rig, guint64 seed, double *h, GError **error)
+{
+  g_autoptr (DsSimRig) ref = ds_sim_rig_reference (rig, error);
+  if (!ref)
+    return FALSE;
+  const DsScene *scene = ds_sim_rig_scene (ref);
+  double e0 = ds_scene_default_exposure_us (scene);
+  DsRenderRequest req = { .phase = 0, .n_phases = 2, .illuminator_on = TRUE, .exposure_us = e0 };
+  g_autoptr (DsImage) probe = ds_renderer_render_expected (ds_sim_rig_renderer (ref), &req, error);
+  if (!probe)
+    return FALSE;
+  double top = ds_image_percentile (probe, 100), clip = ds_sim_rig_clip_dn (ref);
+  double exposure = top > 0 ? e0 * 0.6 * clip / top : e0;
+  const guint n = 32;
+  DsImage *frames[32] = { NULL };
+  gboolean ok = TRUE;
+  for (guint k = 0; k < n && ok; k++)
+    ok = (frames[k] = ds_sim_rig_frame (ref, k, n, TRUE, exposure, seed + k, error)) != NULL;
+  g_autoptr (DsImage) dark = ok ? ds_sim_rig_frame (ref, 0, n, FALSE, exposure, seed + n, error) : NULL;
+  const DsSceneSpec *s = ds_scene_spec (scene);
+  if (ok && dark)
+    ok = ds_harmonic_gain_calibrate ((const DsImage *const *) frames, n, dark,
+                                     s->sine ? DS_PATTERN_SINE : DS_PATTERN_SQUARE, s->duty, s->black_level,
+                                     h, error);
+  else
+    ok = FALSE;
+  for (guint k = 0; k < n; k++)
+    ds_image_free (frames[k]);
+  return ok;
+}
+
+static void
+truth_stats (const DsImage *t, const DsImage *g, const DsImage *mask_from, double clip,
+             DsValidateScene *out)
+{
+  double st = 0, st2 = 0, sg = 0;
+  guint64 n = 0;
+  for (guint y = 0; y < t->height; y++) {
+    const float *a = ds_image_row (t, y), *b = ds_image_row (g, y);
+    const guint16 *f = mask_from ? ds_image_row (mask_from, y) : NULL;
+    for (guint x = 0; x < t->width; x++) {
+      if (f && f[x] >= clip)
+        continue;
+      st += a[x];
+      st2 += (double) a[x] * a[x];
+      sg += b[x];
+      n++;
+    }
+  }
+  out->truth_ld_mean = n ? st / n : 0;
+  out->truth_lg_mean = n ? sg / n : 0;
+  out->truth_ld_spread = st > 0 ? st2 * n / (st * st) : 1;
+}
+
+gboolean
+ds_validate_probe (const DsSimRig *rig, const DsValidateOptions *o, DsValidateScene *out, GError **error)
+{
+  memset (out, 0, sizeof *out);
+  const DsScene *scene = ds_sim_rig_scene (rig);
+  const DsSceneSpec *s = ds_scene_spec (scene);
+  double e0 = ds_scene_default_exposure_us (scene);
+  guint64 seed = o->seed * 1000;
+  if (o->calibrated && !calibrate_gain (rig, seed + 500, &out->harmonic_gain, error)) {
+    g_prefix_error (error, "calibration: ");
+    return FALSE;
+  }
+  g_autoptr (DsImage) dark = ds_sim_rig_frame (rig, 0, 2, FALSE, e0, seed + 1, error);
+  g_autoptr (DsImage) l0 = dark ? ds_sim_rig_frame (rig, 0, 2, TRUE, e0, seed + 2, error) : NULL;
+  g_autoptr (DsImage) l1 = l0 ? ds_sim_rig_frame (rig, 1, 2, TRUE, e0, seed + 3, error) : NULL;
+  if (!l1)
+    return FALSE;
+  g_autoptr (DsSimRig) coarse = NULL;
+  g_autoptr (DsImage) c0 = NULL;
+  g_autoptr (DsImage) c1 = NULL;
+  if (!o->fixed_period) {
+    coarse = ds_sim_rig_with_period (rig, 2 * s->period_px, error);
+    if (!coarse)
+      return FALSE;
+    c0 = ds_sim_rig_frame (coarse, 0, 2, TRUE, e0, seed + 4, error);
+    c1 = c0 ? ds_sim_rig_frame (coarse, 1, 2, TRUE, e0, seed + 5, error) : NULL;
+    if (!c1)
+      return FALSE;
+  }
+  DsProbeFrames pf = {
+    .dark = dark, .lit = { l0, l1 }, .coarse = { c0, c1 },
+    .coarse_missing = o->fixed_period ? "the illuminator cannot change its period" : NULL,
+    .exposure_us = e0,
+    /* What descatterd knows: the pixel format's top. A full well below it shows as a pile-up. */
+    .saturation_dn = (double) ((1u << s->bit_depth) - 1),
+    .geometry = { .kind = s->sine ? DS_PATTERN_SINE : DS_PATTERN_SQUARE, .period_px = s->period_px,
+                  .duty = s->duty, .black_level = s->black_level },
+    .calibrated_gain = out->harmonic_gain,
+  };
+  if (!ds_scene_probe_measure (&pf, &out->probe, error))
+    return FALSE;
+  DsImage *tt = NULL, *tg = NULL;
+  if (!ds_renderer_truth (ds_sim_rig_renderer (rig), e0, 0.0, &tt, &tg, error))
+    return FALSE;
+  g_autoptr (DsImage) truth_t = tt;
+  g_autoptr (DsImage) truth_g = tg;
+  truth_stats (truth_t, truth_g, l0, out->probe.saturation_dn > 0 ? out->probe.saturation_dn : INFINITY, out);
+  return TRUE;
+}
+
+gboolean
+ds_validate_run (const DsSimRig *rig, const DsValidateScene *vs, DsEstimator estimator, guint phases,
+                 guint averages, double exposure_us, guint64 seed, double *achieved,
+                 double *achieved_systematic, GError **error)
+{
+  const DsScene *scene = ds_sim_rig_scene (rig);
+  DsSeparationParams p;
+  ds_separation_params_init (&p, phases);
+  p.estimator = estimator;
+  p.pattern = vs->probe.geometry.kind;
+  p.duty = vs->probe.geometry.duty;
+  p.black_level = vs->probe.geometry.black_level;
+  p.harmonic_gain = estimator == DS_ESTIMATOR_SINE ? vs->harmonic_gain : 0;
+  DsImage *tt = NULL, *tg = NULL;
+  if (!ds_renderer_truth (ds_sim_rig_renderer (rig), exposure_us, 0.0, &tt, &tg, error))
+    return FALSE;
+  g_autoptr (DsImage) truth_t = tt;
+  g_autoptr (DsImage) truth_g = tg;
+  const guint8 ignore = DS_MASK_SATURATED | DS_MASK_NONFINITE | DS_MASK_DARK_EXCEEDS;
+  for (int pass = 0; pass < 2; pass++) {
+    double *out = pass == 0 ? achieved : achieved_systematic;
+    if (!out)
+      continue;
+    DsSeparation *sep = NULL;
+    if (!ds_sim_rig_separate (rig, &p, 1, averages, exposure_us, seed, pass == 1, &sep, NULL, error))
+      return FALSE;
+    g_autoptr (DsSeparation) owned = sep;
+    DsErrorStats st;
+    if (!ds_metrics_error (sep->transmissive, truth_t, sep->mask, ignore, &st, error))
+      return FALSE;
+    *out = st.relative_rmse;
+  }
+  (void) scene;
+  return TRUE;
+}
+
+const char *
+ds_verdict_name (DsVerdict v)
+{
+  static const char *const names[] = { "within 1.5", "off", "refused, right", "refused, wrong", "nothing fits" };
+  return v <= DS_VERDICT_NONE ? names[v] : "?";
+}
+
+void
+ds_validate_outcome_clear (DsValidateOutcome *o)
+{
+  g_clear_pointer (&o->refusal, g_free);
+}
+
+gboolean
+ds_validate_request (const DsSimRig *rig, const DsValidateScene *vs, DsErrorModel *errors,
+                     const DsOperatingModel *model, const DsRigTiming *timing, double target, double budget,
+                     guint64 seed, DsValidateOutcome *out, GError **error)
+{
+  memset (out, 0, sizeof *out);
+  out->target_error = target;
+  out->time_budget_ms = budget;
+  g_autoptr (GError) refused = NULL;
+  out->refused = !ds_operating_point_choose (model, errors, &vs->probe, timing, vs->probe.width, vs->probe.height,
+                                             target, budget, &out->point, &refused);
+  if (out->refused) {
+    out->refusal = g_strdup (refused->message);
+    if (!isfinite (out->point.predicted_error)) {
+      out->verdict = DS_VERDICT_NONE;
+      return TRUE;
+    }
+  }
+  const DsOperatingPoint *p = &out->point;
+  if (!ds_validate_run (rig, vs, p->estimator, p->phases, p->averages, p->exposure_us, seed, &out->achieved,
+                        &out->achieved_systematic, error))
+    return FALSE;
+  double ratio = out->achieved / p->predicted_error;
+  if (out->refused)
+    out->verdict = out->achieved > target ? DS_VERDICT_REFUSED_RIGHT : DS_VERDICT_REFUSED_WRONG;
+  else
+    out->verdict = ratio <= 1.5 && ratio >= 1 / 1.5 ? DS_VERDICT_WITHIN : DS_VERDICT_OFF;
+  return TRUE;
+}
+
+gboolean
+ds_validate_config (const DsSimRig *rig, const DsValidateScene *vs, DsErrorModel *errors, const DsOperatingModel *model,
+                    const DsRigTiming *timing, DsEstimator estimator, guint phases, guint averages, double factor,
+                    guint64 seed, DsValidateOutcome *out, GError **error)
+{
+  memset (out, 0, sizeof *out);
+  DsOperatingPoint *p = &out->point;
+  if (!ds_error_model_predict (errors, estimator, phases, averages, factor, 0, &p->parts, error))
+    return FALSE;
+  p->estimator = estimator;
+  p->phases = phases;
+  p->averages = averages;
+  p->exposure_us = vs->probe.exposure_us * factor;
+  p->period_px = vs->probe.geometry.period_px;
+  p->predicted_error = model->scale * p->parts.total;
+  p->predicted_time_ms = ds_rig_timing_set_ms (timing, vs->probe.width, vs->probe.height, phases, averages,
+                                               p->exposure_us, TRUE);
+  p->lower_bound = !vs->probe.leak_measured || vs->probe.blur_source == DS_BLUR_ASSUMED_SHARP;
+  if (!ds_validate_run (rig, vs, estimator, phases, averages, p->exposure_us, seed, &out->achieved,
+                        &out->achieved_systematic, error))
+    return FALSE;
+  double ratio = out->achieved / p->predicted_error;
+  out->verdict = ratio <= 1.5 && ratio >= 1 / 1.5 ? DS_VERDICT_WITHIN : DS_VERDICT_OFF;
+  return TRUE;
+}

@@ -1,0 +1,76 @@
+/* Validation of the automatic operating point on simulated scenes (docs/accuracy.md): the
+ * pilot frames a rig would take, the probe and prediction made from them exactly as descatterd
+ * makes them (daemon/operating), and the error the chosen configuration actually achieves
+ * against the simulator's truth.
+ *
+ * Threads: one thread at a time per rig. */
+#pragma once
+#include <glib.h>
+
+#include "daemon/ctl/sim_rig.h"
+#include "daemon/operating/error_model.h"
+#include "daemon/operating/operating_point.h"
+#include "daemon/operating/scene_probe.h"
+
+G_BEGIN_DECLS
+
+typedef struct {
+  gboolean calibrated;     /* the rig was calibrated on the clear reference: h known */
+  gboolean fixed_period;   /* the illuminator cannot change its period: no second period */
+  guint64 seed;            /* noise seeds of every frame derive from it */
+} DsValidateOptions;
+
+typedef struct {
+  DsSceneProbe probe;
+  double harmonic_gain;    /* calibrated h given to the sine estimator, or 0 (its theory) */
+  /* The truth at the pilot's exposure, for the report. */
+  double truth_ld_mean, truth_lg_mean, truth_ld_spread;
+} DsValidateScene;
+
+/* Renders the pilot frames (dark, phases 0 and 1/2 at P and, unless fixed_period, at 2P) at the
+ * scene's exposure, calibrates h on the reference if asked, and probes. */
+gboolean ds_validate_probe (const DsSimRig *rig, const DsValidateOptions *options,
+                            DsValidateScene *out, GError **error);
+
+/* The achieved error of one configuration: relative RMSE of the transmissive image over the
+ * pixels the mask leaves (as the study and the daemon test define it); systematic: the same
+ * from noise-free frames. Either pointer may be NULL. */
+gboolean ds_validate_run (const DsSimRig *rig, const DsValidateScene *scene, DsEstimator estimator,
+                          guint phases, guint averages, double exposure_us, guint64 seed,
+                          double *achieved, double *achieved_systematic, GError **error);
+
+typedef enum {
+  DS_VERDICT_WITHIN = 0,      /* achieved within a factor 1.5 of predicted */
+  DS_VERDICT_OFF,             /* chosen, but achieved outside that factor */
+  DS_VERDICT_REFUSED_RIGHT,   /* refused, and the best reachable point indeed misses the target */
+  DS_VERDICT_REFUSED_WRONG,   /* refused, but the best reachable point meets the target */
+  DS_VERDICT_NONE,            /* refused and nothing fits the budget (nothing to run) */
+} DsVerdict;
+
+const char *ds_verdict_name (DsVerdict verdict);
+
+typedef struct {
+  double target_error, time_budget_ms;
+  gboolean refused;
+  char *refusal;              /* the message (owned), when refused */
+  DsOperatingPoint point;     /* the choice, or the best reachable point when refused */
+  double achieved, achieved_systematic;
+  DsVerdict verdict;
+} DsValidateOutcome;
+
+void ds_validate_outcome_clear (DsValidateOutcome *outcome);
+
+/* One automatic capture: chooses as descatterd would, runs the choice (or, when refused, the
+ * best reachable point) and compares. */
+gboolean ds_validate_request (const DsSimRig *rig, const DsValidateScene *scene, DsErrorModel *errors,
+                              const DsOperatingModel *model, const DsRigTiming *timing,
+                              double target_error, double time_budget_ms, guint64 seed,
+                              DsValidateOutcome *out, GError **error);
+
+/* A fixed configuration instead of a request: predicted against achieved. */
+gboolean ds_validate_config (const DsSimRig *rig, const DsValidateScene *scene, DsErrorModel *errors,
+                             const DsOperatingModel *model, const DsRigTiming *timing, DsEstimator estimator,
+                             guint phases, guint averages, double exposure_factor, guint64 seed,
+                             DsValidateOutcome *out, GError **error);
+
+G_END_DECLS
