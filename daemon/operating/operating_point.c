@@ -15,7 +15,7 @@ ds_operating_model_init (DsOperatingModel *m)
   static const guint averages[] = { 1, 2, 4, 8, 16 };
   static const double factors[] = { 0.25, 0.5, 1, 2, 4 };
   memset (m, 0, sizeof *m);
-  m->safety = 1.0;
+  m->scale = 1.0;
   m->n_phases = G_N_ELEMENTS (phases);
   memcpy (m->phases, phases, sizeof phases);
   m->n_averages = G_N_ELEMENTS (averages);
@@ -87,23 +87,23 @@ load_into (DsOperatingModel *m, const char *path, GError **error)
     return FALSE;
   }
   g_auto (GStrv) keys = g_key_file_get_keys (kf, GROUP, NULL, NULL);
-  static const char *const known[] = { "safety", "phases", "averages", "exposure-factors", "fitted-on", NULL };
+  static const char *const known[] = { "scale", "phases", "averages", "exposure-factors", "fitted-on", NULL };
   for (guint i = 0; keys && keys[i]; i++)
     if (!g_strv_contains (known, keys[i])) {
       g_set_error (error, G_KEY_FILE_ERROR, G_KEY_FILE_ERROR_KEY_NOT_FOUND,
-                   "%s: [" GROUP "] unknown key %s (known: safety, phases, averages, exposure-factors, fitted-on)",
+                   "%s: [" GROUP "] unknown key %s (known: scale, phases, averages, exposure-factors, fitted-on)",
                    path, keys[i]);
       return FALSE;
     }
-  if (g_key_file_has_key (kf, GROUP, "safety", NULL)) {
+  if (g_key_file_has_key (kf, GROUP, "scale", NULL)) {
     g_autoptr (GError) e = NULL;
-    double v = g_key_file_get_double (kf, GROUP, "safety", &e);
-    if (e || !(v >= 1.0 && v <= 10.0)) {
+    double v = g_key_file_get_double (kf, GROUP, "scale", &e);
+    if (e || !(v >= 0.5 && v <= 2.0)) {
       g_set_error (error, G_KEY_FILE_ERROR, G_KEY_FILE_ERROR_INVALID_VALUE,
-                   "%s: [" GROUP "] safety: a number in [1, 10] expected", path);
+                   "%s: [" GROUP "] scale: a number in [0.5, 2] expected", path);
       return FALSE;
     }
-    m->safety = v;
+    m->scale = v;
   }
   if (!load_uints (kf, path, "phases", 2, DS_MAX_PHASES, m->phases, &m->n_phases, error) ||
       !load_uints (kf, path, "averages", 1, DS_MAX_PHASES, m->averages, &m->n_averages, error))
@@ -139,7 +139,7 @@ ds_operating_model_write (const DsOperatingModel *m, const char *path, GError **
     phases[i] = (gint) m->phases[i];
   for (guint i = 0; i < m->n_averages; i++)
     averages[i] = (gint) m->averages[i];
-  g_key_file_set_double (kf, GROUP, "safety", m->safety);
+  g_key_file_set_double (kf, GROUP, "scale", m->scale);
   g_key_file_set_integer_list (kf, GROUP, "phases", phases, m->n_phases);
   g_key_file_set_integer_list (kf, GROUP, "averages", averages, m->n_averages);
   g_key_file_set_double_list (kf, GROUP, "exposure-factors", (double *) m->exposure_factors,
@@ -147,7 +147,7 @@ ds_operating_model_write (const DsOperatingModel *m, const char *path, GError **
   g_key_file_set_string (kf, GROUP, "fitted-on", m->fitted_on);
   g_key_file_set_comment (kf, NULL, NULL,
                           " descatter operating model (docs/accuracy.md): the candidates the automatic\n"
-                          " operating point searches, and the factor its predictions are multiplied by.\n"
+                          " operating point searches, and the scale its predictions are multiplied by.\n"
                           " Written by `descatterctl validate --fit`.",
                           NULL);
   g_autofree char *text = g_key_file_to_data (kf, NULL, NULL);
@@ -177,7 +177,7 @@ predict (const DsOperatingModel *m, DsErrorModel *errors, const DsSceneProbe *pr
   p->averages = mm;
   p->exposure_us = probe->exposure_us * factor;
   p->period_px = period > 0 ? period : probe->geometry.period_px;
-  p->predicted_error = m->safety * p->parts.total;
+  p->predicted_error = m->scale * p->parts.total;
   p->predicted_time_ms = ds_rig_timing_set_ms (t, w, h, n, mm, p->exposure_us, TRUE);
   p->lower_bound = !probe->leak_measured || probe->blur_source == DS_BLUR_ASSUMED_SHARP;
   return TRUE;
@@ -277,6 +277,9 @@ ds_operating_point_choose (const DsOperatingModel *m, DsErrorModel *errors, cons
     *out = s.in_budget_meeting.p;
     return TRUE;
   }
+  *out = s.least_in_budget.p;
+  if (!s.least_in_budget.found)
+    out->predicted_error = INFINITY;
   GString *msg = g_string_new (NULL);
   if (target > 0)
     g_string_append_printf (msg, "no operating point reaches a relative error of %.4f", target);
@@ -350,7 +353,7 @@ ds_operating_report_to_json (const DsOperatingReport *r, JsonBuilder *b)
   DBL ("time_budget_ms", r->time_budget_ms);
   DBL ("predicted_error", p->predicted_error);
   DBL ("predicted_time_ms", p->predicted_time_ms);
-  DBL ("safety", r->safety);
+  DBL ("scale", r->scale);
   json_builder_set_member_name (b, "parts");
   json_builder_begin_object (b);
   DBL ("noise", p->parts.noise);

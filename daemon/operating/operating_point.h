@@ -5,7 +5,8 @@
  * (docs/accuracy.md, "Automatic operating point").
  *
  * The operating model file (etc/operating-model.conf, written by `descatterctl validate --fit`)
- * holds the candidates searched and the safety factor predictions are multiplied by.
+ * holds the candidates searched and the scale predictions are multiplied by: 1 unless fitted
+ * (leave-one-scene-out on the shipped scenes, docs/accuracy.md).
  * Pure functions, any thread (the error model is per thread). */
 #pragma once
 #include <glib.h>
@@ -21,19 +22,19 @@ G_BEGIN_DECLS
 #define DS_OPERATING_MAX_CANDIDATES 16
 
 typedef struct DsOperatingModel {
-  double safety;               /* predictions x this, >= 1 */
+  double scale;                /* predictions x this, [0.5, 2] */
   guint phases[DS_OPERATING_MAX_CANDIDATES];
   guint n_phases;
   guint averages[DS_OPERATING_MAX_CANDIDATES];
   guint n_averages;
   double exposure_factors[DS_OPERATING_MAX_CANDIDATES];  /* of the pilot's exposure */
   guint n_exposure_factors;
-  char fitted_on[256];         /* what the safety factor was measured on (documentation) */
+  char fitted_on[256];         /* what the scale was fitted on (documentation) */
 } DsOperatingModel;
 
-/* The built-in candidates and a safety factor of 1. */
+/* The built-in candidates and a scale of 1. */
 void ds_operating_model_init (DsOperatingModel *model);
-/* A GKeyFile, group [operating-model]: safety, phases, averages, exposure-factors, fitted-on
+/* A GKeyFile, group [operating-model]: scale, phases, averages, exposure-factors, fitted-on
  * (keys left out keep the built-in values). Errors name the file and the key. Free with
  * ds_operating_model_free. */
 DsOperatingModel *ds_operating_model_load (const char *path, GError **error);
@@ -46,8 +47,8 @@ typedef struct {
   guint phases, averages;
   double exposure_us;
   double period_px;            /* the stripe period the prediction is for */
-  double predicted_error;      /* relative RMSE of transmissive, x the safety factor */
-  DsErrorParts parts;          /* its parts, without the safety factor */
+  double predicted_error;      /* relative RMSE of transmissive, x the model's scale */
+  DsErrorParts parts;          /* its parts, without the scale */
   double predicted_time_ms;
   gboolean lower_bound;        /* a part could not be measured: the error may be larger */
 } DsOperatingPoint;
@@ -59,7 +60,8 @@ double ds_scene_probe_max_exposure (const DsSceneProbe *probe);
 /* target_error <= 0: no target; time_budget_ms <= 0: no budget. With a target: the fastest
  * candidate meeting it within the budget; with only a budget: the most accurate within it.
  * Neither possible: BAD_ARGUMENT with the best reachable error and what would reach the
- * target (a larger budget, a finer stripe period, a longer exposure), each with its prediction. */
+ * target (a larger budget, a finer stripe period, a longer exposure), each with its prediction;
+ * *out is then the best reachable point (predicted_error INFINITY when none fits the budget). */
 gboolean ds_operating_point_choose (const DsOperatingModel *model, DsErrorModel *errors,
                                     const DsSceneProbe *probe, const DsRigTiming *timing,
                                     guint width, guint height, double target_error,
@@ -70,7 +72,7 @@ gboolean ds_operating_point_choose (const DsOperatingModel *model, DsErrorModel 
 typedef struct {
   double target_error, time_budget_ms;
   DsOperatingPoint point;
-  double safety;
+  double scale;
   DsSceneProbe probe;
   guint pilot_frames;
   double pilot_ms;

@@ -122,7 +122,7 @@ ds_seq_choose_operating_point (DsSequencer *seq, DsCaptureSettings *s, DsFrameCo
   r->target_error = s->target_error;
   r->time_budget_ms = s->time_budget_ms;
   r->point = op;
-  r->safety = seq->model->safety;
+  r->scale = seq->model->scale;
   r->pilot_frames = (guint) (c->acquired - before);
   r->pilot_ms = (g_get_monotonic_time () - started) / 1000.0;
   s->estimator = op.estimator;

@@ -72,8 +72,8 @@ test_choice (void)
   g_assert_true (ds_operating_point_choose (&m, em, &p, &t, 256, 192, 0, budget, &b, &error));
   g_assert_cmpfloat (b.predicted_time_ms, <=, budget);
   g_assert_cmpfloat (b.predicted_error, <=, op.predicted_error);
-  /* The safety factor multiplies every prediction. */
-  m.safety = 2;
+  /* The scale multiplies every prediction. */
+  m.scale = 2;
   g_assert_true (ds_operating_point_choose (&m, em, &p, &t, 256, 192, 0, budget, &b, &error));
   g_assert_cmpfloat_with_epsilon (b.predicted_error, 2 * b.parts.total, 1e-12);
 }
@@ -115,7 +115,7 @@ test_refusal (void)
 static void
 test_report_json (void)
 {
-  DsOperatingReport r = { .target_error = 0.05, .safety = 1.2, .pilot_frames = 5, .pilot_ms = 30 };
+  DsOperatingReport r = { .target_error = 0.05, .scale = 1.2, .pilot_frames = 5, .pilot_ms = 30 };
   r.probe = probe_of (400, 800, 3, 0.01);
   r.probe.leak_measured = FALSE;
   g_strlcpy (r.probe.leak_note, "not measured (no second period)", sizeof r.probe.leak_note);
@@ -152,14 +152,14 @@ test_model_file (void)
   g_autofree char *path = g_build_filename (dir, "operating-model.conf", NULL);
   DsOperatingModel m;
   ds_operating_model_init (&m);
-  m.safety = 1.25;
+  m.scale = 1.25;
   m.n_averages = 2;
   g_strlcpy (m.fitted_on, "a;b", sizeof m.fitted_on);
   g_autoptr (GError) error = NULL;
   g_assert_true (ds_operating_model_write (&m, path, &error));
   g_autoptr (DsOperatingModel) back = ds_operating_model_load (path, &error);
   g_assert_no_error (error);
-  g_assert_cmpfloat (back->safety, ==, 1.25);
+  g_assert_cmpfloat (back->scale, ==, 1.25);
   g_assert_cmpuint (back->n_averages, ==, 2);
   g_assert_cmpuint (back->n_phases, ==, m.n_phases);
   g_assert_cmpstr (back->fitted_on, ==, "a;b");
@@ -167,7 +167,7 @@ test_model_file (void)
   const struct {
     const char *text, *expect;
   } bad[] = {
-    { "[operating-model]\nsafety=0.5\n", "safety" },
+    { "[operating-model]\nscale=0.3\n", "scale" },
     { "[operating-model]\nphases=1;4\n", "phases: 1 is outside" },
     { "[operating-model]\nexposure-factors=1;-2\n", "exposure-factors" },
     { "[operating-model]\nspeed=3\n", "unknown key speed" },
