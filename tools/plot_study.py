@@ -1,11 +1,18 @@
 #!/usr/bin/python3
 """Plots of `descatterctl study` output (docs/accuracy.md):
     /usr/bin/python3 tools/plot_study.py STUDY_DIR
-writes STUDY_DIR/error-vs-time-<scene>.png (transmissive error against acquisition time, one
-curve per estimator: for each time budget the best configuration of that estimator, seeds
-averaged) and STUDY_DIR/bias-vs-n-<scene>.png (error against N at M = 1, base exposure)."""
+writes, per scene,
+  error-vs-time-<scene>.png   transmissive (solid) and scattered (dashed) error against acquisition
+                              time, one curve per estimator: for each time the best configuration
+                              of that estimator (any N, M, exposure, period), seeds averaged;
+                              points whose frames clip are drawn hollow and never join a curve;
+  error-vs-n-<scene>.png      transmissive error against N at M = 1, base exposure, the scene's
+                              own period, with its systematic part (noise-free frames) dotted;
+  error-vs-period-<scene>.png the best transmissive error at each stripe period, split into its
+                              noise and systematic parts: which period the medium needs."""
 import collections
 import csv
+import math
 import os
 import sys
 
@@ -15,57 +22,111 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 
+def number(text):
+    try:
+        return float(text)
+    except ValueError:
+        return float("nan")
+
+
 def load(path):
-    rows = list(csv.DictReader(open(path)))
     agg = collections.defaultdict(list)
-    for r in rows:
-        key = (r["scene"], r["estimator"], int(r["phases"]), int(r["averages"]), float(r["exposure_factor"]))
-        agg[key].append((float(r["rel_rmse_transmissive"]), float(r["rel_rmse_scattered"]), float(r["acquisition_ms"])))
+    for r in csv.DictReader(open(path)):
+        key = (r["scene"], r["estimator"], int(r["phases"]), int(r["averages"]), float(r["exposure_factor"]),
+               float(r["period_px"]))
+        agg[key].append(r)
     out = {}
     for k, v in agg.items():
-        out[k] = (sum(x[0] for x in v) / len(v), sum(x[1] for x in v) / len(v), v[0][2])
+        mean = lambda c: sum(number(x[c]) for x in v) / len(v)  # noqa: E731
+        out[k] = {"t": mean("rel_rmse_transmissive"), "g": mean("rel_rmse_scattered"),
+                  "sys_t": number(v[0]["systematic_transmissive"]), "ms": number(v[0]["acquisition_ms"]),
+                  "clipped": any(int(x["saturated"]) > 0 for x in v)}
+    return out
+
+
+def front(points):
+    """(time, error) pairs -> the points no faster point beats."""
+    out, best = [], float("inf")
+    for t, e in sorted(points):
+        if e < best:
+            best = e
+            out.append((t, e))
     return out
 
 
 def main():
     d = sys.argv[1]
     data = load(os.path.join(d, "study.csv"))
-    scenes = sorted({k[0] for k in data})
-    for scene in scenes:
+    for scene in sorted({k[0] for k in data}):
+        stem = scene.replace(".scene", "")
+        rows = {k: v for k, v in data.items() if k[0] == scene}
+        own = collections.Counter(k[5] for k in rows if k[3] == 1 and k[4] == 1.0).most_common(1)[0][0]
+
         fig, ax = plt.subplots(figsize=(7, 4.5))
-        for est in sorted({k[1] for k in data if k[0] == scene}):
-            pts = sorted((v[2], v[0]) for k, v in data.items() if k[0] == scene and k[1] == est)
-            front, best = [], float("inf")
-            for t, e in pts:
-                if e < best:
-                    best = e
-                    front.append((t, e))
-            ax.plot([p[0] for p in front], [p[1] for p in front], marker="o", label=est)
-            ax.scatter([p[0] for p in pts], [p[1] for p in pts], s=6, alpha=0.3)
+        for i, est in enumerate(sorted({k[1] for k in rows})):
+            colour = f"C{i}"
+            mine = [(v["ms"], v) for k, v in rows.items() if k[1] == est]
+            for comp, style in (("t", "-"), ("g", "--")):
+                pts = [(ms, v[comp]) for ms, v in mine if not v["clipped"] and math.isfinite(v[comp])]
+                f = front(pts)
+                if f:
+                    ax.plot([p[0] for p in f], [p[1] for p in f], style, marker="o", ms=3, color=colour,
+                            label=f"{est} {'transmissive' if comp == 't' else 'scattered'}")
+            clipped = [(ms, v["t"]) for ms, v in mine if v["clipped"] and math.isfinite(v["t"])]
+            if clipped:
+                ax.scatter([p[0] for p in clipped], [p[1] for p in clipped], s=14, facecolors="none",
+                           edgecolors=colour, label=f"{est}: clipped frames")
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlabel("acquisition time per set (ms, rig timing model)")
-        ax.set_ylabel("relative RMSE, transmissive")
+        ax.set_ylabel("relative RMSE")
         ax.set_title(f"{scene}: error against time (best per estimator)")
         ax.grid(True, which="both", alpha=0.3)
-        ax.legend()
+        ax.legend(fontsize=7)
         fig.tight_layout()
-        fig.savefig(os.path.join(d, f"error-vs-time-{scene.replace('.scene', '')}.png"), dpi=110)
+        fig.savefig(os.path.join(d, f"error-vs-time-{stem}.png"), dpi=110)
         plt.close(fig)
 
         fig, ax = plt.subplots(figsize=(7, 4.5))
-        for est in sorted({k[1] for k in data if k[0] == scene}):
-            pts = sorted((k[2], v[0]) for k, v in data.items()
-                         if k[0] == scene and k[1] == est and k[3] == 1 and k[4] == 1.0)
+        for i, est in enumerate(sorted({k[1] for k in rows})):
+            pts = sorted((k[2], v["t"], v["sys_t"]) for k, v in rows.items()
+                         if k[1] == est and k[3] == 1 and k[4] == 1.0 and k[5] == own)
             if pts:
-                ax.plot([p[0] for p in pts], [p[1] for p in pts], marker="o", label=est)
-        ax.set_xlabel("phases N (M = 1, base exposure)")
+                ax.plot([p[0] for p in pts], [p[1] for p in pts], marker="o", color=f"C{i}", label=est)
+                ax.plot([p[0] for p in pts], [p[2] for p in pts], ":", color=f"C{i}", label=f"{est} systematic")
+        ax.set_xlabel(f"phases N (M = 1, base exposure, period {own:g} px)")
         ax.set_ylabel("relative RMSE, transmissive")
         ax.set_title(f"{scene}: error against N")
         ax.grid(True, alpha=0.3)
-        ax.legend()
+        ax.legend(fontsize=7)
         fig.tight_layout()
-        fig.savefig(os.path.join(d, f"error-vs-n-{scene.replace('.scene', '')}.png"), dpi=110)
+        fig.savefig(os.path.join(d, f"error-vs-n-{stem}.png"), dpi=110)
+        plt.close(fig)
+
+        periods = sorted({k[5] for k in rows})
+        best = []
+        for p in periods:
+            cand = [v for k, v in rows.items() if k[5] == p and math.isfinite(v["t"])]
+            unclipped = [v for v in cand if not v["clipped"]] or cand
+            b = min(unclipped, key=lambda v: v["t"])
+            noise = math.sqrt(max(0.0, b["t"] ** 2 - b["sys_t"] ** 2))
+            best.append((p, b["t"], noise, b["sys_t"], b["clipped"]))
+        fig, ax = plt.subplots(figsize=(7, 4.5))
+        ax.plot([b[0] for b in best], [b[1] for b in best], marker="o", label="best total")
+        ax.plot([b[0] for b in best], [b[2] for b in best], "--", marker=".", label="its noise part")
+        ax.plot([b[0] for b in best], [b[3] for b in best], ":", marker=".", label="its systematic part")
+        for b in best:
+            if b[4]:
+                ax.annotate("clipped", (b[0], b[1]), fontsize=7)
+        ax.set_xscale("log", base=2)
+        ax.set_yscale("log")
+        ax.set_xlabel("stripe period (px)")
+        ax.set_ylabel("relative RMSE, transmissive")
+        ax.set_title(f"{scene}: best error at each stripe period")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7)
+        fig.tight_layout()
+        fig.savefig(os.path.join(d, f"error-vs-period-{stem}.png"), dpi=110)
         plt.close(fig)
     print(f"plots written to {d}")
 

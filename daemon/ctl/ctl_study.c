@@ -1,7 +1,8 @@
 /* `descatterctl study`: the accuracy-versus-time sweep (docs/accuracy.md). Writes
- * OUT/study.csv (one row per point) and OUT/pareto.md (per scene, the points no other point
- * beats in both acquisition time and transmissive error, seeds averaged). Plots are drawn from
- * the CSV by tools/plot_study.py. */
+ * OUT/study.csv (one row per point) and OUT/pareto.md (per scene: the points no other point
+ * beats in both acquisition time and transmissive error, seeds averaged, clipped points flagged;
+ * and the best error at each stripe period with its noise and systematic parts). Plots are
+ * drawn from the CSV by tools/plot_study.py. */
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
@@ -22,15 +23,41 @@ typedef struct {
   DsStudyPoint last;
 } StudyOut;
 
+/* The noise part of an error whose systematic part is known: what noise adds in quadrature (0
+ * when noise's bias cancels part of the systematic error instead). */
+static double
+noise_part (double total, double systematic)
+{
+  if (!isfinite (total) || !isfinite (systematic))
+    return NAN;
+  return sqrt (MAX (0.0, total * total - systematic * systematic));
+}
+
+/* A relative error against a truth of zero (the scattered image of a scene without scattering)
+ * is no number: "nan" in the CSV, "–" in tables. */
+static const char *
+md_err (char *buf, gsize n, double total, double systematic)
+{
+  if (!isfinite (total) || !isfinite (systematic))
+    return "–";
+  g_snprintf (buf, n, "%.4f (%.4f + %.4f)", total, noise_part (total, systematic), systematic);
+  return buf;
+}
+
 static void
 on_point (const DsStudyPoint *p, gpointer data)
 {
   StudyOut *o = data;
-  fprintf (o->csv, "%s,%s,%u,%u,%g,%.1f,%" G_GUINT64_FORMAT ",%.6g,%.6g,%.6g,%" G_GUINT64_FORMAT ",%" G_GUINT64_FORMAT ",%" G_GUINT64_FORMAT ",%.3f,%.3f,%.2f,%.5f\n",
-           p->scene, ds_estimator_name (p->estimator), p->phases, p->averages, p->exposure_factor,
-           p->exposure_us, p->seed, p->rel_rmse_transmissive, p->rel_rmse_scattered,
-           p->stripe_residue, p->valid, p->masked, p->saturated, p->acquisition_ms, p->compute_ms,
-           p->signal_dn, p->direct_fraction);
+  /* Non-finite (a truth of zero) reads back as nan in every CSV reader. */
+#define F(v) (isfinite (v) ? (v) : NAN)
+  fprintf (o->csv, "%s,%s,%u,%u,%g,%g,%.1f,%" G_GUINT64_FORMAT ",%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%" G_GUINT64_FORMAT ",%" G_GUINT64_FORMAT ",%" G_GUINT64_FORMAT ",%.3f,%.3f,%.2f,%.5f\n",
+           p->scene, ds_estimator_name (p->estimator), p->phases, p->averages, p->period_px, p->exposure_factor,
+           p->exposure_us, p->seed, F (p->rel_rmse_transmissive), F (p->rel_rmse_scattered),
+           F (p->systematic_transmissive), F (p->systematic_scattered),
+           F (noise_part (p->rel_rmse_transmissive, p->systematic_transmissive)),
+           F (noise_part (p->rel_rmse_scattered, p->systematic_scattered)), p->stripe_residue, p->valid, p->masked,
+           p->saturated, p->acquisition_ms, p->compute_ms, p->signal_dn, p->direct_fraction);
+#undef F
   fflush (o->csv);
   DsStudyPoint copy = *p;
   guint idx = 0;
@@ -44,7 +71,7 @@ on_point (const DsStudyPoint *p, gpointer data)
   /* A set's points (one per estimator) come together once the set is done: the first of them
    * marks the set's end. Its cost is its frame count. */
   if (copy.scene != o->last_scene || p->phases != o->last.phases || p->averages != o->last.averages ||
-      p->exposure_factor != o->last.exposure_factor || p->seed != o->last.seed) {
+      p->exposure_factor != o->last.exposure_factor || p->seed != o->last.seed || p->period_px != o->last.period_px) {
     g_autofree char *extra = g_strdup_printf ("%u points", o->done);
     ds_ctl_progress_advance (o->progress, (double) p->phases * p->averages, extra);
   }
@@ -56,8 +83,9 @@ typedef struct {
   const char *scene;
   DsEstimator estimator;
   guint phases, averages;
-  double exposure_factor;
-  double err_t, err_g, residue, time_ms;
+  double period, exposure_factor;
+  double err_t, err_g, sys_t, sys_g, residue, time_ms;
+  guint64 saturated, pixels;
   guint n;
 } Aggregate;
 
@@ -70,56 +98,120 @@ compare_time (const void *a, const void *b)
   return x->err_t < y->err_t ? -1 : x->err_t > y->err_t;
 }
 
+/* The scene's points, seeds averaged, one aggregate per configuration. */
+static GArray *
+aggregate (const StudyOut *o, const char *scene)
+{
+  GArray *agg = g_array_new (FALSE, TRUE, sizeof (Aggregate));
+  for (guint i = 0; i < o->points->len; i++) {
+    const DsStudyPoint *p = &g_array_index (o->points, DsStudyPoint, i);
+    if (p->scene != scene)
+      continue;
+    guint j = 0;
+    for (; j < agg->len; j++) {
+      Aggregate *a = &g_array_index (agg, Aggregate, j);
+      if (a->estimator == p->estimator && a->phases == p->phases && a->averages == p->averages &&
+          a->exposure_factor == p->exposure_factor && a->period == p->period_px)
+        break;
+    }
+    if (j == agg->len) {
+      Aggregate a = { .scene = scene, .estimator = p->estimator, .phases = p->phases, .averages = p->averages,
+                      .period = p->period_px, .exposure_factor = p->exposure_factor, .time_ms = p->acquisition_ms,
+                      .sys_t = p->systematic_transmissive, .sys_g = p->systematic_scattered,
+                      .pixels = p->valid + p->masked };
+      g_array_append_val (agg, a);
+    }
+    Aggregate *a = &g_array_index (agg, Aggregate, j);
+    a->err_t += p->rel_rmse_transmissive;
+    a->err_g += p->rel_rmse_scattered;
+    a->residue += p->stripe_residue;
+    a->saturated = MAX (a->saturated, p->saturated);
+    a->n++;
+  }
+  for (guint j = 0; j < agg->len; j++) {
+    Aggregate *a = &g_array_index (agg, Aggregate, j);
+    a->err_t /= a->n;
+    a->err_g /= a->n;
+    a->residue /= a->n;
+  }
+  g_array_sort (agg, compare_time);
+  return agg;
+}
+
+static void
+append_row (GString *md, const Aggregate *a)
+{
+  char t[64], g[64];
+  g_string_append_printf (md, "| %s | %u | %u | %g | %g× | %.1f | %s | %s | %.4f |", ds_estimator_name (a->estimator),
+                          a->phases, a->averages, a->period, a->exposure_factor, a->time_ms,
+                          md_err (t, sizeof t, a->err_t, a->sys_t), md_err (g, sizeof g, a->err_g, a->sys_g),
+                          a->residue);
+  /* A clipped point's error leaves its saturated pixels out: it is not comparable with the
+   * others, and says so wherever it appears. */
+  if (a->saturated)
+    g_string_append_printf (md, " **clipped**: %" G_GUINT64_FORMAT " px (%.1f %%) excluded |\n", a->saturated,
+                            a->pixels ? 100.0 * a->saturated / a->pixels : 0);
+  else
+    g_string_append (md, " |\n");
+}
+
+static gint
+compare_double (gconstpointer a, gconstpointer b)
+{
+  double x = *(const double *) a, y = *(const double *) b;
+  return (x > y) - (x < y);
+}
+
 static gboolean
 write_pareto (StudyOut *o, const char *path, GError **error)
 {
   GString *md = g_string_new ("# Pareto fronts: acquisition time against transmissive error\n\n"
-                              "Made by `descatterctl study`; seeds averaged. A point is on the "
-                              "front when no other point is both faster and more accurate.\n");
+                              "Made by `descatterctl study`; seeds averaged. A point is on the front when no other "
+                              "point is both faster and more accurate. Errors are relative RMSEs against the "
+                              "simulator's truth, written total (noise part + systematic part): the systematic part "
+                              "is the same configuration on noise-free frames, the noise part what noise adds in "
+                              "quadrature (0 where max/min's noise bias cancels part of the systematic error). "
+                              "Points whose frames clip are flagged: their error leaves the clipped pixels out.\n");
   for (guint s = 0; s < o->names->len; s++) {
     const char *scene = g_ptr_array_index (o->names, s);
-    GArray *agg = g_array_new (FALSE, TRUE, sizeof (Aggregate));
-    for (guint i = 0; i < o->points->len; i++) {
-      const DsStudyPoint *p = &g_array_index (o->points, DsStudyPoint, i);
-      if (p->scene != scene)
-        continue;
-      guint j = 0;
-      for (; j < agg->len; j++) {
-        Aggregate *a = &g_array_index (agg, Aggregate, j);
-        if (a->estimator == p->estimator && a->phases == p->phases && a->averages == p->averages &&
-            a->exposure_factor == p->exposure_factor)
-          break;
-      }
-      if (j == agg->len) {
-        Aggregate a = { .scene = scene, .estimator = p->estimator, .phases = p->phases,
-                        .averages = p->averages, .exposure_factor = p->exposure_factor,
-                        .time_ms = p->acquisition_ms };
-        g_array_append_val (agg, a);
-      }
-      Aggregate *a = &g_array_index (agg, Aggregate, j);
-      a->err_t += p->rel_rmse_transmissive;
-      a->err_g += p->rel_rmse_scattered;
-      a->residue += p->stripe_residue;
-      a->n++;
-    }
-    for (guint j = 0; j < agg->len; j++) {
-      Aggregate *a = &g_array_index (agg, Aggregate, j);
-      a->err_t /= a->n;
-      a->err_g /= a->n;
-      a->residue /= a->n;
-    }
-    g_array_sort (agg, compare_time);
-    g_string_append_printf (md, "\n## %s\n\n| estimator | N | M | exposure | time (ms) | rel. RMSE transmissive | rel. RMSE scattered | stripe residue |\n|---|---|---|---|---|---|---|---|\n", scene);
+    GArray *agg = aggregate (o, scene);
+    g_string_append_printf (md, "\n## %s\n\n| estimator | N | M | period (px) | exposure | time (ms) | transmissive "
+                                "(noise + systematic) | scattered (noise + systematic) | stripe residue | |\n"
+                                "|---|---|---|---|---|---|---|---|---|---|\n", scene);
     double best = INFINITY;
     for (guint j = 0; j < agg->len; j++) {
       Aggregate *a = &g_array_index (agg, Aggregate, j);
       if (a->err_t >= best)
         continue;
       best = a->err_t;
-      g_string_append_printf (md, "| %s | %u | %u | %g× | %.1f | %.4f | %.4f | %.4f |\n",
-                              ds_estimator_name (a->estimator), a->phases, a->averages,
-                              a->exposure_factor, a->time_ms, a->err_t, a->err_g, a->residue);
+      append_row (md, a);
     }
+    /* Which period this medium needs: the best configuration at each period, and the best
+     * within 100 ms. */
+    g_string_append (md, "\nBest at each stripe period:\n\n| estimator | N | M | period (px) | exposure | time (ms) | "
+                         "transmissive (noise + systematic) | scattered (noise + systematic) | stripe residue | |\n"
+                         "|---|---|---|---|---|---|---|---|---|---|\n");
+    GArray *periods = g_array_new (FALSE, FALSE, sizeof (double));
+    for (guint j = 0; j < agg->len; j++) {
+      double p = g_array_index (agg, Aggregate, j).period;
+      gboolean seen = FALSE;
+      for (guint k = 0; k < periods->len && !seen; k++)
+        seen = g_array_index (periods, double, k) == p;
+      if (!seen)
+        g_array_append_val (periods, p);
+    }
+    g_array_sort (periods, (GCompareFunc) compare_double);
+    for (guint k = 0; k < periods->len; k++) {
+      const Aggregate *bst = NULL;
+      for (guint j = 0; j < agg->len; j++) {
+        const Aggregate *a = &g_array_index (agg, Aggregate, j);
+        if (a->period == g_array_index (periods, double, k) && (!bst || a->err_t < bst->err_t))
+          bst = a;
+      }
+      if (bst)
+        append_row (md, bst);
+    }
+    g_array_unref (periods);
     g_array_unref (agg);
   }
   gboolean ok = g_file_set_contents_full (path, md->str, -1, G_FILE_SET_CONTENTS_CONSISTENT, 0644, error);
@@ -161,7 +253,7 @@ int
 ds_ctl_study (int argc, char **argv)
 {
   g_autofree char *out = NULL, *phases = NULL, *averages = NULL, *exposures = NULL,
-                  *estimators = NULL;
+                  *estimators = NULL, *periods = NULL;
   g_auto (GStrv) scenes = NULL;
   int seeds = 0;
   gboolean quick = FALSE, quiet = FALSE;
@@ -173,9 +265,10 @@ ds_ctl_study (int argc, char **argv)
     { "phases", 0, 0, G_OPTION_ARG_STRING, &phases, "N values (default 2,3,4,6,8,12,16,24,32)", "LIST" },
     { "averages", 0, 0, G_OPTION_ARG_STRING, &averages, "M values (default 1,2,4,8)", "LIST" },
     { "exposures", 0, 0, G_OPTION_ARG_STRING, &exposures, "exposure factors of the scene's base (default 1,2,4)", "LIST" },
+    { "periods", 0, 0, G_OPTION_ARG_STRING, &periods, "stripe periods: px, xF (F times the scene's) or scene (default scene,4,6,8,12,16,24)", "LIST" },
     { "estimators", 0, 0, G_OPTION_ARG_STRING, &estimators, "default maxmin,sine,robust", "LIST" },
     { "seeds", 0, 0, G_OPTION_ARG_INT, &seeds, "noise seeds per point (default 3)", "K" },
-    { "quick", 0, 0, G_OPTION_ARG_NONE, &quick, "Reduced sweep (CI): N 4,8; M 1,2; exposure 1; 1 seed", NULL },
+    { "quick", 0, 0, G_OPTION_ARG_NONE, &quick, "Reduced sweep (CI): N 4,8; M 1,2; exposure 1; periods scene,x2; 1 seed", NULL },
     { "settle-ms", 0, 0, G_OPTION_ARG_DOUBLE, &plan.timing.settle_ms, "illuminator settle time (default 3)", "MS" },
     { "trigger-us", 0, 0, G_OPTION_ARG_DOUBLE, &plan.timing.trigger_overhead_us, "trigger overhead (default 200)", "US" },
     { "link-mbit", 0, 0, G_OPTION_ARG_DOUBLE, &plan.timing.link_mbit_s, "camera link (default 1000)", "MBIT" },
@@ -183,8 +276,8 @@ ds_ctl_study (int argc, char **argv)
     { NULL },
   };
   g_autoptr (GOptionContext) ctx = g_option_context_new (NULL);
-  g_option_context_set_summary (ctx, "Sweeps estimator, N, M, exposure and seeds over simulated scenes; "
-                                     "writes study.csv and pareto.md (docs/accuracy.md).");
+  g_option_context_set_summary (ctx, "Sweeps estimator, N, M, exposure, stripe period and seeds over simulated "
+                                     "scenes; writes study.csv and pareto.md (docs/accuracy.md).");
   g_option_context_add_main_entries (ctx, entries, NULL);
   g_autoptr (GError) error = NULL;
   if (!g_option_context_parse (ctx, &argc, &argv, &error)) {
@@ -205,6 +298,19 @@ ds_ctl_study (int argc, char **argv)
   plan.phases = n_list;
   plan.averages = m_list;
   plan.exposure_factors = e_list;
+  g_auto (GStrv) period_items = g_strsplit (periods ? periods : quick ? "scene,x2" : "scene,4,6,8,12,16,24", ",", -1);
+  g_autofree double *p_list = g_new0 (double, g_strv_length (period_items) + 1);
+  for (guint i = 0; period_items[i]; i++) {
+    const char *t = period_items[i];
+    char *end = NULL;
+    double v = strcmp (t, "scene") == 0 ? 0 : t[0] == 'x' ? -g_ascii_strtod (t + 1, &end) : g_ascii_strtod (t, &end);
+    if (strcmp (t, "scene") != 0 && (!end || *end || !(fabs (v) > 0) || (v > 0 && v < 2))) {
+      fprintf (stderr, "descatterctl study: --periods: \"%s\" is not a period >= 2 px, xF or scene\n", t);
+      return 2;
+    }
+    p_list[plan.n_periods++] = v;
+  }
+  plan.periods = p_list;
   plan.n_seeds = seeds > 0 ? (guint) seeds : quick ? 1 : 3;
   plan.dark_frame = TRUE;
   g_auto (GStrv) est_names = g_strsplit (estimators ? estimators : "maxmin,sine,robust", ",", -1);
@@ -245,8 +351,8 @@ ds_ctl_study (int argc, char **argv)
     sum_n += plan.phases[i];
   for (guint i = 0; i < plan.n_averages; i++)
     sum_m += plan.averages[i];
-  guint n_sets = files->len * plan.n_exposures * plan.n_phases * plan.n_averages * plan.n_seeds;
-  double frames = (double) files->len * plan.n_exposures * plan.n_seeds * sum_n * sum_m;
+  guint n_sets = files->len * plan.n_periods * plan.n_exposures * plan.n_phases * plan.n_averages * plan.n_seeds;
+  double frames = (double) files->len * plan.n_periods * plan.n_exposures * plan.n_seeds * sum_n * sum_m;
   g_autoptr (DsCtlProgress) progress = ds_ctl_progress_new ("study", "sets", n_sets, frames, quiet);
   StudyOut o = { .csv = fopen (tmp_path, "w"), .points = g_array_new (FALSE, FALSE, sizeof (DsStudyPoint)),
                  .names = g_ptr_array_new_with_free_func (g_free), .progress = progress };
@@ -254,8 +360,9 @@ ds_ctl_study (int argc, char **argv)
     fprintf (stderr, "descatterctl study: cannot write %s\n", tmp_path);
     return 1;
   }
-  fprintf (o.csv, "scene,estimator,phases,averages,exposure_factor,exposure_us,seed,rel_rmse_transmissive,"
-                  "rel_rmse_scattered,stripe_residue,valid,masked,saturated,acquisition_ms,compute_ms,signal_dn,direct_fraction\n");
+  fprintf (o.csv, "scene,estimator,phases,averages,period_px,exposure_factor,exposure_us,seed,rel_rmse_transmissive,"
+                  "rel_rmse_scattered,systematic_transmissive,systematic_scattered,noise_transmissive,noise_scattered,"
+                  "stripe_residue,valid,masked,saturated,acquisition_ms,compute_ms,signal_dn,direct_fraction\n");
   int status = 0;
   for (guint i = 0; i < files->len && status == 0; i++)
     if (!ds_study_run_scene (g_ptr_array_index (files, i), &plan, on_point, &o, &error))

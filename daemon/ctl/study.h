@@ -1,7 +1,7 @@
 /* The accuracy-versus-time study (docs/accuracy.md): sweeps estimator, phases N, averages M,
- * exposure and noise seed over simulated scenes, measuring the error against the simulator's
- * truth and the acquisition time from a timing model of the rig. Also the model that picks
- * an operating point for a target error or a time budget from the study's table. */
+ * exposure, stripe period and noise seed over simulated scenes, measuring the error of both
+ * images against the simulator's truth, split into a systematic part (the same configuration on
+ * noise-free frames) and a noise part, and the acquisition time from a timing model of the rig. */
 #pragma once
 #include <glib.h>
 
@@ -14,9 +14,14 @@ typedef struct {
   const char *scene;         /* file name */
   DsEstimator estimator;
   guint phases, averages;
+  double period_px;
   double exposure_factor, exposure_us;
   guint64 seed;
   double rel_rmse_transmissive, rel_rmse_scattered;
+  /* The same configuration on noise-free frames (clipped at the sensor's clip level): what no
+   * number of frames removes. The noise part is sqrt(total^2 - systematic^2) (0 when noise's
+   * bias cancels part of the systematic error). */
+  double systematic_transmissive, systematic_scattered;
   double stripe_residue;     /* first-harmonic amplitude / mean left in transmissive */
   guint64 valid, masked, saturated;
   double signal_dn;          /* mean Ld + Lg of the truth at this exposure */
@@ -29,18 +34,23 @@ typedef struct {
   guint *phases; guint n_phases;
   guint *averages; guint n_averages;
   double *exposure_factors; guint n_exposures;
+  double *periods; guint n_periods;  /* stripe periods: > 0 px, 0 the scene's own, < 0 that many
+                                        times the scene's own (-2: twice); one equal to the
+                                        scene's own is run once */
   guint n_seeds;
   DsEstimator *estimators; guint n_estimators;
   DsRigTiming timing;
   gboolean dark_frame;
   const char *examples_dir;  /* NULL: none; else 8-bit previews of both components for the
-                                smallest and largest N at M = 1, base exposure, first seed */
+                                smallest and largest N at M = 1, base exposure, first seed, the
+                                scene's own period */
 } DsStudyPlan;
 
 typedef void (*DsStudyPointFunc) (const DsStudyPoint *point, gpointer user_data);
 
 /* Runs the plan on one scene file; every point goes to `emit` as it is measured. Frames are
- * rendered once per (N, M, exposure, seed) and folded into one phase set per estimator. */
+ * rendered once per (period, N, M, exposure, seed) and folded into one phase set per estimator;
+ * the noise-free frames once per (period, N, exposure). */
 gboolean ds_study_run_scene (const char *scene_path, const DsStudyPlan *plan,
                              DsStudyPointFunc emit, gpointer user_data, GError **error);
 
