@@ -97,7 +97,7 @@ run_scene (SceneRun *s, const Plan *plan, const DsOperatingModel *model, GError 
   } else
     s->outcomes = g_array_new (FALSE, TRUE, sizeof (DsValidateOutcome));
   s->loso_scale = model->scale;
-  g_autoptr (DsErrorModel) errors = ds_error_model_new (&s->probe.probe, s->probe.harmonic_gain);
+  g_autoptr (DsErrorModel) errors = ds_error_model_new (&s->probe.probe, &s->probe.params);
   guint n_req = plan->n_targets + plan->n_budgets;
   for (guint i = 0; i < n_req; i++) {
     double target = i < plan->n_targets ? plan->targets[i] : 0;

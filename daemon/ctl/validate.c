@@ -106,6 +106,11 @@ ds_validate_probe (const DsSimRig *rig, const DsValidateOptions *o, DsValidateSc
   };
   if (!ds_scene_probe_measure (&pf, &out->probe, error))
     return FALSE;
+  ds_separation_params_init (&out->params, 4);
+  out->params.pattern = pf.geometry.kind;
+  out->params.duty = pf.geometry.duty;
+  out->params.black_level = pf.geometry.black_level;
+  out->params.harmonic_gain = out->harmonic_gain;
   DsImage *tt = NULL, *tg = NULL;
   if (!ds_renderer_truth (ds_sim_rig_renderer (rig), e0, 0.0, &tt, &tg, error))
     return FALSE;
@@ -121,13 +126,9 @@ ds_validate_run (const DsSimRig *rig, const DsValidateScene *vs, DsEstimator est
                  double *achieved_systematic, GError **error)
 {
   const DsScene *scene = ds_sim_rig_scene (rig);
-  DsSeparationParams p;
-  ds_separation_params_init (&p, phases);
+  DsSeparationParams p = vs->params;
+  p.n_phases = phases;
   p.estimator = estimator;
-  p.pattern = vs->probe.geometry.kind;
-  p.duty = vs->probe.geometry.duty;
-  p.black_level = vs->probe.geometry.black_level;
-  p.harmonic_gain = estimator == DS_ESTIMATOR_SINE ? vs->harmonic_gain : 0;
   DsImage *tt = NULL, *tg = NULL;
   if (!ds_renderer_truth (ds_sim_rig_renderer (rig), exposure_us, 0.0, &tt, &tg, error))
     return FALSE;

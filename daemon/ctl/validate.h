@@ -23,6 +23,7 @@ typedef struct {
 typedef struct {
   DsSceneProbe probe;
   double harmonic_gain;    /* calibrated h given to the sine estimator, or 0 (its theory) */
+  DsSeparationParams params; /* the rig's separation parameters (estimator, N set per run) */
   /* The truth at the pilot's exposure, for the report. */
   double truth_ld_mean, truth_lg_mean, truth_ld_spread;
 } DsValidateScene;

@@ -31,7 +31,7 @@ set_result_free (gpointer p)
 
 struct DsErrorModel {
   DsSceneProbe probe;
-  double harmonic_gain;
+  DsSeparationParams params;      /* the rig's, estimator and N aside */
   guint width;
   double blank_fraction, ld_lit;  /* two-valued Ld: a fraction blank, the rest at ld_lit */
   float *normals;                 /* [frame][row][column] unit normals, common to all sets */
@@ -47,11 +47,11 @@ struct DsErrorModel {
 };
 
 DsErrorModel *
-ds_error_model_new (const DsSceneProbe *probe, double harmonic_gain)
+ds_error_model_new (const DsSceneProbe *probe, const DsSeparationParams *params)
 {
   DsErrorModel *m = g_new0 (DsErrorModel, 1);
   m->probe = *probe;
-  m->harmonic_gain = harmonic_gain;
+  m->params = *params;
   m->width = MIN (probe->width ? probe->width : SYN_MAX_WIDTH, SYN_MAX_WIDTH);
   double spread = MAX (1.0, probe->ld_spread);
   m->blank_fraction = 1.0 - 1.0 / spread;
@@ -62,7 +62,7 @@ ds_error_model_new (const DsSceneProbe *probe, double harmonic_gain)
     DsSceneProbe b = *probe;
     b.geometry.blur_px = MIN (DS_ERROR_MODEL_UNKNOWN_BLUR_PX, b.geometry.period_px / 8);
     b.blur_source = DS_BLUR_MEASURED; /* no further alternative */
-    m->blurred = ds_error_model_new (&b, harmonic_gain);
+    m->blurred = ds_error_model_new (&b, params);
   }
   m->tables = g_hash_table_new_full (g_str_hash, g_str_equal, g_free, g_free);
   m->sets = g_hash_table_new_full (g_direct_hash, g_direct_equal, NULL, (GDestroyNotify) ds_phase_set_free);
@@ -113,7 +113,7 @@ pattern_table (DsErrorModel *m, double period, gboolean leak)
   double *table = g_hash_table_lookup (m->tables, key);
   if (table)
     return table;
-  DsStripeGeometry g = m->probe.geometry;
+  DsStripeModel g = m->probe.geometry;
   g.period_px = period;
   double leak_c[SYN_LEAK_HARMONICS + 1] = { 0 };
   for (guint h = 1; h <= SYN_LEAK_HARMONICS && leak; h++)
@@ -145,7 +145,7 @@ run_sets (DsErrorModel *m, guint n, guint averages, double factor, double period
     return res;
   res = g_new0 (SetResult, 1);
   const DsSceneProbe *pr = &m->probe;
-  DsStripeGeometry g = pr->geometry;
+  DsStripeModel g = pr->geometry;
   g.period_px = period;
   DsPhaseSet *sets[N_EST] = { NULL };
   for (int e = 0; e < N_EST; e++) {
@@ -155,13 +155,11 @@ run_sets (DsErrorModel *m, guint n, guint averages, double factor, double period
       ds_phase_set_reset (sets[e]);
       continue;
     }
-    DsSeparationParams p;
-    ds_separation_params_init (&p, n);
+    DsSeparationParams p = m->params;
+    p.n_phases = n;
     p.estimator = estimators[e];
-    p.pattern = g.kind;
-    p.duty = g.duty;
-    p.black_level = g.black_level;
-    p.harmonic_gain = estimators[e] == DS_ESTIMATOR_SINE ? m->harmonic_gain : 0;
+    /* Synthetic frames are float: a saturation level from integer frames would not apply. */
+    p.saturation_level = 0;
     GError *err = NULL;
     sets[e] = ds_phase_set_new (&p, m->width, SYN_ROWS, &err);
     if (!sets[e]) {

@@ -41,8 +41,9 @@ typedef struct {
 
 typedef struct DsErrorModel DsErrorModel;
 
-/* harmonic_gain: the h the sine estimator will be given (0 = its theoretical value). */
-DsErrorModel *ds_error_model_new (const DsSceneProbe *probe, double harmonic_gain);
+/* params: the separation parameters the rig will use (pattern, duty, black level, harmonic
+ * gain, ...); estimator and N are set per prediction. */
+DsErrorModel *ds_error_model_new (const DsSceneProbe *probe, const DsSeparationParams *params);
 void ds_error_model_free (DsErrorModel *model);
 G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsErrorModel, ds_error_model_free)
 

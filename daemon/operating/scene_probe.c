@@ -64,9 +64,9 @@ fit_pair (const DsImage *a, const DsImage *b, double ceiling, double period, Pai
 /* Amplitude of harmonic n of the model's difference profile, fitted the way the frames are (same
  * columns, same fit), so that the sampling of integer periods aliases alike. */
 static double
-model_gain (const DsStripeGeometry *g, double period, double sigma, double offset, guint width, guint n)
+model_gain (const DsStripeModel *g, double period, double sigma, double offset, guint width, guint n)
 {
-  DsStripeGeometry m = *g;
+  DsStripeModel m = *g;
   m.period_px = period;
   m.blur_px = sigma;
   g_autofree double *profile = g_new (double, width);
@@ -116,7 +116,7 @@ solve_linear (const double *y, const double *w, const Equation *eq, guint n_eq, 
 
 /* The leak line at one blur. */
 static Solution
-solve_at (const DsStripeGeometry *g, const Equation *eq, guint n_eq, double sigma, guint width,
+solve_at (const DsStripeModel *g, const Equation *eq, guint n_eq, double sigma, guint width,
           gboolean two_periods)
 {
   double y[16] = { 0 }, w[16] = { 0 };
@@ -131,7 +131,7 @@ solve_at (const DsStripeGeometry *g, const Equation *eq, guint n_eq, double sigm
 }
 
 static guint
-collect (const PairFit *f, double period, const DsStripeGeometry *g, guint width, Equation *eq, guint n_eq)
+collect (const PairFit *f, double period, const DsStripeModel *g, guint width, Equation *eq, guint n_eq)
 {
   double offset = f->fit.phase[1];
   double g1 = model_gain (g, period, 0, offset, width, 1);

@@ -42,12 +42,12 @@ typedef struct {
   const char *coarse_missing;     /* why not (shown with the lower bound) */
   double exposure_us;
   double saturation_dn;           /* the ADC's top or a known clip level; 0 = none */
-  DsStripeGeometry geometry;      /* as configured; blur_px is what the probe finds */
+  DsStripeModel geometry;      /* as configured; blur_px is what the probe finds */
   double calibrated_gain;         /* h measured on a reference (descatterctl calibrate); 0 = none */
 } DsProbeFrames;
 
 typedef struct {
-  DsStripeGeometry geometry;      /* with the blur found */
+  DsStripeModel geometry;      /* with the blur found */
   DsBlurSource blur_source;
   double phase_offset;            /* cycles: phase 0's stripes are centred at x = P (j + offset) */
   double exposure_us;

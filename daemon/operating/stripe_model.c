@@ -15,7 +15,7 @@ step_antiderivative (double t, double sigma)
 
 /* Length of [x0, x1] lit by blurred square stripes (lit intervals centred on P (j + shift)). */
 static double
-lit_length (const DsStripeGeometry *g, double x0, double x1, double shift)
+lit_length (const DsStripeModel *g, double x0, double x1, double shift)
 {
   double P = g->period_px, half = g->duty * P / 2, s = g->blur_px;
   double reach = s > 0 ? 8 * s : 0, lit = 0;
@@ -37,7 +37,7 @@ lit_length (const DsStripeGeometry *g, double x0, double x1, double shift)
 }
 
 double
-ds_stripe_value (const DsStripeGeometry *g, double x, double shift)
+ds_stripe_value (const DsStripeModel *g, double x, double shift)
 {
   double b = g->black_level, p;
   if (g->kind == DS_PATTERN_SINE)
@@ -48,7 +48,7 @@ ds_stripe_value (const DsStripeGeometry *g, double x, double shift)
 }
 
 double
-ds_stripe_harmonic (const DsStripeGeometry *g, guint n)
+ds_stripe_harmonic (const DsStripeModel *g, guint n)
 {
   double f = (double) n / g->period_px;
   double blur = exp (-2 * G_PI * G_PI * g->blur_px * g->blur_px * f * f);
@@ -60,9 +60,9 @@ ds_stripe_harmonic (const DsStripeGeometry *g, guint n)
 }
 
 double
-ds_stripe_blur_from_gain (const DsStripeGeometry *g, double h)
+ds_stripe_blur_from_gain (const DsStripeModel *g, double h)
 {
-  DsStripeGeometry t = *g;
+  DsStripeModel t = *g;
   t.blur_px = 0;
   double sharp = ds_stripe_harmonic (&t, 1);
   if (!(h < sharp))

@@ -20,20 +20,20 @@ typedef struct {
   double duty;          /* square only */
   double black_level;
   double blur_px;       /* Gaussian sigma of the projector's defocus on the sensor */
-} DsStripeGeometry;
+} DsStripeModel;
 
 /* The pattern's value at pixel x for phase shift `shift` (cycles), in [b, 1]. */
-double ds_stripe_value (const DsStripeGeometry *g, double x, double shift);
+double ds_stripe_value (const DsStripeModel *g, double x, double shift);
 
 /* Cosine coefficient of harmonic n (>= 1) of the pattern as pixels see it:
  * pattern(x) = m + sum_n C_n cos (2 pi n (x/P - shift)), with
  * C_n = (1 - b) (2 / (n pi)) sin (n pi a) B_n S_n for square stripes (B_n the blur's
  * exp (-2 pi^2 sigma^2 n^2 / P^2), S_n the pixel's sinc (n / P)), (1 - b)/2 B_1 S_1 for sine. */
-double ds_stripe_harmonic (const DsStripeGeometry *g, guint n);
+double ds_stripe_harmonic (const DsStripeModel *g, guint n);
 
 /* sigma such that the first harmonic C_1 equals h (a calibrated harmonic gain); 0 when h is at
  * or above the sharp pattern's, -1 when no blur up to P/2 brings it that low. */
-double ds_stripe_blur_from_gain (const DsStripeGeometry *g, double h);
+double ds_stripe_blur_from_gain (const DsStripeModel *g, double h);
 
 #define DS_STRIPE_MAX_HARMONICS 8
 

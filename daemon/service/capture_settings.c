@@ -26,6 +26,17 @@ ds_capture_settings_from_config (DsCaptureSettings *s, const DsConfig *c)
   s->phase_tolerance_deg = isnan (c->phase_tolerance_deg) ? 90.0 / c->phases : c->phase_tolerance_deg;
 }
 
+void
+ds_capture_settings_separation_params (const DsCaptureSettings *s, DsSeparationParams *p)
+{
+  ds_separation_params_init (p, s->phases);
+  p->estimator = s->estimator;
+  p->pattern = s->pattern;
+  p->duty = s->duty;
+  p->black_level = s->black_level;
+  p->keep_extrema = s->keep_extrema;
+}
+
 JsonNode *
 ds_capture_settings_to_json (const DsCaptureSettings *s)
 {

@@ -35,6 +35,10 @@ typedef struct {
   DsOperatingReport operating;
 } DsCaptureSettings;
 
+/* The separation parameters of a set taken with these settings: the one place the sequencer and
+ * the automatic operating point's predictions take them from, so that what is predicted is what
+ * is computed. */
+void ds_capture_settings_separation_params (const DsCaptureSettings *settings, DsSeparationParams *params);
 /* The configuration's acquisition defaults. */
 void ds_capture_settings_from_config (DsCaptureSettings *settings, const DsConfig *config);
 /* As a JSON object for result metadata and `status`. */

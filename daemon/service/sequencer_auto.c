@@ -114,7 +114,9 @@ ds_seq_choose_operating_point (DsSequencer *seq, DsCaptureSettings *s, DsFrameCo
   memset (r, 0, sizeof *r);
   if (!ds_scene_probe_measure (&pf, &r->probe, error))
     return FALSE;
-  g_autoptr (DsErrorModel) errors = ds_error_model_new (&r->probe, 0);
+  DsSeparationParams params;
+  ds_capture_settings_separation_params (s, &params);
+  g_autoptr (DsErrorModel) errors = ds_error_model_new (&r->probe, &params);
   DsOperatingPoint op;
   if (!ds_operating_point_choose (seq->model, errors, &r->probe, &seq->timing, lit0->width, lit0->height,
                                   s->target_error, s->time_budget_ms, &op, error))

@@ -10,12 +10,7 @@ prepare_phase_set (DsSequencer *seq, const DsCaptureSettings *s, guint width, gu
                    GError **error)
 {
   DsSeparationParams p;
-  ds_separation_params_init (&p, s->phases);
-  p.estimator = s->estimator;
-  p.pattern = s->pattern;
-  p.duty = s->duty;
-  p.black_level = s->black_level;
-  p.keep_extrema = s->keep_extrema;
+  ds_capture_settings_separation_params (s, &p);
   if (seq->set && width == seq->set_width && height == seq->set_height &&
       memcmp (&p, &seq->set_params, sizeof p) == 0) {
     ds_phase_set_reset (seq->set);

@@ -13,7 +13,7 @@
 /* The blurred square stripe at pixel x, by brute force: the pixel sampled at 2000 points, each
  * the lit fraction of the Gaussian-blurred indicator computed with erf. */
 static double
-brute_value (const DsStripeGeometry *g, double x, double shift)
+brute_value (const DsStripeModel *g, double x, double shift)
 {
   const int sub = 2000;
   double acc = 0, P = g->period_px, half = g->duty * P / 2;
@@ -34,7 +34,7 @@ brute_value (const DsStripeGeometry *g, double x, double shift)
 static void
 test_stripe_value (void)
 {
-  DsStripeGeometry g = { DS_PATTERN_SQUARE, 7.3, 0.35, 0.05, 0.0 };
+  DsStripeModel g = { DS_PATTERN_SQUARE, 7.3, 0.35, 0.05, 0.0 };
   for (int b = 0; b < 2; b++) {
     g.blur_px = b ? 0.8 : 0.0;
     for (double x = 0; x < 15; x += 1)
@@ -88,7 +88,7 @@ test_harmonics_fit (void)
 /* ---- synthetic pilot frames ---- */
 
 typedef struct {
-  DsStripeGeometry g;
+  DsStripeModel g;
   double ld, lg, dark;     /* DN */
   double read_dn, gain;    /* noise: read sigma, shot variance per DN */
   double leak_per_px;      /* the scattered light's transfer of a harmonic of period x: exp(a x) - 1 */
@@ -102,7 +102,7 @@ synth_frame (const Synth *s, double period, double shift, gboolean on, GRand *r)
 {
   const guint w = 240, h = 120;
   DsImage *f = ds_image_new (DS_SAMPLE_F32, w, h, NULL);
-  DsStripeGeometry g = s->g;
+  DsStripeModel g = s->g;
   g.period_px = period;
   double m = g.duty + g.black_level * (1 - g.duty);
   double pattern[240];
@@ -139,7 +139,7 @@ probe_synth (const Synth *s, gboolean two_periods, double calibrated_gain, DsSce
   g_autoptr (DsImage) l1 = synth_frame (s, s->g.period_px, 0.6, TRUE, r);
   g_autoptr (DsImage) c0 = two_periods ? synth_frame (s, 2 * s->g.period_px, 0.1, TRUE, r) : NULL;
   g_autoptr (DsImage) c1 = two_periods ? synth_frame (s, 2 * s->g.period_px, 0.6, TRUE, r) : NULL;
-  DsStripeGeometry g = s->g;
+  DsStripeModel g = s->g;
   g.blur_px = 0;
   DsProbeFrames fr = { .dark = dark, .lit = { l0, l1 }, .coarse = { c0, c1 },
                        .coarse_missing = "fixed by the test", .exposure_us = 1000, .geometry = g,
@@ -178,7 +178,7 @@ test_probe_leak (void)
 {
   Synth s = { { DS_PATTERN_SQUARE, 12, 0.5, 0, 0.0 }, 500, 3000, 20, 2.0, 0.25, 0.04, 0 };
   DsSceneProbe p;
-  DsStripeGeometry sharp = s.g;
+  DsStripeModel sharp = s.g;
   probe_synth (&s, TRUE, ds_stripe_harmonic (&sharp, 1), &p);
   g_assert_cmpint (p.blur_source, ==, DS_BLUR_CALIBRATED);
   g_assert_cmpfloat_with_epsilon (p.ld_mean, s.ld, 0.05 * s.ld);
@@ -195,7 +195,7 @@ static DsSceneProbe
 hand_probe (double period, double duty, double ld, double lg, double var0, double gain)
 {
   DsSceneProbe p = { 0 };
-  p.geometry = (DsStripeGeometry){ DS_PATTERN_SQUARE, period, duty, 0, 0 };
+  p.geometry = (DsStripeModel){ DS_PATTERN_SQUARE, period, duty, 0, 0 };
   p.blur_source = DS_BLUR_CALIBRATED;
   p.exposure_us = 1000;
   p.ld_mean = ld;
@@ -209,6 +209,18 @@ hand_probe (double period, double duty, double ld, double lg, double var0, doubl
   return p;
 }
 
+/* The rig's separation parameters for a hand-made probe. */
+static DsSeparationParams
+params_of (const DsSceneProbe *p)
+{
+  DsSeparationParams s;
+  ds_separation_params_init (&s, 4);
+  s.pattern = p->geometry.kind;
+  s.duty = p->geometry.duty;
+  s.black_level = p->geometry.black_level;
+  return s;
+}
+
 /* maxmin's precondition: a pixel fully lit in some phase and fully dark in another. With duty
  * 0.3 at N = 3, aN = 0.9 < 1: the sampling part is the rms over pixels of max - min - 1 of the
  * pixel-integrated lit fraction, computed here by brute force. */
@@ -217,7 +229,8 @@ test_error_model_precondition (void)
 {
   const double P = 10, a = 0.3;
   DsSceneProbe p = hand_probe (P, a, 1000, 500, 0, 0);
-  g_autoptr (DsErrorModel) m = ds_error_model_new (&p, 0);
+  DsSeparationParams sp = params_of (&p);
+  g_autoptr (DsErrorModel) m = ds_error_model_new (&p, &sp);
   DsErrorParts parts;
   g_autoptr (GError) error = NULL;
   g_assert_true (ds_error_model_predict (m, DS_ESTIMATOR_MAXMIN, 3, 1, 1, 0, &parts, &error));
@@ -256,7 +269,8 @@ test_error_model_noise (void)
 {
   const double sigma = 10, ld = 500;
   DsSceneProbe p = hand_probe (16, 0.5, ld, 1000, sigma * sigma, 0);
-  g_autoptr (DsErrorModel) m = ds_error_model_new (&p, 0);
+  DsSeparationParams sp = params_of (&p);
+  g_autoptr (DsErrorModel) m = ds_error_model_new (&p, &sp);
   DsErrorParts parts;
   g_autoptr (GError) error = NULL;
   g_assert_true (ds_error_model_predict (m, DS_ESTIMATOR_MAXMIN, 8, 1, 1, 0, &parts, &error));
@@ -280,7 +294,8 @@ test_error_model_leak (void)
 {
   DsSceneProbe p = hand_probe (12, 0.5, 500, 3000, 0, 0);
   p.leak_per_px = 0.02;
-  g_autoptr (DsErrorModel) m = ds_error_model_new (&p, 0);
+  DsSeparationParams sp = params_of (&p);
+  g_autoptr (DsErrorModel) m = ds_error_model_new (&p, &sp);
   DsErrorParts parts;
   g_autoptr (GError) error = NULL;
   g_assert_true (ds_error_model_predict (m, DS_ESTIMATOR_SINE, 32, 1, 1, 0, &parts, &error));

@@ -7,11 +7,13 @@
 
 #include "daemon/operating/operating_point.h"
 
+static DsSeparationParams params; /* square stripes, duty 1/2, no black level */
+
 static DsSceneProbe
 probe_of (double ld, double lg, double read_dn, double leak_per_px)
 {
   DsSceneProbe p = { 0 };
-  p.geometry = (DsStripeGeometry){ DS_PATTERN_SQUARE, 12, 0.5, 0, 0.3 };
+  p.geometry = (DsStripeModel){ DS_PATTERN_SQUARE, 12, 0.5, 0, 0.3 };
   p.blur_source = DS_BLUR_CALIBRATED;
   p.exposure_us = 2000;
   p.ld_mean = ld;
@@ -41,7 +43,7 @@ test_choice (void)
   DsRigTiming t;
   ds_rig_timing_init (&t);
   DsSceneProbe p = probe_of (400, 800, 3, 0);
-  g_autoptr (DsErrorModel) em = ds_error_model_new (&p, 0);
+  g_autoptr (DsErrorModel) em = ds_error_model_new (&p, &params);
   DsOperatingPoint op;
   g_autoptr (GError) error = NULL;
   g_assert_true (ds_operating_point_choose (&m, em, &p, &t, 256, 192, 0.02, 0, &op, &error));
@@ -88,7 +90,7 @@ test_refusal (void)
   DsRigTiming t;
   ds_rig_timing_init (&t);
   DsSceneProbe p = probe_of (400, 800, 3, 0);
-  g_autoptr (DsErrorModel) em = ds_error_model_new (&p, 0);
+  g_autoptr (DsErrorModel) em = ds_error_model_new (&p, &params);
   DsOperatingPoint op;
   g_autoptr (GError) error = NULL;
   g_assert_false (ds_operating_point_choose (&m, em, &p, &t, 256, 192, 0.01, 20, &op, &error));
@@ -99,7 +101,7 @@ test_refusal (void)
   /* Scattered light keeps 27 % of the stripes at 12 px, 11 % at 6 px, 5 % at 3 px: no amount of
    * time helps, a finer period does. */
   DsSceneProbe leaky = probe_of (400, 2000, 3, 0.02);
-  g_autoptr (DsErrorModel) em2 = ds_error_model_new (&leaky, 0);
+  g_autoptr (DsErrorModel) em2 = ds_error_model_new (&leaky, &params);
   g_assert_false (ds_operating_point_choose (&m, em2, &leaky, &t, 256, 192, 0.15, 0, &op, &error));
   g_assert_nonnull (strstr (error->message, "A stripe period of"));
   g_assert_null (strstr (error->message, "A time budget of"));
@@ -107,7 +109,7 @@ test_refusal (void)
   /* Not measured: the prediction is a lower bound, and the refusal says why. */
   leaky.leak_measured = FALSE;
   g_strlcpy (leaky.leak_note, "not measured (the illuminator cannot change its period)", sizeof leaky.leak_note);
-  g_autoptr (DsErrorModel) em3 = ds_error_model_new (&leaky, 0);
+  g_autoptr (DsErrorModel) em3 = ds_error_model_new (&leaky, &params);
   g_assert_true (ds_operating_point_choose (&m, em3, &leaky, &t, 256, 192, 0.15, 0, &op, &error));
   g_assert_true (op.lower_bound);
 }
@@ -189,6 +191,7 @@ int
 main (int argc, char **argv)
 {
   g_test_init (&argc, &argv, NULL);
+  ds_separation_params_init (&params, 4);
   g_test_add_func ("/operating-point/choice", test_choice);
   g_test_add_func ("/operating-point/refusal", test_refusal);
   g_test_add_func ("/operating-point/report-json", test_report_json);
