@@ -179,7 +179,7 @@ predict (const DsOperatingModel *m, DsErrorModel *errors, const DsSceneProbe *pr
   p->period_px = period > 0 ? period : probe->geometry.period_px;
   p->predicted_error = m->scale * p->parts.total;
   p->predicted_time_ms = ds_rig_timing_set_ms (t, w, h, n, mm, p->exposure_us, TRUE);
-  p->lower_bound = !probe->leak_measured || probe->blur_source == DS_BLUR_ASSUMED_SHARP;
+  p->lower_bound = !probe->leak_measured;
   return TRUE;
 }
 
@@ -229,28 +229,61 @@ typedef struct {
   Best meeting_any_time;    /* the fastest meeting the target, whatever the budget */
 } Search;
 
+typedef struct {
+  DsEstimator estimator;
+  guint phases, averages;
+  double factor, time_ms;
+} Candidate;
+
+static int
+compare_candidates (const void *a, const void *b)
+{
+  const Candidate *x = a, *y = b;
+  return (x->time_ms > y->time_ms) - (x->time_ms < y->time_ms);
+}
+
+/* Predictions cost a synthetic separation each, times cost nothing: candidates are visited in
+ * order of time, so that a target is met by the first candidate that meets it (with those of
+ * the same time), and the ones beyond the budget are only visited when the target is not met
+ * within it. */
 static void
 search (const DsOperatingModel *m, DsErrorModel *errors, const DsSceneProbe *probe, const DsRigTiming *t,
         guint w, guint h, const guint *phases, guint n_phases, const guint *averages, guint n_averages,
         const double *factors, guint n_factors, double period, double target, double budget, Search *s)
 {
+  GArray *cands = g_array_new (FALSE, FALSE, sizeof (Candidate));
   for (guint ie = 0; ie < G_N_ELEMENTS (all_estimators); ie++)
     for (guint in = 0; in < n_phases; in++)
       for (guint im = 0; im < n_averages; im++)
         for (guint iff = 0; iff < n_factors; iff++) {
-          DsOperatingPoint p;
-          if (!predict (m, errors, probe, t, w, h, all_estimators[ie], phases[in], averages[im], factors[iff],
-                        period, &p))
-            continue;
-          gboolean in_budget = budget <= 0 || p.predicted_time_ms <= budget;
-          gboolean meets = target <= 0 || p.predicted_error <= target;
-          if (in_budget)
-            consider (&s->least_in_budget, &p, 0);
-          if (meets)
-            consider (&s->meeting_any_time, &p, 1);
-          if (in_budget && meets)
-            consider (&s->in_budget_meeting, &p, target);
+          Candidate c = { all_estimators[ie], phases[in], averages[im], factors[iff], 0 };
+          c.time_ms = ds_rig_timing_set_ms (t, w, h, c.phases, c.averages, probe->exposure_us * c.factor, TRUE);
+          g_array_append_val (cands, c);
         }
+  g_array_sort (cands, compare_candidates);
+  double stop_at = INFINITY;   /* the time of the first point meeting the target */
+  for (guint i = 0; i < cands->len; i++) {
+    const Candidate *c = &g_array_index (cands, Candidate, i);
+    gboolean in_budget = budget <= 0 || c->time_ms <= budget;
+    if (c->time_ms > stop_at)
+      break;
+    /* Beyond the budget only the fastest point meeting the target is of interest. */
+    if (!in_budget && (target <= 0 || s->meeting_any_time.found))
+      break;
+    DsOperatingPoint p;
+    if (!predict (m, errors, probe, t, w, h, c->estimator, c->phases, c->averages, c->factor, period, &p))
+      continue;
+    gboolean meets = target <= 0 || p.predicted_error <= target;
+    if (in_budget)
+      consider (&s->least_in_budget, &p, 0);
+    if (meets && target > 0) {
+      consider (&s->meeting_any_time, &p, 1);
+      stop_at = MIN (stop_at, c->time_ms);
+    }
+    if (in_budget && meets)
+      consider (&s->in_budget_meeting, &p, target);
+  }
+  g_array_unref (cands);
 }
 
 static void
@@ -263,6 +296,89 @@ append_point (GString *s, const DsOperatingPoint *p)
                           p->parts.scattered_stripes);
 }
 
+/* The most accurate point of each estimator and N: the most frames and the longest exposure
+ * (noise only falls with either; the systematic part does not change). Whether a target can be
+ * met at all thus costs one prediction per estimator and N. */
+static void
+best_reachable (const DsOperatingModel *m, DsErrorModel *errors, const DsSceneProbe *probe, const DsRigTiming *t,
+                guint w, guint h, guint averages, double factor, double period, double target, Best *least,
+                Best *meeting)
+{
+  for (guint ie = 0; ie < G_N_ELEMENTS (all_estimators); ie++)
+    for (guint in = 0; in < m->n_phases; in++) {
+      DsOperatingPoint p;
+      if (!predict (m, errors, probe, t, w, h, all_estimators[ie], m->phases[in], averages, factor, period, &p))
+        continue;
+      consider (least, &p, 0);
+      if (target > 0 && p.predicted_error <= target)
+        consider (meeting, &p, 1);
+    }
+}
+
+static guint
+largest (const guint *v, guint n)
+{
+  guint x = 0;
+  for (guint i = 0; i < n; i++)
+    x = MAX (x, v[i]);
+  return x;
+}
+
+/* What would reach a target no candidate reaches: more frames than the candidates hold, more
+ * light (which the clip level may forbid), another stripe period. */
+static void
+append_remedies (GString *msg, const DsOperatingModel *m, DsErrorModel *errors, const DsSceneProbe *probe,
+                 const DsRigTiming *t, guint w, guint h, double longest, double target, double budget)
+{
+  static const guint more_m[] = { 32, 64 };
+  static const double more_f[] = { 8, 16 };
+  Best least = { 0 }, meets = { 0 };
+  Search more = { 0 };
+  best_reachable (m, errors, probe, t, w, h, 64, longest, 0, target, &least, &meets);
+  if (meets.found)
+    search (m, errors, probe, t, w, h, m->phases, m->n_phases, more_m, G_N_ELEMENTS (more_m), &longest, 1, 0,
+            target, 0, &more);
+  else {
+    best_reachable (m, errors, probe, t, w, h, largest (m->averages, m->n_averages), more_f[1], 0, target, &least,
+                    &meets);
+    if (meets.found)
+      search (m, errors, probe, t, w, h, m->phases, m->n_phases, m->averages, m->n_averages, more_f,
+              G_N_ELEMENTS (more_f), 0, target, 0, &more);
+  }
+  if (more.meeting_any_time.found) {
+    g_string_append (msg, ". More frames or light would reach it: ");
+    append_point (msg, &more.meeting_any_time.p);
+    if (more.meeting_any_time.p.exposure_us > ds_scene_probe_max_exposure (probe))
+      g_string_append_printf (msg, ", but exposures above %.0f µs clip the brightest pixels: more illumination "
+                                   "or a lower gain",
+                              ds_scene_probe_max_exposure (probe));
+  }
+  /* Other periods: the scattered stripes shrink at finer ones, blur and the pixels' aperture
+   * weigh more. */
+  static const double period_factors[] = { 0.5, 0.67, 0.75, 1.5, 2 };
+  static const guint few_m[] = { 1, 4, 16 };
+  Best other = { 0 };
+  for (guint i = 0; i < G_N_ELEMENTS (period_factors); i++) {
+    double q = probe->geometry.period_px * period_factors[i];
+    if (q < 3)
+      continue;
+    Best pl = { 0 }, pm = { 0 };
+    best_reachable (m, errors, probe, t, w, h, 16, longest, q, target, &pl, &pm);
+    if (!pm.found)
+      continue;
+    Search ps = { 0 };
+    search (m, errors, probe, t, w, h, m->phases, m->n_phases, few_m, G_N_ELEMENTS (few_m), &longest, 1, q, target,
+            budget, &ps);
+    if (ps.in_budget_meeting.found)
+      consider (&other, &ps.in_budget_meeting.p, 1);
+  }
+  if (other.found) {
+    g_string_append_printf (msg, ". A stripe period of %g px would reach it: ", other.p.period_px);
+    append_point (msg, &other.p);
+  } else if (!more.meeting_any_time.found)
+    g_string_append (msg, ". Neither more time, more light nor another stripe period reaches it");
+}
+
 gboolean
 ds_operating_point_choose (const DsOperatingModel *m, DsErrorModel *errors, const DsSceneProbe *probe,
                            const DsRigTiming *t, guint w, guint h, double target, double budget,
@@ -270,10 +386,29 @@ ds_operating_point_choose (const DsOperatingModel *m, DsErrorModel *errors, cons
 {
   double factors[DS_OPERATING_MAX_CANDIDATES];
   guint n_factors = usable_factors (m, probe, factors);
+  if (n_factors == 0) {
+    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_DEVICE,
+                 "the pilot frames' brightest pixels are at the clip level (%.0f DN) whatever the exposure: "
+                 "lower the gain or the illumination", probe->saturation_dn);
+    return FALSE;
+  }
+  double longest = 0;
+  for (guint i = 0; i < n_factors; i++)
+    longest = MAX (longest, factors[i]);
   Search s = { 0 };
-  search (m, errors, probe, t, w, h, m->phases, m->n_phases, m->averages, m->n_averages, factors, n_factors,
-          0, target, budget, &s);
-  if (s.in_budget_meeting.found) {
+  gboolean reachable = TRUE;
+  if (target > 0) {
+    Best least = { 0 }, meets = { 0 };
+    best_reachable (m, errors, probe, t, w, h, largest (m->averages, m->n_averages), longest, 0, target, &least,
+                    &meets);
+    reachable = meets.found;
+    if (!reachable && budget <= 0)
+      s.least_in_budget = least;
+  }
+  if (reachable || budget > 0)
+    search (m, errors, probe, t, w, h, m->phases, m->n_phases, m->averages, m->n_averages, factors, n_factors, 0,
+            reachable ? target : INFINITY, budget, &s);
+  if (reachable && s.in_budget_meeting.found) {
     *out = s.in_budget_meeting.p;
     return TRUE;
   }
@@ -294,48 +429,13 @@ ds_operating_point_choose (const DsOperatingModel *m, DsErrorModel *errors, cons
       g_string_append (msg, ", a lower bound");
   } else
     g_string_append_printf (msg, "; the fastest candidate does not fit a budget of %.0f ms", budget);
-  if (target > 0 && s.meeting_any_time.found) {
+  if (target > 0 && reachable && s.meeting_any_time.found) {
     g_string_append_printf (msg, ". A time budget of %.0f ms would reach it: ", ceil (s.meeting_any_time.p.predicted_time_ms));
     append_point (msg, &s.meeting_any_time.p);
-  } else if (target > 0) {
-    /* What else would: more frames than the candidates hold, then more light (which the clip
-     * level may forbid), then another stripe period. */
-    static const guint more_m[] = { 32, 64 };
-    static const double more_f[] = { 8, 16 };
-    Search more = { 0 };
-    search (m, errors, probe, t, w, h, m->phases, m->n_phases, more_m, G_N_ELEMENTS (more_m), factors, n_factors,
-            0, target, 0, &more);
-    if (!more.meeting_any_time.found)
-      search (m, errors, probe, t, w, h, m->phases, m->n_phases, m->averages, m->n_averages, more_f,
-              G_N_ELEMENTS (more_f), 0, target, 0, &more);
-    if (more.meeting_any_time.found) {
-      g_string_append (msg, ". More frames or light would reach it: ");
-      append_point (msg, &more.meeting_any_time.p);
-      if (more.meeting_any_time.p.exposure_us > ds_scene_probe_max_exposure (probe))
-        g_string_append_printf (msg, ", but exposures above %.0f µs clip the brightest pixels: "
-                                     "more illumination or a lower gain",
-                                ds_scene_probe_max_exposure (probe));
-    }
-    static const double period_factors[] = { 0.5, 0.67, 0.75, 1.5, 2 };
-    Best other = { 0 };
-    for (guint i = 0; i < G_N_ELEMENTS (period_factors); i++) {
-      double q = probe->geometry.period_px * period_factors[i];
-      if (q < 3)
-        continue;
-      Search ps = { 0 };
-      search (m, errors, probe, t, w, h, m->phases, m->n_phases, m->averages, m->n_averages, factors, n_factors, q,
-              target, budget, &ps);
-      if (ps.in_budget_meeting.found)
-        consider (&other, &ps.in_budget_meeting.p, 1);
-    }
-    if (other.found) {
-      g_string_append_printf (msg, ". A stripe period of %g px would reach it: ", other.p.period_px);
-      append_point (msg, &other.p);
-    } else if (!more.meeting_any_time.found)
-      g_string_append (msg, ". Neither more time, more light nor another stripe period reaches it");
-    if (!probe->leak_measured)
-      g_string_append_printf (msg, " (scattered light that keeps the stripes: %s)", probe->leak_note);
-  }
+  } else if (target > 0)
+    append_remedies (msg, m, errors, probe, t, w, h, longest, target, budget);
+  if (target > 0 && !probe->leak_measured)
+    g_string_append_printf (msg, " (scattered light that keeps the stripes: %s)", probe->leak_note);
   g_set_error_literal (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT, msg->str);
   g_string_free (msg, TRUE);
   return FALSE;
@@ -379,9 +479,16 @@ ds_operating_report_to_json (const DsOperatingReport *r, JsonBuilder *b)
   json_builder_begin_array (b);
   if (!pr->leak_measured)
     json_builder_add_string_value (b, pr->leak_note);
-  if (pr->blur_source == DS_BLUR_ASSUMED_SHARP)
-    json_builder_add_string_value (b, "stripe blur neither calibrated nor measurable from the pilot frames: "
-                                      "assumed sharp");
+  json_builder_end_array (b);
+  json_builder_set_member_name (b, "assumptions");
+  json_builder_begin_array (b);
+  if (pr->blur_source == DS_BLUR_ASSUMED_SHARP) {
+    g_autofree char *note = g_strdup_printf (
+      "stripe blur neither calibrated (descatterctl calibrate) nor measurable from the pilot frames at %g px: "
+      "the worse of sharp stripes and a blur of %g px",
+      pr->geometry.period_px, MIN (DS_ERROR_MODEL_UNKNOWN_BLUR_PX, pr->geometry.period_px / 8));
+    json_builder_add_string_value (b, note);
+  }
   json_builder_end_array (b);
   json_builder_set_member_name (b, "scene");
   json_builder_begin_object (b);
