@@ -61,6 +61,11 @@ typedef struct {
 static gboolean
 parse_list (const char *text, double **out, guint *n)
 {
+  if (strcmp (text, "none") == 0) {
+    *n = 0;
+    *out = g_new0 (double, 1);
+    return TRUE;
+  }
   g_auto (GStrv) parts = g_strsplit (text, ",", -1);
   *n = g_strv_length (parts);
   *out = g_new0 (double, *n + 1);
@@ -301,8 +306,8 @@ ds_ctl_validate (int argc, char **argv)
     { "shipped", 0, 0, G_OPTION_ARG_NONE, &shipped, "The example scenes (etc/scenes)", NULL },
     { "generate", 'g', 0, G_OPTION_ARG_INT, &generate, "Also K generated scenes (never fitted to)", "K" },
     { "seed", 0, 0, G_OPTION_ARG_INT64, &seed, "Generator and noise seed (default 1)", "S" },
-    { "targets", 0, 0, G_OPTION_ARG_STRING, &targets, "Target errors requested (default 0.03,0.1,0.3)", "LIST" },
-    { "budgets", 0, 0, G_OPTION_ARG_STRING, &budgets, "Time budgets requested alone, ms (default 60)", "LIST" },
+    { "targets", 0, 0, G_OPTION_ARG_STRING, &targets, "Target errors requested (default 0.03,0.1,0.3; none)", "LIST" },
+    { "budgets", 0, 0, G_OPTION_ARG_STRING, &budgets, "Time budgets requested alone, ms (default 60; none)", "LIST" },
     { "configs", 'c', 0, G_OPTION_ARG_STRING, &configs, "Also these fixed configurations, ESTIMATOR:N:M:EXPOSURE-FACTOR,...", "LIST" },
     { "fit", 0, 0, G_OPTION_ARG_NONE, &fit, "Fit the prediction's scale leave-one-scene-out on the given (not generated) scenes; write OUT/operating-model.conf", NULL },
     { "model", 'm', 0, G_OPTION_ARG_FILENAME, &model_path, "Operating model (default: the installed one)", "FILE" },

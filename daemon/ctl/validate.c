@@ -155,7 +155,7 @@ ds_validate_run (const DsSimRig *rig, const DsValidateScene *vs, DsEstimator est
 const char *
 ds_verdict_name (DsVerdict v)
 {
-  static const char *const names[] = { "within 1.5", "off", "refused, right", "refused, wrong", "nothing fits" };
+  static const char *const names[] = { "within", "off", "refused-right", "refused-wrong", "nothing-fits" };
   return v <= DS_VERDICT_NONE ? names[v] : "?";
 }
 

@@ -48,6 +48,7 @@ typedef enum {
   DS_VERDICT_NONE,            /* refused and nothing fits the budget (nothing to run) */
 } DsVerdict;
 
+/* within, off, refused-right, refused-wrong, nothing-fits */
 const char *ds_verdict_name (DsVerdict verdict);
 
 typedef struct {
