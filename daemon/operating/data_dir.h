@@ -1,5 +1,5 @@
 /* Where descatter's installed data lives: the example scenes (scenes/) and the operating model
- * (operating-model.csv). Installed programs read DS_DATA_DIR (build_info.h, from the install
+ * (operating-model.conf). Installed programs read DS_DATA_DIR (build_info.h, from the install
  * prefix); $DESCATTER_DATA_DIR overrides it, which is how tests and the demo run the build
  * tree's programs against etc/ of the source tree. No source path is compiled in. Any thread. */
 #pragma once

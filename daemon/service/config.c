@@ -125,7 +125,7 @@ static const KeySpec keys[] = {
   { "acquisition", "verify-phase", K_BOOL, F (verify_phase), "true", 0, 0, NULL,
     "measure the stripe phase in each frame and refuse frames lit with the wrong phase" },
   { "acquisition", "operating-model", K_STRING, F (operating_model), NULL, 0, 0, NULL,
-    "model for captures with target_error/time_budget_ms (descatterctl study); empty = the built-in one" },
+    "operating model for captures with target_error/time_budget_ms (descatterctl validate --fit); empty = the installed one" },
   { "acquisition", "settle-ms", K_DOUBLE, F (timing_settle_ms), "3", 0, 10000, NULL,
     "illuminator settle time, for the acquisition-time model of automatic captures" },
   { "acquisition", "link-mbit", K_DOUBLE, F (timing_link_mbit), "1000", 1, 100000, NULL,

@@ -78,7 +78,7 @@ def main():
         has(os.path.join(lib_root, "lib/udev/rules.d/60-descatter-gpio.rules"), "udev rule")
         conf = os.path.join(etc, "descatterd/descatterd.conf")
         has(conf, "configuration")
-        has(os.path.join(root, "share/descatter/operating-model.csv"), "operating model")
+        has(os.path.join(root, "share/descatter/operating-model.conf"), "operating model")
         scenes = sorted(f for f in os.listdir(os.path.join(SRC, "etc/scenes")) if f.endswith(".scene"))
         staged_scenes = sorted(os.listdir(os.path.join(root, "share/descatter/scenes")))
         check(scenes == staged_scenes, f"every example scene is installed ({len(scenes)})")
