@@ -55,7 +55,7 @@ daemon=$!
 pids+=("$daemon")
 wait_ready /run/descatterd/descatterd.sock
 status=$(descatterctl status)
-echo "$status" | grep -q "^auto point:   operating model /usr/share/descatter/operating-model.csv" ||
+echo "$status" | grep -q "^auto point:   operating model /usr/share/descatter/operating-model.conf" ||
   fail "the operating model is not the installed one: $status"
 ok "descatterd runs as descatterd on /run/descatterd/descatterd.sock; status: $(echo "$status" | sed -n 2p)"
 cd "$tmp"
@@ -88,7 +88,7 @@ descatterctl --address "$tmp/sim.sock" capture --phases 4 --quiet --out sim >/de
 compgen -G "sim/*transmissive.tiff" >/dev/null || fail "descatterd --sim: no result"
 ok "descatterd --sim + descatterctl capture"
 descatterctl study --quick --quiet --out study || fail "descatterctl study --quick"
-[ "$(wc -l <study/study.csv)" -gt 4 ] && [ -s study/operating-model.csv ] || fail "study wrote no results"
+[ "$(wc -l <study/study.csv)" -gt 4 ] && [ -s study/pareto.md ] || fail "study wrote no results"
 ok "descatterctl study --quick on the installed scenes: $(($(wc -l <study/study.csv) - 1)) points"
 descatter-sim describe /usr/share/descatter/scenes/milk-disc.scene >/dev/null || fail "descatter-sim describe"
 ok "descatter-sim describe an installed scene"

@@ -220,10 +220,40 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
     if (n_eq == before)
       two = FALSE;
   }
-  /* The transfer's logarithm is linear in x = Q / n only while x is small against the depth
-   * over which forward-scattered light spreads (beyond, it saturates at the whole forward
-   * scattered flux): keep the harmonics with x <= P, which bracket the configured period and
-   * reach down towards 0, unless that leaves a single x. */
+  if (n_eq == 0) {
+    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_DEVICE,
+                 "pilot frames: no stripe modulation above the noise at period %g px (amplitude %.3g DN, "
+                 "noise %.3g DN): no direct light to separate",
+                 fr->geometry.period_px, fine.fit.amplitude[1], fine.fit.sigma_amplitude);
+    ds_column_stats_clear (&fine.stats);
+    ds_column_stats_clear (&coarse.stats);
+    return FALSE;
+  }
+  /* The blur, unless calibrated: it lowers the higher harmonics against the first at a period,
+   * the scattered stripes raise the coarse period against the fine one; every harmonic at both
+   * periods is needed to tell them apart. */
+  double sigma = 0;
+  if (fr->calibrated_gain > 0) {
+    sigma = ds_stripe_blur_from_gain (&fr->geometry, fr->calibrated_gain);
+    sigma = sigma < 0 ? fr->geometry.period_px / 2 : sigma;
+    out->blur_source = DS_BLUR_CALIBRATED;
+  } else if (n_eq >= (two ? 3u : 2u)) {
+    double best = INFINITY, hi = MIN (fr->geometry.period_px / 2, 4.0);
+    for (double s = 0; s <= hi + 1e-9; s += 0.025) {
+      Solution so = solve_at (&fr->geometry, eq, n_eq, s, l0->width, two);
+      if (so.residual < best) {
+        best = so.residual;
+        sigma = s;
+      }
+    }
+    out->blur_source = DS_BLUR_MEASURED;
+  } else
+    out->blur_source = DS_BLUR_ASSUMED_SHARP;
+  out->geometry.blur_px = sigma;
+  /* Then Ld and alpha. The transfer's logarithm is linear in x = Q / n only while x is small
+   * against the distance over which forward-scattered light spreads (beyond, it saturates at the
+   * whole forward-scattered flux): the line is fitted to the harmonics with x <= P, which
+   * bracket the configured period and reach down towards 0, unless that leaves a single x. */
   {
     guint near = 0;
     double x_min = INFINITY, x_max = 0;
@@ -242,35 +272,6 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
     }
   }
   out->equations = n_eq;
-  if (n_eq == 0) {
-    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_DEVICE,
-                 "pilot frames: no stripe modulation above the noise at period %g px (amplitude %.3g DN, "
-                 "noise %.3g DN): no direct light to separate",
-                 fr->geometry.period_px, fine.fit.amplitude[1], fine.fit.sigma_amplitude);
-    ds_column_stats_clear (&fine.stats);
-    ds_column_stats_clear (&coarse.stats);
-    return FALSE;
-  }
-  double sigma = 0;
-  if (fr->calibrated_gain > 0) {
-    sigma = ds_stripe_blur_from_gain (&fr->geometry, fr->calibrated_gain);
-    sigma = sigma < 0 ? fr->geometry.period_px / 2 : sigma;
-    out->blur_source = DS_BLUR_CALIBRATED;
-  } else if (n_eq >= (two ? 3u : 2u)) {
-    /* Blur and alpha both lower the higher harmonics against the first at a period, but alpha
-     * raises the coarse period against the fine one: with enough harmonics both are found. */
-    double best = INFINITY, hi = MIN (fr->geometry.period_px / 2, 4.0);
-    for (double s = 0; s <= hi + 1e-9; s += 0.025) {
-      Solution so = solve_at (&fr->geometry, eq, n_eq, s, l0->width, two);
-      if (so.residual < best) {
-        best = so.residual;
-        sigma = s;
-      }
-    }
-    out->blur_source = DS_BLUR_MEASURED;
-  } else
-    out->blur_source = DS_BLUR_ASSUMED_SHARP;
-  out->geometry.blur_px = sigma;
   Solution so = solve_at (&fr->geometry, eq, n_eq, sigma, l0->width, two);
   out->ld_mean = exp (so.log_ld);
   out->leak_per_px = so.alpha;
