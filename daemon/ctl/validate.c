@@ -111,6 +111,9 @@ ds_validate_probe (const DsSimRig *rig, const DsValidateOptions *o, DsValidateSc
   out->params.duty = pf.geometry.duty;
   out->params.black_level = pf.geometry.black_level;
   out->params.harmonic_gain = out->harmonic_gain;
+  /* As descatterd's sets (ds_capture_settings_separation_params): the period is known. */
+  out->params.geometry.period_px = s->period_px;
+  out->params.geometry.pixel_aperture = 1;
   DsImage *tt = NULL, *tg = NULL;
   if (!ds_renderer_truth (ds_sim_rig_renderer (rig), e0, 0.0, &tt, &tg, error))
     return FALSE;

@@ -35,6 +35,10 @@ ds_capture_settings_separation_params (const DsCaptureSettings *s, DsSeparationP
   p->duty = s->duty;
   p->black_level = s->black_level;
   p->keep_extrema = s->keep_extrema;
+  /* The period is known (the illuminator's): maxmin and robust then flag the pixels a phase
+   * never fully lights or darkens instead of being refused, and robust's windows fit it. */
+  p->geometry.period_px = s->period_px;
+  p->geometry.pixel_aperture = 1;
 }
 
 JsonNode *

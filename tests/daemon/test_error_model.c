@@ -222,7 +222,8 @@ params_of (const DsSceneProbe *p)
 }
 
 /* maxmin's precondition: a pixel fully lit in some phase and fully dark in another. With duty
- * 0.3 at N = 3, aN = 0.9 < 1: the sampling part is the rms over pixels of max - min - 1 of the
+ * 0.3 at N = 3, aN = 0.9 < 1: refused when the period is unknown (proc's check, passed on), and
+ * with the period known the sampling part is the rms over pixels of max - min - 1 of the
  * pixel-integrated lit fraction, computed here by brute force. */
 static void
 test_error_model_precondition (void)
@@ -230,9 +231,16 @@ test_error_model_precondition (void)
   const double P = 10, a = 0.3;
   DsSceneProbe p = hand_probe (P, a, 1000, 500, 0, 0);
   DsSeparationParams sp = params_of (&p);
-  g_autoptr (DsErrorModel) m = ds_error_model_new (&p, &sp);
   DsErrorParts parts;
   g_autoptr (GError) error = NULL;
+  {
+    g_autoptr (DsErrorModel) blind = ds_error_model_new (&p, &sp);
+    g_assert_false (ds_error_model_predict (blind, DS_ESTIMATOR_MAXMIN, 3, 1, 1, 0, &parts, &error));
+    g_clear_error (&error);
+  }
+  sp.geometry.period_px = P;
+  sp.geometry.pixel_aperture = 1;
+  g_autoptr (DsErrorModel) m = ds_error_model_new (&p, &sp);
   g_assert_true (ds_error_model_predict (m, DS_ESTIMATOR_MAXMIN, 3, 1, 1, 0, &parts, &error));
   double se = 0;
   guint n = 0;
