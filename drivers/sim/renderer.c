@@ -278,6 +278,11 @@ check_request (const DsRenderRequest *req, GError **error)
                  req->phase, req->n_phases);
     return FALSE;
   }
+  if (!(req->period_px == 0 || (req->period_px >= 2 && req->period_px <= 1e5))) {
+    g_set_error (error, DS_SIM_ERROR, DS_SIM_ERROR_INVALID, "render: period %g px (0 = the scene's, else [2, 1e5])",
+                 req->period_px);
+    return FALSE;
+  }
   return check_exposure (req->exposure_us, req->gain_db, error);
 }
 
@@ -288,7 +293,7 @@ render (const DsRenderer *r, const DsRenderRequest *req, gboolean expected, doub
     return NULL;
   DsStageArgs a = { .phase = req->phase, .n_phases = req->n_phases, .illuminator_on = req->illuminator_on,
                     .expected = expected, .exposure_us = req->exposure_us, .gain_db = req->gain_db,
-                    .seed = req->seed };
+                    .seed = req->seed, .period_px = req->period_px };
   DsLight l = { 0 };
   DsImage *out = NULL;
   if (run_stages (r, &l, &a, TRUE, TRUE, secs, error))
@@ -321,7 +326,8 @@ ds_renderer_render_photons (const DsRenderer *r, const DsRenderRequest *req, GEr
   if (!check_request (req, error))
     return NULL;
   DsStageArgs a = { .phase = req->phase, .n_phases = req->n_phases, .illuminator_on = req->illuminator_on,
-                    .exposure_us = req->exposure_us, .gain_db = req->gain_db, .seed = req->seed };
+                    .exposure_us = req->exposure_us, .gain_db = req->gain_db, .seed = req->seed,
+                    .period_px = req->period_px };
   DsLight l = { 0 };
   DsImage *out = NULL;
   if (run_stages (r, &l, &a, TRUE, FALSE, NULL, error)) {

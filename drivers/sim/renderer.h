@@ -48,6 +48,9 @@ typedef struct {
   double exposure_us;
   double gain_db;
   guint64 seed;
+  /* The stripe period on the sensor (px): 0 = the scene's. An illuminator that can change its
+   * period (the PERIOD register) projects the scene's pattern at another period. */
+  double period_px;
 } DsRenderRequest;
 
 /* u16 frame with the sensor's bit depth. */

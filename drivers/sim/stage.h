@@ -31,6 +31,7 @@ typedef struct {
   gboolean expected;  /* sensor: noise-free expectation (f32 DN) instead of a noisy u16 frame */
   double exposure_us, gain_db;
   guint64 seed;
+  double period_px;   /* 0: the scene's */
 } DsStageArgs;
 
 typedef struct DsStage DsStage;

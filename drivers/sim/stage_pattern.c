@@ -86,8 +86,11 @@ pattern_apply (const DsStage *st, DsLight *l, const DsStageArgs *a, GError **err
   if (!a->illuminator_on)
     return TRUE; /* buffers start dark */
   guint m = l->margin;
+  DsSceneSpec spec = d->spec;
+  if (a->period_px > 0)
+    spec.period_px = a->period_px;
   g_autofree double *profile =
-    a->full ? NULL : ds_stage_pattern_profile (&d->spec, a->phase, a->n_phases, -(int) m, l->incident->width);
+    a->full ? NULL : ds_stage_pattern_profile (&spec, a->phase, a->n_phases, -(int) m, l->incident->width);
   double flux = d->photons_per_px_per_ms * a->exposure_us / 1000.0;
   float *in = ds_image_row (l->incident, 0);
   for (guint x = 0; x < l->incident->width; x++)

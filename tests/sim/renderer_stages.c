@@ -287,6 +287,38 @@ test_ambient_level (void)
   assert_uniform (e, K * (QE * 0.2 * PX_PHOTONS_PER_MS + 1.0), 1e-5);
 }
 
+/* An illuminator that changes its period (the PERIOD register): a frame requested at another
+ * period is the frame of the same scene declaring that period, bit for bit; a period outside
+ * the scene format's range is refused. */
+static void
+test_period_override (void)
+{
+  const char *extra = "[ambient]\nlevel=0.01\n[object.g]\nshape=grid\npitch=16\nline-width=2\n";
+  g_autoptr (DsScene) s8 = scene_from (extra, "edge-blur-px=0.7\n");
+  g_autofree char *text = g_strdup_printf (
+    "[sensor]\nwidth=64\nheight=48\nbit-depth=16\nquantum-efficiency=%g\nsystem-gain=%g\nread-noise-e=3\n"
+    "dark-current-e-per-s=1000\nfull-well-e=1e6\nexposure-us=%g\n"
+    "[illuminator]\nperiod-px=13.5\nirradiance=1\nedge-blur-px=0.7\n%s", QE, K, EXPOSURE_US, extra);
+  g_autoptr (GError) error = NULL;
+  g_autoptr (DsScene) s13 = ds_scene_load_data (text, strlen (text), "renderer-test.scene", &error);
+  g_assert_no_error (error);
+  g_autoptr (DsRenderer) r8 = ds_renderer_new (s8, NULL, &error);
+  g_autoptr (DsRenderer) r13 = ds_renderer_new (s13, NULL, &error);
+  g_assert_no_error (error);
+  DsRenderRequest req = { .phase = 2, .n_phases = 5, .illuminator_on = TRUE, .exposure_us = 800, .seed = 9 };
+  g_autoptr (DsImage) native = ds_renderer_render (r13, &req, &error);
+  req.period_px = 13.5;
+  g_autoptr (DsImage) changed = ds_renderer_render (r8, &req, &error);
+  g_assert_no_error (error);
+  g_assert_cmpmem (native->data, native->stride * native->height, changed->data, changed->stride * changed->height);
+  req.period_px = 0;
+  g_autoptr (DsImage) own = ds_renderer_render (r8, &req, &error);
+  g_assert_true (memcmp (own->data, changed->data, own->stride * own->height) != 0);
+  req.period_px = 1.5;
+  g_assert_null (ds_renderer_render (r8, &req, &error));
+  g_assert_error (error, DS_SIM_ERROR, DS_SIM_ERROR_INVALID);
+}
+
 int
 main (int argc, char **argv)
 {
@@ -300,5 +332,6 @@ main (int argc, char **argv)
   g_test_add_func ("/sim/renderer/undeclared-stage", test_undeclared_stage);
   g_test_add_func ("/sim/renderer/ambient-level", test_ambient_level);
   g_test_add_func ("/sim/renderer/mask-object", test_mask_object);
+  g_test_add_func ("/sim/renderer/period-override", test_period_override);
   return g_test_run ();
 }
