@@ -20,6 +20,7 @@ struct DsSimLab {
   /* illuminator state */
   gboolean on;
   guint phase, n_phases, shown_phase, previous_phase;
+  double period_px;        /* the period it projects (0: the scene's) */
   guint64 apply_count;
   /* camera state */
   gboolean connected, started;
@@ -292,7 +293,7 @@ cam_trigger (gpointer b, GError **error)
   guint shown = stale ? lab->previous_phase : lab->shown_phase;
   DsRenderRequest req = { .phase = shown, .n_phases = lab->n_phases, .illuminator_on = lab->on,
                           .exposure_us = lab->exposure_us, .gain_db = lab->gain_db,
-                          .seed = lab->seed * 1000003u + lab->renders++ };
+                          .seed = lab->seed * 1000003u + lab->renders++, .period_px = lab->period_px };
   DsImage *img = ds_renderer_render (lab->renderer, &req, error);
   if (!img) {
     g_prefix_error (error, "simulated camera: ");
@@ -411,13 +412,15 @@ ill_set_pattern (gpointer b, const DsStripePattern *p, GError **error)
 {
   DsSimLab *lab = b;
   const DsSceneSpec *s = ds_scene_spec (ds_renderer_scene (lab->renderer));
-  if (p->n_phases < 2 || fabs (p->period_px - s->period_px) > 1e-9 || fabs (p->duty - s->duty) > 1e-9) {
+  /* Like a projector with a PERIOD register: any period, the scene's pattern otherwise. */
+  if (p->n_phases < 2 || !(p->period_px >= 2 && p->period_px <= 1e5) || fabs (p->duty - s->duty) > 1e-9) {
     g_set_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_INVALID,
-                 "simulated illuminator: it projects the scene's pattern (period %g px, duty %g) with N >= 2; "
-                 "asked for period %g, duty %g, N %u", s->period_px, s->duty, p->period_px, p->duty, p->n_phases);
+                 "simulated illuminator: it projects the scene's pattern (duty %g) at periods of 2 px or more "
+                 "with N >= 2; asked for period %g, duty %g, N %u", s->duty, p->period_px, p->duty, p->n_phases);
     return FALSE;
   }
   lab->n_phases = p->n_phases;
+  lab->period_px = fabs (p->period_px - s->period_px) > 1e-9 ? p->period_px : 0;
   lab->phase = lab->shown_phase = lab->previous_phase = 0;
   return TRUE;
 }
