@@ -30,9 +30,9 @@ static void
 add_objects (GString *s, GRand *r, guint w, guint h, double thickness_mm, gboolean has_medium)
 {
   guint n = (guint) g_rand_int_range (r, 0, 4);
-  /* Objects of one scene share one depth (docs/scene-format.md: the slab is split once). */
-  double depth = has_medium ? uniform (r, 0, thickness_mm) : 0;
   for (guint i = 0; i < n; i++) {
+    /* Each object at a depth of its own (docs/scene-format.md: several object planes). */
+    double depth = has_medium ? uniform (r, 0, thickness_mm) : 0;
     static const char *const shapes[] = { "rect", "disc", "grid", "lines" };
     const char *shape = shapes[g_rand_int_range (r, 0, 4)];
     g_string_append_printf (s, "\n[object.o%u]\nshape=%s\n", i, shape);

@@ -105,9 +105,7 @@ ds_sim_rig_text (const DsSimRig *rig)
 double
 ds_sim_rig_clip_dn (const DsSimRig *rig)
 {
-  const DsSceneSpec *s = ds_scene_spec (rig->scene);
-  double adc = (double) ((1u << s->bit_depth) - 1);
-  return MIN (adc, floor (s->full_well_e * s->system_gain));
+  return ds_renderer_saturation_dn (rig->renderer, 0.0);
 }
 
 DsImage *
