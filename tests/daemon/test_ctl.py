@@ -194,7 +194,7 @@ def automatic_capture(d, tmp):
 def study_progress(tmp):
     scene = os.path.join(os.environ["DESCATTER_DATA_DIR"], "scenes", "clear-grid.scene")
     args = [CTL, "study", "--scene", scene, "--phases", "4,8", "--averages", "1", "--exposures", "1",
-            "--seeds", "1", "--estimators", "maxmin"]
+            "--seeds", "1", "--estimators", "maxmin", "--periods", "scene"]
     r = run(*args, "--out", os.path.join(tmp, "study-log"), timeout=300)
     check(r.returncode == 0 and "\r" not in r.stderr and "2/2 sets" in r.stderr,
           f"study progress in a log: totals, no carriage return: {r.stderr!r}")
@@ -250,7 +250,7 @@ def tcp_token(tmp):
         check("UNAVAILABLE" in summary, "... and in the summary")
         r = run(CTL, "-a", addr, "--token", token, "capture", "-q", "--target-error", "0.1",
                 "--out", os.path.join(tmp, "no-model"))
-        check(r.returncode != 0 and "operating-model.csv" in r.stderr, f"the automatic capture says why: {r.stderr.strip()}")
+        check(r.returncode != 0 and "operating-model.conf" in r.stderr, f"the automatic capture says why: {r.stderr.strip()}")
     finally:
         d.stop()
 
