@@ -1,0 +1,64 @@
+#!/usr/bin/python3
+"""Totals over several `descatterctl validate` outputs (docs/accuracy.md, "Validation").
+Usage: validation_summary.py DIR...   (each DIR holds a validation.csv)
+
+Recomputes every verdict from the CSV's numbers (not its verdict column): a chosen point is
+right when achieved/predicted lies within [1/1.5, 1.5]; a refusal is right when the best
+reachable point it names indeed misses the target (or nothing fits the budget). Prints a
+Markdown summary per kind of scene (given, generated) and the worst cases by ratio."""
+import csv
+import os
+import sys
+
+
+def verdict(r):
+    if r["outcome"] == "chosen":
+        ratio = float(r["achieved"]) / float(r["predicted"])
+        return ("within" if 1 / 1.5 <= ratio <= 1.5 else "off"), ratio
+    if r["outcome"] == "refused":
+        if not r["target_error"] and not r["time_budget_ms"]:
+            return "pilot-refused", None  # the pilot frames themselves were refused (named in the CSV)
+        if not r["estimator"]:
+            return "refused-right", None  # nothing fits the budget, or the pilot itself refused
+        target = float(r["target_error"])
+        if target <= 0:
+            return "refused-right", None
+        return ("refused-right" if float(r["achieved"]) > target else "refused-wrong"), None
+    return r["outcome"], None
+
+
+def main():
+    rows = []
+    for d in sys.argv[1:]:
+        with open(os.path.join(d, "validation.csv")) as f:
+            rows += list(csv.DictReader(f))
+    for kind in sorted({r["kind"] for r in rows}, key=lambda k: k == "generated"):
+        sel = [r for r in rows if r["kind"] == kind]
+        if not sel:
+            continue
+        scenes = sorted({r["scene"] for r in sel})
+        counts = {}
+        worst = []
+        for r in sel:
+            v, ratio = verdict(r)
+            counts[v] = counts.get(v, 0) + 1
+            if ratio is not None:
+                worst.append((max(ratio, 1 / ratio), ratio, r))
+        good = counts.get("within", 0) + counts.get("refused-right", 0) + counts.get("pilot-refused", 0)
+        print(f"**{kind} scenes** ({len(scenes)} scenes, {len(sel)} requests): {good} "
+              f"({100 * good / len(sel):.0f} %) within a factor 1.5 or correctly refused "
+              f"({counts.get('within', 0)} within, {counts.get('refused-right', 0)} correctly refused, "
+              f"{counts.get('pilot-refused', 0)} scenes whose pilot frames were refused with a reason); "
+              f"{counts.get('off', 0)} outside the factor, {counts.get('refused-wrong', 0)} refused wrongly.")
+        worst.sort(key=lambda w: -w[0])
+        for _, ratio, r in worst[:3]:
+            req = f"target {r['target_error']}" if float(r["target_error"]) > 0 else f"budget {r['time_budget_ms']} ms"
+            print(f"- {r['scene']}, {req}: {r['estimator']} N={r['phases']} M={r['averages']}, predicted "
+                  f"{float(r['predicted']):.4f} (noise {float(r['noise']):.4f}, sampling {float(r['sampling']):.4f}, "
+                  f"stripes {float(r['scattered_stripes']):+.4f}), achieved {float(r['achieved']):.4f} "
+                  f"(systematic {float(r['achieved_systematic']):.4f}): x{ratio:.2f}")
+        print()
+
+
+if __name__ == "__main__":
+    main()
