@@ -15,6 +15,7 @@ typedef struct {
   double fps;          /* complete frames per second */
   guint incomplete;    /* frames that came with missing packets (transport losses) */
   guint lost;          /* triggers with no frame within the grab timeout */
+  guint reconnects;    /* control of the camera lost and taken again */
 } RateSample;
 
 /* Runs the loop for `seconds` in a child process (self_path --ceiling ...) over the devices of
