@@ -6,7 +6,7 @@
  * Geometry: the slab fills 0 <= z <= thickness_mm; a unit pencil beam arrives at x = y = 0 along
  * +z from the medium of index n_above and leaves, transmitted, into the medium of index n_below.
  * Coefficients are per mm, lengths in mm. Every function is a pure function of its arguments
- * (and the seed): callable from any thread, no global state except the on-disk PSF cache. */
+ * (and the seed): callable from any thread, no global state except the on-disk kernel cache. */
 #pragma once
 #include <glib.h>
 
@@ -186,7 +186,13 @@ typedef struct {
  * Monte Carlo with the spec's photons and seed. threads 0: one per processor, same bits. */
 DsSlabKernels *ds_slab_kernels_compute (const DsSlab *slab, const DsSlabKernelSpec *spec, guint threads,
                                         GError **error);
-/* Through the on-disk cache, as ds_slab_psf_cached. */
+/* ds_slab_kernels_compute through an on-disk cache. The key is a SHA-256 of every parameter
+ * that shapes the kernels (slab, spec with its planes, code version; photons and seed only
+ * where Monte Carlo runs). Files live under cache_dir (NULL: $XDG_CACHE_HOME/descatter/psf,
+ * else g_get_user_cache_dir()/descatter/psf), are written atomically (temporary file + rename)
+ * and carry their key and a checksum: a file that is damaged or belongs to another key is
+ * recomputed, never trusted. A cache that cannot be written is reported with g_message and the
+ * computed kernels are returned anyway. *from_cache (may be NULL) says where they came from. */
 DsSlabKernels *ds_slab_kernels_cached (const DsSlab *slab, const DsSlabKernelSpec *spec, const char *cache_dir,
                                        gboolean *from_cache, GError **error);
 void ds_slab_kernels_free (DsSlabKernels *k);
@@ -195,17 +201,6 @@ G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsSlabKernels, ds_slab_kernels_free)
 /* |sum K(x, y) e^(-2 pi i x / period)| / sum K over a kernel (f32): its modulation transfer at
  * the stripe frequency, along x. The share of scattered light that still carries the stripes. */
 double ds_kernel_mtf_x (const DsImage *kernel, double period_px);
-
-/* ds_slab_psf_monte_carlo or _diffusion through an on-disk cache. The key is a SHA-256 of
- * every parameter that shapes the PSF (slab, grid, model, code version; photons and seed for
- * Monte Carlo only). Files live under cache_dir (NULL: $XDG_CACHE_HOME/descatter/psf, else
- * g_get_user_cache_dir()/descatter/psf), are written atomically (temporary file + rename) and
- * carry their key and a checksum: a file that is damaged or belongs to another key is
- * recomputed, never trusted. A cache that cannot be written is reported with g_message and
- * the computed PSF is returned anyway. *from_cache (may be NULL) says where it came from. */
-DsImage *ds_slab_psf_cached (DsTransportModel model, const DsSlab *slab, const DsPsfGrid *grid,
-                             guint64 photons, guint64 seed, const char *cache_dir,
-                             gboolean *from_cache, GError **error);
 
 /* `descatter-sim slab ...` (docs/transport.md): prints the Monte Carlo tally. Returns the exit
  * status: 0 ok, 1 bad arguments or failure (message on stderr). */
