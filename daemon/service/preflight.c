@@ -70,38 +70,24 @@ check_socket_path (const char *path, const char *where, GError **error)
   return TRUE;
 }
 
+/* An IP:PORT to listen on (TCP clients, the live view and /metrics); a non-loopback address
+ * needs a token (token_key: where it is configured). *host and *port are set only when the
+ * address is accepted. */
 static gboolean
-check_tcp (DsPreflight *pf, const char *listen, const char *where, GError **error)
+check_listen (const char *listen, const char *where, gboolean has_token, const char *token_key, char **host,
+              guint16 *port, GError **error)
 {
-  g_autofree char *host = NULL;
-  guint16 port = 0;
-  if (!ds_config_parse_host_port (listen, &host, &port))
+  g_autofree char *h = NULL;
+  guint16 p = 0;
+  if (!ds_config_parse_host_port (listen, &h, &p))
     return refuse (error, "%s \"%s\": expected IP:PORT (a numeric address, port 0..65535)", where, listen);
-  g_autoptr (GInetAddress) ia = g_inet_address_new_from_string (host);
+  g_autoptr (GInetAddress) ia = g_inet_address_new_from_string (h);
   if (!ia)
-    return refuse (error, "%s \"%s\": %s is not an IP address", where, listen, host);
-  if (!g_inet_address_get_is_loopback (ia) && !pf->token)
-    return refuse (error, "%s \"%s\" is not loopback: it requires [daemon] tcp-token-file", where, listen);
-  pf->tcp_host = g_steal_pointer (&host);
-  pf->tcp_port = port;
-  return TRUE;
-}
-
-/* The live view and /metrics: as TCP, a non-loopback address needs a token of its own. */
-static gboolean
-check_http (DsPreflight *pf, const char *listen, const char *where, GError **error)
-{
-  g_autofree char *host = NULL;
-  guint16 port = 0;
-  if (!ds_config_parse_host_port (listen, &host, &port))
-    return refuse (error, "%s \"%s\": expected IP:PORT (a numeric address, port 0..65535)", where, listen);
-  g_autoptr (GInetAddress) ia = g_inet_address_new_from_string (host);
-  if (!ia)
-    return refuse (error, "%s \"%s\": %s is not an IP address", where, listen, host);
-  if (!g_inet_address_get_is_loopback (ia) && !pf->http_token)
-    return refuse (error, "%s \"%s\" is not loopback: it requires [http] token-file", where, listen);
-  pf->http_host = g_steal_pointer (&host);
-  pf->http_port = port;
+    return refuse (error, "%s \"%s\": %s is not an IP address", where, listen, h);
+  if (!g_inet_address_get_is_loopback (ia) && !has_token)
+    return refuse (error, "%s \"%s\" is not loopback: it requires %s", where, listen, token_key);
+  *host = g_steal_pointer (&h);
+  *port = p;
   return TRUE;
 }
 
@@ -161,12 +147,16 @@ run_checks (DsPreflight *pf, const DsConfig *config, const DsPreflightOverrides 
   if (c->tcp_token_file && !read_token (c->tcp_token_file, "[daemon] tcp-token-file", &pf->token, error))
     return FALSE;
   const char *tcp = ov && ov->tcp_listen ? ov->tcp_listen : c->tcp_listen;
-  if (tcp && *tcp && !check_tcp (pf, tcp, ov && ov->tcp_listen ? "--tcp" : "[daemon] tcp-listen", error))
+  if (tcp && *tcp &&
+      !check_listen (tcp, ov && ov->tcp_listen ? "--tcp" : "[daemon] tcp-listen", pf->token != NULL,
+                     "[daemon] tcp-token-file", &pf->tcp_host, &pf->tcp_port, error))
     return FALSE;
   if (c->http_token_file && !read_token (c->http_token_file, "[http] token-file", &pf->http_token, error))
     return FALSE;
   const char *http = ov && ov->http_listen ? ov->http_listen : c->http_listen;
-  if (http && *http && !check_http (pf, http, ov && ov->http_listen ? "--http" : "[http] listen", error))
+  if (http && *http &&
+      !check_listen (http, ov && ov->http_listen ? "--http" : "[http] listen", pf->http_token != NULL,
+                     "[http] token-file", &pf->http_host, &pf->http_port, error))
     return FALSE;
   if (c->spool_dir && g_file_test (c->spool_dir, G_FILE_TEST_EXISTS) &&
       !g_file_test (c->spool_dir, G_FILE_TEST_IS_DIR)) {
