@@ -391,6 +391,29 @@ outputs_from_request (const DsRequest *req, guint *outputs, gboolean *extrema, G
   return TRUE;
 }
 
+/* A request the sequencer answers later, by its tag: the connection is held (no further request
+ * is read from it) until the reply is sent. */
+static PendingCapture *
+pending_add (DsService *svc, DsConnection *conn, DsRequest *req, guint64 tag)
+{
+  PendingCapture *p = g_new0 (PendingCapture, 1);
+  p->tag = tag;
+  p->conn = ds_connection_ref (conn);
+  ds_connection_hold (conn);
+  p->id = req->id ? json_node_copy (req->id) : NULL;
+  g_hash_table_insert (svc->pending, &p->tag, p);
+  return p;
+}
+
+/* A request the sequencer did not take: its queue is full, or the devices are not open yet. */
+static void
+reply_not_queued (DsService *svc, DsConnection *conn, DsRequest *req)
+{
+  g_autoptr (GError) error = g_error_new (DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BUSY, "%s: %s", req->cmd,
+                                          svc->ready ? "too many requests queued" : "the devices are not open yet");
+  ds_server_reply_error (svc->server, conn, req->id, error);
+}
+
 static void
 handle_capture (DsService *svc, DsConnection *conn, DsRequest *req)
 {
@@ -423,18 +446,13 @@ handle_capture (DsService *svc, DsConnection *conn, DsRequest *req)
     ds_server_reply_error (svc->server, conn, req->id, error);
     return;
   }
-  PendingCapture *p = g_new0 (PendingCapture, 1);
-  p->tag = tag;
-  p->conn = ds_connection_ref (conn);
-  ds_connection_hold (conn);
-  p->id = req->id ? json_node_copy (req->id) : NULL;
+  PendingCapture *p = pending_add (svc, conn, req, tag);
   p->format = strcmp (format, "u16") == 0 ? DS_OUTPUT_U16 : DS_OUTPUT_F32;
   p->extrema = extrema;
   p->outputs = outputs;
   p->progress = progress;
   /* Asked for explicitly: frames kept only for the spool stay off the wire. */
   p->save_phases = s.save_phases && json_object_has_member (req->args, "save_phases");
-  g_hash_table_insert (svc->pending, &p->tag, p);
 }
 
 static void
@@ -449,17 +467,10 @@ handle_dark (DsService *svc, DsConnection *conn, DsRequest *req)
   }
   guint64 tag = ++svc->next_tag;
   if (!svc->ready || !ds_sequencer_dark (svc->sequencer, &s, tag)) {
-    g_set_error (&error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BUSY,
-                 "dark: %s", svc->ready ? "too many requests queued" : "the devices are not open yet");
-    ds_server_reply_error (svc->server, conn, req->id, error);
+    reply_not_queued (svc, conn, req);
     return;
   }
-  PendingCapture *p = g_new0 (PendingCapture, 1);
-  p->tag = tag;
-  p->conn = ds_connection_ref (conn);
-  ds_connection_hold (conn);
-  p->id = req->id ? json_node_copy (req->id) : NULL;
-  g_hash_table_insert (svc->pending, &p->tag, p);
+  pending_add (svc, conn, req, tag);
 }
 
 /* release / acquire: the devices closed for another program (arv-viewer) and opened again. */
@@ -476,9 +487,7 @@ handle_control (DsService *svc, DsConnection *conn, DsRequest *req, gboolean rel
   gboolean queued = svc->ready && (release ? ds_sequencer_release (svc->sequencer, tag)
                                            : ds_sequencer_acquire (svc->sequencer, tag));
   if (!queued) {
-    g_set_error (&error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BUSY, "%s: %s", req->cmd,
-                 svc->ready ? "too many requests queued" : "the devices are not open yet");
-    ds_server_reply_error (svc->server, conn, req->id, error);
+    reply_not_queued (svc, conn, req);
     return;
   }
   /* The set in progress ends the run; the run file closes after it. */
@@ -487,12 +496,7 @@ handle_control (DsService *svc, DsConnection *conn, DsRequest *req, gboolean rel
     if (svc->spool)
       ds_spool_end_run (svc->spool);
   }
-  PendingCapture *p = g_new0 (PendingCapture, 1);
-  p->tag = tag;
-  p->conn = ds_connection_ref (conn);
-  ds_connection_hold (conn);
-  p->id = req->id ? json_node_copy (req->id) : NULL;
-  g_hash_table_insert (svc->pending, &p->tag, p);
+  pending_add (svc, conn, req, tag);
 }
 
 static void
