@@ -66,6 +66,31 @@ quads_10p (const guint8 *restrict b, guint16 *restrict out, gsize quads)
   }
 }
 
+/* Pixels [0, width) of an LSB-first d-bit bitstream (Mono12p: d = 12, pairs in 3 bytes;
+ * Mono10p: d = 10, quads in 5 bytes) whose first pixel is pixel `first`: the bit reader up to
+ * the first pixel that starts on a byte, the group loop, the bit reader for the rest. Inlined
+ * with a constant d, so each format gets its own straight code as if written out. */
+DS_KERNEL void
+unpack_bitstream (const guint8 *row, guint64 first, guint width, guint d, guint16 *out)
+{
+  guint64 bit = first * d;
+  guint x = 0;
+  for (; x < width && ((bit + (guint64) x * d) & 7u) != 0; x++)
+    out[x] = (guint16) read_bits (row, bit + (guint64) x * d, d);
+  const guint8 *groups_start = row + ((bit + (guint64) x * d) >> 3);
+  if (d == 12) {
+    gsize pairs = (width - x) / 2;
+    pairs_12p (groups_start, out + x, pairs);
+    x += (guint) (2 * pairs);
+  } else {
+    gsize quads = (width - x) / 4;
+    quads_10p (groups_start, out + x, quads);
+    x += (guint) (4 * quads);
+  }
+  for (; x < width; x++)
+    out[x] = (guint16) read_bits (row, bit + (guint64) x * d, d);
+}
+
 /* Little-endian 16-bit words: the host's layout on every platform we build for. */
 DS_KERNEL guint
 words_16 (const guint8 *restrict b, guint16 *restrict out, gsize w)
@@ -100,28 +125,12 @@ ds_pixfmt_unpack_row (DsPixelFormat fmt, const guint8 *row, guint64 first, guint
   case DS_PIXFMT_MONO12:
   case DS_PIXFMT_MONO16:
     return words_16 (row + first * 2u, out, width);
-  case DS_PIXFMT_MONO12P: {
-    guint64 bit = first * 12u;
-    for (; x < width && ((bit + (guint64) x * 12u) & 7u) != 0; x++)
-      out[x] = (guint16) read_bits (row, bit + (guint64) x * 12u, 12);
-    gsize pairs = (width - x) / 2;
-    pairs_12p (row + ((bit + (guint64) x * 12u) >> 3), out + x, pairs);
-    x += (guint) (2 * pairs);
-    for (; x < width; x++)
-      out[x] = (guint16) read_bits (row, bit + (guint64) x * 12u, 12);
+  case DS_PIXFMT_MONO12P:
+    unpack_bitstream (row, first, width, 12, out);
     return 0;
-  }
-  case DS_PIXFMT_MONO10P: {
-    guint64 bit = first * 10u;
-    for (; x < width && ((bit + (guint64) x * 10u) & 7u) != 0; x++)
-      out[x] = (guint16) read_bits (row, bit + (guint64) x * 10u, 10);
-    gsize quads = (width - x) / 4;
-    quads_10p (row + ((bit + (guint64) x * 10u) >> 3), out + x, quads);
-    x += (guint) (4 * quads);
-    for (; x < width; x++)
-      out[x] = (guint16) read_bits (row, bit + (guint64) x * 10u, 10);
+  case DS_PIXFMT_MONO10P:
+    unpack_bitstream (row, first, width, 10, out);
     return 0;
-  }
   case DS_PIXFMT_MONO12PACKED: {
     /* an odd first pixel is the second of a pair */
     for (; x < width && ((first + x) & 1u) != 0; x++)
