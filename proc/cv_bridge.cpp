@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <memory>
 #include <vector>
 
 namespace {
@@ -51,13 +52,29 @@ wrap (const DsCvView *v, cv::Mat &out, char *err, size_t errlen)
   return true;
 }
 
+/* Runs body, the part of an entry point that may throw (OpenCV's cv::Exception,
+ * std::bad_alloc), and turns any exception into err and the entry point's failure value. */
+template <typename R, typename Body>
+R
+guarded (char *err, size_t errlen, R failed, Body body)
+{
+  try {
+    return body ();
+  } catch (const std::exception &e) {
+    set_err (err, errlen, "%s", e.what ());
+  } catch (...) {
+    set_err (err, errlen, "unknown OpenCV failure");
+  }
+  return failed;
+}
+
 } // namespace
 
 extern "C" int
 ds_cv_imread (const char *path, int *width, int *height, int *type, void **data, char *err,
               size_t errlen)
 {
-  try {
+  return guarded (err, errlen, -1, [&] {
     cv::Mat m = cv::imread (path, cv::IMREAD_UNCHANGED | cv::IMREAD_ANYDEPTH);
     if (m.empty ()) {
       set_err (err, errlen, "not a readable image (unknown format, truncated or corrupt)");
@@ -102,19 +119,13 @@ ds_cv_imread (const char *path, int *width, int *height, int *type, void **data,
     *type = t;
     *data = buf;
     return 0;
-  } catch (const std::exception &e) {
-    set_err (err, errlen, "%s", e.what ());
-    return -1;
-  } catch (...) {
-    set_err (err, errlen, "unknown OpenCV failure");
-    return -1;
-  }
+  });
 }
 
 extern "C" int
 ds_cv_imwrite (const char *path, const DsCvView *image, char *err, size_t errlen)
 {
-  try {
+  return guarded (err, errlen, -1, [&] {
     cv::Mat m;
     if (!wrap (image, m, err, errlen))
       return -1;
@@ -123,20 +134,14 @@ ds_cv_imwrite (const char *path, const DsCvView *image, char *err, size_t errlen
       return -1;
     }
     return 0;
-  } catch (const std::exception &e) {
-    set_err (err, errlen, "%s", e.what ());
-    return -1;
-  } catch (...) {
-    set_err (err, errlen, "unknown OpenCV failure");
-    return -1;
-  }
+  });
 }
 
 extern "C" int
 ds_cv_convolve_f32 (const DsCvView *src, const DsCvView *kernel, int border, DsCvView *dst,
                     char *err, size_t errlen)
 {
-  try {
+  return guarded (err, errlen, -1, [&] {
     cv::Mat s, k, d;
     if (!wrap (src, s, err, errlen) || !wrap (kernel, k, err, errlen) || !wrap (dst, d, err, errlen))
       return -1;
@@ -160,13 +165,7 @@ ds_cv_convolve_f32 (const DsCvView *src, const DsCvView *kernel, int border, DsC
       cv::filter2D (s, d, CV_32F, kflip, anchor, 0, b);
     }
     return 0;
-  } catch (const std::exception &e) {
-    set_err (err, errlen, "%s", e.what ());
-    return -1;
-  } catch (...) {
-    set_err (err, errlen, "unknown OpenCV failure");
-    return -1;
-  }
+  });
 }
 
 struct DsCvConvPlan {
@@ -177,7 +176,7 @@ struct DsCvConvPlan {
 extern "C" DsCvConvPlan *
 ds_cv_conv_plan_new (int width, int height, const DsCvView *kernels, int n_kernels, char *err, size_t errlen)
 {
-  try {
+  return guarded (err, errlen, static_cast<DsCvConvPlan *> (nullptr), [&] () -> DsCvConvPlan * {
     if (n_kernels < 1 || !kernels) {
       set_err (err, errlen, "convolution plan: no kernel");
       return nullptr;
@@ -188,7 +187,7 @@ ds_cv_conv_plan_new (int width, int height, const DsCvView *kernels, int n_kerne
                kernels[0].height, width, height);
       return nullptr;
     }
-    auto plan = new DsCvConvPlan ();
+    auto plan = std::make_unique<DsCvConvPlan> (); // freed if anything below throws
     plan->width = width;
     plan->height = height;
     plan->side = side;
@@ -201,7 +200,6 @@ ds_cv_conv_plan_new (int width, int height, const DsCvView *kernels, int n_kerne
       cv::Mat k;
       if (!wrap (&kernels[i], k, err, errlen) || k.depth () != CV_32F || k.cols != side || k.rows != side) {
         set_err (err, errlen, "convolution plan: kernel %d is not float32 %dx%d", i, side, side);
-        delete plan;
         return nullptr;
       }
       cv::Mat wrapped = cv::Mat::zeros (plan->dft_h, plan->dft_w, CV_32F);
@@ -214,20 +212,14 @@ ds_cv_conv_plan_new (int width, int height, const DsCvView *kernels, int n_kerne
       cv::dft (wrapped, spec, 0);
       plan->spectra.push_back (spec);
     }
-    return plan;
-  } catch (const std::exception &e) {
-    set_err (err, errlen, "%s", e.what ());
-    return nullptr;
-  } catch (...) {
-    set_err (err, errlen, "unknown OpenCV failure");
-    return nullptr;
-  }
+    return plan.release ();
+  });
 }
 
 extern "C" int
 ds_cv_conv_plan_apply (const DsCvConvPlan *plan, const DsCvView *srcs, DsCvView *dst, char *err, size_t errlen)
 {
-  try {
+  return guarded (err, errlen, -1, [&] {
     cv::Mat d;
     int r = plan->side / 2;
     if (!wrap (dst, d, err, errlen) || d.depth () != CV_32F || d.cols != plan->width - 2 * r ||
@@ -264,13 +256,7 @@ ds_cv_conv_plan_apply (const DsCvConvPlan *plan, const DsCvView *srcs, DsCvView 
     cv::dft (sum, out, cv::DFT_INVERSE | cv::DFT_SCALE | cv::DFT_REAL_OUTPUT);
     out (cv::Rect (r, r, d.cols, d.rows)).copyTo (d);
     return 0;
-  } catch (const std::exception &e) {
-    set_err (err, errlen, "%s", e.what ());
-    return -1;
-  } catch (...) {
-    set_err (err, errlen, "unknown OpenCV failure");
-    return -1;
-  }
+  });
 }
 
 extern "C" void
@@ -282,26 +268,20 @@ ds_cv_conv_plan_free (DsCvConvPlan *plan)
 extern "C" int
 ds_cv_resize_f32 (const DsCvView *src, DsCvView *dst, char *err, size_t errlen)
 {
-  try {
+  return guarded (err, errlen, -1, [&] {
     cv::Mat s, d;
     if (!wrap (src, s, err, errlen) || !wrap (dst, d, err, errlen))
       return -1;
     bool down = d.cols < s.cols || d.rows < s.rows;
     cv::resize (s, d, d.size (), 0, 0, down ? cv::INTER_AREA : cv::INTER_LINEAR);
     return 0;
-  } catch (const std::exception &e) {
-    set_err (err, errlen, "%s", e.what ());
-    return -1;
-  } catch (...) {
-    set_err (err, errlen, "unknown OpenCV failure");
-    return -1;
-  }
+  });
 }
 
 extern "C" int
 ds_cv_write_colormap (const char *path, const DsCvView *grey8, char *err, size_t errlen)
 {
-  try {
+  return guarded (err, errlen, -1, [&] {
     cv::Mat g, c;
     if (!wrap (grey8, g, err, errlen))
       return -1;
@@ -315,20 +295,14 @@ ds_cv_write_colormap (const char *path, const DsCvView *grey8, char *err, size_t
       return -1;
     }
     return 0;
-  } catch (const std::exception &e) {
-    set_err (err, errlen, "%s", e.what ());
-    return -1;
-  } catch (...) {
-    set_err (err, errlen, "unknown OpenCV failure");
-    return -1;
-  }
+  });
 }
 
 extern "C" int
 ds_cv_separate_maxmin_u16 (const uint16_t *const *frames, int n, int width, int height,
                            size_t stride, float *direct, float *global, char *err, size_t errlen)
 {
-  try {
+  return guarded (err, errlen, -1, [&] {
     if (n < 1 || width <= 0 || height <= 0) {
       set_err (err, errlen, "invalid separation arguments");
       return -1;
@@ -346,11 +320,5 @@ ds_cv_separate_maxmin_u16 (const uint16_t *const *frames, int n, int width, int 
     d16.convertTo (d, CV_32F);
     mn.convertTo (g, CV_32F, 2.0);
     return 0;
-  } catch (const std::exception &e) {
-    set_err (err, errlen, "%s", e.what ());
-    return -1;
-  } catch (...) {
-    set_err (err, errlen, "unknown OpenCV failure");
-    return -1;
-  }
+  });
 }
