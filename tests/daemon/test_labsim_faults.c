@@ -333,20 +333,13 @@ main (int argc, char **argv)
   }
   labsim_path = argv[1];
   scene_path = argv[2];
-  g_autoptr (GError) error = NULL;
-  the_scene = ds_scene_load (scene_path, &error);
-  g_assert_no_error (error);
-  g_autoptr (DsRenderer) r = ds_renderer_new (the_scene, NULL, &error);
-  g_assert_no_error (error);
-  g_assert_true (ds_renderer_truth (r, ds_scene_default_exposure_us (the_scene), 0, &truth_t, &truth_g, &error));
+  truth_scene_load (scene_path, &the_scene, &truth_t, &truth_g);
   g_test_add_func ("/labsim-faults/camera-rejects-setting", test_camera_rejects_setting);
   g_test_add_func ("/labsim-faults/devices-stopped-between-captures", test_devices_stopped_between_captures);
   g_test_add_func ("/labsim-faults/modbus-exceptions-continuous", test_modbus_exceptions_continuous);
   g_test_add_func ("/labsim-faults/camera-lost-continuous", test_camera_lost_continuous);
   g_test_add_func ("/labsim-faults/wrong-period", test_wrong_period);
   int status = g_test_run ();
-  ds_image_free (truth_t);
-  ds_image_free (truth_g);
-  ds_scene_free (the_scene);
+  truth_scene_free (the_scene, truth_t, truth_g);
   return status;
 }

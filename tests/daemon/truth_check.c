@@ -64,3 +64,22 @@ truth_check_passed (const TruthCheck *c)
   return c->valid > 0 && c->rms_transmissive < c->allowed_transmissive &&
          c->rms_scattered < c->allowed_scattered;
 }
+
+void
+truth_scene_load (const char *scene_path, DsScene **scene, DsImage **truth_t, DsImage **truth_g)
+{
+  g_autoptr (GError) error = NULL;
+  *scene = ds_scene_load (scene_path, &error);
+  g_assert_no_error (error);
+  g_autoptr (DsRenderer) r = ds_renderer_new (*scene, NULL, &error);
+  g_assert_no_error (error);
+  g_assert_true (ds_renderer_truth (r, ds_scene_default_exposure_us (*scene), 0, truth_t, truth_g, &error));
+}
+
+void
+truth_scene_free (DsScene *scene, DsImage *truth_t, DsImage *truth_g)
+{
+  ds_image_free (truth_t);
+  ds_image_free (truth_g);
+  ds_scene_free (scene);
+}

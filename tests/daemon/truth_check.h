@@ -15,3 +15,8 @@ typedef struct {
 void truth_check (const DsMessage *m, const DsScene *scene, const DsImage *truth_t,
                   const DsImage *truth_g, TruthCheck *out);
 gboolean truth_check_passed (const TruthCheck *c);
+
+/* A test program's scene (the program aborts if it does not load) and its noise-free
+ * components at the scene's default exposure and gain 0, to check results against. */
+void truth_scene_load (const char *scene_path, DsScene **scene, DsImage **truth_t, DsImage **truth_g);
+void truth_scene_free (DsScene *scene, DsImage *truth_t, DsImage *truth_g);

@@ -111,17 +111,10 @@ main (int argc, char **argv)
   }
   labsim_path = argv[1];
   scene_path = argv[2];
-  g_autoptr (GError) error = NULL;
-  the_scene = ds_scene_load (scene_path, &error);
-  g_assert_no_error (error);
-  g_autoptr (DsRenderer) r = ds_renderer_new (the_scene, NULL, &error);
-  g_assert_no_error (error);
-  g_assert_true (ds_renderer_truth (r, ds_scene_default_exposure_us (the_scene), 0, &truth_t, &truth_g, &error));
+  truth_scene_load (scene_path, &the_scene, &truth_t, &truth_g);
   g_test_add_func ("/daemon-trigger/projector-sync", test_projector_sync);
   g_test_add_func ("/daemon-trigger/missed-and-double", test_missed_and_double);
   int status = g_test_run ();
-  ds_image_free (truth_t);
-  ds_image_free (truth_g);
-  ds_scene_free (the_scene);
+  truth_scene_free (the_scene, truth_t, truth_g);
   return status;
 }
