@@ -1,14 +1,18 @@
-/* `descatterctl calibrate DIR`: the stripe pattern as the camera sees it, measured offline on a
- * phase folder of a reference with little scattering (proc/calibration.h), printed as the
- * configuration lines to use (descatterd.conf's [illuminator] and `descatterctl separate`'s
- * options), or as JSON. The frames' phase order is checked first, as `separate` checks it. */
+/* `descatterctl calibrate [DIR]`: the stripe pattern as the camera sees it, measured on a
+ * reference with little scattering (proc/calibration.h): offline on a phase folder DIR, or
+ * without DIR by the daemon on the rig (its `calibrate` command takes one phase set and keeps
+ * its raw frames). Printed as the configuration lines to use (descatterd.conf's [illuminator]
+ * and `descatterctl separate`'s options), or as JSON. Offline, the frames' phase order is
+ * checked first, as `separate` checks it. */
 #include <json-glib/json-glib.h>
 #include <math.h>
 #include <stdio.h>
 
 #include "daemon/ctl/ctl_commands.h"
 #include "daemon/ctl/ctl_folder.h"
+#include "daemon/ctl/ctl_session.h"
 #include "proc/calibration.h"
+#include "proc/calibration_json.h"
 #include "proc/proc_error.h"
 
 typedef struct {
@@ -16,42 +20,22 @@ typedef struct {
   double period, saturation, aperture;
   int bit_depth;
   gboolean json, quiet, strict_phases;
+  /* the rig's set (text: "not given" told apart from any value, ctl_session.h) */
+  char *phases, *averages, *exposure, *gain;
+  gboolean no_dark_frame;
 } Options;
 
 static void
-print_json (const char *dir, const DsCalibration *cal)
+print_json (const char *key, const char *source, gint64 set_id, const DsCalibration *cal)
 {
   g_autoptr (JsonBuilder) b = json_builder_new ();
   json_builder_begin_object (b);
-  const struct {
-    const char *key;
-    double v;
-  } nums[] = {
-    { "period_px", cal->period_px },
-    { "phase_offset_cycles", cal->phase_offset_cycles },
-    { "offset_spread_cycles", cal->offset_spread },
-    { "duty", cal->duty },
-    { "black_level", cal->black_level },
-    { "harmonic_gain", cal->harmonic_gain },
-    { "harmonic_gain_theory", cal->harmonic_gain_theory },
-    { "edge_blur_px", cal->edge_blur_px },
-  };
-  json_builder_set_member_name (b, "folder");
-  json_builder_add_string_value (b, dir);
-  json_builder_set_member_name (b, "pattern");
-  json_builder_add_string_value (b, cal->pattern == DS_PATTERN_SINE ? "sine" : "square");
-  json_builder_set_member_name (b, "n_phases");
-  json_builder_add_int_value (b, cal->n_phases);
-  json_builder_set_member_name (b, "frames_per_phase");
-  json_builder_add_int_value (b, cal->frames_per_phase);
-  json_builder_set_member_name (b, "period_measured");
-  json_builder_add_boolean_value (b, cal->period_measured);
-  for (guint i = 0; i < G_N_ELEMENTS (nums); i++) {
-    json_builder_set_member_name (b, nums[i].key);
-    json_builder_add_double_value (b, nums[i].v);
-  }
-  json_builder_set_member_name (b, "pixels_used");
-  json_builder_add_int_value (b, (gint64) cal->pixels_used);
+  json_builder_set_member_name (b, key);
+  if (source)
+    json_builder_add_string_value (b, source);
+  else
+    json_builder_add_int_value (b, set_id);
+  ds_calibration_add_json_members (b, cal);
   json_builder_end_object (b);
   g_autoptr (JsonNode) root = json_builder_get_root (b);
   g_autofree char *text = json_to_string (root, TRUE);
@@ -59,10 +43,10 @@ print_json (const char *dir, const DsCalibration *cal)
 }
 
 static void
-print_lines (const char *dir, const DsCalibration *cal)
+print_lines (const char *source, const DsCalibration *cal)
 {
   const char *kind = cal->pattern == DS_PATTERN_SINE ? "sine" : "square";
-  printf ("calibration of %s: %u phases x %u frames, %" G_GUINT64_FORMAT " lit pixels\n", dir, cal->n_phases,
+  printf ("calibration of %s: %u phases x %u frames, %" G_GUINT64_FORMAT " lit pixels\n", source, cal->n_phases,
           cal->frames_per_phase, cal->pixels_used);
   printf ("  stripe period   %.4f px (%s)\n", cal->period_px, cal->period_measured ? "measured" : "given");
   printf ("  phase 0 at      %.4f cycles (rms over the phases %.4f)\n", cal->phase_offset_cycles, cal->offset_spread);
@@ -70,8 +54,8 @@ print_lines (const char *dir, const DsCalibration *cal)
   printf ("  black level     %.4f\n", cal->black_level);
   printf ("  harmonic gain   %.4f (sharp stripes: %.4f)\n", cal->harmonic_gain, cal->harmonic_gain_theory);
   printf ("  edge blur       %.2f px (Gaussian sigma)\n", cal->edge_blur_px);
-  printf ("\n# descatterd.conf\n[illuminator]\npattern=%s\nperiod-px=%.4f\nduty=%.4f\nblack-level=%.4f\n", kind,
-          cal->period_px, cal->duty, cal->black_level);
+  g_autofree char *lines = ds_calibration_config_lines (cal);
+  printf ("\n# descatterd.conf\n%s", lines);
   printf ("\n# descatterctl separate\n--pattern %s --period %.4f --duty %.4f --black-level %.4f "
           "--harmonic-gain %.4f --edge-blur %.2f\n",
           kind, cal->period_px, cal->duty, cal->black_level, cal->harmonic_gain, cal->edge_blur_px);
@@ -149,14 +133,59 @@ calibrate (const char *dir, const Options *o, gboolean *usage, GError **error)
   /* the period came from ds_folder_phases_find: measured there unless given */
   result.period_measured = phases.period_source && g_str_equal (phases.period_source, "detected");
   if (o->json)
-    print_json (dir, &result);
+    print_json ("folder", dir, 0, &result);
   else
     print_lines (dir, &result);
   return TRUE;
 }
 
+/* One phase set on the rig, measured by the daemon. */
+static int
+calibrate_on_rig (const DsCtlTarget *target, const Options *o)
+{
+  if (!isnan (o->saturation) || o->bit_depth || o->strict_phases) {
+    fprintf (stderr, "descatterctl calibrate: --saturation, --bit-depth and --strict-phases are for a folder; "
+                     "the daemon knows its camera\n");
+    return 2;
+  }
+  g_autoptr (JsonObject) args = json_object_new ();
+  if (!ds_ctl_args_int (args, "calibrate", "phases", "phases", o->phases) ||
+      !ds_ctl_args_int (args, "calibrate", "averages", "averages", o->averages) ||
+      !ds_ctl_args_double (args, "calibrate", "exposure-us", "exposure_us", o->exposure) ||
+      !ds_ctl_args_double (args, "calibrate", "gain-db", "gain_db", o->gain))
+    return 2;
+  if (!isnan (o->period))
+    json_object_set_double_member (args, "period_px", o->period);
+  if (!isnan (o->aperture))
+    json_object_set_double_member (args, "pixel_aperture", o->aperture);
+  if (o->no_dark_frame)
+    json_object_set_boolean_member (args, "dark_frame", FALSE);
+  g_autoptr (DsClient) c = ds_ctl_connect (target, "calibrate");
+  if (!c)
+    return 1;
+  g_autoptr (DsMessage) m = ds_ctl_call (c, "calibrate", args, NULL, NULL);
+  if (!m)
+    return 1;
+  DsCalibration cal;
+  g_autoptr (GError) error = NULL;
+  JsonObject *body = m->reply->body && JSON_NODE_HOLDS_OBJECT (m->reply->body) ? json_node_get_object (m->reply->body)
+                                                                              : NULL;
+  if (!body || !ds_calibration_from_json (body, &cal, &error)) {
+    fprintf (stderr, "descatterctl calibrate: the daemon's reply: %s\n", error ? error->message : "not an object");
+    return 1;
+  }
+  gint64 set_id = json_object_get_int_member_with_default (body, "set_id", 0);
+  if (o->json) {
+    print_json ("set_id", NULL, set_id, &cal);
+  } else {
+    g_autofree char *source = g_strdup_printf ("set %" G_GINT64_FORMAT " on the rig (%s)", set_id, target->address);
+    print_lines (source, &cal);
+  }
+  return 0;
+}
+
 int
-ds_ctl_calibrate (int argc, char **argv)
+ds_ctl_calibrate (const DsCtlTarget *target, int argc, char **argv)
 {
   Options o = { .period = NAN, .saturation = NAN, .aperture = NAN };
   GOptionEntry entries[] = {
@@ -166,13 +195,19 @@ ds_ctl_calibrate (int argc, char **argv)
     { "bit-depth", 0, 0, G_OPTION_ARG_INT, &o.bit_depth, "significant bits of the integer images, 1..16", "BITS" },
     { "pixel-aperture", 0, 0, G_OPTION_ARG_DOUBLE, &o.aperture, "sensitive width of a pixel in pixels, for the blur model (default 1)", "PX" },
     { "strict-phases", 0, 0, G_OPTION_ARG_NONE, &o.strict_phases, "refuse frames that show other phases than given", NULL },
+    { "phases", 'n', 0, G_OPTION_ARG_STRING, &o.phases, "without DIR: phases of the rig's set (3..64; default: the daemon's)", "N" },
+    { "averages", 'm', 0, G_OPTION_ARG_STRING, &o.averages, "without DIR: frames averaged per phase (1..64)", "M" },
+    { "exposure-us", 'e', 0, G_OPTION_ARG_STRING, &o.exposure, "without DIR: exposure (µs, 1..1e7)", "E" },
+    { "gain-db", 'g', 0, G_OPTION_ARG_STRING, &o.gain, "without DIR: gain (dB, 0..48)", "G" },
+    { "no-dark-frame", 0, 0, G_OPTION_ARG_NONE, &o.no_dark_frame, "without DIR: no dark frame subtracted", NULL },
     { "json", 0, 0, G_OPTION_ARG_NONE, &o.json, "print the measurements as JSON", NULL },
     { "quiet", 'q', 0, G_OPTION_ARG_NONE, &o.quiet, "no notices on stderr", NULL },
     { NULL },
   };
-  g_autoptr (GOptionContext) ctx = g_option_context_new ("DIR - measure the stripe pattern from a reference phase folder");
+  g_autoptr (GOptionContext) ctx = g_option_context_new ("[DIR] - measure the stripe pattern on a reference with little scattering");
   g_option_context_set_summary (ctx, "DIR holds a phase set of a reference with little scattering (descatter-sim "
-                                     "render, capture --save-phases, or the ICCP 2013 layout). Prints the stripe "
+                                     "render, capture --save-phases, or the ICCP 2013 layout); without DIR the daemon "
+                                     "takes one phase set of the reference in front of the rig. Prints the stripe "
                                      "period, phase offset, duty, black level, harmonic gain and edge blur, and the "
                                      "configuration lines that use them.");
   g_option_context_add_main_entries (ctx, entries, NULL);
@@ -182,8 +217,14 @@ ds_ctl_calibrate (int argc, char **argv)
   if (!g_option_context_parse (ctx, &argc, &argv, &error)) {
     fprintf (stderr, "descatterctl calibrate: %s\n", error->message);
     status = 2;
-  } else if (argc != 2) {
-    fprintf (stderr, "descatterctl calibrate: expected one folder, got %d arguments\n", argc - 1);
+  } else if (argc > 2) {
+    fprintf (stderr, "descatterctl calibrate: expected one folder or none (the rig), got %d arguments\n", argc - 1);
+    status = 2;
+  } else if (argc == 1) {
+    status = calibrate_on_rig (target, &o);
+  } else if (o.phases || o.averages || o.exposure || o.gain || o.no_dark_frame) {
+    fprintf (stderr, "descatterctl calibrate: --phases, --averages, --exposure-us, --gain-db and --no-dark-frame "
+                     "are for the rig (no DIR)\n");
     status = 2;
   } else if (!calibrate (argv[1], &o, &usage, &error)) {
     fprintf (stderr, "descatterctl calibrate: %s\n", error->message);
@@ -192,5 +233,9 @@ ds_ctl_calibrate (int argc, char **argv)
     status = 0;
   }
   g_free (o.pattern);
+  g_free (o.phases);
+  g_free (o.averages);
+  g_free (o.exposure);
+  g_free (o.gain);
   return status;
 }

@@ -16,10 +16,11 @@ int ds_ctl_release (const DsCtlTarget *target, int argc, char **argv);
 int ds_ctl_acquire (const DsCtlTarget *target, int argc, char **argv);
 int ds_ctl_dark (const DsCtlTarget *target, int argc, char **argv);
 int ds_ctl_config (const DsCtlTarget *target, int argc, char **argv);
+/* A folder given: offline; none: the daemon calibrates on the rig. */
+int ds_ctl_calibrate (const DsCtlTarget *target, int argc, char **argv);
 
 /* Offline: no daemon. */
 int ds_ctl_separate (int argc, char **argv);
-int ds_ctl_calibrate (int argc, char **argv);
 int ds_ctl_study (int argc, char **argv);
 int ds_ctl_validate (int argc, char **argv);
 int ds_ctl_generate_scenes (int argc, char **argv);

@@ -24,7 +24,7 @@ static const struct {
   { "dark", ds_ctl_dark, NULL, "calibrate the dark frame (illuminator off)" },
   { "config", ds_ctl_config, NULL, "print the daemon's effective configuration" },
   { "separate", NULL, ds_ctl_separate, "separate a folder of phase images offline (no daemon)" },
-  { "calibrate", NULL, ds_ctl_calibrate, "measure the stripe pattern from a reference phase folder (no daemon)" },
+  { "calibrate", ds_ctl_calibrate, NULL, "measure the stripe pattern on a reference: a phase folder, or the rig" },
   { "study", NULL, ds_ctl_study, "accuracy against acquisition time on simulated scenes (no daemon)" },
   { "validate", NULL, ds_ctl_validate, "the automatic operating point against the simulator's truth (no daemon)" },
   { "generate-scenes", NULL, ds_ctl_generate_scenes, "random scene files for validation (no daemon)" },

@@ -18,6 +18,7 @@
 #include "daemon/service/preflight.h"
 #include "daemon/operating/operating_point.h"
 #include "daemon/protocol/protocol.h"
+#include "daemon/service/calibrate_set.h"
 #include "daemon/service/sequencer.h"
 #include "daemon/service/server.h"
 #include "daemon/service/spool.h"
@@ -34,6 +35,8 @@ typedef struct {
   guint outputs;      /* bit i: payload i of the result's payload set */
   gboolean progress;
   gboolean save_phases; /* the raw frames go back with the reply */
+  gboolean calibrate;   /* a calibrate request: the reply is the set's calibration */
+  DsCalibrateRequest calibration;
 } PendingCapture;
 
 typedef struct {
@@ -121,6 +124,19 @@ reply_result (DsService *svc, PendingCapture *p, DsResult *result)
 }
 
 static void
+reply_calibration (DsService *svc, PendingCapture *p, DsResult *result)
+{
+  g_autoptr (GError) error = NULL;
+  g_autoptr (JsonNode) body = ds_calibrate_result (result, &p->calibration, &error);
+  if (!body) {
+    g_autoptr (GError) wire = ds_wire_error_new (error);
+    ds_server_reply_error (svc->server, p->conn, p->id, wire);
+    return;
+  }
+  ds_server_reply_ok (svc->server, p->conn, p->id, body, NULL, NULL, 0);
+}
+
+static void
 send_progress (DsService *svc, PendingCapture *p, guint phase, guint n)
 {
   (void) svc;
@@ -200,7 +216,9 @@ on_sequencer_event (const DsSequencerEvent *ev, gpointer user_data)
     g_autofree char *st = g_strdup_printf ("set %" G_GUINT64_FORMAT " done",
                                            ds_result_set_id (ev->result));
     notify_status (svc, st);
-    if (p)
+    if (p && p->calibrate)
+      reply_calibration (svc, p, ev->result);
+    else if (p)
       reply_result (svc, p, ev->result);
     publish_result (svc, ev->result);
     break;
@@ -511,6 +529,62 @@ handle_acquire (DsService *svc, DsConnection *conn, DsRequest *req)
   handle_control (svc, conn, req, FALSE);
 }
 
+/* A phase set of a reference with little scattering, measured instead of only separated: the
+ * raw frames are kept and the phase check is off (the set measures the period and phase the
+ * check would test against); sine needs no sampling precondition that a wrong configured
+ * period or duty would fail. The set is published as any other. */
+static void
+handle_calibrate (DsService *svc, DsConnection *conn, DsRequest *req)
+{
+  static const char *const keys[] = { "phases", "averages", "exposure_us", "gain_db", "dark_frame",
+                                      "period_px", "pixel_aperture", "progress", NULL };
+  g_autoptr (GError) error = NULL;
+  DsCaptureSettings s;
+  DsCalibrateRequest cr = { 0 };
+  gboolean progress;
+  if (!ds_request_check_keys (req, keys, &error) || !settings_from_request (svc, req, &s, &error) ||
+      !ds_request_get_double (req, "period_px", 2.0, 1e5, 0.0, &cr.period_px, &error) ||
+      !ds_request_get_double (req, "pixel_aperture", 0.01, 1.0, 0.0, &cr.pixel_aperture, &error) ||
+      !ds_request_get_bool (req, "progress", FALSE, &progress, &error)) {
+    ds_server_reply_error (svc->server, conn, req->id, error);
+    return;
+  }
+  if (s.phases < 3 || s.phases * s.averages > DS_SAVE_PHASES_MAX_FRAMES) {
+    g_set_error (&error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT,
+                 "calibrate: \"phases\" must be at least 3 (the harmonic gain needs three), and phases x "
+                 "averages at most %u (got %u x %u)",
+                 DS_SAVE_PHASES_MAX_FRAMES, s.phases, s.averages);
+    ds_server_reply_error (svc->server, conn, req->id, error);
+    return;
+  }
+  s.save_phases = TRUE;
+  s.verify_phase = FALSE;
+  s.estimator = DS_ESTIMATOR_SINE;
+  s.target_error = 0;
+  s.time_budget_ms = 0;
+  if (!svc->ready) {
+    g_set_error (&error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BUSY, "calibrate: the devices are not open yet");
+    ds_server_reply_error (svc->server, conn, req->id, error);
+    return;
+  }
+  guint64 tag = ++svc->next_tag;
+  if (!ds_sequencer_capture (svc->sequencer, &s, tag)) {
+    g_set_error (&error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BUSY,
+                 "calibrate: too many captures queued; try again later");
+    ds_server_reply_error (svc->server, conn, req->id, error);
+    return;
+  }
+  PendingCapture *p = g_new0 (PendingCapture, 1);
+  p->tag = tag;
+  p->conn = ds_connection_ref (conn);
+  ds_connection_hold (conn);
+  p->id = req->id ? json_node_copy (req->id) : NULL;
+  p->progress = progress;
+  p->calibrate = TRUE;
+  p->calibration = cr;
+  g_hash_table_insert (svc->pending, &p->tag, p);
+}
+
 static void
 handle_start (DsService *svc, DsConnection *conn, DsRequest *req)
 {
@@ -818,7 +892,7 @@ on_request (DsServer *server, DsConnection *conn, DsRequest *req, gpointer user_
   } commands[] = {
     { "status", handle_status }, { "capture", handle_capture }, { "dark", handle_dark },
     { "start", handle_start },   { "stop", handle_stop },       { "config", handle_config },
-    { "release", handle_release }, { "acquire", handle_acquire },
+    { "release", handle_release }, { "acquire", handle_acquire }, { "calibrate", handle_calibrate },
   };
   for (guint i = 0; i < G_N_ELEMENTS (commands); i++)
     if (strcmp (req->cmd, commands[i].cmd) == 0) {
@@ -827,7 +901,7 @@ on_request (DsServer *server, DsConnection *conn, DsRequest *req, gpointer user_
     }
   g_autoptr (GError) error = g_error_new (DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_UNKNOWN_COMMAND,
                                           "unknown command \"%s\" (commands: hello, status, capture, "
-                                          "subscribe, unsubscribe, start, stop, dark, config, release, acquire)",
+                                          "subscribe, unsubscribe, start, stop, dark, calibrate, config, release, acquire)",
                                           req->cmd);
   ds_server_reply_error (server, conn, req->id, error);
 }

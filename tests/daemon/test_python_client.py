@@ -104,11 +104,14 @@ def basics(d):
             check(False, "an unknown command refused")
         except descatter.UnknownCommand as e:
             check(e.code == "unknown_command", "unknown command: UnknownCommand")
+        cal = c.calibrate(phases=4)
+        check(isinstance(cal, dict) and cal["n_phases"] == 4 and cal["period_px"] > 2
+              and cal["config"].startswith("[illuminator]\n"), "calibrate: the measured pattern and its config lines")
         try:
-            c.calibrate()
-            check(True, "calibrate answered")
-        except descatter.UnknownCommand:
-            check(True, "calibrate: this daemon has none yet (UnknownCommand)")
+            c.calibrate(phases=2)
+            check(False, "calibrate phases=2 refused")
+        except descatter.BadArgument as e:
+            check("phases" in e.message, "calibrate phases=2: BadArgument naming phases")
         try:
             c.capture(phasez=4)
             check(False, "a misspelt argument refused")

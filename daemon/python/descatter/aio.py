@@ -15,7 +15,7 @@ import asyncio
 
 from . import wire
 from ._version import __version__
-from .client import _ACQ_KEYS, DEFAULT_TIMEOUT, acquisition_args, resolve, split_address
+from .client import _ACQ_KEYS, _CALIBRATE_KEYS, DEFAULT_TIMEOUT, acquisition_args, resolve, split_address
 from .errors import BadReply, Timeout, error_from_reply
 from .events import ProgressEvent, Result, make_event
 
@@ -170,8 +170,9 @@ class AsyncClient:
     async def acquire(self, timeout=None):
         return (await self.call("acquire", timeout=timeout))[0]
 
-    async def calibrate(self, timeout=None, **args):
-        return Result(*(await self.call("calibrate", timeout=timeout, **args)))
+    async def calibrate(self, *, timeout=None, **settings):
+        args = acquisition_args(settings, _CALIBRATE_KEYS)
+        return (await self.call("calibrate", timeout=timeout, **args))[0]
 
     async def subscribe(self):
         self._subscribed = True  # before the reply: events may follow it at once

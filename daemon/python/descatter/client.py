@@ -56,6 +56,9 @@ def acquisition_args(kwargs, allowed):
     return {k: v for k, v in kwargs.items() if v is not None}
 
 
+_CALIBRATE_KEYS = ("phases", "averages", "exposure_us", "gain_db", "dark_frame", "period_px", "pixel_aperture")
+
+
 class Client:
     def __init__(self, address=None, token=None, timeout=DEFAULT_TIMEOUT):
         """address: a UNIX socket path, "unix:PATH" or "tcp:HOST:PORT"; token: the daemon's TCP
@@ -244,10 +247,14 @@ class Client:
         """Opens the devices again after release(); returns {"state", "message"}."""
         return self.call("acquire", timeout=timeout)[0]
 
-    def calibrate(self, timeout=None, **args):
-        """The daemon's calibration on the rig (descatterctl calibrate); a daemon without it
-        raises descatter.UnknownCommand."""
-        return Result(*self.call("calibrate", timeout=timeout, **args))
+    def calibrate(self, *, timeout=None, **settings):
+        """One phase set of a reference with little scattering in front of the rig, measured by
+        the daemon (descatterctl calibrate): phases, averages, exposure_us, gain_db, dark_frame,
+        period_px (known: not measured), pixel_aperture. Returns a dict: period_px,
+        phase_offset_cycles, duty, black_level, harmonic_gain, edge_blur_px, ..., set_id and
+        `config`, the descatterd.conf lines that use them (docs/protocol.md)."""
+        args = acquisition_args(settings, _CALIBRATE_KEYS)
+        return self.call("calibrate", timeout=timeout, **args)[0]
 
     # -- subscription ------------------------------------------------------------------------
 
