@@ -20,6 +20,10 @@ prepare_phase_set (DsSequencer *seq, const DsCaptureSettings *s, guint width, gu
   seq->set = ds_phase_set_new (&p, width, height, error);
   if (!seq->set)
     return FALSE;
+  /* Logged once per change of settings: maxmin or robust on sine stripes reads Ld low. */
+  DsSamplingCheck check;
+  if (ds_separation_check_sampling (&p, &check, NULL) && check.warning[0])
+    g_warning ("%s", check.warning);
   seq->set_params = p;
   seq->set_width = width;
   seq->set_height = height;
