@@ -96,9 +96,13 @@ ds_probe_run (const DsPreflight *pf, FILE *out, GError **error)
                  s.settings_error);
     return FALSE;
   }
-  if (s.illuminator.fault || s.illuminator.over_temperature) {
+  /* Read when the devices opened, before any write of ours: a controller that is not idle
+   * then (stuck applying, faulted, too hot) would fail the first phase of every set. */
+  if (s.illuminator.fault || s.illuminator.over_temperature || !s.illuminator.ready) {
     g_set_error (error, DS_CONFIG_ERROR, DS_CONFIG_ERROR_BAD_VALUE, "the illuminator reports %s",
-                 s.illuminator.fault ? "a driver fault" : "over-temperature");
+                 s.illuminator.fault              ? "a driver fault"
+                 : s.illuminator.over_temperature ? "over-temperature"
+                                                  : "not ready (busy applying a pattern) while idle");
     return FALSE;
   }
   return TRUE;

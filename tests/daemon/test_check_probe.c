@@ -1,8 +1,8 @@
 /* `descatterd --check --probe` against real GigE Vision and Modbus TCP (descatter-labsim) with a
  * camera that lacks formats and gain: a configured setting the camera refuses fails (exit 1)
  * naming the setting and what the camera allows, a matching configuration passes (exit 0) and
- * the camera's identity printed is the one Aravis itself reads from it; a faulty illuminator and
- * an absent camera fail too. (issue 10)
+ * the camera's identity printed is the one Aravis itself reads from it; an illuminator faulted,
+ * too hot or stuck busy, and an absent camera, fail too. (issue 10)
  *   test_check_probe LABSIM SCENE      (ctest: in a private network namespace, UDP 3956) */
 #include <arv.h>
 #include <glib/gstdio.h>
@@ -115,16 +115,24 @@ test_probe_refused_and_matching (void)
   assert_mentions (gone.err, (const char *const[]) { "127.0.0.1", NULL });
 }
 
-/* An illuminator that reports a driver fault is not a rig ready to capture. */
+/* An illuminator that is not idle and well when it opens is not a rig ready to capture: the
+ * first phase of every set would fail. */
 static void
-test_probe_illuminator_fault (void)
+test_probe_illuminator_state (void)
 {
-  const char *fault[] = { "--illuminator-fault", NULL };
-  TestLabsim *l = test_labsim_start (labsim_path, scene_path, fault);
-  g_auto (Probe) r = probe (l, "pixel-format=Mono16", TRUE);
-  g_assert_cmpint (r.status, ==, 1);
-  assert_mentions (r.err, (const char *const[]) { "fault", NULL });
-  test_labsim_stop (l);
+  const struct { const char *knob; const char *err; } states[] = {
+    { "--illuminator-fault", "driver fault" },
+    { "--over-temperature", "over-temperature" },
+    { "--stuck-not-ready", "not ready" },
+  };
+  for (guint i = 0; i < G_N_ELEMENTS (states); i++) {
+    const char *knob[] = { states[i].knob, NULL };
+    TestLabsim *l = test_labsim_start (labsim_path, scene_path, knob);
+    g_auto (Probe) r = probe (l, "pixel-format=Mono16", TRUE);
+    g_assert_cmpint (r.status, ==, 1);
+    assert_mentions (r.err, (const char *const[]) { "the illuminator reports", states[i].err, NULL });
+    test_labsim_stop (l);
+  }
 }
 
 /* --probe is part of --check, never a way to start the daemon. */
@@ -154,7 +162,7 @@ main (int argc, char **argv)
   scene_path = argv[2];
   g_test_add_func ("/check-probe/needs-check", test_probe_needs_check);
   g_test_add_func ("/check-probe/refused-and-matching", test_probe_refused_and_matching);
-  g_test_add_func ("/check-probe/illuminator-fault", test_probe_illuminator_fault);
+  g_test_add_func ("/check-probe/illuminator-state", test_probe_illuminator_state);
   int rc = g_test_run ();
   arv_shutdown ();
   return rc;
