@@ -32,6 +32,14 @@ typedef struct {
   guint64 apply_count;     /* patterns applied since power-up (wraps at the device's width) */
   double temperature_c;    /* NAN if the device has no sensor */
   guint firmware_version;
+  /* Whether set_pattern may ask for another stripe period (issue 12: scattered light that keeps
+   * the stripes is measured at two periods). TRUE: any period_px in [period_min_px,
+   * period_max_px] is projected as asked. FALSE: the period is the projector's own (its optics)
+   * and set_pattern refuses any other with UNSUPPORTED: the one the device states (period_min_px
+   * = period_max_px), or, from a device that states none (0, 0), the period of the first
+   * set_pattern after open (the configuration's). Constant while the device is open. */
+  gboolean period_adjustable;
+  double period_min_px, period_max_px;
 } DsIlluminatorStatus;
 
 typedef struct DsIlluminatorOps DsIlluminatorOps;
@@ -44,7 +52,9 @@ typedef struct {
 struct DsIlluminatorOps {
   const char *name;        /* "modbus", "gpio", "sim" */
   /* Loads the pattern geometry (not yet lit). Blocks for a few register writes (< timeout).
-   * Fails INVALID (out of the device's range), TIMEOUT, DISCONNECTED, FAULT. */
+   * Fails INVALID (out of the device's range), UNSUPPORTED (a period the device cannot project:
+   * see DsIlluminatorStatus.period_adjustable; the message names the period and what the device
+   * can do), TIMEOUT, DISCONNECTED, FAULT. */
   gboolean (*set_pattern) (gpointer backend, const DsStripePattern *pattern, GError **error);
   /* Lights phase k (0 <= k < n_phases) and returns only when the device reports that phase
    * applied (read back), or fails within timeout_ms: TIMEOUT (never applied), BUSY (stuck not
@@ -53,7 +63,8 @@ struct DsIlluminatorOps {
   gboolean (*set_phase) (gpointer backend, guint phase, guint timeout_ms, GError **error);
   /* Illuminator off (dark frames, shutdown). Same blocking and errors as set_phase. */
   gboolean (*off) (gpointer backend, guint timeout_ms, GError **error);
-  /* One round trip. Fails TIMEOUT, DISCONNECTED, INCOMPLETE (short read). */
+  /* One round trip (the period capability is read when the device is opened). Fails TIMEOUT,
+   * DISCONNECTED, INCOMPLETE (short read). */
   gboolean (*get_status) (gpointer backend, DsIlluminatorStatus *status, GError **error);
   /* Reopens the link after DISCONNECTED/TIMEOUT; the caller decides when. */
   gboolean (*reconnect) (gpointer backend, GError **error);

@@ -8,6 +8,7 @@ typedef struct {
   DsGpioLines *enable;     /* NULL: none */
   double duty;
   guint n_phases;
+  double period_px;        /* of the first pattern: the optics' (lines cannot change it); 0: none yet */
   gboolean have_pattern;
   gboolean lit;
   int applied_phase;       /* -1: off */
@@ -96,9 +97,18 @@ gpio_set_pattern (gpointer backend, const DsStripePattern *p, GError **error)
                  "GPIO illuminator: on/off lines make square stripes only, not sine");
     return FALSE;
   }
+  /* The lines choose which stripe groups are lit, not how wide a period the optics image. */
+  if (g->period_px > 0 && fabs (p->period_px - g->period_px) > 1e-9) {
+    g_set_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_UNSUPPORTED,
+                 "GPIO illuminator: the stripe period is the projector's optics', %g px as first configured; "
+                 "on/off lines cannot change it to %g px", g->period_px, p->period_px);
+    return FALSE;
+  }
   int values[DS_GPIO_MAX_LINES];
   if (!ds_gpio_stripe_values (g->stripes->n_lines, p->n_phases, p->duty, 0, values, error))
     return FALSE;
+  if (g->period_px == 0)
+    g->period_px = p->period_px;
   g->duty = p->duty;
   g->n_phases = p->n_phases;
   g->have_pattern = TRUE;

@@ -10,7 +10,9 @@
  * All stripe lines change in ONE bulk call; the enable line (if any) goes high after the
  * stripes are set and low when the illuminator is off (with every stripe line low too).
  * set_phase reads the lines back and fails FAULT if one differs. GPIO has no settle time and no
- * sensors: timeout_ms is not needed, ready is always TRUE, temperature NAN.
+ * sensors: timeout_ms is not needed, ready is always TRUE, temperature NAN. The stripe period is
+ * the optics': the first set_pattern's (the configuration's) is kept, another is refused
+ * UNSUPPORTED (status: period_adjustable FALSE, range unknown).
  * Threads: the acquisition thread only. */
 #pragma once
 #include "drivers/core/illuminator.h"

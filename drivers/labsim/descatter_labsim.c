@@ -5,6 +5,7 @@
  * addresses and a ready line on stdout; SIGTERM or SIGINT stops it cleanly (exit 0). */
 #include <arv.h>
 #include <glib-unix.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -14,12 +15,14 @@
 #include "drivers/labsim/lab_camera.h"
 #include "drivers/labsim/labsim_options.h"
 #include "drivers/labsim/modbus_server.h"
+#include "drivers/modbus/registers.h"
 #include "drivers/sim/renderer.h"
 #include "drivers/sim/scene.h"
 
 typedef struct {
   DsModbusServer *modbus;
   DsLabCamera *camera;
+  double scene_period_px;
   int sync_line;
   DsExternalLight *external; /* --light-from: another controller lights the scene */
 } Lab;
@@ -29,15 +32,19 @@ static void
 illumination (gpointer data, DsRenderRequest *req)
 {
   Lab *lab = data;
-  if (lab->external) {
+  if (lab->external)
     ds_external_light_read (lab->external, req);
-    return;
+  else {
+    DsModbusServerState st;
+    ds_modbus_server_get_state (lab->modbus, &st);
+    req->illuminator_on = st.enabled;
+    req->phase = st.phase;
+    req->n_phases = st.n_phases;
+    req->period_px = st.period_centipx / 100.0;
   }
-  DsModbusServerState st;
-  ds_modbus_server_get_state (lab->modbus, &st);
-  req->illuminator_on = st.enabled;
-  req->phase = st.phase;
-  req->n_phases = st.n_phases;
+  /* The register holds 1/100 px: within that, it is the scene's own period (exactly). */
+  if (fabs (req->period_px - lab->scene_period_px) < 0.005 + 1e-9)
+    req->period_px = 0;
 }
 
 /* The projector's sync output, wired to a camera line: one pulse per applied pattern. */
@@ -58,7 +65,7 @@ on_signal (gpointer loop)
 }
 
 static DsModbusServer *
-start_controller (const DsLabsimOptions *o, GError **error)
+start_controller (const DsLabsimOptions *o, double scene_period_px, GError **error)
 {
   DsModbusServerConfig mcfg;
   ds_modbus_server_config_init (&mcfg);
@@ -76,6 +83,10 @@ start_controller (const DsLabsimOptions *o, GError **error)
   mcfg.fault = o->fault;
   mcfg.over_temperature = o->over_temp;
   mcfg.seed = (guint64) o->seed;
+  /* Its own period is the scene's; a projector that can change it draws 2 .. 655.35 px. */
+  mcfg.period_centipx = (guint) CLAMP (round (scene_period_px * 100), DS_MB_CENTIPX_MIN, DS_MB_CENTIPX_MAX);
+  mcfg.period_fixed = o->fixed_period;
+  mcfg.map_revision_1 = o->map_revision == 1;
   DsModbusServer *s = ds_modbus_server_new (o->modbus_host, o->modbus_port, &mcfg, error);
   if (!s)
     return NULL;
@@ -107,7 +118,8 @@ run (const DsLabsimOptions *o)
     return 1;
   }
   Lab lab = { 0 };
-  lab.modbus = start_controller (o, &error);
+  lab.scene_period_px = ds_scene_period_px (scene);
+  lab.modbus = start_controller (o, lab.scene_period_px, &error);
   if (!lab.modbus) {
     fprintf (stderr, "descatter-labsim: %s\n", error->message);
     return 1;
@@ -149,8 +161,10 @@ run (const DsLabsimOptions *o)
   printf ("descatter-labsim: camera %s serial %s %ux%u %u-bit (GigE Vision, UDP 3956)\n", camera_address,
           o->camera_serial ? o->camera_serial : "DSLAB01", ds_scene_width (scene), ds_scene_height (scene),
           ds_scene_bit_depth (scene));
-  printf ("descatter-labsim: modbus %s:%u (settle %.1f ms, docs/registers.md)\n", o->modbus_host,
-          ds_modbus_server_port (lab.modbus), o->settle_ms);
+  printf ("descatter-labsim: modbus %s:%u (settle %.1f ms, period %s %.2f px, docs/registers.md)\n",
+          o->modbus_host, ds_modbus_server_port (lab.modbus), o->settle_ms,
+          o->map_revision == 1 ? "map revision 1, drawn at" : o->fixed_period ? "fixed at" : "adjustable, power-up",
+          lab.scene_period_px);
   const char *rtu = ds_modbus_server_rtu_path (lab.modbus);
   if (rtu)
     printf ("descatter-labsim: modbus RTU on %s, unit %d\n", rtu, o->modbus_unit_id);

@@ -37,11 +37,15 @@ ds_external_light_new (const char *uri, GError **error)
 void
 ds_external_light_read (DsExternalLight *l, DsRenderRequest *req)
 {
-  guint16 applied = DS_MB_PHASE_OFF, n_phases = 0;
+  guint16 applied = DS_MB_PHASE_OFF, hold[3] = { 0, 0, 0 }, caps = 0;
   gboolean ok = (l->connected || modbus_connect (l->ctx) == 0);
   l->connected = ok;
+  /* NUM_PHASES, PATTERN_KIND, PERIOD_CENTIPX */
   ok = ok && modbus_read_input_registers (l->ctx, DS_MB_INPUT_APPLIED_PHASE, 1, &applied) == 1 &&
-       modbus_read_registers (l->ctx, DS_MB_HOLD_NUM_PHASES, 1, &n_phases) == 1;
+       modbus_read_registers (l->ctx, DS_MB_HOLD_NUM_PHASES, 3, hold) == 3;
+  /* A controller of map revision 1 has no CAPABILITIES (exception 02): its period is fixed. */
+  if (ok && modbus_read_input_registers (l->ctx, DS_MB_INPUT_CAPABILITIES, 1, &caps) != 1)
+    ok = errno == EMBXILADD;
   if (!ok) {
     if (!l->warned)
       g_warning ("light from %s: cannot read the controller (%s): frames are dark", l->uri,
@@ -54,9 +58,11 @@ ds_external_light_read (DsExternalLight *l, DsRenderRequest *req)
     return;
   }
   l->warned = FALSE;
+  guint n_phases = hold[0];
   req->illuminator_on = applied != DS_MB_PHASE_OFF && n_phases >= 1 && applied < n_phases;
   req->phase = req->illuminator_on ? applied : 0;
   req->n_phases = MAX (n_phases, 1u);
+  req->period_px = (caps & DS_MB_CAP_PERIOD_ADJUSTABLE) && hold[2] >= DS_MB_CENTIPX_MIN ? hold[2] / 100.0 : 0;
 }
 
 void

@@ -16,8 +16,9 @@ typedef struct DsExternalLight DsExternalLight;
 
 /* uri: "tcp://HOST:PORT". Connects lazily; fails INVALID-style (G_IO_ERROR) on a bad URI only. */
 DsExternalLight *ds_external_light_new (const char *uri, GError **error);
-/* Fills req->illuminator_on, req->phase, req->n_phases from APPLIED_PHASE and NUM_PHASES; dark
- * (with a warning, once per outage) when the controller cannot be read. */
+/* Fills req->illuminator_on, req->phase, req->n_phases from APPLIED_PHASE and NUM_PHASES, and
+ * req->period_px from PERIOD_CENTIPX where CAPABILITIES says the period is adjustable (else 0:
+ * the scene's); dark (with a warning, once per outage) when the controller cannot be read. */
 void ds_external_light_read (DsExternalLight *light, DsRenderRequest *req);
 void ds_external_light_free (DsExternalLight *light);
 

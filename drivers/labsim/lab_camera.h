@@ -26,8 +26,8 @@ G_BEGIN_DECLS
 
 typedef struct DsLabCamera DsLabCamera;
 
-/* Fills req->phase, req->n_phases and req->illuminator_on with what is lit now. Called on the
- * camera thread. */
+/* Fills req->phase, req->n_phases, req->illuminator_on and req->period_px (0: the scene's) with
+ * what is lit now. Called on the camera thread. */
 typedef void (*DsLabIlluminationFunc) (gpointer user_data, DsRenderRequest *req);
 
 typedef struct {

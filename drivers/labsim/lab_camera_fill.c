@@ -23,6 +23,7 @@
 typedef struct {
   gboolean on;
   guint phase, n_phases;
+  double period_px;        /* 0: the scene's */
   double exposure_us, gain_db;
 } LightKey;
 
@@ -52,15 +53,15 @@ key_hash (gconstpointer p)
 {
   const LightKey *k = p;
   return (guint) (k->on * 7919u + k->phase * 131u + k->n_phases * 31u) ^ (guint) (k->exposure_us * 16) ^
-         (guint) (k->gain_db * 1000) << 7;
+         (guint) (k->gain_db * 1000) << 7 ^ (guint) (k->period_px * 100) << 13;
 }
 
 static gboolean
 key_equal (gconstpointer a, gconstpointer b)
 {
   const LightKey *x = a, *y = b;
-  return x->on == y->on && x->phase == y->phase && x->n_phases == y->n_phases && x->exposure_us == y->exposure_us &&
-         x->gain_db == y->gain_db;
+  return x->on == y->on && x->phase == y->phase && x->n_phases == y->n_phases && x->period_px == y->period_px &&
+         x->exposure_us == y->exposure_us && x->gain_db == y->gain_db;
 }
 
 static void
@@ -109,7 +110,7 @@ expected_for (DsLabFill *f, const LightKey *key, GError **error)
   if (e)
     return e;
   DsRenderRequest req = { .phase = key->phase, .n_phases = key->n_phases, .illuminator_on = key->on,
-                          .exposure_us = key->exposure_us, .gain_db = key->gain_db };
+                          .exposure_us = key->exposure_us, .gain_db = key->gain_db, .period_px = key->period_px };
   g_autoptr (DsImage) img = ds_renderer_render_expected (f->renderer, &req, error);
   if (!img)
     return NULL;
@@ -272,7 +273,8 @@ ds_lab_fill_buffer (DsLabFill *f, ArvBuffer *buffer, double exposure_us, double 
   DsRenderRequest req = { .phase = 0, .n_phases = 4, .illuminator_on = FALSE };
   f->illumination (f->user_data, &req);
   LightKey key = { .on = req.illuminator_on, .phase = req.illuminator_on ? req.phase : 0,
-                   .n_phases = req.illuminator_on ? req.n_phases : 0, .exposure_us = exposure_us, .gain_db = gain_db };
+                   .n_phases = req.illuminator_on ? req.n_phases : 0,
+                   .period_px = req.illuminator_on ? req.period_px : 0, .exposure_us = exposure_us, .gain_db = gain_db };
   g_autoptr (GError) error = NULL;
   const Expected *e = expected_for (f, &key, &error);
   if (!e) {

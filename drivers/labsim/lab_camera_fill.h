@@ -2,7 +2,7 @@
  * is on, with the sensor's noise, written in the frame's pixel format.
  *
  * Speed (issue 13: 1 MP at >= 50 frames/s): the noise-free frame of each lighting state
- * (illuminator on/off, phase, phases, exposure, gain) is rendered once
+ * (illuminator on/off, phase, phases, stripe period, exposure, gain) is rendered once
  * (ds_renderer_render_expected) and kept with its noise sigma; a frame is that mean plus
  * Gaussian noise with the EMVA 1288 variance K^2 (shot + dark electrons) + K^2 read^2, drawn
  * from a bank of normal deviates at a random offset per row, then quantised, clipped at full

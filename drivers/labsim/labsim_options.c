@@ -49,6 +49,7 @@ ds_labsim_options_parse (DsLabsimOptions *o, int *argc, char ***argv, GError **e
   o->settle_ms = 3.0;
   o->exception_code = 6;
   o->modbus_unit_id = 1;
+  o->map_revision = 2;
   o->rtu_vanish_for = 1.0;
   o->sync_line = 0;
   const GOptionEntry main_entries[] = {
@@ -95,6 +96,13 @@ ds_labsim_options_parse (DsLabsimOptions *o, int *argc, char ***argv, GError **e
     { "modbus-rtu-link", 0, 0, G_OPTION_ARG_FILENAME, &o->modbus_rtu_link,
       "A symlink kept pointing at the pty (stable across the line going away)", "PATH" },
     { "modbus-unit-id", 0, 0, G_OPTION_ARG_INT, &o->modbus_unit_id, "RTU unit id (default 1)", "N" },
+    { "map-revision", 0, 0, G_OPTION_ARG_INT, &o->map_revision,
+      "Register map of the controller: 2 (default), or 1, from before CAPABILITIES: PERIOD_CENTIPX "
+      "is stored and range-checked but the scene's period is drawn, as a projector whose period is "
+      "its optics' and that does not say so", "N" },
+    { "fixed-period", 0, 0, G_OPTION_ARG_NONE, &o->fixed_period,
+      "The projector cannot change its stripe period: it draws the scene's only (CAPABILITIES "
+      "without PERIOD_ADJUSTABLE; default: any period of 2 .. 655.35 px written to PERIOD_CENTIPX)", NULL },
     { "settle-ms", 0, 0, G_OPTION_ARG_DOUBLE, &o->settle_ms,
       "Time from a register write to the pattern being lit (default 3)", "MS" },
     { "modbus-delay-ms", 0, 0, G_OPTION_ARG_INT, &o->delay_ms, "Fault: Modbus response delay", "MS" },
@@ -149,6 +157,7 @@ ds_labsim_options_parse (DsLabsimOptions *o, int *argc, char ***argv, GError **e
     { "line-double-every", &o->line_double_every, NULL, 0, G_MAXINT },
     { "gain-max", NULL, &o->gain_max_db, 0, 24 },
     { "modbus-unit-id", &o->modbus_unit_id, NULL, 1, 247 },
+    { "map-revision", &o->map_revision, NULL, 1, 2 },
     { "settle-ms", NULL, &o->settle_ms, 0, 10000 },
     { "modbus-delay-ms", &o->delay_ms, NULL, 0, 60000 },
     { "modbus-delay-every", &o->delay_every, NULL, 0, G_MAXINT },

@@ -39,6 +39,8 @@ typedef struct {
   int rtu_vanish_after;    /* requests */
   double rtu_vanish_for;   /* s */
   gboolean stuck, wrong_phase, fault, over_temp;
+  gboolean fixed_period;   /* the projector cannot change its period (the scene's) */
+  int map_revision;        /* 1: no CAPABILITIES, PERIOD_CENTIPX stored but not drawn; default 2 */
   char *light_from;        /* NULL: the camera sees labsim's own controller */
 } DsLabsimOptions;
 

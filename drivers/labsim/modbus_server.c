@@ -19,6 +19,9 @@ ds_modbus_server_config_init (DsModbusServerConfig *config)
   memset (config, 0, sizeof *config);
   config->settle_us = 3000;
   config->seed = 1;
+  config->period_centipx = 600;
+  config->period_min_centipx = DS_MB_CENTIPX_MIN;
+  config->period_max_centipx = DS_MB_CENTIPX_MAX;
 }
 
 guint16
@@ -75,15 +78,29 @@ inputs (const DsModbusServer *s, guint16 *in)
   in[DS_MB_INPUT_APPLIED_PHASE] = lit (s) ? s->applied[DS_MB_HOLD_PHASE] : DS_MB_PHASE_OFF;
   in[DS_MB_INPUT_APPLY_COUNT] = s->apply_count;
   in[DS_MB_INPUT_TEMPERATURE] = (guint16) (s->cfg.over_temperature ? 850 : 352);
+  in[DS_MB_INPUT_CAPABILITIES] = s->capabilities;
+  in[DS_MB_INPUT_PERIOD_MIN_CENTIPX] = s->period_min;
+  in[DS_MB_INPUT_PERIOD_MAX_CENTIPX] = s->period_max;
 }
 
-/* The ranges of docs/registers.md, checked on the registers as they would be after the write. */
+/* Input registers this controller has (a revision-1 map stops before CAPABILITIES). */
+static guint
+input_count (const DsModbusServer *s)
+{
+  return s->rev1 ? DS_MB_INPUT_REV1_COUNT : DS_MB_INPUT_COUNT;
+}
+
+/* The ranges of docs/registers.md, checked on the registers as they would be after the write;
+ * the period's is the projector's. */
 static gboolean
-valid (const guint16 *h)
+valid (const DsModbusServer *s, const guint16 *h)
 {
   guint n = h[DS_MB_HOLD_NUM_PHASES];
+  guint period_min = s->rev1 ? DS_MB_CENTIPX_MIN : s->period_min;
+  guint period_max = s->rev1 ? DS_MB_CENTIPX_MAX : s->period_max;
   return n >= 2 && n <= DS_MB_MAX_PHASES && h[DS_MB_HOLD_PHASE] < n && h[DS_MB_HOLD_ENABLE] <= 1 &&
-         h[DS_MB_HOLD_PATTERN_KIND] <= 1 && h[DS_MB_HOLD_PERIOD_CENTIPX] >= 200 &&
+         h[DS_MB_HOLD_PATTERN_KIND] <= 1 && h[DS_MB_HOLD_PERIOD_CENTIPX] >= period_min &&
+         h[DS_MB_HOLD_PERIOD_CENTIPX] <= period_max &&
          h[DS_MB_HOLD_DUTY_PERMILLE] >= 1 && h[DS_MB_HOLD_DUTY_PERMILLE] <= 999 &&
          h[DS_MB_HOLD_BLACK_PERMILLE] <= 999 && h[DS_MB_HOLD_INTENSITY_PERMILLE] <= 1000;
 }
@@ -112,7 +129,7 @@ answer_read (DsModbusServer *s, const guint8 *pdu, gsize len, gboolean short_by_
     return DS_MB_VERDICT_CLOSE;
   guint addr = be16 (pdu + 1), nb = be16 (pdu + 3);
   gboolean input = pdu[0] == FC_READ_INPUT;
-  guint limit = input ? DS_MB_INPUT_COUNT : DS_MB_HOLD_COUNT;
+  guint limit = input ? input_count (s) : DS_MB_HOLD_COUNT;
   if (nb < 1 || nb > 125)
     return exception (pdu, EX_ILLEGAL_VALUE, a);
   if (addr + nb > limit)
@@ -156,7 +173,7 @@ answer_write (DsModbusServer *s, const guint8 *pdu, gsize len, gint64 now, DsMbA
     for (guint i = 0; i < nb; i++)
       tentative[addr + i] = (guint16) be16 (pdu + 6 + 2 * i);
   }
-  if (!valid (tentative))
+  if (!valid (s, tentative))
     return exception (pdu, EX_ILLEGAL_VALUE, a);
   memcpy (s->hold, tentative, sizeof s->hold);
   s->pending = TRUE;
@@ -231,13 +248,23 @@ ds_modbus_server_new (const char *address, guint port, const DsModbusServerConfi
   else
     ds_modbus_server_config_init (&s->cfg);
   s->rand = g_rand_new_with_seed ((guint32) s->cfg.seed);
+  s->rev1 = s->cfg.map_revision_1;
+  s->period_power_up = (guint16) CLAMP (s->cfg.period_centipx, DS_MB_CENTIPX_MIN, DS_MB_CENTIPX_MAX);
+  if (s->cfg.period_fixed) {
+    s->capabilities = 0;
+    s->period_min = s->period_max = s->period_power_up;
+  } else {
+    s->capabilities = DS_MB_CAP_PERIOD_ADJUSTABLE;
+    s->period_min = (guint16) CLAMP (s->cfg.period_min_centipx, DS_MB_CENTIPX_MIN, s->period_power_up);
+    s->period_max = (guint16) CLAMP (s->cfg.period_max_centipx, s->period_power_up, DS_MB_CENTIPX_MAX);
+  }
   if (!g_unix_open_pipe (s->wake, FD_CLOEXEC, error)) {
     ds_modbus_server_free (s);
     return NULL;
   }
-  /* Power-up state: dark, four phases of 6 px square stripes, nothing applied yet. */
+  /* Power-up state: dark, four phases of square stripes at its own period, nothing applied yet. */
   s->hold[DS_MB_HOLD_NUM_PHASES] = 4;
-  s->hold[DS_MB_HOLD_PERIOD_CENTIPX] = 600;
+  s->hold[DS_MB_HOLD_PERIOD_CENTIPX] = s->period_power_up;
   s->hold[DS_MB_HOLD_DUTY_PERMILLE] = 500;
   s->hold[DS_MB_HOLD_INTENSITY_PERMILLE] = 1000;
   memcpy (s->applied, s->hold, sizeof s->applied);
@@ -293,7 +320,7 @@ state_locked (DsModbusServer *s, DsModbusServerState *st)
   st->phase = s->applied[DS_MB_HOLD_PHASE];
   st->n_phases = s->applied[DS_MB_HOLD_NUM_PHASES];
   st->pattern_kind = s->applied[DS_MB_HOLD_PATTERN_KIND];
-  st->period_centipx = s->applied[DS_MB_HOLD_PERIOD_CENTIPX];
+  st->period_centipx = s->rev1 ? s->period_power_up : s->applied[DS_MB_HOLD_PERIOD_CENTIPX];
   st->duty_permille = s->applied[DS_MB_HOLD_DUTY_PERMILLE];
   st->black_permille = s->applied[DS_MB_HOLD_BLACK_PERMILLE];
   st->intensity_permille = s->applied[DS_MB_HOLD_INTENSITY_PERMILLE];

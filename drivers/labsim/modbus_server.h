@@ -29,6 +29,16 @@ typedef struct {
   gboolean fault;           /* STATUS.FAULT set, nothing is applied */
   gboolean over_temperature;/* STATUS.OVER_TEMPERATURE set, TEMPERATURE 85 degC, nothing applied */
   guint64 seed;             /* for exception_rate */
+  /* What the projector can do (docs/registers.md, CAPABILITIES). Read by ds_modbus_server_new:
+   * later changes of these fields are ignored. */
+  guint period_centipx;     /* PERIOD_CENTIPX at power-up; default 600 */
+  gboolean period_fixed;    /* the period is its optics': PERIOD_MIN = MAX = period_centipx and
+                             * any other is refused (exception 03); else adjustable in
+                             * period_min_centipx .. period_max_centipx */
+  guint period_min_centipx, period_max_centipx; /* default 200 .. 65535 */
+  gboolean map_revision_1;  /* a controller of the first map: no CAPABILITIES .. PERIOD_MAX_CENTIPX
+                             * (exception 02); it keeps any PERIOD_CENTIPX written but projects
+                             * period_centipx (the register was information then) */
 } DsModbusServerConfig;
 
 void ds_modbus_server_config_init (DsModbusServerConfig *config);
@@ -38,7 +48,8 @@ typedef struct {
   gboolean enabled;         /* a pattern is lit */
   guint phase, n_phases;    /* the lit phase; n_phases as applied */
   guint pattern_kind;
-  guint period_centipx, duty_permille, black_permille, intensity_permille;
+  guint period_centipx;     /* the period projected (revision 1: the power-up one) */
+  guint duty_permille, black_permille, intensity_permille;
   guint apply_count;        /* mod 2^16, as the register */
   gboolean ready;
   guint64 requests;         /* requests received (answered, refused or dropped) */

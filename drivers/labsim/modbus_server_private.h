@@ -33,6 +33,9 @@ struct DsModbusServer {
   int wake[2];             /* pipe written once at shutdown, never drained: wakes every thread */
   gboolean quit;
   GRand *rand;
+  /* What the projector can do: fixed when the server is made (the config's period fields). */
+  gboolean rev1;
+  guint16 capabilities, period_min, period_max, period_power_up;
 
   /* The device model. */
   guint16 hold[DS_MB_HOLD_COUNT];    /* as written */

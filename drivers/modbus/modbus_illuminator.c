@@ -19,6 +19,11 @@ typedef struct {
   gboolean connected;
   gboolean lit;            /* we last lit a phase (ENABLE = 1 written and applied) */
   guint n_phases;
+  /* What the projector says it can do (read at open and reconnect). rev1: a controller of map
+   * revision 1, without CAPABILITIES: a fixed period it does not state. */
+  gboolean rev1;
+  guint16 capabilities, period_min, period_max;
+  guint16 first_period;    /* rev1: PERIOD_CENTIPX of the first set_pattern; 0 = none yet */
 } ModbusIlluminator;
 
 /* ---- URI ---------------------------------------------------------------------------------- */
@@ -153,7 +158,7 @@ ds_modbus_pattern_to_registers (const DsStripePattern *p, guint16 regs[8], GErro
   regs[DS_MB_HOLD_PATTERN_KIND] = (guint16) p->kind;
   return to_register (p->n_phases, 1, 2, DS_MB_MAX_PHASES, "phases", DS_MB_HOLD_NUM_PHASES,
                       &regs[DS_MB_HOLD_NUM_PHASES], error) &&
-         to_register (p->period_px, 100, 200, 65535, "period (px)", DS_MB_HOLD_PERIOD_CENTIPX,
+         to_register (p->period_px, 100, DS_MB_CENTIPX_MIN, DS_MB_CENTIPX_MAX, "period (px)", DS_MB_HOLD_PERIOD_CENTIPX,
                       &regs[DS_MB_HOLD_PERIOD_CENTIPX], error) &&
          to_register (p->duty, 1000, 1, 999, "duty", DS_MB_HOLD_DUTY_PERMILLE,
                       &regs[DS_MB_HOLD_DUTY_PERMILLE], error) &&
@@ -266,9 +271,11 @@ exception_text (int e)
   }
 }
 
-/* One access of nb registers from addr; bounded attempts and total time. */
+/* One access of nb registers from addr; bounded attempts and total time. *last_errno (may be
+ * NULL): libmodbus's errno of the last failed attempt (0 for a short answer). */
 static gboolean
-mb_access (ModbusIlluminator *m, Access access, int addr, int nb, guint16 *regs, GError **error)
+mb_access_errno (ModbusIlluminator *m, Access access, int addr, int nb, guint16 *regs, int *last_errno,
+                 GError **error)
 {
   const char *name = access == READ_INPUT ? ds_mb_input_name (addr) : ds_mb_holding_name (addr);
   const char *verb = access == READ_INPUT ? "reading input" : "writing holding";
@@ -290,6 +297,8 @@ mb_access (ModbusIlluminator *m, Access access, int addr, int nb, guint16 *regs,
     if (m->connected && m->uri.transport == DS_MODBUS_RTU)
       modbus_flush (m->ctx);
     made++;
+    if (last_errno)
+      *last_errno = ECONNREFUSED;
     g_autoptr (GError) link_error = NULL;
     if (!connect_link (m, &link_error)) {
       code = DS_DEVICE_ERROR_DISCONNECTED;
@@ -304,12 +313,16 @@ mb_access (ModbusIlluminator *m, Access access, int addr, int nb, guint16 *regs,
       return TRUE;
     g_free (why);
     if (rc >= 0) {
+      if (last_errno)
+        *last_errno = 0;
       code = DS_DEVICE_ERROR_INCOMPLETE;
       why = g_strdup_printf ("short answer: %d of %d registers", rc, nb);
       disconnect (m);
       continue;
     }
     int e = errno;
+    if (last_errno)
+      *last_errno = e;
     gboolean retry, relink;
     code = classify (e, &retry, &relink);
     why = g_strdup (exception_text (e));
@@ -326,6 +339,12 @@ mb_access (ModbusIlluminator *m, Access access, int addr, int nb, guint16 *regs,
                m->uri_text, m->unit_id, verb, name, (guint) addr, why ? why : "no attempt in time",
                made, made == 1 ? "" : "s");
   return FALSE;
+}
+
+static gboolean
+mb_access (ModbusIlluminator *m, Access access, int addr, int nb, guint16 *regs, GError **error)
+{
+  return mb_access_errno (m, access, addr, nb, regs, NULL, error);
 }
 
 /* ---- ops ---------------------------------------------------------------------------------- */
@@ -385,17 +404,81 @@ apply_and_wait (ModbusIlluminator *m, int addr, int nb, guint16 *regs, guint exp
   }
 }
 
+/* CAPABILITIES, PERIOD_MIN_CENTIPX, PERIOD_MAX_CENTIPX; a controller of map revision 1 answers
+ * exception 02 (no such register): a fixed period it does not state. */
+static gboolean
+read_capabilities (ModbusIlluminator *m, GError **error)
+{
+  guint16 caps[3];
+  int e = 0;
+  g_autoptr (GError) local = NULL;
+  if (!mb_access_errno (m, READ_INPUT, DS_MB_INPUT_CAPABILITIES, 3, caps, &e, &local)) {
+    if (e != EMBXILADD) {
+      g_propagate_error (error, g_steal_pointer (&local));
+      return FALSE;
+    }
+    m->rev1 = TRUE;
+    m->capabilities = m->period_min = m->period_max = 0;
+    return TRUE;
+  }
+  if (caps[1] < DS_MB_CENTIPX_MIN || caps[2] < caps[1] ||
+      (!(caps[0] & DS_MB_CAP_PERIOD_ADJUSTABLE) && caps[1] != caps[2])) {
+    g_set_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_INVALID,
+                 "Modbus %s unit %u: input registers PERIOD_MIN_CENTIPX %u, PERIOD_MAX_CENTIPX %u with "
+                 "CAPABILITIES 0x%04x: not a range of periods (docs/registers.md)", m->uri_text, m->unit_id,
+                 caps[1], caps[2], caps[0]);
+    return FALSE;
+  }
+  m->rev1 = FALSE;
+  m->capabilities = caps[0];
+  m->period_min = caps[1];
+  m->period_max = caps[2];
+  return TRUE;
+}
+
+/* Whether the projector can draw this period (register units), before anything is written. */
+static gboolean
+check_period (ModbusIlluminator *m, guint16 centipx, GError **error)
+{
+  if (m->rev1) {
+    if (m->first_period == 0 || centipx == m->first_period)
+      return TRUE;
+    g_set_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_UNSUPPORTED,
+                 "Modbus %s unit %u: register PERIOD_CENTIPX: the controller cannot change its stripe period: "
+                 "it has no input register CAPABILITIES (exception 02: register map revision 1), so its "
+                 "period is the %.2f px it was first given; asked for %.2f px", m->uri_text, m->unit_id,
+                 m->first_period / 100.0, centipx / 100.0);
+    return FALSE;
+  }
+  if (centipx >= m->period_min && centipx <= m->period_max)
+    return TRUE;
+  if (m->capabilities & DS_MB_CAP_PERIOD_ADJUSTABLE)
+    g_set_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_UNSUPPORTED,
+                 "Modbus %s unit %u: register PERIOD_CENTIPX: the projector draws periods of %.2f .. %.2f px "
+                 "(input registers PERIOD_MIN_CENTIPX, PERIOD_MAX_CENTIPX); asked for %.2f px", m->uri_text,
+                 m->unit_id, m->period_min / 100.0, m->period_max / 100.0, centipx / 100.0);
+  else
+    g_set_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_UNSUPPORTED,
+                 "Modbus %s unit %u: register PERIOD_CENTIPX: the projector's period is fixed at %.2f px "
+                 "(CAPABILITIES 0x%04x without PERIOD_ADJUSTABLE); asked for %.2f px", m->uri_text, m->unit_id,
+                 m->period_min / 100.0, m->capabilities, centipx / 100.0);
+  return FALSE;
+}
+
 static gboolean
 modbus_set_pattern (gpointer backend, const DsStripePattern *pattern, GError **error)
 {
   ModbusIlluminator *m = backend;
   guint16 regs[DS_MB_HOLD_COUNT];
-  if (!ds_modbus_pattern_to_registers (pattern, regs, error))
+  if (!ds_modbus_pattern_to_registers (pattern, regs, error) ||
+      !check_period (m, regs[DS_MB_HOLD_PERIOD_CENTIPX], error))
     return FALSE;
   if (!mb_access (m, WRITE_HOLDING, DS_MB_HOLD_PHASE, DS_MB_HOLD_COUNT, regs, error))
     return FALSE;
   m->n_phases = pattern->n_phases;
   m->lit = FALSE;
+  if (m->rev1 && m->first_period == 0)
+    m->first_period = regs[DS_MB_HOLD_PERIOD_CENTIPX];
   return TRUE;
 }
 
@@ -431,8 +514,8 @@ static gboolean
 modbus_get_status (gpointer backend, DsIlluminatorStatus *st, GError **error)
 {
   ModbusIlluminator *m = backend;
-  guint16 in[DS_MB_INPUT_COUNT];
-  if (!mb_access (m, READ_INPUT, 0, DS_MB_INPUT_COUNT, in, error))
+  guint16 in[DS_MB_INPUT_REV1_COUNT];
+  if (!mb_access (m, READ_INPUT, 0, DS_MB_INPUT_REV1_COUNT, in, error))
     return FALSE;
   guint16 s = in[DS_MB_INPUT_STATUS];
   st->ready = (s & DS_MB_STATUS_READY) != 0;
@@ -443,6 +526,9 @@ modbus_get_status (gpointer backend, DsIlluminatorStatus *st, GError **error)
   st->apply_count = in[DS_MB_INPUT_APPLY_COUNT];
   st->temperature_c = (gint16) in[DS_MB_INPUT_TEMPERATURE] / 10.0;
   st->firmware_version = in[DS_MB_INPUT_FIRMWARE_VERSION];
+  st->period_adjustable = (m->capabilities & DS_MB_CAP_PERIOD_ADJUSTABLE) != 0;
+  st->period_min_px = m->period_min / 100.0;
+  st->period_max_px = m->period_max / 100.0;
   return TRUE;
 }
 
@@ -468,7 +554,7 @@ modbus_reconnect (gpointer backend, GError **error)
   disconnect (m);
   if (!connect_link (m, error))
     return FALSE;
-  return check_magic (m, error);
+  return check_magic (m, error) && read_capabilities (m, error);
 }
 
 static void
@@ -540,7 +626,7 @@ ds_modbus_illuminator_open (const char *uri, guint unit_id, guint response_timeo
    * whose latency timer holds bytes up to 16 ms. */
   guint byte_ms = MIN (response_timeout_ms, 50u);
   modbus_set_byte_timeout (m->ctx, 0, byte_ms * 1000);
-  if (!connect_link (m, error) || !check_magic (m, error)) {
+  if (!connect_link (m, error) || !check_magic (m, error) || !read_capabilities (m, error)) {
     modbus_close_backend (m);
     return NULL;
   }

@@ -35,8 +35,10 @@ typedef struct {
  * a message that names the part of the URI that is wrong. */
 gboolean ds_modbus_uri_parse (const char *uri, DsModbusUri *out, GError **error);
 
-/* Connects, checks the MAGIC register (a device with another register map is refused: INVALID)
- * and returns the illuminator, dark. response_timeout_ms: per request (5 .. 10000).
+/* Connects, checks the MAGIC register (a device with another register map is refused: INVALID),
+ * reads what the projector can do (CAPABILITIES, PERIOD_MIN/MAX_CENTIPX: DsIlluminatorStatus's
+ * period fields; a controller of map revision 1, which has none, is taken as a fixed period it
+ * does not state) and returns the illuminator, dark. response_timeout_ms: per request (5 .. 10000).
  * Fails INVALID (URI, unit id, magic), DISCONNECTED (cannot connect), TIMEOUT. */
 DsIlluminator *ds_modbus_illuminator_open (const char *uri, guint unit_id, guint response_timeout_ms,
                                            GError **error);

@@ -21,6 +21,7 @@ struct DsSimLab {
   gboolean on;
   guint phase, n_phases, shown_phase, previous_phase;
   double period_px;        /* the period it projects (0: the scene's) */
+  gboolean period_fixed;   /* it projects the scene's period only */
   guint64 apply_count;
   /* camera state */
   gboolean connected, started;
@@ -156,6 +157,12 @@ ds_sim_lab_set_faults (DsSimLab *lab, const DsSimFaults *faults)
   g_mutex_lock (&lab->lock);
   lab->faults = *faults;
   g_mutex_unlock (&lab->lock);
+}
+
+void
+ds_sim_lab_set_period_fixed (DsSimLab *lab, gboolean fixed)
+{
+  lab->period_fixed = fixed;
 }
 
 const DsRenderer *
@@ -412,11 +419,21 @@ ill_set_pattern (gpointer b, const DsStripePattern *p, GError **error)
 {
   DsSimLab *lab = b;
   const DsSceneSpec *s = ds_scene_spec (ds_renderer_scene (lab->renderer));
-  /* Like a projector with a PERIOD register: any period, the scene's pattern otherwise. */
-  if (p->n_phases < 2 || !(p->period_px >= 2 && p->period_px <= 1e5) || fabs (p->duty - s->duty) > 1e-9) {
+  if (p->n_phases < 2 || fabs (p->duty - s->duty) > 1e-9) {
     g_set_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_INVALID,
-                 "simulated illuminator: it projects the scene's pattern (duty %g) at periods of 2 px or more "
-                 "with N >= 2; asked for period %g, duty %g, N %u", s->duty, p->period_px, p->duty, p->n_phases);
+                 "simulated illuminator: it projects the scene's pattern (duty %g) with N >= 2; asked for "
+                 "duty %g, N %u", s->duty, p->duty, p->n_phases);
+    return FALSE;
+  }
+  /* Like a projector with a PERIOD register: any period the renderer draws, unless it is fixed. */
+  if (lab->period_fixed ? fabs (p->period_px - s->period_px) > 1e-9 : !(p->period_px >= 2 && p->period_px <= 1e5)) {
+    if (lab->period_fixed)
+      g_set_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_UNSUPPORTED,
+                   "simulated illuminator: its period is fixed at the scene's %g px; asked for %g px",
+                   s->period_px, p->period_px);
+    else
+      g_set_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_UNSUPPORTED,
+                   "simulated illuminator: it projects periods of 2 .. 1e5 px; asked for %g px", p->period_px);
     return FALSE;
   }
   lab->n_phases = p->n_phases;
@@ -476,6 +493,10 @@ ill_get_status (gpointer b, DsIlluminatorStatus *st, GError **error)
   st->apply_count = lab->apply_count;
   st->temperature_c = 35.0;
   st->firmware_version = 1;
+  double scene_period = ds_scene_period_px (ds_renderer_scene (lab->renderer));
+  st->period_adjustable = !lab->period_fixed;
+  st->period_min_px = lab->period_fixed ? scene_period : 2;
+  st->period_max_px = lab->period_fixed ? scene_period : 1e5;
   return TRUE;
 }
 

@@ -40,6 +40,10 @@ DsSimLab *ds_sim_lab_ref (DsSimLab *lab);
 void ds_sim_lab_unref (DsSimLab *lab);
 G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsSimLab, ds_sim_lab_unref)
 void ds_sim_lab_set_faults (DsSimLab *lab, const DsSimFaults *faults);
+/* The illuminator projects any stripe period of 2 px or more (a projector with a PERIOD
+ * register: DsIlluminatorStatus.period_adjustable), or, when fixed, the scene's only and refuses
+ * others (UNSUPPORTED). Adjustable by default; set before the illuminator is used. */
+void ds_sim_lab_set_period_fixed (DsSimLab *lab, gboolean fixed);
 const DsRenderer *ds_sim_lab_renderer (const DsSimLab *lab);
 
 /* The devices hold a reference on the lab. */

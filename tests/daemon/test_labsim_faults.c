@@ -219,7 +219,11 @@ test_modbus_exceptions_continuous (void)
 static void
 test_wrong_period (void)
 {
-  TestLabsim *l = test_labsim_start (labsim_path, scene_path, NULL);
+  /* A controller of the first register map stores PERIOD_CENTIPX but draws its optics' period:
+   * a wrong period-px reaches the frames unrefused (labsim's default projector would draw it, one
+   * of a fixed period would refuse it before writing). */
+  const char *rev1[] = { "--map-revision", "1", NULL };
+  TestLabsim *l = test_labsim_start (labsim_path, scene_path, rev1);
   double wrong = ds_scene_period_px (the_scene) * 2.7;
   g_autofree char *conf = config_for (l, NULL, NULL);
   g_autofree char *period = g_strdup_printf ("period-px=%g", ds_scene_period_px (the_scene));

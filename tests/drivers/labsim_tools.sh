@@ -42,9 +42,13 @@ echo "labsim ready, modbus port $port"
 
 # --- mbpoll: input registers from 0 (PDU addressing), then write PHASE=2, ENABLE=1. ----------
 mb() { mbpoll -m tcp -p "$port" -0 -1 -o 1 "$@"; } # host, then values to write
-mb -t 3 -r 0 -c 6 127.0.0.1 >"$tmp/in" || fail "mbpoll read: $(cat "$tmp/in")"
+mb -t 3 -r 0 -c 9 127.0.0.1 >"$tmp/in" || fail "mbpoll read: $(cat "$tmp/in")"
 grep -q '^\[0\]:[[:space:]]*17491$' "$tmp/in" || fail "MAGIC is not 0x4453 (17491): $(cat "$tmp/in")"
 grep -q '^\[3\]:[[:space:]]*65535' "$tmp/in" || fail "APPLIED_PHASE is not off after power-up"
+# The projector can change its period: CAPABILITIES has PERIOD_ADJUSTABLE, 2.00 .. 655.35 px.
+grep -q '^\[6\]:[[:space:]]*1$' "$tmp/in" || fail "CAPABILITIES is not PERIOD_ADJUSTABLE (1): $(cat "$tmp/in")"
+grep -q '^\[7\]:[[:space:]]*200$' "$tmp/in" || fail "PERIOD_MIN_CENTIPX is not 200: $(cat "$tmp/in")"
+grep -q '^\[8\]:[[:space:]]*65535' "$tmp/in" || fail "PERIOD_MAX_CENTIPX is not 65535: $(cat "$tmp/in")"
 mb -t 4 -r 0 127.0.0.1 2 1 >"$tmp/w" || fail "mbpoll write: $(cat "$tmp/w")"
 sleep 0.1 # settle time is 3 ms
 mb -t 3 -r 2 -c 3 127.0.0.1 >"$tmp/in2" || fail "mbpoll read back"
@@ -55,6 +59,13 @@ grep -q '^\[4\]:[[:space:]]*1$' "$tmp/in2" || fail "APPLY_COUNT is not 1: $(cat 
 mb -t 4 -r 2 127.0.0.1 1 >"$tmp/bad" 2>&1 && fail "NUM_PHASES=1 was accepted"
 mb -t 4 -r 2 127.0.0.1 >"$tmp/np"
 grep -q '^\[2\]:[[:space:]]*4$' "$tmp/np" || fail "NUM_PHASES changed: $(cat "$tmp/np")"
+# PERIOD_CENTIPX: 9.00 px is taken (an adjustable projector); 1.50 px is below PERIOD_MIN_CENTIPX
+# and refused with exception 03, leaving 900.
+mb -t 4 -r 4 127.0.0.1 900 >"$tmp/pw" 2>&1 || fail "mbpoll PERIOD_CENTIPX=900: $(cat "$tmp/pw")"
+mb -t 4 -r 4 127.0.0.1 150 >"$tmp/pbad" 2>&1 && fail "PERIOD_CENTIPX=150 was accepted"
+grep -qi "illegal data value" "$tmp/pbad" || fail "no exception 03 for PERIOD_CENTIPX=150: $(cat "$tmp/pbad")"
+mb -t 4 -r 4 127.0.0.1 >"$tmp/pr"
+grep -q '^\[4\]:[[:space:]]*900$' "$tmp/pr" || fail "PERIOD_CENTIPX is not 900: $(cat "$tmp/pr")"
 echo "mbpoll: ok"
 
 # --- mbpoll -m rtu on the far end of the serial line (19200 8E1, the Modbus serial default). ----
@@ -66,7 +77,8 @@ rtu -t 4 -r 0 "$tmp/ttyB" 3 1 >"$tmp/rw" 2>&1 || fail "mbpoll rtu write: $(cat "
 sleep 0.1
 rtu -t 3 -r 2 -c 3 "$tmp/ttyB" >"$tmp/rin2" 2>&1 || fail "mbpoll rtu read back: $(cat "$tmp/rin2")"
 grep -q '^\[3\]:[[:space:]]*3$' "$tmp/rin2" || fail "RTU: APPLIED_PHASE is not 3: $(cat "$tmp/rin2")"
-grep -q '^\[4\]:[[:space:]]*2$' "$tmp/rin2" || fail "RTU: APPLY_COUNT is not 2 (one write over TCP, one over RTU): $(cat "$tmp/rin2")"
+grep -q '^\[4\]:[[:space:]]*3$' "$tmp/rin2" ||
+  fail "RTU: APPLY_COUNT is not 3 (PHASE and PERIOD_CENTIPX over TCP, PHASE over RTU): $(cat "$tmp/rin2")"
 # The controller's range check answers exception 03 over RTU as well ...
 rtu -t 4 -r 2 "$tmp/ttyB" 1 >"$tmp/rbad" 2>&1 && fail "RTU: NUM_PHASES=1 was accepted"
 grep -qi "illegal data value" "$tmp/rbad" || fail "RTU: no exception 03 for NUM_PHASES=1: $(cat "$tmp/rbad")"

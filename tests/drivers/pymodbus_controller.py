@@ -9,6 +9,10 @@ also serves the same registers read-only over Modbus TCP on 127.0.0.1: descatter
 reads the lit phase there (--light-from), standing in for the optics between projector and
 camera.
 
+The projector draws any period of 2.00 .. 655.35 px written to PERIOD_CENTIPX (CAPABILITIES
+PERIOD_ADJUSTABLE), or with --fixed-period-centipx C only its own C; with --map-revision 1 it is a
+controller of the first map, without CAPABILITIES .. PERIOD_MAX_CENTIPX.
+
 Fault knobs, armed by signals so a test can place them between two phase sets:
   SIGUSR1   the next --busy-count requests (default 12) get exception 06 (server busy)
   SIGUSR2   no answer at all for --silent-for seconds (default 1.5)
@@ -36,7 +40,8 @@ from pymodbus.server.async_io import ModbusSerialServer, ModbusSingleRequestHand
 PHASE, ENABLE, NUM_PHASES, PATTERN_KIND, PERIOD_CENTIPX, DUTY_PERMILLE, BLACK_PERMILLE, INTENSITY_PERMILLE = range(8)
 N_HOLDING = 8
 MAGIC, FIRMWARE_VERSION, STATUS, APPLIED_PHASE, APPLY_COUNT, TEMPERATURE = range(6)
-N_INPUT = 6
+CAPABILITIES, PERIOD_MIN_CENTIPX, PERIOD_MAX_CENTIPX = range(6, 9)
+PERIOD_ADJUSTABLE = 0x0001
 READY, FAULT, OVER_TEMPERATURE, APPLYING, ENABLED = 0x01, 0x02, 0x04, 0x08, 0x10
 PHASE_OFF = 0xFFFF
 
@@ -44,10 +49,16 @@ PHASE_OFF = 0xFFFF
 class Controller:
     """The device model: written registers, the pattern as lit, the settle time."""
 
-    def __init__(self, settle_s):
+    def __init__(self, settle_s, fixed_period, revision):
         self.settle_s = settle_s
+        self.revision = revision
+        self.n_input = 6 if revision == 1 else 9
+        if fixed_period:
+            self.capabilities, self.period_range = 0, (fixed_period, fixed_period)
+        else:
+            self.capabilities, self.period_range = PERIOD_ADJUSTABLE, (200, 65535)
         # Power-up values of the page.
-        self.hold = [0, 0, 4, 0, 600, 500, 0, 1000]
+        self.hold = [0, 0, 4, 0, fixed_period or 600, 500, 0, 1000]
         self.applied = list(self.hold)
         self.pending_since = None
         self.apply_count = 0
@@ -63,12 +74,14 @@ class Controller:
         self.advance()
         lit = self.applied[ENABLE] == 1
         status = (APPLYING if self.pending_since is not None else READY) | (ENABLED if lit else 0)
-        return [0x4453, 0x0100, status, self.applied[PHASE] if lit else PHASE_OFF, self.apply_count, 300]
+        regs = [0x4453, 0x0100, status, self.applied[PHASE] if lit else PHASE_OFF, self.apply_count, 300,
+                self.capabilities, self.period_range[0], self.period_range[1]]
+        return regs[:self.n_input]
 
-    @staticmethod
-    def valid(h):
+    def valid(self, h):
+        low, high = (200, 65535) if self.revision == 1 else self.period_range
         return (2 <= h[NUM_PHASES] <= 64 and h[PHASE] < h[NUM_PHASES] and h[ENABLE] <= 1
-                and h[PATTERN_KIND] <= 1 and h[PERIOD_CENTIPX] >= 200 and 1 <= h[DUTY_PERMILLE] <= 999
+                and h[PATTERN_KIND] <= 1 and low <= h[PERIOD_CENTIPX] <= high and 1 <= h[DUTY_PERMILLE] <= 999
                 and h[BLACK_PERMILLE] <= 999 and h[INTENSITY_PERMILLE] <= 1000)
 
     def write(self, address, values):
@@ -88,7 +101,7 @@ class Controller:
     def answer(self, request):
         fc = request.function_code
         if fc in (3, 4):
-            limit = N_HOLDING if fc == 3 else N_INPUT
+            limit = N_HOLDING if fc == 3 else self.n_input
             if not 1 <= request.count <= 125:
                 return request.doException(ModbusExceptions.IllegalValue)
             if request.address + request.count > limit:
@@ -155,7 +168,7 @@ class LightContext:
         self.controller = controller
 
     def validate(self, fc, address, count=1):
-        limit = N_HOLDING if fc == 3 else N_INPUT if fc == 4 else 0
+        limit = N_HOLDING if fc == 3 else self.controller.n_input if fc == 4 else 0
         return address + count <= limit
 
     def getValues(self, fc, address, count=1):  # pylint: disable=invalid-name
@@ -176,11 +189,13 @@ async def main():
     p.add_argument("--light-port", type=int)
     p.add_argument("--busy-count", type=int, default=12)
     p.add_argument("--silent-for", type=float, default=1.5)
+    p.add_argument("--fixed-period-centipx", type=int, default=0)
+    p.add_argument("--map-revision", type=int, default=2, choices=(1, 2))
     args = p.parse_args()
     # pymodbus logs every exception response it builds at ERROR: they are this controller's job.
     logging.getLogger("pymodbus").setLevel(logging.DEBUG if os.environ.get("PYMODBUS_DEBUG") else logging.CRITICAL)
 
-    controller = Controller(args.settle_ms / 1000.0)
+    controller = Controller(args.settle_ms / 1000.0, args.fixed_period_centipx, args.map_revision)
     context = ModbusServerContext(slaves={args.unit: LightContext(controller)}, single=False)
     serial_server = ModbusSerialServer(context, framer=ModbusRtuFramer, port=args.device, baudrate=args.baud,
                                        parity=args.parity, bytesize=8, stopbits=1, handler=RtuHandler)

@@ -2,9 +2,11 @@
  * applied at trigger time (measured in the frame with proc/stripe_phase, against k/N), the
  * signal scales with exposure, and every fault knob gives its typed error or wrong frame. */
 #include <math.h>
+#include <string.h>
 
 #include "drivers/simdev/sim_lab.h"
 #include "drivers/sim/scene.h"
+#include "period_check.h"
 #include "proc/stripe_phase.h"
 
 #define N_PHASES 4
@@ -292,6 +294,53 @@ test_fault_counted (Lab *l, gconstpointer data)
   g_assert_cmpuint (measured_phase (l, right), ==, 1);
 }
 
+/* A projector that can change its period (issue 12): the status says so, and frames show the
+ * period asked for, measured in the frames themselves, whatever the scene declares. */
+static void
+test_period (Lab *l, gconstpointer data)
+{
+  (void) data;
+  DsIlluminatorStatus st;
+  g_autoptr (GError) error = NULL;
+  g_assert_true (l->ill->ops->get_status (l->ill->backend, &st, &error));
+  g_assert_true (st.period_adjustable);
+  g_assert_cmpfloat (st.period_min_px, <=, 2.0);
+  g_assert_cmpfloat (st.period_max_px, >=, 100.0);
+  const DsSceneSpec *spec = ds_scene_spec (ds_renderer_scene (ds_sim_lab_renderer (l->lab)));
+  const double periods[] = { l->period_px, 0.625 * l->period_px, 1.6875 * l->period_px };
+  for (guint i = 0; i < G_N_ELEMENTS (periods); i++) {
+    DsStripePattern p = { .kind = DS_STRIPES_SQUARE, .period_px = periods[i], .duty = spec->duty,
+                          .black_level = spec->black_level, .intensity = 1, .n_phases = N_PHASES };
+    period_check_frames (l->ill, l->cam, &p, NULL, 0.005);
+  }
+}
+
+/* A projector whose period is fixed: the status says which, another period is refused
+ * (UNSUPPORTED, naming both), the scene's is taken. */
+static void
+test_fixed_period (Lab *l, gconstpointer data)
+{
+  (void) data;
+  ds_sim_lab_set_period_fixed (l->lab, TRUE);
+  DsIlluminatorStatus st;
+  g_autoptr (GError) error = NULL;
+  g_assert_true (l->ill->ops->get_status (l->ill->backend, &st, &error));
+  g_assert_false (st.period_adjustable);
+  g_assert_cmpfloat (st.period_min_px, ==, l->period_px);
+  g_assert_cmpfloat (st.period_max_px, ==, l->period_px);
+  const DsSceneSpec *spec = ds_scene_spec (ds_renderer_scene (ds_sim_lab_renderer (l->lab)));
+  DsStripePattern p = { .kind = DS_STRIPES_SQUARE, .period_px = 2 * l->period_px, .duty = spec->duty,
+                        .black_level = spec->black_level, .intensity = 1, .n_phases = N_PHASES };
+  g_assert_false (l->ill->ops->set_pattern (l->ill->backend, &p, &error));
+  g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_UNSUPPORTED);
+  g_autofree char *asked = g_strdup_printf ("asked for %g px", 2 * l->period_px);
+  g_autofree char *fixed = g_strdup_printf ("fixed at the scene's %g px", l->period_px);
+  g_assert_nonnull (strstr (error->message, asked));
+  g_assert_nonnull (strstr (error->message, fixed));
+  p.period_px = l->period_px;
+  period_check_frames (l->ill, l->cam, &p, NULL, 0.005);
+}
+
 static void
 test_faults_parse_errors (void)
 {
@@ -325,5 +374,7 @@ main (int argc, char **argv)
   ADD ("/simdev/fault/not-ready", test_fault_not_ready);
   ADD ("/simdev/fault/disconnect", test_fault_disconnect);
   ADD ("/simdev/fault/counted", test_fault_counted);
+  ADD ("/simdev/period", test_period);
+  ADD ("/simdev/fixed-period", test_fixed_period);
   return g_test_run ();
 }

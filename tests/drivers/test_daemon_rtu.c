@@ -15,6 +15,9 @@
 
 #include "../daemon/daemon_harness.h"
 #include "../daemon/truth_check.h"
+#include "drivers/aravis/aravis_camera.h"
+#include "drivers/modbus/modbus_illuminator.h"
+#include "period_check.h"
 
 static const char *labsim_path, *scene_path, *controller_path;
 static DsScene *the_scene;
@@ -198,6 +201,7 @@ typedef struct {
   char *dir, *a, *b;
   GSubprocess *socat, *controller;
   guint light_port;
+  const char *const *controller_args; /* more arguments for the controller, NULL-terminated; may be NULL */
 } Line;
 
 /* The serial line (socat pty pair, links a and b) and the controller on end a. */
@@ -213,9 +217,15 @@ line_up (Line *ln)
   g_assert_true (g_file_test (ln->b, G_FILE_TEST_EXISTS));
   g_autofree char *port = g_strdup_printf ("%u", ln->light_port);
   const char *ctl[] = { "/usr/bin/python3", controller_path, ln->a, "--baud", "115200", "--parity", "N",
-                        "--light-port", port, "--busy-count", "4", NULL };
+                        "--light-port", port, "--busy-count", "4" };
+  g_autoptr (GPtrArray) argv = g_ptr_array_new ();
+  for (guint i = 0; i < G_N_ELEMENTS (ctl); i++)
+    g_ptr_array_add (argv, (gpointer) ctl[i]);
+  for (guint i = 0; ln->controller_args && ln->controller_args[i]; i++)
+    g_ptr_array_add (argv, (gpointer) ln->controller_args[i]);
+  g_ptr_array_add (argv, NULL);
   g_autofree char *ready = NULL;
-  ln->controller = spawn (ctl, "ready", &ready);
+  ln->controller = spawn ((const char *const *) argv->pdata, "ready", &ready);
   const char *lp = strstr (ready, "light=127.0.0.1:");
   g_assert_nonnull (lp);
   ln->light_port = (guint) g_ascii_strtoull (lp + strlen ("light=127.0.0.1:"), NULL, 10);
@@ -293,6 +303,99 @@ test_pymodbus_controller (void)
   g_free (ln.b);
 }
 
+static void
+line_new (Line *ln, const char *const *controller_args)
+{
+  g_autoptr (GError) error = NULL;
+  memset (ln, 0, sizeof *ln);
+  ln->dir = g_dir_make_tmp ("ds-pymodbus-XXXXXX", &error);
+  g_assert_no_error (error);
+  ln->a = g_build_filename (ln->dir, "ttyA", NULL);
+  ln->b = g_build_filename (ln->dir, "ttyB", NULL);
+  ln->controller_args = controller_args;
+  line_up (ln);
+}
+
+static void
+line_free (Line *ln)
+{
+  line_down (ln);
+  g_rmdir (ln->dir);
+  g_free (ln->dir);
+  g_free (ln->a);
+  g_free (ln->b);
+}
+
+/* The period register on a controller written elsewhere (issue 12), driven by the daemon's
+ * Modbus backend over RTU and seen by labsim's camera through that controller's registers: an
+ * adjustable projector shows the period asked for in the frames; a fixed one and one of the
+ * first map (no CAPABILITIES) say so, and the backend refuses another period before writing. */
+static void
+test_pymodbus_period (void)
+{
+  g_autoptr (GError) error = NULL;
+  double period = ds_scene_period_px (the_scene);
+  Line ln;
+  line_new (&ln, NULL);
+  g_autofree char *light = g_strdup_printf ("tcp://127.0.0.1:%u", ln.light_port);
+  const char *args[] = { "--light-from", light, NULL };
+  TestLabsim *l = test_labsim_start (labsim_path, scene_path, args);
+  g_autofree char *uri = g_strdup_printf ("rtu:%s?baud=115200&parity=N", ln.b);
+  DsIlluminator *ill = ds_modbus_illuminator_open (uri, 1, 200, &error);
+  g_assert_no_error (error);
+  DsIlluminatorStatus st;
+  g_assert_true (ill->ops->get_status (ill->backend, &st, &error));
+  g_assert_true (st.period_adjustable);
+  g_assert_cmpfloat (st.period_min_px, ==, 2.0);
+  g_assert_cmpfloat (st.period_max_px, ==, 655.35);
+  DsCamera *cam = ds_aravis_camera_open ("127.0.0.1", 4, &error);
+  g_assert_no_error (error);
+  DsCameraSettings cs = { .exposure_us = ds_scene_default_exposure_us (the_scene), .pixel_format = "Mono16",
+                          .trigger_source = DS_CAMERA_TRIGGER_SOFTWARE };
+  g_assert_true (cam->ops->configure (cam->backend, &cs, &error));
+  g_assert_true (cam->ops->start (cam->backend, &error));
+  g_assert_no_error (error);
+  /* Rows above the scene's objects: stripes over the medium only. */
+  DsRegion region = { 0, 0, ds_scene_width (the_scene), MIN (ds_scene_height (the_scene), 40u) };
+  DsStripePattern p = { .kind = ds_scene_pattern_is_sine (the_scene) ? DS_STRIPES_SINE : DS_STRIPES_SQUARE,
+                        .period_px = 1.75 * period, .duty = ds_scene_duty (the_scene),
+                        .black_level = ds_scene_black_level (the_scene), .intensity = 1, .n_phases = 4 };
+  period_check_frames (ill, cam, &p, &region, 0.005);
+  ds_camera_close (cam);
+  ds_illuminator_close (ill);
+  test_labsim_stop (l);
+  line_free (&ln);
+
+  /* A fixed projector, and a controller of the first map. */
+  const char *fixed[] = { "--fixed-period-centipx", "825", NULL };
+  const char *rev1[] = { "--map-revision", "1", NULL };
+  const char *const *variants[] = { fixed, rev1 };
+  for (guint v = 0; v < G_N_ELEMENTS (variants); v++) {
+    line_new (&ln, variants[v]);
+    g_autofree char *u = g_strdup_printf ("rtu:%s?baud=115200&parity=N", ln.b);
+    ill = ds_modbus_illuminator_open (u, 1, 200, &error);
+    g_assert_no_error (error);
+    g_assert_true (ill->ops->get_status (ill->backend, &st, &error));
+    g_assert_false (st.period_adjustable);
+    g_assert_cmpfloat (st.period_min_px, ==, v == 0 ? 8.25 : 0);
+    g_assert_cmpfloat (st.period_max_px, ==, st.period_min_px);
+    p.period_px = 8.25;
+    g_assert_true (ill->ops->set_pattern (ill->backend, &p, &error));
+    g_assert_true (ill->ops->set_phase (ill->backend, 1, 1000, &error));
+    g_assert_no_error (error);
+    p.period_px = 12;
+    g_assert_false (ill->ops->set_pattern (ill->backend, &p, &error));
+    g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_UNSUPPORTED);
+    g_test_message ("%s", error->message);
+    g_assert_nonnull (strstr (error->message, "PERIOD_CENTIPX"));
+    g_assert_nonnull (strstr (error->message, "8.25 px"));
+    g_assert_nonnull (strstr (error->message, "asked for 12.00 px"));
+    g_clear_error (&error);
+    ds_illuminator_close (ill);
+    line_free (&ln);
+  }
+}
+
 int
 main (int argc, char **argv)
 {
@@ -307,6 +410,7 @@ main (int argc, char **argv)
   truth_scene_load (scene_path, &the_scene, &truth_t, &truth_g);
   g_test_add_func ("/daemon-rtu/labsim", test_labsim_rtu);
   g_test_add_func ("/daemon-rtu/pymodbus-controller", test_pymodbus_controller);
+  g_test_add_func ("/daemon-rtu/pymodbus-period", test_pymodbus_period);
   int status = g_test_run ();
   truth_scene_free (the_scene, truth_t, truth_g);
   return status;

@@ -175,6 +175,24 @@ test_illuminator_invalid (Fixture *f, gconstpointer data)
   g_assert_false (f->ill->ops->set_pattern (f->ill->backend, &p, &error));
   g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_INVALID);
   g_assert_cmpuint (ds_gpio_sim_chip_n_writes (f->chip), ==, 0);
+  /* The period is the optics': lines cannot change it. The first pattern's is kept, another is
+   * refused, and the status says the period is not adjustable. */
+  g_clear_error (&error);
+  g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &square4, &error));
+  p = square4;
+  p.period_px = 12;
+  g_assert_false (f->ill->ops->set_pattern (f->ill->backend, &p, &error));
+  g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_UNSUPPORTED);
+  g_assert_nonnull (strstr (error->message, "8 px"));
+  g_assert_nonnull (strstr (error->message, "12 px"));
+  g_clear_error (&error);
+  p = square4;
+  p.n_phases = 2;
+  g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &p, &error));
+  DsIlluminatorStatus st;
+  g_assert_true (f->ill->ops->get_status (f->ill->backend, &st, &error));
+  g_assert_false (st.period_adjustable);
+  g_assert_cmpuint (ds_gpio_sim_chip_n_writes (f->chip), ==, 0);
 }
 
 /* Failed writes become typed errors; reconnect recovers. A stuck line is caught by the

@@ -10,8 +10,10 @@
 #include <sys/prctl.h>
 #include <unistd.h>
 
+#include "drivers/aravis/aravis_camera.h"
 #include "drivers/modbus/modbus_illuminator.h"
 #include "drivers/sim/scene.h"
+#include "period_check.h"
 #include "proc/pixfmt.h"
 #include "proc/stripe_phase.h"
 
@@ -396,6 +398,79 @@ test_projector_sync (void)
   run_projector_sync (faults, 12, 12 - 3 + 2, FALSE);
 }
 
+/* The controller's PERIOD_CENTIPX sets the period labsim's camera sees (issue 12), through the
+ * daemon's own backends: Modbus for the projector, Aravis for the camera. With --fixed-period
+ * the controller says it cannot, and the backend refuses another period before writing it. */
+static void
+run_period (gboolean fixed)
+{
+  g_autoptr (GError) error = NULL;
+  g_autoptr (DsScene) scene = ds_scene_load (scene_path, &error);
+  g_assert_no_error (error);
+  double period = ds_scene_period_px (scene);
+  const char *fixed_args[] = { "--fixed-period", NULL };
+  Labsim l = { 0 };
+  labsim_start (&l, fixed ? fixed_args : NULL);
+  g_autofree char *uri = g_strdup_printf ("tcp://127.0.0.1:%u", l.modbus_port);
+  DsIlluminator *ill = ds_modbus_illuminator_open (uri, 1, 300, &error);
+  g_assert_no_error (error);
+  DsCamera *cam = ds_aravis_camera_open ("127.0.0.1", 4, &error);
+  g_assert_no_error (error);
+  DsCameraSettings cs = { .exposure_us = ds_scene_default_exposure_us (scene), .pixel_format = "Mono16",
+                          .trigger_source = DS_CAMERA_TRIGGER_SOFTWARE };
+  g_assert_true (cam->ops->configure (cam->backend, &cs, &error));
+  g_assert_true (cam->ops->start (cam->backend, &error));
+  g_assert_no_error (error);
+
+  DsIlluminatorStatus st;
+  g_assert_true (ill->ops->get_status (ill->backend, &st, &error));
+  g_assert_cmpint (st.period_adjustable, ==, !fixed);
+  /* Rows above the scene's objects: stripes over the medium only. */
+  DsRegion region = { 0, 0, ds_scene_width (scene), MIN (ds_scene_height (scene), 40u) };
+  DsStripePattern p = { .kind = ds_scene_pattern_is_sine (scene) ? DS_STRIPES_SINE : DS_STRIPES_SQUARE,
+                        .period_px = period, .duty = ds_scene_duty (scene),
+                        .black_level = ds_scene_black_level (scene), .intensity = 1, .n_phases = 4 };
+  if (!fixed) {
+    g_assert_cmpfloat (st.period_min_px, ==, 2.0);
+    g_assert_cmpfloat (st.period_max_px, ==, 655.35);
+    /* Register values (1/100 px) other than the scene's, shorter and longer. */
+    const double periods[] = { period, 4.37, 1.5 * period, 2.5 * period };
+    for (guint i = 0; i < G_N_ELEMENTS (periods); i++) {
+      p.period_px = periods[i];
+      period_check_frames (ill, cam, &p, &region, 0.005);
+    }
+  } else {
+    g_assert_cmpfloat (st.period_min_px, ==, round (period * 100) / 100);
+    g_assert_cmpfloat (st.period_max_px, ==, st.period_min_px);
+    p.period_px = 1.5 * period;
+    g_assert_false (ill->ops->set_pattern (ill->backend, &p, &error));
+    g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_UNSUPPORTED);
+    g_test_message ("%s", error->message);
+    g_autofree char *fixed_at = g_strdup_printf ("fixed at %.2f px", period);
+    g_autofree char *asked = g_strdup_printf ("asked for %.2f px", 1.5 * period);
+    g_assert_nonnull (strstr (error->message, "PERIOD_CENTIPX"));
+    g_assert_nonnull (strstr (error->message, fixed_at));
+    g_assert_nonnull (strstr (error->message, asked));
+    p.period_px = period;
+    period_check_frames (ill, cam, &p, &region, 0.005);
+  }
+  ds_camera_close (cam);
+  ds_illuminator_close (ill);
+  labsim_stop (&l);
+}
+
+static void
+test_period (void)
+{
+  run_period (FALSE);
+}
+
+static void
+test_fixed_period (void)
+{
+  run_period (TRUE);
+}
+
 int
 main (int argc, char **argv)
 {
@@ -410,6 +485,8 @@ main (int argc, char **argv)
   g_test_add_func ("/labsim/mono8", test_mono8);
   g_test_add_func ("/labsim/camera-vanishes", test_camera_vanishes);
   g_test_add_func ("/labsim/projector-sync", test_projector_sync);
+  g_test_add_func ("/labsim/period", test_period);
+  g_test_add_func ("/labsim/fixed-period", test_fixed_period);
   int status = g_test_run ();
   arv_shutdown ();
   return status;

@@ -6,6 +6,7 @@
  * printed. */
 #include <errno.h>
 #include <glib/gstdio.h>
+#include <math.h>
 #include <modbus.h>
 #include <string.h>
 
@@ -193,6 +194,10 @@ test_sequence (Fixture *f, gconstpointer data)
       g_assert_cmpuint (s.apply_count, ==, count);
       g_assert_cmpfloat_with_epsilon (s.temperature_c, 35.2, 1e-9);
       g_assert_cmpuint (s.firmware_version, ==, 0x0102);
+      /* labsim's projector by default: any period the register holds (read at open). */
+      g_assert_true (s.period_adjustable);
+      g_assert_cmpfloat (s.period_min_px, ==, 2.0);
+      g_assert_cmpfloat (s.period_max_px, ==, 655.35);
     }
   g_assert_true (f->ill->ops->off (f->ill->backend, 500, &error));
   ds_modbus_server_get_state (f->server, &st);
@@ -474,6 +479,187 @@ test_wrong_phase (Fixture *f, gconstpointer data)
   g_assert_nonnull (strstr (error->message, "APPLIED_PHASE reads 2, expected 1"));
 }
 
+/* ---- the period (map revision 2: CAPABILITIES, PERIOD_MIN/MAX_CENTIPX) ------------------- */
+
+/* A controller with the given projector, and the backend opened on it over TCP. */
+static DsIlluminator *
+open_on (const DsModbusServerConfig *cfg, DsModbusServer **server)
+{
+  g_autoptr (GError) error = NULL;
+  *server = ds_modbus_server_new ("127.0.0.1", 0, cfg, &error);
+  g_assert_no_error (error);
+  g_autofree char *uri = g_strdup_printf ("tcp://127.0.0.1:%u", ds_modbus_server_port (*server));
+  DsIlluminator *ill = ds_modbus_illuminator_open (uri, 1, 100, &error);
+  g_assert_no_error (error);
+  return ill;
+}
+
+static DsModbusServerState
+settled_state (DsModbusServer *server)
+{
+  DsModbusServerState st;
+  for (guint i = 0; i < 500; i++) {
+    ds_modbus_server_get_state (server, &st);
+    if (st.ready)
+      break;
+    g_usleep (1000);
+  }
+  g_assert_true (st.ready);
+  return st;
+}
+
+/* The raw register access of a plain libmodbus client: what any controller would answer. */
+static int
+raw_write (DsModbusServer *server, int addr, guint16 value)
+{
+  modbus_t *raw = modbus_new_tcp ("127.0.0.1", (int) ds_modbus_server_port (server));
+  g_assert_cmpint (modbus_connect (raw), ==, 0);
+  int rc = modbus_write_register (raw, addr, value), e = errno;
+  modbus_close (raw);
+  modbus_free (raw);
+  errno = e;
+  return rc;
+}
+
+/* An adjustable projector: its range is in the status; a period inside it is written and lit
+ * (the controller's model projects it), one outside is refused by the backend before anything
+ * is written, naming the register and the range; the controller refuses it too (exception 03). */
+static void
+test_period_adjustable (void)
+{
+  DsModbusServerConfig cfg;
+  ds_modbus_server_config_init (&cfg);
+  cfg.period_centipx = 800;
+  cfg.period_min_centipx = 400;
+  cfg.period_max_centipx = 3000;
+  DsModbusServer *server = NULL;
+  DsIlluminator *ill = open_on (&cfg, &server);
+  g_autoptr (GError) error = NULL;
+  DsIlluminatorStatus s;
+  g_assert_true (ill->ops->get_status (ill->backend, &s, &error));
+  g_assert_true (s.period_adjustable);
+  g_assert_cmpfloat (s.period_min_px, ==, 4.0);
+  g_assert_cmpfloat (s.period_max_px, ==, 30.0);
+  DsStripePattern p = four_phases;
+  const double periods[] = { 4.0, 12.34, 30.0 };
+  for (guint i = 0; i < G_N_ELEMENTS (periods); i++) {
+    p.period_px = periods[i];
+    g_assert_true (ill->ops->set_pattern (ill->backend, &p, &error));
+    g_assert_no_error (error);
+    g_assert_true (ill->ops->set_phase (ill->backend, 1, 500, &error));
+    DsModbusServerState st = settled_state (server);
+    g_assert_cmpuint (st.period_centipx, ==, (guint) round (periods[i] * 100));
+  }
+  DsModbusServerState before = settled_state (server);
+  const double outside[] = { 3.99, 30.01 };
+  for (guint i = 0; i < G_N_ELEMENTS (outside); i++) {
+    p.period_px = outside[i];
+    g_assert_false (ill->ops->set_pattern (ill->backend, &p, &error));
+    g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_UNSUPPORTED);
+    g_assert_nonnull (strstr (error->message, "PERIOD_CENTIPX"));
+    g_assert_nonnull (strstr (error->message, "4.00 .. 30.00 px"));
+    g_autofree char *asked = g_strdup_printf ("asked for %.2f px", outside[i]);
+    g_assert_nonnull (strstr (error->message, asked));
+    g_clear_error (&error);
+  }
+  DsModbusServerState after = settled_state (server);
+  g_assert_cmpuint (after.requests, ==, before.requests);
+  g_assert_cmpuint (after.period_centipx, ==, 3000);
+  g_assert_cmpint (raw_write (server, DS_MB_HOLD_PERIOD_CENTIPX, 3001), ==, -1);
+  g_assert_cmpint (errno, ==, EMBXILVAL);
+  g_assert_cmpint (raw_write (server, DS_MB_HOLD_PERIOD_CENTIPX, 399), ==, -1);
+  g_assert_cmpint (errno, ==, EMBXILVAL);
+  ds_illuminator_close (ill);
+  ds_modbus_server_free (server);
+}
+
+/* A projector whose period is its optics': the status gives it; the backend refuses another
+ * one (UNSUPPORTED naming PERIOD_CENTIPX and the fixed period) and takes its own; a raw write of
+ * another period gets exception 03. */
+static void
+test_period_fixed (void)
+{
+  DsModbusServerConfig cfg;
+  ds_modbus_server_config_init (&cfg);
+  cfg.period_centipx = 825;
+  cfg.period_fixed = TRUE;
+  DsModbusServer *server = NULL;
+  DsIlluminator *ill = open_on (&cfg, &server);
+  g_autoptr (GError) error = NULL;
+  DsIlluminatorStatus s;
+  g_assert_true (ill->ops->get_status (ill->backend, &s, &error));
+  g_assert_false (s.period_adjustable);
+  g_assert_cmpfloat (s.period_min_px, ==, 8.25);
+  g_assert_cmpfloat (s.period_max_px, ==, 8.25);
+  DsStripePattern p = four_phases;
+  p.period_px = 16.5;
+  g_assert_false (ill->ops->set_pattern (ill->backend, &p, &error));
+  g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_UNSUPPORTED);
+  g_assert_nonnull (strstr (error->message, "PERIOD_CENTIPX"));
+  g_assert_nonnull (strstr (error->message, "fixed at 8.25 px"));
+  g_assert_nonnull (strstr (error->message, "asked for 16.50 px"));
+  g_clear_error (&error);
+  p.period_px = 8.25;
+  g_assert_true (ill->ops->set_pattern (ill->backend, &p, &error));
+  g_assert_true (ill->ops->set_phase (ill->backend, 2, 500, &error));
+  g_assert_no_error (error);
+  DsModbusServerState st = settled_state (server);
+  g_assert_cmpuint (st.period_centipx, ==, 825);
+  g_assert_cmpuint (st.phase, ==, 2);
+  g_assert_cmpint (raw_write (server, DS_MB_HOLD_PERIOD_CENTIPX, 826), ==, -1);
+  g_assert_cmpint (errno, ==, EMBXILVAL);
+  ds_illuminator_close (ill);
+  ds_modbus_server_free (server);
+}
+
+/* A controller of the first map (no CAPABILITIES: exception 02): opened and driven as before,
+ * its period taken as fixed at the first one it is given; another is refused, naming why. */
+static void
+test_period_revision_1 (void)
+{
+  DsModbusServerConfig cfg;
+  ds_modbus_server_config_init (&cfg);
+  cfg.map_revision_1 = TRUE;
+  DsModbusServer *server = NULL;
+  DsIlluminator *ill = open_on (&cfg, &server);
+  g_autoptr (GError) error = NULL;
+  modbus_t *raw = modbus_new_tcp ("127.0.0.1", (int) ds_modbus_server_port (server));
+  g_assert_cmpint (modbus_connect (raw), ==, 0);
+  guint16 caps;
+  g_assert_cmpint (modbus_read_input_registers (raw, DS_MB_INPUT_CAPABILITIES, 1, &caps), ==, -1);
+  g_assert_cmpint (errno, ==, EMBXILADD);
+  modbus_close (raw);
+  modbus_free (raw);
+  DsIlluminatorStatus s;
+  g_assert_true (ill->ops->get_status (ill->backend, &s, &error));
+  g_assert_no_error (error);
+  g_assert_cmpuint (s.firmware_version, ==, 0x0102);
+  g_assert_false (s.period_adjustable);
+  g_assert_cmpfloat (s.period_min_px, ==, 0);
+  g_assert_cmpfloat (s.period_max_px, ==, 0);
+  DsStripePattern p = four_phases;
+  p.period_px = 7.5;
+  for (guint i = 0; i < 2; i++) {
+    g_assert_true (ill->ops->set_pattern (ill->backend, &p, &error));
+    g_assert_true (ill->ops->set_phase (ill->backend, 3, 500, &error));
+    g_assert_no_error (error);
+  }
+  p.period_px = 15;
+  g_assert_false (ill->ops->set_pattern (ill->backend, &p, &error));
+  g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_UNSUPPORTED);
+  g_assert_nonnull (strstr (error->message, "PERIOD_CENTIPX"));
+  g_assert_nonnull (strstr (error->message, "CAPABILITIES"));
+  g_assert_nonnull (strstr (error->message, "7.50 px"));
+  g_assert_nonnull (strstr (error->message, "asked for 15.00 px"));
+  /* A reconnect (the sequencer's, after a fault) keeps what was first given. */
+  g_clear_error (&error);
+  g_assert_true (ill->ops->reconnect (ill->backend, &error));
+  g_assert_false (ill->ops->set_pattern (ill->backend, &p, &error));
+  g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_UNSUPPORTED);
+  ds_illuminator_close (ill);
+  ds_modbus_server_free (server);
+}
+
 /* Open refuses what is not our controller or not there. */
 static void
 test_open_errors (void)
@@ -635,6 +821,9 @@ main (int argc, char **argv)
   g_test_add_func ("/modbus/uri", test_uri);
   g_test_add_func ("/modbus/pattern-registers", test_pattern_registers);
   g_test_add_func ("/modbus/open-errors", test_open_errors);
+  g_test_add_func ("/modbus/period/adjustable", test_period_adjustable);
+  g_test_add_func ("/modbus/period/fixed", test_period_fixed);
+  g_test_add_func ("/modbus/period/revision-1", test_period_revision_1);
 #define ADD(path, fn) g_test_add ("/modbus/" path, Fixture, NULL, fixture_setup, fn, fixture_teardown)
   ADD ("sequence", test_sequence);
   ADD ("settle", test_settle);
