@@ -13,12 +13,14 @@ The projector draws any period of 2.00 .. 655.35 px written to PERIOD_CENTIPX (C
 PERIOD_ADJUSTABLE), or with --fixed-period-centipx C only its own C; with --map-revision 1 it is a
 controller of the first map, without CAPABILITIES .. PERIOD_MAX_CENTIPX.
 
-Fault knobs, armed by signals so a test can place them between two phase sets:
+Fault knobs, armed by signals so a test can place them between two phase sets. A signal is
+handled between two requests, some time after it was sent: each knob prints a line once armed
+("pymodbus-controller: armed busy", "pymodbus-controller: silent on|off"), and every request read
+after that line gets the fault, so a test that waits for the line knows which requests do.
   SIGUSR1   the next --busy-count requests (default 12) get exception 06 (server busy)
-  SIGUSR2   no answer at all for --silent-for seconds (default 1.5)
+  SIGUSR2   toggles silence: no answer at all until the next SIGUSR2
 
-Prints "pymodbus-controller: ready rtu=DEVICE light=HOST:PORT" once serving, "pymodbus-controller:
-armed busy" (or "armed silent") once a knob is armed; on SIGTERM prints
+Prints "pymodbus-controller: ready rtu=DEVICE light=HOST:PORT" once serving; on SIGTERM prints
 "pymodbus-controller: requests=R applies=A" and exits 0.
 """
 import argparse
@@ -121,21 +123,21 @@ class Controller:
 
 class Faults:
     def __init__(self, args):
-        self.busy_count, self.silent_for = args.busy_count, args.silent_for
+        self.busy_count = args.busy_count
         self.busy_left = 0
-        self.silent_until = 0.0
+        self.silent = False
 
     def arm_busy(self):
         self.busy_left = self.busy_count
         print("pymodbus-controller: armed busy", flush=True)
 
-    def arm_silent(self):
-        self.silent_until = time.monotonic() + self.silent_for
-        print("pymodbus-controller: armed silent", flush=True)
+    def toggle_silent(self):
+        self.silent = not self.silent
+        print(f"pymodbus-controller: silent {'on' if self.silent else 'off'}", flush=True)
 
     def verdict(self):
         """What the next request gets: 'silent', 'busy' or None."""
-        if time.monotonic() < self.silent_until:
+        if self.silent:
             return "silent"
         if self.busy_left > 0:
             self.busy_left -= 1
@@ -188,7 +190,6 @@ async def main():
     p.add_argument("--settle-ms", type=float, default=3.0)
     p.add_argument("--light-port", type=int)
     p.add_argument("--busy-count", type=int, default=12)
-    p.add_argument("--silent-for", type=float, default=1.5)
     p.add_argument("--fixed-period-centipx", type=int, default=0)
     p.add_argument("--map-revision", type=int, default=2, choices=(1, 2))
     args = p.parse_args()
@@ -219,7 +220,7 @@ async def main():
     for sig in (signal.SIGTERM, signal.SIGINT):
         loop.add_signal_handler(sig, stop.set)
     loop.add_signal_handler(signal.SIGUSR1, faults.arm_busy)
-    loop.add_signal_handler(signal.SIGUSR2, faults.arm_silent)
+    loop.add_signal_handler(signal.SIGUSR2, faults.toggle_silent)
     await stop.wait()
     for sig in (signal.SIGTERM, signal.SIGINT, signal.SIGUSR1, signal.SIGUSR2):
         loop.remove_signal_handler(sig)
