@@ -779,6 +779,11 @@ status_to_json (DsService *svc)
   json_builder_add_int_value (b, st.illuminator.applied_phase);
   add_uint (b, "apply_count", st.illuminator.apply_count);
   add_double (b, "temperature_c", st.illuminator.temperature_c);
+  /* Whether a second stripe period can be asked for (docs/registers.md, CAPABILITIES). */
+  json_builder_set_member_name (b, "period_adjustable");
+  json_builder_add_boolean_value (b, st.illuminator.period_adjustable);
+  add_double (b, "period_min_px", st.illuminator.period_min_px);
+  add_double (b, "period_max_px", st.illuminator.period_max_px);
   json_builder_end_object (b);
   json_builder_end_object (b);
   json_builder_set_member_name (b, "clients");

@@ -157,6 +157,15 @@ test_labsim_rtu (void)
   g_free (capture (c, &t, NULL));
   g_assert_cmpuint (t.ok, ==, 2);
   assert_accounting (c);
+  /* What the controller says of its period reaches the daemon's status (labsim's projector:
+   * PERIOD_ADJUSTABLE, 2.00 .. 655.35 px). */
+  g_autoptr (DsMessage) dev = test_daemon_call_ok (c, "status", NULL);
+  JsonObject *ill = json_node_get_object (json_object_get_member (
+      json_node_get_object (json_object_get_member (json_node_get_object (dev->reply->body), "devices")),
+      "illuminator"));
+  g_assert_true (json_object_get_boolean_member (ill, "period_adjustable"));
+  g_assert_cmpfloat (json_object_get_double_member (ill, "period_min_px"), ==, 2.0);
+  g_assert_cmpfloat (json_object_get_double_member (ill, "period_max_px"), ==, 655.35);
   g_assert_cmpint (test_daemon_stop (d), ==, 0);
   test_daemon_free (d);
   test_labsim_stop (l);
