@@ -138,6 +138,26 @@ expected_for (DsLabFill *f, const LightKey *key, GError **error)
   return e;
 }
 
+/* One row: mean + sigma z (z NULL: noiseless), clipped at 0 and `top`, rounded. Written for the
+ * auto-vectoriser (drivers/labsim/CMakeLists.txt builds this file with it, as proc/ does). */
+static inline __attribute__ ((always_inline)) void
+expose_row (const float *restrict m, const float *restrict s, const float *restrict z, guint16 *restrict o,
+            guint n, float top)
+{
+  if (!z) {
+    for (guint x = 0; x < n; x++) {
+      float v = m[x] < 0.0f ? 0.0f : m[x] > top ? top : m[x];
+      o[x] = (guint16) (v + 0.5f);
+    }
+    return;
+  }
+  for (guint x = 0; x < n; x++) {
+    float v = m[x] + s[x] * z[x];
+    v = v < 0.0f ? 0.0f : v > top ? top : v;
+    o[x] = (guint16) (v + 0.5f);
+  }
+}
+
 /* mean + sigma z, clipped at full well, rounded, clipped to the ADC range. */
 static void
 expose (DsLabFill *f, const Expected *e, double gain_db, guint64 frame_seed)
@@ -148,17 +168,9 @@ expose (DsLabFill *f, const Expected *e, double gain_db, guint64 frame_seed)
   /* ds_rng_seed mixes its seed through splitmix64: neighbouring frames get unrelated offsets. */
   ds_rng_seed (&rng, f->seed * 0x9E3779B97F4A7C15ull + frame_seed);
   for (guint y = 0; y < f->height; y++) {
-    const float *m = e->mean + (gsize) y * f->width;
-    const float *s = e->sigma + (gsize) y * f->width;
-    guint16 *o = f->frame + (gsize) y * f->width;
     const float *z = f->bank + (ds_rng_next (&rng) % (BANK_SIZE - f->width));
-    if (f->noiseless)
-      z = NULL;
-    for (guint x = 0; x < f->width; x++) {
-      float v = m[x] + (z ? s[x] * z[x] : 0.0f);
-      v = v < 0.0f ? 0.0f : v > top ? top : v;
-      o[x] = (guint16) (v + 0.5f);
-    }
+    expose_row (e->mean + (gsize) y * f->width, e->sigma + (gsize) y * f->width, f->noiseless ? NULL : z,
+                f->frame + (gsize) y * f->width, f->width, top);
   }
 }
 
@@ -201,6 +213,12 @@ ds_lab_pack (guint32 pf, const guint16 *values, gsize stride, guint depth, guint
     return FALSE;
   guint vb = value_bits (pf);
   guint shift = depth > vb ? depth - vb : 0;
+  /* 16-bit little-endian containers holding the values as they are: the rows as they are. */
+  if (bits == 16 && shift == 0 && G_BYTE_ORDER == G_LITTLE_ENDIAN) {
+    for (guint y = 0; y < h; y++)
+      memcpy (out + (gsize) y * w * 2, values + (gsize) y * stride, (gsize) w * 2);
+    return TRUE;
+  }
   gsize o = 0;
   guint64 acc = 0;
   guint nacc = 0;
