@@ -90,6 +90,10 @@ main (int argc, char **argv)
   rss_late = test_daemon_rss_kib (d);
   if (!rss_early) /* fewer than two results: no warm baseline, the growth is not measured */
     rss_early = rss_late;
+  /* The control connection has been idle since `start`: the daemon closes such a one after
+   * idle-timeout-ms (60 s), which a soak on a busy machine outlasts. A fresh one stops it. */
+  g_clear_pointer (&ctl, ds_client_free);
+  ctl = test_daemon_connect (d);
   g_autoptr (DsMessage) stop = test_daemon_call_ok (ctl, "stop", NULL);
   g_autoptr (DsMessage) status = test_daemon_call_ok (ctl, "status", NULL);
   gint64 acquired = test_json_int (status->reply->body, "frames.acquired");
