@@ -6,19 +6,6 @@
 
 #include "proc/proc_error.h"
 
-static inline double
-value_at (const DsImage *img, const void *row, guint x)
-{
-  switch (img->type) {
-  case DS_SAMPLE_U8:
-    return ((const guint8 *) row)[x];
-  case DS_SAMPLE_U16:
-    return ((const guint16 *) row)[x];
-  default:
-    return ((const float *) row)[x];
-  }
-}
-
 gboolean
 ds_column_stats_compute (const DsImage *a, const DsImage *b, double ceiling, DsColumnStats *out,
                          GError **error)
@@ -40,7 +27,7 @@ ds_column_stats_compute (const DsImage *a, const DsImage *b, double ceiling, DsC
     const void *ra = ds_image_row (a, y);
     const void *rb = b ? ds_image_row (b, y) : NULL;
     for (guint x = 0; x < w; x++) {
-      double va = value_at (a, ra, x), vb = rb ? value_at (b, rb, x) : 0.0;
+      double va = ds_image_sample (a, ra, x), vb = rb ? ds_image_sample (b, rb, x) : 0.0;
       if (!isfinite (va) || !isfinite (vb) || va >= top || vb >= top) {
         out->excluded++;
         continue;
@@ -96,7 +83,7 @@ ds_column_stats_noise_dn (const DsImage *a, const DsImage *b, double ceiling)
       double v[3];
       gboolean ok = TRUE;
       for (int i = 0; i < 3 && ok; i++) {
-        double va = value_at (a, r[i], x), vb = b ? value_at (b, q[i], x) : 0.0;
+        double va = ds_image_sample (a, r[i], x), vb = b ? ds_image_sample (b, q[i], x) : 0.0;
         ok = isfinite (va) && isfinite (vb) && va < top && vb < top;
         v[i] = va - vb;
       }

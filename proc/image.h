@@ -63,6 +63,21 @@ ds_image_row (const DsImage *image, guint y)
   return image->data + (gsize) y * image->stride;
 }
 
+/* Sample x of a row of `image` as a double, whatever the sample type: for statistics over
+ * frames of any depth, not for the hot per-pixel loops (those are written per type). */
+static inline double
+ds_image_sample (const DsImage *image, const void *row, guint x)
+{
+  switch (image->type) {
+  case DS_SAMPLE_U8:
+    return ((const guint8 *) row)[x];
+  case DS_SAMPLE_U16:
+    return ((const guint16 *) row)[x];
+  default:
+    return ((const float *) row)[x];
+  }
+}
+
 /* The pixels with rows packed back to back (no stride padding), little-endian as in memory on
  * the platforms we build for: the wire and file layout of a payload. */
 GBytes *ds_image_to_packed_bytes (const DsImage *image);

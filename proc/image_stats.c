@@ -2,19 +2,6 @@
 
 #include <math.h>
 
-static inline double
-sample_at (const DsImage *img, const void *row, guint x)
-{
-  switch (img->type) {
-  case DS_SAMPLE_U8:
-    return ((const guint8 *) row)[x];
-  case DS_SAMPLE_U16:
-    return ((const guint16 *) row)[x];
-  default:
-    return ((const float *) row)[x];
-  }
-}
-
 double
 ds_image_mean (const DsImage *img)
 {
@@ -23,7 +10,7 @@ ds_image_mean (const DsImage *img)
   for (guint y = 0; y < img->height; y++) {
     const void *row = ds_image_row (img, y);
     for (guint x = 0; x < img->width; x++) {
-      double v = sample_at (img, row, x);
+      double v = ds_image_sample (img, row, x);
       if (isfinite (v)) {
         total += v;
         n++;
@@ -51,7 +38,7 @@ ds_image_percentile (const DsImage *img, double p)
     const void *row = ds_image_row (img, y);
     for (guint x = 0; x < img->width; x++, i++)
       if (i % step == 0) {
-        float f = (float) sample_at (img, row, x);
+        float f = (float) ds_image_sample (img, row, x);
         if (isfinite (f))
           g_array_append_val (v, f);
       }
