@@ -5,6 +5,7 @@
 #include <sys/prctl.h>
 #include <string.h>
 #include <unistd.h>
+#include "tests/test_tree.h"
 
 static void
 die_with_parent (gpointer data)
@@ -83,24 +84,6 @@ test_daemon_stop (TestDaemon *d)
   return status;
 }
 
-static void
-remove_tree (const char *path)
-{
-  GDir *dir = g_dir_open (path, 0, NULL);
-  if (dir) {
-    const char *name;
-    while ((name = g_dir_read_name (dir))) {
-      g_autofree char *child = g_build_filename (path, name, NULL);
-      if (g_file_test (child, G_FILE_TEST_IS_DIR) && !g_file_test (child, G_FILE_TEST_IS_SYMLINK))
-        remove_tree (child);
-      else
-        g_unlink (child);
-    }
-    g_dir_close (dir);
-  }
-  g_rmdir (path);
-}
-
 void
 test_daemon_free (TestDaemon *d)
 {
@@ -108,7 +91,7 @@ test_daemon_free (TestDaemon *d)
     return;
   if (d->proc)
     test_daemon_stop (d);
-  remove_tree (d->dir);
+  test_remove_tree (d->dir);
   g_free (d->dir);
   g_free (d->socket_path);
   g_free (d->config_path);

@@ -8,6 +8,7 @@
 
 #include "daemon/output/result_files.h"
 #include "daemon/service/spool.h"
+#include "tests/test_tree.h"
 
 static DsResult *
 make_result (guint64 set_id, guint w, guint h)
@@ -38,21 +39,6 @@ count (const char *dir, const char *prefix, const char *suffix)
   while (d && (name = g_dir_read_name (d)))
     n += g_str_has_prefix (name, prefix) && g_str_has_suffix (name, suffix);
   return n;
-}
-
-static void
-remove_tree (const char *path)
-{
-  if (g_file_test (path, G_FILE_TEST_IS_DIR)) {
-    g_autoptr (GDir) d = g_dir_open (path, 0, NULL);
-    const char *name;
-    while (d && (name = g_dir_read_name (d))) {
-      g_autofree char *p = g_build_filename (path, name, NULL);
-      remove_tree (p);
-    }
-    g_rmdir (path);
-  } else
-    g_unlink (path);
 }
 
 /* Twelve large results recorded back to back while the writer works on the first: recording
@@ -86,7 +72,7 @@ test_never_waits_for_the_disk (void)
   g_assert_cmpuint (count (dir, "set-", ".h5"), ==, accepted);
   g_assert_cmpuint (count (dir, ".", ""), ==, 0);
   ds_spool_free (spool);
-  remove_tree (dir);
+  test_remove_tree (dir);
 }
 
 /* Over the byte cap the oldest sets go first, whole; the newest always stays. */
@@ -116,7 +102,7 @@ test_cap_removes_oldest (void)
   /* Nothing of a removed set is left. */
   g_assert_cmpuint (count (dir, "set-", ""), ==, 4 * kept);
   ds_spool_free (spool);
-  remove_tree (dir);
+  test_remove_tree (dir);
 }
 
 /* A continuous run goes into one growing HDF5 file, closed (renamed from .partial) when the run
@@ -149,7 +135,7 @@ test_run_file (void)
   g_assert_cmpuint (count (dir, "set-", "-000004.h5"), ==, 1);
   g_assert_cmpuint (count (dir, "set-", "-000004.json"), ==, 1);
   ds_spool_free (spool);
-  remove_tree (dir);
+  test_remove_tree (dir);
 }
 
 /* At start-up: the files of a set without its sidecar (an interrupted write) and temporaries go,
@@ -188,7 +174,7 @@ test_start_up_stock (void)
   ds_spool_get_stats (spool, &st);
   g_assert_cmpuint (st.bytes, ==, 30);
   ds_spool_free (spool);
-  remove_tree (dir);
+  test_remove_tree (dir);
 }
 
 int

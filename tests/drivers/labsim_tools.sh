@@ -70,7 +70,7 @@ echo "mbpoll: ok"
 
 # --- mbpoll -m rtu on the far end of the serial line (19200 8E1, the Modbus serial default). ----
 grep -q "rtu=$tmp/ttyA" "$tmp/out" || fail "the ready line does not name the serial line: $(cat "$tmp/out")"
-rtu() { timeout 10 mbpoll -m rtu -b 19200 -P even -a 1 -0 -1 -o 0.5 "$@"; }
+rtu() { timeout 10 mbpoll -m rtu -b 19200 -P even -a 1 -0 -1 -o 2 "$@"; }
 rtu -t 3 -r 0 -c 6 "$tmp/ttyB" >"$tmp/rin" 2>&1 || fail "mbpoll rtu read: $(cat "$tmp/rin")"
 grep -q '^\[0\]:[[:space:]]*17491$' "$tmp/rin" || fail "RTU: MAGIC is not 17491: $(cat "$tmp/rin")"
 rtu -t 4 -r 0 "$tmp/ttyB" 3 1 >"$tmp/rw" 2>&1 || fail "mbpoll rtu write: $(cat "$tmp/rw")"
@@ -138,7 +138,7 @@ missing=$(sed -n 's/^n_missing_packets *= *//p' "$tmp/stream2")
 [ -n "$missing" ] && [ "$missing" -gt 0 ] || fail "--gvsp-lost-ratio 0.05: no missing packet: $(cat "$tmp/stream2")"
 echo "arv-camera-test with 5% GVSP loss: $missing missing packets"
 # labsim's own pty, through its link (any baud: a pty has none).
-timeout 10 mbpoll -m rtu -b 115200 -P none -a 1 -0 -1 -o 0.5 -t 3 -r 0 -c 1 "$tmp/ttyLAB" >"$tmp/rpty" 2>&1 ||
+timeout 10 mbpoll -m rtu -b 115200 -P none -a 1 -0 -1 -o 2 -t 3 -r 0 -c 1 "$tmp/ttyLAB" >"$tmp/rpty" 2>&1 ||
   fail "mbpoll on labsim's pty: $(cat "$tmp/rpty")"
 grep -q '^\[0\]:[[:space:]]*17491$' "$tmp/rpty" || fail "pty: MAGIC is not 17491: $(cat "$tmp/rpty")"
 echo "mbpoll -m rtu on labsim's own pty: ok"

@@ -17,21 +17,7 @@
 #include "proc/phase_folder.h"
 #include "proc/separation.h"
 #include "sample_result.h"
-
-static void
-remove_tree (const char *path)
-{
-  if (g_file_test (path, G_FILE_TEST_IS_DIR)) {
-    g_autoptr (GDir) d = g_dir_open (path, 0, NULL);
-    const char *name;
-    while (d && (name = g_dir_read_name (d))) {
-      g_autofree char *p = g_build_filename (path, name, NULL);
-      remove_tree (p);
-    }
-    g_rmdir (path);
-  } else
-    g_unlink (path);
-}
+#include "tests/test_tree.h"
 
 static void
 assert_images_equal (const DsImage *a, const DsImage *b)
@@ -78,7 +64,7 @@ test_tiff_roundtrip (void)
   g_assert_false (ds_tiff_write (s->planes.transmissive, bad, &tags, &error));
   g_assert_error (error, DS_OUTPUT_ERROR, DS_OUTPUT_ERROR_IO);
   g_assert_nonnull (strstr (error->message, bad));
-  remove_tree (dir);
+  test_remove_tree (dir);
 }
 
 /* The scale is the largest power of two that keeps the maximum in 16 bits, so the maximum
@@ -177,7 +163,7 @@ test_write_all_kinds (void)
   /* Unknown kinds are named. */
   g_assert_false (ds_file_kinds_parse ("tiff,jpeg", &kinds, &error));
   g_assert_nonnull (strstr (error->message, "jpeg"));
-  remove_tree (dir);
+  test_remove_tree (dir);
 }
 
 /* A failure late in the set (the phase folder's name is taken) removes what was written and
@@ -200,7 +186,7 @@ test_failure_leaves_nothing (void)
   while ((name = g_dir_read_name (d)))
     n++;
   g_assert_cmpuint (n, ==, 1); /* only the folder that was there before */
-  remove_tree (dir);
+  test_remove_tree (dir);
 }
 
 /* The phase folder reads back through proc's loader (the one `descatterctl separate` uses
@@ -260,7 +246,7 @@ test_phase_folder_today_loader (void)
   g_assert_false (ds_phase_folder_write (s->raw, s->planes.meta, folder, &error));
   g_assert_error (error, DS_OUTPUT_ERROR, DS_OUTPUT_ERROR_IO);
   g_assert_cmpuint (count_hidden (dir), ==, 0);
-  remove_tree (dir);
+  test_remove_tree (dir);
 }
 
 /* A run closed normally is renamed to its final name; a result of another size is refused. */
@@ -293,7 +279,7 @@ test_hdf5_run_close_and_refuse (void)
   g_assert_no_error (error);
   g_assert_true (g_file_test (path, G_FILE_TEST_EXISTS));
   g_assert_false (g_file_test (partial, G_FILE_TEST_EXISTS));
-  remove_tree (dir);
+  test_remove_tree (dir);
 }
 
 int

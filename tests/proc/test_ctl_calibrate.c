@@ -11,6 +11,7 @@
 #include <string.h>
 
 #include "proc/image.h"
+#include "tests/test_tree.h"
 
 static char *
 spawn (const char *const *argv, int *status)
@@ -22,21 +23,6 @@ spawn (const char *const *argv, int *status)
   if (err && *err)
     g_test_message ("%s stderr: %s", argv[1], err);
   return g_strconcat (out ? out : "", err ? err : "", NULL);
-}
-
-static void
-remove_tree (const char *dir)
-{
-  g_autoptr (GDir) d = g_dir_open (dir, 0, NULL);
-  const char *name;
-  while (d && (name = g_dir_read_name (d))) {
-    g_autofree char *p = g_build_filename (dir, name, NULL);
-    if (g_file_test (p, G_FILE_TEST_IS_DIR))
-      remove_tree (p);
-    else
-      g_remove (p);
-  }
-  g_rmdir (dir);
 }
 
 /* Renders the clear scene, with the [illuminator] keys replaced; frames.json removed. */
@@ -187,7 +173,7 @@ check_scene (double period, double duty, double black, double blur)
   g_assert_cmpfloat (fabs (with_cal - 1), <, 0.01);
   if (blur > 0)
     g_assert_cmpfloat (fabs (with_theory - 1), >, 0.1);
-  remove_tree (dir);
+  test_remove_tree (dir);
 }
 
 static void
@@ -222,7 +208,7 @@ test_no_stripes (void)
   g_autofree char *out = spawn (argv, &status);
   g_assert_false (g_spawn_check_wait_status (status, NULL));
   g_assert_nonnull (strstr (out, "no stripes found"));
-  remove_tree (dir);
+  test_remove_tree (dir);
 }
 
 int

@@ -8,6 +8,7 @@
 
 #include "daemon/ctl/ctl_commands.h"
 #include "proc/image.h"
+#include "tests/test_tree.h"
 
 #define W 37 /* odd on purpose */
 #define H 9
@@ -87,21 +88,6 @@ read_out (const char *dir, const char *name)
   return img;
 }
 
-static void
-remove_tree (const char *dir)
-{
-  g_autoptr (GDir) d = g_dir_open (dir, 0, NULL);
-  const char *name;
-  while (d && (name = g_dir_read_name (d))) {
-    g_autofree char *p = g_build_filename (dir, name, NULL);
-    if (g_file_test (p, G_FILE_TEST_IS_DIR))
-      remove_tree (p);
-    else
-      g_remove (p);
-  }
-  g_rmdir (dir);
-}
-
 /* The scale of a 16-bit PNG output, from separation.json's list of files. */
 static double
 png_scale (const char *out, const char *name)
@@ -176,7 +162,7 @@ test_defaults_with_black (void)
   /* A second run in the same folder skips its own outputs and gives the same result. */
   g_assert_cmpint (run ("--quiet", dir, NULL), ==, 0);
   check_outputs (dir, 0.5, 0.0);
-  remove_tree (dir);
+  test_remove_tree (dir);
 }
 
 static void
@@ -202,7 +188,7 @@ test_duty_black_level_out_extrema (void)
   /* Nothing was written into the input folder. */
   g_autofree char *stray = g_build_filename (dir, "direct.png", NULL);
   g_assert_false (g_file_test (stray, G_FILE_TEST_EXISTS));
-  remove_tree (dir);
+  test_remove_tree (dir);
 }
 
 static void
@@ -222,7 +208,7 @@ test_float_input (void)
     }
   g_autofree char *preview = g_build_filename (dir, "transmissive-preview.png", NULL);
   g_assert_false (g_file_test (preview, G_FILE_TEST_EXISTS));
-  remove_tree (dir);
+  test_remove_tree (dir);
 }
 
 static void
@@ -242,7 +228,7 @@ test_errors (void)
   g_assert_cmpint (run ("-q", "--duty", "1.5", dir, NULL), ==, 2);
   g_assert_cmpint (run ("-q", "--black-level", "0.999", dir, NULL), ==, 2);
   g_assert_false (g_file_test (json, G_FILE_TEST_EXISTS));
-  remove_tree (dir);
+  test_remove_tree (dir);
 }
 
 int

@@ -10,6 +10,7 @@
 
 #include "daemon/ctl/ctl_commands.h"
 #include "proc/image.h"
+#include "tests/test_tree.h"
 
 #define W 60
 #define H 6
@@ -80,21 +81,6 @@ read_out (const char *dir, const char *name)
   return img;
 }
 
-static void
-remove_tree (const char *dir)
-{
-  g_autoptr (GDir) d = g_dir_open (dir, 0, NULL);
-  const char *name;
-  while (d && (name = g_dir_read_name (d))) {
-    g_autofree char *p = g_build_filename (dir, name, NULL);
-    if (g_file_test (p, G_FILE_TEST_IS_DIR))
-      remove_tree (p);
-    else
-      g_remove (p);
-  }
-  g_rmdir (dir);
-}
-
 /* The four phases as phase-0k.png, in order. */
 static char *
 make_set (void)
@@ -150,7 +136,7 @@ test_bit_depth_saturation (void)
     g_autofree char *sc = sidecar (W, H, 12u, 4095.0, N, P, frames);
     write_text (dir, "frames.json", sc);
     int status = run ("-q", "--no-preview", dir, NULL);
-    remove_tree (dir);
+    test_remove_tree (dir);
     g_assert_cmpint (status, ==, 1);
     return;
   }
@@ -181,7 +167,7 @@ test_bit_depth_saturation (void)
   g_assert_cmpuint (mask_at (out, 3, 1) & 1, ==, 1);
   g_assert_cmpuint (mask_at (out, 20, 4) & 1, ==, 1);
   g_assert_cmpuint (mask_at (out, 21, 4) & 1, ==, 0);
-  remove_tree (dir);
+  test_remove_tree (dir);
 }
 
 /* frames.json with two frames per phase, listed in acquisition order, and an image it does not
@@ -210,7 +196,7 @@ test_sidecar_averaging (void)
   g_assert_true (json_parser_load_from_file (parser, json, NULL));
   JsonObject *sep = json_object_get_object_member (json_node_get_object (json_parser_get_root (parser)), "separation");
   g_assert_cmpint (json_object_get_int_member (sep, "frames_per_phase"), ==, 2);
-  remove_tree (dir);
+  test_remove_tree (dir);
 }
 
 /* Sidecars that must be refused, each naming the key; nothing is written. */
@@ -251,7 +237,7 @@ test_sidecar_error (gconstpointer data)
     int status = run ("-q", "--no-preview", dir, NULL);
     g_autofree char *json = g_build_filename (dir, "separation.json", NULL);
     gboolean written = g_file_test (json, G_FILE_TEST_EXISTS);
-    remove_tree (dir);
+    test_remove_tree (dir);
     g_assert_false (written);
     g_assert_cmpint (status, ==, 1);
     return;
@@ -296,7 +282,7 @@ test_phase_order (gconstpointer data)
                                               : run ("--no-preview", "--out", out, dir, NULL);
     if (status == 0)
       assert_exact (out);
-    remove_tree (dir);
+    test_remove_tree (dir);
     g_assert_cmpint (status, ==, order_cases[i].status);
     return;
   }

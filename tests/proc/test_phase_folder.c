@@ -6,6 +6,7 @@
 
 #include "proc/phase_folder.h"
 #include "proc/proc_error.h"
+#include "tests/test_tree.h"
 
 static void
 write_image (const char *dir, const char *name, DsSampleType type, guint w, guint h, guint value)
@@ -22,18 +23,6 @@ write_image (const char *dir, const char *name, DsSampleType type, guint w, guin
   g_autoptr (GError) error = NULL;
   g_assert_true (ds_image_write (img, path, &error));
   g_assert_no_error (error);
-}
-
-static void
-remove_tree (const char *dir)
-{
-  g_autoptr (GDir) d = g_dir_open (dir, 0, NULL);
-  const char *name;
-  while (d && (name = g_dir_read_name (d))) {
-    g_autofree char *p = g_build_filename (dir, name, NULL);
-    g_remove (p);
-  }
-  g_rmdir (dir);
 }
 
 static void
@@ -88,7 +77,7 @@ test_layout (void)
   g_assert_cmpuint (((guint16 *) ds_image_row (black, 0))[0], ==, 7);
   g_assert_null (ds_phase_folder_read (f, 11, &error));
   g_assert_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT);
-  remove_tree (dir);
+  test_remove_tree (dir);
 }
 
 static void
@@ -168,7 +157,7 @@ test_errors (void)
   g_remove (bad);
   write_image (dir, "BLACK.tif", DS_SAMPLE_U8, 4, 4, 1);
   expect_open_error (dir, DS_PROC_ERROR_INVALID_ARGUMENT, "two black frames");
-  remove_tree (dir);
+  test_remove_tree (dir);
 }
 
 /* frames.json: its frames (several per phase, in its order) replace the names' guesses, images it
@@ -210,7 +199,7 @@ test_sidecar (void)
   g_assert_no_error (error);
   g_assert_cmpuint (((guint16 *) ds_image_row (black, 0))[0], ==, 8); /* 7.5 to the nearest DN */
   g_assert_cmpuint (black->bit_depth, ==, 10);
-  remove_tree (dir);
+  test_remove_tree (dir);
 }
 
 int

@@ -9,6 +9,7 @@
 
 #include "drivers/sim/sim_error.h"
 #include "drivers/sim/transport.h"
+#include "tests/test_tree.h"
 
 static const DsSlab slab = { 0.1, 4.0, 0.7, 1.0, 1.33, 1.0, 1.0 };
 
@@ -62,21 +63,6 @@ count_files (const char *dir)
   while (d && g_dir_read_name (d))
     n++;
   return n;
-}
-
-static void
-remove_tree (const char *dir)
-{
-  g_autoptr (GDir) d = g_dir_open (dir, 0, NULL);
-  const char *name;
-  while (d && (name = g_dir_read_name (d))) {
-    g_autofree char *p = g_build_filename (dir, name, NULL);
-    if (g_file_test (p, G_FILE_TEST_IS_DIR))
-      remove_tree (p);
-    else
-      g_unlink (p);
-  }
-  g_rmdir (dir);
 }
 
 /* Kernels without object planes: a few thousand photons, a small kernel. */
@@ -136,7 +122,7 @@ test_hit_and_keys (void)
   g_assert_true (hit);
   assert_same_kernels (diffusion, diffusion2);
   g_assert_cmpuint (count_files (sub), ==, 4);
-  remove_tree (dir);
+  test_remove_tree (dir);
 }
 
 static void
@@ -174,7 +160,7 @@ test_corrupt_recomputed (void)
     g_autoptr (DsSlabKernels) next = cached (DS_TRANSPORT_MONTE_CARLO, &slab, 9, dir, &hit);
     g_assert_true (hit);
   }
-  remove_tree (dir);
+  test_remove_tree (dir);
 }
 
 /* A whole, well-formed file of another key under this key's name (a copied cache, a name
@@ -198,8 +184,8 @@ test_wrong_key (void)
   g_assert_false (hit);
   g_autoptr (DsSlabKernels) direct = computed (DS_TRANSPORT_MONTE_CARLO, &slab, 10);
   assert_same_kernels (direct, again);
-  remove_tree (dir_a);
-  remove_tree (dir_b);
+  test_remove_tree (dir_a);
+  test_remove_tree (dir_b);
 }
 
 /* The renderer's kernels with their chain through two planes: a hit is the computation bit for
@@ -242,7 +228,7 @@ test_kernels_cached (void)
     g_assert_false (hit);
     assert_same_kernels (first, k);
   }
-  remove_tree (dir);
+  test_remove_tree (dir);
 }
 
 static void
@@ -284,7 +270,7 @@ test_default_dir_and_unwritable (void)
   g_assert_null (ds_slab_kernels_cached (&slab, &spec, empty, &hit, &error));
   g_assert_error (error, DS_SIM_ERROR, DS_SIM_ERROR_INVALID);
   g_assert_false (g_file_test (empty, G_FILE_TEST_EXISTS));
-  remove_tree (dir);
+  test_remove_tree (dir);
 }
 
 static int
