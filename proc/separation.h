@@ -188,6 +188,12 @@ gboolean ds_phase_set_set_dark (DsPhaseSet *set, const DsImage *dark, GError **e
  * otherwise each frame is folded at once and a later phase may not take a second frame. */
 gboolean ds_phase_set_accumulate (DsPhaseSet *set, guint phase, const DsImage *frame,
                                   GError **error);
+/* How many of the set's threads (params.threads) the following ds_phase_set_accumulate calls
+ * use, the caller's included; 0 (the default): all. Finalize always uses all. Folding is per
+ * pixel, so the result is the same bit for bit with any number. A caller folding while the
+ * same cores receive the next frame (descatterd) folds on one, leaving the others to the
+ * transfer, and uses all for the last frame, which nothing overlaps. */
+void ds_phase_set_set_fold_threads (DsPhaseSet *set, guint threads);
 
 /* Computes the result; every phase must have at least one frame. The set can then be reset. */
 DsSeparation *ds_phase_set_finalize (DsPhaseSet *set, GError **error);

@@ -186,11 +186,23 @@ ds_phase_set_frames_folded (const DsPhaseSet *set)
 }
 
 void
+ds_phase_set_run_rows_on (DsPhaseSet *set, guint max_threads, DsRowJob job, gpointer data)
+{
+  if (set->threads > 1 && max_threads != 1 && !set->pool)
+    set->pool = ds_worker_pool_new (set->threads);
+  ds_worker_pool_run_on (set->pool, max_threads, set->height, job, data);
+}
+
+void
 ds_phase_set_run_rows (DsPhaseSet *set, DsRowJob job, gpointer data)
 {
-  if (set->threads > 1 && !set->pool)
-    set->pool = ds_worker_pool_new (set->threads);
-  ds_worker_pool_run (set->pool, set->height, job, data);
+  ds_phase_set_run_rows_on (set, 0, job, data);
+}
+
+void
+ds_phase_set_set_fold_threads (DsPhaseSet *set, guint threads)
+{
+  set->fold_threads = threads;
 }
 
 void
@@ -315,14 +327,14 @@ fold_pending_rows (gpointer data, guint y0, guint y1, guint thread)
 }
 
 static void
-fold_pending_phase (DsPhaseSet *set)
+fold_pending_phase (DsPhaseSet *set, guint max_threads)
 {
   if (set->current < 0 || !set->averaging)
     return;
   FoldJob j = { .set = set, .phase = (guint) set->current, .first = set->phases_folded == 0,
                 .inv = 1.0 / set->count[set->current] };
   ds_phase_set_reserve_scratch (set, set->width);
-  ds_phase_set_run_rows (set, fold_pending_rows, &j);
+  ds_phase_set_run_rows_on (set, max_threads, fold_pending_rows, &j);
   set->phases_folded++;
 }
 
@@ -514,12 +526,12 @@ ds_phase_set_accumulate (DsPhaseSet *set, guint phase, const DsImage *frame, GEr
 
   gboolean new_phase = (int) phase != set->current;
   if (new_phase && set->averaging)
-    fold_pending_phase (set);
+    fold_pending_phase (set, set->fold_threads);
 
   FoldJob j = { .set = set, .frame = frame, .phase = phase, .first = set->frames == 0,
                 .first_of_phase = set->count[phase] == 0 };
   ds_phase_set_reserve_scratch (set, set->width);
-  ds_phase_set_run_rows (set, fold_frame_rows, &j);
+  ds_phase_set_run_rows_on (set, set->fold_threads, fold_frame_rows, &j);
   if (!set->averaging)
     set->phases_folded++;
   set->count[phase]++;
@@ -531,6 +543,6 @@ ds_phase_set_accumulate (DsPhaseSet *set, guint phase, const DsImage *frame, GEr
 void
 ds_phase_set_fold_pending (DsPhaseSet *set)
 {
-  fold_pending_phase (set);
+  fold_pending_phase (set, 0);
   set->current = -1;
 }

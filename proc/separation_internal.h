@@ -52,6 +52,7 @@ struct DsPhaseSet {
 
   /* Threads: the pool is made on the first frame large enough to share. */
   guint threads;           /* resolved from params.threads */
+  guint fold_threads;      /* accumulate uses at most this many; 0: all */
   DsWorkerPool *pool;
   double *scratch;         /* threads x scratch_doubles, for row buffers */
   gsize scratch_doubles;
@@ -67,6 +68,8 @@ struct DsPhaseSet {
 /* Runs job over the set's rows on its threads (the pool is made on first use when the frame
  * is large enough). */
 void ds_phase_set_run_rows (DsPhaseSet *set, DsRowJob job, gpointer data);
+/* The same on at most max_threads of them (0: all). */
+void ds_phase_set_run_rows_on (DsPhaseSet *set, guint max_threads, DsRowJob job, gpointer data);
 /* Per-thread row scratch of at least `doubles` doubles, valid until the next call. */
 double *ds_phase_set_scratch (DsPhaseSet *set, guint thread);
 void ds_phase_set_reserve_scratch (DsPhaseSet *set, gsize doubles);

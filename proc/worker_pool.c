@@ -113,9 +113,18 @@ ds_worker_pool_threads (const DsWorkerPool *pool)
 void
 ds_worker_pool_run (DsWorkerPool *pool, guint n_rows, DsRowJob job, gpointer data)
 {
+  ds_worker_pool_run_on (pool, 0, n_rows, job, data);
+}
+
+void
+ds_worker_pool_run_on (DsWorkerPool *pool, guint max_threads, guint n_rows, DsRowJob job,
+                       gpointer data)
+{
   if (n_rows == 0)
     return;
   guint bands = pool ? MIN (pool->threads, n_rows) : 1;
+  if (max_threads)
+    bands = MIN (bands, max_threads);
   if (bands <= 1) {
     job (data, 0, n_rows, 0);
     return;

@@ -31,6 +31,10 @@ guint ds_worker_pool_threads (const DsWorkerPool *pool);
 /* Runs job over n_rows rows and returns when all are done. pool NULL: the caller's thread
  * does all the rows. Bands are never empty: fewer rows than threads use fewer threads. */
 void ds_worker_pool_run (DsWorkerPool *pool, guint n_rows, DsRowJob job, gpointer data);
+/* As ds_worker_pool_run on at most max_threads of the pool's threads (0: all), the caller's
+ * included: 1 runs every row on the caller's thread and wakes no worker. */
+void ds_worker_pool_run_on (DsWorkerPool *pool, guint max_threads, guint n_rows, DsRowJob job,
+                            gpointer data);
 
 /* The band of thread t out of `threads` over n_rows rows: [*y0, *y1), possibly empty. */
 void ds_worker_pool_band (guint n_rows, guint threads, guint t, guint *y0, guint *y1);

@@ -21,8 +21,9 @@ struct DsFoldWorker {
   DsFoldJob job;
 };
 
+/* overlapped: the next frame is being acquired meanwhile (the fold thread). */
 static void
-run_job (DsSequencer *seq, DsFoldJob *job)
+run_job (DsSequencer *seq, DsFoldJob *job, gboolean overlapped)
 {
   gint64 t = g_get_monotonic_time ();
   ds_seq_verify_frame (seq, job->settings, job->phase, job->frame, job->applied_at_us, &job->verdict);
@@ -30,6 +31,10 @@ run_job (DsSequencer *seq, DsFoldJob *job)
   if (job->verdict.reason != DS_DROP_N_REASONS)
     return;
   t = g_get_monotonic_time ();
+  /* While the next frame is acquired, the transfer (and on a rig like the benchmark's, the
+   * camera and the illuminator's controller) need a core: the fold takes one. Nothing overlaps
+   * with the last frame of a set: it takes all. */
+  ds_phase_set_set_fold_threads (seq->set, overlapped ? 1 : 0);
   job->folded = ds_phase_set_accumulate (seq->set, job->phase, job->frame->image, &job->fold_error);
   if (!job->folded)
     return;
@@ -58,7 +63,7 @@ worker_main (gpointer data)
     if (w->quit)
       break;
     g_mutex_unlock (&w->lock);
-    run_job (w->seq, &w->job);
+    run_job (w->seq, &w->job, TRUE);
     g_mutex_lock (&w->lock);
     w->has_job = FALSE;
     w->done = TRUE;
@@ -110,7 +115,7 @@ ds_fold_worker_submit (DsFoldWorker *w, const DsCaptureSettings *s, guint phase,
     /* Nothing to overlap with (the last frame of a set): no hand-over, no wake-up latency.
      * The worker is idle (no job), so the phase set is this thread's. */
     g_mutex_unlock (&w->lock);
-    run_job (w->seq, &w->job);
+    run_job (w->seq, &w->job, FALSE);
     g_mutex_lock (&w->lock);
     w->done = TRUE;
   } else {
