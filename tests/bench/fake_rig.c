@@ -2,6 +2,8 @@
 
 #include <arv.h>
 #include <math.h>
+#include <pthread.h>
+#include <sched.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -43,6 +45,28 @@ fill (ArvBuffer *buffer, void *data, guint32 exposure_time_us, guint32 gain, Arv
   g_atomic_int_inc (&rig->frames);
 }
 
+/* Aravis's fake camera thread polls its sockets with a timeout in whole milliseconds: with the
+ * trigger polled every 0.5 ms the timeout is always 0, and the thread spins on a core for as
+ * long as it streams. run_rate_bench.sh gives the benchmark a real-time priority, which the
+ * thread would inherit: it would then hold one of the machine's two cores outright, and the
+ * daemon (a real camera does its work on its own hardware) would run on the other. So the
+ * camera is made on a thread of the normal class, which its thread inherits: it takes what
+ * the daemon's and the ceiling's real-time threads leave, and still gets a core whenever they
+ * wait, as they do for each frame. The rest of the rig (Modbus server) keeps the caller's class. */
+static gpointer
+new_camera_thread (gpointer data)
+{
+  (void) data;
+  int policy;
+  struct sched_param sp;
+  if (pthread_getschedparam (pthread_self (), &policy, &sp) == 0 && policy != SCHED_OTHER) {
+    struct sched_param normal = { .sched_priority = 0 };
+    pthread_setschedparam (pthread_self (), SCHED_OTHER, &normal); /* lowering needs no privilege */
+  }
+  return g_object_new (ARV_TYPE_GV_FAKE_CAMERA, "interface-name", "127.0.0.1", "serial-number",
+                       "FR0001", NULL);
+}
+
 FakeRig *
 fake_rig_new (guint width, guint height, guint n_phases, guint settle_us)
 {
@@ -72,8 +96,7 @@ fake_rig_new (guint width, guint height, guint n_phases, guint settle_us)
     fake_rig_free (rig);
     return NULL;
   }
-  rig->gv = g_object_new (ARV_TYPE_GV_FAKE_CAMERA, "interface-name", "127.0.0.1", "serial-number",
-                          "FR0001", NULL);
+  rig->gv = g_thread_join (g_thread_new ("fake-rig-camera", new_camera_thread, NULL));
   if (!rig->gv || !arv_gv_fake_camera_is_running (rig->gv)) {
     fprintf (stderr, "fake rig: the GigE Vision fake camera cannot serve on 127.0.0.1:3956 "
                      "(port taken? run in a private network namespace)\n");
