@@ -1,5 +1,26 @@
 #include "drivers/gpio/gpio_backends.h"
 
+#include <string.h>
+
+#include "drivers/gpio/gpio_lines_socket.h"
+#include "drivers/gpio/gpio_wire.h"
+
+DsGpioLines *
+ds_gpio_lines_open (const char *chip, const guint *offsets, guint n_lines, const int *initial,
+                    const char *consumer, GError **error)
+{
+  if (!g_str_has_prefix (chip, DS_GPIO_WIRE_CHIP_PREFIX))
+    return ds_gpio_lines_request (chip, offsets, n_lines, initial, consumer, error);
+  const char *path = chip + strlen (DS_GPIO_WIRE_CHIP_PREFIX);
+  if (!g_path_is_absolute (path)) {
+    g_set_error (error, G_IO_ERROR, G_IO_ERROR_INVALID_ARGUMENT,
+                 "GPIO chip \"%s\": expected %s followed by the absolute path of descatter-labsim's "
+                 "--gpio-chip socket", chip, DS_GPIO_WIRE_CHIP_PREFIX);
+    return NULL;
+  }
+  return ds_gpio_lines_request_socket (chip, path, offsets, n_lines, initial, consumer, error);
+}
+
 DsIlluminator *
 ds_gpio_illuminator_open_from_config (const char *chip, const char *lines, int enable_line,
                                       GError **error)
@@ -20,7 +41,7 @@ ds_gpio_illuminator_open_from_config (const char *chip, const char *lines, int e
                    "GPIO illuminator: enable line %d is also a stripe line", enable_line);
       return NULL;
     }
-  DsGpioLines *stripes = ds_gpio_lines_request (chip, offsets, n, NULL, "descatter-stripes", &io);
+  DsGpioLines *stripes = ds_gpio_lines_open (chip, offsets, n, NULL, "descatter-stripes", &io);
   if (!stripes) {
     ds_gpio_propagate_error (error, io, DS_ILLUMINATOR_ERROR);
     return NULL;
@@ -28,7 +49,7 @@ ds_gpio_illuminator_open_from_config (const char *chip, const char *lines, int e
   DsGpioLines *enable = NULL;
   if (enable_line >= 0) {
     guint e = (guint) enable_line;
-    enable = ds_gpio_lines_request (chip, &e, 1, NULL, "descatter-enable", &io);
+    enable = ds_gpio_lines_open (chip, &e, 1, NULL, "descatter-enable", &io);
     if (!enable) {
       ds_gpio_lines_free (stripes);
       ds_gpio_propagate_error (error, io, DS_ILLUMINATOR_ERROR);
@@ -49,7 +70,7 @@ ds_gpio_trigger_open_from_config (const char *chip, int line, guint pulse_us, gb
   guint off = (guint) line;
   int idle = active_low ? 1 : 0;
   GError *io = NULL;
-  DsGpioLines *l = ds_gpio_lines_request (chip, &off, 1, &idle, "descatter-trigger", &io);
+  DsGpioLines *l = ds_gpio_lines_open (chip, &off, 1, &idle, "descatter-trigger", &io);
   if (!l) {
     ds_gpio_propagate_error (error, io, DS_TRIGGER_ERROR);
     return NULL;

@@ -68,6 +68,8 @@ ds_gpio_device_error_code (const GError *e)
     return DS_DEVICE_ERROR_BUSY;
   case G_IO_ERROR_INVALID_ARGUMENT:
     return DS_DEVICE_ERROR_INVALID;
+  case G_IO_ERROR_TIMED_OUT: /* a chip across a socket that stopped answering (gpio_lines_socket.h) */
+    return DS_DEVICE_ERROR_TIMEOUT;
   case G_IO_ERROR_NOT_FOUND:
   case G_IO_ERROR_CLOSED:
   case G_IO_ERROR_NO_SUCH_DEVICE:

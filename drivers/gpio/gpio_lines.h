@@ -56,7 +56,7 @@ DsGpioLines *ds_gpio_lines_new (const DsGpioLinesOps *ops, gpointer impl, const 
 gboolean ds_gpio_parse_offsets (const char *list, guint *offsets, guint *n_lines, GError **error);
 
 /* A line-layer GIOError as the device interfaces report it: BUSY, INVALID, DISCONNECTED (chip
- * or lines gone) or FAULT (any other I/O failure). */
+ * or lines gone), TIMEOUT (a socket chip that did not answer) or FAULT (any other failure). */
 DsDeviceError ds_gpio_device_error_code (const GError *io_error);
 /* Moves a line-layer error into `domain` with that code, keeping the message. */
 void ds_gpio_propagate_error (GError **dest, GError *io_error, GQuark domain);

@@ -4,6 +4,7 @@ typedef struct {
   DsGpioLines *line;
   guint pulse_us;
   int active, idle;
+  gboolean reopen;         /* the line request was lost: request it again before the next pulse */
 } GpioTrigger;
 
 static gboolean
@@ -11,6 +12,8 @@ set_level (GpioTrigger *t, int level, GError **error)
 {
   GError *io = NULL;
   if (!ds_gpio_lines_set (t->line, &level, &io)) {
+    DsDeviceError code = ds_gpio_device_error_code (io);
+    t->reopen = code == DS_DEVICE_ERROR_DISCONNECTED || code == DS_DEVICE_ERROR_TIMEOUT;
     ds_gpio_propagate_error (error, io, DS_TRIGGER_ERROR);
     g_prefix_error (error, "GPIO trigger line %u: ", t->line->offsets[0]);
     return FALSE;
@@ -22,6 +25,20 @@ static gboolean
 gpio_fire (gpointer backend, GError **error)
 {
   GpioTrigger *t = backend;
+  /* The trigger interface has no reconnect op (the sequencer reconnects camera and illuminator):
+   * a trigger whose chip went away requests its line again here, at the idle level, so the set
+   * after the chip comes back pulses normally. */
+  if (t->reopen) {
+    GError *io = NULL;
+    if (!ds_gpio_lines_reopen (t->line, &io)) {
+      ds_gpio_propagate_error (error, io, DS_TRIGGER_ERROR);
+      g_prefix_error (error, "GPIO trigger line %u: requesting it again: ", t->line->offsets[0]);
+      return FALSE;
+    }
+    t->reopen = FALSE;
+    if (!set_level (t, t->idle, error))
+      return FALSE;
+  }
   if (!set_level (t, t->active, error))
     return FALSE;
   g_usleep (t->pulse_us);

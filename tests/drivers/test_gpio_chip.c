@@ -1,0 +1,323 @@
+/* descatter-labsim's simulated GPIO chip (drivers/labsim/gpio_chip_server.c) and the line backend
+ * that reaches it over its UNIX socket (drivers/gpio/gpio_lines_socket.c), in-process: the
+ * protocol of drivers/gpio/gpio_wire.h spoken by hand (every malformed request answered with a
+ * clear error, the chip still serving afterwards), the kernel's semantics (busy, out of range,
+ * released on close), the edges a trigger pulse makes, and the peer going away and coming back
+ * or falling silent (typed failure, bounded, then recovery). */
+#include <errno.h>
+#include <string.h>
+#include <sys/socket.h>
+#include <sys/un.h>
+#include <glib/gstdio.h>
+#include <unistd.h>
+
+#include "drivers/gpio/gpio_backends.h"
+#include "drivers/labsim/gpio_chip_server.h"
+
+typedef struct {
+  GMutex lock;
+  guint rising[8], falling[8];
+} Edges;
+
+static void
+on_edge (gpointer data, guint offset, gboolean rising)
+{
+  Edges *e = data;
+  g_mutex_lock (&e->lock);
+  if (offset < 8)
+    (rising ? e->rising : e->falling)[offset]++;
+  g_mutex_unlock (&e->lock);
+}
+
+static char *
+socket_path (const char *dir)
+{
+  return g_build_filename (dir, "gpio.sock", NULL);
+}
+
+static int
+raw_connect (const char *path)
+{
+  struct sockaddr_un a = { .sun_family = AF_UNIX };
+  g_strlcpy (a.sun_path, path, sizeof a.sun_path);
+  int fd = socket (AF_UNIX, SOCK_STREAM, 0);
+  g_assert_cmpint (connect (fd, (struct sockaddr *) &a, sizeof a), ==, 0);
+  struct timeval tv = { .tv_sec = 5 }; /* a missing answer fails the test instead of hanging it */
+  setsockopt (fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+  return fd;
+}
+
+/* Sends bytes as given and returns the one reply line, or NULL at EOF. */
+static char *
+raw_call_bytes (int fd, const char *bytes, gsize len)
+{
+  g_assert_cmpint (send (fd, bytes, len, MSG_NOSIGNAL), ==, (gssize) len);
+  GString *out = g_string_new (NULL);
+  char c;
+  gssize r;
+  while ((r = recv (fd, &c, 1, 0)) == 1 && c != '\n')
+    g_string_append_c (out, c);
+  g_assert_cmpint (r, >=, 0); /* not a receive timeout */
+  if (r == 0 && out->len == 0) {
+    g_string_free (out, TRUE);
+    return NULL;
+  }
+  return g_string_free (out, FALSE);
+}
+
+static char *
+raw_call (int fd, const char *request)
+{
+  g_autofree char *line = g_strdup_printf ("%s\n", request);
+  return raw_call_bytes (fd, line, strlen (line));
+}
+
+#define ASSERT_REPLY(fd, request, prefix)                                                          \
+  do {                                                                                             \
+    g_autofree char *r_ = raw_call (fd, request);                                                  \
+    g_assert_nonnull (r_);                                                                         \
+    if (!g_str_has_prefix (r_, prefix))                                                            \
+      g_error ("\"%s\" -> \"%s\", expected \"%s...\"", request, r_, prefix);                      \
+  } while (0)
+
+static void
+test_protocol (void)
+{
+  g_autofree char *dir = g_dir_make_tmp ("gpiochip-XXXXXX", NULL);
+  g_autofree char *path = socket_path (dir);
+  Edges e = { 0 };
+  g_autoptr (GError) error = NULL;
+  DsGpioChipServer *chip = ds_gpio_chip_server_new (path, 8, "test-chip", on_edge, &e, &error);
+  g_assert_no_error (error);
+
+  int a = raw_connect (path);
+  ASSERT_REPLY (a, "info", "ok lines=8 label=test-chip");
+  ASSERT_REPLY (a, "set 1", "err state set before request");
+  ASSERT_REPLY (a, "get", "err state");
+  ASSERT_REPLY (a, "", "err invalid empty request");
+  ASSERT_REPLY (a, "frobnicate 1", "err invalid unknown request \"frobnicate\"");
+  ASSERT_REPLY (a, "request t", "err invalid expected: request CONSUMER");
+  ASSERT_REPLY (a, "request t 0,99 0,0", "err range line 99 beyond the chip's 8 lines");
+  ASSERT_REPLY (a, "request t 8 0", "err range line 8");
+  ASSERT_REPLY (a, "request t 1,1 0,0", "err invalid line 1 requested twice");
+  ASSERT_REPLY (a, "request t 1,2 0", "err invalid values \"0\": expected 2 of 0 or 1");
+  ASSERT_REPLY (a, "request t 1,2 0,2", "err invalid values");
+  ASSERT_REPLY (a, "request t -1 0", "err invalid offsets");
+  ASSERT_REPLY (a, "request t 1,,2 0,0", "err invalid offsets");
+  ASSERT_REPLY (a, "request t 99999999999999999999 0", "err invalid offsets");
+  ASSERT_REPLY (a, "request t\t1 0", "err invalid");
+  {
+    g_autofree char *r = raw_call_bytes (a, "get\0junk\n", 9);
+    g_assert_true (g_str_has_prefix (r, "err invalid NUL byte"));
+  }
+  /* Nothing refused may have driven a line. */
+  for (guint i = 0; i < 8; i++)
+    g_assert_cmpint (ds_gpio_chip_server_level (chip, i), ==, 0);
+  g_assert_cmpuint (e.rising[1] + e.rising[2], ==, 0);
+
+  ASSERT_REPLY (a, "request first 1,2 1,0", "ok 8");
+  g_assert_cmpint (ds_gpio_chip_server_level (chip, 1), ==, 1);
+  g_assert_cmpint (ds_gpio_chip_server_level (chip, 2), ==, 0);
+  ASSERT_REPLY (a, "get", "ok 1,0");
+  ASSERT_REPLY (a, "set 0,1", "ok");
+  ASSERT_REPLY (a, "get", "ok 0,1");
+  ASSERT_REPLY (a, "set 1", "err invalid expected: set VAL[,VAL...] with 2 values");
+  ASSERT_REPLY (a, "set 1,1,1", "err invalid");
+  ASSERT_REPLY (a, "set 0,7", "err invalid");
+  ASSERT_REPLY (a, "get", "ok 0,1"); /* the refused sets changed nothing */
+  ASSERT_REPLY (a, "request again 3 0", "err state this connection already holds lines");
+  g_assert_cmpuint (e.rising[1], ==, 1);
+  g_assert_cmpuint (e.falling[1], ==, 1);
+  g_assert_cmpuint (e.rising[2], ==, 1);
+
+  /* Another connection: line 2 busy, naming its holder; line 3 free. */
+  int b = raw_connect (path);
+  ASSERT_REPLY (b, "request second 3,2 0,0", "err busy line 2 is busy: held by \"first\"");
+  ASSERT_REPLY (b, "request second 3 1", "ok 8");
+  /* Closing a connection releases its lines (levels kept): now they can be requested. */
+  close (a);
+  int c = raw_connect (path);
+  ASSERT_REPLY (c, "info", "ok"); /* the chip has seen the close before it answers c */
+  ASSERT_REPLY (c, "request third 1,2 0,1", "ok 8");
+
+  /* Hostile bytes: an over-long line is refused and its connection closed; the chip still serves. */
+  int d = raw_connect (path);
+  char junk[700];
+  memset (junk, 'x', sizeof junk);
+  g_autofree char *r = raw_call_bytes (d, junk, sizeof junk);
+  g_assert_true (g_str_has_prefix (r, "err invalid request longer than 512 bytes"));
+  char tail;
+  gssize tail_r = recv (d, &tail, 1, 0); /* closed by the chip (reset: it left bytes unread) */
+  g_assert_true (tail_r == 0 || (tail_r < 0 && errno == ECONNRESET));
+  close (d);
+  GRand *rand = g_rand_new_with_seed (16);
+  for (guint i = 0; i < 300; i++) {
+    int f = raw_connect (path);
+    char buf[64];
+    guint n = (guint) g_rand_int_range (rand, 1, sizeof buf);
+    for (guint k = 0; k < n; k++)
+      buf[k] = (char) g_rand_int_range (rand, 1, 256);
+    buf[n - 1] = '\n';
+    if (send (f, buf, n, MSG_NOSIGNAL) < 0)
+      g_error ("send: %s", g_strerror (errno));
+    close (f);
+  }
+  g_rand_free (rand);
+  ASSERT_REPLY (b, "get", "ok 1");
+  ASSERT_REPLY (c, "get", "ok 0,1");
+  DsGpioChipStats st;
+  ds_gpio_chip_server_stats (chip, &st);
+  g_assert_cmpuint (st.requests_ok, ==, 3);
+  close (b);
+  close (c);
+  ds_gpio_chip_server_free (chip);
+  g_assert_false (g_file_test (path, G_FILE_TEST_EXISTS)); /* the socket is removed */
+  g_rmdir (dir);
+}
+
+/* The trigger backend over the socket: each fire is one rising and one falling edge on the
+ * chip's line, in the order the polarity says; the chip's level is idle in between. */
+static void
+test_trigger_edges (void)
+{
+  g_autofree char *dir = g_dir_make_tmp ("gpiochip-XXXXXX", NULL);
+  g_autofree char *path = socket_path (dir);
+  g_autofree char *chip_name = g_strdup_printf ("labsim:%s", path);
+  Edges e = { 0 };
+  g_autoptr (GError) error = NULL;
+  DsGpioChipServer *chip = ds_gpio_chip_server_new (path, 8, NULL, on_edge, &e, &error);
+  g_assert_no_error (error);
+
+  DsTrigger *high = ds_gpio_trigger_open_from_config (chip_name, 0, 50, FALSE, &error);
+  g_assert_no_error (error);
+  DsTrigger *low = ds_gpio_trigger_open_from_config (chip_name, 5, 50, TRUE, &error);
+  g_assert_no_error (error);
+  g_assert_cmpint (ds_gpio_chip_server_level (chip, 5), ==, 1); /* active-low idles high at once */
+  g_assert_cmpuint (e.rising[5], ==, 1);
+  for (guint i = 0; i < 5; i++) {
+    g_assert_true (high->ops->fire (high->backend, &error));
+    g_assert_no_error (error);
+    g_assert_true (low->ops->fire (low->backend, &error));
+    g_assert_no_error (error);
+  }
+  g_assert_cmpuint (e.rising[0], ==, 5);
+  g_assert_cmpuint (e.falling[0], ==, 5);
+  g_assert_cmpuint (e.falling[5], ==, 5);
+  g_assert_cmpuint (e.rising[5], ==, 1 + 5);
+  g_assert_cmpint (ds_gpio_chip_server_level (chip, 0), ==, 0);
+  g_assert_cmpint (ds_gpio_chip_server_level (chip, 5), ==, 1);
+
+  /* The GPIO illuminator drives the chip's lines as well: 4 stripe lines and an enable line. */
+  DsIlluminator *ill = ds_gpio_illuminator_open_from_config (chip_name, "1,2,3,4", 6, &error);
+  g_assert_no_error (error);
+  ds_illuminator_close (ill);
+
+  /* Busy (another consumer holds line 0) and out of range, with the kernel's codes. */
+  DsTrigger *again = ds_gpio_trigger_open_from_config (chip_name, 0, 50, FALSE, &error);
+  g_assert_null (again);
+  g_assert_error (error, DS_TRIGGER_ERROR, DS_DEVICE_ERROR_BUSY);
+  g_assert_nonnull (strstr (error->message, "line 0 is busy: held by \"descatter-trigger\""));
+  g_clear_error (&error);
+  again = ds_gpio_trigger_open_from_config (chip_name, 8, 50, FALSE, &error);
+  g_assert_null (again);
+  g_assert_error (error, DS_TRIGGER_ERROR, DS_DEVICE_ERROR_DISCONNECTED);
+  g_assert_nonnull (strstr (error->message, "line 8 beyond the chip's 8 lines"));
+  g_clear_error (&error);
+  ds_trigger_close (high);
+  again = ds_gpio_trigger_open_from_config (chip_name, 0, 50, FALSE, &error); /* released: free again */
+  g_assert_no_error (error);
+  ds_trigger_close (again);
+  ds_trigger_close (low);
+  ds_gpio_chip_server_free (chip);
+  g_rmdir (dir);
+}
+
+static void
+test_bad_chip (void)
+{
+  g_autoptr (GError) error = NULL;
+  DsTrigger *t = ds_gpio_trigger_open_from_config ("labsim:/nonexistent/gpio.sock", 0, 50, FALSE, &error);
+  g_assert_null (t);
+  g_assert_error (error, DS_TRIGGER_ERROR, DS_DEVICE_ERROR_DISCONNECTED);
+  g_assert_nonnull (strstr (error->message, "cannot open the chip"));
+  g_assert_nonnull (strstr (error->message, "--gpio-chip /nonexistent/gpio.sock"));
+  g_clear_error (&error);
+  t = ds_gpio_trigger_open_from_config ("labsim:relative.sock", 0, 50, FALSE, &error);
+  g_assert_null (t);
+  g_assert_error (error, DS_TRIGGER_ERROR, DS_DEVICE_ERROR_INVALID);
+  g_assert_nonnull (strstr (error->message, "absolute path"));
+}
+
+/* The chip goes away between two pulses and comes back: the fire in between fails
+ * DISCONNECTED, the next one after the return requests the line again and pulses. */
+static void
+test_peer_gone_and_back (void)
+{
+  g_autofree char *dir = g_dir_make_tmp ("gpiochip-XXXXXX", NULL);
+  g_autofree char *path = socket_path (dir);
+  g_autofree char *chip_name = g_strdup_printf ("labsim:%s", path);
+  Edges e = { 0 };
+  g_autoptr (GError) error = NULL;
+  DsGpioChipServer *chip = ds_gpio_chip_server_new (path, 8, NULL, on_edge, &e, &error);
+  g_assert_no_error (error);
+  DsTrigger *t = ds_gpio_trigger_open_from_config (chip_name, 0, 50, FALSE, &error);
+  g_assert_no_error (error);
+  g_assert_true (t->ops->fire (t->backend, &error));
+  ds_gpio_chip_server_free (chip);
+
+  g_assert_false (t->ops->fire (t->backend, &error));
+  g_assert_error (error, DS_TRIGGER_ERROR, DS_DEVICE_ERROR_DISCONNECTED);
+  g_assert_nonnull (strstr (error->message, "went away"));
+  g_clear_error (&error);
+  g_assert_false (t->ops->fire (t->backend, &error)); /* still gone: the new request fails */
+  g_assert_error (error, DS_TRIGGER_ERROR, DS_DEVICE_ERROR_DISCONNECTED);
+  g_assert_nonnull (strstr (error->message, "cannot open the chip"));
+  g_clear_error (&error);
+
+  Edges e2 = { 0 };
+  chip = ds_gpio_chip_server_new (path, 8, NULL, on_edge, &e2, &error);
+  g_assert_no_error (error);
+  g_assert_true (t->ops->fire (t->backend, &error));
+  g_assert_no_error (error);
+  g_assert_true (t->ops->fire (t->backend, &error));
+  g_assert_cmpuint (e2.rising[0], ==, 2);
+  g_assert_cmpuint (e2.falling[0], ==, 2);
+  ds_trigger_close (t);
+  ds_gpio_chip_server_free (chip);
+  g_rmdir (dir);
+}
+
+/* A socket that accepts and never answers (a wedged chip): the request fails TIMEOUT instead of
+ * hanging. */
+static void
+test_silent_peer (void)
+{
+  g_autofree char *dir = g_dir_make_tmp ("gpiochip-XXXXXX", NULL);
+  g_autofree char *path = socket_path (dir);
+  g_autofree char *chip_name = g_strdup_printf ("labsim:%s", path);
+  struct sockaddr_un a = { .sun_family = AF_UNIX };
+  g_strlcpy (a.sun_path, path, sizeof a.sun_path);
+  int fd = socket (AF_UNIX, SOCK_STREAM, 0);
+  g_assert_cmpint (bind (fd, (struct sockaddr *) &a, sizeof a), ==, 0);
+  g_assert_cmpint (listen (fd, 4), ==, 0); /* connections queue; nobody reads them */
+  g_autoptr (GError) error = NULL;
+  DsTrigger *t = ds_gpio_trigger_open_from_config (chip_name, 0, 50, FALSE, &error);
+  g_assert_null (t);
+  g_assert_error (error, DS_TRIGGER_ERROR, DS_DEVICE_ERROR_TIMEOUT);
+  g_assert_nonnull (strstr (error->message, "no answer within"));
+  close (fd);
+  unlink (path);
+  g_rmdir (dir);
+}
+
+int
+main (int argc, char **argv)
+{
+  g_test_init (&argc, &argv, NULL);
+  g_test_add_func ("/gpio-chip/protocol", test_protocol);
+  g_test_add_func ("/gpio-chip/trigger-edges", test_trigger_edges);
+  g_test_add_func ("/gpio-chip/bad-chip", test_bad_chip);
+  g_test_add_func ("/gpio-chip/peer-gone-and-back", test_peer_gone_and_back);
+  g_test_add_func ("/gpio-chip/silent-peer", test_silent_peer);
+  return g_test_run ();
+}
