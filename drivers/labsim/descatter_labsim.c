@@ -12,6 +12,7 @@
 
 #include "build_info.h"
 #include "drivers/labsim/external_light.h"
+#include "drivers/labsim/gpio_chip_server.h"
 #include "drivers/labsim/lab_camera.h"
 #include "drivers/labsim/labsim_options.h"
 #include "drivers/labsim/modbus_server.h"
@@ -25,7 +26,10 @@ typedef struct {
   double scene_period_px;
   int sync_line;
   DsExternalLight *external; /* --light-from: another controller lights the scene */
+  int gpio_camera_line;
 } Lab;
+
+#define LABSIM_GPIO_LINES 8
 
 /* What the controller has lit right now, as the renderer wants it. */
 static void
@@ -55,6 +59,16 @@ on_apply (gpointer data, const DsModbusServerState *state)
   Lab *lab = data;
   ds_lab_camera_line_edge (lab->camera, (guint) lab->sync_line, TRUE);
   ds_lab_camera_line_edge (lab->camera, (guint) lab->sync_line, FALSE);
+}
+
+/* The simulated chip's line 0 is wired to a camera input: each level change is an edge there
+ * (the camera keeps only those its TriggerActivation names). Lines 1..7 are not connected. */
+static void
+on_gpio_edge (gpointer data, guint offset, gboolean rising)
+{
+  Lab *lab = data;
+  if (offset == 0)
+    ds_lab_camera_line_edge (lab->camera, (guint) lab->gpio_camera_line, rising);
 }
 
 static gboolean
@@ -155,6 +169,18 @@ run (const DsLabsimOptions *o)
   lab.sync_line = o->sync_line;
   if (o->sync_line >= 0)
     ds_modbus_server_set_apply_callback (lab.modbus, on_apply, &lab);
+  lab.gpio_camera_line = o->gpio_camera_line;
+  DsGpioChipServer *gpio = NULL;
+  if (o->gpio_chip &&
+      !(gpio = ds_gpio_chip_server_new (o->gpio_chip, LABSIM_GPIO_LINES, "descatter-labsim", on_gpio_edge, &lab,
+                                        &error))) {
+    fprintf (stderr, "descatter-labsim: %s\n", error->message);
+    ds_modbus_server_set_apply_callback (lab.modbus, NULL, NULL);
+    ds_lab_camera_free (camera);
+    ds_modbus_server_free (lab.modbus);
+    ds_external_light_free (lab.external);
+    return 1;
+  }
   g_autoptr (GMainLoop) loop = g_main_loop_new (NULL, FALSE);
   guint sig_term = g_unix_signal_add (SIGTERM, on_signal, loop);
   guint sig_int = g_unix_signal_add (SIGINT, on_signal, loop);
@@ -168,15 +194,20 @@ run (const DsLabsimOptions *o)
   const char *rtu = ds_modbus_server_rtu_path (lab.modbus);
   if (rtu)
     printf ("descatter-labsim: modbus RTU on %s, unit %d\n", rtu, o->modbus_unit_id);
+  if (gpio)
+    printf ("descatter-labsim: GPIO chip of %d lines on %s, line 0 wired to camera Line%d\n", LABSIM_GPIO_LINES,
+            o->gpio_chip, o->gpio_camera_line);
   /* Parsers look for "ready", then for key=value pairs: new keys go at the end. */
-  printf ("descatter-labsim: ready camera=%s modbus=%s:%u%s%s\n", camera_address, o->modbus_host,
-          ds_modbus_server_port (lab.modbus), rtu ? " rtu=" : "", rtu ? rtu : "");
+  printf ("descatter-labsim: ready camera=%s modbus=%s:%u%s%s%s%s\n", camera_address, o->modbus_host,
+          ds_modbus_server_port (lab.modbus), rtu ? " rtu=" : "", rtu ? rtu : "", gpio ? " gpio=" : "",
+          gpio ? o->gpio_chip : "");
   fflush (stdout);
   g_main_loop_run (loop);
 
   g_source_remove (sig_term);
   g_source_remove (sig_int);
   ds_modbus_server_set_apply_callback (lab.modbus, NULL, NULL);
+  ds_gpio_chip_server_free (gpio); /* before the camera its edges reach */
   guint64 frames = ds_lab_camera_frames (camera);
   ds_lab_camera_free (camera);
   DsModbusServerState st;

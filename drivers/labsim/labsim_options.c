@@ -52,6 +52,7 @@ ds_labsim_options_parse (DsLabsimOptions *o, int *argc, char ***argv, GError **e
   o->map_revision = 2;
   o->rtu_vanish_for = 1.0;
   o->sync_line = 0;
+  o->gpio_camera_line = 0;
   const GOptionEntry main_entries[] = {
     { "version", 'V', 0, G_OPTION_ARG_NONE, &o->version, "Print the version and exit", NULL },
     { "scene", 0, 0, G_OPTION_ARG_FILENAME, &o->scene_path, "Scene file (required)", "FILE" },
@@ -85,6 +86,11 @@ ds_labsim_options_parse (DsLabsimOptions *o, int *argc, char ***argv, GError **e
     { "light-from", 0, 0, G_OPTION_ARG_STRING, &o->light_from,
       "The camera sees the phase another controller lights (its registers read over Modbus TCP)",
       "tcp://HOST:PORT" },
+    { "gpio-chip", 0, 0, G_OPTION_ARG_FILENAME, &o->gpio_chip,
+      "Serve a simulated GPIO chip of 8 lines on this UNIX socket (drivers/gpio/gpio_wire.h); its line 0 "
+      "is wired to a camera line input (descatterd: [illuminator] gpio-chip=labsim:PATH)", "PATH" },
+    { "gpio-camera-line", 0, 0, G_OPTION_ARG_INT, &o->gpio_camera_line,
+      "The camera line input the GPIO chip's line 0 drives (default 0)", "N" },
     { NULL },
   };
   const GOptionEntry modbus_entries[] = {
@@ -153,6 +159,7 @@ ds_labsim_options_parse (DsLabsimOptions *o, int *argc, char ***argv, GError **e
     { "camera-vanish-after", &o->vanish_after, NULL, 0, G_MAXINT },
     { "camera-vanish-for", NULL, &o->vanish_for, 0, 3600 },
     { "sync-line", &o->sync_line, NULL, -1, 3 },
+    { "gpio-camera-line", &o->gpio_camera_line, NULL, 0, 3 },
     { "line-miss-every", &o->line_miss_every, NULL, 0, G_MAXINT },
     { "line-double-every", &o->line_double_every, NULL, 0, G_MAXINT },
     { "gain-max", NULL, &o->gain_max_db, 0, 24 },
@@ -174,6 +181,14 @@ ds_labsim_options_parse (DsLabsimOptions *o, int *argc, char ***argv, GError **e
     return FALSE;
   if (o->modbus_rtu_link && (!o->modbus_rtu || strcmp (o->modbus_rtu, "pty") != 0)) {
     g_set_error (error, G_OPTION_ERROR, G_OPTION_ERROR_BAD_VALUE, "--modbus-rtu-link needs --modbus-rtu pty");
+    return FALSE;
+  }
+  if (o->gpio_chip && o->sync_line == o->gpio_camera_line) {
+    /* One input, two outputs: every apply and every pulse would both expose, as miswired. */
+    g_set_error (error, G_OPTION_ERROR, G_OPTION_ERROR_BAD_VALUE,
+                 "--gpio-chip: the chip's line 0 and the projector's sync output (--sync-line %d) would both "
+                 "drive camera Line%d: unwire the sync (--sync-line -1) or wire the chip to another input "
+                 "(--gpio-camera-line N)", o->sync_line, o->gpio_camera_line);
     return FALSE;
   }
   o->modbus_port = 1502;
@@ -199,5 +214,6 @@ ds_labsim_options_clear (DsLabsimOptions *o)
   g_free (o->modbus_rtu_link);
   g_free (o->light_from);
   g_free (o->pixel_formats);
+  g_free (o->gpio_chip);
   memset (o, 0, sizeof *o);
 }

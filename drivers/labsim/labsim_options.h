@@ -42,6 +42,10 @@ typedef struct {
   gboolean fixed_period;   /* the projector cannot change its period (the scene's) */
   int map_revision;        /* 1: no CAPABILITIES, PERIOD_CENTIPX stored but not drawn; default 2 */
   char *light_from;        /* NULL: the camera sees labsim's own controller */
+
+  /* simulated GPIO chip (gpio_chip_server.h) */
+  char *gpio_chip;         /* NULL: none; else the UNIX socket it is served on */
+  int gpio_camera_line;    /* the camera line input the chip's line 0 drives */
 } DsLabsimOptions;
 
 /* Parses argv (removing what it took). FALSE with a message naming the option on bad input. */
