@@ -93,7 +93,8 @@ static const KeySpec keys[] = {
   { "illuminator", "modbus-unit-id", K_UINT, F (modbus_unit_id), "1", 0, 247, NULL, "Modbus unit id" },
   { "illuminator", "modbus-timeout-ms", K_UINT, F (modbus_timeout_ms), "200", 5, 10000, NULL,
     "response timeout per Modbus request" },
-  { "illuminator", "gpio-chip", K_STRING, F (gpio_chip), NULL, 0, 0, NULL, "gpio: chip name or path" },
+  { "illuminator", "gpio-chip", K_STRING, F (gpio_chip), NULL, 0, 0, NULL,
+    "gpio: chip name or path (libgpiod), or labsim:/path/of/its.sock for descatter-labsim's --gpio-chip" },
   { "illuminator", "gpio-lines", K_STRING, F (gpio_lines), NULL, 0, 0, NULL,
     "gpio: comma-separated line offsets, one per stripe group" },
   { "illuminator", "gpio-enable-line", K_INT, F (gpio_enable_line), "-1", -1, 4095, NULL,
@@ -396,7 +397,12 @@ check_consistency (const DsConfig *c, const char *name, GError **error)
                   "sends none: set [trigger] backend = gpio with its gpio-line, or [camera] trigger = software",
                   c->camera_trigger);
   if (strcmp (c->trigger_backend, "gpio") == 0 && sim_camera)
-    INCONSISTENT ("[trigger] backend = gpio pulses a real line, which the simulated camera cannot see");
+    INCONSISTENT ("[trigger] backend = gpio pulses a line wired to a camera input, and the simulated camera "
+                  "([camera] backend = sim) has none: use a GigE Vision camera ([camera] backend = aravis; "
+                  "descatter-labsim's camera sees its own chip, [illuminator] gpio-chip = labsim:PATH)");
+  if (c->gpio_chip && g_str_has_prefix (c->gpio_chip, "labsim:") && !g_path_is_absolute (c->gpio_chip + 7))
+    INCONSISTENT ("[illuminator] gpio-chip = \"%s\": labsim: must be followed by the absolute path of "
+                  "descatter-labsim's --gpio-chip socket", c->gpio_chip);
   guint roi[4];
   if (c->roi && !ds_config_parse_roi (c->roi, roi, error)) {
     g_prefix_error (error, "%s: ", name);

@@ -156,6 +156,9 @@ test_refusals (void)
       DS_CONFIG_ERROR_INCONSISTENT, { "[camera] trigger = line0", "[trigger] backend = software" } },
     { SIM "[camera]\ntrigger=line1\n[trigger]\nbackend=gpio\ngpio-line=4\n[illuminator]\ngpio-chip=gpiochip0\n",
       DS_CONFIG_ERROR_INCONSISTENT, { "[trigger] backend = gpio", "simulated camera" } },
+    { "[camera]\nbackend=aravis\naddress=10.0.0.2\ntrigger=line0\n[trigger]\nbackend=gpio\ngpio-line=0\n"
+      "[illuminator]\nbackend=modbus\nmodbus-uri=tcp://a:1\ngpio-chip=labsim:run/gpio.sock\n",
+      DS_CONFIG_ERROR_INCONSISTENT, { "gpio-chip = \"labsim:run/gpio.sock\"", "absolute path" } },
     { "[camera]\nbackend=aravis\naddress=10.0.0.2\n[illuminator]\nbackend=modbus\nmodbus-uri=tcp://a:1\n"
       "[sim]\nfaults=stale=0.1\n", DS_CONFIG_ERROR_INCONSISTENT, { "[sim] faults", "no device is simulated" } },
     /* roi */
