@@ -319,10 +319,21 @@ ds_gpio_chip_server_new (const char *path, guint n_lines, const char *label, DsG
                  DS_GPIO_CHIP_SERVER_MAX_LINES);
     return NULL;
   }
-  int fd = listen_on (path, error);
-  if (fd < 0)
+  int stop_pipe[2];
+  if (pipe2 (stop_pipe, O_CLOEXEC) < 0) {
+    int e = errno;
+    g_set_error (error, G_IO_ERROR, g_io_error_from_errno (e), "GPIO chip \"%s\": %s", path, g_strerror (e));
     return NULL;
+  }
+  int fd = listen_on (path, error);
+  if (fd < 0) {
+    close (stop_pipe[0]);
+    close (stop_pipe[1]);
+    return NULL;
+  }
   DsGpioChipServer *s = g_new0 (DsGpioChipServer, 1);
+  s->stop_pipe[0] = stop_pipe[0];
+  s->stop_pipe[1] = stop_pipe[1];
   s->path = g_strdup (path);
   s->label = g_strdup (label ? label : "descatter-labsim");
   s->n_lines = n_lines;
@@ -332,8 +343,6 @@ ds_gpio_chip_server_new (const char *path, guint n_lines, const char *label, DsG
   g_mutex_init (&s->lock);
   for (guint k = 0; k < DS_GPIO_CHIP_SERVER_MAX_CLIENTS; k++)
     s->clients[k].fd = -1;
-  if (pipe2 (s->stop_pipe, O_CLOEXEC) < 0)
-    g_error ("pipe2: %s", g_strerror (errno)); /* out of descriptors at start: nothing to run */
   s->thread = g_thread_new ("labsim-gpio", serve, s);
   return s;
 }
