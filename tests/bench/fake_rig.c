@@ -47,12 +47,13 @@ fill (ArvBuffer *buffer, void *data, guint32 exposure_time_us, guint32 gain, Arv
 
 /* Aravis's fake camera thread polls its sockets with a timeout in whole milliseconds: with the
  * trigger polled every 0.5 ms the timeout is always 0, and the thread spins on a core for as
- * long as it streams. run_rate_bench.sh gives the benchmark a real-time priority, which the
+ * long as it streams. run_rate_bench.sh gives the benchmark real-time priority 2, which the
  * thread would inherit: it would then hold one of the machine's two cores outright, and the
  * daemon (a real camera does its work on its own hardware) would run on the other. So the
- * camera is made on a thread of the normal class, which its thread inherits: it takes what
- * the daemon's and the ceiling's real-time threads leave, and still gets a core whenever they
- * wait, as they do for each frame. The rest of the rig (Modbus server) keeps the caller's class. */
+ * camera is made on a thread one real-time priority lower (the normal class when there is none
+ * lower), which its thread inherits: it takes what the daemon's and the ceiling's threads
+ * leave, a core whenever they wait, and still comes before the other users' processes. The rest
+ * of the rig (the Modbus controller) keeps the caller's priority. */
 static gpointer
 new_camera_thread (gpointer data)
 {
@@ -60,8 +61,14 @@ new_camera_thread (gpointer data)
   int policy;
   struct sched_param sp;
   if (pthread_getschedparam (pthread_self (), &policy, &sp) == 0 && policy != SCHED_OTHER) {
-    struct sched_param normal = { .sched_priority = 0 };
-    pthread_setschedparam (pthread_self (), SCHED_OTHER, &normal); /* lowering needs no privilege */
+    /* lowering needs no privilege */
+    if (sp.sched_priority > sched_get_priority_min (policy)) {
+      sp.sched_priority--;
+      pthread_setschedparam (pthread_self (), policy, &sp);
+    } else {
+      struct sched_param normal = { .sched_priority = 0 };
+      pthread_setschedparam (pthread_self (), SCHED_OTHER, &normal);
+    }
   }
   return g_object_new (ARV_TYPE_GV_FAKE_CAMERA, "interface-name", "127.0.0.1", "serial-number",
                        "FR0001", NULL);
