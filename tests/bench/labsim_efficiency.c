@@ -40,7 +40,23 @@ main (int argc, char **argv)
   guint sets = quick ? 2 : 10;
   double wall = 0;
   for (guint i = 0; i < sets; i++) {
-    g_autoptr (DsMessage) m = test_daemon_call_ok (c, "capture", NULL);
+    g_autoptr (DsMessage) m = NULL;
+    /* On a starved machine labsim's camera may answer its heartbeat too late: control lost, the
+     * daemon reconnects and the set fails with a device error. That is the transport, not what
+     * this measures: such a set is captured again (at most 3 times) and reported. Anything else
+     * fails the run. */
+    for (guint attempt = 1;; attempt++) {
+      g_autoptr (GError) e = NULL;
+      m = ds_client_call (c, "capture", NULL, NULL, NULL, &e);
+      g_assert_no_error (e);
+      if (m->reply->ok)
+        break;
+      const char *why = m->reply->error_message ? m->reply->error_message : "";
+      if (m->reply->error_code != DS_PROTOCOL_ERROR_DEVICE || !strstr (why, "lost") || attempt == 3)
+        g_error ("capture failed: %s: %s", ds_protocol_error_name (m->reply->error_code), why);
+      printf ("  (capture failed on transport, attempt %u: %s; captured again)\n", attempt, why);
+      g_clear_pointer (&m, ds_message_free);
+    }
     wall += (double) (test_json_int (m->reply->body, "monotonic_us.last_frame") -
                       test_json_int (m->reply->body, "monotonic_us.started")) / 1000.0;
   }
