@@ -13,6 +13,7 @@
 #include "build_info.h"
 #include "drivers/labsim/external_light.h"
 #include "drivers/labsim/gpio_chip_server.h"
+#include "drivers/labsim/gpio_light.h"
 #include "drivers/labsim/lab_camera.h"
 #include "drivers/labsim/labsim_options.h"
 #include "drivers/labsim/modbus_server.h"
@@ -27,16 +28,44 @@ typedef struct {
   int sync_line;
   DsExternalLight *external; /* --light-from: another controller lights the scene */
   int gpio_camera_line;
+  GMutex gpio_lock;        /* gpio: set on the main thread, read on the camera thread */
+  DsGpioChipServer *gpio;
+  int gpio_stripe_lines, gpio_enable_line;
+  gint garbled_warned;
 } Lab;
 
-#define LABSIM_GPIO_LINES 8
+#define LABSIM_GPIO_LINES 16
+
+/* --gpio-stripe-lines: the light of the projector the chip's lines 1..N drive. */
+static void
+gpio_illumination (Lab *lab, DsRenderRequest *req)
+{
+  int levels[64] = { 0 };
+  g_mutex_lock (&lab->gpio_lock);
+  DsGpioChipServer *gpio = lab->gpio;
+  for (int j = 0; gpio && j < lab->gpio_stripe_lines; j++)
+    levels[j] = ds_gpio_chip_server_level (gpio, (guint) j + 1);
+  gboolean enabled =
+      gpio && (lab->gpio_enable_line < 0 || ds_gpio_chip_server_level (gpio, (guint) lab->gpio_enable_line) == 1);
+  g_mutex_unlock (&lab->gpio_lock);
+  guint phase = 0, n_phases = 1;
+  DsGpioLight light = ds_gpio_light_read (levels, (guint) lab->gpio_stripe_lines, &phase, &n_phases);
+  if (light == DS_GPIO_LIGHT_GARBLED && g_atomic_int_compare_and_exchange (&lab->garbled_warned, 0, 1))
+    g_warning ("GPIO stripe lines lit in no single run (or all lit): the camera sees them dark");
+  req->illuminator_on = enabled && light == DS_GPIO_LIGHT_STRIPE;
+  req->phase = phase;
+  req->n_phases = n_phases;
+  req->period_px = 0; /* the optics': the scene's */
+}
 
 /* What the controller has lit right now, as the renderer wants it. */
 static void
 illumination (gpointer data, DsRenderRequest *req)
 {
   Lab *lab = data;
-  if (lab->external)
+  if (lab->gpio_stripe_lines)
+    gpio_illumination (lab, req);
+  else if (lab->external)
     ds_external_light_read (lab->external, req);
   else {
     DsModbusServerState st;
@@ -132,6 +161,7 @@ run (const DsLabsimOptions *o)
     return 1;
   }
   Lab lab = { 0 };
+  g_mutex_init (&lab.gpio_lock);
   lab.scene_period_px = ds_scene_period_px (scene);
   lab.modbus = start_controller (o, lab.scene_period_px, &error);
   if (!lab.modbus) {
@@ -170,6 +200,8 @@ run (const DsLabsimOptions *o)
   if (o->sync_line >= 0)
     ds_modbus_server_set_apply_callback (lab.modbus, on_apply, &lab);
   lab.gpio_camera_line = o->gpio_camera_line;
+  lab.gpio_enable_line = o->gpio_enable_line;
+  lab.gpio_stripe_lines = o->gpio_stripe_lines;
   DsGpioChipServer *gpio = NULL;
   if (o->gpio_chip &&
       !(gpio = ds_gpio_chip_server_new (o->gpio_chip, LABSIM_GPIO_LINES, "descatter-labsim", on_gpio_edge, &lab,
@@ -181,6 +213,9 @@ run (const DsLabsimOptions *o)
     ds_external_light_free (lab.external);
     return 1;
   }
+  g_mutex_lock (&lab.gpio_lock);
+  lab.gpio = gpio;
+  g_mutex_unlock (&lab.gpio_lock);
   g_autoptr (GMainLoop) loop = g_main_loop_new (NULL, FALSE);
   guint sig_term = g_unix_signal_add (SIGTERM, on_signal, loop);
   guint sig_int = g_unix_signal_add (SIGINT, on_signal, loop);
@@ -195,8 +230,9 @@ run (const DsLabsimOptions *o)
   if (rtu)
     printf ("descatter-labsim: modbus RTU on %s, unit %d\n", rtu, o->modbus_unit_id);
   if (gpio)
-    printf ("descatter-labsim: GPIO chip of %d lines on %s, line 0 wired to camera Line%d\n", LABSIM_GPIO_LINES,
-            o->gpio_chip, o->gpio_camera_line);
+    printf ("descatter-labsim: GPIO chip of %d lines on %s, line 0 wired to camera Line%d%s\n", LABSIM_GPIO_LINES,
+            o->gpio_chip, o->gpio_camera_line,
+            o->gpio_stripe_lines ? ", lines 1.. to the stripe groups the camera sees" : "");
   /* Parsers look for "ready", then for key=value pairs: new keys go at the end. */
   printf ("descatter-labsim: ready camera=%s modbus=%s:%u%s%s%s%s\n", camera_address, o->modbus_host,
           ds_modbus_server_port (lab.modbus), rtu ? " rtu=" : "", rtu ? rtu : "", gpio ? " gpio=" : "",
@@ -207,6 +243,9 @@ run (const DsLabsimOptions *o)
   g_source_remove (sig_term);
   g_source_remove (sig_int);
   ds_modbus_server_set_apply_callback (lab.modbus, NULL, NULL);
+  g_mutex_lock (&lab.gpio_lock); /* the camera thread may be reading the stripe lines */
+  lab.gpio = NULL;
+  g_mutex_unlock (&lab.gpio_lock);
   ds_gpio_chip_server_free (gpio); /* before the camera its edges reach */
   guint64 frames = ds_lab_camera_frames (camera);
   ds_lab_camera_free (camera);
@@ -214,6 +253,7 @@ run (const DsLabsimOptions *o)
   ds_modbus_server_get_state (lab.modbus, &st);
   ds_modbus_server_free (lab.modbus);
   ds_external_light_free (lab.external);
+  g_mutex_clear (&lab.gpio_lock);
   fprintf (stderr, "descatter-labsim: stopped after %" G_GUINT64_FORMAT " frames, %" G_GUINT64_FORMAT
                    " Modbus requests\n", frames, st.requests);
   return 0;

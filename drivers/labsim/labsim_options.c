@@ -53,6 +53,7 @@ ds_labsim_options_parse (DsLabsimOptions *o, int *argc, char ***argv, GError **e
   o->rtu_vanish_for = 1.0;
   o->sync_line = 0;
   o->gpio_camera_line = 0;
+  o->gpio_enable_line = -1;
   const GOptionEntry main_entries[] = {
     { "version", 'V', 0, G_OPTION_ARG_NONE, &o->version, "Print the version and exit", NULL },
     { "scene", 0, 0, G_OPTION_ARG_FILENAME, &o->scene_path, "Scene file (required)", "FILE" },
@@ -87,10 +88,16 @@ ds_labsim_options_parse (DsLabsimOptions *o, int *argc, char ***argv, GError **e
       "The camera sees the phase another controller lights (its registers read over Modbus TCP)",
       "tcp://HOST:PORT" },
     { "gpio-chip", 0, 0, G_OPTION_ARG_FILENAME, &o->gpio_chip,
-      "Serve a simulated GPIO chip of 8 lines on this UNIX socket (drivers/gpio/gpio_wire.h); its line 0 "
+      "Serve a simulated GPIO chip of 16 lines on this UNIX socket (drivers/gpio/gpio_wire.h); its line 0 "
       "is wired to a camera line input (descatterd: [illuminator] gpio-chip=labsim:PATH)", "PATH" },
     { "gpio-camera-line", 0, 0, G_OPTION_ARG_INT, &o->gpio_camera_line,
       "The camera line input the GPIO chip's line 0 drives (default 0)", "N" },
+    { "gpio-stripe-lines", 0, 0, G_OPTION_ARG_INT, &o->gpio_stripe_lines,
+      "The GPIO chip's lines 1..N drive N stripe groups per period: the camera sees that projector "
+      "instead of the Modbus controller's (default 0: none)", "N" },
+    { "gpio-enable-line", 0, 0, G_OPTION_ARG_INT, &o->gpio_enable_line,
+      "With --gpio-stripe-lines: the chip line that must be high for the stripes to light (default -1: none)",
+      "N" },
     { NULL },
   };
   const GOptionEntry modbus_entries[] = {
@@ -160,6 +167,8 @@ ds_labsim_options_parse (DsLabsimOptions *o, int *argc, char ***argv, GError **e
     { "camera-vanish-for", NULL, &o->vanish_for, 0, 3600 },
     { "sync-line", &o->sync_line, NULL, -1, 3 },
     { "gpio-camera-line", &o->gpio_camera_line, NULL, 0, 3 },
+    { "gpio-stripe-lines", &o->gpio_stripe_lines, NULL, 0, 14 },
+    { "gpio-enable-line", &o->gpio_enable_line, NULL, -1, 15 },
     { "line-miss-every", &o->line_miss_every, NULL, 0, G_MAXINT },
     { "line-double-every", &o->line_double_every, NULL, 0, G_MAXINT },
     { "gain-max", NULL, &o->gain_max_db, 0, 24 },
@@ -189,6 +198,23 @@ ds_labsim_options_parse (DsLabsimOptions *o, int *argc, char ***argv, GError **e
                  "--gpio-chip: the chip's line 0 and the projector's sync output (--sync-line %d) would both "
                  "drive camera Line%d: unwire the sync (--sync-line -1) or wire the chip to another input "
                  "(--gpio-camera-line N)", o->sync_line, o->gpio_camera_line);
+    return FALSE;
+  }
+  if ((o->gpio_stripe_lines || o->gpio_enable_line >= 0) && !o->gpio_chip) {
+    g_set_error (error, G_OPTION_ERROR, G_OPTION_ERROR_BAD_VALUE, "--gpio-stripe-lines and --gpio-enable-line "
+                 "need --gpio-chip PATH");
+    return FALSE;
+  }
+  if (o->gpio_stripe_lines == 1 || (o->gpio_enable_line >= 0 && o->gpio_enable_line <= o->gpio_stripe_lines) ||
+      (o->gpio_enable_line >= 0 && !o->gpio_stripe_lines)) {
+    g_set_error (error, G_OPTION_ERROR, G_OPTION_ERROR_BAD_VALUE, "--gpio-stripe-lines %d --gpio-enable-line %d: "
+                 "expected 2..14 stripe lines (chip lines 1..N; line 0 is the camera's trigger) and an enable "
+                 "line above them, or -1", o->gpio_stripe_lines, o->gpio_enable_line);
+    return FALSE;
+  }
+  if (o->gpio_stripe_lines && o->light_from) {
+    g_set_error (error, G_OPTION_ERROR, G_OPTION_ERROR_BAD_VALUE,
+                 "--gpio-stripe-lines and --light-from both say what lights the scene: give one");
     return FALSE;
   }
   o->modbus_port = 1502;

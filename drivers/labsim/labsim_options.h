@@ -46,6 +46,8 @@ typedef struct {
   /* simulated GPIO chip (gpio_chip_server.h) */
   char *gpio_chip;         /* NULL: none; else the UNIX socket it is served on */
   int gpio_camera_line;    /* the camera line input the chip's line 0 drives */
+  int gpio_stripe_lines;   /* 0: none; else chip lines 1..N drive the stripe groups the camera sees */
+  int gpio_enable_line;    /* -1: none; else the chip line that must be high for any light */
 } DsLabsimOptions;
 
 /* Parses argv (removing what it took). FALSE with a message naming the option on bad input. */

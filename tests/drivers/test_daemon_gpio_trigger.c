@@ -246,6 +246,35 @@ test_double_trigger (void)
   rig_stop (r);
 }
 
+/* A rig of GPIO only: the illuminator's stripe lines are the chip's lines 1..8 (enable 9),
+ * which labsim's camera sees as its projector (--gpio-stripe-lines), and the trigger line 0. */
+static void
+test_gpio_illuminator (void)
+{
+  const char *lines[] = { "--gpio-stripe-lines", "8", "--gpio-enable-line", "9", NULL };
+  Rig *r = rig_start (lines);
+  g_autofree char *chip = labsim_chip (r);
+  g_autofree char *conf = g_strdup_printf (
+      "[camera]\nbackend=aravis\naddress=127.0.0.1\npixel-format=Mono12p\nexposure-us=%g\ngrab-timeout-ms=10000\n"
+      "trigger=line0\n"
+      "[illuminator]\nbackend=gpio\ngpio-chip=%s\ngpio-lines=1,2,3,4,5,6,7,8\ngpio-enable-line=9\n"
+      "pattern=square\nperiod-px=%g\nduty=%g\n"
+      "[trigger]\nbackend=gpio\ngpio-line=0\n"
+      "[acquisition]\nphases=4\naverages=2\ndark-frame=true\nphase-retries=4\n",
+      ds_scene_default_exposure_us (the_scene), chip, ds_scene_period_px (the_scene), ds_scene_duty (the_scene));
+  TestDaemon *d = test_daemon_start (conf, NULL);
+  g_autoptr (DsClient) c = test_daemon_connect (d);
+  for (guint i = 0; i < 2; i++) {
+    g_autofree char *why = NULL;
+    g_assert_true (capture_checked (c, &why));
+  }
+  Frames f = frames_status (c);
+  g_assert_cmpint (f.timeouts + f.stale + f.wrong + f.aborted, ==, 0);
+  g_assert_cmpint (test_daemon_stop (d), ==, 0);
+  test_daemon_free (d);
+  rig_stop (r);
+}
+
 int
 main (int argc, char **argv)
 {
@@ -260,6 +289,7 @@ main (int argc, char **argv)
   g_test_add_func ("/daemon-gpio-trigger/sets", test_sets);
   g_test_add_func ("/daemon-gpio-trigger/missed-trigger", test_missed_trigger);
   g_test_add_func ("/daemon-gpio-trigger/double-trigger-and-chip-errors", test_double_trigger);
+  g_test_add_func ("/daemon-gpio-trigger/gpio-illuminator", test_gpio_illuminator);
   int status = g_test_run ();
   truth_scene_free (the_scene, truth_t, truth_g);
   return status;

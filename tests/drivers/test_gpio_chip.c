@@ -13,6 +13,7 @@
 
 #include "drivers/gpio/gpio_backends.h"
 #include "drivers/labsim/gpio_chip_server.h"
+#include "drivers/labsim/gpio_light.h"
 
 typedef struct {
   GMutex lock;
@@ -310,6 +311,46 @@ test_silent_peer (void)
   g_rmdir (dir);
 }
 
+/* labsim reads the light of the stripe lines the GPIO illuminator drives: for every phase of
+ * several geometries, the lit run's centre is k/N of the period (the illuminator's mapping,
+ * written as a condition per line, against labsim's reading, a run and its centre). */
+static void
+test_light_from_lines (void)
+{
+  /* duty x L even: the lit groups tile [k/N - duty/2, k/N + duty/2) exactly. */
+  const struct { guint L, N; double duty; } geo[] = { { 8, 4, 0.5 }, { 6, 3, 1.0 / 3 }, { 12, 6, 0.5 },
+                                                       { 16, 8, 0.75 }, { 4, 2, 0.5 }, { 12, 4, 1.0 / 6 } };
+  for (guint g = 0; g < G_N_ELEMENTS (geo); g++)
+    for (guint k = 0; k < geo[g].N; k++) {
+      int v[DS_GPIO_MAX_LINES];
+      g_autoptr (GError) error = NULL;
+      g_assert_true (ds_gpio_stripe_values (geo[g].L, geo[g].N, geo[g].duty, k, v, &error));
+      guint phase = 99, n_phases = 0;
+      g_assert_cmpint (ds_gpio_light_read (v, geo[g].L, &phase, &n_phases), ==, DS_GPIO_LIGHT_STRIPE);
+      /* phase / n_phases == k / N, compared in integers */
+      if (phase * geo[g].N != k * n_phases)
+        g_error ("L=%u N=%u duty=%g phase %u: labsim reads %u/%u", geo[g].L, geo[g].N, geo[g].duty, k, phase,
+                 n_phases);
+    }
+  /* An odd number of lit groups cannot be centred on a group boundary: 12 lines, duty 1/4,
+   * phase 0 lights lines 11, 0, 1, whose light [11/12, 14/12) is centred half a group late. */
+  int odd[DS_GPIO_MAX_LINES];
+  g_assert_true (ds_gpio_stripe_values (12, 4, 0.25, 0, odd, NULL));
+  guint odd_phase, odd_n;
+  g_assert_cmpint (ds_gpio_light_read (odd, 12, &odd_phase, &odd_n), ==, DS_GPIO_LIGHT_STRIPE);
+  g_assert_cmpuint (odd_phase, ==, 1);
+  g_assert_cmpuint (odd_n, ==, 24);
+  const int dark[4] = { 0, 0, 0, 0 }, all[4] = { 1, 1, 1, 1 }, two_runs[6] = { 1, 0, 1, 1, 0, 0 };
+  const int wrap[6] = { 1, 0, 0, 0, 1, 1 }; /* lines 4, 5, 0: centre 5.5/6 = 11/12 */
+  guint phase, n_phases;
+  g_assert_cmpint (ds_gpio_light_read (dark, 4, &phase, &n_phases), ==, DS_GPIO_LIGHT_DARK);
+  g_assert_cmpint (ds_gpio_light_read (all, 4, &phase, &n_phases), ==, DS_GPIO_LIGHT_GARBLED);
+  g_assert_cmpint (ds_gpio_light_read (two_runs, 6, &phase, &n_phases), ==, DS_GPIO_LIGHT_GARBLED);
+  g_assert_cmpint (ds_gpio_light_read (wrap, 6, &phase, &n_phases), ==, DS_GPIO_LIGHT_STRIPE);
+  g_assert_cmpuint (phase, ==, 11);
+  g_assert_cmpuint (n_phases, ==, 12);
+}
+
 int
 main (int argc, char **argv)
 {
@@ -319,5 +360,6 @@ main (int argc, char **argv)
   g_test_add_func ("/gpio-chip/bad-chip", test_bad_chip);
   g_test_add_func ("/gpio-chip/peer-gone-and-back", test_peer_gone_and_back);
   g_test_add_func ("/gpio-chip/silent-peer", test_silent_peer);
+  g_test_add_func ("/gpio-chip/light-from-lines", test_light_from_lines);
   return g_test_run ();
 }
