@@ -169,17 +169,18 @@ def stream_and_start(d):
     p.kill()
     p.communicate()
     check("not acquiring" in line and "descatterctl start" in line, f"stream on an idle daemon says so: {line.strip()}")
-    r = d.ctl("start", "--no-dark-frame", "--target-error", "0.2")
-    check(r.returncode == 0, f"start --target-error: {r.stderr.strip()}")
+    r = d.ctl("start", "--no-dark-frame", "--target-error", "0.2", "--time-budget-ms", "4000")
+    check(r.returncode == 0, f"start --target-error --time-budget-ms: {r.stderr.strip()}")
     out = os.path.join(d.sock + "-stream")
     r = d.ctl("stream", "--count", "2", "--out", out, timeout=300)
     lines = [x for x in r.stdout.splitlines() if x.startswith("result ")]
     check(r.returncode == 0 and len(lines) == 2 and "not acquiring" not in r.stderr, "stream gets results while started")
     metas = [json.load(open(os.path.join(out, n))) for n in sorted(os.listdir(out))
              if n.startswith("set-") and n.endswith(".json")]
-    check(len(metas) == 2 and all(m["settings"].get("operating_point", {}).get("target_error") == 0.2 for m in metas)
+    ops = [m["settings"].get("operating_point", {}) for m in metas]
+    check(len(metas) == 2 and all(op.get("target_error") == 0.2 and op.get("time_budget_ms") == 4000 for op in ops)
           and all(m["settings"]["dark_frame"] is False for m in metas),
-          "the started sets follow --target-error and --no-dark-frame")
+          "the started sets follow --target-error, --time-budget-ms and --no-dark-frame")
     d.ctl("stop")
 
 
@@ -188,7 +189,8 @@ def automatic_capture(d, tmp):
     r = d.ctl("capture", "-q", "--target-error", "0.1", "--time-budget-ms", "5000", "--out", out)
     meta = json.load(open(result_json(out))) if r.returncode == 0 else {}
     op = meta.get("settings", {}).get("operating_point")
-    check(op is not None, f"capture --target-error/--time-budget-ms picks an operating point: {r.stderr.strip()}")
+    check(op is not None and op.get("target_error") == 0.1 and op.get("time_budget_ms") == 5000,
+          f"capture --target-error/--time-budget-ms picks an operating point for both: {r.stderr.strip()} {op}")
 
 
 def study_progress(tmp):
