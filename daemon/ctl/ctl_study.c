@@ -249,6 +249,13 @@ parse_double_list (const char *text, double **out, guint *n)
   return *n > 0;
 }
 
+/* g_ptr_array_sort hands the comparison pointers to the elements, not the elements. */
+static gint
+compare_paths (gconstpointer a, gconstpointer b)
+{
+  return g_strcmp0 (*(char *const *) a, *(char *const *) b);
+}
+
 int
 ds_ctl_study (int argc, char **argv)
 {
@@ -337,7 +344,7 @@ ds_ctl_study (int argc, char **argv)
     while ((name = g_dir_read_name (dir)))
       if (g_str_has_suffix (name, ".scene") && !strstr (name, "1024"))
         g_ptr_array_add (files, g_build_filename (scene_dir, name, NULL));
-    g_ptr_array_sort (files, (GCompareFunc) g_strcmp0);
+    g_ptr_array_sort (files, compare_paths);
   }
   const char *dir = out ? out : "study";
   g_mkdir_with_parents (dir, 0755);

@@ -6,6 +6,11 @@ Independent expectations:
 - in the scene without scattering (clear-grid), averaging M = 2 frames per phase lowers the
   transmissive error (shot and read noise average down by sqrt(2)), and the systematic part
   (noise-free frames) of maxmin on sharp stripes with aN >= 1 is zero;
+- that error is the shot-noise floor, a closed form: with no scattered light, max/min at N <= 4 and
+  duty 0.5 takes the maximum of one or two lit samples, whose RMS deviation is the noise's sigma
+  either way (E[max(X1, X2)^2] = 1 for standard normals), and sigma^2 = gain * Ld in DN. Over
+  the scene the relative RMSE is then sqrt(gain * f / mean) / sqrt(M), f the open fraction of
+  the wire grid and mean the truth's mean (the study's signal_dn), read noise 0.4 % of it;
 - sine is unbiased under noise, so its total error is never below its systematic part; every
   estimator's noise part falls with M where noise dominates;
 - forward-peaked scattering keeps more of the stripes at a coarser period (the scattering
@@ -25,13 +30,28 @@ import sys
 import tempfile
 
 
+def read_scene(path):
+    """The scene file's [section] key=value pairs (docs/scene-format.md)."""
+    out, section = {}, None
+    for line in open(path):
+        line = line.split("#", 1)[0].strip()
+        if line.startswith("[") and line.endswith("]"):
+            section = out.setdefault(line[1:-1], {})
+        elif "=" in line and section is not None:
+            k, v = line.split("=", 1)
+            section[k.strip()] = v.strip()
+    return out
+
+
 def main():
     ctl = sys.argv[1]
     with tempfile.TemporaryDirectory() as out:
         subprocess.run([ctl, "study", "--quick", "--quiet", "--out", out], check=True)
         rows = list(csv.DictReader(open(os.path.join(out, "study.csv"))))
         assert rows, "no study points"
-        scenes = {r["scene"] for r in rows}
+        order = list(dict.fromkeys(r["scene"] for r in rows))
+        assert order == sorted(order), f"scenes not run in name order: {order}"
+        scenes = set(order)
         assert {"clear-grid.scene", "milk-disc.scene", "tissue-veins.scene", "hdr-saturation.scene"} <= scenes, scenes
 
         def pick(scene, est, n, m, period=None):
@@ -46,6 +66,14 @@ def main():
             assert e2 < 0.9 * e1, f"N={n}: averaging did not reduce the error ({e1} -> {e2})"
             assert float(pick("clear-grid.scene", "maxmin", n, 1, 12)["systematic_transmissive"]) < 1e-4
             assert math.isnan(float(pick("clear-grid.scene", "maxmin", n, 1, 12)["rel_rmse_scattered"]))
+        scene = read_scene(os.path.join(os.environ["DESCATTER_DATA_DIR"], "scenes", "clear-grid.scene"))
+        pitch, line = float(scene["object.grid"]["pitch"]), float(scene["object.grid"]["line-width"])
+        open_fraction = ((pitch - line) / pitch) ** 2
+        for m in (1, 2):
+            r = pick("clear-grid.scene", "maxmin", 4, m, 12)
+            floor = math.sqrt(float(scene["sensor"]["system-gain"]) * open_fraction / float(r["signal_dn"]) / m)
+            got = float(r["rel_rmse_transmissive"])
+            assert 0.9 * floor < got < 1.1 * floor, f"clear-grid maxmin N=4 M={m}: {got} against shot noise {floor}"
         clear = [r for r in rows if r["scene"] == "clear-grid.scene"]
         assert all(int(r["masked"]) == 0 and int(r["saturated"]) == 0 for r in clear), \
             [(r["estimator"], r["phases"], r["averages"], r["masked"]) for r in clear if int(r["masked"])]
