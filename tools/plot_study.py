@@ -6,8 +6,9 @@ writes, per scene,
                               time, one curve per estimator: for each time the best configuration
                               of that estimator (any N, M, exposure, period), seeds averaged;
                               points whose frames clip are drawn hollow and never join a curve;
-  error-vs-n-<scene>.png      transmissive error against N at M = 1, base exposure, the scene's
-                              own period, with its systematic part (noise-free frames) dotted;
+  error-vs-n-<scene>.png      transmissive error against N at M = 1, base exposure, the first
+                              period of --periods (the scene's own by default), with its
+                              systematic part (noise-free frames) dotted;
   error-vs-period-<scene>.png the best transmissive error at each stripe period, split into its
                               noise and systematic parts: which period the medium needs."""
 import collections
@@ -30,8 +31,12 @@ def number(text):
 
 
 def load(path):
+    """Seeds averaged per configuration, and each scene's first period: the study runs the
+    periods in the order of --periods, whose default starts with the scene's own."""
     agg = collections.defaultdict(list)
+    first_period = {}
     for r in csv.DictReader(open(path)):
+        first_period.setdefault(r["scene"], float(r["period_px"]))
         key = (r["scene"], r["estimator"], int(r["phases"]), int(r["averages"]), float(r["exposure_factor"]),
                float(r["period_px"]))
         agg[key].append(r)
@@ -41,7 +46,7 @@ def load(path):
         out[k] = {"t": mean("rel_rmse_transmissive"), "g": mean("rel_rmse_scattered"),
                   "sys_t": number(v[0]["systematic_transmissive"]), "ms": number(v[0]["acquisition_ms"]),
                   "clipped": any(int(x["saturated"]) > 0 for x in v)}
-    return out
+    return out, first_period
 
 
 def front(points):
@@ -56,11 +61,11 @@ def front(points):
 
 def main():
     d = sys.argv[1]
-    data = load(os.path.join(d, "study.csv"))
+    data, first_period = load(os.path.join(d, "study.csv"))
     for scene in sorted({k[0] for k in data}):
         stem = scene.replace(".scene", "")
         rows = {k: v for k, v in data.items() if k[0] == scene}
-        own = collections.Counter(k[5] for k in rows if k[3] == 1 and k[4] == 1.0).most_common(1)[0][0]
+        own = first_period[scene]
 
         fig, ax = plt.subplots(figsize=(7, 4.5))
         for i, est in enumerate(sorted({k[1] for k in rows})):

@@ -1,0 +1,165 @@
+#!/usr/bin/python3
+"""The tables of docs/accuracy.md "What the measurements say", from `descatterctl study` output:
+    /usr/bin/python3 tools/study_tables.py STUDY_DIR
+prints Markdown: the error of each component against N (M = 1, base exposure, the first period
+of --periods: the scene's own by default), how the noise part falls with M and with exposure,
+the error at each stripe period, and the clipped configurations. Seeds are averaged; every
+number is read from STUDY_DIR/study.csv."""
+import collections
+import csv
+import math
+import os
+import sys
+
+
+def number(text):
+    try:
+        return float(text)
+    except ValueError:
+        return float("nan")
+
+
+def load(path):
+    groups = collections.defaultdict(list)
+    first_period = {}
+    for r in csv.DictReader(open(path)):
+        first_period.setdefault(r["scene"], float(r["period_px"]))
+        key = (r["scene"], r["estimator"], int(r["phases"]), int(r["averages"]), float(r["exposure_factor"]),
+               float(r["period_px"]))
+        groups[key].append(r)
+    out = {}
+    for k, rows in groups.items():
+        def mean(c):
+            return sum(number(x[c]) for x in rows) / len(rows)
+        out[k] = {c: mean(c) for c in ("rel_rmse_transmissive", "rel_rmse_scattered", "systematic_transmissive",
+                                       "systematic_scattered", "acquisition_ms")}
+        out[k]["saturated"] = max(int(x["saturated"]) for x in rows)
+        out[k]["pixels"] = int(rows[0]["valid"]) + int(rows[0]["masked"])
+    return out, first_period
+
+
+def noise(total, systematic):
+    if not (math.isfinite(total) and math.isfinite(systematic)):
+        return float("nan")
+    return math.sqrt(max(0.0, total * total - systematic * systematic))
+
+
+def fmt(v, digits=4):
+    return "–" if not math.isfinite(v) else f"{v:.{digits}f}"
+
+
+def short(scene):
+    return scene.replace(".scene", "")
+
+
+def slope(points):
+    """Least-squares slope of log(y) against log(x)."""
+    pts = [(math.log(x), math.log(y)) for x, y in points if x > 0 and y > 0 and math.isfinite(y)]
+    if len(pts) < 2:
+        return float("nan")
+    mx = sum(p[0] for p in pts) / len(pts)
+    my = sum(p[1] for p in pts) / len(pts)
+    sxx = sum((p[0] - mx) ** 2 for p in pts)
+    return sum((p[0] - mx) * (p[1] - my) for p in pts) / sxx if sxx else float("nan")
+
+
+def by_n(data, first_period, comp):
+    name = "transmissive" if comp == "t" else "scattered"
+    total, sys_ = (f"rel_rmse_{name}", f"systematic_{name}")
+    ns = sorted({k[2] for k in data})
+    print(f"\nRelative RMSE of **{name}**, total / systematic part, M = 1, base exposure, scene's own period:\n")
+    print("| scene (period) | estimator | " + " | ".join(f"N = {n}" for n in ns) + " |")
+    print("|---|---|" + "---|" * len(ns))
+    for scene in sorted(first_period):
+        p = first_period[scene]
+        for est in sorted({k[1] for k in data if k[0] == scene}):
+            cells = []
+            for n in ns:
+                v = data.get((scene, est, n, 1, 1.0, p))
+                cells.append("" if v is None else f"{fmt(v[total])} / {fmt(v[sys_])}")
+            print(f"| {short(scene)} ({p:g} px) | {est} | " + " | ".join(cells) + " |")
+
+
+def averaging(data, first_period):
+    print("\nNoise part of transmissive (sqrt(total² − systematic²)) at the scene's own period, N = 8, and "
+          "its log-log slope against M (base exposure) and against exposure (M = 1), clipped points left "
+          "out of the slopes, and no slope where the noise part at M = 1 is below a quarter of the systematic part; −0.5 is 1/√:\n")
+    ms = sorted({k[3] for k in data})
+    es = sorted({k[4] for k in data})
+    cols = [(m, 1.0) for m in ms] + [(1, e) for e in es if e != 1.0]
+    print("| scene | estimator | " + " | ".join(f"M = {m}, {e:g}×" for m, e in cols) +
+          " | slope vs M | slope vs exposure |")
+    print("|---|---|" + "---|" * (len(cols) + 2))
+    for scene in sorted(first_period):
+        p = first_period[scene]
+        for est in sorted({k[1] for k in data if k[0] == scene}):
+            def clipped(m, e):
+                return data.get((scene, est, 8, m, e, p), {}).get("saturated", 0) > 0
+
+            def nz(m, e, unclipped_only=False):
+                v = data.get((scene, est, 8, m, e, p))
+                if v is None or (unclipped_only and clipped(m, e)):
+                    return float("nan")
+                return noise(v["rel_rmse_transmissive"], v["systematic_transmissive"])
+            # Where the systematic part dominates, sqrt(total² − systematic²) is the difference of
+            # two close numbers and no measure of noise: no slope there.
+            base = data.get((scene, est, 8, 1, 1.0, p))
+            trusted = base is not None and nz(1, 1.0) > 0.25 * base["systematic_transmissive"]
+            sm = slope([(m, nz(m, 1.0, True)) for m in ms]) if trusted else float("nan")
+            se = slope([(e, nz(1, e, True)) for e in es]) if trusted else float("nan")
+            print(f"| {short(scene)} | {est} | " +
+                  " | ".join(fmt(nz(m, e)) + (" clipped" if clipped(m, e) else "") for m, e in cols) +
+                  f" | {fmt(sm, 2)} | {fmt(se, 2)} |")
+
+
+def periods(data, first_period):
+    print("\nAt each stripe period: the smallest systematic part of transmissive (any estimator and N, base "
+          "exposure: what no averaging removes), and the best unclipped configuration (any estimator, N, M, "
+          "exposure) with its noise + systematic parts and its time:\n")
+    print("| scene | period (px) | systematic floor (estimator, N) | best total (noise + systematic) | "
+          "estimator, N, M, exposure | time (ms) |")
+    print("|---|---|---|---|---|---|")
+    for scene in sorted(first_period):
+        for p in sorted({k[5] for k in data if k[0] == scene}):
+            keys = [k for k in data if k[0] == scene and k[5] == p]
+            base = [k for k in keys if k[4] == 1.0]
+            if not base:
+                continue
+            floor = min(base, key=lambda k: data[k]["systematic_transmissive"])
+            ok = [k for k in keys if not data[k]["saturated"]]
+            best = min(ok or keys, key=lambda k: data[k]["rel_rmse_transmissive"])
+            b = data[best]
+            print(f"| {short(scene)} | {p:g}{' (own)' if p == first_period[scene] else ''} | "
+                  f"{fmt(data[floor]['systematic_transmissive'])} ({floor[1]}, {floor[2]}) | "
+                  f"{fmt(b['rel_rmse_transmissive'])} ({fmt(noise(b['rel_rmse_transmissive'], b['systematic_transmissive']))}"
+                  f" + {fmt(b['systematic_transmissive'])}){'' if ok else ' clipped'} | "
+                  f"{best[1]}, {best[2]}, {best[3]}, {best[4]:g}× | {b['acquisition_ms']:.1f} |")
+
+
+def clipping(data, first_period):
+    print("\nClipped configurations (some frame reaches the clip level; their error leaves those pixels out):\n")
+    print("| scene | exposure | clipped / configurations | clipped pixels (max) |")
+    print("|---|---|---|---|")
+    for scene in sorted(first_period):
+        for e in sorted({k[4] for k in data if k[0] == scene}):
+            keys = [k for k in data if k[0] == scene and k[4] == e]
+            clipped = [k for k in keys if data[k]["saturated"]]
+            worst = max((data[k]["saturated"] for k in keys), default=0)
+            pixels = data[keys[0]]["pixels"]
+            print(f"| {short(scene)} | {e:g}× | {len(clipped)} / {len(keys)} | {worst} "
+                  f"({100.0 * worst / pixels:.1f} %) |")
+
+
+def main():
+    if len(sys.argv) != 2:
+        sys.exit("usage: study_tables.py STUDY_DIR")
+    data, first_period = load(os.path.join(sys.argv[1], "study.csv"))
+    by_n(data, first_period, "t")
+    by_n(data, first_period, "g")
+    averaging(data, first_period)
+    periods(data, first_period)
+    clipping(data, first_period)
+
+
+if __name__ == "__main__":
+    main()
