@@ -1,4 +1,5 @@
 #include "daemon/service/capture_settings.h"
+#include "daemon/service/phase_check.h"
 
 #include <math.h>
 #include <string.h>
@@ -23,7 +24,8 @@ ds_capture_settings_from_config (DsCaptureSettings *s, const DsConfig *c)
   /* A spool that records raw frames needs every set to keep them. */
   s->save_phases = c->spool_dir && c->spool_save_phases;
   /* A quarter of the phase step: a frame lit one phase off is then always refused. */
-  s->phase_tolerance_deg = isnan (c->phase_tolerance_deg) ? 90.0 / c->phases : c->phase_tolerance_deg;
+  s->phase_tolerance_deg = isnan (c->phase_tolerance_deg) ? ds_phase_check_default_tolerance_deg (c->phases)
+                                                      : c->phase_tolerance_deg;
 }
 
 void

@@ -1,15 +1,36 @@
 #include "daemon/service/phase_check.h"
 
 #include <math.h>
+#include <string.h>
 
 #include "proc/stripe_phase.h"
+
+/* How many noise sigmas a correct frame may deviate before the check could reject it: noise
+ * alone moves a phase past 5 sigma with probability 6e-7 (two-sided Gaussian), the same 5 the
+ * single-frame measurement asks of a stripe (DS_STRIPE_PHASE_MIN_SNR). A tolerance narrower
+ * than that cannot be checked: the frame is "unverifiable", not "wrong". */
+#define PHASE_CHECK_SIGMAS 5.0
 
 void
 ds_phase_check_init (DsPhaseCheck *check, double period_px, double tolerance_deg)
 {
-  *check = (DsPhaseCheck) { .period_px = period_px,
-                            .tolerance_cycles = tolerance_deg / 360.0,
-                            .min_confidence = DS_STRIPE_PHASE_MIN_SNR };
+  memset (check, 0, sizeof *check);
+  check->period_px = period_px;
+  check->tolerance_cycles = tolerance_deg / 360.0;
+  check->min_confidence = DS_STRIPE_PHASE_MIN_SNR;
+}
+
+void
+ds_phase_check_begin_set (DsPhaseCheck *check)
+{
+  check->set_n = 0;
+  memset (check->set_sum, 0, sizeof check->set_sum);
+  memset (check->set_count, 0, sizeof check->set_count);
+  memset (check->set_sumsq, 0, sizeof check->set_sumsq);
+  check->set_noise2 = 0;
+  check->set_frames = 0;
+  check->set_by_template = FALSE;
+  check->provisional = TRUE;
 }
 
 /* Rows kept for the measurement: the stripes vary along x only, so the rows are averaged into
@@ -51,6 +72,135 @@ dominant_period (const DsImage *rows, double *best_snr)
   return best;
 }
 
+/* The temporal noise of one pixel, from the differences of adjacent rows: the stripes vary
+ * along x only, the object mostly slowly along y, so the median absolute difference of row
+ * pairs is noise (edges along x, a few per cent of the pairs, do not move a median). The
+ * single-frame fit's own residual would count the object's texture and the square stripes'
+ * harmonics as noise, which they are not to a model that holds them fixed. Up to 64 pairs of
+ * rows and 1024 columns of each: a bounded cost whatever the frame. */
+#define NOISE_ROW_PAIRS 64
+#define NOISE_COLUMNS 1024
+
+static double
+pixel_noise_sigma (const DsImage *frame)
+{
+  if (frame->height < 2)
+    return INFINITY;
+  guint pairs = MIN (NOISE_ROW_PAIRS, frame->height / 2);
+  guint xstep = MAX (1u, frame->width / NOISE_COLUMNS);
+  guint cols = (frame->width + xstep - 1) / xstep;
+  g_autofree double *d = g_new (double, (gsize) pairs * cols);
+  gsize n = 0;
+  for (guint i = 0; i < pairs; i++) {
+    guint y = (guint) (((guint64) i * (frame->height - 1)) / pairs);
+    const void *r0 = ds_image_row (frame, y), *r1 = ds_image_row (frame, y + 1);
+    for (guint x = 0; x < frame->width; x += xstep) {
+      double v = fabs (ds_image_sample (frame, r1, x) - ds_image_sample (frame, r0, x));
+      if (isfinite (v))
+        d[n++] = v;
+    }
+  }
+  if (n == 0)
+    return INFINITY;
+  /* Median by selection (Wirth's): O(n). */
+  gssize l = 0, m = (gssize) n - 1, mid = (gssize) n / 2;
+  while (l < m) {
+    double pivot = d[mid];
+    gssize i = l, j = m;
+    do {
+      while (d[i] < pivot)
+        i++;
+      while (pivot < d[j])
+        j--;
+      if (i <= j) {
+        double t = d[i];
+        d[i] = d[j];
+        d[j] = t;
+        i++;
+        j--;
+      }
+    } while (i <= j);
+    if (j < mid)
+      l = i;
+    if (mid < i)
+      m = j;
+  }
+  /* |N(0, 2 s^2)| has median 0.6745 sqrt(2) s. Integer samples are no finer than their
+   * quantisation (1/sqrt(12) DN). */
+  double sigma = d[mid] / (0.6745 * G_SQRT2);
+  if (frame->type != DS_SAMPLE_F32)
+    sigma = MAX (sigma, 1.0 / sqrt (12.0));
+  return sigma;
+}
+
+static DsPhaseVerdict
+no_stripes (const DsPhaseCheck *check, const DsImage *rows, const DsStripePhase *sp, guint k, char **why)
+{
+  /* Say what to check: a wrong period-px shows as stripes at another period. */
+  double found_snr = 0;
+  double found = dominant_period (rows, &found_snr);
+  if (isfinite (found))
+    *why = g_strdup_printf ("no stripes at the configured period of %.1f px to verify phase %u (snr %.1f < %.1f), "
+                            "but the frame shows stripes with a period of about %.1f px (snr %.0f): "
+                            "check [illuminator] period-px (the period as the camera sees it)",
+                            check->period_px, k, sp->snr, check->min_confidence, found, found_snr);
+  else
+    *why = g_strdup_printf ("no stripes in the frame to verify phase %u (snr %.1f < %.1f at the configured "
+                            "period of %.1f px, and no other period stands out): check that the illuminator "
+                            "lights the camera's field of view, and the exposure (too much scattering or "
+                            "too little light leaves no measurable stripes; verify-phase=false skips the check)",
+                            k, sp->snr, check->min_confidence, check->period_px);
+  return DS_PHASE_VERDICT_UNVERIFIABLE;
+}
+
+static double
+cycles_of (const double c[2])
+{
+  double p = atan2 (c[1], c[0]) / (2.0 * G_PI);
+  return p - floor (p);
+}
+
+/* A frame equal, within its noise, to the frames already accepted for another phase h is a
+ * repeat of them (a duplicated or stale frame), however the scene biases phases: phases k and h
+ * differ by |a| |e^{i 2 pi k/N} - e^{i 2 pi h/N}|, and a is about the frame's own amplitude.
+ * Returns h, or n when there is none. */
+static guint
+repeat_of (const DsPhaseCheck *check, const double c[2], double sigma, guint k, guint n)
+{
+  if (n > DS_PHASE_CHECK_MAX_PHASES || check->set_n != n)
+    return n;
+  double amp = hypot (c[0], c[1]);
+  for (guint h = 0; h < n; h++) {
+    if (h == k || check->set_count[h] == 0)
+      continue;
+    double m[2] = { check->set_sum[h][0] / check->set_count[h], check->set_sum[h][1] / check->set_count[h] };
+    double noise = sigma * sqrt (1.0 + 1.0 / check->set_count[h]);
+    double apart = 2.0 * amp * fabs (sin (G_PI * (double) ((int) k - (int) h) / n));
+    /* Halfway between "the same" and "a phase apart", if the noise tells them apart. */
+    if (apart >= 2.0 * PHASE_CHECK_SIGMAS * noise && hypot (c[0] - m[0], c[1] - m[1]) < apart / 2)
+      return h;
+  }
+  return n;
+}
+
+static void
+set_add (DsPhaseCheck *check, const double c[2], double sigma, guint k)
+{
+  check->set_frames++;
+  check->set_noise2 = MAX (check->set_noise2, sigma * sigma);
+  check->set_sum[k][0] += c[0];
+  check->set_sum[k][1] += c[1];
+  check->set_sumsq[k] += c[0] * c[0] + c[1] * c[1];
+  check->set_count[k]++;
+}
+
+static void
+set_mean (const DsPhaseCheck *check, guint k, double m[2])
+{
+  m[0] = check->set_sum[k][0] / check->set_count[k];
+  m[1] = check->set_sum[k][1] / check->set_count[k];
+}
+
 DsPhaseVerdict
 ds_phase_check_frame (DsPhaseCheck *check, const DsImage *frame, guint k, guint n,
                       double *measured_cycles, char **why)
@@ -65,63 +215,144 @@ ds_phase_check_frame (DsPhaseCheck *check, const DsImage *frame, guint k, guint 
     rows.height = frame->height / step;
     rows.allocation = NULL;
   }
+  if (n > DS_PHASE_CHECK_MAX_PHASES || k >= n) {
+    *why = g_strdup_printf ("phase %u of %u: the phase check handles up to %u phases", k, n,
+                            DS_PHASE_CHECK_MAX_PHASES);
+    return DS_PHASE_VERDICT_UNVERIFIABLE;
+  }
   if (!ds_stripe_phase_measure (&rows, check->period_px, NULL, &sp, &error)) {
     *why = g_strdup_printf ("stripe phase not measurable: %s", error->message);
     return DS_PHASE_VERDICT_UNVERIFIABLE;
   }
   *measured_cycles = sp.phase;
-  if (!sp.reliable || sp.snr < check->min_confidence) {
-    /* Say what to check: a wrong period-px shows as stripes at another period. */
-    double found_snr = 0;
-    double found = dominant_period (&rows, &found_snr);
-    if (isfinite (found))
-      *why = g_strdup_printf ("no stripes at the configured period of %.1f px to verify phase %u (snr %.1f < %.1f), "
-                              "but the frame shows stripes with a period of about %.1f px (snr %.0f): "
-                              "check [illuminator] period-px (the period as the camera sees it)",
-                              check->period_px, k, sp.snr, check->min_confidence, found, found_snr);
-    else
-      *why = g_strdup_printf ("no stripes in the frame to verify phase %u (snr %.1f < %.1f at the configured "
-                              "period of %.1f px, and no other period stands out): check that the illuminator "
-                              "lights the camera's field of view, and the exposure (too much scattering or "
-                              "too little light leaves no measurable stripes; verify-phase=false skips the check)",
-                              k, sp.snr, check->min_confidence, check->period_px);
+  if (!sp.reliable || sp.snr < check->min_confidence)
+    return no_stripes (check, &rows, &sp, k, why);
+  if (check->set_frames > 0 && check->set_n != n) /* a caller that changed N within a set */
+    ds_phase_check_begin_set (check);
+  check->set_n = n;
+  double c[2] = { sp.amplitude * cos (2.0 * G_PI * sp.phase), sp.amplitude * sin (2.0 * G_PI * sp.phase) };
+  /* The noise of c per component: a profile of R rows fitted over C columns has
+   * var = 2 sigma_pixel^2 / (R C); the fit's own residual is the upper bound. */
+  double sigma = MIN (sp.amplitude / sp.snr,
+                      pixel_noise_sigma (frame) * sqrt (2.0 / ((double) rows.height * sp.columns_used)));
+  double sigma_cycles = sigma / sp.amplitude / (2.0 * G_PI);
+  double tol = check->tolerance_cycles;
+  if (!(PHASE_CHECK_SIGMAS * sigma_cycles <= tol)) {
+    *why = g_strdup_printf ("stripes too weak to verify phase %u of %u: the measured phase's noise (%.2f deg) "
+                            "times %.0f exceeds the tolerance of %.1f deg (snr %.0f; more light or "
+                            "averaging, or fewer phases)",
+                            k, n, sigma_cycles * 360.0, PHASE_CHECK_SIGMAS, tol * 360.0, sp.amplitude / sigma);
     return DS_PHASE_VERDICT_UNVERIFIABLE;
   }
-  double nominal = (double) k / n;
-  if (!check->offset_known && !check->provisional) {
-    /* The first frame of a set without a known offset defines it; the rest of the set must
-     * agree with it, or the set fails and the next one tries again. */
-    check->provisional = TRUE;
-    check->provisional_offset = ds_stripe_phase_diff (sp.phase, nominal);
-    return DS_PHASE_VERDICT_OK;
-  }
-  double offset = check->offset_known ? check->offset_cycles : check->provisional_offset;
-  double err = ds_stripe_phase_diff (sp.phase, nominal + offset);
-  if (fabs (err) > check->tolerance_cycles) {
-    /* Name the phase the frame looks like, which tells a stale frame from a stuck projector. */
-    double looks = (sp.phase - offset) * n;
-    long as_k = lround (looks - floor (looks / n) * n) % (long) n;
-    *why = g_strdup_printf ("frame for phase %u shows phase %.2f of %u (looks like phase %ld): "
-                            "off by %.1f deg, tolerance %.1f deg",
-                            k, looks - floor (looks / n) * n, n, as_k, err * 360.0,
-                            check->tolerance_cycles * 360.0);
+  guint rep = repeat_of (check, c, sigma, k, n);
+  if (rep < n) {
+    *why = g_strdup_printf ("frame for phase %u repeats the set's frame of phase %u (looks like phase %u: "
+                            "a duplicated or stale frame)",
+                            k, rep, rep);
     return DS_PHASE_VERDICT_WRONG;
   }
+  gboolean templates = check->prior_n == n;
+  if (check->set_frames == 0)
+    check->set_by_template = FALSE;
+  if (templates && (check->set_frames == 0 || check->set_by_template)) {
+    double err = ds_stripe_phase_diff (sp.phase, cycles_of (check->prior[k]));
+    if (fabs (err) <= tol) {
+      if (check->set_frames == 0)
+        check->set_by_template = TRUE;
+    } else {
+      /* The phase whose template the frame matches best. */
+      guint best_h = k;
+      double best = INFINITY;
+      for (guint h = 0; h < n; h++) {
+        double e = fabs (ds_stripe_phase_diff (sp.phase, cycles_of (check->prior[h])));
+        if (e < best) {
+          best = e;
+          best_h = h;
+        }
+      }
+      /* The set's first frame: wrong only if it is another phase's template within a quarter
+       * of the tolerance (a stale or early frame of an unchanged scene); otherwise the scene
+       * changed under the templates and the set is checked as a whole. */
+      if (check->set_by_template || (best_h != k && best <= tol / 4)) {
+        *why = g_strdup_printf ("frame for phase %u looks like phase %u of %u: off by %.1f deg from the last set's "
+                                "frame of phase %u, %.1f deg from its frame of phase %u (tolerance %.1f deg)",
+                                k, best_h, n, err * 360.0, k, best * 360.0, best_h, tol * 360.0);
+        return DS_PHASE_VERDICT_WRONG;
+      }
+    }
+  }
+  set_add (check, c, sigma, k);
   return DS_PHASE_VERDICT_OK;
 }
 
-void
-ds_phase_check_confirm (DsPhaseCheck *check)
+gboolean
+ds_phase_check_confirm (DsPhaseCheck *check, char **why)
 {
-  if (!check->provisional)
-    return;
-  check->offset_known = TRUE;
-  check->offset_cycles = check->provisional_offset;
   check->provisional = FALSE;
+  guint n = check->set_n;
+  if (n == 0 || check->set_frames == 0)
+    return TRUE;
+  for (guint h = 0; h < n; h++)
+    if (check->set_count[h] == 0) {
+      *why = g_strdup_printf ("phase check: the set has no verified frame of phase %u", h);
+      check->prior_n = 0;
+      return FALSE;
+    }
+  /* bin 0 (the fixed part) and bin 1 (the moving part) of the DFT over the phases. */
+  double b0[2] = { 0, 0 }, b1[2] = { 0, 0 };
+  for (guint h = 0; h < n; h++) {
+    double m[2];
+    set_mean (check, h, m);
+    double w = -2.0 * G_PI * (double) h / n;
+    b0[0] += m[0] / n;
+    b0[1] += m[1] / n;
+    b1[0] += (m[0] * cos (w) - m[1] * sin (w)) / n;
+    b1[1] += (m[0] * sin (w) + m[1] * cos (w)) / n;
+  }
+  double set_offset = cycles_of (b1);
+  double tol = check->tolerance_cycles;
+  if (!check->set_by_template) {
+    double amp = hypot (b1[0], b1[1]);
+    for (guint h = 0; h < n; h++) {
+      double m[2];
+      set_mean (check, h, m);
+      double moving[2] = { m[0] - b0[0], m[1] - b0[1] };
+      double err = ds_stripe_phase_diff (cycles_of (moving), set_offset + (double) h / n);
+      /* A wrong frame among the phase's averages shows as scatter beyond the noise. */
+      double scatter = check->set_count[h] > 1
+                           ? sqrt (MAX (0.0, check->set_sumsq[h] / check->set_count[h] - (m[0] * m[0] + m[1] * m[1])))
+                           : 0.0;
+      double scatter_cycles = scatter / amp / (2.0 * G_PI);
+      if (fabs (err) > tol || scatter_cycles > tol) {
+        *why = g_strdup_printf ("phase check of the whole set: the frames of phase %u of %u show phase %.2f "
+                                "(off by %.1f deg, spread %.1f deg; tolerance %.1f deg)",
+                                h, n, h + err * n, err * 360.0, scatter_cycles * 360.0, tol * 360.0);
+        check->prior_n = 0;
+        return FALSE;
+      }
+    }
+    if (check->offset_known && fabs (ds_stripe_phase_diff (set_offset, check->offset_cycles)) > tol) {
+      double off = ds_stripe_phase_diff (set_offset, check->offset_cycles);
+      *why = g_strdup_printf ("phase check of the whole set: its frames agree with each other but show phase 0 "
+                              "%.1f deg (%.2f phases) from where the illuminator puts it (tolerance %.1f deg)",
+                              off * 360.0, off * n, tol * 360.0);
+      check->prior_n = 0;
+      return FALSE;
+    }
+  }
+  if (!check->offset_known) {
+    check->offset_known = TRUE;
+    check->offset_cycles = set_offset;
+  }
+  for (guint h = 0; h < n; h++)
+    set_mean (check, h, check->prior[h]);
+  check->prior_n = n;
+  return TRUE;
 }
 
 void
 ds_phase_check_abandon (DsPhaseCheck *check)
 {
   check->provisional = FALSE;
+  check->prior_n = 0;
 }

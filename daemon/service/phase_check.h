@@ -1,7 +1,29 @@
-/* Proof that a frame was lit with the phase the sequencer applied: the stripe phase measured in
- * the frame itself (proc/stripe_phase) is compared with k/N plus the illuminator's own offset
- * (where its phase 0 falls on the sensor), which is learned from the first set whose frames
- * all agree with each other. Acquisition thread only. */
+/* Proof that a frame was lit with the phase the sequencer applied (docs/design.md, "Phase
+ * verification"). Acquisition or fold thread, one at a time (the sequencer hands it over).
+ *
+ * The stripe phase measured in one frame (proc/stripe_phase) is the phase of the first
+ * harmonic of everything in the frame at the stripe period, and not all of that moves with the
+ * illuminator: the object's own texture at that period (a grid whose pitch is a multiple of
+ * it, edges, vessels) times the stripes' mean stays where it is, and square stripes' higher
+ * harmonics alias onto the first at short periods. A correct frame's phase is therefore off by
+ * a scene-dependent bias, up to asin(|fixed part| / |moving part|) (17.6 deg on the wire grid,
+ * sine stripes of period 16 px, measured against an offset taken from one frame).
+ *
+ * So no frame is judged by its phase against the offset alone. Every frame must be measurable
+ * (5 noise sigmas inside the tolerance, else "unverifiable") and must not repeat a frame the set
+ * already accepted for another phase (a duplicated or stale frame: exact, whatever the bias).
+ * Then:
+ * - with templates (the last complete set's first harmonic per phase) and a scene that holds
+ *   still, a frame of phase k is compared with the template of phase k, which carries the same
+ *   bias: off by more than the tolerance (default half a phase step: k is the nearest phase) it
+ *   is wrong. The set's first frame decides whether the scene held still: near its own template
+ *   it did; exactly on another phase's template it is that phase (wrong); near neither, the
+ *   scene changed and the set is checked as a whole;
+ * - checked as a whole (the first set, a set whose scene changed): when the set is complete,
+ *   the fixed part is its mean over the phases (DFT bin 0) and the moving part's phase its bin
+ *   1; each phase's frames, less the fixed part, must show their phase within the tolerance,
+ *   and bin 1 the illuminator's offset (once learned). A set that fails fails as a whole
+ *   (ds_phase_check_confirm). */
 #pragma once
 #include <glib.h>
 
@@ -12,29 +34,55 @@ G_BEGIN_DECLS
 typedef enum {
   DS_PHASE_VERDICT_OK = 0,
   DS_PHASE_VERDICT_WRONG,        /* measured phase is another phase than k */
-  DS_PHASE_VERDICT_UNVERIFIABLE, /* no measurable modulation (illuminator off, too much scattering) */
+  DS_PHASE_VERDICT_UNVERIFIABLE, /* no measurable modulation, or too little to tell N phases apart */
 } DsPhaseVerdict;
+
+/* Templates and repeat detection are kept for up to this many phases (the configuration's
+ * limit); beyond it frames are checked against the offset alone. */
+#define DS_PHASE_CHECK_MAX_PHASES 64
 
 typedef struct {
   double period_px;
   double tolerance_cycles;   /* |measured - expected| allowed, in periods */
-  double min_confidence;     /* below this the measurement is "cannot tell" */
-  gboolean offset_known;     /* offset learned from a complete, self-consistent set */
+  double min_confidence;     /* below this snr the frame shows no stripes: "cannot tell" */
+  gboolean offset_known;     /* the illuminator's offset, learned from the first complete set */
   double offset_cycles;
-  /* Provisional offset while the first set is acquired. */
-  gboolean provisional;
-  double provisional_offset;
+  gboolean provisional;      /* a set is in progress: ds_phase_check_confirm or _abandon ends it */
+  /* The set in progress: its accepted frames' first harmonics (sums per phase, and the DFT
+   * bin that gives the offset), the first one as the reference while the offset is unknown. */
+  guint set_n;
+  double set_sum[DS_PHASE_CHECK_MAX_PHASES][2];
+  guint set_count[DS_PHASE_CHECK_MAX_PHASES];
+  double set_sumsq[DS_PHASE_CHECK_MAX_PHASES];
+  double set_noise2;          /* the largest noise variance of c among the accepted frames */
+  guint set_frames;
+  gboolean set_by_template;   /* decided by the set's first frame */
+  /* The last complete set's first harmonic per phase (prior_n 0: none). */
+  guint prior_n;
+  double prior[DS_PHASE_CHECK_MAX_PHASES][2];
 } DsPhaseCheck;
 
+/* The tolerance when none is configured: half a phase step, in degrees (k is then the nearest
+ * phase to what the frame shows; inline, for the settings code that does not link the check). */
+static inline double
+ds_phase_check_default_tolerance_deg (guint n)
+{
+  return 180.0 / n;
+}
+
 void ds_phase_check_init (DsPhaseCheck *check, double period_px, double tolerance_deg);
+/* A new set begins. */
+void ds_phase_check_begin_set (DsPhaseCheck *check);
 /* Checks frame (lit with phase k of n), measuring on at least 256 of its rows evenly spread
- * (all rows of a frame with fewer than 512). *measured_cycles receives the measured phase. `why`
- * receives a message when the verdict is not OK. */
+ * (all rows of a frame with fewer than 512). An OK frame joins the set. *measured_cycles
+ * receives the measured phase. `why` receives a message when the verdict is not OK. */
 DsPhaseVerdict ds_phase_check_frame (DsPhaseCheck *check, const DsImage *frame, guint k, guint n,
                                      double *measured_cycles, char **why);
-/* The set the provisional offset came from completed: the offset is now known. */
-void ds_phase_check_confirm (DsPhaseCheck *check);
-/* The set failed while the offset was provisional: forget it. */
+/* The set's frames are all in: a set checked as a whole is checked now (FALSE with a message
+ * naming the phase that does not fit; the set must fail). Its frames become the templates, and
+ * the offset is learned if unknown. TRUE when no frame was checked (verification off). */
+gboolean ds_phase_check_confirm (DsPhaseCheck *check, char **why);
+/* The set failed: forget the templates too (the scene may have changed under them). */
 void ds_phase_check_abandon (DsPhaseCheck *check);
 
 G_END_DECLS

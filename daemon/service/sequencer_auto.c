@@ -132,6 +132,6 @@ ds_seq_choose_operating_point (DsSequencer *seq, DsCaptureSettings *s, DsFrameCo
   s->averages = op.averages;
   s->exposure_us = op.exposure_us;
   s->automatic = TRUE;
-  s->phase_tolerance_deg = MIN (s->phase_tolerance_deg, 90.0 / op.phases);
+  s->phase_tolerance_deg = MIN (s->phase_tolerance_deg, ds_phase_check_default_tolerance_deg (op.phases));
   return TRUE;
 }

@@ -43,6 +43,7 @@ acquire_set (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag, DsFrameC
     seq->phase_check_period = s->period_px;
   }
   seq->phase_check.tolerance_cycles = s->phase_tolerance_deg / 360.0;
+  ds_phase_check_begin_set (&seq->phase_check);
 
   if (!ds_seq_ensure_camera (seq, s, error)) {
     g_prefix_error (error, "camera: ");
@@ -95,6 +96,14 @@ acquire_set (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag, DsFrameC
       ds_phase_check_abandon (&seq->phase_check);
     return NULL;
   }
+  /* A set whose frames could only be checked together (the first one, or the scene changed)
+   * is checked now, before it becomes a result. */
+  g_autofree char *why = NULL;
+  if (seq->phase_check.provisional && !ds_phase_check_confirm (&seq->phase_check, &why)) {
+    ds_plane_pool_give (seq->planes, planes);
+    g_set_error (error, DS_SEQUENCER_ERROR, DS_SEQUENCER_ERROR_FRAME_REJECTED, "%s", why);
+    return NULL;
+  }
   *last_frame_us = seq->last_frame_us;
   return ds_phase_set_finalize_reusing (seq->set, planes, error);
 }
@@ -133,8 +142,7 @@ ds_seq_run_set (DsSequencer *seq, const DsCaptureSettings *requested, guint64 ta
     return;
   }
   ds_seq_stage_add (seq, DS_STAGE_FINALIZE, acquired);
-  if (seq->phase_check.provisional) {
-    ds_phase_check_confirm (&seq->phase_check);
+  if (seq->phase_check.offset_known) {
     g_mutex_lock (&seq->lock);
     seq->status.phase_offset_cycles = seq->phase_check.offset_cycles;
     g_mutex_unlock (&seq->lock);

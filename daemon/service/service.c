@@ -10,6 +10,7 @@
 #include "daemon/output/result_files.h"
 #include "daemon/output/result_meta.h"
 #include "daemon/service/capture_settings.h"
+#include "daemon/service/phase_check.h"
 #include "daemon/service/devices.h"
 #include "daemon/service/http_server.h"
 #include "daemon/service/live_view.h"
@@ -354,7 +355,7 @@ settings_from_request (DsService *svc, const DsRequest *req, DsCaptureSettings *
   }
   /* An explicit tolerance in the configuration stays; otherwise it follows N. */
   if (isnan (svc->config->phase_tolerance_deg))
-    s->phase_tolerance_deg = 90.0 / s->phases;
+    s->phase_tolerance_deg = ds_phase_check_default_tolerance_deg (s->phases);
   /* The estimator's own constraints (sine needs N >= 3, ...), with its message. */
   DsSeparationParams p;
   ds_separation_params_init (&p, s->phases);
