@@ -160,27 +160,61 @@ cycles_of (const double c[2])
   return p - floor (p);
 }
 
+/* |a|, the size of the part of the first harmonic that moves with the phase: from two phases
+ * of the set (their difference is a (e^{i 2 pi h/N} - e^{i 2 pi r/N}): the fixed part cancels),
+ * else from the templates, else unknown (0). */
+static double
+moving_amplitude (const DsPhaseCheck *check, guint n)
+{
+  guint r = n, l = n;
+  for (guint h = 0; h < n; h++)
+    if (check->set_count[h] > 0) {
+      if (r == n)
+        r = h;
+      l = h;
+    }
+  if (r < l) {
+    double mr[2] = { check->set_sum[r][0] / check->set_count[r], check->set_sum[r][1] / check->set_count[r] };
+    double ml[2] = { check->set_sum[l][0] / check->set_count[l], check->set_sum[l][1] / check->set_count[l] };
+    return hypot (ml[0] - mr[0], ml[1] - mr[1]) / (2.0 * fabs (sin (G_PI * (double) (l - r) / n)));
+  }
+  if (check->prior_n == n) {
+    double b1[2] = { 0, 0 };
+    for (guint h = 0; h < n; h++) {
+      double w = -2.0 * G_PI * (double) h / n;
+      b1[0] += (check->prior[h][0] * cos (w) - check->prior[h][1] * sin (w)) / n;
+      b1[1] += (check->prior[h][0] * sin (w) + check->prior[h][1] * cos (w)) / n;
+    }
+    return hypot (b1[0], b1[1]);
+  }
+  return 0;
+}
+
 /* A frame equal, within its noise, to the frames already accepted for another phase h is a
- * repeat of them (a duplicated or stale frame), however the scene biases phases: phases k and h
- * differ by |a| |e^{i 2 pi k/N} - e^{i 2 pi h/N}|, and a is about the frame's own amplitude.
- * Returns h, or n when there is none. */
+ * repeat of them (a duplicated or stale frame), however the scene biases phases: any two
+ * different phases differ by at least |a| |e^{i 2 pi / N} - 1| = 2 |a| sin(pi / N); a quarter
+ * of that is the radius (|a| is estimated, and may have changed with the exposure since the
+ * templates). Returns h, or n when there is none. */
 static guint
 repeat_of (const DsPhaseCheck *check, const double c[2], double sigma, guint k, guint n)
 {
-  if (n > DS_PHASE_CHECK_MAX_PHASES || check->set_n != n)
+  if (check->set_n != n)
     return n;
-  double amp = hypot (c[0], c[1]);
+  double radius = 0.5 * moving_amplitude (check, n) * sin (G_PI / n);
+  guint nearest = n;
+  double best = INFINITY;
   for (guint h = 0; h < n; h++) {
     if (h == k || check->set_count[h] == 0)
       continue;
     double m[2] = { check->set_sum[h][0] / check->set_count[h], check->set_sum[h][1] / check->set_count[h] };
     double noise = sigma * sqrt (1.0 + 1.0 / check->set_count[h]);
-    double apart = 2.0 * amp * fabs (sin (G_PI * (double) ((int) k - (int) h) / n));
-    /* Halfway between "the same" and "a phase apart", if the noise tells them apart. */
-    if (apart >= 2.0 * PHASE_CHECK_SIGMAS * noise && hypot (c[0] - m[0], c[1] - m[1]) < apart / 2)
-      return h;
+    double d = hypot (c[0] - m[0], c[1] - m[1]);
+    if (radius >= PHASE_CHECK_SIGMAS * noise && d < radius && d < best) {
+      best = d;
+      nearest = h;
+    }
   }
-  return n;
+  return nearest;
 }
 
 static void
@@ -225,16 +259,21 @@ ds_phase_check_frame (DsPhaseCheck *check, const DsImage *frame, guint k, guint 
     return DS_PHASE_VERDICT_UNVERIFIABLE;
   }
   *measured_cycles = sp.phase;
+  /* The noise of c per component: a profile of R rows fitted over C columns has
+   * var = 2 sigma_pixel^2 / (R C); the fit's own residual, which counts the object's texture
+   * and the square stripes' harmonics as noise, is the upper bound. */
+  double sigma = MIN (sp.amplitude / sp.snr,
+                      pixel_noise_sigma (frame) * sqrt (2.0 / ((double) rows.height * sp.columns_used)));
+  if (sp.amplitude > 0 && sigma > 0) {
+    sp.snr = sp.amplitude / sigma;
+    sp.reliable = sp.snr >= DS_STRIPE_PHASE_MIN_SNR;
+  }
   if (!sp.reliable || sp.snr < check->min_confidence)
     return no_stripes (check, &rows, &sp, k, why);
   if (check->set_frames > 0 && check->set_n != n) /* a caller that changed N within a set */
     ds_phase_check_begin_set (check);
   check->set_n = n;
   double c[2] = { sp.amplitude * cos (2.0 * G_PI * sp.phase), sp.amplitude * sin (2.0 * G_PI * sp.phase) };
-  /* The noise of c per component: a profile of R rows fitted over C columns has
-   * var = 2 sigma_pixel^2 / (R C); the fit's own residual is the upper bound. */
-  double sigma = MIN (sp.amplitude / sp.snr,
-                      pixel_noise_sigma (frame) * sqrt (2.0 / ((double) rows.height * sp.columns_used)));
   double sigma_cycles = sigma / sp.amplitude / (2.0 * G_PI);
   double tol = check->tolerance_cycles;
   if (!(PHASE_CHECK_SIGMAS * sigma_cycles <= tol)) {
@@ -313,20 +352,29 @@ ds_phase_check_confirm (DsPhaseCheck *check, char **why)
   double tol = check->tolerance_cycles;
   if (!check->set_by_template) {
     double amp = hypot (b1[0], b1[1]);
+    /* Each phase's moving part (less bin 0) must be one step on from the previous phase's,
+     * within 3/4 of a step: the errors a complete set without repeats can still hold are
+     * swapped frames (steps of +2, -1, +2: off by a whole step or more), and the bias the
+     * scene's other bins leave on a step reaches half a step (1-px stripes of period 4 at
+     * N = 16 on a grid at twice the period: tests/daemon/test_phase_check.c). */
+    double step_tol = 0.75 / n;
     for (guint h = 0; h < n; h++) {
-      double m[2];
-      set_mean (check, h, m);
-      double moving[2] = { m[0] - b0[0], m[1] - b0[1] };
-      double err = ds_stripe_phase_diff (cycles_of (moving), set_offset + (double) h / n);
+      double m0[2], m1[2];
+      set_mean (check, h, m0);
+      set_mean (check, (h + 1) % n, m1);
+      double a0[2] = { m0[0] - b0[0], m0[1] - b0[1] }, a1[2] = { m1[0] - b0[0], m1[1] - b0[1] };
+      double step = ds_stripe_phase_diff (cycles_of (a1) - cycles_of (a0), 1.0 / n);
       /* A wrong frame among the phase's averages shows as scatter beyond the noise. */
       double scatter = check->set_count[h] > 1
-                           ? sqrt (MAX (0.0, check->set_sumsq[h] / check->set_count[h] - (m[0] * m[0] + m[1] * m[1])))
+                           ? sqrt (MAX (0.0, check->set_sumsq[h] / check->set_count[h] - (m0[0] * m0[0] + m0[1] * m0[1])))
                            : 0.0;
       double scatter_cycles = scatter / amp / (2.0 * G_PI);
-      if (fabs (err) > tol || scatter_cycles > tol) {
-        *why = g_strdup_printf ("phase check of the whole set: the frames of phase %u of %u show phase %.2f "
-                                "(off by %.1f deg, spread %.1f deg; tolerance %.1f deg)",
-                                h, n, h + err * n, err * 360.0, scatter_cycles * 360.0, tol * 360.0);
+      if (fabs (step) > step_tol || scatter_cycles > tol) {
+        *why = g_strdup_printf ("phase check of the whole set: from phase %u to phase %u of %u the stripes move "
+                                "%.2f steps, not 1 (off by %.1f deg, tolerance %.1f deg; spread within the phase %.1f deg, "
+                                "tolerance %.1f deg)",
+                                h, (h + 1) % n, n, 1.0 + step * n, step * 360.0, step_tol * 360.0,
+                                scatter_cycles * 360.0, tol * 360.0);
         check->prior_n = 0;
         return FALSE;
       }

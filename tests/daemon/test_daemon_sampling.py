@@ -7,7 +7,9 @@ Expectation from geometry alone: square stripes of period 16 px and duty 1/4 are
 N = 4 phase steps are 4 px, so a 1-px pixel [x - 1/2, x + 1/2] lies inside some phase's stripe
 only when its centre is within 1.5 px of that stripe's centre: 3 of every 4 columns. Exactly a
 quarter of the pixels are never fully lit (flagged); at N = 8 (steps of 2 px) none is. The
-phase check is off: what is tested is the flagging, not the verification of narrow stripes."""
+phase check is on: the scene's wire grid has a pitch of twice the stripe period, the texture
+that made a single frame's phase miss by 17.6 deg (sine) and 12.5 deg (duty 0.25), and every
+frame must still verify (no frame dropped)."""
 import os
 import subprocess
 import sys
@@ -75,7 +77,8 @@ def main():
         try:
             with descatter.Client(sock) as c:
                 for n, want in ((4, 0.25), (8, 0.0)):
-                    r = c.capture(phases=n, estimator="maxmin", verify_phase=False)
+                    r = c.capture(phases=n, estimator="maxmin", verify_phase=True)
+                    check(r.meta["frames"]["dropped"] == 0, f"N = {n}: no frame rejected: {r.meta['frames']}")
                     sep = r.meta["separation"]
                     pixels = r.transmissive.size
                     got = sep["flagged"]["undersampled"] / pixels
@@ -88,8 +91,9 @@ def main():
         proc, sock, log = daemon(tmp, "sine", "pattern=sine\nperiod-px=16\nirradiance=0.5\n")
         try:
             with descatter.Client(sock) as c:
-                c.capture(phases=8, estimator="maxmin", verify_phase=False)
-                c.capture(phases=8, estimator="sine", verify_phase=False)
+                for estimator in ("maxmin", "sine", "sine"):
+                    r = c.capture(phases=8, estimator=estimator, verify_phase=True)
+                    check(r.meta["frames"]["dropped"] == 0, f"sine stripes, {estimator}: no frame rejected")
         finally:
             check(stop(proc) == 0, "descatterd exits cleanly")
         text = open(log).read()

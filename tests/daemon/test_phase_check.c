@@ -1,0 +1,313 @@
+/* The daemon's per-frame phase check (daemon/service/phase_check.c) on synthetic frames whose
+ * stripe phase is known in closed form: the stripes are a Fourier series (sine: one term;
+ * square of duty D: 2 sin(pi m D) / (pi m) per harmonic m), integrated over a 1-px pixel (a
+ * factor sinc(m/P)) and blurred by a Gaussian (exp(-2 pi^2 s^2 m^2 / P^2)), lit onto an
+ * object, plus scattered light and Gaussian noise. The sweep covers pattern, duty, period, N,
+ * blur, heavy scattering and an object whose texture sits exactly at the stripe period (a grid
+ * of pitch 2P: the case that made correct frames fail), and asserts:
+ * - no correct frame is rejected: not in the first set (checked as a whole), not in a later one
+ *   (checked frame by frame against the last set), not after the scene changed;
+ * - the learned offset is the rendered one;
+ * - a frame one step wrong (stale: the previous phase; early: the next one) is caught wherever
+ *   it falls in the set, including the set's first frame;
+ * - a frame too noisy to tell the phases apart is unverifiable, not wrong.
+ * ctest runs half the sweep; the whole one (1056 scenarios, a few minutes):
+ *   DS_PHASE_CHECK_FULL=1 build/tests/daemon/test_phase_check --verbose */
+#include <glib.h>
+#include <math.h>
+
+#include "daemon/service/phase_check.h"
+
+#define W 256
+#define H 32
+
+typedef struct {
+  gboolean square;
+  double duty, period, blur, offset;
+  double direct, scattered; /* DN */
+  guint grid_pitch;         /* 0: no object */
+  guint grid_shift;
+  double noise_scale; /* sigma = noise_scale * sqrt(signal) */
+} Scene;
+
+/* The stripes at pixel centre x, phase k of n, as the pixel sees them (0..1). Unblurred square
+ * stripes: the overlap of the pixel [x - 1/2, x + 1/2] with the lit intervals, exactly;
+ * blurred: the Fourier series until the blur has taken the harmonics below 1e-9. */
+static double
+stripe (const Scene *s, double x, guint k, guint n)
+{
+  double centre = ((double) k / n + s->offset) * s->period;
+  if (s->square && s->blur == 0) {
+    double half = 0.5 * s->duty * s->period, lit = 0;
+    double j0 = floor ((x - 0.5 - centre - half) / s->period);
+    for (double j = j0; (j * s->period + centre - half) < x + 0.5; j++) {
+      double a = MAX (x - 0.5, j * s->period + centre - half), b = MIN (x + 0.5, j * s->period + centre + half);
+      lit += MAX (0.0, b - a);
+    }
+    return lit;
+  }
+  double u = x / s->period - ((double) k / n + s->offset);
+  double v = s->square ? s->duty : 0.5;
+  for (int m = 1; m <= (s->square ? 1000 : 1); m++) {
+    double f = m / s->period; /* cycles per pixel */
+    double g = exp (-2.0 * G_PI * G_PI * s->blur * s->blur * f * f);
+    if (g < 1e-9)
+      break;
+    double sinc = sin (G_PI * f) / (G_PI * f);
+    double amp = s->square ? 2.0 * sin (G_PI * m * s->duty) / (G_PI * m) : 0.5;
+    v += amp * sinc * g * cos (2.0 * G_PI * m * u);
+  }
+  return v;
+}
+
+static double
+object (const Scene *s, guint x, guint y)
+{
+  if (s->grid_pitch == 0)
+    return 1.0;
+  guint px = (x + s->grid_shift) % s->grid_pitch, py = (y + s->grid_shift) % s->grid_pitch;
+  return (px < 3 || py < 3) ? 0.05 : 1.0;
+}
+
+/* Box-Muller, both values used. */
+static double
+gaussian (GRand *rng)
+{
+  static gboolean have;
+  static double spare;
+  if (have) {
+    have = FALSE;
+    return spare;
+  }
+  double r = sqrt (-2.0 * log (g_rand_double_range (rng, 1e-12, 1.0))), t = 2.0 * G_PI * g_rand_double (rng);
+  spare = r * sin (t);
+  have = TRUE;
+  return r * cos (t);
+}
+
+static DsImage *
+render (const Scene *s, guint k, guint n, double scale, GRand *rng)
+{
+  DsImage *img = ds_image_new (DS_SAMPLE_U16, W, H, NULL);
+  img->bit_depth = 12;
+  double profile[W];
+  for (guint x = 0; x < W; x++)
+    profile[x] = stripe (s, x, k, n);
+  for (guint y = 0; y < H; y++) {
+    guint16 *row = ds_image_row (img, y);
+    for (guint x = 0; x < W; x++) {
+      double t = object (s, x, y);
+      double v = scale * (s->direct * t * profile[x] + s->scattered * (0.5 + 0.5 * t));
+      v += s->noise_scale * sqrt (MAX (v, 1.0)) * gaussian (rng);
+      row[x] = (guint16) CLAMP (lround (v), 0, 4095);
+    }
+  }
+  return img;
+}
+
+static DsPhaseVerdict
+check (DsPhaseCheck *c, const Scene *s, guint shows, guint as, guint n, double scale, GRand *rng, char **why)
+{
+  g_autoptr (DsImage) img = render (s, shows, n, scale, rng);
+  double measured;
+  g_clear_pointer (why, g_free);
+  return ds_phase_check_frame (c, img, as, n, &measured, why);
+}
+
+/* A whole set of correct frames: every one OK, and the set confirmed. */
+static guint
+correct_set (DsPhaseCheck *c, const Scene *s, guint n, double scale, GRand *rng, const char *what)
+{
+  guint rejected = 0;
+  g_autofree char *why = NULL;
+  ds_phase_check_begin_set (c);
+  for (guint k = 0; k < n; k++) {
+    DsPhaseVerdict v = check (c, s, k, k, n, scale, rng, &why);
+    if (v != DS_PHASE_VERDICT_OK) {
+      g_test_message ("%s: correct frame %u of %u rejected: %s", what, k, n, why);
+      rejected++;
+    }
+  }
+  g_clear_pointer (&why, g_free);
+  if (rejected > 0) {
+    ds_phase_check_abandon (c); /* the set failed, as the sequencer ends it */
+    return rejected;
+  }
+  if (!ds_phase_check_confirm (c, &why)) {
+    g_test_message ("%s: correct set rejected: %s", what, why);
+    rejected++;
+  }
+  return rejected;
+}
+
+/* A set with the frame for phase `at` showing `shows`: caught at that frame (WRONG), or the
+ * set fails as a whole. The frame is then replaced by a correct one, as the sequencer does. */
+static gboolean
+wrong_frame_caught (DsPhaseCheck *c, const Scene *s, guint n, guint at, guint shows, GRand *rng, const char *what)
+{
+  g_autofree char *why = NULL;
+  gboolean caught = FALSE;
+  ds_phase_check_begin_set (c);
+  for (guint k = 0; k < n; k++) {
+    if (k == at) {
+      DsPhaseVerdict v = check (c, s, shows, k, n, 1.0, rng, &why);
+      if (v == DS_PHASE_VERDICT_WRONG)
+        caught = TRUE;
+      else if (v == DS_PHASE_VERDICT_UNVERIFIABLE)
+        g_test_message ("%s: wrong frame unverifiable: %s", what, why);
+      if (v != DS_PHASE_VERDICT_OK)
+        continue;
+    }
+    if (k == at && !caught)
+      continue; /* accepted: the set goes on with it */
+    if (check (c, s, k, k, n, 1.0, rng, &why) == DS_PHASE_VERDICT_WRONG)
+      caught = TRUE;
+  }
+  g_clear_pointer (&why, g_free);
+  if (!ds_phase_check_confirm (c, &why))
+    caught = TRUE;
+  return caught;
+}
+
+static void
+test_sweep (gconstpointer data)
+{
+  gboolean templates_off = GPOINTER_TO_INT (data);
+  static const struct {
+    gboolean square;
+    double duty;
+  } patterns[] = { { FALSE, 0.5 }, { TRUE, 0.25 }, { TRUE, 0.5 }, { TRUE, 0.75 } };
+  static const double periods[] = { 4, 6, 8, 12, 16, 24 };
+  static const guint phases[] = { 4, 8, 16 };
+  static const double blurs[] = { 0, 1.5 };
+  GRand *rng = g_rand_new_with_seed (11);
+  gboolean full = g_strcmp0 (g_getenv ("DS_PHASE_CHECK_FULL"), "1") == 0;
+  guint scenarios_seen = 0;
+  guint scenarios = 0, false_rejects = 0, missed = 0, wrong_tested = 0, moved_once = 0;
+  for (guint pi = 0; pi < G_N_ELEMENTS (patterns); pi++)
+    for (guint qi = 0; qi < G_N_ELEMENTS (periods); qi++)
+      for (guint ni = 0; ni < G_N_ELEMENTS (phases); ni++)
+        for (guint bi = 0; bi < G_N_ELEMENTS (blurs); bi++)
+          for (guint heavy = 0; heavy < 2; heavy++)
+            for (guint grid = 0; grid < 2; grid++) {
+              guint n = phases[ni];
+              double p = periods[qi];
+              /* A 1-px stripe blurred by 1.5 px is gone: no scene projects that. */
+              if (p < 8 && blurs[bi] > 0 && heavy)
+                continue;
+              Scene s = { .square = patterns[pi].square, .duty = patterns[pi].duty, .period = p,
+                          .blur = blurs[bi], .offset = 0.137, .direct = heavy ? 500 : 2000,
+                          .scattered = heavy ? 3000 : 200, .grid_pitch = grid ? (guint) (2 * p) : 0,
+                          .noise_scale = 0.5 };
+              /* ctest runs every other scenario (every value of every parameter still
+               * appears); DS_PHASE_CHECK_FULL=1 runs them all. */
+              guint index = scenarios_seen++;
+              if (!full && (index + (templates_off ? 1 : 0)) % 2)
+                continue;
+              g_autofree char *what = g_strdup_printf ("%s duty %.2f period %.0f N %u blur %.1f %s%s",
+                                                       s.square ? "square" : "sine", s.duty, p, n, s.blur,
+                                                       heavy ? "heavy scattering" : "clear",
+                                                       grid ? ", grid at the stripe period" : "");
+              scenarios++;
+              DsPhaseCheck c;
+              ds_phase_check_init (&c, p, ds_phase_check_default_tolerance_deg (n));
+              guint rejected = correct_set (&c, &s, n, 1.0, rng, what);
+              /* The offset the first set learned is the rendered one (an eighth of a step:
+               * square stripes' harmonics that alias onto bin 1 move it a little). */
+              double off_err = fabs (remainder (c.offset_cycles - s.offset, 1.0));
+              if (!c.offset_known || off_err > 0.125 / n) {
+                g_test_message ("%s: learned offset %.4f, rendered %.4f", what, c.offset_cycles, s.offset);
+                rejected++;
+              }
+              /* Later sets: frame by frame against the templates, at another exposure. */
+              rejected += correct_set (&c, &s, n, 0.8, rng, what);
+              rejected += correct_set (&c, &s, n, 1.0, rng, what);
+              if (templates_off) {
+                /* The scene moves under the templates: the set's first frame may still look
+                 * like its template, and a later one then fails the set once (the templates
+                 * are dropped with it); the next set is checked as a whole: no deadlock. */
+                Scene moved = s;
+                moved.grid_shift = 5;
+                if (correct_set (&c, &moved, n, 1.0, rng, what) > 0)
+                  moved_once++;
+                rejected += correct_set (&c, &moved, n, 1.0, rng, what);
+                rejected += correct_set (&c, &moved, n, 1.0, rng, what);
+              }
+              false_rejects += rejected ? 1 : 0;
+              /* One step wrong at the first, a middle and the last frame: stale (shows the
+               * previous phase) and early (shows the next). */
+              guint at[] = { 0, n / 2, n - 1 };
+              for (guint ai = 0; ai < G_N_ELEMENTS (at); ai++)
+                for (int dir = -1; dir <= 1; dir += 2) {
+                  guint shows = (at[ai] + n + dir) % n;
+                  if (templates_off)
+                    ds_phase_check_abandon (&c);
+                  wrong_tested++;
+                  if (!wrong_frame_caught (&c, &s, n, at[ai], shows, rng, what)) {
+                    g_test_message ("%s: frame for phase %u showing phase %u not caught%s", what, at[ai], shows,
+                                    templates_off ? " (checked as a whole)" : "");
+                    missed++;
+                  }
+                  if (templates_off)
+                    ds_phase_check_abandon (&c);
+                  correct_set (&c, &s, n, 1.0, rng, what); /* templates again for the next case */
+                }
+            }
+  g_rand_free (rng);
+  g_test_message ("%u scenarios: %u with a false rejection; %u of %u one-step errors missed; "
+                  "a set lost to the scene moving in %u",
+                  scenarios, false_rejects, missed, wrong_tested, moved_once);
+  g_assert_cmpuint (false_rejects, ==, 0);
+  g_assert_cmpuint (missed, ==, 0);
+}
+
+/* Stripes drowned in noise: the check says it cannot tell, it does not call the frame wrong. */
+static void
+test_too_noisy (void)
+{
+  Scene s = { .period = 12, .offset = 0.3, .direct = 20, .scattered = 3000, .noise_scale = 2.0 };
+  GRand *rng = g_rand_new_with_seed (5);
+  DsPhaseCheck c;
+  ds_phase_check_init (&c, s.period, ds_phase_check_default_tolerance_deg (16));
+  ds_phase_check_begin_set (&c);
+  g_autofree char *why = NULL;
+  guint unverifiable = 0;
+  for (guint k = 0; k < 16; k++) {
+    DsPhaseVerdict v = check (&c, &s, k, k, 16, 1.0, rng, &why);
+    g_assert_cmpint (v, !=, DS_PHASE_VERDICT_WRONG);
+    unverifiable += v == DS_PHASE_VERDICT_UNVERIFIABLE;
+  }
+  g_assert_cmpuint (unverifiable, ==, 16);
+  g_assert_nonnull (strstr (why, "too weak") ? why : strstr (why, "no stripes"));
+  g_rand_free (rng);
+}
+
+/* A repeat of the previous phase's frame is caught even where the phase alone could not tell:
+ * in the first set (no offset, no templates). */
+static void
+test_repeat_in_first_set (void)
+{
+  Scene s = { .period = 16, .offset = 0.6, .direct = 2000, .scattered = 200, .grid_pitch = 32, .noise_scale = 0.5 };
+  GRand *rng = g_rand_new_with_seed (7);
+  DsPhaseCheck c;
+  ds_phase_check_init (&c, s.period, ds_phase_check_default_tolerance_deg (8));
+  ds_phase_check_begin_set (&c);
+  g_autofree char *why = NULL;
+  g_assert_cmpint (check (&c, &s, 0, 0, 8, 1.0, rng, &why), ==, DS_PHASE_VERDICT_OK);
+  g_assert_cmpint (check (&c, &s, 1, 1, 8, 1.0, rng, &why), ==, DS_PHASE_VERDICT_OK);
+  g_assert_cmpint (check (&c, &s, 1, 2, 8, 1.0, rng, &why), ==, DS_PHASE_VERDICT_WRONG);
+  g_test_message ("%s", why);
+  g_assert_nonnull (strstr (why, "looks like phase 1"));
+  g_rand_free (rng);
+}
+
+int
+main (int argc, char **argv)
+{
+  g_test_init (&argc, &argv, NULL);
+  g_test_add_data_func ("/phase-check/sweep/templates", GINT_TO_POINTER (FALSE), test_sweep);
+  g_test_add_data_func ("/phase-check/sweep/whole-set", GINT_TO_POINTER (TRUE), test_sweep);
+  g_test_add_func ("/phase-check/too-noisy", test_too_noisy);
+  g_test_add_func ("/phase-check/repeat-in-first-set", test_repeat_in_first_set);
+  return g_test_run ();
+}
