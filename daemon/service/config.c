@@ -132,7 +132,7 @@ static const KeySpec keys[] = {
   { "acquisition", "link-mbit", K_DOUBLE, F (timing_link_mbit), "1000", 1, 100000, NULL,
     "camera link bandwidth, for the acquisition-time model of automatic captures" },
   { "acquisition", "phase-tolerance-deg", K_DOUBLE, F (phase_tolerance_deg), "", 1, 180, NULL,
-    "largest accepted stripe-phase error; empty = a quarter of the phase step" },
+    "largest accepted stripe-phase error; empty = half the phase step (180/N)" },
 
   { "sim", "scene", K_STRING, F (sim_scene), NULL, 0, 0, NULL,
     "scene file for the simulated devices; empty = the built-in demo scene" },
