@@ -194,7 +194,7 @@ moving_amplitude (const DsPhaseCheck *check, guint n)
  * repeat of them (a duplicated or stale frame), however the scene biases phases: any two
  * different phases differ by at least |a| |e^{i 2 pi / N} - 1| = 2 |a| sin(pi / N); a quarter
  * of that is the radius (|a| is estimated, and may have changed with the exposure since the
- * templates). Returns h, or n when there is none. */
+ * templates; unknown, the noise decides). Returns h, or n when there is none. */
 static guint
 repeat_of (const DsPhaseCheck *check, const double c[2], double sigma, guint k, guint n)
 {
@@ -209,7 +209,10 @@ repeat_of (const DsPhaseCheck *check, const double c[2], double sigma, guint k, 
     double m[2] = { check->set_sum[h][0] / check->set_count[h], check->set_sum[h][1] / check->set_count[h] };
     double noise = sigma * sqrt (1.0 + 1.0 / check->set_count[h]);
     double d = hypot (c[0] - m[0], c[1] - m[1]);
-    if (radius >= PHASE_CHECK_SIGMAS * noise && d < radius && d < best) {
+    /* |a| unknown (the first set's second phase): equal within the noise is a repeat (a
+     * correct frame that close to another phase's would have no stripes to verify). */
+    double r = radius > 0 ? radius : PHASE_CHECK_SIGMAS * noise;
+    if (r >= PHASE_CHECK_SIGMAS * noise && d < r && d < best) {
       best = d;
       nearest = h;
     }
@@ -264,7 +267,12 @@ ds_phase_check_frame (DsPhaseCheck *check, const DsImage *frame, guint k, guint 
    * and the square stripes' harmonics as noise, is the upper bound. */
   double sigma = MIN (sp.amplitude / sp.snr,
                       pixel_noise_sigma (frame) * sqrt (2.0 / ((double) rows.height * sp.columns_used)));
-  if (sp.amplitude > 0 && sigma > 0) {
+  /* Stripes are there when the first harmonic stands 5 sigma above the pixel noise and is not
+   * lost in the rest of the frame's structure it was fitted against (the fit's own snr >= 0.3:
+   * a wrong period-px leaves a harmonic of snr 0.1 that the pixel noise alone would pass; the
+   * object's texture on heavily scattered square stripes brings a right one down to 0.7,
+   * tests/daemon/test_phase_check.c). */
+  if (sp.amplitude > 0 && sigma > 0 && sp.snr >= 0.3) {
     sp.snr = sp.amplitude / sigma;
     sp.reliable = sp.snr >= DS_STRIPE_PHASE_MIN_SNR;
   }
