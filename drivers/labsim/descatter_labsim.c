@@ -222,6 +222,12 @@ run (const DsLabsimOptions *o)
   printf ("descatter-labsim: camera %s serial %s %ux%u %u-bit (GigE Vision, UDP 3956)\n", camera_address,
           o->camera_serial ? o->camera_serial : "DSLAB01", ds_scene_width (scene), ds_scene_height (scene),
           ds_scene_bit_depth (scene));
+  guint prepared = 0;
+  double prepared_s = 0;
+  ds_lab_camera_prepared (camera, &prepared, &prepared_s);
+  printf ("descatter-labsim: rendered %u lighting states in %.2f s (%.3f s each) before serving; a new phase "
+          "count or period renders again in the background\n", prepared, prepared_s,
+          prepared ? prepared_s / prepared : 0.0);
   printf ("descatter-labsim: modbus %s:%u (settle %.1f ms, period %s %.2f px, docs/registers.md)\n",
           o->modbus_host, ds_modbus_server_port (lab.modbus), o->settle_ms,
           o->map_revision == 1 ? "map revision 1, drawn at" : o->fixed_period ? "fixed at" : "adjustable, power-up",
@@ -248,6 +254,8 @@ run (const DsLabsimOptions *o)
   g_mutex_unlock (&lab.gpio_lock);
   ds_gpio_chip_server_free (gpio); /* before the camera its edges reach */
   guint64 frames = ds_lab_camera_frames (camera);
+  DsLabTriggerStats trig;
+  ds_lab_camera_trigger_stats (camera, &trig);
   ds_lab_camera_free (camera);
   DsModbusServerState st;
   ds_modbus_server_get_state (lab.modbus, &st);
@@ -255,7 +263,8 @@ run (const DsLabsimOptions *o)
   ds_external_light_free (lab.external);
   g_mutex_clear (&lab.gpio_lock);
   fprintf (stderr, "descatter-labsim: stopped after %" G_GUINT64_FORMAT " frames, %" G_GUINT64_FORMAT
-                   " Modbus requests\n", frames, st.requests);
+                   " Modbus requests, %" G_GUINT64_FORMAT " triggers dropped unrendered\n", frames, st.requests,
+           trig.not_rendered);
   return 0;
 }
 

@@ -39,6 +39,8 @@ struct DsLabCamera {
   gboolean quit;           /* under trig_lock */
   GThread *router;
   DsLabTriggerStats trig;  /* under trig_lock */
+  guint prepared_states;   /* rendered before the camera appeared ... */
+  double prepared_s;       /* ... in this long */
 };
 
 /* Called on Aravis's camera thread for every triggered frame. */
@@ -56,23 +58,24 @@ fill_pattern (ArvBuffer *buffer, void *data, guint32 exposure_time_us, guint32 g
 /* ---- trigger router ------------------------------------------------------------------------ */
 
 /* One frame more for the camera thread: its software-trigger register is a flag, so frames
- * are handed over one at a time, each once the previous one was taken. */
-static gboolean
-hand_over (ArvFakeCamera *fake)
+ * are handed over one at a time, each once the previous one was taken, and each once the light
+ * its trigger saw is rendered (lab_camera_fill.h). Returns the triggers still waiting. */
+static guint
+hand_over (ArvFakeCamera *fake, DsLabFill *fill)
 {
   guint32 busy = 0;
+  guint waiting = 0;
   arv_fake_camera_read_register (fake, ARV_FAKE_CAMERA_REGISTER_TRIGGER_SOFTWARE, &busy);
-  if (busy)
-    return FALSE;
-  arv_fake_camera_write_register (fake, ARV_FAKE_CAMERA_REGISTER_TRIGGER_SOFTWARE, 1);
-  return TRUE;
+  if (ds_lab_fill_take_ready (fill, !busy, &waiting))
+    arv_fake_camera_write_register (fake, ARV_FAKE_CAMERA_REGISTER_TRIGGER_SOFTWARE, 1);
+  return waiting;
 }
 
 static gpointer
 router_thread (gpointer data)
 {
   DsLabCamera *c = data;
-  guint pending = 0;
+  guint pending = 0, arms = 0;
   g_autoptr (GArray) edges = g_array_new (FALSE, FALSE, sizeof (LineEdge));
   for (;;) {
     g_mutex_lock (&c->trig_lock);
@@ -101,7 +104,7 @@ router_thread (gpointer data)
     }
     g_mutex_lock (&c->trig_lock);
     if (sw && source == SOURCE_SOFTWARE) {
-      pending++;
+      arms++;
       c->trig.software++;
     } else if (sw)
       c->trig.software_ignored++; /* a real camera ignores TriggerSoftware with a line source */
@@ -114,18 +117,21 @@ router_thread (gpointer data)
         c->trig.line_missed++;
         continue;
       }
-      pending++;
+      arms++;
       if (c->cfg.line_double_every && k % c->cfg.line_double_every == 0) {
-        pending++;
+        arms++;
         c->trig.line_doubled++;
       }
     }
     g_array_set_size (edges, 0);
     g_mutex_unlock (&c->trig_lock);
+    /* Each frame shows the light that was on at its trigger. */
+    for (; arms > 0; arms--)
+      if (fake)
+        ds_lab_fill_arm (c->fill);
     if (!fake)
-      pending = 0;
-    else if (pending && hand_over (fake))
-      pending--;
+      ds_lab_fill_cancel (c->fill);
+    pending = fake ? hand_over (fake, c->fill) : 0;
     g_mutex_unlock (&c->gv_lock);
   }
   return NULL;
@@ -147,6 +153,14 @@ ds_lab_camera_trigger_stats (DsLabCamera *c, DsLabTriggerStats *stats)
   g_mutex_lock (&c->trig_lock);
   *stats = c->trig;
   g_mutex_unlock (&c->trig_lock);
+  stats->not_rendered = ds_lab_fill_dropped (c->fill);
+}
+
+void
+ds_lab_camera_prepared (DsLabCamera *c, guint *n_states, double *seconds)
+{
+  *n_states = c->prepared_states;
+  *seconds = c->prepared_s;
 }
 
 /* ---- the device ---------------------------------------------------------------------------- */
@@ -301,6 +315,11 @@ ds_lab_camera_new (const DsLabCameraConfig *config, const DsRenderer *renderer,
   c->sensor_height = ds_scene_height (scene);
   c->default_exposure_us = ds_scene_default_exposure_us (scene);
   c->fill = ds_lab_fill_new (renderer, illumination, user_data, config->seed, config->noiseless);
+  /* Before the camera appears: a client that sees it can take frames at once. */
+  if (!ds_lab_fill_prepare (c->fill, &c->prepared_states, &c->prepared_s, error)) {
+    ds_lab_camera_free (c);
+    return NULL;
+  }
   c->router = g_thread_new ("labsim-trigger", router_thread, c);
   if (!appear (c, error)) {
     ds_lab_camera_free (c);

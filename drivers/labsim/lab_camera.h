@@ -1,7 +1,7 @@
 /* The lab's camera: Aravis's GigE Vision fake camera (ArvGvFakeCamera, real GVCP/GVSP on UDP
  * port 3956 of one address) described by labsim's own GenICam XML (labsim-camera.xml), whose
- * images come from the scene renderer, lit with whatever the illuminator shows at the moment the
- * frame is filled (right after its trigger).
+ * images come from the scene renderer, lit with whatever the illuminator showed at the frame's
+ * trigger (rendered off the camera thread: lab_states.h, lab_camera_fill.h).
  *
  * Pixel formats: Mono8, Mono10, Mono12, Mono16, Mono10p, Mono12p, Mono12Packed, each carrying
  * the sensor's value less the low bits it lacks (lab_camera_fill.h says the byte layouts).
@@ -27,7 +27,7 @@ G_BEGIN_DECLS
 typedef struct DsLabCamera DsLabCamera;
 
 /* Fills req->phase, req->n_phases, req->illuminator_on and req->period_px (0: the scene's) with
- * what is lit now. Called on the camera thread. */
+ * what is lit now. Called from labsim's camera threads, one at a time. */
 typedef void (*DsLabIlluminationFunc) (gpointer user_data, DsRenderRequest *req);
 
 typedef struct {
@@ -50,16 +50,21 @@ typedef struct {
   guint64 line;              /* line edges matching source and activation */
   guint64 line_missed;       /* of those, dropped by line_miss_every */
   guint64 line_doubled;      /* of those, doubled by line_double_every */
+  guint64 not_rendered;      /* triggers dropped: their light not rendered in time (lab_camera_fill.h) */
 } DsLabTriggerStats;
 
-/* renderer is borrowed and must outlive the camera. Fails (G_IO_ERROR) when the fake camera
- * cannot serve on the address (e.g. port 3956 in use). */
+/* renderer is borrowed and must outlive the camera. Renders the lighting states the
+ * controller shows now before the camera appears (seconds for a wide kernel: lab_states.h).
+ * Fails (G_IO_ERROR) when the fake camera cannot serve on the address (e.g. port 3956 in
+ * use), DS_SIM_ERROR when a state cannot be rendered. */
 DsLabCamera *ds_lab_camera_new (const DsLabCameraConfig *config, const DsRenderer *renderer,
                                 DsLabIlluminationFunc illumination, gpointer user_data,
                                 GError **error);
 /* An edge at line input `line` (0..3). Non-blocking; any thread. */
 void ds_lab_camera_line_edge (DsLabCamera *camera, guint line, gboolean rising);
 void ds_lab_camera_trigger_stats (DsLabCamera *camera, DsLabTriggerStats *stats);
+/* The lighting states rendered before the camera appeared, and how long that took. */
+void ds_lab_camera_prepared (DsLabCamera *camera, guint *n_states, double *seconds);
 guint64 ds_lab_camera_frames (DsLabCamera *camera);   /* frames filled so far */
 gboolean ds_lab_camera_present (DsLabCamera *camera); /* FALSE while vanished */
 void ds_lab_camera_free (DsLabCamera *camera);

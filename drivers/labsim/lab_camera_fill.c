@@ -3,6 +3,7 @@
 #include <math.h>
 #include <string.h>
 
+#include "drivers/labsim/lab_states.h"
 #include "drivers/sim/rng.h"
 #include "drivers/sim/sensor.h"
 
@@ -20,48 +21,62 @@
 /* Beyond this, the cache of noise-free frames is emptied (a study sweeping settings). */
 #define CACHE_MAX_BYTES ((gsize) 1 << 30)
 
+/* A trigger waits at most this long for its lighting state: under the daemon's default grab
+ * timeout (2 s), so that a frame either arrives in time or the trigger is dropped and the
+ * daemon's retry finds the state ready. */
+#define ORDER_WAIT_US 1500000
+/* A free-running frame (TriggerMode Off) waits on the camera thread itself: briefly. */
+#define FREE_RUN_WAIT_US 200000
+
 typedef struct {
-  gboolean on;
-  guint phase, n_phases;
-  double period_px;        /* 0: the scene's */
+  DsLabLight light;
   double exposure_us, gain_db;
-} LightKey;
+} ExposedKey;
 
 typedef struct {
   float *mean;             /* expected DN, before quantisation */
   float *sigma;            /* noise sigma, DN */
 } Expected;
 
+/* A trigger the router accepted: the light that was on at its edge. */
+typedef struct {
+  DsLabLight light;
+  DsLabState *state;       /* NULL until rendered */
+  gint64 at;               /* monotonic µs of the edge */
+  gboolean handed;         /* handed to the camera thread, which fills it next */
+} Order;
+
 struct DsLabFill {
   const DsRenderer *renderer;
-  DsLabIlluminationFunc illumination;
-  gpointer user_data;
+  DsLabStates *states;
   guint64 seed;
   gboolean noiseless;
   guint width, height, depth;
   DsSensorModel sensor;
   float *bank;
-  GHashTable *cache;       /* LightKey* -> Expected* (camera thread only) */
+  GHashTable *cache;       /* ExposedKey* -> Expected* (camera thread only) */
   gsize cache_bytes;
   guint16 *frame;          /* the current frame's values, width x height */
-  GMutex lock;             /* frames */
+  GMutex lock;             /* frames, orders, dropped */
   guint64 frames;
+  GQueue orders;           /* Order*, oldest first */
+  guint64 dropped;
 };
 
 static guint
 key_hash (gconstpointer p)
 {
-  const LightKey *k = p;
-  return (guint) (k->on * 7919u + k->phase * 131u + k->n_phases * 31u) ^ (guint) (k->exposure_us * 16) ^
-         (guint) (k->gain_db * 1000) << 7 ^ (guint) (k->period_px * 100) << 13;
+  const ExposedKey *k = p;
+  return (guint) (k->light.on * 7919u + k->light.phase * 131u + k->light.n_phases * 31u) ^
+         (guint) (k->exposure_us * 16) ^ (guint) (k->gain_db * 1000) << 7 ^ (guint) (k->light.period_px * 100) << 13;
 }
 
 static gboolean
 key_equal (gconstpointer a, gconstpointer b)
 {
-  const LightKey *x = a, *y = b;
-  return x->on == y->on && x->phase == y->phase && x->n_phases == y->n_phases && x->period_px == y->period_px &&
-         x->exposure_us == y->exposure_us && x->gain_db == y->gain_db;
+  const ExposedKey *x = a, *y = b;
+  return x->light.on == y->light.on && x->light.phase == y->light.phase && x->light.n_phases == y->light.n_phases &&
+         x->light.period_px == y->light.period_px && x->exposure_us == y->exposure_us && x->gain_db == y->gain_db;
 }
 
 static void
@@ -73,14 +88,21 @@ expected_free (gpointer p)
   g_free (e);
 }
 
+static void
+order_free (gpointer p)
+{
+  Order *o = p;
+  ds_lab_state_unref (o->state);
+  g_free (o);
+}
+
 DsLabFill *
 ds_lab_fill_new (const DsRenderer *renderer, DsLabIlluminationFunc illumination, gpointer user_data, guint64 seed,
                  gboolean noiseless)
 {
   DsLabFill *f = g_new0 (DsLabFill, 1);
   f->renderer = renderer;
-  f->illumination = illumination;
-  f->user_data = user_data;
+  f->states = ds_lab_states_new (renderer, illumination, user_data);
   f->seed = seed;
   f->noiseless = noiseless;
   const DsScene *scene = ds_renderer_scene (renderer);
@@ -92,6 +114,7 @@ ds_lab_fill_new (const DsRenderer *renderer, DsLabIlluminationFunc illumination,
                                 .system_gain = s->system_gain, .read_noise_e = s->read_noise_e,
                                 .dark_current_e_s = s->dark_current_e_s, .full_well_e = s->full_well_e };
   g_mutex_init (&f->lock);
+  g_queue_init (&f->orders);
   f->cache = g_hash_table_new_full (key_hash, key_equal, g_free, expected_free);
   f->frame = g_new0 (guint16, (gsize) f->width * f->height);
   f->bank = g_new (float, BANK_SIZE);
@@ -102,18 +125,92 @@ ds_lab_fill_new (const DsRenderer *renderer, DsLabIlluminationFunc illumination,
   return f;
 }
 
-/* The noise-free frame of a lighting state, rendered on first use. */
-static const Expected *
-expected_for (DsLabFill *f, const LightKey *key, GError **error)
+gboolean
+ds_lab_fill_prepare (DsLabFill *f, guint *n_states, double *seconds, GError **error)
 {
-  Expected *e = g_hash_table_lookup (f->cache, key);
+  return ds_lab_states_prepare (f->states, n_states, seconds, error);
+}
+
+/* ---- triggers: the light at the edge, the frame once its state is rendered --------------- */
+
+void
+ds_lab_fill_arm (DsLabFill *f)
+{
+  Order *o = g_new0 (Order, 1);
+  o->at = g_get_monotonic_time ();
+  ds_lab_states_sample (f->states, &o->light);
+  o->state = ds_lab_states_get (f->states, &o->light, 0);
+  g_mutex_lock (&f->lock);
+  g_queue_push_tail (&f->orders, o);
+  g_mutex_unlock (&f->lock);
+}
+
+gboolean
+ds_lab_fill_take_ready (DsLabFill *f, gboolean take, guint *waiting)
+{
+  gboolean ready = FALSE;
+  gint64 now = g_get_monotonic_time ();
+  g_mutex_lock (&f->lock);
+  GList *l = f->orders.head;
+  while (l && ((Order *) l->data)->handed)
+    l = l->next;
+  while (l && !ready) {
+    Order *o = l->data;
+    if (!o->state)
+      o->state = ds_lab_states_get (f->states, &o->light, 0);
+    if (o->state) {
+      o->handed = ready = take;
+      break;
+    }
+    if (now - o->at < ORDER_WAIT_US)
+      break;
+    /* Never a frame of another light: the trigger is dropped, as a camera drops one it cannot
+     * take, and the client's grab times out. */
+    g_warning ("labsim camera: a trigger dropped: %s %u of %u (period %g px) not rendered %.1f s after it",
+               o->light.on ? "phase" : "dark", o->light.phase, o->light.n_phases, o->light.period_px,
+               (double) (now - o->at) / 1e6);
+    f->dropped++;
+    GList *next = l->next;
+    g_queue_delete_link (&f->orders, l);
+    order_free (o);
+    l = next;
+  }
+  guint n = 0;
+  for (GList *m = f->orders.head; m; m = m->next)
+    n += !((Order *) m->data)->handed;
+  g_mutex_unlock (&f->lock);
+  if (waiting)
+    *waiting = n;
+  return ready;
+}
+
+void
+ds_lab_fill_cancel (DsLabFill *f)
+{
+  g_mutex_lock (&f->lock);
+  g_queue_clear_full (&f->orders, order_free);
+  g_mutex_unlock (&f->lock);
+}
+
+guint64
+ds_lab_fill_dropped (DsLabFill *f)
+{
+  g_mutex_lock (&f->lock);
+  guint64 n = f->dropped;
+  g_mutex_unlock (&f->lock);
+  return n;
+}
+
+/* The noise-free frame of a lighting state at an exposure and gain, derived on first use from
+ * the state's photons (linear in both; at the reference exposure and 0 dB the very numbers of
+ * ds_renderer_render_expected). */
+static const Expected *
+expected_for (DsLabFill *f, const DsLabState *st, double exposure_us, double gain_db)
+{
+  ExposedKey key = { .light = st->light, .exposure_us = exposure_us, .gain_db = gain_db };
+  Expected *e = g_hash_table_lookup (f->cache, &key);
   if (e)
     return e;
-  DsRenderRequest req = { .phase = key->phase, .n_phases = key->n_phases, .illuminator_on = key->on,
-                          .exposure_us = key->exposure_us, .gain_db = key->gain_db, .period_px = key->period_px };
-  g_autoptr (DsImage) img = ds_renderer_render_expected (f->renderer, &req, error);
-  if (!img)
-    return NULL;
   gsize n = (gsize) f->width * f->height;
   if (f->cache_bytes + 2 * n * sizeof (float) > CACHE_MAX_BYTES) {
     g_hash_table_remove_all (f->cache);
@@ -122,18 +219,17 @@ expected_for (DsLabFill *f, const LightKey *key, GError **error)
   e = g_new0 (Expected, 1);
   e->mean = g_new (float, n);
   e->sigma = g_new (float, n);
+  double scale = exposure_us / st->reference_exposure_us;
   /* Variance in DN^2 = K^2 (mean electrons + read^2) with mean electrons = mean DN / K. */
-  double k = ds_sensor_gain_dn_per_e (&f->sensor, key->gain_db);
+  double k = ds_sensor_gain_dn_per_e (&f->sensor, gain_db);
   double read2 = k * k * f->sensor.read_noise_e * f->sensor.read_noise_e;
-  for (guint y = 0; y < f->height; y++) {
-    const float *row = ds_image_row (img, y);
-    for (guint x = 0; x < f->width; x++) {
-      double m = row[x];
-      e->mean[(gsize) y * f->width + x] = (float) m;
-      e->sigma[(gsize) y * f->width + x] = (float) sqrt (k * MAX (m, 0.0) + read2);
-    }
+  for (gsize i = 0; i < n; i++) {
+    double p = st->photons[i];
+    double m = (float) ds_sensor_mean_dn (&f->sensor, scale == 1.0 ? p : p * scale, exposure_us, gain_db);
+    e->mean[i] = (float) m;
+    e->sigma[i] = (float) sqrt (k * MAX (m, 0.0) + read2);
   }
-  g_hash_table_insert (f->cache, g_memdup2 (key, sizeof *key), e);
+  g_hash_table_insert (f->cache, g_memdup2 (&key, sizeof key), e);
   f->cache_bytes += 2 * n * sizeof (float);
   return e;
 }
@@ -288,18 +384,26 @@ ds_lab_fill_buffer (DsLabFill *f, ArvBuffer *buffer, double exposure_us, double 
                n, x0, y0, w, h, pf);
     return n;
   }
-  DsRenderRequest req = { .phase = 0, .n_phases = 4, .illuminator_on = FALSE };
-  f->illumination (f->user_data, &req);
-  LightKey key = { .on = req.illuminator_on, .phase = req.illuminator_on ? req.phase : 0,
-                   .n_phases = req.illuminator_on ? req.n_phases : 0,
-                   .period_px = req.illuminator_on ? req.period_px : 0, .exposure_us = exposure_us, .gain_db = gain_db };
-  g_autoptr (GError) error = NULL;
-  const Expected *e = expected_for (f, &key, &error);
-  if (!e) {
-    g_warning ("labsim camera: frame %" G_GUINT64_FORMAT ": %s", n, error->message);
-    memset (out, 0, (gsize) w * h * bits / 8);
-    return n;
+  /* The light of the trigger this frame answers (the router handed it over once its state was
+   * rendered); free-running, the light now. */
+  g_mutex_lock (&f->lock);
+  Order *o = f->orders.head && ((Order *) f->orders.head->data)->handed ? g_queue_pop_head (&f->orders) : NULL;
+  g_mutex_unlock (&f->lock);
+  g_autoptr (DsLabState) st = o ? g_steal_pointer (&o->state) : NULL;
+  g_clear_pointer (&o, order_free);
+  if (!st) {
+    DsLabLight now;
+    ds_lab_states_sample (f->states, &now);
+    st = ds_lab_states_get (f->states, &now, g_get_monotonic_time () + FREE_RUN_WAIT_US);
+    if (!st) {
+      /* No stripes and no light: the frame fails any check of its phase, never passes for one. */
+      g_warning ("labsim camera: frame %" G_GUINT64_FORMAT ": free-running, its light is not rendered yet: "
+                 "sent black", n);
+      memset (out, 0, (gsize) w * h * bits / 8);
+      return n;
+    }
   }
+  const Expected *e = expected_for (f, st, exposure_us, gain_db);
   expose (f, e, gain_db, n);
   ds_lab_pack (pf, f->frame + (gsize) y0 * f->width + x0, f->width, f->depth, (guint) w, (guint) h, out,
                (gsize) w * h * bits / 8);
@@ -320,6 +424,9 @@ ds_lab_fill_free (DsLabFill *f)
 {
   if (!f)
     return;
+  /* Before the cache: the worker borrows the renderer, not the fill. */
+  ds_lab_states_free (f->states);
+  g_queue_clear_full (&f->orders, order_free);
   g_hash_table_unref (f->cache);
   g_free (f->frame);
   g_free (f->bank);

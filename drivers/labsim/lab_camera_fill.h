@@ -1,9 +1,10 @@
 /* What labsim's camera puts in a frame: the scene as the renderer sees it under the light that
  * is on, with the sensor's noise, written in the frame's pixel format.
  *
- * Speed (issue 13: 1 MP at >= 50 frames/s): the noise-free frame of each lighting state
- * (illuminator on/off, phase, phases, stripe period, exposure, gain) is rendered once
- * (ds_renderer_render_expected) and kept with its noise sigma; a frame is that mean plus
+ * Speed (issue 13: 1 MP at >= 50 frames/s): the light of each lighting state (illuminator
+ * on/off, phase, phases, stripe period) is rendered off the camera thread (lab_states.h); the
+ * noise-free frame of a state at an exposure and gain is derived from it once (linear in both)
+ * and kept with its noise sigma; a frame is that mean plus
  * Gaussian noise with the EMVA 1288 variance K^2 (shot + dark electrons) + K^2 read^2, drawn
  * from a bank of normal deviates at a random offset per row, then quantised, clipped at full
  * well and the ADC range. The Gaussian stands in for the Poisson shot noise: mean and variance
@@ -18,7 +19,16 @@
  *   Mono12Packed pairs of pixels in 3 bytes: P0[11:4], P1[3:0] << 4 | P0[3:0], P1[11:4].
  * Rows follow each other in one stream (the payload is width x height x bits / 8).
  *
- * Threads: ds_lab_fill_buffer on the camera thread only; ds_lab_fill_frames from any thread. */
+ * Triggers: the router calls ds_lab_fill_arm at each trigger it accepts, which samples the light
+ * on at that edge; ds_lab_fill_take_ready says when the oldest such trigger's state is rendered,
+ * and the router then hands it to the camera thread, whose fill serves exactly that light. A
+ * trigger whose state is not rendered 1.5 s after its edge is dropped (counted, logged): a
+ * frame never shows the light of another phase. Free-running (TriggerMode Off) a frame takes
+ * the light at its fill, waiting up to 0.2 s on the camera thread for its state, else it is
+ * sent black (no stripes: no phase check passes it).
+ *
+ * Threads: new/prepare/free on the main thread; ds_lab_fill_buffer on the camera thread only;
+ * arm/take_ready/cancel on the router thread; the counters from any thread. */
 #pragma once
 #include <arv.h>
 #include <glib.h>
@@ -31,6 +41,20 @@ typedef struct DsLabFill DsLabFill;
 
 DsLabFill *ds_lab_fill_new (const DsRenderer *renderer, DsLabIlluminationFunc illumination, gpointer user_data,
                             guint64 seed, gboolean noiseless);
+/* Renders every lighting state of the set lit now (lab_states.h), blocking, and starts the
+ * background renderer. Call before the camera appears. */
+gboolean ds_lab_fill_prepare (DsLabFill *fill, guint *n_states, double *seconds, GError **error);
+/* A trigger was accepted: the light now is the frame's. Non-blocking (an external controller:
+ * one Modbus read). */
+void ds_lab_fill_arm (DsLabFill *fill);
+/* With take: TRUE when the oldest trigger not yet handed over has its state rendered; it is then
+ * marked handed, and the caller must make the camera take one frame. Either way drops triggers
+ * that waited too long. *waiting: triggers not handed over yet. */
+gboolean ds_lab_fill_take_ready (DsLabFill *fill, gboolean take, guint *waiting);
+/* Forgets the triggers not yet filled (the camera vanished). */
+void ds_lab_fill_cancel (DsLabFill *fill);
+/* Triggers dropped because their state was not rendered in time. */
+guint64 ds_lab_fill_dropped (DsLabFill *fill);
 /* Fills the buffer's image region; returns the frame's index (0, 1, ...). */
 guint64 ds_lab_fill_buffer (DsLabFill *fill, ArvBuffer *buffer, double exposure_us, double gain_db,
                             guint32 pixel_format);
