@@ -80,11 +80,13 @@ row_convolve (const float *in, guint margin, int x0, guint count, const double *
 
 static const double identity[2] = { 0.0, 1.0 };
 
-/* The chain through the interior planes over the frame (level 0). With objects the maps act;
- * without, every field stays one row (chain(1)). d1_row: segment 0's light at plane 1 (no entry
- * objects), d1_x0 its first frame column. */
-static DsField *
-chain (const ScatterData *d, const DsLight *l, gboolean objects, const float *d1_row, int d1_x0, GError **error)
+/* The chain through the interior planes over the frame (level 0), with the objects (*with) and
+ * without (*clear: every field stays one row). The two run in step: beyond the blocks a field
+ * with objects keeps, the object-free one stands for it (two_scale.h). d1_row: segment 0's
+ * light at plane 1 (no entry objects), d1_x0 its first frame column. */
+static gboolean
+chain (const ScatterData *d, const DsLight *l, const float *d1_row, int d1_x0, DsField **with, DsField **clear,
+       GError **error)
 {
   const DsScale *sc = &d->sc;
   const float *in = ds_image_row (l->incident, 0);
@@ -92,51 +94,65 @@ chain (const ScatterData *d, const DsLight *l, gboolean objects, const float *d1
   guint L = 2 * d->n;
   g_autoptr (DsField) b = NULL;
   g_autoptr (DsField) s = NULL;
+  g_autoptr (DsField) b1 = NULL;
+  g_autoptr (DsField) s1 = NULL;
   if (d->has_entry) {
     g_autoptr (DsField) inc = ds_field_from_row (sc, L + 1, in, in_x0, 1.0, error);
-    g_autoptr (DsField) lit = NULL;
-    if (!inc)
-      return NULL;
-    if (objects && !(lit = ds_field_weigh (sc, inc, &d->entry, identity, 2, L + 1, error)))
-      return NULL;
-    const DsField *src[1] = { objects ? lit : inc };
-    if (!(s = ds_scale_step_apply (d->step_entry, src, error)) || !(b = ds_field_crop (sc, src[0], L, d->beta[0], error)))
-      return NULL;
+    g_autoptr (DsField) lit = inc ? ds_field_weigh (sc, inc, &d->entry, identity, 2, L + 1, error) : NULL;
+    if (!lit)
+      return FALSE;
+    const DsField *src1[1] = { inc }, *src[1] = { lit };
+    if (!(s1 = ds_scale_step_apply (d->step_entry, src1, NULL, error)) ||
+        !(b1 = ds_field_crop (sc, inc, L, d->beta[0], error)) ||
+        !(s = ds_scale_step_apply (d->step_entry, src, src1, error)) ||
+        !(b = ds_field_crop (sc, lit, L, d->beta[0], error)))
+      return FALSE;
   } else {
-    s = ds_field_from_row (sc, L, d1_row, d1_x0, 1.0, error);
-    b = s ? ds_field_from_row (sc, L, in, in_x0, d->beta[0], error) : NULL;
+    s1 = ds_field_from_row (sc, L, d1_row, d1_x0, 1.0, error);
+    b1 = s1 ? ds_field_from_row (sc, L, in, in_x0, d->beta[0], error) : NULL;
+    s = b1 ? ds_field_crop (sc, s1, L, 1, error) : NULL;
+    b = s ? ds_field_crop (sc, b1, L, 1, error) : NULL;
     if (!b)
-      return NULL;
+      return FALSE;
   }
   for (guint j = 1; j <= d->n; j++, L -= 2) {
     const DsScaleMap *map = &d->plane[j];
-    g_autoptr (DsField) xb = objects ? ds_field_weigh (sc, b, map, identity, 2, L, error) : ds_field_crop (sc, b, L, 1, error);
-    g_autoptr (DsField) xd = xb ? (objects ? ds_field_weigh (sc, s, map, identity, 2, L, error)
-                                           : ds_field_crop (sc, s, L, 1, error)) : NULL;
-    if (!xd)
-      return NULL;
+    /* Without objects. */
+    g_autoptr (DsField) xb1 = ds_field_crop (sc, b1, L, 1, error);
+    g_autoptr (DsField) xd1 = xb1 ? ds_field_crop (sc, s1, L, 1, error) : NULL;
+    const DsField *x1[2] = { xb1, xd1 };
+    g_autoptr (DsField) z1 = xd1 ? ds_scale_step_apply (d->step_rc[j], x1, NULL, error) : NULL;
+    g_autoptr (DsField) bp1 = z1 ? ds_field_crop (sc, xb1, L - 1, d->once_b[j], error) : NULL;
+    g_autoptr (DsField) dp1 = bp1 ? ds_field_crop (sc, xd1, L - 1, d->once_d[j], error) : NULL;
+    if (!dp1)
+      return FALSE;
+    ds_field_add (sc, dp1, z1, 1.0);
+    /* With them. */
+    g_autoptr (DsField) xb = ds_field_weigh (sc, b, map, identity, 2, L, error);
+    g_autoptr (DsField) xd = xb ? ds_field_weigh (sc, s, map, identity, 2, L, error) : NULL;
     const DsField *x[2] = { xb, xd };
-    g_autoptr (DsField) z = ds_scale_step_apply (d->step_rc[j], x, error);
+    g_autoptr (DsField) z = xd ? ds_scale_step_apply (d->step_rc[j], x, x1, error) : NULL;
     g_autoptr (DsField) bp = z ? ds_field_crop (sc, xb, L - 1, d->once_b[j], error) : NULL;
     g_autoptr (DsField) dp = bp ? ds_field_crop (sc, xd, L - 1, d->once_d[j], error) : NULL;
-    if (!dp)
-      return NULL;
-    if (objects) {
-      g_autoptr (DsField) q = ds_field_weigh (sc, z, map, d->again[j], 7, L - 1, error);
-      if (!q)
-        return NULL;
-      ds_field_add (sc, dp, q, 1.0);
-    } else
-      ds_field_add (sc, dp, z, 1.0);
-    const DsField *y[2] = { bp, dp };
+    g_autoptr (DsField) q = dp ? ds_field_weigh (sc, z, map, d->again[j], 7, L - 1, error) : NULL;
+    if (!q)
+      return FALSE;
+    ds_field_add (sc, dp, q, 1.0);
+    const DsField *y1[2] = { bp1, dp1 }, *y[2] = { bp, dp };
+    g_clear_pointer (&s1, ds_field_free);
     g_clear_pointer (&s, ds_field_free);
-    if (!(s = ds_scale_step_apply (d->step_seg[j], y, error)))
-      return NULL;
+    if (!(s1 = ds_scale_step_apply (d->step_seg[j], y1, NULL, error)) ||
+        !(s = ds_scale_step_apply (d->step_seg[j], y, y1, error)))
+      return FALSE;
+    g_clear_pointer (&b1, ds_field_free);
     g_clear_pointer (&b, ds_field_free);
-    if (j < d->n && !(b = ds_field_crop (sc, bp, L - 2, d->beta[j], error)))
-      return NULL;
+    if (j < d->n && (!(b1 = ds_field_crop (sc, bp1, L - 2, d->beta[j], error)) ||
+                     !(b = ds_field_crop (sc, bp, L - 2, d->beta[j], error))))
+      return FALSE;
   }
-  return g_steal_pointer (&s);
+  *with = g_steal_pointer (&s);
+  *clear = g_steal_pointer (&s1);
+  return TRUE;
 }
 
 static gboolean
@@ -155,7 +171,7 @@ scattering_apply (const DsStage *st, DsLight *l, const DsStageArgs *a, GError **
     g_autoptr (DsField) inc = ds_field_from_row (&d->sc, 1, in, -(int) M, 1.0, error);
     g_autoptr (DsField) lit = inc ? ds_field_weigh (&d->sc, inc, &d->entry, identity, 2, 1, error) : NULL;
     const DsField *src[1] = { lit };
-    g_autoptr (DsField) out = lit ? ds_scale_step_apply (d->step_entry, src, error) : NULL;
+    g_autoptr (DsField) out = lit ? ds_scale_step_apply (d->step_entry, src, NULL, error) : NULL;
     if (!out)
       return FALSE;
     for (guint y = 0; y < H; y++)
@@ -170,9 +186,9 @@ scattering_apply (const DsStage *st, DsLight *l, const DsStageArgs *a, GError **
       d1 = g_new (float, W + 2 * reach);
       row_convolve (in, M, d1_x0, W + 2 * reach, d->marg_seg0, d->R, d1);
     }
-    g_autoptr (DsField) with = chain (d, l, TRUE, d1, d1_x0, error);
-    g_autoptr (DsField) clear = with ? chain (d, l, FALSE, d1, d1_x0, error) : NULL;
-    if (!clear)
+    g_autoptr (DsField) with = NULL;
+    g_autoptr (DsField) clear = NULL;
+    if (!chain (d, l, d1, d1_x0, &with, &clear, error))
       return FALSE;
     const float *c1 = ds_image_row (clear->fine, 0);
     for (guint y = 0; y < H; y++) {
@@ -260,7 +276,7 @@ make_map (ScatterData *d, const DsSceneSpec *s, const DsStage *objects, guint pl
   map->fine = ds_stage_objects_plane_map (objects, plane);
   map->fine_margin = d->map_margin;
   if (d->sc.f > 1) {
-    map->block_margin = ds_scale_block_margin (&d->sc, top);
+    map->block_margin = ds_scale_block_margin_2d (&d->sc, top);
     map->coarse = ds_stage_objects_coarse_map (s, objects, plane, d->sc.f, map->block_margin, error);
     return map->coarse != NULL;
   }

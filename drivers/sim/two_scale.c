@@ -40,6 +40,12 @@ ds_scale_block_margin (const DsScale *sc, guint level)
   return sc->f > 1 ? 1 + level * sc->rb : 0;
 }
 
+guint
+ds_scale_block_margin_2d (const DsScale *sc, guint level)
+{
+  return ds_scale_block_margin (sc, MIN (level, 1u));
+}
+
 static guint
 blocks (guint n, guint f)
 {
@@ -175,10 +181,12 @@ ds_field_free (DsField *f)
 DsField *
 ds_field_new (const DsScale *sc, guint level, gboolean x_only, GError **error)
 {
-  guint m = ds_scale_fine_margin (sc, level), b = ds_scale_block_margin (sc, level);
+  guint m = ds_scale_fine_margin (sc, level);
+  guint b = x_only ? ds_scale_block_margin (sc, level) : ds_scale_block_margin_2d (sc, level);
   g_autoptr (DsField) f = g_new0 (DsField, 1);
   f->level = level;
   f->x_only = x_only;
+  f->block_margin = b;
   f->fine = ds_image_new (DS_SAMPLE_F32, sc->width + 2 * m, x_only ? 1 : sc->height + 2 * m, error);
   if (!f->fine)
     return NULL;
@@ -202,7 +210,7 @@ ds_field_from_row (const DsScale *sc, guint level, const float *row, int row_x0,
   for (guint i = 0; i < f->fine->width; i++)
     fine[i] = (float) (scale * row[(int) i - m - row_x0]);
   if (f->coarse) {
-    int b = (int) ds_scale_block_margin (sc, level), bf = (int) sc->f;
+    int b = (int) f->block_margin, bf = (int) sc->f;
     float *c = ds_image_row (f->coarse, 0);
     for (guint i = 0; i < f->coarse->width; i++) {
       double s = 0;
@@ -238,7 +246,7 @@ ds_field_crop (const DsScale *sc, const DsField *src, guint level, double scale,
   guint dm = ds_scale_fine_margin (sc, src->level) - ds_scale_fine_margin (sc, level);
   copy_window (f->fine, src->fine, dm, src->x_only ? 0 : dm, scale, FALSE);
   if (f->coarse) {
-    guint db = ds_scale_block_margin (sc, src->level) - ds_scale_block_margin (sc, level);
+    guint db = src->block_margin - f->block_margin;
     copy_window (f->coarse, src->coarse, db, src->x_only ? 0 : db, scale, FALSE);
   }
   return f;
@@ -251,7 +259,8 @@ ds_field_add (const DsScale *sc, DsField *dst, const DsField *src, double scale)
   guint dm = ds_scale_fine_margin (sc, src->level) - ds_scale_fine_margin (sc, dst->level);
   copy_window (dst->fine, src->fine, dm, src->x_only ? 0 : dm, scale, TRUE);
   if (dst->coarse) {
-    guint db = ds_scale_block_margin (sc, src->level) - ds_scale_block_margin (sc, dst->level);
+    g_assert (src->block_margin >= dst->block_margin);
+    guint db = src->block_margin - dst->block_margin;
     copy_window (dst->coarse, src->coarse, db, src->x_only ? 0 : db, scale, TRUE);
   }
 }
@@ -284,7 +293,8 @@ ds_field_weigh (const DsScale *sc, const DsField *src, const DsScaleMap *map, co
   }
   if (!f->coarse)
     return f;
-  guint b = ds_scale_block_margin (sc, level), sb = ds_scale_block_margin (sc, src->level), bf = sc->f;
+  guint b = f->block_margin, sb = src->block_margin, bf = sc->f;
+  g_assert (sb >= b && map->block_margin >= b);
   for (guint by = 0; by < f->coarse->height; by++) {
     const float *s = (const float *) ds_image_row (src->coarse, src->x_only ? 0 : by + sb - b) + (sb - b);
     const float *o = (const float *) ds_image_row (map->coarse, by + map->block_margin - b) + (map->block_margin - b);
@@ -315,6 +325,7 @@ struct DsScaleStep {
   const DsScaleKernel *const *k; /* borrowed: the caller keeps the kernels */
   DsCvConvPlan *fine;            /* cores */
   DsCvConvPlan *coarse;          /* tails (0 .. n-1), then wholes (n .. 2n-1) */
+  guint in_block_margin;         /* of the plan's 2-D inputs: the output's plus rb */
 };
 
 void
@@ -349,7 +360,7 @@ ds_scale_step_new (const DsScale *sc, guint level, const DsScaleKernel *const *k
     ks[i] = view (k[i]->core);
   st->fine = ds_cv_conv_plan_new ((int) (sc->width + 2 * m), (int) (sc->height + 2 * m), ks, (int) n, err, sizeof err);
   if (st->fine && sc->f > 1) {
-    guint b = ds_scale_block_margin (sc, level);
+    guint b = st->in_block_margin = ds_scale_block_margin_2d (sc, level - 1) + sc->rb;
     for (guint i = 0; i < n; i++) {
       ks[i] = view (k[i]->tail);
       ks[n + i] = view (k[i]->whole);
@@ -378,35 +389,42 @@ row_convolve_add (float *dst, guint w, const float *src, const double *m, guint 
   }
 }
 
-/* out = sum over the selected kernels of k (*) in: 2-D inputs through the plan (kernel i of
- * the plan at plan_offset + i), x-only ones through column sums added to every row. */
+/* What one scale of a step convolves: 2-D sources through the plan (source i with kernel
+ * plan_offset + i), x-only rows through column sums added to every row. */
+typedef struct {
+  const DsImage *grid[4];  /* 2-D, the plan's input size, or NULL */
+  const DsImage *row[8];   /* x-only, or NULL ... */
+  guint row_kernel[8];     /* ... with the kernel index (0 .. n-1) whose column sums apply ... */
+  guint row_skip[8];       /* ... and its first column that lines up with the output's column -r */
+  guint n_rows;
+} Sources;
+
 static gboolean
-convolve (const DsCvConvPlan *plan, guint plan_n, guint plan_offset, const DsField *const *in, guint n,
-          gboolean coarse, const double *const *marg, guint r, DsImage *out, GError **error)
+convolve (const DsCvConvPlan *plan, guint plan_offset, const Sources *src, guint n, const double *const *marg,
+          guint r, DsImage *out, GError **error)
 {
-  DsCvView src[8] = { { 0 } };
+  DsCvView views[8] = { { 0 } };
   gboolean any_2d = FALSE;
   for (guint i = 0; i < n; i++)
-    if (in[i] && !in[i]->x_only) {
-      src[plan_offset + i] = view (coarse ? in[i]->coarse : in[i]->fine);
+    if (src->grid[i]) {
+      views[plan_offset + i] = view (src->grid[i]);
       any_2d = TRUE;
     }
   if (any_2d) {
     DsCvView d = view (out);
     char err[256];
-    (void) plan_n;
-    if (ds_cv_conv_plan_apply (plan, src, &d, err, sizeof err) != 0) {
+    if (ds_cv_conv_plan_apply (plan, views, &d, err, sizeof err) != 0) {
       g_set_error (error, DS_SIM_ERROR, DS_SIM_ERROR_NUMERIC, "scattering convolution: %s", err);
       return FALSE;
     }
   }
   g_autofree float *row = NULL;
-  for (guint i = 0; i < n; i++)
-    if (in[i] && in[i]->x_only) {
-      if (!row)
-        row = g_new0 (float, out->width);
-      row_convolve_add (row, out->width, ds_image_row (coarse ? in[i]->coarse : in[i]->fine, 0), marg[i], r);
-    }
+  for (guint i = 0; i < src->n_rows; i++) {
+    if (!row)
+      row = g_new0 (float, out->width);
+    const float *in = (const float *) ds_image_row (src->row[i], 0) + src->row_skip[i];
+    row_convolve_add (row, out->width, in, marg[src->row_kernel[i]], r);
+  }
   for (guint y = 0; row && y < out->height; y++) {
     float *d = ds_image_row (out, y);
     for (guint x = 0; x < out->width; x++)
@@ -415,11 +433,12 @@ convolve (const DsCvConvPlan *plan, guint plan_n, guint plan_offset, const DsFie
   return TRUE;
 }
 
-/* fine += the tail's block sums (coarse, same level) interpolated between block centres, per pixel. */
+/* fine += the tail's block sums (coarse, block margin b) interpolated between block centres,
+ * per pixel. */
 static void
-add_tail (const DsScale *sc, guint level, DsImage *fine, const DsImage *tail)
+add_tail (const DsScale *sc, guint level, guint b, DsImage *fine, const DsImage *tail)
 {
-  guint m = ds_scale_fine_margin (sc, level), b = ds_scale_block_margin (sc, level), f = sc->f;
+  guint m = ds_scale_fine_margin (sc, level), f = sc->f;
   double per_px = 1.0 / ((double) f * f);
   g_autofree int *ix = g_new (int, fine->width);
   g_autofree double *tx = g_new (double, fine->width);
@@ -449,8 +468,28 @@ add_tail (const DsScale *sc, guint level, DsImage *fine, const DsImage *tail)
   }
 }
 
+/* A 2-D field's blocks minus its object-free counterpart's, padded with zeros to the plan's
+ * input margin pb (beyond its blocks the field is the object-free light). */
+static DsImage *
+padded_difference (const DsScale *sc, const DsField *in, const DsField *clear, guint pb, GError **error)
+{
+  g_autoptr (DsImage) p = ds_image_new (DS_SAMPLE_F32, blocks (sc->width, sc->f) + 2 * pb,
+                                        blocks (sc->height, sc->f) + 2 * pb, error);
+  if (!p)
+    return NULL;
+  guint off = pb - in->block_margin, cskip = clear->block_margin - in->block_margin;
+  const float *c = (const float *) ds_image_row (clear->coarse, 0) + cskip;
+  for (guint y = 0; y < in->coarse->height; y++) {
+    const float *s = ds_image_row (in->coarse, y);
+    float *d = (float *) ds_image_row (p, y + off) + off;
+    for (guint x = 0; x < in->coarse->width; x++)
+      d[x] = s[x] - c[x];
+  }
+  return g_steal_pointer (&p);
+}
+
 DsField *
-ds_scale_step_apply (const DsScaleStep *st, const DsField *const *in, GError **error)
+ds_scale_step_apply (const DsScaleStep *st, const DsField *const *in, const DsField *const *clear, GError **error)
 {
   const DsScale *sc = st->sc;
   gboolean x_only = TRUE;
@@ -468,14 +507,53 @@ ds_scale_step_apply (const DsScaleStep *st, const DsField *const *in, GError **e
     tail_m[i] = st->k[i]->tail_x;
     whole_m[i] = st->k[i]->whole_x;
   }
-  if (!convolve (st->fine, st->n, 0, in, st->n, FALSE, core_m, sc->rc, out->fine, error))
-    return NULL;
-  if (sc->f > 1) {
-    g_autoptr (DsImage) tail = ds_image_new (DS_SAMPLE_F32, out->coarse->width, out->coarse->height, error);
-    if (!tail || !convolve (st->coarse, 2 * st->n, 0, in, st->n, TRUE, tail_m, sc->rb, tail, error) ||
-        !convolve (st->coarse, 2 * st->n, st->n, in, st->n, TRUE, whole_m, sc->rb, out->coarse, error))
-      return NULL;
-    add_tail (sc, st->level - 1, out->fine, tail);
+  /* Fine: every margin is the full one. */
+  Sources fine = { 0 };
+  for (guint i = 0; i < st->n; i++) {
+    if (in[i] && !in[i]->x_only)
+      fine.grid[i] = in[i]->fine;
+    else if (in[i]) {
+      fine.row[fine.n_rows] = in[i]->fine;
+      fine.row_kernel[fine.n_rows++] = i;
+    }
   }
+  if (!convolve (st->fine, 0, &fine, st->n, core_m, sc->rc, out->fine, error))
+    return NULL;
+  if (sc->f == 1)
+    return g_steal_pointer (&out);
+  /* Coarse: 2-D inputs short of the plan's margin go in as their difference from the
+   * object-free light, which goes in as a row. */
+  Sources coarse = { 0 };
+  DsImage *pads[4] = { NULL };
+  gboolean ok = TRUE;
+  for (guint i = 0; ok && i < st->n; i++) {
+    const DsField *row = NULL;
+    if (!in[i])
+      continue;
+    if (in[i]->x_only)
+      row = in[i];
+    else if (in[i]->block_margin >= st->in_block_margin) {
+      g_assert (in[i]->block_margin == st->in_block_margin);
+      coarse.grid[i] = in[i]->coarse;
+    } else {
+      g_assert (clear && clear[i] && clear[i]->x_only && clear[i]->level == st->level);
+      ok = (pads[i] = padded_difference (sc, in[i], clear[i], st->in_block_margin, error)) != NULL;
+      coarse.grid[i] = pads[i];
+      row = clear[i];
+    }
+    if (row) {
+      coarse.row[coarse.n_rows] = row->coarse;
+      coarse.row_kernel[coarse.n_rows] = i;
+      coarse.row_skip[coarse.n_rows++] = row->block_margin - out->block_margin - sc->rb;
+    }
+  }
+  g_autoptr (DsImage) tail = ok ? ds_image_new (DS_SAMPLE_F32, out->coarse->width, out->coarse->height, error) : NULL;
+  ok = tail && convolve (st->coarse, 0, &coarse, st->n, tail_m, sc->rb, tail, error) &&
+       convolve (st->coarse, st->n, &coarse, st->n, whole_m, sc->rb, out->coarse, error);
+  for (guint i = 0; i < st->n; i++)
+    ds_image_free (pads[i]);
+  if (!ok)
+    return NULL;
+  add_tail (sc, st->level - 1, out->block_margin, out->fine, tail);
   return g_steal_pointer (&out);
 }

@@ -11,7 +11,18 @@
  * before any object) is kept as one row and convolved with the kernels' column sums: the same
  * numbers as the 2-D path, which the chain without objects relies on.
  *
- * Kernels with radius <= 2 DS_SCALE_CORE are done at one scale (f = 1: no coarse part).
+ * How far the light is followed: a field whose rows differ (light that met an object) is kept
+ * at blocks only as far as one kernel reaches around the frame (1 + rb blocks), whatever its
+ * level; beyond that it is taken to be the object-free light (the chain's x-only fields, which
+ * keep every level's full reach). A step from such a field pads its difference from the
+ * object-free light with zeros and adds the object-free light's own convolution, so a clear
+ * object is still no object, and the last step (to the frame) is exact. Without the cap a chain
+ * of 2n steps covered 2n kernel radii around the frame: a 2048 px kernel through 3 planes was
+ * convolved over 3110^2 blocks to light 24 x 18 of them (docs/scene-format.md, "Cost"). What is
+ * lost is light that at some plane lay farther than the kernel's radius from the frame and
+ * still came back into it, which the kernel's radius leaves out anyway (it holds 99.5 %).
+ *
+ * Kernels with radius <= 2 DS_SCALE_CORE are done at one scale (f = 1: no coarse part, no cap).
  * Immutable once built: steps may be applied from any thread at once. */
 #pragma once
 #include <glib.h>
@@ -32,7 +43,9 @@ typedef struct {
 
 void ds_scale_init (DsScale *sc, guint kernel_radius, guint width, guint height);
 guint ds_scale_fine_margin (const DsScale *sc, guint level);
+/* The block margin of an x-only field (the full reach) and of a 2-D one (capped, above). */
 guint ds_scale_block_margin (const DsScale *sc, guint level);
+guint ds_scale_block_margin_2d (const DsScale *sc, guint level);
 /* The incident row must reach this far beyond the frame on each side for a level-L field and
  * 1-D convolutions of the given radius on it. */
 guint ds_scale_row_margin (const DsScale *sc, guint level, guint radius);
@@ -52,6 +65,7 @@ typedef struct {
   gboolean x_only;  /* one row stands for all */
   DsImage *fine;    /* (W + 2 m) x (H + 2 m), m = fine margin; height 1 when x_only */
   DsImage *coarse;  /* block sums, (ceil(W/f) + 2 b) x (ceil(H/f) + 2 b); NULL at one scale */
+  guint block_margin; /* b: ds_scale_block_margin, or _2d for a 2-D field */
 } DsField;
 
 DsField *ds_field_new (const DsScale *sc, guint level, gboolean x_only, GError **error);
@@ -86,8 +100,11 @@ typedef struct DsScaleStep DsScaleStep;
 /* out (level - 1) = sum_i kernels[i] (*) in_i (level). */
 DsScaleStep *ds_scale_step_new (const DsScale *sc, guint level, const DsScaleKernel *const *kernels, guint n,
                                 GError **error);
-/* in[i] may be NULL (no light of that kind). The result is x-only when every input is. */
-DsField *ds_scale_step_apply (const DsScaleStep *st, const DsField *const *in, GError **error);
+/* in[i] may be NULL (no light of that kind). The result is x-only when every input is. clear[i]:
+ * the x-only object-free counterpart of a 2-D in[i], which stands for it beyond its blocks
+ * (needed for a 2-D input above level 1; else may be NULL). */
+DsField *ds_scale_step_apply (const DsScaleStep *st, const DsField *const *in, const DsField *const *clear,
+                              GError **error);
 void ds_scale_step_free (DsScaleStep *st);
 
 G_END_DECLS
