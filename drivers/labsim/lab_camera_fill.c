@@ -21,10 +21,11 @@
 /* Beyond this, the cache of noise-free frames is emptied (a study sweeping settings). */
 #define CACHE_MAX_BYTES ((gsize) 1 << 30)
 
-/* A trigger waits at most this long for its lighting state: under the daemon's default grab
- * timeout (2 s), so that a frame either arrives in time or the trigger is dropped and the
- * daemon's retry finds the state ready. */
-#define ORDER_WAIT_US 1500000
+/* A trigger waits at most this long for its lighting state (a frame late, never wrong): longer
+ * than any state of a servable scene takes to render on a loaded machine (gen-7-00: a few
+ * seconds). A client whose grab times out first triggers again; the late frame then arrives as
+ * a surplus one, of the same light, which the daemon drops as stale. */
+#define ORDER_WAIT_US 10000000
 /* A free-running frame (TriggerMode Off) waits on the camera thread itself: briefly. */
 #define FREE_RUN_WAIT_US 200000
 

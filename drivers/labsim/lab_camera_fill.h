@@ -22,7 +22,7 @@
  * Triggers: the router calls ds_lab_fill_arm at each trigger it accepts, which samples the light
  * on at that edge; ds_lab_fill_take_ready says when the oldest such trigger's state is rendered,
  * and the router then hands it to the camera thread, whose fill serves exactly that light. A
- * trigger whose state is not rendered 1.5 s after its edge is dropped (counted, logged): a
+ * trigger whose state is not rendered 10 s after its edge is dropped (counted, logged): a
  * frame never shows the light of another phase. Free-running (TriggerMode Off) a frame takes
  * the light at its fill, waiting up to 0.2 s on the camera thread for its state, else it is
  * sent black (no stripes: no phase check passes it).
