@@ -36,6 +36,31 @@ describe_scattering (const DsScene *scene, const DsRendererScattering *sc)
             "the frames carry it; raise [medium] photons (now %" G_GUINT64_FORMAT ")\n", 100 * ratio, s->photons);
 }
 
+/* What one frame costs, measured here and now (the machine's load is in it): the render cost a
+ * user of labsim or `render` meets, and the stage that takes it. */
+static int
+describe_cost (const DsRenderer *r, const DsScene *scene)
+{
+  double secs[DS_RENDER_N_STAGES] = { 0 };
+  DsRenderRequest req = { .phase = 0, .n_phases = 4, .illuminator_on = TRUE,
+                          .exposure_us = ds_scene_default_exposure_us (scene) };
+  g_autoptr (GError) error = NULL;
+  gint64 t0 = g_get_monotonic_time ();
+  g_autoptr (DsImage) frame = ds_renderer_render_timed (r, &req, secs, &error);
+  double total = (double) (g_get_monotonic_time () - t0) / 1e6;
+  if (!frame) {
+    fprintf (stderr, "descatter-sim: %s\n", error->message);
+    return 1;
+  }
+  guint top = 0;
+  for (guint s = 1; s < DS_RENDER_N_STAGES; s++)
+    top = secs[s] > secs[top] ? s : top;
+  printf ("render cost: one frame in %.3g s here and now (%.0f %% of it %s); descatter-labsim renders each "
+          "phase and dark once per phase count and period, before serving and then in the background\n", total,
+          total > 0 ? 100 * secs[top] / total : 0.0, ds_render_stage_name ((DsRenderStage) top));
+  return 0;
+}
+
 int
 ds_sim_describe_main (int argc, char **argv)
 {
@@ -64,6 +89,6 @@ ds_sim_describe_main (int argc, char **argv)
   DsRendererScattering sc;
   if (ds_renderer_scattering (r, &sc))
     describe_scattering (scene, &sc);
-  return 0;
+  return describe_cost (r, scene);
 }
 
