@@ -71,8 +71,7 @@ run (const char *const *labsim_args, gboolean faults)
     g_assert_cmpuint (ok, ==, 3);
     g_assert_cmpint (timeouts, ==, 0);
     /* Every apply pulses the sync line, loading the pattern and switching off for the dark
-     * frame too, and labsim renders a frame when Aravis's camera thread fills it, not at the
-     * trigger edge: so a loaded rig shows surplus frames, stale, of another phase or without
+     * frame too: so a loaded rig shows surplus frames, stale, of another phase or without
      * stripes, and loopback may lose packets of one. The daemon must drop each with its reason
      * and keep every set correct; none may be folded into a set that then failed. */
     g_assert_cmpint (test_json_int (b, "frames.dropped_by_reason.aborted"), ==, 0);
