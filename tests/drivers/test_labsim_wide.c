@@ -29,7 +29,7 @@ static DsImage *truth_t, *truth_g;
 static char *
 daemon_config (const TestLabsim *l, guint phases)
 {
-  return g_strdup_printf ("[camera]\nbackend=aravis\naddress=127.0.0.1\npixel-format=Mono12p\n"
+  return g_strdup_printf ("[camera]\nbackend=aravis\naddress=127.0.0.1\npixel-format=Mono16\n"
                           "exposure-us=%g\ngrab-timeout-ms=30000\n"
                           "[illuminator]\nbackend=modbus\nmodbus-uri=tcp://127.0.0.1:%u\nmodbus-timeout-ms=300\n"
                           "period-px=%g\nduty=%g\n"
