@@ -298,7 +298,8 @@ ds_ctl_validate (int argc, char **argv)
 {
   g_auto (GStrv) scene_files = NULL;
   g_autofree char *out = NULL, *targets = NULL, *budgets = NULL, *model_path = NULL, *configs = NULL;
-  gboolean uncalibrated = FALSE, fixed_period = FALSE, shipped = FALSE, fit = FALSE, quiet = FALSE;
+  gboolean uncalibrated = FALSE, fixed_period = FALSE, shipped = FALSE, fit = FALSE, quiet = FALSE,
+           saturation_known = FALSE;
   gint generate = 0;
   gint64 seed = 1;
   GOptionEntry entries[] = {
@@ -313,6 +314,7 @@ ds_ctl_validate (int argc, char **argv)
     { "model", 'm', 0, G_OPTION_ARG_FILENAME, &model_path, "Operating model (default: the installed one)", "FILE" },
     { "uncalibrated", 0, 0, G_OPTION_ARG_NONE, &uncalibrated, "The rig has no calibrated harmonic gain", NULL },
     { "fixed-period", 0, 0, G_OPTION_ARG_NONE, &fixed_period, "The illuminator cannot change its period", NULL },
+    { "saturation-known", 0, 0, G_OPTION_ARG_NONE, &saturation_known, "The rig is configured with the sensor's clip level ([camera] saturation-dn)", NULL },
     { "out", 'o', 0, G_OPTION_ARG_FILENAME, &out, "Output folder (default validation/)", "DIR" },
     { "quiet", 'q', 0, G_OPTION_ARG_NONE, &quiet, "No progress", NULL },
     { NULL },
@@ -327,7 +329,8 @@ ds_ctl_validate (int argc, char **argv)
     fprintf (stderr, "descatterctl validate: %s\n", error->message);
     return 2;
   }
-  Plan plan = { .options = { .calibrated = !uncalibrated, .fixed_period = fixed_period, .seed = (guint64) seed },
+  Plan plan = { .options = { .calibrated = !uncalibrated, .fixed_period = fixed_period,
+                             .saturation_known = saturation_known, .seed = (guint64) seed },
                 .quiet = quiet };
   ds_rig_timing_init (&plan.timing);
   g_autofree double *t_list = NULL, *b_list = NULL;
@@ -461,9 +464,11 @@ ds_ctl_validate (int argc, char **argv)
   for (guint i = 0; i < runs->len; i++)
     write_csv (csv, g_ptr_array_index (runs, i));
   GString *md = g_string_new ("# Validation of the automatic operating point\n\nMade by `descatterctl validate`");
-  g_string_append_printf (md, " (rig: %s, %s; seed %" G_GINT64_FORMAT "; scale %.3f fitted on %s).\n",
+  g_string_append_printf (md, " (rig: %s, %s, %s; seed %" G_GINT64_FORMAT "; scale %.3f fitted on %s).\n",
                           uncalibrated ? "uncalibrated" : "calibrated harmonic gain",
-                          fixed_period ? "fixed stripe period" : "stripe period can change", seed, plan.model.scale,
+                          fixed_period ? "fixed stripe period" : "stripe period can change",
+                          saturation_known ? "clip level configured" : "clip level unknown below the format's top",
+                          seed, plan.model.scale,
                           plan.model.fitted_on);
   if (n_given)
     write_md (md, fit ? "Given scenes, leave one scene out" : "Given scenes", runs, FALSE);

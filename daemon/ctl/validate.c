@@ -98,8 +98,10 @@ ds_validate_probe (const DsSimRig *rig, const DsValidateOptions *o, DsValidateSc
     .dark = dark, .lit = { l0, l1 }, .coarse = { c0, c1 },
     .coarse_missing = o->fixed_period ? "the illuminator cannot change its period" : NULL,
     .exposure_us = e0,
-    /* What descatterd knows: the pixel format's top. A full well below it shows as a pile-up. */
-    .saturation_dn = (double) ((1u << s->bit_depth) - 1),
+    /* What descatterd knows: the pixel format's top, or the clip level configured ([camera]
+     * saturation-dn). A full well below the format's top shows as a pile-up when reached. */
+    .saturation_dn = o->saturation_known ? ds_sim_rig_clip_dn (rig) : (double) ((1u << s->bit_depth) - 1),
+    .saturation_known = o->saturation_known,
     .geometry = { .kind = s->sine ? DS_PATTERN_SINE : DS_PATTERN_SQUARE, .period_px = s->period_px,
                   .duty = s->duty, .black_level = s->black_level },
     .calibrated_gain = out->harmonic_gain,
@@ -111,6 +113,8 @@ ds_validate_probe (const DsSimRig *rig, const DsValidateOptions *o, DsValidateSc
   out->params.duty = pf.geometry.duty;
   out->params.black_level = pf.geometry.black_level;
   out->params.harmonic_gain = out->harmonic_gain;
+  /* As ds_capture_settings_separation_params: the configured clip level flags clipped samples. */
+  out->params.saturation_level = o->saturation_known ? ds_sim_rig_clip_dn (rig) : 0;
   /* As descatterd's sets (ds_capture_settings_separation_params): the period is known. */
   out->params.geometry.period_px = s->period_px;
   out->params.geometry.pixel_aperture = 1;

@@ -17,6 +17,8 @@ G_BEGIN_DECLS
 typedef struct {
   gboolean calibrated;     /* the rig was calibrated on the clear reference: h known */
   gboolean fixed_period;   /* the illuminator cannot change its period: no second period */
+  gboolean saturation_known; /* the rig is configured with the sensor's clip level ([camera]
+                                saturation-dn); otherwise it knows the pixel format's top only */
   guint64 seed;            /* noise seeds of every frame derive from it */
 } DsValidateOptions;
 

@@ -148,6 +148,18 @@ run_sets (DsErrorModel *m, guint n, guint averages, double factor, double period
   DsStripeModel g = pr->geometry;
   g.period_px = period;
   DsPhaseSet *sets[N_EST] = { NULL };
+  /* A dark level under everything, and a dark frame of M averaged frames taken off it, as the
+   * rig subtracts one: the mask then flags where the dark frame exceeds the darkest phase. */
+  const double pedestal = 100.0;
+  /* The sensor's clip level over that dark level: frames clip there, and the sets flag the
+   * clipped samples when the rig's sets flag at that level (not at a full well the pilot found
+   * below the level they know: those pass unflagged, as on the rig). The two-valued Ld keeps
+   * the scene's mean and mean square, not its brightest pixels: the level is scaled so that the
+   * synthetic brightest pixel clips when the pilot's brightest (bright_dn) would. */
+  double syn_bright = m->ld_lit * ds_stripe_value (&g, 0, 0) +
+                      pr->lg_mean * ds_pattern_mean (g.kind, g.duty, g.black_level);
+  double to_syn = pr->bright_dn > 0 && syn_bright > 0 ? syn_bright / pr->bright_dn : 1.0;
+  double clip = pr->saturation_dn > 0 ? pedestal + (pr->saturation_dn - pr->dark_dn) * to_syn : INFINITY;
   for (int e = 0; e < N_EST; e++) {
     gpointer key_set = GUINT_TO_POINTER (n << 2 | (guint) e);
     sets[e] = g_hash_table_lookup (m->sets, key_set);
@@ -158,8 +170,7 @@ run_sets (DsErrorModel *m, guint n, guint averages, double factor, double period
     DsSeparationParams p = m->params;
     p.n_phases = n;
     p.estimator = estimators[e];
-    /* Synthetic frames are float: a saturation level from integer frames would not apply. */
-    p.saturation_level = 0;
+    p.saturation_level = pr->clip_flagged && isfinite (clip) ? clip : 0;
     GError *err = NULL;
     sets[e] = ds_phase_set_new (&p, m->width, SYN_ROWS, &err);
     if (!sets[e]) {
@@ -170,9 +181,6 @@ run_sets (DsErrorModel *m, guint n, guint averages, double factor, double period
     g_hash_table_insert (m->sets, key_set, sets[e]);
   }
   double pattern_mean = ds_pattern_mean (g.kind, g.duty, g.black_level);
-  /* A dark level under everything, and a dark frame of M averaged frames taken off it, as the
-   * rig subtracts one: the mask then flags where the dark frame exceeds the darkest phase. */
-  const double pedestal = 100.0;
   if (noise)
     ensure_normals (m, n + 1);
   g_autoptr (DsImage) frame = ds_image_new (DS_SAMPLE_F32, m->width, SYN_ROWS, NULL);
@@ -204,7 +212,7 @@ run_sets (DsErrorModel *m, guint n, guint averages, double factor, double period
         double s = factor * (ld * lit[x] + pr->lg_mean * pattern_mean);
         if (z)
           s += sqrt (MAX (0.0, pr->noise_var0 + pr->noise_gain * s) / averages) * z[x];
-        row[x] = (float) (pedestal + s);
+        row[x] = (float) MIN (pedestal + s, clip);
       }
     }
     for (int e = 0; e < N_EST; e++) {

@@ -158,10 +158,13 @@ ds_operating_model_write (const DsOperatingModel *m, const char *path, GError **
 double
 ds_scene_probe_max_exposure (const DsSceneProbe *p)
 {
+  /* Float frames (no clip level at all) scale freely; an unknown full well caps at the pilot's
+   * exposure, the longest one the frames show unclipped. */
+  double unknown_cap = p->saturation_dn > 0 && !p->clip_known ? p->exposure_us : 16 * p->exposure_us;
   if (!(p->saturation_dn > 0) || !(p->bright_dn > 0))
-    return 16 * p->exposure_us;
+    return unknown_cap;
   double room = 0.9 * p->saturation_dn - p->dark_dn;
-  return room > 0 ? p->exposure_us * room / p->bright_dn : 0;
+  return room > 0 ? MIN (unknown_cap, p->exposure_us * room / p->bright_dn) : 0;
 }
 
 static gboolean
@@ -348,10 +351,18 @@ append_remedies (GString *msg, const DsOperatingModel *m, DsErrorModel *errors, 
   if (more.meeting_any_time.found) {
     g_string_append (msg, ". More frames or light would reach it: ");
     append_point (msg, &more.meeting_any_time.p);
-    if (more.meeting_any_time.p.exposure_us > ds_scene_probe_max_exposure (probe))
+    double max_us = ds_scene_probe_max_exposure (probe);
+    double clip_us = probe->clip_known ? max_us : max_us * 16; /* what the clip level alone allows */
+    if (!probe->clip_known && probe->saturation_dn > 0 && probe->bright_dn > 0)
+      clip_us = probe->exposure_us * (0.9 * probe->saturation_dn - probe->dark_dn) / probe->bright_dn;
+    if (more.meeting_any_time.p.exposure_us > max_us && more.meeting_any_time.p.exposure_us <= clip_us)
+      g_string_append_printf (msg, ", but exposures above the pilot's %.0f µs may clip unseen (the sensor's clip "
+                                   "level is not known: set [camera] saturation-dn)",
+                              max_us);
+    else if (more.meeting_any_time.p.exposure_us > max_us)
       g_string_append_printf (msg, ", but exposures above %.0f µs clip the brightest pixels: more illumination "
                                    "or a lower gain",
-                              ds_scene_probe_max_exposure (probe));
+                              MIN (max_us, clip_us));
   }
   /* Other periods: the scattered stripes shrink at finer ones, blur and the pixels' aperture
    * weigh more. */
@@ -427,8 +438,10 @@ ds_operating_point_choose (const DsOperatingModel *m, DsErrorModel *errors, cons
     append_point (msg, &s.least_in_budget.p);
     if (s.least_in_budget.p.lower_bound)
       g_string_append (msg, ", a lower bound");
-  } else
+  } else if (budget > 0)
     g_string_append_printf (msg, "; the fastest candidate does not fit a budget of %.0f ms", budget);
+  else
+    g_string_append (msg, "; no candidate leaves pixels to separate (each clips or is refused by its estimator)");
   if (target > 0 && reachable && s.meeting_any_time.found) {
     g_string_append_printf (msg, ". A time budget of %.0f ms would reach it: ", ceil (s.meeting_any_time.p.predicted_time_ms));
     append_point (msg, &s.meeting_any_time.p);
@@ -501,6 +514,7 @@ ds_operating_report_to_json (const DsOperatingReport *r, JsonBuilder *b)
   DBL ("scattered_stripes_at_period", ds_scene_probe_leak (pr, pr->geometry.period_px, 1));
   STR ("scattered_stripes_note", pr->leak_note);
   DBL ("clip_dn", pr->saturation_dn);
+  BOOL ("clip_known", pr->clip_known);
   DBL ("saturated_fraction", pr->saturated_fraction);
   DBL ("exposure_us", pr->exposure_us);
   json_builder_end_object (b);

@@ -54,7 +54,9 @@ typedef struct {
 } DsOperatingPoint;
 
 /* The longest exposure (µs) that keeps the probe's brightest pixels (99.9th percentile) below
- * 90 % of its clip level. */
+ * 90 % of its clip level; when that level is only the pixel format's top (not configured, no
+ * pile-up in the pilot frames), at most the pilot's exposure: a full well below the format's top
+ * clips unflagged and unseen at longer ones. */
 double ds_scene_probe_max_exposure (const DsSceneProbe *probe);
 
 /* target_error <= 0: no target; time_budget_ms <= 0: no budget. With a target: the fastest

@@ -172,15 +172,19 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
    * pile of 0.02 % of the pixels at the very top means clipping, but only when there is noise:
    * a noise-free frame's flat top is not a clip. */
   double clip = fr->saturation_dn > 0 ? fr->saturation_dn : INFINITY;
+  out->clip_known = fr->saturation_known && fr->saturation_dn > 0;
   for (int i = 0; i < 2 && out->noise_var0 >= 0.25; i++) {
     const DsImage *f = fr->lit[i];
     if (f->type == DS_SAMPLE_F32)
       continue;
     double top = ds_image_percentile (f, 100), near = ds_image_percentile (f, 99.98);
-    if (top > out->dark_dn && near >= top && top < clip)
+    if (top > out->dark_dn && near >= top && top <= clip) {
       clip = top;
+      out->clip_known = TRUE;
+    }
   }
   out->saturation_dn = isfinite (clip) ? clip : 0;
+  out->clip_flagged = fr->saturation_dn > 0 && clip >= fr->saturation_dn;
   double ceiling = out->saturation_dn;
   out->bright_dn = MAX (ds_image_percentile (l0, 99.9), ds_image_percentile (l1, 99.9)) - out->dark_dn;
 
@@ -233,7 +237,10 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
    * the scattered stripes raise the coarse period against the fine one; every harmonic at both
    * periods is needed to tell them apart. */
   double sigma = 0;
-  if (fr->calibrated_gain > 0) {
+  if (fr->blur_known) {
+    sigma = CLAMP (fr->calibrated_blur_px, 0.0, fr->geometry.period_px / 2);
+    out->blur_source = DS_BLUR_CALIBRATED;
+  } else if (fr->calibrated_gain > 0) {
     sigma = ds_stripe_blur_from_gain (&fr->geometry, fr->calibrated_gain);
     sigma = sigma < 0 ? fr->geometry.period_px / 2 : sigma;
     out->blur_source = DS_BLUR_CALIBRATED;

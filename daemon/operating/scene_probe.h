@@ -42,8 +42,12 @@ typedef struct {
   const char *coarse_missing;     /* why not (shown with the lower bound) */
   double exposure_us;
   double saturation_dn;           /* the ADC's top or a known clip level; 0 = none */
+  gboolean saturation_known;      /* saturation_dn is the sensor's real clip level (configured);
+                                     FALSE: only the pixel format's top, a full well may be lower */
   DsStripeModel geometry;      /* as configured; blur_px is what the probe finds */
   double calibrated_gain;         /* h measured on a reference (descatterctl calibrate); 0 = none */
+  gboolean blur_known;            /* calibrated_blur_px holds a calibrated edge blur */
+  double calibrated_blur_px;      /* Gaussian sigma (descatterctl calibrate); wins over the gain's */
 } DsProbeFrames;
 
 typedef struct {
@@ -61,6 +65,12 @@ typedef struct {
   double noise_gain;              /* DN^2 per DN of signal (shot noise) */
   double dark_dn;
   double saturation_dn;           /* the clip level applied: given, or a pile-up found lower */
+  gboolean clip_known;            /* saturation_dn is known to be where the sensor clips (given as
+                                     known, or a pile-up found): exposures may rise up to it.
+                                     FALSE: a full well below the format's top would go unseen,
+                                     so no exposure above the pilot's is safe */
+  gboolean clip_flagged;          /* the separation flags samples at saturation_dn (it is the level
+                                     given, not a full well the pilot found below it) */
   double bright_dn;               /* 99.9th percentile of the brighter pilot frame minus dark */
   double saturated_fraction;      /* pixels at the clip level in a pilot frame */
   guint width, height;

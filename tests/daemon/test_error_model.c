@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "daemon/operating/error_model.h"
+#include "daemon/operating/operating_point.h"
 #include "daemon/operating/scene_probe.h"
 #include "daemon/operating/stripe_model.h"
 
@@ -190,6 +191,60 @@ test_probe_leak (void)
   g_assert_cmpfloat (ds_scene_probe_leak (&p, 12, 1), ==, 0);
 }
 
+/* The clip level: a full well below the pixel format's top shows as a pile-up in the pilot frames
+ * (then known, but not flagged by the sets, which know the format's top); a configured one is
+ * known and flagged; without either no exposure above the pilot's is allowed. A calibrated edge
+ * blur is taken as it is. */
+static void
+test_probe_clip_level (void)
+{
+  Synth s = { { DS_PATTERN_SQUARE, 10, 0.5, 0, 0.0 }, 800, 300, 50, 3.0, 0.25, 0, 0.25 };
+  g_autoptr (GRand) r = g_rand_new_with_seed (11);
+  DsImage *raw[3] = { synth_frame (&s, 10, 0, FALSE, r), synth_frame (&s, 10, 0.1, TRUE, r),
+                      synth_frame (&s, 10, 0.6, TRUE, r) };
+  for (int clipped = 0; clipped < 2; clipped++) {
+    /* 12-bit frames; clipped: a full well at 1010 DN, within the lit stripes' noise (1000 +- 16
+     * DN): a third of their samples pile up there. */
+    DsImage *f[3];
+    for (int i = 0; i < 3; i++) {
+      f[i] = ds_image_convert_f32_clamped (raw[i], DS_SAMPLE_U16, clipped ? 1010 : 4095, NULL);
+      f[i]->bit_depth = 12;
+    }
+    DsProbeFrames fr = { .dark = f[0], .lit = { f[1], f[2] }, .coarse_missing = "fixed by the test",
+                         .exposure_us = 1000, .saturation_dn = 4095, .geometry = s.g,
+                         .blur_known = TRUE, .calibrated_blur_px = 0.7 };
+    DsSceneProbe p;
+    g_autoptr (GError) error = NULL;
+    gboolean measured = ds_scene_probe_measure (&fr, &p, &error);
+    g_assert_no_error (error);
+    g_assert_true (measured);
+    g_assert_cmpint (p.blur_source, ==, DS_BLUR_CALIBRATED);
+    g_assert_cmpfloat (p.geometry.blur_px, ==, 0.7);
+    if (clipped) {
+      g_assert_cmpfloat (p.saturation_dn, ==, 1010);
+      g_assert_true (p.clip_known);
+      g_assert_false (p.clip_flagged);
+    } else {
+      g_assert_cmpfloat (p.saturation_dn, ==, 4095);
+      g_assert_false (p.clip_known);
+      /* Unknown full well: the pilot's exposure is the longest allowed, though 4095 DN is far. */
+      g_assert_cmpfloat (ds_scene_probe_max_exposure (&p), ==, 1000);
+      /* Configured: known and flagged; 90 % of it over the brightest pixels. */
+      fr.saturation_dn = 3000;
+      fr.saturation_known = TRUE;
+      g_assert_true (ds_scene_probe_measure (&fr, &p, &error));
+      g_assert_true (p.clip_known && p.clip_flagged);
+      g_assert_cmpfloat_with_epsilon (ds_scene_probe_max_exposure (&p), 1000 * (0.9 * 3000 - p.dark_dn) / p.bright_dn,
+                                      1e-9);
+      g_assert_cmpfloat (ds_scene_probe_max_exposure (&p), >, 2000);
+    }
+    for (int i = 0; i < 3; i++)
+      ds_image_free (f[i]);
+  }
+  for (int i = 0; i < 3; i++)
+    ds_image_free (raw[i]);
+}
+
 /* A probe written by hand: the error model's inputs. */
 static DsSceneProbe
 hand_probe (double period, double duty, double ld, double lg, double var0, double gain)
@@ -294,6 +349,31 @@ test_error_model_noise (void)
   g_assert_cmpfloat_with_epsilon (parts.noise, expect / 2, 0.1 * expect / 2);
 }
 
+/* Clipping counts in the prediction: maxmin on sharp stripes is exact (N = P), so at an exposure
+ * whose lit level 2 Ld passes the clip level c the whole error is the clip's, 1 - c / (2 Ld),
+ * when the sets do not flag it; when they do, every lit pixel is flagged and nothing is left. */
+static void
+test_error_model_clipping (void)
+{
+  DsSceneProbe p = hand_probe (12, 0.5, 1000, 0, 0, 0);
+  p.saturation_dn = 1500;
+  p.dark_dn = 0;
+  p.bright_dn = 1000; /* the lit stripes: the synthetic pixels are the scene's brightest */
+  DsSeparationParams sp = params_of (&p);
+  DsErrorParts parts;
+  g_autoptr (GError) error = NULL;
+  {
+    g_autoptr (DsErrorModel) m = ds_error_model_new (&p, &sp);
+    g_assert_true (ds_error_model_predict (m, DS_ESTIMATOR_MAXMIN, 12, 1, 1, 0, &parts, &error));
+    g_assert_cmpfloat (parts.total, <, 1e-4);
+    g_assert_true (ds_error_model_predict (m, DS_ESTIMATOR_MAXMIN, 12, 1, 2, 0, &parts, &error));
+    g_assert_cmpfloat_with_epsilon (parts.total, 1 - 1500.0 / 2000, 1e-3);
+  }
+  p.clip_flagged = TRUE;
+  g_autoptr (DsErrorModel) m = ds_error_model_new (&p, &sp);
+  g_assert_false (ds_error_model_predict (m, DS_ESTIMATOR_MAXMIN, 12, 1, 2, 0, &parts, &error));
+}
+
 /* The scattered stripes: sine sees the first harmonic raised by the leak L and lowered by the
  * pixel's aperture sinc(1/P) against its theoretical gain, so its relative error is
  * (1 + L) sinc(1/P) - 1 (N large enough to ignore aliasing). */
@@ -328,6 +408,8 @@ main (int argc, char **argv)
   g_test_add_func ("/error-model/probe-leak", test_probe_leak);
   g_test_add_func ("/error-model/precondition", test_error_model_precondition);
   g_test_add_func ("/error-model/noise", test_error_model_noise);
+  g_test_add_func ("/error-model/probe-clip-level", test_probe_clip_level);
+  g_test_add_func ("/error-model/clipping", test_error_model_clipping);
   g_test_add_func ("/error-model/leak", test_error_model_leak);
   return g_test_run ();
 }
