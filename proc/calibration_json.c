@@ -107,7 +107,8 @@ ds_calibration_from_json (JsonObject *obj, DsCalibration *cal, GError **error)
 char *
 ds_calibration_config_lines (const DsCalibration *cal)
 {
-  return g_strdup_printf ("[illuminator]\npattern=%s\nperiod-px=%.4f\nduty=%.4f\nblack-level=%.4f\n",
+  return g_strdup_printf ("[illuminator]\npattern=%s\nperiod-px=%.4f\nduty=%.4f\nblack-level=%.4f\n"
+                          "harmonic-gain=%.4f\nedge-blur-px=%.2f\n",
                           cal->pattern == DS_PATTERN_SINE ? "sine" : "square", cal->period_px, cal->duty,
-                          cal->black_level);
+                          cal->black_level, cal->harmonic_gain, cal->edge_blur_px);
 }

@@ -18,6 +18,10 @@ ds_capture_settings_from_config (DsCaptureSettings *s, const DsConfig *c)
   s->period_px = c->period_px;
   s->duty = c->duty;
   s->black_level = c->black_level;
+  s->harmonic_gain = isnan (c->harmonic_gain) ? 0 : c->harmonic_gain;
+  s->edge_blur_known = !isnan (c->edge_blur_px);
+  s->edge_blur_px = s->edge_blur_known ? c->edge_blur_px : 0;
+  s->saturation_dn = isnan (c->saturation_dn) ? 0 : c->saturation_dn;
   s->dark_frame = c->dark_frame;
   s->phase_retries = c->phase_retries;
   s->verify_phase = c->verify_phase;
@@ -36,6 +40,9 @@ ds_capture_settings_separation_params (const DsCaptureSettings *s, DsSeparationP
   p->pattern = s->pattern;
   p->duty = s->duty;
   p->black_level = s->black_level;
+  /* 0 keeps the separation's own defaults: the sharp pattern's h, the frames' bit depth. */
+  p->harmonic_gain = s->harmonic_gain;
+  p->saturation_level = s->saturation_dn;
   p->keep_extrema = s->keep_extrema;
   /* The period is known (the illuminator's): maxmin and robust then flag the pixels a phase
    * never fully lights or darkens instead of being refused, and robust's windows fit it. */
@@ -61,6 +68,12 @@ ds_capture_settings_to_json (const DsCaptureSettings *s)
   DBL ("period_px", s->period_px);
   DBL ("duty", s->duty);
   DBL ("black_level", s->black_level);
+  if (s->harmonic_gain > 0)
+    DBL ("harmonic_gain", s->harmonic_gain);
+  if (s->edge_blur_known)
+    DBL ("edge_blur_px", s->edge_blur_px);
+  if (s->saturation_dn > 0)
+    DBL ("saturation_dn", s->saturation_dn);
   BOOL ("dark_frame", s->dark_frame);
   INT ("phase_retries", s->phase_retries);
   BOOL ("verify_phase", s->verify_phase);
@@ -86,6 +99,9 @@ ds_capture_settings_equal (const DsCaptureSettings *a, const DsCaptureSettings *
   return a->phases == b->phases && a->averages == b->averages && a->exposure_us == b->exposure_us &&
          a->gain_db == b->gain_db && a->estimator == b->estimator && a->pattern == b->pattern &&
          a->period_px == b->period_px && a->duty == b->duty && a->black_level == b->black_level &&
+         a->harmonic_gain == b->harmonic_gain && a->edge_blur_known == b->edge_blur_known &&
+         a->edge_blur_px == b->edge_blur_px &&
+         a->saturation_dn == b->saturation_dn &&
          a->dark_frame == b->dark_frame && a->phase_retries == b->phase_retries &&
          a->verify_phase == b->verify_phase && a->phase_tolerance_deg == b->phase_tolerance_deg &&
          a->save_phases == b->save_phases;

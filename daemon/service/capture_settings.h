@@ -21,6 +21,12 @@ typedef struct {
   double period_px;
   double duty;
   double black_level;
+  /* What calibration measured ([illuminator] harmonic-gain, edge-blur-px) and the sensor's clip
+   * level ([camera] saturation-dn): 0 = not configured. */
+  double harmonic_gain;
+  gboolean edge_blur_known;
+  double edge_blur_px;
+  double saturation_dn;
   gboolean dark_frame;
   guint phase_retries;
   gboolean verify_phase;

@@ -80,6 +80,10 @@ static const KeySpec keys[] = {
     "Mono8|Mono10|Mono12|Mono16|Mono10p|Mono12p|Mono12Packed", "pixel format on the wire" },
   { "camera", "exposure-us", K_DOUBLE, F (exposure_us), "5000", 1, 10e6, NULL, "exposure time (µs)" },
   { "camera", "gain-db", K_DOUBLE, F (gain_db), "0", 0, 48, NULL, "analogue gain (dB)" },
+  { "camera", "saturation-dn", K_DOUBLE, F (saturation_dn), "", 1, 65535, NULL,
+    "level (DN) at which the sensor clips, for a full well below the pixel format's top; clipped "
+    "samples are flagged and the automatic operating point keeps exposures below it; empty = the "
+    "pixel format's top" },
   { "camera", "roi", K_STRING, F (roi), NULL, 0, 0, NULL, "x,y,width,height; empty = full sensor" },
   { "camera", "trigger", K_CHOICE, F (camera_trigger), "software", 0, 0, "software|line0|line1|line2|line3",
     "trigger source of the camera" },
@@ -105,6 +109,12 @@ static const KeySpec keys[] = {
   { "illuminator", "duty", K_DOUBLE, F (duty), "0.5", 0.01, 0.99, NULL, "lit fraction of a period" },
   { "illuminator", "black-level", K_DOUBLE, F (black_level), "0", 0, 0.99, NULL,
     "off-stripe leakage relative to on (b)" },
+  { "illuminator", "harmonic-gain", K_DOUBLE, F (harmonic_gain), "", 0.001, 1, NULL,
+    "stripe modulation h as the camera sees it (descatterctl calibrate); used by the sine estimator and "
+    "the automatic operating point's blur; empty = the sharp pattern's" },
+  { "illuminator", "edge-blur-px", K_DOUBLE, F (edge_blur_px), "", 0, 2048, NULL,
+    "Gaussian sigma of the stripes' edges on the sensor in pixels (descatterctl calibrate), for the "
+    "automatic operating point; empty = from harmonic-gain, or measured by the pilot frames" },
   { "illuminator", "intensity", K_DOUBLE, F (intensity), "1", 0, 1, NULL, "drive level" },
   { "illuminator", "settle-timeout-ms", K_UINT, F (settle_timeout_ms), "500", 1, 60000, NULL,
     "deadline for a phase to be applied and read back" },
@@ -356,6 +366,15 @@ ds_config_parse_host_port (const char *text, char **host, guint16 *port)
   return TRUE;
 }
 
+/* The largest sample a pixel format of the [camera] pixel-format choices carries (DN): MonoB,
+ * MonoBp and MonoBPacked hold B bits. */
+static double
+pixel_format_top (const char *name)
+{
+  guint64 bits = g_ascii_strtoull (name + strlen ("Mono"), NULL, 10);
+  return bits >= 8 && bits <= 16 ? (double) ((1u << bits) - 1) : 65535.0;
+}
+
 /* Cross-key rules that no single range can express. */
 static gboolean
 check_consistency (const DsConfig *c, const char *name, GError **error)
@@ -430,6 +449,12 @@ check_consistency (const DsConfig *c, const char *name, GError **error)
   if (strcmp (c->trigger_backend, "projector-sync") == 0 && sim_camera)
     INCONSISTENT ("[trigger] backend = projector-sync needs a camera whose line the projector drives; the "
                   "simulated camera has none");
+  if (!isnan (c->edge_blur_px) && !(c->edge_blur_px < c->period_px / 2))
+    INCONSISTENT ("[illuminator] edge-blur-px = %g must be below half the period (period-px = %g): blur that "
+                  "wide leaves no stripes to separate", c->edge_blur_px, c->period_px);
+  if (!isnan (c->saturation_dn) && c->saturation_dn > pixel_format_top (c->pixel_format))
+    INCONSISTENT ("[camera] saturation-dn = %g is above the top of pixel-format = %s (%.0f DN): samples never "
+                  "reach it", c->saturation_dn, c->pixel_format, pixel_format_top (c->pixel_format));
   if (strcmp (c->estimator, "sine") == 0 && c->phases < 3)
     INCONSISTENT ("[acquisition] estimator = sine needs phases >= 3 (got %u)", c->phases);
   if (c->spool_dir && (!c->spool_formats || !*c->spool_formats))

@@ -44,6 +44,7 @@ typedef struct {
   char *pixel_format;
   double exposure_us;
   double gain_db;
+  double saturation_dn;   /* NAN: the pixel format's top */
   char *roi;              /* "x,y,w,h" or NULL (full sensor) */
   char *camera_trigger;   /* "software" | "line0".."line3" */
   guint grab_timeout_ms;
@@ -59,6 +60,8 @@ typedef struct {
   double period_px;
   double duty;
   double black_level;
+  double harmonic_gain;   /* NAN: not calibrated */
+  double edge_blur_px;    /* NAN: not calibrated */
   double intensity;
   guint settle_timeout_ms;
   /* [trigger] */

@@ -109,7 +109,15 @@ ds_seq_choose_operating_point (DsSequencer *seq, DsCaptureSettings *s, DsFrameCo
     .exposure_us = s->exposure_us,
     .saturation_dn = lit0->type == DS_SAMPLE_F32 ? 0 : (double) ((1u << lit0->bit_depth) - 1),
     .geometry = { .kind = s->pattern, .period_px = s->period_px, .duty = s->duty, .black_level = s->black_level },
+    /* What calibration measured and the sensor's clip level, when configured. */
+    .calibrated_gain = s->harmonic_gain,
+    .blur_known = s->edge_blur_known,
+    .calibrated_blur_px = s->edge_blur_px,
   };
+  if (s->saturation_dn > 0 && lit0->type != DS_SAMPLE_F32) {
+    pf.saturation_dn = MIN (pf.saturation_dn, s->saturation_dn);
+    pf.saturation_known = TRUE;
+  }
   DsOperatingReport *r = &s->operating;
   memset (r, 0, sizeof *r);
   if (!ds_scene_probe_measure (&pf, &r->probe, error))

@@ -1,6 +1,8 @@
 /* descatterd's configuration parser: defaults, errors that point at the mistake, round trip,
  * and the shipped example (etc/descatterd.conf) documenting every key. */
+#include "daemon/service/capture_settings.h"
 #include "daemon/service/config.h"
+#include "proc/calibration_json.h"
 
 #include <math.h>
 #include <glib/gstdio.h>
@@ -229,6 +231,61 @@ test_file_limits (void)
   g_rmdir (dir);
 }
 
+/* The lines `descatterctl calibrate` prints for descatterd.conf (proc/calibration_json.c) load
+ * as they are, and what they say reaches the separation (h for sine) and the automatic operating
+ * point's probe; [camera] saturation-dn reaches the separation's clip level. */
+static void
+test_calibration_lines_and_clip_level (void)
+{
+  DsCalibration cal = { .pattern = DS_PATTERN_SQUARE, .period_px = 9.5, .duty = 0.3, .black_level = 0.1,
+                        .harmonic_gain = 0.4123, .edge_blur_px = 1.07 };
+  g_autofree char *lines = ds_calibration_config_lines (&cal);
+  g_autofree char *text = g_strconcat (lines, "backend=sim\n[camera]\nbackend=sim\npixel-format=Mono12\n"
+                                       "saturation-dn=2118\n", NULL);
+  g_autoptr (GError) error = NULL;
+  g_autoptr (DsConfig) c = ds_config_load_data (text, "calibrated.conf", &error);
+  g_assert_no_error (error);
+  g_assert_cmpfloat (c->harmonic_gain, ==, 0.4123);
+  g_assert_cmpfloat (c->edge_blur_px, ==, 1.07);
+  g_assert_cmpfloat (c->period_px, ==, 9.5);
+  g_assert_cmpfloat (c->saturation_dn, ==, 2118);
+  DsCaptureSettings s;
+  ds_capture_settings_from_config (&s, c);
+  g_assert_true (s.edge_blur_known);
+  g_assert_cmpfloat (s.edge_blur_px, ==, 1.07);
+  DsSeparationParams p;
+  ds_capture_settings_separation_params (&s, &p);
+  g_assert_cmpfloat (p.harmonic_gain, ==, 0.4123);
+  g_assert_cmpfloat (p.saturation_level, ==, 2118);
+  /* Unset: the separation's own defaults (theory's h, the frames' top), blur not known. */
+  g_autoptr (DsConfig) d = ds_config_load_data (SIM, "plain.conf", &error);
+  g_assert_no_error (error);
+  g_assert_true (isnan (d->harmonic_gain) && isnan (d->edge_blur_px) && isnan (d->saturation_dn));
+  ds_capture_settings_from_config (&s, d);
+  g_assert_false (s.edge_blur_known);
+  ds_capture_settings_separation_params (&s, &p);
+  g_assert_cmpfloat (p.harmonic_gain, ==, 0);
+  g_assert_cmpfloat (p.saturation_level, ==, 0);
+  /* Refusals name the key and what is wrong. */
+  expect_error ("[illuminator]\nharmonic-gain=0\n", DS_CONFIG_ERROR_BAD_VALUE,
+                (const char *const[]) { "harmonic-gain", "0.001..1", NULL });
+  expect_error ("[illuminator]\nharmonic-gain=1.2\n", DS_CONFIG_ERROR_BAD_VALUE,
+                (const char *const[]) { "harmonic-gain", NULL });
+  expect_error ("[illuminator]\nedge-blur-px=-0.5\n", DS_CONFIG_ERROR_BAD_VALUE,
+                (const char *const[]) { "edge-blur-px", "0..2048", NULL });
+  expect_error (SIM "[illuminator]\nperiod-px=8\nedge-blur-px=4\n", DS_CONFIG_ERROR_INCONSISTENT,
+                (const char *const[]) { "edge-blur-px", "half the period", NULL });
+  expect_error ("[camera]\nsaturation-dn=0\n", DS_CONFIG_ERROR_BAD_VALUE,
+                (const char *const[]) { "saturation-dn", "1..65535", NULL });
+  expect_error (SIM "[camera]\npixel-format=Mono12p\nsaturation-dn=5000\n", DS_CONFIG_ERROR_INCONSISTENT,
+                (const char *const[]) { "saturation-dn", "Mono12p", "4095", NULL });
+  /* At the format's top exactly: accepted (a full well that reaches it). */
+  g_autoptr (DsConfig) top = ds_config_load_data (SIM "[camera]\npixel-format=Mono8\nsaturation-dn=255\n", "top.conf",
+                                                  &error);
+  g_assert_no_error (error);
+  g_assert_cmpfloat (top->saturation_dn, ==, 255);
+}
+
 int
 main (int argc, char **argv)
 {
@@ -240,6 +297,7 @@ main (int argc, char **argv)
   g_test_add_func ("/config/round-trip", test_round_trip);
   g_test_add_func ("/config/example", test_example_documents_every_key);
   g_test_add_func ("/config/refusals", test_refusals);
+  g_test_add_func ("/config/calibration-lines-and-clip-level", test_calibration_lines_and_clip_level);
   g_test_add_func ("/config/file-limits", test_file_limits);
   return g_test_run ();
 }

@@ -574,6 +574,33 @@ test_automatic_operating_point (Fixture *f, gconstpointer d)
   g_assert_cmpuint (st.frames.by_reason[DS_DROP_PREVIEW], ==, 5);
   g_assert_cmpuint (used->operating.pilot_frames, ==, 5);
   assert_accounting (f);
+  /* The clip level is only the 12-bit top: no exposure above the pilot's (a full well below the
+   * top would clip unseen); the blur was measured or assumed, not calibrated. */
+  g_assert_false (used->operating.probe.clip_known);
+  g_assert_cmpfloat (used->exposure_us, <=, s.exposure_us);
+  g_assert_cmpint (used->operating.probe.blur_source, !=, DS_BLUR_CALIBRATED);
+  /* What calibration printed and the configured clip level reach the probe: h and the blur of
+   * this lab's stripes as if blurred by 0.6 px (the N chosen for them is checked for its stripe
+   * phase elsewhere: /sequencer/pipeline-*). */
+  DsStripeModel blurred = { DS_PATTERN_SQUARE, PERIOD, 0.5, 0, 0.6 };
+  s.harmonic_gain = ds_stripe_harmonic (&blurred, 1);
+  s.edge_blur_known = TRUE;
+  s.edge_blur_px = 0.6;
+  s.saturation_dn = 3000;
+  s.verify_phase = FALSE;
+  capture (f, &s);
+  g_assert_no_error (f->out.failure);
+  used = ds_result_settings (f->out.result);
+  g_assert_cmpint (used->operating.probe.blur_source, ==, DS_BLUR_CALIBRATED);
+  g_assert_cmpfloat (used->operating.probe.geometry.blur_px, ==, 0.6);
+  g_assert_true (used->operating.probe.clip_known);
+  g_assert_true (used->operating.probe.clip_flagged);
+  g_assert_cmpfloat (used->operating.probe.saturation_dn, ==, 3000);
+  g_assert_cmpfloat (used->exposure_us, <=, ds_scene_probe_max_exposure (&used->operating.probe) * (1 + 1e-9));
+  s.harmonic_gain = 0;
+  s.edge_blur_known = FALSE;
+  s.saturation_dn = 0;
+  s.verify_phase = TRUE;
   /* An impossible request fails with the reason: no set of this rig takes 1 ms. */
   s.time_budget_ms = 1;
   capture (f, &s);
