@@ -38,7 +38,8 @@ typedef enum {
   DS_MASK_LOW_MODULATION = 1 << 2, /* modulation not distinguishable from noise */
   DS_MASK_NONFINITE = 1 << 3,      /* NaN or Inf in some (float) input frame */
   DS_MASK_NEGATIVE = 1 << 4,       /* a component came out below zero (noise); left unclipped */
-  DS_MASK_DARK_EXCEEDS = 1 << 5,   /* the dark frame is brighter than some phase frame */
+  DS_MASK_DARK_EXCEEDS = 1 << 5,   /* the dark frame is brighter than the darkest phase beyond
+                                      noise (1e-3 false-alarm rate) */
   DS_MASK_UNDERSAMPLED = 1 << 6,   /* no phase lit this pixel fully, or none left it fully dark
                                       (maxmin, robust: aN or (1-a)N too small for the pixel's
                                       aperture and the edge blur); the value is biased */

@@ -220,6 +220,15 @@ ds_phase_set_finalize_into (DsPhaseSet *set, DsSeparation *sep, GError **error)
                                   : NAN;
   c->range_q = set->range_quantile;
   c->rayleigh = DS_RAYLEIGH_999 * sqrt (2.0 / n);
+  /* DARK_EXCEEDS compares the darkest of N phases with one dark value: each d - x_k is normal
+   * with variance var(phase mean) + var(dark), so by the union bound over the N phases the
+   * (1 - 1e-3/N) quantile keeps the false-alarm rate at most 1e-3 whatever the two variances
+   * (docs/estimators.md, "Quality mask"). The dark frame is taken as one frame's noise. */
+  c->exceed_q = ds_separation_normal_upper_quantile (DS_DARK_EXCEEDS_FALSE_ALARM / n);
+  double dark_frame_var = set->dark ? 1.0 : 0.0;
+  c->dark_var = dark_frame_var * c->read_var;
+  c->data_exceed_var = isnan (c->data_sigma) ? 0.0
+                       : c->data_sigma * c->data_sigma * (1.0 / m_frames + dark_frame_var);
   c->estimator = p->estimator;
   c->dark = set->dark != NULL;
   c->extrema = extrema;
@@ -238,6 +247,7 @@ ds_phase_set_finalize_into (DsPhaseSet *set, DsSeparation *sep, GError **error)
     k->floor = isnan (c->floor) ? -INFINITY : (float) c->floor;
     double lowmod = c->range_q * c->data_sigma / sqrt ((double) m_frames);
     k->lowmod = isnan (lowmod) ? -INFINITY : (float) lowmod;
+    k->exceed = (float) (c->exceed_q * sqrt (c->data_exceed_var));
   }
   g_autofree double *tab = NULL;
   if (p->estimator == DS_ESTIMATOR_ROBUST) {

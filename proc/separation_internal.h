@@ -85,6 +85,10 @@ void ds_phase_set_fold_pending (DsPhaseSet *set);
 double ds_separation_frame_noise (const DsImage *frame);
 /* Upper p-quantile of the range (max - min) of n independent unit normals, n >= 2. */
 double ds_separation_range_quantile (guint n, double p);
+/* z with P(unit normal > z) = p, 0 < p < 1/2. */
+double ds_separation_normal_upper_quantile (double p);
+/* Per-pixel false-alarm rate of DS_MASK_DARK_EXCEEDS (as LOW_MODULATION's). */
+#define DS_DARK_EXCEEDS_FALSE_ALARM 1e-3
 
 /* Sampling model (separation_sampling.c). */
 /* Lit fraction (0..1) seen by a pixel centred d pixels from a lit stripe's centre. */
@@ -129,6 +133,7 @@ typedef struct {
   float sat;     /* SATURATED when max >= sat */
   float floor;   /* DARK when the model mean <= floor */
   float lowmod;  /* LOW_MODULATION when max - min < lowmod */
+  float exceed;  /* DARK_EXCEEDS when dark - min > exceed */
 } DsMaxminFast;
 void ds_maxmin_fast_row (const guint16 *hi, const guint16 *lo, const float *dark, float *t,
                          float *g, guint8 *mk, gsize w, const DsMaxminFast *k);

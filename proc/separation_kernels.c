@@ -137,13 +137,13 @@ ds_maxmin_fast_row (const guint16 *restrict hi, const guint16 *restrict lo,
                     guint8 *restrict mk, gsize w, const DsMaxminFast *k)
 {
   const float inv1b = k->inv1b, b = k->b, invm = k->invm, m = k->m;
-  const float sat = k->sat, floor_ = k->floor, lowmod = k->lowmod;
+  const float sat = k->sat, floor_ = k->floor, lowmod = k->lowmod, exceed = k->exceed;
   for (gsize x = 0; x < w; x++) {
     float h = hi[x], l = lo[x], d = dark[x];
     float ld = (h - l) * inv1b;
     float lg = ((l - d) - b * ld) * invm;
     float mean = m * (ld + lg);
-    guint8 bits = (guint8) ((h >= sat ? DS_MASK_SATURATED : 0) | (d > l ? DS_MASK_DARK_EXCEEDS : 0) |
+    guint8 bits = (guint8) ((h >= sat ? DS_MASK_SATURATED : 0) | (d - l > exceed ? DS_MASK_DARK_EXCEEDS : 0) |
                             (mean <= floor_ ? DS_MASK_DARK : 0) |
                             (h - l < lowmod ? DS_MASK_LOW_MODULATION : 0) |
                             (lg < 0 ? DS_MASK_NEGATIVE : 0));

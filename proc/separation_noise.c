@@ -163,3 +163,17 @@ ds_separation_range_quantile (guint n, double p)
   }
   return 0.5 * (lo + hi);
 }
+
+double
+ds_separation_normal_upper_quantile (double p)
+{
+  double lo = 0, hi = 40;
+  for (int i = 0; i < 60; i++) {
+    double mid = 0.5 * (lo + hi);
+    if (normal_cdf (-mid) > p)
+      lo = mid;
+    else
+      hi = mid;
+  }
+  return 0.5 * (lo + hi);
+}

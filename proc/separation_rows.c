@@ -297,6 +297,7 @@ tail_row (const DsRowConsts *c, const double *restrict hr, const double *restric
   const double read_var = c->read_var, gain = c->gain, inv_mf = 1.0 / c->m_frames;
   const double inv_sqrt_mf = sqrt (inv_mf), data_sigma = c->data_sigma, floor_ = c->floor;
   const double sat = c->sat, range_q = c->range_q, rayleigh = c->rayleigh;
+  const double exceed_q = c->exceed_q, dark_var = c->dark_var, data_exceed_var = c->data_exceed_var;
   const double b = c->b, m = c->m, h = c->h, ib = 1.0 - c->b, n = c->n;
   const double vd = c->dark ? c->read_var : 0.0;
   const double inv_nh = 1.0 / c->len_hi, inv_nl = 1.0 / c->len_lo;
@@ -313,7 +314,10 @@ tail_row (const DsRowConsts *c, const double *restrict hr, const double *restric
     double sig_phase = (model ? sqrt (var_frame) : data_sigma) * inv_sqrt_mf;
     int low_sine = amp[x] < rayleigh * sig_phase, low_range = (hr[x] - lr[x]) < range_q * sig_phase;
     int low = (is_sine & low_sine) | (not_sine & low_range);
-    guint32 bits = (guint32) ((lo < 0) << 5) | (guint32) (rmax[x] >= sat) | (guint32) ((mv <= floor_) << 1) |
+    /* the darkest phase's noise (its own signal; none when the dark is above it) and the dark's */
+    double var_lo = model ? (read_var + gain * (lo > 0 ? lo : 0)) * inv_mf + dark_var : data_exceed_var;
+    int exceeds = -lo > exceed_q * sqrt (var_lo);
+    guint32 bits = (guint32) (exceeds << 5) | (guint32) (rmax[x] >= sat) | (guint32) ((mv <= floor_) << 1) |
                    (guint32) (low << 2) | (guint32) (((ld[x] < 0) | (lg[x] < 0)) << 4);
     /* first-order propagation (docs/estimators.md, "Noise") */
     double vbar = var_frame * inv_mf, va = 2.0 * vbar / n, vm = vbar / n;

@@ -25,6 +25,10 @@ typedef struct {
   double sat;              /* SATURATED when the raw maximum >= sat */
   double range_q;          /* LOW_MODULATION of maxmin/robust: range < range_q sigma_phase */
   double rayleigh;         /* LOW_MODULATION of sine: amplitude < rayleigh sigma_phase */
+  double exceed_q;         /* DARK_EXCEEDS: dark - min > exceed_q sqrt(var(min) + var(dark)) */
+  double dark_var;         /* var(dark): one frame's read noise (model) or data noise; 0 without
+                              a dark frame */
+  double data_exceed_var;  /* without a model: var(min) + var(dark); 0 when unknown (NAN noise) */
   double len_hi, len_lo;   /* frames behind each level (robust windows; 1 for maxmin) */
   gboolean dark;           /* a dark frame is subtracted (its read noise enters Lg) */
   gboolean extrema, sigmas; /* outputs wanted (else written to sink rows) */
