@@ -59,6 +59,9 @@ typedef struct {
   double period_px;          /* P; 0 = unknown: only aN >= 1 and (1-a)N >= 1 can be checked */
   double edge_blur_px;       /* Gaussian sigma of the stripe edges on the sensor (projector
                                 defocus, lens), in pixels */
+  gboolean edge_blur_known;  /* edge_blur_px was measured or calibrated (0 then means sharp);
+                                FALSE: robust keeps at least one phase of margin per side,
+                                the sampling check takes edge_blur_px as it is */
   double pixel_aperture;     /* sensitive width of a pixel along x, in pixels: 1 = full fill
                                 factor (the default), 0 = point sampling */
   gboolean phase_offset_known;

@@ -84,17 +84,25 @@ ds_robust_windows (const DsSeparationParams *p, guint *len_hi, guint *len_lo)
   guint n = p->n_phases;
   double duty = p->pattern == DS_PATTERN_SINE ? 0.5 : p->duty;
   const DsStripeGeometry *g = &p->geometry;
+  /* Without the geometry: a margin of one phase on each side for blurred edges. */
+  double step_hi = ceil (duty * n - 1e-9) - 2, step_lo = ceil ((1 - duty) * n - 1e-9) - 2;
+  double hi = step_hi, lo = step_lo;
   if (g->period_px > 0) {
     /* Windows centred on the lit (unlit) run reach L/2 phase steps from its centre; the run
-     * of fully lit phases reaches (aP - e)/2 pixels, e the edge's extent over the pixel. */
+     * of fully lit phases reaches (aP - e)/2 pixels, e the edge's extent over the pixel. The
+     * edge is fixed in pixels while a phase step shrinks as P/N, so only this margin keeps
+     * robust off the edges at every N. */
     double e = g->pixel_aperture + 2 * EDGE_Z * g->edge_blur_px;
-    *len_hi = (guint) MAX (1.0, floor ((duty - e / g->period_px) * n + 1e-9));
-    *len_lo = (guint) MAX (1.0, floor ((1 - duty - e / g->period_px) * n + 1e-9));
-  } else {
-    /* Unknown geometry: a margin of one phase on each side for blurred edges. */
-    *len_hi = (guint) MAX (1.0, ceil (duty * n - 1e-9) - 2);
-    *len_lo = (guint) MAX (1.0, ceil ((1 - duty) * n - 1e-9) - 2);
+    hi = floor ((duty - e / g->period_px) * n + 1e-9);
+    lo = floor ((1 - duty - e / g->period_px) * n + 1e-9);
+    /* An unknown blur is not a sharp edge: keep the one-phase margin as well. */
+    if (!g->edge_blur_known) {
+      hi = MIN (hi, step_hi);
+      lo = MIN (lo, step_lo);
+    }
   }
+  *len_hi = (guint) MAX (1.0, hi);
+  *len_lo = (guint) MAX (1.0, lo);
 }
 
 void

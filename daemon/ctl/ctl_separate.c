@@ -196,7 +196,10 @@ build_sidecar (const DsPhaseFolder *folder, const DsSeparationParams *params, co
   else
     json_builder_add_null_value (b);
   json_builder_set_member_name (b, "edge_blur_px");
-  json_builder_add_double_value (b, params->geometry.edge_blur_px);
+  if (params->geometry.edge_blur_known)
+    json_builder_add_double_value (b, params->geometry.edge_blur_px);
+  else
+    json_builder_add_null_value (b);
   json_builder_end_object (b);
 
   json_builder_set_member_name (b, "separation");
@@ -247,8 +250,10 @@ make_params (const DsPhaseFolder *folder, const Options *o, DsSeparationParams *
     params->system_gain = o->system_gain;
   if (!isnan (o->read_noise))
     params->read_noise_dn = o->read_noise;
-  if (!isnan (o->edge_blur))
+  if (!isnan (o->edge_blur)) {
     params->geometry.edge_blur_px = o->edge_blur;
+    params->geometry.edge_blur_known = TRUE;
+  }
   params->keep_extrema = o->extrema;
   return TRUE;
 }
@@ -418,7 +423,7 @@ ds_ctl_separate (int argc, char **argv)
     { "saturation", 0, 0, G_OPTION_ARG_DOUBLE, &o.saturation, "lowest clipped level in DN: full well or ADC maximum (default: frames.json's saturation_dn, else 2^depth - 1)", "DN" },
     { "bit-depth", 0, 0, G_OPTION_ARG_INT, &o.bit_depth, "significant bits of the integer images, 1..16 (default: frames.json's, else the file's)", "BITS" },
     { "period", 0, 0, G_OPTION_ARG_DOUBLE, &o.period, "stripe period in pixels (default: frames.json's, else detected in the frames)", "PX" },
-    { "edge-blur", 0, 0, G_OPTION_ARG_DOUBLE, &o.edge_blur, "Gaussian sigma of the stripe edges in pixels, for the sampling check and robust's windows (default 0)", "PX" },
+    { "edge-blur", 0, 0, G_OPTION_ARG_DOUBLE, &o.edge_blur, "Gaussian sigma of the stripe edges in pixels (descatterctl calibrate), for the sampling check and robust's windows (default unknown: sharp for the check, one phase of margin for robust)", "PX" },
     { "no-phase-check", 0, 0, G_OPTION_ARG_NONE, &o.no_phase_check, "do not measure which phase each frame shows", NULL },
     { "strict-phases", 0, 0, G_OPTION_ARG_NONE, &o.strict_phases, "refuse frames that show other phases than given instead of folding them as they show", NULL },
     { "out", 'o', 0, G_OPTION_ARG_FILENAME, &o.out, "output folder (default: DIR)", "OUT" },

@@ -36,38 +36,54 @@ point_value (const Stripes *s, double x, guint k, guint n)
   return v;
 }
 
-/* Pixel x (centre at x) integrating over its aperture: midpoint rule, 400 points. */
+/* Pixel x (centre at x) integrating over its aperture: midpoint rule, `points` points. */
 static double
-pixel_value (const Stripes *s, guint x, guint k, guint n)
+pixel_value (const Stripes *s, guint x, guint k, guint n, int points)
 {
   if (s->aperture <= 0)
     return point_value (s, x, k, n);
-  const int m = 400;
   double sum = 0;
-  for (int i = 0; i < m; i++)
-    sum += point_value (s, x - 0.5 * s->aperture + (i + 0.5) * s->aperture / m, k, n);
-  return sum / m;
+  for (int i = 0; i < points; i++)
+    sum += point_value (s, x - 0.5 * s->aperture + (i + 0.5) * s->aperture / points, k, n);
+  return sum / points;
+}
+
+/* The N phases of one row of w pixels, Ld = 1000, Lg = lg: n x w values. */
+static double *
+render_row (const Stripes *s, guint n, guint w, double lg, int points)
+{
+  double m = s->sine ? s->black + (1 - s->black) * 0.5 : s->duty + s->black * (1 - s->duty);
+  double *v = g_new (double, (gsize) n * w);
+  for (guint k = 0; k < n; k++)
+    for (guint x = 0; x < w; x++)
+      v[(gsize) k * w + x] = 1000 * (s->black + (1 - s->black) * pixel_value (s, x, k, n, points)) + lg * m;
+  return v;
+}
+
+/* Rendered rows (two identical rows per frame) through the separation, float frames. */
+static DsSeparation *
+separate_values (const DsSeparationParams *p, const double *v, guint w, GError **error)
+{
+  guint n = p->n_phases;
+  g_autoptr (DsPhaseSet) set = ds_phase_set_new (p, w, 2, error);
+  if (!set)
+    return NULL;
+  for (guint k = 0; k < n; k++) {
+    g_autoptr (DsImage) f = ds_image_new (DS_SAMPLE_F32, w, 2, NULL);
+    for (guint x = 0; x < w; x++)
+      ((float *) ds_image_row (f, 0))[x] = ((float *) ds_image_row (f, 1))[x] = (float) v[(gsize) k * w + x];
+    if (!ds_phase_set_accumulate (set, k, f, error))
+      return NULL;
+  }
+  return ds_phase_set_finalize (set, error);
 }
 
 /* One row of w pixels, Ld = 1000, Lg = lg, float frames; the result of the separation. */
 static DsSeparation *
 separate_row (const DsSeparationParams *p, const Stripes *s, guint w, double lg, GError **error)
 {
-  guint n = p->n_phases;
-  g_autoptr (DsPhaseSet) set = ds_phase_set_new (p, w, 2, error);
-  if (!set)
-    return NULL;
-  double m = s->sine ? s->black + (1 - s->black) * 0.5 : s->duty + s->black * (1 - s->duty);
-  for (guint k = 0; k < n; k++) {
-    g_autoptr (DsImage) f = ds_image_new (DS_SAMPLE_F32, w, 2, NULL);
-    for (guint x = 0; x < w; x++) {
-      double v = 1000 * (s->black + (1 - s->black) * pixel_value (s, x, k, n)) + lg * m;
-      ((float *) ds_image_row (f, 0))[x] = ((float *) ds_image_row (f, 1))[x] = (float) v;
-    }
-    if (!ds_phase_set_accumulate (set, k, f, error))
-      return NULL;
-  }
-  return ds_phase_set_finalize (set, error);
+  g_autofree double *v = render_row (s, p->n_phases, w, lg, 400);
+  return separate_values (p, v, w, error);
 }
 
 static void
@@ -81,6 +97,7 @@ params_for (DsSeparationParams *p, guint n, DsEstimator e, const Stripes *s, gbo
   if (geometry) {
     p->geometry.period_px = s->period;
     p->geometry.edge_blur_px = s->blur;
+    p->geometry.edge_blur_known = TRUE;
     p->geometry.pixel_aperture = s->aperture;
   }
 }
@@ -163,6 +180,54 @@ test_robust_margin_from_geometry (void)
   g_assert_cmpfloat (err[1], <, -0.05);
   g_assert_cmpfloat (err[1], >, -0.09);
   g_assert_cmpfloat (fabs (err[2]), <, 2e-3);
+}
+
+/* Noise-free blurred square stripes, whose exact answer is the rendered Ld and Lg: with the
+ * period and the blur known, robust's windows stay on the flat parts at every N, so its error
+ * does not grow with N (the edge is fixed in pixels, a phase step is P/N). With the blur
+ * unknown it keeps a one-phase margin: at small N that is as good, at large N the windows
+ * reach into the edges and Ld reads low, more so as N grows. Every pixel is checked, on a
+ * period that is not a whole number of pixels (every position in the period is visited). */
+static void
+test_robust_margin_over_n (void)
+{
+  const guint ns[] = { 6, 8, 16, 32, 64 };
+  const guint w = 173; /* ten periods of the second case, 14.7 of the first */
+  for (guint c = 0; c < 2; c++) {
+    Stripes s = c == 0 ? (Stripes){ .period = 11.8, .duty = 0.5, .blur = 0.5, .aperture = 1, .offset = 0.17 }
+                       : (Stripes){ .period = 17.3, .duty = 0.35, .black = 0.05, .blur = 0.4, .aperture = 1, .offset = 0.6 };
+    double unknown_at_8 = 0;
+    for (guint i = 0; i < G_N_ELEMENTS (ns); i++) {
+      double worst[2] = { 0, 0 }, mean_unknown = 0;
+      /* 100 points per pixel: the midpoint rule is then within 1e-5 of the integral here. */
+      g_autofree double *values = render_row (&s, ns[i], w, 500, 100);
+      for (guint known = 0; known < 2; known++) {
+        DsSeparationParams p;
+        params_for (&p, ns[i], DS_ESTIMATOR_ROBUST, &s, TRUE);
+        p.geometry.edge_blur_known = known;
+        p.geometry.edge_blur_px = known ? s.blur : 0;
+        g_autoptr (GError) error = NULL;
+        g_autoptr (DsSeparation) sep = separate_values (&p, values, w, &error);
+        g_assert_no_error (error);
+        for (guint x = 0; x < w; x++) {
+          double ld = ((float *) ds_image_row (sep->transmissive, 0))[x] / 1000 - 1;
+          double lg = ((float *) ds_image_row (sep->scattered, 0))[x] / 500 - 1;
+          worst[known] = MAX (worst[known], MAX (fabs (ld), fabs (lg)));
+          if (!known)
+            mean_unknown += ld / w;
+        }
+      }
+      g_test_message ("P %.1f a %.2f sigma %.1f N %2u: worst |error| blur known %.4f, unknown %.4f (mean Ld %+.4f)",
+                      s.period, s.duty, s.blur, ns[i], worst[1], worst[0], mean_unknown);
+      /* Each window sample is at least z = 2.576 sigma inside its edge: off by at most
+       * Phi(-z) = 0.005 of the step per level. */
+      g_assert_cmpfloat (worst[1], <, 0.012);
+      if (ns[i] == 8)
+        unknown_at_8 = mean_unknown;
+      if (ns[i] >= 32)
+        g_assert_cmpfloat (mean_unknown, <, MIN (-0.01, unknown_at_8 - 0.01));
+    }
+  }
 }
 
 /* aN = 1 at N = 4, a = 1/4, P = 16: point pixels are each lit once, but a 1-pixel aperture
@@ -275,6 +340,7 @@ main (int argc, char **argv)
   g_test_init (&argc, &argv, NULL);
   g_test_add_func ("/sampling/point-condition", test_point_condition);
   g_test_add_func ("/sampling/robust-margin-from-geometry", test_robust_margin_from_geometry);
+  g_test_add_func ("/sampling/robust-margin-over-n", test_robust_margin_over_n);
   g_test_add_func ("/sampling/undersampled-flags", test_undersampled_flags);
   g_test_add_func ("/sampling/refused-everywhere", test_refused_everywhere);
   g_test_add_func ("/sampling/predicted-errors", test_predicted_errors);
