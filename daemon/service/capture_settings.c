@@ -48,6 +48,10 @@ ds_capture_settings_separation_params (const DsCaptureSettings *s, DsSeparationP
    * never fully lights or darkens instead of being refused, and robust's windows fit it. */
   p->geometry.period_px = s->period_px;
   p->geometry.pixel_aperture = 1;
+  /* A calibrated blur sets robust's margin (the edge's width in pixels); unknown, robust keeps
+   * one phase of margin. */
+  p->geometry.edge_blur_known = s->edge_blur_known;
+  p->geometry.edge_blur_px = s->edge_blur_known ? s->edge_blur_px : 0;
 }
 
 JsonNode *

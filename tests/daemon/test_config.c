@@ -257,6 +257,8 @@ test_calibration_lines_and_clip_level (void)
   ds_capture_settings_separation_params (&s, &p);
   g_assert_cmpfloat (p.harmonic_gain, ==, 0.4123);
   g_assert_cmpfloat (p.saturation_level, ==, 2118);
+  g_assert_true (p.geometry.edge_blur_known);
+  g_assert_cmpfloat (p.geometry.edge_blur_px, ==, 1.07);
   /* Unset: the separation's own defaults (theory's h, the frames' top), blur not known. */
   g_autoptr (DsConfig) d = ds_config_load_data (SIM, "plain.conf", &error);
   g_assert_no_error (error);
@@ -266,6 +268,7 @@ test_calibration_lines_and_clip_level (void)
   ds_capture_settings_separation_params (&s, &p);
   g_assert_cmpfloat (p.harmonic_gain, ==, 0);
   g_assert_cmpfloat (p.saturation_level, ==, 0);
+  g_assert_false (p.geometry.edge_blur_known);
   /* Refusals name the key and what is wrong. */
   expect_error ("[illuminator]\nharmonic-gain=0\n", DS_CONFIG_ERROR_BAD_VALUE,
                 (const char *const[]) { "harmonic-gain", "0.001..1", NULL });
