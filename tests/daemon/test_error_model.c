@@ -324,6 +324,51 @@ test_error_model_precondition (void)
   g_assert_cmpfloat (parts.sampling, <, 1e-6);
 }
 
+/* robust's (and maxmin's) sampling part where the unlit run is too short for the phase step: a
+ * 1-px pixel is fully dark while its aperture lies in the dark run, L0 = (1 - a)P - 1 pixels of
+ * positions; phases shift it by s = P/N. Between two dark positions a gap g = s - L0 is left: a
+ * pixel there (a fraction g/s) has its darkest sample at a distance d = min(u, g - u) outside the
+ * run (u uniform over the gap), where it is lit d pixels' worth (the edge is sharp, the aperture
+ * 1 px): Ld = 1 - d. The rms error over pixels is sqrt((g/s) E[d^2]) = sqrt(g^3 / (12 s)). The
+ * lit run is long enough for robust's lit window. The model must see this, not zero; and with no
+ * fully dark position at all, robust is refused with proc's reason. */
+static void
+test_error_model_robust_sampling (void)
+{
+  const double P = 14.5, a = 0.75;
+  const guint n = 4;
+  DsSceneProbe p = hand_probe (P, a, 1000, 300, 0, 0);
+  p.phase_offset = 0.013; /* no synthetic pixel exactly on an edge */
+  DsSeparationParams sp = params_of (&p);
+  sp.geometry.period_px = P;
+  sp.geometry.pixel_aperture = 1;
+  sp.geometry.edge_blur_known = TRUE; /* sharp, as the probe says */
+  double s = P / n, g = s - ((1 - a) * P - 1);
+  double expect = sqrt (g * g * g / (12 * s));
+  g_assert_cmpfloat (expect, >, 0.1);
+  g_autoptr (DsErrorModel) m = ds_error_model_new (&p, &sp);
+  DsErrorParts parts;
+  g_autoptr (GError) error = NULL;
+  for (int e = 0; e < 2; e++) {
+    DsEstimator est = e ? DS_ESTIMATOR_ROBUST : DS_ESTIMATOR_MAXMIN;
+    g_assert_true (ds_error_model_predict (m, est, n, 1, 1, 0, &parts, &error));
+    g_assert_no_error (error);
+    g_test_message ("%s N = %u: sampling %.4f, closed form %.4f", ds_estimator_name (est), n, parts.sampling,
+                    expect);
+    g_assert_cmpfloat_with_epsilon (parts.sampling, expect, 0.05 * expect);
+    g_assert_cmpfloat_with_epsilon (parts.total, expect, 0.05 * expect);
+  }
+  /* Twice the phases: s = 1.81 px < L0, every pixel has a fully dark phase: exact. */
+  g_assert_true (ds_error_model_predict (m, DS_ESTIMATOR_ROBUST, 2 * n, 1, 1, 0, &parts, &error));
+  g_assert_cmpfloat (parts.sampling, <, 1e-4);
+  /* (1 - a)P = 0.725 px, narrower than a pixel: never fully dark anywhere. */
+  DsSceneProbe q = hand_probe (P, 0.95, 1000, 300, 0, 0);
+  sp.duty = 0.95;
+  g_autoptr (DsErrorModel) never = ds_error_model_new (&q, &sp);
+  g_assert_false (ds_error_model_predict (never, DS_ESTIMATOR_ROBUST, 8, 1, 1, 0, &parts, &error));
+  g_assert_nonnull (strstr (error->message, "no pixel is fully lit in one phase and fully dark in another"));
+}
+
 /* Noise parts against closed forms (docs/estimators.md): maxmin's bias and spread at N = 8 are
  * 2.06 and 0.99 sigma (order statistics of 4 normals); sine's variance is 2 v / (N h^2) for a
  * pixel of per-frame variance v (here v is the same in every phase: no shot noise). */
@@ -407,6 +452,7 @@ main (int argc, char **argv)
   g_test_add_func ("/error-model/probe-plain", test_probe_plain);
   g_test_add_func ("/error-model/probe-leak", test_probe_leak);
   g_test_add_func ("/error-model/precondition", test_error_model_precondition);
+  g_test_add_func ("/error-model/robust-sampling", test_error_model_robust_sampling);
   g_test_add_func ("/error-model/noise", test_error_model_noise);
   g_test_add_func ("/error-model/probe-clip-level", test_probe_clip_level);
   g_test_add_func ("/error-model/clipping", test_error_model_clipping);
