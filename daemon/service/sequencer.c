@@ -140,11 +140,17 @@ thread_main (gpointer data)
 
   guint consecutive_failures = 0;
   for (;;) {
-    if (seq->need_reconnect && seq->dev)
+    if (seq->need_reconnect && seq->dev) {
+      ds_seq_carry_discard (seq);
       ds_seq_reconnect (seq);
+    }
     Command *cmd = seq->continuous ? g_async_queue_try_pop (seq->queue)
                                    : g_async_queue_timeout_pop (seq->queue, G_USEC_PER_SEC / 2);
     ds_seq_heartbeat (seq);
+    /* A frame triggered ahead for the next continuous set: any command comes first (it may
+     * change settings, stop, capture once or release the devices), so the frame is aborted. */
+    if (cmd || !seq->continuous || g_atomic_int_get (&seq->quit))
+      ds_seq_carry_discard (seq);
     if (!cmd) {
       if (g_atomic_int_get (&seq->quit))
         break;
@@ -158,7 +164,9 @@ thread_main (gpointer data)
         g_mutex_lock (&seq->lock);
         guint64 failed_before = seq->status.sets_failed;
         g_mutex_unlock (&seq->lock);
+        seq->continuous_set = TRUE;
         ds_seq_run_set (seq, &seq->continuous_settings, 0);
+        seq->continuous_set = FALSE;
         g_mutex_lock (&seq->lock);
         gboolean failed = seq->status.sets_failed != failed_before;
         g_mutex_unlock (&seq->lock);
@@ -233,6 +241,7 @@ thread_main (gpointer data)
     ds_seq_set_state (seq, !seq->dev ? "released" : seq->need_reconnect ? "reconnecting"
                            : seq->continuous ? "continuous" : "idle");
   }
+  ds_seq_carry_discard (seq);
   if (seq->dev && seq->camera_started)
     seq->dev->camera->ops->stop (seq->dev->camera->backend);
   g_autoptr (GError) off_error = NULL;

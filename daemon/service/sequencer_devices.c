@@ -66,18 +66,23 @@ ds_seq_set_phase (DsSequencer *seq, guint k, GError **error)
                                                 seq->dev->settle_timeout_ms, error);
 }
 
-/* One frame: trigger and grab. Counts what happened. Returns NULL with error set. */
-DsFrame *
-ds_seq_trigger_and_grab (DsSequencer *seq, DsFrameCounters *c, GError **error)
+gboolean
+ds_seq_trigger (DsSequencer *seq, DsFrameCounters *c, GError **error)
 {
   gint64 t = g_get_monotonic_time ();
   ds_seq_blocking (seq, DS_SEQ_CONTROL_BOUND_MS);
   if (!seq->dev->trigger->ops->fire (seq->dev->trigger->backend, error)) {
     c->device_errors++;
-    return NULL;
+    return FALSE;
   }
   ds_seq_stage_add (seq, DS_STAGE_TRIGGER, t);
-  t = g_get_monotonic_time ();
+  return TRUE;
+}
+
+DsFrame *
+ds_seq_grab (DsSequencer *seq, DsFrameCounters *c, GError **error)
+{
+  gint64 t = g_get_monotonic_time ();
   GError *local = NULL;
   /* The grab's own deadline, then one control round trip asking a silent camera whether it
    * is still there. */
@@ -98,6 +103,15 @@ ds_seq_trigger_and_grab (DsSequencer *seq, DsFrameCounters *c, GError **error)
     c->device_errors++;
   g_propagate_error (error, local);
   return NULL;
+}
+
+/* One frame: trigger and grab. Counts what happened. Returns NULL with error set. */
+DsFrame *
+ds_seq_trigger_and_grab (DsSequencer *seq, DsFrameCounters *c, GError **error)
+{
+  if (!ds_seq_trigger (seq, c, error))
+    return NULL;
+  return ds_seq_grab (seq, c, error);
 }
 
 void

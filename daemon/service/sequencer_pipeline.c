@@ -12,6 +12,8 @@
  *     grabbed meanwhile is kept back, phase k is applied again and re-acquired, and the kept
  *     frame is folded after it (it was exposed while its own phase was applied).
  * Every frame ends in exactly one counter: folded (via the set), or dropped with its reason. */
+#include <string.h>
+
 #include "daemon/protocol/protocol.h"
 #include "daemon/service/sequencer_private.h"
 
@@ -32,6 +34,13 @@ typedef struct {
   guint held_phase;
   gint64 held_applied_at;
   gboolean failing;       /* the set failed: collect the last job without reporting progress */
+  /* Continuous mode: the next set's first frame is triggered ahead once this set's last frame
+   * is in the worker (sequencer_carry.c). */
+  gboolean ahead;
+  /* This set's first frame was triggered ahead by the previous set: grab it without a trigger. */
+  gboolean grab_only;
+  DsSeparation *planes;   /* the result's, finalized by the job of the frame completing the set */
+  gboolean finalized;
 } Pipeline;
 
 /* Consumes one retry of phase k after `why`; fails with `why` when none are left. */
@@ -95,6 +104,12 @@ collect (Pipeline *pl, guint *dropped_phase, gboolean *reapply, GError **error)
   pl->seq->last_frame_us = MAX (pl->seq->last_frame_us, arrival);
   if (++pl->accepted[k] == pl->s->averages && !pl->failing)
     ds_seq_emit_progress (pl->seq, pl->tag, k, pl->s->phases);
+  if (job.finalize_into && !job.finalized) {
+    /* Folded (the set fails, so it goes down as aborted with the others), not finalized. */
+    g_propagate_prefixed_error (error, job.fold_error, "finalize: ");
+    return FALSE;
+  }
+  pl->finalized = pl->finalized || job.finalized;
   return TRUE;
 }
 
@@ -104,13 +119,17 @@ static guint frames_of (const Pipeline *pl, guint k);
 static void
 submit (Pipeline *pl, guint k, DsFrame *frame, gint64 applied_at)
 {
-  /* The set's last frame: nothing follows to overlap with, so it is verified and folded right
-   * here, sparing two thread wake-ups between the last frame and the result. */
+  /* The frame that completes the set (every earlier one was collected and accepted): its job
+   * finalizes the set too. Nothing follows it to overlap with, so it is verified, folded and
+   * finalized right here, sparing two thread wake-ups between the last frame and the result;
+   * unless the next set's first frame is triggered ahead (continuous mode), which then
+   * overlaps with all three. */
   gboolean last = k + 1 == pl->s->phases && frames_of (pl, k) + 1 >= pl->s->averages && !pl->held;
   pl->in_flight = TRUE;
   pl->in_flight_phase = k;
   pl->in_flight_frame = frame;
-  ds_fold_worker_submit (pl->seq->worker, pl->s, k, frame, applied_at, last);
+  ds_fold_worker_submit (pl->seq->worker, pl->s, k, frame, applied_at, last ? pl->planes : NULL,
+                         last && !pl->ahead);
 }
 
 static guint
@@ -121,12 +140,11 @@ frames_of (const Pipeline *pl, guint k)
 }
 
 static gboolean
-run (Pipeline *pl, GError **error)
+run (Pipeline *pl, int applied, gint64 applied_at, GError **error)
 {
+  /* applied: the phase the illuminator shows, -1 unknown; applied_at: since when. */
   DsSequencer *seq = pl->seq;
   const DsCaptureSettings *s = pl->s;
-  int applied = -1;       /* the phase the illuminator shows, -1 unknown */
-  gint64 applied_at = 0;
   guint k = 0;
   for (;;) {
     if (!ds_seq_check_quit (seq, error))
@@ -136,6 +154,12 @@ run (Pipeline *pl, GError **error)
       /* Every phase has its frames, the last one perhaps still in the worker. */
       if (!pl->in_flight)
         return TRUE;
+      if (pl->ahead && !seq->carry.active && ds_seq_carry_allowed (seq, s)) {
+        /* The last frame arrived, so its exposure is over: the next set's first frame is
+         * exposed while it is verified and folded and while the result is finalized. */
+        ds_seq_carry_trigger (seq, s);
+        applied = seq->carry.pending ? 0 : -1;
+      }
       gboolean re;
       if (!collect (pl, &dropped, &re, error))
         return FALSE;
@@ -165,6 +189,10 @@ run (Pipeline *pl, GError **error)
       k++;
       continue;
     }
+    /* A frame triggered ahead for the next set is fetched before this set moves the
+     * illuminator or triggers again (the last frame was dropped: its phase is acquired again). */
+    if (seq->carry.pending)
+      ds_seq_carry_grab (seq);
     GError *why = NULL;
     if (applied != (int) k) {
       /* Overlaps with the worker verifying and folding the previous phase's last frame. */
@@ -182,7 +210,9 @@ run (Pipeline *pl, GError **error)
       applied = (int) k;
       applied_at = g_get_monotonic_time ();
     }
-    DsFrame *frame = ds_seq_trigger_and_grab (seq, pl->c, &why);
+    DsFrame *frame = pl->grab_only ? ds_seq_grab (seq, pl->c, &why)
+                                   : ds_seq_trigger_and_grab (seq, pl->c, &why);
+    pl->grab_only = FALSE;
     if (!frame) {
       g_prefix_error (&why, "camera: ");
       if (!retry_or_fail (pl, k, &why, error))
@@ -215,7 +245,7 @@ run (Pipeline *pl, GError **error)
 
 gboolean
 ds_seq_acquire_phases (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag,
-                       DsFrameCounters *c, GError **error)
+                       DsFrameCounters *c, DsSeparation *planes, gboolean *finalized, GError **error)
 {
   g_autofree guint *accepted = g_new0 (guint, s->phases);
   g_autofree guint *retries_left = g_new (guint, s->phases);
@@ -223,8 +253,27 @@ ds_seq_acquire_phases (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag
     retries_left[k] = s->phase_retries;
   seq->last_frame_us = 0;
   Pipeline pl = { .seq = seq, .s = s, .tag = tag, .c = c, .accepted = accepted,
-                  .retries_left = retries_left };
-  gboolean ok = run (&pl, error);
+                  .retries_left = retries_left, .ahead = seq->continuous_set, .planes = planes };
+  int applied = -1;
+  gint64 applied_at = 0;
+  if (seq->carry.active) {
+    /* The set runner checked that it fits this set (ds_seq_carry_fits): phase 0 was applied
+     * for this set's first frame, triggered or grabbed already. */
+    DsSeqCarry *cy = &seq->carry;
+    ds_frame_counters_add (c, &cy->counters);
+    if (cy->pending || cy->frame) {
+      applied = 0;
+      applied_at = cy->applied_at_us;
+    }
+    pl.grab_only = cy->pending;
+    if (cy->frame) {
+      pl.held = g_steal_pointer (&cy->frame);
+      pl.held_phase = 0;
+      pl.held_applied_at = cy->applied_at_us;
+    }
+    memset (cy, 0, sizeof *cy);
+  }
+  gboolean ok = run (&pl, applied, applied_at, error);
   pl.failing = !ok;
   if (pl.in_flight) {
     /* A failing set still waits for its last job: the worker must be idle before the phase
@@ -237,5 +286,6 @@ ds_seq_acquire_phases (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag
   /* A frame kept back and never folded is acquired but not dropped: the caller counts it as
    * aborted with the rest of the failed set. */
   g_clear_pointer (&pl.held, ds_frame_free);
+  *finalized = ok && pl.finalized;
   return ok;
 }

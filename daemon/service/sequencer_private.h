@@ -8,6 +8,8 @@
  *   sequencer_pipeline.c the N x M frames of a set, pipelined: the next phase is applied and
  *                        exposed while the worker verifies and folds the previous frame
  *   sequencer_worker.c   the verify-and-fold worker thread
+ *   sequencer_carry.c    continuous mode: the next set's first frame, triggered while this
+ *                        set's last frame is verified and its result finalized
  *   sequencer_verify.c   frame verification (stale, frame gap, stripe phase)
  *   sequencer_dark.c     dark-frame acquisition
  *   sequencer_auto.c     the automatic operating point (preview frames)
@@ -25,6 +27,19 @@
 G_BEGIN_DECLS
 
 typedef struct DsFoldWorker DsFoldWorker;
+
+/* Continuous mode: the first frame of the next set (phase 0), triggered as soon as this set's
+ * last frame arrived, so that its exposure and transfer overlap with the last frame's
+ * verification and fold and with the finalize (docs/design.md, "The pipeline"). Acquisition
+ * thread only. */
+typedef struct {
+  gboolean active;            /* there is a carry (pending, frame or only counters) */
+  gboolean pending;           /* triggered, not grabbed yet */
+  DsFrame *frame;             /* grabbed already (this set's last frame was dropped meanwhile) */
+  gint64 applied_at_us;       /* when phase 0 was applied for it */
+  DsCaptureSettings settings; /* the settings of the set it was taken after */
+  DsFrameCounters counters;   /* what applying phase 0, triggering and grabbing counted */
+} DsSeqCarry;
 
 struct DsSequencer {
   GThread *thread;
@@ -63,6 +78,8 @@ struct DsSequencer {
   const DsOperatingModel *model; /* set before the thread uses it; read-only */
   DsRigTiming timing;
   DsFoldWorker *worker;     /* verifies and folds while the next frame is acquired */
+  gboolean continuous_set;  /* the set running is one of continuous mode's */
+  DsSeqCarry carry;
   DsPlanePool *planes;      /* result planes, back from results nobody holds any more */
   /* The raw frames of the set in progress when it keeps them (save_phases): filled by the
    * worker between submit and collect, attached to the result by the set runner. */
@@ -97,6 +114,8 @@ void ds_seq_record_error (DsSequencer *seq, const GError *error);
 void ds_seq_refresh_device_status (DsSequencer *seq);
 /* Adds a set's (or a dark frame's) counters to the totals; ok counts the set as done. */
 void ds_seq_account (DsSequencer *seq, const DsFrameCounters *c, gboolean ok);
+/* Adds frame counters to the totals without counting a set (frames of no set). */
+void ds_seq_account_frames (DsSequencer *seq, const DsFrameCounters *c);
 
 /* ---- sequencer_devices.c ---- */
 
@@ -104,7 +123,10 @@ gboolean ds_seq_ensure_camera (DsSequencer *seq, const DsCaptureSettings *s, GEr
 gboolean ds_seq_apply_pattern (DsSequencer *seq, const DsCaptureSettings *s, GError **error);
 /* Lights phase k, within the illuminator's settle timeout. */
 gboolean ds_seq_set_phase (DsSequencer *seq, guint k, GError **error);
-/* One frame: trigger and grab. Counts what happened. Returns NULL with error set. */
+/* One frame: trigger and grab. Counts what happened. Returns NULL with error set. The two
+ * halves apart, for a frame triggered ahead (sequencer_carry.c). */
+gboolean ds_seq_trigger (DsSequencer *seq, DsFrameCounters *c, GError **error);
+DsFrame *ds_seq_grab (DsSequencer *seq, DsFrameCounters *c, GError **error);
 DsFrame *ds_seq_trigger_and_grab (DsSequencer *seq, DsFrameCounters *c, GError **error);
 /* Drops (and counts as stale) every frame already delivered but not grabbed. */
 void ds_seq_flush_stale (DsSequencer *seq, DsFrameCounters *c);
@@ -127,10 +149,30 @@ void ds_seq_run_set (DsSequencer *seq, const DsCaptureSettings *requested, guint
 /* ---- sequencer_pipeline.c ---- */
 
 /* Acquires the N x M frames of a set and folds them into seq->set (which is prepared); emits
- * progress per completed phase. FALSE with error when the set fails; every frame is counted in
- * c (the ones neither folded nor dropped are the caller's to count as aborted). */
+ * progress per completed phase. The job of the frame that completes the set also finalizes it
+ * into `planes` (*finalized then TRUE). FALSE with error when the set fails; every frame is
+ * counted in c (the ones neither folded nor dropped are the caller's to count as aborted). */
 gboolean ds_seq_acquire_phases (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag,
-                                DsFrameCounters *c, GError **error);
+                                DsFrameCounters *c, DsSeparation *planes, gboolean *finalized,
+                                GError **error);
+
+/* ---- sequencer_carry.c ---- */
+
+/* Whether the set running may trigger the next set's first frame ahead: a continuous set
+ * with nothing queued, whose next set needs nothing before its first frame (no dark frame,
+ * no automatic operating point). The frame is verified in the next set, after this set's
+ * frames were confirmed as a whole (ds_phase_check_confirm), like any first frame. */
+gboolean ds_seq_carry_allowed (DsSequencer *seq, const DsCaptureSettings *s);
+/* After the set's last frame arrived (so its exposure is over): applies phase 0 and triggers.
+ * Failures are counted in the carry and leave the next set to start as usual. */
+void ds_seq_carry_trigger (DsSequencer *seq, const DsCaptureSettings *s);
+/* Grabs the frame triggered ahead, before the illuminator moves again for this set. */
+void ds_seq_carry_grab (DsSequencer *seq);
+/* Whether the set about to run with settings s can start from the carry. */
+gboolean ds_seq_carry_fits (DsSequencer *seq, const DsCaptureSettings *s);
+/* The carry is not used: its frame (grabbed now if pending) is counted as aborted, and its
+ * counters go to the totals. No-op without a carry. */
+void ds_seq_carry_discard (DsSequencer *seq);
 
 /* ---- sequencer_verify.c ---- */
 
@@ -153,9 +195,12 @@ typedef struct {
   guint phase;
   DsFrame *frame;                    /* borrowed: the acquisition thread frees it after collect */
   gint64 applied_at_us;
+  DsSeparation *finalize_into;       /* the set's last frame: once folded, the set is finalized
+                                      * into these planes (borrowed) */
   DsFrameVerdict verdict;            /* out */
   gboolean folded;                   /* out: verified and folded */
-  GError *fold_error;                /* out: verified, but the fold failed */
+  gboolean finalized;                /* out: ... and the set finalized into finalize_into */
+  GError *fold_error;                /* out: verified, but the fold (or the finalize) failed */
 } DsFoldJob;
 
 DsFoldWorker *ds_fold_worker_new (DsSequencer *seq);
@@ -165,7 +210,8 @@ void ds_fold_worker_free (DsFoldWorker *worker);
  * the job runs on the calling thread before this returns (for a frame nothing will overlap
  * with); collect it all the same. */
 void ds_fold_worker_submit (DsFoldWorker *worker, const DsCaptureSettings *s, guint phase,
-                            DsFrame *frame, gint64 applied_at_us, gboolean here);
+                            DsFrame *frame, gint64 applied_at_us, DsSeparation *finalize_into,
+                            gboolean here);
 /* Waits for the submitted job and moves its outcome (verdict, fold error) to *job. */
 void ds_fold_worker_collect (DsFoldWorker *worker, DsFoldJob *job);
 

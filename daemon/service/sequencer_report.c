@@ -168,3 +168,11 @@ ds_seq_account (DsSequencer *seq, const DsFrameCounters *c, gboolean ok)
     seq->status.sets_failed++;
   g_mutex_unlock (&seq->lock);
 }
+
+void
+ds_seq_account_frames (DsSequencer *seq, const DsFrameCounters *c)
+{
+  g_mutex_lock (&seq->lock);
+  ds_frame_counters_add (&seq->status.frames, c);
+  g_mutex_unlock (&seq->lock);
+}

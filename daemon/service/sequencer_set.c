@@ -50,7 +50,9 @@ acquire_set (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag, DsFrameC
     ds_seq_fatal_device_error (seq, *error);
     return NULL;
   }
-  if (!ds_seq_apply_pattern (seq, s, error)) {
+  /* A set that starts from a frame triggered ahead has the previous set's pattern, the same
+   * (ds_seq_carry_fits): loading it again could change the light while that frame exposes. */
+  if (!seq->carry.active && !ds_seq_apply_pattern (seq, s, error)) {
     g_prefix_error (error, "illuminator: ");
     ds_seq_fatal_device_error (seq, *error);
     return NULL;
@@ -90,7 +92,8 @@ acquire_set (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag, DsFrameC
     if (use_dark && !ds_raw_frames_set_black (seq->raw, use_dark, (const guint64 *) ids->data, ids->len, NULL))
       seq->raw_incomplete = TRUE;
   }
-  if (!ds_seq_acquire_phases (seq, s, tag, c, error)) {
+  gboolean finalized = FALSE;
+  if (!ds_seq_acquire_phases (seq, s, tag, c, planes, &finalized, error)) {
     ds_plane_pool_give (seq->planes, planes);
     if (seq->phase_check.provisional)
       ds_phase_check_abandon (&seq->phase_check);
@@ -105,7 +108,8 @@ acquire_set (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag, DsFrameC
     return NULL;
   }
   *last_frame_us = seq->last_frame_us;
-  return ds_phase_set_finalize_reusing (seq->set, planes, error);
+  /* The job of the set's last frame finalized it already (sequencer_pipeline.c). */
+  return finalized ? planes : ds_phase_set_finalize_reusing (seq->set, planes, error);
 }
 
 void
@@ -121,6 +125,8 @@ ds_seq_run_set (DsSequencer *seq, const DsCaptureSettings *requested, guint64 ta
   settings.black_level = seq->dev->pattern.black_level;
   DsFrameCounters c = { 0 };
   g_autoptr (GError) error = NULL;
+  if (!ds_seq_carry_fits (seq, s))
+    ds_seq_carry_discard (seq);
   if (settings.target_error > 0 || settings.time_budget_ms > 0) {
     if (!ds_seq_ensure_camera (seq, s, &error) || !ds_seq_choose_operating_point (seq, &settings, &c, &error)) {
       ds_seq_account (seq, &c, FALSE);

@@ -39,6 +39,11 @@ run_job (DsSequencer *seq, DsFoldJob *job, gboolean overlapped)
   if (!job->folded)
     return;
   ds_seq_stage_add (seq, DS_STAGE_FOLD, t);
+  /* The set's last frame: the result's planes now, in the same job (on the fold thread in
+   * continuous mode, while the next set's first frame exposes; docs/design.md). Every core:
+   * the finalize's row workers. */
+  if (job->finalize_into)
+    job->finalized = ds_phase_set_finalize_into (seq->set, job->finalize_into, &job->fold_error);
   /* Copies made here overlap with the next exposure instead of delaying it. */
   const DsFrame *f = job->frame;
   if (seq->raw && !seq->raw_incomplete &&
@@ -105,12 +110,12 @@ ds_fold_worker_free (DsFoldWorker *w)
 
 void
 ds_fold_worker_submit (DsFoldWorker *w, const DsCaptureSettings *s, guint phase, DsFrame *frame,
-                       gint64 applied_at_us, gboolean here)
+                       gint64 applied_at_us, DsSeparation *finalize_into, gboolean here)
 {
   g_mutex_lock (&w->lock);
   g_assert (!w->has_job && !w->done);
   w->job = (DsFoldJob) { .settings = s, .phase = phase, .frame = frame,
-                         .applied_at_us = applied_at_us };
+                         .applied_at_us = applied_at_us, .finalize_into = finalize_into };
   if (here) {
     /* Nothing to overlap with (the last frame of a set): no hand-over, no wake-up latency.
      * The worker is idle (no job), so the phase set is this thread's. */

@@ -268,7 +268,12 @@ typedef struct {
   guint device_events;
   GError *control_error;
   guint control_events;
+  guint results;
+  gboolean check_results; /* compare every result with the scene (continuous mode) */
+  guint results_wrong;
 } Outcome;
+
+static gboolean scene_recovered (const DsResult *r);
 
 static void
 on_event (const DsSequencerEvent *ev, gpointer data)
@@ -280,7 +285,12 @@ on_event (const DsSequencerEvent *ev, gpointer data)
     g_main_loop_quit (o->loop);
     break;
   case DS_SEQUENCER_EVENT_RESULT:
+    /* Continuous mode may deliver several results in one iteration: keep the last. */
+    g_clear_pointer (&o->result, ds_result_unref);
     o->result = ds_result_ref (ev->result);
+    o->results++;
+    if (o->check_results)
+      o->results_wrong += !scene_recovered (ev->result);
     g_main_loop_quit (o->loop);
     break;
   case DS_SEQUENCER_EVENT_FAILED:
@@ -377,6 +387,21 @@ assert_scene_recovered (const DsResult *r)
       g_assert_cmpfloat_with_epsilon (g[x], 604.0, 1e-3);
     }
   }
+}
+
+/* The same, as a verdict (for results checked as they arrive). */
+static gboolean
+scene_recovered (const DsResult *r)
+{
+  const DsSeparation *sep = ds_result_separation (r);
+  for (guint y = 0; y < H; y++) {
+    const float *t = ds_image_row (sep->transmissive, y);
+    const float *g = ds_image_row (sep->scattered, y);
+    for (guint x = 0; x < W; x++)
+      if (fabs (t[x] - 1000.0) > 1e-3 || fabs (g[x] - 604.0) > 1e-3)
+        return FALSE;
+  }
+  return TRUE;
 }
 
 static void
@@ -725,6 +750,137 @@ test_pipeline_quit_mid_set (Fixture *f, gconstpointer d)
   f->seq = NULL;
 }
 
+/* ---- continuous mode: the next set's first frame triggered ahead (sequencer_carry.c) ---- */
+
+/* Every frame the sequencer folds, compared with the frame of the phase it was folded into:
+ * maxmin alone would not notice one phase's frame standing in for its neighbour's (each pixel
+ * is lit in four consecutive phases of eight), this does. Fold thread or acquisition thread. */
+typedef struct {
+  const Lab *lab;
+  gint folded, wrong; /* atomic */
+} FoldAudit;
+
+static void
+audit_fold (const DsFrame *frame, guint phase, const DsCaptureSettings *s, gpointer data)
+{
+  (void) s;
+  FoldAudit *a = data;
+  gboolean same = TRUE;
+  for (guint y = 0; y < H && same; y++) {
+    const guint16 *row = ds_image_row (frame->image, y);
+    for (guint x = 0; x < W && same; x++)
+      same = row[x] == pixel_value (a->lab, (int) phase, x);
+  }
+  g_atomic_int_inc (&a->folded);
+  if (!same)
+    g_atomic_int_inc (&a->wrong);
+}
+
+/* Runs continuous mode until `sets` results arrived (each compared with the scene), then stops
+ * and waits until the thread took the stop, so that no set is in progress. */
+static void
+run_continuous (Fixture *f, const DsCaptureSettings *s, guint sets)
+{
+  f->out.results = 0;
+  f->out.results_wrong = 0;
+  f->out.check_results = TRUE;
+  ds_sequencer_start (f->seq, s);
+  while (f->out.results < sets) {
+    g_main_loop_run (f->out.loop);
+    g_assert_no_error (f->out.failure);
+  }
+  ds_sequencer_stop (f->seq);
+  for (;;) {
+    DsSequencerStatus st;
+    ds_sequencer_get_status (f->seq, &st);
+    if (!st.continuous)
+      break;
+    g_main_context_iteration (NULL, FALSE);
+    g_usleep (1000);
+  }
+  while (g_main_context_iteration (NULL, FALSE))
+    ;
+  g_assert_no_error (f->out.failure);
+  f->out.check_results = FALSE;
+}
+
+/* In continuous mode a set's last frame is verified while the illuminator already shows phase
+ * 0 for the next set's first frame, which is triggered then. data = the continuous grab that
+ * shows the previous phase: 8, the set's last frame (found bad after the illuminator moved on:
+ * the frame triggered ahead is grabbed and kept, phase 7 applied again and re-acquired, and the
+ * next set starts from the kept frame); 9, the frame triggered ahead itself (the next set's
+ * first: dropped and re-acquired for phase 0). No frame is folded into another phase than its
+ * own, every set equals the scene, and the accounting is exact after stop. */
+static void
+test_pipeline_continuous_drop (Fixture *f, gconstpointer data)
+{
+  guint bad = GPOINTER_TO_UINT (data);
+  DsCaptureSettings s;
+  default_settings (&s, 8);
+  capture (f, &s); /* learns the stripe-phase offset: later sets are checked frame by frame */
+  g_assert_nonnull (f->out.result);
+  FoldAudit audit = { .lab = &f->lab };
+  ds_sequencer_set_frame_hook (f->seq, audit_fold, &audit);
+  DsSequencerStatus before, after;
+  ds_sequencer_get_status (f->seq, &before);
+  guint log0 = f->lab.n_phase_log;
+  f->lab.stale_in = bad;
+  run_continuous (f, &s, 3);
+  ds_sequencer_set_frame_hook (f->seq, NULL, NULL);
+  ds_sequencer_get_status (f->seq, &after);
+  g_assert_cmpuint (f->out.results_wrong, ==, 0);
+  g_assert_cmpint (g_atomic_int_get (&audit.wrong), ==, 0);
+  guint64 sets = after.sets_done - before.sets_done;
+  g_assert_cmpuint (sets, >=, 3);
+  g_assert_cmpuint (after.sets_failed, ==, before.sets_failed);
+  g_assert_cmpuint (after.frames.folded - before.frames.folded, ==, 8 * sets);
+  g_assert_cmpint (g_atomic_int_get (&audit.folded), ==, (gint) (8 * sets));
+  g_assert_cmpuint (after.frames.by_reason[DS_DROP_WRONG_PHASE] - before.frames.by_reason[DS_DROP_WRONG_PHASE], ==, 1);
+  g_assert_cmpuint (after.frames.retries - before.frames.retries, ==, 1);
+  /* At most the frame triggered ahead when stop came was abandoned. */
+  g_assert_cmpuint (after.frames.by_reason[DS_DROP_ABORTED] - before.frames.by_reason[DS_DROP_ABORTED], <=, 1);
+  assert_accounting (f);
+  /* The illuminator's path: phase 0 right after each set's last frame, a phase applied again
+   * where the bad frame was; the second set starts at phase 1 (its phase 0 was lit ahead). */
+  static const int last_bad[] = { 0, 1, 2, 3, 4, 5, 6, 7, 0, 7, 1, 2, 3, 4, 5, 6, 7, 0 };
+  static const int first_bad[] = { 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 0, 2, 3, 4, 5, 6, 7, 0 };
+  const int *expected = bad == 8 ? last_bad : first_bad;
+  for (guint i = log0; i < f->lab.n_phase_log && g_test_verbose (); i++)
+    g_test_message ("phase log %u: %d", i - log0, f->lab.phase_log[i]);
+  g_assert_cmpuint (f->lab.n_phase_log - log0, >=, G_N_ELEMENTS (last_bad));
+  for (guint i = 0; i < G_N_ELEMENTS (last_bad); i++)
+    g_assert_cmpint (f->lab.phase_log[log0 + i], ==, expected[i]);
+}
+
+/* A command between continuous sets (here a single capture) comes before the frame triggered
+ * ahead: that frame is counted as aborted, the capture runs from its own phase 0 and equals
+ * the scene, and the accounting is exact. */
+static void
+test_pipeline_continuous_then_capture (Fixture *f, gconstpointer d)
+{
+  (void) d;
+  DsCaptureSettings s;
+  default_settings (&s, 8);
+  capture (f, &s);
+  g_assert_nonnull (f->out.result);
+  f->out.results = 0;
+  f->out.check_results = TRUE;
+  ds_sequencer_start (f->seq, &s);
+  while (f->out.results < 2)
+    g_main_loop_run (f->out.loop);
+  ds_sequencer_stop (f->seq);
+  f->out.check_results = FALSE;
+  capture (f, &s);
+  g_assert_no_error (f->out.failure);
+  assert_scene_recovered (f->out.result);
+  g_assert_cmpuint (f->out.results_wrong, ==, 0);
+  DsSequencerStatus st;
+  ds_sequencer_get_status (f->seq, &st);
+  g_assert_cmpuint (st.frames.by_reason[DS_DROP_ABORTED], <=, 1);
+  g_assert_cmpuint (st.frames.folded, ==, 8 * st.sets_done);
+  assert_accounting (f);
+}
+
 /* Result planes: once nobody holds a result, the next set of that size writes into the same
  * planes (no fresh memory after the last frame); while a result is held, a set gets others. */
 static void
@@ -843,6 +999,9 @@ main (int argc, char **argv)
   ADD ("pipeline/last-frame-dropped", test_pipeline_drop_after_move, GUINT_TO_POINTER (8));
   ADD ("pipeline/averages-drop-within-phase", test_pipeline_averages_drop, NULL);
   ADD ("pipeline/quit-mid-set", test_pipeline_quit_mid_set, NULL);
+  ADD ("pipeline/continuous-last-frame-dropped", test_pipeline_continuous_drop, GUINT_TO_POINTER (8));
+  ADD ("pipeline/continuous-first-frame-dropped", test_pipeline_continuous_drop, GUINT_TO_POINTER (9));
+  ADD ("pipeline/continuous-then-capture", test_pipeline_continuous_then_capture, NULL);
   ADD ("result-planes-reused", test_result_planes_reused, NULL);
   g_test_add_func ("/sequencer/phase-check-tall-frame", test_phase_check_tall_frame);
   ADD ("release-acquire", test_release_acquire, NULL);

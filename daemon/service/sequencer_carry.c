@@ -1,0 +1,82 @@
+/* Continuous mode: the next set's first frame triggered ahead. As soon as a set's last frame
+ * arrived (its exposure is over), the illuminator moves to phase 0 and the trigger goes out;
+ * the last frame's verification and fold and the set's finalize then overlap with that
+ * frame's exposure and transfer instead of preceding them. The frame belongs to the next set:
+ * it is grabbed, counted and verified there like any first frame (or, when the last frame was
+ * dropped and its phase must be lit again, grabbed before the illuminator moves and kept).
+ * When the next set does not come as expected (a command, stop, new settings, a reconnect),
+ * the frame is grabbed and counted as aborted: every frame stays accounted for
+ * (docs/design.md, "The pipeline"). */
+#include <string.h>
+
+#include "daemon/service/sequencer_private.h"
+
+gboolean
+ds_seq_carry_allowed (DsSequencer *seq, const DsCaptureSettings *s)
+{
+  return seq->continuous_set && seq->continuous && !seq->carry.active && !seq->need_reconnect &&
+         g_async_queue_length (seq->queue) <= 0 && !g_atomic_int_get (&seq->quit) &&
+         !s->dark_frame && s->target_error <= 0 && s->time_budget_ms <= 0;
+}
+
+void
+ds_seq_carry_trigger (DsSequencer *seq, const DsCaptureSettings *s)
+{
+  DsSeqCarry *cy = &seq->carry;
+  memset (cy, 0, sizeof *cy);
+  cy->active = TRUE;
+  cy->settings = *s;
+  g_autoptr (GError) e = NULL;
+  gint64 t = g_get_monotonic_time ();
+  if (!ds_seq_set_phase (seq, 0, &e)) {
+    cy->counters.device_errors++;
+    ds_seq_fatal_device_error (seq, e);
+    return;
+  }
+  ds_seq_stage_add (seq, DS_STAGE_SET_PHASE, t);
+  ds_seq_flush_stale (seq, &cy->counters);
+  cy->applied_at_us = g_get_monotonic_time ();
+  if (!ds_seq_trigger (seq, &cy->counters, &e)) {
+    ds_seq_fatal_device_error (seq, e);
+    return;
+  }
+  cy->pending = TRUE;
+}
+
+void
+ds_seq_carry_grab (DsSequencer *seq)
+{
+  DsSeqCarry *cy = &seq->carry;
+  if (!cy->pending)
+    return;
+  cy->pending = FALSE;
+  g_autoptr (GError) e = NULL;
+  cy->frame = ds_seq_grab (seq, &cy->counters, &e);
+  if (!cy->frame) {
+    ds_seq_fatal_device_error (seq, e);
+    /* A frame of the lost trigger that still comes is flushed after the next set_phase. */
+  }
+}
+
+gboolean
+ds_seq_carry_fits (DsSequencer *seq, const DsCaptureSettings *s)
+{
+  return seq->carry.active && seq->continuous_set && !seq->need_reconnect && seq->dev &&
+         memcmp (&seq->carry.settings, s, sizeof *s) == 0;
+}
+
+void
+ds_seq_carry_discard (DsSequencer *seq)
+{
+  DsSeqCarry *cy = &seq->carry;
+  if (!cy->active)
+    return;
+  if (cy->pending && seq->dev && !seq->need_reconnect)
+    ds_seq_carry_grab (seq);
+  if (cy->frame) {
+    ds_frame_counters_drop (&cy->counters, DS_DROP_ABORTED, 1);
+    g_clear_pointer (&cy->frame, ds_frame_free);
+  }
+  ds_seq_account_frames (seq, &cy->counters);
+  memset (cy, 0, sizeof *cy);
+}
