@@ -242,6 +242,7 @@ daemon_rate (DsClient *c, double seconds, double *finalize_ms)
   g_usleep (300000);
   gint64 t0, t1;
   g_autoptr (DsMessage) s0 = at_set_end (c, &t0);
+  guint64 drops0 = rate_udp_rcvbuf_errors ();
   gint64 f0 = test_json_int (s0->reply->body, "frames.folded");
   g_usleep ((gulong) (seconds * 1e6));
   g_autoptr (DsMessage) s1 = at_set_end (c, &t1);
@@ -250,7 +251,8 @@ daemon_rate (DsClient *c, double seconds, double *finalize_ms)
   RateSample r = { .fps = (f1 - f0) / ((t1 - t0) / 1e6),
                    .incomplete = (guint) (camera_stat (s1, "failures") - camera_stat (s0, "failures")),
                    .lost = (guint) (camera_stat (s1, "timeouts") - camera_stat (s0, "timeouts")),
-                   .reconnects = (guint) (camera_stat (s1, "reconnects") - camera_stat (s0, "reconnects")) };
+                   .reconnects = (guint) (camera_stat (s1, "reconnects") - camera_stat (s0, "reconnects")),
+                   .rcvbuf_drops = rate_udp_rcvbuf_errors () - drops0 };
   gint64 acquired = test_json_int (s1->reply->body, "frames.acquired");
   gint64 dropped = test_json_int (s1->reply->body, "frames.dropped");
   /* A set may fail on a starved machine (the camera's heartbeat answered too late: control
@@ -326,8 +328,9 @@ rounds_add (Rounds *rs, const RateSample *c1, const RateSample *d, const RateSam
 {
   guint i = rs->n++;
   rs->daemon_fps[i] = d->fps;
-  printf ("    round %u: daemon %.1f frames/s (incomplete/lost/reconnects %u/%u/%u)\n", i + 1, d->fps,
-          d->incomplete, d->lost, d->reconnects);
+  printf ("    round %u: daemon %.1f frames/s (incomplete/lost/reconnects %u/%u/%u; UDP receive-buffer "
+          "drops %" G_GUINT64_FORMAT ")\n", i + 1, d->fps, d->incomplete, d->lost, d->reconnects,
+          d->rcvbuf_drops);
   for (guint k = 0; k < N_CEILINGS; k++) {
     if (!rs->want[k])
       continue;
@@ -339,9 +342,11 @@ rounds_add (Rounds *rs, const RateSample *c1, const RateSample *d, const RateSam
     if (clean)
       cr->clean[cr->n_clean++] = cr->ratio[i];
     printf ("      ceiling, %s: %.1f before, %.1f after (incomplete/lost/reconnects %u/%u/%u, "
-            "%u/%u/%u) -> ratio %.3f, drift %.3f%s\n", ceiling_name[k], c1[k].fps, c2[k].fps,
+            "%u/%u/%u; receive-buffer drops %" G_GUINT64_FORMAT ", %" G_GUINT64_FORMAT
+            ") -> ratio %.3f, drift %.3f%s\n", ceiling_name[k], c1[k].fps, c2[k].fps,
             c1[k].incomplete, c1[k].lost, c1[k].reconnects, c2[k].incomplete, c2[k].lost,
-            c2[k].reconnects, cr->ratio[i], cr->drift[i], clean ? "" : " (transport loss)");
+            c2[k].reconnects, c1[k].rcvbuf_drops, c2[k].rcvbuf_drops, cr->ratio[i], cr->drift[i],
+            clean ? "" : " (transport loss)");
   }
 }
 

@@ -88,6 +88,27 @@ run_here (const char *conf_text, double seconds, gboolean with_phase, RateSample
   return ok;
 }
 
+guint64
+rate_udp_rcvbuf_errors (void)
+{
+  g_autofree char *text = NULL;
+  if (!g_file_get_contents ("/proc/net/snmp", &text, NULL, NULL))
+    return 0;
+  /* Two "Udp:" lines: the names, then the values in the same order. */
+  g_auto (GStrv) lines = g_strsplit (text, "\n", -1);
+  for (guint i = 0; lines[i] && lines[i + 1]; i++) {
+    if (!g_str_has_prefix (lines[i], "Udp: ") || !g_str_has_prefix (lines[i + 1], "Udp: "))
+      continue;
+    g_auto (GStrv) names = g_strsplit (lines[i], " ", -1);
+    g_auto (GStrv) values = g_strsplit (lines[i + 1], " ", -1);
+    for (guint k = 0; names[k] && values[k]; k++)
+      if (strcmp (names[k], "RcvbufErrors") == 0)
+        return g_ascii_strtoull (values[k], NULL, 10);
+    break;
+  }
+  return 0;
+}
+
 int
 rate_ceiling_main (int argc, char **argv)
 {
@@ -106,6 +127,7 @@ rate_ceiling_measure (const char *self_path, const char *conf_text, double secon
 {
   g_autofree char *ss = g_strdup_printf ("%g", seconds);
   g_autoptr (GError) e = NULL;
+  guint64 drops0 = rate_udp_rcvbuf_errors ();
   g_autoptr (GSubprocess) p = g_subprocess_new (G_SUBPROCESS_FLAGS_STDOUT_PIPE, &e, self_path,
                                                 "--ceiling", conf_text, ss, with_phase ? "1" : "0",
                                                 NULL);
@@ -121,5 +143,6 @@ rate_ceiling_measure (const char *self_path, const char *conf_text, double secon
     fprintf (stderr, "ceiling: unexpected answer \"%s\"\n", text);
     return FALSE;
   }
+  out->rcvbuf_drops = rate_udp_rcvbuf_errors () - drops0;
   return TRUE;
 }

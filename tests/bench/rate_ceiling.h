@@ -16,7 +16,13 @@ typedef struct {
   guint incomplete;    /* frames that came with missing packets (transport losses) */
   guint lost;          /* triggers with no frame within the grab timeout */
   guint reconnects;    /* control of the camera lost and taken again */
+  guint64 rcvbuf_drops; /* UDP datagrams the kernel dropped meanwhile because a receive buffer
+                         * was full (this network namespace: the rig's GVSP packets) */
 } RateSample;
+
+/* The network namespace's count of UDP datagrams dropped for a full receive buffer
+ * (/proc/net/snmp, RcvbufErrors); 0 when it cannot be read. */
+guint64 rate_udp_rcvbuf_errors (void);
 
 /* Runs the loop for `seconds` in a child process (self_path --ceiling ...) over the devices of
  * conf_text (a descatterd.conf body). with_phase: before each trigger the illuminator applies
