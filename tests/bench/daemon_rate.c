@@ -275,8 +275,9 @@ daemon_rate (DsClient *c, double seconds, double *finalize_ms)
   }
   JsonObject *sm = obj (s1->reply->body, "stage_mean_ms");
   /* Where the time goes: the acquisition thread's stages per frame (set_phase, trigger, grab;
-   * verify and fold run on the fold thread meanwhile, except the set's last frame), finalize
-   * (last frame -> result) and the whole set; per frame, 1000/fps. */
+   * verify and fold run on the fold thread meanwhile), finalize (last frame -> result: in
+   * continuous mode the next set's phase 0 is applied and triggered meanwhile, so it includes
+   * that set_phase) and the whole set; per frame, 1000/fps. */
   double set_ms = json_object_get_double_member (sm, "set");
   printf ("    daemon stage means (ms): set_phase %.2f trigger %.2f grab %.2f verify %.2f fold %.2f "
           "finalize %.2f set %.2f (%.2f per frame; acquisition stages %.2f)\n",
