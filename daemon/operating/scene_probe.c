@@ -82,52 +82,125 @@ typedef struct {
   double log_ld, alpha, residual;
 } Solution;
 
-/* Weighted least squares of log (A / G) = log Ld + alpha x, x = Q / n, alpha >= 0; alpha is
- * free only when the equations span two periods. */
-static Solution
-solve_linear (const double *y, const double *w, const Equation *eq, guint n_eq, gboolean leak)
+/* Solves the k x k system a z = b in place (Gaussian elimination, partial pivoting); FALSE when
+ * singular to rounding (e.g. a slope over equations that all share one x). */
+static gboolean
+solve_small (double a[3][3], double *b, guint k)
 {
-  double sw = 0, sx = 0, sy = 0, sxx = 0, sxy = 0, x[16];
-  for (guint i = 0; i < n_eq; i++) {
+  double scale = 0;
+  for (guint r = 0; r < k; r++)
+    for (guint c = 0; c < k; c++)
+      scale = MAX (scale, fabs (a[r][c]));
+  for (guint c = 0; c < k; c++) {
+    guint piv = c;
+    for (guint r = c + 1; r < k; r++)
+      if (fabs (a[r][c]) > fabs (a[piv][c]))
+        piv = r;
+    if (!(fabs (a[piv][c]) > 1e-9 * scale))
+      return FALSE;
+    for (guint j = 0; j < k; j++) {
+      double t = a[c][j];
+      a[c][j] = a[piv][j];
+      a[piv][j] = t;
+    }
+    double t = b[c];
+    b[c] = b[piv];
+    b[piv] = t;
+    for (guint r = 0; r < k; r++) {
+      if (r == c)
+        continue;
+      double f = a[r][c] / a[c][c];
+      for (guint j = c; j < k; j++)
+        a[r][j] -= f * a[c][j];
+      b[r] -= f * b[c];
+    }
+  }
+  for (guint c = 0; c < k; c++)
+    b[c] /= a[c][c];
+  return TRUE;
+}
+
+/* Weighted least squares of log (A / G) = log Ld + alpha x + t g, x = Q / n, alpha >= 0; alpha is
+ * free only when the equations span two periods. g (NULL: none) is how log G of each equation
+ * moves when the blur is off by DS_PROBE_BLUR_UNCERTAINTY_PX: one error common to all the
+ * equations, so it is a parameter of the fit, with a unit normal prior on t, not a variance per
+ * equation (a blur slightly wider than modelled lowers every higher harmonic at once, the more
+ * the more the blur has erased it, which a transfer fitted without t reads as a rise with x). */
+static Solution
+solve_linear (const double *y, const double *w, const double *g, const Equation *eq, guint n_eq, gboolean leak)
+{
+  double x[16];
+  for (guint i = 0; i < n_eq; i++)
     x[i] = eq[i].period / eq[i].n;
-    sw += w[i];
-    sx += w[i] * x[i];
-    sy += w[i] * y[i];
-    sxx += w[i] * x[i] * x[i];
-    sxy += w[i] * x[i] * y[i];
-  }
   Solution s = { 0 };
-  double det = sw * sxx - sx * sx;
-  gboolean free_alpha = leak && det > 1e-9 * sw * sxx;
-  if (free_alpha) {
-    s.alpha = (sw * sxy - sx * sy) / det;
-    s.log_ld = (sy - s.alpha * sx) / sw;
-  }
-  if (!free_alpha || s.alpha < 0) {
+  double t = 0;
+  /* Parameters: log Ld, then alpha when free, then t when g is given. */
+  for (int attempt = 0; attempt < 2; attempt++) {
+    gboolean free_alpha = leak && attempt == 0;
+    guint ia = free_alpha ? 1 : 0, it = ia + 1, k = g ? it + 1 : ia + 1;
+    double a[3][3] = { { 0 } }, b[3] = { 0 };
+    for (guint i = 0; i < n_eq; i++) {
+      double z[3] = { 1, 0, 0 };
+      if (free_alpha)
+        z[ia] = x[i];
+      if (g)
+        z[it] = g[i];
+      for (guint r = 0; r < k; r++) {
+        b[r] += w[i] * z[r] * y[i];
+        for (guint c = 0; c < k; c++)
+          a[r][c] += w[i] * z[r] * z[c];
+      }
+    }
+    if (g)
+      a[it][it] += 1;
+    if (!solve_small (a, b, k)) {
+      if (free_alpha)
+        continue;
+      break;
+    }
+    s.log_ld = b[0];
+    s.alpha = free_alpha ? b[ia] : 0;
+    t = g ? b[it] : 0;
+    if (s.alpha >= 0)
+      break;
     s.alpha = 0;
-    s.log_ld = sw > 0 ? sy / sw : 0;
   }
   for (guint i = 0; i < n_eq; i++) {
-    double r = y[i] - (s.log_ld + s.alpha * x[i]);
+    double r = y[i] - (s.log_ld + s.alpha * x[i] + (g ? t * g[i] : 0));
     s.residual += w[i] * r * r;
   }
   return s;
 }
 
-/* The leak line at one blur. */
+/* How far log G of an equation moves when the blur is off by DS_PROBE_BLUR_UNCERTAINTY_PX
+ * (INFINITY when the harmonic then vanishes). */
+static double
+gain_shift (const DsStripeModel *g, const Equation *e, double sigma, double G, guint width)
+{
+  double Gb = model_gain (g, e->period, sigma + DS_PROBE_BLUR_UNCERTAINTY_PX, e->offset, width, e->n);
+  return Gb > 0 && G > 0 ? log (G / Gb) : INFINITY;
+}
+
+/* The leak line at one blur: log A / G has the fit's variance and a 2 % floor for what the model
+ * leaves out. With blur_uncertain, the blur's error is a parameter of the fit (solve_linear);
+ * without, as in the blur search that moves sigma itself, it is not. */
 static Solution
 solve_at (const DsStripeModel *g, const Equation *eq, guint n_eq, double sigma, guint width,
-          gboolean two_periods)
+          gboolean two_periods, gboolean blur_uncertain)
 {
-  double y[16] = { 0 }, w[16] = { 0 };
+  double y[16] = { 0 }, w[16] = { 0 }, shift[16] = { 0 };
   for (guint i = 0; i < n_eq; i++) {
     double G = model_gain (g, eq[i].period, sigma, eq[i].offset, width, eq[i].n);
-    y[i] = G > 0 ? log (eq[i].amplitude / G) : 0;
-    /* Variance of log A from the fit, plus a 2 % floor for what the model leaves out. */
     double rel = eq[i].sigma / eq[i].amplitude;
+    y[i] = G > 0 ? log (eq[i].amplitude / G) : 0;
     w[i] = G > 0 ? 1.0 / (rel * rel + 0.02 * 0.02) : 0;
+    if (blur_uncertain) {
+      shift[i] = gain_shift (g, &eq[i], sigma, G, width);
+      if (!isfinite (shift[i]))
+        w[i] = shift[i] = 0;
+    }
   }
-  return solve_linear (y, w, eq, n_eq, two_periods);
+  return solve_linear (y, w, blur_uncertain ? shift : NULL, eq, n_eq, two_periods);
 }
 
 static guint
@@ -247,7 +320,7 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
   } else if (n_eq >= (two ? 3u : 2u)) {
     double best = INFINITY, hi = MIN (fr->geometry.period_px / 2, 4.0);
     for (double s = 0; s <= hi + 1e-9; s += 0.025) {
-      Solution so = solve_at (&fr->geometry, eq, n_eq, s, l0->width, two);
+      Solution so = solve_at (&fr->geometry, eq, n_eq, s, l0->width, two, FALSE);
       if (so.residual < best) {
         best = so.residual;
         sigma = s;
@@ -260,17 +333,28 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
   /* Then Ld and alpha. The transfer's logarithm is linear in x = Q / n only while x is small
    * against the distance over which forward-scattered light spreads (beyond, it saturates at the
    * whole forward-scattered flux): the line is fitted to the harmonics with x <= P, which
-   * bracket the configured period and reach down towards 0, unless that leaves a single x. */
+   * bracket the configured period and reach down towards 0, unless that leaves a single x known
+   * to 5 % (the fit's noise, and how far the blur's uncertainty moves its gain), or no more
+   * equations than the fit's three parameters (Ld, alpha, the blur's error), which they would
+   * then fit exactly, noise and all: then the first harmonic at 2P, the most reliable point after
+   * the one at P, stays in. */
   {
     guint near = 0;
     double x_min = INFINITY, x_max = 0;
-    for (guint i = 0; i < n_eq; i++)
-      if (eq[i].period / eq[i].n <= fr->geometry.period_px * 1.001) {
+    for (guint i = 0; i < n_eq; i++) {
+      double G = model_gain (&fr->geometry, eq[i].period, sigma, eq[i].offset, l0->width, eq[i].n);
+      gboolean known = eq[i].sigma < 0.05 * eq[i].amplitude &&
+                       fabs (gain_shift (&fr->geometry, &eq[i], sigma, G, l0->width)) < 0.05;
+      if (known && eq[i].period / eq[i].n <= fr->geometry.period_px * 1.001) {
         x_min = MIN (x_min, eq[i].period / eq[i].n);
         x_max = MAX (x_max, eq[i].period / eq[i].n);
         near++;
       }
-    if (two && near >= 2 && x_max > x_min * 1.05) {
+    }
+    guint below = 0;
+    for (guint i = 0; i < n_eq; i++)
+      below += eq[i].period / eq[i].n <= fr->geometry.period_px * 1.001;
+    if (two && near >= 2 && x_max > x_min * 1.05 && below > 3) {
       guint k = 0;
       for (guint i = 0; i < n_eq; i++)
         if (eq[i].period / eq[i].n <= fr->geometry.period_px * 1.001)
@@ -279,7 +363,7 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
     }
   }
   out->equations = n_eq;
-  Solution so = solve_at (&fr->geometry, eq, n_eq, sigma, l0->width, two);
+  Solution so = solve_at (&fr->geometry, eq, n_eq, sigma, l0->width, two, TRUE);
   out->ld_mean = exp (so.log_ld);
   out->leak_per_px = so.alpha;
 

@@ -18,6 +18,20 @@
  * logarithm of the apparent Ld grows linearly in the period: two periods give Ld (the
  * extrapolation to period 0) and alpha.
  *
+ * G_n is only as good as the blur it is computed with, and a harmonic the blur has nearly
+ * erased moves by tens of % when the blur is off by a few hundredths of a pixel: all of them
+ * the same way, which a line through log (A / G) would read as a transfer rising with Q / n,
+ * i.e. as scattered stripes. So the blur's error is a third parameter of the fit (how far log
+ * G_n moves for DS_PROBE_BLUR_UNCERTAINTY_PX, with a unit normal prior), and the first harmonic
+ * at 2P, the least blur-sensitive point after the one at P, stays in the fit unless the
+ * harmonics below P over-determine it (tests/daemon/test_error_model.c
+ * /error-model/probe-blurred-harmonics; against the simulator's kernels:
+ * tests/daemon/test_probe_sim.c).
+ *
+ * What no pair of periods can see: scattered light whose kernel is narrow against both periods
+ * keeps the stripes at both, so it is counted as direct light (Ld too high, the scattered stripes
+ * too low by as much); docs/accuracy.md, "Automatic operating point".
+ *
  * Pure function of the frames; any thread; CPU only (a few passes over the frames). */
 #pragma once
 #include <glib.h>
@@ -26,6 +40,10 @@
 #include "proc/image.h"
 
 G_BEGIN_DECLS
+
+/* How well a calibrated or fitted stripe blur is known (Gaussian sigma, px): the harmonics whose
+ * gain this moves by more than a few % weigh little in the scattered stripes' fit. */
+#define DS_PROBE_BLUR_UNCERTAINTY_PX 0.05
 
 typedef enum {
   DS_BLUR_CALIBRATED = 0,   /* from the calibrated harmonic gain */
