@@ -13,6 +13,12 @@
 #     (default -10), which is what shares the CPU between sessions when the priority is not
 #     real-time (`nice` on the processes alone does not shield them from other sessions);
 #   - as the unprivileged user nobody (run_unprivileged.sh), as the service runs.
+#   - with net.core.rmem_max at least DS_BENCH_RMEM_MAX (default 67108864, what
+#     systemd/60-descatter-gige.conf installs with the package) for the run, restored after:
+#     Aravis asks for a receive buffer of one frame, which the kernel caps at rmem_max (4 MiB on
+#     the development VM, half a 4 MP Mono16 frame), and the benchmark's "UDP receive-buffer
+#     drops" showed that the transport losses were that buffer overflowing. The setting is the
+#     host's (a network namespace cannot change it). DS_BENCH_RMEM_MAX=0 leaves it alone.
 # It is a short run (minutes); RT throttling (kernel.sched_rt_runtime_us) still leaves the
 # other users 5 % of each CPU while it runs.
 # Usage: sudo tests/bench/run_rate_bench.sh build/tests/bench/bench-daemon-rate [ARGS...]
@@ -30,7 +36,17 @@ case ${DS_BENCH_SCHED:-rr} in
   other) sched="" ;;
   *) echo "run_rate_bench.sh: DS_BENCH_SCHED is rr or other" >&2; exit 2 ;;
 esac
-exec $sched setsid -w unshare -n sh -c '
+rmem_want=${DS_BENCH_RMEM_MAX:-67108864}
+rmem_was=$(cat /proc/sys/net/core/rmem_max)
+if [ "$rmem_want" -gt "$rmem_was" ]; then
+  echo "run_rate_bench.sh: net.core.rmem_max $rmem_was -> $rmem_want for this run (restored after)"
+  trap 'echo "$rmem_was" > /proc/sys/net/core/rmem_max' EXIT
+  trap 'exit 130' INT TERM
+  echo "$rmem_want" > /proc/sys/net/core/rmem_max
+else
+  echo "run_rate_bench.sh: net.core.rmem_max $rmem_was"
+fi
+$sched setsid -w unshare -n sh -c '
   ip link set lo up
   echo "run_rate_bench.sh: scheduling: $(chrt -p $$ | sed -n "1s/.*: //p"), priority $(chrt -p $$ | sed -n "2s/.*: //p")"
   if echo "$0" > /proc/self/autogroup 2>/dev/null; then
