@@ -11,8 +11,6 @@ writes, per scene,
                               systematic part (noise-free frames) dotted;
   error-vs-period-<scene>.png the best transmissive error at each stripe period, split into its
                               noise and systematic parts: which period the medium needs."""
-import collections
-import csv
 import math
 import os
 import sys
@@ -22,31 +20,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-
-def number(text):
-    try:
-        return float(text)
-    except ValueError:
-        return float("nan")
-
-
-def load(path):
-    """Seeds averaged per configuration, and each scene's first period: the study runs the
-    periods in the order of --periods, whose default starts with the scene's own."""
-    agg = collections.defaultdict(list)
-    first_period = {}
-    for r in csv.DictReader(open(path)):
-        first_period.setdefault(r["scene"], float(r["period_px"]))
-        key = (r["scene"], r["estimator"], int(r["phases"]), int(r["averages"]), float(r["exposure_factor"]),
-               float(r["period_px"]))
-        agg[key].append(r)
-    out = {}
-    for k, v in agg.items():
-        mean = lambda c: sum(number(x[c]) for x in v) / len(v)  # noqa: E731
-        out[k] = {"t": mean("rel_rmse_transmissive"), "g": mean("rel_rmse_scattered"),
-                  "sys_t": number(v[0]["systematic_transmissive"]), "ms": number(v[0]["acquisition_ms"]),
-                  "clipped": any(int(x["saturated"]) > 0 for x in v)}
-    return out, first_period
+from study_csv import load, noise_part  # noqa: E402
 
 
 def front(points):
@@ -60,24 +34,28 @@ def front(points):
 
 
 def main():
+    if len(sys.argv) != 2:
+        sys.exit("usage: plot_study.py STUDY_DIR")
     d = sys.argv[1]
-    data, first_period = load(os.path.join(d, "study.csv"))
-    for scene in sorted({k[0] for k in data}):
+    data, first_period = load(d)
+    for scene in sorted({k.scene for k in data}):
         stem = scene.replace(".scene", "")
-        rows = {k: v for k, v in data.items() if k[0] == scene}
+        rows = {k: v for k, v in data.items() if k.scene == scene}
         own = first_period[scene]
 
         fig, ax = plt.subplots(figsize=(7, 4.5))
-        for i, est in enumerate(sorted({k[1] for k in rows})):
+        for i, est in enumerate(sorted({k.estimator for k in rows})):
             colour = f"C{i}"
-            mine = [(v["ms"], v) for k, v in rows.items() if k[1] == est]
-            for comp, style in (("t", "-"), ("g", "--")):
-                pts = [(ms, v[comp]) for ms, v in mine if not v["clipped"] and math.isfinite(v[comp])]
+            mine = [(v["acquisition_ms"], v) for k, v in rows.items() if k.estimator == est]
+            for comp, style in (("transmissive", "-"), ("scattered", "--")):
+                pts = [(ms, v[f"rel_rmse_{comp}"]) for ms, v in mine
+                       if not v["saturated"] and math.isfinite(v[f"rel_rmse_{comp}"])]
                 f = front(pts)
                 if f:
                     ax.plot([p[0] for p in f], [p[1] for p in f], style, marker="o", ms=3, color=colour,
-                            label=f"{est} {'transmissive' if comp == 't' else 'scattered'}")
-            clipped = [(ms, v["t"]) for ms, v in mine if v["clipped"] and math.isfinite(v["t"])]
+                            label=f"{est} {comp}")
+            clipped = [(ms, v["rel_rmse_transmissive"]) for ms, v in mine
+                       if v["saturated"] and math.isfinite(v["rel_rmse_transmissive"])]
             if clipped:
                 ax.scatter([p[0] for p in clipped], [p[1] for p in clipped], s=14, facecolors="none",
                            edgecolors=colour, label=f"{est}: clipped frames")
@@ -93,9 +71,10 @@ def main():
         plt.close(fig)
 
         fig, ax = plt.subplots(figsize=(7, 4.5))
-        for i, est in enumerate(sorted({k[1] for k in rows})):
-            pts = sorted((k[2], v["t"], v["sys_t"]) for k, v in rows.items()
-                         if k[1] == est and k[3] == 1 and k[4] == 1.0 and k[5] == own)
+        for i, est in enumerate(sorted({k.estimator for k in rows})):
+            pts = sorted((k.phases, v["rel_rmse_transmissive"], v["systematic_transmissive"])
+                         for k, v in rows.items()
+                         if k.estimator == est and k.averages == 1 and k.exposure == 1.0 and k.period == own)
             if pts:
                 ax.plot([p[0] for p in pts], [p[1] for p in pts], marker="o", color=f"C{i}", label=est)
                 ax.plot([p[0] for p in pts], [p[2] for p in pts], ":", color=f"C{i}", label=f"{est} systematic")
@@ -108,14 +87,14 @@ def main():
         fig.savefig(os.path.join(d, f"error-vs-n-{stem}.png"), dpi=110)
         plt.close(fig)
 
-        periods = sorted({k[5] for k in rows})
+        periods = sorted({k.period for k in rows})
         best = []
         for p in periods:
-            cand = [v for k, v in rows.items() if k[5] == p and math.isfinite(v["t"])]
-            unclipped = [v for v in cand if not v["clipped"]] or cand
-            b = min(unclipped, key=lambda v: v["t"])
-            noise = math.sqrt(max(0.0, b["t"] ** 2 - b["sys_t"] ** 2))
-            best.append((p, b["t"], noise, b["sys_t"], b["clipped"]))
+            cand = [v for k, v in rows.items() if k.period == p and math.isfinite(v["rel_rmse_transmissive"])]
+            unclipped = [v for v in cand if not v["saturated"]] or cand
+            b = min(unclipped, key=lambda v: v["rel_rmse_transmissive"])
+            t, sys_t = b["rel_rmse_transmissive"], b["systematic_transmissive"]
+            best.append((p, t, noise_part(t, sys_t), sys_t, b["saturated"] > 0))
         fig, ax = plt.subplots(figsize=(7, 4.5))
         ax.plot([b[0] for b in best], [b[1] for b in best], marker="o", label="best total")
         ax.plot([b[0] for b in best], [b[2] for b in best], "--", marker=".", label="its noise part")

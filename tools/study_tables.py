@@ -5,43 +5,10 @@ prints Markdown: the error of each component against N (M = 1, base exposure, th
 of --periods: the scene's own by default), how the noise part falls with M and with exposure,
 the error at each stripe period, and the clipped configurations. Seeds are averaged; every
 number is read from STUDY_DIR/study.csv."""
-import collections
-import csv
 import math
-import os
 import sys
 
-
-def number(text):
-    try:
-        return float(text)
-    except ValueError:
-        return float("nan")
-
-
-def load(path):
-    groups = collections.defaultdict(list)
-    first_period = {}
-    for r in csv.DictReader(open(path)):
-        first_period.setdefault(r["scene"], float(r["period_px"]))
-        key = (r["scene"], r["estimator"], int(r["phases"]), int(r["averages"]), float(r["exposure_factor"]),
-               float(r["period_px"]))
-        groups[key].append(r)
-    out = {}
-    for k, rows in groups.items():
-        def mean(c):
-            return sum(number(x[c]) for x in rows) / len(rows)
-        out[k] = {c: mean(c) for c in ("rel_rmse_transmissive", "rel_rmse_scattered", "systematic_transmissive",
-                                       "systematic_scattered", "acquisition_ms")}
-        out[k]["saturated"] = max(int(x["saturated"]) for x in rows)
-        out[k]["pixels"] = int(rows[0]["valid"]) + int(rows[0]["masked"])
-    return out, first_period
-
-
-def noise(total, systematic):
-    if not (math.isfinite(total) and math.isfinite(systematic)):
-        return float("nan")
-    return math.sqrt(max(0.0, total * total - systematic * systematic))
+from study_csv import load, noise_part
 
 
 def fmt(v, digits=4):
@@ -66,13 +33,13 @@ def slope(points):
 def by_n(data, first_period, comp):
     name = "transmissive" if comp == "t" else "scattered"
     total, sys_ = (f"rel_rmse_{name}", f"systematic_{name}")
-    ns = sorted({k[2] for k in data})
+    ns = sorted({k.phases for k in data})
     print(f"\nRelative RMSE of **{name}**, total / systematic part, M = 1, base exposure, scene's own period:\n")
     print("| scene (period) | estimator | " + " | ".join(f"N = {n}" for n in ns) + " |")
     print("|---|---|" + "---|" * len(ns))
     for scene in sorted(first_period):
         p = first_period[scene]
-        for est in sorted({k[1] for k in data if k[0] == scene}):
+        for est in sorted({k.estimator for k in data if k.scene == scene}):
             cells = []
             for n in ns:
                 v = data.get((scene, est, n, 1, 1.0, p))
@@ -84,15 +51,15 @@ def averaging(data, first_period):
     print("\nNoise part of transmissive (sqrt(total² − systematic²)) at the scene's own period, N = 8, and "
           "its log-log slope against M (base exposure) and against exposure (M = 1), clipped points left "
           "out of the slopes, and no slope where the noise part at M = 1 is below a quarter of the systematic part; −0.5 is 1/√:\n")
-    ms = sorted({k[3] for k in data})
-    es = sorted({k[4] for k in data})
+    ms = sorted({k.averages for k in data})
+    es = sorted({k.exposure for k in data})
     cols = [(m, 1.0) for m in ms] + [(1, e) for e in es if e != 1.0]
     print("| scene | estimator | " + " | ".join(f"M = {m}, {e:g}×" for m, e in cols) +
           " | slope vs M | slope vs exposure |")
     print("|---|---|" + "---|" * (len(cols) + 2))
     for scene in sorted(first_period):
         p = first_period[scene]
-        for est in sorted({k[1] for k in data if k[0] == scene}):
+        for est in sorted({k.estimator for k in data if k.scene == scene}):
             def clipped(m, e):
                 return data.get((scene, est, 8, m, e, p), {}).get("saturated", 0) > 0
 
@@ -100,7 +67,7 @@ def averaging(data, first_period):
                 v = data.get((scene, est, 8, m, e, p))
                 if v is None or (unclipped_only and clipped(m, e)):
                     return float("nan")
-                return noise(v["rel_rmse_transmissive"], v["systematic_transmissive"])
+                return noise_part(v["rel_rmse_transmissive"], v["systematic_transmissive"])
             # Where the systematic part dominates, sqrt(total² − systematic²) is the difference of
             # two close numbers and no measure of noise: no slope there.
             base = data.get((scene, est, 8, 1, 1.0, p))
@@ -120,20 +87,20 @@ def periods(data, first_period):
           "estimator, N, M, exposure | time (ms) |")
     print("|---|---|---|---|---|---|")
     for scene in sorted(first_period):
-        for p in sorted({k[5] for k in data if k[0] == scene}):
-            keys = [k for k in data if k[0] == scene and k[5] == p]
-            base = [k for k in keys if k[4] == 1.0]
+        for p in sorted({k.period for k in data if k.scene == scene}):
+            keys = [k for k in data if k.scene == scene and k.period == p]
+            base = [k for k in keys if k.exposure == 1.0]
             if not base:
                 continue
             floor = min(base, key=lambda k: data[k]["systematic_transmissive"])
             ok = [k for k in keys if not data[k]["saturated"]]
             best = min(ok or keys, key=lambda k: data[k]["rel_rmse_transmissive"])
-            b = data[best]
+            total, sys_ = data[best]["rel_rmse_transmissive"], data[best]["systematic_transmissive"]
             print(f"| {short(scene)} | {p:g}{' (own)' if p == first_period[scene] else ''} | "
-                  f"{fmt(data[floor]['systematic_transmissive'])} ({floor[1]}, {floor[2]}) | "
-                  f"{fmt(b['rel_rmse_transmissive'])} ({fmt(noise(b['rel_rmse_transmissive'], b['systematic_transmissive']))}"
-                  f" + {fmt(b['systematic_transmissive'])}){'' if ok else ' clipped'} | "
-                  f"{best[1]}, {best[2]}, {best[3]}, {best[4]:g}× | {b['acquisition_ms']:.1f} |")
+                  f"{fmt(data[floor]['systematic_transmissive'])} ({floor.estimator}, {floor.phases}) | "
+                  f"{fmt(total)} ({fmt(noise_part(total, sys_))} + {fmt(sys_)}){'' if ok else ' clipped'} | "
+                  f"{best.estimator}, {best.phases}, {best.averages}, {best.exposure:g}× | "
+                  f"{data[best]['acquisition_ms']:.1f} |")
 
 
 def clipping(data, first_period):
@@ -141,8 +108,8 @@ def clipping(data, first_period):
     print("| scene | exposure | clipped / configurations | clipped pixels (max) |")
     print("|---|---|---|---|")
     for scene in sorted(first_period):
-        for e in sorted({k[4] for k in data if k[0] == scene}):
-            keys = [k for k in data if k[0] == scene and k[4] == e]
+        for e in sorted({k.exposure for k in data if k.scene == scene}):
+            keys = [k for k in data if k.scene == scene and k.exposure == e]
             clipped = [k for k in keys if data[k]["saturated"]]
             worst = max((data[k]["saturated"] for k in keys), default=0)
             pixels = data[keys[0]]["pixels"]
@@ -153,7 +120,7 @@ def clipping(data, first_period):
 def main():
     if len(sys.argv) != 2:
         sys.exit("usage: study_tables.py STUDY_DIR")
-    data, first_period = load(os.path.join(sys.argv[1], "study.csv"))
+    data, first_period = load(sys.argv[1])
     by_n(data, first_period, "t")
     by_n(data, first_period, "g")
     averaging(data, first_period)
