@@ -14,6 +14,32 @@ die_with_parent (gpointer data)
   prctl (PR_SET_PDEATHSIG, SIGTERM);
 }
 
+GSubprocess *
+test_spawn (const char *const *argv, GSubprocessFlags flags)
+{
+  g_autoptr (GError) error = NULL;
+  g_autoptr (GSubprocessLauncher) launcher = g_subprocess_launcher_new (flags);
+  g_subprocess_launcher_set_child_setup (launcher, die_with_parent, NULL, NULL);
+  GSubprocess *p = g_subprocess_launcher_spawnv (launcher, argv, &error);
+  g_assert_no_error (error);
+  return p;
+}
+
+char *
+test_wait_line (GDataInputStream *out, const char *what, const char *text)
+{
+  g_autoptr (GError) error = NULL;
+  for (;;) {
+    char *line = g_data_input_stream_read_line (out, NULL, NULL, &error);
+    g_assert_no_error (error);
+    if (!line)
+      g_error ("%s exited before it printed \"%s\"", what, text);
+    if (strstr (line, text))
+      return line;
+    g_free (line);
+  }
+}
+
 TestDaemon *
 test_daemon_start (const char *config_text, const char *const *extra_args)
 {
@@ -85,6 +111,13 @@ test_daemon_stop (TestDaemon *d)
 }
 
 void
+test_daemon_stop_clean (TestDaemon *d)
+{
+  g_assert_cmpint (test_daemon_stop (d), ==, 0);
+  test_daemon_free (d);
+}
+
+void
 test_daemon_free (TestDaemon *d)
 {
   if (!d)
@@ -141,36 +174,90 @@ test_json_int (JsonNode *node, const char *path)
   return json_node_get_int (node);
 }
 
+TestFrames
+test_daemon_frames (DsClient *c)
+{
+  g_autoptr (DsMessage) st = test_daemon_call_ok (c, "status", NULL);
+  JsonNode *b = st->reply->body;
+  TestFrames f = {
+    .acquired = test_json_int (b, "frames.acquired"),
+    .folded = test_json_int (b, "frames.folded"),
+    .dropped = test_json_int (b, "frames.dropped"),
+    .timeouts = test_json_int (b, "frames.timeouts"),
+    .device_errors = test_json_int (b, "frames.device_errors"),
+    .stale = test_json_int (b, "frames.dropped_by_reason.stale"),
+    .wrong_phase = test_json_int (b, "frames.dropped_by_reason.wrong_phase"),
+    .aborted = test_json_int (b, "frames.dropped_by_reason.aborted"),
+  };
+  g_test_message ("frames: acquired %" G_GINT64_FORMAT ", folded %" G_GINT64_FORMAT ", dropped %" G_GINT64_FORMAT
+                  " (stale %" G_GINT64_FORMAT ", wrong phase %" G_GINT64_FORMAT ", aborted %" G_GINT64_FORMAT
+                  "); timeouts %" G_GINT64_FORMAT ", device errors %" G_GINT64_FORMAT,
+                  f.acquired, f.folded, f.dropped, f.stale, f.wrong_phase, f.aborted, f.timeouts, f.device_errors);
+  g_assert_cmpint (f.acquired, ==, f.folded + f.dropped);
+  return f;
+}
+
+int
+test_daemon_check (const char *config_text, gboolean probe, char **out, char **err)
+{
+  g_autoptr (GError) error = NULL;
+  g_autofree char *dir = g_dir_make_tmp ("descatterd-check-XXXXXX", &error);
+  g_assert_no_error (error);
+  g_autofree char *conf = g_build_filename (dir, "descatterd.conf", NULL);
+  g_autofree char *sock = g_build_filename (dir, "descatterd.sock", NULL);
+  g_autofree char *text = g_strdup_printf ("[daemon]\nsocket=%s\n%s", sock, config_text);
+  g_file_set_contents (conf, text, -1, &error);
+  g_assert_no_error (error);
+  const char *argv[] = { DESCATTERD_PATH, "--check", "--config", conf, probe ? "--probe" : NULL, NULL };
+  g_autoptr (GSubprocess) p = test_spawn (argv, G_SUBPROCESS_FLAGS_STDOUT_PIPE | G_SUBPROCESS_FLAGS_STDERR_PIPE);
+  g_autofree char *o = NULL, *e = NULL;
+  g_subprocess_communicate_utf8 (p, NULL, NULL, &o, &e, &error);
+  g_assert_no_error (error);
+  g_assert_true (g_subprocess_get_if_exited (p));
+  int status = g_subprocess_get_exit_status (p);
+  g_test_message ("descatterd --check%s: exit %d\n%s%s", probe ? " --probe" : "", status, o, e);
+  g_assert_false (g_file_test (sock, G_FILE_TEST_EXISTS));
+  g_unlink (conf);
+  g_rmdir (dir);
+  if (out)
+    *out = g_steal_pointer (&o);
+  if (err)
+    *err = g_steal_pointer (&e);
+  return status;
+}
+
 TestLabsim *
-test_labsim_start (const char *labsim_path, const char *scene_path, const char *const *fault_args)
+test_labsim_start (const char *labsim_path, const char *scene_path, const char *const *extra_args)
+{
+  return test_labsim_start_on_port (labsim_path, scene_path, extra_args, 0);
+}
+
+TestLabsim *
+test_labsim_start_on_port (const char *labsim_path, const char *scene_path, const char *const *extra_args,
+                           guint modbus_port)
 {
   TestLabsim *l = g_new0 (TestLabsim, 1);
-  l->modbus_port = 20000 + (guint) (getpid () % 20000);
-  g_autofree char *modbus = g_strdup_printf ("127.0.0.1:%u", l->modbus_port);
+  g_snprintf (l->serial, sizeof l->serial, "DSLT%05u", (guint) (getpid () % 100000));
+  g_autofree char *modbus = g_strdup_printf ("127.0.0.1:%u", modbus_port);
   g_autoptr (GPtrArray) argv = g_ptr_array_new ();
-  g_ptr_array_add (argv, (gpointer) labsim_path);
-  g_ptr_array_add (argv, (gpointer) "--scene");
-  g_ptr_array_add (argv, (gpointer) scene_path);
-  g_ptr_array_add (argv, (gpointer) "--camera-address");
-  g_ptr_array_add (argv, (gpointer) "127.0.0.1");
-  g_ptr_array_add (argv, (gpointer) "--modbus");
-  g_ptr_array_add (argv, modbus);
-  for (guint i = 0; fault_args && fault_args[i]; i++)
-    g_ptr_array_add (argv, (gpointer) fault_args[i]);
+  const char *fixed[] = { labsim_path, "--scene", scene_path, "--camera-address", "127.0.0.1",
+                          "--camera-serial", l->serial, "--modbus", modbus };
+  for (guint i = 0; i < G_N_ELEMENTS (fixed); i++)
+    g_ptr_array_add (argv, (gpointer) fixed[i]);
+  for (guint i = 0; extra_args && extra_args[i]; i++)
+    g_ptr_array_add (argv, (gpointer) extra_args[i]);
   g_ptr_array_add (argv, NULL);
-  g_autoptr (GError) error = NULL;
-  g_autoptr (GSubprocessLauncher) launcher = g_subprocess_launcher_new (G_SUBPROCESS_FLAGS_STDOUT_PIPE);
-  g_subprocess_launcher_set_child_setup (launcher, die_with_parent, NULL, NULL);
-  l->proc = g_subprocess_launcher_spawnv (launcher, (const char *const *) argv->pdata, &error);
-  g_assert_no_error (error);
+  l->proc = test_spawn ((const char *const *) argv->pdata, G_SUBPROCESS_FLAGS_STDOUT_PIPE);
   l->out = g_data_input_stream_new (g_subprocess_get_stdout_pipe (l->proc));
-  for (;;) {
-    g_autofree char *line = g_data_input_stream_read_line (l->out, NULL, NULL, &error);
-    g_assert_no_error (error);
-    g_assert_nonnull (line); /* labsim exited before it was ready */
-    if (strstr (line, "ready"))
-      break;
-  }
+  /* The port labsim bound, from its ready line (port 0: the kernel's choice, free by
+   * construction; a fixed one could be any other process's). */
+  g_autofree char *line = test_wait_line (l->out, "descatter-labsim", "ready camera=");
+  const char *modbus_at = strstr (line, " modbus=127.0.0.1:");
+  g_assert_nonnull (modbus_at);
+  l->modbus_port = (guint) g_ascii_strtoull (modbus_at + strlen (" modbus=127.0.0.1:"), NULL, 10);
+  g_assert_cmpuint (l->modbus_port, >, 0);
+  if (modbus_port)
+    g_assert_cmpuint (l->modbus_port, ==, modbus_port);
   return l;
 }
 

@@ -29,33 +29,13 @@ G_DEFINE_AUTO_CLEANUP_CLEAR_FUNC (Probe, probe_clear)
 static Probe
 probe (const TestLabsim *l, const char *camera_keys, gboolean with_probe)
 {
-  g_autoptr (GError) error = NULL;
-  g_autofree char *dir = g_dir_make_tmp ("descatterd-probe-XXXXXX", &error);
-  g_assert_no_error (error);
-  g_autofree char *conf = g_build_filename (dir, "descatterd.conf", NULL);
   g_autofree char *text = g_strdup_printf (
-      "[daemon]\nsocket=%s/descatterd.sock\n"
       "[camera]\nbackend=aravis\naddress=127.0.0.1\n%s\n"
       "[illuminator]\nbackend=modbus\nmodbus-uri=tcp://127.0.0.1:%u\nmodbus-timeout-ms=200\n",
-      dir, camera_keys, l ? l->modbus_port : 1);
-  g_file_set_contents (conf, text, -1, &error);
-  g_assert_no_error (error);
-  g_autoptr (GSubprocess) p = g_subprocess_new (G_SUBPROCESS_FLAGS_STDOUT_PIPE | G_SUBPROCESS_FLAGS_STDERR_PIPE,
-                                                &error, DESCATTERD_PATH, "--check",
-                                                with_probe ? "--probe" : "--config", with_probe ? "--config" : conf,
-                                                with_probe ? conf : NULL, NULL);
-  g_assert_no_error (error);
+      camera_keys, l ? l->modbus_port : 1);
+  g_test_message ("[camera] %s", camera_keys);
   Probe r = { 0 };
-  g_subprocess_communicate_utf8 (p, NULL, NULL, &r.out, &r.err, &error);
-  g_assert_no_error (error);
-  g_assert_true (g_subprocess_get_if_exited (p));
-  r.status = g_subprocess_get_exit_status (p);
-  g_test_message ("%s: exit %d\n%s%s", camera_keys, r.status, r.out, r.err);
-  /* Nothing is left behind: a check binds no socket. */
-  g_autofree char *sock = g_build_filename (dir, "descatterd.sock", NULL);
-  g_assert_false (g_file_test (sock, G_FILE_TEST_EXISTS));
-  g_unlink (conf);
-  g_rmdir (dir);
+  r.status = test_daemon_check (text, with_probe, &r.out, &r.err);
   return r;
 }
 

@@ -43,19 +43,8 @@ status_of (DsClient *c, DsMessage **keep)
 static const char *
 capture (DsClient *c, JsonObject *args, char **message)
 {
-  g_autoptr (GError) error = NULL;
-  g_autoptr (DsMessage) m = ds_client_call (c, "capture", args, NULL, NULL, &error);
-  g_assert_no_error (error);
-  if (m->reply->ok) {
-    TruthCheck tc;
-    truth_check (m, the_scene, truth_t, truth_g, &tc);
-    g_assert_true (truth_check_passed (&tc));
-    return "ok";
-  }
-  g_assert_cmpuint (strlen (m->reply->error_message), >, 0);
-  if (message)
-    *message = g_strdup (m->reply->error_message);
-  return ds_protocol_error_name (m->reply->error_code);
+  const char *code = NULL;
+  return truth_capture (c, args, the_scene, truth_t, truth_g, message, &code) ? "ok" : code;
 }
 
 static void
@@ -96,8 +85,7 @@ test_camera_rejects_setting (void)
       g_assert_cmpstr (capture (c, NULL, &msg), ==, "device_error");
       assert_mentions (msg, refused[i].must);
     }
-    g_assert_cmpint (test_daemon_stop (d), ==, 0);
-    test_daemon_free (d);
+    test_daemon_stop_clean (d);
   }
   /* Valid configuration, a capture asking for too much gain, then a normal one. */
   g_autofree char *conf = config_for (l, "pixel-format=Mono16", NULL);
@@ -109,8 +97,7 @@ test_camera_rejects_setting (void)
   g_assert_cmpstr (capture (c, args, &msg), ==, "device_error");
   assert_mentions (msg, (const char *const[]) { "gain 12 dB", "[0, 10]", NULL });
   g_assert_cmpstr (capture (c, NULL, NULL), ==, "ok");
-  g_assert_cmpint (test_daemon_stop (d), ==, 0);
-  test_daemon_free (d);
+  test_daemon_stop_clean (d);
   test_labsim_stop (l);
 }
 
@@ -125,6 +112,7 @@ test_devices_stopped_between_captures (void)
   TestDaemon *d = test_daemon_start (conf, NULL);
   g_autoptr (DsClient) c = test_daemon_connect (d);
   g_assert_cmpstr (capture (c, NULL, NULL), ==, "ok");
+  guint port = l->modbus_port; /* where the daemon's configuration points */
   for (guint round = 0; round < 2; round++) {
     test_labsim_stop (l);
     g_autofree char *msg = NULL;
@@ -134,7 +122,7 @@ test_devices_stopped_between_captures (void)
     g_autoptr (DsMessage) keep = NULL;
     JsonObject *st = status_of (c, &keep);
     g_assert_false (json_object_get_boolean_member (st, "ready"));
-    l = test_labsim_start (labsim_path, scene_path, NULL);
+    l = test_labsim_start_on_port (labsim_path, scene_path, NULL, port);
     /* Reconnection takes its backoff (at most 2 s a try): a few captures may still fail. */
     const char *after = NULL;
     for (guint k = 0; k < 10 && g_strcmp0 (after, "ok") != 0; k++) {
@@ -150,8 +138,7 @@ test_devices_stopped_between_captures (void)
   g_autoptr (DsMessage) keep = NULL;
   JsonObject *st = status_of (c, &keep);
   g_assert_true (json_object_get_boolean_member (st, "ready"));
-  g_assert_cmpint (test_daemon_stop (d), ==, 0);
-  test_daemon_free (d);
+  test_daemon_stop_clean (d);
   test_labsim_stop (l);
 }
 
@@ -188,10 +175,7 @@ continuous (TestDaemon *d, guint sets, guint *device_events)
       (*device_events)++;
   }
   g_autoptr (DsMessage) stop = test_daemon_call_ok (ctl, "stop", NULL);
-  g_autoptr (DsMessage) status = test_daemon_call_ok (ctl, "status", NULL);
-  g_assert_cmpint (test_json_int (status->reply->body, "frames.acquired"), ==,
-                   test_json_int (status->reply->body, "frames.folded") +
-                       test_json_int (status->reply->body, "frames.dropped"));
+  test_daemon_frames (ctl);
   g_test_message ("continuous: %u correct, %u failed with a reason, %u device events", ok, failed, *device_events);
   g_assert_cmpuint (ok, >, 0);
   return failed;
@@ -208,8 +192,7 @@ test_modbus_exceptions_continuous (void)
   TestDaemon *d = test_daemon_start (conf, NULL);
   guint events = 0;
   continuous (d, 10, &events);
-  g_assert_cmpint (test_daemon_stop (d), ==, 0);
-  test_daemon_free (d);
+  test_daemon_stop_clean (d);
   test_labsim_stop (l);
 }
 
@@ -239,8 +222,7 @@ test_wrong_period (void)
   g_autofree char *shows = g_strdup_printf ("period of about %.1f px", ds_scene_period_px (the_scene));
   assert_mentions (msg, (const char *const[]) { configured, shows, "period-px", NULL });
   g_assert_false (g_regex_match_simple ("phase \\d+: phase \\d+:", msg, 0, 0));
-  g_assert_cmpint (test_daemon_stop (d), ==, 0);
-  test_daemon_free (d);
+  test_daemon_stop_clean (d);
   test_labsim_stop (l);
 }
 
@@ -318,8 +300,7 @@ test_camera_lost_continuous (void)
   g_assert_cmpuint (events, >, 0);     /* ... and reported */
   g_assert_cmpuint (n.pings, >, 0);
   g_assert_cmpint (n.longest_gap_us, <, 4000000); /* the watchdog never starved */
-  g_assert_cmpint (test_daemon_stop (d), ==, 0);
-  test_daemon_free (d);
+  test_daemon_stop_clean (d);
   test_labsim_stop (l);
   g_unlink (sock_path);
   g_rmdir (dir);

@@ -95,25 +95,20 @@ main (int argc, char **argv)
   g_clear_pointer (&ctl, ds_client_free);
   ctl = test_daemon_connect (d);
   g_autoptr (DsMessage) stop = test_daemon_call_ok (ctl, "stop", NULL);
-  g_autoptr (DsMessage) status = test_daemon_call_ok (ctl, "status", NULL);
-  gint64 acquired = test_json_int (status->reply->body, "frames.acquired");
-  gint64 folded = test_json_int (status->reply->body, "frames.folded");
-  gint64 dropped = test_json_int (status->reply->body, "frames.dropped");
+  TestFrames f = test_daemon_frames (ctl); /* asserts acquired = folded + dropped */
   printf ("soak: %u sets: %u correct, %u failed with a reason, %u wrong; %u device events; "
           "frames acquired %" G_GINT64_FORMAT " = folded %" G_GINT64_FORMAT " + dropped %" G_GINT64_FORMAT
           "; worst rms/allowed %.2f; RSS %" G_GUINT64_FORMAT " -> %" G_GUINT64_FORMAT " KiB\n",
-          sets, correct, failed, wrong, devices, acquired, folded, dropped, worst_ratio, rss_early, rss_late);
+          sets, correct, failed, wrong, devices, f.acquired, f.folded, f.dropped, worst_ratio, rss_early, rss_late);
   g_assert_cmpuint (wrong, ==, 0);
   g_assert_cmpuint (correct, >, 0);
-  g_assert_cmpint (acquired, ==, folded + dropped);
   /* The faults happened (in-process: dropped frames; labsim: dropped frames, device errors or
    * failed sets). */
-  g_assert_cmpint (dropped + failed + test_json_int (status->reply->body, "frames.device_errors"), >, 0);
+  g_assert_cmpint (f.dropped + failed + f.device_errors, >, 0);
   /* Bounded growth: after the first fifth, the heap may not grow by more than a few results'
    * worth (allocator slack), whatever the number of sets. */
   g_assert_cmpuint (rss_late, <, rss_early + 32 * 1024);
-  g_assert_cmpint (test_daemon_stop (d), ==, 0);
-  test_daemon_free (d);
+  test_daemon_stop_clean (d);
   if (lab)
     test_labsim_stop (lab);
   return 0;

@@ -83,3 +83,30 @@ truth_scene_free (DsScene *scene, DsImage *truth_t, DsImage *truth_g)
   ds_image_free (truth_g);
   ds_scene_free (scene);
 }
+
+gboolean
+truth_capture (DsClient *c, JsonObject *args, const DsScene *scene, const DsImage *truth_t,
+               const DsImage *truth_g, char **message, const char **code)
+{
+  g_autoptr (GError) error = NULL;
+  gint64 t0 = g_get_monotonic_time ();
+  g_autoptr (DsMessage) m = ds_client_call (c, "capture", args, NULL, NULL, &error);
+  g_assert_no_error (error);
+  double s = (double) (g_get_monotonic_time () - t0) / 1e6;
+  if (!m->reply->ok) {
+    const char *name = ds_protocol_error_name (m->reply->error_code);
+    g_test_message ("set failed in %.2f s: %s: %s", s, name, m->reply->error_message);
+    g_assert_cmpuint (strlen (m->reply->error_message), >, 0);
+    if (message)
+      *message = g_strdup (m->reply->error_message);
+    if (code)
+      *code = name;
+    return FALSE;
+  }
+  TruthCheck tc;
+  truth_check (m, scene, truth_t, truth_g, &tc);
+  g_test_message ("set correct in %.2f s: rms %.2f/%.2f DN (allowed %.2f/%.2f)", s, tc.rms_transmissive,
+                  tc.rms_scattered, tc.allowed_transmissive, tc.allowed_scattered);
+  g_assert_true (truth_check_passed (&tc));
+  return TRUE;
+}

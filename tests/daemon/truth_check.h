@@ -20,3 +20,11 @@ gboolean truth_check_passed (const TruthCheck *c);
  * components at the scene's default exposure and gain 0, to check results against. */
 void truth_scene_load (const char *scene_path, DsScene **scene, DsImage **truth_t, DsImage **truth_g);
 void truth_scene_free (DsScene *scene, DsImage *truth_t, DsImage *truth_g);
+
+/* One `capture` (args may be NULL) checked against the truth: TRUE when the set came back and
+ * equals the truth within the noise bound (a set that comes back wrong fails the test); FALSE
+ * when the daemon failed it, with a message (never empty) and its wire code, which *message
+ * and *code get (each may be NULL; *message is the caller's). Both outcomes are logged with the
+ * time the capture took. */
+gboolean truth_capture (DsClient *c, JsonObject *args, const DsScene *scene, const DsImage *truth_t,
+                        const DsImage *truth_g, char **message, const char **code);

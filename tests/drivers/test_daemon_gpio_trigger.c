@@ -70,75 +70,26 @@ labsim_chip (const Rig *r)
   return g_strdup_printf ("labsim:%s", r->chip_path);
 }
 
-/* One capture: TRUE if it came back and equals the truth; FALSE with *why if it failed. A set
- * that came back wrong fails the test. */
-static gboolean
-capture_checked (DsClient *c, char **why)
+/* A daemon on conf takes `sets` sets, each equal to the truth; returns its frame counters. */
+static TestFrames
+correct_sets (const char *conf, guint sets)
 {
-  g_autoptr (GError) error = NULL;
-  g_autoptr (DsMessage) m = ds_client_call (c, "capture", NULL, NULL, NULL, &error);
-  g_assert_no_error (error);
-  if (!m->reply->ok) {
-    g_test_message ("set failed: %s", m->reply->error_message);
-    *why = g_strdup (m->reply->error_message);
-    return FALSE;
-  }
-  TruthCheck tc;
-  truth_check (m, the_scene, truth_t, truth_g, &tc);
-  g_test_message ("set correct: rms %.2f/%.2f DN (allowed %.2f/%.2f)", tc.rms_transmissive, tc.rms_scattered,
-                  tc.allowed_transmissive, tc.allowed_scattered);
-  g_assert_true (truth_check_passed (&tc));
-  return TRUE;
-}
-
-typedef struct {
-  gint64 acquired, folded, dropped, timeouts, stale, wrong, aborted;
-} Frames;
-
-static Frames
-frames_status (DsClient *c)
-{
-  g_autoptr (DsMessage) st = test_daemon_call_ok (c, "status", NULL);
-  JsonNode *b = st->reply->body;
-  Frames f = {
-    test_json_int (b, "frames.acquired"), test_json_int (b, "frames.folded"), test_json_int (b, "frames.dropped"),
-    test_json_int (b, "frames.timeouts"), test_json_int (b, "frames.dropped_by_reason.stale"),
-    test_json_int (b, "frames.dropped_by_reason.wrong_phase"), test_json_int (b, "frames.dropped_by_reason.aborted"),
-  };
-  g_test_message ("frames: acquired %" G_GINT64_FORMAT " folded %" G_GINT64_FORMAT " dropped %" G_GINT64_FORMAT
-                  "; timeouts %" G_GINT64_FORMAT ", stale %" G_GINT64_FORMAT ", wrong phase %" G_GINT64_FORMAT,
-                  f.acquired, f.folded, f.dropped, f.timeouts, f.stale, f.wrong);
-  g_assert_cmpint (f.acquired, ==, f.folded + f.dropped);
+  TestDaemon *d = test_daemon_start (conf, NULL);
+  g_autoptr (DsClient) c = test_daemon_connect (d);
+  for (guint i = 0; i < sets; i++)
+    g_assert_true (truth_capture (c, NULL, the_scene, truth_t, truth_g, NULL, NULL));
+  TestFrames f = test_daemon_frames (c);
+  test_daemon_stop_clean (d);
   return f;
 }
 
-typedef struct {
-  int status;
-  char *err;
-} Probe;
-
-/* descatterd --check --probe: opens the configured devices, the GPIO trigger's line included. */
-static Probe
-probe (const Rig *r, const char *chip)
+/* descatterd --check --probe: opens the configured devices, the GPIO trigger's line included.
+ * Returns its exit status; *err (the caller's) what it printed on stderr. */
+static int
+probe (const Rig *r, const char *chip, char **err)
 {
-  g_autofree char *conf_path = g_build_filename (r->dir, "probe.conf", NULL);
   g_autofree char *text = daemon_config (r, chip, 1000, 0);
-  g_autofree char *with_socket = g_strdup_printf ("[daemon]\nsocket=%s/d.sock\n%s", r->dir, text);
-  g_autoptr (GError) error = NULL;
-  g_file_set_contents (conf_path, with_socket, -1, &error);
-  g_assert_no_error (error);
-  g_autoptr (GSubprocess) p = g_subprocess_new (G_SUBPROCESS_FLAGS_STDOUT_SILENCE | G_SUBPROCESS_FLAGS_STDERR_PIPE,
-                                                &error, DESCATTERD_PATH, "--check", "--probe", "--config",
-                                                conf_path, NULL);
-  g_assert_no_error (error);
-  Probe res = { 0 };
-  g_subprocess_communicate_utf8 (p, NULL, NULL, NULL, &res.err, &error);
-  g_assert_no_error (error);
-  g_assert_true (g_subprocess_get_if_exited (p));
-  res.status = g_subprocess_get_exit_status (p);
-  g_test_message ("probe %s: exit %d: %s", chip, res.status, res.err);
-  g_unlink (conf_path);
-  return res;
+  return test_daemon_check (text, TRUE, NULL, err);
 }
 
 /* No faults: every set correct, each exposure one pulse: no timeout, no surplus frame. */
@@ -149,20 +100,12 @@ test_sets (void)
   g_autofree char *chip = labsim_chip (r);
   /* However slowly a loaded (or sanitized) labsim serves, no grab may time out. */
   g_autofree char *conf = daemon_config (r, chip, 10000, 4);
-  TestDaemon *d = test_daemon_start (conf, NULL);
-  g_autoptr (DsClient) c = test_daemon_connect (d);
-  for (guint i = 0; i < 3; i++) {
-    g_autofree char *why = NULL;
-    g_assert_true (capture_checked (c, &why));
-  }
-  Frames f = frames_status (c);
+  TestFrames f = correct_sets (conf, 3);
   g_assert_cmpint (f.timeouts, ==, 0);
   /* Unlike the projector's sync (which pulses on every apply), the GPIO line is pulsed once per
    * frame the sequencer takes, after the phase is applied: no frame is surplus or stale. */
-  g_assert_cmpint (f.stale + f.wrong + f.aborted, ==, 0);
+  g_assert_cmpint (f.stale + f.wrong_phase + f.aborted, ==, 0);
   g_assert_cmpint (f.folded, ==, 3 * (4 + 1) * 2);
-  g_assert_cmpint (test_daemon_stop (d), ==, 0);
-  test_daemon_free (d);
   rig_stop (r);
 }
 
@@ -181,7 +124,7 @@ test_missed_trigger (void)
   gboolean last_failed = FALSE;
   for (guint i = 0; i < 4; i++) {
     g_autofree char *why = NULL;
-    gboolean ok = capture_checked (c, &why);
+    gboolean ok = truth_capture (c, NULL, the_scene, truth_t, truth_g, &why, NULL);
     if (!ok) {
       g_assert_nonnull (strstr (why, "no frame within 2000 ms"));
       failed++;
@@ -189,15 +132,14 @@ test_missed_trigger (void)
       recovered++;
     last_failed = !ok;
   }
-  Frames f = frames_status (c);
+  TestFrames f = test_daemon_frames (c);
   /* 10 frames a set ((4 phases + dark) x 2 averages), every 12th edge missed: set 1 takes edges
    * 1-10, set 2 fails at edge 12, set 3 takes 13-22, set 4 fails at edge 24. */
   g_assert_cmpuint (failed, ==, 2);
   g_assert_cmpuint (recovered, ==, 1);
   g_assert_cmpint (f.timeouts, ==, failed); /* each missed edge counted once */
-  g_assert_cmpint (f.stale + f.wrong, ==, 0);
-  g_assert_cmpint (test_daemon_stop (d), ==, 0);
-  test_daemon_free (d);
+  g_assert_cmpint (f.stale + f.wrong_phase, ==, 0);
+  test_daemon_stop_clean (d);
   rig_stop (r);
 }
 
@@ -210,39 +152,26 @@ test_double_trigger (void)
   Rig *r = rig_start (faults);
   g_autofree char *chip = labsim_chip (r);
   g_autofree char *conf = daemon_config (r, chip, 10000, 4);
-  TestDaemon *d = test_daemon_start (conf, NULL);
-  g_autoptr (DsClient) c = test_daemon_connect (d);
-  for (guint i = 0; i < 3; i++) {
-    g_autofree char *why = NULL;
-    g_assert_true (capture_checked (c, &why));
-  }
-  Frames f = frames_status (c);
+  TestFrames f = correct_sets (conf, 3);
   g_assert_cmpint (f.timeouts, ==, 0);
-  g_assert_cmpint (f.stale + f.wrong, >=, 1); /* the surplus frames, dropped with their reason */
+  g_assert_cmpint (f.stale + f.wrong_phase, >=, 1); /* the surplus frames, dropped with their reason */
   g_assert_cmpint (f.folded, ==, 3 * (4 + 1) * 2);
-  g_assert_cmpint (test_daemon_stop (d), ==, 0);
-  test_daemon_free (d);
 
   /* The devices' own checks: a chip that is not there, then a line another consumer holds
    * (refused BUSY naming it, as the kernel does), then the same line free again. */
   g_autofree char *absent = g_strdup_printf ("labsim:%s/absent.sock", r->dir);
-  Probe p1 = probe (r, absent);
-  g_assert_cmpint (p1.status, ==, 1);
-  g_assert_nonnull (strstr (p1.err, "[trigger] backend=gpio"));
-  g_assert_nonnull (strstr (p1.err, "cannot open the chip"));
+  g_autofree char *err1 = NULL, *err2 = NULL;
+  g_assert_cmpint (probe (r, absent, &err1), ==, 1);
+  g_assert_nonnull (strstr (err1, "[trigger] backend=gpio"));
+  g_assert_nonnull (strstr (err1, "cannot open the chip"));
   guint zero = 0;
   g_autoptr (GError) error = NULL;
   DsGpioLines *held = ds_gpio_lines_open (chip, &zero, 1, NULL, "test-holder", &error);
   g_assert_no_error (error);
-  Probe p2 = probe (r, chip);
-  g_assert_cmpint (p2.status, ==, 1);
-  g_assert_nonnull (strstr (p2.err, "line 0 is busy: held by \"test-holder\""));
+  g_assert_cmpint (probe (r, chip, &err2), ==, 1);
+  g_assert_nonnull (strstr (err2, "line 0 is busy: held by \"test-holder\""));
   ds_gpio_lines_free (held);
-  Probe p3 = probe (r, chip);
-  g_assert_cmpint (p3.status, ==, 0);
-  g_free (p1.err);
-  g_free (p2.err);
-  g_free (p3.err);
+  g_assert_cmpint (probe (r, chip, NULL), ==, 0);
   rig_stop (r);
 }
 
@@ -262,16 +191,8 @@ test_gpio_illuminator (void)
       "[trigger]\nbackend=gpio\ngpio-line=0\n"
       "[acquisition]\nphases=4\naverages=2\ndark-frame=true\nphase-retries=4\n",
       ds_scene_default_exposure_us (the_scene), chip, ds_scene_period_px (the_scene), ds_scene_duty (the_scene));
-  TestDaemon *d = test_daemon_start (conf, NULL);
-  g_autoptr (DsClient) c = test_daemon_connect (d);
-  for (guint i = 0; i < 2; i++) {
-    g_autofree char *why = NULL;
-    g_assert_true (capture_checked (c, &why));
-  }
-  Frames f = frames_status (c);
-  g_assert_cmpint (f.timeouts + f.stale + f.wrong + f.aborted, ==, 0);
-  g_assert_cmpint (test_daemon_stop (d), ==, 0);
-  test_daemon_free (d);
+  TestFrames f = correct_sets (conf, 2);
+  g_assert_cmpint (f.timeouts + f.stale + f.wrong_phase + f.aborted, ==, 0);
   rig_stop (r);
 }
 

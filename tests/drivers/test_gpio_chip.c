@@ -30,10 +30,41 @@ on_edge (gpointer data, guint offset, gboolean rising)
   g_mutex_unlock (&e->lock);
 }
 
-static char *
-socket_path (const char *dir)
+/* Where a test's chip listens: a fresh folder, the socket in it, and the chip's name for a
+ * backend (labsim:PATH). The folder is removed with it (the chip removes its socket). */
+typedef struct {
+  char *dir, *path, *chip_name;
+} ChipPlace;
+
+static ChipPlace
+chip_place (void)
 {
-  return g_build_filename (dir, "gpio.sock", NULL);
+  ChipPlace p;
+  p.dir = g_dir_make_tmp ("gpiochip-XXXXXX", NULL);
+  g_assert_nonnull (p.dir);
+  p.path = g_build_filename (p.dir, "gpio.sock", NULL);
+  p.chip_name = g_strdup_printf ("labsim:%s", p.path);
+  return p;
+}
+
+static void
+chip_place_clear (ChipPlace *p)
+{
+  g_rmdir (p->dir);
+  g_free (p->dir);
+  g_free (p->path);
+  g_free (p->chip_name);
+}
+G_DEFINE_AUTO_CLEANUP_CLEAR_FUNC (ChipPlace, chip_place_clear)
+
+/* A chip of 8 lines serving at the place, counting its edges in e. */
+static DsGpioChipServer *
+chip_serve (const ChipPlace *p, const char *label, Edges *e)
+{
+  g_autoptr (GError) error = NULL;
+  DsGpioChipServer *chip = ds_gpio_chip_server_new (p->path, 8, label, on_edge, e, &error);
+  g_assert_no_error (error);
+  return chip;
 }
 
 static int
@@ -84,12 +115,10 @@ raw_call (int fd, const char *request)
 static void
 test_protocol (void)
 {
-  g_autofree char *dir = g_dir_make_tmp ("gpiochip-XXXXXX", NULL);
-  g_autofree char *path = socket_path (dir);
+  g_auto (ChipPlace) place = chip_place ();
+  const char *path = place.path;
   Edges e = { 0 };
-  g_autoptr (GError) error = NULL;
-  DsGpioChipServer *chip = ds_gpio_chip_server_new (path, 8, "test-chip", on_edge, &e, &error);
-  g_assert_no_error (error);
+  DsGpioChipServer *chip = chip_serve (&place, "test-chip", &e);
 
   int a = raw_connect (path);
   ASSERT_REPLY (a, "info", "ok lines=8 label=test-chip");
@@ -173,7 +202,6 @@ test_protocol (void)
   close (c);
   ds_gpio_chip_server_free (chip);
   g_assert_false (g_file_test (path, G_FILE_TEST_EXISTS)); /* the socket is removed */
-  g_rmdir (dir);
 }
 
 /* The trigger backend over the socket: each fire is one rising and one falling edge on the
@@ -181,13 +209,11 @@ test_protocol (void)
 static void
 test_trigger_edges (void)
 {
-  g_autofree char *dir = g_dir_make_tmp ("gpiochip-XXXXXX", NULL);
-  g_autofree char *path = socket_path (dir);
-  g_autofree char *chip_name = g_strdup_printf ("labsim:%s", path);
+  g_auto (ChipPlace) place = chip_place ();
+  const char *chip_name = place.chip_name;
   Edges e = { 0 };
   g_autoptr (GError) error = NULL;
-  DsGpioChipServer *chip = ds_gpio_chip_server_new (path, 8, NULL, on_edge, &e, &error);
-  g_assert_no_error (error);
+  DsGpioChipServer *chip = chip_serve (&place, NULL, &e);
 
   DsTrigger *high = ds_gpio_trigger_open_from_config (chip_name, 0, 50, FALSE, &error);
   g_assert_no_error (error);
@@ -230,7 +256,6 @@ test_trigger_edges (void)
   ds_trigger_close (again);
   ds_trigger_close (low);
   ds_gpio_chip_server_free (chip);
-  g_rmdir (dir);
 }
 
 static void
@@ -254,13 +279,11 @@ test_bad_chip (void)
 static void
 test_peer_gone_and_back (void)
 {
-  g_autofree char *dir = g_dir_make_tmp ("gpiochip-XXXXXX", NULL);
-  g_autofree char *path = socket_path (dir);
-  g_autofree char *chip_name = g_strdup_printf ("labsim:%s", path);
+  g_auto (ChipPlace) place = chip_place ();
+  const char *chip_name = place.chip_name;
   Edges e = { 0 };
   g_autoptr (GError) error = NULL;
-  DsGpioChipServer *chip = ds_gpio_chip_server_new (path, 8, NULL, on_edge, &e, &error);
-  g_assert_no_error (error);
+  DsGpioChipServer *chip = chip_serve (&place, NULL, &e);
   DsTrigger *t = ds_gpio_trigger_open_from_config (chip_name, 0, 50, FALSE, &error);
   g_assert_no_error (error);
   g_assert_true (t->ops->fire (t->backend, &error));
@@ -276,8 +299,7 @@ test_peer_gone_and_back (void)
   g_clear_error (&error);
 
   Edges e2 = { 0 };
-  chip = ds_gpio_chip_server_new (path, 8, NULL, on_edge, &e2, &error);
-  g_assert_no_error (error);
+  chip = chip_serve (&place, NULL, &e2);
   g_assert_true (t->ops->fire (t->backend, &error));
   g_assert_no_error (error);
   g_assert_true (t->ops->fire (t->backend, &error));
@@ -285,7 +307,6 @@ test_peer_gone_and_back (void)
   g_assert_cmpuint (e2.falling[0], ==, 2);
   ds_trigger_close (t);
   ds_gpio_chip_server_free (chip);
-  g_rmdir (dir);
 }
 
 /* A socket that accepts and never answers (a wedged chip): the request fails TIMEOUT instead of
@@ -293,22 +314,19 @@ test_peer_gone_and_back (void)
 static void
 test_silent_peer (void)
 {
-  g_autofree char *dir = g_dir_make_tmp ("gpiochip-XXXXXX", NULL);
-  g_autofree char *path = socket_path (dir);
-  g_autofree char *chip_name = g_strdup_printf ("labsim:%s", path);
+  g_auto (ChipPlace) place = chip_place ();
   struct sockaddr_un a = { .sun_family = AF_UNIX };
-  g_strlcpy (a.sun_path, path, sizeof a.sun_path);
+  g_strlcpy (a.sun_path, place.path, sizeof a.sun_path);
   int fd = socket (AF_UNIX, SOCK_STREAM, 0);
   g_assert_cmpint (bind (fd, (struct sockaddr *) &a, sizeof a), ==, 0);
   g_assert_cmpint (listen (fd, 4), ==, 0); /* connections queue; nobody reads them */
   g_autoptr (GError) error = NULL;
-  DsTrigger *t = ds_gpio_trigger_open_from_config (chip_name, 0, 50, FALSE, &error);
+  DsTrigger *t = ds_gpio_trigger_open_from_config (place.chip_name, 0, 50, FALSE, &error);
   g_assert_null (t);
   g_assert_error (error, DS_TRIGGER_ERROR, DS_DEVICE_ERROR_TIMEOUT);
   g_assert_nonnull (strstr (error->message, "no answer within"));
   close (fd);
-  unlink (path);
-  g_rmdir (dir);
+  unlink (place.path);
 }
 
 /* labsim reads the light of the stripe lines the GPIO illuminator drives: for every phase of

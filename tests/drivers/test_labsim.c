@@ -4,12 +4,10 @@
  * Usage: test_labsim LABSIM SCENE. Binds UDP 3956 (RESOURCE_LOCK gige_port_3956). */
 #include <arv.h>
 #include <math.h>
-#include <signal.h>
 #include <stdio.h>
 #include <string.h>
-#include <sys/prctl.h>
-#include <unistd.h>
 
+#include "../daemon/daemon_harness.h"
 #include "drivers/aravis/aravis_camera.h"
 #include "drivers/modbus/modbus_illuminator.h"
 #include "drivers/sim/scene.h"
@@ -19,65 +17,8 @@
 
 static const char *labsim_path, *scene_path;
 
-typedef struct {
-  GSubprocess *proc;
-  guint modbus_port;
-  char serial[32];
-} Labsim;
-
-static void
-die_with_parent (gpointer data)
-{
-  (void) data;
-  prctl (PR_SET_PDEATHSIG, SIGTERM);
-}
-
-static void
-labsim_start (Labsim *l, const char *const *extra)
-{
-  g_snprintf (l->serial, sizeof l->serial, "DSLT%05u", (guint) (getpid () % 100000));
-  g_autoptr (GError) error = NULL;
-  g_autoptr (GPtrArray) argv = g_ptr_array_new ();
-  const char *fixed[] = { labsim_path, "--scene", scene_path, "--camera-address", "127.0.0.1",
-                          "--camera-serial", l->serial, "--modbus", "127.0.0.1:0" };
-  for (guint i = 0; i < G_N_ELEMENTS (fixed); i++)
-    g_ptr_array_add (argv, (gpointer) fixed[i]);
-  for (guint i = 0; extra && extra[i]; i++)
-    g_ptr_array_add (argv, (gpointer) extra[i]);
-  g_ptr_array_add (argv, NULL);
-  /* A failed assertion aborts this process: labsim must not outlive it holding UDP 3956. */
-  g_autoptr (GSubprocessLauncher) launcher = g_subprocess_launcher_new (G_SUBPROCESS_FLAGS_STDOUT_PIPE);
-  g_subprocess_launcher_set_child_setup (launcher, die_with_parent, NULL, NULL);
-  l->proc = g_subprocess_launcher_spawnv (launcher, (const char *const *) argv->pdata, &error);
-  g_assert_no_error (error);
-  g_autoptr (GDataInputStream) out = g_data_input_stream_new (g_subprocess_get_stdout_pipe (l->proc));
-  for (;;) {
-    g_autofree char *line = g_data_input_stream_read_line (out, NULL, NULL, &error);
-    g_assert_no_error (error);
-    if (!line)
-      g_error ("descatter-labsim exited before its ready line");
-    const char *m = strstr (line, "ready camera=127.0.0.1 modbus=127.0.0.1:");
-    if (m) {
-      l->modbus_port = (guint) g_ascii_strtoull (m + strlen ("ready camera=127.0.0.1 modbus=127.0.0.1:"), NULL, 10);
-      break;
-    }
-  }
-  g_assert_cmpuint (l->modbus_port, >, 0);
-}
-
-static void
-labsim_stop (Labsim *l)
-{
-  g_subprocess_send_signal (l->proc, SIGTERM);
-  g_autoptr (GError) error = NULL;
-  g_assert_true (g_subprocess_wait (l->proc, NULL, &error));
-  g_assert_true (g_subprocess_get_if_exited (l->proc));
-  g_assert_cmpint (g_subprocess_get_exit_status (l->proc), ==, 0);
-  g_clear_object (&l->proc);
-}
-
 static ArvCamera *
-open_camera (const Labsim *l)
+open_camera (const TestLabsim *l)
 {
   g_autoptr (GError) error = NULL;
   ArvCamera *cam = arv_camera_new ("127.0.0.1", &error);
@@ -87,6 +28,25 @@ open_camera (const Labsim *l)
     g_error ("the GigE Vision device answering on 127.0.0.1:3956 is \"%s\", not labsim's \"%s\": another "
              "camera (arv-fake-gv-camera?) holds the port", serial, l->serial);
   return cam;
+}
+
+/* A stream with n_buffers buffers of the camera's payload, acquisition started; *payload (may
+ * be NULL) gets the payload size. */
+static ArvStream *
+start_stream (ArvCamera *cam, guint n_buffers, guint *payload)
+{
+  g_autoptr (GError) error = NULL;
+  ArvStream *stream = arv_camera_create_stream (cam, NULL, NULL, &error);
+  g_assert_no_error (error);
+  guint size = arv_camera_get_payload (cam, &error);
+  g_assert_no_error (error);
+  for (guint i = 0; i < n_buffers; i++)
+    arv_stream_push_buffer (stream, arv_buffer_new (size, NULL));
+  arv_camera_start_acquisition (cam, &error);
+  g_assert_no_error (error);
+  if (payload)
+    *payload = size;
+  return stream;
 }
 
 static DsImage *
@@ -116,26 +76,20 @@ test_phase_over_the_wire (void)
   g_assert_no_error (error);
   guint width = ds_scene_width (scene), height = ds_scene_height (scene);
   double period = ds_scene_period_px (scene);
-  Labsim l = { 0 };
-  labsim_start (&l, NULL);
+  TestLabsim *l = test_labsim_start (labsim_path, scene_path, NULL);
 
-  ArvCamera *cam = open_camera (&l);
+  ArvCamera *cam = open_camera (l);
   arv_camera_set_pixel_format_from_string (cam, "Mono16", &error);
   g_assert_no_error (error);
   arv_camera_set_trigger (cam, "Software", &error);
   g_assert_no_error (error);
   arv_camera_set_exposure_time (cam, ds_scene_default_exposure_us (scene), &error);
   g_assert_no_error (error);
-  ArvStream *stream = arv_camera_create_stream (cam, NULL, NULL, &error);
-  g_assert_no_error (error);
-  guint payload = arv_camera_get_payload (cam, &error);
+  guint payload = 0;
+  ArvStream *stream = start_stream (cam, 4, &payload);
   g_assert_cmpuint (payload, ==, width * height * 2);
-  for (guint i = 0; i < 4; i++)
-    arv_stream_push_buffer (stream, arv_buffer_new (payload, NULL));
-  arv_camera_start_acquisition (cam, &error);
-  g_assert_no_error (error);
 
-  g_autofree char *uri = g_strdup_printf ("tcp://127.0.0.1:%u", l.modbus_port);
+  g_autofree char *uri = g_strdup_printf ("tcp://127.0.0.1:%u", l->modbus_port);
   DsIlluminator *ill = ds_modbus_illuminator_open (uri, 1, 300, &error);
   g_assert_no_error (error);
   const guint n = 4;
@@ -179,7 +133,7 @@ test_phase_over_the_wire (void)
   arv_camera_stop_acquisition (cam, NULL);
   g_object_unref (stream);
   g_object_unref (cam);
-  labsim_stop (&l);
+  test_labsim_stop (l);
 }
 
 static double
@@ -204,9 +158,8 @@ test_mono8 (void)
   g_autoptr (DsScene) scene = ds_scene_load (scene_path, &error);
   g_assert_no_error (error);
   guint width = ds_scene_width (scene), height = ds_scene_height (scene);
-  Labsim l = { 0 };
-  labsim_start (&l, NULL);
-  ArvCamera *cam = open_camera (&l);
+  TestLabsim *l = test_labsim_start (labsim_path, scene_path, NULL);
+  ArvCamera *cam = open_camera (l);
   arv_camera_set_trigger (cam, "Software", &error);
   g_assert_no_error (error);
   double means[2];
@@ -214,14 +167,9 @@ test_mono8 (void)
   for (guint f = 0; f < 2; f++) {
     arv_camera_set_pixel_format_from_string (cam, formats[f], &error);
     g_assert_no_error (error);
-    ArvStream *stream = arv_camera_create_stream (cam, NULL, NULL, &error);
-    g_assert_no_error (error);
-    guint payload = arv_camera_get_payload (cam, &error);
+    guint payload = 0;
+    ArvStream *stream = start_stream (cam, 2, &payload);
     g_assert_cmpuint (payload, ==, width * height * (f == 0 ? 2 : 1));
-    for (guint i = 0; i < 2; i++)
-      arv_stream_push_buffer (stream, arv_buffer_new (payload, NULL));
-    arv_camera_start_acquisition (cam, &error);
-    g_assert_no_error (error);
     arv_camera_software_trigger (cam, &error);
     g_assert_no_error (error);
     ArvBuffer *buf = arv_stream_timeout_pop_buffer (stream, 5000000);
@@ -243,7 +191,7 @@ test_mono8 (void)
   g_assert_cmpfloat (means[0], >, 4 * scale); /* a frame with light in it */
   g_assert_cmpfloat (fabs (means[0] / scale - means[1]), <, 1.0 + 0.02 * means[1]);
   g_object_unref (cam);
-  labsim_stop (&l);
+  test_labsim_stop (l);
 }
 
 /* --camera-vanish-after 3 --camera-vanish-for 1: three frames, then the camera stops
@@ -252,19 +200,12 @@ static void
 test_camera_vanishes (void)
 {
   const char *extra[] = { "--camera-vanish-after", "3", "--camera-vanish-for", "1", NULL };
-  Labsim l = { 0 };
-  labsim_start (&l, extra);
+  TestLabsim *l = test_labsim_start (labsim_path, scene_path, extra);
   g_autoptr (GError) error = NULL;
-  ArvCamera *cam = open_camera (&l);
+  ArvCamera *cam = open_camera (l);
   arv_camera_set_trigger (cam, "Software", &error);
   g_assert_no_error (error);
-  ArvStream *stream = arv_camera_create_stream (cam, NULL, NULL, &error);
-  g_assert_no_error (error);
-  guint payload = arv_camera_get_payload (cam, &error);
-  for (guint i = 0; i < 4; i++)
-    arv_stream_push_buffer (stream, arv_buffer_new (payload, NULL));
-  arv_camera_start_acquisition (cam, &error);
-  g_assert_no_error (error);
+  ArvStream *stream = start_stream (cam, 4, NULL);
   guint got = 0;
   for (guint i = 0; i < 6; i++) {
     GError *e = NULL;
@@ -296,9 +237,9 @@ test_camera_vanishes (void)
       g_error_free (e);
   }
   g_assert_nonnull (again);
-  g_assert_cmpstr (arv_camera_get_device_serial_number (again, NULL), ==, l.serial);
+  g_assert_cmpstr (arv_camera_get_device_serial_number (again, NULL), ==, l->serial);
   g_object_unref (again);
-  labsim_stop (&l);
+  test_labsim_stop (l);
 }
 
 
@@ -358,21 +299,14 @@ run_projector_sync (const char *const *extra, guint applies, guint expect_frames
   g_autoptr (GError) error = NULL;
   g_autoptr (DsScene) scene = ds_scene_load (scene_path, &error);
   g_assert_no_error (error);
-  Labsim l = { 0 };
-  labsim_start (&l, extra);
-  ArvCamera *cam = open_camera (&l);
+  TestLabsim *l = test_labsim_start (labsim_path, scene_path, extra);
+  ArvCamera *cam = open_camera (l);
   arv_camera_set_pixel_format_from_string (cam, "Mono16", &error);
   arv_camera_set_trigger (cam, "Line0", &error);
   g_assert_no_error (error);
   g_assert_cmpstr (arv_camera_get_trigger_source (cam, NULL), ==, "Line0");
-  ArvStream *stream = arv_camera_create_stream (cam, NULL, NULL, &error);
-  g_assert_no_error (error);
-  guint payload = arv_camera_get_payload (cam, &error);
-  for (guint i = 0; i < 4; i++)
-    arv_stream_push_buffer (stream, arv_buffer_new (payload, NULL));
-  arv_camera_start_acquisition (cam, &error);
-  g_assert_no_error (error);
-  g_autofree char *uri = g_strdup_printf ("tcp://127.0.0.1:%u", l.modbus_port);
+  ArvStream *stream = start_stream (cam, 4, NULL);
+  g_autofree char *uri = g_strdup_printf ("tcp://127.0.0.1:%u", l->modbus_port);
   DsIlluminator *ill = ds_modbus_illuminator_open (uri, 1, 300, &error);
   g_assert_no_error (error);
   const guint n = 4;
@@ -397,7 +331,7 @@ run_projector_sync (const char *const *extra, guint applies, guint expect_frames
   arv_camera_stop_acquisition (cam, NULL);
   g_object_unref (stream);
   g_object_unref (cam);
-  labsim_stop (&l);
+  test_labsim_stop (l);
 }
 
 static void
@@ -421,9 +355,8 @@ run_period (gboolean fixed)
   g_assert_no_error (error);
   double period = ds_scene_period_px (scene);
   const char *fixed_args[] = { "--fixed-period", NULL };
-  Labsim l = { 0 };
-  labsim_start (&l, fixed ? fixed_args : NULL);
-  g_autofree char *uri = g_strdup_printf ("tcp://127.0.0.1:%u", l.modbus_port);
+  TestLabsim *l = test_labsim_start (labsim_path, scene_path, fixed ? fixed_args : NULL);
+  g_autofree char *uri = g_strdup_printf ("tcp://127.0.0.1:%u", l->modbus_port);
   DsIlluminator *ill = ds_modbus_illuminator_open (uri, 1, 300, &error);
   g_assert_no_error (error);
   DsCamera *cam = ds_aravis_camera_open ("127.0.0.1", 4, &error);
@@ -468,7 +401,7 @@ run_period (gboolean fixed)
   }
   ds_camera_close (cam);
   ds_illuminator_close (ill);
-  labsim_stop (&l);
+  test_labsim_stop (l);
 }
 
 static void

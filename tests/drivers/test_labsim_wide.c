@@ -52,15 +52,10 @@ daemon_sets (const TestLabsim *l, guint phases, guint sets)
                     tc.rms_scattered, tc.allowed_transmissive, tc.allowed_scattered);
     g_assert_true (truth_check_passed (&tc));
   }
-  g_autoptr (DsMessage) st = test_daemon_call_ok (c, "status", NULL);
-  JsonNode *b = st->reply->body;
-  g_test_message ("%u phases: acquired %" G_GINT64_FORMAT ", folded %" G_GINT64_FORMAT ", timeouts %" G_GINT64_FORMAT,
-                  phases, test_json_int (b, "frames.acquired"), test_json_int (b, "frames.folded"),
-                  test_json_int (b, "frames.timeouts"));
-  g_assert_cmpint (test_json_int (b, "frames.timeouts"), ==, 0);
-  g_assert_cmpint (test_json_int (b, "frames.folded"), ==, (gint64) (phases * sets));
-  g_assert_cmpint (test_daemon_stop (d), ==, 0);
-  test_daemon_free (d);
+  TestFrames f = test_daemon_frames (c);
+  g_assert_cmpint (f.timeouts, ==, 0);
+  g_assert_cmpint (f.folded, ==, (gint64) (phases * sets));
+  test_daemon_stop_clean (d);
 }
 
 static void
