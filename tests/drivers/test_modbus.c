@@ -26,6 +26,15 @@ static const DsStripePattern four_phases = {
   .kind = DS_STRIPES_SQUARE, .period_px = 6.0, .duty = 0.5, .black_level = 0.0, .intensity = 1.0, .n_phases = 4,
 };
 
+/* The controller is a thread of this process, which a loaded machine schedules late: at load 20
+ * on 2 cores it missed a 100 ms response timeout. Where no answer is meant to be late, the
+ * backend waits ANSWER_MS for one and a phase is awaited up to DEADLINE_MS; SHORT_TIMEOUT_MS is
+ * for the tests of answers that are late or never come (where a loaded machine can only make
+ * them later). */
+#define ANSWER_MS 1000
+#define DEADLINE_MS 5000
+#define SHORT_TIMEOUT_MS 100
+
 static void
 fixture_setup (Fixture *f, gconstpointer data)
 {
@@ -35,14 +44,13 @@ fixture_setup (Fixture *f, gconstpointer data)
   f->server = ds_modbus_server_new ("127.0.0.1", 0, &f->cfg, &error);
   g_assert_no_error (error);
   f->uri = g_strdup_printf ("tcp://127.0.0.1:%u", ds_modbus_server_port (f->server));
-  f->ill = ds_modbus_illuminator_open (f->uri, 1, 100, &error);
+  f->ill = ds_modbus_illuminator_open (f->uri, 1, ANSWER_MS, &error);
   g_assert_no_error (error);
   g_assert_nonnull (f->ill);
 }
 
 /* The same controller on a serial line only: a pty, reached through a symlink that survives
  * the line going away and coming back. */
-#define RTU_TIMEOUT_MS 100
 static void
 fixture_setup_rtu (Fixture *f, gconstpointer data)
 {
@@ -59,7 +67,7 @@ fixture_setup_rtu (Fixture *f, gconstpointer data)
   g_assert_no_error (error);
   g_assert_cmpstr (ds_modbus_server_rtu_path (f->server), ==, link);
   f->uri = g_strdup_printf ("rtu:%s?baud=115200&parity=N&data=8&stop=1", link);
-  f->ill = ds_modbus_illuminator_open (f->uri, 1, RTU_TIMEOUT_MS, &error);
+  f->ill = ds_modbus_illuminator_open (f->uri, 1, ANSWER_MS, &error);
   g_assert_no_error (error);
   g_assert_nonnull (f->ill);
 }
@@ -81,6 +89,17 @@ static void
 reconfigure (Fixture *f)
 {
   ds_modbus_server_set_config (f->server, &f->cfg);
+}
+
+/* A plain libmodbus client of the controller (what any client would be answered), connected,
+ * waiting ANSWER_MS for an answer (libmodbus's own 0.5 s was missed under load). */
+static modbus_t *
+raw_client (DsModbusServer *server)
+{
+  modbus_t *raw = modbus_new_tcp ("127.0.0.1", (int) ds_modbus_server_port (server));
+  modbus_set_response_timeout (raw, ANSWER_MS / 1000, (ANSWER_MS % 1000) * 1000);
+  g_assert_cmpint (modbus_connect (raw), ==, 0);
+  return raw;
 }
 
 static void
@@ -177,7 +196,7 @@ test_sequence (Fixture *f, gconstpointer data)
   guint count = st.apply_count;
   for (guint round = 0; round < 2; round++)
     for (guint k = 0; k < 4; k++) {
-      g_assert_true (f->ill->ops->set_phase (f->ill->backend, k, 500, &error));
+      g_assert_true (f->ill->ops->set_phase (f->ill->backend, k, DEADLINE_MS, &error));
       g_assert_no_error (error);
       ds_modbus_server_get_state (f->server, &st);
       g_assert_true (st.enabled);
@@ -199,7 +218,7 @@ test_sequence (Fixture *f, gconstpointer data)
       g_assert_cmpfloat (s.period_min_px, ==, 2.0);
       g_assert_cmpfloat (s.period_max_px, ==, 655.35);
     }
-  g_assert_true (f->ill->ops->off (f->ill->backend, 500, &error));
+  g_assert_true (f->ill->ops->off (f->ill->backend, DEADLINE_MS, &error));
   ds_modbus_server_get_state (f->server, &st);
   g_assert_false (st.enabled);
   DsIlluminatorStatus s;
@@ -209,7 +228,7 @@ test_sequence (Fixture *f, gconstpointer data)
   /* A phase outside the pattern is refused before anything is written. */
   ds_modbus_server_get_state (f->server, &st);
   guint64 requests = st.requests;
-  g_assert_false (f->ill->ops->set_phase (f->ill->backend, 4, 500, &error));
+  g_assert_false (f->ill->ops->set_phase (f->ill->backend, 4, DEADLINE_MS, &error));
   g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_INVALID);
   ds_modbus_server_get_state (f->server, &st);
   g_assert_cmpuint (st.requests, ==, requests);
@@ -226,7 +245,7 @@ test_settle (Fixture *f, gconstpointer data)
   reconfigure (f);
   g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &four_phases, &error));
   for (guint k = 0; k < 4; k++) {
-    g_assert_true (f->ill->ops->set_phase (f->ill->backend, (k + 1) % 4, 1000, &error));
+    g_assert_true (f->ill->ops->set_phase (f->ill->backend, (k + 1) % 4, DEADLINE_MS, &error));
     g_assert_no_error (error);
     DsModbusServerState st;
     ds_modbus_server_get_state (f->server, &st);
@@ -234,7 +253,10 @@ test_settle (Fixture *f, gconstpointer data)
     g_assert_true (st.enabled);
     g_assert_cmpuint (st.phase, ==, (k + 1) % 4);
   }
-  /* A deadline shorter than the settle time cannot be met: TIMEOUT or BUSY, never success. */
+  /* A deadline shorter than the settle time cannot be met: TIMEOUT or BUSY, never success. The
+   * settle time is long here, so that a loaded machine's late poll still finds it settling. */
+  f->cfg.settle_us = 3000000;
+  reconfigure (f);
   g_assert_false (f->ill->ops->set_phase (f->ill->backend, 2, 10, &error));
   g_assert_true (g_error_matches (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_BUSY) ||
                  g_error_matches (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_TIMEOUT));
@@ -262,7 +284,7 @@ test_exceptions (Fixture *f, gconstpointer data)
     DsModbusServerState before, after;
     ds_modbus_server_get_state (f->server, &before);
     g_clear_error (&error);
-    g_assert_false (f->ill->ops->set_phase (f->ill->backend, 1, 500, &error));
+    g_assert_false (f->ill->ops->set_phase (f->ill->backend, 1, DEADLINE_MS, &error));
     g_assert_error (error, DS_ILLUMINATOR_ERROR, cases[i].code);
     g_assert_nonnull (strstr (error->message, "STATUS")); /* the first register set_phase reads */
     g_assert_nonnull (strstr (error->message, cases[i].text));
@@ -274,14 +296,13 @@ test_exceptions (Fixture *f, gconstpointer data)
   reconfigure (f);
   if (f->dir) { /* RTU: the raw client below speaks TCP */
     g_clear_error (&error);
-    g_assert_true (f->ill->ops->set_phase (f->ill->backend, 3, 500, &error));
+    g_assert_true (f->ill->ops->set_phase (f->ill->backend, 3, DEADLINE_MS, &error));
     g_assert_no_error (error);
     return;
   }
   /* The controller's own range check, seen from a plain libmodbus client: exception 03 and
    * nothing changes. */
-  modbus_t *raw = modbus_new_tcp ("127.0.0.1", (int) ds_modbus_server_port (f->server));
-  g_assert_cmpint (modbus_connect (raw), ==, 0);
+  modbus_t *raw = raw_client (f->server);
   g_assert_cmpint (modbus_write_register (raw, DS_MB_HOLD_NUM_PHASES, 1), ==, -1);
   g_assert_cmpint (errno, ==, EMBXILVAL);
   g_assert_cmpint (modbus_write_register (raw, DS_MB_HOLD_PHASE, 4), ==, -1); /* NUM_PHASES is 4 */
@@ -294,7 +315,7 @@ test_exceptions (Fixture *f, gconstpointer data)
   modbus_close (raw);
   modbus_free (raw);
   g_clear_error (&error);
-  g_assert_true (f->ill->ops->set_phase (f->ill->backend, 3, 500, &error));
+  g_assert_true (f->ill->ops->set_phase (f->ill->backend, 3, DEADLINE_MS, &error));
   g_assert_no_error (error);
 }
 
@@ -307,7 +328,7 @@ test_fault_bits (Fixture *f, gconstpointer data)
   g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &four_phases, &error));
   f->cfg.over_temperature = TRUE;
   reconfigure (f);
-  g_assert_false (f->ill->ops->set_phase (f->ill->backend, 0, 200, &error));
+  g_assert_false (f->ill->ops->set_phase (f->ill->backend, 0, DEADLINE_MS, &error));
   g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_FAULT);
   g_assert_nonnull (strstr (error->message, "STATUS"));
   g_assert_nonnull (strstr (error->message, "over-temperature"));
@@ -319,13 +340,49 @@ test_fault_bits (Fixture *f, gconstpointer data)
   f->cfg.over_temperature = FALSE;
   f->cfg.fault = TRUE;
   reconfigure (f);
-  g_assert_false (f->ill->ops->set_phase (f->ill->backend, 0, 200, &error));
+  g_assert_false (f->ill->ops->set_phase (f->ill->backend, 0, DEADLINE_MS, &error));
   g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_FAULT);
   g_assert_nonnull (strstr (error->message, "fault"));
   f->cfg.fault = FALSE;
   reconfigure (f);
   g_clear_error (&error);
-  g_assert_true (f->ill->ops->set_phase (f->ill->backend, 0, 200, &error));
+  g_assert_true (f->ill->ops->set_phase (f->ill->backend, 0, DEADLINE_MS, &error));
+}
+
+/* The controller's request count once it has seen no new request for longer than delay_ms
+ * (the line's backlog of late answers and queued retries drained). */
+static guint64
+requests_settled (DsModbusServer *server, guint delay_ms)
+{
+  DsModbusServerState q0, q1;
+  ds_modbus_server_get_state (server, &q1);
+  for (guint i = 0; i < 100; i++) {
+    q0 = q1;
+    g_usleep ((delay_ms + 200) * 1000);
+    ds_modbus_server_get_state (server, &q1);
+    if (q1.requests == q0.requests)
+      return q1.requests;
+  }
+  g_error ("the controller still reads requests after 100 delays");
+  return 0;
+}
+
+/* The backend with the short response timeout, for answers meant to be late. Opening reads
+ * registers, which a loaded machine's controller may answer too late even then: it is opened
+ * again until it was answered in time (what is asserted are the accesses after it). */
+static DsIlluminator *
+open_hasty (const char *uri)
+{
+  for (guint i = 0; i < 100; i++) {
+    g_autoptr (GError) error = NULL;
+    DsIlluminator *ill = ds_modbus_illuminator_open (uri, 1, SHORT_TIMEOUT_MS, &error);
+    if (ill)
+      return ill;
+    g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_TIMEOUT);
+    g_test_message ("opening with a %u ms response timeout: %s; again", SHORT_TIMEOUT_MS, error->message);
+  }
+  g_error ("the controller never answered within %u ms", SHORT_TIMEOUT_MS);
+  return NULL;
 }
 
 /* Answers later than the response timeout: TIMEOUT after a bounded number of attempts; with
@@ -335,49 +392,58 @@ test_delay (Fixture *f, gconstpointer data)
 {
   (void) data;
   g_autoptr (GError) error = NULL;
-  g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &four_phases, &error));
-  /* The timeout is 100 ms. A serial line is one conversation: while the controller sits on a
-   * late answer the retries wait behind it, so over RTU "late for the whole access" means later
-   * than the access's 3 x 100 + 100 ms. */
+  /* The short timeout, 100 ms, on the only backend of the line (a serial line is one
+   * conversation). While the controller sits on a late answer the retries wait behind it, so
+   * over RTU "late for the whole access" means later than the access's 3 x 100 + 100 ms. Late by
+   * far: an attempt's wait starts when its thread runs, which on a loaded machine can be long
+   * after its request left (a 300 ms late answer was seen in time). */
+  ds_illuminator_close (f->ill);
+  DsIlluminator *hasty = open_hasty (f->uri);
   gboolean rtu = f->dir != NULL;
-  f->cfg.delay_ms = rtu ? 500 : 300;
+  f->cfg.delay_ms = 2000;
   f->cfg.delay_every = 1;
   reconfigure (f);
-  DsModbusServerState before, after;
+  DsModbusServerState before;
   ds_modbus_server_get_state (f->server, &before);
   DsIlluminatorStatus s;
-  g_assert_false (f->ill->ops->get_status (f->ill->backend, &s, &error));
+  gint64 t0 = g_get_monotonic_time ();
+  g_assert_false (hasty->ops->get_status (hasty->backend, &s, &error));
+  gint64 took_us = g_get_monotonic_time () - t0;
   g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_TIMEOUT);
   g_assert_nonnull (strstr (error->message, "MAGIC")); /* get_status reads from register 0 */
-  ds_modbus_server_get_state (f->server, &after);
-  g_assert_cmpuint (after.requests - before.requests, <=, DS_MODBUS_MAX_ATTEMPTS);
-  /* Over RTU the retries are still queued on the line behind the late answer. */
-  g_assert_cmpuint (after.requests - before.requests, >=, rtu ? 1 : 2);
+  ds_illuminator_close (hasty);
+  g_clear_error (&error);
+  /* The attempts the controller saw, once it has read all that was sent (a loaded machine's
+   * controller thread reads late): no new request for longer than one delay. */
+  guint64 requests = requests_settled (f->server, f->cfg.delay_ms) - before.requests;
+  g_test_message ("late answers: %" G_GUINT64_FORMAT " requests in %.0f ms", requests, took_us / 1000.0);
+  g_assert_cmpuint (requests, <=, DS_MODBUS_MAX_ATTEMPTS);
+  /* Another attempt whenever the access's budget (3 x 100 + 100 ms) left room for one; over RTU
+   * the retries are still queued on the line behind the late answer. */
+  gint64 budget_us = DS_MODBUS_MAX_ATTEMPTS * SHORT_TIMEOUT_MS * 1000 + 100000;
+  if (!rtu && took_us < budget_us - 2000)
+    g_assert_cmpuint (requests, >=, 2);
+  g_assert_cmpuint (requests, >=, 1);
 
   /* Only some answers late: the retries get through. A late request is still carried out when
    * its delay ends: over TCP a write abandoned for its retry then lands in the middle of a later
    * phase (APPLIED_PHASE reads the earlier phase: seen under load), and on a serial line a late
    * answer lands in the middle of the retries. So both use the deterministic form of the same
-   * fault: every 3rd request is never answered (nor carried out). */
+   * fault: every 3rd request is never answered (nor carried out), each costing one (generous)
+   * response timeout. */
   f->cfg.delay_ms = 0;
   f->cfg.delay_every = 0;
   f->cfg.silent_every = 3;
   reconfigure (f);
-  if (rtu) {
-    /* The line's backlog (the late answer, then the queued retries, each perhaps late too)
-     * drains: wait until the controller has seen no request for longer than one delay. */
-    DsModbusServerState q0, q1;
-    ds_modbus_server_get_state (f->server, &q1);
-    do {
-      q0 = q1;
-      g_usleep (700000);
-      ds_modbus_server_get_state (f->server, &q1);
-    } while (q1.requests != q0.requests);
-    g_usleep (600000); /* the last one's answer */
-  }
+  if (rtu)
+    g_usleep (600000); /* the line's backlog drained (requests_settled): the last one's answer */
+  f->ill = ds_modbus_illuminator_open (f->uri, 1, ANSWER_MS, &error);
+  g_assert_no_error (error);
+  g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &four_phases, &error));
+  g_assert_no_error (error);
   for (guint k = 0; k < 4; k++) {
     g_clear_error (&error);
-    gboolean ok = f->ill->ops->set_phase (f->ill->backend, k, 2000, &error);
+    gboolean ok = f->ill->ops->set_phase (f->ill->backend, k, DEADLINE_MS, &error);
     g_assert_no_error (error);
     g_assert_true (ok);
     DsModbusServerState st;
@@ -395,12 +461,12 @@ test_dropped_connection (Fixture *f, gconstpointer data)
   (void) data;
   g_autoptr (GError) error = NULL;
   g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &four_phases, &error));
-  g_assert_true (f->ill->ops->set_phase (f->ill->backend, 0, 500, &error));
+  g_assert_true (f->ill->ops->set_phase (f->ill->backend, 0, DEADLINE_MS, &error));
   DsModbusServerState st;
   ds_modbus_server_get_state (f->server, &st);
   guint64 connections = st.connections;
   ds_modbus_server_drop_clients (f->server);
-  g_assert_true (f->ill->ops->set_phase (f->ill->backend, 1, 500, &error));
+  g_assert_true (f->ill->ops->set_phase (f->ill->backend, 1, DEADLINE_MS, &error));
   g_assert_no_error (error);
   ds_modbus_server_get_state (f->server, &st);
   g_assert_cmpuint (st.phase, ==, 1);
@@ -408,14 +474,14 @@ test_dropped_connection (Fixture *f, gconstpointer data)
 
   f->cfg.drop_every = 1;
   reconfigure (f);
-  g_assert_false (f->ill->ops->set_phase (f->ill->backend, 2, 500, &error));
+  g_assert_false (f->ill->ops->set_phase (f->ill->backend, 2, DEADLINE_MS, &error));
   g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_DISCONNECTED);
   g_assert_nonnull (strstr (error->message, "STATUS"));
   f->cfg.drop_every = 0;
   reconfigure (f);
   g_clear_error (&error);
   g_assert_true (f->ill->ops->reconnect (f->ill->backend, &error));
-  g_assert_true (f->ill->ops->set_phase (f->ill->backend, 2, 500, &error));
+  g_assert_true (f->ill->ops->set_phase (f->ill->backend, 2, DEADLINE_MS, &error));
   g_assert_no_error (error);
   ds_modbus_server_get_state (f->server, &st);
   g_assert_cmpuint (st.phase, ==, 2);
@@ -476,7 +542,7 @@ test_wrong_phase (Fixture *f, gconstpointer data)
   g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &four_phases, &error));
   f->cfg.wrong_phase = TRUE;
   reconfigure (f);
-  g_assert_false (f->ill->ops->set_phase (f->ill->backend, 1, 200, &error));
+  g_assert_false (f->ill->ops->set_phase (f->ill->backend, 1, DEADLINE_MS, &error));
   g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_INVALID);
   g_assert_nonnull (strstr (error->message, "APPLIED_PHASE reads 2, expected 1"));
 }
@@ -491,7 +557,7 @@ open_on (const DsModbusServerConfig *cfg, DsModbusServer **server)
   *server = ds_modbus_server_new ("127.0.0.1", 0, cfg, &error);
   g_assert_no_error (error);
   g_autofree char *uri = g_strdup_printf ("tcp://127.0.0.1:%u", ds_modbus_server_port (*server));
-  DsIlluminator *ill = ds_modbus_illuminator_open (uri, 1, 100, &error);
+  DsIlluminator *ill = ds_modbus_illuminator_open (uri, 1, ANSWER_MS, &error);
   g_assert_no_error (error);
   return ill;
 }
@@ -514,8 +580,7 @@ settled_state (DsModbusServer *server)
 static int
 raw_write (DsModbusServer *server, int addr, guint16 value)
 {
-  modbus_t *raw = modbus_new_tcp ("127.0.0.1", (int) ds_modbus_server_port (server));
-  g_assert_cmpint (modbus_connect (raw), ==, 0);
+  modbus_t *raw = raw_client (server);
   int rc = modbus_write_register (raw, addr, value), e = errno;
   modbus_close (raw);
   modbus_free (raw);
@@ -548,7 +613,7 @@ test_period_adjustable (void)
     p.period_px = periods[i];
     g_assert_true (ill->ops->set_pattern (ill->backend, &p, &error));
     g_assert_no_error (error);
-    g_assert_true (ill->ops->set_phase (ill->backend, 1, 500, &error));
+    g_assert_true (ill->ops->set_phase (ill->backend, 1, DEADLINE_MS, &error));
     DsModbusServerState st = settled_state (server);
     g_assert_cmpuint (st.period_centipx, ==, (guint) round (periods[i] * 100));
   }
@@ -603,7 +668,7 @@ test_period_fixed (void)
   g_clear_error (&error);
   p.period_px = 8.25;
   g_assert_true (ill->ops->set_pattern (ill->backend, &p, &error));
-  g_assert_true (ill->ops->set_phase (ill->backend, 2, 500, &error));
+  g_assert_true (ill->ops->set_phase (ill->backend, 2, DEADLINE_MS, &error));
   g_assert_no_error (error);
   DsModbusServerState st = settled_state (server);
   g_assert_cmpuint (st.period_centipx, ==, 825);
@@ -625,8 +690,7 @@ test_period_revision_1 (void)
   DsModbusServer *server = NULL;
   DsIlluminator *ill = open_on (&cfg, &server);
   g_autoptr (GError) error = NULL;
-  modbus_t *raw = modbus_new_tcp ("127.0.0.1", (int) ds_modbus_server_port (server));
-  g_assert_cmpint (modbus_connect (raw), ==, 0);
+  modbus_t *raw = raw_client (server);
   guint16 caps;
   g_assert_cmpint (modbus_read_input_registers (raw, DS_MB_INPUT_CAPABILITIES, 1, &caps), ==, -1);
   g_assert_cmpint (errno, ==, EMBXILADD);
@@ -643,7 +707,7 @@ test_period_revision_1 (void)
   p.period_px = 7.5;
   for (guint i = 0; i < 2; i++) {
     g_assert_true (ill->ops->set_pattern (ill->backend, &p, &error));
-    g_assert_true (ill->ops->set_phase (ill->backend, 3, 500, &error));
+    g_assert_true (ill->ops->set_phase (ill->backend, 3, DEADLINE_MS, &error));
     g_assert_no_error (error);
   }
   p.period_px = 15;
@@ -690,14 +754,15 @@ test_open_errors (void)
 /* ---- RTU: what a serial line adds ------------------------------------------------------- */
 
 /* docs/registers.md: one register access takes at most 3 attempts of one response timeout
- * each, all within 3 x timeout + 100 ms. The slack covers a loaded machine, not a hang. */
+ * each, all within 3 x timeout + 100 ms. The slack covers a loaded machine's late wake-ups (three
+ * waits, 0.76 s late in all at load 28), not a hang; the attempts are counted where it matters. */
 static void
 assert_within_access_bound (gint64 start_us, guint timeout_ms)
 {
   gint64 took_ms = (g_get_monotonic_time () - start_us) / 1000;
   gint64 bound_ms = 3 * (gint64) timeout_ms + 100;
   g_test_message ("failed after %" G_GINT64_FORMAT " ms (bound %" G_GINT64_FORMAT " ms)", took_ms, bound_ms);
-  g_assert_cmpint (took_ms, <=, bound_ms + 400);
+  g_assert_cmpint (took_ms, <=, bound_ms + 2000);
 }
 
 /* The controller stays silent: TIMEOUT naming the register after the bounded attempts, within
@@ -714,7 +779,7 @@ test_rtu_timeout (Fixture *f, gconstpointer data)
   DsIlluminatorStatus st;
   gint64 t0 = g_get_monotonic_time ();
   g_assert_false (f->ill->ops->get_status (f->ill->backend, &st, &error));
-  assert_within_access_bound (t0, RTU_TIMEOUT_MS);
+  assert_within_access_bound (t0, ANSWER_MS);
   g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_TIMEOUT);
   g_assert_nonnull (strstr (error->message, "MAGIC"));
   g_assert_nonnull (strstr (error->message, f->uri));
@@ -739,8 +804,8 @@ test_rtu_bad_crc (Fixture *f, gconstpointer data)
   f->cfg.bad_crc_every = 1;
   reconfigure (f);
   gint64 t0 = g_get_monotonic_time ();
-  g_assert_false (f->ill->ops->set_phase (f->ill->backend, 2, 500, &error));
-  assert_within_access_bound (t0, RTU_TIMEOUT_MS);
+  g_assert_false (f->ill->ops->set_phase (f->ill->backend, 2, DEADLINE_MS, &error));
+  assert_within_access_bound (t0, ANSWER_MS);
   g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_INCOMPLETE);
   g_assert_nonnull (strstr (error->message, "STATUS"));
   g_assert_nonnull (strstr (error->message, "CRC"));
@@ -751,7 +816,7 @@ test_rtu_bad_crc (Fixture *f, gconstpointer data)
   reconfigure (f);
   for (guint k = 0; k < 4; k++) {
     g_clear_error (&error);
-    g_assert_true (f->ill->ops->set_phase (f->ill->backend, k, 500, &error));
+    g_assert_true (f->ill->ops->set_phase (f->ill->backend, k, DEADLINE_MS, &error));
     g_assert_no_error (error);
     ds_modbus_server_get_state (f->server, &st);
     g_assert_true (st.enabled);
@@ -768,15 +833,15 @@ test_rtu_line_away (Fixture *f, gconstpointer data)
   (void) data;
   g_autoptr (GError) error = NULL;
   g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &four_phases, &error));
-  g_assert_true (f->ill->ops->set_phase (f->ill->backend, 1, 500, &error));
+  g_assert_true (f->ill->ops->set_phase (f->ill->backend, 1, DEADLINE_MS, &error));
   const char *path = ds_modbus_server_rtu_path (f->server);
   ds_modbus_server_rtu_vanish (f->server, 600);
   for (guint i = 0; i < 100 && g_file_test (path, G_FILE_TEST_EXISTS); i++)
     g_usleep (10000);
   g_assert_false (g_file_test (path, G_FILE_TEST_EXISTS));
   gint64 t0 = g_get_monotonic_time ();
-  g_assert_false (f->ill->ops->set_phase (f->ill->backend, 2, 500, &error));
-  assert_within_access_bound (t0, RTU_TIMEOUT_MS);
+  g_assert_false (f->ill->ops->set_phase (f->ill->backend, 2, DEADLINE_MS, &error));
+  assert_within_access_bound (t0, ANSWER_MS);
   g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_DISCONNECTED);
   g_assert_nonnull (strstr (error->message, "STATUS"));
   g_assert_nonnull (strstr (error->message, path));
@@ -792,7 +857,7 @@ test_rtu_line_away (Fixture *f, gconstpointer data)
   }
   g_assert_true (back);
   g_clear_error (&error);
-  g_assert_true (f->ill->ops->set_phase (f->ill->backend, 3, 500, &error));
+  g_assert_true (f->ill->ops->set_phase (f->ill->backend, 3, DEADLINE_MS, &error));
   g_assert_no_error (error);
   DsModbusServerState st;
   ds_modbus_server_get_state (f->server, &st);
@@ -808,8 +873,8 @@ test_rtu_other_unit (Fixture *f, gconstpointer data)
   (void) data;
   g_autoptr (GError) error = NULL;
   gint64 t0 = g_get_monotonic_time ();
-  DsIlluminator *other = ds_modbus_illuminator_open (f->uri, 7, RTU_TIMEOUT_MS, &error);
-  assert_within_access_bound (t0, RTU_TIMEOUT_MS);
+  DsIlluminator *other = ds_modbus_illuminator_open (f->uri, 7, SHORT_TIMEOUT_MS, &error);
+  assert_within_access_bound (t0, SHORT_TIMEOUT_MS);
   g_assert_null (other);
   g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_TIMEOUT);
   g_assert_nonnull (strstr (error->message, "MAGIC"));
