@@ -60,14 +60,16 @@ period_check_frames (DsIlluminator *ill, DsCamera *cam, const DsStripePattern *p
   g_assert_true (loaded);
   double phase0 = NAN;
   for (guint k = 0; k < pattern->n_phases; k++) {
-    gboolean lit = ill->ops->set_phase (ill->backend, k, 2000, &error);
+    /* Deadlines for a loaded machine, not the devices': labsim renders a new period's light
+     * before its frame (waiting up to 10 s for it). */
+    gboolean lit = ill->ops->set_phase (ill->backend, k, 10000, &error);
     g_assert_no_error (error);
     g_assert_true (lit);
     cam->ops->flush (cam->backend);
     gboolean triggered = cam->ops->trigger (cam->backend, &error);
     g_assert_no_error (error);
     g_assert_true (triggered);
-    g_autoptr (DsFrame) f = cam->ops->grab (cam->backend, 5000, &error);
+    g_autoptr (DsFrame) f = cam->ops->grab (cam->backend, 20000, &error);
     g_assert_no_error (error);
     double measured = period_check_measure (f->image, region);
     DsStripePhase sp;
