@@ -2,6 +2,7 @@
 #include <math.h>
 
 #include "daemon/operating/error_model.h"
+#include "daemon/operating/pattern_check.h"
 #include "daemon/protocol/protocol.h"
 #include "daemon/service/sequencer_private.h"
 #include "proc/stripe_phase.h"
@@ -64,6 +65,33 @@ coarse_frames (DsSequencer *seq, const DsCaptureSettings *s, DsFrameCounters *c,
   return TRUE;
 }
 
+/* A duty or black level the pilot frames contradict is refused as what it is, not predicted as
+ * scattering (daemon/operating/pattern_check.h); an off-stripe level the scene cannot attribute
+ * is taken as scattered light, and the log says so. */
+static gboolean
+pattern_matches (const DsProbeFrames *pf, GError **error)
+{
+  DsPatternFrames frames = {
+    .dark = pf->dark, .lit = { pf->lit[0], pf->lit[1] }, .coarse = { pf->coarse[0], pf->coarse[1] },
+    .saturation_dn = pf->saturation_dn, .configured = pf->geometry,
+  };
+  DsPatternCheck check;
+  if (!ds_pattern_check (&frames, &check, error))
+    return FALSE;
+  switch (check.verdict) {
+  case DS_PATTERN_MATCHES:
+    return TRUE;
+  case DS_PATTERN_OFF_LEVEL_ASSUMED:
+    g_message ("automatic operating point: %s", check.message);
+    return TRUE;
+  case DS_PATTERN_WRONG_DUTY:
+  case DS_PATTERN_WRONG_BLACK_LEVEL:
+    break;
+  }
+  g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_FAILED, "automatic operating point: %s", check.message);
+  return FALSE;
+}
+
 /* Pilot frames (docs/accuracy.md, "Automatic operating point"): a dark frame, the phases 0 and
  * 1/2 at the configured period and, where the illuminator can change it, at twice the period,
  * all at the requested exposure. The probe measures the scene from them and the error model
@@ -118,6 +146,8 @@ ds_seq_choose_operating_point (DsSequencer *seq, DsCaptureSettings *s, DsFrameCo
     pf.saturation_dn = MIN (pf.saturation_dn, s->saturation_dn);
     pf.saturation_known = TRUE;
   }
+  if (!pattern_matches (&pf, error))
+    return FALSE;
   DsOperatingReport *r = &s->operating;
   memset (r, 0, sizeof *r);
   if (!ds_scene_probe_measure (&pf, &r->probe, error))

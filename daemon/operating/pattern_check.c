@@ -1,0 +1,416 @@
+/* Does the configured stripe pattern match the pilot frames (pattern_check.h)? */
+#include "daemon/operating/pattern_check.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "daemon/protocol/protocol.h"
+#include "proc/stripe_phase.h"
+
+#define N_BINS 40u
+/* A duty further than this from the configured one is a wrong configuration: the fit reads the
+ * duty to about 0.01 on clear scenes and 0.02 under scattering and blur (tests/daemon/
+ * test_pattern_check.c); the estimators' systematic error from a duty 0.05 off is a few %. */
+#define DUTY_TOLERANCE 0.05
+/* The same for the off-stripe level against the black level. */
+#define LEVEL_TOLERANCE 0.03
+/* Dim and bright stripe centres (relative to their surroundings) must differ this much in
+ * brightness for the off-stripe fraction to tell a black level from scattered light. */
+#define MIN_BRIGHTNESS_RATIO 1.5
+/* ... and this much for a larger off-stripe fraction on the dim ones to show scattered light. */
+#define MIN_CONTRAST 1.1
+
+const char *
+ds_pattern_verdict_name (DsPatternVerdict v)
+{
+  switch (v) {
+  case DS_PATTERN_MATCHES:
+    return "matches";
+  case DS_PATTERN_OFF_LEVEL_ASSUMED:
+    return "off-stripe light taken as scattered";
+  case DS_PATTERN_WRONG_DUTY:
+    return "wrong duty";
+  case DS_PATTERN_WRONG_BLACK_LEVEL:
+    return "wrong black level";
+  }
+  return "?";
+}
+
+typedef struct {
+  double r[N_BINS], u[N_BINS];
+  double t[N_BINS];   /* (L0 + L1 - 2D) relative to its mean over about two periods around */
+  guint64 n[N_BINS], nt[N_BINS];
+} Profile;
+
+typedef struct {
+  double duty, level, blur, rms;
+} Fit;
+
+/* The pattern without black level (s in [0, 1]) at the bins' positions, for phase 0 and 1/2. */
+static void
+pattern_at_bins (DsPatternKind kind, double period, double duty, double blur, const Profile *p, double *s0,
+                 double *s1)
+{
+  DsStripeModel m = { .kind = kind, .period_px = period, .duty = duty, .black_level = 0, .blur_px = blur };
+  for (guint j = 0; j < N_BINS; j++) {
+    s0[j] = ds_stripe_value (&m, p->u[j] * period, 0);
+    s1[j] = ds_stripe_value (&m, p->u[j] * period, 0.5);
+  }
+}
+
+/* The best off-stripe level at least level_min for the patterns s0, s1 (a 1-D scan). Two
+ * profiles: r, and t, the sum of the phases against its mean over about two periods, since r
+ * cannot tell duty a from 1 - a once b > 0 (overlaps and gaps both give r = 1/2), nor see the
+ * gaps at b = 0 (no light there); the sum is high where the phases overlap and low in the gaps.
+ * t carries the scene's own detail as noise, so it weighs a quarter. */
+static void
+best_level (const Profile *p, const double *s0, const double *s1, double duty, double level_min, double step,
+            Fit *fit)
+{
+  double total = 0, total_t = 0;
+  for (guint j = 0; j < N_BINS; j++) {
+    total += (double) p->n[j];
+    total_t += (double) p->nt[j];
+  }
+  fit->rms = INFINITY;
+  for (double b = level_min; b <= 0.98 + 1e-9; b += step) {
+    double cost = 0, cost_t = 0, mean = 2 * b + (1 - b) * 2 * duty;
+    for (guint j = 0; j < N_BINS; j++) {
+      double a = b + (1 - b) * s0[j], c = b + (1 - b) * s1[j];
+      if (p->nt[j]) {
+        double d = p->t[j] - (a + c) / mean;
+        cost_t += (double) p->nt[j] * d * d;
+      }
+      if (!p->n[j])
+        continue;
+      double d = p->r[j] - (a + c > 0 ? a / (a + c) : 0.5);
+      cost += (double) p->n[j] * d * d;
+    }
+    double rms = sqrt (cost / total + (total_t > 0 ? 0.25 * cost_t / total_t : 0));
+    if (rms < fit->rms) {
+      fit->rms = rms;
+      fit->level = b;
+    }
+  }
+}
+
+/* Least squares over duty (fixed when duty_fixed >= 0), blur and off-stripe level >= level_min:
+ * a grid, then a finer grid about its best. */
+static Fit
+fit_profile (const Profile *p, DsPatternKind kind, double period, double duty_fixed, double level_min)
+{
+  Fit best = { .rms = INFINITY };
+  double blur_max = MIN (0.3 * period, 4.0), s0[N_BINS], s1[N_BINS];
+  gboolean duty_free = kind == DS_PATTERN_SQUARE && duty_fixed < 0;
+  double fixed = kind == DS_PATTERN_SQUARE ? duty_fixed : 0.5;
+  for (int pass = 0; pass < 2; pass++) {
+    double a_lo = duty_free ? (pass ? best.duty - 0.01 : 0.04) : fixed;
+    double a_hi = duty_free ? (pass ? best.duty + 0.01 : 0.96) : fixed;
+    double a_step = pass ? 0.002 : 0.01;
+    double s_lo = pass ? MAX (0.0, best.blur - 0.15) : 0, s_hi = pass ? MIN (blur_max, best.blur + 0.15) : blur_max;
+    double s_step = pass ? 0.03 : 0.15;
+    Fit round = best;
+    for (double a = a_lo; a <= a_hi + 1e-9; a += a_step) {
+      if (a <= 0.01 || a >= 0.99)
+        continue;
+      for (double s = s_lo; s <= s_hi + 1e-9; s += s_step) {
+        pattern_at_bins (kind, period, a, s, p, s0, s1);
+        Fit f = { .duty = a, .blur = s };
+        best_level (p, s0, s1, a, pass ? MAX (level_min, best.level - 0.02) : level_min, pass ? 0.002 : 0.01, &f);
+        if (f.rms < round.rms)
+          round = f;
+      }
+    }
+    best = round;
+  }
+  return best;
+}
+
+static double
+frame_sample (const DsImage *img, guint x, guint y)
+{
+  return ds_image_sample (img, ds_image_row (img, y), x);
+}
+
+static int
+compare_doubles (const void *a, const void *b)
+{
+  double x = *(const double *) a, y = *(const double *) b;
+  return x < y ? -1 : x > y;
+}
+
+/* Where the stripes lie: the first harmonic of L0 - L1 (the scene's own detail cancels). */
+static gboolean
+measure_offset (const DsImage *dark, const DsImage *l0, const DsImage *l1, double period, double *offset)
+{
+  (void) dark;
+  g_autoptr (DsImage) diff = ds_image_new (DS_SAMPLE_F32, l0->width, l0->height, NULL);
+  for (guint y = 0; y < l0->height; y++) {
+    float *row = ds_image_row (diff, y);
+    for (guint x = 0; x < l0->width; x++)
+      row[x] = (float) (frame_sample (l0, x, y) - frame_sample (l1, x, y));
+  }
+  DsStripePhase sp;
+  if (!ds_stripe_phase_measure (diff, period, NULL, &sp, NULL) || !sp.reliable)
+    return FALSE;
+  *offset = sp.phase;
+  return TRUE;
+}
+
+typedef struct {
+  double *off, *rel; /* stripe-centre pixels: off/lit, brightness relative to the surroundings */
+  gsize n;
+} Centres;
+
+/* One pair: the binned r profile and its fits; with centres, also the stripe-centre pixels. */
+static void
+check_pair (const DsImage *dark, const DsImage *l0, const DsImage *l1, double period, double saturation,
+            const DsStripeModel *conf, DsPatternPair *out, Centres *centres)
+{
+  memset (out, 0, sizeof *out);
+  out->period_px = period;
+  guint w = l0->width, h = l0->height;
+  double offset;
+  if (period <= 2 || period > w || !measure_offset (dark, l0, l1, period, &offset))
+    return;
+  gsize npix = (gsize) w * h;
+  g_autofree double *sum = g_new (double, npix);
+  g_autofree double *sorted = g_new (double, npix);
+  gsize n_ok = 0;
+  double clip = saturation > 0 ? saturation : INFINITY;
+  for (guint y = 0; y < h; y++)
+    for (guint x = 0; x < w; x++) {
+      double a = frame_sample (l0, x, y), b = frame_sample (l1, x, y), d = frame_sample (dark, x, y);
+      gsize i = (gsize) y * w + x;
+      sum[i] = a < clip && b < clip && isfinite (a + b + d) ? a + b - 2 * d : NAN;
+      if (!isnan (sum[i]))
+        sorted[n_ok++] = sum[i];
+    }
+  if (n_ok < 64)
+    return;
+  qsort (sorted, n_ok, sizeof (double), compare_doubles);
+  double threshold = 0.25 * sorted[(gsize) (0.9 * (double) (n_ok - 1))];
+  if (!(threshold > 0))
+    return;
+  /* The sum against its mean over a box of about two periods around the pixel (integral images
+   * over the usable pixels). */
+  guint radius = (guint) MAX (4.0, ceil (period));
+  g_autofree double *integral = g_new0 (double, (gsize) (w + 1) * (h + 1));
+  g_autofree guint *counts = g_new0 (guint, (gsize) (w + 1) * (h + 1));
+  for (guint y = 0; y < h; y++)
+    for (guint x = 0; x < w; x++) {
+      gsize i = (gsize) y * w + x, k = (gsize) (y + 1) * (w + 1) + x + 1;
+      gboolean use = !isnan (sum[i]);
+      integral[k] = (use ? sum[i] : 0) + integral[k - 1] + integral[k - (w + 1)] - integral[k - (w + 1) - 1];
+      counts[k] = (use ? 1 : 0) + counts[k - 1] + counts[k - (w + 1)] - counts[k - (w + 1) - 1];
+    }
+  g_autofree double *local = g_new (double, npix);
+  for (guint y = 0; y < h; y++)
+    for (guint x = 0; x < w; x++) {
+      guint x0 = x > radius ? x - radius : 0, x1 = MIN (w, x + radius + 1);
+      guint y0 = y > radius ? y - radius : 0, y1 = MIN (h, y + radius + 1);
+      gsize a = (gsize) y0 * (w + 1) + x0, b = (gsize) y0 * (w + 1) + x1;
+      gsize c = (gsize) y1 * (w + 1) + x0, e = (gsize) y1 * (w + 1) + x1;
+      guint count = counts[e] - counts[b] - counts[c] + counts[a];
+      local[(gsize) y * w + x] = count ? (integral[e] - integral[b] - integral[c] + integral[a]) / count : NAN;
+    }
+
+  Profile prof = { 0 };
+  for (guint y = 0; y < h; y++)
+    for (guint x = 0; x < w; x++) {
+      gsize i = (gsize) y * w + x;
+      double u = (double) x / period - offset;
+      u -= floor (u);
+      guint j = MIN ((guint) (u * N_BINS), N_BINS - 1);
+      if (!isnan (sum[i]) && local[i] > threshold) {
+        prof.t[j] += sum[i] / local[i];
+        prof.nt[j]++;
+      }
+      if (!(sum[i] > threshold))
+        continue;
+      prof.r[j] += (frame_sample (l0, x, y) - frame_sample (dark, x, y)) / sum[i];
+      prof.u[j] += u;
+      prof.n[j]++;
+      out->pixels++;
+    }
+  guint bins = 0;
+  for (guint j = 0; j < N_BINS; j++) {
+    if (prof.nt[j])
+      prof.t[j] /= (double) prof.nt[j];
+    bins += prof.nt[j] || prof.n[j];
+    if (prof.n[j]) {
+      prof.r[j] /= (double) prof.n[j];
+      prof.u[j] /= (double) prof.n[j];
+    } else {
+      prof.u[j] = (j + 0.5) / N_BINS;
+    }
+  }
+  /* an integer period puts the pixels at P positions in it */
+  if (bins < MIN (N_BINS / 2, (guint) period - 2) || out->pixels < 256)
+    return;
+  Fit free = fit_profile (&prof, conf->kind, period, -1, 0);
+  Fit configured = fit_profile (&prof, conf->kind, period, conf->duty, conf->black_level);
+  out->measured = TRUE;
+  out->duty = conf->kind == DS_PATTERN_SQUARE ? free.duty : 0.5;
+  out->off_level = free.level;
+  out->blur_px = free.blur;
+  out->fit_rms = free.rms;
+  out->configured_rms = configured.rms;
+  if (!centres)
+    return;
+
+  /* Stripe centres: the middle half of each phase's stripe (and of the gap between the other
+   * phase's, as the duty is at most 1/2 or at least that); each
+   * pixel's brightness against its surroundings, so that vignetting and illumination fall-off,
+   * which scattered light follows too, do not count. */
+  double window = 0.25 * MIN (out->duty, 1 - out->duty);
+  centres->off = g_new (double, npix);
+  centres->rel = g_new (double, npix);
+  for (guint y = 0; y < h; y++)
+    for (guint x = 0; x < w; x++) {
+      gsize i = (gsize) y * w + x;
+      if (!(sum[i] > threshold))
+        continue;
+      double u = (double) x / period - offset;
+      u -= floor (u);
+      gboolean centre0 = fabs (u - (u > 0.5 ? 1 : 0)) < window, centre1 = fabs (u - 0.5) < window;
+      if (!centre0 && !centre1)
+        continue;
+      double d = frame_sample (dark, x, y);
+      double lit = (centre0 ? frame_sample (l0, x, y) : frame_sample (l1, x, y)) - d;
+      double off = (centre0 ? frame_sample (l1, x, y) : frame_sample (l0, x, y)) - d;
+      if (!(lit > 0) || !(local[i] > 0))
+        continue;
+      centres->off[centres->n] = off / lit;
+      centres->rel[centres->n] = sum[i] / local[i];
+      centres->n++;
+    }
+}
+
+static double
+median_of (double *v, gsize n)
+{
+  if (n == 0)
+    return NAN;
+  qsort (v, n, sizeof (double), compare_doubles);
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+typedef struct {
+  double rel, off;
+} RelOff;
+
+static int
+compare_rel (const void *a, const void *b)
+{
+  return compare_doubles (&((const RelOff *) a)->rel, &((const RelOff *) b)->rel);
+}
+
+/* The off-stripe fraction of the dimmest and brightest third of the stripe centres (brightness
+ * relative to the surroundings). */
+static void
+dim_and_bright (const Centres *c, DsPatternCheck *out)
+{
+  if (c->n < 90)
+    return;
+  g_autofree RelOff *v = g_new (RelOff, c->n);
+  for (gsize i = 0; i < c->n; i++)
+    v[i] = (RelOff) { c->rel[i], c->off[i] };
+  qsort (v, c->n, sizeof (RelOff), compare_rel);
+  gsize third = c->n / 3;
+  g_autofree double *dim = g_new (double, third), *bright = g_new (double, third);
+  g_autofree double *rel_dim = g_new (double, third), *rel_bright = g_new (double, third);
+  for (gsize i = 0; i < third; i++) {
+    dim[i] = v[i].off;
+    rel_dim[i] = v[i].rel;
+    bright[i] = v[c->n - 1 - i].off;
+    rel_bright[i] = v[c->n - 1 - i].rel;
+  }
+  out->off_dim = median_of (dim, third);
+  out->off_bright = median_of (bright, third);
+  double rd = median_of (rel_dim, third), rb = median_of (rel_bright, third);
+  out->brightness_ratio = rd > 0 ? rb / rd : 0;
+}
+
+#define REMEDY                                                                                                   \
+  "run `descatterctl calibrate` on a clear reference (no scattering medium) and put its duty= and "           \
+  "black-level= lines into descatterd.conf's [illuminator]"
+
+gboolean
+ds_pattern_check (const DsPatternFrames *f, DsPatternCheck *out, GError **error)
+{
+  memset (out, 0, sizeof *out);
+  const DsImage *l0 = f->lit[0], *l1 = f->lit[1];
+  if (!f->dark || !l0 || !l1 || !ds_image_same_shape (l0, l1) || !ds_image_same_shape (l0, f->dark) ||
+      (f->coarse[0] && (!f->coarse[1] || !ds_image_same_shape (l0, f->coarse[0]) ||
+                        !ds_image_same_shape (l0, f->coarse[1])))) {
+    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT,
+                 "pattern check: a dark frame and pairs of phases of one size are needed");
+    return FALSE;
+  }
+  const DsStripeModel *conf = &f->configured;
+  Centres centres = { 0 };
+  check_pair (f->dark, l0, l1, conf->period_px, f->saturation_dn, conf, &out->pair[0], &centres);
+  if (f->coarse[0])
+    check_pair (f->dark, f->coarse[0], f->coarse[1], 2 * conf->period_px, f->saturation_dn, conf, &out->pair[1],
+                NULL);
+  dim_and_bright (&centres, out);
+  g_free (centres.off);
+  g_free (centres.rel);
+  const DsPatternPair *p = &out->pair[0], *q = &out->pair[1];
+  out->verdict = DS_PATTERN_MATCHES;
+  if (!p->measured)
+    return TRUE;
+  out->duty = q->measured ? q->duty : p->duty;
+  /* blur can only raise it, and blurs the stripes at 2P half as much */
+  out->off_level = q->measured ? MIN (p->off_level, q->off_level) : p->off_level;
+  const char *at = q->measured ? "at twice the period" : "at the period";
+
+  /* The duty: both pairs must disagree with it when both are measured (a duty the blur at P
+   * hides is read at 2P; the configured duty must fit neither). */
+  if (conf->kind == DS_PATTERN_SQUARE && fabs (out->duty - conf->duty) > DUTY_TOLERANCE &&
+      (!q->measured || fabs (p->duty - conf->duty) > DUTY_TOLERANCE)) {
+    out->verdict = DS_PATTERN_WRONG_DUTY;
+    g_snprintf (out->message, sizeof out->message,
+                "the configured stripe pattern does not match the frames: duty %.2f is configured, the pilot "
+                "frames show duty %.2f (%s) and an off-stripe level %.2f of the lit level (black level %.2f is "
+                "configured); scattering cannot change the duty. Predictions and the separation would rest on the "
+                "wrong pattern: " REMEDY,
+                conf->duty, out->duty, at, out->off_level, conf->black_level);
+    return TRUE;
+  }
+  if (out->off_level < conf->black_level - LEVEL_TOLERANCE) {
+    out->verdict = DS_PATTERN_WRONG_BLACK_LEVEL;
+    g_snprintf (out->message, sizeof out->message,
+                "the configured stripe pattern does not match the frames: black level %.2f is configured, the "
+                "pilot frames show an off-stripe level of only %.2f of the lit level (neither scattered light nor "
+                "blur can lower it below the black level): " REMEDY,
+                conf->black_level, out->off_level);
+    return TRUE;
+  }
+  if (out->off_level > conf->black_level + LEVEL_TOLERANCE) {
+    double excess = out->off_level - conf->black_level, tolerance = MAX (0.02, 0.15 * excess);
+    /* scattered light shows: a larger fraction on the dim parts */
+    if (out->brightness_ratio >= MIN_CONTRAST && out->off_dim - out->off_bright > tolerance)
+      return TRUE;
+    if (out->brightness_ratio >= MIN_BRIGHTNESS_RATIO && fabs (out->off_dim - out->off_bright) <= tolerance) {
+      out->verdict = DS_PATTERN_WRONG_BLACK_LEVEL;
+      g_snprintf (out->message, sizeof out->message,
+                  "the configured stripe pattern does not match the frames: black level %.2f is configured, the "
+                  "pilot frames show an off-stripe level of %.2f of the lit level, the same on dim and bright "
+                  "parts of the scene (%.2f and %.2f, brightness x%.1f apart): that is the illuminator's black "
+                  "level, not scattered light, which would be a larger fraction where the scene is dark: " REMEDY,
+                  conf->black_level, out->off_level, out->off_dim, out->off_bright, out->brightness_ratio);
+      return TRUE;
+    }
+    out->verdict = DS_PATTERN_OFF_LEVEL_ASSUMED;
+    g_snprintf (out->message, sizeof out->message,
+                "the pilot frames show an off-stripe level of %.2f of the lit level where black level %.2f is "
+                "configured; taken as scattered light (the scene has too little contrast to tell it from a "
+                "black level). If the illuminator's off stripes are not that dark, the transmissive image is "
+                "low by up to %.0f %%: " REMEDY,
+                out->off_level, conf->black_level, 100 * excess / (1 - conf->black_level));
+  }
+  return TRUE;
+}

@@ -1,0 +1,75 @@
+/* Does the configured stripe pattern match what the camera sees? A check of the automatic
+ * operating point's pilot frames (docs/accuracy.md, "Automatic operating point"), so that a
+ * duty or black level left at its default is reported as such and not blamed on scattering.
+ *
+ * Per pixel, r = (L0 - D) / (L0 + L1 - 2 D) of the two opposite phases L0, L1 and the dark
+ * frame D: the pixel's own brightness divides out, and so does any light that does not keep
+ * the stripes, except that it raises the off-stripe level. Binned by the position in the
+ * period, r is fitted by the pattern (stripe_model.h) with a duty a, an apparent off-stripe
+ * level b' and an edge blur sigma:
+ *     r = (b' + (1 - b') s(x)) / (2 b' + (1 - b') (s(x) + s(x - P/2))),  b' = (b + g) / (1 + g)
+ * g the light that does not keep the stripes relative to the direct light. So:
+ * - the duty is read from where the stripes overlap or leave gaps, which scattered light does
+ *   not move: a fitted duty far from the configured one is a wrong configuration;
+ * - b' is at least the black level: b' well below the configured b is a wrong configuration;
+ *   b' well above it is either a black level left unconfigured or scattered light. A black
+ *   level is a fixed fraction of each pixel's lit level; scattered light comes from around the
+ *   pixel, so it is a larger fraction where the scene is dark. Dim and bright pixels showing
+ *   the same off-stripe fraction is a black level; when the scene has too little contrast to
+ *   tell, the assumption (scattered light) is named in the result.
+ * Where the illuminator can change its period, the pair at 2P is checked as well (stripes twice
+ * as wide are less blurred, so the duty is read better there).
+ *
+ * Pure function, any thread; CPU only (one pass over each pair of frames). */
+#pragma once
+#include <glib.h>
+
+#include "daemon/operating/stripe_model.h"
+#include "proc/image.h"
+
+G_BEGIN_DECLS
+
+typedef enum {
+  DS_PATTERN_MATCHES = 0,        /* the frames agree with the configuration */
+  DS_PATTERN_OFF_LEVEL_ASSUMED,  /* more off-stripe light than the black level, taken as scattered
+                                    light: the scene cannot tell it from a black level */
+  DS_PATTERN_WRONG_DUTY,         /* the frames show another duty */
+  DS_PATTERN_WRONG_BLACK_LEVEL,  /* the frames show another black level */
+} DsPatternVerdict;
+
+typedef struct {
+  const DsImage *dark;           /* illuminator off */
+  const DsImage *lit[2];         /* phase 0 and phase 1/2 at the configured period */
+  const DsImage *coarse[2];      /* the same at twice the period; NULL when not available */
+  double saturation_dn;          /* samples at or above are left out; 0 = none */
+  DsStripeModel configured;      /* kind, period, duty and black level as configured */
+} DsPatternFrames;
+
+/* What one pair of opposite phases shows. */
+typedef struct {
+  gboolean measured;             /* FALSE: too few lit pixels or no stripes at this period */
+  double period_px;
+  double duty, off_level, blur_px; /* the fit: a, b', sigma */
+  double fit_rms;                /* rms of r about the fit */
+  double configured_rms;         /* rms of r about the best fit with the configured a and b' >= b */
+  guint64 pixels;
+} DsPatternPair;
+
+typedef struct {
+  DsPatternVerdict verdict;
+  DsPatternPair pair[2];         /* [0] at P, [1] at 2P */
+  double duty;                   /* what the frames show (2P when measured there) */
+  double off_level;              /* b', the lower of P and 2P (blur only raises it) */
+  double off_dim, off_bright;    /* b' of the dimmest and brightest third of the stripe centres */
+  double brightness_ratio;       /* their lit levels' ratio (>= 1); 0 when not measured */
+  char message[640];             /* for a verdict other than MATCHES: what was configured, what the
+                                    frames show and what to do */
+} DsPatternCheck;
+
+/* Fails only on frames of different shapes (INVALID_ARGUMENT); a scene that shows too little to
+ * check gives MATCHES with pair[0].measured FALSE. */
+gboolean ds_pattern_check (const DsPatternFrames *frames, DsPatternCheck *out, GError **error);
+
+const char *ds_pattern_verdict_name (DsPatternVerdict verdict);
+
+G_END_DECLS

@@ -1,0 +1,271 @@
+/* The pilot frames' pattern check (daemon/operating/pattern_check.h) against closed-form frames
+ * written here independently of the stripe model: square stripes of duty a and black level b
+ * blurred by a Gaussian and integrated over the pixel (sampled at 16 points with erf), an object
+ * of bars and discs, vignetting, scattered light made of a part that keeps the stripes (a
+ * narrow blur of the lit light) and a part that does not (a wide one), shot and read noise.
+ *
+ * No false alarm: every combination of duty, black level, blur, noise and scattering with the
+ * right configuration gives MATCHES (a scattering scene's extra off-stripe light is scattered
+ * light, as its dim parts show). Alarms: a duty 0.5 configured on stripes of 0.67 or 0.35, a
+ * black level 0 on a rig of 0.14 (with and without scattering medium), 0.2 on one of 0.05; a
+ * featureless scene cannot tell a black level from scattered light and names the assumption. */
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "daemon/operating/pattern_check.h"
+
+#define W 256
+#define H 96
+
+typedef struct {
+  double period, duty, black, blur;
+  double scatter;      /* scattered light relative to the direct light of a clear pixel */
+  double keep;         /* the part of it that keeps the stripes */
+  double photons;      /* electrons at full light: shot noise */
+  double read_e;
+  gboolean featureless;
+  guint seed;
+} Scene;
+
+static double
+lit_fraction (const Scene *s, double period, double x, double shift)
+{
+  /* the pixel [x - 1/2, x + 1/2] at 16 points; stripes centred at P (j + shift) */
+  double acc = 0, half = s->duty * period / 2;
+  for (int i = 0; i < 16; i++) {
+    double t = x - 0.5 + (i + 0.5) / 16.0;
+    double c0 = period * (floor (t / period - shift) + shift);
+    for (int j = -2; j <= 3; j++) {
+      double c = c0 + j * period;
+      if (s->blur > 0)
+        acc += 0.5 * (erf ((t - c + half) / (G_SQRT2 * s->blur)) - erf ((t - c - half) / (G_SQRT2 * s->blur)));
+      else
+        acc += fabs (t - c) < half;
+    }
+  }
+  return acc / 16;
+}
+
+static double
+transmittance (const Scene *s, guint x, guint y)
+{
+  if (s->featureless)
+    return 1.0;
+  double t = 1.0;
+  if ((x / 23) % 3 == 1)
+    t *= 0.25;
+  double dx = (double) x - 180, dy = (double) y - 48;
+  if (dx * dx + dy * dy < 30 * 30)
+    t *= 0.4;
+  if (y > 70 && x < 100)
+    t *= 0.15;
+  /* fine detail: a checkerboard of 5-pixel cells */
+  if (y < 40 && x > 60 && x < 160 && ((x / 5) + (y / 5)) % 2)
+    t *= 0.2;
+  return t;
+}
+
+/* Separable Gaussian blur of a W x H plane (edges clamped). */
+static void
+gauss_blur (double *plane, double sigma)
+{
+  int r = (int) ceil (3 * sigma);
+  g_autofree double *k = g_new (double, 2 * r + 1), *tmp = g_new (double, W * H);
+  double norm = 0;
+  for (int i = -r; i <= r; i++)
+    norm += k[i + r] = exp (-0.5 * i * i / (sigma * sigma));
+  for (int pass = 0; pass < 2; pass++) {
+    for (int y = 0; y < H; y++)
+      for (int x = 0; x < W; x++) {
+        double acc = 0;
+        for (int i = -r; i <= r; i++) {
+          int xx = pass ? x : CLAMP (x + i, 0, W - 1), yy = pass ? CLAMP (y + i, 0, H - 1) : y;
+          acc += k[i + r] * plane[yy * W + xx];
+        }
+        tmp[y * W + x] = acc / norm;
+      }
+    memcpy (plane, tmp, sizeof (double) * W * H);
+  }
+}
+
+static double
+normal (GRand *r)
+{
+  double u = g_rand_double_range (r, 1e-12, 1), v = g_rand_double (r);
+  return sqrt (-2 * log (u)) * cos (2 * G_PI * v);
+}
+
+/* A 16-bit frame of phase shift `shift` at `period` (illuminator on), or the dark frame. */
+static DsImage *
+render (const Scene *s, double period, double shift, gboolean on, GRand *rng)
+{
+  DsImage *img = ds_image_new (DS_SAMPLE_U16, W, H, NULL);
+  img->bit_depth = 16;
+  g_autofree double *direct = g_new0 (double, W * H), *narrow = g_new0 (double, W * H), *wide = g_new0 (double, W * H);
+  for (guint y = 0; y < H; y++)
+    for (guint x = 0; x < W; x++) {
+      double vignette = 1 - 0.35 * (((double) x - W / 2.0) * ((double) x - W / 2.0) / (W * W / 4.0));
+      double pattern = on ? s->black + (1 - s->black) * lit_fraction (s, period, x, shift) : 0;
+      direct[y * W + x] = vignette * transmittance (s, x, y) * pattern;
+      narrow[y * W + x] = wide[y * W + x] = vignette * pattern;
+    }
+  if (on && s->scatter > 0) {
+    gauss_blur (narrow, 0.35 * period);
+    gauss_blur (wide, 12);
+  }
+  for (guint y = 0; y < H; y++) {
+    guint16 *row = ds_image_row (img, y);
+    for (guint x = 0; x < W; x++) {
+      gsize i = y * W + x;
+      double light = direct[i] + (on ? s->scatter * (s->keep * narrow[i] + (1 - s->keep) * wide[i]) : 0);
+      double e = s->photons * light + 200; /* 200 e of dark signal */
+      double dn = e + sqrt (e + s->read_e * s->read_e) * normal (rng);
+      row[x] = (guint16) CLAMP (lround (dn * 0.5), 0, 65534);
+    }
+  }
+  return img;
+}
+
+static int failures;
+
+static void
+check (gboolean cond, const char *what)
+{
+  printf ("%s %s\n", cond ? "ok  " : "FAIL", what);
+  if (!cond)
+    failures++;
+}
+
+static DsPatternCheck
+run (const Scene *s, double conf_duty, double conf_black, gboolean coarse)
+{
+  g_autoptr (GRand) rng = g_rand_new_with_seed (s->seed);
+  g_autoptr (DsImage) dark = render (s, s->period, 0, FALSE, rng);
+  g_autoptr (DsImage) l0 = render (s, s->period, 0.1, TRUE, rng);
+  g_autoptr (DsImage) l1 = render (s, s->period, 0.6, TRUE, rng);
+  g_autoptr (DsImage) c0 = coarse ? render (s, 2 * s->period, 0.1, TRUE, rng) : NULL;
+  g_autoptr (DsImage) c1 = coarse ? render (s, 2 * s->period, 0.6, TRUE, rng) : NULL;
+  DsPatternFrames f = {
+    .dark = dark, .lit = { l0, l1 }, .coarse = { c0, c1 }, .saturation_dn = 65535,
+    .configured = { .kind = DS_PATTERN_SQUARE, .period_px = s->period, .duty = conf_duty, .black_level = conf_black },
+  };
+  DsPatternCheck c;
+  g_autoptr (GError) error = NULL;
+  if (!ds_pattern_check (&f, &c, &error)) {
+    printf ("FAIL %s\n", error->message);
+    failures++;
+    memset (&c, 0, sizeof c);
+    c.verdict = (DsPatternVerdict) -1;
+  }
+  return c;
+}
+
+static void
+describe (const Scene *s, const DsPatternCheck *c, char *buf, gsize len, double conf_duty, double conf_black)
+{
+  g_snprintf (buf, len,
+              "P %.1f a %.2f b %.2f blur %.1f scatter %.1f keep %.2f photons %.0f%s (configured a %.2f b %.2f): "
+              "%s; duty %.3f/%.3f level %.3f/%.3f dim %.3f bright %.3f x%.2f",
+              s->period, s->duty, s->black, s->blur, s->scatter, s->keep, s->photons,
+              s->featureless ? " featureless" : "", conf_duty, conf_black, ds_pattern_verdict_name (c->verdict),
+              c->pair[0].duty, c->pair[1].duty, c->pair[0].off_level, c->pair[1].off_level, c->off_dim,
+              c->off_bright, c->brightness_ratio);
+}
+
+static void
+test_no_false_alarm (void)
+{
+  guint said_scattered = 0, scattering = 0;
+  const double duties[] = { 0.3, 0.5, 0.67 }, blacks[] = { 0.0, 0.12 }, blurs[] = { 0.0, 1.5 };
+  const double photons[] = { 20000, 800 };
+  const struct {
+    double scatter, keep;
+  } media[] = { { 0, 0 }, { 0.6, 0.2 }, { 3.0, 0.1 } };
+  guint seed = 1;
+  for (guint a = 0; a < G_N_ELEMENTS (duties); a++)
+    for (guint b = 0; b < G_N_ELEMENTS (blacks); b++)
+      for (guint s = 0; s < G_N_ELEMENTS (blurs); s++)
+        for (guint m = 0; m < G_N_ELEMENTS (media); m++) {
+          guint n = seed % 2; /* the noise alternates */
+          {
+            scattering += media[m].scatter > 0;
+            Scene sc = { .period = 14, .duty = duties[a], .black = blacks[b], .blur = blurs[s],
+                         .scatter = media[m].scatter, .keep = media[m].keep, .photons = photons[n],
+                         .read_e = 10, .seed = seed++ };
+            /* two periods for the coarse pair only on half the cases: both paths are checked */
+            DsPatternCheck c = run (&sc, sc.duty, sc.black, (seed / 2) % 2 == 0);
+            char what[400];
+            describe (&sc, &c, what, sizeof what, sc.duty, sc.black);
+            /* a medium's extra off-stripe light is never called a wrong configuration; where the
+             * scene shows it is scattered light, nothing is said at all */
+            gboolean fine = sc.scatter > 0 ? c.verdict == DS_PATTERN_MATCHES || c.verdict == DS_PATTERN_OFF_LEVEL_ASSUMED
+                                           : c.verdict == DS_PATTERN_MATCHES;
+            check (fine && c.pair[0].measured, what);
+            if (sc.scatter > 0 && c.verdict == DS_PATTERN_MATCHES)
+              said_scattered++;
+          }
+        }
+  /* the object's detail shows scattered light for what it is on most scattering scenes */
+  char what[120];
+  g_snprintf (what, sizeof what, "%u of %u scattering scenes recognised as scattering (want >= 2/3)", said_scattered,
+              scattering);
+  check (3 * said_scattered >= 2 * scattering, what);
+}
+
+static void
+expect_alarm (const Scene *sc, double conf_duty, double conf_black, gboolean coarse, DsPatternVerdict want,
+       const char *must_say)
+{
+  DsPatternCheck c = run (sc, conf_duty, conf_black, coarse);
+  char what[400];
+  describe (sc, &c, what, sizeof what, conf_duty, conf_black);
+  check (c.verdict == want, what);
+  if (c.verdict == want && must_say) {
+    gboolean says = strstr (c.message, must_say) && strstr (c.message, "descatterctl calibrate") &&
+                    strstr (c.message, "black-level=");
+    printf ("     %s\n", c.message);
+    check (says, "the message names the configured value, what the frames show and the remedy");
+  }
+}
+
+static void
+test_alarms (void)
+{
+  /* gen-21-03 of the lab-user trial: no medium, duty 0.67, black level 0.14, the daemon's
+   * defaults configured */
+  Scene clear = { .period = 14, .duty = 0.67, .black = 0.14, .blur = 0.5, .photons = 5000, .read_e = 10, .seed = 101 };
+  expect_alarm (&clear, 0.5, 0.0, TRUE, DS_PATTERN_WRONG_DUTY, "duty 0.50 is configured, the pilot frames show duty 0.6");
+  expect_alarm (&clear, 0.5, 0.0, FALSE, DS_PATTERN_WRONG_DUTY, "duty 0.50 is configured");
+  Scene narrow = clear;
+  narrow.duty = 0.35;
+  narrow.black = 0.0;
+  expect_alarm (&narrow, 0.5, 0.0, TRUE, DS_PATTERN_WRONG_DUTY, "duty 0.50 is configured, the pilot frames show duty 0.3");
+  /* a black level left at 0: the same fraction on dim and bright parts of the object */
+  expect_alarm (&clear, 0.67, 0.0, TRUE, DS_PATTERN_WRONG_BLACK_LEVEL, "black level 0.00 is configured");
+  Scene murky = clear;
+  murky.scatter = 0.3;
+  murky.keep = 0.2;
+  murky.seed = 102;
+  /* with a medium in front, the black level hides in scattered light unless it dominates: a
+   * configured duty that is wrong is still seen */
+  expect_alarm (&murky, 0.5, 0.14, TRUE, DS_PATTERN_WRONG_DUTY, "duty 0.50 is configured");
+  /* a configured black level above what the frames show */
+  Scene low = clear;
+  low.black = 0.05;
+  expect_alarm (&low, 0.67, 0.2, TRUE, DS_PATTERN_WRONG_BLACK_LEVEL, "black level 0.20 is configured");
+  expect_alarm (&low, 0.67, 0.2, TRUE, DS_PATTERN_WRONG_BLACK_LEVEL, "off-stripe level of only 0.0");
+  /* a featureless clear scene: the extra off-stripe light is named as an assumption */
+  Scene plain = clear;
+  plain.featureless = TRUE;
+  expect_alarm (&plain, 0.67, 0.0, TRUE, DS_PATTERN_OFF_LEVEL_ASSUMED, "taken as scattered light");
+}
+
+int
+main (void)
+{
+  test_alarms ();
+  test_no_false_alarm ();
+  printf ("%d failure(s)\n", failures);
+  return failures ? 1 : 0;
+}
