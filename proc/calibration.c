@@ -282,6 +282,32 @@ fit_minimise (const FitData *f, double x[3], const gboolean fixed[3])
   memcpy (x, simplex[lo], 3 * sizeof (double));
 }
 
+/* How well a blurred square with a black level explains the binned profile (calibration_scatter.h:
+ * scattered light that keeps the stripes has long tails into the dark stripes that no Gaussian
+ * edge has): the fit's rms residual and the profile's standard error, both over its range. */
+static void
+profile_shape (const FitData *f, const double x[3], const double *profile_sq, DsScatterCheck *out)
+{
+  double lo = INFINITY, hi = -INFINITY, se2 = 0;
+  guint entries = 0;
+  for (guint j = 0; j < N_BINS; j++) {
+    if (!f->filled[j])
+      continue;
+    for (guint k = 0; k < f->n; k++) {
+      double m = f->profile[j * f->n + k];
+      lo = MIN (lo, m);
+      hi = MAX (hi, m);
+      se2 += MAX (0.0, profile_sq[j * f->n + k] - m * m) / f->filled[j];
+      entries++;
+    }
+  }
+  if (!entries || !(hi > lo))
+    return;
+  out->shape_residual = sqrt (fit_cost (f, x) / entries) / (hi - lo);
+  out->shape_noise = sqrt (se2 / entries) / (hi - lo);
+  ds_calibration_scatter_shape (out);
+}
+
 gboolean
 ds_calibrator_finish (DsCalibrator *c, const DsCalibrationHints *hints, DsCalibration *out, GError **error)
 {
@@ -397,8 +423,13 @@ ds_calibrator_finish (DsCalibrator *c, const DsCalibrationHints *hints, DsCalibr
   gsize used = 0;
   double sum_a = 0, sum_m = 0;
   g_autofree double *profile = g_new0 (double, (gsize) N_BINS * n);
+  g_autofree double *profile_sq = g_new0 (double, (gsize) N_BINS * n);
   g_autofree guint *filled = g_new0 (guint, N_BINS);
   g_autofree double *position = g_new0 (double, N_BINS);
+  /* per pixel, for the scattering check: brightness (mean over phases) and off/lit fraction */
+  g_autofree double *brightness = g_new (double, c->npix), *off = g_new (double, c->npix);
+  for (gsize i = 0; i < c->npix; i++)
+    brightness[i] = off[i] = NAN;
   for (guint y = 0; y < c->h; y++)
     for (guint x = 0; x < c->w; x++) {
       gsize i = (gsize) y * c->w + x;
@@ -415,21 +446,28 @@ ds_calibrator_finish (DsCalibrator *c, const DsCalibrationHints *hints, DsCalibr
       }
       if (!isfinite (mean))
         continue;
+      brightness[i] = mean;
+      off[i] = vd / vl;
       ratio_b[used] = vd / vl;
       ratio_m[used] = mean / vl;
       double pos = (double) x / period;
       guint bin = (guint) ((pos - floor (pos)) * N_BINS) % N_BINS;
       position[bin] += pos - floor (pos);
-      for (guint k = 0; k < n; k++)
-        profile[bin * n + k] += ((const float *) ds_image_row (means->pdata[k], y))[x] / mean;
+      for (guint k = 0; k < n; k++) {
+        double v = ((const float *) ds_image_row (means->pdata[k], y))[x] / mean;
+        profile[bin * n + k] += v;
+        profile_sq[bin * n + k] += v * v;
+      }
       filled[bin]++;
       sum_a += 2.0 / n * hypot (cs, sn);
       sum_m += mean;
       used++;
     }
   for (guint j = 0; j < N_BINS; j++) {
-    for (guint k = 0; k < n && filled[j]; k++)
+    for (guint k = 0; k < n && filled[j]; k++) {
       profile[j * n + k] /= filled[j];
+      profile_sq[j * n + k] /= filled[j];
+    }
     position[j] = filled[j] ? position[j] / filled[j] : 0;
   }
   if (used < 16 || !(sum_m > 0)) {
@@ -462,5 +500,38 @@ ds_calibrator_finish (DsCalibrator *c, const DsCalibrationHints *hints, DsCalibr
   out->edge_blur_px = x[2] < 1e-3 ? 0 : x[2];
   out->harmonic_gain = ds_pattern_mean (hints->pattern, out->duty, out->black_level) * sum_a / sum_m;
   out->harmonic_gain_theory = ds_harmonic_gain_theory (hints->pattern, out->duty, out->black_level);
+  ds_calibration_scatter_check (brightness, off, c->w, c->h, period, &out->scatter);
+  if (hints->pattern == DS_PATTERN_SQUARE)
+    profile_shape (&f, x, profile_sq, &out->scatter);
   return TRUE;
+}
+
+char *
+ds_calibration_scatter_warning (const DsCalibration *cal)
+{
+  const DsScatterCheck *s = &cal->scatter;
+  if (!s->scattering)
+    return NULL;
+  GString *w = g_string_new ("the reference scatters: ");
+  if (s->shape_misfit)
+    g_string_append_printf (w,
+                            "its light between the stripes is not the flat black level of blurred square stripes "
+                            "(no blurred square fits the period profile better than %.1f %% of the stripe contrast, "
+                            "where the profile's own noise is %.2f %%)",
+                            100 * s->shape_residual, 100 * s->shape_noise);
+  if (s->shape_misfit && s->spatial)
+    g_string_append (w, ", and ");
+  if (s->spatial)
+    g_string_append_printf (w,
+                            "its off-stripe light is %.3f of the lit level on its dim parts and %.3f on its bright "
+                            "ones (brightness x%.1f apart relative to their surroundings), where a black level "
+                            "would be the same fraction everywhere",
+                            s->off_dim, s->off_bright, s->brightness_contrast);
+  g_string_append_printf (w,
+                          ". Scattered light is read as black level and harmonic gain, so duty, black level %.4f, "
+                          "harmonic gain %.4f and edge blur %.2f px are not to be trusted (only the period and "
+                          "phase offset are). Calibrate on a clear reference: no scattering medium, or a thin "
+                          "clear sample",
+                          cal->black_level, cal->harmonic_gain, cal->edge_blur_px);
+  return g_string_free (w, FALSE);
 }

@@ -9,6 +9,7 @@
 #pragma once
 #include <glib.h>
 
+#include "proc/calibration_scatter.h"
 #include "proc/image.h"
 #include "proc/separation.h"
 
@@ -42,7 +43,13 @@ typedef struct {
   double edge_blur_px;        /* Gaussian sigma that makes the model's h match; 0 if the stripes
                                  are as sharp as pixels show */
   guint64 pixels_used;        /* lit, unsaturated, finite pixels the numbers come from */
+  DsScatterCheck scatter;     /* does the reference scatter? (calibration_scatter.h): then b and h
+                                 hold scattered light and are not to be used */
 } DsCalibration;
+
+/* The warning to print when the reference scatters (NULL when it does not seem to): what was
+ * seen, that b and h are not to be trusted, and to calibrate on a clear reference. */
+char *ds_calibration_scatter_warning (const DsCalibration *cal);
 
 typedef struct DsCalibrator DsCalibrator;
 

@@ -37,6 +37,72 @@ ds_calibration_add_json_members (JsonBuilder *b, const DsCalibration *cal)
   }
   json_builder_set_member_name (b, "pixels_used");
   json_builder_add_int_value (b, (gint64) cal->pixels_used);
+  /* the scattering check (calibration_scatter.h); "warning" only when the reference scatters */
+  json_builder_set_member_name (b, "scattering");
+  json_builder_begin_object (b);
+  json_builder_set_member_name (b, "suspected");
+  json_builder_add_boolean_value (b, cal->scatter.scattering);
+  json_builder_set_member_name (b, "measured");
+  json_builder_add_boolean_value (b, cal->scatter.measured);
+  json_builder_set_member_name (b, "off_level_dim");
+  json_builder_add_double_value (b, cal->scatter.off_dim);
+  json_builder_set_member_name (b, "off_level_bright");
+  json_builder_add_double_value (b, cal->scatter.off_bright);
+  json_builder_set_member_name (b, "brightness_contrast");
+  json_builder_add_double_value (b, cal->scatter.brightness_contrast);
+  json_builder_set_member_name (b, "dim_parts_brighter");
+  json_builder_add_boolean_value (b, cal->scatter.spatial);
+  json_builder_set_member_name (b, "shape_residual");
+  json_builder_add_double_value (b, cal->scatter.shape_residual);
+  json_builder_set_member_name (b, "shape_noise");
+  json_builder_add_double_value (b, cal->scatter.shape_noise);
+  json_builder_set_member_name (b, "shape_misfit");
+  json_builder_add_boolean_value (b, cal->scatter.shape_misfit);
+  json_builder_end_object (b);
+  g_autofree char *warning = ds_calibration_scatter_warning (cal);
+  if (warning) {
+    json_builder_set_member_name (b, "warning");
+    json_builder_add_string_value (b, warning);
+  }
+}
+
+/* The scattering check's object; absent (an older daemon) leaves it unmeasured. */
+static gboolean
+scatter_from_json (JsonObject *obj, DsScatterCheck *s, GError **error)
+{
+  JsonNode *node = json_object_get_member (obj, "scattering");
+  if (!node)
+    return TRUE;
+  if (!JSON_NODE_HOLDS_OBJECT (node)) {
+    g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT, "calibration: \"scattering\" is not an object");
+    return FALSE;
+  }
+  JsonObject *o = json_node_get_object (node);
+  const struct {
+    const char *key;
+    double *value;
+  } fields[] = {
+    { "off_level_dim", &s->off_dim },
+    { "off_level_bright", &s->off_bright },
+    { "brightness_contrast", &s->brightness_contrast },
+    { "shape_residual", &s->shape_residual },
+    { "shape_noise", &s->shape_noise },
+  };
+  for (guint i = 0; i < G_N_ELEMENTS (fields); i++) {
+    JsonNode *n = json_object_get_member (o, fields[i].key);
+    GType t = n && JSON_NODE_HOLDS_VALUE (n) ? json_node_get_value_type (n) : G_TYPE_INVALID;
+    if (t != G_TYPE_DOUBLE && t != G_TYPE_INT64) {
+      g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT,
+                   "calibration: \"scattering.%s\" is %s", fields[i].key, n ? "not a number" : "missing");
+      return FALSE;
+    }
+    *fields[i].value = json_node_get_double (n);
+  }
+  s->scattering = json_object_get_boolean_member_with_default (o, "suspected", FALSE);
+  s->measured = json_object_get_boolean_member_with_default (o, "measured", FALSE);
+  s->spatial = json_object_get_boolean_member_with_default (o, "dim_parts_brighter", FALSE);
+  s->shape_misfit = json_object_get_boolean_member_with_default (o, "shape_misfit", FALSE);
+  return TRUE;
 }
 
 static gboolean
@@ -101,7 +167,7 @@ ds_calibration_from_json (JsonObject *obj, DsCalibration *cal, GError **error)
     }
     G_STRUCT_MEMBER (double, cal, numbers[i].offset) = json_node_get_double (n);
   }
-  return TRUE;
+  return scatter_from_json (obj, &cal->scatter, error);
 }
 
 char *

@@ -55,10 +55,23 @@ print_lines (const char *source, const DsCalibration *cal)
   printf ("  harmonic gain   %.4f (sharp stripes: %.4f)\n", cal->harmonic_gain, cal->harmonic_gain_theory);
   printf ("  edge blur       %.2f px (Gaussian sigma)\n", cal->edge_blur_px);
   g_autofree char *lines = ds_calibration_config_lines (cal);
+  g_autofree char *warning = ds_calibration_scatter_warning (cal);
+  if (warning)
+    printf ("\n# WARNING: %s\n", warning);
   printf ("\n# descatterd.conf\n%s", lines);
   printf ("\n# descatterctl separate\n--pattern %s --period %.4f --duty %.4f --black-level %.4f "
           "--harmonic-gain %.4f --edge-blur %.2f\n",
           kind, cal->period_px, cal->duty, cal->black_level, cal->harmonic_gain, cal->edge_blur_px);
+}
+
+/* On stderr as well, so that it shows when stdout goes to a file (--quiet leaves it to the
+ * output: the comment above the lines, or the JSON's "warning"). */
+static void
+warn (const DsCalibration *cal, gboolean quiet)
+{
+  g_autofree char *warning = ds_calibration_scatter_warning (cal);
+  if (warning && !quiet)
+    fprintf (stderr, "descatterctl calibrate: warning: %s\n", warning);
 }
 
 /* *usage is set when the failure is a bad option value (exit status 2) rather than the data. */
@@ -136,6 +149,7 @@ calibrate (const char *dir, const Options *o, gboolean *usage, GError **error)
     print_json ("folder", dir, 0, &result);
   else
     print_lines (dir, &result);
+  warn (&result, o->quiet);
   return TRUE;
 }
 
@@ -181,6 +195,7 @@ calibrate_on_rig (const DsCtlTarget *target, const Options *o)
     g_autofree char *source = g_strdup_printf ("set %" G_GINT64_FORMAT " on the rig (%s)", set_id, target->address);
     print_lines (source, &cal);
   }
+  warn (&cal, o->quiet);
   return 0;
 }
 

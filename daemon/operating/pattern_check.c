@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "daemon/protocol/protocol.h"
+#include "proc/calibration_scatter.h"
 #include "proc/stripe_phase.h"
 
 #define N_BINS 40u
@@ -18,8 +19,6 @@
 /* Dim and bright stripe centres (relative to their surroundings) must differ this much in
  * brightness for the off-stripe fraction to tell a black level from scattered light. */
 #define MIN_BRIGHTNESS_RATIO 1.5
-/* ... and this much for a larger off-stripe fraction on the dim ones to show scattered light. */
-#define MIN_CONTRAST 1.1
 
 const char *
 ds_pattern_verdict_name (DsPatternVerdict v)
@@ -142,9 +141,8 @@ compare_doubles (const void *a, const void *b)
 
 /* Where the stripes lie: the first harmonic of L0 - L1 (the scene's own detail cancels). */
 static gboolean
-measure_offset (const DsImage *dark, const DsImage *l0, const DsImage *l1, double period, double *offset)
+measure_offset (const DsImage *l0, const DsImage *l1, double period, double *offset)
 {
-  (void) dark;
   g_autoptr (DsImage) diff = ds_image_new (DS_SAMPLE_F32, l0->width, l0->height, NULL);
   for (guint y = 0; y < l0->height; y++) {
     float *row = ds_image_row (diff, y);
@@ -158,9 +156,10 @@ measure_offset (const DsImage *dark, const DsImage *l0, const DsImage *l1, doubl
   return TRUE;
 }
 
+/* Per pixel of the pair at P, for the scattering check (proc/calibration_scatter.h): the sum of
+ * the phases, and the off-stripe fraction at the stripe centres (NaN elsewhere). */
 typedef struct {
-  double *off, *rel; /* stripe-centre pixels: off/lit, brightness relative to the surroundings */
-  gsize n;
+  double *brightness, *off;
 } Centres;
 
 /* One pair: the binned r profile and its fits; with centres, also the stripe-centre pixels. */
@@ -172,7 +171,7 @@ check_pair (const DsImage *dark, const DsImage *l0, const DsImage *l1, double pe
   out->period_px = period;
   guint w = l0->width, h = l0->height;
   double offset;
-  if (period <= 2 || period > w || !measure_offset (dark, l0, l1, period, &offset))
+  if (period <= 2 || period > w || !measure_offset (l0, l1, period, &offset))
     return;
   gsize npix = (gsize) w * h;
   g_autofree double *sum = g_new (double, npix);
@@ -260,16 +259,16 @@ check_pair (const DsImage *dark, const DsImage *l0, const DsImage *l1, double pe
   if (!centres)
     return;
 
-  /* Stripe centres: the middle half of each phase's stripe (and of the gap between the other
-   * phase's, as the duty is at most 1/2 or at least that); each
-   * pixel's brightness against its surroundings, so that vignetting and illumination fall-off,
-   * which scattered light follows too, do not count. */
+  /* Stripe centres: the middle half of the narrower of each phase's lit and dark runs, where
+   * one phase is fully lit and the other fully dark. */
   double window = 0.25 * MIN (out->duty, 1 - out->duty);
+  centres->brightness = g_new (double, npix);
   centres->off = g_new (double, npix);
-  centres->rel = g_new (double, npix);
   for (guint y = 0; y < h; y++)
     for (guint x = 0; x < w; x++) {
       gsize i = (gsize) y * w + x;
+      centres->brightness[i] = sum[i];
+      centres->off[i] = NAN;
       if (!(sum[i] > threshold))
         continue;
       double u = (double) x / period - offset;
@@ -280,57 +279,9 @@ check_pair (const DsImage *dark, const DsImage *l0, const DsImage *l1, double pe
       double d = frame_sample (dark, x, y);
       double lit = (centre0 ? frame_sample (l0, x, y) : frame_sample (l1, x, y)) - d;
       double off = (centre0 ? frame_sample (l1, x, y) : frame_sample (l0, x, y)) - d;
-      if (!(lit > 0) || !(local[i] > 0))
-        continue;
-      centres->off[centres->n] = off / lit;
-      centres->rel[centres->n] = sum[i] / local[i];
-      centres->n++;
+      if (lit > 0)
+        centres->off[i] = off / lit;
     }
-}
-
-static double
-median_of (double *v, gsize n)
-{
-  if (n == 0)
-    return NAN;
-  qsort (v, n, sizeof (double), compare_doubles);
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
-typedef struct {
-  double rel, off;
-} RelOff;
-
-static int
-compare_rel (const void *a, const void *b)
-{
-  return compare_doubles (&((const RelOff *) a)->rel, &((const RelOff *) b)->rel);
-}
-
-/* The off-stripe fraction of the dimmest and brightest third of the stripe centres (brightness
- * relative to the surroundings). */
-static void
-dim_and_bright (const Centres *c, DsPatternCheck *out)
-{
-  if (c->n < 90)
-    return;
-  g_autofree RelOff *v = g_new (RelOff, c->n);
-  for (gsize i = 0; i < c->n; i++)
-    v[i] = (RelOff) { c->rel[i], c->off[i] };
-  qsort (v, c->n, sizeof (RelOff), compare_rel);
-  gsize third = c->n / 3;
-  g_autofree double *dim = g_new (double, third), *bright = g_new (double, third);
-  g_autofree double *rel_dim = g_new (double, third), *rel_bright = g_new (double, third);
-  for (gsize i = 0; i < third; i++) {
-    dim[i] = v[i].off;
-    rel_dim[i] = v[i].rel;
-    bright[i] = v[c->n - 1 - i].off;
-    rel_bright[i] = v[c->n - 1 - i].rel;
-  }
-  out->off_dim = median_of (dim, third);
-  out->off_bright = median_of (bright, third);
-  double rd = median_of (rel_dim, third), rb = median_of (rel_bright, third);
-  out->brightness_ratio = rd > 0 ? rb / rd : 0;
 }
 
 #define REMEDY                                                                                                   \
@@ -355,9 +306,14 @@ ds_pattern_check (const DsPatternFrames *f, DsPatternCheck *out, GError **error)
   if (f->coarse[0])
     check_pair (f->dark, f->coarse[0], f->coarse[1], 2 * conf->period_px, f->saturation_dn, conf, &out->pair[1],
                 NULL);
-  dim_and_bright (&centres, out);
+  DsScatterCheck scatter = { 0 };
+  if (centres.off)
+    ds_calibration_scatter_check (centres.brightness, centres.off, l0->width, l0->height, conf->period_px, &scatter);
+  g_free (centres.brightness);
   g_free (centres.off);
-  g_free (centres.rel);
+  out->off_dim = scatter.off_dim;
+  out->off_bright = scatter.off_bright;
+  out->brightness_ratio = scatter.brightness_contrast;
   const DsPatternPair *p = &out->pair[0], *q = &out->pair[1];
   out->verdict = DS_PATTERN_MATCHES;
   if (!p->measured)
@@ -392,7 +348,7 @@ ds_pattern_check (const DsPatternFrames *f, DsPatternCheck *out, GError **error)
   if (out->off_level > conf->black_level + LEVEL_TOLERANCE) {
     double excess = out->off_level - conf->black_level, tolerance = MAX (0.02, 0.15 * excess);
     /* scattered light shows: a larger fraction on the dim parts */
-    if (out->brightness_ratio >= MIN_CONTRAST && out->off_dim - out->off_bright > tolerance)
+    if (scatter.spatial)
       return TRUE;
     if (out->brightness_ratio >= MIN_BRIGHTNESS_RATIO && fabs (out->off_dim - out->off_bright) <= tolerance) {
       out->verdict = DS_PATTERN_WRONG_BLACK_LEVEL;

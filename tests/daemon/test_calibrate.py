@@ -35,9 +35,14 @@ def run(*args):
     return subprocess.run(list(args), capture_output=True, text=True, timeout=120)
 
 
-def reference_scene(path):
-    out, in_illuminator = [], False
+def reference_scene(path, medium=None):
+    """SCENE with the known illuminator; with medium, its [medium] replaced by that text."""
+    out, in_illuminator, in_medium = [], False, False
     for line in open(SCENE).read().splitlines():
+        if line.startswith("["):
+            in_medium = medium is not None and line == "[medium]"
+        if in_medium:
+            continue
         if line.startswith("["):
             in_illuminator = line == "[illuminator]"
             out.append(line)
@@ -48,7 +53,7 @@ def reference_scene(path):
             continue
         out.append(line)
     with open(path, "w") as f:
-        f.write("\n".join(out) + "\n")
+        f.write("\n".join(out) + "\n" + (medium or ""))
 
 
 def close_to_truth(cal, what):
@@ -57,36 +62,84 @@ def close_to_truth(cal, what):
         check(abs(got - want) <= TOLERANCE[key], f"{what}: {key} {got:.4f} (scene {want})")
 
 
+def start_daemon(tmp, scene):
+    conf = os.path.join(tmp, "d.conf")
+    with open(conf, "w") as f:
+        f.write(f"[camera]\nbackend=sim\n[illuminator]\nbackend=sim\n[sim]\nscene={scene}\n")
+    sock = os.path.join(tmp, "d.sock")
+    log = open(os.path.join(tmp, "d.log"), "w")
+    proc = subprocess.Popen([DAEMON, "--config", conf, "--socket", sock, "--no-socket-activation"],
+                            stdout=log, stderr=subprocess.STDOUT)
+    deadline = time.time() + 120
+    while True:
+        r = run(CTL, "-a", sock, "status", "--json")
+        if r.returncode == 0 and json.loads(r.stdout)["ready"]:
+            break
+        if proc.poll() is not None or time.time() > deadline:
+            proc.terminate()
+            proc.wait(30)
+            raise AssertionError("descatterd not ready")
+        time.sleep(0.2)
+    return proc, sock, log
+
+
+def stop_daemon(tmp, proc, log):
+    proc.terminate()
+    rc = proc.wait(30)
+    log.close()
+    check(rc == 0, "descatterd exits cleanly")
+    if failures:
+        print(open(os.path.join(tmp, "d.log")).read()[-3000:])
+
+
+# A forward-scattering medium (g 0.9) in front of the reference: part of its scattered light
+# keeps the stripes and is read as black level.
+MEDIUM = "[medium]\nthickness-mm=5\nmua=0.0043\nmus=0.35\ng=0.9\nn=1.33\nphotons=100000\nseed=7\n"
+
+
+def scattering_reference():
+    """On the rig too, calibrate says when the reference scatters (the reply's "scattering" and
+    "warning", printed above the configuration lines)."""
+    with tempfile.TemporaryDirectory(prefix="ds-calibrate-") as tmp:
+        scene = os.path.join(tmp, "reference.scene")
+        reference_scene(scene, MEDIUM)
+        proc, sock, log = start_daemon(tmp, scene)
+        try:
+            r = run(CTL, "-a", sock, "calibrate", "--json", "--phases", "8")
+            check(r.returncode == 0, f"scattering reference: calibrate --json exits 0 {r.stderr.strip()}")
+            cal = json.loads(r.stdout) if r.returncode == 0 else {}
+            if cal:
+                check(cal["scattering"]["suspected"] and "the reference scatters" in cal.get("warning", ""),
+                      f"scattering reference: suspected, with a warning ({cal['scattering']})")
+                check(cal["black_level"] > 0.13, f"scattering reference: black level {cal['black_level']:.3f} "
+                      "(0.1 in the scene: what the warning is for)")
+            r = run(CTL, "-a", sock, "calibrate", "--phases", "8")
+            check(r.returncode == 0 and "# WARNING: the reference scatters" in r.stdout
+                  and "warning: the reference scatters" in r.stderr and "Calibrate on a clear reference" in r.stdout,
+                  "scattering reference: the text output and stderr warn")
+        finally:
+            stop_daemon(tmp, proc, log)
+
+
 def main():
     with tempfile.TemporaryDirectory(prefix="ds-calibrate-") as tmp:
         scene = os.path.join(tmp, "reference.scene")
         reference_scene(scene)
-        conf = os.path.join(tmp, "d.conf")
-        with open(conf, "w") as f:
-            f.write(f"[camera]\nbackend=sim\n[illuminator]\nbackend=sim\n[sim]\nscene={scene}\n")
-        sock = os.path.join(tmp, "d.sock")
-        log = open(os.path.join(tmp, "d.log"), "w")
-        proc = subprocess.Popen([DAEMON, "--config", conf, "--socket", sock, "--no-socket-activation"],
-                                stdout=log, stderr=subprocess.STDOUT)
+        proc, sock, log = start_daemon(tmp, scene)
         try:
-            deadline = time.time() + 120
-            while True:
-                r = run(CTL, "-a", sock, "status", "--json")
-                if r.returncode == 0 and json.loads(r.stdout)["ready"]:
-                    break
-                assert proc.poll() is None and time.time() < deadline, "descatterd not ready"
-                time.sleep(0.2)
-
             r = run(CTL, "-a", sock, "calibrate", "--json", "--phases", "8")
             check(r.returncode == 0, f"descatterctl calibrate --json exits 0 {r.stderr.strip()}")
             cal = json.loads(r.stdout) if r.returncode == 0 else {}
             if cal:
                 check(cal["n_phases"] == 8 and cal["period_measured"], "8 phases, period measured")
                 close_to_truth(cal, "descatterctl calibrate")
+                check(not cal["scattering"]["suspected"] and "warning" not in cal,
+                      f"a clear reference: no scattering warning ({cal['scattering']})")
 
             r = run(CTL, "-a", sock, "calibrate", "-n", "6")
             text = r.stdout
             check(r.returncode == 0 and "# descatterd.conf" in text, "the text output has the configuration block")
+            check("WARNING" not in text and "warning" not in r.stderr, "a clear reference: no warning printed")
             if r.returncode == 0:
                 block = text.split("# descatterd.conf\n", 1)[1].split("\n\n", 1)[0]
                 kf = configparser.ConfigParser()
@@ -124,12 +177,8 @@ def main():
             cal = asyncio.run(calibrate_async())
             check(cal["n_phases"] == 4 and abs(cal["period_px"] - 9.5) <= 0.01, "asyncio client calibrate")
         finally:
-            proc.terminate()
-            rc = proc.wait(30)
-            log.close()
-            check(rc == 0, "descatterd exits cleanly")
-            if failures:
-                print(open(os.path.join(tmp, "d.log")).read()[-3000:])
+            stop_daemon(tmp, proc, log)
+    scattering_reference()
     if failures:
         print(f"{len(failures)} failure(s)")
         sys.exit(1)

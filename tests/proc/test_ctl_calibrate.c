@@ -25,30 +25,56 @@ spawn (const char *const *argv, int *status)
   return g_strconcat (out ? out : "", err ? err : "", NULL);
 }
 
-/* Renders the clear scene, with the [illuminator] keys replaced; frames.json removed. */
+static char *render_scene (const char *scene_text);
+
+/* The clear scene's text with the [illuminator] keys replaced and `extra` appended. */
 static char *
-render (const char *period, const char *duty, const char *black, const char *blur)
+clear_scene (const char *period, const char *duty, const char *black, const char *blur, const char *irradiance,
+             const char *extra)
 {
   g_autofree char *text = NULL;
   g_autofree char *scene_path = g_build_filename (DS_SCENES_DIR, "clear-grid.scene", NULL);
   g_assert_true (g_file_get_contents (scene_path, &text, NULL, NULL));
-  g_autofree char *illum = g_strdup_printf ("[illuminator]\nperiod-px=%s\nduty=%s\nblack-level=%s\nedge-blur-px=%s\n",
-                                            period, duty, black, blur);
+  g_autofree char *illum = g_strdup_printf ("[illuminator]\nperiod-px=%s\nduty=%s\nblack-level=%s\nedge-blur-px=%s\n%s%s%s",
+                                            period, duty, black, blur, irradiance ? "irradiance=" : "",
+                                            irradiance ? irradiance : "", irradiance ? "\n" : "");
   /* drop the original keys of the group, keep pattern and irradiance */
   g_auto (GStrv) lines = g_strsplit (text, "\n", -1);
   GString *scene = g_string_new (NULL);
+  gboolean skip = FALSE; /* the scene's [medium] when extra brings its own */
   for (guint i = 0; lines[i]; i++) {
+    if (lines[i][0] == '[')
+      skip = extra && strstr (extra, "[medium]") && g_str_equal (lines[i], "[medium]");
+    if (skip)
+      continue;
     if (g_str_has_prefix (lines[i], "period-px=") || g_str_has_prefix (lines[i], "duty=") ||
-        g_str_has_prefix (lines[i], "black-level=") || g_str_has_prefix (lines[i], "edge-blur-px="))
+        g_str_has_prefix (lines[i], "black-level=") || g_str_has_prefix (lines[i], "edge-blur-px=") ||
+        (irradiance && g_str_has_prefix (lines[i], "irradiance=")))
       continue;
     g_string_append (scene, g_str_equal (lines[i], "[illuminator]") ? illum : lines[i]);
     if (!g_str_equal (lines[i], "[illuminator]"))
       g_string_append_c (scene, '\n');
   }
+  if (extra)
+    g_string_append (scene, extra);
+  return g_string_free (scene, FALSE);
+}
+
+/* Renders the clear scene, with the [illuminator] keys replaced; frames.json removed. */
+static char *
+render (const char *period, const char *duty, const char *black, const char *blur)
+{
+  g_autofree char *text = clear_scene (period, duty, black, blur, NULL, NULL);
+  return render_scene (text);
+}
+
+/* Renders a scene's text into DIR/set (8 phases); returns DIR. frames.json removed. */
+static char *
+render_scene (const char *scene_text)
+{
   char *dir = g_dir_make_tmp ("ds-cal-XXXXXX", NULL);
   g_autofree char *spath = g_build_filename (dir, "reference.scene", NULL);
-  g_assert_true (g_file_set_contents (spath, scene->str, -1, NULL));
-  g_string_free (scene, TRUE);
+  g_assert_true (g_file_set_contents (spath, scene_text, -1, NULL));
   g_autofree char *out = g_build_filename (dir, "set", NULL);
   const char *argv[] = { DS_SIM_BIN, "render", spath, "--phases", "8", "--out", out, "--seed", "3", NULL };
   int status;
@@ -159,6 +185,9 @@ check_scene (double period, double duty, double black, double blur)
   g_test_message ("scene P %g a %g b %g sigma %g: calibrated P %.4f a %.4f b %.4f sigma %.3f offset %.4f h %.4f", period,
                   duty, black, blur, p, a, b, s, o, h);
   g_assert_true (json_object_get_boolean_member (c, "period_measured"));
+  /* a clear reference: no scattering warning */
+  g_assert_false (json_object_get_boolean_member (json_object_get_object_member (c, "scattering"), "suspected"));
+  g_assert_false (json_object_has_member (c, "warning"));
   g_assert_cmpfloat (fabs (p / period - 1), <, 1e-3);
   g_assert_cmpfloat (fabs (a - duty), <, 0.01);
   g_assert_cmpfloat (fabs (b - black), <, 0.01);
@@ -186,6 +215,79 @@ static void
 test_narrow_blurred (void)
 {
   check_scene (9.5, 0.3, 0.1, 1.0);
+}
+
+/* The scattering check's verdict on a rendered scene, with the text output's warning (in the
+ * comment above the configuration lines and on stderr) when and only when it is suspected. */
+static gboolean
+scatters (const char *scene_text, double *black_level)
+{
+  g_autofree char *dir = render_scene (scene_text);
+  g_autofree char *set = g_build_filename (dir, "set", NULL);
+  g_autoptr (JsonParser) parser = json_parser_new ();
+  JsonObject *c = calibrate (set, parser);
+  JsonObject *sc = json_object_get_object_member (c, "scattering");
+  gboolean suspected = json_object_get_boolean_member (sc, "suspected");
+  *black_level = json_object_get_double_member (c, "black_level");
+  g_test_message ("black level %.4f, scattering suspected %d: shape residual %.4f (noise %.5f), off-stripe dim %.3f "
+                  "bright %.3f at contrast x%.2f",
+                  *black_level, suspected, json_object_get_double_member (sc, "shape_residual"),
+                  json_object_get_double_member (sc, "shape_noise"), json_object_get_double_member (sc, "off_level_dim"),
+                  json_object_get_double_member (sc, "off_level_bright"),
+                  json_object_get_double_member (sc, "brightness_contrast"));
+  g_assert_true (json_object_has_member (c, "warning") == suspected);
+  const char *argv[] = { DS_CTL_BIN, "calibrate", "--bit-depth", "12", set, NULL };
+  int status;
+  g_autofree char *out = spawn (argv, &status);
+  g_assert_true (g_spawn_check_wait_status (status, NULL));
+  g_assert_true ((strstr (out, "# WARNING: the reference scatters") != NULL) == suspected);
+  g_assert_true ((strstr (out, "descatterctl calibrate: warning: the reference scatters") != NULL) == suspected);
+  if (suspected) {
+    g_assert_nonnull (strstr (out, "not to be trusted"));
+    g_assert_nonnull (strstr (out, "Calibrate on a clear reference"));
+  }
+  test_remove_tree (dir);
+  return suspected;
+}
+
+/* Clear references of other duties, black levels, blurs and light levels (noise) never warn. */
+static void
+test_clear_never_warns (void)
+{
+  const char *cases[][5] = {
+    { "14", "0.67", "0.14", "0.5", "0.5" },
+    { "13.5", "0.42", "0.12", "1.5", "0.04" },
+    { "8.5", "0.55", "0", "0.5", "0.03" },
+    { "10.25", "0.41", "0.12", "0", "0.05" },
+  };
+  for (guint i = 0; i < G_N_ELEMENTS (cases); i++) {
+    g_autofree char *text = clear_scene (cases[i][0], cases[i][1], cases[i][2], cases[i][3], cases[i][4], NULL);
+    double b;
+    g_assert_false (scatters (text, &b));
+    g_assert_cmpfloat (fabs (b - g_ascii_strtod (cases[i][2], NULL)), <, 0.01);
+  }
+}
+
+/* References in a forward-scattering medium (g 0.9; a part of the scattered light keeps the
+ * stripes) read scattered light as black level: the calibration says so. The second is the
+ * lab-user trial's kind of scene (gen-21-00: lines and a grid that absorb, black level 0.12),
+ * over the scene's own wire grid. */
+static void
+test_scattering_warns (void)
+{
+  static const char medium[] = "\n[medium]\nthickness-mm=5\nmua=0.0043\nmus=0.35\ng=0.9\nn=1.33\nphotons=100000\n"
+                               "seed=7\n";
+  g_autofree char *grid = clear_scene ("12", "0.5", "0", "0", NULL, medium);
+  double b;
+  g_assert_true (scatters (grid, &b));
+  g_assert_cmpfloat (b, >, 0.05); /* what the check is for: the scene's black level is 0 */
+  static const char lines[] = "\n[medium]\nthickness-mm=5.3\nmua=0.088\nmus=0.35\ng=0.91\nn=1.43\nphotons=100000\n"
+                              "seed=11\n\n[object.lines]\nshape=lines\npitch=17\nline-width=2\ndepth-mm=0.33\n"
+                              "transmittance=0\n\n[object.mesh]\nshape=grid\npitch=17\nline-width=4\ndepth-mm=1.69\n"
+                              "transmittance=0\n";
+  g_autofree char *absorbing = clear_scene ("13.5", "0.42", "0.12", "1.0", NULL, lines);
+  g_assert_true (scatters (absorbing, &b));
+  g_assert_cmpfloat (b, >, 0.17);
 }
 
 /* Frames without stripes: refused with a reason. */
@@ -218,5 +320,7 @@ main (int argc, char **argv)
   g_test_add_func ("/ctl-calibrate/clear-sharp", test_clear_sharp);
   g_test_add_func ("/ctl-calibrate/narrow-blurred", test_narrow_blurred);
   g_test_add_func ("/ctl-calibrate/no-stripes", test_no_stripes);
+  g_test_add_func ("/ctl-calibrate/clear-never-warns", test_clear_never_warns);
+  g_test_add_func ("/ctl-calibrate/scattering-warns", test_scattering_warns);
   return g_test_run ();
 }
