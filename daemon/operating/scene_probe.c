@@ -243,15 +243,17 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
   /* Clip level: the given one, or a pile-up of samples at one value below it (a sensor's full
    * well reached before the ADC's top). Noise spreads unclipped values over many levels, so a
    * pile of 0.02 % of the pixels at the very top means clipping, but only when there is noise:
-   * a noise-free frame's flat top is not a clip. */
+   * a noise-free frame's flat top is not a clip. The lit frame's own noise below the top
+   * counts: a sensor with under 0.5 DN of read noise still has shot noise where it clips. */
   double clip = fr->saturation_dn > 0 ? fr->saturation_dn : INFINITY;
   out->clip_known = fr->saturation_known && fr->saturation_dn > 0;
-  for (int i = 0; i < 2 && out->noise_var0 >= 0.25; i++) {
+  for (int i = 0; i < 2; i++) {
     const DsImage *f = fr->lit[i];
     if (f->type == DS_SAMPLE_F32)
       continue;
     double top = ds_image_percentile (f, 100), near = ds_image_percentile (f, 99.98);
-    if (top > out->dark_dn && near >= top && top <= clip) {
+    double lit_noise = out->noise_var0 >= 0.25 ? INFINITY : ds_column_stats_noise_dn (f, NULL, top);
+    if (top > out->dark_dn && near >= top && top <= clip && lit_noise >= 0.5) {
       clip = top;
       out->clip_known = TRUE;
     }

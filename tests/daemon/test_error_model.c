@@ -275,6 +275,43 @@ test_probe_clip_level (void)
     ds_image_free (raw[i]);
 }
 
+/* A sensor with little read noise (0.2 DN: the dark frame alone cannot tell noise from a flat
+ * field) that clips at a full well of 1030 DN (2 sigma above the lit stripes): the lit frames' shot noise shows the pile-up,
+ * and the shot noise is then measured on the unclipped pixels (gain 0.25 DN^2/DN, not the
+ * fraction left when the clipped pixels' zero differences count). A noise-free frame's flat
+ * top is no clip. */
+static void
+test_probe_clip_quiet_sensor (void)
+{
+  for (int noisy = 0; noisy < 2; noisy++) {
+    Synth s = { { DS_PATTERN_SQUARE, 10, 0.5, 0, 0.0 }, 800, 300, 50, noisy ? 0.2 : 0.0, noisy ? 0.25 : 0.0, 0, 0.25 };
+    g_autoptr (GRand) r = g_rand_new_with_seed (13);
+    DsImage *f[3];
+    for (int i = 0; i < 3; i++) {
+      g_autoptr (DsImage) raw = synth_frame (&s, 10, i == 2 ? 0.6 : 0.1, i > 0, r);
+      f[i] = ds_image_convert_f32_clamped (raw, DS_SAMPLE_U16, noisy ? 1030 : 1100, NULL);
+      f[i]->bit_depth = 12;
+    }
+    DsProbeFrames fr = { .dark = f[0], .lit = { f[1], f[2] }, .coarse_missing = "fixed by the test",
+                         .exposure_us = 1000, .saturation_dn = 4095, .geometry = s.g };
+    DsSceneProbe p;
+    g_autoptr (GError) error = NULL;
+    g_assert_true (ds_scene_probe_measure (&fr, &p, &error));
+    g_assert_no_error (error);
+    g_assert_cmpfloat (p.noise_var0, <, 0.25);
+    if (noisy) {
+      g_assert_cmpfloat (p.saturation_dn, ==, 1030);
+      g_assert_true (p.clip_known);
+      g_assert_cmpfloat_with_epsilon (p.noise_gain, 0.25, 0.05);
+    } else {
+      g_assert_cmpfloat (p.saturation_dn, ==, 4095);
+      g_assert_false (p.clip_known);
+    }
+    for (int i = 0; i < 3; i++)
+      ds_image_free (f[i]);
+  }
+}
+
 /* A probe written by hand: the error model's inputs. */
 static DsSceneProbe
 hand_probe (double period, double duty, double ld, double lg, double var0, double gain)
@@ -486,6 +523,7 @@ main (int argc, char **argv)
   g_test_add_func ("/error-model/robust-sampling", test_error_model_robust_sampling);
   g_test_add_func ("/error-model/noise", test_error_model_noise);
   g_test_add_func ("/error-model/probe-clip-level", test_probe_clip_level);
+  g_test_add_func ("/error-model/probe-clip-quiet-sensor", test_probe_clip_quiet_sensor);
   g_test_add_func ("/error-model/clipping", test_error_model_clipping);
   g_test_add_func ("/error-model/leak", test_error_model_leak);
   return g_test_run ();
