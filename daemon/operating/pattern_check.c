@@ -289,18 +289,13 @@ check_pair (const DsImage *dark, const DsImage *l0, const DsImage *l1, double pe
   "black-level= lines into descatterd.conf's [illuminator]"
 
 gboolean
-ds_pattern_check (const DsPatternFrames *f, DsPatternCheck *out, GError **error)
+ds_pattern_check (const DsProbeFrames *f, DsPatternCheck *out, GError **error)
 {
   memset (out, 0, sizeof *out);
   const DsImage *l0 = f->lit[0], *l1 = f->lit[1];
-  if (!f->dark || !l0 || !l1 || !ds_image_same_shape (l0, l1) || !ds_image_same_shape (l0, f->dark) ||
-      (f->coarse[0] && (!f->coarse[1] || !ds_image_same_shape (l0, f->coarse[0]) ||
-                        !ds_image_same_shape (l0, f->coarse[1])))) {
-    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT,
-                 "pattern check: a dark frame and pairs of phases of one size are needed");
+  if (!ds_probe_frames_check (f, error))
     return FALSE;
-  }
-  const DsStripeModel *conf = &f->configured;
+  const DsStripeModel *conf = &f->geometry;
   Centres centres = { 0 };
   check_pair (f->dark, l0, l1, conf->period_px, f->saturation_dn, conf, &out->pair[0], &centres);
   if (f->coarse[0])

@@ -25,6 +25,7 @@
 #pragma once
 #include <glib.h>
 
+#include "daemon/operating/scene_probe.h"
 #include "daemon/operating/stripe_model.h"
 #include "proc/image.h"
 
@@ -37,14 +38,6 @@ typedef enum {
   DS_PATTERN_WRONG_DUTY,         /* the frames show another duty */
   DS_PATTERN_WRONG_BLACK_LEVEL,  /* the frames show another black level */
 } DsPatternVerdict;
-
-typedef struct {
-  const DsImage *dark;           /* illuminator off */
-  const DsImage *lit[2];         /* phase 0 and phase 1/2 at the configured period */
-  const DsImage *coarse[2];      /* the same at twice the period; NULL when not available */
-  double saturation_dn;          /* samples at or above are left out; 0 = none */
-  DsStripeModel configured;      /* kind, period, duty and black level as configured */
-} DsPatternFrames;
 
 /* What one pair of opposite phases shows. */
 typedef struct {
@@ -67,9 +60,11 @@ typedef struct {
                                     frames show and what to do */
 } DsPatternCheck;
 
-/* Fails only on frames of different shapes (INVALID_ARGUMENT); a scene that shows too little to
- * check gives MATCHES with pair[0].measured FALSE. */
-gboolean ds_pattern_check (const DsPatternFrames *frames, DsPatternCheck *out, GError **error);
+/* The probe's pilot frames: dark, lit and coarse, saturation_dn (samples at or above are left
+ * out; 0 = none) and geometry (kind, period, duty and black level as configured); the rest is
+ * not read. Fails only where ds_probe_frames_check does (BAD_ARGUMENT); a scene that shows too
+ * little to check gives MATCHES with pair[0].measured FALSE. */
+gboolean ds_pattern_check (const DsProbeFrames *frames, DsPatternCheck *out, GError **error);
 
 const char *ds_pattern_verdict_name (DsPatternVerdict verdict);
 

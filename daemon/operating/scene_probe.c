@@ -225,13 +225,8 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
 {
   memset (out, 0, sizeof *out);
   const DsImage *l0 = fr->lit[0], *l1 = fr->lit[1];
-  if (!fr->dark || !l0 || !l1 || !ds_image_same_shape (l0, l1) || !ds_image_same_shape (l0, fr->dark) ||
-      (fr->coarse[0] && (!fr->coarse[1] || !ds_image_same_shape (l0, fr->coarse[0]) ||
-                         !ds_image_same_shape (l0, fr->coarse[1])))) {
-    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_FAILED,
-                 "pilot frames: a dark frame and two phases of one size are needed");
+  if (!ds_probe_frames_check (fr, error))
     return FALSE;
-  }
   out->geometry = fr->geometry;
   out->exposure_us = fr->exposure_us;
   out->width = l0->width;

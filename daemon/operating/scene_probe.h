@@ -68,6 +68,11 @@ typedef struct {
   double calibrated_blur_px;      /* Gaussian sigma (descatterctl calibrate); wins over the gain's */
 } DsProbeFrames;
 
+/* The frames' shape, as both the probe and the pattern check need it: a dark frame and the pair
+ * at P, the pair at 2P whole or absent, all of one size and sample type. Fails with
+ * DS_PROTOCOL_ERROR_BAD_ARGUMENT naming the frame that is missing or differs. Any thread. */
+gboolean ds_probe_frames_check (const DsProbeFrames *frames, GError **error);
+
 typedef struct {
   DsStripeModel geometry;      /* with the blur found */
   DsBlurSource blur_source;

@@ -71,12 +71,8 @@ coarse_frames (DsSequencer *seq, const DsCaptureSettings *s, DsFrameCounters *c,
 static gboolean
 pattern_matches (const DsProbeFrames *pf, GError **error)
 {
-  DsPatternFrames frames = {
-    .dark = pf->dark, .lit = { pf->lit[0], pf->lit[1] }, .coarse = { pf->coarse[0], pf->coarse[1] },
-    .saturation_dn = pf->saturation_dn, .configured = pf->geometry,
-  };
   DsPatternCheck check;
-  if (!ds_pattern_check (&frames, &check, error))
+  if (!ds_pattern_check (pf, &check, error))
     return FALSE;
   switch (check.verdict) {
   case DS_PATTERN_MATCHES:

@@ -14,6 +14,8 @@
 #include <string.h>
 
 #include "daemon/operating/pattern_check.h"
+#include "daemon/operating/scene_probe.h"
+#include "daemon/protocol/protocol.h"
 
 #define W 256
 #define H 96
@@ -146,9 +148,9 @@ run (const Scene *s, double conf_duty, double conf_black, gboolean coarse)
   g_autoptr (DsImage) l1 = render (s, s->period, 0.6, TRUE, rng);
   g_autoptr (DsImage) c0 = coarse ? render (s, 2 * s->period, 0.1, TRUE, rng) : NULL;
   g_autoptr (DsImage) c1 = coarse ? render (s, 2 * s->period, 0.6, TRUE, rng) : NULL;
-  DsPatternFrames f = {
+  DsProbeFrames f = {
     .dark = dark, .lit = { l0, l1 }, .coarse = { c0, c1 }, .saturation_dn = 65535,
-    .configured = { .kind = DS_PATTERN_SQUARE, .period_px = s->period, .duty = conf_duty, .black_level = conf_black },
+    .geometry = { .kind = DS_PATTERN_SQUARE, .period_px = s->period, .duty = conf_duty, .black_level = conf_black },
   };
   DsPatternCheck c;
   g_autoptr (GError) error = NULL;
@@ -261,9 +263,65 @@ test_alarms (void)
   expect_alarm (&plain, 0.67, 0.0, TRUE, DS_PATTERN_OFF_LEVEL_ASSUMED, "taken as scattered light");
 }
 
+/* The probe and the pattern check refuse the same malformed pilot frames with the same error,
+ * which names the frame at fault; well-formed frames pass both shape checks. */
+static void
+test_frame_shapes (void)
+{
+  g_autoptr (DsImage) a = ds_image_new (DS_SAMPLE_U16, W, H, NULL);
+  g_autoptr (DsImage) b = ds_image_new (DS_SAMPLE_U16, W, H, NULL);
+  g_autoptr (DsImage) c = ds_image_new (DS_SAMPLE_U16, W, H, NULL);
+  g_autoptr (DsImage) narrow = ds_image_new (DS_SAMPLE_U16, W / 2, H, NULL);
+  g_autoptr (DsImage) flt = ds_image_new (DS_SAMPLE_F32, W, H, NULL);
+  const DsStripeModel geometry = { .kind = DS_PATTERN_SQUARE, .period_px = 8, .duty = 0.5 };
+  struct {
+    DsProbeFrames f;
+    const char *names; /* what the error must name; NULL: accepted */
+  } cases[] = {
+    { { .dark = a, .lit = { b, c }, .geometry = geometry }, NULL },
+    { { .dark = a, .lit = { b, c }, .coarse = { b, c }, .geometry = geometry }, NULL },
+    { { .lit = { b, c }, .geometry = geometry }, "dark frame is missing" },
+    { { .dark = a, .lit = { b, NULL }, .geometry = geometry }, "phase-1/2 frame at the period is missing" },
+    { { .dark = a, .lit = { narrow, c }, .geometry = geometry }, "phase-0 frame at the period is 128x96" },
+    { { .dark = a, .lit = { b, flt }, .geometry = geometry }, "phase-1/2 frame at the period is 256x96 f32" },
+    { { .dark = a, .lit = { b, c }, .coarse = { b, NULL }, .geometry = geometry },
+      "phase-1/2 frame at twice the period is missing" },
+    { { .dark = a, .lit = { b, c }, .coarse = { NULL, c }, .geometry = geometry },
+      "phase-0 frame at twice the period is missing" },
+    { { .dark = a, .lit = { b, c }, .coarse = { b, narrow }, .geometry = geometry },
+      "phase-1/2 frame at twice the period is 128x96" },
+  };
+  for (guint i = 0; i < G_N_ELEMENTS (cases); i++) {
+    g_autoptr (GError) e_check = NULL, e_probe = NULL, e_shape = NULL;
+    DsPatternCheck pc;
+    DsSceneProbe probe;
+    gboolean shape_ok = ds_probe_frames_check (&cases[i].f, &e_shape);
+    gboolean check_ok = ds_pattern_check (&cases[i].f, &pc, &e_check);
+    gboolean probe_ok = ds_scene_probe_measure (&cases[i].f, &probe, &e_probe);
+    char what[160];
+    g_snprintf (what, sizeof what, "frame shapes case %u: %s", i, cases[i].names ? cases[i].names : "accepted");
+    if (!cases[i].names) {
+      /* Blank frames show no stripes: the probe may refuse them, but not for their shape. */
+      check (shape_ok && check_ok && (probe_ok || !g_error_matches (e_probe, DS_PROTOCOL_ERROR,
+                                                                    DS_PROTOCOL_ERROR_BAD_ARGUMENT)),
+             what);
+      continue;
+    }
+    check (!shape_ok && !check_ok && !probe_ok &&
+               g_error_matches (e_check, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT) &&
+               g_error_matches (e_probe, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT) &&
+               strcmp (e_check->message, e_shape->message) == 0 && strcmp (e_probe->message, e_shape->message) == 0 &&
+               strstr (e_shape->message, cases[i].names) != NULL,
+           what);
+    if (e_shape)
+      printf ("     %s\n", e_shape->message);
+  }
+}
+
 int
 main (void)
 {
+  test_frame_shapes ();
   test_alarms ();
   test_no_false_alarm ();
   printf ("%d failure(s)\n", failures);

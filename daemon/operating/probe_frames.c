@@ -1,0 +1,40 @@
+/* The one check of the pilot frames' shape, shared by the scene probe and the pattern check so
+ * that both refuse the same inputs with the same error. */
+#include "daemon/operating/scene_probe.h"
+
+#include "daemon/protocol/protocol.h"
+
+static gboolean
+frame_fits (const DsImage *frame, const char *name, const DsImage *dark, GError **error)
+{
+  if (!frame) {
+    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT, "pilot frames: the %s is missing", name);
+    return FALSE;
+  }
+  if (!ds_image_same_shape (frame, dark)) {
+    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT,
+                 "pilot frames: the %s is %ux%u %s, the dark frame %ux%u %s: all pilot frames must "
+                 "have one size and sample type",
+                 name, frame->width, frame->height, ds_sample_type_name (frame->type), dark->width, dark->height,
+                 ds_sample_type_name (dark->type));
+    return FALSE;
+  }
+  return TRUE;
+}
+
+gboolean
+ds_probe_frames_check (const DsProbeFrames *fr, GError **error)
+{
+  if (!fr->dark) {
+    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT, "pilot frames: the dark frame is missing");
+    return FALSE;
+  }
+  if (!frame_fits (fr->lit[0], "phase-0 frame at the period", fr->dark, error) ||
+      !frame_fits (fr->lit[1], "phase-1/2 frame at the period", fr->dark, error))
+    return FALSE;
+  /* The pair at 2P is optional, but never half of it. */
+  if (fr->coarse[0] || fr->coarse[1])
+    return frame_fits (fr->coarse[0], "phase-0 frame at twice the period", fr->dark, error) &&
+           frame_fits (fr->coarse[1], "phase-1/2 frame at twice the period", fr->dark, error);
+  return TRUE;
+}
