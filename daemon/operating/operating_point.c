@@ -502,6 +502,8 @@ ds_operating_report_to_json (const DsOperatingReport *r, JsonBuilder *b)
       pr->geometry.period_px, MIN (DS_ERROR_MODEL_UNKNOWN_BLUR_PX, pr->geometry.period_px / 8));
     json_builder_add_string_value (b, note);
   }
+  if (r->pattern_assumption[0])
+    json_builder_add_string_value (b, r->pattern_assumption);
   json_builder_end_array (b);
   json_builder_set_member_name (b, "scene");
   json_builder_begin_object (b);

@@ -78,6 +78,10 @@ typedef struct {
   DsSceneProbe probe;
   guint pilot_frames;
   double pilot_ms;
+  /* The pattern check's assumption (daemon/operating/pattern_check.h: off-stripe light the
+   * scene cannot tell from a black level, taken as scattered light): its message, "" when the
+   * frames needed none. Listed in `assumptions`. */
+  char pattern_assumption[640];
 } DsOperatingReport;
 
 /* Adds the report's members to the object being built: the request, the choice, the predicted

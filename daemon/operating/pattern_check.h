@@ -16,8 +16,8 @@
  *   level is a fixed fraction of each pixel's lit level; scattered light comes from around the
  *   pixel, so it is a larger fraction where the scene is dark. Dim and bright pixels showing
  *   the same off-stripe fraction is a black level; when the scene has too little contrast to
- *   tell, the light is taken as scattered and descatterd's log names that assumption (not yet
- *   the result's operating_point.assumptions).
+ *   tell, the light is taken as scattered; descatterd's log and the result's
+ *   operating_point.assumptions name that assumption.
  * Where the illuminator can change its period, the pair at 2P is checked as well (stripes twice
  * as wide are less blurred, so the duty is read better there).
  *

@@ -67,9 +67,9 @@ coarse_frames (DsSequencer *seq, const DsCaptureSettings *s, DsFrameCounters *c,
 
 /* A duty or black level the pilot frames contradict is refused as what it is, not predicted as
  * scattering (daemon/operating/pattern_check.h); an off-stripe level the scene cannot attribute
- * is taken as scattered light, and the log says so. */
+ * is taken as scattered light, and the log and the result's assumptions say so. */
 static gboolean
-pattern_matches (const DsProbeFrames *pf, GError **error)
+pattern_matches (const DsProbeFrames *pf, DsOperatingReport *report, GError **error)
 {
   DsPatternCheck check;
   if (!ds_pattern_check (pf, &check, error))
@@ -79,6 +79,7 @@ pattern_matches (const DsProbeFrames *pf, GError **error)
     return TRUE;
   case DS_PATTERN_OFF_LEVEL_ASSUMED:
     g_message ("automatic operating point: %s", check.message);
+    g_strlcpy (report->pattern_assumption, check.message, sizeof report->pattern_assumption);
     return TRUE;
   case DS_PATTERN_WRONG_DUTY:
   case DS_PATTERN_WRONG_BLACK_LEVEL:
@@ -142,10 +143,10 @@ ds_seq_choose_operating_point (DsSequencer *seq, DsCaptureSettings *s, DsFrameCo
     pf.saturation_dn = MIN (pf.saturation_dn, s->saturation_dn);
     pf.saturation_known = TRUE;
   }
-  if (!pattern_matches (&pf, error))
-    return FALSE;
   DsOperatingReport *r = &s->operating;
   memset (r, 0, sizeof *r);
+  if (!pattern_matches (&pf, r, error))
+    return FALSE;
   if (!ds_scene_probe_measure (&pf, &r->probe, error))
     return FALSE;
   DsSeparationParams params;

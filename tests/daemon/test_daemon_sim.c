@@ -304,6 +304,48 @@ test_automatic_operating_point (void)
   test_daemon_free (d);
 }
 
+/* A featureless milky medium (no objects) with an illuminator of black level 0: its scattered
+ * light raises the off-stripe level, and with no dim and bright parts to compare the pilot's
+ * pattern check cannot tell it from a black level left unconfigured. It takes it as scattered
+ * light, and the result's operating_point.assumptions says so (daemon/operating/pattern_check.h). */
+static void
+test_automatic_assumption_in_result (void)
+{
+  g_autofree char *dir = g_dir_make_tmp ("featureless-XXXXXX", NULL);
+  g_autofree char *scene_path = g_build_filename (dir, "featureless.scene", NULL);
+  const char *scene_text = "[scene]\nname=featureless\n"
+                           "[sensor]\nwidth=128\nheight=64\nbit-depth=12\npixel-pitch-um=5\n"
+                           "quantum-efficiency=0.4\nsystem-gain=0.25\nread-noise-e=6\ndark-current-e-per-s=20\n"
+                           "full-well-e=20000\nexposure-us=5000\n"
+                           "[illuminator]\npattern=square\nperiod-px=12\nduty=0.5\nirradiance=0.5\n"
+                           "[medium]\nthickness-mm=10\nmua=0.002\nmus=0.3\ng=0.7\nn=1.33\nmodel=monte-carlo\n"
+                           "photons=200000\n"
+                           "[camera]\nmagnification=0.05\nacceptance-half-angle-deg=10\n";
+  g_assert_true (g_file_set_contents (scene_path, scene_text, -1, NULL));
+  g_autofree char *conf = g_strdup_printf ("[camera]\nbackend=sim\n[illuminator]\nbackend=sim\n"
+                                           "[sim]\nscene=%s\nseed=7\n", scene_path);
+  TestDaemon *d = test_daemon_start (conf, NULL);
+  g_autoptr (DsClient) c = test_daemon_connect (d);
+  g_autoptr (JsonObject) args = json_object_new ();
+  json_object_set_double_member (args, "target_error", 0.2);
+  g_autoptr (DsMessage) m = test_daemon_call_ok (c, "capture", args);
+  JsonObject *settings = json_object_get_object_member (json_node_get_object (m->reply->body), "settings");
+  JsonObject *op = json_object_get_object_member (settings, "operating_point");
+  g_assert_nonnull (op);
+  JsonArray *assumed = json_object_get_array_member (op, "assumptions");
+  gboolean named = FALSE;
+  for (guint i = 0; i < json_array_get_length (assumed); i++) {
+    const char *a = json_array_get_string_element (assumed, i);
+    g_test_message ("assumption: %s", a);
+    named |= strstr (a, "taken as scattered light") != NULL && strstr (a, "black level 0.00 is configured") != NULL;
+  }
+  g_assert_true (named);
+  g_assert_cmpint (test_daemon_stop (d), ==, 0);
+  test_daemon_free (d);
+  g_unlink (scene_path);
+  g_rmdir (dir);
+}
+
 int
 main (int argc, char **argv)
 {
@@ -314,5 +356,6 @@ main (int argc, char **argv)
   g_test_add_func ("/daemon-sim/reload", test_reload);
   g_test_add_func ("/daemon-sim/sigterm-mid-set", test_sigterm_mid_set_leaves_whole_files);
   g_test_add_func ("/daemon-sim/automatic-operating-point", test_automatic_operating_point);
+  g_test_add_func ("/daemon-sim/automatic-assumption-in-result", test_automatic_assumption_in_result);
   return g_test_run ();
 }

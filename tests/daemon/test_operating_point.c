@@ -145,6 +145,17 @@ test_report_json (void)
   g_assert_cmpuint (json_array_get_length (why), ==, 1);
   g_assert_nonnull (strstr (json_array_get_string_element (why, 0), "no second period"));
   g_assert_cmpfloat (json_object_get_double_member (json_object_get_object_member (o, "parts"), "noise"), ==, 0.03);
+  /* The probe measured the blur: no assumption listed; the pattern check's, when it made one. */
+  g_assert_cmpuint (json_array_get_length (json_object_get_array_member (o, "assumptions")), ==, 0);
+  g_strlcpy (r.pattern_assumption, "off-stripe level taken as scattered light", sizeof r.pattern_assumption);
+  g_autoptr (JsonBuilder) b2 = json_builder_new ();
+  json_builder_begin_object (b2);
+  ds_operating_report_to_json (&r, b2);
+  json_builder_end_object (b2);
+  g_autoptr (JsonNode) root2 = json_builder_get_root (b2);
+  JsonArray *assumed = json_object_get_array_member (json_node_get_object (root2), "assumptions");
+  g_assert_cmpuint (json_array_get_length (assumed), ==, 1);
+  g_assert_cmpstr (json_array_get_string_element (assumed, 0), ==, "off-stripe level taken as scattered light");
 }
 
 static void
