@@ -107,17 +107,17 @@ ensure_normals (DsErrorModel *m, guint frames)
 #define TABLE 4096u
 
 static const double *
-pattern_table (DsErrorModel *m, double period, gboolean leak)
+pattern_table (DsErrorModel *m, double period, double leak)
 {
-  g_autofree char *key = g_strdup_printf ("%.9g/%d", period, leak);
+  g_autofree char *key = g_strdup_printf ("%.9g/%g", period, leak);
   double *table = g_hash_table_lookup (m->tables, key);
   if (table)
     return table;
   DsStripeModel g = m->probe.geometry;
   g.period_px = period;
   double leak_c[SYN_LEAK_HARMONICS + 1] = { 0 };
-  for (guint h = 1; h <= SYN_LEAK_HARMONICS && leak; h++)
-    leak_c[h] = ds_scene_probe_leak (&m->probe, period, h) * ds_stripe_harmonic (&g, h);
+  for (guint h = 1; h <= SYN_LEAK_HARMONICS && leak != 0; h++)
+    leak_c[h] = leak * ds_scene_probe_leak (&m->probe, period, h) * ds_stripe_harmonic (&g, h);
   table = g_new (double, TABLE + 1);
   for (guint i = 0; i <= TABLE; i++) {
     double u = (double) i / TABLE, v = ds_stripe_value (&g, 0, -u);
@@ -132,14 +132,15 @@ pattern_table (DsErrorModel *m, double period, gboolean leak)
 
 static const DsEstimator estimators[N_EST] = { DS_ESTIMATOR_MAXMIN, DS_ESTIMATOR_SINE, DS_ESTIMATOR_ROBUST };
 
-/* One synthetic set per estimator at (N, M, exposure factor, period); noise and the scattered
- * stripes on or off. Returns the cached result. */
+/* One synthetic set per estimator at (N, M, exposure factor, period); noise on or off, the
+ * scattered stripes at `leak` times the probe's (0: none). Returns the cached result. */
 static const SetResult *
 run_sets (DsErrorModel *m, guint n, guint averages, double factor, double period, gboolean noise,
-          gboolean leak)
+          double leak)
 {
-  g_autofree char *key = g_strdup_printf ("%u/%u/%.6g/%.6g/%d/%d", n, noise ? averages : 0,
-                                          noise ? factor : 0, period, noise, leak);
+  /* Noise-free sets too are per exposure: clipping is systematic. */
+  g_autofree char *key = g_strdup_printf ("%u/%u/%.6g/%.6g/%d/%g", n, noise ? averages : 0, factor,
+                                          period, noise, leak);
   SetResult *res = g_hash_table_lookup (m->cache, key);
   if (res)
     return res;
@@ -268,20 +269,34 @@ ds_error_model_predict (DsErrorModel *m, DsEstimator estimator, guint phases, gu
     g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT, "error model: no such configuration");
     return FALSE;
   }
-  const SetResult *total = run_sets (m, phases, averages, exposure_factor, period, TRUE, TRUE);
+  const SetResult *total = run_sets (m, phases, averages, exposure_factor, period, TRUE, 1);
   if (!total->valid[e]) {
     g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT, "%s",
                  total->refusal[e] ? total->refusal[e] : "no valid pixel in the synthetic set");
     return FALSE;
   }
-  const SetResult *sys = run_sets (m, phases, 1, 1, period, FALSE, TRUE);
-  const SetResult *samp = run_sets (m, phases, 1, 1, period, FALSE, FALSE);
+  const SetResult *sys = run_sets (m, phases, 1, exposure_factor, period, FALSE, 1);
+  const SetResult *samp = run_sets (m, phases, 1, exposure_factor, period, FALSE, 0);
   out->total = total->error[e];
   out->systematic = sys->error[e];
   out->sampling = samp->error[e];
   double d = out->systematic * out->systematic - out->sampling * out->sampling;
   out->scattered_stripes = d >= 0 ? sqrt (d) : -sqrt (-d);
   out->noise = sqrt (MAX (0.0, out->total * out->total - out->systematic * out->systematic));
+  out->cancellation = 0;
+  if (out->systematic < out->sampling) {
+    /* The scattered stripes cancel part of the sampling error. The remainder is only as good as
+     * the leak, which the two-period probe knows to within its own size (scene_probe.h: read at
+     * x0.1 to x2 of the kernel's truth on media it cannot resolve), and an error that rests on
+     * two large parts cancelling is not known to better than the parts. Over leaks from none to
+     * twice the measured one, the noise-free error sqrt (mean (a + s b)^2) is convex in the leak
+     * s (the estimators are near linear in a small leak), so its worst is at an end: the
+     * prediction takes that, max (E (0), E (2)), and says by how much it exceeds E (1). */
+    const SetResult *twice = run_sets (m, phases, 1, exposure_factor, period, FALSE, 2);
+    double worst = MAX (out->sampling, twice->valid[e] ? twice->error[e] : 0.0);
+    out->cancellation = worst - out->systematic;
+    out->total = sqrt (out->noise * out->noise + worst * worst);
+  }
   DsErrorParts alt;
   if (m->blurred && ds_error_model_predict (m->blurred, estimator, phases, averages, exposure_factor, period_px, &alt, NULL) &&
       alt.total > out->total)

@@ -12,9 +12,14 @@
  *
  * Parts (each a relative RMSE):
  *   sampling   noise-free, without scattered stripes: pattern against estimator (blur, pixel
- *              aperture, aN and (1 - a)N, harmonic gain and sine's per-pixel ripple);
+ *              aperture, aN and (1 - a)N, harmonic gain and sine's per-pixel ripple), and
+ *              clipping at the exposure;
  *   systematic noise-free with scattered stripes;
  *   noise      sqrt(total^2 - systematic^2): shot and read noise, and max/min's bias from them.
+ * total is the noisy set's error, except where the scattered stripes cancel part of the sampling
+ * error (systematic < sampling): the leak is not known well enough to rely on that, so total is
+ * then sqrt (noise^2 + worst^2), worst the larger noise-free error of no leak and twice the
+ * probe's leak (`cancellation` says how much that adds to systematic).
  *
  * When the probe could not find the stripes' blur (DS_BLUR_ASSUMED_SHARP), every prediction is
  * the worse of the sharp pattern and one blurred by DS_ERROR_MODEL_UNKNOWN_BLUR_PX (at most P/8):
@@ -37,6 +42,9 @@ typedef struct {
   double systematic;    /* sampling and scattered stripes together */
   double sampling;
   double scattered_stripes; /* sqrt(|systematic^2 - sampling^2|), signed: < 0 when it cancels sampling */
+  double cancellation;  /* > 0 when the scattered stripes cancel part of the sampling error: how
+                           much more systematic error total holds than `systematic`, the worst of
+                           no leak and twice the probe's (a cancellation is not trusted as exact) */
 } DsErrorParts;
 
 typedef struct DsErrorModel DsErrorModel;

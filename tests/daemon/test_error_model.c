@@ -486,6 +486,37 @@ test_error_model_clipping (void)
   g_assert_false (ds_error_model_predict (m, DS_ESTIMATOR_MAXMIN, 12, 1, 2, 0, &parts, &error));
 }
 
+/* A leak that cancels part of the sampling error: sine on a pixel-integrating sensor reads
+ * (1 + L) sinc(1/P) - 1 (test_error_model_leak), below the sampling error 1 - sinc(1/P) for
+ * 0 < L < 2 (1/sinc - 1). The prediction takes the worse end of leaks from none to 2L,
+ * max(1 - sinc, (1 + 2L) sinc - 1): with L at the exact cancellation, the sampling error; with
+ * L at 3/4 of the way to the overshoot, the doubled leak's. */
+static void
+test_error_model_cancellation (void)
+{
+  const double P = 12, s = sin (G_PI / P) / (G_PI / P);
+  const double cases[] = { 1 / s - 1, 1.5 * (1 / s - 1) };
+  for (guint i = 0; i < G_N_ELEMENTS (cases); i++) {
+    double L = cases[i];
+    DsSceneProbe p = hand_probe (P, 0.5, 500, 3000, 0, 0);
+    p.leak_per_px = log1p (L) / P;
+    DsSeparationParams sp = params_of (&p);
+    g_autoptr (DsErrorModel) m = ds_error_model_new (&p, &sp);
+    DsErrorParts parts;
+    g_autoptr (GError) error = NULL;
+    g_assert_true (ds_error_model_predict (m, DS_ESTIMATOR_SINE, 32, 1, 1, 0, &parts, &error));
+    double sys = fabs ((1 + L) * s - 1), worst = MAX (1 - s, (1 + 2 * L) * s - 1);
+    g_test_message ("leak %.4f: systematic %.5f (closed form %.5f), total %.5f (worst end %.5f)", L,
+                    parts.systematic, sys, parts.total, worst);
+    /* Within the per-pixel ripple the closed form leaves out (higher harmonics aliased at N = 32). */
+    g_assert_cmpfloat_with_epsilon (parts.systematic, sys, 0.15 * (1 - s));
+    g_assert_cmpfloat_with_epsilon (parts.sampling, 1 - s, 0.05 * (1 - s));
+    g_assert_cmpfloat (parts.scattered_stripes, <, 0);
+    g_assert_cmpfloat_with_epsilon (parts.total, worst, 0.05 * worst);
+    g_assert_cmpfloat_with_epsilon (parts.cancellation, parts.total - parts.systematic, 0.05 * worst);
+  }
+}
+
 /* The scattered stripes: sine sees the first harmonic raised by the leak L and lowered by the
  * pixel's aperture sinc(1/P) against its theoretical gain, so its relative error is
  * (1 + L) sinc(1/P) - 1 (N large enough to ignore aliasing). */
@@ -502,6 +533,9 @@ test_error_model_leak (void)
   double leak = expm1 (0.02 * 12), aperture = sin (G_PI / 12) / (G_PI / 12);
   g_assert_cmpfloat_with_epsilon (parts.systematic, (1 + leak) * aperture - 1, 0.01 * leak);
   g_assert_cmpfloat (parts.scattered_stripes, >, 0.9 * leak);
+  /* It adds to the sampling error: the prediction rests on no cancellation. */
+  g_assert_cmpfloat (parts.cancellation, ==, 0);
+  g_assert_cmpfloat_with_epsilon (parts.total, parts.systematic, 1e-9);
   /* At half the period the leak shrinks as the model says. */
   g_assert_true (ds_error_model_predict (m, DS_ESTIMATOR_SINE, 32, 1, 1, 6, &parts, &error));
   g_assert_cmpfloat (parts.scattered_stripes, <, 0.6 * leak);
@@ -526,5 +560,6 @@ main (int argc, char **argv)
   g_test_add_func ("/error-model/probe-clip-quiet-sensor", test_probe_clip_quiet_sensor);
   g_test_add_func ("/error-model/clipping", test_error_model_clipping);
   g_test_add_func ("/error-model/leak", test_error_model_leak);
+  g_test_add_func ("/error-model/cancellation", test_error_model_cancellation);
   return g_test_run ();
 }
