@@ -94,6 +94,7 @@ typedef struct {
   double read_dn, gain;    /* noise: read sigma, shot variance per DN */
   double leak_per_px;      /* the scattered light's transfer of a harmonic of period x: exp(a x) - 1 */
   double blocked;          /* fraction of the rows with Ld = 0 (an object) */
+  double bright, ld_bright; /* fraction of the rows (the last ones) with Ld = ld_bright instead */
 } Synth;
 
 /* Frame of phase `shift` at `period`: the pattern's Fourier series (independent of
@@ -119,7 +120,7 @@ synth_frame (const Synth *s, double period, double shift, gboolean on, GRand *r)
   }
   for (guint y = 0; y < h; y++) {
     float *row = ds_image_row (f, y);
-    double ld = y < s->blocked * h ? 0 : s->ld;
+    double ld = y < s->blocked * h ? 0 : y >= (1 - s->bright) * h ? s->ld_bright : s->ld;
     for (guint x = 0; x < w; x++) {
       /* The scattered light's own stripes are the leak above; its mean is Lg m. */
       double v = on ? ld * pattern[x] + s->lg * m : 0;
@@ -154,7 +155,7 @@ probe_synth (const Synth *s, gboolean two_periods, double calibrated_gain, DsSce
 static void
 test_probe_plain (void)
 {
-  Synth s = { { DS_PATTERN_SQUARE, 10, 0.5, 0, 0.4 }, 800, 1200, 50, 3.0, 0.25, 0, 0.25 };
+  Synth s = { { DS_PATTERN_SQUARE, 10, 0.5, 0, 0.4 }, 800, 1200, 50, 3.0, 0.25, 0, 0.25, 0, 0 };
   DsSceneProbe p;
   probe_synth (&s, TRUE, 0, &p);
   double ld_mean = s.ld * (1 - s.blocked);
@@ -177,7 +178,7 @@ test_probe_plain (void)
 static void
 test_probe_leak (void)
 {
-  Synth s = { { DS_PATTERN_SQUARE, 12, 0.5, 0, 0.0 }, 500, 3000, 20, 2.0, 0.25, 0.04, 0 };
+  Synth s = { { DS_PATTERN_SQUARE, 12, 0.5, 0, 0.0 }, 500, 3000, 20, 2.0, 0.25, 0.04, 0, 0, 0 };
   DsSceneProbe p;
   DsStripeModel sharp = s.g;
   probe_synth (&s, TRUE, ds_stripe_harmonic (&sharp, 1), &p);
@@ -200,7 +201,7 @@ test_probe_leak (void)
 static void
 test_probe_blurred_harmonics (void)
 {
-  Synth s = { { DS_PATTERN_SQUARE, 12, 0.4, 0, 1.2 }, 2000, 300, 20, 2.0, 0.25, 0, 0 };
+  Synth s = { { DS_PATTERN_SQUARE, 12, 0.4, 0, 1.2 }, 2000, 300, 20, 2.0, 0.25, 0, 0, 0, 0 };
   g_autoptr (GRand) r = g_rand_new_with_seed (11);
   g_autoptr (DsImage) dark = synth_frame (&s, 12, 0, FALSE, r);
   g_autoptr (DsImage) l0 = synth_frame (&s, 12, 0.1, TRUE, r);
@@ -228,7 +229,7 @@ test_probe_blurred_harmonics (void)
 static void
 test_probe_clip_level (void)
 {
-  Synth s = { { DS_PATTERN_SQUARE, 10, 0.5, 0, 0.0 }, 800, 300, 50, 3.0, 0.25, 0, 0.25 };
+  Synth s = { { DS_PATTERN_SQUARE, 10, 0.5, 0, 0.0 }, 800, 300, 50, 3.0, 0.25, 0, 0.25, 0, 0 };
   g_autoptr (GRand) r = g_rand_new_with_seed (11);
   DsImage *raw[3] = { synth_frame (&s, 10, 0, FALSE, r), synth_frame (&s, 10, 0.1, TRUE, r),
                       synth_frame (&s, 10, 0.6, TRUE, r) };
@@ -284,7 +285,7 @@ static void
 test_probe_clip_quiet_sensor (void)
 {
   for (int noisy = 0; noisy < 2; noisy++) {
-    Synth s = { { DS_PATTERN_SQUARE, 10, 0.5, 0, 0.0 }, 800, 300, 50, noisy ? 0.2 : 0.0, noisy ? 0.25 : 0.0, 0, 0.25 };
+    Synth s = { { DS_PATTERN_SQUARE, 10, 0.5, 0, 0.0 }, 800, 300, 50, noisy ? 0.2 : 0.0, noisy ? 0.25 : 0.0, 0, 0.25, 0, 0 };
     g_autoptr (GRand) r = g_rand_new_with_seed (13);
     DsImage *f[3];
     for (int i = 0; i < 3; i++) {
@@ -309,6 +310,55 @@ test_probe_clip_quiet_sensor (void)
     }
     for (int i = 0; i < 3; i++)
       ds_image_free (f[i]);
+  }
+}
+
+/* Places whose stripes' peaks pass the clip level (a full well the pilot reaches) on a third of
+ * the scene, a quarter blocked, the rest dim. Leaving out only the clipped samples keeps the
+ * bright places between the stripes' peaks and the dim ones at them: the difference profile's
+ * first harmonic then reads Ld at a fraction, and the brightest places, which weigh most in a
+ * relative error, are missing from Ld, its spread and Lg. The scene's own figures are the
+ * expectation; the bright places' Ld can only be known to be at least what reaches the clip
+ * level (the frames do not say by how much their peaks pass it: here by 4 %). */
+static void
+test_probe_clipped_places (void)
+{
+  for (int two = 0; two < 2; two++) {
+    Synth s = { { DS_PATTERN_SQUARE, 10, 0.5, 0.1, 0.0 }, 500, 200, 50, 3.0, 0.25, 0, 0.25, 0.35, 1300 };
+    const double m = 0.5 + 0.1 * 0.5, clip = 1400;
+    g_assert_cmpfloat (s.dark + s.ld_bright + m * s.lg, >, clip);
+    g_autoptr (GRand) r = g_rand_new_with_seed (17);
+    DsImage *f[5] = { NULL };
+    const double period[5] = { 10, 10, 10, 20, 20 }, shift[5] = { 0, 0.1, 0.6, 0.1, 0.6 };
+    for (int i = 0; i < (two ? 5 : 3); i++) {
+      g_autoptr (DsImage) raw = synth_frame (&s, period[i], shift[i], i > 0, r);
+      f[i] = ds_image_convert_f32_clamped (raw, DS_SAMPLE_U16, clip, NULL);
+      f[i]->bit_depth = 12;
+    }
+    DsProbeFrames fr = { .dark = f[0], .lit = { f[1], f[2] }, .coarse = { f[3], f[4] },
+                         .coarse_missing = "fixed by the test", .exposure_us = 1000, .saturation_dn = clip,
+                         .saturation_known = TRUE, .geometry = s.g, .blur_known = TRUE };
+    DsSceneProbe p;
+    g_autoptr (GError) error = NULL;
+    g_assert_true (ds_scene_probe_measure (&fr, &p, &error));
+    g_assert_no_error (error);
+    double dim = 1 - s.blocked - s.bright;
+    double ld_mean = dim * s.ld + s.bright * s.ld_bright;
+    double spread = (dim * s.ld * s.ld + s.bright * s.ld_bright * s.ld_bright) / (ld_mean * ld_mean);
+    g_test_message ("%s: Ld %.1f (scene %.1f), Lg %.1f (%.1f), spread %.3f (%.3f), scattered stripes %.4f",
+                    two ? "two periods" : "one period", p.ld_mean, ld_mean, p.lg_mean, s.lg, p.ld_spread,
+                    spread, ds_scene_probe_leak (&p, 10, 1));
+    /* Every pixel of the bright rows clips in one of the two phases (duty 0.5). */
+    g_assert_cmpfloat_with_epsilon (p.saturated_fraction, s.bright, 0.03);
+    g_assert_cmpfloat (p.ld_mean, <, 1.01 * ld_mean);
+    g_assert_cmpfloat (p.ld_mean, >, 0.95 * ld_mean);
+    g_assert_cmpfloat_with_epsilon (p.lg_mean, s.lg, 0.15 * s.lg);
+    g_assert_cmpfloat_with_epsilon (p.ld_spread, spread, 0.08 * spread);
+    g_assert_cmpfloat_with_epsilon (p.noise_gain, 0.25, 0.05);
+    /* One population at both periods: no scattered stripes read into the difference. */
+    g_assert_cmpfloat (ds_scene_probe_leak (&p, 10, 1), <, 0.02);
+    for (int i = 0; i < 5; i++)
+      g_clear_pointer (&f[i], ds_image_free);
   }
 }
 
@@ -561,5 +611,6 @@ main (int argc, char **argv)
   g_test_add_func ("/error-model/clipping", test_error_model_clipping);
   g_test_add_func ("/error-model/leak", test_error_model_leak);
   g_test_add_func ("/error-model/cancellation", test_error_model_cancellation);
+  g_test_add_func ("/error-model/probe-clipped-places", test_probe_clipped_places);
   return g_test_run ();
 }
