@@ -473,6 +473,7 @@ ds_operating_report_to_json (const DsOperatingReport *r, JsonBuilder *b)
   DBL ("systematic", p->parts.systematic);
   DBL ("sampling", p->parts.sampling);
   DBL ("scattered_stripes", p->parts.scattered_stripes);
+  DBL ("cancellation", p->parts.cancellation);
   json_builder_end_object (b);
   /* What the prediction contains: noise and the pattern's sampling always; the blur when it was
    * calibrated or measured; the scattered stripes when measured at two periods. Saturated
