@@ -1,5 +1,6 @@
 /* Continuous mode: the next set's first frame triggered ahead. As soon as a set's last frame
- * arrived (its exposure is over), the illuminator moves to phase 0 and the trigger goes out;
+ * arrived (its exposure is over), the illuminator moves to phase 0 (or goes off, when the next
+ * set starts with its dark frame) and the trigger goes out;
  * the last frame's verification and fold and the set's finalize then overlap with that
  * frame's exposure and transfer instead of preceding them. The frame belongs to the next set:
  * it is grabbed, counted and verified there like any first frame (or, when the last frame was
@@ -16,7 +17,7 @@ ds_seq_carry_allowed (DsSequencer *seq, const DsCaptureSettings *s)
 {
   return seq->continuous_set && seq->continuous && !seq->carry.active && !seq->need_reconnect &&
          g_async_queue_length (seq->queue) <= 0 && !g_atomic_int_get (&seq->quit) &&
-         !s->dark_frame && s->target_error <= 0 && s->time_budget_ms <= 0;
+         s->target_error <= 0 && s->time_budget_ms <= 0;
 }
 
 void
@@ -26,14 +27,20 @@ ds_seq_carry_trigger (DsSequencer *seq, const DsCaptureSettings *s)
   memset (cy, 0, sizeof *cy);
   cy->active = TRUE;
   cy->settings = *s;
+  cy->dark = s->dark_frame;
   g_autoptr (GError) e = NULL;
-  gint64 t = g_get_monotonic_time ();
-  if (!ds_seq_set_phase (seq, 0, &e)) {
-    cy->counters.device_errors++;
-    ds_seq_fatal_device_error (seq, e);
-    return;
+  if (cy->dark) {
+    if (!ds_seq_illuminator_off (seq, &cy->counters, &e))
+      return;
+  } else {
+    gint64 t = g_get_monotonic_time ();
+    if (!ds_seq_set_phase (seq, 0, &e)) {
+      cy->counters.device_errors++;
+      ds_seq_fatal_device_error (seq, e);
+      return;
+    }
+    ds_seq_stage_add (seq, DS_STAGE_SET_PHASE, t);
   }
-  ds_seq_stage_add (seq, DS_STAGE_SET_PHASE, t);
   ds_seq_flush_stale (seq, &cy->counters);
   cy->applied_at_us = g_get_monotonic_time ();
   if (!ds_seq_trigger (seq, &cy->counters, &e)) {

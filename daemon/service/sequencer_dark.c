@@ -1,13 +1,14 @@
 /* The dark frame: the illuminator off, M frames averaged, each checked for being exposed after
  * the light went off and for showing no stripes. */
+#include <string.h>
+
 #include "daemon/protocol/protocol.h"
 #include "daemon/service/sequencer_private.h"
 #include "proc/image_stats.h"
 #include "proc/stripe_phase.h"
 
-/* Averages `n` frames with the illuminator off into an f32 image. */
-DsImage *
-ds_seq_acquire_dark (DsSequencer *seq, const DsCaptureSettings *s, DsFrameCounters *c, GError **error)
+gboolean
+ds_seq_illuminator_off (DsSequencer *seq, DsFrameCounters *c, GError **error)
 {
   ds_seq_blocking (seq, seq->dev->settle_timeout_ms + DS_SEQ_CONTROL_BOUND_MS);
   if (!seq->dev->illuminator->ops->off (seq->dev->illuminator->backend, seq->dev->settle_timeout_ms,
@@ -15,10 +16,36 @@ ds_seq_acquire_dark (DsSequencer *seq, const DsCaptureSettings *s, DsFrameCounte
     c->device_errors++;
     g_prefix_error (error, "dark frame: illuminator off: ");
     ds_seq_fatal_device_error (seq, *error); /* a lost illuminator is reconnected */
-    return NULL;
+    return FALSE;
   }
-  ds_seq_flush_stale (seq, c);
-  gint64 off_at = g_get_monotonic_time ();
+  return TRUE;
+}
+
+/* Averages `n` frames into an image of the frames' type. Each frame is checked against the
+ * time the illuminator went off before it was exposed: a frame triggered ahead by the previous
+ * set (continuous mode, sequencer_carry.c) against the time it went off for that frame, even
+ * when the illuminator lit a phase again since (the previous set re-acquired its dropped last
+ * phase after grabbing it); the illuminator is then turned off again for the frames after it. */
+DsImage *
+ds_seq_acquire_dark (DsSequencer *seq, const DsCaptureSettings *s, DsFrameCounters *c, GError **error)
+{
+  gboolean off = FALSE, grab_only = FALSE;
+  gint64 off_at = 0, carried_off_at = 0;
+  g_autoptr (DsFrame) carried = NULL;
+  DsSeqCarry *cy = &seq->carry;
+  if (cy->active) {
+    /* The set runner checked that it fits this set (ds_seq_carry_fits). */
+    g_assert (cy->dark);
+    ds_frame_counters_add (c, &cy->counters);
+    if (cy->pending) {
+      off = grab_only = TRUE;
+      off_at = cy->applied_at_us;
+    } else if (cy->frame) {
+      carried = g_steal_pointer (&cy->frame);
+      carried_off_at = cy->applied_at_us;
+    }
+    memset (cy, 0, sizeof *cy);
+  }
   g_array_set_size (seq->dark_ids, 0);
   g_autofree double *sum = NULL;
   guint w = 0, h = 0, got = 0, retries_left = s->phase_retries, bit_depth = 16;
@@ -27,8 +54,19 @@ ds_seq_acquire_dark (DsSequencer *seq, const DsCaptureSettings *s, DsFrameCounte
     GError *why = NULL;
     if (!ds_seq_check_quit (seq, error))
       return NULL;
-    g_autoptr (DsFrame) f = ds_seq_trigger_and_grab (seq, c, &why);
-    if (f && f->host_time_us != 0 && (gint64) f->host_time_us < off_at) {
+    gint64 exposed_after = carried ? carried_off_at : off_at;
+    if (!carried && !off) {
+      if (!ds_seq_illuminator_off (seq, c, error))
+        return NULL;
+      ds_seq_flush_stale (seq, c);
+      off = TRUE;
+      exposed_after = off_at = g_get_monotonic_time ();
+    }
+    g_autoptr (DsFrame) f = carried      ? g_steal_pointer (&carried)
+                            : grab_only ? ds_seq_grab (seq, c, &why)
+                                        : ds_seq_trigger_and_grab (seq, c, &why);
+    grab_only = FALSE;
+    if (f && f->host_time_us != 0 && (gint64) f->host_time_us < exposed_after) {
       ds_frame_counters_drop (c, DS_DROP_STALE, 1);
       why = g_error_new (DS_SEQUENCER_ERROR, DS_SEQUENCER_ERROR_FRAME_REJECTED, "stale frame");
       g_clear_pointer (&f, ds_frame_free);

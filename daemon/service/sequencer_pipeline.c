@@ -158,7 +158,7 @@ run (Pipeline *pl, int applied, gint64 applied_at, GError **error)
         /* The last frame arrived, so its exposure is over: the next set's first frame is
          * exposed while it is verified and folded and while the result is finalized. */
         ds_seq_carry_trigger (seq, s);
-        applied = seq->carry.pending ? 0 : -1;
+        applied = seq->carry.pending && !seq->carry.dark ? 0 : -1;
       }
       gboolean re;
       if (!collect (pl, &dropped, &re, error))
@@ -258,10 +258,14 @@ ds_seq_acquire_phases (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag
   gint64 applied_at = 0;
   if (seq->carry.active) {
     /* The set runner checked that it fits this set (ds_seq_carry_fits): phase 0 was applied
-     * for this set's first frame, triggered or grabbed already. */
+     * for this set's first frame, triggered or grabbed already. (A carry for a dark frame was
+     * taken over by the dark frame's acquisition before.) */
     DsSeqCarry *cy = &seq->carry;
+    g_assert (!cy->dark);
     ds_frame_counters_add (c, &cy->counters);
-    if (cy->pending || cy->frame) {
+    if (cy->pending) {
+      /* A frame kept (cy->frame) was grabbed before the previous set lit its dropped phase
+       * again: the illuminator no longer shows phase 0 then. */
       applied = 0;
       applied_at = cy->applied_at_us;
     }

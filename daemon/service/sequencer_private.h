@@ -28,15 +28,17 @@ G_BEGIN_DECLS
 
 typedef struct DsFoldWorker DsFoldWorker;
 
-/* Continuous mode: the first frame of the next set (phase 0), triggered as soon as this set's
- * last frame arrived, so that its exposure and transfer overlap with the last frame's
- * verification and fold and with the finalize (docs/design.md, "The pipeline"). Acquisition
- * thread only. */
+/* Continuous mode: the first frame of the next set (phase 0, or its first dark frame when it
+ * takes one), triggered as soon as this set's last frame arrived, so that its exposure and
+ * transfer overlap with the last frame's verification and fold and with the finalize
+ * (docs/design.md, "The pipeline"). Acquisition thread only. */
 typedef struct {
   gboolean active;            /* there is a carry (pending, frame or only counters) */
+  gboolean dark;              /* for the next set's dark frame: the illuminator was turned off,
+                               * not moved to phase 0 */
   gboolean pending;           /* triggered, not grabbed yet */
   DsFrame *frame;             /* grabbed already (this set's last frame was dropped meanwhile) */
-  gint64 applied_at_us;       /* when phase 0 was applied for it */
+  gint64 applied_at_us;       /* when phase 0 (or off) was applied for it */
   DsCaptureSettings settings; /* the settings of the set it was taken after */
   DsFrameCounters counters;   /* what applying phase 0, triggering and grabbing counted */
 } DsSeqCarry;
@@ -159,12 +161,13 @@ gboolean ds_seq_acquire_phases (DsSequencer *seq, const DsCaptureSettings *s, gu
 /* ---- sequencer_carry.c ---- */
 
 /* Whether the set running may trigger the next set's first frame ahead: a continuous set
- * with nothing queued, whose next set needs nothing before its first frame (no dark frame,
- * no automatic operating point). The frame is verified in the next set, after this set's
- * frames were confirmed as a whole (ds_phase_check_confirm), like any first frame. */
+ * with nothing queued, whose next set chooses no operating point (that needs preview frames
+ * first). The frame is verified in the next set, after this set's frames were confirmed as a
+ * whole (ds_phase_check_confirm), like any first frame; a dark frame as any dark frame. */
 gboolean ds_seq_carry_allowed (DsSequencer *seq, const DsCaptureSettings *s);
-/* After the set's last frame arrived (so its exposure is over): applies phase 0 and triggers.
- * Failures are counted in the carry and leave the next set to start as usual. */
+/* After the set's last frame arrived (so its exposure is over): applies phase 0, or turns the
+ * illuminator off when the next set takes a dark frame, and triggers. Failures are counted in
+ * the carry and leave the next set to start as usual. */
 void ds_seq_carry_trigger (DsSequencer *seq, const DsCaptureSettings *s);
 /* Grabs the frame triggered ahead, before the illuminator moves again for this set. */
 void ds_seq_carry_grab (DsSequencer *seq);
@@ -217,7 +220,10 @@ void ds_fold_worker_collect (DsFoldWorker *worker, DsFoldJob *job);
 
 /* ---- sequencer_dark.c ---- */
 
-/* Averages s->averages frames with the illuminator off into an image of the frames' type. */
+/* Turns the illuminator off, within its settle timeout; counts a failure in c. */
+gboolean ds_seq_illuminator_off (DsSequencer *seq, DsFrameCounters *c, GError **error);
+/* Averages s->averages frames with the illuminator off into an image of the frames' type. The
+ * first may be a frame triggered ahead by the previous set (seq->carry, dark), taken over. */
 DsImage *ds_seq_acquire_dark (DsSequencer *seq, const DsCaptureSettings *s, DsFrameCounters *c,
                               GError **error);
 void ds_seq_run_dark (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag);

@@ -30,10 +30,11 @@ typedef struct {
    * the sequencer applied another phase and flushed. */
   guint late_in;
   guint off_lost_in;       /* that `off` fails DISCONNECTED */
+  gboolean log_off;        /* `off` goes into phase_log as -1 */
   guint ill_reconnects;
   DsFrame *withheld, *delivered;
   guint withheld_at_phase_log; /* released only by a trigger after a later set_phase */
-  int phase_log[64];       /* every set_phase, in order */
+  int phase_log[1024];     /* every set_phase (and off, with log_off), in order */
   guint n_phase_log;
   guint64 dead_after;      /* every grab times out once this many frames were delivered (0 = never) */
   gboolean disconnected;
@@ -216,6 +217,8 @@ ill_off (gpointer b, guint t, GError **e)
     return FALSE;
   }
   lab->applied_phase = -1;
+  if (lab->log_off && lab->n_phase_log < G_N_ELEMENTS (lab->phase_log))
+    lab->phase_log[lab->n_phase_log++] = -1;
   return TRUE;
 }
 
@@ -270,10 +273,11 @@ typedef struct {
   guint control_events;
   guint results;
   gboolean check_results; /* compare every result with the scene (continuous mode) */
+  gboolean expect_dark;   /* ... and with its dark frame subtracted */
   guint results_wrong;
 } Outcome;
 
-static gboolean scene_recovered (const DsResult *r);
+static gboolean scene_recovered (const DsResult *r, gboolean dark_subtracted);
 
 static void
 on_event (const DsSequencerEvent *ev, gpointer data)
@@ -290,7 +294,7 @@ on_event (const DsSequencerEvent *ev, gpointer data)
     o->result = ds_result_ref (ev->result);
     o->results++;
     if (o->check_results)
-      o->results_wrong += !scene_recovered (ev->result);
+      o->results_wrong += !scene_recovered (ev->result, o->expect_dark);
     g_main_loop_quit (o->loop);
     break;
   case DS_SEQUENCER_EVENT_FAILED:
@@ -389,16 +393,21 @@ assert_scene_recovered (const DsResult *r)
   }
 }
 
-/* The same, as a verdict (for results checked as they arrive). */
+/* The same, as a verdict (for results checked as they arrive). With the dark frame (the 2 DN
+ * offset) subtracted, 2*min is Lg = 600 exactly; a dark frame exposed while stripes were lit
+ * would take 302 or 1302 DN off instead. */
 static gboolean
-scene_recovered (const DsResult *r)
+scene_recovered (const DsResult *r, gboolean dark_subtracted)
 {
   const DsSeparation *sep = ds_result_separation (r);
+  double lg = dark_subtracted ? 600.0 : 604.0;
+  if (sep->meta.dark_subtracted != dark_subtracted)
+    return FALSE;
   for (guint y = 0; y < H; y++) {
     const float *t = ds_image_row (sep->transmissive, y);
     const float *g = ds_image_row (sep->scattered, y);
     for (guint x = 0; x < W; x++)
-      if (fabs (t[x] - 1000.0) > 1e-3 || fabs (g[x] - 604.0) > 1e-3)
+      if (fabs (t[x] - 1000.0) > 1e-3 || fabs (g[x] - lg) > 1e-3)
         return FALSE;
   }
   return TRUE;
@@ -776,19 +785,11 @@ audit_fold (const DsFrame *frame, guint phase, const DsCaptureSettings *s, gpoin
     g_atomic_int_inc (&a->wrong);
 }
 
-/* Runs continuous mode until `sets` results arrived (each compared with the scene), then stops
- * and waits until the thread took the stop, so that no set is in progress. */
+/* Stops continuous mode and waits until the thread took the stop, so that no set is in
+ * progress and every result of it was delivered. */
 static void
-run_continuous (Fixture *f, const DsCaptureSettings *s, guint sets)
+stop_continuous (Fixture *f)
 {
-  f->out.results = 0;
-  f->out.results_wrong = 0;
-  f->out.check_results = TRUE;
-  ds_sequencer_start (f->seq, s);
-  while (f->out.results < sets) {
-    g_main_loop_run (f->out.loop);
-    g_assert_no_error (f->out.failure);
-  }
   ds_sequencer_stop (f->seq);
   for (;;) {
     DsSequencerStatus st;
@@ -800,23 +801,61 @@ run_continuous (Fixture *f, const DsCaptureSettings *s, guint sets)
   }
   while (g_main_context_iteration (NULL, FALSE))
     ;
+}
+
+/* Runs continuous mode until `sets` results arrived (each compared with the scene), then stops. */
+static void
+run_continuous (Fixture *f, const DsCaptureSettings *s, guint sets)
+{
+  f->out.results = 0;
+  f->out.results_wrong = 0;
+  f->out.check_results = TRUE;
+  ds_sequencer_start (f->seq, s);
+  while (f->out.results < sets) {
+    g_main_loop_run (f->out.loop);
+    g_assert_no_error (f->out.failure);
+  }
+  stop_continuous (f);
   g_assert_no_error (f->out.failure);
   f->out.check_results = FALSE;
 }
 
+/* The cases of the continuous tests: which grab of continuous mode is bad, how (it shows the
+ * previous phase, or frame ids were skipped before it: with two frames per phase the previous
+ * frame may be of the same phase), with a dark frame per set (the default configuration) or
+ * not, M frames per phase. */
+typedef struct {
+  guint bad;
+  gboolean gap;
+  gboolean dark;
+  guint averages;
+} ContinuousCase;
+
+static const ContinuousCase last_dropped = { 8, FALSE, FALSE, 1 }, first_dropped = { 9, FALSE, FALSE, 1 },
+                            averages_last_dropped = { 16, TRUE, FALSE, 2 },
+                            dark_last_dropped = { 9, FALSE, TRUE, 1 },
+                            dark_first_dropped = { 10, FALSE, TRUE, 1 }, dark_only = { 0, FALSE, TRUE, 1 };
+
 /* In continuous mode a set's last frame is verified while the illuminator already shows phase
- * 0 for the next set's first frame, which is triggered then. data = the continuous grab that
- * shows the previous phase: 8, the set's last frame (found bad after the illuminator moved on:
- * the frame triggered ahead is grabbed and kept, phase 7 applied again and re-acquired, and the
- * next set starts from the kept frame); 9, the frame triggered ahead itself (the next set's
- * first: dropped and re-acquired for phase 0). No frame is folded into another phase than its
- * own, every set equals the scene, and the accounting is exact after stop. */
+ * 0 for the next set's first frame, which is triggered then; with a dark frame per set, the
+ * illuminator goes off instead and the next set's (first) dark frame is triggered. The bad
+ * grab: the set's last frame (8; 16 with two frames per phase; 9 with the dark frame), found
+ * bad after the illuminator moved on: the frame triggered ahead is grabbed and kept, the last
+ * phase applied again and re-acquired, and the next set starts from the kept frame (as its
+ * phase 0 frame, or as its dark frame: the illuminator was off while it exposed, lit since);
+ * or the frame triggered ahead itself (9, or 10 with the dark frame: it shows the previous
+ * phase; dropped and re-acquired). No frame is folded into another phase than its own, every
+ * set equals the scene (with its dark frame subtracted: a lit frame taken as the dark frame
+ * would show), and the accounting is exact after stop. */
 static void
 test_pipeline_continuous_drop (Fixture *f, gconstpointer data)
 {
-  guint bad = GPOINTER_TO_UINT (data);
+  const ContinuousCase *cc = data;
   DsCaptureSettings s;
   default_settings (&s, 8);
+  s.dark_frame = cc->dark;
+  s.averages = cc->averages;
+  f->lab.log_off = TRUE;
   capture (f, &s); /* learns the stripe-phase offset: later sets are checked frame by frame */
   g_assert_nonnull (f->out.result);
   FoldAudit audit = { .lab = &f->lab };
@@ -824,61 +863,103 @@ test_pipeline_continuous_drop (Fixture *f, gconstpointer data)
   DsSequencerStatus before, after;
   ds_sequencer_get_status (f->seq, &before);
   guint log0 = f->lab.n_phase_log;
-  f->lab.stale_in = bad;
+  if (cc->gap)
+    f->lab.gap_in = cc->bad;
+  else
+    f->lab.stale_in = cc->bad;
+  f->out.expect_dark = cc->dark;
   run_continuous (f, &s, 3);
   ds_sequencer_set_frame_hook (f->seq, NULL, NULL);
   ds_sequencer_get_status (f->seq, &after);
   g_assert_cmpuint (f->out.results_wrong, ==, 0);
   g_assert_cmpint (g_atomic_int_get (&audit.wrong), ==, 0);
   guint64 sets = after.sets_done - before.sets_done;
+  guint per_set = 8 * cc->averages;
   g_assert_cmpuint (sets, >=, 3);
   g_assert_cmpuint (after.sets_failed, ==, before.sets_failed);
-  g_assert_cmpuint (after.frames.folded - before.frames.folded, ==, 8 * sets);
-  g_assert_cmpint (g_atomic_int_get (&audit.folded), ==, (gint) (8 * sets));
-  g_assert_cmpuint (after.frames.by_reason[DS_DROP_WRONG_PHASE] - before.frames.by_reason[DS_DROP_WRONG_PHASE], ==, 1);
-  g_assert_cmpuint (after.frames.retries - before.frames.retries, ==, 1);
+  /* The dark frame counts as folded: it went into the result. */
+  g_assert_cmpuint (after.frames.folded - before.frames.folded, ==, (per_set + (cc->dark ? 1 : 0)) * sets);
+  g_assert_cmpint (g_atomic_int_get (&audit.folded), ==, (gint) (per_set * sets));
+  guint bad = cc->bad ? 1 : 0;
+  /* Nothing else dropped: in particular no frame exposed while another phase was lit. */
+  g_assert_cmpuint (after.frames.by_reason[DS_DROP_WRONG_PHASE] - before.frames.by_reason[DS_DROP_WRONG_PHASE], ==, cc->gap ? 0 : bad);
+  g_assert_cmpuint (after.frames.by_reason[DS_DROP_FRAME_GAP] - before.frames.by_reason[DS_DROP_FRAME_GAP], ==, cc->gap ? bad : 0);
+  g_assert_cmpuint (after.frames.retries - before.frames.retries, ==, bad);
+  g_assert_cmpuint (after.frames.dropped - before.frames.dropped, <=, bad + 1);
   /* At most the frame triggered ahead when stop came was abandoned. */
   g_assert_cmpuint (after.frames.by_reason[DS_DROP_ABORTED] - before.frames.by_reason[DS_DROP_ABORTED], <=, 1);
   assert_accounting (f);
-  /* The illuminator's path: phase 0 right after each set's last frame, a phase applied again
-   * where the bad frame was; the second set starts at phase 1 (its phase 0 was lit ahead). */
+  /* The illuminator's path (-1: off): phase 0, or off, right after each set's last frame; a
+   * phase applied again where the bad frame was. Without a dark frame the second set starts at
+   * phase 1 (its phase 0 was lit ahead) unless phase 0 needs more frames than the one kept. */
   static const int last_bad[] = { 0, 1, 2, 3, 4, 5, 6, 7, 0, 7, 1, 2, 3, 4, 5, 6, 7, 0 };
   static const int first_bad[] = { 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 0, 2, 3, 4, 5, 6, 7, 0 };
-  const int *expected = bad == 8 ? last_bad : first_bad;
+  static const int averages_last_bad[] = { 0, 1, 2, 3, 4, 5, 6, 7, 0, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0 };
+  static const int dark_last_bad[] = { -1, 0, 1, 2, 3, 4, 5, 6, 7, -1, 7, 0, 1, 2, 3, 4, 5, 6, 7,
+                                       -1, 0, 1, 2, 3, 4, 5, 6, 7, -1 };
+  static const int dark_path[] = { -1, 0, 1, 2, 3, 4, 5, 6, 7, -1, 0, 1, 2, 3, 4, 5, 6, 7,
+                                   -1, 0, 1, 2, 3, 4, 5, 6, 7, -1 };
+  const int *expected;
+  guint n;
+  if (cc == &last_dropped)
+    expected = last_bad, n = G_N_ELEMENTS (last_bad);
+  else if (cc == &first_dropped)
+    expected = first_bad, n = G_N_ELEMENTS (first_bad);
+  else if (cc == &averages_last_dropped)
+    expected = averages_last_bad, n = G_N_ELEMENTS (averages_last_bad);
+  else if (cc == &dark_last_dropped)
+    expected = dark_last_bad, n = G_N_ELEMENTS (dark_last_bad);
+  else /* the dropped dark frame is replaced with the illuminator still off */
+    expected = dark_path, n = G_N_ELEMENTS (dark_path);
   for (guint i = log0; i < f->lab.n_phase_log && g_test_verbose (); i++)
     g_test_message ("phase log %u: %d", i - log0, f->lab.phase_log[i]);
-  g_assert_cmpuint (f->lab.n_phase_log - log0, >=, G_N_ELEMENTS (last_bad));
-  for (guint i = 0; i < G_N_ELEMENTS (last_bad); i++)
+  g_assert_cmpuint (f->lab.n_phase_log - log0, >=, n);
+  for (guint i = 0; i < n; i++)
     g_assert_cmpint (f->lab.phase_log[log0 + i], ==, expected[i]);
 }
 
 /* A command between continuous sets (here a single capture) comes before the frame triggered
- * ahead: that frame is counted as aborted, the capture runs from its own phase 0 and equals
- * the scene, and the accounting is exact. */
+ * ahead: that frame is counted as aborted, the capture runs from its own phase 0 (or its own
+ * dark frame) and equals the scene, and the accounting is exact. data: a dark frame per set. */
 static void
 test_pipeline_continuous_then_capture (Fixture *f, gconstpointer d)
 {
-  (void) d;
+  gboolean dark = d != NULL;
+  guint n_dark = dark ? 1 : 0;
   DsCaptureSettings s;
   default_settings (&s, 8);
+  s.dark_frame = dark;
   capture (f, &s);
   g_assert_nonnull (f->out.result);
   f->out.results = 0;
   f->out.check_results = TRUE;
+  f->out.expect_dark = dark;
+  f->lab.log_off = TRUE;
+  guint log0 = f->lab.n_phase_log;
   ds_sequencer_start (f->seq, &s);
   while (f->out.results < 2)
     g_main_loop_run (f->out.loop);
-  ds_sequencer_stop (f->seq);
+  /* Waits for the stop: a result of a continuous set still on its way must not stand in for
+   * the capture's. */
+  stop_continuous (f);
   f->out.check_results = FALSE;
   capture (f, &s);
   g_assert_no_error (f->out.failure);
-  assert_scene_recovered (f->out.result);
+  g_assert_true (scene_recovered (f->out.result, dark));
   g_assert_cmpuint (f->out.results_wrong, ==, 0);
   DsSequencerStatus st;
   ds_sequencer_get_status (f->seq, &st);
   g_assert_cmpuint (st.frames.by_reason[DS_DROP_ABORTED], <=, 1);
-  g_assert_cmpuint (st.frames.folded, ==, 8 * st.sets_done);
+  g_assert_cmpuint (st.frames.dropped, ==, st.frames.by_reason[DS_DROP_ABORTED]);
+  g_assert_cmpuint (st.frames.folded, ==, (8 + n_dark) * st.sets_done);
   assert_accounting (f);
+  /* The capture lit its own phases from the start (a dark frame first): its last 8 (9) steps. */
+  guint n = f->lab.n_phase_log - log0;
+  for (guint i = log0; i < f->lab.n_phase_log && g_test_verbose (); i++)
+    g_test_message ("phase log %u: %d", i - log0, f->lab.phase_log[i]);
+  g_assert_cmpuint (n, >=, 8 + n_dark);
+  for (guint i = 0; i < 8 + n_dark; i++)
+    g_assert_cmpint (f->lab.phase_log[f->lab.n_phase_log - 8 - n_dark + i], ==, (int) i - (int) n_dark);
 }
 
 /* Result planes: once nobody holds a result, the next set of that size writes into the same
@@ -999,9 +1080,14 @@ main (int argc, char **argv)
   ADD ("pipeline/last-frame-dropped", test_pipeline_drop_after_move, GUINT_TO_POINTER (8));
   ADD ("pipeline/averages-drop-within-phase", test_pipeline_averages_drop, NULL);
   ADD ("pipeline/quit-mid-set", test_pipeline_quit_mid_set, NULL);
-  ADD ("pipeline/continuous-last-frame-dropped", test_pipeline_continuous_drop, GUINT_TO_POINTER (8));
-  ADD ("pipeline/continuous-first-frame-dropped", test_pipeline_continuous_drop, GUINT_TO_POINTER (9));
+  ADD ("pipeline/continuous-last-frame-dropped", test_pipeline_continuous_drop, &last_dropped);
+  ADD ("pipeline/continuous-first-frame-dropped", test_pipeline_continuous_drop, &first_dropped);
+  ADD ("pipeline/continuous-averages-last-frame-dropped", test_pipeline_continuous_drop, &averages_last_dropped);
+  ADD ("pipeline/continuous-dark", test_pipeline_continuous_drop, &dark_only);
+  ADD ("pipeline/continuous-dark-last-frame-dropped", test_pipeline_continuous_drop, &dark_last_dropped);
+  ADD ("pipeline/continuous-dark-first-frame-dropped", test_pipeline_continuous_drop, &dark_first_dropped);
   ADD ("pipeline/continuous-then-capture", test_pipeline_continuous_then_capture, NULL);
+  ADD ("pipeline/continuous-dark-then-capture", test_pipeline_continuous_then_capture, "dark");
   ADD ("result-planes-reused", test_result_planes_reused, NULL);
   g_test_add_func ("/sequencer/phase-check-tall-frame", test_phase_check_tall_frame);
   ADD ("release-acquire", test_release_acquire, NULL);
