@@ -5,15 +5,18 @@
  *            trigger-and-grab loop over the daemon's own devices, opened and configured by the
  *            daemon's code from the same configuration, with no sequencer; with a 3 ms Modbus
  *            settle, against the same loop applying the next phase before each trigger. Each
- *            round runs ceiling, daemon, ceiling and divides by the mean of the two ceilings;
- *            their ratio to each other shows how much the load moved meanwhile;
+ *            round alternates ceiling and daemon slices (C D C D C D C: the daemon releases the
+ *            camera to the ceiling between its slices) and divides the daemon's mean by the
+ *            ceilings' mean, so that a drift of the machine over the round cancels; the
+ *            fastest / slowest ceiling slice shows how much the machine moved meanwhile;
  *   latency  last frame -> result ready (the daemon's own monotonic stamps) per megapixel, and
  *            against the library alone finalizing the same set in this process;
  *   memory   peak RSS above idle over one 8-phase capture / the planes that must exist.
  * Every run also checks its results (the separation equals the closed-form scene, every frame
  * is accounted for), so the reduced form that ctest runs can fail.
  *
- * Usage: bench-daemon-rate [--quick] [--sizes WxH,WxH] [--seconds S] [--rounds N (<= 8)]
+ * Usage: bench-daemon-rate [--quick] [--sizes WxH,WxH] [--seconds S (the daemon's, per round)]
+ *                          [--rounds N (<= 8)] [--slices N (<= 8; each ceiling gets N + 1)]
  * Binds UDP 127.0.0.1:3956: run it in a private network namespace, as an unprivileged user
  * (as root Aravis receives through a packet socket with a 5 ms ring timeout):
  * tests/bench/run_rate_bench.sh does both. */
@@ -236,7 +239,7 @@ camera_stat (DsMessage *status, const char *name)
 /* Frames folded per second in continuous mode, from the daemon's own counters, and the
  * camera's transport failures meanwhile (same meaning as the ceiling's). */
 static RateSample
-daemon_rate (DsClient *c, double seconds, double *finalize_ms)
+daemon_rate (DsClient *c, double seconds, gboolean print_stages)
 {
   g_autoptr (DsMessage) started = test_daemon_call_ok (c, "start", NULL);
   g_usleep (300000);
@@ -273,6 +276,8 @@ daemon_rate (DsClient *c, double seconds, double *finalize_ms)
     for (guint i = 0; i < G_N_ELEMENTS (wrong); i++)
       CHECK (json_object_get_int_member (by, wrong[i]) == 0, "%s drops on a clean rig", wrong[i]);
   }
+  if (!print_stages)
+    return r;
   JsonObject *sm = obj (s1->reply->body, "stage_mean_ms");
   /* Where the time goes: the acquisition thread's stages per frame (set_phase, trigger, grab;
    * verify and fold run on the fold thread meanwhile), finalize (last frame -> result: in
@@ -287,12 +292,10 @@ daemon_rate (DsClient *c, double seconds, double *finalize_ms)
           json_object_get_double_member (sm, "finalize"), set_ms, set_ms / N_PHASES,
           json_object_get_double_member (sm, "set_phase") +
               json_object_get_double_member (sm, "trigger") + json_object_get_double_member (sm, "grab"));
-  if (finalize_ms)
-    *finalize_ms = json_object_get_double_member (sm, "finalize");
   return r;
 }
 
-/* ---- rounds: ceilings, daemon, ceilings again in reverse order ---- */
+/* ---- rounds: ceilings and daemon interleaved, C D C D ... C ---- */
 
 /* The ceilings a daemon rate is divided by: the camera alone (trigger and grab: the issue's
  * "Aravis ceiling"), and the camera with the illuminator applying each phase before the trigger
@@ -302,11 +305,14 @@ typedef enum { CEILING_CAMERA, CEILING_RIG, N_CEILINGS } CeilingKind;
 
 static const char *const ceiling_name[N_CEILINGS] = { "camera alone", "camera + set_phase" };
 
+#define MAX_ROUNDS 8
+#define MAX_SLICES 8
+
 typedef struct {
-  double ratio[8];       /* daemon / mean of this ceiling's two measurements in the round */
-  double clean[8];       /* the same, rounds where neither lost a frame to the transport */
-  double drift[8];       /* second measurement / first */
-  double fps[8];
+  double ratio[MAX_ROUNDS]; /* mean daemon rate / mean of this ceiling's slices in the round */
+  double clean[MAX_ROUNDS]; /* the same, rounds where no slice lost a frame to the transport */
+  double drift[MAX_ROUNDS]; /* fastest / slowest of this ceiling's slices in the round */
+  double fps[MAX_ROUNDS];
   guint n_clean;
 } CeilingRounds;
 
@@ -314,7 +320,7 @@ typedef struct {
   gboolean want[N_CEILINGS];
   double goal[N_CEILINGS]; /* 0: no goal */
   CeilingRounds c[N_CEILINGS];
-  double daemon_fps[8];
+  double daemon_fps[MAX_ROUNDS];
   guint n;
 } Rounds;
 
@@ -324,30 +330,52 @@ has_loss (const RateSample *s)
   return s->incomplete || s->lost || s->reconnects;
 }
 
+/* One round: n daemon slices d[0..n-1] between n+1 ceiling slices c[k][0..n]. A drift of the
+ * machine that is linear over the round cancels in the ratio of the means (both are centred on
+ * the round's middle); each daemon slice is also printed against the two ceilings around it. */
 static void
-rounds_add (Rounds *rs, const RateSample *c1, const RateSample *d, const RateSample *c2)
+rounds_add (Rounds *rs, RateSample c[N_CEILINGS][MAX_SLICES + 1], const RateSample *d, guint n)
 {
   guint i = rs->n++;
-  rs->daemon_fps[i] = d->fps;
-  printf ("    round %u: daemon %.1f frames/s (incomplete/lost/reconnects %u/%u/%u; UDP receive-buffer "
-          "drops %" G_GUINT64_FORMAT ")\n", i + 1, d->fps, d->incomplete, d->lost, d->reconnects,
-          d->rcvbuf_drops);
+  double dsum = 0;
+  gboolean dloss = FALSE;
+  for (guint j = 0; j < n; j++) {
+    dsum += d[j].fps;
+    dloss = dloss || has_loss (&d[j]);
+    printf ("    round %u, slice %u: daemon %.1f frames/s (incomplete/lost/reconnects %u/%u/%u; UDP "
+            "receive-buffer drops %" G_GUINT64_FORMAT ")", i + 1, j + 1, d[j].fps, d[j].incomplete,
+            d[j].lost, d[j].reconnects, d[j].rcvbuf_drops);
+    for (guint k = 0; k < N_CEILINGS; k++)
+      if (rs->want[k])
+        printf ("; / %s around it %.3f", ceiling_name[k], d[j].fps / (0.5 * (c[k][j].fps + c[k][j + 1].fps)));
+    printf ("\n");
+  }
+  rs->daemon_fps[i] = dsum / n;
   for (guint k = 0; k < N_CEILINGS; k++) {
     if (!rs->want[k])
       continue;
     CeilingRounds *cr = &rs->c[k];
-    cr->fps[i] = 0.5 * (c1[k].fps + c2[k].fps);
-    cr->ratio[i] = d->fps / cr->fps[i];
-    cr->drift[i] = c2[k].fps / c1[k].fps;
-    gboolean clean = !has_loss (d) && !has_loss (&c1[k]) && !has_loss (&c2[k]);
+    double csum = 0, lo = G_MAXDOUBLE, hi = 0;
+    gboolean closs = FALSE;
+    printf ("      ceiling, %s:", ceiling_name[k]);
+    for (guint j = 0; j <= n; j++) {
+      csum += c[k][j].fps;
+      lo = MIN (lo, c[k][j].fps);
+      hi = MAX (hi, c[k][j].fps);
+      closs = closs || has_loss (&c[k][j]);
+      printf (" %.1f", c[k][j].fps);
+      if (has_loss (&c[k][j]) || c[k][j].rcvbuf_drops)
+        printf (" (incomplete/lost/reconnects %u/%u/%u, receive-buffer drops %" G_GUINT64_FORMAT ")",
+                c[k][j].incomplete, c[k][j].lost, c[k][j].reconnects, c[k][j].rcvbuf_drops);
+    }
+    cr->fps[i] = csum / (n + 1);
+    cr->ratio[i] = rs->daemon_fps[i] / cr->fps[i];
+    cr->drift[i] = lo > 0 ? hi / lo : NAN;
+    gboolean clean = !dloss && !closs;
     if (clean)
       cr->clean[cr->n_clean++] = cr->ratio[i];
-    printf ("      ceiling, %s: %.1f before, %.1f after (incomplete/lost/reconnects %u/%u/%u, "
-            "%u/%u/%u; receive-buffer drops %" G_GUINT64_FORMAT ", %" G_GUINT64_FORMAT
-            ") -> ratio %.3f, drift %.3f%s\n", ceiling_name[k], c1[k].fps, c2[k].fps,
-            c1[k].incomplete, c1[k].lost, c1[k].reconnects, c2[k].incomplete, c2[k].lost,
-            c2[k].reconnects, c1[k].rcvbuf_drops, c2[k].rcvbuf_drops, cr->ratio[i], cr->drift[i],
-            clean ? "" : " (transport loss)");
+    printf (" -> round %u: daemon %.1f / ceiling %.1f = ratio %.3f, drift %.3f%s\n", i + 1,
+            rs->daemon_fps[i], cr->fps[i], cr->ratio[i], cr->drift[i], clean ? "" : " (transport loss)");
   }
 }
 
@@ -362,14 +390,27 @@ rounds_print (Rounds *rs, const char *what)
     CeilingRounds *cr = &rs->c[k];
     g_autofree char *goal = rs->goal[k] > 0 ? g_strdup_printf ("; goal >= %.2f", rs->goal[k])
                                             : g_strdup ("");
+    double sorted[MAX_ROUNDS];
+    memcpy (sorted, cr->ratio, sizeof sorted);
     printf ("    / ceiling, %s, %.1f frames/s: ratio %s%s\n", ceiling_name[k],
-            median (cr->fps, rs->n), spread (cr->ratio, rs->n), goal);
+            median (cr->fps, rs->n), spread (sorted, rs->n), goal);
     if (cr->n_clean)
       printf ("      rounds without transport loss: ratio %s\n", spread (cr->clean, cr->n_clean));
     else
       printf ("      rounds without transport loss: none\n");
-    printf ("      drift of this ceiling within a round: %s\n", spread (cr->drift, rs->n));
+    printf ("      drift of this ceiling within a round (fastest/slowest slice): %s\n",
+            spread (cr->drift, rs->n));
   }
+}
+
+/* The lowest ratio of any round (the goal holds "in every round" when this meets it). */
+static double
+rounds_min (const Rounds *rs, CeilingKind k)
+{
+  double m = G_MAXDOUBLE;
+  for (guint i = 0; i < rs->n; i++)
+    m = MIN (m, rs->c[k].ratio[i]);
+  return rs->n ? m : NAN;
 }
 
 /* ---- latency baseline: the library alone ---- */
@@ -427,24 +468,30 @@ typedef struct {
   guint64 idle_kib, peak_kib;
 } DaemonExtras;
 
+/* Release and acquire between the slices: the ceiling takes the camera meanwhile. */
+static void
+control (DsClient *c, const char *cmd)
+{
+  g_autoptr (DsMessage) m = test_daemon_call_ok (c, cmd, NULL);
+}
+
 static gboolean
-measure_round (FakeRig *rig, guint w, guint h, double seconds, Rounds *rs, DaemonExtras *x,
-               gboolean quick)
+measure_round (FakeRig *rig, guint w, guint h, double seconds, guint slices, Rounds *rs,
+               DaemonExtras *x, gboolean quick)
 {
   g_autofree char *conf = rig_config (fake_rig_modbus_port (rig));
-  RateSample c1[N_CEILINGS] = { 0 }, c2[N_CEILINGS] = { 0 }, d;
-  for (guint k = 0; k < N_CEILINGS; k++)
-    if (rs->want[k] && !rate_ceiling_measure (self_path, conf, seconds, k == CEILING_RIG, &c1[k])) {
-      failures++;
-      return FALSE;
-    }
+  RateSample c[N_CEILINGS][MAX_SLICES + 1];
+  RateSample d[MAX_SLICES];
+  memset (c, 0, sizeof c);
+  memset (d, 0, sizeof d);
+  double slice_s = seconds / slices;
   TestDaemon *td = test_daemon_start (conf, NULL);
-  g_autoptr (DsClient) c = test_daemon_connect (td);
+  g_autoptr (DsClient) cl = test_daemon_connect (td);
   if (x && x->single_captures) {
     x->idle_kib = status_kib (td, "VmRSS:");
     guint n = quick ? 3 : 11;
     for (guint i = 0; i < n; i++) {
-      g_autoptr (DsMessage) m = checked_capture (c, w, h);
+      g_autoptr (DsMessage) m = checked_capture (cl, w, h);
       if (m && i > 0) /* the first set configures the camera and learns the phase offset */
         x->lat[x->n_lat++] = (test_json_int (m->reply->body, "monotonic_us.finished") -
                               test_json_int (m->reply->body, "monotonic_us.last_frame")) / 1000.0;
@@ -453,18 +500,27 @@ measure_round (FakeRig *rig, guint w, guint h, double seconds, Rounds *rs, Daemo
     }
   } else {
     /* The first set configures the camera and learns the phase offset; checked as well. */
-    g_autoptr (DsMessage) m = checked_capture (c, w, h);
+    g_autoptr (DsMessage) m = checked_capture (cl, w, h);
   }
-  d = daemon_rate (c, seconds, NULL);
-  g_clear_pointer (&c, ds_client_free);
+  gboolean ok = TRUE;
+  for (guint j = 0; ok && j <= slices; j++) {
+    control (cl, "release");
+    for (guint k = 0; ok && k < N_CEILINGS; k++)
+      if (rs->want[k] && !rate_ceiling_measure (self_path, conf, slice_s, k == CEILING_RIG, &c[k][j]))
+        ok = FALSE;
+    if (!ok || j == slices)
+      break;
+    control (cl, "acquire");
+    d[j] = daemon_rate (cl, slice_s, j + 1 == slices);
+  }
+  g_clear_pointer (&cl, ds_client_free);
   test_daemon_stop (td);
   test_daemon_free (td);
-  for (guint k = N_CEILINGS; k-- > 0;)
-    if (rs->want[k] && !rate_ceiling_measure (self_path, conf, seconds, k == CEILING_RIG, &c2[k])) {
-      failures++;
-      return FALSE;
-    }
-  rounds_add (rs, c1, &d, c2);
+  if (!ok) {
+    failures++;
+    return FALSE;
+  }
+  rounds_add (rs, c, d, slices);
   return TRUE;
 }
 
@@ -487,7 +543,7 @@ main (int argc, char **argv)
   gboolean quick = FALSE;
   const char *sizes = "1024x1024,2048x2048";
   double seconds = 3.0;
-  guint rounds = 0;
+  guint rounds = 0, slices = 0;
   for (int i = 1; i < argc; i++) {
     if (strcmp (argv[i], "--quick") == 0)
       quick = TRUE;
@@ -497,9 +553,13 @@ main (int argc, char **argv)
       seconds = g_ascii_strtod (argv[++i], NULL);
     else if (strcmp (argv[i], "--rounds") == 0 && i + 1 < argc) {
       int r = atoi (argv[++i]); /* CLAMP evaluates its argument more than once */
-      rounds = (guint) CLAMP (r, 1, 8);
+      rounds = (guint) CLAMP (r, 1, MAX_ROUNDS);
+    } else if (strcmp (argv[i], "--slices") == 0 && i + 1 < argc) {
+      int n = atoi (argv[++i]);
+      slices = (guint) CLAMP (n, 1, MAX_SLICES);
     } else {
-      fprintf (stderr, "usage: bench-daemon-rate [--quick] [--sizes WxH,WxH] [--seconds S] [--rounds N]\n");
+      fprintf (stderr, "usage: bench-daemon-rate [--quick] [--sizes WxH,WxH] [--seconds S] [--rounds N] "
+                       "[--slices N]\n");
       return 2;
     }
   }
@@ -510,6 +570,10 @@ main (int argc, char **argv)
   }
   if (rounds == 0)
     rounds = quick ? 1 : 3;
+  if (slices == 0)
+    slices = quick ? 2 : 3;
+  printf ("each round: the ceilings and the daemon alternated, %u daemon slices of %.2f s between "
+          "%u slices of each ceiling\n", slices, seconds / slices, slices + 1);
   if (geteuid () == 0)
     printf ("note: running as root: Aravis then receives through a packet socket (5 ms ring "
             "timeout); the figures are not those of the service (run as an unprivileged user)\n");
@@ -533,13 +597,16 @@ main (int argc, char **argv)
     double lat[16];
     DaemonExtras x = { .single_captures = TRUE, .lat = lat };
     for (guint r = 0; r < rounds; r++) {
-      measure_round (rig, w, h, seconds, &rs, r == 0 ? &x : NULL, quick);
+      measure_round (rig, w, h, seconds, slices, &rs, r == 0 ? &x : NULL, quick);
       print_load ("after the round");
     }
     if (rs.n) {
       rounds_print (&rs, "rate, illuminator settle 0");
+      /* The lowest round first: rounds_print's medians sort the arrays. */
+      double lowest = rounds_min (&rs, CEILING_CAMERA);
       summary_add (median (rs.c[CEILING_CAMERA].ratio, rs.n), rs.goal[CEILING_CAMERA], TRUE,
                    "frames folded / ceiling (camera alone), %ux%u", w, h);
+      summary_add (lowest, rs.goal[CEILING_CAMERA], TRUE, "  the same, lowest of %u rounds", rs.n);
       /* No goal of its own: what the sequencer contract allows (a phase applied before each
        * trigger), printed beside the goal's row. */
       summary_add (median (rs.c[CEILING_RIG].ratio, rs.n), NAN, TRUE,
@@ -564,15 +631,22 @@ main (int argc, char **argv)
       fake_rig_set_settle_us (rig, 3000);
       Rounds rp = { .want = { FALSE, TRUE }, .goal = { 0, 0.85 } };
       for (guint r = 0; r < rounds; r++) {
-        measure_round (rig, w, h, seconds, &rp, NULL, quick);
+        measure_round (rig, w, h, seconds, slices, &rp, NULL, quick);
         print_load ("after the round");
       }
       if (rp.n) {
         rounds_print (&rp, "rate, illuminator settle 3 ms");
+        double lowest = rounds_min (&rp, CEILING_RIG);
         summary_add (median (rp.c[CEILING_RIG].ratio, rp.n), rp.goal[CEILING_RIG], TRUE,
                      "3 ms settle: frames folded / ceiling (camera + set_phase), %ux%u", w, h);
+        summary_add (lowest, rp.goal[CEILING_RIG], TRUE, "  the same, lowest of %u rounds", rp.n);
       }
     }
+    /* What the camera's thread cost the machine: fill, send and the waits between trigger
+     * polls (a spinning wait costs as much CPU as it lasts). */
+    printf ("  fake camera's thread: %.3f ms of CPU per frame it sent (%" G_GUINT64_FORMAT
+            " frames, all rounds)\n", 1e3 * fake_rig_camera_cpu_s (rig) / (double) fake_rig_frames (rig),
+            fake_rig_frames (rig));
     fake_rig_free (rig);
   }
   print_load ("at the end");

@@ -2,10 +2,14 @@
 
 #include <arv.h>
 #include <math.h>
+#include <poll.h>
 #include <pthread.h>
 #include <sched.h>
 #include <stdio.h>
 #include <string.h>
+#include <sys/prctl.h>
+#include <sys/syscall.h>
+#include <unistd.h>
 
 struct FakeRig {
   ArvGvFakeCamera *gv;
@@ -15,7 +19,57 @@ struct FakeRig {
   guint16 **lit;           /* one frame per phase */
   guint16 *dark;           /* illuminator off */
   gint frames;             /* atomic */
+  ArvFakeCamera *fake;     /* owned by gv */
+  guint64 trigger_period_us;
+  gboolean spin;           /* DS_BENCH_CAMERA_POLL=spin: Aravis's own wait (for comparison) */
+  gint camera_tid;         /* atomic: the camera thread's id, once it filled a frame */
 };
+
+/* The camera polls its software trigger at FAKE_RIG_TRIGGER_HZ, as issue 13 defines the
+ * measurement: a trigger waits 0.5 ms on average for the poll, the same for the ceiling and
+ * the daemon. DS_BENCH_TRIGGER_HZ changes it (for comparisons with earlier runs: 2000). */
+#define FAKE_RIG_TRIGGER_HZ 1000.0
+
+/* ---- the camera's thread sleeps between its trigger polls instead of spinning ----
+ *
+ * Aravis's ArvGvFakeCamera thread (arvgvfakecamera.c) checks the software trigger at the
+ * multiples of the trigger period in real time; until the next one it polls its control
+ * sockets with g_poll, the timeout the time left truncated to whole milliseconds. With the
+ * trigger polled every millisecond that timeout is always 0, so the thread spins on a core for
+ * as long as it streams: it took half of the machine's CPU from the daemon, the ceiling and
+ * the stream threads, and ran into the kernel's real-time throttling (which then stalled
+ * every real-time thread of that core for up to 50 ms: the drift of the ceilings in runs D-F).
+ * Aravis offers no hook to signal a trigger, and its loop is not ours to copy. So this program
+ * provides g_poll (the executable's definition comes first in symbol lookup for the libraries
+ * it links, libaravis among them): on the camera's thread a zero timeout becomes a wait, with
+ * microsecond resolution, until the camera's next trigger poll
+ * (arv_fake_camera_get_sleep_time_for_next_frame, Aravis's own schedule) or until a control
+ * packet arrives, whichever comes first. The camera then checks its trigger at the same
+ * instants as before; it only stops burning the CPU between them. Everywhere else (other
+ * threads, other timeouts) g_poll is what GLib's is on Linux: poll(2). */
+
+/* Set by the camera's own thread in its first fill: the rig whose camera runs on it. Until
+ * then (before the first trigger) the thread polls as Aravis wrote it. */
+static __thread FakeRig *camera_thread_rig;
+
+/* Crossing the poll instant between Aravis's check of the time and this call: the next
+ * instant is then almost a whole period away, and sleeping to it would delay a trigger by a
+ * period. Such a call returns at once (Aravis's loop then leaves its wait). */
+#define CROSSED_US 30
+
+gint
+g_poll (GPollFD *fds, guint nfds, gint timeout)
+{
+  FakeRig *rig = camera_thread_rig;
+  G_STATIC_ASSERT (sizeof (GPollFD) == sizeof (struct pollfd));
+  if (timeout != 0 || !rig)
+    return poll ((struct pollfd *) fds, nfds, timeout);
+  guint64 sleep_us = arv_fake_camera_get_sleep_time_for_next_frame (rig->fake, NULL);
+  if (sleep_us + CROSSED_US >= rig->trigger_period_us)
+    return poll ((struct pollfd *) fds, nfds, 0);
+  struct timespec ts = { .tv_sec = (time_t) (sleep_us / 1000000), .tv_nsec = (long) (sleep_us % 1000000) * 1000 };
+  return ppoll ((struct pollfd *) fds, nfds, &ts, NULL);
+}
 
 static guint16
 scene_value (guint x, guint phase, guint n)
@@ -33,6 +87,14 @@ fill (ArvBuffer *buffer, void *data, guint32 exposure_time_us, guint32 gain, Arv
   (void) exposure_time_us;
   (void) gain;
   FakeRig *rig = data;
+  if (G_UNLIKELY (!g_atomic_int_get (&rig->camera_tid))) {
+    g_atomic_int_set (&rig->camera_tid, (gint) syscall (SYS_gettid));
+    if (!rig->spin) {
+      /* The wait above to the microsecond: no timer slack (the normal class has 50 us). */
+      prctl (PR_SET_TIMERSLACK, 1UL, 0UL, 0UL, 0UL);
+      camera_thread_rig = rig;
+    }
+  }
   guint8 *out = (guint8 *) arv_buffer_get_data (buffer, NULL);
   gint x0 = 0, y0 = 0, w = 0, h = 0;
   arv_buffer_get_image_region (buffer, &x0, &y0, &w, &h);
@@ -45,15 +107,13 @@ fill (ArvBuffer *buffer, void *data, guint32 exposure_time_us, guint32 gain, Arv
   g_atomic_int_inc (&rig->frames);
 }
 
-/* Aravis's fake camera thread polls its sockets with a timeout in whole milliseconds: with the
- * trigger polled every 0.5 ms the timeout is always 0, and the thread spins on a core for as
- * long as it streams. run_rate_bench.sh gives the benchmark real-time priority 2, which the
- * thread would inherit: it would then hold one of the machine's two cores outright, and the
- * daemon (a real camera does its work on its own hardware) would run on the other. So the
- * camera is made on a thread one real-time priority lower (the normal class when there is none
- * lower), which its thread inherits: it takes what the daemon's and the ceiling's threads
- * leave, a core whenever they wait, and still comes before the other users' processes. The rest
- * of the rig (the Modbus controller) keeps the caller's priority. */
+/* run_rate_bench.sh gives the benchmark real-time priority 2, which the camera's thread would
+ * inherit: filling and sending a frame, it would then take a core from the daemon (a real
+ * camera does its work on its own hardware). So the camera is made on a thread one real-time
+ * priority lower (the normal class when there is none lower), which its thread inherits: it
+ * takes what the daemon's and the ceiling's threads leave, a core whenever they wait, and
+ * still comes before the other users' processes. The rest of the rig (the Modbus controller)
+ * keeps the caller's priority. */
 static gpointer
 new_camera_thread (gpointer data)
 {
@@ -120,8 +180,17 @@ fake_rig_new (guint width, guint height, guint n_phases, guint settle_us)
   /* 8 KiB GVSP packets, as a GigE Vision link with jumbo frames carries them (and as labsim
    * serves): the fake camera has no test packet, so Aravis's packet size negotiation keeps it. */
   arv_fake_camera_write_register (fake, 0xd04 /* GigE Vision SCPS0: stream packet size */, 8192);
-  /* The software trigger is polled, not signalled: at 2 kHz the poll adds 0.25 ms on average. */
-  arv_fake_camera_set_trigger_frequency (fake, 2000.0);
+  /* The software trigger is polled, not signalled (g_poll above). */
+  rig->fake = fake;
+  const char *hz_env = g_getenv ("DS_BENCH_TRIGGER_HZ");
+  double hz = hz_env ? g_ascii_strtod (hz_env, NULL) : FAKE_RIG_TRIGGER_HZ;
+  if (!(hz >= 1.0 && hz <= 100000.0))
+    hz = FAKE_RIG_TRIGGER_HZ;
+  rig->trigger_period_us = (guint64) (1e6 / hz);
+  rig->spin = g_strcmp0 (g_getenv ("DS_BENCH_CAMERA_POLL"), "spin") == 0;
+  printf ("fake camera: software trigger polled at %g Hz, its thread %s between the polls%s\n", hz,
+          rig->spin ? "spinning" : "sleeping", rig->spin ? " (DS_BENCH_CAMERA_POLL=spin)" : "");
+  arv_fake_camera_set_trigger_frequency (fake, hz);
   arv_fake_camera_set_fill_pattern (fake, fill, rig);
   return rig;
 }
@@ -157,4 +226,26 @@ guint64
 fake_rig_frames (FakeRig *rig)
 {
   return (guint64) g_atomic_int_get (&rig->frames);
+}
+
+double
+fake_rig_camera_cpu_s (FakeRig *rig)
+{
+  gint tid = g_atomic_int_get (&rig->camera_tid);
+  if (!tid)
+    return NAN;
+  g_autofree char *path = g_strdup_printf ("/proc/self/task/%d/stat", tid);
+  g_autofree char *text = NULL;
+  if (!g_file_get_contents (path, &text, NULL, NULL))
+    return NAN;
+  /* Fields after the command name (which may hold spaces): state is the 3rd field, utime and
+   * stime the 14th and 15th (proc(5)), in clock ticks. */
+  const char *p = strrchr (text, ')');
+  if (!p)
+    return NAN;
+  g_auto (GStrv) f = g_strsplit (p + 2, " ", -1);
+  if (g_strv_length (f) < 13)
+    return NAN;
+  double ticks = g_ascii_strtod (f[11], NULL) + g_ascii_strtod (f[12], NULL);
+  return ticks / (double) sysconf (_SC_CLK_TCK);
 }

@@ -1,11 +1,12 @@
 /* A fast rig for the daemon's rate benchmarks: Aravis's own GigE Vision fake camera
  * (ArvGvFakeCamera, served from this process on 127.0.0.1) whose fill is a memcpy of a frame
- * prebuilt per stripe phase, its software trigger polled at 2 kHz, and the lab's Modbus TCP
- * illuminator controller (drivers/labsim/modbus_server.h) in-process, whose lit phase chooses
- * the frame. The frames are the closed-form scene of tests/daemon/test_sequencer.c: square
- * stripes, period 16 px, duty 1/2, direct 1000 DN, global 600 DN, dark offset 2 DN, 12 bits in
- * Mono16; so maxmin gives transmissive 1000 and scattered 604 exactly (no noise).
- * Nothing here depends on labsim's renderer. */
+ * prebuilt per stripe phase, its software trigger polled at 1 kHz (its thread sleeping between
+ * the polls: fake_rig.c), and the lab's Modbus TCP illuminator controller
+ * (drivers/labsim/modbus_server.h) in-process, whose lit phase chooses the frame. The frames
+ * are the closed-form scene of tests/daemon/test_sequencer.c: square stripes, period 16 px,
+ * duty 1/2, direct 1000 DN, global 600 DN, dark offset 2 DN, 12 bits in Mono16; so maxmin gives
+ * transmissive 1000 and scattered 604 exactly (no noise). Nothing here depends on labsim's
+ * renderer. */
 #pragma once
 #include <glib.h>
 
@@ -29,5 +30,8 @@ guint fake_rig_modbus_port (const FakeRig *rig);
 void fake_rig_set_settle_us (FakeRig *rig, guint settle_us);
 /* Frames the camera filled so far. */
 guint64 fake_rig_frames (FakeRig *rig);
+/* CPU time (user + system, seconds) the camera's thread used so far; NAN before its first
+ * frame. */
+double fake_rig_camera_cpu_s (FakeRig *rig);
 
 G_END_DECLS
