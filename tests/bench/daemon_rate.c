@@ -150,8 +150,12 @@ obj (JsonNode *node, const char *member)
  * the socket buffer and never came: incomplete until the retries ran out; the camera's
  * heartbeat answered too late) are captured again, up to this many times per capture, and
  * reported. A sequencing failure (a frame of the wrong phase) is never retried: the
- * daemon's drop counters are checked for it at the end of the round. */
-#define CAPTURE_ATTEMPTS 4
+ * daemon's drop counters are checked for it at the end of the round. ctest's reduced run
+ * (--quick) runs in the normal scheduling class beside the rest of the suite, with the host's
+ * receive-buffer cap (4 MiB on the development VM, two 1 MP frames): at a load of 15 a
+ * capture failed on transport 4 times in a row there, with the earlier rig as with this one,
+ * so it allows more attempts; each is printed. */
+static guint capture_attempts = 4;
 
 static DsMessage *
 capture_retrying (DsClient *c)
@@ -172,7 +176,7 @@ capture_retrying (DsClient *c)
       CHECK (FALSE, "a capture failed for a reason a clean rig must not give");
       return NULL;
     }
-    if (attempt == CAPTURE_ATTEMPTS) {
+    if (attempt == capture_attempts) {
       CHECK (FALSE, "a capture failed %u times in a row", attempt);
       return NULL;
     }
@@ -565,6 +569,7 @@ main (int argc, char **argv)
   }
   if (quick) {
     seconds = 1.0;
+    capture_attempts = 12;
     if (strcmp (sizes, "1024x1024,2048x2048") == 0)
       sizes = "1024x1024";
   }
