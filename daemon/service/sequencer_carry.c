@@ -20,6 +20,19 @@ ds_seq_carry_allowed (DsSequencer *seq, const DsCaptureSettings *s)
          s->target_error <= 0 && s->time_budget_ms <= 0;
 }
 
+/* A device failure while taking the next set's first frame. When retrying cannot help (the
+ * device is gone, or refuses), that set has failed on its first frame: the failure is kept and
+ * reported as the set's when the carry is discarded, as it would have been without the
+ * overlap (a camera lost between two continuous sets is reported as lost, not only
+ * reconnected). */
+static void
+carry_device_error (DsSequencer *seq, GError *e, const char *what)
+{
+  DsSeqCarry *cy = &seq->carry;
+  if (ds_seq_fatal_device_error (seq, e) && !cy->error)
+    cy->error = g_error_new (e->domain, e->code, "%s: %s", what, e->message);
+}
+
 void
 ds_seq_carry_trigger (DsSequencer *seq, const DsCaptureSettings *s)
 {
@@ -29,14 +42,18 @@ ds_seq_carry_trigger (DsSequencer *seq, const DsCaptureSettings *s)
   cy->settings = *s;
   cy->dark = s->dark_frame;
   g_autoptr (GError) e = NULL;
+  const char *first = cy->dark ? "dark frame" : "phase 0";
   if (cy->dark) {
-    if (!ds_seq_illuminator_off (seq, &cy->counters, &e))
+    if (!ds_seq_illuminator_off (seq, &cy->counters, &e)) {
+      carry_device_error (seq, e, first); /* prefixed "dark frame: illuminator off" */
       return;
+    }
   } else {
     gint64 t = g_get_monotonic_time ();
     if (!ds_seq_set_phase (seq, 0, &e)) {
       cy->counters.device_errors++;
-      ds_seq_fatal_device_error (seq, e);
+      g_prefix_error (&e, "illuminator: ");
+      carry_device_error (seq, e, first);
       return;
     }
     ds_seq_stage_add (seq, DS_STAGE_SET_PHASE, t);
@@ -44,7 +61,8 @@ ds_seq_carry_trigger (DsSequencer *seq, const DsCaptureSettings *s)
   ds_seq_flush_stale (seq, &cy->counters);
   cy->applied_at_us = g_get_monotonic_time ();
   if (!ds_seq_trigger (seq, &cy->counters, &e)) {
-    ds_seq_fatal_device_error (seq, e);
+    g_prefix_error (&e, "camera: ");
+    carry_device_error (seq, e, first);
     return;
   }
   cy->pending = TRUE;
@@ -60,7 +78,8 @@ ds_seq_carry_grab (DsSequencer *seq)
   g_autoptr (GError) e = NULL;
   cy->frame = ds_seq_grab (seq, &cy->counters, &e);
   if (!cy->frame) {
-    ds_seq_fatal_device_error (seq, e);
+    g_prefix_error (&e, "camera: ");
+    carry_device_error (seq, e, cy->dark ? "dark frame" : "phase 0");
     /* A frame of the lost trigger that still comes is flushed after the next set_phase. */
   }
 }
@@ -68,8 +87,8 @@ ds_seq_carry_grab (DsSequencer *seq)
 gboolean
 ds_seq_carry_fits (DsSequencer *seq, const DsCaptureSettings *s)
 {
-  return seq->carry.active && seq->continuous_set && !seq->need_reconnect && seq->dev &&
-         memcmp (&seq->carry.settings, s, sizeof *s) == 0;
+  return seq->carry.active && !seq->carry.error && seq->continuous_set && !seq->need_reconnect &&
+         seq->dev && memcmp (&seq->carry.settings, s, sizeof *s) == 0;
 }
 
 void
@@ -84,6 +103,13 @@ ds_seq_carry_discard (DsSequencer *seq)
     ds_frame_counters_drop (&cy->counters, DS_DROP_ABORTED, 1);
     g_clear_pointer (&cy->frame, ds_frame_free);
   }
-  ds_seq_account_frames (seq, &cy->counters);
+  if (cy->error) {
+    /* The set it belonged to failed on its first frame (carry_device_error). */
+    ds_seq_account (seq, &cy->counters, FALSE);
+    ds_seq_record_error (seq, cy->error);
+    ds_seq_refresh_device_status (seq);
+    ds_seq_emit (seq, DS_SEQUENCER_EVENT_FAILED, 0, NULL, g_steal_pointer (&cy->error), NULL);
+  } else
+    ds_seq_account_frames (seq, &cy->counters);
   memset (cy, 0, sizeof *cy);
 }

@@ -41,6 +41,7 @@ typedef struct {
   gint64 applied_at_us;       /* when phase 0 (or off) was applied for it */
   DsCaptureSettings settings; /* the settings of the set it was taken after */
   DsFrameCounters counters;   /* what applying phase 0, triggering and grabbing counted */
+  GError *error;              /* a device failure that fails the set it belongs to */
 } DsSeqCarry;
 
 struct DsSequencer {
@@ -174,7 +175,8 @@ void ds_seq_carry_grab (DsSequencer *seq);
 /* Whether the set about to run with settings s can start from the carry. */
 gboolean ds_seq_carry_fits (DsSequencer *seq, const DsCaptureSettings *s);
 /* The carry is not used: its frame (grabbed now if pending) is counted as aborted, and its
- * counters go to the totals. No-op without a carry. */
+ * counters go to the totals; after a device failure that ends the set it belonged to, that
+ * set is reported failed with it (tag 0: a continuous set). No-op without a carry. */
 void ds_seq_carry_discard (DsSequencer *seq);
 
 /* ---- sequencer_verify.c ---- */

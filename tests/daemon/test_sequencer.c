@@ -30,6 +30,7 @@ typedef struct {
    * the sequencer applied another phase and flushed. */
   guint late_in;
   guint off_lost_in;       /* that `off` fails DISCONNECTED */
+  guint vanish_in;         /* that grab delivers its frame, then the camera is gone */
   gboolean log_off;        /* `off` goes into phase_log as -1 */
   guint ill_reconnects;
   DsFrame *withheld, *delivered;
@@ -147,6 +148,8 @@ cam_grab (gpointer b, guint timeout_ms, GError **e)
     f->ids_skipped = 1;
   }
   lab->last_lit_phase = lab->applied_phase;
+  if (fault_now (&lab->vanish_in))
+    lab->disconnected = TRUE;
   return f;
 }
 
@@ -962,6 +965,42 @@ test_pipeline_continuous_then_capture (Fixture *f, gconstpointer d)
     g_assert_cmpint (f->lab.phase_log[f->lab.n_phase_log - 8 - n_dark + i], ==, (int) i - (int) n_dark);
 }
 
+/* The camera is lost right after a continuous set's last frame, so the trigger of the next
+ * set's first frame (phase 0, or its dark frame) fails: that set fails with the loss, reported
+ * as it would be without the overlap, the camera is reconnected, the sets after it equal the
+ * scene, and the accounting is exact. data: a dark frame per set. */
+static void
+test_pipeline_continuous_lost_ahead (Fixture *f, gconstpointer d)
+{
+  gboolean dark = d != NULL;
+  DsCaptureSettings s;
+  default_settings (&s, 8);
+  s.dark_frame = dark;
+  capture (f, &s);
+  g_assert_nonnull (f->out.result);
+  DsSequencerStatus before, after;
+  ds_sequencer_get_status (f->seq, &before);
+  f->lab.vanish_in = dark ? 9 : 8; /* the last frame of the first continuous set */
+  f->out.results = 0;
+  f->out.check_results = TRUE;
+  f->out.expect_dark = dark;
+  g_clear_error (&f->out.failure);
+  ds_sequencer_start (f->seq, &s);
+  while (f->out.results < 3)
+    g_main_loop_run (f->out.loop);
+  stop_continuous (f);
+  f->out.check_results = FALSE;
+  g_assert_cmpuint (f->out.results_wrong, ==, 0);
+  g_assert_nonnull (f->out.failure);
+  g_test_message ("failure: %s", f->out.failure->message);
+  g_assert_true (g_str_has_prefix (f->out.failure->message, dark ? "dark frame: camera: " : "phase 0: camera: "));
+  g_assert_nonnull (strstr (f->out.failure->message, "camera gone"));
+  ds_sequencer_get_status (f->seq, &after);
+  g_assert_cmpuint (after.sets_failed - before.sets_failed, ==, 1);
+  g_assert_cmpuint (f->lab.reconnects, ==, 1);
+  assert_accounting (f);
+}
+
 /* Result planes: once nobody holds a result, the next set of that size writes into the same
  * planes (no fresh memory after the last frame); while a result is held, a set gets others. */
 static void
@@ -1088,6 +1127,8 @@ main (int argc, char **argv)
   ADD ("pipeline/continuous-dark-first-frame-dropped", test_pipeline_continuous_drop, &dark_first_dropped);
   ADD ("pipeline/continuous-then-capture", test_pipeline_continuous_then_capture, NULL);
   ADD ("pipeline/continuous-dark-then-capture", test_pipeline_continuous_then_capture, "dark");
+  ADD ("pipeline/continuous-camera-lost-ahead", test_pipeline_continuous_lost_ahead, NULL);
+  ADD ("pipeline/continuous-dark-camera-lost-ahead", test_pipeline_continuous_lost_ahead, "dark");
   ADD ("result-planes-reused", test_result_planes_reused, NULL);
   g_test_add_func ("/sequencer/phase-check-tall-frame", test_phase_check_tall_frame);
   ADD ("release-acquire", test_release_acquire, NULL);
