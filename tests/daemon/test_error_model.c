@@ -95,6 +95,7 @@ typedef struct {
   double leak_per_px;      /* the scattered light's transfer of a harmonic of period x: exp(a x) - 1 */
   double blocked;          /* fraction of the rows with Ld = 0 (an object) */
   double bright, ld_bright; /* fraction of the rows (the last ones) with Ld = ld_bright instead */
+  double blocked_columns;  /* fraction of every 37 columns with Ld = 0 (bars spanning the rows) */
 } Synth;
 
 /* Frame of phase `shift` at `period`: the pattern's Fourier series (independent of
@@ -120,8 +121,9 @@ synth_frame (const Synth *s, double period, double shift, gboolean on, GRand *r)
   }
   for (guint y = 0; y < h; y++) {
     float *row = ds_image_row (f, y);
-    double ld = y < s->blocked * h ? 0 : y >= (1 - s->bright) * h ? s->ld_bright : s->ld;
+    double ld_row = y < s->blocked * h ? 0 : y >= (1 - s->bright) * h ? s->ld_bright : s->ld;
     for (guint x = 0; x < w; x++) {
+      double ld = x % 37 < s->blocked_columns * 37 ? 0 : ld_row;
       /* The scattered light's own stripes are the leak above; its mean is Lg m. */
       double v = on ? ld * pattern[x] + s->lg * m : 0;
       double var = s->read_dn * s->read_dn + s->gain * v;
@@ -155,7 +157,7 @@ probe_synth (const Synth *s, gboolean two_periods, double calibrated_gain, DsSce
 static void
 test_probe_plain (void)
 {
-  Synth s = { { DS_PATTERN_SQUARE, 10, 0.5, 0, 0.4 }, 800, 1200, 50, 3.0, 0.25, 0, 0.25, 0, 0 };
+  Synth s = { { DS_PATTERN_SQUARE, 10, 0.5, 0, 0.4 }, 800, 1200, 50, 3.0, 0.25, 0, 0.25, 0, 0, 0 };
   DsSceneProbe p;
   probe_synth (&s, TRUE, 0, &p);
   double ld_mean = s.ld * (1 - s.blocked);
@@ -178,7 +180,7 @@ test_probe_plain (void)
 static void
 test_probe_leak (void)
 {
-  Synth s = { { DS_PATTERN_SQUARE, 12, 0.5, 0, 0.0 }, 500, 3000, 20, 2.0, 0.25, 0.04, 0, 0, 0 };
+  Synth s = { { DS_PATTERN_SQUARE, 12, 0.5, 0, 0.0 }, 500, 3000, 20, 2.0, 0.25, 0.04, 0, 0, 0, 0 };
   DsSceneProbe p;
   DsStripeModel sharp = s.g;
   probe_synth (&s, TRUE, ds_stripe_harmonic (&sharp, 1), &p);
@@ -201,7 +203,7 @@ test_probe_leak (void)
 static void
 test_probe_blurred_harmonics (void)
 {
-  Synth s = { { DS_PATTERN_SQUARE, 12, 0.4, 0, 1.2 }, 2000, 300, 20, 2.0, 0.25, 0, 0, 0, 0 };
+  Synth s = { { DS_PATTERN_SQUARE, 12, 0.4, 0, 1.2 }, 2000, 300, 20, 2.0, 0.25, 0, 0, 0, 0, 0 };
   g_autoptr (GRand) r = g_rand_new_with_seed (11);
   g_autoptr (DsImage) dark = synth_frame (&s, 12, 0, FALSE, r);
   g_autoptr (DsImage) l0 = synth_frame (&s, 12, 0.1, TRUE, r);
@@ -229,7 +231,7 @@ test_probe_blurred_harmonics (void)
 static void
 test_probe_clip_level (void)
 {
-  Synth s = { { DS_PATTERN_SQUARE, 10, 0.5, 0, 0.0 }, 800, 300, 50, 3.0, 0.25, 0, 0.25, 0, 0 };
+  Synth s = { { DS_PATTERN_SQUARE, 10, 0.5, 0, 0.0 }, 800, 300, 50, 3.0, 0.25, 0, 0.25, 0, 0, 0 };
   g_autoptr (GRand) r = g_rand_new_with_seed (11);
   DsImage *raw[3] = { synth_frame (&s, 10, 0, FALSE, r), synth_frame (&s, 10, 0.1, TRUE, r),
                       synth_frame (&s, 10, 0.6, TRUE, r) };
@@ -285,7 +287,7 @@ static void
 test_probe_clip_quiet_sensor (void)
 {
   for (int noisy = 0; noisy < 2; noisy++) {
-    Synth s = { { DS_PATTERN_SQUARE, 10, 0.5, 0, 0.0 }, 800, 300, 50, noisy ? 0.2 : 0.0, noisy ? 0.25 : 0.0, 0, 0.25, 0, 0 };
+    Synth s = { { DS_PATTERN_SQUARE, 10, 0.5, 0, 0.0 }, 800, 300, 50, noisy ? 0.2 : 0.0, noisy ? 0.25 : 0.0, 0, 0.25, 0, 0, 0 };
     g_autoptr (GRand) r = g_rand_new_with_seed (13);
     DsImage *f[3];
     for (int i = 0; i < 3; i++) {
@@ -324,7 +326,7 @@ static void
 test_probe_clipped_places (void)
 {
   for (int two = 0; two < 2; two++) {
-    Synth s = { { DS_PATTERN_SQUARE, 10, 0.5, 0.1, 0.0 }, 500, 200, 50, 3.0, 0.25, 0, 0.25, 0.35, 1300 };
+    Synth s = { { DS_PATTERN_SQUARE, 10, 0.5, 0.1, 0.0 }, 500, 200, 50, 3.0, 0.25, 0, 0.25, 0.35, 1300, 0 };
     const double m = 0.5 + 0.1 * 0.5, clip = 1400;
     g_assert_cmpfloat (s.dark + s.ld_bright + m * s.lg, >, clip);
     g_autoptr (GRand) r = g_rand_new_with_seed (17);
@@ -359,6 +361,29 @@ test_probe_clipped_places (void)
     g_assert_cmpfloat (ds_scene_probe_leak (&p, 10, 1), <, 0.02);
     for (int i = 0; i < 5; i++)
       g_clear_pointer (&f[i], ds_image_free);
+  }
+}
+
+/* The spread of Ld over the scene, mean (Ld^2) / mean (Ld)^2, when objects block rows (within
+ * a column) and bars block columns (across them, which a column's statistics cannot see): the
+ * scene's own figure, 1 / (the lit fraction) for Ld either 0 or one level. */
+static void
+test_probe_spread (void)
+{
+  /* Rows blocked, columns blocked, both. */
+  for (guint i = 0; i < 3; i++) {
+    Synth s = { { DS_PATTERN_SQUARE, 10, 0.5, 0, 0.4 }, 800, 600, 50, 3.0, 0.25, 0, i == 1 ? 0 : 0.25, 0, 0,
+                i == 0 ? 0 : 0.3 };
+    DsSceneProbe p;
+    probe_synth (&s, TRUE, 0, &p);
+    guint lit_cols = 0;
+    for (guint x = 0; x < 240; x++)
+      lit_cols += !(x % 37 < s.blocked_columns * 37);
+    double lit = (1 - s.blocked) * lit_cols / 240.0;
+    g_test_message ("rows blocked %.2f, columns %.2f: spread %.3f, the scene's %.3f, Ld %.1f (%.1f)", s.blocked,
+                    s.blocked_columns, p.ld_spread, 1 / lit, p.ld_mean, s.ld * lit);
+    g_assert_cmpfloat_with_epsilon (p.ld_spread, 1 / lit, 0.05 / lit);
+    g_assert_cmpfloat_with_epsilon (p.ld_mean, s.ld * lit, 0.03 * s.ld * lit);
   }
 }
 
@@ -612,5 +637,6 @@ main (int argc, char **argv)
   g_test_add_func ("/error-model/leak", test_error_model_leak);
   g_test_add_func ("/error-model/cancellation", test_error_model_cancellation);
   g_test_add_func ("/error-model/probe-clipped-places", test_probe_clipped_places);
+  g_test_add_func ("/error-model/probe-spread", test_probe_spread);
   return g_test_run ();
 }
