@@ -94,6 +94,25 @@ ds_validate_probe (const DsSimRig *rig, const DsValidateOptions *o, DsValidateSc
     if (!c1)
       return FALSE;
   }
+  /* The finer pilot periods, as descatterd takes them (sequencer_auto.c): the blur the rig knows
+   * is the calibrated one, unknown here (the harmonic gain's blur is found by the probe), so
+   * only the 4 px floor applies before the probe. */
+  double finer_period[DS_PROBE_FINER_MAX];
+  guint n_finer = o->fixed_period ? 0 : ds_scene_probe_finer_periods (s->period_px, 0, finer_period);
+  DsImage *finer_frames[DS_PROBE_FINER_MAX][2] = { { NULL, NULL }, { NULL, NULL } };
+  gboolean finer_ok = TRUE;
+  for (guint i = 0; i < n_finer && finer_ok; i++) {
+    g_autoptr (DsSimRig) at = ds_sim_rig_with_period (rig, finer_period[i], error);
+    for (guint k = 0; k < 2 && at && finer_ok; k++)
+      finer_ok = (finer_frames[i][k] = ds_sim_rig_frame (at, k, 2, TRUE, e0, seed + 6 + 2 * i + k, error)) != NULL;
+    finer_ok = finer_ok && at;
+  }
+  if (!finer_ok) {
+    for (guint i = 0; i < DS_PROBE_FINER_MAX; i++)
+      for (guint k = 0; k < 2; k++)
+        ds_image_free (finer_frames[i][k]);
+    return FALSE;
+  }
   DsProbeFrames pf = {
     .dark = dark, .lit = { l0, l1 }, .coarse = { c0, c1 },
     .coarse_missing = o->fixed_period ? "the illuminator cannot change its period" : NULL,
@@ -105,8 +124,16 @@ ds_validate_probe (const DsSimRig *rig, const DsValidateOptions *o, DsValidateSc
     .geometry = { .kind = s->sine ? DS_PATTERN_SINE : DS_PATTERN_SQUARE, .period_px = s->period_px,
                   .duty = s->duty, .black_level = s->black_level },
     .calibrated_gain = out->harmonic_gain,
+    .n_finer = n_finer,
+    .finer_missing = o->fixed_period ? "the illuminator cannot change its period" : NULL,
   };
-  if (!ds_scene_probe_measure (&pf, &out->probe, error))
+  for (guint i = 0; i < n_finer; i++)
+    pf.finer[i] = (DsProbePair){ .frame = { finer_frames[i][0], finer_frames[i][1] }, .period_px = finer_period[i] };
+  gboolean probed = ds_scene_probe_measure (&pf, &out->probe, error);
+  for (guint i = 0; i < DS_PROBE_FINER_MAX; i++)
+    for (guint k = 0; k < 2; k++)
+      ds_image_free (finer_frames[i][k]);
+  if (!probed)
     return FALSE;
   ds_separation_params_init (&out->params, 4);
   out->params.pattern = pf.geometry.kind;
@@ -221,7 +248,8 @@ ds_validate_config (const DsSimRig *rig, const DsValidateScene *vs, DsErrorModel
   p->predicted_error = model->scale * p->parts.total;
   p->predicted_time_ms = ds_rig_timing_set_ms (timing, vs->probe.width, vs->probe.height, phases, averages,
                                                p->exposure_us, TRUE);
-  p->lower_bound = !vs->probe.leak_measured || vs->probe.blur_source == DS_BLUR_ASSUMED_SHARP;
+  p->lower_bound = !vs->probe.leak_measured || vs->probe.narrow_unresolved ||
+                   vs->probe.blur_source == DS_BLUR_ASSUMED_SHARP;
   if (!ds_validate_run (rig, vs, estimator, phases, averages, p->exposure_us, seed, &out->achieved,
                         &out->achieved_systematic, error))
     return FALSE;

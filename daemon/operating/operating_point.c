@@ -182,7 +182,7 @@ predict (const DsOperatingModel *m, DsErrorModel *errors, const DsSceneProbe *pr
   p->period_px = period > 0 ? period : probe->geometry.period_px;
   p->predicted_error = m->scale * p->parts.total;
   p->predicted_time_ms = ds_rig_timing_set_ms (t, w, h, n, mm, p->exposure_us, TRUE);
-  p->lower_bound = !probe->leak_measured;
+  p->lower_bound = !probe->leak_measured || probe->narrow_unresolved;
   return TRUE;
 }
 
@@ -449,6 +449,8 @@ ds_operating_point_choose (const DsOperatingModel *m, DsErrorModel *errors, cons
     append_remedies (msg, m, errors, probe, t, w, h, longest, target, budget);
   if (target > 0 && !probe->leak_measured)
     g_string_append_printf (msg, " (scattered light that keeps the stripes: %s)", probe->leak_note);
+  else if (target > 0 && probe->narrow_unresolved)
+    g_string_append_printf (msg, " (%s)", probe->narrow_note);
   g_set_error_literal (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT, msg->str);
   g_string_free (msg, TRUE);
   return FALSE;
@@ -493,6 +495,8 @@ ds_operating_report_to_json (const DsOperatingReport *r, JsonBuilder *b)
   json_builder_begin_array (b);
   if (!pr->leak_measured)
     json_builder_add_string_value (b, pr->leak_note);
+  if (pr->narrow_unresolved)
+    json_builder_add_string_value (b, pr->narrow_note);
   json_builder_end_array (b);
   json_builder_set_member_name (b, "assumptions");
   json_builder_begin_array (b);
@@ -516,6 +520,10 @@ ds_operating_report_to_json (const DsOperatingReport *r, JsonBuilder *b)
   STR ("blur_source", ds_blur_source_name (pr->blur_source));
   DBL ("scattered_stripes_at_period", ds_scene_probe_leak (pr, pr->geometry.period_px, 1));
   STR ("scattered_stripes_note", pr->leak_note);
+  DBL ("finest_period_px", pr->finest_period_px);
+  DBL ("narrow_kernel_px", pr->narrow_kernel_px);
+  DBL ("narrow_scattered_fraction", pr->narrow_fraction);
+  STR ("narrow_kernel_note", pr->narrow_note);
   DBL ("clip_dn", pr->saturation_dn);
   BOOL ("clip_known", pr->clip_known);
   DBL ("saturated_fraction", pr->saturated_fraction);

@@ -50,7 +50,8 @@ typedef struct {
   double predicted_error;      /* relative RMSE of transmissive, x the model's scale */
   DsErrorParts parts;          /* its parts, without the scale */
   double predicted_time_ms;
-  gboolean lower_bound;        /* the scattered stripes could not be measured: the error may be larger */
+  gboolean lower_bound;        /* the scattered stripes could not be measured, or no period finer than P
+                                  was on a scene that scatters: the error may be larger */
 } DsOperatingPoint;
 
 /* The longest exposure (µs) that keeps the probe's brightest pixels (99.9th percentile) below

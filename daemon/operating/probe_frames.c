@@ -33,8 +33,28 @@ ds_probe_frames_check (const DsProbeFrames *fr, GError **error)
       !frame_fits (fr->lit[1], "phase-1/2 frame at the period", fr->dark, error))
     return FALSE;
   /* The pair at 2P is optional, but never half of it. */
-  if (fr->coarse[0] || fr->coarse[1])
-    return frame_fits (fr->coarse[0], "phase-0 frame at twice the period", fr->dark, error) &&
-           frame_fits (fr->coarse[1], "phase-1/2 frame at twice the period", fr->dark, error);
+  if ((fr->coarse[0] || fr->coarse[1]) &&
+      !(frame_fits (fr->coarse[0], "phase-0 frame at twice the period", fr->dark, error) &&
+        frame_fits (fr->coarse[1], "phase-1/2 frame at twice the period", fr->dark, error)))
+    return FALSE;
+  /* The finer pairs: whole, below the period. */
+  if (fr->n_finer > DS_PROBE_FINER_MAX) {
+    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT,
+                 "pilot frames: %u finer periods, at most %u", fr->n_finer, DS_PROBE_FINER_MAX);
+    return FALSE;
+  }
+  for (guint i = 0; i < fr->n_finer; i++) {
+    g_autofree char *n0 = g_strdup_printf ("phase-0 frame at %g px", fr->finer[i].period_px);
+    g_autofree char *n1 = g_strdup_printf ("phase-1/2 frame at %g px", fr->finer[i].period_px);
+    if (!frame_fits (fr->finer[i].frame[0], n0, fr->dark, error) ||
+        !frame_fits (fr->finer[i].frame[1], n1, fr->dark, error))
+      return FALSE;
+    if (!(fr->finer[i].period_px > 0 && fr->finer[i].period_px < fr->geometry.period_px)) {
+      g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT,
+                   "pilot frames: a finer period of %g px is not below the period %g px", fr->finer[i].period_px,
+                   fr->geometry.period_px);
+      return FALSE;
+    }
+  }
   return TRUE;
 }

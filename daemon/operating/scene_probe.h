@@ -30,7 +30,31 @@
  *
  * What no pair of periods can see: scattered light whose kernel is narrow against both periods
  * keeps the stripes at both, so it is counted as direct light (Ld too high, the scattered stripes
- * too low by as much); docs/accuracy.md, "Automatic operating point".
+ * too low by as much). Hence, where the illuminator can change its period, pilot pairs at finer
+ * periods too, P/2 and P/4 while the sensor resolves them (ds_scene_probe_finer_periods): light
+ * that loses its stripes at P/4 but keeps them at P is scattered light, not direct. The small-angle
+ * transfer exp(alpha x), fitted over x <= P, rises from 1 at x = 0 without limit; a kernel only a
+ * few pixels wide instead keeps almost all its light modulated at P and 2P and loses it within a
+ * factor 2-4 below P (gen-6-07: 94.5 % of its scattered light modulated at 23.25 px, a kernel of
+ * ~5 px), a step in x that a line through log (A / G) follows only between P/4 and P and then
+ * extrapolates to x = 0 too high (Ld 1888 DN against the truth's 1706, the leak at P 12 % against
+ * 22 %). So the transfer carries a second, narrow term, the closed-form MTF of a kernel whose line
+ * spread is exponential, exp (-|u| / w) / 2w, holding beta Ld of light:
+ *     A_n(Q) = Ld G_n(Q, sigma) exp(alpha Q / n) (1 + beta / (1 + (2 pi w n / Q)^2))
+ * Not a Gaussian kernel: the simulator's narrow Monte Carlo kernels have a sharp core (light
+ * scattered near the exit moves little), and their MTF falls as 1/f^2 at high frequency, not as
+ * exp(-f^2) (gen-6-07's kernel: 98.6, 94.5, 80.6, 49.9, 34.7 % at 46.5, 23.25, 11.63, 5.81, 4 px;
+ * this form with w = 0.89 px gives 98.6, 94.5, 81.2, 51.9, 33.9 %, a Gaussian through 94.5 % at P
+ * 40 % at 5.81 px and 15 % at 4 px). The term is fitted (beta, w on a grid; Ld, alpha and the
+ * blur's error linear at each) only with the finer periods, over all the harmonics including
+ * 2P (where a line would go on rising and the narrow kernel's transfer has stopped), for kernels
+ * narrow against P (MTF >= 1/2 there), and kept when it fits those harmonics better than the line
+ * alone (DS_PROBE_NARROW_MIN_CHI2): the amplitudes' scatter (1-2 %, the objects' column profile)
+ * is as large as the step itself on gen-6-07, so no significance test can pass, while the line
+ * is known to extrapolate such a step wrongly. Without finer periods (an illuminator that cannot
+ * change its period, or P/2 below what the sensor resolves) a kernel narrower than P cannot be
+ * told from direct light: where the pilot shows scattered light at all, the prediction is then a lower bound
+ * (narrow_unresolved, and narrow_note says why); docs/accuracy.md, "Automatic operating point".
  *
  * Pure function of the frames; any thread; CPU only (a few passes over the frames). */
 #pragma once
@@ -45,6 +69,31 @@ G_BEGIN_DECLS
  * gain this moves by more than a few % weigh little in the scattered stripes' fit. */
 #define DS_PROBE_BLUR_UNCERTAINTY_PX 0.05
 
+/* The finest pilot period: the first harmonic of a period Q is sampled by Q pixels (below 4 the
+ * pixel's own integration takes a third of it and the higher harmonics alias), and a Gaussian blur
+ * sigma keeps exp (-2 pi^2 sigma^2 / Q^2) of it, at least half for Q >= DS_PROBE_FINEST_BLUR_RATIO
+ * sigma (2 pi / sqrt (2 ln 2) = 5.34): below, the blur's uncertainty moves the harmonic by more
+ * than the scattered stripes it is to show. */
+#define DS_PROBE_FINEST_PERIOD_PX 4.0
+#define DS_PROBE_FINEST_BLUR_RATIO 5.34
+#define DS_PROBE_FINER_MAX 2
+/* How much better (weighted squared residuals, chi^2 with the fit's 2 % floor) the narrow kernel
+ * term must explain the harmonics to be kept: any improvement (above: why no significance test). */
+#define DS_PROBE_NARROW_MIN_CHI2 0.0
+
+/* The finer pilot periods for period P and blur sigma (0 when unknown): P/2 and P/4 as long as they
+ * are resolvable (above), rounded to 1/100 px (a projector's PERIOD register unit). Returns how
+ * many (0..DS_PROBE_FINER_MAX), finest last. */
+guint ds_scene_probe_finer_periods (double period_px, double blur_px, double out[DS_PROBE_FINER_MAX]);
+
+/* The finest period the pilot resolves at this blur. */
+double ds_scene_probe_finest_period (double blur_px);
+
+typedef struct {
+  const DsImage *frame[2];        /* phase 0 and 1/2 */
+  double period_px;
+} DsProbePair;
+
 typedef enum {
   DS_BLUR_CALIBRATED = 0,   /* from the calibrated harmonic gain */
   DS_BLUR_MEASURED,         /* fitted to the pilot's harmonics at two periods */
@@ -58,6 +107,9 @@ typedef struct {
   const DsImage *lit[2];          /* period P: phase 0 and phase 1/2 */
   const DsImage *coarse[2];       /* period 2P: phase 0 and 1/2; NULL when not available */
   const char *coarse_missing;     /* why not (shown with the lower bound) */
+  DsProbePair finer[DS_PROBE_FINER_MAX]; /* at ds_scene_probe_finer_periods (); n_finer of them */
+  guint n_finer;
+  const char *finer_missing;      /* why fewer than the resolvable finer periods (NULL: none missing) */
   double exposure_us;
   double saturation_dn;           /* the ADC's top or a known clip level; 0 = none */
   gboolean saturation_known;      /* saturation_dn is the sensor's real clip level (configured);
@@ -69,7 +121,8 @@ typedef struct {
 } DsProbeFrames;
 
 /* The frames' shape, as both the probe and the pattern check need it: a dark frame and the pair
- * at P, the pair at 2P whole or absent, all of one size and sample type. Fails with
+ * at P, the pair at 2P whole or absent, the finer pairs whole and below P, all of one size and
+ * sample type. Fails with
  * DS_PROTOCOL_ERROR_BAD_ARGUMENT naming the frame that is missing or differs. Any thread. */
 gboolean ds_probe_frames_check (const DsProbeFrames *frames, GError **error);
 
@@ -84,6 +137,12 @@ typedef struct {
   double leak_per_px;             /* alpha (1/px); 0 when not measured */
   gboolean leak_measured;
   char leak_note[200];            /* how it was measured, or why not */
+  double narrow_fraction;         /* beta: the narrow kernel's light over Ld; 0 when none was seen */
+  double narrow_kernel_px;        /* w: its Gaussian width, px */
+  double finest_period_px;        /* the finest period whose first harmonic the fit used */
+  gboolean narrow_unresolved;     /* scattered light was seen but no finer period was: a kernel
+                                     narrower than P would pass for direct light (a lower bound) */
+  char narrow_note[320];          /* why (narrow_unresolved), or what the finer periods showed */
   double noise_var0;              /* DN^2 of one frame without signal (read, dark, quantisation) */
   double noise_gain;              /* DN^2 per DN of signal (shot noise) */
   double dark_dn;
@@ -103,8 +162,8 @@ typedef struct {
 
 gboolean ds_scene_probe_measure (const DsProbeFrames *frames, DsSceneProbe *out, GError **error);
 
-/* The transfer exp(alpha Q / n) - 1 of harmonic n at period Q: the part of the apparent Ld that
- * is scattered light keeping the stripes. */
+/* The transfer exp(alpha Q / n) (1 + beta M_w (Q / n)) - 1 of harmonic n at period Q: the part of
+ * the apparent Ld that is scattered light keeping the stripes. */
 double ds_scene_probe_leak (const DsSceneProbe *probe, double period_px, guint n);
 
 G_END_DECLS
