@@ -27,15 +27,15 @@ pilot_frame (DsSequencer *seq, guint k, DsFrameCounters *c, GError **error)
   return ds_image_copy (f->image, error);
 }
 
-/* The two phases at twice the period, where the illuminator can change it; NULL frames and a
- * reason otherwise (the prediction is then a lower bound). */
+/* The two phases at another period (twice the period, or a finer one), where the illuminator
+ * can change it; NULL frames and a reason otherwise (the prediction is then a lower bound). */
 static gboolean
-coarse_frames (DsSequencer *seq, const DsCaptureSettings *s, DsFrameCounters *c, DsImage **out,
+period_frames (DsSequencer *seq, const DsCaptureSettings *s, double period, DsFrameCounters *c, DsImage **out,
                char **reason, GError **error)
 {
   DsStripePattern p = seq->dev->pattern;
   p.kind = s->pattern == DS_PATTERN_SINE ? DS_STRIPES_SINE : DS_STRIPES_SQUARE;
-  p.period_px = 2 * s->period_px;
+  p.period_px = period;
   p.duty = s->duty;
   p.black_level = s->black_level;
   p.n_phases = 2;
@@ -54,11 +54,11 @@ coarse_frames (DsSequencer *seq, const DsCaptureSettings *s, DsFrameCounters *c,
   for (guint k = 0; k < 2; k++)
     if (!(out[k] = pilot_frame (seq, k, c, error)))
       return FALSE;
-  /* A device that takes the register but keeps its period shows no stripes at 2P. */
+  /* A device that takes the register but keeps its period shows no stripes at the new one. */
   DsStripePhase sp;
-  if (!ds_stripe_phase_measure (out[0], 2 * s->period_px, NULL, &sp, NULL) || !sp.reliable) {
+  if (!ds_stripe_phase_measure (out[0], period, NULL, &sp, NULL) || !sp.reliable) {
     *reason = g_strdup_printf ("the illuminator accepted a period of %g px but the frames show no "
-                               "stripes at it", 2 * s->period_px);
+                               "stripes at it", period);
     g_clear_pointer (&out[0], ds_image_free);
     g_clear_pointer (&out[1], ds_image_free);
   }
@@ -90,8 +90,8 @@ pattern_matches (const DsProbeFrames *pf, DsOperatingReport *report, GError **er
 }
 
 /* Pilot frames (docs/accuracy.md, "Automatic operating point"): a dark frame, the phases 0 and
- * 1/2 at the configured period and, where the illuminator can change it, at twice the period,
- * all at the requested exposure. The probe measures the scene from them and the error model
+ * 1/2 at the configured period and, where the illuminator can change it, at twice the period and
+ * at P/2 and P/4 while resolvable, all at the requested exposure. The probe measures the scene from them and the error model
  * predicts every candidate; the choice and its prediction are recorded in the settings. The
  * pilot frames are counted as `preview` drops. */
 gboolean
@@ -122,9 +122,27 @@ ds_seq_choose_operating_point (DsSequencer *seq, DsCaptureSettings *s, DsFrameCo
     return FALSE;
   DsImage *coarse[2] = { NULL, NULL };
   g_autofree char *coarse_missing = NULL;
-  gboolean ok = coarse_frames (seq, s, c, coarse, &coarse_missing, error);
+  gboolean ok = period_frames (seq, s, 2 * s->period_px, c, coarse, &coarse_missing, error);
   g_autoptr (DsImage) coarse0 = coarse[0];
   g_autoptr (DsImage) coarse1 = coarse[1];
+  /* Finer periods, while the sensor resolves them (scene_probe.h), and not after the illuminator
+   * has refused a period: a narrow kernel passes for direct light at P and 2P alike. */
+  double finer_period[DS_PROBE_FINER_MAX];
+  guint n_finer = ds_scene_probe_finer_periods (s->period_px, s->edge_blur_known ? s->edge_blur_px : 0, finer_period);
+  DsImage *finer[DS_PROBE_FINER_MAX][2] = { { NULL, NULL }, { NULL, NULL } };
+  g_autofree char *finer_missing = NULL;
+  guint got = 0;
+  for (guint i = 0; ok && i < n_finer && !finer_missing && !coarse_missing; i++) {
+    ok = period_frames (seq, s, finer_period[i], c, finer[got], &finer_missing, error);
+    got += ok && finer[got][0];
+  }
+  if (coarse_missing && n_finer)
+    finer_missing = g_strdup (coarse_missing);
+  G_STATIC_ASSERT (DS_PROBE_FINER_MAX == 2);
+  g_autoptr (DsImage) finer00 = finer[0][0];
+  g_autoptr (DsImage) finer01 = finer[0][1];
+  g_autoptr (DsImage) finer10 = finer[1][0];
+  g_autoptr (DsImage) finer11 = finer[1][1];
   ds_frame_counters_drop (c, DS_DROP_PREVIEW, (c->acquired - before) - (c->dropped - dropped_before));
   if (!ok)
     return FALSE;
@@ -138,7 +156,11 @@ ds_seq_choose_operating_point (DsSequencer *seq, DsCaptureSettings *s, DsFrameCo
     .calibrated_gain = s->harmonic_gain,
     .blur_known = s->edge_blur_known,
     .calibrated_blur_px = s->edge_blur_px,
+    .n_finer = got,
+    .finer_missing = finer_missing,
   };
+  for (guint i = 0; i < got; i++)
+    pf.finer[i] = (DsProbePair){ .frame = { finer[i][0], finer[i][1] }, .period_px = finer_period[i] };
   if (s->saturation_dn > 0 && lit0->type != DS_SAMPLE_F32) {
     pf.saturation_dn = MIN (pf.saturation_dn, s->saturation_dn);
     pf.saturation_known = TRUE;
