@@ -4,8 +4,11 @@ Usage: validation_summary.py DIR...   (each DIR holds a validation.csv)
 
 Recomputes every verdict from the CSV's numbers (not its verdict column): a chosen point is
 right when achieved/predicted lies within [1/1.5, 1.5]; a refusal is right when the best
-reachable point it names indeed misses the target (or nothing fits the budget). Prints a
-Markdown summary per kind of scene (given, generated) and the worst cases by ratio."""
+reachable point it names indeed misses the target (or nothing fits the budget). A prediction
+marked as a lower bound (the CSV's lower_bound) is judged the same way: achieved above 1.5 x a
+lower bound is a miss, not a hit because the bound held; lower bounds are counted on their own
+too. Prints a Markdown summary per kind of scene (given, generated) and the worst cases by
+ratio."""
 import csv
 import os
 import sys
@@ -50,6 +53,13 @@ def main():
               f"({counts.get('within', 0)} within, {counts.get('refused-right', 0)} correctly refused, "
               f"{counts.get('pilot-refused', 0)} scenes whose pilot frames were refused with a reason); "
               f"{counts.get('off', 0)} outside the factor, {counts.get('refused-wrong', 0)} refused wrongly.")
+        lower = [r for r in sel if r.get("lower_bound") == "1" and r["outcome"] in ("chosen", "refused")]
+        if lower:
+            lv = [verdict(r)[0] for r in lower]
+            print(f"Lower bounds: {len(lower)} of the {len(sel)} predictions were marked as lower bounds "
+                  f"({lv.count('within')} within the factor, {lv.count('off')} outside it, "
+                  f"{lv.count('refused-right')} correctly refused, {lv.count('refused-wrong')} refused wrongly); "
+                  f"they are counted above as any other.")
         worst.sort(key=lambda w: -w[0])
         for _, ratio, r in worst[:3]:
             req = f"target {r['target_error']}" if float(r["target_error"]) > 0 else f"budget {r['time_budget_ms']} ms"

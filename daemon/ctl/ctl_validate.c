@@ -182,6 +182,7 @@ write_csv (GString *csv, const SceneRun *s)
 
 typedef struct {
   guint total, good, refused_right, refused_wrong, off, none;
+  guint lower, lower_off;  /* predictions marked as lower bounds; of them outside the factor */
   double worst_ratio;      /* furthest from 1, as max(r, 1/r) */
   const SceneRun *worst_scene;
   const DsValidateOutcome *worst;
@@ -199,6 +200,10 @@ summarise (const SceneRun *s, Summary *sum)
   for (guint j = 0; j < s->outcomes->len; j++) {
     const DsValidateOutcome *o = &g_array_index (s->outcomes, DsValidateOutcome, j);
     sum->total++;
+    if (o->point.lower_bound && o->verdict != DS_VERDICT_NONE) {
+      sum->lower++;
+      sum->lower_off += o->verdict == DS_VERDICT_OFF || o->verdict == DS_VERDICT_REFUSED_WRONG;
+    }
     switch (o->verdict) {
     case DS_VERDICT_WITHIN:
       sum->good++;
@@ -276,6 +281,10 @@ write_md (GString *md, const char *title, GPtrArray *scenes, gboolean generated)
                               "to run); %u outside the factor, %u refused wrongly.",
                           sum.total, sum.good, sum.total ? 100.0 * sum.good / sum.total : 0, sum.refused_right,
                           sum.none, sum.off, sum.refused_wrong);
+  /* A lower bound that misses is a miss like any other (counted above); how many there are: */
+  if (sum.lower)
+    g_string_append_printf (md, " %u predictions are lower bounds (≥), %u of them outside the factor.", sum.lower,
+                            sum.lower_off);
   if (sum.worst)
     g_string_append_printf (md, " Worst: %s, %s %g: predicted %.4f, achieved %.4f (x%.2f).\n", sum.worst_scene->name,
                             sum.worst->target_error > 0 ? "target" : "budget",

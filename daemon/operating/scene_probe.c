@@ -21,13 +21,13 @@ ds_blur_source_name (DsBlurSource s)
   }
 }
 
-/* The MTF at the frequency 1 / x of a kernel whose line spread is exp (-|u| / b) / 2b
+/* The narrow kernel's MTF at the frequency 1 / x, k = 2 pi b / x: (1 + k^2 / nu)^-nu
  * (scene_probe.h: why this form and not a Gaussian). */
 static double
-kernel_mtf (double b, double x)
+kernel_mtf (double b, double nu, double x)
 {
   double k = 2 * G_PI * b / x;
-  return x > 0 ? 1 / (1 + k * k) : 0.0;
+  return x > 0 ? pow (1 + k * k / nu, -nu) : 0.0;
 }
 
 double
@@ -36,7 +36,7 @@ ds_scene_probe_leak (const DsSceneProbe *p, double period_px, guint n)
   if (!p->leak_measured)
     return 0.0;
   double x = period_px / n;
-  return exp (p->leak_per_px * x) * (1 + p->narrow_fraction * kernel_mtf (p->narrow_kernel_px, x)) - 1;
+  return exp (p->leak_per_px * x) * (1 + p->narrow_fraction * kernel_mtf (p->narrow_kernel_px, p->narrow_shape, x)) - 1;
 }
 
 double
@@ -363,7 +363,7 @@ solve_at (const DsStripeModel *g, const Equation *eq, guint n_eq, double sigma, 
 
 typedef struct {
   Solution s;
-  double beta, width;
+  double beta, width, shape;
 } NarrowFit;
 
 /* The narrow kernel's term (scene_probe.h): beta and w on a grid, Ld, alpha and the blur's error
@@ -387,25 +387,28 @@ fit_narrow (const DsStripeModel *g, const Equation *eq, guint n_eq, double sigma
     }
   }
   out->s = *line;
-  out->beta = out->width = 0;
+  out->beta = out->width = out->shape = 0;
   if (!(x_max > x_min * 1.5))
     return FALSE;
   double lo = x_min / (6 * G_PI), hi = MIN (3 * x_max, period) / (2 * G_PI);
   double best = INFINITY;
   gboolean found = FALSE;
-  for (double kw = lo; kw <= hi; kw *= 1.06)
-    for (double beta = 0.005; beta <= 20; beta *= 1.08) {
-      double yy[16];
-      for (guint i = 0; i < n_eq; i++)
-        yy[i] = y[i] - log1p (beta * kernel_mtf (kw, x[i]));
-      Solution so = solve_linear (yy, w, shift, eq, n_eq, TRUE);
-      if (so.residual < best) {
-        best = so.residual;
-        out->s = so;
-        out->beta = beta;
-        out->width = kw;
+  static const double shapes[] = { 1, 2 }; /* scene_probe.h: why these */
+  for (guint sh = 0; sh < G_N_ELEMENTS (shapes); sh++)
+    for (double kw = lo; kw <= hi; kw *= 1.06)
+      for (double beta = 0.005; beta <= 20; beta *= 1.08) {
+        double yy[16];
+        for (guint i = 0; i < n_eq; i++)
+          yy[i] = y[i] - log1p (beta * kernel_mtf (kw, shapes[sh], x[i]));
+        Solution so = solve_linear (yy, w, shift, eq, n_eq, TRUE);
+        if (so.residual < best) {
+          best = so.residual;
+          out->s = so;
+          out->beta = beta;
+          out->width = kw;
+          out->shape = shapes[sh];
+        }
       }
-    }
   found = best < line->residual - DS_PROBE_NARROW_MIN_CHI2;
   return found;
 }
@@ -519,7 +522,7 @@ narrow_verdict (const DsProbeFrames *fr, gboolean finer_used, DsSceneProbe *out)
                   "periods down to %g px: a narrow kernel (%.2f px) holds %.1f %% of Ld and keeps %.1f %% of it "
                   "modulated at %g px",
                   out->finest_period_px, out->narrow_kernel_px, 100 * out->narrow_fraction,
-                  100 * kernel_mtf (out->narrow_kernel_px, P), P);
+                  100 * kernel_mtf (out->narrow_kernel_px, out->narrow_shape, P), P);
     else
       g_snprintf (out->narrow_note, sizeof out->narrow_note,
                   "periods down to %g px: no kernel narrower than the period seen", out->finest_period_px);
@@ -742,7 +745,7 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
    * line through x <= P alone cannot tell it from the small-angle rise, the coarse period
    * (where the line would go on rising) can. So line and narrow term are compared over all
    * the harmonics; the narrow term, when it wins, is the fit. */
-  NarrowFit narrow = { { 0 }, 0, 0 };
+  NarrowFit narrow = { { 0 }, 0, 0, 0 };
   Solution line_all = solve_at (&fr->geometry, eq_all, n_all, sigma, l0->width, two, TRUE);
   gboolean narrow_won = finer_used && fit_narrow (&fr->geometry, eq_all, n_all, sigma, l0->width, fr->geometry.period_px, &line_all, &narrow);
   if (narrow_won) {
@@ -750,6 +753,7 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
     out->equations = n_all;
     out->narrow_fraction = narrow.beta;
     out->narrow_kernel_px = narrow.width;
+    out->narrow_shape = narrow.shape;
   }
   out->ld_mean = exp (so.log_ld);
   out->leak_per_px = so.alpha;

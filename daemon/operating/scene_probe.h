@@ -38,23 +38,29 @@
  * factor 2-4 below P (gen-6-07: 94.5 % of its scattered light modulated at 23.25 px, a kernel of
  * ~5 px), a step in x that a line through log (A / G) follows only between P/4 and P and then
  * extrapolates to x = 0 too high (Ld 1888 DN against the truth's 1706, the leak at P 12 % against
- * 22 %). So the transfer carries a second, narrow term, the closed-form MTF of a kernel whose line
- * spread is exponential, exp (-|u| / w) / 2w, holding beta Ld of light:
- *     A_n(Q) = Ld G_n(Q, sigma) exp(alpha Q / n) (1 + beta / (1 + (2 pi w n / Q)^2))
- * Not a Gaussian kernel: the simulator's narrow Monte Carlo kernels have a sharp core (light
- * scattered near the exit moves little), and their MTF falls as 1/f^2 at high frequency, not as
- * exp(-f^2) (gen-6-07's kernel: 98.6, 94.5, 80.6, 49.9, 34.7 % at 46.5, 23.25, 11.63, 5.81, 4 px;
- * this form with w = 0.89 px gives 98.6, 94.5, 81.2, 51.9, 33.9 %, a Gaussian through 94.5 % at P
- * 40 % at 5.81 px and 15 % at 4 px). The term is fitted (beta, w on a grid; Ld, alpha and the
- * blur's error linear at each) only with the finer periods, over all the harmonics including
- * 2P (where a line would go on rising and the narrow kernel's transfer has stopped), for kernels
- * narrow against P (MTF >= 1/2 there), and kept when it fits those harmonics better than the line
- * alone (DS_PROBE_NARROW_MIN_CHI2): the amplitudes' scatter (1-2 %, the objects' column profile)
- * is as large as the step itself on gen-6-07, so no significance test can pass, while the line
- * is known to extrapolate such a step wrongly. Without finer periods (an illuminator that cannot
- * change its period, or P/2 below what the sensor resolves) a kernel narrower than P cannot be
- * told from direct light: where the pilot shows scattered light at all, the prediction is then a lower bound
- * (narrow_unresolved, and narrow_note says why); docs/accuracy.md, "Automatic operating point".
+ * 22 %). So the transfer carries a second, narrow term, a kernel holding beta Ld of light whose
+ * MTF has a closed form, k = 2 pi w n / Q:
+ *     A_n(Q) = Ld G_n(Q, sigma) exp(alpha Q / n) (1 + beta (1 + k^2 / nu)^-nu),   nu = 1 or 2
+ * nu = 1 is the MTF of a line spread exp (-|u| / w) / 2w. Not a Gaussian (nu -> infinity): the
+ * simulator's narrow Monte Carlo kernels have a sharp core (light scattered near the exit moves
+ * little) and their MTF falls as a power of the frequency, not as exp(-f^2) (gen-6-07's kernel:
+ * 98.6, 94.5, 80.6, 49.9, 34.7 % at 46.5, 23.25, 11.63, 5.81, 4 px; nu = 1, w = 0.89 px gives
+ * 98.6, 94.5, 81.2, 51.9, 33.9 %, a Gaussian through 94.5 % at P 40 % at 5.81 px and 15 % at 4).
+ * Below the finest period the harmonics say nothing, so the form is a prior on how the transfer
+ * goes on to 0: with nu free up to a Gaussian the fit follows the noise there (gen-6-07: 14.6 %
+ * at P against the truth's 22.4 %; nu = 1 alone 25.9 %, nu 1 or 2 20.2 %), and a Gaussian kernel
+ * in closed form is read 28 % high with nu 1 or 2 (tests/daemon/test_probe_narrow.c; 63 % with
+ * nu = 1 alone). The term is fitted (nu, beta, w on a grid; Ld, alpha and the blur's error linear
+ * at each) only with the finer periods, over all the harmonics including 2P (where a line would
+ * go on rising and the narrow kernel's transfer has stopped), for kernels narrow against P (MTF
+ * >= 1/2 there), and kept when it fits those harmonics better than the line alone
+ * (DS_PROBE_NARROW_MIN_CHI2): the amplitudes' scatter (1-2 %, the objects' column profile) is as
+ * large as the step itself on gen-6-07, so no significance test can pass, while the line is known
+ * to extrapolate such a step wrongly. Without finer periods (an illuminator that cannot change
+ * its period, or P/2 below what the sensor resolves) a kernel narrower than P cannot be told
+ * from direct light: where the pilot shows scattered light at all, the prediction is then a
+ * lower bound (narrow_unresolved, and narrow_note says why); docs/accuracy.md, "Automatic
+ * operating point".
  *
  * Pure function of the frames; any thread; CPU only (a few passes over the frames). */
 #pragma once
@@ -138,7 +144,8 @@ typedef struct {
   gboolean leak_measured;
   char leak_note[200];            /* how it was measured, or why not */
   double narrow_fraction;         /* beta: the narrow kernel's light over Ld; 0 when none was seen */
-  double narrow_kernel_px;        /* w: its Gaussian width, px */
+  double narrow_kernel_px;        /* w: its width, px (scene_probe.h: the MTF's form) */
+  double narrow_shape;            /* nu of that form (1 or 2) */
   double finest_period_px;        /* the finest period whose first harmonic the fit used */
   gboolean narrow_unresolved;     /* scattered light was seen but no finer period was: a kernel
                                      narrower than P would pass for direct light (a lower bound) */

@@ -1,0 +1,229 @@
+/* Scattered light whose kernel is narrow against the stripe period (issue 12: gen-6-07): pilot
+ * frames in closed form, the stripes' Fourier series with every harmonic n at period Q raised by
+ * a Gaussian kernel of known width s holding beta Ld of light, whose MTF is closed form:
+ *     A_n(Q) = Ld c_n(Q) (1 + beta exp (-2 pi^2 s^2 n^2 / Q^2))
+ * (c_n the blurred, pixel-integrated square wave's coefficient). The truth the probe must find is
+ * that MTF at the period, beta exp (-2 pi^2 s^2 / P^2), and Ld; the probe's own kernel form is a
+ * different one (scene_probe.h), so this also checks that the form does not decide the answer.
+ * With the finer periods P/2 and P/4 the probe recovers the leak at P; with P and 2P alone it
+ * cannot (both keep the stripes), and the prediction is then a lower bound that says why. */
+#include <json-glib/json-glib.h>
+#include <math.h>
+#include <string.h>
+
+#include "daemon/operating/error_model.h"
+#include "daemon/operating/operating_point.h"
+#include "daemon/operating/scene_probe.h"
+
+typedef struct {
+  double period, duty, blur;  /* square stripes, black level 0 */
+  double ld, lg_wide, dark;   /* DN; lg_wide: scattered light that keeps no stripes */
+  double beta, kernel_px;     /* the narrow kernel: its light over Ld, its Gaussian sigma */
+} Scene;
+
+#define W 240
+#define H 100
+
+static DsImage *
+frame (const Scene *s, double period, double shift, gboolean on, GRand *r)
+{
+  DsImage *f = ds_image_new (DS_SAMPLE_F32, W, H, NULL);
+  double m = s->duty, mean = on ? (s->ld * (1 + s->beta) + s->lg_wide) * m : 0;
+  double profile[W];
+  for (guint x = 0; x < W; x++) {
+    double v = mean;
+    for (guint n = 1; on && n < 300; n++) {
+      double k = G_PI * n / period;
+      double c = 2 / (n * G_PI) * sin (n * G_PI * s->duty) * exp (-2 * k * k * s->blur * s->blur) * sin (k) / k;
+      double mtf = exp (-2 * k * k * s->kernel_px * s->kernel_px);
+      v += s->ld * c * (1 + s->beta * mtf) * cos (2 * G_PI * n * (x / period - shift));
+    }
+    profile[x] = v;
+  }
+  for (guint y = 0; y < H; y++) {
+    float *row = ds_image_row (f, y);
+    for (guint x = 0; x < W; x++) {
+      double v = profile[x], sd = sqrt (4.0 + 0.25 * v);
+      double u1 = 1 - g_rand_double (r), u2 = g_rand_double (r);
+      row[x] = (float) (s->dark + v + sd * sqrt (-2 * log (u1)) * cos (2 * G_PI * u2));
+    }
+  }
+  return f;
+}
+
+static double
+truth_leak (const Scene *s, double period)
+{
+  double k = G_PI / period;
+  return s->beta * exp (-2 * k * k * s->kernel_px * s->kernel_px);
+}
+
+/* Probes the scene from pairs at P, and at 2P and the finer periods as asked. */
+static void
+probe (const Scene *s, gboolean coarse, gboolean finer, DsSceneProbe *p)
+{
+  g_autoptr (GRand) r = g_rand_new_with_seed (5);
+  DsImage *owned[10] = { NULL };
+  guint n_owned = 0;
+  owned[n_owned++] = frame (s, s->period, 0, FALSE, r);
+  owned[n_owned++] = frame (s, s->period, 0.1, TRUE, r);
+  owned[n_owned++] = frame (s, s->period, 0.6, TRUE, r);
+  DsProbeFrames fr = { .dark = owned[0], .lit = { owned[1], owned[2] }, .exposure_us = 1000,
+                       .coarse_missing = "fixed by the test", .finer_missing = "fixed by the test",
+                       .geometry = { DS_PATTERN_SQUARE, s->period, s->duty, 0, 0 },
+                       .blur_known = TRUE, .calibrated_blur_px = s->blur };
+  if (coarse) {
+    owned[n_owned++] = frame (s, 2 * s->period, 0.2, TRUE, r);
+    owned[n_owned++] = frame (s, 2 * s->period, 0.7, TRUE, r);
+    fr.coarse[0] = owned[n_owned - 2];
+    fr.coarse[1] = owned[n_owned - 1];
+  }
+  double q[DS_PROBE_FINER_MAX];
+  guint nq = finer ? ds_scene_probe_finer_periods (s->period, s->blur, q) : 0;
+  for (guint i = 0; i < nq; i++) {
+    owned[n_owned++] = frame (s, q[i], 0.3, TRUE, r);
+    owned[n_owned++] = frame (s, q[i], 0.8, TRUE, r);
+    fr.finer[i] = (DsProbePair){ .frame = { owned[n_owned - 2], owned[n_owned - 1] }, .period_px = q[i] };
+  }
+  fr.n_finer = nq;
+  g_autoptr (GError) error = NULL;
+  gboolean ok = ds_scene_probe_measure (&fr, p, &error);
+  g_assert_no_error (error);
+  g_assert_true (ok);
+  for (guint i = 0; i < n_owned; i++)
+    ds_image_free (owned[i]);
+}
+
+/* The prediction's lower-bound flag and reasons, as the result's operating_point carries them. */
+static gboolean
+lower_bound_json (const DsSceneProbe *p, char **reasons)
+{
+  DsOperatingModel m;
+  ds_operating_model_init (&m);
+  DsRigTiming t;
+  ds_rig_timing_init (&t);
+  DsSeparationParams params;
+  ds_separation_params_init (&params, 4);
+  g_autoptr (DsErrorModel) em = ds_error_model_new (p, &params);
+  DsOperatingReport r = { .time_budget_ms = 200, .probe = *p };
+  g_autoptr (GError) error = NULL;
+  gboolean chosen = ds_operating_point_choose (&m, em, p, &t, W, H, 0, 200, &r.point, &error);
+  g_assert_no_error (error);
+  g_assert_true (chosen);
+  g_autoptr (JsonBuilder) b = json_builder_new ();
+  json_builder_begin_object (b);
+  ds_operating_report_to_json (&r, b);
+  json_builder_end_object (b);
+  g_autoptr (JsonNode) root = json_builder_get_root (b);
+  JsonObject *o = json_node_get_object (root);
+  JsonArray *why = json_object_get_array_member (o, "lower_bound_reasons");
+  GString *all = g_string_new (NULL);
+  for (guint i = 0; i < json_array_get_length (why); i++)
+    g_string_append_printf (all, "%s\n", json_array_get_string_element (why, i));
+  *reasons = g_string_free (all, FALSE);
+  g_assert_cmpint (json_object_get_boolean_member (o, "lower_bound"), ==, r.point.lower_bound);
+  return r.point.lower_bound;
+}
+
+/* The finer periods: halved while at least 4 px and 5.34 blur sigmas, in 1/100 px. */
+static void
+test_finer_periods (void)
+{
+  double q[DS_PROBE_FINER_MAX];
+  g_assert_cmpuint (ds_scene_probe_finer_periods (23.25, 0, q), ==, 2);
+  g_assert_cmpfloat (q[0], ==, 11.63);
+  g_assert_cmpfloat (q[1], ==, 5.81);
+  g_assert_cmpuint (ds_scene_probe_finer_periods (23.25, 1.2, q), ==, 1); /* 5.81 < 5.34 x 1.2 */
+  g_assert_cmpuint (ds_scene_probe_finer_periods (12, 0, q), ==, 1);
+  g_assert_cmpfloat (q[0], ==, 6);
+  g_assert_cmpuint (ds_scene_probe_finer_periods (7.5, 0, q), ==, 0);
+}
+
+/* gen-6-07's case in closed form: 92.6 % of the narrow kernel's light modulated at P = 24 px, 73 %
+ * at P/2, 29 % at P/4; 25 % of Ld. */
+static void
+test_narrow_kernel (void)
+{
+  const Scene s = { .period = 24, .duty = 0.4, .blur = 0.5, .ld = 1500, .lg_wide = 300, .dark = 40,
+                    .beta = 0.25, .kernel_px = 1.5 };
+  double truth = truth_leak (&s, s.period);
+  DsSceneProbe p;
+  /* P, 2P, P/2 and P/4: the leak at P within 35 % of the kernel's (the probe's kernel form is
+   * not a Gaussian, and below P/4 only the form extrapolates: scene_probe.h; it reads 28 % high
+   * here), Ld within 7 %. */
+  probe (&s, TRUE, TRUE, &p);
+  double leak = ds_scene_probe_leak (&p, s.period, 1);
+  g_test_message ("four periods: leak at P %.4f (truth %.4f), Ld %.1f (truth %.1f), kernel %.2f px, %.3f of Ld",
+                  leak, truth, p.ld_mean, s.ld, p.narrow_kernel_px, p.narrow_fraction);
+  g_assert_cmpfloat (fabs (leak - truth), <, 0.35 * truth);
+  g_assert_cmpfloat (fabs (p.ld_mean - s.ld), <, 0.07 * s.ld);
+  g_assert_cmpfloat (p.finest_period_px, ==, 6);
+  g_assert_false (p.narrow_unresolved);
+  g_autofree char *reasons = NULL;
+  g_assert_false (lower_bound_json (&p, &reasons));
+  /* P and 2P alone: both keep the stripes (the higher harmonics at P, down to x = 4.8 px, see
+   * part of it), the leak reads short by more than a third and Ld high; the prediction is a lower
+   * bound saying why. */
+  probe (&s, TRUE, FALSE, &p);
+  leak = ds_scene_probe_leak (&p, s.period, 1);
+  g_test_message ("two periods: leak at P %.4f (truth %.4f), Ld %.1f; %s", leak, truth, p.ld_mean, p.narrow_note);
+  g_assert_true (p.leak_measured);
+  g_assert_cmpfloat (leak, <, 0.7 * truth);
+  g_assert_cmpfloat (p.ld_mean, >, 1.05 * s.ld);
+  g_assert_true (p.narrow_unresolved);
+  g_clear_pointer (&reasons, g_free);
+  g_assert_true (lower_bound_json (&p, &reasons));
+  g_assert_nonnull (strstr (reasons, "narrower than the period"));
+  g_assert_nonnull (strstr (reasons, "fixed by the test"));
+  /* P alone: nothing about the scattered stripes is measured; a lower bound as before. */
+  probe (&s, FALSE, FALSE, &p);
+  g_assert_false (p.leak_measured);
+  g_clear_pointer (&reasons, g_free);
+  g_assert_true (lower_bound_json (&p, &reasons));
+  g_assert_nonnull (strstr (reasons, "fixed by the test"));
+}
+
+/* P = 7 px: P/2 is below what the pilot resolves, so only P and 2P exist even where the
+ * illuminator could change its period: a lower bound, saying that the period is too fine. */
+static void
+test_period_too_fine (void)
+{
+  const Scene s = { .period = 7, .duty = 0.5, .blur = 0.4, .ld = 1500, .lg_wide = 300, .dark = 40,
+                    .beta = 0.2, .kernel_px = 0.4 };
+  DsSceneProbe p;
+  probe (&s, TRUE, TRUE, &p);
+  g_test_message ("%s", p.narrow_note);
+  g_assert_true (p.narrow_unresolved);
+  g_assert_nonnull (strstr (p.narrow_note, "finer than the pilot resolves"));
+  g_autofree char *reasons = NULL;
+  g_assert_true (lower_bound_json (&p, &reasons));
+}
+
+/* Nothing scatters: with P and 2P no lower bound is claimed (no scattered light seen); with the
+ * finer periods no narrow kernel is made up from the noise and the blur's harmonics. */
+static void
+test_clear (void)
+{
+  const Scene s = { .period = 20, .duty = 0.45, .blur = 0.8, .ld = 1500, .lg_wide = 0, .dark = 40,
+                    .beta = 0, .kernel_px = 0 };
+  DsSceneProbe p;
+  probe (&s, TRUE, FALSE, &p);
+  g_assert_false (p.narrow_unresolved);
+  probe (&s, TRUE, TRUE, &p);
+  double leak = ds_scene_probe_leak (&p, s.period, 1);
+  g_test_message ("clear: leak at P %.4f, Ld %.1f, %s", leak, p.ld_mean, p.narrow_note);
+  g_assert_cmpfloat (leak, <, 0.01);
+  g_assert_cmpfloat (fabs (p.ld_mean - s.ld), <, 0.02 * s.ld);
+  g_assert_false (p.narrow_unresolved);
+}
+
+int
+main (int argc, char **argv)
+{
+  g_test_init (&argc, &argv, NULL);
+  g_test_add_func ("/probe-narrow/finer-periods", test_finer_periods);
+  g_test_add_func ("/probe-narrow/narrow-kernel", test_narrow_kernel);
+  g_test_add_func ("/probe-narrow/period-too-fine", test_period_too_fine);
+  g_test_add_func ("/probe-narrow/clear", test_clear);
+  return g_test_run ();
+}
