@@ -546,6 +546,9 @@ narrow_verdict (const DsProbeFrames *fr, gboolean finer_used, DsSceneProbe *out)
   else if (fr->n_finer == 0)
     g_snprintf (why, sizeof why, "no pilot at %g px: %s", finer[0],
                 fr->finer_missing ? fr->finer_missing : "not taken");
+  else if (fr->finer[0].period_px < ds_scene_probe_finest_period (out->geometry.blur_px) - 1e-9)
+    g_snprintf (why, sizeof why, "the pilot at %g px is finer than the blur of %.2f px resolves",
+                fr->finer[0].period_px, out->geometry.blur_px);
   else
     g_snprintf (why, sizeof why, "the pilot at %g px shows no stripes above the noise", fr->finer[0].period_px);
   out->narrow_unresolved = TRUE;
