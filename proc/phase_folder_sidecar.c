@@ -57,7 +57,7 @@ static gboolean
 get_uint (Ctx *c, JsonObject *o, const char *name, const char *key, gboolean required, guint lo,
           guint hi, guint *out)
 {
-  double v;
+  double v = NAN; /* GCC at -O3 cannot see that every failing path of get_number returns FALSE */
   if (!get_number (c, o, name, key, required, NAN, &v))
     return FALSE;
   if (isnan (v))
