@@ -3,15 +3,15 @@
 #include <math.h>
 #include <string.h>
 
-#include "proc/harmonic_gain.h"
+#include "proc/calibration.h"
 #include "proc/image_stats.h"
 #include "proc/metrics.h"
 
-/* h on the clear reference, as `descatterctl calibrate` measures it: many phases (so that the
- * square wave's harmonics do not alias into the first), an exposure that keeps the open field
- * below the clip level. */
+/* h and the edge blur on the clear reference, as `descatterctl calibrate` measures them (proc/
+ * calibration.h): many phases (so that the square wave's harmonics do not alias into the first),
+ * an exposure that keeps the open field below the clip level, the illuminator's period given. */
 static gboolean
-calibrate_gain (const DsSimRig *rig, guint64 seed, double *h, GError **error)
+calibrate_rig (const DsSimRig *rig, guint64 seed, DsCalibration *cal, GError **error)
 {
   g_autoptr (DsSimRig) ref = ds_sim_rig_reference (rig, error);
   if (!ref)
@@ -25,21 +25,24 @@ calibrate_gain (const DsSimRig *rig, guint64 seed, double *h, GError **error)
   double top = ds_image_percentile (probe, 100), clip = ds_sim_rig_clip_dn (ref);
   double exposure = top > 0 ? e0 * 0.6 * clip / top : e0;
   const guint n = 32;
-  DsImage *frames[32] = { NULL };
-  gboolean ok = TRUE;
-  for (guint k = 0; k < n && ok; k++)
-    ok = (frames[k] = ds_sim_rig_frame (ref, k, n, TRUE, exposure, seed + k, error)) != NULL;
-  g_autoptr (DsImage) dark = ok ? ds_sim_rig_frame (ref, 0, n, FALSE, exposure, seed + n, error) : NULL;
   const DsSceneSpec *s = ds_scene_spec (scene);
-  if (ok && dark)
-    ok = ds_harmonic_gain_calibrate ((const DsImage *const *) frames, n, dark,
-                                     s->sine ? DS_PATTERN_SINE : DS_PATTERN_SQUARE, s->duty, s->black_level,
-                                     h, error);
-  else
-    ok = FALSE;
-  for (guint k = 0; k < n; k++)
-    ds_image_free (frames[k]);
-  return ok;
+  g_autoptr (DsCalibrator) c = ds_calibrator_new (n, s->width, s->height, error);
+  if (!c)
+    return FALSE;
+  for (guint k = 0; k < n; k++) {
+    g_autoptr (DsImage) frame = ds_sim_rig_frame (ref, k, n, TRUE, exposure, seed + k, error);
+    if (!frame || !ds_calibrator_add (c, k, frame, error))
+      return FALSE;
+  }
+  g_autoptr (DsImage) dark = ds_sim_rig_frame (ref, 0, n, FALSE, exposure, seed + n, error);
+  if (!dark || !ds_calibrator_set_dark (c, dark, error))
+    return FALSE;
+  DsCalibrationHints hints;
+  ds_calibration_hints_init (&hints);
+  hints.pattern = s->sine ? DS_PATTERN_SINE : DS_PATTERN_SQUARE;
+  hints.period_px = s->period_px;
+  hints.saturation_level = clip;
+  return ds_calibrator_finish (c, &hints, cal, error);
 }
 
 static void
@@ -73,9 +76,16 @@ ds_validate_probe (const DsSimRig *rig, const DsValidateOptions *o, DsValidateSc
   const DsSceneSpec *s = ds_scene_spec (scene);
   double e0 = ds_scene_default_exposure_us (scene);
   guint64 seed = o->seed * 1000;
-  if (o->calibrated && !calibrate_gain (rig, seed + 500, &out->harmonic_gain, error)) {
-    g_prefix_error (error, "calibration: ");
-    return FALSE;
+  if (o->calibrated) {
+    DsCalibration cal;
+    if (!calibrate_rig (rig, seed + 500, &cal, error)) {
+      g_prefix_error (error, "calibration: ");
+      return FALSE;
+    }
+    /* What descatterd.conf then holds: [illuminator] harmonic-gain and edge-blur-px. */
+    out->harmonic_gain = cal.harmonic_gain;
+    out->edge_blur_known = TRUE;
+    out->edge_blur_px = cal.edge_blur_px;
   }
   g_autoptr (DsImage) dark = ds_sim_rig_frame (rig, 0, 2, FALSE, e0, seed + 1, error);
   g_autoptr (DsImage) l0 = dark ? ds_sim_rig_frame (rig, 0, 2, TRUE, e0, seed + 2, error) : NULL;
@@ -94,11 +104,12 @@ ds_validate_probe (const DsSimRig *rig, const DsValidateOptions *o, DsValidateSc
     if (!c1)
       return FALSE;
   }
-  /* The finer pilot periods, as descatterd takes them (sequencer_auto.c): the blur the rig knows
-   * is the calibrated one, unknown here (the harmonic gain's blur is found by the probe), so
-   * only the 4 px floor applies before the probe. */
+  /* The finer pilot periods, as descatterd takes them (sequencer_auto.c): with the blur the rig
+   * knows, the calibrated one (edge-blur-px), or only the 4 px floor without it. */
   double finer_period[DS_PROBE_FINER_MAX];
-  guint n_finer = o->fixed_period ? 0 : ds_scene_probe_finer_periods (s->period_px, 0, finer_period);
+  guint n_finer = o->fixed_period ? 0
+                                  : ds_scene_probe_finer_periods (s->period_px, out->edge_blur_known ? out->edge_blur_px : 0,
+                                                                  finer_period);
   DsImage *finer_frames[DS_PROBE_FINER_MAX][2] = { { NULL, NULL }, { NULL, NULL } };
   gboolean finer_ok = TRUE;
   for (guint i = 0; i < n_finer && finer_ok; i++) {
@@ -126,6 +137,8 @@ ds_validate_probe (const DsSimRig *rig, const DsValidateOptions *o, DsValidateSc
     .calibrated_gain = out->harmonic_gain,
     .n_finer = n_finer,
     .finer_missing = o->fixed_period ? "the illuminator cannot change its period" : NULL,
+    .blur_known = out->edge_blur_known,
+    .calibrated_blur_px = out->edge_blur_px,
   };
   for (guint i = 0; i < n_finer; i++)
     pf.finer[i] = (DsProbePair){ .frame = { finer_frames[i][0], finer_frames[i][1] }, .period_px = finer_period[i] };
@@ -145,6 +158,9 @@ ds_validate_probe (const DsSimRig *rig, const DsValidateOptions *o, DsValidateSc
   /* As descatterd's sets (ds_capture_settings_separation_params): the period is known. */
   out->params.geometry.period_px = s->period_px;
   out->params.geometry.pixel_aperture = 1;
+  /* As there, a calibrated blur sets robust's margin; unknown, robust keeps one phase. */
+  out->params.geometry.edge_blur_known = out->edge_blur_known;
+  out->params.geometry.edge_blur_px = out->edge_blur_known ? out->edge_blur_px : 0;
   DsImage *tt = NULL, *tg = NULL;
   if (!ds_renderer_truth (ds_sim_rig_renderer (rig), e0, 0.0, &tt, &tg, error))
     return FALSE;

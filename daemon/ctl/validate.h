@@ -25,13 +25,17 @@ typedef struct {
 typedef struct {
   DsSceneProbe probe;
   double harmonic_gain;    /* calibrated h given to the sine estimator, or 0 (its theory) */
+  gboolean edge_blur_known; /* calibrated: the edge blur is known to the probe and the sets */
+  double edge_blur_px;     /* the calibrated edge blur (Gaussian sigma, px) */
   DsSeparationParams params; /* the rig's separation parameters (estimator, N set per run) */
   /* The truth at the pilot's exposure, for the report. */
   double truth_ld_mean, truth_lg_mean, truth_ld_spread;
 } DsValidateScene;
 
 /* Renders the pilot frames (dark, phases 0 and 1/2 at P and, unless fixed_period, at 2P) at the
- * scene's exposure, calibrates h on the reference if asked, and probes. */
+ * scene's exposure, calibrates h and the edge blur on the reference if asked (what descatterd's
+ * [illuminator] harmonic-gain and edge-blur-px then hold: both reach the probe and the sets),
+ * and probes. */
 gboolean ds_validate_probe (const DsSimRig *rig, const DsValidateOptions *options,
                             DsValidateScene *out, GError **error);
 
