@@ -32,8 +32,8 @@ def key(row):
 
 def load(study_dir):
     """Each configuration maps MEAN_COLUMNS to their means over its seeds, "saturated" to the
-    most clipped pixels of any seed (0: no frame of any seed clipped) and "pixels" to the
-    pixels judged (valid + masked)."""
+    most clipped pixels of any seed (0: no frame of any seed clipped), "pixels" to the
+    pixels judged (valid + masked) and "blur_known" to whether its sets knew the edge blur."""
     seeds = collections.defaultdict(list)
     first_period = {}
     with open(os.path.join(study_dir, "study.csv"), newline="") as f:
@@ -45,6 +45,10 @@ def load(study_dir):
         c = {col: sum(number(r[col]) for r in rows) / len(rows) for col in MEAN_COLUMNS}
         c["saturated"] = max(int(r["saturated"]) for r in rows)
         c["pixels"] = int(rows[0]["valid"]) + int(rows[0]["masked"])
+        # The set knew the scene's edge blur (robust's margin from it), as descatterd with
+        # [illuminator] edge-blur-px; 0 where the sampling precondition refused that and the
+        # point is the period alone (the blur unknown). Older CSVs: unknown throughout.
+        c["blur_known"] = all(r.get("edge_blur_known", "0") == "1" for r in rows)
         configurations[k] = c
     return configurations, first_period
 

@@ -15,6 +15,18 @@ def fmt(v, digits=4):
     return "–" if not math.isfinite(v) else f"{v:.{digits}f}"
 
 
+def mark(v):
+    """† where the sets did not know the edge blur: the sampling precondition refused the
+    configuration with it, and the point is what descatterd does without edge-blur-px."""
+    return "" if v.get("blur_known", True) else " †"
+
+
+BLUR_NOTE = ("Sets know the scene's edge blur (robust's margin from the period and the blur, as descatterd "
+             "with `[illuminator] edge-blur-px`); † marks a point whose configuration the sampling "
+             "precondition refuses with the blur known, run with the period alone (the blur unknown), "
+             "as descatterd without edge-blur-px runs it.")
+
+
 def short(scene):
     return scene.replace(".scene", "")
 
@@ -34,7 +46,8 @@ def by_n(data, first_period, comp):
     name = "transmissive" if comp == "t" else "scattered"
     total, sys_ = (f"rel_rmse_{name}", f"systematic_{name}")
     ns = sorted({k.phases for k in data})
-    print(f"\nRelative RMSE of **{name}**, total / systematic part, M = 1, base exposure, scene's own period:\n")
+    print(f"\nRelative RMSE of **{name}**, total / systematic part, M = 1, base exposure, scene's own period "
+          "(† blur unknown):\n")
     print("| scene (period) | estimator | " + " | ".join(f"N = {n}" for n in ns) + " |")
     print("|---|---|" + "---|" * len(ns))
     for scene in sorted(first_period):
@@ -43,7 +56,7 @@ def by_n(data, first_period, comp):
             cells = []
             for n in ns:
                 v = data.get((scene, est, n, 1, 1.0, p))
-                cells.append("" if v is None else f"{fmt(v[total])} / {fmt(v[sys_])}")
+                cells.append("" if v is None else f"{fmt(v[total])} / {fmt(v[sys_])}{mark(v)}")
             print(f"| {short(scene)} ({p:g} px) | {est} | " + " | ".join(cells) + " |")
 
 
@@ -82,7 +95,7 @@ def averaging(data, first_period):
 def periods(data, first_period):
     print("\nAt each stripe period: the smallest systematic part of transmissive (any estimator and N, base "
           "exposure: what no averaging removes), and the best unclipped configuration (any estimator, N, M, "
-          "exposure) with its noise + systematic parts and its time:\n")
+          "exposure) with its noise + systematic parts and its time († blur unknown):\n")
     print("| scene | period (px) | systematic floor (estimator, N) | best total (noise + systematic) | "
           "estimator, N, M, exposure | time (ms) |")
     print("|---|---|---|---|---|---|")
@@ -97,8 +110,8 @@ def periods(data, first_period):
             best = min(ok or keys, key=lambda k: data[k]["rel_rmse_transmissive"])
             total, sys_ = data[best]["rel_rmse_transmissive"], data[best]["systematic_transmissive"]
             print(f"| {short(scene)} | {p:g}{' (own)' if p == first_period[scene] else ''} | "
-                  f"{fmt(data[floor]['systematic_transmissive'])} ({floor.estimator}, {floor.phases}) | "
-                  f"{fmt(total)} ({fmt(noise_part(total, sys_))} + {fmt(sys_)}){'' if ok else ' clipped'} | "
+                  f"{fmt(data[floor]['systematic_transmissive'])} ({floor.estimator}, {floor.phases}){mark(data[floor])} | "
+                  f"{fmt(total)} ({fmt(noise_part(total, sys_))} + {fmt(sys_)}){'' if ok else ' clipped'}{mark(data[best])} | "
                   f"{best.estimator}, {best.phases}, {best.averages}, {best.exposure:g}× | "
                   f"{data[best]['acquisition_ms']:.1f} |")
 
@@ -121,6 +134,7 @@ def main():
     if len(sys.argv) != 2:
         sys.exit("usage: study_tables.py STUDY_DIR")
     data, first_period = load(sys.argv[1])
+    print("\n" + BLUR_NOTE)
     by_n(data, first_period, "t")
     by_n(data, first_period, "g")
     averaging(data, first_period)

@@ -50,13 +50,14 @@ on_point (const DsStudyPoint *p, gpointer data)
   StudyOut *o = data;
   /* Non-finite (a truth of zero) reads back as nan in every CSV reader. */
 #define F(v) (isfinite (v) ? (v) : NAN)
-  fprintf (o->csv, "%s,%s,%u,%u,%g,%g,%.1f,%" G_GUINT64_FORMAT ",%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%" G_GUINT64_FORMAT ",%" G_GUINT64_FORMAT ",%" G_GUINT64_FORMAT ",%.3f,%.3f,%.2f,%.5f\n",
+  fprintf (o->csv, "%s,%s,%u,%u,%g,%g,%.1f,%" G_GUINT64_FORMAT ",%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%" G_GUINT64_FORMAT ",%" G_GUINT64_FORMAT ",%" G_GUINT64_FORMAT ",%.3f,%.3f,%.2f,%.5f,%d\n",
            p->scene, ds_estimator_name (p->estimator), p->phases, p->averages, p->period_px, p->exposure_factor,
            p->exposure_us, p->seed, F (p->rel_rmse_transmissive), F (p->rel_rmse_scattered),
            F (p->systematic_transmissive), F (p->systematic_scattered),
            F (noise_part (p->rel_rmse_transmissive, p->systematic_transmissive)),
            F (noise_part (p->rel_rmse_scattered, p->systematic_scattered)), p->stripe_residue, p->valid, p->masked,
-           p->saturated, p->acquisition_ms, p->compute_ms, p->signal_dn, p->direct_fraction);
+           p->saturated, p->acquisition_ms, p->compute_ms, p->signal_dn, p->direct_fraction,
+           p->edge_blur_known ? 1 : 0);
 #undef F
   fflush (o->csv);
   DsStudyPoint copy = *p;
@@ -369,7 +370,7 @@ ds_ctl_study (int argc, char **argv)
   }
   fprintf (o.csv, "scene,estimator,phases,averages,period_px,exposure_factor,exposure_us,seed,rel_rmse_transmissive,"
                   "rel_rmse_scattered,systematic_transmissive,systematic_scattered,noise_transmissive,noise_scattered,"
-                  "stripe_residue,valid,masked,saturated,acquisition_ms,compute_ms,signal_dn,direct_fraction\n");
+                  "stripe_residue,valid,masked,saturated,acquisition_ms,compute_ms,signal_dn,direct_fraction,edge_blur_known\n");
   int status = 0;
   for (guint i = 0; i < files->len && status == 0; i++)
     if (!ds_study_run_scene (g_ptr_array_index (files, i), &plan, on_point, &o, &error))

@@ -98,7 +98,8 @@ run_point (const PointContext *c, guint n, guint m, guint64 seed, DsStudyPointFu
                         .period_px = ds_scene_period_px (scene), .exposure_factor = c->exposure_factor,
                         .exposure_us = c->exposure, .seed = seed,
                         .systematic_transmissive = c->sys_t[r], .systematic_scattered = c->sys_g[r],
-                        .signal_dn = c->signal_dn, .direct_fraction = c->direct_fraction };
+                        .signal_dn = c->signal_dn, .direct_fraction = c->direct_fraction,
+                        .edge_blur_known = params[r].geometry.edge_blur_known };
     DsErrorStats et;
     ok = errors_of (c, sep, &pt.rel_rmse_transmissive, &pt.rel_rmse_scattered, &et, error) &&
          ds_metrics_stripe_residue (sep->transmissive, ds_scene_period_px (scene), &pt.stripe_residue, error);
@@ -134,6 +135,12 @@ run_period (const DsSimRig *rig, const char *scene_name, gboolean own_period, co
     p->black_level = ds_scene_black_level (scene);
     p->system_gain = ds_scene_system_gain (scene);
     p->read_noise_dn = ds_scene_read_noise_dn (scene);
+    /* As descatterd's sets with [illuminator] edge-blur-px calibrated: the period and the
+     * blur are known (robust's margin follows them), the sensor integrates over whole pixels. */
+    p->geometry.period_px = ds_scene_period_px (scene);
+    p->geometry.edge_blur_px = ds_scene_spec (scene)->edge_blur_px;
+    p->geometry.edge_blur_known = TRUE;
+    p->geometry.pixel_aperture = 1;
     c.n_params++;
   }
   for (guint ie = 0; ie < plan->n_exposures; ie++) {
@@ -158,12 +165,18 @@ run_period (const DsSimRig *rig, const char *scene_name, gboolean own_period, co
     c.direct_fraction = st + sg > 0 ? st / (st + sg) : 0;
     for (guint in = 0; in < plan->n_phases; in++) {
       guint n = plan->phases[in];
-      /* Estimators that cannot run this N (sine below 3) are left out of its points. */
+      /* Estimators that cannot run this N (sine below 3) are left out of its points. Where
+       * the sampling precondition refuses the blur known (no pixel fully lit in any phase),
+       * the point is what descatterd does without the blur configured, marked as such. */
       PointContext cn = c;
       cn.n_params = 0;
       for (guint k = 0; k < c.n_params; k++) {
         DsSeparationParams p = c.params[k];
         p.n_phases = n;
+        if (!ds_separation_params_validate (&p, NULL)) {
+          p.geometry.edge_blur_px = 0;
+          p.geometry.edge_blur_known = FALSE;
+        }
         if (ds_separation_params_validate (&p, NULL))
           cn.params[cn.n_params++] = p;
       }

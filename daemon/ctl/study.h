@@ -28,6 +28,12 @@ typedef struct {
   double direct_fraction;    /* mean Ld / mean (Ld + Lg) */
   double acquisition_ms;     /* model */
   double compute_ms;         /* measured: accumulate + finalize */
+  /* The set knew the scene's edge blur, as descatterd does with [illuminator] edge-blur-px
+   * (robust's margin from the period and the blur). FALSE where the sampling precondition
+   * refuses the configuration with the blur known: the point is then what descatterd does
+   * without edge-blur-px (the period alone, the blur taken as sharp, robust's one-phase
+   * margin). */
+  gboolean edge_blur_known;
 } DsStudyPoint;
 
 typedef struct {
