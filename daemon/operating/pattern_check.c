@@ -2,12 +2,11 @@
 #include "daemon/operating/pattern_check.h"
 
 #include <math.h>
-#include <stdlib.h>
 #include <string.h>
 
 #include "daemon/protocol/protocol.h"
 #include "proc/calibration_scatter.h"
-#include "proc/stripe_phase.h"
+#include "proc/stripe_profile.h"
 
 #define N_BINS 40u
 /* A duty further than this from the configured one is a wrong configuration: the fit reads the
@@ -37,18 +36,12 @@ ds_pattern_verdict_name (DsPatternVerdict v)
 }
 
 typedef struct {
-  double r[N_BINS], u[N_BINS];
-  double t[N_BINS];   /* (L0 + L1 - 2D) relative to its mean over about two periods around */
-  guint64 n[N_BINS], nt[N_BINS];
-} Profile;
-
-typedef struct {
   double duty, level, blur, rms;
 } Fit;
 
 /* The pattern without black level (s in [0, 1]) at the bins' positions, for phase 0 and 1/2. */
 static void
-pattern_at_bins (DsPatternKind kind, double period, double duty, double blur, const Profile *p, double *s0,
+pattern_at_bins (DsPatternKind kind, double period, double duty, double blur, const DsStripeProfile *p, double *s0,
                  double *s1)
 {
   DsStripeModel m = { .kind = kind, .period_px = period, .duty = duty, .black_level = 0, .blur_px = blur };
@@ -64,7 +57,7 @@ pattern_at_bins (DsPatternKind kind, double period, double duty, double blur, co
  * gaps at b = 0 (no light there); the sum is high where the phases overlap and low in the gaps.
  * t carries the scene's own detail as noise, so it weighs a quarter. */
 static void
-best_level (const Profile *p, const double *s0, const double *s1, double duty, double level_min, double step,
+best_level (const DsStripeProfile *p, const double *s0, const double *s1, double duty, double level_min, double step,
             Fit *fit)
 {
   double total = 0, total_t = 0;
@@ -97,7 +90,7 @@ best_level (const Profile *p, const double *s0, const double *s1, double duty, d
 /* Least squares over duty (fixed when duty_fixed >= 0), blur and off-stripe level >= level_min:
  * a grid, then a finer grid about its best. */
 static Fit
-fit_profile (const Profile *p, DsPatternKind kind, double period, double duty_fixed, double level_min)
+fit_profile (const DsStripeProfile *p, DsPatternKind kind, double period, double duty_fixed, double level_min)
 {
   Fit best = { .rms = INFINITY };
   double blur_max = MIN (0.3 * period, 4.0), s0[N_BINS], s1[N_BINS];
@@ -126,130 +119,33 @@ fit_profile (const Profile *p, DsPatternKind kind, double period, double duty_fi
   return best;
 }
 
-static double
-frame_sample (const DsImage *img, guint x, guint y)
-{
-  return ds_image_sample (img, ds_image_row (img, y), x);
-}
-
-static int
-compare_doubles (const void *a, const void *b)
-{
-  double x = *(const double *) a, y = *(const double *) b;
-  return x < y ? -1 : x > y;
-}
-
-/* Where the stripes lie: the first harmonic of L0 - L1 (the scene's own detail cancels). */
-static gboolean
-measure_offset (const DsImage *l0, const DsImage *l1, double period, double *offset)
-{
-  g_autoptr (DsImage) diff = ds_image_new (DS_SAMPLE_F32, l0->width, l0->height, NULL);
-  for (guint y = 0; y < l0->height; y++) {
-    float *row = ds_image_row (diff, y);
-    for (guint x = 0; x < l0->width; x++)
-      row[x] = (float) (frame_sample (l0, x, y) - frame_sample (l1, x, y));
-  }
-  DsStripePhase sp;
-  if (!ds_stripe_phase_measure (diff, period, NULL, &sp, NULL) || !sp.reliable)
-    return FALSE;
-  *offset = sp.phase;
-  return TRUE;
-}
-
 /* Per pixel of the pair at P, for the scattering check (proc/calibration_scatter.h): the sum of
  * the phases, and the off-stripe fraction at the stripe centres (NaN elsewhere). */
 typedef struct {
   double *brightness, *off;
 } Centres;
 
-/* One pair: the binned r profile and its fits; with centres, also the stripe-centre pixels. */
+/* One pair: the binned profile (proc/stripe_profile.h) and its fits; with centres, also the
+ * stripe-centre pixels. */
 static void
 check_pair (const DsImage *dark, const DsImage *l0, const DsImage *l1, double period, double saturation,
             const DsStripeModel *conf, DsPatternPair *out, Centres *centres)
 {
   memset (out, 0, sizeof *out);
   out->period_px = period;
-  guint w = l0->width, h = l0->height;
   double offset;
-  if (period <= 2 || period > w || !measure_offset (l0, l1, period, &offset))
+  if (period <= 2 || period > l0->width || !ds_stripe_profile_offset (l0, l1, period, &offset))
     return;
-  gsize npix = (gsize) w * h;
-  g_autofree double *sum = g_new (double, npix);
-  g_autofree double *sorted = g_new (double, npix);
-  gsize n_ok = 0;
-  double clip = saturation > 0 ? saturation : INFINITY;
-  for (guint y = 0; y < h; y++)
-    for (guint x = 0; x < w; x++) {
-      double a = frame_sample (l0, x, y), b = frame_sample (l1, x, y), d = frame_sample (dark, x, y);
-      gsize i = (gsize) y * w + x;
-      sum[i] = a < clip && b < clip && isfinite (a + b + d) ? a + b - 2 * d : NAN;
-      if (!isnan (sum[i]))
-        sorted[n_ok++] = sum[i];
-    }
-  if (n_ok < 64)
+  /* The frames' shapes were checked (ds_probe_frames_check): this cannot fail. */
+  g_autoptr (DsStripeProfile) prof = ds_stripe_profile_bin (dark, l0, l1, period, offset, saturation, N_BINS, NULL);
+  if (!prof)
     return;
-  qsort (sorted, n_ok, sizeof (double), compare_doubles);
-  double threshold = 0.25 * sorted[(gsize) (0.9 * (double) (n_ok - 1))];
-  if (!(threshold > 0))
-    return;
-  /* The sum against its mean over a box of about two periods around the pixel (integral images
-   * over the usable pixels). */
-  guint radius = (guint) MAX (4.0, ceil (period));
-  g_autofree double *integral = g_new0 (double, (gsize) (w + 1) * (h + 1));
-  g_autofree guint *counts = g_new0 (guint, (gsize) (w + 1) * (h + 1));
-  for (guint y = 0; y < h; y++)
-    for (guint x = 0; x < w; x++) {
-      gsize i = (gsize) y * w + x, k = (gsize) (y + 1) * (w + 1) + x + 1;
-      gboolean use = !isnan (sum[i]);
-      integral[k] = (use ? sum[i] : 0) + integral[k - 1] + integral[k - (w + 1)] - integral[k - (w + 1) - 1];
-      counts[k] = (use ? 1 : 0) + counts[k - 1] + counts[k - (w + 1)] - counts[k - (w + 1) - 1];
-    }
-  g_autofree double *local = g_new (double, npix);
-  for (guint y = 0; y < h; y++)
-    for (guint x = 0; x < w; x++) {
-      guint x0 = x > radius ? x - radius : 0, x1 = MIN (w, x + radius + 1);
-      guint y0 = y > radius ? y - radius : 0, y1 = MIN (h, y + radius + 1);
-      gsize a = (gsize) y0 * (w + 1) + x0, b = (gsize) y0 * (w + 1) + x1;
-      gsize c = (gsize) y1 * (w + 1) + x0, e = (gsize) y1 * (w + 1) + x1;
-      guint count = counts[e] - counts[b] - counts[c] + counts[a];
-      local[(gsize) y * w + x] = count ? (integral[e] - integral[b] - integral[c] + integral[a]) / count : NAN;
-    }
-
-  Profile prof = { 0 };
-  for (guint y = 0; y < h; y++)
-    for (guint x = 0; x < w; x++) {
-      gsize i = (gsize) y * w + x;
-      double u = (double) x / period - offset;
-      u -= floor (u);
-      guint j = MIN ((guint) (u * N_BINS), N_BINS - 1);
-      if (!isnan (sum[i]) && local[i] > threshold) {
-        prof.t[j] += sum[i] / local[i];
-        prof.nt[j]++;
-      }
-      if (!(sum[i] > threshold))
-        continue;
-      prof.r[j] += (frame_sample (l0, x, y) - frame_sample (dark, x, y)) / sum[i];
-      prof.u[j] += u;
-      prof.n[j]++;
-      out->pixels++;
-    }
-  guint bins = 0;
-  for (guint j = 0; j < N_BINS; j++) {
-    if (prof.nt[j])
-      prof.t[j] /= (double) prof.nt[j];
-    bins += prof.nt[j] || prof.n[j];
-    if (prof.n[j]) {
-      prof.r[j] /= (double) prof.n[j];
-      prof.u[j] /= (double) prof.n[j];
-    } else {
-      prof.u[j] = (j + 0.5) / N_BINS;
-    }
-  }
+  out->pixels = prof->pixels;
   /* an integer period puts the pixels at P positions in it */
-  if (bins < MIN (N_BINS / 2, (guint) period - 2) || out->pixels < 256)
+  if (prof->bins_used < MIN (N_BINS / 2, (guint) period - 2) || out->pixels < 256)
     return;
-  Fit free = fit_profile (&prof, conf->kind, period, -1, 0);
-  Fit configured = fit_profile (&prof, conf->kind, period, conf->duty, conf->black_level);
+  Fit free = fit_profile (prof, conf->kind, period, -1, 0);
+  Fit configured = fit_profile (prof, conf->kind, period, conf->duty, conf->black_level);
   out->measured = TRUE;
   out->duty = conf->kind == DS_PATTERN_SQUARE ? free.duty : 0.5;
   out->off_level = free.level;
@@ -258,30 +154,10 @@ check_pair (const DsImage *dark, const DsImage *l0, const DsImage *l1, double pe
   out->configured_rms = configured.rms;
   if (!centres)
     return;
-
-  /* Stripe centres: the middle half of the narrower of each phase's lit and dark runs, where
-   * one phase is fully lit and the other fully dark. */
-  double window = 0.25 * MIN (out->duty, 1 - out->duty);
+  gsize npix = (gsize) l0->width * l0->height;
   centres->brightness = g_new (double, npix);
   centres->off = g_new (double, npix);
-  for (guint y = 0; y < h; y++)
-    for (guint x = 0; x < w; x++) {
-      gsize i = (gsize) y * w + x;
-      centres->brightness[i] = sum[i];
-      centres->off[i] = NAN;
-      if (!(sum[i] > threshold))
-        continue;
-      double u = (double) x / period - offset;
-      u -= floor (u);
-      gboolean centre0 = fabs (u - (u > 0.5 ? 1 : 0)) < window, centre1 = fabs (u - 0.5) < window;
-      if (!centre0 && !centre1)
-        continue;
-      double d = frame_sample (dark, x, y);
-      double lit = (centre0 ? frame_sample (l0, x, y) : frame_sample (l1, x, y)) - d;
-      double off = (centre0 ? frame_sample (l1, x, y) : frame_sample (l0, x, y)) - d;
-      if (lit > 0)
-        centres->off[i] = off / lit;
-    }
+  ds_stripe_profile_centres (prof, dark, l0, l1, out->duty, centres->brightness, centres->off);
 }
 
 #define REMEDY                                                                                                   \
