@@ -4,60 +4,132 @@
 #include "proc/calibration_json.h"
 #include "proc/proc_error.h"
 
+/* Every member but "pattern" and "warning", in the order written: its key, its type and where
+ * it lives. Writer and reader walk the same tables. A count is a non-negative integer; a
+ * number a double or an integer. */
+typedef enum {
+  M_COUNT_UINT,
+  M_COUNT_U64,
+  M_BOOL,
+  M_NUMBER,
+} MemberType;
+
 typedef struct {
   const char *key;
+  MemberType type;
   gsize offset;
-} NumberMember;
+} Member;
 
-static const NumberMember numbers[] = {
-  { "period_px", G_STRUCT_OFFSET (DsCalibration, period_px) },
-  { "phase_offset_cycles", G_STRUCT_OFFSET (DsCalibration, phase_offset_cycles) },
-  { "offset_spread_cycles", G_STRUCT_OFFSET (DsCalibration, offset_spread) },
-  { "duty", G_STRUCT_OFFSET (DsCalibration, duty) },
-  { "black_level", G_STRUCT_OFFSET (DsCalibration, black_level) },
-  { "harmonic_gain", G_STRUCT_OFFSET (DsCalibration, harmonic_gain) },
-  { "harmonic_gain_theory", G_STRUCT_OFFSET (DsCalibration, harmonic_gain_theory) },
-  { "edge_blur_px", G_STRUCT_OFFSET (DsCalibration, edge_blur_px) },
+#define CAL(field) G_STRUCT_OFFSET (DsCalibration, field)
+static const Member members[] = {
+  { "n_phases", M_COUNT_UINT, CAL (n_phases) },
+  { "frames_per_phase", M_COUNT_UINT, CAL (frames_per_phase) },
+  { "period_measured", M_BOOL, CAL (period_measured) },
+  { "period_px", M_NUMBER, CAL (period_px) },
+  { "phase_offset_cycles", M_NUMBER, CAL (phase_offset_cycles) },
+  { "offset_spread_cycles", M_NUMBER, CAL (offset_spread) },
+  { "duty", M_NUMBER, CAL (duty) },
+  { "black_level", M_NUMBER, CAL (black_level) },
+  { "harmonic_gain", M_NUMBER, CAL (harmonic_gain) },
+  { "harmonic_gain_theory", M_NUMBER, CAL (harmonic_gain_theory) },
+  { "edge_blur_px", M_NUMBER, CAL (edge_blur_px) },
+  { "pixels_used", M_COUNT_U64, CAL (pixels_used) },
 };
+#undef CAL
+
+/* The "scattering" object (calibration_scatter.h). Its booleans are optional: absent reads as
+ * FALSE. */
+#define SC(field) G_STRUCT_OFFSET (DsScatterCheck, field)
+static const Member scatter_members[] = {
+  { "suspected", M_BOOL, SC (scattering) },
+  { "measured", M_BOOL, SC (measured) },
+  { "off_level_dim", M_NUMBER, SC (off_dim) },
+  { "off_level_bright", M_NUMBER, SC (off_bright) },
+  { "brightness_contrast", M_NUMBER, SC (brightness_contrast) },
+  { "dim_parts_brighter", M_BOOL, SC (spatial) },
+  { "shape_residual", M_NUMBER, SC (shape_residual) },
+  { "shape_noise", M_NUMBER, SC (shape_noise) },
+  { "shape_misfit", M_BOOL, SC (shape_misfit) },
+};
+#undef SC
+
+static void
+add_members (JsonBuilder *b, const Member *table, guint n, gconstpointer base)
+{
+  for (guint i = 0; i < n; i++) {
+    json_builder_set_member_name (b, table[i].key);
+    switch (table[i].type) {
+    case M_COUNT_UINT:
+      json_builder_add_int_value (b, G_STRUCT_MEMBER (guint, base, table[i].offset));
+      break;
+    case M_COUNT_U64:
+      json_builder_add_int_value (b, (gint64) G_STRUCT_MEMBER (guint64, base, table[i].offset));
+      break;
+    case M_BOOL:
+      json_builder_add_boolean_value (b, G_STRUCT_MEMBER (gboolean, base, table[i].offset));
+      break;
+    case M_NUMBER:
+      json_builder_add_double_value (b, G_STRUCT_MEMBER (double, base, table[i].offset));
+      break;
+    }
+  }
+}
+
+/* Reads the table's members from obj into base; `within` names the enclosing object in errors
+ * ("" at the top level, "scattering." inside it). */
+static gboolean
+read_members (JsonObject *obj, const Member *table, guint n, gpointer base, const char *within, GError **error)
+{
+  for (guint i = 0; i < n; i++) {
+    const Member *m = &table[i];
+    JsonNode *node = json_object_get_member (obj, m->key);
+    GType t = node && JSON_NODE_HOLDS_VALUE (node) ? json_node_get_value_type (node) : G_TYPE_INVALID;
+    const char *wrong = NULL;
+    switch (m->type) {
+    case M_COUNT_UINT:
+    case M_COUNT_U64:
+      if (t != G_TYPE_INT64 || json_node_get_int (node) < 0)
+        wrong = "not a count";
+      else if (m->type == M_COUNT_U64)
+        G_STRUCT_MEMBER (guint64, base, m->offset) = (guint64) json_node_get_int (node);
+      else
+        G_STRUCT_MEMBER (guint, base, m->offset) = (guint) MIN (json_node_get_int (node), (gint64) G_MAXUINT);
+      break;
+    case M_BOOL:
+      /* Inside "scattering" a flag an older writer did not send reads as FALSE. */
+      if (!node && *within)
+        break;
+      if (t != G_TYPE_BOOLEAN)
+        wrong = "not a boolean";
+      else
+        G_STRUCT_MEMBER (gboolean, base, m->offset) = json_node_get_boolean (node);
+      break;
+    case M_NUMBER:
+      if (t != G_TYPE_DOUBLE && t != G_TYPE_INT64)
+        wrong = "not a number";
+      else
+        G_STRUCT_MEMBER (double, base, m->offset) = json_node_get_double (node);
+      break;
+    }
+    if (wrong) {
+      g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT, "calibration: \"%s%s\" is %s", within,
+                   m->key, node ? wrong : "missing");
+      return FALSE;
+    }
+  }
+  return TRUE;
+}
 
 void
 ds_calibration_add_json_members (JsonBuilder *b, const DsCalibration *cal)
 {
   json_builder_set_member_name (b, "pattern");
   json_builder_add_string_value (b, cal->pattern == DS_PATTERN_SINE ? "sine" : "square");
-  json_builder_set_member_name (b, "n_phases");
-  json_builder_add_int_value (b, cal->n_phases);
-  json_builder_set_member_name (b, "frames_per_phase");
-  json_builder_add_int_value (b, cal->frames_per_phase);
-  json_builder_set_member_name (b, "period_measured");
-  json_builder_add_boolean_value (b, cal->period_measured);
-  for (guint i = 0; i < G_N_ELEMENTS (numbers); i++) {
-    json_builder_set_member_name (b, numbers[i].key);
-    json_builder_add_double_value (b, G_STRUCT_MEMBER (double, cal, numbers[i].offset));
-  }
-  json_builder_set_member_name (b, "pixels_used");
-  json_builder_add_int_value (b, (gint64) cal->pixels_used);
+  add_members (b, members, G_N_ELEMENTS (members), cal);
   /* the scattering check (calibration_scatter.h); "warning" only when the reference scatters */
   json_builder_set_member_name (b, "scattering");
   json_builder_begin_object (b);
-  json_builder_set_member_name (b, "suspected");
-  json_builder_add_boolean_value (b, cal->scatter.scattering);
-  json_builder_set_member_name (b, "measured");
-  json_builder_add_boolean_value (b, cal->scatter.measured);
-  json_builder_set_member_name (b, "off_level_dim");
-  json_builder_add_double_value (b, cal->scatter.off_dim);
-  json_builder_set_member_name (b, "off_level_bright");
-  json_builder_add_double_value (b, cal->scatter.off_bright);
-  json_builder_set_member_name (b, "brightness_contrast");
-  json_builder_add_double_value (b, cal->scatter.brightness_contrast);
-  json_builder_set_member_name (b, "dim_parts_brighter");
-  json_builder_add_boolean_value (b, cal->scatter.spatial);
-  json_builder_set_member_name (b, "shape_residual");
-  json_builder_add_double_value (b, cal->scatter.shape_residual);
-  json_builder_set_member_name (b, "shape_noise");
-  json_builder_add_double_value (b, cal->scatter.shape_noise);
-  json_builder_set_member_name (b, "shape_misfit");
-  json_builder_add_boolean_value (b, cal->scatter.shape_misfit);
+  add_members (b, scatter_members, G_N_ELEMENTS (scatter_members), &cal->scatter);
   json_builder_end_object (b);
   g_autofree char *warning = ds_calibration_scatter_warning (cal);
   if (warning) {
@@ -66,108 +138,32 @@ ds_calibration_add_json_members (JsonBuilder *b, const DsCalibration *cal)
   }
 }
 
-/* The scattering check's object; absent (an older daemon) leaves it unmeasured. */
-static gboolean
-scatter_from_json (JsonObject *obj, DsScatterCheck *s, GError **error)
-{
-  JsonNode *node = json_object_get_member (obj, "scattering");
-  if (!node)
-    return TRUE;
-  if (!JSON_NODE_HOLDS_OBJECT (node)) {
-    g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT, "calibration: \"scattering\" is not an object");
-    return FALSE;
-  }
-  JsonObject *o = json_node_get_object (node);
-  const struct {
-    const char *key;
-    double *value;
-  } fields[] = {
-    { "off_level_dim", &s->off_dim },
-    { "off_level_bright", &s->off_bright },
-    { "brightness_contrast", &s->brightness_contrast },
-    { "shape_residual", &s->shape_residual },
-    { "shape_noise", &s->shape_noise },
-  };
-  for (guint i = 0; i < G_N_ELEMENTS (fields); i++) {
-    JsonNode *n = json_object_get_member (o, fields[i].key);
-    GType t = n && JSON_NODE_HOLDS_VALUE (n) ? json_node_get_value_type (n) : G_TYPE_INVALID;
-    if (t != G_TYPE_DOUBLE && t != G_TYPE_INT64) {
-      g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT,
-                   "calibration: \"scattering.%s\" is %s", fields[i].key, n ? "not a number" : "missing");
-      return FALSE;
-    }
-    *fields[i].value = json_node_get_double (n);
-  }
-  s->scattering = json_object_get_boolean_member_with_default (o, "suspected", FALSE);
-  s->measured = json_object_get_boolean_member_with_default (o, "measured", FALSE);
-  s->spatial = json_object_get_boolean_member_with_default (o, "dim_parts_brighter", FALSE);
-  s->shape_misfit = json_object_get_boolean_member_with_default (o, "shape_misfit", FALSE);
-  return TRUE;
-}
-
-static gboolean
-member (JsonObject *obj, const char *key, JsonNode **node, GError **error)
-{
-  *node = json_object_get_member (obj, key);
-  if (!*node || !JSON_NODE_HOLDS_VALUE (*node)) {
-    g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT, "calibration: \"%s\" is %s", key,
-                 *node ? "not a value" : "missing");
-    return FALSE;
-  }
-  return TRUE;
-}
-
 gboolean
 ds_calibration_from_json (JsonObject *obj, DsCalibration *cal, GError **error)
 {
   memset (cal, 0, sizeof *cal);
-  JsonNode *n;
-  if (!member (obj, "pattern", &n, error))
-    return FALSE;
-  const char *pattern = json_node_get_value_type (n) == G_TYPE_STRING ? json_node_get_string (n) : "";
+  JsonNode *n = json_object_get_member (obj, "pattern");
+  const char *pattern = n && JSON_NODE_HOLDS_VALUE (n) && json_node_get_value_type (n) == G_TYPE_STRING
+                          ? json_node_get_string (n)
+                          : "";
   if (strcmp (pattern, "square") != 0 && strcmp (pattern, "sine") != 0) {
     g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT,
-                 "calibration: \"pattern\" is neither \"square\" nor \"sine\"");
+                 n ? "calibration: \"pattern\" is neither \"square\" nor \"sine\"" : "calibration: \"pattern\" is missing");
     return FALSE;
   }
   cal->pattern = strcmp (pattern, "sine") == 0 ? DS_PATTERN_SINE : DS_PATTERN_SQUARE;
-  const struct {
-    const char *key;
-    guint64 *u64;
-    guint *u;
-  } ints[] = {
-    { "n_phases", NULL, &cal->n_phases },
-    { "frames_per_phase", NULL, &cal->frames_per_phase },
-    { "pixels_used", &cal->pixels_used, NULL },
-  };
-  for (guint i = 0; i < G_N_ELEMENTS (ints); i++) {
-    if (!member (obj, ints[i].key, &n, error))
-      return FALSE;
-    if (json_node_get_value_type (n) != G_TYPE_INT64 || json_node_get_int (n) < 0) {
-      g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT,
-                   "calibration: \"%s\" is not a count", ints[i].key);
-      return FALSE;
-    }
-    if (ints[i].u64)
-      *ints[i].u64 = (guint64) json_node_get_int (n);
-    else
-      *ints[i].u = (guint) MIN (json_node_get_int (n), (gint64) G_MAXUINT);
-  }
-  if (!member (obj, "period_measured", &n, error))
+  if (!read_members (obj, members, G_N_ELEMENTS (members), cal, "", error))
     return FALSE;
-  cal->period_measured = json_node_get_value_type (n) == G_TYPE_BOOLEAN && json_node_get_boolean (n);
-  for (guint i = 0; i < G_N_ELEMENTS (numbers); i++) {
-    if (!member (obj, numbers[i].key, &n, error))
-      return FALSE;
-    GType t = json_node_get_value_type (n);
-    if (t != G_TYPE_DOUBLE && t != G_TYPE_INT64) {
-      g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT, "calibration: \"%s\" is not a number",
-                   numbers[i].key);
-      return FALSE;
-    }
-    G_STRUCT_MEMBER (double, cal, numbers[i].offset) = json_node_get_double (n);
+  /* absent (an older daemon): the scattering check stays unmeasured */
+  n = json_object_get_member (obj, "scattering");
+  if (!n)
+    return TRUE;
+  if (!JSON_NODE_HOLDS_OBJECT (n)) {
+    g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT, "calibration: \"scattering\" is not an object");
+    return FALSE;
   }
-  return scatter_from_json (obj, &cal->scatter, error);
+  return read_members (json_node_get_object (n), scatter_members, G_N_ELEMENTS (scatter_members), &cal->scatter,
+                       "scattering.", error);
 }
 
 char *
