@@ -86,6 +86,11 @@ G_BEGIN_DECLS
 /* How much better (weighted squared residuals, chi^2 with the fit's 2 % floor) the narrow kernel
  * term must explain the harmonics to be kept: any improvement (above: why no significance test). */
 #define DS_PROBE_NARROW_MIN_CHI2 0.0
+/* The narrow term's checks (scene_probe.c): the scene's mean must hold scattered light beyond the
+ * line's Ld (at least this share of it), and the kernel's transfer at the finest period must be
+ * below this (above, the kernel is narrower than the pilot resolves: a lower bound). */
+#define DS_PROBE_NARROW_MIN_LG 0.03
+#define DS_PROBE_NARROW_MAX_AT_FINEST 0.25
 
 /* The finer pilot periods for period P and blur sigma (0 when unknown): P/2 and P/4 as long as they
  * are resolvable (above), rounded to 1/100 px (a projector's PERIOD register unit). Returns how
@@ -149,6 +154,8 @@ typedef struct {
   double finest_period_px;        /* the finest period whose first harmonic the fit used */
   gboolean narrow_unresolved;     /* scattered light was seen but no finer period was: a kernel
                                      narrower than P would pass for direct light (a lower bound) */
+  gboolean narrow_beyond;         /* a kernel still keeping > DS_PROBE_NARROW_MAX_AT_FINEST of Ld at the
+                                     finest period: not fitted, a lower bound */
   char narrow_note[320];          /* why (narrow_unresolved), or what the finer periods showed */
   double noise_var0;              /* DN^2 of one frame without signal (read, dark, quantisation) */
   double noise_gain;              /* DN^2 per DN of signal (shot noise) */

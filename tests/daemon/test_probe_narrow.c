@@ -199,6 +199,25 @@ test_period_too_fine (void)
   g_assert_true (lower_bound_json (&p, &reasons));
 }
 
+/* A kernel of 0.97 px holding 80 % of Ld keeps 48 % of Ld modulated even at P/4 = 6 px (77 % at
+ * P): the step from P/4 to P shows a narrow kernel, but how much of it is narrower still only the
+ * form below P/4 would say, so it is not fitted and the prediction is a lower bound saying so. */
+static void
+test_narrower_than_finest (void)
+{
+  const Scene s = { .period = 24, .duty = 0.4, .blur = 0.5, .ld = 1500, .lg_wide = 300, .dark = 40,
+                    .beta = 0.8, .kernel_px = 0.97 };
+  DsSceneProbe p;
+  probe (&s, TRUE, TRUE, &p);
+  g_test_message ("%s", p.narrow_note);
+  g_assert_cmpfloat (truth_leak (&s, 6), >, 0.25);
+  g_assert_true (p.narrow_unresolved);
+  g_assert_cmpfloat (p.narrow_fraction, ==, 0);
+  g_assert_nonnull (strstr (p.narrow_note, "even at the finest period"));
+  g_autofree char *reasons = NULL;
+  g_assert_true (lower_bound_json (&p, &reasons));
+}
+
 /* Nothing scatters: with P and 2P no lower bound is claimed (no scattered light seen); with the
  * finer periods no narrow kernel is made up from the noise and the blur's harmonics. */
 static void
@@ -224,6 +243,7 @@ main (int argc, char **argv)
   g_test_add_func ("/probe-narrow/finer-periods", test_finer_periods);
   g_test_add_func ("/probe-narrow/narrow-kernel", test_narrow_kernel);
   g_test_add_func ("/probe-narrow/period-too-fine", test_period_too_fine);
+  g_test_add_func ("/probe-narrow/narrower-than-finest", test_narrower_than_finest);
   g_test_add_func ("/probe-narrow/clear", test_clear);
   return g_test_run ();
 }
