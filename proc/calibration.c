@@ -282,14 +282,14 @@ fit_minimise (const FitData *f, double x[3], const gboolean fixed[3])
   memcpy (x, simplex[lo], 3 * sizeof (double));
 }
 
-/* How well a blurred square with a black level explains the binned profile (calibration_scatter.h:
- * scattered light that keeps the stripes has long tails into the dark stripes that no Gaussian
- * edge has): the fit's rms residual and the profile's standard error, both over its range. */
+/* How well the model at x explains the binned profile: its rms residual and the profile's
+ * standard error, both over the profile's range (0 when the profile is flat). */
 static void
-profile_shape (const FitData *f, const double x[3], const double *profile_sq, DsScatterCheck *out)
+profile_residual (const FitData *f, const double x[3], const double *profile_sq, double *residual, double *noise)
 {
   double lo = INFINITY, hi = -INFINITY, se2 = 0;
   guint entries = 0;
+  *residual = *noise = 0;
   for (guint j = 0; j < N_BINS; j++) {
     if (!f->filled[j])
       continue;
@@ -303,9 +303,52 @@ profile_shape (const FitData *f, const double x[3], const double *profile_sq, Ds
   }
   if (!entries || !(hi > lo))
     return;
-  out->shape_residual = sqrt (fit_cost (f, x) / entries) / (hi - lo);
-  out->shape_noise = sqrt (se2 / entries) / (hi - lo);
-  ds_calibration_scatter_shape (out);
+  *residual = sqrt (fit_cost (f, x) / entries) / (hi - lo);
+  *noise = sqrt (se2 / entries) / (hi - lo);
+}
+
+/* A pure sinusoid's rms misfit over the profile's range: the profile (mean 1 per bin) against
+ * 1 + c cos(2 pi (position - phase)), c by least squares (closed form), whatever the black level,
+ * blur or pixel aperture that set c. */
+static double
+sine_residual (const FitData *f)
+{
+  double num = 0, den = 0, lo = INFINITY, hi = -INFINITY, ss = 0;
+  guint entries = 0;
+  for (int pass = 0; pass < 2; pass++)
+    for (guint j = 0; j < N_BINS; j++) {
+      if (!f->filled[j])
+        continue;
+      for (guint k = 0; k < f->n; k++) {
+        double u = ds_stripe_phase_diff (f->position[j], (double) k / f->n + f->offset);
+        double cs = cos (2 * G_PI * u), m = f->profile[j * f->n + k] - 1;
+        if (pass == 0) {
+          num += m * cs;
+          den += cs * cs;
+          lo = MIN (lo, m);
+          hi = MAX (hi, m);
+          entries++;
+        } else {
+          double r = m - num / den * cs;
+          ss += r * r;
+        }
+      }
+    }
+  return entries && den > 0 && hi > lo ? sqrt (ss / entries) / (hi - lo) : 0;
+}
+
+/* Fits the pattern's model from the starting values; a sine has no duty, and contrast lost to
+ * blur cannot be told from black level, so only b is free. */
+static void
+fit_pattern (FitData *f, DsPatternKind pattern, double a0, double b0, double x[3])
+{
+  f->p.pattern = pattern;
+  gboolean sine = pattern == DS_PATTERN_SINE;
+  gboolean fixed[3] = { sine, FALSE, sine };
+  x[0] = sine ? 0.5 : a0;
+  x[1] = b0;
+  x[2] = sine ? 0 : 0.1;
+  fit_minimise (f, x, fixed);
 }
 
 gboolean
@@ -480,30 +523,68 @@ ds_calibrator_finish (DsCalibrator *c, const DsCalibrationHints *hints, DsCalibr
   /* Starting values from the lit and dark phases (exact for sharp stripes and point pixels) */
   double b0 = CLAMP (trimmed_mean (ratio_b, used), 0.0, 0.9);
   double m0 = trimmed_mean (ratio_m, used);
-  double a0 = hints->pattern == DS_PATTERN_SINE ? 0.5 : CLAMP ((m0 - b0) / (1 - b0), 0.05, 0.95);
+  double a0 = CLAMP ((m0 - b0) / (1 - b0), 0.05, 0.95);
   /* ... then a, b and the edge blur fitted to the phase profile binned by position in the period,
-   * which blur and pixel integration shape (the lit phase is not fully lit then). */
+   * which blur and pixel integration shape (the lit phase is not fully lit then); both patterns
+   * unless one is forced, and the profile decides (calibration_pattern.h). */
   FitData f = { .n = n, .profile = profile, .filled = filled, .position = position,
                 .offset = out->phase_offset_cycles };
   ds_separation_params_init (&f.p, n);
-  f.p.pattern = hints->pattern;
   f.p.geometry.period_px = period;
   f.p.geometry.pixel_aperture = hints->pixel_aperture > 0 ? hints->pixel_aperture : 1.0;
-  double x[3] = { a0, b0, 0.1 };
-  /* sine stripes: no duty, and contrast lost to blur cannot be told from black level */
-  gboolean fixed[3] = { hints->pattern == DS_PATTERN_SINE, FALSE, hints->pattern == DS_PATTERN_SINE };
-  if (hints->pattern == DS_PATTERN_SINE)
-    x[2] = 0;
-  fit_minimise (&f, x, fixed);
+  DsPatternCheck *pc = &out->pattern_check;
+  pc->expected = hints->pattern;
+  pc->detected = !hints->pattern_forced;
+  double xs[3] = { 0.5, 0, 0 }, xq[3] = { 0.5, 0, 0 }, noise = 0;
+  if (pc->detected || hints->pattern == DS_PATTERN_SINE) {
+    fit_pattern (&f, DS_PATTERN_SINE, a0, b0, xs);
+    profile_residual (&f, xs, profile_sq, &pc->sine_residual, &noise);
+    pc->sine_residual = sine_residual (&f);
+  }
+  if (pc->detected || hints->pattern == DS_PATTERN_SQUARE) {
+    fit_pattern (&f, DS_PATTERN_SQUARE, a0, b0, xq);
+    profile_residual (&f, xq, profile_sq, &pc->square_residual, &noise);
+    pc->square_blur_px = xq[2];
+  }
+  pc->noise = noise;
+  out->pattern = pc->detected ? ds_calibration_pattern_decide (pc) : hints->pattern;
+  const double *x = out->pattern == DS_PATTERN_SINE ? xs : xq;
   out->duty = x[0];
   out->black_level = x[1];
   out->edge_blur_px = x[2] < 1e-3 ? 0 : x[2];
-  out->harmonic_gain = ds_pattern_mean (hints->pattern, out->duty, out->black_level) * sum_a / sum_m;
-  out->harmonic_gain_theory = ds_harmonic_gain_theory (hints->pattern, out->duty, out->black_level);
+  out->harmonic_gain = ds_pattern_mean (out->pattern, out->duty, out->black_level) * sum_a / sum_m;
+  out->harmonic_gain_theory = ds_harmonic_gain_theory (out->pattern, out->duty, out->black_level);
   ds_calibration_scatter_check (brightness, off, c->w, c->h, period, &out->scatter);
-  if (hints->pattern == DS_PATTERN_SQUARE)
-    profile_shape (&f, x, profile_sq, &out->scatter);
+  /* scattered light that keeps square stripes has tails no blurred edge has; a sine stays a sine */
+  if (out->pattern == DS_PATTERN_SQUARE) {
+    out->scatter.shape_residual = pc->square_residual;
+    out->scatter.shape_noise = noise;
+    if (pc->square_residual > 0)
+      ds_calibration_scatter_shape (&out->scatter);
+  }
   return TRUE;
+}
+
+char *
+ds_calibration_pattern_notice (const DsCalibration *cal)
+{
+  const DsPatternCheck *p = &cal->pattern_check;
+  if (!p->detected || cal->pattern == p->expected)
+    return NULL;
+  if (cal->pattern == DS_PATTERN_SQUARE)
+    return g_strdup_printf ("the stripes are square, not sine: a sinusoid leaves %.2f %% of the stripe contrast "
+                            "unexplained in the period profile, a blurred square (edge blur %.2f px) %.2f %%, where "
+                            "the profile's own noise is %.2f %%. Configure pattern=square (the lines below)",
+                            100 * p->sine_residual, p->square_blur_px, 100 * p->square_residual, 100 * p->noise);
+  return g_strdup_printf ("the stripes are sine, not square: a sinusoid fits the period profile to %.2f %% of the "
+                          "stripe contrast, where the profile's own noise is %.2f %%; %s (edge blur %.2f px, "
+                          "residual %.2f %%). Configure pattern=sine (the lines below), so the separation uses the "
+                          "sine estimator and its harmonic gain",
+                          100 * p->sine_residual, 100 * p->noise,
+                          p->square_fits ? "a blurred square fits only with a blur that erases every harmonic above "
+                                           "the first: indistinguishable from a sine"
+                                         : "no blurred square fits as well",
+                          p->square_blur_px, 100 * p->square_residual);
 }
 
 char *

@@ -9,6 +9,7 @@
 #pragma once
 #include <glib.h>
 
+#include "proc/calibration_pattern.h"
 #include "proc/calibration_scatter.h"
 #include "proc/image.h"
 #include "proc/separation.h"
@@ -16,8 +17,9 @@
 G_BEGIN_DECLS
 
 typedef struct {
-  DsPatternKind pattern;      /* what the illuminator projects (square unless it is known to be
-                                 sine) */
+  DsPatternKind pattern;      /* what the illuminator is configured to project (square unless
+                                 known to be sine); the profile decides (calibration_pattern.h) */
+  gboolean pattern_forced;    /* take pattern as it is, without looking (an explicit override) */
   double period_px;           /* known period; 0 = measure it */
   gboolean phase_offset_known;
   double phase_offset_cycles;
@@ -30,7 +32,8 @@ void ds_calibration_hints_init (DsCalibrationHints *hints);
 
 typedef struct {
   guint n_phases, frames_per_phase;
-  DsPatternKind pattern;
+  DsPatternKind pattern;      /* what the stripes show (or the forced hint) */
+  DsPatternCheck pattern_check; /* both fits, and what was expected */
   double period_px;           /* measured (or the hint) */
   gboolean period_measured;
   double phase_offset_cycles; /* phase k lights stripes centred at (j + k/N + offset) P */
@@ -50,6 +53,10 @@ typedef struct {
 /* The warning to print when the reference scatters (NULL when it does not seem to): what was
  * seen, that b and h are not to be trusted, and to calibrate on a clear reference. */
 char *ds_calibration_scatter_warning (const DsCalibration *cal);
+
+/* When the stripes are not what was expected (configured): what the fits showed and the remedy
+ * (pattern=...); NULL when they agree or the pattern was forced. */
+char *ds_calibration_pattern_notice (const DsCalibration *cal);
 
 typedef struct DsCalibrator DsCalibrator;
 

@@ -53,6 +53,18 @@ static const Member scatter_members[] = {
 };
 #undef SC
 
+/* The "pattern_check" object (calibration_pattern.h) but its "expected". */
+#define PC(field) G_STRUCT_OFFSET (DsPatternCheck, field)
+static const Member pattern_members[] = {
+  { "detected", M_BOOL, PC (detected) },
+  { "sine_residual", M_NUMBER, PC (sine_residual) },
+  { "square_residual", M_NUMBER, PC (square_residual) },
+  { "square_blur_px", M_NUMBER, PC (square_blur_px) },
+  { "noise", M_NUMBER, PC (noise) },
+  { "square_fits", M_BOOL, PC (square_fits) },
+};
+#undef PC
+
 static void
 add_members (JsonBuilder *b, const Member *table, guint n, gconstpointer base)
 {
@@ -96,7 +108,7 @@ read_members (JsonObject *obj, const Member *table, guint n, gpointer base, cons
         G_STRUCT_MEMBER (guint, base, m->offset) = (guint) MIN (json_node_get_int (node), (gint64) G_MAXUINT);
       break;
     case M_BOOL:
-      /* Inside "scattering" a flag an older writer did not send reads as FALSE. */
+      /* Inside an object a flag an older writer did not send reads as FALSE. */
       if (!node && *within)
         break;
       if (t != G_TYPE_BOOLEAN)
@@ -131,6 +143,18 @@ ds_calibration_add_json_members (JsonBuilder *b, const DsCalibration *cal)
   json_builder_begin_object (b);
   add_members (b, scatter_members, G_N_ELEMENTS (scatter_members), &cal->scatter);
   json_builder_end_object (b);
+  /* sine or square (calibration_pattern.h); "pattern_notice" when not what was expected */
+  json_builder_set_member_name (b, "pattern_check");
+  json_builder_begin_object (b);
+  json_builder_set_member_name (b, "expected");
+  json_builder_add_string_value (b, cal->pattern_check.expected == DS_PATTERN_SINE ? "sine" : "square");
+  add_members (b, pattern_members, G_N_ELEMENTS (pattern_members), &cal->pattern_check);
+  json_builder_end_object (b);
+  g_autofree char *notice = ds_calibration_pattern_notice (cal);
+  if (notice) {
+    json_builder_set_member_name (b, "pattern_notice");
+    json_builder_add_string_value (b, notice);
+  }
   g_autofree char *warning = ds_calibration_scatter_warning (cal);
   if (warning) {
     json_builder_set_member_name (b, "warning");
@@ -154,6 +178,27 @@ ds_calibration_from_json (JsonObject *obj, DsCalibration *cal, GError **error)
   cal->pattern = strcmp (pattern, "sine") == 0 ? DS_PATTERN_SINE : DS_PATTERN_SQUARE;
   if (!read_members (obj, members, G_N_ELEMENTS (members), cal, "", error))
     return FALSE;
+  /* absent (an older daemon): the pattern was not detected, it is what was expected */
+  cal->pattern_check.expected = cal->pattern;
+  n = json_object_get_member (obj, "pattern_check");
+  if (n) {
+    if (!JSON_NODE_HOLDS_OBJECT (n)) {
+      g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT,
+                   "calibration: \"pattern_check\" is not an object");
+      return FALSE;
+    }
+    JsonObject *pc = json_node_get_object (n);
+    const char *expected = json_object_get_string_member_with_default (pc, "expected", "");
+    if (strcmp (expected, "square") != 0 && strcmp (expected, "sine") != 0) {
+      g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT,
+                   "calibration: \"pattern_check.expected\" is neither \"square\" nor \"sine\"");
+      return FALSE;
+    }
+    cal->pattern_check.expected = strcmp (expected, "sine") == 0 ? DS_PATTERN_SINE : DS_PATTERN_SQUARE;
+    if (!read_members (pc, pattern_members, G_N_ELEMENTS (pattern_members), &cal->pattern_check, "pattern_check.",
+                       error))
+      return FALSE;
+  }
   /* absent (an older daemon): the scattering check stays unmeasured */
   n = json_object_get_member (obj, "scattering");
   if (!n)
@@ -169,6 +214,10 @@ ds_calibration_from_json (JsonObject *obj, DsCalibration *cal, GError **error)
 char *
 ds_calibration_config_lines (const DsCalibration *cal)
 {
+  /* sine stripes have no duty, and their blur is in the harmonic gain */
+  if (cal->pattern == DS_PATTERN_SINE)
+    return g_strdup_printf ("[illuminator]\npattern=sine\nperiod-px=%.4f\nblack-level=%.4f\nharmonic-gain=%.4f\n",
+                            cal->period_px, cal->black_level, cal->harmonic_gain);
   return g_strdup_printf ("[illuminator]\npattern=%s\nperiod-px=%.4f\nduty=%.4f\nblack-level=%.4f\n"
                           "harmonic-gain=%.4f\nedge-blur-px=%.2f\n",
                           cal->pattern == DS_PATTERN_SINE ? "sine" : "square", cal->period_px, cal->duty,

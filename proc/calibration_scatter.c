@@ -100,9 +100,15 @@ ds_calibration_scatter_check (const double *brightness, const double *off, guint
   out->scattering = out->spatial || out->shape_misfit;
 }
 
+gboolean
+ds_calibration_shape_fits (double residual, double noise)
+{
+  return residual <= MAX (SHAPE_RESIDUAL, 5 * noise);
+}
+
 void
 ds_calibration_scatter_shape (DsScatterCheck *c)
 {
-  c->shape_misfit = c->shape_residual > MAX (SHAPE_RESIDUAL, 5 * c->shape_noise);
+  c->shape_misfit = !ds_calibration_shape_fits (c->shape_residual, c->shape_noise);
   c->scattering = c->spatial || c->shape_misfit;
 }

@@ -34,6 +34,9 @@ typedef struct {
  * off-stripe over lit level (NaN where not usable); width x height planes. */
 void ds_calibration_scatter_check (const double *brightness, const double *off, guint width, guint height,
                                    double period_px, DsScatterCheck *out);
+/* Whether a model fits a period profile as closely as a clear reference's must: rms residual
+ * (over the profile's range) <= max(0.5 %, 5 x the profile's noise). */
+gboolean ds_calibration_shape_fits (double residual, double noise);
 /* Sets shape_misfit (and scattering) from shape_residual and shape_noise. */
 void ds_calibration_scatter_shape (DsScatterCheck *check);
 

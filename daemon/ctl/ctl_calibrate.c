@@ -50,18 +50,34 @@ print_lines (const char *source, const DsCalibration *cal)
           cal->frames_per_phase, cal->pixels_used);
   printf ("  stripe period   %.4f px (%s)\n", cal->period_px, cal->period_measured ? "measured" : "given");
   printf ("  phase 0 at      %.4f cycles (rms over the phases %.4f)\n", cal->phase_offset_cycles, cal->offset_spread);
-  printf ("  duty            %.4f\n", cal->duty);
+  const DsPatternCheck *pc = &cal->pattern_check;
+  if (pc->detected)
+    printf ("  pattern         %s (rms residual over the stripe contrast: sinusoid %.2f %%, blurred square "
+            "%.2f %% at %.2f px, noise %.2f %%)\n",
+            kind, 100 * pc->sine_residual, 100 * pc->square_residual, pc->square_blur_px, 100 * pc->noise);
+  else
+    printf ("  pattern         %s (given)\n", kind);
+  if (cal->pattern == DS_PATTERN_SQUARE)
+    printf ("  duty            %.4f\n", cal->duty);
   printf ("  black level     %.4f\n", cal->black_level);
   printf ("  harmonic gain   %.4f (sharp stripes: %.4f)\n", cal->harmonic_gain, cal->harmonic_gain_theory);
-  printf ("  edge blur       %.2f px (Gaussian sigma)\n", cal->edge_blur_px);
+  if (cal->pattern == DS_PATTERN_SQUARE)
+    printf ("  edge blur       %.2f px (Gaussian sigma)\n", cal->edge_blur_px);
   g_autofree char *lines = ds_calibration_config_lines (cal);
+  g_autofree char *notice = ds_calibration_pattern_notice (cal);
   g_autofree char *warning = ds_calibration_scatter_warning (cal);
+  if (notice)
+    printf ("\n# NOTE: %s\n", notice);
   if (warning)
     printf ("\n# WARNING: %s\n", warning);
   printf ("\n# descatterd.conf\n%s", lines);
-  printf ("\n# descatterctl separate\n--pattern %s --period %.4f --duty %.4f --black-level %.4f "
-          "--harmonic-gain %.4f --edge-blur %.2f\n",
-          kind, cal->period_px, cal->duty, cal->black_level, cal->harmonic_gain, cal->edge_blur_px);
+  if (cal->pattern == DS_PATTERN_SINE)
+    printf ("\n# descatterctl separate\n--pattern sine --period %.4f --black-level %.4f --harmonic-gain %.4f\n",
+            cal->period_px, cal->black_level, cal->harmonic_gain);
+  else
+    printf ("\n# descatterctl separate\n--pattern %s --period %.4f --duty %.4f --black-level %.4f "
+            "--harmonic-gain %.4f --edge-blur %.2f\n",
+            kind, cal->period_px, cal->duty, cal->black_level, cal->harmonic_gain, cal->edge_blur_px);
 }
 
 /* On stderr as well, so that it shows when stdout goes to a file (--quiet leaves it to the
@@ -69,7 +85,10 @@ print_lines (const char *source, const DsCalibration *cal)
 static void
 warn (const DsCalibration *cal, gboolean quiet)
 {
+  g_autofree char *notice = ds_calibration_pattern_notice (cal);
   g_autofree char *warning = ds_calibration_scatter_warning (cal);
+  if (notice && !quiet)
+    fprintf (stderr, "descatterctl calibrate: warning: %s\n", notice);
   if (warning && !quiet)
     fprintf (stderr, "descatterctl calibrate: warning: %s\n", warning);
 }
@@ -87,6 +106,7 @@ calibrate (const char *dir, const Options *o, gboolean *usage, GError **error)
   if (folder->sidecar.has_pattern_kind)
     hints.pattern = folder->sidecar.pattern_kind;
   if (o->pattern) {
+    hints.pattern_forced = TRUE;
     if (g_ascii_strcasecmp (o->pattern, "square") == 0)
       hints.pattern = DS_PATTERN_SQUARE;
     else if (g_ascii_strcasecmp (o->pattern, "sine") == 0)
@@ -204,7 +224,7 @@ ds_ctl_calibrate (const DsCtlTarget *target, int argc, char **argv)
 {
   Options o = { .period = NAN, .saturation = NAN, .aperture = NAN };
   GOptionEntry entries[] = {
-    { "pattern", 0, 0, G_OPTION_ARG_STRING, &o.pattern, "what the illuminator projects: square (default) or sine", "KIND" },
+    { "pattern", 0, 0, G_OPTION_ARG_STRING, &o.pattern, "take the stripes as square or sine without telling them apart (default: told from the profile)", "KIND" },
     { "period", 0, 0, G_OPTION_ARG_DOUBLE, &o.period, "the stripe period in pixels when known (default: measured)", "PX" },
     { "saturation", 0, 0, G_OPTION_ARG_DOUBLE, &o.saturation, "lowest clipped level in DN; clipped pixels are left out", "DN" },
     { "bit-depth", 0, 0, G_OPTION_ARG_INT, &o.bit_depth, "significant bits of the integer images, 1..16", "BITS" },

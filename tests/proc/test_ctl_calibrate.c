@@ -290,6 +290,27 @@ test_scattering_warns (void)
   g_assert_cmpfloat (b, >, 0.17);
 }
 
+/* A clear reference lit by a sine illuminator (the lab-user trial's gen-22-02 read it as a
+ * blurred square and warned of scattering): pattern sine, said so with the remedy, no warning. */
+static void
+test_clear_sine (void)
+{
+  g_autofree char *text = clear_scene ("12", "0.5", "0", "0", NULL, NULL);
+  char *at = strstr (text, "pattern=square");
+  g_assert_nonnull (at);
+  memcpy (at, "pattern=sine  ", 14);
+  double b;
+  g_assert_false (scatters (text, &b));
+  g_autofree char *dir = render_scene (text);
+  g_autofree char *set = g_build_filename (dir, "set", NULL);
+  g_autoptr (JsonParser) parser = json_parser_new ();
+  JsonObject *c = calibrate (set, parser);
+  g_assert_cmpstr (json_object_get_string_member (c, "pattern"), ==, "sine");
+  g_assert_nonnull (strstr (json_object_get_string_member (c, "pattern_notice"), "pattern=sine"));
+  g_assert_false (json_object_has_member (c, "warning"));
+  test_remove_tree (dir);
+}
+
 /* Frames without stripes: refused with a reason. */
 static void
 test_no_stripes (void)
@@ -322,5 +343,6 @@ main (int argc, char **argv)
   g_test_add_func ("/ctl-calibrate/no-stripes", test_no_stripes);
   g_test_add_func ("/ctl-calibrate/clear-never-warns", test_clear_never_warns);
   g_test_add_func ("/ctl-calibrate/scattering-warns", test_scattering_warns);
+  g_test_add_func ("/ctl-calibrate/clear-sine", test_clear_sine);
   return g_test_run ();
 }
