@@ -4,6 +4,7 @@
 #include <string.h>
 
 #include "proc/calibration.h"
+#include "proc/calibration_period.h"
 #include "proc/harmonic_gain.h"
 #include "proc/proc_error.h"
 #include "proc/separation_internal.h"
@@ -390,6 +391,8 @@ ds_calibrator_finish (DsCalibrator *c, const DsCalibrationHints *hints, DsCalibr
     }
     out->period_measured = TRUE;
   }
+  if (out->period_measured || hints->period_estimated)
+    out->period_px = ds_calibration_period_refine ((DsImage *const *) means->pdata, n, out->period_px);
   double period = out->period_px;
 
   /* Where phase 0 falls: the mean over phases of (measured phase - k/N), as a circular mean. */

@@ -21,6 +21,8 @@ typedef struct {
                                  known to be sine); the profile decides (calibration_pattern.h) */
   gboolean pattern_forced;    /* take pattern as it is, without looking (an explicit override) */
   double period_px;           /* known period; 0 = measure it */
+  gboolean period_estimated;  /* period_px is a detector's estimate: refine it on the phase set
+                                 (calibration_period.h), as a period measured here is */
   gboolean phase_offset_known;
   double phase_offset_cycles;
   double saturation_level;    /* DN at or above which samples are clipped: those pixels are left

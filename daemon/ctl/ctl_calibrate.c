@@ -139,6 +139,7 @@ calibrate (const char *dir, const Options *o, gboolean *usage, GError **error)
     fprintf (stderr, "descatterctl calibrate: %s\n", phases.notice);
   if (!isnan (phases.period_px))
     hints.period_px = phases.period_px;
+  hints.period_estimated = phases.period_source && g_str_equal (phases.period_source, "detected");
   if (folder->sidecar.has_phase_offset) {
     hints.phase_offset_known = TRUE;
     hints.phase_offset_cycles = folder->sidecar.phase_offset_cycles;

@@ -100,6 +100,8 @@ test_sine_is_sine (void)
     g_assert_cmpint (c.pattern, ==, DS_PATTERN_SINE);
     g_assert_true (c.pattern_check.detected);
     g_assert_false (c.scatter.scattering);
+    /* measured, then refined on the columns' phases (calibration_period.h) */
+    g_assert_cmpfloat (fabs (c.period_px / cases[i].period - 1), <, 2e-4);
     g_autofree char *warning = ds_calibration_scatter_warning (&c);
     g_assert_null (warning);
     /* the default expectation is square: the notice names the remedy */
@@ -126,6 +128,7 @@ test_square_is_square (void)
     calibrate (&cases[i], FALSE, &c);
     g_assert_cmpint (c.pattern, ==, DS_PATTERN_SQUARE);
     g_assert_false (c.scatter.scattering);
+    g_assert_cmpfloat (fabs (c.period_px / cases[i].period - 1), <, 2e-4);
     g_assert_cmpfloat (fabs (c.duty - cases[i].duty), <, 0.02);
     g_assert_cmpfloat (fabs (c.black_level - cases[i].black), <, 0.02);
     g_autofree char *notice = ds_calibration_pattern_notice (&c);
