@@ -57,7 +57,7 @@ test_round_trip (void)
   static const char *const keys[] = { "pattern", "n_phases", "frames_per_phase", "period_measured", "period_px",
                                       "phase_offset_cycles", "offset_spread_cycles", "duty", "black_level",
                                       "harmonic_gain", "harmonic_gain_theory", "edge_blur_px", "pixels_used",
-                                      "scattering", "warning" };
+                                      "scattering", "pattern_check", "warning" };
   g_autoptr (GList) names = json_object_get_members (o);
   guint i = 0;
   for (GList *l = names; l; l = l->next, i++) {
@@ -73,6 +73,13 @@ test_round_trip (void)
   for (GList *l = snames; l; l = l->next, i++)
     g_assert_cmpstr (l->data, ==, scatter_keys[i]);
   g_assert_cmpuint (i, ==, G_N_ELEMENTS (scatter_keys));
+  static const char *const pattern_keys[] = { "expected", "detected", "sine_residual", "square_residual",
+                                              "square_blur_px", "noise", "square_fits" };
+  g_autoptr (GList) pnames = json_object_get_members (json_object_get_object_member (o, "pattern_check"));
+  i = 0;
+  for (GList *l = pnames; l; l = l->next, i++)
+    g_assert_cmpstr (l->data, ==, pattern_keys[i]);
+  g_assert_cmpuint (i, ==, G_N_ELEMENTS (pattern_keys));
   g_assert_cmpint (json_object_get_int_member (o, "pixels_used"), ==, 5000000000);
   g_assert_cmpstr (json_object_get_string_member (o, "pattern"), ==, "sine");
 
