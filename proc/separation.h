@@ -214,6 +214,16 @@ gboolean ds_phase_set_finalize_into (DsPhaseSet *set, DsSeparation *sep, GError 
  * allocation and first-touch page faults of new ones (for continuous acquisition at a high
  * rate). `reuse` is freed in every case, also on error. */
 DsSeparation *ds_phase_set_finalize_reusing (DsPhaseSet *set, DsSeparation *reuse, GError **error);
+/* ds_phase_set_accumulate of `frame` followed by ds_phase_set_finalize_into `sep`, for a caller
+ * that knows the frame is its set's last one (descatterd). Where the configuration allows
+ * (maxmin on u8/u16 frames, one frame per phase, no noise model, no extrema kept) and the
+ * frame completes the set, the frame is folded on the finalize's single pass over the pixels
+ * instead of a pass of its own; the set, the result and every flag and count are the same as
+ * the two calls give, bit for bit. *folded (may be NULL) says whether the frame was folded:
+ * on a frame error nothing is; when only the finalize fails (a plane of the wrong shape, a
+ * phase without frames) the frame is folded and the error is the finalize's. */
+gboolean ds_phase_set_accumulate_finalize_into (DsPhaseSet *set, guint phase, const DsImage *frame,
+                                                DsSeparation *sep, gboolean *folded, GError **error);
 /* Forgets all frames (keeps dark, params and memory) for the next set. */
 void ds_phase_set_reset (DsPhaseSet *set);
 

@@ -499,7 +499,7 @@ locate_columns (DsPhaseSet *set, guint phase, const DsImage *frame)
 }
 
 gboolean
-ds_phase_set_accumulate (DsPhaseSet *set, guint phase, const DsImage *frame, GError **error)
+ds_phase_set_fold_begin (DsPhaseSet *set, guint phase, const DsImage *frame, GError **error)
 {
   if (!check_frame (set, phase, frame, error))
     return FALSE;
@@ -527,16 +527,35 @@ ds_phase_set_accumulate (DsPhaseSet *set, guint phase, const DsImage *frame, GEr
   gboolean new_phase = (int) phase != set->current;
   if (new_phase && set->averaging)
     fold_pending_phase (set, set->fold_threads);
+  return TRUE;
+}
 
+void
+ds_phase_set_fold_frame (DsPhaseSet *set, guint phase, const DsImage *frame)
+{
   FoldJob j = { .set = set, .frame = frame, .phase = phase, .first = set->frames == 0,
                 .first_of_phase = set->count[phase] == 0 };
   ds_phase_set_reserve_scratch (set, set->width);
   ds_phase_set_run_rows_on (set, set->fold_threads, fold_frame_rows, &j);
+}
+
+void
+ds_phase_set_fold_end (DsPhaseSet *set, guint phase)
+{
   if (!set->averaging)
     set->phases_folded++;
   set->count[phase]++;
   set->current = (int) phase;
   set->frames++;
+}
+
+gboolean
+ds_phase_set_accumulate (DsPhaseSet *set, guint phase, const DsImage *frame, GError **error)
+{
+  if (!ds_phase_set_fold_begin (set, phase, frame, error))
+    return FALSE;
+  ds_phase_set_fold_frame (set, phase, frame);
+  ds_phase_set_fold_end (set, phase);
   return TRUE;
 }
 

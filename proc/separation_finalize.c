@@ -26,6 +26,7 @@ typedef struct {
   guint64 *row_mean_count; /* per row */
   guint64 *counts;         /* per thread: DS_MASK_N_BITS + 1 */
   const guint8 *column_flags; /* undersampled columns, NULL if none */
+  const DsImage *last_frame; /* fast path: the set's last frame, folded on the way; or NULL */
 } FinalizeJob;
 
 static void
@@ -53,10 +54,14 @@ finalize_rows (gpointer data, guint y0, guint y1, guint thread)
       .sg = sep->sigma_scattered ? ds_image_row (sep->sigma_scattered, y) : NULL,
     };
     if (j->use_fast) {
-      ds_maxmin_fast_row (set->max16 + off, set->min16 + off, dark, o.t, o.g, o.mk, w, &j->fast);
-      if (column_flags)
-        ds_or_mask_row (o.mk, column_flags, w);
-      ds_count_mask_row (o.mk, w, counts);
+      const DsImage *f = j->last_frame;
+      DsMaxminFastRow r = { .hi = set->max16 + off, .lo = set->min16 + off,
+                            .in16 = f && f->type == DS_SAMPLE_U16 ? ds_image_row (f, y) : NULL,
+                            .in8 = f && f->type == DS_SAMPLE_U8 ? ds_image_row (f, y) : NULL,
+                            .dark = set->dark ? set->dark + off : NULL,
+                            .flags = column_flags,
+                            .t = o.t, .g = o.g, .mk = o.mk };
+      ds_maxmin_fast_row (&r, w, &j->fast, counts);
       continue;
     }
     if (set->max16)
@@ -172,8 +177,11 @@ ds_phase_set_finalize_reusing (DsPhaseSet *set, DsSeparation *reuse, GError **er
   return g_steal_pointer (&sep);
 }
 
-gboolean
-ds_phase_set_finalize_into (DsPhaseSet *set, DsSeparation *sep, GError **error)
+/* Everything that can fail, before any pixel is written: the set has a frame in every phase
+ * (`pending`: a phase whose first frame is being folded in the same pass, or -1) and the
+ * caller's planes fit; missing planes are allocated. */
+static gboolean
+finalize_prepare (DsPhaseSet *set, DsSeparation *sep, int pending, guint *m_frames_out, GError **error)
 {
   const DsSeparationParams *p = &set->params;
   guint n = p->n_phases;
@@ -181,26 +189,36 @@ ds_phase_set_finalize_into (DsPhaseSet *set, DsSeparation *sep, GError **error)
     g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT, "no result to finalize into");
     return FALSE;
   }
-  if (set->frames == 0) {
+  if (set->frames == 0 && pending < 0) {
     g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_EMPTY, "phase set is empty: no frame folded");
     return FALSE;
   }
   guint m_frames = G_MAXUINT;
   for (guint k = 0; k < n; k++) {
-    if (set->count[k] == 0) {
+    guint count = set->count[k] + ((int) k == pending);
+    if (count == 0) {
       g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_NOT_ENOUGH_PHASES,
                    "phase %u of N = %u has no frame (%u frames folded)", k, n, set->frames);
       return FALSE;
     }
-    m_frames = MIN (m_frames, set->count[k]);
+    m_frames = MIN (m_frames, count);
   }
   gboolean model = p->system_gain > 0, extrema = p->keep_extrema;
   gboolean want[8] = { TRUE, TRUE, TRUE, extrema, extrema, extrema, model, model };
   if (!prepare_planes (sep, want, set->width, set->height, error))
     return FALSE;
-  ds_phase_set_fold_pending (set);
+  *m_frames_out = m_frames;
+  return TRUE;
+}
 
-  FinalizeJob j = { .set = set, .sep = sep };
+/* The pixels and meta; cannot fail. last_frame: see FinalizeJob. */
+static void
+finalize_run (DsPhaseSet *set, DsSeparation *sep, guint m_frames, const DsImage *last_frame)
+{
+  const DsSeparationParams *p = &set->params;
+  guint n = p->n_phases;
+  gboolean model = p->system_gain > 0, extrema = p->keep_extrema;
+  FinalizeJob j = { .set = set, .sep = sep, .last_frame = last_frame };
   DsRowConsts *c = &j.c;
   gboolean integer = set->type != DS_SAMPLE_F32;
   c->n = n;
@@ -308,5 +326,61 @@ ds_phase_set_finalize_into (DsPhaseSet *set, DsSeparation *sep, GError **error)
   } else {
     meta->noise_dn = c->data_sigma;
   }
+}
+
+gboolean
+ds_phase_set_finalize_into (DsPhaseSet *set, DsSeparation *sep, GError **error)
+{
+  guint m_frames;
+  if (!finalize_prepare (set, sep, -1, &m_frames, error))
+    return FALSE;
+  ds_phase_set_fold_pending (set);
+  finalize_run (set, sep, m_frames, NULL);
   return TRUE;
+}
+
+/* The last frame can be folded on the finalize's way through the pixels when the finalize
+ * reads nothing but the extrema (the integer maxmin path) and the frame completes the set:
+ * one frame per phase, this phase's the last one missing. */
+static gboolean
+fusable (const DsPhaseSet *set, guint phase)
+{
+  const DsSeparationParams *p = &set->params;
+  if (!set->max16 || set->sum32 || set->cos_sum || set->averaging || p->estimator != DS_ESTIMATOR_MAXMIN ||
+      p->system_gain > 0 || p->keep_extrema || set->count[phase] != 0)
+    return FALSE;
+  for (guint k = 0; k < p->n_phases; k++)
+    if (k != phase && set->count[k] != 1)
+      return FALSE;
+  return TRUE;
+}
+
+gboolean
+ds_phase_set_accumulate_finalize_into (DsPhaseSet *set, guint phase, const DsImage *frame, DsSeparation *sep,
+                                       gboolean *folded, GError **error)
+{
+  if (folded)
+    *folded = FALSE;
+  if (!sep) {
+    g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT, "no result to finalize into");
+    return FALSE;
+  }
+  if (!ds_phase_set_fold_begin (set, phase, frame, error))
+    return FALSE;
+  guint m_frames;
+  /* When the result cannot be made (planes that do not fit), the frame is still folded and
+   * the finalize below says why, as the two calls would. */
+  if (fusable (set, phase) && finalize_prepare (set, sep, (int) phase, &m_frames, NULL)) {
+    finalize_run (set, sep, m_frames, frame);
+    ds_phase_set_fold_end (set, phase);
+    ds_phase_set_fold_pending (set); /* nothing pending: the set is left as finalize leaves it */
+    if (folded)
+      *folded = TRUE;
+    return TRUE;
+  }
+  ds_phase_set_fold_frame (set, phase, frame);
+  ds_phase_set_fold_end (set, phase);
+  if (folded)
+    *folded = TRUE;
+  return ds_phase_set_finalize_into (set, sep, error);
 }

@@ -74,6 +74,12 @@ void ds_phase_set_run_rows_on (DsPhaseSet *set, guint max_threads, DsRowJob job,
 double *ds_phase_set_scratch (DsPhaseSet *set, guint thread);
 void ds_phase_set_reserve_scratch (DsPhaseSet *set, gsize doubles);
 
+/* ds_phase_set_accumulate in three steps: begin checks the frame and prepares the state (on
+ * failure nothing is folded), fold_frame folds its pixels (on the fold threads), end counts it. */
+gboolean ds_phase_set_fold_begin (DsPhaseSet *set, guint phase, const DsImage *frame, GError **error);
+void ds_phase_set_fold_frame (DsPhaseSet *set, guint phase, const DsImage *frame);
+void ds_phase_set_fold_end (DsPhaseSet *set, guint phase);
+
 /* Averaging: folds the last phase's mean (finalize calls it once; idempotent). */
 void ds_phase_set_fold_pending (DsPhaseSet *set);
 
@@ -135,11 +141,22 @@ typedef struct {
   float lowmod;  /* LOW_MODULATION when max - min < lowmod */
   float exceed;  /* DARK_EXCEEDS when dark - min > exceed */
 } DsMaxminFast;
-void ds_maxmin_fast_row (const guint16 *hi, const guint16 *lo, const float *dark, float *t,
-                         float *g, guint8 *mk, gsize w, const DsMaxminFast *k);
+/* One row of it. hi/lo: the set's extrema; with a frame row (in16 or in8, at most one) the
+ * frame is folded into them on the way and they are written back. dark: NULL for none.
+ * flags: the column flags (DS_MASK_UNDERSAMPLED or 0), or-ed into the mask; NULL for none. */
+typedef struct {
+  guint16 *hi, *lo;
+  const guint16 *in16;
+  const guint8 *in8;
+  const float *dark;
+  const guint8 *flags;
+  float *t, *g;
+  guint8 *mk;
+} DsMaxminFastRow;
+/* Writes t, g and mk and adds the mask's counts (as ds_count_mask_row) to counts. */
+void ds_maxmin_fast_row (const DsMaxminFastRow *r, gsize w, const DsMaxminFast *k,
+                         guint64 counts[DS_MASK_N_BITS + 1]);
 /* counts[0] += pixels with no bit; counts[1 + bit] += pixels with that bit. */
 void ds_count_mask_row (const guint8 *mk, gsize w, guint64 counts[DS_MASK_N_BITS + 1]);
-/* mk[x] |= flags[x] */
-void ds_or_mask_row (guint8 *mk, const guint8 *flags, gsize w);
 
 G_END_DECLS

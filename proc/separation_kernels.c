@@ -124,33 +124,105 @@ ds_fold_average_row (const float *restrict v, double *restrict ps, float *restri
   }
 }
 
-DS_CLONES void
-ds_or_mask_row (guint8 *restrict mk, const guint8 *restrict flags, gsize w)
-{
-  for (gsize x = 0; x < w; x++)
-    mk[x] |= flags[x];
-}
+/* maxmin on the integer fast path, one row: the outputs, the mask and its counts in one pass. src selects where the extrema come from: the set's state (finalize),
+ * or the state and the set's last frame, u16 or u8 (the last frame folded and finalized at
+ * once, its extrema written back so that the state is what folding it would leave). The
+ * callers pass constants for src and has_dark: each combination is its own loop, with no test
+ * per pixel. Every test is a compare turned into a bit; the counts are vector sums. */
+enum { FAST_FROM_STATE, FAST_FROM_U16, FAST_FROM_U8 };
 
-DS_CLONES_WIDE void
-ds_maxmin_fast_row (const guint16 *restrict hi, const guint16 *restrict lo,
-                    const float *restrict dark, float *restrict t, float *restrict g,
-                    guint8 *restrict mk, gsize w, const DsMaxminFast *k)
+DS_KERNEL void
+maxmin_fast_kernel (int src, int has_dark, guint16 *restrict hi, guint16 *restrict lo,
+                    const void *restrict in, const float *restrict dark, float *restrict t, float *restrict g,
+                    guint8 *restrict mk, gsize w, const DsMaxminFast *k,
+                    guint64 counts[DS_MASK_N_BITS + 1])
 {
   const float inv1b = k->inv1b, b = k->b, invm = k->invm, m = k->m;
   const float sat = k->sat, floor_ = k->floor, lowmod = k->lowmod, exceed = k->exceed;
+  const guint16 *in16 = in;
+  const guint8 *in8 = in;
+  guint32 c_ok = 0, c_sat = 0, c_dark = 0, c_low = 0, c_neg = 0, c_exc = 0;
   for (gsize x = 0; x < w; x++) {
-    float h = hi[x], l = lo[x], d = dark[x];
+    guint16 hv = hi[x], lv = lo[x];
+    if (src != FAST_FROM_STATE) {
+      guint16 v = src == FAST_FROM_U16 ? in16[x] : in8[x];
+      hv = v > hv ? v : hv;
+      lv = v < lv ? v : lv;
+      hi[x] = hv;
+      lo[x] = lv;
+    }
+    float h = hv, l = lv, d = has_dark ? dark[x] : 0.0f;
     float ld = (h - l) * inv1b;
     float lg = ((l - d) - b * ld) * invm;
     float mean = m * (ld + lg);
-    guint8 bits = (guint8) ((h >= sat ? DS_MASK_SATURATED : 0) | (d - l > exceed ? DS_MASK_DARK_EXCEEDS : 0) |
-                            (mean <= floor_ ? DS_MASK_DARK : 0) |
-                            (h - l < lowmod ? DS_MASK_LOW_MODULATION : 0) |
-                            (lg < 0 ? DS_MASK_NEGATIVE : 0));
+    /* each count from its test, not from the bits: one add per test */
+    guint32 is_sat = h >= sat, is_dark = mean <= floor_, is_low = h - l < lowmod, is_neg = lg < 0;
+    guint32 is_exc = d - l > exceed;
+    guint32 bits = is_sat | (is_dark << 1) | (is_low << 2) | (is_neg << 4) | (is_exc << 5);
     t[x] = ld;
     g[x] = lg;
-    mk[x] = bits;
+    mk[x] = (guint8) bits;
+    c_ok += bits == 0;
+    c_sat += is_sat;
+    c_dark += is_dark;
+    c_low += is_low;
+    c_neg += is_neg;
+    c_exc += is_exc;
   }
+  counts[0] += c_ok;
+  counts[1] += c_sat;
+  counts[2] += c_dark;
+  counts[3] += c_low;
+  /* counts[4]: NONFINITE, never set on integer input */
+  counts[5] += c_neg;
+  counts[6] += c_exc;
+}
+
+/* The column flags (DS_MASK_UNDERSAMPLED or 0) or-ed into a counted mask row, the counts
+ * corrected. A pass of its own over the row (still in L1): a byte read per pixel in the
+ * kernel above would make GCC work on 64 pixels at a time and spill its registers. */
+DS_KERNEL void
+or_flags_kernel (guint8 *restrict mk, const guint8 *restrict flags, gsize w,
+                 guint64 counts[DS_MASK_N_BITS + 1])
+{
+  guint32 lost = 0, under = 0;
+  for (gsize x = 0; x < w; x++) {
+    guint32 f = flags[x] >> 6;
+    lost += (guint32) (mk[x] == 0) & f;
+    under += f;
+    mk[x] |= flags[x];
+  }
+  counts[0] -= lost;
+  counts[7] += under;
+}
+
+DS_CLONES_WIDE void
+ds_maxmin_fast_row (const DsMaxminFastRow *r, gsize w, const DsMaxminFast *k,
+                    guint64 counts[DS_MASK_N_BITS + 1])
+{
+  G_STATIC_ASSERT (DS_MASK_N_BITS == 7);
+  int src = r->in16 ? FAST_FROM_U16 : r->in8 ? FAST_FROM_U8 : FAST_FROM_STATE;
+  const void *in = r->in16 ? (const void *) r->in16 : (const void *) r->in8;
+#define FAST_CALL(SRC, DARK)                                                                        \
+  maxmin_fast_kernel (SRC, DARK, r->hi, r->lo, in, r->dark, r->t, r->g, r->mk, w, k, counts)
+  if (r->dark) {
+    if (src == FAST_FROM_U16)
+      FAST_CALL (FAST_FROM_U16, 1);
+    else if (src == FAST_FROM_U8)
+      FAST_CALL (FAST_FROM_U8, 1);
+    else
+      FAST_CALL (FAST_FROM_STATE, 1);
+  } else {
+    if (src == FAST_FROM_U16)
+      FAST_CALL (FAST_FROM_U16, 0);
+    else if (src == FAST_FROM_U8)
+      FAST_CALL (FAST_FROM_U8, 0);
+    else
+      FAST_CALL (FAST_FROM_STATE, 0);
+  }
+#undef FAST_CALL
+  if (r->flags)
+    or_flags_kernel (r->mk, r->flags, w, counts);
 }
 
 /* Eight mask bytes at a time: most pixels of a usable image carry no flag, and a word of eight

@@ -35,15 +35,19 @@ run_job (DsSequencer *seq, DsFoldJob *job, gboolean overlapped)
    * camera and the illuminator's controller) need a core: the fold takes one. Nothing overlaps
    * with the last frame of a set: it takes all. */
   ds_phase_set_set_fold_threads (seq->set, overlapped ? 1 : 0);
-  job->folded = ds_phase_set_accumulate (seq->set, job->phase, job->frame->image, &job->fold_error);
+  if (job->finalize_into) {
+    /* The set's last frame: the result's planes now, in the same job (on the fold thread in
+     * continuous mode, while the next set's first frame exposes; docs/design.md), the frame
+     * folded on the finalize's pass over the pixels. Every core: the finalize's row workers.
+     * The fold stage's time then includes the finalize. */
+    job->finalized = ds_phase_set_accumulate_finalize_into (seq->set, job->phase, job->frame->image,
+                                                            job->finalize_into, &job->folded, &job->fold_error);
+  } else {
+    job->folded = ds_phase_set_accumulate (seq->set, job->phase, job->frame->image, &job->fold_error);
+  }
   if (!job->folded)
     return;
   ds_seq_stage_add (seq, DS_STAGE_FOLD, t);
-  /* The set's last frame: the result's planes now, in the same job (on the fold thread in
-   * continuous mode, while the next set's first frame exposes; docs/design.md). Every core:
-   * the finalize's row workers. */
-  if (job->finalize_into)
-    job->finalized = ds_phase_set_finalize_into (seq->set, job->finalize_into, &job->fold_error);
   /* Copies made here overlap with the next exposure instead of delaying it. */
   const DsFrame *f = job->frame;
   if (seq->raw && !seq->raw_incomplete &&

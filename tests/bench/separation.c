@@ -1,7 +1,9 @@
 /* Benchmark: the separation of N phases of WxH u16 frames against baselines measured in the same
  * run, at the sizes of issue 13 (4 x 1 MP, 8 x 4 MP, 32 x 4 MP):
- *   ours     ds_phase_set_accumulate per frame as frames arrive, then ds_phase_set_finalize_into
- *            pooled planes (the daemon's steady state); one thread and the set's threads;
+ *   ours     what descatterd does: ds_phase_set_accumulate per frame as frames arrive, the last
+ *            one with ds_phase_set_accumulate_finalize_into pooled planes (the daemon's steady
+ *            state: planes reused, faulted in by an untimed first set); one thread and the
+ *            set's threads (0: one per processor, as descatterd);
  *   numpy    the ICCP 2013 authors' loop, np.maximum/np.minimum per frame
  *            (tests/bench/separation_numpy.py, run with /usr/bin/python3);
  *   OpenCV   cv::max/cv::min per frame, subtract, scale (ds_cv_separate_maxmin_u16);
@@ -10,8 +12,8 @@
  * frame, and unpacking packed pixel formats into a pooled image against a memcpy of the
  * unpacked frame. Best of R repetitions each; it prints times and ratios and asserts no timing.
  * It checks its results (exit status 1 on a mismatch): ours equals OpenCV on every pixel, every
- * thread count gives the bits of one thread (all estimators), unpacking inverts
- * ds_pixfmt_pack.
+ * thread count gives the bits of one thread (all estimators), the fused last frame gives the
+ * bits of the two calls, unpacking inverts ds_pixfmt_pack.
  *
  *   bench_separation [--quick] [--case NxWxH]... [--reps R] [--threads T]
  * Full run (docs/benchmarks.md): build/tests/bench/bench_separation */
@@ -59,26 +61,38 @@ typedef struct {
   double total, accumulate, finalize; /* best of the repetitions, each */
 } Timing;
 
-/* accumulate + finalize_into, `reps` times; *sep keeps the planes (a pool of one). */
+/* One set as descatterd folds it: frames 0..N-2 with ds_phase_set_accumulate as they arrive,
+ * the last one with ds_phase_set_accumulate_finalize_into (folded on the finalize's pass), into
+ * the planes of *sep: a pool of one, as the daemon's result-plane pool reuses planes once
+ * clients released them. `accumulate` is the first N-1 frames, `finalize` the last frame and
+ * the finalize. two_calls: the last frame with ds_phase_set_accumulate, then
+ * ds_phase_set_finalize_into (the reference for the fused path; `finalize` is then the
+ * finalize alone). A first set, not timed, faults the pooled planes in. */
 static gboolean
-time_set (DsPhaseSet *set, DsImage **frames, guint n, guint reps, Timing *t, DsSeparation *sep)
+time_set (DsPhaseSet *set, DsImage **frames, guint n, guint reps, gboolean two_calls, Timing *t,
+          DsSeparation *sep)
 {
   *t = (Timing) { INFINITY, INFINITY, INFINITY };
   g_autoptr (GError) error = NULL;
-  for (guint r = 0; r < reps; r++) {
+  for (guint r = 0; r <= reps; r++) {
     ds_phase_set_reset (set);
     double t0 = now ();
-    for (guint k = 0; k < n; k++)
+    guint folded = two_calls ? n : n - 1;
+    for (guint k = 0; k < folded; k++)
       if (!ds_phase_set_accumulate (set, k, frames[k], &error)) {
         fprintf (stderr, "accumulate: %s\n", error->message);
         return FALSE;
       }
     double t1 = now ();
-    if (!ds_phase_set_finalize_into (set, sep, &error)) {
+    gboolean ok = two_calls ? ds_phase_set_finalize_into (set, sep, &error)
+                            : ds_phase_set_accumulate_finalize_into (set, n - 1, frames[n - 1], sep, NULL, &error);
+    if (!ok) {
       fprintf (stderr, "finalize: %s\n", error->message);
       return FALSE;
     }
     double t2 = now ();
+    if (r == 0)
+      continue; /* the warm-up set */
     t->total = MIN (t->total, t2 - t0);
     t->accumulate = MIN (t->accumulate, t1 - t0);
     t->finalize = MIN (t->finalize, t2 - t1);
@@ -107,7 +121,8 @@ same_result (const DsSeparation *a, const DsSeparation *b)
 
 /* One estimator at `threads`: its timing and result. */
 static DsSeparation *
-run_ours (DsEstimator e, guint threads, DsImage **frames, const Case *c, guint reps, Timing *t)
+run_ours (DsEstimator e, guint threads, DsImage **frames, const Case *c, guint reps, gboolean two_calls,
+          Timing *t)
 {
   DsSeparationParams p;
   ds_separation_params_init (&p, c->n);
@@ -121,7 +136,7 @@ run_ours (DsEstimator e, guint threads, DsImage **frames, const Case *c, guint r
     return NULL;
   }
   DsSeparation *sep = ds_separation_new ();
-  if (!time_set (set, frames, c->n, reps, t, sep))
+  if (!time_set (set, frames, c->n, reps, two_calls, t, sep))
     g_clear_pointer (&sep, ds_separation_free);
   return sep;
 }
@@ -150,13 +165,18 @@ bench_case (const Case *c, guint reps, guint threads, gboolean estimators)
   gsize frame_bytes = frames[0]->stride * c->h;
   gboolean ok = TRUE;
 
-  Timing one, many;
-  g_autoptr (DsSeparation) sep1 = run_ours (DS_ESTIMATOR_MAXMIN, 1, frames, c, reps, &one);
-  g_autoptr (DsSeparation) sept = run_ours (DS_ESTIMATOR_MAXMIN, threads, frames, c, reps, &many);
-  if (!sep1 || !sept)
+  Timing one, many, two;
+  g_autoptr (DsSeparation) sep1 = run_ours (DS_ESTIMATOR_MAXMIN, 1, frames, c, reps, FALSE, &one);
+  g_autoptr (DsSeparation) sept = run_ours (DS_ESTIMATOR_MAXMIN, threads, frames, c, reps, FALSE, &many);
+  g_autoptr (DsSeparation) sep2 = run_ours (DS_ESTIMATOR_MAXMIN, 1, frames, c, reps, TRUE, &two);
+  if (!sep1 || !sept || !sep2)
     return FALSE;
   if (!same_result (sep1, sept)) {
     fprintf (stderr, "%u threads differ from one thread\n", threads);
+    ok = FALSE;
+  }
+  if (!same_result (sep1, sep2)) {
+    fprintf (stderr, "the last frame folded on the finalize's pass differs from the two calls\n");
     ok = FALSE;
   }
 
@@ -198,10 +218,12 @@ bench_case (const Case *c, guint reps, guint threads, gboolean estimators)
 
   double mib = frame_bytes * c->n / (1024.0 * 1024.0);
   printf ("\n%u phases of %ux%u u16 (%.1f MiB in), maxmin, best of %u\n", c->n, c->w, c->h, mib, reps);
-  printf ("  ours, 1 thread:   accumulate %8.2f ms  finalize %6.2f ms  total %8.2f ms\n",
+  printf ("  ours, 1 thread:   %u frames %8.2f ms  last + finalize %6.2f ms  total %8.2f ms\n", c->n - 1,
           one.accumulate * 1e3, one.finalize * 1e3, one.total * 1e3);
-  printf ("  ours, %u threads:  accumulate %8.2f ms  finalize %6.2f ms  total %8.2f ms\n", threads,
-          many.accumulate * 1e3, many.finalize * 1e3, many.total * 1e3);
+  printf ("  ours, %u threads:  %u frames %8.2f ms  last + finalize %6.2f ms  total %8.2f ms\n", threads,
+          c->n - 1, many.accumulate * 1e3, many.finalize * 1e3, many.total * 1e3);
+  printf ("  (two calls, 1 thread: %u frames %.2f ms, finalize %.2f ms, total %.2f ms: %.2fx the fused)\n", c->n,
+          two.accumulate * 1e3, two.finalize * 1e3, two.total * 1e3, two.total / one.total);
   printf ("  numpy loop  %8.2f ms   numpy/ours   %5.2fx (1 thread)  %5.2fx (%u)   target > 1\n",
           numpy * 1e3, numpy / one.total, numpy / many.total, threads);
   printf ("  OpenCV      %8.2f ms   opencv/ours  %5.2fx (1 thread)  %5.2fx (%u)   target > 1\n",
@@ -212,8 +234,8 @@ bench_case (const Case *c, guint reps, guint threads, gboolean estimators)
   if (estimators) {
     for (DsEstimator e = DS_ESTIMATOR_SINE; e <= DS_ESTIMATOR_ROBUST; e++) {
       Timing te1, tet;
-      g_autoptr (DsSeparation) a = run_ours (e, 1, frames, c, reps, &te1);
-      g_autoptr (DsSeparation) b = run_ours (e, threads, frames, c, reps, &tet);
+      g_autoptr (DsSeparation) a = run_ours (e, 1, frames, c, reps, FALSE, &te1);
+      g_autoptr (DsSeparation) b = run_ours (e, threads, frames, c, reps, FALSE, &tet);
       if (!a || !b || !same_result (a, b)) {
         fprintf (stderr, "%s: %u threads differ from one thread\n", ds_estimator_name (e), threads);
         ok = FALSE;
@@ -234,7 +256,7 @@ bench_case (const Case *c, guint reps, guint threads, gboolean estimators)
     }
     (void) sink;
     printf ("  noise estimate %6.3f ms per set (%.2f of one frame's fold at 1 thread)\n", best_noise * 1e3,
-            best_noise / (one.accumulate / c->n));
+            best_noise / (one.accumulate / (c->n - 1)));
   }
 
   g_free (dst);
