@@ -4,7 +4,9 @@
 #include <string.h>
 
 #include "proc/calibration.h"
+#include "proc/calibration_fit.h"
 #include "proc/calibration_period.h"
+#include "proc/calibration_sine.h"
 #include "proc/harmonic_gain.h"
 #include "proc/proc_error.h"
 #include "proc/separation_internal.h"
@@ -174,184 +176,6 @@ trimmed_mean (double *v, gsize n)
   return hi > lo ? s / (hi - lo) : NAN;
 }
 
-/* The phase profile of the lit pixels, binned by where a pixel sits in the period: bin j holds
- * the mean over its pixels of V_k / mean_k V (the pixel's own brightness divides out). */
-#define N_BINS 48u
-
-typedef struct {
-  DsSeparationParams p;       /* pattern, period, aperture; duty, b, blur are the unknowns */
-  guint n;
-  const double *profile;      /* N_BINS x n */
-  const guint *filled;        /* pixels per bin */
-  const double *position;     /* mean position of the bin's pixels in the period, [0, 1) */
-  double offset;              /* cycles */
-} FitData;
-
-/* Sum of squared differences between the binned profile and the model at (a, b, sigma). */
-static double
-fit_cost (const FitData *f, const double x[3])
-{
-  DsSeparationParams p = f->p;
-  p.duty = x[0];
-  p.black_level = x[1];
-  p.geometry.edge_blur_px = x[2];
-  if (!(x[0] > 0.02 && x[0] < 0.98 && x[1] >= 0 && x[1] < 0.95 && x[2] >= 0 && x[2] < p.geometry.period_px))
-    return INFINITY;
-  double period = p.geometry.period_px, cost = 0, b = x[1];
-  g_autofree double *model = g_new (double, f->n);
-  for (guint j = 0; j < N_BINS; j++) {
-    if (!f->filled[j])
-      continue;
-    double pos = f->position[j], mean = 0;
-    for (guint k = 0; k < f->n; k++) {
-      /* distance of the bin's pixels from the centre of phase k's stripe */
-      double d = ds_stripe_phase_diff (pos, (double) k / f->n + f->offset) * period;
-      model[k] = b + (1 - b) * ds_sampling_profile (&p, d);
-      mean += model[k] / f->n;
-    }
-    for (guint k = 0; k < f->n; k++) {
-      double r = f->profile[j * f->n + k] - model[k] / mean;
-      cost += r * r;
-    }
-  }
-  return cost;
-}
-
-/* Nelder-Mead over (a, b, sigma) from x; fixed[i] keeps coordinate i. */
-static void
-fit_minimise (const FitData *f, double x[3], const gboolean fixed[3])
-{
-  double simplex[4][3], cost[4];
-  const double step[3] = { 0.05, 0.03, 0.3 };
-  for (int v = 0; v < 4; v++) {
-    for (int i = 0; i < 3; i++)
-      simplex[v][i] = x[i] + (v == i + 1 && !fixed[i] ? step[i] : 0);
-    cost[v] = fit_cost (f, simplex[v]);
-  }
-  for (int it = 0; it < 400; it++) {
-    int hi = 0, lo = 0;
-    for (int v = 1; v < 4; v++) {
-      if (cost[v] > cost[hi])
-        hi = v;
-      if (cost[v] < cost[lo])
-        lo = v;
-    }
-    int second = lo;
-    for (int v = 0; v < 4; v++)
-      if (v != hi && cost[v] > cost[second])
-        second = v;
-    if (cost[hi] - cost[lo] < 1e-14 * (1 + cost[lo]))
-      break;
-    double centre[3] = { 0, 0, 0 }, trial[3], expand[3];
-    for (int v = 0; v < 4; v++)
-      if (v != hi)
-        for (int i = 0; i < 3; i++)
-          centre[i] += simplex[v][i] / 3;
-    for (int i = 0; i < 3; i++)
-      trial[i] = fixed[i] ? x[i] : centre[i] + (centre[i] - simplex[hi][i]);
-    double ct = fit_cost (f, trial);
-    if (ct < cost[lo]) {
-      for (int i = 0; i < 3; i++)
-        expand[i] = fixed[i] ? x[i] : centre[i] + 2 * (centre[i] - simplex[hi][i]);
-      double ce = fit_cost (f, expand);
-      memcpy (simplex[hi], ce < ct ? expand : trial, sizeof trial);
-      cost[hi] = MIN (ce, ct);
-    } else if (ct < cost[second]) {
-      memcpy (simplex[hi], trial, sizeof trial);
-      cost[hi] = ct;
-    } else {
-      for (int i = 0; i < 3; i++)
-        trial[i] = fixed[i] ? x[i] : centre[i] + 0.5 * (simplex[hi][i] - centre[i]);
-      ct = fit_cost (f, trial);
-      if (ct < cost[hi]) {
-        memcpy (simplex[hi], trial, sizeof trial);
-        cost[hi] = ct;
-      } else {
-        for (int v = 0; v < 4; v++)
-          if (v != lo) {
-            for (int i = 0; i < 3; i++)
-              simplex[v][i] = fixed[i] ? x[i] : 0.5 * (simplex[v][i] + simplex[lo][i]);
-            cost[v] = fit_cost (f, simplex[v]);
-          }
-      }
-    }
-  }
-  int lo = 0;
-  for (int v = 1; v < 4; v++)
-    if (cost[v] < cost[lo])
-      lo = v;
-  memcpy (x, simplex[lo], 3 * sizeof (double));
-}
-
-/* How well the model at x explains the binned profile: its rms residual and the profile's
- * standard error, both over the profile's range (0 when the profile is flat). */
-static void
-profile_residual (const FitData *f, const double x[3], const double *profile_sq, double *residual, double *noise)
-{
-  double lo = INFINITY, hi = -INFINITY, se2 = 0;
-  guint entries = 0;
-  *residual = *noise = 0;
-  for (guint j = 0; j < N_BINS; j++) {
-    if (!f->filled[j])
-      continue;
-    for (guint k = 0; k < f->n; k++) {
-      double m = f->profile[j * f->n + k];
-      lo = MIN (lo, m);
-      hi = MAX (hi, m);
-      se2 += MAX (0.0, profile_sq[j * f->n + k] - m * m) / f->filled[j];
-      entries++;
-    }
-  }
-  if (!entries || !(hi > lo))
-    return;
-  *residual = sqrt (fit_cost (f, x) / entries) / (hi - lo);
-  *noise = sqrt (se2 / entries) / (hi - lo);
-}
-
-/* A pure sinusoid's rms misfit over the profile's range: the profile (mean 1 per bin) against
- * 1 + c cos(2 pi (position - phase)), c by least squares (closed form), whatever the black level,
- * blur or pixel aperture that set c. */
-static double
-sine_residual (const FitData *f)
-{
-  double num = 0, den = 0, lo = INFINITY, hi = -INFINITY, ss = 0;
-  guint entries = 0;
-  for (int pass = 0; pass < 2; pass++)
-    for (guint j = 0; j < N_BINS; j++) {
-      if (!f->filled[j])
-        continue;
-      for (guint k = 0; k < f->n; k++) {
-        double u = ds_stripe_phase_diff (f->position[j], (double) k / f->n + f->offset);
-        double cs = cos (2 * G_PI * u), m = f->profile[j * f->n + k] - 1;
-        if (pass == 0) {
-          num += m * cs;
-          den += cs * cs;
-          lo = MIN (lo, m);
-          hi = MAX (hi, m);
-          entries++;
-        } else {
-          double r = m - num / den * cs;
-          ss += r * r;
-        }
-      }
-    }
-  return entries && den > 0 && hi > lo ? sqrt (ss / entries) / (hi - lo) : 0;
-}
-
-/* Fits the pattern's model from the starting values; a sine has no duty, and contrast lost to
- * blur cannot be told from black level, so only b is free. */
-static void
-fit_pattern (FitData *f, DsPatternKind pattern, double a0, double b0, double x[3])
-{
-  f->p.pattern = pattern;
-  gboolean sine = pattern == DS_PATTERN_SINE;
-  gboolean fixed[3] = { sine, FALSE, sine };
-  x[0] = sine ? 0.5 : a0;
-  x[1] = b0;
-  x[2] = sine ? 0 : 0.1;
-  fit_minimise (f, x, fixed);
-}
-
 gboolean
 ds_calibrator_finish (DsCalibrator *c, const DsCalibrationHints *hints, DsCalibration *out, GError **error)
 {
@@ -468,10 +292,10 @@ ds_calibrator_finish (DsCalibrator *c, const DsCalibrationHints *hints, DsCalibr
   }
   gsize used = 0;
   double sum_a = 0, sum_m = 0;
-  g_autofree double *profile = g_new0 (double, (gsize) N_BINS * n);
-  g_autofree double *profile_sq = g_new0 (double, (gsize) N_BINS * n);
-  g_autofree guint *filled = g_new0 (guint, N_BINS);
-  g_autofree double *position = g_new0 (double, N_BINS);
+  g_autofree double *profile = g_new0 (double, (gsize) DS_CALIBRATION_BINS * n);
+  g_autofree double *profile_sq = g_new0 (double, (gsize) DS_CALIBRATION_BINS * n);
+  g_autofree guint *filled = g_new0 (guint, DS_CALIBRATION_BINS);
+  g_autofree double *position = g_new0 (double, DS_CALIBRATION_BINS);
   /* per pixel, for the scattering check: brightness (mean over phases) and off/lit fraction */
   g_autofree double *brightness = g_new (double, c->npix), *off = g_new (double, c->npix);
   for (gsize i = 0; i < c->npix; i++)
@@ -497,7 +321,7 @@ ds_calibrator_finish (DsCalibrator *c, const DsCalibrationHints *hints, DsCalibr
       ratio_b[used] = vd / vl;
       ratio_m[used] = mean / vl;
       double pos = (double) x / period;
-      guint bin = (guint) ((pos - floor (pos)) * N_BINS) % N_BINS;
+      guint bin = (guint) ((pos - floor (pos)) * DS_CALIBRATION_BINS) % DS_CALIBRATION_BINS;
       position[bin] += pos - floor (pos);
       for (guint k = 0; k < n; k++) {
         double v = ((const float *) ds_image_row (means->pdata[k], y))[x] / mean;
@@ -509,7 +333,7 @@ ds_calibrator_finish (DsCalibrator *c, const DsCalibrationHints *hints, DsCalibr
       sum_m += mean;
       used++;
     }
-  for (guint j = 0; j < N_BINS; j++) {
+  for (guint j = 0; j < DS_CALIBRATION_BINS; j++) {
     for (guint k = 0; k < n && filled[j]; k++) {
       profile[j * n + k] /= filled[j];
       profile_sq[j * n + k] /= filled[j];
@@ -530,32 +354,42 @@ ds_calibrator_finish (DsCalibrator *c, const DsCalibrationHints *hints, DsCalibr
   /* ... then a, b and the edge blur fitted to the phase profile binned by position in the period,
    * which blur and pixel integration shape (the lit phase is not fully lit then); both patterns
    * unless one is forced, and the profile decides (calibration_pattern.h). */
-  FitData f = { .n = n, .profile = profile, .filled = filled, .position = position,
-                .offset = out->phase_offset_cycles };
+  DsCalibrationFit f = { .n = n, .profile = profile, .profile_sq = profile_sq, .filled = filled,
+                         .position = position, .offset = out->phase_offset_cycles };
   ds_separation_params_init (&f.p, n);
   f.p.geometry.period_px = period;
   f.p.geometry.pixel_aperture = hints->pixel_aperture > 0 ? hints->pixel_aperture : 1.0;
   DsPatternCheck *pc = &out->pattern_check;
   pc->expected = hints->pattern;
   pc->detected = !hints->pattern_forced;
-  double xs[3] = { 0.5, 0, 0 }, xq[3] = { 0.5, 0, 0 }, noise = 0;
-  if (pc->detected || hints->pattern == DS_PATTERN_SINE) {
-    fit_pattern (&f, DS_PATTERN_SINE, a0, b0, xs);
-    profile_residual (&f, xs, profile_sq, &pc->sine_residual, &noise);
-    pc->sine_residual = sine_residual (&f);
-  }
+  double xq[3] = { 0.5, 0, 0 }, noise = 0, unused;
   if (pc->detected || hints->pattern == DS_PATTERN_SQUARE) {
-    fit_pattern (&f, DS_PATTERN_SQUARE, a0, b0, xq);
-    profile_residual (&f, xq, profile_sq, &pc->square_residual, &noise);
+    ds_calibration_fit_square (&f, a0, b0, xq);
+    ds_calibration_fit_residual (&f, xq, &pc->square_residual, &noise);
     pc->square_blur_px = xq[2];
+  } else {
+    f.p.pattern = DS_PATTERN_SQUARE;
+    ds_calibration_fit_residual (&f, xq, &unused, &noise);
   }
+  if (pc->detected || hints->pattern == DS_PATTERN_SINE)
+    pc->sine_residual = ds_calibration_fit_sine_residual (&f);
   pc->noise = noise;
   out->pattern = pc->detected ? ds_calibration_pattern_decide (pc) : hints->pattern;
-  const double *x = out->pattern == DS_PATTERN_SINE ? xs : xq;
-  out->duty = x[0];
-  out->black_level = x[1];
-  out->edge_blur_px = x[2] < 1e-3 ? 0 : x[2];
-  out->harmonic_gain = ds_pattern_mean (out->pattern, out->duty, out->black_level) * sum_a / sum_m;
+  out->contrast = sum_a / sum_m;
+  if (out->pattern == DS_PATTERN_SINE) {
+    /* the profile's shape holds nothing but c = k g (calibration_sine.h): b stays what is known
+     * until a second period tells it apart from the blur */
+    out->duty = 0.5;
+    out->black_level = CLAMP (hints->black_level, 0.0, 0.95);
+    out->black_level_measured = FALSE;
+    out->edge_blur_px = 0;
+  } else {
+    out->duty = xq[0];
+    out->black_level = xq[1];
+    out->black_level_measured = TRUE;
+    out->edge_blur_px = xq[2] < 1e-3 ? 0 : xq[2];
+  }
+  out->harmonic_gain = ds_pattern_mean (out->pattern, out->duty, out->black_level) * out->contrast;
   out->harmonic_gain_theory = ds_harmonic_gain_theory (out->pattern, out->duty, out->black_level);
   ds_calibration_scatter_check (brightness, off, c->w, c->h, period, &out->scatter);
   /* scattered light that keeps square stripes has tails no blurred edge has; a sine stays a sine */
@@ -568,54 +402,28 @@ ds_calibrator_finish (DsCalibrator *c, const DsCalibrationHints *hints, DsCalibr
   return TRUE;
 }
 
-char *
-ds_calibration_pattern_notice (const DsCalibration *cal)
+gboolean
+ds_calibration_add_second_period (DsCalibration *cal, const DsCalibration *second, double pixel_aperture,
+                                  GError **error)
 {
-  const DsPatternCheck *p = &cal->pattern_check;
-  if (!p->detected || cal->pattern == p->expected)
-    return NULL;
-  if (cal->pattern == DS_PATTERN_SQUARE)
-    return g_strdup_printf ("the stripes are square, not sine: a sinusoid leaves %.2f %% of the stripe contrast "
-                            "unexplained in the period profile, a blurred square (edge blur %.2f px) %.2f %%, where "
-                            "the profile's own noise is %.2f %%. Configure pattern=square (the lines below)",
-                            100 * p->sine_residual, p->square_blur_px, 100 * p->square_residual, 100 * p->noise);
-  return g_strdup_printf ("the stripes are sine, not square: a sinusoid fits the period profile to %.2f %% of the "
-                          "stripe contrast, where the profile's own noise is %.2f %%; %s (edge blur %.2f px, "
-                          "residual %.2f %%). Configure pattern=sine (the lines below), so the separation uses the "
-                          "sine estimator and its harmonic gain",
-                          100 * p->sine_residual, 100 * p->noise,
-                          p->square_fits ? "a blurred square fits only with a blur that erases every harmonic above "
-                                           "the first: indistinguishable from a sine"
-                                         : "no blurred square fits as well",
-                          p->square_blur_px, 100 * p->square_residual);
-}
-
-char *
-ds_calibration_scatter_warning (const DsCalibration *cal)
-{
-  const DsScatterCheck *s = &cal->scatter;
-  if (!s->scattering)
-    return NULL;
-  GString *w = g_string_new ("the reference scatters: ");
-  if (s->shape_misfit)
-    g_string_append_printf (w,
-                            "its light between the stripes is not the flat black level of blurred square stripes "
-                            "(no blurred square fits the period profile better than %.1f %% of the stripe contrast, "
-                            "where the profile's own noise is %.2f %%)",
-                            100 * s->shape_residual, 100 * s->shape_noise);
-  if (s->shape_misfit && s->spatial)
-    g_string_append (w, ", and ");
-  if (s->spatial)
-    g_string_append_printf (w,
-                            "its off-stripe light is %.3f of the lit level on its dim parts and %.3f on its bright "
-                            "ones (brightness x%.1f apart relative to their surroundings), where a black level "
-                            "would be the same fraction everywhere",
-                            s->off_dim, s->off_bright, s->brightness_contrast);
-  g_string_append_printf (w,
-                          ". Scattered light is read as black level and harmonic gain, so duty, black level %.4f, "
-                          "harmonic gain %.4f and edge blur %.2f px are not to be trusted (only the period and "
-                          "phase offset are). Calibrate on a clear reference: no scattering medium, or a thin "
-                          "clear sample",
-                          cal->black_level, cal->harmonic_gain, cal->edge_blur_px);
-  return g_string_free (w, FALSE);
+  DsSineLevels lv;
+  if (cal->pattern != DS_PATTERN_SINE ||
+      !ds_sine_levels_from_contrasts (cal->period_px, cal->contrast, second->period_px, second->contrast, &lv)) {
+    g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT,
+                 "calibration: a second period tells a sine's black level from its blur only for sine stripes at "
+                 "periods at least 1.25 x apart, each showing stripes (%s stripes, %.4g px with contrast %.4f and "
+                 "%.4g px with %.4f)",
+                 cal->pattern == DS_PATTERN_SINE ? "sine" : "square", cal->period_px, cal->contrast,
+                 second->period_px, second->contrast);
+    return FALSE;
+  }
+  cal->black_level = lv.black_level;
+  cal->black_level_measured = TRUE;
+  cal->second_period_px = second->period_px;
+  cal->second_contrast = second->contrast;
+  double w = pixel_aperture > 0 ? pixel_aperture : 1.0, s2 = lv.blur_px * lv.blur_px - w * w / 12;
+  cal->edge_blur_px = s2 > 1e-6 ? sqrt (s2) : 0;
+  cal->harmonic_gain = ds_pattern_mean (DS_PATTERN_SINE, 0.5, cal->black_level) * cal->contrast;
+  cal->harmonic_gain_theory = ds_harmonic_gain_theory (DS_PATTERN_SINE, 0.5, cal->black_level);
+  return TRUE;
 }

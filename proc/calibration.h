@@ -28,6 +28,9 @@ typedef struct {
   double saturation_level;    /* DN at or above which samples are clipped: those pixels are left
                                  out; 0 = 2^bit_depth - 1 of the frames (none for float) */
   double pixel_aperture;      /* for the blur model; 0 = 1 pixel */
+  double black_level;         /* sine stripes at one period: the black level taken as known (the
+                                 configured one), since the profile cannot tell it from blur
+                                 (calibration_sine.h); 0 unless known */
 } DsCalibrationHints;
 
 void ds_calibration_hints_init (DsCalibrationHints *hints);
@@ -41,12 +44,20 @@ typedef struct {
   double phase_offset_cycles; /* phase k lights stripes centred at (j + k/N + offset) P */
   double offset_spread;       /* rms scatter of the per-phase offsets, cycles */
   double duty;                /* a (square stripes; 0.5 for sine) */
-  double black_level;         /* b: off-stripe light relative to the lit level */
+  double black_level;         /* b: the illuminator's light where it is off, relative to where it
+                                 is fully on (before blur) */
+  gboolean black_level_measured; /* square: from the profile's shape; sine: only from two
+                                 periods (calibration_sine.h), else it is hints->black_level */
+  double contrast;            /* the first harmonic over the mean, c = h / m, as the reference
+                                 shows it at period_px (blur, pixel, sampling and b all in it) */
+  double second_period_px;    /* sine: the second period b was told at (0: none) */
+  double second_contrast;     /* and the contrast there */
   double harmonic_gain;       /* h as the N-step first harmonic sees this rig (with b, blur,
                                  pixel integration and sampling): the sine estimator's gain */
   double harmonic_gain_theory;/* h for sharp stripes with this a and b */
   double edge_blur_px;        /* Gaussian sigma that makes the model's h match; 0 if the stripes
-                                 are as sharp as pixels show */
+                                 are as sharp as pixels show (sine: from two periods, the pixel's
+                                 own aperture taken out; 0 at one period) */
   guint64 pixels_used;        /* lit, unsaturated, finite pixels the numbers come from */
   DsScatterCheck scatter;     /* does the reference scatter? (calibration_scatter.h): then b and h
                                  hold scattered light and are not to be used */
@@ -59,6 +70,17 @@ char *ds_calibration_scatter_warning (const DsCalibration *cal);
 /* When the stripes are not what was expected (configured): what the fits showed and the remedy
  * (pattern=...); NULL when they agree or the pattern was forced. */
 char *ds_calibration_pattern_notice (const DsCalibration *cal);
+
+/* Sine stripes at one period: that the black level is assumed, not measured, and how to measure
+ * it; NULL otherwise. */
+char *ds_calibration_black_level_note (const DsCalibration *cal);
+
+/* Sine stripes: the black level and the harmonic gain at cal's period told apart with the
+ * contrast the same reference shows at another period (second: a calibration of it,
+ * calibration_sine.h). Fails INVALID_ARGUMENT when cal is not sine or the periods are too
+ * close (a ratio under 1.25) or second shows no contrast. */
+gboolean ds_calibration_add_second_period (DsCalibration *cal, const DsCalibration *second, double pixel_aperture,
+                                           GError **error);
 
 typedef struct DsCalibrator DsCalibrator;
 

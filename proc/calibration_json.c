@@ -30,6 +30,10 @@ static const Member members[] = {
   { "offset_spread_cycles", M_NUMBER, CAL (offset_spread) },
   { "duty", M_NUMBER, CAL (duty) },
   { "black_level", M_NUMBER, CAL (black_level) },
+  { "black_level_measured", M_BOOL, CAL (black_level_measured) },
+  { "contrast", M_NUMBER, CAL (contrast) },
+  { "second_period_px", M_NUMBER, CAL (second_period_px) },
+  { "second_contrast", M_NUMBER, CAL (second_contrast) },
   { "harmonic_gain", M_NUMBER, CAL (harmonic_gain) },
   { "harmonic_gain_theory", M_NUMBER, CAL (harmonic_gain_theory) },
   { "edge_blur_px", M_NUMBER, CAL (edge_blur_px) },
@@ -154,6 +158,11 @@ ds_calibration_add_json_members (JsonBuilder *b, const DsCalibration *cal)
   if (notice) {
     json_builder_set_member_name (b, "pattern_notice");
     json_builder_add_string_value (b, notice);
+  }
+  g_autofree char *level_note = ds_calibration_black_level_note (cal);
+  if (level_note) {
+    json_builder_set_member_name (b, "black_level_notice");
+    json_builder_add_string_value (b, level_note);
   }
   g_autofree char *warning = ds_calibration_scatter_warning (cal);
   if (warning) {

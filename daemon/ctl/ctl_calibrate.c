@@ -16,7 +16,7 @@
 #include "proc/proc_error.h"
 
 typedef struct {
-  char *pattern;
+  char *pattern, *second;
   double period, saturation, aperture;
   int bit_depth;
   gboolean json, quiet, strict_phases;
@@ -59,15 +59,25 @@ print_lines (const char *source, const DsCalibration *cal)
     printf ("  pattern         %s (given)\n", kind);
   if (cal->pattern == DS_PATTERN_SQUARE)
     printf ("  duty            %.4f\n", cal->duty);
-  printf ("  black level     %.4f\n", cal->black_level);
-  printf ("  harmonic gain   %.4f (sharp stripes: %.4f)\n", cal->harmonic_gain, cal->harmonic_gain_theory);
   if (cal->pattern == DS_PATTERN_SQUARE)
+    printf ("  black level     %.4f\n", cal->black_level);
+  else if (cal->black_level_measured)
+    printf ("  black level     %.4f (from the contrast at two periods: %.4f at %.4g px, %.4f at %.4g px)\n",
+            cal->black_level, cal->contrast, cal->period_px, cal->second_contrast, cal->second_period_px);
+  else
+    printf ("  black level     %.4f (assumed: one period cannot tell it from blur)\n", cal->black_level);
+  printf ("  contrast        %.4f (first harmonic over the mean)\n", cal->contrast);
+  printf ("  harmonic gain   %.4f (sharp stripes: %.4f)\n", cal->harmonic_gain, cal->harmonic_gain_theory);
+  if (cal->pattern == DS_PATTERN_SQUARE || cal->black_level_measured)
     printf ("  edge blur       %.2f px (Gaussian sigma)\n", cal->edge_blur_px);
   g_autofree char *lines = ds_calibration_config_lines (cal);
+  g_autofree char *level_note = ds_calibration_black_level_note (cal);
   g_autofree char *notice = ds_calibration_pattern_notice (cal);
   g_autofree char *warning = ds_calibration_scatter_warning (cal);
   if (notice)
     printf ("\n# NOTE: %s\n", notice);
+  if (level_note)
+    printf ("\n# NOTE: %s\n", level_note);
   if (warning)
     printf ("\n# WARNING: %s\n", warning);
   printf ("\n# descatterd.conf\n%s", lines);
@@ -93,9 +103,12 @@ warn (const DsCalibration *cal, gboolean quiet)
     fprintf (stderr, "descatterctl calibrate: warning: %s\n", warning);
 }
 
-/* *usage is set when the failure is a bad option value (exit status 2) rather than the data. */
+/* One folder's calibration; second: it is the second period of a sine's reference (the pattern
+ * and the period are measured, nothing else is used). *usage is set when the failure is a bad
+ * option value (exit status 2) rather than the data. */
 static gboolean
-calibrate (const char *dir, const Options *o, gboolean *usage, GError **error)
+measure_folder (const char *dir, const Options *o, gboolean second, DsCalibration *result, gboolean *usage,
+                GError **error)
 {
   g_autoptr (DsPhaseFolder) folder = ds_phase_folder_open (dir, error);
   if (!folder)
@@ -105,7 +118,13 @@ calibrate (const char *dir, const Options *o, gboolean *usage, GError **error)
   ds_calibration_hints_init (&hints);
   if (folder->sidecar.has_pattern_kind)
     hints.pattern = folder->sidecar.pattern_kind;
-  if (o->pattern) {
+  /* what a sine's black level is taken as when one period cannot tell it (calibration_sine.h) */
+  if (!isnan (folder->sidecar.black_level))
+    hints.black_level = folder->sidecar.black_level;
+  if (second) {
+    hints.pattern = DS_PATTERN_SINE;
+    hints.pattern_forced = TRUE;
+  } else if (o->pattern) {
     hints.pattern_forced = TRUE;
     if (g_ascii_strcasecmp (o->pattern, "square") == 0)
       hints.pattern = DS_PATTERN_SQUARE;
@@ -133,7 +152,7 @@ calibrate (const char *dir, const Options *o, gboolean *usage, GError **error)
   *usage = FALSE;
 
   g_auto (DsFolderPhases) phases = { 0 };
-  if (!ds_folder_phases_find (folder, o->period, TRUE, o->strict_phases, &phases, error))
+  if (!ds_folder_phases_find (folder, second ? NAN : o->period, TRUE, o->strict_phases, &phases, error))
     return FALSE;
   if (phases.notice && !o->quiet)
     fprintf (stderr, "descatterctl calibrate: %s\n", phases.notice);
@@ -161,11 +180,32 @@ calibrate (const char *dir, const Options *o, gboolean *usage, GError **error)
     if (!black || !ds_calibrator_set_dark (cal, black, error))
       return FALSE;
   }
-  DsCalibration result;
-  if (!ds_calibrator_finish (cal, &hints, &result, error))
+  if (!ds_calibrator_finish (cal, &hints, result, error)) {
+    g_prefix_error (error, "%s: ", dir);
     return FALSE;
+  }
   /* the period came from ds_folder_phases_find: measured there unless given */
-  result.period_measured = phases.period_source && g_str_equal (phases.period_source, "detected");
+  result->period_measured = phases.period_source && g_str_equal (phases.period_source, "detected");
+  return TRUE;
+}
+
+static gboolean
+calibrate (const char *dir, const Options *o, gboolean *usage, GError **error)
+{
+  DsCalibration result, second;
+  if (!measure_folder (dir, o, FALSE, &result, usage, error))
+    return FALSE;
+  if (o->second) {
+    if (result.pattern != DS_PATTERN_SINE) {
+      *usage = TRUE;
+      g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT,
+                   "--second %s: the stripes are square; their black level is measured from one period", o->second);
+      return FALSE;
+    }
+    if (!measure_folder (o->second, o, TRUE, &second, usage, error) ||
+        !ds_calibration_add_second_period (&result, &second, isnan (o->aperture) ? 1.0 : o->aperture, error))
+      return FALSE;
+  }
   if (o->json)
     print_json ("folder", dir, 0, &result);
   else
@@ -178,8 +218,9 @@ calibrate (const char *dir, const Options *o, gboolean *usage, GError **error)
 static int
 calibrate_on_rig (const DsCtlTarget *target, const Options *o)
 {
-  if (!isnan (o->saturation) || o->bit_depth || o->strict_phases) {
-    fprintf (stderr, "descatterctl calibrate: --saturation, --bit-depth and --strict-phases are for a folder; "
+  if (!isnan (o->saturation) || o->bit_depth || o->strict_phases || o->second) {
+    fprintf (stderr, "descatterctl calibrate: --saturation, --bit-depth, --strict-phases and --second are for a "
+                     "folder; "
                      "the daemon knows its camera\n");
     return 2;
   }
@@ -210,6 +251,9 @@ calibrate_on_rig (const DsCtlTarget *target, const Options *o)
     return 1;
   }
   gint64 set_id = json_object_get_int_member_with_default (body, "set_id", 0);
+  const char *second_error = json_object_get_string_member_with_default (body, "second_period_error", NULL);
+  if (second_error && !o->quiet)
+    fprintf (stderr, "descatterctl calibrate: the set at twice the period: %s\n", second_error);
   if (o->json) {
     print_json ("set_id", NULL, set_id, &cal);
   } else {
@@ -226,6 +270,7 @@ ds_ctl_calibrate (const DsCtlTarget *target, int argc, char **argv)
   Options o = { .period = NAN, .saturation = NAN, .aperture = NAN };
   GOptionEntry entries[] = {
     { "pattern", 0, 0, G_OPTION_ARG_STRING, &o.pattern, "take the stripes as square or sine without telling them apart (default: told from the profile)", "KIND" },
+    { "second", 0, 0, G_OPTION_ARG_FILENAME, &o.second, "sine stripes: the same reference at another period (1.25x or more apart, e.g. twice), to tell the black level from blur", "DIR2" },
     { "period", 0, 0, G_OPTION_ARG_DOUBLE, &o.period, "the stripe period in pixels when known (default: measured)", "PX" },
     { "saturation", 0, 0, G_OPTION_ARG_DOUBLE, &o.saturation, "lowest clipped level in DN; clipped pixels are left out", "DN" },
     { "bit-depth", 0, 0, G_OPTION_ARG_INT, &o.bit_depth, "significant bits of the integer images, 1..16", "BITS" },
@@ -269,6 +314,7 @@ ds_ctl_calibrate (const DsCtlTarget *target, int argc, char **argv)
     status = 0;
   }
   g_free (o.pattern);
+  g_free (o.second);
   g_free (o.phases);
   g_free (o.averages);
   g_free (o.exposure);

@@ -19,6 +19,8 @@ typedef struct {
   DsEstimator estimator;
   DsPatternKind pattern;
   double period_px;
+  double period_override_px;  /* > 0: this set's period instead of the illuminator's (a calibration's
+                                 second period, calibrate_set.h); the set records it as period_px */
   double duty;
   double black_level;
   /* What calibration measured ([illuminator] harmonic-gain, edge-blur-px) and the sensor's clip

@@ -120,7 +120,8 @@ ds_seq_run_set (DsSequencer *seq, const DsCaptureSettings *requested, guint64 ta
   DsCaptureSettings settings = *requested;
   const DsCaptureSettings *s = &settings;
   settings.pattern = seq->dev->pattern.kind == DS_STRIPES_SINE ? DS_PATTERN_SINE : DS_PATTERN_SQUARE;
-  settings.period_px = seq->dev->pattern.period_px;
+  settings.period_px = requested->period_override_px > 0 ? requested->period_override_px
+                                                        : seq->dev->pattern.period_px;
   settings.duty = seq->dev->pattern.duty;
   settings.black_level = seq->dev->pattern.black_level;
   DsFrameCounters c = { 0 };

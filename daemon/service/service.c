@@ -38,6 +38,10 @@ typedef struct {
   gboolean save_phases; /* the raw frames go back with the reply */
   gboolean calibrate;   /* a calibrate request: the reply is the set's calibration */
   DsCalibrateRequest calibration;
+  DsCaptureSettings calibrate_settings; /* the first set's, for a second period */
+  gboolean calibrate_second;            /* this is the set at the second period (calibrate_set.h) */
+  DsCalibration calibrate_first;        /* ... and the first set's calibration */
+  guint64 calibrate_first_set;
 } PendingCapture;
 
 typedef struct {
@@ -125,16 +129,63 @@ reply_result (DsService *svc, PendingCapture *p, DsResult *result)
 }
 
 static void
-reply_calibration (DsService *svc, PendingCapture *p, DsResult *result)
+reply_calibration_error (DsService *svc, PendingCapture *p, const GError *error)
+{
+  g_autoptr (GError) wire = ds_wire_error_new (error);
+  ds_server_reply_error (svc->server, p->conn, p->id, wire);
+}
+
+/* The first set's calibration, with the second period's when it came: black level and harmonic
+ * gain told apart (calibrate_set.h); second_error says why not when it was tried. */
+static void
+reply_calibration_pair (DsService *svc, PendingCapture *p, DsResult *second, const char *second_error)
+{
+  DsCalibration *c = &p->calibrate_first;
+  g_autoptr (GError) error = NULL;
+  DsCalibration at_second;
+  if (second && (!ds_calibrate_measure (second, &p->calibration, 2 * c->period_px, &at_second, &error) ||
+                 !ds_calibration_add_second_period (c, &at_second, p->calibration.pixel_aperture, &error)))
+    second_error = error->message;
+  if (second_error)
+    g_message ("calibrate: the black level of the sine stripes is assumed, not measured: the set at twice the "
+               "period: %s", second_error);
+  g_autoptr (JsonNode) body = ds_calibrate_reply (p->calibrate_first_set, c, second ? ds_result_set_id (second) : 0,
+                                                  second_error);
+  ds_server_reply_ok (svc->server, p->conn, p->id, body, NULL, NULL, 0);
+}
+
+/* A calibrate request's set came. Sine stripes whose black level one period cannot tell
+ * (proc/calibration_sine.h) get a second set at twice the period, under a new tag that p moves
+ * to: TRUE then, and the reply waits for it. */
+static gboolean
+calibration_step (DsService *svc, PendingCapture *p, DsResult *result)
 {
   g_autoptr (GError) error = NULL;
-  g_autoptr (JsonNode) body = ds_calibrate_result (result, &p->calibration, &error);
-  if (!body) {
-    g_autoptr (GError) wire = ds_wire_error_new (error);
-    ds_server_reply_error (svc->server, p->conn, p->id, wire);
-    return;
+  if (p->calibrate_second) {
+    reply_calibration_pair (svc, p, result, NULL);
+    return FALSE;
   }
-  ds_server_reply_ok (svc->server, p->conn, p->id, body, NULL, NULL, 0);
+  if (!ds_calibrate_measure (result, &p->calibration, 0, &p->calibrate_first, &error)) {
+    reply_calibration_error (svc, p, error);
+    return FALSE;
+  }
+  p->calibrate_first_set = ds_result_set_id (result);
+  if (p->calibrate_first.pattern != DS_PATTERN_SINE || p->calibrate_first.black_level_measured) {
+    reply_calibration_pair (svc, p, NULL, NULL);
+    return FALSE;
+  }
+  DsCaptureSettings s = p->calibrate_settings;
+  s.period_override_px = 2 * ds_result_settings (result)->period_px;
+  guint64 tag = ++svc->next_tag;
+  if (!ds_sequencer_capture (svc->sequencer, &s, tag)) {
+    reply_calibration_pair (svc, p, NULL, "too many captures queued");
+    return FALSE;
+  }
+  g_hash_table_steal (svc->pending, &p->tag);
+  p->tag = tag;
+  p->calibrate_second = TRUE;
+  g_hash_table_insert (svc->pending, &p->tag, p);
+  return TRUE;
 }
 
 static void
@@ -217,18 +268,24 @@ on_sequencer_event (const DsSequencerEvent *ev, gpointer user_data)
     g_autofree char *st = g_strdup_printf ("set %" G_GUINT64_FORMAT " done",
                                            ds_result_set_id (ev->result));
     notify_status (svc, st);
+    gboolean awaits_second = FALSE;
     if (p && p->calibrate)
-      reply_calibration (svc, p, ev->result);
+      awaits_second = calibration_step (svc, p, ev->result);
     else if (p)
       reply_result (svc, p, ev->result);
     publish_result (svc, ev->result);
+    if (awaits_second)
+      return;
     break;
   }
   case DS_SEQUENCER_EVENT_FAILED: {
     g_warning ("phase set failed: %s", ev->error->message);
     notify_status (svc, "last set failed");
     g_autoptr (GError) wire = ds_wire_error_new (ev->error);
-    if (p)
+    /* an illuminator that cannot draw twice its period: the first set's calibration stands */
+    if (p && p->calibrate_second)
+      reply_calibration_pair (svc, p, NULL, ev->error->message);
+    else if (p)
       ds_server_reply_error (svc->server, p->conn, p->id, wire);
     {
       g_autoptr (JsonBuilder) b = json_builder_new ();
@@ -583,6 +640,7 @@ handle_calibrate (DsService *svc, DsConnection *conn, DsRequest *req)
   p->progress = progress;
   p->calibrate = TRUE;
   p->calibration = cr;
+  p->calibrate_settings = s;
   g_hash_table_insert (svc->pending, &p->tag, p);
 }
 
