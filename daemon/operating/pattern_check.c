@@ -2,10 +2,12 @@
 #include "daemon/operating/pattern_check.h"
 
 #include <math.h>
+#include <stdarg.h>
 #include <string.h>
 
 #include "daemon/protocol/protocol.h"
 #include "proc/calibration_scatter.h"
+#include "proc/calibration_sine.h"
 #include "proc/stripe_profile.h"
 
 #define N_BINS 40u
@@ -119,6 +121,44 @@ fit_profile (const DsStripeProfile *p, DsPatternKind kind, double period, double
   return best;
 }
 
+/* Sine stripes: r = 1/2 + (c/2) cos (2 pi u) exactly (the phases at 0 and 1/2 sum to a constant),
+ * blur or not, so the profile holds one number, the contrast c = k g (proc/calibration_sine.h),
+ * and no fit over blur and level can tell them apart. With g as configured at this period (the
+ * harmonic gain, or the edge blur, carried to this period in closed form), the black level the
+ * pilot shows is the one whose k = c / g: light that does not keep the stripes only raises it,
+ * and no blur lowers it. */
+static Fit
+fit_sine (const DsStripeProfile *p, double gain)
+{
+  double scc = 0, sss = 0, scs = 0, src = 0, srs = 0, total = 0;
+  for (guint j = 0; j < N_BINS; j++) {
+    if (!p->n[j])
+      continue;
+    double w = (double) p->n[j], cs = cos (2 * G_PI * p->u[j]), sn = sin (2 * G_PI * p->u[j]), d = p->r[j] - 0.5;
+    scc += w * cs * cs;
+    sss += w * sn * sn;
+    scs += w * cs * sn;
+    src += w * d * cs;
+    srs += w * d * sn;
+    total += w;
+  }
+  Fit f = { .duty = 0.5, .rms = INFINITY };
+  double det = scc * sss - scs * scs;
+  if (!(det > 0))
+    return f;
+  double a = (src * sss - srs * scs) / det, b = (srs * scc - src * scs) / det, ss = 0;
+  for (guint j = 0; j < N_BINS; j++)
+    if (p->n[j]) {
+      double d = p->r[j] - 0.5 - a * cos (2 * G_PI * p->u[j]) - b * sin (2 * G_PI * p->u[j]);
+      ss += (double) p->n[j] * d * d;
+    }
+  double k = 2 * hypot (a, b) / gain;
+  f.level = (1 - k) / (1 + k);
+  f.blur = gain < 1 ? p->period_px * sqrt (-log (gain) / 2) / G_PI : 0;
+  f.rms = sqrt (ss / total);
+  return f;
+}
+
 /* Per pixel of the pair at P, for the scattering check (proc/calibration_scatter.h): the sum of
  * the phases, and the off-stripe fraction at the stripe centres (NaN elsewhere). */
 typedef struct {
@@ -129,7 +169,7 @@ typedef struct {
  * stripe-centre pixels. */
 static void
 check_pair (const DsImage *dark, const DsImage *l0, const DsImage *l1, double period, double saturation,
-            const DsStripeModel *conf, DsPatternPair *out, Centres *centres)
+            const DsStripeModel *conf, double sine_gain, DsPatternPair *out, Centres *centres)
 {
   memset (out, 0, sizeof *out);
   out->period_px = period;
@@ -144,9 +184,17 @@ check_pair (const DsImage *dark, const DsImage *l0, const DsImage *l1, double pe
   /* an integer period puts the pixels at P positions in it */
   if (prof->bins_used < MIN (N_BINS / 2, (guint) period - 2) || out->pixels < 256)
     return;
-  Fit free = fit_profile (prof, conf->kind, period, -1, 0);
-  Fit configured = fit_profile (prof, conf->kind, period, conf->duty, conf->black_level);
-  out->measured = TRUE;
+  Fit free, configured;
+  if (conf->kind == DS_PATTERN_SINE) {
+    free = fit_sine (prof, ds_sine_gain_at_period (sine_gain, conf->period_px, period));
+    configured = free; /* one number: the configured contrast's misfit is the level's */
+  } else {
+    free = fit_profile (prof, conf->kind, period, -1, 0);
+    configured = fit_profile (prof, conf->kind, period, conf->duty, conf->black_level);
+  }
+  out->measured = isfinite (free.rms);
+  if (!out->measured)
+    return;
   out->duty = conf->kind == DS_PATTERN_SQUARE ? free.duty : 0.5;
   out->off_level = free.level;
   out->blur_px = free.blur;
@@ -161,8 +209,38 @@ check_pair (const DsImage *dark, const DsImage *l0, const DsImage *l1, double pe
 }
 
 #define REMEDY                                                                                                   \
-  "run `descatterctl calibrate` on a clear reference (no scattering medium) and put its duty= and "           \
-  "black-level= lines into descatterd.conf's [illuminator]"
+  "run `descatterctl calibrate` on a clear reference (no scattering medium) and put its pattern=, duty= (square), " \
+  "black-level= and harmonic-gain= lines into descatterd.conf's [illuminator]"
+
+/* A verdict other than MATCHES, its message ending with the remedy. */
+static void G_GNUC_PRINTF (3, 4)
+conclude (DsPatternCheck *out, DsPatternVerdict verdict, const char *format, ...)
+{
+  va_list ap;
+  va_start (ap, format);
+  g_autofree char *what = g_strdup_vprintf (format, ap);
+  va_end (ap);
+  out->verdict = verdict;
+  g_snprintf (out->message, sizeof out->message, "%s: " REMEDY, what);
+}
+
+/* g, the factor blur and the pixel leave on a sine's first harmonic at the configured period:
+ * from the calibrated harmonic gain h = (1 - b) g / 2, else from the calibrated edge blur, else
+ * none (sharp: then the check's allowance for blur is nil and only scattered light raises the
+ * level). */
+static double
+configured_sine_gain (const DsProbeFrames *f)
+{
+  const DsStripeModel *conf = &f->geometry;
+  if (f->calibrated_gain > 0)
+    return MIN (1.0, 2 * f->calibrated_gain / (1 - conf->black_level));
+  if (f->blur_known && f->calibrated_blur_px > 0) {
+    DsStripeModel m = *conf;
+    m.blur_px = f->calibrated_blur_px;
+    return MIN (1.0, 2 * ds_stripe_harmonic (&m, 1) / (1 - conf->black_level));
+  }
+  return 1.0;
+}
 
 gboolean
 ds_pattern_check (const DsProbeFrames *f, DsPatternCheck *out, GError **error)
@@ -172,11 +250,12 @@ ds_pattern_check (const DsProbeFrames *f, DsPatternCheck *out, GError **error)
   if (!ds_probe_frames_check (f, error))
     return FALSE;
   const DsStripeModel *conf = &f->geometry;
+  double sine_gain = conf->kind == DS_PATTERN_SINE ? configured_sine_gain (f) : 1.0;
   Centres centres = { 0 };
-  check_pair (f->dark, l0, l1, conf->period_px, f->saturation_dn, conf, &out->pair[0], &centres);
+  check_pair (f->dark, l0, l1, conf->period_px, f->saturation_dn, conf, sine_gain, &out->pair[0], &centres);
   if (f->coarse[0])
-    check_pair (f->dark, f->coarse[0], f->coarse[1], 2 * conf->period_px, f->saturation_dn, conf, &out->pair[1],
-                NULL);
+    check_pair (f->dark, f->coarse[0], f->coarse[1], 2 * conf->period_px, f->saturation_dn, conf, sine_gain,
+                &out->pair[1], NULL);
   DsScatterCheck scatter = { 0 };
   if (centres.off)
     ds_calibration_scatter_check (centres.brightness, centres.off, l0->width, l0->height, conf->period_px, &scatter);
@@ -190,30 +269,37 @@ ds_pattern_check (const DsProbeFrames *f, DsPatternCheck *out, GError **error)
   if (!p->measured)
     return TRUE;
   out->duty = q->measured ? q->duty : p->duty;
-  /* blur can only raise it, and blurs the stripes at 2P half as much */
+  /* blur can only raise it (sine: the configured blur is taken out already), and blurs the
+   * stripes at 2P a quarter as much */
   out->off_level = q->measured ? MIN (p->off_level, q->off_level) : p->off_level;
   const char *at = q->measured ? "at twice the period" : "at the period";
+  g_autofree char *seen =
+    conf->kind == DS_PATTERN_SINE
+      ? g_strdup_printf ("the sine's contrast the pilot frames show, with the configured harmonic gain's blur "
+                         "(%.2f of the first harmonic kept at the period) taken out, gives a black level of %.2f",
+                         sine_gain, out->off_level)
+      : g_strdup_printf ("the pilot frames show an off-stripe level of %.2f of the lit level", out->off_level);
 
   /* The duty: both pairs must disagree with it when both are measured (a duty the blur at P
    * hides is read at 2P; the configured duty must fit neither). */
   if (conf->kind == DS_PATTERN_SQUARE && fabs (out->duty - conf->duty) > DUTY_TOLERANCE &&
       (!q->measured || fabs (p->duty - conf->duty) > DUTY_TOLERANCE)) {
-    out->verdict = DS_PATTERN_WRONG_DUTY;
-    g_snprintf (out->message, sizeof out->message,
-                "the configured stripe pattern does not match the frames: duty %.2f is configured, the pilot "
-                "frames show duty %.2f (%s) and an off-stripe level %.2f of the lit level (black level %.2f is "
-                "configured); scattering cannot change the duty. Predictions and the separation would rest on the "
-                "wrong pattern: " REMEDY,
-                conf->duty, out->duty, at, out->off_level, conf->black_level);
+    conclude (out, DS_PATTERN_WRONG_DUTY,
+              "the configured stripe pattern does not match the frames: duty %.2f is configured, the pilot frames "
+              "show duty %.2f (%s) and an off-stripe level %.2f of the lit level (black level %.2f is configured); "
+              "scattering cannot change the duty. Predictions and the separation would rest on the wrong pattern",
+              conf->duty, out->duty, at, out->off_level, conf->black_level);
     return TRUE;
   }
   if (out->off_level < conf->black_level - LEVEL_TOLERANCE) {
-    out->verdict = DS_PATTERN_WRONG_BLACK_LEVEL;
-    g_snprintf (out->message, sizeof out->message,
-                "the configured stripe pattern does not match the frames: black level %.2f is configured, the "
-                "pilot frames show an off-stripe level of only %.2f of the lit level (neither scattered light nor "
-                "blur can lower it below the black level): " REMEDY,
-                conf->black_level, out->off_level);
+    g_autofree char *low = conf->kind == DS_PATTERN_SINE
+                             ? g_strdup (seen)
+                             : g_strdup_printf ("the pilot frames show an off-stripe level of only %.2f of the lit level",
+                                                out->off_level);
+    conclude (out, DS_PATTERN_WRONG_BLACK_LEVEL,
+              "the configured stripe pattern does not match the frames: black level %.2f is configured, %s (neither "
+              "scattered light nor blur can lower it below the black level)",
+              conf->black_level, low);
     return TRUE;
   }
   if (out->off_level > conf->black_level + LEVEL_TOLERANCE) {
@@ -222,22 +308,19 @@ ds_pattern_check (const DsProbeFrames *f, DsPatternCheck *out, GError **error)
     if (scatter.spatial)
       return TRUE;
     if (out->brightness_ratio >= MIN_BRIGHTNESS_RATIO && fabs (out->off_dim - out->off_bright) <= tolerance) {
-      out->verdict = DS_PATTERN_WRONG_BLACK_LEVEL;
-      g_snprintf (out->message, sizeof out->message,
-                  "the configured stripe pattern does not match the frames: black level %.2f is configured, the "
-                  "pilot frames show an off-stripe level of %.2f of the lit level, the same on dim and bright "
-                  "parts of the scene (%.2f and %.2f, brightness x%.1f apart): that is the illuminator's black "
-                  "level, not scattered light, which would be a larger fraction where the scene is dark: " REMEDY,
-                  conf->black_level, out->off_level, out->off_dim, out->off_bright, out->brightness_ratio);
+      conclude (out, DS_PATTERN_WRONG_BLACK_LEVEL,
+                "the configured stripe pattern does not match the frames: black level %.2f is configured, %s, the "
+                "same on dim and bright parts of the scene (%.2f and %.2f, brightness x%.1f apart): that is the "
+                "illuminator's black level, not scattered light, which would be a larger fraction where the scene "
+                "is dark",
+                conf->black_level, seen, out->off_dim, out->off_bright, out->brightness_ratio);
       return TRUE;
     }
-    out->verdict = DS_PATTERN_OFF_LEVEL_ASSUMED;
-    g_snprintf (out->message, sizeof out->message,
-                "the pilot frames show an off-stripe level of %.2f of the lit level where black level %.2f is "
-                "configured; taken as scattered light (the scene has too little contrast to tell it from a "
-                "black level). If the illuminator's off stripes are not that dark, the transmissive image is "
-                "low by up to %.0f %%: " REMEDY,
-                out->off_level, conf->black_level, 100 * excess / (1 - conf->black_level));
+    conclude (out, DS_PATTERN_OFF_LEVEL_ASSUMED,
+              "%s where black level %.2f is configured; taken as scattered light (the scene has too little contrast "
+              "to tell it from a black level). If the illuminator's off stripes are not that dark, the transmissive "
+              "image is low by up to %.0f %%",
+              seen, conf->black_level, 100 * excess / (1 - conf->black_level));
   }
   return TRUE;
 }

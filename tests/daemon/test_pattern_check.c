@@ -16,6 +16,7 @@
 #include "daemon/operating/pattern_check.h"
 #include "daemon/operating/scene_probe.h"
 #include "daemon/protocol/protocol.h"
+#include "tests/daemon/calibrate_lines.h"
 
 #define W 256
 #define H 96
@@ -28,6 +29,7 @@ typedef struct {
   double read_e;
   gboolean featureless;
   guint seed;
+  gboolean sine;       /* sine stripes: b + (1 - b) (1 + B cos)/2, B the Gaussian's exp (-2 pi^2 s^2 / P^2) */
 } Scene;
 
 static double
@@ -37,6 +39,11 @@ lit_fraction (const Scene *s, double period, double x, double shift)
   double acc = 0, half = s->duty * period / 2;
   for (int i = 0; i < 16; i++) {
     double t = x - 0.5 + (i + 0.5) / 16.0;
+    if (s->sine) {
+      acc += 0.5 * (1 + exp (-2 * G_PI * G_PI * s->blur * s->blur / (period * period)) *
+                          cos (2 * G_PI * (t / period - shift)));
+      continue;
+    }
     double c0 = period * (floor (t / period - shift) + shift);
     for (int j = -2; j <= 3; j++) {
       double c = c0 + j * period;
@@ -139,8 +146,20 @@ check (gboolean cond, const char *what)
     failures++;
 }
 
+static DsPatternCheck run_configured (const Scene *s, DsPatternKind kind, double conf_duty, double conf_black,
+                                      double conf_gain, gboolean coarse);
+
 static DsPatternCheck
 run (const Scene *s, double conf_duty, double conf_black, gboolean coarse)
+{
+  return run_configured (s, DS_PATTERN_SQUARE, conf_duty, conf_black, 0, coarse);
+}
+
+/* The pilot frames of scene s checked against the configured pattern (conf_gain: the calibrated
+ * harmonic gain, 0 = none). */
+static DsPatternCheck
+run_configured (const Scene *s, DsPatternKind kind, double conf_duty, double conf_black, double conf_gain,
+                gboolean coarse)
 {
   g_autoptr (GRand) rng = g_rand_new_with_seed (s->seed);
   g_autoptr (DsImage) dark = render (s, s->period, 0, FALSE, rng);
@@ -150,7 +169,8 @@ run (const Scene *s, double conf_duty, double conf_black, gboolean coarse)
   g_autoptr (DsImage) c1 = coarse ? render (s, 2 * s->period, 0.6, TRUE, rng) : NULL;
   DsProbeFrames f = {
     .dark = dark, .lit = { l0, l1 }, .coarse = { c0, c1 }, .saturation_dn = 65535,
-    .geometry = { .kind = DS_PATTERN_SQUARE, .period_px = s->period, .duty = conf_duty, .black_level = conf_black },
+    .geometry = { .kind = kind, .period_px = s->period, .duty = conf_duty, .black_level = conf_black },
+    .calibrated_gain = conf_gain,
   };
   DsPatternCheck c;
   g_autoptr (GError) error = NULL;
@@ -263,6 +283,73 @@ test_alarms (void)
   expect_alarm (&plain, 0.67, 0.0, TRUE, DS_PATTERN_OFF_LEVEL_ASSUMED, "taken as scattered light");
 }
 
+/* A clear reference's phase set at `period` (N = 8). */
+static void
+reference_phases (const Scene *ref, double period, GRand *rng, DsImage **out)
+{
+  for (guint k = 0; k < 8; k++)
+    out[k] = render (ref, period, k / 8.0, TRUE, rng);
+}
+
+/* The lines `descatterctl calibrate` prints for a sine illuminator (its black level told from
+ * its blur at two periods), read as descatterd reads its configuration, make the pattern check
+ * accept pilot frames of a scene lit by the same illuminator, clear or behind a medium; a black
+ * level 0.1 too high is still refused, and so are the lines of the lab trial's calibration,
+ * which folded the blur into the black level (the sinusoid at one period: b 0.10 where the
+ * illuminator's is 0.022, and the pilot at twice the period shows the stripes sharper than a
+ * blur-free configuration allows). */
+static void
+test_calibrated_sine (void)
+{
+  Scene ref = { .period = 16, .duty = 0.5, .black = 0.0222, .blur = 1.479, .photons = 20000, .read_e = 10,
+                .featureless = TRUE, .seed = 201, .sine = TRUE };
+  g_autoptr (GRand) rng = g_rand_new_with_seed (ref.seed);
+  DsImage *at_p[8], *at_2p[8];
+  g_autoptr (DsImage) dark = render (&ref, 16, 0, FALSE, rng);
+  reference_phases (&ref, 16, rng, at_p);
+  reference_phases (&ref, 32, rng, at_2p);
+  double contrast;
+  g_autofree char *lines = calibrate_lines (at_p, at_2p, 8, dark, 32, &contrast);
+  for (guint k = 0; k < 8; k++) {
+    ds_image_free (at_p[k]);
+    ds_image_free (at_2p[k]);
+  }
+  g_autoptr (GKeyFile) kf = g_key_file_new ();
+  check (g_key_file_load_from_data (kf, lines, (gsize) -1, G_KEY_FILE_NONE, NULL), "the printed lines load");
+  g_autofree char *pattern = g_key_file_get_string (kf, "illuminator", "pattern", NULL);
+  double b = g_key_file_get_double (kf, "illuminator", "black-level", NULL);
+  double h = g_key_file_get_double (kf, "illuminator", "harmonic-gain", NULL);
+  char what[400];
+  g_snprintf (what, sizeof what, "calibrated: pattern=%s black-level=%.4f (illuminator 0.0222) harmonic-gain=%.4f",
+              pattern ? pattern : "?", b, h);
+  check (pattern && g_str_equal (pattern, "sine") && fabs (b - 0.0222) < 0.01, what);
+
+  Scene scene = ref;
+  scene.featureless = FALSE;
+  scene.seed = 202;
+  for (int coarse = 0; coarse < 2; coarse++) {
+    DsPatternCheck c = run_configured (&scene, DS_PATTERN_SINE, 0.5, b, h, coarse);
+    describe (&scene, &c, what, sizeof what, 0.5, b);
+    check (c.verdict == DS_PATTERN_MATCHES && c.pair[0].measured, what);
+  }
+  Scene murky = scene;
+  murky.scatter = 0.6;
+  murky.keep = 0.2;
+  DsPatternCheck c = run_configured (&murky, DS_PATTERN_SINE, 0.5, b, h, TRUE);
+  describe (&murky, &c, what, sizeof what, 0.5, b);
+  check (c.verdict == DS_PATTERN_MATCHES || c.verdict == DS_PATTERN_OFF_LEVEL_ASSUMED, what);
+
+  c = run_configured (&scene, DS_PATTERN_SINE, 0.5, b + 0.1, h, TRUE);
+  describe (&scene, &c, what, sizeof what, 0.5, b + 0.1);
+  check (c.verdict == DS_PATTERN_WRONG_BLACK_LEVEL, what);
+  /* one period's apparent level with the gain that goes with it: right at P, wrong at 2P */
+  double b_app = (1 - contrast) / (1 + contrast), h_app = (1 + b_app) / 2 * contrast;
+  c = run_configured (&scene, DS_PATTERN_SINE, 0.5, b_app, h_app, TRUE);
+  describe (&scene, &c, what, sizeof what, 0.5, b_app);
+  check (c.verdict == DS_PATTERN_WRONG_BLACK_LEVEL && strstr (c.message, "harmonic-gain="), what);
+  printf ("     %s\n", c.message);
+}
+
 /* The probe and the pattern check refuse the same malformed pilot frames with the same error,
  * which names the frame at fault; well-formed frames pass both shape checks. */
 static void
@@ -323,6 +410,7 @@ main (void)
 {
   test_frame_shapes ();
   test_alarms ();
+  test_calibrated_sine ();
   test_no_false_alarm ();
   printf ("%d failure(s)\n", failures);
   return failures ? 1 : 0;

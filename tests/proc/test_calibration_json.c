@@ -21,6 +21,10 @@ sample_calibration (void)
   c.offset_spread = 0.0625;
   c.duty = 0.5;
   c.black_level = 0.03125;
+  c.black_level_measured = TRUE; /* from a second period: no black_level_notice */
+  c.contrast = 0.75;
+  c.second_period_px = 25;
+  c.second_contrast = 0.875;
   c.harmonic_gain = 0.5625;
   c.harmonic_gain_theory = 0.625;
   c.edge_blur_px = 0.75;
@@ -56,6 +60,7 @@ test_round_trip (void)
   /* docs/protocol.md, the calibrate reply: every member, in this order */
   static const char *const keys[] = { "pattern", "n_phases", "frames_per_phase", "period_measured", "period_px",
                                       "phase_offset_cycles", "offset_spread_cycles", "duty", "black_level",
+                                      "black_level_measured", "contrast", "second_period_px", "second_contrast",
                                       "harmonic_gain", "harmonic_gain_theory", "edge_blur_px", "pixels_used",
                                       "scattering", "pattern_check", "warning" };
   g_autoptr (GList) names = json_object_get_members (o);
