@@ -10,7 +10,9 @@
  *   memcpy   the same input bytes copied into distinct, pre-faulted buffers.
  * It also times sine and robust against maxmin, the per-set noise estimate against folding one
  * frame, and unpacking packed pixel formats into a pooled image against a memcpy of the
- * unpacked frame. Best of R repetitions each; it prints times and ratios and asserts no timing.
+ * unpacked frame. Best of R repetitions each; ours, OpenCV and memcpy take turns within each
+ * repetition, so that on a shared machine they see the same load. It prints times and ratios
+ * and asserts no timing.
  * It checks its results (exit status 1 on a mismatch): ours equals OpenCV on every pixel, every
  * thread count gives the bits of one thread (all estimators), the fused last frame gives the
  * bits of the two calls, unpacking inverts ds_pixfmt_pack.
@@ -61,43 +63,75 @@ typedef struct {
   double total, accumulate, finalize; /* best of the repetitions, each */
 } Timing;
 
+/* One estimator on its own phase set and pooled result, timed one set at a time so that the
+ * runs and the baselines can take turns (on a busy machine all then see the same load). */
+typedef struct {
+  DsPhaseSet *set;
+  DsSeparation *sep;  /* a pool of one, as the daemon's result-plane pool reuses planes */
+  gboolean two_calls;
+  Timing t;           /* best of the timed sets */
+} Runner;
+
 /* One set as descatterd folds it: frames 0..N-2 with ds_phase_set_accumulate as they arrive,
  * the last one with ds_phase_set_accumulate_finalize_into (folded on the finalize's pass), into
- * the planes of *sep: a pool of one, as the daemon's result-plane pool reuses planes once
- * clients released them. `accumulate` is the first N-1 frames, `finalize` the last frame and
- * the finalize. two_calls: the last frame with ds_phase_set_accumulate, then
+ * the runner's planes. `accumulate` is the first N-1 frames, `finalize` the last frame and the
+ * finalize. two_calls: the last frame with ds_phase_set_accumulate, then
  * ds_phase_set_finalize_into (the reference for the fused path; `finalize` is then the
- * finalize alone). A first set, not timed, faults the pooled planes in. */
+ * finalize alone). */
 static gboolean
-time_set (DsPhaseSet *set, DsImage **frames, guint n, guint reps, gboolean two_calls, Timing *t,
-          DsSeparation *sep)
+runner_once (Runner *rn, DsImage **frames, guint n, gboolean timed)
 {
-  *t = (Timing) { INFINITY, INFINITY, INFINITY };
   g_autoptr (GError) error = NULL;
-  for (guint r = 0; r <= reps; r++) {
-    ds_phase_set_reset (set);
-    double t0 = now ();
-    guint folded = two_calls ? n : n - 1;
-    for (guint k = 0; k < folded; k++)
-      if (!ds_phase_set_accumulate (set, k, frames[k], &error)) {
-        fprintf (stderr, "accumulate: %s\n", error->message);
-        return FALSE;
-      }
-    double t1 = now ();
-    gboolean ok = two_calls ? ds_phase_set_finalize_into (set, sep, &error)
-                            : ds_phase_set_accumulate_finalize_into (set, n - 1, frames[n - 1], sep, NULL, &error);
-    if (!ok) {
-      fprintf (stderr, "finalize: %s\n", error->message);
+  ds_phase_set_reset (rn->set);
+  double t0 = now ();
+  guint folded = rn->two_calls ? n : n - 1;
+  for (guint k = 0; k < folded; k++)
+    if (!ds_phase_set_accumulate (rn->set, k, frames[k], &error)) {
+      fprintf (stderr, "accumulate: %s\n", error->message);
       return FALSE;
     }
-    double t2 = now ();
-    if (r == 0)
-      continue; /* the warm-up set */
-    t->total = MIN (t->total, t2 - t0);
-    t->accumulate = MIN (t->accumulate, t1 - t0);
-    t->finalize = MIN (t->finalize, t2 - t1);
+  double t1 = now ();
+  gboolean ok = rn->two_calls ? ds_phase_set_finalize_into (rn->set, rn->sep, &error)
+                              : ds_phase_set_accumulate_finalize_into (rn->set, n - 1, frames[n - 1], rn->sep, NULL,
+                                                                       &error);
+  if (!ok) {
+    fprintf (stderr, "finalize: %s\n", error->message);
+    return FALSE;
+  }
+  double t2 = now ();
+  if (timed) {
+    rn->t.total = MIN (rn->t.total, t2 - t0);
+    rn->t.accumulate = MIN (rn->t.accumulate, t1 - t0);
+    rn->t.finalize = MIN (rn->t.finalize, t2 - t1);
   }
   return TRUE;
+}
+
+/* A runner for estimator e at `threads`; a first set, not timed, faults its pooled planes in. */
+static gboolean
+runner_init (Runner *rn, DsEstimator e, guint threads, gboolean two_calls, DsImage **frames, const Case *c)
+{
+  DsSeparationParams p;
+  ds_separation_params_init (&p, c->n);
+  p.estimator = e;
+  p.threads = threads;
+  p.saturation_level = 65536.0; /* random data touches 65535: do not count it saturated */
+  g_autoptr (GError) error = NULL;
+  *rn = (Runner) { .two_calls = two_calls, .t = { INFINITY, INFINITY, INFINITY } };
+  rn->set = ds_phase_set_new (&p, c->w, c->h, &error);
+  if (!rn->set) {
+    fprintf (stderr, "ds_phase_set_new: %s\n", error->message);
+    return FALSE;
+  }
+  rn->sep = ds_separation_new ();
+  return runner_once (rn, frames, c->n, FALSE);
+}
+
+static void
+runner_clear (Runner *rn)
+{
+  g_clear_pointer (&rn->set, ds_phase_set_free);
+  g_clear_pointer (&rn->sep, ds_separation_free);
 }
 
 static gboolean
@@ -117,28 +151,6 @@ same_result (const DsSeparation *a, const DsSeparation *b)
 {
   return same_planes (a->transmissive, b->transmissive) && same_planes (a->scattered, b->scattered) &&
          same_planes (a->mask, b->mask) && memcmp (&a->meta, &b->meta, sizeof a->meta) == 0;
-}
-
-/* One estimator at `threads`: its timing and result. */
-static DsSeparation *
-run_ours (DsEstimator e, guint threads, DsImage **frames, const Case *c, guint reps, gboolean two_calls,
-          Timing *t)
-{
-  DsSeparationParams p;
-  ds_separation_params_init (&p, c->n);
-  p.estimator = e;
-  p.threads = threads;
-  p.saturation_level = 65536.0; /* random data touches 65535: do not count it saturated */
-  g_autoptr (GError) error = NULL;
-  g_autoptr (DsPhaseSet) set = ds_phase_set_new (&p, c->w, c->h, &error);
-  if (!set) {
-    fprintf (stderr, "ds_phase_set_new: %s\n", error->message);
-    return NULL;
-  }
-  DsSeparation *sep = ds_separation_new ();
-  if (!time_set (set, frames, c->n, reps, two_calls, t, sep))
-    g_clear_pointer (&sep, ds_separation_free);
-  return sep;
 }
 
 /* The main comparison at one size; returns FALSE on a wrong result. */
@@ -165,25 +177,22 @@ bench_case (const Case *c, guint reps, guint threads, gboolean estimators)
   gsize frame_bytes = frames[0]->stride * c->h;
   gboolean ok = TRUE;
 
-  Timing one, many, two;
-  g_autoptr (DsSeparation) sep1 = run_ours (DS_ESTIMATOR_MAXMIN, 1, frames, c, reps, FALSE, &one);
-  g_autoptr (DsSeparation) sept = run_ours (DS_ESTIMATOR_MAXMIN, threads, frames, c, reps, FALSE, &many);
-  g_autoptr (DsSeparation) sep2 = run_ours (DS_ESTIMATOR_MAXMIN, 1, frames, c, reps, TRUE, &two);
-  if (!sep1 || !sept || !sep2)
+  /* ours (1 thread, the set's threads, the two calls), OpenCV and memcpy take turns in every
+   * repetition; best of each */
+  Runner r1, rt, r2;
+  if (!runner_init (&r1, DS_ESTIMATOR_MAXMIN, 1, FALSE, frames, c) ||
+      !runner_init (&rt, DS_ESTIMATOR_MAXMIN, threads, FALSE, frames, c) ||
+      !runner_init (&r2, DS_ESTIMATOR_MAXMIN, 1, TRUE, frames, c))
     return FALSE;
-  if (!same_result (sep1, sept)) {
-    fprintf (stderr, "%u threads differ from one thread\n", threads);
-    ok = FALSE;
-  }
-  if (!same_result (sep1, sep2)) {
-    fprintf (stderr, "the last frame folded on the finalize's pass differs from the two calls\n");
-    ok = FALSE;
-  }
-
   float *cv_direct = g_malloc (npix * sizeof (float)), *cv_global = g_malloc (npix * sizeof (float));
-  double best_cv = INFINITY;
+  guint8 *dst = g_malloc (frame_bytes * c->n);
+  memset (dst, 1, frame_bytes * c->n);
+  double best_cv = INFINITY, best_copy = INFINITY;
   char err[256];
   for (guint r = 0; r < reps; r++) {
+    if (!runner_once (&r1, frames, c->n, TRUE) || !runner_once (&rt, frames, c->n, TRUE) ||
+        !runner_once (&r2, frames, c->n, TRUE))
+      return FALSE;
     double t0 = now ();
     if (ds_cv_separate_maxmin_u16 (planes, (int) c->n, (int) c->w, (int) c->h, frames[0]->stride,
                                    cv_direct, cv_global, err, sizeof err) != 0) {
@@ -191,6 +200,20 @@ bench_case (const Case *c, guint reps, guint threads, gboolean estimators)
       return FALSE;
     }
     best_cv = MIN (best_cv, now () - t0);
+    t0 = now ();
+    for (guint k = 0; k < c->n; k++)
+      memcpy (dst + k * frame_bytes, frames[k]->data, frame_bytes);
+    best_copy = MIN (best_copy, now () - t0);
+  }
+  Timing one = r1.t, many = rt.t, two = r2.t;
+  const DsSeparation *sep1 = r1.sep;
+  if (!same_result (sep1, rt.sep)) {
+    fprintf (stderr, "%u threads differ from one thread\n", threads);
+    ok = FALSE;
+  }
+  if (!same_result (sep1, r2.sep)) {
+    fprintf (stderr, "the last frame folded on the finalize's pass differs from the two calls\n");
+    ok = FALSE;
   }
   guint64 mismatches = 0;
   for (guint y = 0; y < c->h; y++) {
@@ -203,16 +226,6 @@ bench_case (const Case *c, guint reps, guint threads, gboolean estimators)
   if (mismatches) {
     fprintf (stderr, "%" G_GUINT64_FORMAT " pixels differ from OpenCV\n", mismatches);
     ok = FALSE;
-  }
-
-  guint8 *dst = g_malloc (frame_bytes * c->n);
-  memset (dst, 1, frame_bytes * c->n);
-  double best_copy = INFINITY;
-  for (guint r = 0; r < reps; r++) {
-    double t0 = now ();
-    for (guint k = 0; k < c->n; k++)
-      memcpy (dst + k * frame_bytes, frames[k]->data, frame_bytes);
-    best_copy = MIN (best_copy, now () - t0);
   }
   double numpy = run_numpy (c, reps);
 
@@ -233,10 +246,15 @@ bench_case (const Case *c, guint reps, guint threads, gboolean estimators)
 
   if (estimators) {
     for (DsEstimator e = DS_ESTIMATOR_SINE; e <= DS_ESTIMATOR_ROBUST; e++) {
-      Timing te1, tet;
-      g_autoptr (DsSeparation) a = run_ours (e, 1, frames, c, reps, FALSE, &te1);
-      g_autoptr (DsSeparation) b = run_ours (e, threads, frames, c, reps, FALSE, &tet);
-      if (!a || !b || !same_result (a, b)) {
+      Runner a, b;
+      gboolean ran = runner_init (&a, e, 1, FALSE, frames, c) && runner_init (&b, e, threads, FALSE, frames, c);
+      for (guint r = 0; ran && r < reps; r++)
+        ran = runner_once (&a, frames, c->n, TRUE) && runner_once (&b, frames, c->n, TRUE);
+      gboolean same = ran && same_result (a.sep, b.sep);
+      Timing te1 = a.t, tet = b.t;
+      runner_clear (&a);
+      runner_clear (&b);
+      if (!same) {
         fprintf (stderr, "%s: %u threads differ from one thread\n", ds_estimator_name (e), threads);
         ok = FALSE;
         continue;
@@ -259,6 +277,9 @@ bench_case (const Case *c, guint reps, guint threads, gboolean estimators)
             best_noise / (one.accumulate / (c->n - 1)));
   }
 
+  runner_clear (&r1);
+  runner_clear (&rt);
+  runner_clear (&r2);
   g_free (dst);
   g_free (cv_direct);
   g_free (cv_global);
