@@ -69,6 +69,12 @@ ds_error_model_new (const DsSceneProbe *probe, const DsSeparationParams *params)
   return m;
 }
 
+DsErrorModel *
+ds_error_model_new_like (const DsErrorModel *like, const DsSceneProbe *probe)
+{
+  return ds_error_model_new (probe, &like->params);
+}
+
 void
 ds_error_model_free (DsErrorModel *m)
 {

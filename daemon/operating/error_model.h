@@ -52,6 +52,9 @@ typedef struct DsErrorModel DsErrorModel;
 /* params: the separation parameters the rig will use (pattern, duty, black level, harmonic
  * gain, ...); estimator and N are set per prediction. */
 DsErrorModel *ds_error_model_new (const DsSceneProbe *probe, const DsSeparationParams *params);
+/* The same rig (separation parameters) on another scene: the operating point's worst case of a
+ * probe's interval (ds_scene_probe_worst_case). */
+DsErrorModel *ds_error_model_new_like (const DsErrorModel *like, const DsSceneProbe *probe);
 void ds_error_model_free (DsErrorModel *model);
 G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsErrorModel, ds_error_model_free)
 
