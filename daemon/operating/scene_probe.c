@@ -567,6 +567,113 @@ narrow_verdict (const DsProbeFrames *fr, gboolean finer_used, DsSceneProbe *out)
               P, why);
 }
 
+/* 1 - T for the bound's kernel, (1 + 2 k^2)^-1/2 (scene_probe.h), without cancellation at small k. */
+static double
+lost_share (double k)
+{
+  return -expm1 (-0.5 * log1p (2 * k * k));
+}
+
+/* What the interval of Ld needs from the harmonics, before the places that clip are counted
+ * back (the ratio of the lower end to the fit's Ld carries over to the scene). */
+typedef struct {
+  gboolean computed, unbounded;
+  double ratio;              /* ld_lower / the fit's Ld */
+  double kernel_px;
+  char note[360];
+} DirectInterval;
+
+/* ds_scene_probe_worst_case ()'s lower end of Ld (scene_probe.h: the physics and its limit) from
+ * the first harmonics at the finest and the coarsest period the fit used, the fit's Ld and the
+ * mean's M = Ld + Lg. */
+static void
+direct_interval (const Equation *eq, guint n_eq, const DsStripeModel *g, double sigma, guint width,
+                 double ld_fit, double total, DirectInterval *out)
+{
+  memset (out, 0, sizeof *out);
+  out->ratio = 1;
+  const Equation *f = NULL, *c = NULL;
+  for (guint i = 0; i < n_eq; i++) {
+    if (eq[i].n != 1)
+      continue;
+    if (!f || eq[i].period < f->period)
+      f = &eq[i];
+    if (!c || eq[i].period > c->period)
+      c = &eq[i];
+  }
+  if (!f || !c || !(c->period > 1.01 * f->period) || !(ld_fit > 0) || !(total > 0))
+    return;
+  double gf = model_gain (g, f->period, sigma, f->offset, width, 1), gc = model_gain (g, c->period, sigma, c->offset, width, 1);
+  if (!(gf > 0 && gc > 0))
+    return;
+  out->computed = TRUE;
+  double af = f->amplitude / gf, ac = c->amplitude / gc, sf = f->sigma / gf, sc = c->sigma / gc;
+  double noise = sqrt (sf * sf + sc * sc + DS_PROBE_PAIR_SCATTER * af * DS_PROBE_PAIR_SCATTER * af);
+  double drop = ac - af, lost_f = total - af, lost_c = total - ac, rho = f->period / c->period;
+  if (!(drop > 3 * noise)) {
+    g_snprintf (out->note, sizeof out->note,
+                "the modulation falls by %.1f %% from %g px to %g px, within the noise (%.1f %%): no kernel at the edge "
+                "of what the pilot resolves; one narrower than every period would not show at all (the method's limit)",
+                100 * drop / af, c->period, f->period, 300 * noise / af);
+    return;
+  }
+  if (!(lost_c > 3 * noise) || !(lost_c / lost_f > rho * rho)) {
+    out->unbounded = TRUE;
+    g_snprintf (out->note, sizeof out->note,
+                "the modulation falls by %.1f %% from %g px to %g px while the mean holds only %.1f %% more light than "
+                "the modulation at %g px: scattered light narrower than any kernel with a 1/k tail keeps the stripes, "
+                "and the direct light could be any part of the %.0f DN modulated at %g px",
+                100 * drop / af, c->period, f->period, 100 * lost_c / af, c->period, af, f->period);
+    return;
+  }
+  double r = lost_c / lost_f, lo = 1e-4, hi = 1e4;
+  if (r >= 1)
+    return;
+  /* lost_share (k rho) / lost_share (k) rises from rho^2 (k -> 0) to 1 (k -> infinity). */
+  for (int i = 0; i < 100; i++) {
+    double k = sqrt (lo * hi);
+    if (lost_share (k * rho) / lost_share (k) < r)
+      lo = k;
+    else
+      hi = k;
+  }
+  double k = sqrt (lo * hi), scattered = lost_f / lost_share (k), ld = total - scattered;
+  out->kernel_px = k * f->period / (2 * G_PI);
+  if (!(ld > 0)) {
+    out->unbounded = TRUE;
+    g_snprintf (out->note, sizeof out->note,
+                "the modulation falls by %.1f %% from %g px to %g px: one kernel of %.2f px with a 1/k tail would hold all "
+                "the light the mean shows, so the direct light could be any part of the %.0f DN modulated at %g px",
+                100 * drop / af, c->period, f->period, out->kernel_px, af, f->period);
+    return;
+  }
+  out->ratio = MIN (1.0, ld / ld_fit);
+  g_snprintf (out->note, sizeof out->note,
+              "the modulation falls by %.1f %% from %g px to %g px: if all the scattered light shares one kernel with a 1/k "
+              "tail (%.2f px), it keeps %.0f %% of its stripes at %g px and Ld is %.0f %% of the fit's; a second kernel "
+              "narrower than every period would not show (the method's limit)",
+              100 * drop / af, c->period, f->period, out->kernel_px, 100 * (1 - lost_share (k)), f->period,
+              100 * out->ratio);
+}
+
+gboolean
+ds_scene_probe_worst_case (const DsSceneProbe *p, DsSceneProbe *worst)
+{
+  if (!p->narrow_unresolved || !p->ld_interval || p->ld_unbounded || !(p->ld_lower < p->ld_mean) ||
+      !(p->ld_lower > 0) || !(p->worst_kernel_px > 0))
+    return FALSE;
+  *worst = *p;
+  double total = p->ld_mean + p->lg_mean;
+  worst->ld_mean = p->ld_lower;
+  worst->lg_mean = total - p->ld_lower;
+  worst->leak_per_px = 0;
+  worst->leak_measured = TRUE;
+  worst->narrow_fraction = worst->lg_mean / worst->ld_mean;
+  worst->narrow_kernel_px = p->worst_kernel_px;
+  worst->narrow_shape = 0.5;
+  return TRUE;
+}
+
 gboolean
 ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **error)
 {
@@ -828,8 +935,19 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
   }
   out->ld_spread = den > 0 && num > den ? MIN (num / den, 25.0) : 1.0;
   out->ld_spread = MIN (out->ld_spread * spread_across_columns (&fine, &out->geometry, out), 25.0);
+  DirectInterval interval;
+  direct_interval (eq_all, n_all, &out->geometry, sigma, l0->width, out->ld_mean, out->ld_mean + out->lg_mean,
+                   &interval);
   count_clipped_places (out, &places, fr->geometry.black_level, m);
   narrow_verdict (fr, finer_used, out);
+  if (out->narrow_unresolved && two && interval.computed) {
+    out->ld_interval = TRUE;
+    out->ld_unbounded = interval.unbounded;
+    out->ld_lower = interval.unbounded ? 0 : interval.ratio * out->ld_mean;
+    out->worst_kernel_px = interval.unbounded ? 0 : interval.kernel_px;
+    g_strlcpy (out->interval_note, interval.note, sizeof out->interval_note);
+  } else
+    out->ld_lower = out->ld_mean;
   ds_column_stats_clear (&fine.stats);
   ds_column_stats_clear (&coarse.stats);
   return TRUE;

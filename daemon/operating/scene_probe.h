@@ -91,6 +91,11 @@ G_BEGIN_DECLS
  * below this (above, the kernel is narrower than the pilot resolves: a lower bound). */
 #define DS_PROBE_NARROW_MIN_LG 0.03
 #define DS_PROBE_NARROW_MAX_AT_FINEST 0.25
+/* What objects in the column profile put between the first harmonics of two periods, as a share
+ * of the modulation (docs/accuracy.md: gen-3-07's pair differs by 1.7 % +- 1.0 %): a drop of the
+ * modulation from the coarsest period to the finest under 3 times this (with the fit's noise) is
+ * no sign of a kernel at the edge of what the pilot resolves. */
+#define DS_PROBE_PAIR_SCATTER 0.01
 
 /* The finer pilot periods for period P and blur sigma (0 when unknown): P/2 and P/4 as long as they
  * are resolvable (above), rounded to 1/100 px (a projector's PERIOD register unit). Returns how
@@ -157,6 +162,14 @@ typedef struct {
   gboolean narrow_beyond;         /* a kernel still keeping > DS_PROBE_NARROW_MAX_AT_FINEST of Ld at the
                                      finest period: not fitted, a lower bound */
   char narrow_note[320];          /* why (narrow_unresolved), or what the finer periods showed */
+  /* Where narrow_unresolved: how low the direct light can be (ld_mean is the interval's upper end,
+   * ds_scene_probe_worst_case () the scene at its lower end). */
+  gboolean ld_interval;           /* ld_lower, unbounded and interval_note are set */
+  gboolean ld_unbounded;          /* the frames show scattered light that keeps the stripes more than any
+                                     kernel of the bound's family: no lower end (targets are refused) */
+  double ld_lower;                /* DN; ld_mean when the frames show no narrow kernel at the edge */
+  double worst_kernel_px;         /* the single kernel at the lower end (w, nu = 1/2); 0 = none */
+  char interval_note[360];        /* how the lower end was found, or why there is none */
   double noise_var0;              /* DN^2 of one frame without signal (read, dark, quantisation) */
   double noise_gain;              /* DN^2 per DN of signal (shot noise) */
   double dark_dn;
@@ -175,6 +188,29 @@ typedef struct {
 } DsSceneProbe;
 
 gboolean ds_scene_probe_measure (const DsProbeFrames *frames, DsSceneProbe *out, GError **error);
+
+/* The interval of the direct light where scattered light narrower than the periods measured
+ * could pass for direct light (narrow_unresolved). The modulation of the first harmonic at a
+ * period Q, after the calibrated blur, is A(Q) = Ld + S T(Q), S the scattered light and T its
+ * kernel's MTF at 1/Q, 0 <= T <= 1 and rising with Q; the mean holds M = Ld + S. So the finest
+ * period bounds Ld from above (T >= 0), and the drop of the modulation from the coarsest period
+ * to the finest, A(Q_c) - A(Q_f) = S (T(Q_c) - T(Q_f)), bounds the leak from below. Nothing in
+ * the frames bounds Ld from below: light scattered within a fraction of a pixel keeps the stripes
+ * at every period the rig can project (T = 1 at all of them) and adds to A exactly as Ld does. The
+ * lower end therefore rests on stated physics: all the scattered light shares one kernel whose
+ * displacement density is finite at 0 (no share of the light leaves the medium where it
+ * entered), so its MTF falls no slower than 1/k; the slowest such form, (1 + 2 k^2)^-1/2
+ * (kernel_mtf with nu = 1/2, k = 2 pi w / Q), hides the most light below the finest period. The
+ * light the stripes lost by each period, M - A(Q) = S (1 - T(Q)), gives T's ratio between the two
+ * periods without Ld, hence w, hence S and Ld = M - S. A drop steeper than any such kernel
+ * (r = (M - A(Q_c)) / (M - A(Q_f)) <= (Q_f / Q_c)^2, or A(Q_c) at M) leaves no lower end
+ * (ld_unbounded). A drop within the noise says nothing about a kernel narrower than every period
+ * (the method's limit, docs/accuracy.md): the interval is then [ld_mean, ld_mean] and the flag
+ * alone says so. Light kept by a second, narrower kernel than the one the drop shows is not
+ * bounded either: that too is the limit, stated in interval_note.
+ * Returns FALSE when the probe has no finite lower end below ld_mean; otherwise *worst is the
+ * probe with Ld at ld_lower, all the rest of the mean scattered by that kernel. */
+gboolean ds_scene_probe_worst_case (const DsSceneProbe *probe, DsSceneProbe *worst);
 
 /* The transfer exp(alpha Q / n) (1 + beta M_w (Q / n)) - 1 of harmonic n at period Q: the part of
  * the apparent Ld that is scattered light keeping the stripes. */
