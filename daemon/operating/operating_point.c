@@ -167,14 +167,31 @@ ds_scene_probe_max_exposure (const DsSceneProbe *p)
   return room > 0 ? MIN (unknown_cap, p->exposure_us * room / p->bright_dn) : 0;
 }
 
+/* The scene at both ends of the probe's interval of the direct light (scene_probe.h): `lower` the
+ * probe's own (the prediction's lower end), `upper` its worst case when the interval has a finite
+ * lower end of Ld, `unbounded` when it has none. */
+typedef struct {
+  DsErrorModel *lower, *upper;
+  gboolean unbounded;
+} Models;
+
 static gboolean
-predict (const DsOperatingModel *m, DsErrorModel *errors, const DsSceneProbe *probe, const DsRigTiming *t,
+predict (const DsOperatingModel *m, const Models *em, const DsSceneProbe *probe, const DsRigTiming *t,
          guint w, guint h, DsEstimator e, guint n, guint mm, double factor, double period,
          DsOperatingPoint *p)
 {
   memset (p, 0, sizeof *p);
-  if (!ds_error_model_predict (errors, e, n, mm, factor, period, &p->parts, NULL))
+  if (!ds_error_model_predict (em->lower, e, n, mm, factor, period, &p->parts, NULL))
     return FALSE;
+  DsErrorParts worst;
+  if (em->unbounded)
+    p->predicted_error_upper = INFINITY;
+  else if (em->upper)
+    p->predicted_error_upper = ds_error_model_predict (em->upper, e, n, mm, factor, period, &worst, NULL)
+                                 ? MAX (m->scale * worst.total, m->scale * p->parts.total)
+                                 : INFINITY;
+  else
+    p->predicted_error_upper = m->scale * p->parts.total;
   p->estimator = e;
   p->phases = n;
   p->averages = mm;
@@ -191,6 +208,23 @@ typedef struct {
   DsOperatingPoint p;
 } Best;
 
+/* The more accurate of two points is the one whose error can be the smaller: the upper end of its
+ * interval first, the lower end between equal upper ends (both unbounded, or no interval). */
+static gboolean
+more_accurate (const DsOperatingPoint *a, const DsOperatingPoint *b)
+{
+  if (a->predicted_error_upper != b->predicted_error_upper)
+    return a->predicted_error_upper < b->predicted_error_upper;
+  return a->predicted_error < b->predicted_error;
+}
+
+/* A point meets a target only with the upper end of its interval. */
+static gboolean
+meets_target (const DsOperatingPoint *p, double target)
+{
+  return target <= 0 || p->predicted_error_upper <= target;
+}
+
 /* The rule: with a target, the fastest point meeting it (ties: the more accurate); otherwise the
  * most accurate (ties: the faster). */
 static void
@@ -201,10 +235,10 @@ consider (Best *b, const DsOperatingPoint *p, double target)
     better = TRUE;
   else if (target > 0)
     better = p->predicted_time_ms < b->p.predicted_time_ms ||
-             (p->predicted_time_ms == b->p.predicted_time_ms && p->predicted_error < b->p.predicted_error);
+             (p->predicted_time_ms == b->p.predicted_time_ms && more_accurate (p, &b->p));
   else
-    better = p->predicted_error < b->p.predicted_error ||
-             (p->predicted_error == b->p.predicted_error && p->predicted_time_ms < b->p.predicted_time_ms);
+    better = more_accurate (p, &b->p) ||
+             (!more_accurate (&b->p, p) && p->predicted_time_ms < b->p.predicted_time_ms);
   if (better) {
     b->p = *p;
     b->found = TRUE;
@@ -250,7 +284,7 @@ compare_candidates (const void *a, const void *b)
  * the same time), and the ones beyond the budget are only visited when the target is not met
  * within it. */
 static void
-search (const DsOperatingModel *m, DsErrorModel *errors, const DsSceneProbe *probe, const DsRigTiming *t,
+search (const DsOperatingModel *m, const Models *errors, const DsSceneProbe *probe, const DsRigTiming *t,
         guint w, guint h, const guint *phases, guint n_phases, const guint *averages, guint n_averages,
         const double *factors, guint n_factors, double period, double target, double budget, Search *s)
 {
@@ -276,7 +310,7 @@ search (const DsOperatingModel *m, DsErrorModel *errors, const DsSceneProbe *pro
     DsOperatingPoint p;
     if (!predict (m, errors, probe, t, w, h, c->estimator, c->phases, c->averages, c->factor, period, &p))
       continue;
-    gboolean meets = target <= 0 || p.predicted_error <= target;
+    gboolean meets = meets_target (&p, target);
     if (in_budget)
       consider (&s->least_in_budget, &p, 0);
     if (meets && target > 0) {
@@ -292,8 +326,13 @@ search (const DsOperatingModel *m, DsErrorModel *errors, const DsSceneProbe *pro
 static void
 append_point (GString *s, const DsOperatingPoint *p)
 {
-  g_string_append_printf (s, "%.4f (%s, N=%u, M=%u, %.0f µs", p->predicted_error, ds_estimator_name (p->estimator),
-                          p->phases, p->averages, p->exposure_us);
+  g_string_append_printf (s, "%.4f", p->predicted_error);
+  if (isinf (p->predicted_error_upper))
+    g_string_append (s, " to unbounded");
+  else if (p->predicted_error_upper > p->predicted_error)
+    g_string_append_printf (s, " to %.4f", p->predicted_error_upper);
+  g_string_append_printf (s, " (%s, N=%u, M=%u, %.0f µs", ds_estimator_name (p->estimator), p->phases, p->averages,
+                          p->exposure_us);
   g_string_append_printf (s, ", period %g px: %.0f ms; noise %.4f, sampling %.4f, scattered stripes %+.4f)",
                           p->period_px, p->predicted_time_ms, p->parts.noise, p->parts.sampling,
                           p->parts.scattered_stripes);
@@ -303,7 +342,7 @@ append_point (GString *s, const DsOperatingPoint *p)
  * (noise only falls with either; the systematic part does not change). Whether a target can be
  * met at all thus costs one prediction per estimator and N. */
 static void
-best_reachable (const DsOperatingModel *m, DsErrorModel *errors, const DsSceneProbe *probe, const DsRigTiming *t,
+best_reachable (const DsOperatingModel *m, const Models *errors, const DsSceneProbe *probe, const DsRigTiming *t,
                 guint w, guint h, guint averages, double factor, double period, double target, Best *least,
                 Best *meeting)
 {
@@ -313,7 +352,7 @@ best_reachable (const DsOperatingModel *m, DsErrorModel *errors, const DsScenePr
       if (!predict (m, errors, probe, t, w, h, all_estimators[ie], m->phases[in], averages, factor, period, &p))
         continue;
       consider (least, &p, 0);
-      if (target > 0 && p.predicted_error <= target)
+      if (target > 0 && meets_target (&p, target))
         consider (meeting, &p, 1);
     }
 }
@@ -330,7 +369,7 @@ largest (const guint *v, guint n)
 /* What would reach a target no candidate reaches: more frames than the candidates hold, more
  * light (which the clip level may forbid), another stripe period. */
 static void
-append_remedies (GString *msg, const DsOperatingModel *m, DsErrorModel *errors, const DsSceneProbe *probe,
+append_remedies (GString *msg, const DsOperatingModel *m, const Models *errors, const DsSceneProbe *probe,
                  const DsRigTiming *t, guint w, guint h, double longest, double target, double budget)
 {
   static const guint more_m[] = { 32, 64 };
@@ -403,6 +442,9 @@ ds_operating_point_choose (const DsOperatingModel *m, DsErrorModel *errors, cons
                  "lower the gain or the illumination", probe->saturation_dn);
     return FALSE;
   }
+  DsSceneProbe worst;
+  g_autoptr (DsErrorModel) upper = ds_scene_probe_worst_case (probe, &worst) ? ds_error_model_new_like (errors, &worst) : NULL;
+  const Models em = { errors, upper, probe->narrow_unresolved && probe->ld_interval && probe->ld_unbounded };
   double longest = 0;
   for (guint i = 0; i < n_factors; i++)
     longest = MAX (longest, factors[i]);
@@ -410,14 +452,14 @@ ds_operating_point_choose (const DsOperatingModel *m, DsErrorModel *errors, cons
   gboolean reachable = TRUE;
   if (target > 0) {
     Best least = { 0 }, meets = { 0 };
-    best_reachable (m, errors, probe, t, w, h, largest (m->averages, m->n_averages), longest, 0, target, &least,
+    best_reachable (m, &em, probe, t, w, h, largest (m->averages, m->n_averages), longest, 0, target, &least,
                     &meets);
     reachable = meets.found;
     if (!reachable && budget <= 0)
       s.least_in_budget = least;
   }
   if (reachable || budget > 0)
-    search (m, errors, probe, t, w, h, m->phases, m->n_phases, m->averages, m->n_averages, factors, n_factors, 0,
+    search (m, &em, probe, t, w, h, m->phases, m->n_phases, m->averages, m->n_averages, factors, n_factors, 0,
             reachable ? target : INFINITY, budget, &s);
   if (reachable && s.in_budget_meeting.found) {
     *out = s.in_budget_meeting.p;
@@ -436,7 +478,9 @@ ds_operating_point_choose (const DsOperatingModel *m, DsErrorModel *errors, cons
   if (s.least_in_budget.found) {
     g_string_append (msg, "; the best reachable is ");
     append_point (msg, &s.least_in_budget.p);
-    if (s.least_in_budget.p.lower_bound)
+    if (s.least_in_budget.p.lower_bound && isinf (s.least_in_budget.p.predicted_error_upper))
+      g_string_append (msg, ", a lower bound whose upper end the pilot cannot bound");
+    else if (s.least_in_budget.p.lower_bound)
       g_string_append (msg, ", a lower bound");
   } else if (budget > 0)
     g_string_append_printf (msg, "; the fastest candidate does not fit a budget of %.0f ms", budget);
@@ -446,9 +490,11 @@ ds_operating_point_choose (const DsOperatingModel *m, DsErrorModel *errors, cons
     g_string_append_printf (msg, ". A time budget of %.0f ms would reach it: ", ceil (s.meeting_any_time.p.predicted_time_ms));
     append_point (msg, &s.meeting_any_time.p);
   } else if (target > 0)
-    append_remedies (msg, m, errors, probe, t, w, h, longest, target, budget);
+    append_remedies (msg, m, &em, probe, t, w, h, longest, target, budget);
   if (target > 0 && !probe->leak_measured)
     g_string_append_printf (msg, " (scattered light that keeps the stripes: %s)", probe->leak_note);
+  else if (target > 0 && probe->narrow_unresolved && probe->ld_interval)
+    g_string_append_printf (msg, " (%s; %s)", probe->narrow_note, probe->interval_note);
   else if (target > 0 && probe->narrow_unresolved)
     g_string_append_printf (msg, " (%s)", probe->narrow_note);
   g_set_error_literal (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT, msg->str);
@@ -467,6 +513,12 @@ ds_operating_report_to_json (const DsOperatingReport *r, JsonBuilder *b)
   DBL ("target_error", r->target_error);
   DBL ("time_budget_ms", r->time_budget_ms);
   DBL ("predicted_error", p->predicted_error);
+  /* The interval's upper end (docs/protocol.md): null when the pilot cannot bound it. */
+  json_builder_set_member_name (b, "predicted_error_upper");
+  if (isfinite (p->predicted_error_upper))
+    json_builder_add_double_value (b, p->predicted_error_upper);
+  else
+    json_builder_add_null_value (b);
   DBL ("predicted_time_ms", p->predicted_time_ms);
   DBL ("scale", r->scale);
   json_builder_set_member_name (b, "parts");
@@ -524,6 +576,12 @@ ds_operating_report_to_json (const DsOperatingReport *r, JsonBuilder *b)
   DBL ("narrow_kernel_px", pr->narrow_kernel_px);
   DBL ("narrow_scattered_fraction", pr->narrow_fraction);
   STR ("narrow_kernel_note", pr->narrow_note);
+  json_builder_set_member_name (b, "direct_dn_lower");
+  if (pr->ld_interval && pr->ld_unbounded)
+    json_builder_add_null_value (b);
+  else
+    json_builder_add_double_value (b, pr->ld_interval ? pr->ld_lower : pr->ld_mean);
+  STR ("direct_interval_note", pr->ld_interval ? pr->interval_note : "");
   DBL ("clip_dn", pr->saturation_dn);
   BOOL ("clip_known", pr->clip_known);
   DBL ("saturated_fraction", pr->saturated_fraction);

@@ -47,7 +47,10 @@ typedef struct {
   guint phases, averages;
   double exposure_us;
   double period_px;            /* the stripe period the prediction is for */
-  double predicted_error;      /* relative RMSE of transmissive, x the model's scale */
+  double predicted_error;      /* relative RMSE of transmissive, x the model's scale: the lower end */
+  double predicted_error_upper; /* the upper end, with Ld at the lower end of the probe's interval
+                                   (ds_scene_probe_worst_case); INFINITY when the pilot cannot bound it;
+                                   predicted_error when there is no interval. Targets are met on it */
   DsErrorParts parts;          /* its parts, without the scale */
   double predicted_time_ms;
   gboolean lower_bound;        /* the scattered stripes could not be measured, or no period finer than P
@@ -61,7 +64,9 @@ typedef struct {
 double ds_scene_probe_max_exposure (const DsSceneProbe *probe);
 
 /* target_error <= 0: no target; time_budget_ms <= 0: no budget. With a target: the fastest
- * candidate meeting it within the budget; with only a budget: the most accurate within it.
+ * candidate meeting it within the budget; with only a budget: the most accurate within it. Where
+ * the probe's direct light has an interval (scene_probe.h), a candidate meets a target only with
+ * the upper end of its prediction, and "most accurate" is by the upper end first.
  * Neither possible: BAD_ARGUMENT with the best reachable error and what would reach the
  * target (a larger budget, a finer stripe period, a longer exposure), each with its prediction;
  * *out is then the best reachable point (predicted_error INFINITY when none fits the budget). */

@@ -14,6 +14,7 @@
 #include "daemon/operating/error_model.h"
 #include "daemon/operating/operating_point.h"
 #include "daemon/operating/scene_probe.h"
+#include "daemon/protocol/protocol.h"
 
 typedef struct {
   double period, duty, blur;  /* square stripes, black level 0 */
@@ -236,6 +237,112 @@ test_clear (void)
   g_assert_false (p.narrow_unresolved);
 }
 
+/* The scene itself as the error model takes it: the true Ld and scattered light, the Gaussian
+ * kernel as the closed form's limit nu -> infinity ((1 + k^2 / nu)^-nu -> exp (-k^2), k = 2 pi w / Q:
+ * w = s / sqrt 2), the probe's noise and blur. Its prediction is the error the estimators make on
+ * the true scene, which the operating point's upper end must cover. */
+static void
+true_scene (const Scene *s, const DsSceneProbe *measured, DsSceneProbe *t)
+{
+  *t = *measured;
+  t->ld_mean = s->ld;
+  t->lg_mean = s->lg_wide + s->beta * s->ld;
+  t->ld_spread = 1;
+  t->leak_per_px = 0;
+  t->leak_measured = TRUE;
+  t->narrow_fraction = s->beta;
+  t->narrow_kernel_px = s->kernel_px / G_SQRT2;
+  t->narrow_shape = 1000;
+  t->narrow_unresolved = FALSE;
+}
+
+/* All the scattered light in one Gaussian kernel (sigma 2 px, 60 % of Ld), P = 8 px and 2P alone
+ * (an illuminator that cannot go finer): the kernel keeps 29 % of its stripes at P and 73 % at 2P.
+ * The interval must hold the truth: Ld at most the modulation at the finest period (scattering
+ * only adds modulation) and at least ld_lower, the leak at P at most the worst case's. A target
+ * under the truth's leak is refused whatever the point; one above the best point's upper end is
+ * chosen, and the true error of the point chosen meets it. */
+static void
+test_interval_single_kernel (void)
+{
+  const Scene s = { .period = 8, .duty = 0.5, .blur = 0.5, .ld = 1000, .lg_wide = 0, .dark = 40,
+                    .beta = 0.6, .kernel_px = 2 };
+  DsSceneProbe p, worst, t;
+  probe (&s, TRUE, FALSE, &p);
+  double truth = truth_leak (&s, s.period), at_finest = p.ld_mean * (1 + ds_scene_probe_leak (&p, s.period, 1));
+  g_test_message ("Ld %.1f to %.1f (modulation at P %.1f), truth %.1f; leak at P %.4f (truth %.4f); %s", p.ld_lower,
+                  p.ld_mean, at_finest, s.ld, ds_scene_probe_leak (&p, s.period, 1), truth, p.interval_note);
+  g_assert_true (p.narrow_unresolved);
+  g_assert_true (p.ld_interval);
+  g_assert_false (p.ld_unbounded);
+  g_assert_cmpfloat (p.ld_lower, <=, s.ld);
+  g_assert_cmpfloat (s.ld, <=, at_finest);
+  g_assert_true (ds_scene_probe_worst_case (&p, &worst));
+  double leak_hi = ds_scene_probe_leak (&worst, s.period, 1);
+  g_test_message ("worst case: leak at P %.4f, kernel %.2f px", leak_hi, worst.narrow_kernel_px);
+  g_assert_cmpfloat (leak_hi, >=, truth);
+  /* The worst case keeps the modulation measured at P (the raw first harmonic; the fit's differs by its
+   * blur term): it is the same frames' scene. */
+  g_assert_cmpfloat (fabs (worst.ld_mean * (1 + leak_hi) - at_finest), <, 0.03 * at_finest);
+
+  DsOperatingModel m;
+  ds_operating_model_init (&m);
+  DsRigTiming timing;
+  ds_rig_timing_init (&timing);
+  DsSeparationParams params;
+  ds_separation_params_init (&params, 4);
+  g_autoptr (DsErrorModel) em = ds_error_model_new (&p, &params);
+  true_scene (&s, &p, &t);
+  g_autoptr (DsErrorModel) truth_em = ds_error_model_new (&t, &params);
+  DsOperatingPoint op;
+  double target = 0.9 * truth;
+  g_autoptr (GError) error = NULL;
+  gboolean chosen = ds_operating_point_choose (&m, em, &p, &timing, W, H, target, 0, &op, &error);
+  g_test_message ("target %.4f: %s", target, chosen ? "chosen" : error->message);
+  g_assert_false (chosen);
+  g_assert_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT);
+  g_assert_nonnull (strstr (error->message, " to "));
+  g_assert_nonnull (strstr (error->message, "one kernel"));
+  g_clear_error (&error);
+  g_assert_cmpfloat (op.predicted_error_upper, >, op.predicted_error);
+  target = 1.3 * op.predicted_error_upper;
+  g_assert_true (ds_operating_point_choose (&m, em, &p, &timing, W, H, target, 0, &op, &error));
+  g_assert_no_error (error);
+  g_assert_cmpfloat (op.predicted_error_upper, <=, target);
+  DsErrorParts real;
+  g_assert_true (ds_error_model_predict (truth_em, op.estimator, op.phases, op.averages,
+                                         op.exposure_us / p.exposure_us, 0, &real, NULL));
+  g_test_message ("target %.4f: %s N=%u M=%u, predicted %.4f to %.4f, true error %.4f", target,
+                  ds_estimator_name (op.estimator), op.phases, op.averages, op.predicted_error, op.predicted_error_upper,
+                  real.total);
+  g_assert_cmpfloat (real.total, <=, target);
+}
+
+/* No medium: no interval is claimed, nothing is refused that the noise allows. */
+static void
+test_interval_clear (void)
+{
+  const Scene s = { .period = 8, .duty = 0.5, .blur = 0.5, .ld = 1000, .lg_wide = 0, .dark = 40,
+                    .beta = 0, .kernel_px = 0 };
+  DsSceneProbe p, worst;
+  probe (&s, TRUE, FALSE, &p);
+  g_assert_false (p.narrow_unresolved);
+  g_assert_false (p.ld_interval);
+  g_assert_false (ds_scene_probe_worst_case (&p, &worst));
+  DsOperatingModel m;
+  ds_operating_model_init (&m);
+  DsRigTiming timing;
+  ds_rig_timing_init (&timing);
+  DsSeparationParams params;
+  ds_separation_params_init (&params, 4);
+  g_autoptr (DsErrorModel) em = ds_error_model_new (&p, &params);
+  DsOperatingPoint op;
+  g_autoptr (GError) error = NULL;
+  g_assert_true (ds_operating_point_choose (&m, em, &p, &timing, W, H, 0.05, 0, &op, &error));
+  g_assert_no_error (error);
+  g_assert_cmpfloat (op.predicted_error_upper, ==, op.predicted_error);
+}
+
 int
 main (int argc, char **argv)
 {
@@ -245,5 +352,7 @@ main (int argc, char **argv)
   g_test_add_func ("/probe-narrow/period-too-fine", test_period_too_fine);
   g_test_add_func ("/probe-narrow/narrower-than-finest", test_narrower_than_finest);
   g_test_add_func ("/probe-narrow/clear", test_clear);
+  g_test_add_func ("/probe-narrow/interval-single-kernel", test_interval_single_kernel);
+  g_test_add_func ("/probe-narrow/interval-clear", test_interval_clear);
   return g_test_run ();
 }
