@@ -251,12 +251,17 @@ write_md (GString *md, const char *title, GPtrArray *scenes, gboolean generated)
     const DsSceneProbe *p = &s->probe.probe;
     for (guint j = 0; j < s->outcomes->len; j++) {
       const DsValidateOutcome *o = &g_array_index (s->outcomes, DsValidateOutcome, j);
-      if (j == 0)
-        g_string_append_printf (md, "| %s | %.0f (%.0f), %.0f (%.0f), %.2f px %s, %.1f %%%s |", s->name, p->ld_mean,
+      if (j == 0) {
+        /* Where the probe bounds Ld from below too (scene_probe.h): its lower end. */
+        g_autofree char *interval = !p->ld_interval ? g_strdup ("")
+                                    : p->ld_unbounded ? g_strdup (", Ld not bounded below")
+                                    : p->ld_lower < p->ld_mean ? g_strdup_printf (", Ld ≥ %.0f", p->ld_lower)
+                                    : g_strdup ("");
+        g_string_append_printf (md, "| %s | %.0f (%.0f), %.0f (%.0f), %.2f px %s, %.1f %%%s%s |", s->name, p->ld_mean,
                                 s->probe.truth_ld_mean, p->lg_mean, s->probe.truth_lg_mean, p->geometry.blur_px,
                                 ds_blur_source_name (p->blur_source), 100 * ds_scene_probe_leak (p, p->geometry.period_px, 1),
-                                p->leak_measured ? "" : " (not measured)");
-      else
+                                p->leak_measured ? "" : " (not measured)", interval);
+      } else
         g_string_append (md, "| | |");
       if (o->target_error > 0)
         g_string_append_printf (md, " target %g |", o->target_error);
@@ -271,8 +276,14 @@ write_md (GString *md, const char *title, GPtrArray *scenes, gboolean generated)
       g_string_append_printf (md, " %s%s N=%u M=%u %.0f µs |", o->refused ? "refused; best: " : "",
                               ds_estimator_name (o->point.estimator), o->point.phases, o->point.averages,
                               o->point.exposure_us);
-      g_string_append_printf (md, " %.4f%s (%.4f, %.4f, %+.4f) | %.4f | %s |\n", o->point.predicted_error,
-                              o->point.lower_bound ? " ≥" : "", o->point.parts.noise, o->point.parts.sampling,
+      /* A lower bound's upper end, where the probe bounds the direct light (scene_probe.h). */
+      g_autofree char *upper = !o->point.lower_bound ? g_strdup ("")
+                               : isinf (o->point.predicted_error_upper) ? g_strdup (" to unbounded")
+                               : o->point.predicted_error_upper > o->point.predicted_error
+                                 ? g_strdup_printf (" to %.4f", o->point.predicted_error_upper)
+                                 : g_strdup ("");
+      g_string_append_printf (md, " %.4f%s%s (%.4f, %.4f, %+.4f) | %.4f | %s |\n", o->point.predicted_error,
+                              o->point.lower_bound ? " ≥" : "", upper, o->point.parts.noise, o->point.parts.sampling,
                               o->point.parts.scattered_stripes, o->achieved, ds_verdict_name (o->verdict));
     }
   }

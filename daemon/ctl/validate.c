@@ -262,6 +262,7 @@ ds_validate_config (const DsSimRig *rig, const DsValidateScene *vs, DsErrorModel
   p->exposure_us = vs->probe.exposure_us * factor;
   p->period_px = vs->probe.geometry.period_px;
   p->predicted_error = model->scale * p->parts.total;
+  p->predicted_error_upper = p->predicted_error; /* a fixed configuration: the probe's own scene only */
   p->predicted_time_ms = ds_rig_timing_set_ms (timing, vs->probe.width, vs->probe.height, phases, averages,
                                                p->exposure_us, TRUE);
   p->lower_bound = !vs->probe.leak_measured || vs->probe.narrow_unresolved ||
