@@ -43,6 +43,56 @@ bool_of (JsonObject *o, const char *name)
   return o ? json_object_get_boolean_member_with_default (o, name, FALSE) : FALSE;
 }
 
+/* "by a set at 07:51:02 UTC (4 s ago), mean 12.3 DN over 1 frame at 5000 µs, 0 dB" */
+static char *
+describe_dark_frame (JsonObject *d)
+{
+  const char *taken = str_of (d, "taken_utc");
+  g_autoptr (GDateTime) t = taken ? g_date_time_new_from_iso8601 (taken, NULL) : NULL;
+  g_autofree char *when = t ? g_date_time_format (t, "%Y-%m-%d %H:%M:%S UTC") : g_strdup ("?");
+  g_autofree char *mean = has_number (d, "mean_dn")
+                              ? g_strdup_printf ("%.1f DN", json_object_get_double_member (d, "mean_dn"))
+                              : g_strdup ("no finite level");
+  gint64 frames = int_of (d, "frames");
+  return g_strdup_printf ("%s at %s (%.0f s ago), mean %s over %" G_GINT64_FORMAT " frame%s at %g µs, %g dB",
+                          g_strcmp0 (str_of (d, "source"), "set") == 0 ? "by a set" : "by the dark command", when,
+                          has_number (d, "age_s") ? json_object_get_double_member (d, "age_s") : NAN, mean,
+                          frames, frames == 1 ? "" : "s",
+                          has_number (d, "exposure_us") ? json_object_get_double_member (d, "exposure_us") : NAN,
+                          has_number (d, "gain_db") ? json_object_get_double_member (d, "gain_db") : NAN);
+}
+
+/* Which dark frame the next set subtracts, and the last one measured. A daemon without the
+ * "dark" member says only whether it stores one. */
+static void
+print_dark (JsonObject *st)
+{
+  JsonObject *dark = member_object (st, "dark");
+  if (!dark) {
+    printf ("dark frame:   %s", bool_of (st, "has_dark") ? "stored (the dark command's)" : "none stored");
+    return;
+  }
+  const char *mode = str_of (dark, "mode");
+  JsonObject *last = member_object (dark, "last"), *stored = member_object (dark, "stored");
+  if (g_strcmp0 (mode, "per-set") == 0)
+    printf ("dark frame:   taken by every set (dark-frame on)");
+  else if (g_strcmp0 (mode, "stored") == 0)
+    printf ("dark frame:   the dark command's, subtracted from every set (dark-frame off)");
+  else if (stored)
+    printf ("dark frame:   NONE subtracted (dark-frame off; the stored one is for other exposure or gain)");
+  else
+    printf ("dark frame:   NONE subtracted (dark-frame off, no dark command run)");
+  if (last) {
+    g_autofree char *text = describe_dark_frame (last);
+    printf ("\n              last %s", text);
+  } else
+    printf ("; none taken yet");
+  if (stored && g_strcmp0 (str_of (last, "source"), "dark-command") != 0) {
+    g_autofree char *text = describe_dark_frame (stored);
+    printf ("\n              stored %s", text);
+  }
+}
+
 static char *
 format_bytes (double b)
 {
@@ -143,7 +193,7 @@ print_summary (JsonObject *st)
       }
     printf ("%s\n", strcmp (sep, ", ") == 0 ? ")" : "");
   }
-  printf ("dark frame:   %s", bool_of (st, "has_dark") ? "measured" : "none yet");
+  print_dark (st);
   if (has_number (st, "phase_offset_cycles"))
     printf ("; stripe phase offset %.3f cycles", json_object_get_double_member (st, "phase_offset_cycles"));
   printf ("\n");

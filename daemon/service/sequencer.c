@@ -61,6 +61,19 @@ release_devices (DsSequencer *seq, guint64 tag)
   ds_seq_emit (seq, DS_SEQUENCER_EVENT_CONTROL, tag, NULL, NULL, "devices released: another program may open the camera");
 }
 
+/* What the next set does about the dark (status "dark"): the running stream's settings in
+ * continuous mode, else the defaults. Under seq->lock. */
+static void
+update_dark_mode (DsSequencer *seq)
+{
+  const DsCaptureSettings *next =
+    seq->continuous && !seq->continuous_uses_defaults ? &seq->continuous_settings : &seq->defaults;
+  const DsDarkFrameInfo *stored = &seq->status.stored_dark;
+  seq->status.per_set_dark = next->dark_frame;
+  seq->status.stored_dark_applies = stored->taken && stored->exposure_us == next->exposure_us &&
+                                    stored->gain_db == next->gain_db;
+}
+
 static void
 acquire_devices (DsSequencer *seq, guint64 tag)
 {
@@ -237,6 +250,7 @@ thread_main (gpointer data)
       break;
     g_mutex_lock (&seq->lock);
     seq->status.continuous = seq->continuous;
+    update_dark_mode (seq);
     g_mutex_unlock (&seq->lock);
     ds_seq_set_state (seq, !seq->dev ? "released" : seq->need_reconnect ? "reconnecting"
                            : seq->continuous ? "continuous" : "idle");
@@ -274,6 +288,7 @@ ds_sequencer_new (DsDevicesOpenFunc open_devices, gpointer open_data,
   g_strlcpy (seq->status.state, "opening", sizeof seq->status.state);
   seq->status.phase_offset_cycles = NAN;
   seq->status.settings_ok = TRUE;
+  update_dark_mode (seq);
   seq->status.illuminator.applied_phase = -1;
   seq->status.illuminator.temperature_c = NAN;
   seq->status.heartbeat_us = g_get_monotonic_time ();

@@ -109,10 +109,27 @@ typedef enum {
 
 const char *ds_stage_name (DsStage stage);
 
+/* A dark frame as status reports it: what was measured, when, and by whom. */
+typedef struct {
+  gboolean taken;               /* FALSE: none yet */
+  gboolean by_set;              /* a set's own dark frame (dark_frame); else the dark command's */
+  gint64 taken_unix_us;         /* g_get_real_time () when its last frame was averaged in */
+  double mean_dn;               /* the mean of the dark frame subtracted, in DN */
+  guint frames;                 /* frames averaged into it */
+  double exposure_us, gain_db;
+} DsDarkFrameInfo;
+
 typedef struct {
   char state[32];               /* opening, idle, acquiring, continuous, reconnecting, failed */
   gboolean continuous;
-  gboolean has_dark;
+  gboolean has_dark;            /* a stored dark frame (the dark command's): stored_dark.taken */
+  /* Whether the next set takes its own dark frame: the running stream's settings in continuous
+   * mode, else the configured default (a capture may ask otherwise). */
+  gboolean per_set_dark;
+  DsDarkFrameInfo last_dark;    /* the last dark frame taken, by a set or the dark command */
+  DsDarkFrameInfo stored_dark;  /* the dark command's, subtracted from sets without their own at
+                                 * its exposure and gain */
+  gboolean stored_dark_applies; /* ... and it is taken at the next set's exposure and gain */
   guint pending;
   guint64 sets_done, sets_failed;
   DsFrameCounters frames;

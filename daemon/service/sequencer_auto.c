@@ -107,7 +107,7 @@ ds_seq_choose_operating_point (DsSequencer *seq, DsCaptureSettings *s, DsFrameCo
   pilot.averages = 1;
   pilot.phases = 2;
   guint64 before = c->acquired, dropped_before = c->dropped;
-  g_autoptr (DsImage) dark = ds_seq_acquire_dark (seq, &pilot, c, error);
+  g_autoptr (DsImage) dark = ds_seq_acquire_dark (seq, &pilot, c, NULL, error);
   if (!dark)
     return FALSE;
   if (!ds_seq_apply_pattern (seq, &pilot, error)) {

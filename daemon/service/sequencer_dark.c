@@ -1,10 +1,10 @@
 /* The dark frame: the illuminator off, M frames averaged, each checked for being exposed after
  * the light went off and for showing no stripes. */
+#include <math.h>
 #include <string.h>
 
 #include "daemon/protocol/protocol.h"
 #include "daemon/service/sequencer_private.h"
-#include "proc/image_stats.h"
 #include "proc/stripe_phase.h"
 
 gboolean
@@ -27,7 +27,8 @@ ds_seq_illuminator_off (DsSequencer *seq, DsFrameCounters *c, GError **error)
  * when the illuminator lit a phase again since (the previous set re-acquired its dropped last
  * phase after grabbing it); the illuminator is then turned off again for the frames after it. */
 DsImage *
-ds_seq_acquire_dark (DsSequencer *seq, const DsCaptureSettings *s, DsFrameCounters *c, GError **error)
+ds_seq_acquire_dark (DsSequencer *seq, const DsCaptureSettings *s, DsFrameCounters *c, double *mean_dn,
+                     GError **error)
 {
   gboolean off = FALSE, grab_only = FALSE;
   gint64 off_at = 0, carried_off_at = 0;
@@ -124,19 +125,41 @@ ds_seq_acquire_dark (DsSequencer *seq, const DsCaptureSettings *s, DsFrameCounte
   if (!dark)
     return NULL;
   dark->bit_depth = bit_depth;
+  double total = 0; /* of the values stored: the mean of what is subtracted */
   for (guint y = 0; y < h; y++) {
     void *row = ds_image_row (dark, y);
     for (guint x = 0; x < w; x++) {
       double v = sum[(gsize) y * w + x] / got;
-      if (type == DS_SAMPLE_F32)
+      if (type == DS_SAMPLE_F32) {
         ((float *) row)[x] = (float) v;
-      else if (type == DS_SAMPLE_U16)
+        total += isfinite (v) ? (float) v : 0;
+      } else if (type == DS_SAMPLE_U16) {
         ((guint16 *) row)[x] = (guint16) CLAMP (v + 0.5, 0, 65535);
-      else
+        total += ((guint16 *) row)[x];
+      } else {
         ((guint8 *) row)[x] = (guint8) CLAMP (v + 0.5, 0, 255);
+        total += ((guint8 *) row)[x];
+      }
     }
   }
+  if (mean_dn)
+    *mean_dn = w && h ? total / ((double) w * h) : NAN;
   return dark;
+}
+
+void
+ds_seq_note_dark (DsSequencer *seq, const DsCaptureSettings *s, double mean_dn, gboolean by_set)
+{
+  DsDarkFrameInfo info = { .taken = TRUE, .by_set = by_set, .taken_unix_us = g_get_real_time (),
+                           .mean_dn = mean_dn, .frames = s->averages, .exposure_us = s->exposure_us,
+                           .gain_db = s->gain_db };
+  g_mutex_lock (&seq->lock);
+  seq->status.last_dark = info;
+  if (!by_set) {
+    seq->status.stored_dark = info;
+    seq->status.has_dark = TRUE;
+  }
+  g_mutex_unlock (&seq->lock);
 }
 
 void
@@ -145,11 +168,12 @@ ds_seq_run_dark (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag)
   DsFrameCounters c = { 0 };
   g_autoptr (GError) error = NULL;
   DsImage *dark = NULL;
+  double mean = NAN;
   if (!ds_seq_ensure_camera (seq, s, &error)) {
     g_prefix_error (&error, "camera: ");
     ds_seq_fatal_device_error (seq, error);
   } else
-    dark = ds_seq_acquire_dark (seq, s, &c, &error);
+    dark = ds_seq_acquire_dark (seq, s, &c, &mean, &error);
   if (!dark) {
     ds_frame_counters_drop (&c, DS_DROP_ABORTED, c.acquired - c.dropped);
     ds_seq_account (seq, &c, FALSE);
@@ -160,9 +184,8 @@ ds_seq_run_dark (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag)
   c.folded = c.acquired - c.dropped;
   g_mutex_lock (&seq->lock);
   ds_frame_counters_add (&seq->status.frames, &c);
-  seq->status.has_dark = TRUE;
   g_mutex_unlock (&seq->lock);
-  double mean = ds_image_mean (dark);
+  ds_seq_note_dark (seq, s, mean, FALSE);
   g_clear_pointer (&seq->dark, ds_image_free);
   seq->dark = dark;
   g_array_set_size (seq->stored_dark_ids, 0);

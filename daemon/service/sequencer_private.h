@@ -227,7 +227,10 @@ gboolean ds_seq_illuminator_off (DsSequencer *seq, DsFrameCounters *c, GError **
 /* Averages s->averages frames with the illuminator off into an image of the frames' type. The
  * first may be a frame triggered ahead by the previous set (seq->carry, dark), taken over. */
 DsImage *ds_seq_acquire_dark (DsSequencer *seq, const DsCaptureSettings *s, DsFrameCounters *c,
-                              GError **error);
+                              double *mean_dn, GError **error);
+/* Records a dark frame taken with settings s (mean of what is subtracted) for status: a set's
+ * own (by_set), or the dark command's, which is also the stored one. Acquisition thread. */
+void ds_seq_note_dark (DsSequencer *seq, const DsCaptureSettings *s, double mean_dn, gboolean by_set);
 void ds_seq_run_dark (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag);
 
 /* ---- sequencer_auto.c ---- */

@@ -59,9 +59,11 @@ acquire_set (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag, DsFrameC
   }
   g_autoptr (DsImage) dark = NULL;
   if (s->dark_frame) {
-    dark = ds_seq_acquire_dark (seq, s, c, error);
+    double mean_dn = NAN;
+    dark = ds_seq_acquire_dark (seq, s, c, &mean_dn, error);
     if (!dark)
       return NULL;
+    ds_seq_note_dark (seq, s, mean_dn, TRUE);
   }
   const DsImage *use_dark = dark;
   if (!use_dark && seq->dark && seq->dark_exposure_us == s->exposure_us && seq->dark_gain_db == s->gain_db)

@@ -23,6 +23,7 @@
 #include "daemon/service/sequencer.h"
 #include "daemon/service/server.h"
 #include "daemon/service/spool.h"
+#include "daemon/service/status_dark.h"
 #include "daemon/service/wire_error.h"
 #include "daemon/service/token.h"
 
@@ -788,6 +789,8 @@ status_to_json (DsService *svc)
   add_string (b, "last_error", st.last_error);
   json_builder_set_member_name (b, "has_dark");
   json_builder_add_boolean_value (b, st.has_dark);
+  json_builder_set_member_name (b, "dark");
+  json_builder_add_value (b, ds_status_dark_to_json (&st, g_get_real_time ()));
   add_double (b, "phase_offset_cycles", st.phase_offset_cycles);
   json_builder_set_member_name (b, "frames");
   json_builder_add_value (b, ds_frame_counters_to_json (&st.frames));
