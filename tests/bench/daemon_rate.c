@@ -240,6 +240,21 @@ camera_stat (DsMessage *status, const char *name)
   return test_json_int (status->reply->body, path);
 }
 
+/* The daemon under test runs as every test runs it, with the build tree's data (the operating
+ * model) through DESCATTER_DATA_DIR (ctest's environment; run_rate_bench.sh sets it when
+ * unset): without it the daemon looks under the install prefix and runs without a model. */
+static void
+check_data_dir (DsClient *c)
+{
+  g_autoptr (DsMessage) st = test_daemon_call_ok (c, "status", NULL);
+  JsonObject *model = json_object_get_object_member (json_node_get_object (st->reply->body), "operating_model");
+  CHECK (model && json_object_get_boolean_member_with_default (model, "loaded", FALSE),
+         "the daemon found no operating model (%s; DESCATTER_DATA_DIR=%s): run it with the build tree's "
+         "data, as ctest and run_rate_bench.sh do",
+         model ? json_object_get_string_member_with_default (model, "error", "?") : "no operating_model in status",
+         g_getenv ("DESCATTER_DATA_DIR") ? g_getenv ("DESCATTER_DATA_DIR") : "(unset)");
+}
+
 /* Frames folded per second in continuous mode, from the daemon's own counters, and the
  * camera's transport failures meanwhile (same meaning as the ceiling's). */
 static RateSample
@@ -491,6 +506,7 @@ measure_round (FakeRig *rig, guint w, guint h, double seconds, guint slices, Rou
   double slice_s = seconds / slices;
   TestDaemon *td = test_daemon_start (conf, NULL);
   g_autoptr (DsClient) cl = test_daemon_connect (td);
+  check_data_dir (cl);
   if (x && x->single_captures) {
     x->idle_kib = status_kib (td, "VmRSS:");
     guint n = quick ? 3 : 11;

@@ -28,6 +28,11 @@ if [ "$(id -u)" -ne 0 ]; then
   exit 2
 fi
 here=$(cd "$(dirname "$0")" && pwd)
+# The daemon finds the operating model in the source tree, as under ctest (tests/CMakeLists.txt,
+# DS_TEST_ENV; daemon/operating/data_dir.h), not under the install prefix.
+DESCATTER_DATA_DIR=${DESCATTER_DATA_DIR:-$(cd "$here/../../etc" && pwd)}
+export DESCATTER_DATA_DIR
+echo "run_rate_bench.sh: DESCATTER_DATA_DIR=$DESCATTER_DATA_DIR"
 prog=$(cd "$(dirname "$1")" && pwd)/$(basename "$1")
 shift
 nice_value=${DS_BENCH_NICE:--10}
