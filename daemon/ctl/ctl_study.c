@@ -3,6 +3,7 @@
  * beats in both acquisition time and transmissive error, seeds averaged, clipped points flagged;
  * and the best error at each stripe period with its noise and systematic parts). Plots are
  * drawn from the CSV by tools/plot_study.py. */
+#include <errno.h>
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
@@ -44,6 +45,22 @@ md_err (char *buf, gsize n, double total, double systematic)
   return buf;
 }
 
+/* Kept for the fronts, its scene name owned by o->names. */
+static DsStudyPoint
+remember_point (StudyOut *o, const DsStudyPoint *p)
+{
+  DsStudyPoint copy = *p;
+  guint idx = 0;
+  while (idx < o->names->len && strcmp (g_ptr_array_index (o->names, idx), p->scene) != 0)
+    idx++;
+  if (idx == o->names->len)
+    g_ptr_array_add (o->names, g_strdup (p->scene));
+  copy.scene = g_ptr_array_index (o->names, idx);
+  g_array_append_val (o->points, copy);
+  o->done++;
+  return copy;
+}
+
 static void
 on_point (const DsStudyPoint *p, gpointer data)
 {
@@ -60,15 +77,7 @@ on_point (const DsStudyPoint *p, gpointer data)
            p->edge_blur_known ? 1 : 0);
 #undef F
   fflush (o->csv);
-  DsStudyPoint copy = *p;
-  guint idx = 0;
-  while (idx < o->names->len && strcmp (g_ptr_array_index (o->names, idx), p->scene) != 0)
-    idx++;
-  if (idx == o->names->len)
-    g_ptr_array_add (o->names, g_strdup (p->scene));
-  copy.scene = g_ptr_array_index (o->names, idx);
-  g_array_append_val (o->points, copy);
-  o->done++;
+  DsStudyPoint copy = remember_point (o, p);
   /* A set's points (one per estimator) come together once the set is done: the first of them
    * marks the set's end. Its cost is its frame count. */
   if (copy.scene != o->last_scene || p->phases != o->last.phases || p->averages != o->last.averages ||
@@ -87,6 +96,7 @@ typedef struct {
   double period, exposure_factor;
   double err_t, err_g, sys_t, sys_g, residue, time_ms;
   guint64 saturated, pixels;
+  gboolean blur_unknown; /* some seed's sets ran without the edge blur (the precondition refused it) */
   guint n;
 } Aggregate;
 
@@ -127,6 +137,7 @@ aggregate (const StudyOut *o, const char *scene)
     a->err_g += p->rel_rmse_scattered;
     a->residue += p->stripe_residue;
     a->saturated = MAX (a->saturated, p->saturated);
+    a->blur_unknown = a->blur_unknown || !p->edge_blur_known;
     a->n++;
   }
   for (guint j = 0; j < agg->len; j++) {
@@ -143,8 +154,8 @@ static void
 append_row (GString *md, const Aggregate *a)
 {
   char t[64], g[64];
-  g_string_append_printf (md, "| %s | %u | %u | %g | %g× | %.1f | %s | %s | %.4f |", ds_estimator_name (a->estimator),
-                          a->phases, a->averages, a->period, a->exposure_factor, a->time_ms,
+  g_string_append_printf (md, "| %s%s | %u | %u | %g | %g× | %.1f | %s | %s | %.4f |", ds_estimator_name (a->estimator),
+                          a->blur_unknown ? " †" : "", a->phases, a->averages, a->period, a->exposure_factor, a->time_ms,
                           md_err (t, sizeof t, a->err_t, a->sys_t), md_err (g, sizeof g, a->err_g, a->sys_g),
                           a->residue);
   /* A clipped point's error leaves its saturated pixels out: it is not comparable with the
@@ -172,7 +183,13 @@ write_pareto (StudyOut *o, const char *path, GError **error)
                               "simulator's truth, written total (noise part + systematic part): the systematic part "
                               "is the same configuration on noise-free frames, the noise part what noise adds in "
                               "quadrature (0 where max/min's noise bias cancels part of the systematic error). "
-                              "Points whose frames clip are flagged: their error leaves the clipped pixels out.\n");
+                              "Points whose frames clip are flagged **clipped** in the last column: their error "
+                              "leaves the clipped pixels out, so they are not comparable with the others. The sets "
+                              "know the scene's edge blur, as descatterd's with `[illuminator] edge-blur-px`; † "
+                              "marks a point whose configuration the sampling precondition refuses with the blur "
+                              "known (no pixel fully lit in one phase and fully dark in another), run with the "
+                              "period alone (the blur unknown), as descatterd runs it without edge-blur-px: its "
+                              "error includes the pixels the precondition would refuse.\n");
   for (guint s = 0; s < o->names->len; s++) {
     const char *scene = g_ptr_array_index (o->names, s);
     GArray *agg = aggregate (o, scene);
@@ -220,6 +237,107 @@ write_pareto (StudyOut *o, const char *path, GError **error)
   return ok;
 }
 
+/* A point as on_point wrote it into study.csv (columns by name): for --fronts-from, which
+ * writes pareto.md from an earlier run's CSV without running the sweep again. */
+static gboolean
+point_from_csv (GStrv header, GStrv cells, DsStudyPoint *p, const char **bad_column)
+{
+  static const char *const wanted[] = { "scene", "estimator", "phases", "averages", "period_px", "exposure_factor",
+                                        "exposure_us", "seed", "rel_rmse_transmissive", "rel_rmse_scattered",
+                                        "systematic_transmissive", "systematic_scattered", "stripe_residue", "valid",
+                                        "masked", "saturated", "acquisition_ms", "edge_blur_known" };
+  memset (p, 0, sizeof *p);
+  for (guint w = 0; w < G_N_ELEMENTS (wanted); w++) {
+    const char *v = NULL;
+    for (guint i = 0; header[i] && !v; i++)
+      if (strcmp (header[i], wanted[w]) == 0)
+        v = i < g_strv_length (cells) ? cells[i] : NULL;
+    *bad_column = wanted[w];
+    if (!v || !*v)
+      return FALSE;
+    char *end = NULL;
+    double d = g_ascii_strtod (v, &end);
+    gboolean number = end && *end == '\0';
+    switch (w) {
+    case 0: p->scene = v; continue;
+    case 1: if (!ds_estimator_from_name (v, &p->estimator)) return FALSE; continue;
+    default: if (!number) return FALSE; break;
+    }
+    switch (w) {
+    case 2: p->phases = (guint) d; break;
+    case 3: p->averages = (guint) d; break;
+    case 4: p->period_px = d; break;
+    case 5: p->exposure_factor = d; break;
+    case 6: p->exposure_us = d; break;
+    case 7: p->seed = (guint64) d; break;
+    case 8: p->rel_rmse_transmissive = d; break;
+    case 9: p->rel_rmse_scattered = d; break;
+    case 10: p->systematic_transmissive = d; break;
+    case 11: p->systematic_scattered = d; break;
+    case 12: p->stripe_residue = d; break;
+    case 13: p->valid = (guint64) d; break;
+    case 14: p->masked = (guint64) d; break;
+    case 15: p->saturated = (guint64) d; break;
+    case 16: p->acquisition_ms = d; break;
+    case 17: p->edge_blur_known = d != 0; break;
+    }
+  }
+  return TRUE;
+}
+
+static gboolean
+load_csv (StudyOut *o, const char *path, GError **error)
+{
+  g_autofree char *text = NULL;
+  if (!g_file_get_contents (path, &text, NULL, error))
+    return FALSE;
+  g_auto (GStrv) lines = g_strsplit (text, "\n", -1);
+  g_auto (GStrv) header = lines[0] ? g_strsplit (g_strstrip (lines[0]), ",", -1) : NULL;
+  for (guint i = 1; lines[i]; i++) {
+    if (!*g_strstrip (lines[i]))
+      continue;
+    g_auto (GStrv) cells = g_strsplit (lines[i], ",", -1);
+    DsStudyPoint p;
+    const char *bad = NULL;
+    if (!header || !point_from_csv (header, cells, &p, &bad)) {
+      g_set_error (error, G_FILE_ERROR, G_FILE_ERROR_INVAL,
+                   "%s:%u: column %s is missing or not a %s (a study.csv written by descatterctl study)", path,
+                   i + 1, bad ? bad : "?", bad && strcmp (bad, "estimator") == 0 ? "known estimator" : "number");
+      return FALSE;
+    }
+    remember_point (o, &p);
+  }
+  if (o->points->len == 0) {
+    g_set_error (error, G_FILE_ERROR, G_FILE_ERROR_INVAL, "%s: no points", path);
+    return FALSE;
+  }
+  return TRUE;
+}
+
+/* descatterctl study --fronts-from CSV --out DIR: pareto.md again from a study's points. */
+static int
+fronts_from (const char *csv_path, const char *dir)
+{
+  g_autoptr (GError) error = NULL;
+  StudyOut o = { .points = g_array_new (FALSE, FALSE, sizeof (DsStudyPoint)),
+                 .names = g_ptr_array_new_with_free_func (g_free) };
+  g_autofree char *md = g_build_filename (dir, "pareto.md", NULL);
+  gboolean ok = load_csv (&o, csv_path, &error);
+  if (ok && g_mkdir_with_parents (dir, 0755) != 0) {
+    int e = errno;
+    g_set_error (&error, G_FILE_ERROR, g_file_error_from_errno (e), "%s: %s", dir, g_strerror (e));
+    ok = FALSE;
+  }
+  ok = ok && write_pareto (&o, md, &error);
+  if (!ok)
+    fprintf (stderr, "descatterctl study: %s\n", error->message);
+  else
+    fprintf (stderr, "study: fronts of %u points from %s in %s\n", o.done, csv_path, md);
+  g_array_unref (o.points);
+  g_ptr_array_unref (o.names);
+  return ok ? 0 : 1;
+}
+
 static gboolean
 parse_uint_list (const char *text, guint **out, guint *n)
 {
@@ -260,7 +378,7 @@ compare_paths (gconstpointer a, gconstpointer b)
 int
 ds_ctl_study (int argc, char **argv)
 {
-  g_autofree char *out = NULL, *phases = NULL, *averages = NULL, *exposures = NULL,
+  g_autofree char *out = NULL, *fronts_csv = NULL, *phases = NULL, *averages = NULL, *exposures = NULL,
                   *estimators = NULL, *periods = NULL;
   g_auto (GStrv) scenes = NULL;
   int seeds = 0;
@@ -281,6 +399,7 @@ ds_ctl_study (int argc, char **argv)
     { "trigger-us", 0, 0, G_OPTION_ARG_DOUBLE, &plan.timing.trigger_overhead_us, "trigger overhead (default 200)", "US" },
     { "link-mbit", 0, 0, G_OPTION_ARG_DOUBLE, &plan.timing.link_mbit_s, "camera link (default 1000)", "MBIT" },
     { "quiet", 'q', 0, G_OPTION_ARG_NONE, &quiet, "No progress", NULL },
+    { "fronts-from", 0, 0, G_OPTION_ARG_FILENAME, &fronts_csv, "Write OUT/pareto.md from an earlier run's study.csv (no sweep)", "CSV" },
     { NULL },
   };
   g_autoptr (GOptionContext) ctx = g_option_context_new (NULL);
@@ -292,6 +411,8 @@ ds_ctl_study (int argc, char **argv)
     fprintf (stderr, "descatterctl study: %s\n", error->message);
     return 2;
   }
+  if (fronts_csv)
+    return fronts_from (fronts_csv, out ? out : "study");
   const char *def_n = quick ? "4,8" : "2,3,4,6,8,12,16,24,32";
   const char *def_m = quick ? "1,2" : "1,2,4,8";
   const char *def_e = quick ? "1" : "1,2,4";

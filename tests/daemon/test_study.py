@@ -25,6 +25,7 @@ Independent expectations:
 import csv
 import math
 import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -41,6 +42,89 @@ def read_scene(path):
             k, v = line.split("=", 1)
             section[k.strip()] = v.strip()
     return out
+
+
+def same_but_last_digit(a, b):
+    """The same page, numbers allowed one unit off in their last printed digit: study.csv keeps 6
+    significant digits, and a noise part sqrt(total^2 - systematic^2) computed from them may round
+    the other way."""
+    num = re.compile(r"\d+\.\d+")
+    if num.sub("#", a) != num.sub("#", b):
+        return False
+    xs, ys = num.findall(a), num.findall(b)
+    return all(abs(float(x) - float(y)) <= 1.01 * 10 ** -len(x.split(".")[1]) for x, y in zip(xs, ys))
+
+
+def table_rows(md):
+    """Every row of pareto.md's tables as (scene, estimator, marked †, N, M, period, exposure, clipped)."""
+    out, scene = [], None
+    for line in md.splitlines():
+        if line.startswith("## "):
+            scene = line[3:].strip()
+        elif line.startswith("| ") and not line.startswith("| estimator"):
+            cells = [c.strip() for c in line.strip("|").split("|")]
+            est = cells[0]
+            out.append((scene, est.replace("†", "").strip(), "†" in est, int(cells[1]), int(cells[2]),
+                        float(cells[3]), float(cells[4].rstrip("×")), "**clipped**" in cells[9]))
+    return out
+
+
+def check_front_marks(pareto, rows):
+    """Clipped points never sit on a front unflagged, and † marks exactly the configurations whose
+    sets ran with the blur unknown (study.csv's edge_blur_known), with the legend saying so."""
+    assert "† marks a point whose configuration the sampling precondition refuses" in pareto, pareto[:800]
+    assert "**clipped**" in pareto.split("\n## ")[0], "the legend explains the clipped flag"
+    unknown, clipped = set(), set()
+    for r in rows:
+        key = (r["scene"], r["estimator"], int(r["phases"]), int(r["averages"]), float(r["period_px"]),
+               float(r["exposure_factor"]))
+        if r["edge_blur_known"] == "0":
+            unknown.add(key)
+        if int(r["saturated"]) > 0:
+            clipped.add(key)
+    listed = table_rows(pareto)
+    assert listed, "no table rows in pareto.md"
+    for scene, est, dagger, n, m, period, exposure, flagged in listed:
+        key = (scene, est, n, m, period, exposure)
+        assert dagger == (key in unknown), (key, dagger)
+        assert flagged == (key in clipped), (key, flagged)
+
+
+def lit_fraction(period, duty, blur, aperture=1.0, samples=401):
+    """The best-placed pixel's share of the full level on the lit run of blurred square stripes
+    (Gaussian edges of sigma `blur`, the pixel integrating over `aperture`): a pixel is never
+    fully lit when even the one centred on the run falls short of 1."""
+    def phi(z):
+        return 0.5 * (1 + math.erf(z / math.sqrt(2)))
+    run, total = duty * period, 0.0
+    for i in range(samples):
+        x = -aperture / 2 + aperture * i / (samples - 1)
+        total += phi((run / 2 - x) / blur) - phi((-run / 2 - x) / blur)
+    return total / samples
+
+
+def blur_marks_closed_form(ctl):
+    """† against the sampling precondition computed here: on tissue-veins' stripes (duty 0.5,
+    edge blur 0.5 px) no pixel is fully lit at 4 px (the centred pixel reaches about 93 % of the
+    level), so max/min cannot run with the blur known there and its point is marked; at 8 px it
+    reaches over 99.5 % and is not; sine has no such precondition and is never marked."""
+    path = os.path.join(os.environ["DESCATTER_DATA_DIR"], "scenes", "tissue-veins.scene")
+    spec = read_scene(path)["illuminator"]
+    duty, blur = float(spec["duty"]), float(spec["edge-blur-px"])
+    for est, periods in (("maxmin", (4, 8)), ("sine", (4,))):
+        with tempfile.TemporaryDirectory() as out:
+            subprocess.run([ctl, "study", "--quiet", "--scene", path, "--phases", "16", "--averages", "1",
+                            "--exposures", "1", "--periods", ",".join(map(str, periods)), "--seeds", "1",
+                            "--estimators", est, "--out", out], check=True)
+            md = open(os.path.join(out, "pareto.md")).read()
+            best = md.split("Best at each stripe period")[1]
+            rows = {r[5]: r for r in table_rows(best)}
+            assert sorted(rows) == list(periods), (est, sorted(rows))
+            for period in periods:
+                lit = min(lit_fraction(period, duty, blur), lit_fraction(period, 1 - duty, blur))
+                assert lit < 0.97 or lit > 0.995, (period, lit)  # clear-cut cases only
+                expect = est != "sine" and lit < 0.97
+                assert rows[period][2] == expect, (est, period, lit, rows[period])
 
 
 def main():
@@ -111,6 +195,23 @@ def main():
         assert table_rows and all("**clipped**" in line for line in table_rows), hdr_md
         assert "Best at each stripe period" in pareto
         assert all(r["edge_blur_known"] in ("0", "1") for r in rows)
+        check_front_marks(pareto, rows)
+        # The fronts again from the CSV alone (how docs/accuracy/pareto.md gets new marks without
+        # the 25-minute sweep): the same page.
+        again = os.path.join(out, "again")
+        subprocess.run([ctl, "study", "--fronts-from", os.path.join(out, "study.csv"), "--out", again], check=True,
+                       capture_output=True)
+        assert same_but_last_digit(open(os.path.join(again, "pareto.md")).read(), pareto), \
+            "--fronts-from wrote other fronts"
+        bad = os.path.join(out, "bad.csv")
+        lines = open(os.path.join(out, "study.csv")).read().splitlines()
+        cells = lines[2].split(",")
+        cells[2] = "four"
+        open(bad, "w").write("\n".join(lines[:2] + [",".join(cells)]) + "\n")
+        r = subprocess.run([ctl, "study", "--fronts-from", bad, "--out", os.path.join(out, "bad")],
+                           capture_output=True, text=True)
+        assert r.returncode == 1 and f"{bad}:3: column phases" in r.stderr, r.stderr
+        assert not os.path.exists(os.path.join(out, "bad", "pareto.md")), "a bad CSV wrote fronts"
     # The sets know the scene's edge blur, as descatterd's with [illuminator] edge-blur-px: robust's
     # windows then stay inside the fully lit and fully dark runs at any N, where every noise-free
     # sample equals the level max/min picks, so its systematic part is max/min's. milk-disc (6 px,
@@ -125,6 +226,7 @@ def main():
         sys_maxmin = float(got["maxmin"]["systematic_transmissive"])
         sys_robust = float(got["robust"]["systematic_transmissive"])
         assert sys_robust < 1.05 * sys_maxmin + 1e-4, (sys_robust, sys_maxmin)
+    blur_marks_closed_form(ctl)
     print("study: ok")
 
 
