@@ -109,7 +109,10 @@ ds_seq_carry_discard (DsSequencer *seq)
     ds_seq_record_error (seq, cy->error);
     ds_seq_refresh_device_status (seq);
     ds_seq_emit (seq, DS_SEQUENCER_EVENT_FAILED, 0, NULL, g_steal_pointer (&cy->error), NULL);
-  } else
+  } else {
     ds_seq_account_frames (seq, &cy->counters);
+    /* The camera's statistics count the frame grabbed here as the counters now do. */
+    ds_seq_refresh_device_status (seq);
+  }
   memset (cy, 0, sizeof *cy);
 }

@@ -41,6 +41,10 @@ typedef struct {
   gboolean disconnected;
   guint reconnects;
   double ld, lg;           /* scene: direct and global in DN */
+  guint64 grabbed;         /* frames grab returned: the camera's `completed` */
+  guint64 triggers;
+  DsSequencer *stop_seq;   /* when set: stop continuous mode from within trigger number ... */
+  guint64 stop_at_trigger; /* ... this one (the command is then queued during that trigger) */
 } Lab;
 
 static gboolean
@@ -96,11 +100,23 @@ cam_trigger (gpointer b, GError **e)
   if (lab->withheld && !lab->delivered && lab->n_phase_log > lab->withheld_at_phase_log)
     lab->delivered = g_steal_pointer (&lab->withheld);
   lab->triggered = TRUE;
+  if (lab->stop_seq && ++lab->triggers == lab->stop_at_trigger)
+    ds_sequencer_stop (lab->stop_seq);
   return TRUE;
 }
 
+static DsFrame *cam_grab_scripted (gpointer b, guint timeout_ms, GError **e);
+
 static DsFrame *
 cam_grab (gpointer b, guint timeout_ms, GError **e)
+{
+  DsFrame *f = cam_grab_scripted (b, timeout_ms, e);
+  ((Lab *) b)->grabbed += f != NULL;
+  return f;
+}
+
+static DsFrame *
+cam_grab_scripted (gpointer b, guint timeout_ms, GError **e)
 {
   (void) timeout_ms;
   Lab *lab = b;
@@ -165,7 +181,12 @@ cam_reconnect (gpointer b, GError **e)
   return TRUE;
 }
 
-static void cam_stats (gpointer b, DsCameraStats *s) { (void) b; memset (s, 0, sizeof *s); }
+static void
+cam_stats (gpointer b, DsCameraStats *s)
+{
+  memset (s, 0, sizeof *s);
+  s->completed = ((Lab *) b)->grabbed;
+}
 
 static void
 cam_info (gpointer b, DsCameraInfo *i)
@@ -965,6 +986,34 @@ test_pipeline_continuous_then_capture (Fixture *f, gconstpointer d)
     g_assert_cmpint (f->lab.phase_log[f->lab.n_phase_log - 8 - n_dark + i], ==, (int) i - (int) n_dark);
 }
 
+/* Continuous mode is stopped while the next set's first frame (its dark frame) is triggered
+ * ahead: that frame is grabbed and counted `aborted`, and status's camera statistics count it
+ * too (they were read before it, so the camera showed a frame fewer than the daemon had
+ * acquired: found by the lab-user trial against descatter-labsim). */
+static void
+test_pipeline_continuous_stop_ahead (Fixture *f, gconstpointer d)
+{
+  (void) d;
+  DsCaptureSettings s;
+  default_settings (&s, 8);
+  s.dark_frame = TRUE;
+  f->lab.stop_seq = f->seq;
+  f->lab.stop_at_trigger = 9 + 1; /* the first set's 9 frames, then the next set's dark frame */
+  f->out.results = 0;
+  ds_sequencer_start (f->seq, &s);
+  while (f->out.results < 1)
+    g_main_loop_run (f->out.loop);
+  stop_continuous (f);
+  DsSequencerStatus st;
+  ds_sequencer_get_status (f->seq, &st);
+  g_assert_cmpuint (st.sets_done, ==, 1);
+  g_assert_cmpuint (st.frames.acquired, ==, 10);
+  g_assert_cmpuint (st.frames.by_reason[DS_DROP_ABORTED], ==, 1);
+  g_assert_cmpuint (f->lab.grabbed, ==, 10);
+  g_assert_cmpuint (st.camera_stats.completed, ==, f->lab.grabbed);
+  assert_accounting (f);
+}
+
 /* The camera is lost right after a continuous set's last frame, so the trigger of the next
  * set's first frame (phase 0, or its dark frame) fails: that set fails with the loss, reported
  * as it would be without the overlap, the camera is reconnected, the sets after it equal the
@@ -1127,6 +1176,7 @@ main (int argc, char **argv)
   ADD ("pipeline/continuous-dark-first-frame-dropped", test_pipeline_continuous_drop, &dark_first_dropped);
   ADD ("pipeline/continuous-then-capture", test_pipeline_continuous_then_capture, NULL);
   ADD ("pipeline/continuous-dark-then-capture", test_pipeline_continuous_then_capture, "dark");
+  ADD ("pipeline/continuous-stop-ahead", test_pipeline_continuous_stop_ahead, NULL);
   ADD ("pipeline/continuous-camera-lost-ahead", test_pipeline_continuous_lost_ahead, NULL);
   ADD ("pipeline/continuous-dark-camera-lost-ahead", test_pipeline_continuous_lost_ahead, "dark");
   ADD ("result-planes-reused", test_result_planes_reused, NULL);
