@@ -132,6 +132,9 @@ ds_seq_run_set (DsSequencer *seq, const DsCaptureSettings *requested, guint64 ta
     ds_seq_carry_discard (seq);
   if (settings.target_error > 0 || settings.time_budget_ms > 0) {
     if (!ds_seq_ensure_camera (seq, s, &error) || !ds_seq_choose_operating_point (seq, &settings, &c, &error)) {
+      /* Pilot frames not yet counted as `preview` (the pilot stopped part way) go down with
+       * the capture, as a failing set's frames do. */
+      ds_frame_counters_drop (&c, DS_DROP_ABORTED, c.acquired - c.dropped);
       ds_seq_account (seq, &c, FALSE);
       ds_seq_record_error (seq, error);
       ds_seq_emit (seq, DS_SEQUENCER_EVENT_FAILED, tag, NULL, g_steal_pointer (&error), NULL);

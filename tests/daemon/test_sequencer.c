@@ -600,6 +600,38 @@ test_dark_frame_illuminator_lost (Fixture *f, gconstpointer d)
   assert_accounting (f);
 }
 
+/* The pilot of an automatic capture fails after its dark frame (the camera is lost at the
+ * first lit pilot frame; on the rig, labsim --wrong-phase: the illuminator's APPLIED_PHASE
+ * disagrees): the pilot's frames go down with the capture, counted `aborted`, so that
+ * acquired = folded + dropped still holds (the dark frame was counted acquired and nothing
+ * else: found by the lab-user trial). */
+static void
+test_automatic_pilot_fails (Fixture *f, gconstpointer d)
+{
+  (void) d;
+  DsOperatingModel model;
+  ds_operating_model_init (&model);
+  ds_sequencer_set_operating_model (f->seq, &model, 3.0, 1000.0);
+  DsCaptureSettings s;
+  default_settings (&s, 8);
+  s.target_error = 0.01;
+  f->lab.disconnect_in = 2; /* the pilot's dark frame comes, then the camera is gone */
+  capture (f, &s);
+  g_assert_null (f->out.result);
+  g_assert_nonnull (f->out.failure);
+  g_assert_nonnull (strstr (f->out.failure->message, "camera gone"));
+  DsSequencerStatus st;
+  ds_sequencer_get_status (f->seq, &st);
+  g_assert_cmpuint (st.frames.acquired, ==, 1);
+  g_assert_cmpuint (st.frames.by_reason[DS_DROP_ABORTED], ==, 1);
+  assert_accounting (f);
+  /* Reconnected, the next automatic capture is whole. */
+  capture (f, &s);
+  g_assert_no_error (f->out.failure);
+  assert_scene_recovered (f->out.result);
+  assert_accounting (f);
+}
+
 /* Automatic operating point: the pilot frames (a dark frame, two phases at the period and two
  * at twice the period, counted as `preview` drops) measure the scene; the choice meets the
  * target and is recorded with the result. This lab keeps its period whatever it is asked, so
@@ -1176,6 +1208,7 @@ main (int argc, char **argv)
   ADD ("pipeline/continuous-dark-first-frame-dropped", test_pipeline_continuous_drop, &dark_first_dropped);
   ADD ("pipeline/continuous-then-capture", test_pipeline_continuous_then_capture, NULL);
   ADD ("pipeline/continuous-dark-then-capture", test_pipeline_continuous_then_capture, "dark");
+  ADD ("automatic-pilot-fails", test_automatic_pilot_fails, NULL);
   ADD ("pipeline/continuous-stop-ahead", test_pipeline_continuous_stop_ahead, NULL);
   ADD ("pipeline/continuous-camera-lost-ahead", test_pipeline_continuous_lost_ahead, NULL);
   ADD ("pipeline/continuous-dark-camera-lost-ahead", test_pipeline_continuous_lost_ahead, "dark");
