@@ -675,10 +675,21 @@ handle_stop (DsService *svc, DsConnection *conn, DsRequest *req)
   }
   ds_sequencer_stop (svc->sequencer);
   /* The set in progress still completes: it goes into the run file, which closes after it. */
+  gboolean was_running = svc->in_run;
   svc->in_run = FALSE;
   if (svc->spool)
     ds_spool_end_run (svc->spool);
-  ds_server_reply_ok (svc->server, conn, req->id, NULL, NULL, NULL, 0);
+  /* Said in words: a bare {} left a user wondering whether anything was running or stopped. */
+  g_autoptr (JsonBuilder) b = json_builder_new ();
+  json_builder_begin_object (b);
+  json_builder_set_member_name (b, "was_running");
+  json_builder_add_boolean_value (b, was_running);
+  json_builder_set_member_name (b, "message");
+  json_builder_add_string_value (b, was_running ? "continuous acquisition stops after the set in progress"
+                                                : "continuous acquisition was not running");
+  json_builder_end_object (b);
+  g_autoptr (JsonNode) body = json_builder_get_root (b);
+  ds_server_reply_ok (svc->server, conn, req->id, body, NULL, NULL, 0);
 }
 
 /* The configuration in effect: the file with the command line's overrides (--socket, --tcp;

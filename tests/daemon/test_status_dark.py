@@ -1,5 +1,6 @@
 #!/usr/bin/python3
-"""status tells the truth about dark frames, through descatterd on the simulated lab.
+"""status tells the truth about dark frames (and stop about what it stopped), through descatterd
+on the simulated lab.
 Usage: test_status_dark.py DESCATTERD DESCATTERCTL DESCATTER-SIM SCENE
 
 Before, `descatterctl status` said "dark frame: none yet" while every set took and subtracted
@@ -131,8 +132,13 @@ def without_per_set(tmp, offline):
         check(st["dark"]["mode"] == "per-set" and st["continuous"] is True,
               f"start --dark-frame: per-set while running: {st['dark']}")
         check(abs(st["dark"]["last"]["mean_dn"] - offline) < 0.5, "the set's dark frame has the scene's level")
-        d.ctl("stop")
+        stopped = json.loads(d.ctl("stop").stdout)
+        check(stopped.get("was_running") is True and "stops after the set in progress" in stopped.get("message", ""),
+              f"stop says that continuous acquisition was on and stops (it printed {{}}): {stopped}")
         st = d.wait_for(lambda s: not s["continuous"], "continuous mode to stop")
+        again = json.loads(d.ctl("stop").stdout)
+        check(again.get("was_running") is False and "was not running" in again.get("message", ""),
+              f"a second stop says nothing was running: {again}")
         check(st["dark"]["mode"] == "none", f"stopped: back to the configuration's: {st['dark']}")
     finally:
         d.stop()  # asserts a clean exit
