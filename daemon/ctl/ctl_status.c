@@ -171,6 +171,11 @@ print_summary (JsonObject *st)
     if (has_number (ill, "temperature_c"))
       printf (", %.1f °C", json_object_get_double_member (ill, "temperature_c"));
     printf ("\n");
+    if (int_of (ill, "failed_attempts") > 0)
+      printf ("              link: %" G_GINT64_FORMAT " failed attempts, %" G_GINT64_FORMAT
+              " accesses failed after retries; last: %s\n",
+              int_of (ill, "failed_attempts"), int_of (ill, "failed_accesses"),
+              str_of (ill, "last_link_problem") ? str_of (ill, "last_link_problem") : "?");
   }
 
   JsonObject *fr = member_object (st, "frames");

@@ -857,6 +857,10 @@ status_to_json (DsService *svc)
   json_builder_add_boolean_value (b, st.illuminator.period_adjustable);
   add_double (b, "period_min_px", st.illuminator.period_min_px);
   add_double (b, "period_max_px", st.illuminator.period_max_px);
+  /* Retried requests slow the sets without failing them: where they went is said here. */
+  add_uint (b, "failed_attempts", st.illuminator.failed_attempts);
+  add_uint (b, "failed_accesses", st.illuminator.failed_accesses);
+  add_string (b, "last_link_problem", st.illuminator.last_link_problem);
   json_builder_end_object (b);
   json_builder_end_object (b);
   json_builder_set_member_name (b, "clients");

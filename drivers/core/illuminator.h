@@ -40,6 +40,12 @@ typedef struct {
    * set_pattern after open (the configuration's). Constant while the device is open. */
   gboolean period_adjustable;
   double period_min_px, period_max_px;
+  /* The link since open, for a backend that retries requests (Modbus; 0 elsewhere): attempts
+   * that got no good answer (a timeout, an exception, a short answer, a lost link), the
+   * accesses that failed after all their attempts, and what the last failed attempt was
+   * ("" for none). Retried attempts cost time without failing a set: these say why sets slow. */
+  guint64 failed_attempts, failed_accesses;
+  char last_link_problem[160];
 } DsIlluminatorStatus;
 
 typedef struct DsIlluminatorOps DsIlluminatorOps;

@@ -24,6 +24,8 @@ typedef struct {
   gboolean rev1;
   guint16 capabilities, period_min, period_max;
   guint16 first_period;    /* rev1: PERIOD_CENTIPX of the first set_pattern; 0 = none yet */
+  guint64 failed_attempts, failed_accesses; /* since open (DsIlluminatorStatus) */
+  char last_link_problem[160];
 } ModbusIlluminator;
 
 /* ---- URI ---------------------------------------------------------------------------------- */
@@ -271,6 +273,13 @@ exception_text (int e)
   }
 }
 
+static void
+note_failed_attempt (ModbusIlluminator *m, const char *verb, const char *name, const char *why)
+{
+  m->failed_attempts++;
+  g_snprintf (m->last_link_problem, sizeof m->last_link_problem, "%s register %s: %s", verb, name, why);
+}
+
 /* One access of nb registers from addr; bounded attempts and total time. *last_errno (may be
  * NULL): libmodbus's errno of the last failed attempt (0 for a short answer). */
 static gboolean
@@ -304,6 +313,7 @@ mb_access_errno (ModbusIlluminator *m, Access access, int addr, int nb, guint16 
       code = DS_DEVICE_ERROR_DISCONNECTED;
       g_free (why);
       why = g_strdup (link_error->message);
+      note_failed_attempt (m, verb, name, why);
       continue;
     }
     int rc = access == READ_INPUT ? modbus_read_input_registers (m->ctx, addr, nb, regs)
@@ -317,6 +327,7 @@ mb_access_errno (ModbusIlluminator *m, Access access, int addr, int nb, guint16 
         *last_errno = 0;
       code = DS_DEVICE_ERROR_INCOMPLETE;
       why = g_strdup_printf ("short answer: %d of %d registers", rc, nb);
+      note_failed_attempt (m, verb, name, why);
       disconnect (m);
       continue;
     }
@@ -326,6 +337,7 @@ mb_access_errno (ModbusIlluminator *m, Access access, int addr, int nb, guint16 
     gboolean retry, relink;
     code = classify (e, &retry, &relink);
     why = g_strdup (exception_text (e));
+    note_failed_attempt (m, verb, name, why);
     if (relink) {
       if (m->uri.transport == DS_MODBUS_RTU && e == ETIMEDOUT)
         modbus_flush (m->ctx);
@@ -335,6 +347,7 @@ mb_access_errno (ModbusIlluminator *m, Access access, int addr, int nb, guint16 
     if (!retry)
       break;
   }
+  m->failed_accesses++;
   g_set_error (error, DS_ILLUMINATOR_ERROR, code, "Modbus %s unit %u: %s register %s (0x%04x): %s (%u attempt%s)",
                m->uri_text, m->unit_id, verb, name, (guint) addr, why ? why : "no attempt in time",
                made, made == 1 ? "" : "s");
@@ -529,6 +542,9 @@ modbus_get_status (gpointer backend, DsIlluminatorStatus *st, GError **error)
   st->period_adjustable = (m->capabilities & DS_MB_CAP_PERIOD_ADJUSTABLE) != 0;
   st->period_min_px = m->period_min / 100.0;
   st->period_max_px = m->period_max / 100.0;
+  st->failed_attempts = m->failed_attempts;
+  st->failed_accesses = m->failed_accesses;
+  g_strlcpy (st->last_link_problem, m->last_link_problem, sizeof st->last_link_problem);
   return TRUE;
 }
 

@@ -792,6 +792,12 @@ test_rtu_timeout (Fixture *f, gconstpointer data)
   g_assert_true (f->ill->ops->get_status (f->ill->backend, &st, &error));
   g_assert_no_error (error);
   g_assert_cmpuint (st.firmware_version, ==, 0x0102);
+  /* status says where the time went: every unanswered request the controller counted, the one
+   * access that failed, and the register (found by the lab-user trial: silent and short
+   * answers cost sets 4x their time, and status showed nothing). */
+  g_assert_cmpuint (st.failed_attempts, ==, after.requests - before.requests);
+  g_assert_cmpuint (st.failed_accesses, ==, 1);
+  g_assert_nonnull (strstr (st.last_link_problem, "MAGIC"));
 }
 
 /* Answers with a corrupted CRC are never taken: INCOMPLETE after the bounded attempts when every
