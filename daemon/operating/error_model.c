@@ -191,11 +191,14 @@ run_sets (DsErrorModel *m, guint n, guint averages, double factor, double period
   if (noise)
     ensure_normals (m, n + 1);
   g_autoptr (DsImage) frame = ds_image_new (DS_SAMPLE_F32, m->width, SYN_ROWS, NULL);
+  /* The dark frame's variance at this exposure: read noise and quantisation as in the pilot, the
+   * shot noise of its own signal (ambient light, dark current) scaled with the exposure. */
+  double var0 = MAX (0.0, pr->noise_var0 - pr->noise_dark_shot) + pr->noise_dark_shot * factor;
   for (guint y = 0; y < SYN_ROWS; y++) {
     float *row = ds_image_row (frame, y);
     const float *z = noise ? m->normals + ((gsize) n * SYN_ROWS + y) * m->width : NULL;
     for (guint x = 0; x < m->width; x++)
-      row[x] = (float) (pedestal + (z ? sqrt (pr->noise_var0 / averages) * z[x] : 0.0));
+      row[x] = (float) (pedestal + (z ? sqrt (var0 / averages) * z[x] : 0.0));
   }
   for (int e = 0; e < N_EST; e++)
     if (sets[e] && !ds_phase_set_set_dark (sets[e], frame, NULL))
@@ -218,7 +221,7 @@ run_sets (DsErrorModel *m, guint n, guint averages, double factor, double period
       for (guint x = 0; x < m->width; x++) {
         double s = factor * (ld * lit[x] + pr->lg_mean * pattern_mean);
         if (z)
-          s += sqrt (MAX (0.0, pr->noise_var0 + pr->noise_gain * s) / averages) * z[x];
+          s += sqrt (MAX (0.0, var0 + pr->noise_gain * s) / averages) * z[x];
         row[x] = (float) MIN (pedestal + s, clip);
       }
     }

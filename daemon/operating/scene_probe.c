@@ -674,6 +674,22 @@ ds_scene_probe_worst_case (const DsSceneProbe *p, DsSceneProbe *worst)
   return TRUE;
 }
 
+/* The shot noise of the dark frame's own signal, DN^2: ambient light and dark current reach the
+ * sensor with the illuminator off, and their photons are as Poisson as the stripes' (gen-7-05:
+ * ambient light of 306 DN puts 52 of the dark frame's 54 DN^2 there, read noise 1). That part
+ * scales with the exposure, read noise and quantisation do not: counted as read noise, a quarter
+ * of the pilot's exposure was predicted with four times the dark frame's shot noise. The dark
+ * level is taken as signal over a sensor zero (the simulated sensor has no black offset; a camera
+ * whose black offset B is not subtracted would have g B of its read noise counted here), at the
+ * lit frames' shot-noise gain, and no more than the dark frame's variance leaves over its
+ * quantisation. */
+static double
+dark_shot_noise (const DsImage *dark, double dark_dn, double var0, double gain)
+{
+  double quantisation = dark->type == DS_SAMPLE_F32 ? 0.0 : 1.0 / 12.0;
+  return CLAMP (gain * MAX (0.0, dark_dn), 0.0, MAX (0.0, var0 - quantisation));
+}
+
 gboolean
 ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **error)
 {
@@ -760,6 +776,7 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
   double noise_diff = ds_column_stats_noise_dn (stat[0], stat[1], ceiling);
   double var_diff = isfinite (noise_diff) ? noise_diff * noise_diff : 2 * out->noise_var0;
   out->noise_gain = mean_sum > 0 ? MAX (0.0, (var_diff - 2 * out->noise_var0) / mean_sum) : 0;
+  out->noise_dark_shot = dark_shot_noise (fr->dark, out->dark_dn, out->noise_var0, out->noise_gain);
 
   /* Harmonics -> blur, Ld, alpha. */
   Equation eq[16];

@@ -172,6 +172,9 @@ typedef struct {
   char interval_note[360];        /* how the lower end was found, or why there is none */
   double noise_var0;              /* DN^2 of one frame without signal (read, dark, quantisation) */
   double noise_gain;              /* DN^2 per DN of signal (shot noise) */
+  double noise_dark_shot;         /* the part of noise_var0 that is the shot noise of the dark frame's
+                                     own signal (ambient light, dark current): it scales with the
+                                     exposure, the rest (read noise, quantisation) does not */
   double dark_dn;
   double saturation_dn;           /* the clip level applied: given, or a pile-up found lower */
   gboolean clip_known;            /* saturation_dn is known to be where the sensor clips (given as

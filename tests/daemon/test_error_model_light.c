@@ -1,0 +1,129 @@
+/* The error model's light against independent expectations: the dark frame's own shot noise
+ * (ambient light, dark current) scales with the exposure. */
+#include <math.h>
+#include <string.h>
+
+#include "daemon/operating/error_model.h"
+#include "daemon/operating/scene_probe.h"
+
+/* A frame of constant light `level` (DN) with Poisson-like noise of variance read^2 + gain level,
+ * drawn with Box-Muller here (not the error model's generator). */
+static DsImage *
+flat_frame (double level, double read_dn, double gain, GRand *r)
+{
+  const guint w = 240, h = 120;
+  DsImage *f = ds_image_new (DS_SAMPLE_F32, w, h, NULL);
+  double sd = sqrt (read_dn * read_dn + gain * level);
+  for (guint y = 0; y < h; y++) {
+    float *row = ds_image_row (f, y);
+    for (guint x = 0; x < w; x++) {
+      double u1 = 1 - g_rand_double (r), u2 = g_rand_double (r);
+      row[x] = (float) (level + sd * sqrt (-2 * log (u1)) * cos (2 * G_PI * u2));
+    }
+  }
+  return f;
+}
+
+/* Sharp square stripes of period P, duty 1/2, phase `shift`, over an ambient level: Ld on the lit
+ * half, Lg m everywhere, ambient everywhere (it is in the dark frame too). */
+static DsImage *
+stripe_frame (double P, double shift, double ld, double lg, double ambient, double read_dn, double gain, GRand *r)
+{
+  const guint w = 240, h = 120;
+  DsImage *f = ds_image_new (DS_SAMPLE_F32, w, h, NULL);
+  for (guint y = 0; y < h; y++) {
+    float *row = ds_image_row (f, y);
+    for (guint x = 0; x < w; x++) {
+      double lit = 0;
+      for (int i = 0; i < 100; i++) { /* pixel-integrated */
+        double u = (x - 0.5 + (i + 0.5) / 100) / P - shift;
+        u -= floor (u);
+        lit += u < 0.5;
+      }
+      double v = ambient + ld * lit / 100 + lg * 0.5;
+      double sd = sqrt (read_dn * read_dn + gain * v);
+      double u1 = 1 - g_rand_double (r), u2 = g_rand_double (r);
+      row[x] = (float) (v + sd * sqrt (-2 * log (u1)) * cos (2 * G_PI * u2));
+    }
+  }
+  return f;
+}
+
+/* The probe tells the dark frame's shot noise (gain x its level) from the read noise: 300 DN of
+ * ambient light at 0.25 DN^2/DN is 75 DN^2 of a dark frame's 76. */
+static void
+test_probe_dark_shot_noise (void)
+{
+  const double read_dn = 1.0, gain = 0.25, P = 12;
+  for (int with_ambient = 0; with_ambient < 2; with_ambient++) {
+    double ambient = with_ambient ? 300 : 0;
+    g_autoptr (GRand) r = g_rand_new_with_seed (11);
+    g_autoptr (DsImage) dark = flat_frame (ambient, read_dn, gain, r);
+    g_autoptr (DsImage) l0 = stripe_frame (P, 0.1, 1000, 200, ambient, read_dn, gain, r);
+    g_autoptr (DsImage) l1 = stripe_frame (P, 0.6, 1000, 200, ambient, read_dn, gain, r);
+    DsProbeFrames fr = { .dark = dark, .lit = { l0, l1 }, .coarse_missing = "fixed by the test", .exposure_us = 1000,
+                         .geometry = { DS_PATTERN_SQUARE, P, 0.5, 0, 0 }, .blur_known = TRUE };
+    DsSceneProbe p;
+    g_autoptr (GError) error = NULL;
+    g_assert_true (ds_scene_probe_measure (&fr, &p, &error));
+    g_assert_no_error (error);
+    double shot = gain * ambient, var0 = read_dn * read_dn + shot;
+    g_assert_cmpfloat_with_epsilon (p.noise_var0, var0, 0.1 * var0);
+    g_assert_cmpfloat_with_epsilon (p.noise_gain, gain, 0.03);
+    if (with_ambient)
+      g_assert_cmpfloat_with_epsilon (p.noise_dark_shot, shot, 0.1 * shot);
+    else
+      g_assert_cmpfloat (p.noise_dark_shot, <, 0.5);
+    g_assert_cmpfloat (p.noise_dark_shot, <=, p.noise_var0);
+  }
+}
+
+/* The error model at a quarter of the pilot's exposure: sine's noise on sharp square stripes is
+ * sqrt (2 var / (M N h^2)) / Ld (docs/estimators.md) with var = read^2 + S f, the dark frame's
+ * shot noise S scaled by the exposure factor f and the read noise not; sine's Ld does not see
+ * the dark frame (a constant). Counted as read noise, S would stay whole: here 100 DN^2 against
+ * 25.75, twice the noise. */
+static void
+test_error_model_dark_shot_noise (void)
+{
+  const double ld = 500, read_var = 1, S = 99, f = 0.25;
+  DsSceneProbe p = { 0 };
+  p.geometry = (DsStripeModel){ DS_PATTERN_SQUARE, 16, 0.5, 0, 0 };
+  p.blur_source = DS_BLUR_CALIBRATED;
+  p.exposure_us = 1000;
+  p.ld_mean = ld;
+  p.ld_spread = 1;
+  p.lg_mean = 1000;
+  p.leak_measured = TRUE;
+  p.noise_var0 = read_var + S;
+  p.noise_dark_shot = S;
+  p.noise_gain = 0;
+  p.width = 256;
+  p.height = 192;
+  DsSeparationParams sp;
+  ds_separation_params_init (&sp, 4);
+  sp.pattern = DS_PATTERN_SQUARE;
+  sp.duty = 0.5;
+  g_autoptr (DsErrorModel) m = ds_error_model_new (&p, &sp);
+  DsErrorParts parts;
+  g_autoptr (GError) error = NULL;
+  const guint N = 16, M = 4;
+  double h = 2 / G_PI * sin (G_PI / N) / (G_PI / N);
+  for (int i = 0; i < 2; i++) {
+    double factor = i ? f : 1;
+    g_assert_true (ds_error_model_predict (m, DS_ESTIMATOR_SINE, N, M, factor, 0, &parts, &error));
+    double var = read_var + S * factor;
+    double expect = sqrt (2 * var / (M * N * h * h)) / (factor * ld);
+    g_test_message ("factor %g: noise %.5f, closed form %.5f", factor, parts.noise, expect);
+    g_assert_cmpfloat_with_epsilon (parts.noise, expect, 0.1 * expect);
+  }
+}
+
+int
+main (int argc, char **argv)
+{
+  g_test_init (&argc, &argv, NULL);
+  g_test_add_func ("/error-model-light/probe-dark-shot-noise", test_probe_dark_shot_noise);
+  g_test_add_func ("/error-model-light/dark-shot-noise", test_error_model_dark_shot_noise);
+  return g_test_run ();
+}
