@@ -17,7 +17,7 @@
 typedef struct {
   gboolean valid[N_EST];
   double error[N_EST];
-  char *refusal[N_EST];
+  char *refusal[N_EST];   /* the estimator's refusal, or why no pixel of the set is valid */
 } SetResult;
 
 static void
@@ -112,11 +112,16 @@ ensure_normals (DsErrorModel *m, guint frames)
  * one period once per period, and interpolated, instead of integrated per pixel and phase. */
 #define TABLE 4096u
 
-static const double *
+typedef struct {
+  double v[TABLE + 1];
+  double leak_min;        /* the scattered stripes' lowest value (<= 0: they have no mean), per Ld */
+} PatternTable;
+
+static const PatternTable *
 pattern_table (DsErrorModel *m, double period, double leak)
 {
   g_autofree char *key = g_strdup_printf ("%.9g/%g", period, leak);
-  double *table = g_hash_table_lookup (m->tables, key);
+  PatternTable *table = g_hash_table_lookup (m->tables, key);
   if (table)
     return table;
   DsStripeModel g = m->probe.geometry;
@@ -124,13 +129,14 @@ pattern_table (DsErrorModel *m, double period, double leak)
   double leak_c[SYN_LEAK_HARMONICS + 1] = { 0 };
   for (guint h = 1; h <= SYN_LEAK_HARMONICS && leak != 0; h++)
     leak_c[h] = leak * ds_scene_probe_leak (&m->probe, period, h) * ds_stripe_harmonic (&g, h);
-  table = g_new (double, TABLE + 1);
+  table = g_new0 (PatternTable, 1);
   for (guint i = 0; i <= TABLE; i++) {
-    double u = (double) i / TABLE, v = ds_stripe_value (&g, 0, -u);
+    double u = (double) i / TABLE, v = 0;
     for (guint h = 1; h <= SYN_LEAK_HARMONICS; h++)
       if (leak_c[h] != 0)
         v += leak_c[h] * cos (2 * G_PI * h * u);
-    table[i] = v;
+    table->leak_min = MIN (table->leak_min, v);
+    table->v[i] = ds_stripe_value (&g, 0, -u) + v;
   }
   g_hash_table_insert (m->tables, g_steal_pointer (&key), table);
   return table;
@@ -188,6 +194,14 @@ run_sets (DsErrorModel *m, guint n, guint averages, double factor, double period
     g_hash_table_insert (m->sets, key_set, sets[e]);
   }
   double pattern_mean = ds_pattern_mean (g.kind, g.duty, g.black_level);
+  const PatternTable *table = pattern_table (m, period, leak);
+  /* The scattered stripes are scattered light: modulated light with no mean of its own rides on
+   * the scattered light's mean, and no light is negative. A probe whose Lg holds less than their
+   * troughs take (a leak read on a scene whose mean shows no scattered light: gen-3-01, 1.9 % at
+   * P and Lg 0) would put the lit pixels' troughs below the dark frame, where the sets flag every
+   * lit pixel and the noise-free error is that of no pixel (+inf). So Lg is at least what the
+   * stripes' troughs at the lit pixels take. */
+  double lg = MAX (pr->lg_mean, pattern_mean > 0 ? -table->leak_min * m->ld_lit / pattern_mean : 0.0);
   if (noise)
     ensure_normals (m, n + 1);
   g_autoptr (DsImage) frame = ds_image_new (DS_SAMPLE_F32, m->width, SYN_ROWS, NULL);
@@ -204,7 +218,6 @@ run_sets (DsErrorModel *m, guint n, guint averages, double factor, double period
     if (sets[e] && !ds_phase_set_set_dark (sets[e], frame, NULL))
       sets[e] = NULL;
   g_autofree double *lit = g_new (double, m->width);
-  const double *table = pattern_table (m, period, leak);
   for (guint k = 0; k < n; k++) {
     double shift = pr->phase_offset + (double) k / n;
     for (guint x = 0; x < m->width; x++) {
@@ -212,14 +225,14 @@ run_sets (DsErrorModel *m, guint n, guint averages, double factor, double period
       u = (u - floor (u)) * TABLE;
       guint i = MIN ((guint) u, (guint) TABLE - 1);
       double t = u - i;
-      lit[x] = table[i] * (1 - t) + table[i + 1] * t;
+      lit[x] = table->v[i] * (1 - t) + table->v[i + 1] * t;
     }
     for (guint y = 0; y < SYN_ROWS; y++) {
       float *row = ds_image_row (frame, y);
       double ld = y < SYN_BLANK_ROWS ? 0.0 : m->ld_lit;
       const float *z = noise ? m->normals + ((gsize) k * SYN_ROWS + y) * m->width : NULL;
       for (guint x = 0; x < m->width; x++) {
-        double s = factor * (ld * lit[x] + pr->lg_mean * pattern_mean);
+        double s = factor * (ld * lit[x] + lg * pattern_mean);
         if (z)
           s += sqrt (MAX (0.0, var0 + pr->noise_gain * s) / averages) * z[x];
         row[x] = (float) MIN (pedestal + s, clip);
@@ -248,11 +261,17 @@ run_sets (DsErrorModel *m, guint n, guint averages, double factor, double period
       continue;
     }
     double se = 0, st = 0;
+    guint64 lit_px = 0, saturated = 0, below_dark = 0;
     for (guint y = 0; y < SYN_ROWS; y++) {
       const float *t = ds_image_row (sep->transmissive, y);
       const guint8 *mk = ds_image_row (sep->mask, y);
       double truth = y < SYN_BLANK_ROWS ? 0.0 : factor * m->ld_lit, w = y < SYN_BLANK_ROWS ? w_blank : w_lit;
       for (guint x = 0; x < m->width; x++) {
+        if (y >= SYN_BLANK_ROWS) {
+          lit_px++;
+          saturated += (mk[x] & DS_MASK_SATURATED) != 0;
+          below_dark += (mk[x] & DS_MASK_DARK_EXCEEDS) != 0;
+        }
         if ((mk[x] & ignore) || !isfinite (t[x]))
           continue;
         se += w * (t[x] - truth) * (t[x] - truth);
@@ -261,6 +280,11 @@ run_sets (DsErrorModel *m, guint n, guint averages, double factor, double period
     }
     res->valid[e] = st > 0;
     res->error[e] = st > 0 ? sqrt (se / st) : INFINITY;
+    if (!res->valid[e])
+      res->refusal[e] = g_strdup_printf ("no lit pixel is left to separate at %g x the pilot's exposure: %.0f %% of "
+                                         "them clip at the clip level, %.0f %% fall below the dark frame",
+                                         factor, 100.0 * (double) saturated / (double) MAX (lit_px, 1),
+                                         100.0 * (double) below_dark / (double) MAX (lit_px, 1));
   }
   g_hash_table_insert (m->cache, g_steal_pointer (&key), res);
   return res;
@@ -286,6 +310,15 @@ ds_error_model_predict (DsErrorModel *m, DsEstimator estimator, guint phases, gu
   }
   const SetResult *sys = run_sets (m, phases, 1, exposure_factor, period, FALSE, 1);
   const SetResult *samp = run_sets (m, phases, 1, exposure_factor, period, FALSE, 0);
+  /* Noise can leave a few pixels of a set whose noise-free twin has none (samples jittered below
+   * the clip level): an error over them says nothing about the scene, and the parts would not be
+   * finite. Such a configuration is refused with the reason. */
+  const SetResult *invalid = !sys->valid[e] ? sys : !samp->valid[e] ? samp : NULL;
+  if (invalid) {
+    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT, "%s",
+                 invalid->refusal[e] ? invalid->refusal[e] : "no valid pixel in the noise-free synthetic set");
+    return FALSE;
+  }
   out->total = total->error[e];
   out->systematic = sys->error[e];
   out->sampling = samp->error[e];

@@ -1,5 +1,7 @@
 /* The error model's light against independent expectations: the dark frame's own shot noise
- * (ambient light, dark current) scales with the exposure. */
+ * (ambient light, dark current) scales with the exposure, the scattered stripes ride on the
+ * scattered light (no light is negative), and a configuration with no pixel left to separate is
+ * refused with the reason, never predicted as +inf or from a few noisy pixels. */
 #include <math.h>
 #include <string.h>
 
@@ -119,11 +121,108 @@ test_error_model_dark_shot_noise (void)
   }
 }
 
+/* A leak read on a scene whose mean shows no scattered light (Lg 0, as gen-3-01's 1.9 % at P):
+ * the scattered stripes' troughs would be negative light, below the dark frame at every lit
+ * pixel, and the noise-free error was +inf. With the stripes riding on the scattered light they
+ * need, every part is finite, and maxmin's systematic error (N = P: every pixel sees its lit and
+ * its dark phase) is max - min of the pattern with its leak against 1, computed here by brute
+ * force from the square wave's Fourier series, not with the model's table. */
+static void
+test_error_model_leak_on_no_scattered_light (void)
+{
+  const double P = 12, ld = 1000, alpha = log (1.03) / P; /* 3 % of the first harmonic at P */
+  DsSceneProbe p = { 0 };
+  p.geometry = (DsStripeModel){ DS_PATTERN_SQUARE, P, 0.5, 0, 0 };
+  p.blur_source = DS_BLUR_CALIBRATED;
+  p.exposure_us = 1000;
+  p.ld_mean = ld;
+  p.ld_spread = 1;
+  p.lg_mean = 0;
+  p.leak_measured = TRUE;
+  p.leak_per_px = alpha;
+  p.width = 256;
+  p.height = 192;
+  DsSeparationParams sp;
+  ds_separation_params_init (&sp, 4);
+  sp.pattern = DS_PATTERN_SQUARE;
+  sp.duty = 0.5;
+  sp.geometry.period_px = P;
+  sp.geometry.pixel_aperture = 1;
+  g_autoptr (DsErrorModel) m = ds_error_model_new (&p, &sp);
+  DsErrorParts parts;
+  g_autoptr (GError) error = NULL;
+  g_assert_true (ds_error_model_predict (m, DS_ESTIMATOR_MAXMIN, 12, 1, 1, 0, &parts, &error));
+  g_assert_no_error (error);
+  g_assert_true (isfinite (parts.total) && isfinite (parts.systematic) && isfinite (parts.sampling) &&
+                 isfinite (parts.scattered_stripes));
+  /* Brute force: per pixel x, the pixel-integrated sharp pattern plus the leak's odd harmonics
+   * (exp (alpha P / n) - 1 times the pattern's own), max - min over the 12 phases against 1. */
+  double se = 0;
+  for (guint x = 0; x < 256; x++) {
+    double hi = -INFINITY, lo = INFINITY;
+    for (guint k = 0; k < 12; k++) {
+      double v = 0.5;
+      for (guint n = 1; n < 200; n += 2) {
+        double c = 2 / (n * G_PI) * sin (n * G_PI / 2) * sin (G_PI * n / P) / (G_PI * n / P);
+        double l = n <= 15 ? exp (alpha * P / n) : 1; /* the model carries 15 harmonics of the leak */
+        v += c * l * cos (2 * G_PI * n * (x / P - k / 12.0 - p.phase_offset));
+      }
+      hi = MAX (hi, v);
+      lo = MIN (lo, v);
+    }
+    se += (hi - lo - 1) * (hi - lo - 1);
+  }
+  double expect = sqrt (se / 256);
+  g_test_message ("maxmin N = 12 with a 3 %% leak and Lg 0: systematic %.5f, brute force %.5f", parts.systematic, expect);
+  g_assert_cmpfloat (expect, >, 0.01);
+  g_assert_cmpfloat_with_epsilon (parts.systematic, expect, 0.1 * expect);
+}
+
+/* Every lit pixel clipped at an exposure, with the sets flagging the clip level: no pixel is left,
+ * and the configuration is refused with a reason naming the clip, not predicted. */
+static void
+test_error_model_nothing_left (void)
+{
+  DsSceneProbe p = { 0 };
+  p.geometry = (DsStripeModel){ DS_PATTERN_SQUARE, 12, 0.5, 0, 0 };
+  p.blur_source = DS_BLUR_CALIBRATED;
+  p.exposure_us = 1000;
+  p.ld_mean = 1000;
+  p.ld_spread = 1;
+  p.leak_measured = TRUE;
+  p.noise_var0 = 4;
+  p.noise_gain = 0.25;
+  p.saturation_dn = 1500;
+  p.bright_dn = 1000;
+  p.clip_flagged = TRUE;
+  p.width = 256;
+  p.height = 192;
+  DsSeparationParams sp;
+  ds_separation_params_init (&sp, 4);
+  sp.pattern = DS_PATTERN_SQUARE;
+  sp.duty = 0.5;
+  g_autoptr (DsErrorModel) m = ds_error_model_new (&p, &sp);
+  DsErrorParts parts;
+  g_autoptr (GError) error = NULL;
+  for (guint n = 3; n <= 12; n += 9) {
+    g_assert_false (ds_error_model_predict (m, DS_ESTIMATOR_ROBUST, n, 1, 2, 0, &parts, &error));
+    g_assert_nonnull (error);
+    g_test_message ("%s", error->message);
+    g_assert_nonnull (strstr (error->message, "clip"));
+    g_clear_error (&error);
+  }
+  /* At the pilot's exposure nothing clips: a finite prediction. */
+  g_assert_true (ds_error_model_predict (m, DS_ESTIMATOR_ROBUST, 12, 1, 1, 0, &parts, &error));
+  g_assert_true (isfinite (parts.total));
+}
+
 int
 main (int argc, char **argv)
 {
   g_test_init (&argc, &argv, NULL);
   g_test_add_func ("/error-model-light/probe-dark-shot-noise", test_probe_dark_shot_noise);
   g_test_add_func ("/error-model-light/dark-shot-noise", test_error_model_dark_shot_noise);
+  g_test_add_func ("/error-model-light/leak-on-no-scattered-light", test_error_model_leak_on_no_scattered_light);
+  g_test_add_func ("/error-model-light/nothing-left", test_error_model_nothing_left);
   return g_test_run ();
 }
