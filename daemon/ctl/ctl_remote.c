@@ -430,7 +430,9 @@ ds_ctl_stream (const DsCtlTarget *target, int argc, char **argv)
   g_autofree char *count_text = NULL, *delay_text = NULL, *out = NULL, *files = NULL;
   gboolean force = FALSE;
   GOptionEntry entries[] = {
-    { "count", 'c', 0, G_OPTION_ARG_STRING, &count_text, "Stop after this many results (default: until interrupted)", "N" },
+    { "count", 'c', 0, G_OPTION_ARG_STRING, &count_text,
+      "Stop after this many sets, each a result or a failure (default: until interrupted); exit status 1 "
+      "when one of them failed", "N" },
     { "out", 'o', 0, G_OPTION_ARG_FILENAME, &out, "Write each result to DIR (set-<UTC>-<id>-*)", "DIR" },
     { "files", 0, 0, G_OPTION_ARG_STRING, &files,
       "Files to write with --out: any of " DS_FILES_ALL_NAMES " (default tiff); hdf5-run: one growing file for "
@@ -479,6 +481,9 @@ ds_ctl_stream (const DsCtlTarget *target, int argc, char **argv)
   sigaction (SIGINT, &sa, NULL);
   sigaction (SIGTERM, &sa, NULL);
   DsHdf5Run *run = NULL;
+  /* A failed set counts towards --count: with every set failing (the illuminator showing the
+   * wrong phase, say) a scripted `stream --count N` would otherwise never end. */
+  gint64 failed = 0;
   for (gint64 got = 0; (count == 0 || got < count) && !stream_stop;) {
     if (delay_ms > 0)
       g_usleep ((gulong) delay_ms * 1000);
@@ -497,6 +502,10 @@ ds_ctl_stream (const DsCtlTarget *target, int argc, char **argv)
       g_autofree char *body = m->reply->body ? json_to_string (m->reply->body, FALSE) : g_strdup ("");
       printf ("%s %s\n", m->reply->event, body);
       fflush (stdout);
+      if (strcmp (m->reply->event, "failed") == 0) {
+        failed++;
+        got++;
+      }
       continue;
     }
     JsonObject *body = json_node_get_object (m->reply->body);
@@ -516,5 +525,12 @@ ds_ctl_stream (const DsCtlTarget *target, int argc, char **argv)
     }
     got++;
   }
-  return close_run (run, 0);
+  if (failed > 0) {
+    if (count > 0)
+      fprintf (stderr, "descatterctl stream: %" G_GINT64_FORMAT " of the %" G_GINT64_FORMAT " sets failed (the `failed` lines say why)\n",
+               failed, count);
+    else
+      fprintf (stderr, "descatterctl stream: %" G_GINT64_FORMAT " sets failed (the `failed` lines say why)\n", failed);
+  }
+  return close_run (run, failed > 0 ? 1 : 0);
 }

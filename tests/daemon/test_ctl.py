@@ -184,6 +184,24 @@ def stream_and_start(d):
     d.ctl("stop")
 
 
+def stream_counts_failed_sets(tmp):
+    # Every frame is stale (an earlier exposure): every set fails verification. `stream --count 2` must end
+    # after two failed sets, say so and exit 1, not wait for results that never come.
+    d = Daemon(tmp, "failing", SIM_CONF + "[sim]\nfaults=stale=1\n")
+    try:
+        r = d.ctl("start", "--no-dark-frame")
+        check(r.returncode == 0, f"start on a rig whose every set fails: {r.stderr.strip()}")
+        r = d.ctl("stream", "--count", "2", timeout=120)
+        failed = [x for x in r.stdout.splitlines() if x.startswith("failed ")]
+        results = [x for x in r.stdout.splitlines() if x.startswith("result ")]
+        check(r.returncode == 1 and len(failed) == 2 and not results and "2 of the 2 sets failed" in r.stderr,
+              f"stream --count 2 ends after two failed sets with status 1: rc={r.returncode} {r.stderr.strip()}")
+        check(all("phase" in x for x in failed), f"each failed line says why: {failed}")
+        d.ctl("stop")
+    finally:
+        check(d.stop() == 0, "descatterd exits cleanly")
+
+
 def automatic_capture(d, tmp):
     out = os.path.join(tmp, "auto")
     r = d.ctl("capture", "-q", "--target-error", "0.1", "--time-budget-ms", "5000", "--out", out)
@@ -270,6 +288,7 @@ def main():
             stream_and_start(d)
         finally:
             check(d.stop() == 0, "descatterd exits cleanly")
+        stream_counts_failed_sets(tmp)
         tcp_token(tmp)
         study_progress(tmp)
     print(f"{len(failures)} failed" if failures else "descatterctl: ok")
