@@ -394,12 +394,16 @@ separate (const char *dir, const Options *o, gboolean *usage, GError **error)
             ds_estimator_name (params.estimator), params.duty, params.black_level,
             folder->black_file ? ", black subtracted" : "", folder->width, folder->height,
             ds_sample_type_name (folder->type), out);
-    if (phases.checked)
-      printf ("  stripe period %g px (%s), phase 0 at %.3f cycles, phase order %s\n", phases.period_px,
-              phases.period_source, phases.offset_cycles,
+    if (phases.checked) {
+      /* No stripes measured (the reason went to stderr): no offset to print, not "nan". */
+      g_autofree char *offset = isfinite (phases.offset_cycles)
+                                    ? g_strdup_printf ("phase 0 at %.3f cycles", phases.offset_cycles)
+                                    : g_strdup ("phase 0 unknown");
+      printf ("  stripe period %g px (%s), %s, phase order %s\n", phases.period_px, phases.period_source, offset,
               phases.verdict == DS_PHASE_ORDER_OK          ? "verified"
               : phases.verdict == DS_PHASE_ORDER_REORDERED ? "corrected"
                                                            : "not verified");
+    }
     for (int i = 0; i < DS_MASK_N_BITS; i++)
       if (sep->meta.flagged[i])
         printf ("  flagged %-15s %" G_GUINT64_FORMAT " pixels\n", ds_mask_bit_name (i), sep->meta.flagged[i]);

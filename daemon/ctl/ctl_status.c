@@ -214,7 +214,7 @@ print_summary (JsonObject *st)
   JsonObject *cl = member_object (st, "clients");
   if (cl)
     printf ("clients:      %" G_GINT64_FORMAT " connected, %" G_GINT64_FORMAT " subscribed; %" G_GINT64_FORMAT
-            " requests (%" G_GINT64_FORMAT " bad); %" G_GINT64_FORMAT " results published, %" G_GINT64_FORMAT
+            " requests (%" G_GINT64_FORMAT " answered with an error); %" G_GINT64_FORMAT " results published, %" G_GINT64_FORMAT
             " dropped for slow readers\n",
             int_of (cl, "connected"), int_of (cl, "subscribers"), int_of (cl, "requests"),
             int_of (cl, "bad_requests"), int_of (cl, "results_published"), int_of (cl, "results_dropped"));

@@ -260,6 +260,9 @@ static const struct {
   { "duplicated", 1, "*phase-02.png: given phase 2, shows phase 1*phase 2: no frame shows it*", NULL },
   { "between", 1, "*phase-03.png: given phase 3, shows none*", NULL },
   { "detected", 0, NULL, "*stripe period * px (detected), phase 0 at * cycles, phase order verified*" },
+  /* Frames without stripes at the given period (the stock Aravis fake camera's, in the lab-user
+   * trial): separated, the order not verified, and no "phase 0 at nan cycles" printed. */
+  { "flat", 0, "*phase order not verified*", "*stripe period 10 px (--period), phase 0 unknown, phase order not verified*" },
 };
 
 static void
@@ -277,10 +280,20 @@ test_phase_order (gconstpointer data)
       write_frame (dir, "phase-02.png", 1.0 / N, 0);
     } else if (g_str_equal (what, "between")) {
       write_frame (dir, "phase-03.png", 3.5 / N, 0);
+    } else if (g_str_equal (what, "flat")) {
+      for (guint k = 0; k < N; k++) {
+        g_autoptr (DsImage) img = ds_image_new (DS_SAMPLE_U16, W, H, NULL);
+        for (guint y = 0; y < H; y++)
+          for (guint x = 0; x < W; x++)
+            ((guint16 *) ds_image_row (img, y))[x] = (guint16) (1000 + k);
+        g_autofree char *path = g_strdup_printf ("%s/phase-%02u.png", dir, k);
+        g_assert_true (ds_image_write (img, path, NULL));
+      }
     }
     int status = g_str_equal (what, "strict") ? run ("--no-preview", "--out", out, "--strict-phases", dir, NULL)
+                 : g_str_equal (what, "flat") ? run ("--no-preview", "--out", out, "--period", "10", dir, NULL)
                                               : run ("--no-preview", "--out", out, dir, NULL);
-    if (status == 0)
+    if (status == 0 && !g_str_equal (what, "flat"))
       assert_exact (out);
     test_remove_tree (dir);
     g_assert_cmpint (status, ==, order_cases[i].status);
