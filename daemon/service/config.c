@@ -149,6 +149,11 @@ static const KeySpec keys[] = {
   { "sim", "seed", K_UINT64, F (sim_seed), "1", 0, 1e18, NULL, "noise seed of the simulation" },
   { "sim", "faults", K_STRING, F (sim_faults), NULL, 0, 0, NULL,
     "injected faults of the simulated devices, e.g. stale=0.05,incomplete=0.02 (docs/reliability.md); empty = none" },
+  { "sim", "geometry", K_CHOICE, F (sim_geometry), "scene", 0, 0, "scene|config",
+    "the stripe pattern descatterd assumes: scene = the simulated illuminator's (the scene's), config = "
+    "[illuminator] pattern, period-px, duty and black-level as configured, as with real devices, while the "
+    "simulated illuminator still draws the scene's stripes (to try a configuration or a calibration against a "
+    "known illuminator)" },
 };
 
 static gboolean

@@ -84,6 +84,7 @@ typedef struct {
   char *sim_scene;
   guint64 sim_seed;
   char *sim_faults;       /* "name=value,..." or NULL */
+  char *sim_geometry;     /* "scene" | "config": the stripe pattern descatterd assumes */
 } DsConfig;
 
 /* The table's defaults; the device backends are left unset (a file must choose them). */

@@ -61,6 +61,7 @@ open_sim_lab (const DsConfig *config, DsStripePattern *pattern, GError **error)
     return NULL;
   DsSimLab *lab = ds_sim_lab_new (renderer, config->sim_seed);
   ds_sim_lab_set_faults (lab, &faults);
+  ds_sim_lab_set_any_pattern (lab, config->sim_geometry && strcmp (config->sim_geometry, "config") == 0);
   return lab;
 }
 
@@ -135,7 +136,8 @@ ds_devices_open (const DsConfig *config, GError **error)
   dev->pattern.black_level = config->black_level;
   dev->pattern.intensity = config->intensity;
   dev->pattern.n_phases = config->phases;
-  if (strcmp (config->illuminator_backend, "sim") == 0) {
+  if (strcmp (config->illuminator_backend, "sim") == 0 &&
+      !(config->sim_geometry && strcmp (config->sim_geometry, "config") == 0)) {
     dev->pattern.kind = scene_pattern.kind;
     dev->pattern.period_px = scene_pattern.period_px;
     dev->pattern.duty = scene_pattern.duty;

@@ -22,6 +22,8 @@ struct DsSimLab {
   guint phase, n_phases, shown_phase, previous_phase;
   double period_px;        /* the period it projects (0: the scene's) */
   gboolean period_fixed;   /* it projects the scene's period only */
+  gboolean any_pattern;    /* it takes any kind and duty asked for and draws the scene's (as a
+                              projector ignores what it cannot change) */
   guint64 apply_count;
   /* camera state */
   gboolean connected, started;
@@ -163,6 +165,12 @@ void
 ds_sim_lab_set_period_fixed (DsSimLab *lab, gboolean fixed)
 {
   lab->period_fixed = fixed;
+}
+
+void
+ds_sim_lab_set_any_pattern (DsSimLab *lab, gboolean any)
+{
+  lab->any_pattern = any;
 }
 
 const DsRenderer *
@@ -419,7 +427,7 @@ ill_set_pattern (gpointer b, const DsStripePattern *p, GError **error)
 {
   DsSimLab *lab = b;
   const DsSceneSpec *s = ds_scene_spec (ds_renderer_scene (lab->renderer));
-  if (p->n_phases < 2 || fabs (p->duty - s->duty) > 1e-9) {
+  if (p->n_phases < 2 || (!lab->any_pattern && fabs (p->duty - s->duty) > 1e-9)) {
     g_set_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_INVALID,
                  "simulated illuminator: it projects the scene's pattern (duty %g) with N >= 2; asked for "
                  "duty %g, N %u", s->duty, p->duty, p->n_phases);

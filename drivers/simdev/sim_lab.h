@@ -44,6 +44,11 @@ void ds_sim_lab_set_faults (DsSimLab *lab, const DsSimFaults *faults);
  * register: DsIlluminatorStatus.period_adjustable), or, when fixed, the scene's only and refuses
  * others (UNSUPPORTED). Adjustable by default; set before the illuminator is used. */
 void ds_sim_lab_set_period_fixed (DsSimLab *lab, gboolean fixed);
+/* The illuminator takes any pattern kind and duty it is asked for, and still draws the scene's
+ * stripes (labsim's controller does the same with its PATTERN_KIND and DUTY registers): for a
+ * daemon that assumes the configured pattern ([sim] geometry = config). Refuses otherwise
+ * (INVALID). Set before the illuminator is used. */
+void ds_sim_lab_set_any_pattern (DsSimLab *lab, gboolean any);
 const DsRenderer *ds_sim_lab_renderer (const DsSimLab *lab);
 
 /* The devices hold a reference on the lab. */
