@@ -61,15 +61,59 @@ destroy_stream (AravisCam *c)
   c->stream_payload = 0;
 }
 
+static gboolean
+device_is_sole_reference (ArvDevice *device)
+{
+  return g_atomic_int_get ((gint *) &G_OBJECT (device)->ref_count) == 1;
+}
+
+static gpointer
+release_device_thread (gpointer data)
+{
+  ArvDevice *device = data;
+  gulong wait_us = 100;
+  while (!device_is_sole_reference (device)) {
+    g_usleep (wait_us);
+    wait_us = MIN (wait_us * 2, 20000ul);
+  }
+  g_object_unref (device); /* the last: finalized here, its heartbeat thread joined from here */
+  return NULL;
+}
+
+/* Drops the backend's reference on a closed camera's device so that the device is never
+ * finalized on one of Aravis's own threads. Its heartbeat thread emits "control-lost" holding a
+ * reference for the emission (GLib's); were ours dropped meanwhile, the emission's unref would
+ * finalize the device on the heartbeat thread, and the finalize joins the heartbeat thread:
+ * itself ("Resource deadlock avoided", descatterd aborting in daemon/labsim-faults under load).
+ * Usually ours is the last reference and the device goes here, on the thread that closes the
+ * camera (its owner). Otherwise (an emission in progress, or frames lent past the close, whose
+ * streams hold the device) a thread of our own takes the reference and drops it once it is the
+ * last one. That thread is detached: the lent frames it may wait for are freed by the very
+ * thread that would join it. */
+static void
+release_device (ArvDevice *device)
+{
+  if (device_is_sole_reference (device)) {
+    g_object_unref (device);
+    return;
+  }
+  GThread *t = g_thread_new ("arv-device-release", release_device_thread, device);
+  g_thread_unref (t);
+}
+
 static void
 close_device (AravisCam *c)
 {
   destroy_stream (c);
   if (c->camera) {
+    ArvDevice *device = g_object_ref (arv_camera_get_device (c->camera));
+    /* From here on an emission of "control-lost" that has not started takes no reference (no
+     * handler): only one already under way can hold the device. */
     if (c->control_lost_id)
-      g_signal_handler_disconnect (arv_camera_get_device (c->camera), c->control_lost_id);
+      g_signal_handler_disconnect (device, c->control_lost_id);
     c->control_lost_id = 0;
     g_clear_object (&c->camera);
+    release_device (device);
   }
   c->started = FALSE;
 }

@@ -380,6 +380,99 @@ test_disconnect_reconnect (Rig *r, gconstpointer data)
   g_assert_cmpuint (st.reconnects, ==, 1);
 }
 
+/* Aravis's heartbeat thread reports "control-lost" while holding a reference on the device for
+ * the emission. The camera is closed meanwhile (a reconnect after the loss, as descatterd's
+ * acquisition thread does): were the backend's reference dropped then, the emission's would be
+ * the last, and the device's finalize, which joins the heartbeat thread, would run on that very
+ * thread (GLib-ERROR "Resource deadlock avoided" in g_thread_join: daemon/labsim-faults under
+ * load). An emission hook holds the heartbeat thread inside the emission until the backend's
+ * close is over or the emission's reference is the last one, which makes the interleaving
+ * certain instead of a matter of load. The device must then be finalized, and not on the
+ * heartbeat thread. */
+typedef struct {
+  GMutex lock;
+  GCond cond;
+  ArvDevice *device;           /* weak: for its reference count */
+  GThread *heartbeat;          /* the thread that emitted */
+  GThread *finalized_on;
+  gboolean entered, closed, finalized;
+} LostEmission;
+
+/* Data on the device, freed by GObject's own finalize: after Aravis's (heartbeat joined). */
+static void
+on_device_finalized (gpointer data)
+{
+  LostEmission *e = data;
+  g_mutex_lock (&e->lock);
+  e->finalized = TRUE;
+  e->finalized_on = g_thread_self ();
+  g_cond_broadcast (&e->cond);
+  g_mutex_unlock (&e->lock);
+}
+
+static gboolean
+hold_control_lost (GSignalInvocationHint *hint, guint n_values, const GValue *values, gpointer data)
+{
+  (void) hint;
+  (void) n_values;
+  LostEmission *e = data;
+  GObject *device = g_value_get_object (&values[0]);
+  g_object_set_data_full (device, "ds-test-finalized", e, on_device_finalized);
+  g_mutex_lock (&e->lock);
+  e->device = ARV_DEVICE (device);
+  e->heartbeat = g_thread_self ();
+  e->entered = TRUE;
+  g_cond_broadcast (&e->cond);
+  gint64 deadline = g_get_monotonic_time () + 60 * G_TIME_SPAN_SECOND;
+  /* The emission's reference (taken by GLib for the emission) left alone: the bug. */
+  while (!e->closed && g_atomic_int_get ((gint *) &device->ref_count) > 1 &&
+         g_get_monotonic_time () < deadline)
+    g_cond_wait_until (&e->cond, &e->lock, g_get_monotonic_time () + G_TIME_SPAN_MILLISECOND);
+  g_mutex_unlock (&e->lock);
+  return FALSE; /* once */
+}
+
+static void
+test_control_lost_during_close (Rig *r, gconstpointer data)
+{
+  (void) data;
+  DsCameraSettings s = settings ("Mono8", 16, 8);
+  configure_and_start (r, &s);
+  LostEmission e = { 0 };
+  g_mutex_init (&e.lock);
+  g_cond_init (&e.cond);
+  guint signal_id = g_signal_lookup ("control-lost", ARV_TYPE_DEVICE);
+  gulong hook = g_signal_add_emission_hook (signal_id, 0, hold_control_lost, &e, NULL);
+  g_clear_object (&r->gv); /* the camera vanishes: the heartbeat reports it within seconds */
+  gint64 deadline = g_get_monotonic_time () + 60 * G_TIME_SPAN_SECOND;
+  g_mutex_lock (&e.lock);
+  while (!e.entered && g_get_monotonic_time () < deadline)
+    g_cond_wait_until (&e.cond, &e.lock, deadline);
+  gboolean entered = e.entered;
+  g_mutex_unlock (&e.lock);
+  if (!entered)
+    g_signal_remove_emission_hook (signal_id, hook);
+  g_assert_true (entered);
+  /* The heartbeat thread is inside the emission: the backend reconnects (closing the device;
+   * the camera is still gone, so opening it again fails). */
+  g_autoptr (GError) error = NULL;
+  g_assert_false (r->cam->ops->reconnect (r->cam->backend, &error));
+  g_assert_error (error, DS_CAMERA_ERROR, DS_DEVICE_ERROR_DISCONNECTED);
+  g_mutex_lock (&e.lock);
+  e.closed = TRUE;
+  g_cond_broadcast (&e.cond);
+  deadline = g_get_monotonic_time () + 30 * G_TIME_SPAN_SECOND;
+  while (!e.finalized && g_get_monotonic_time () < deadline)
+    g_cond_wait_until (&e.cond, &e.lock, deadline);
+  gboolean finalized = e.finalized;
+  GThread *finalized_on = e.finalized_on;
+  g_mutex_unlock (&e.lock);
+  g_assert_true (finalized);                       /* released, not leaked */
+  g_assert_true (finalized_on != e.heartbeat);     /* and never by the thread it joins */
+  g_mutex_clear (&e.lock);
+  g_cond_clear (&e.cond);
+}
+
 /* Mono16 frames lend the camera's buffer: while a frame is held its buffer is out of the
  * stream and its pixels stay those of its own exposure (later frames do not overwrite them);
  * freeing a frame gives the buffer back; a frame held past the camera's close stays valid. */
@@ -444,6 +537,7 @@ main (int argc, char **argv)
   ADD ("/aravis/flush", test_flush);
   ADD ("/aravis/disconnect-reconnect", test_disconnect_reconnect);
   ADD ("/aravis/lent-buffers", test_lent_buffers);
+  ADD ("/aravis/control-lost-during-close", test_control_lost_during_close);
   int rc = g_test_run ();
   arv_shutdown ();
   return rc;
