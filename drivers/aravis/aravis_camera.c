@@ -23,7 +23,27 @@ typedef struct {
   DsCameraStats stats;     /* missing_packets / resend_requests: of streams already closed */
   DsCameraInfo info;
   DsFramePool *frames;     /* frame headers and unpacked images, reused */
+  /* Frames whose first packet arrived (the stream thread's START_BUFFER), for frames_begun:
+   * written by the stream thread, read by the acquisition thread. */
+  GMutex begun_lock;
+  GCond begun_cond;
+  guint64 begun;
 } AravisCam;
+
+/* The stream's receiving thread: a new frame's first packet arrived. Its own lock only: the
+ * camera may not be touched from this thread (arvstream.h). */
+static void
+on_stream_event (void *data, ArvStreamCallbackType type, ArvBuffer *buffer)
+{
+  (void) buffer; /* NULL for START_BUFFER in Aravis 0.8.26 */
+  AravisCam *c = data;
+  if (type != ARV_STREAM_CALLBACK_TYPE_START_BUFFER)
+    return;
+  g_mutex_lock (&c->begun_lock);
+  c->begun++;
+  g_cond_broadcast (&c->begun_cond);
+  g_mutex_unlock (&c->begun_lock);
+}
 
 static void
 on_control_lost (ArvDevice *device, gpointer data)
@@ -358,7 +378,7 @@ static gboolean
 create_pool (AravisCam *c, guint payload, GError **error)
 {
   GError *e = NULL;
-  ArvStream *stream = arv_camera_create_stream (c->camera, NULL, NULL, &e);
+  ArvStream *stream = arv_camera_create_stream (c->camera, on_stream_event, c, &e);
   if (!stream)
     return fail (error, code_of (e) == DS_DEVICE_ERROR_TIMEOUT ? DS_DEVICE_ERROR_DISCONNECTED
                                                                : DS_DEVICE_ERROR_FAULT,
@@ -611,6 +631,21 @@ cam_grab (gpointer b, guint timeout_ms, GError **error)
   return f;
 }
 
+/* A frame's first packet leaves the camera after its readout, hence after its exposure
+ * (GigE Vision cameras send a frame once read out; docs/design.md, "The pipeline"). */
+static guint64
+cam_frames_begun (gpointer b, guint64 after, guint timeout_ms)
+{
+  AravisCam *c = b;
+  gint64 until = g_get_monotonic_time () + (gint64) timeout_ms * 1000;
+  g_mutex_lock (&c->begun_lock);
+  while (c->begun <= after && timeout_ms > 0 && g_cond_wait_until (&c->begun_cond, &c->begun_lock, until))
+    ;
+  guint64 n = c->begun;
+  g_mutex_unlock (&c->begun_lock);
+  return n;
+}
+
 static guint
 cam_flush (gpointer b)
 {
@@ -659,6 +694,8 @@ cam_close (gpointer b)
   cam_stop (c);
   close_device (c);
   ds_frame_pool_unref (c->frames);
+  g_mutex_clear (&c->begun_lock);
+  g_cond_clear (&c->begun_cond);
   g_free (c->address);
   g_free (c);
 }
@@ -667,6 +704,7 @@ static const DsCameraOps aravis_camera_ops = {
   .name = "aravis", .configure = cam_configure, .start = cam_start, .trigger = cam_trigger,
   .grab = cam_grab, .flush = cam_flush, .stop = cam_stop, .reconnect = cam_reconnect,
   .get_stats = cam_get_stats, .get_info = cam_get_info, .close = cam_close,
+  .frames_begun = cam_frames_begun,
 };
 
 DsCamera *
@@ -681,7 +719,11 @@ ds_aravis_camera_open (const char *address_or_id, guint n_buffers, GError **erro
   c->address = g_strdup (address_or_id);
   c->frames = ds_frame_pool_new ();
   c->n_buffers = n_buffers;
+  g_mutex_init (&c->begun_lock);
+  g_cond_init (&c->begun_cond);
   if (!open_device (c, error)) {
+    g_mutex_clear (&c->begun_lock);
+    g_cond_clear (&c->begun_cond);
     ds_frame_pool_unref (c->frames);
     g_free (c->address);
     g_free (c);

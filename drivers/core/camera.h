@@ -81,6 +81,13 @@ struct DsCameraOps {
   void (*get_info) (gpointer backend, DsCameraInfo *info);
   /* Stops if needed and frees everything. */
   void (*close) (gpointer backend);
+  /* How many frames the camera has begun sending since it was opened (a count that only
+   * grows), waiting up to timeout_ms for it to exceed `after` (0: no wait). A camera begins
+   * sending a frame once it has read the sensor out, so its exposure is over: the sequencer
+   * moves the illuminator to the next phase then, during the transfer (docs/design.md, "The
+   * pipeline"). Blocks at most timeout_ms; never fails (a lost camera's count stops growing).
+   * NULL: the backend cannot tell, and the illuminator moves only after grab returned. */
+  guint64 (*frames_begun) (gpointer backend, guint64 after, guint timeout_ms);
 };
 
 /* Convenience wrappers so callers read as ds_camera_grab (cam, ...). */

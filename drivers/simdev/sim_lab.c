@@ -30,6 +30,7 @@ struct DsSimLab {
   double exposure_us, gain_db;
   DsCameraSettings settings;
   guint64 next_id, frames_triggered, renders;
+  guint64 begun;           /* frames sent (whole or not): rendered at their trigger */
   DsFrameIdTracker ids;
   GQueue pending;          /* rendered frames waiting for grab (DsFrame*, or NULL = incomplete) */
   DsCameraStats stats;
@@ -300,6 +301,7 @@ cam_trigger (gpointer b, GError **error)
   if (drop)
     return TRUE; /* the frame is lost in transit: its id never shows up */
   if (incomplete) {
+    lab->begun++;
     g_queue_push_tail (&lab->pending, NULL);
     guint32 skipped;
     ds_frame_id_tracker_update (&lab->ids, id, &skipped);
@@ -324,6 +326,7 @@ cam_trigger (gpointer b, GError **error)
   fr->exposure_us = lab->exposure_us;
   fr->gain_db = lab->gain_db;
   lab->stats.ids_skipped += skipped;
+  lab->begun++;
   g_queue_push_tail (&lab->pending, fr);
   return TRUE;
 }
@@ -350,6 +353,15 @@ cam_grab (gpointer b, guint timeout_ms, GError **error)
   }
   lab->stats.completed++;
   return f;
+}
+
+/* A simulated frame is exposed and rendered at its trigger: once trigger returned, it is sent. */
+static guint64
+cam_frames_begun (gpointer b, guint64 after, guint timeout_ms)
+{
+  (void) after;
+  (void) timeout_ms;
+  return ((DsSimLab *) b)->begun;
 }
 
 static guint
@@ -409,6 +421,7 @@ static const DsCameraOps sim_camera_ops = {
   .name = "sim", .configure = cam_configure, .start = cam_start, .trigger = cam_trigger,
   .grab = cam_grab, .flush = cam_flush, .stop = cam_stop, .reconnect = cam_reconnect,
   .get_stats = cam_get_stats, .get_info = cam_get_info, .close = cam_close,
+  .frames_begun = cam_frames_begun,
 };
 
 DsCamera *

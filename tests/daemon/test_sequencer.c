@@ -206,9 +206,12 @@ cam_close (gpointer b)
   g_clear_pointer (&lab->delivered, ds_frame_free);
 }
 
+/* No frames_begun: this camera exposes when grab is called (it renders the phase applied
+ * then), so the illuminator must not move before grab returned. Moving during the transfer is
+ * test_sequencer_transfer.c's. */
 static const DsCameraOps cam_ops = { "scripted", cam_configure, cam_start, cam_trigger, cam_grab,
                                      cam_flush, cam_stop, cam_reconnect, cam_stats, cam_info,
-                                     cam_close };
+                                     cam_close, NULL };
 
 static gboolean ill_pattern (gpointer b, const DsStripePattern *p, GError **e)
 {
