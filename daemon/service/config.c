@@ -89,6 +89,10 @@ static const KeySpec keys[] = {
     "trigger source of the camera" },
   { "camera", "grab-timeout-ms", K_UINT, F (grab_timeout_ms), "2000", 10, 600000, NULL,
     "deadline for a frame after its trigger, beyond the exposure" },
+  { "camera", "sends-after-exposure", K_BOOL, F (sends_after_exposure), "true", 0, 0, NULL,
+    "the camera begins sending a frame only once the whole frame's exposure is over (global shutter, "
+    "or a rolling shutter that reads out before sending): the illuminator then moves to the next phase "
+    "during the transfer; false = only after the frame arrived" },
 
   { "illuminator", "backend", K_CHOICE, F (illuminator_backend), NULL, 0, 0, "modbus|gpio|sim",
     "illuminator driver: modbus, gpio, or sim (the simulated lab); no default" },

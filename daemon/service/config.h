@@ -48,6 +48,7 @@ typedef struct {
   char *roi;              /* "x,y,w,h" or NULL (full sensor) */
   char *camera_trigger;   /* "software" | "line0".."line3" */
   guint grab_timeout_ms;
+  gboolean sends_after_exposure;
   /* [illuminator] */
   char *illuminator_backend; /* "sim" | "modbus" | "gpio" */
   char *modbus_uri;

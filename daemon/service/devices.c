@@ -145,6 +145,7 @@ ds_devices_open (const DsConfig *config, GError **error)
   }
   dev->grab_timeout_ms = config->grab_timeout_ms;
   dev->settle_timeout_ms = config->settle_timeout_ms;
+  dev->sends_after_exposure = config->sends_after_exposure;
   dev->description = g_strdup_printf ("camera=%s illuminator=%s trigger=%s",
                                       config->camera_backend, config->illuminator_backend,
                                       config->trigger_backend);

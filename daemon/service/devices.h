@@ -21,6 +21,8 @@ typedef struct {
   DsStripePattern pattern;          /* from [illuminator]; n_phases set per set */
   guint grab_timeout_ms;
   guint settle_timeout_ms;
+  gboolean sends_after_exposure;    /* [camera]: the next phase may be applied once a frame's
+                                     * transfer began (camera ops->frames_begun) */
   char *description;                /* "camera=sim illuminator=sim trigger=software" */
   gpointer owner;                   /* backend state shared by several devices (the sim lab) */
   GDestroyNotify free_owner;
