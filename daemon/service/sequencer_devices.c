@@ -82,13 +82,18 @@ ds_seq_trigger (DsSequencer *seq, DsFrameCounters *c, GError **error)
 DsFrame *
 ds_seq_grab (DsSequencer *seq, DsFrameCounters *c, GError **error)
 {
+  return ds_seq_grab_within (seq, c, seq->dev->grab_timeout_ms, error);
+}
+
+DsFrame *
+ds_seq_grab_within (DsSequencer *seq, DsFrameCounters *c, guint timeout_ms, GError **error)
+{
   gint64 t = g_get_monotonic_time ();
   GError *local = NULL;
   /* The grab's own deadline, then one control round trip asking a silent camera whether it
    * is still there. */
-  ds_seq_blocking (seq, seq->dev->grab_timeout_ms + DS_SEQ_CONTROL_BOUND_MS);
-  DsFrame *frame = seq->dev->camera->ops->grab (seq->dev->camera->backend,
-                                                seq->dev->grab_timeout_ms, &local);
+  ds_seq_blocking (seq, timeout_ms + DS_SEQ_CONTROL_BOUND_MS);
+  DsFrame *frame = seq->dev->camera->ops->grab (seq->dev->camera->backend, timeout_ms, &local);
   ds_seq_stage_add (seq, DS_STAGE_GRAB, t);
   if (frame) {
     c->acquired++;
@@ -112,6 +117,26 @@ ds_seq_trigger_and_grab (DsSequencer *seq, DsFrameCounters *c, GError **error)
   if (!ds_seq_trigger (seq, c, error))
     return NULL;
   return ds_seq_grab (seq, c, error);
+}
+
+guint64
+ds_seq_frames_begun (DsSequencer *seq)
+{
+  DsCamera *cam = seq->dev->camera;
+  if (!seq->dev->sends_after_exposure || !cam->ops->frames_begun)
+    return 0;
+  return cam->ops->frames_begun (cam->backend, 0, 0);
+}
+
+gboolean
+ds_seq_wait_exposure_over (DsSequencer *seq, guint64 before)
+{
+  DsCamera *cam = seq->dev->camera;
+  if (!seq->dev->sends_after_exposure || !cam->ops->frames_begun)
+    return FALSE;
+  /* The frame's own deadline, as its grab has. */
+  ds_seq_blocking (seq, seq->dev->grab_timeout_ms);
+  return cam->ops->frames_begun (cam->backend, before, seq->dev->grab_timeout_ms) > before;
 }
 
 void

@@ -41,6 +41,10 @@ typedef struct {
   gboolean grab_only;
   DsSeparation *planes;   /* the result's, finalized by the job of the frame completing the set */
   gboolean finalized;
+  /* Applying the next phase during a frame's transfer failed: handled (retry or fail) once
+   * that frame was grabbed and handed to the worker, as if applying it had failed then. */
+  GError *early_error;
+  guint early_phase;
 } Pipeline;
 
 /* Consumes one retry of phase k after `why`; fails with `why` when none are left. */
@@ -139,6 +143,59 @@ frames_of (const Pipeline *pl, guint k)
          (pl->held && pl->held_phase == k);
 }
 
+/* The phase the illuminator may move to while the frame just triggered for phase k transfers:
+ * k + 1 when that frame completes phase k (once accepted) and k + 1 still needs frames;
+ * G_MAXUINT when it stays (more frames of k, a frame kept back, the set's last phase: the next
+ * set's phase 0 is sequencer_carry.c's). */
+static guint
+phase_to_move_to (const Pipeline *pl, guint k)
+{
+  if (pl->held || frames_of (pl, k) + 1 < pl->s->averages || k + 1 >= pl->s->phases ||
+      frames_of (pl, k + 1) >= pl->s->averages)
+    return G_MAXUINT;
+  return k + 1;
+}
+
+/* Triggers the frame of phase k and grabs it. When the camera tells that the frame's exposure
+ * is over (it began sending it) and the illuminator may move on (phase_to_move_to), the next
+ * phase is applied during the frame's transfer: *applied and *applied_at then follow it. */
+static DsFrame *
+trigger_and_grab (Pipeline *pl, guint k, int *applied, gint64 *applied_at, GError **error)
+{
+  DsSequencer *seq = pl->seq;
+  guint next = phase_to_move_to (pl, k);
+  guint64 before = next != G_MAXUINT ? ds_seq_frames_begun (seq) : 0;
+  if (!ds_seq_trigger (seq, pl->c, error))
+    return NULL;
+  if (next == G_MAXUINT)
+    return ds_seq_grab (seq, pl->c, error);
+  gint64 t = g_get_monotonic_time ();
+  if (!ds_seq_wait_exposure_over (seq, before)) {
+    /* No frame began within the grab timeout (or the camera cannot tell): the illuminator
+     * stays, and the grab's deadline is what is left of it. */
+    guint waited_ms = (guint) ((g_get_monotonic_time () - t) / 1000);
+    guint left = seq->dev->grab_timeout_ms > waited_ms ? seq->dev->grab_timeout_ms - waited_ms : 1;
+    return ds_seq_grab_within (seq, pl->c, left, error);
+  }
+  /* Frame k is exposed: phase `next` is lit during its transfer, settling meanwhile. */
+  t = g_get_monotonic_time ();
+  if (ds_seq_set_phase (seq, next, &pl->early_error)) {
+    ds_seq_stage_add (seq, DS_STAGE_SET_PHASE, t);
+    *applied = (int) next;
+  } else {
+    pl->c->device_errors++;
+    g_prefix_error (&pl->early_error, "illuminator: ");
+    pl->early_phase = next;
+    *applied = -1;
+  }
+  DsFrame *frame = ds_seq_grab (seq, pl->c, error);
+  /* What was delivered besides frame k is stale, as after any phase change; frames of `next`
+   * can only arrive after this (verification's "arrived after the phase was applied"). */
+  ds_seq_flush_stale (seq, pl->c);
+  *applied_at = g_get_monotonic_time ();
+  return frame;
+}
+
 static gboolean
 run (Pipeline *pl, int applied, gint64 applied_at, GError **error)
 {
@@ -149,6 +206,13 @@ run (Pipeline *pl, int applied, gint64 applied_at, GError **error)
   for (;;) {
     if (!ds_seq_check_quit (seq, error))
       return FALSE;
+    if (pl->early_error) {
+      /* Applying phase early_phase during the previous frame's transfer failed. */
+      GError *why = g_steal_pointer (&pl->early_error);
+      if (!retry_or_fail (pl, pl->early_phase, &why, error))
+        return FALSE;
+      continue;
+    }
     guint dropped;
     if (k >= s->phases) {
       /* Every phase has its frames, the last one perhaps still in the worker. */
@@ -210,8 +274,11 @@ run (Pipeline *pl, int applied, gint64 applied_at, GError **error)
       applied = (int) k;
       applied_at = g_get_monotonic_time ();
     }
+    /* Exposed while phase k was applied, since frame_applied_at (applied_at may move on to the
+     * next phase during the transfer). */
+    gint64 frame_applied_at = applied_at;
     DsFrame *frame = pl->grab_only ? ds_seq_grab (seq, pl->c, &why)
-                                   : ds_seq_trigger_and_grab (seq, pl->c, &why);
+                                   : trigger_and_grab (pl, k, &applied, &applied_at, &why);
     pl->grab_only = FALSE;
     if (!frame) {
       g_prefix_error (&why, "camera: ");
@@ -235,11 +302,11 @@ run (Pipeline *pl, int applied, gint64 applied_at, GError **error)
       g_assert (!pl->held);
       pl->held = frame;
       pl->held_phase = k;
-      pl->held_applied_at = applied_at;
+      pl->held_applied_at = frame_applied_at;
       k = dropped;
       continue;
     }
-    submit (pl, k, frame, applied_at);
+    submit (pl, k, frame, frame_applied_at);
   }
 }
 
@@ -290,6 +357,8 @@ ds_seq_acquire_phases (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag
   /* A frame kept back and never folded is acquired but not dropped: the caller counts it as
    * aborted with the rest of the failed set. */
   g_clear_pointer (&pl.held, ds_frame_free);
+  /* Counted as a device error when it happened; the set failed for another reason first. */
+  g_clear_error (&pl.early_error);
   *finalized = ok && pl.finalized;
   return ok;
 }

@@ -130,7 +130,16 @@ gboolean ds_seq_set_phase (DsSequencer *seq, guint k, GError **error);
  * halves apart, for a frame triggered ahead (sequencer_carry.c). */
 gboolean ds_seq_trigger (DsSequencer *seq, DsFrameCounters *c, GError **error);
 DsFrame *ds_seq_grab (DsSequencer *seq, DsFrameCounters *c, GError **error);
+/* The same within timeout_ms instead of the grab timeout. */
+DsFrame *ds_seq_grab_within (DsSequencer *seq, DsFrameCounters *c, guint timeout_ms, GError **error);
 DsFrame *ds_seq_trigger_and_grab (DsSequencer *seq, DsFrameCounters *c, GError **error);
+/* Frames the camera has begun sending (camera ops->frames_begun), read before a trigger; 0
+ * when the camera cannot tell or [camera] sends-after-exposure is false. */
+guint64 ds_seq_frames_begun (DsSequencer *seq);
+/* After a trigger, with `before` read before it: waits (up to the grab timeout) until the
+ * camera began sending a frame since, so that its exposure is over. FALSE when it cannot tell
+ * (as ds_seq_frames_begun) or no frame began in time (lost or late: grab finds out). */
+gboolean ds_seq_wait_exposure_over (DsSequencer *seq, guint64 before);
 /* Drops (and counts as stale) every frame already delivered but not grabbed. */
 void ds_seq_flush_stale (DsSequencer *seq, DsFrameCounters *c);
 /* FALSE with CANCELLED when the daemon is stopping. */

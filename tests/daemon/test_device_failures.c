@@ -24,8 +24,11 @@ test_wire_code_of_each_failure (void)
     /* the devices answered, but the frames failed verification */
     /* (wrong-phase=1 shifts every frame alike: the offset learned from the first frame absorbs
      * it and the set is right; tests/daemon/test_sequencer.c covers a wrong phase.) */
-    /* (stale=1 in the first set: its frames are checked as a whole, and fail as one.) */
-    { "stale=1", "failed", "phase check of the whole set" },
+    /* (stale=1: every frame shows the phase lit before the last move. With the next phase
+     * applied during each frame's transfer (docs/design.md, "The pipeline"), the retried
+     * frames repeat phases the set already holds and the repeat check refuses them until the
+     * retries run out; before that, the first set failed as a whole.) */
+    { "stale=1", "failed", "frame dropped (wrong_phase)" },
     /* (drop=1 loses every frame: that is a camera timeout, a device failure.) */
     { "drop=1", "device_error", "no frame" },
   };
