@@ -1,10 +1,11 @@
 /* The pipeline: the N phases of a set (M frames each) acquired so that verifying and folding
- * frame i overlaps with moving the illuminator to the phase of frame i+1 and exposing it.
- * Why each overlap keeps the sequencer contract is argued in docs/design.md ("The pipeline");
- * in short:
- *   - the illuminator leaves phase k only after the last frame of k was received, so its
- *     exposure is over; a trigger goes out only after set_phase returned (phase applied) and
- *     stale buffers were flushed;
+ * frame i overlaps with acquiring frame i+1, and the illuminator moves to the next phase while
+ * the last frame of a phase transfers. Why each overlap keeps the sequencer contract is argued
+ * in docs/design.md ("The pipeline"); in short:
+ *   - the illuminator leaves phase k only once the camera began sending the last frame of k
+ *     (ops->frames_begun; a camera sends a frame after its exposure) or after it was received;
+ *     a trigger goes out only after set_phase returned (phase applied) and stale buffers were
+ *     flushed;
  *   - each frame carries the time its own phase was applied and is verified against that phase
  *     (stale, frame gap, stripe phase) before it is folded, exactly as without the pipeline;
  *   - frames are verified and folded in the order they were grabbed (one job at a time);

@@ -5,7 +5,8 @@
  *   sequencer_devices.c  device operations with their counting (trigger, grab, flush,
  *                        camera settings, reconnect) and the retry/fail policy
  *   sequencer_set.c      the set runner: one phase set from settings to result
- *   sequencer_pipeline.c the N x M frames of a set, pipelined: the next phase is applied and
+ *   sequencer_pipeline.c the N x M frames of a set, pipelined: the next phase is applied during
+ *                        the transfer of the previous phase's last frame, and the next frame
  *                        exposed while the worker verifies and folds the previous frame
  *   sequencer_worker.c   the verify-and-fold worker thread
  *   sequencer_carry.c    continuous mode: the next set's first frame, triggered while this
