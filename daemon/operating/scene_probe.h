@@ -91,6 +91,9 @@ G_BEGIN_DECLS
  * below this (above, the kernel is narrower than the pilot resolves: a lower bound). */
 #define DS_PROBE_NARROW_MIN_LG 0.03
 #define DS_PROBE_NARROW_MAX_AT_FINEST 0.25
+/* And the kernel must lose at least a quarter of its own stripes at the finest first harmonic:
+ * one that keeps more is seen only in the higher harmonics, whose gain rests on the blur. */
+#define DS_PROBE_NARROW_MAX_OWN_AT_FINEST 0.75
 /* What objects in the column profile put between the first harmonics of two periods, as a share
  * of the modulation (docs/accuracy.md: gen-3-07's pair differs by 1.7 % +- 1.0 %): a drop of the
  * modulation from the coarsest period to the finest under 3 times this (with the fit's noise) is
