@@ -155,6 +155,11 @@ typedef struct {
   double lg_mean;                 /* scattered light Lg (full illumination), DN */
   double leak_per_px;             /* alpha (1/px); 0 when not measured */
   gboolean leak_measured;
+  /* The leaked light cannot exceed the scattered light: A_n(Q) = G_n (Ld + S T_n(Q)) with the
+   * kernel's MTF T_n <= 1, so every harmonic's leak is at most S / Ld. Where leak_bounded,
+   * ds_scene_probe_leak () returns no more than leak_max (the probe's Lg / Ld). */
+  gboolean leak_bounded;
+  double leak_max;
   char leak_note[200];            /* how it was measured, or why not */
   double narrow_fraction;         /* beta: the narrow kernel's light over Ld; 0 when none was seen */
   double narrow_kernel_px;        /* w: its width, px (scene_probe.h: the MTF's form) */
@@ -219,7 +224,7 @@ gboolean ds_scene_probe_measure (const DsProbeFrames *frames, DsSceneProbe *out,
 gboolean ds_scene_probe_worst_case (const DsSceneProbe *probe, DsSceneProbe *worst);
 
 /* The transfer exp(alpha Q / n) (1 + beta M_w (Q / n)) - 1 of harmonic n at period Q: the part of
- * the apparent Ld that is scattered light keeping the stripes. */
+ * the apparent Ld that is scattered light keeping the stripes; at most leak_max (leak_bounded). */
 double ds_scene_probe_leak (const DsSceneProbe *probe, double period_px, guint n);
 
 G_END_DECLS
