@@ -23,6 +23,7 @@ typedef struct {
   double third_error;         /* the third harmonic at the period off by this share (an object's
                                  column profile, a blur error: what the model leaves out) */
   double first_error[2];      /* the first harmonic at P and at 2P off by these shares */
+  double blur_error;          /* the calibrated blur minus the true one, px */
   double texture;             /* each column's light times 1 + texture cos (2 pi x / 3): a column
                                  profile at a period none of the pilot's harmonics has, which raises
                                  their fit noise (as objects do) and moves none of them */
@@ -86,7 +87,7 @@ probe (const Scene *s, gboolean coarse, gboolean finer, DsSceneProbe *p)
   DsProbeFrames fr = { .dark = owned[0], .lit = { owned[1], owned[2] }, .exposure_us = 1000,
                        .coarse_missing = "fixed by the test", .finer_missing = "fixed by the test",
                        .geometry = { DS_PATTERN_SQUARE, s->period, s->duty, 0, 0 },
-                       .blur_known = TRUE, .calibrated_blur_px = s->blur };
+                       .blur_known = TRUE, .calibrated_blur_px = s->blur + s->blur_error };
   if (coarse) {
     owned[n_owned++] = frame (s, 2 * s->period, 0.2, TRUE, r);
     owned[n_owned++] = frame (s, 2 * s->period, 0.7, TRUE, r);
@@ -301,6 +302,37 @@ test_leak_held_to_scattered_light (void)
   g_assert_nonnull (strstr (p.leak_note, "held to the scattered light"));
 }
 
+/* held-out gen-9-02's case, the method's limit: P = 5.5 px, so P/2 is under the 4 px the pilot
+ * resolves and only P and 2P exist. (a) A kernel holding 10 % of Ld (Gaussian, sigma 0.486 px: 86 %
+ * of its light modulated at P, 96 % at 2P; gen-9-02's Monte Carlo kernel: 85.7 % at P). (b) No
+ * medium at all, Ld equal to (a)'s mean, and an edge blur 0.03 px wider than the calibrated one
+ * (the probe allows 0.05 px). Both lose about 1 % of the modulation from 2P to P and 0.4 % between
+ * 2P and the mean, so their frames agree to within the noise and the blur's uncertainty: the probe
+ * reads the same Ld for both, where the truths are 10 % apart. Nothing in the pilot tells them
+ * apart, so (a)'s prediction must say it is a lower bound. */
+static void
+test_kernel_or_blur (void)
+{
+  const Scene a = { .period = 5.5, .duty = 0.647, .blur = 0.323, .ld = 2122, .lg_wide = 0, .dark = 40,
+                    .beta = 0.1004, .kernel_px = 0.486 };
+  const Scene b = { .period = 5.5, .duty = 0.647, .blur = 0.353, .ld = 2122 * 1.1004, .lg_wide = 0, .dark = 40,
+                    .blur_error = -0.03 };
+  DsSceneProbe pa, pb;
+  probe (&a, TRUE, TRUE, &pa);
+  probe (&b, TRUE, TRUE, &pb);
+  g_test_message ("(a) kernel: Ld %.1f (truth %.1f), Lg %.1f, leak at P %.4f (truth %.4f); %s", pa.ld_mean, a.ld, pa.lg_mean,
+                  ds_scene_probe_leak (&pa, a.period, 1), truth_leak (&a, a.period), pa.interval_note);
+  g_test_message ("(b) blur: Ld %.1f (truth %.1f), Lg %.1f, leak at P %.4f (truth 0); %s", pb.ld_mean, b.ld, pb.lg_mean,
+                  ds_scene_probe_leak (&pb, b.period, 1), pb.interval_note);
+  g_assert_cmpfloat (fabs (pa.ld_mean - pb.ld_mean), <, 0.01 * a.ld);
+  g_assert_cmpfloat (b.ld, >, 1.09 * a.ld);
+  g_assert_cmpfloat (pa.ld_mean, >, 1.05 * a.ld);
+  g_assert_true (pa.narrow_unresolved);
+  g_autofree char *reasons = NULL;
+  g_assert_true (lower_bound_json (&pa, &reasons));
+  g_assert_nonnull (strstr (reasons, "finer than the pilot resolves"));
+}
+
 /* The scene itself as the error model takes it: the true Ld and scattered light, the Gaussian
  * kernel as the closed form's limit nu -> infinity ((1 + k^2 / nu)^-nu -> exp (-k^2), k = 2 pi w / Q:
  * w = s / sqrt 2), the probe's noise and blur. Its prediction is the error the estimators make on
@@ -418,6 +450,7 @@ main (int argc, char **argv)
   g_test_add_func ("/probe-narrow/clear", test_clear);
   g_test_add_func ("/probe-narrow/higher-harmonic-only", test_higher_harmonic_only);
   g_test_add_func ("/probe-narrow/leak-held-to-scattered-light", test_leak_held_to_scattered_light);
+  g_test_add_func ("/probe-narrow/kernel-or-blur", test_kernel_or_blur);
   g_test_add_func ("/probe-narrow/interval-single-kernel", test_interval_single_kernel);
   g_test_add_func ("/probe-narrow/interval-clear", test_interval_clear);
   return g_test_run ();
