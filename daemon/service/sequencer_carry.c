@@ -60,6 +60,7 @@ ds_seq_carry_trigger (DsSequencer *seq, const DsCaptureSettings *s)
   }
   ds_seq_flush_stale (seq, &cy->counters);
   cy->applied_at_us = g_get_monotonic_time ();
+  cy->begun_before = ds_seq_frames_begun (seq);
   if (!ds_seq_trigger (seq, &cy->counters, &e)) {
     g_prefix_error (&e, "camera: ");
     carry_device_error (seq, e, first);

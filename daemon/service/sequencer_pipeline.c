@@ -38,8 +38,10 @@ typedef struct {
   /* Continuous mode: the next set's first frame is triggered ahead once this set's last frame
    * is in the worker (sequencer_carry.c). */
   gboolean ahead;
-  /* This set's first frame was triggered ahead by the previous set: grab it without a trigger. */
+  /* This set's first frame was triggered ahead by the previous set: grab it without a trigger
+   * (grab_begun_before: the camera's frames_begun before that trigger). */
   gboolean grab_only;
+  guint64 grab_begun_before;
   DsSeparation *planes;   /* the result's, finalized by the job of the frame completing the set */
   gboolean finalized;
   /* Applying the next phase during a frame's transfer failed: handled (retry or fail) once
@@ -157,17 +159,24 @@ phase_to_move_to (const Pipeline *pl, guint k)
   return k + 1;
 }
 
-/* Triggers the frame of phase k and grabs it. When the camera tells that the frame's exposure
- * is over (it began sending it) and the illuminator may move on (phase_to_move_to), the next
- * phase is applied during the frame's transfer: *applied and *applied_at then follow it. */
+/* Triggers the frame of phase k (unless the previous set did: grab_only) and grabs it. When
+ * the camera tells that the frame's exposure is over (it began sending it) and the illuminator
+ * may move on (phase_to_move_to), the next phase is applied during the frame's transfer:
+ * *applied and *applied_at then follow it. */
 static DsFrame *
 trigger_and_grab (Pipeline *pl, guint k, int *applied, gint64 *applied_at, GError **error)
 {
   DsSequencer *seq = pl->seq;
   guint next = phase_to_move_to (pl, k);
-  guint64 before = next != G_MAXUINT ? ds_seq_frames_begun (seq) : 0;
-  if (!ds_seq_trigger (seq, pl->c, error))
-    return NULL;
+  guint64 before;
+  if (pl->grab_only) {
+    pl->grab_only = FALSE;
+    before = pl->grab_begun_before;
+  } else {
+    before = next != G_MAXUINT ? ds_seq_frames_begun (seq) : 0;
+    if (!ds_seq_trigger (seq, pl->c, error))
+      return NULL;
+  }
   if (next == G_MAXUINT)
     return ds_seq_grab (seq, pl->c, error);
   gint64 t = g_get_monotonic_time ();
@@ -278,9 +287,7 @@ run (Pipeline *pl, int applied, gint64 applied_at, GError **error)
     /* Exposed while phase k was applied, since frame_applied_at (applied_at may move on to the
      * next phase during the transfer). */
     gint64 frame_applied_at = applied_at;
-    DsFrame *frame = pl->grab_only ? ds_seq_grab (seq, pl->c, &why)
-                                   : trigger_and_grab (pl, k, &applied, &applied_at, &why);
-    pl->grab_only = FALSE;
+    DsFrame *frame = trigger_and_grab (pl, k, &applied, &applied_at, &why);
     if (!frame) {
       g_prefix_error (&why, "camera: ");
       if (!retry_or_fail (pl, k, &why, error))
@@ -338,6 +345,7 @@ ds_seq_acquire_phases (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag
       applied_at = cy->applied_at_us;
     }
     pl.grab_only = cy->pending;
+    pl.grab_begun_before = cy->begun_before;
     if (cy->frame) {
       pl.held = g_steal_pointer (&cy->frame);
       pl.held_phase = 0;

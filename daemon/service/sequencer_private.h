@@ -38,6 +38,8 @@ typedef struct {
   gboolean dark;              /* for the next set's dark frame: the illuminator was turned off,
                                * not moved to phase 0 */
   gboolean pending;           /* triggered, not grabbed yet */
+  guint64 begun_before;       /* ds_seq_frames_begun before its trigger: the next set may light
+                               * phase 1 during its transfer */
   DsFrame *frame;             /* grabbed already (this set's last frame was dropped meanwhile) */
   gint64 applied_at_us;       /* when phase 0 (or off) was applied for it */
   DsCaptureSettings settings; /* the settings of the set it was taken after */

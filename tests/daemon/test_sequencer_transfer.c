@@ -28,6 +28,7 @@ typedef struct {
   guint64 begun, frame_id;
   int truth[N_TRUTH];       /* phase shown, by frame id */
   guint moves_during_exposure, moves_during_transfer, set_phases;
+  guint moves_between_frames; /* to a phase other than 0 with no frame exposing or in transfer */
   /* Faults, counted down (0 never): */
   guint report_early_in;    /* that frame is reported begun at its trigger, while it still exposes */
   gboolean report_early_always;
@@ -158,6 +159,8 @@ light (Lab *lab, int phase)
     lab->exposed_phase = phase;
   } else if (lab->sent || lab->exposing) {
     lab->moves_during_transfer++;
+  } else if (phase > 0) {
+    lab->moves_between_frames++;
   }
   lab->lit = phase;
 }
@@ -258,6 +261,7 @@ typedef struct {
   gboolean ready;
   DsResult *result;
   GError *failure;
+  guint results;
   DsSequencer *seq;
 } Fixture;
 
@@ -273,6 +277,7 @@ on_event (const DsSequencerEvent *ev, gpointer data)
   case DS_SEQUENCER_EVENT_RESULT:
     g_clear_pointer (&f->result, ds_result_unref);
     f->result = ds_result_ref (ev->result);
+    f->results++;
     g_main_loop_quit (f->loop);
     break;
   case DS_SEQUENCER_EVENT_FAILED:
@@ -407,6 +412,7 @@ test_moves_during_transfer (Fixture *f, gconstpointer d)
   g_assert_cmpuint (f->lab.moves_during_exposure, ==, 0);
   /* Phases 1..7 of each set, during the transfer of the last frame of the phase before. */
   g_assert_cmpuint (f->lab.moves_during_transfer, ==, 2 * 7);
+  g_assert_cmpuint (f->lab.moves_between_frames, ==, 0);
   g_assert_cmpuint (f->lab.set_phases, ==, 2 * 8);
   DsSequencerStatus st;
   status (f, &st);
@@ -555,6 +561,44 @@ test_lost_frame_keeps_the_phase (Fixture *f, gconstpointer d)
   g_assert_cmpuint (folded_wrong (&f->lab), ==, 0);
 }
 
+/* Continuous mode: phase 0 of the next set is lit and triggered once the last frame arrived
+ * (sequencer_carry.c), and phase 1 is lit during that frame's transfer, which the next set
+ * grabs without triggering it. Every result whole, every folded frame lit with its phase. */
+static void
+test_continuous (Fixture *f, gconstpointer d)
+{
+  (void) d;
+  DsCaptureSettings s;
+  settings (&s, 8, 1);
+  ds_sequencer_start (f->seq, &s);
+  guint sets = 4;
+  while (f->results < sets) {
+    g_main_loop_run (f->loop);
+    g_assert_no_error (f->failure);
+    assert_scene_recovered (f->result);
+  }
+  ds_sequencer_stop (f->seq);
+  for (;;) {
+    DsSequencerStatus st;
+    ds_sequencer_get_status (f->seq, &st);
+    if (!st.continuous)
+      break;
+    g_main_context_iteration (NULL, FALSE);
+    g_usleep (1000);
+  }
+  while (g_main_context_iteration (NULL, FALSE))
+    ;
+  g_assert_no_error (f->failure);
+  DsSequencerStatus st;
+  status (f, &st);
+  g_assert_cmpuint (st.frames.by_reason[DS_DROP_WRONG_PHASE], ==, 0);
+  g_assert_cmpuint (f->lab.moves_during_exposure, ==, 0);
+  /* Phases 1..7 of every set moved during a transfer, phase 1 of a set started ahead too. */
+  g_assert_cmpuint (f->lab.moves_during_transfer, >=, 7 * sets);
+  g_assert_cmpuint (f->lab.moves_between_frames, ==, 0);
+  g_assert_cmpuint (folded_wrong (&f->lab), ==, 0);
+}
+
 int
 main (int argc, char **argv)
 {
@@ -569,5 +613,6 @@ main (int argc, char **argv)
   ADD ("set-phase-fails-during-transfer", test_set_phase_fails_during_transfer, NULL, setup_trusted);
   ADD ("illuminator-lost-during-transfer", test_illuminator_lost_during_transfer, NULL, setup_trusted);
   ADD ("lost-frame-keeps-the-phase", test_lost_frame_keeps_the_phase, NULL, setup_trusted);
+  ADD ("continuous", test_continuous, NULL, setup_trusted);
   return g_test_run ();
 }
