@@ -403,6 +403,21 @@ ds_calibrator_finish (DsCalibrator *c, const DsCalibrationHints *hints, DsCalibr
 }
 
 gboolean
+ds_calibration_wants_second_period (const DsCalibration *cal)
+{
+  return cal->pattern == DS_PATTERN_SINE && !cal->black_level_measured;
+}
+
+void
+ds_calibration_hints_second_period (DsCalibrationHints *hints, double second_period_px)
+{
+  hints->pattern = DS_PATTERN_SINE;
+  hints->pattern_forced = TRUE;
+  hints->period_px = second_period_px;
+  hints->period_estimated = TRUE;
+}
+
+gboolean
 ds_calibration_add_second_period (DsCalibration *cal, const DsCalibration *second, double pixel_aperture,
                                   GError **error)
 {

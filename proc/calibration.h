@@ -75,6 +75,14 @@ char *ds_calibration_pattern_notice (const DsCalibration *cal);
  * it; NULL otherwise. */
 char *ds_calibration_black_level_note (const DsCalibration *cal);
 
+/* Sine stripes whose black level one period could not tell from their blur: the calibration
+ * wants a second set of the same reference at twice the period (ds_calibration_add_second_period). */
+gboolean ds_calibration_wants_second_period (const DsCalibration *cal);
+
+/* The hints for that second set, from the first set's: the illuminator drew second_period_px
+ * (about twice what the first set measured: refined on the set), sine stripes taken as such. */
+void ds_calibration_hints_second_period (DsCalibrationHints *hints, double second_period_px);
+
 /* Sine stripes: the black level and the harmonic gain at cal's period told apart with the
  * contrast the same reference shows at another period (second: a calibration of it,
  * calibration_sine.h). Fails INVALID_ARGUMENT when cal is not sine or the periods are too

@@ -32,13 +32,8 @@ ds_calibrate_measure (DsResult *result, const DsCalibrateRequest *request, doubl
   /* a sine's black level at one period is the configured one (proc/calibration_sine.h) */
   hints.black_level = s->black_level;
   hints.period_px = request->period_px > 0 ? request->period_px : 0;
-  if (second_period_px > 0) {
-    /* the illuminator drew twice its period: about twice what the first set measured */
-    hints.pattern = DS_PATTERN_SINE;
-    hints.pattern_forced = TRUE;
-    hints.period_px = second_period_px;
-    hints.period_estimated = TRUE;
-  }
+  if (second_period_px > 0)
+    ds_calibration_hints_second_period (&hints, second_period_px);
   if (request->pixel_aperture > 0)
     hints.pixel_aperture = request->pixel_aperture;
   /* the level the set's separation applied: the camera's pixel format, or the configuration */

@@ -171,7 +171,7 @@ calibration_step (DsService *svc, PendingCapture *p, DsResult *result)
     return FALSE;
   }
   p->calibrate_first_set = ds_result_set_id (result);
-  if (p->calibrate_first.pattern != DS_PATTERN_SINE || p->calibrate_first.black_level_measured) {
+  if (!ds_calibration_wants_second_period (&p->calibrate_first)) {
     reply_calibration_pair (svc, p, NULL, NULL);
     return FALSE;
   }
