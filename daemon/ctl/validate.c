@@ -7,11 +7,36 @@
 #include "proc/image_stats.h"
 #include "proc/metrics.h"
 
-/* h and the edge blur on the clear reference, as `descatterctl calibrate` measures them (proc/
- * calibration.h): many phases (so that the square wave's harmonics do not alias into the first),
- * an exposure that keeps the open field below the clip level, the illuminator's period given. */
+/* One phase set of the clear reference measured by the calibrator, as `descatterctl calibrate`
+ * measures the set the daemon takes (daemon/service/calibrate_set.c): many phases (so that the
+ * square wave's harmonics do not alias into the first), a dark frame, the exposure given. */
 static gboolean
-calibrate_rig (const DsSimRig *rig, guint64 seed, DsCalibration *cal, GError **error)
+calibrate_set (const DsSimRig *ref, double exposure_us, const DsCalibrationHints *hints, guint64 seed,
+               DsCalibration *cal, GError **error)
+{
+  const guint n = 32;
+  const DsSceneSpec *s = ds_scene_spec (ds_sim_rig_scene (ref));
+  g_autoptr (DsCalibrator) c = ds_calibrator_new (n, s->width, s->height, error);
+  if (!c)
+    return FALSE;
+  for (guint k = 0; k < n; k++) {
+    g_autoptr (DsImage) frame = ds_sim_rig_frame (ref, k, n, TRUE, exposure_us, seed + k, error);
+    if (!frame || !ds_calibrator_add (c, k, frame, error))
+      return FALSE;
+  }
+  g_autoptr (DsImage) dark = ds_sim_rig_frame (ref, 0, n, FALSE, exposure_us, seed + n, error);
+  return dark && ds_calibrator_set_dark (c, dark, error) && ds_calibrator_finish (c, hints, cal, error);
+}
+
+/* The rig's `descatterctl calibrate` on the clear reference (daemon/service/service.c): one set
+ * at the illuminator's period, with what descatterd is configured with (the pattern, the black
+ * level a sine's one period cannot tell from its blur, the clip level) and an exposure that keeps
+ * the open field below the clip level; then, for sine stripes, a second set at twice the period
+ * (the illuminator's PERIOD register) that tells the black level from the blur. An illuminator
+ * that cannot change its period fails that set, and the one-period calibration stands, noted. */
+static gboolean
+calibrate_rig (const DsSimRig *rig, const DsValidateOptions *o, guint64 seed, DsValidateScene *out,
+               GError **error)
 {
   g_autoptr (DsSimRig) ref = ds_sim_rig_reference (rig, error);
   if (!ref)
@@ -24,25 +49,32 @@ calibrate_rig (const DsSimRig *rig, guint64 seed, DsCalibration *cal, GError **e
     return FALSE;
   double top = ds_image_percentile (probe, 100), clip = ds_sim_rig_clip_dn (ref);
   double exposure = top > 0 ? e0 * 0.6 * clip / top : e0;
-  const guint n = 32;
   const DsSceneSpec *s = ds_scene_spec (scene);
-  g_autoptr (DsCalibrator) c = ds_calibrator_new (n, s->width, s->height, error);
-  if (!c)
-    return FALSE;
-  for (guint k = 0; k < n; k++) {
-    g_autoptr (DsImage) frame = ds_sim_rig_frame (ref, k, n, TRUE, exposure, seed + k, error);
-    if (!frame || !ds_calibrator_add (c, k, frame, error))
-      return FALSE;
-  }
-  g_autoptr (DsImage) dark = ds_sim_rig_frame (ref, 0, n, FALSE, exposure, seed + n, error);
-  if (!dark || !ds_calibrator_set_dark (c, dark, error))
-    return FALSE;
   DsCalibrationHints hints;
   ds_calibration_hints_init (&hints);
   hints.pattern = s->sine ? DS_PATTERN_SINE : DS_PATTERN_SQUARE;
+  hints.black_level = s->black_level;
   hints.period_px = s->period_px;
   hints.saturation_level = clip;
-  return ds_calibrator_finish (c, &hints, cal, error);
+  DsCalibration *cal = &out->calibration;
+  if (!calibrate_set (ref, exposure, &hints, seed, cal, error))
+    return FALSE;
+  if (!ds_calibration_wants_second_period (cal))
+    return TRUE;
+  if (o->fixed_period) {
+    g_strlcpy (out->second_period_note, "the illuminator cannot change its period", sizeof out->second_period_note);
+    return TRUE;
+  }
+  g_autoptr (DsSimRig) at_2p = ds_sim_rig_with_period (ref, 2 * s->period_px, error);
+  if (!at_2p)
+    return FALSE;
+  ds_calibration_hints_second_period (&hints, 2 * s->period_px);
+  DsCalibration second;
+  g_autoptr (GError) local = NULL;
+  if (!calibrate_set (at_2p, exposure, &hints, seed + 100, &second, &local) ||
+      !ds_calibration_add_second_period (cal, &second, hints.pixel_aperture, &local))
+    g_strlcpy (out->second_period_note, local->message, sizeof out->second_period_note);
+  return TRUE;
 }
 
 static void
@@ -76,16 +108,24 @@ ds_validate_probe (const DsSimRig *rig, const DsValidateOptions *o, DsValidateSc
   const DsSceneSpec *s = ds_scene_spec (scene);
   double e0 = ds_scene_default_exposure_us (scene);
   guint64 seed = o->seed * 1000;
+  out->black_level = s->black_level;
   if (o->calibrated) {
-    DsCalibration cal;
-    if (!calibrate_rig (rig, seed + 500, &cal, error)) {
+    if (!calibrate_rig (rig, o, seed + 500, out, error)) {
       g_prefix_error (error, "calibration: ");
       return FALSE;
     }
-    /* What descatterd.conf then holds: [illuminator] harmonic-gain and edge-blur-px. */
-    out->harmonic_gain = cal.harmonic_gain;
-    out->edge_blur_known = TRUE;
-    out->edge_blur_px = cal.edge_blur_px;
+    out->calibrated = TRUE;
+    /* What descatterd.conf then holds, calibrate's lines pasted (ds_calibration_config_lines):
+     * [illuminator] black-level and harmonic-gain, and edge-blur-px for square stripes; a sine's
+     * blur is in its harmonic gain, from which the probe takes it (with the black level). */
+    const DsCalibration *cal = &out->calibration;
+    out->harmonic_gain = cal->harmonic_gain;
+    if (cal->pattern == DS_PATTERN_SINE) {
+      out->black_level = cal->black_level;
+    } else {
+      out->edge_blur_known = TRUE;
+      out->edge_blur_px = cal->edge_blur_px;
+    }
   }
   g_autoptr (DsImage) dark = ds_sim_rig_frame (rig, 0, 2, FALSE, e0, seed + 1, error);
   g_autoptr (DsImage) l0 = dark ? ds_sim_rig_frame (rig, 0, 2, TRUE, e0, seed + 2, error) : NULL;
@@ -133,7 +173,7 @@ ds_validate_probe (const DsSimRig *rig, const DsValidateOptions *o, DsValidateSc
     .saturation_dn = o->saturation_known ? ds_sim_rig_clip_dn (rig) : (double) ((1u << s->bit_depth) - 1),
     .saturation_known = o->saturation_known,
     .geometry = { .kind = s->sine ? DS_PATTERN_SINE : DS_PATTERN_SQUARE, .period_px = s->period_px,
-                  .duty = s->duty, .black_level = s->black_level },
+                  .duty = s->duty, .black_level = out->black_level },
     .calibrated_gain = out->harmonic_gain,
     .n_finer = n_finer,
     .finer_missing = o->fixed_period ? "the illuminator cannot change its period" : NULL,

@@ -11,6 +11,7 @@
 #include "daemon/operating/error_model.h"
 #include "daemon/operating/operating_point.h"
 #include "daemon/operating/scene_probe.h"
+#include "proc/calibration.h"
 
 G_BEGIN_DECLS
 
@@ -24,6 +25,10 @@ typedef struct {
 
 typedef struct {
   DsSceneProbe probe;
+  gboolean calibrated;     /* calibration holds what `descatterctl calibrate` measured */
+  DsCalibration calibration;
+  char second_period_note[320]; /* a sine's black level assumed: why no second period told it */
+  double black_level;      /* configured: the scene's, or the calibration's measured at two periods */
   double harmonic_gain;    /* calibrated h given to the sine estimator, or 0 (its theory) */
   gboolean edge_blur_known; /* calibrated: the edge blur is known to the probe and the sets */
   double edge_blur_px;     /* the calibrated edge blur (Gaussian sigma, px) */
@@ -33,9 +38,10 @@ typedef struct {
 } DsValidateScene;
 
 /* Renders the pilot frames (dark, phases 0 and 1/2 at P and, unless fixed_period, at 2P) at the
- * scene's exposure, calibrates h and the edge blur on the reference if asked (what descatterd's
- * [illuminator] harmonic-gain and edge-blur-px then hold: both reach the probe and the sets),
- * and probes. */
+ * scene's exposure, calibrates on the reference if asked as the rig's `descatterctl calibrate`
+ * does (a sine's second set at 2P unless fixed_period) and configures what its lines say
+ * ([illuminator] black-level, harmonic-gain, a square's edge-blur-px: they reach the probe and
+ * the sets), and probes. */
 gboolean ds_validate_probe (const DsSimRig *rig, const DsValidateOptions *options,
                             DsValidateScene *out, GError **error);
 

@@ -6,9 +6,11 @@
  * independent expectation, docs/transport.md). */
 #include <glib.h>
 #include <math.h>
+#include <string.h>
 
 #include "daemon/ctl/sim_rig.h"
 #include "daemon/ctl/validate.h"
+#include "daemon/operating/stripe_model.h"
 
 static void
 probe_scene (const char *text, const char *name, DsValidateScene *vs, double *truth)
@@ -151,6 +153,95 @@ test_calibrated_blur_reaches_sets (void)
   g_assert_cmpfloat (err[0], >, 2 * err[1]);
 }
 
+/* Sine stripes, blurred (sigma 0.8 px at P = 8 px: 18 % of the contrast lost, 55 % at the pilot's
+ * P/2), no medium: `descatterctl validate` calibrates as the rig's `descatterctl calibrate` does,
+ * with a second set at 2P. The simulator samples the sine at the pixel centre, so the contrast at
+ * P is exactly k exp (-2 pi^2 sigma^2 / P^2), k = (1 - b)/(1 + b) (drivers/sim/stage_pattern.c):
+ * the calibration must read the scene's black level, and a blur that with the pixel's own
+ * (w^2/12, which the calibration takes out) is the scene's; the probe's model of the stripes
+ * must then give the first harmonic the simulator draws at P and at P/2, read no scattered
+ * light, and the automatic capture's prediction be within x1.5 of the error it achieves against
+ * the simulator's truth. With one period (fixed_period) the black level is the configured one,
+ * and says why. */
+static void
+test_sine_two_periods (void)
+{
+  static const char text[] =
+    "[scene]\nname=clear, blurred sine\n\n"
+    "[sensor]\nwidth=192\nheight=96\nbit-depth=12\nfull-well-e=20000\nsystem-gain=0.2\n"
+    "read-noise-e=5\nquantum-efficiency=0.6\nexposure-us=3000\n\n"
+    "[illuminator]\npattern=sine\nperiod-px=8\nblack-level=0.06\nedge-blur-px=0.8\nirradiance=1\n\n"
+    "[object.o0]\nshape=rect\nposition=50;20\nsize=70;50\ntransmittance=0.5\n";
+  const double P = 8, b = 0.06, sigma = 0.8;
+  g_autoptr (GError) error = NULL;
+  g_autoptr (DsSimRig) rig = ds_sim_rig_new_from_data (text, "clear-blurred-sine", &error);
+  g_assert_no_error (error);
+  DsValidateOptions opt = { .calibrated = TRUE, .seed = 2 };
+  DsValidateScene vs;
+  g_assert_true (ds_validate_probe (rig, &opt, &vs, &error));
+  g_assert_no_error (error);
+  const DsCalibration *cal = &vs.calibration;
+  double total_blur = sqrt (cal->edge_blur_px * cal->edge_blur_px + 1.0 / 12);
+  g_test_message ("calibration: black level %.4f (scene %.2f), blur %.3f px + the pixel's = %.3f (scene %.2f), "
+                  "second period %.2f px; probe blur %.3f px (%s)",
+                  cal->black_level, b, cal->edge_blur_px, total_blur, sigma, cal->second_period_px,
+                  vs.probe.geometry.blur_px, ds_blur_source_name (vs.probe.blur_source));
+  g_assert_true (vs.calibrated);
+  g_assert_cmpint (cal->pattern, ==, DS_PATTERN_SINE);
+  g_assert_true (cal->black_level_measured);
+  g_assert_cmpfloat (fabs (cal->second_period_px - 2 * P), <, 0.05);
+  g_assert_cmpfloat (fabs (cal->black_level - b), <, 0.01);
+  g_assert_cmpfloat (fabs (total_blur - sigma), <, 0.05);
+  /* what the sets and the probe are configured with */
+  g_assert_cmpfloat (vs.params.black_level, ==, cal->black_level);
+  g_assert_cmpfloat (vs.params.harmonic_gain, ==, cal->harmonic_gain);
+  g_assert_cmpint (vs.probe.blur_source, ==, DS_BLUR_CALIBRATED);
+  for (double q = P; q >= P / 2; q /= 2) {
+    DsStripeModel m = vs.probe.geometry;
+    m.period_px = q;
+    double drawn = (1 - b) / 2 * exp (-2 * G_PI * G_PI * sigma * sigma / (q * q));
+    g_test_message ("first harmonic at %.1f px: the probe's model %.4f, the simulator's %.4f", q,
+                    ds_stripe_harmonic (&m, 1), drawn);
+    g_assert_cmpfloat (fabs (ds_stripe_harmonic (&m, 1) / drawn - 1), <, 0.03);
+  }
+  double leak = ds_scene_probe_leak (&vs.probe, P, 1);
+  g_test_message ("scattered stripes at the period %.4f of the direct light (truth 0), Ld %.1f (truth %.1f)%s",
+                  leak, vs.probe.ld_mean, vs.truth_ld_mean,
+                  vs.probe.ld_interval ? (vs.probe.ld_unbounded ? ", no lower end" : ", an interval") : "");
+  g_assert_cmpfloat (leak, <, 0.01);
+  g_assert_false (vs.probe.ld_unbounded);
+  g_assert_cmpfloat (fabs (vs.probe.ld_mean / vs.truth_ld_mean - 1), <, 0.05);
+
+  g_autofree char *model_path = g_build_filename (DS_SOURCE_DIR, "etc", "operating-model.conf", NULL);
+  g_autoptr (DsOperatingModel) model = ds_operating_model_load (model_path, &error);
+  g_assert_no_error (error);
+  DsRigTiming timing;
+  ds_rig_timing_init (&timing);
+  g_autoptr (DsErrorModel) errors = ds_error_model_new (&vs.probe, &vs.params);
+  const double targets[] = { 0.03, 0 }, budgets[] = { 0, 60 };
+  for (guint i = 0; i < G_N_ELEMENTS (targets); i++) {
+    DsValidateOutcome o;
+    g_assert_true (ds_validate_request (rig, &vs, errors, model, &timing, targets[i], budgets[i], 5 + i, &o, &error));
+    g_assert_no_error (error);
+    g_test_message ("target %g budget %g: %s N=%u M=%u predicted %.4f achieved %.4f against the truth%s%s",
+                    targets[i], budgets[i], ds_estimator_name (o.point.estimator), o.point.phases, o.point.averages,
+                    o.point.predicted_error, o.achieved, o.refused ? ", refused: " : "", o.refused ? o.refusal : "");
+    g_assert_false (o.refused);
+    g_assert_cmpfloat (o.achieved, <, 1.5 * o.point.predicted_error);
+    g_assert_cmpfloat (o.achieved, >, o.point.predicted_error / 1.5);
+    ds_validate_outcome_clear (&o);
+  }
+
+  DsValidateOptions fixed = { .calibrated = TRUE, .fixed_period = TRUE, .seed = 2 };
+  DsValidateScene one;
+  g_assert_true (ds_validate_probe (rig, &fixed, &one, &error));
+  g_assert_no_error (error);
+  g_test_message ("one period: black level %.4f, %s", one.calibration.black_level, one.second_period_note);
+  g_assert_false (one.calibration.black_level_measured);
+  g_assert_cmpfloat (one.calibration.black_level, ==, b);
+  g_assert_nonnull (strstr (one.second_period_note, "cannot change its period"));
+}
+
 int
 main (int argc, char **argv)
 {
@@ -159,5 +250,6 @@ main (int argc, char **argv)
   g_test_add_func ("/probe-sim/no-medium", test_no_medium);
   g_test_add_func ("/probe-sim/narrow-kernel", test_narrow_kernel);
   g_test_add_func ("/probe-sim/calibrated-blur-reaches-sets", test_calibrated_blur_reaches_sets);
+  g_test_add_func ("/probe-sim/sine-two-periods", test_sine_two_periods);
   return g_test_run ();
 }
