@@ -94,6 +94,17 @@ run_scene (SceneRun *s, const Plan *plan, const DsOperatingModel *model, GError 
       return TRUE;
     }
     s->probed = TRUE;
+    const DsCalibration *cal = &s->probe.calibration;
+    if (!plan->quiet && s->probe.calibrated)
+      fprintf (stderr, "validate: %s: calibrated: %s stripes, black level %.4f (%s%s), harmonic gain %.4f, "
+                       "edge blur %.2f px; the probe's blur %.2f px (%s)\n",
+               s->name, cal->pattern == DS_PATTERN_SINE ? "sine" : "square", cal->black_level,
+               cal->pattern != DS_PATTERN_SINE ? "measured"
+               : cal->black_level_measured     ? "measured at two periods"
+                                               : "configured, assumed: ",
+               cal->pattern == DS_PATTERN_SINE && !cal->black_level_measured ? s->probe.second_period_note : "",
+               cal->harmonic_gain, cal->edge_blur_px, s->probe.probe.geometry.blur_px,
+               ds_blur_source_name (s->probe.probe.blur_source));
   }
   if (s->outcomes) {
     for (guint i = 0; i < s->outcomes->len; i++)
