@@ -7,6 +7,7 @@
 #include "proc/calibration_fit.h"
 #include "proc/calibration_period.h"
 #include "proc/calibration_sine.h"
+#include "proc/calibration_steps.h"
 #include "proc/harmonic_gain.h"
 #include "proc/proc_error.h"
 #include "proc/separation_internal.h"
@@ -208,9 +209,11 @@ ds_calibrator_finish (DsCalibrator *c, const DsCalibrationHints *hints, DsCalibr
     }
     if (isnan (out->period_px)) {
       g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_EMPTY,
-                   "calibration: no stripes found (the strongest line is %.1f sigma); is the illuminator "
-                   "on and the reference clear? Give the period if it is known",
-                   snr);
+                   "calibration: no stripes at any period from 2.5 to %.4g px: the strongest line in the "
+                   "spectrum of phase 0 less phase %u is %.1f standard deviations of its noise, where 8 are "
+                   "needed. Is the illuminator on and lighting the camera's view, and the reference clear? "
+                   "Give the period if it is known",
+                   c->w / 2.0, n / 2, snr);
       return FALSE;
     }
     out->period_measured = TRUE;
@@ -219,22 +222,34 @@ ds_calibrator_finish (DsCalibrator *c, const DsCalibrationHints *hints, DsCalibr
     out->period_px = ds_calibration_period_refine ((DsImage *const *) means->pdata, n, out->period_px);
   double period = out->period_px;
 
+  /* The stripes must step by 1/N of the period from one phase to the next: a period is found in
+   * any picture that moves by itself (calibration_steps.h). */
+  g_autofree DsStripePhase *sp = g_new (DsStripePhase, n);
+  for (guint k = 0; k < n; k++)
+    if (!ds_stripe_phase_measure (means->pdata[k], period, NULL, &sp[k], error))
+      return FALSE;
+  DsStripeSteps steps;
+  if (!ds_stripe_steps_check (sp, n, period,
+                              out->period_measured ? "measured" : hints->period_estimated ? "estimated" : "given",
+                              &steps, error)) {
+    g_prefix_error (error, "calibration: ");
+    return FALSE;
+  }
+
   /* Where phase 0 falls: the mean over phases of (measured phase - k/N), as a circular mean. */
   if (hints->phase_offset_known) {
     out->phase_offset_cycles = hints->phase_offset_cycles - floor (hints->phase_offset_cycles);
   } else {
+    for (guint k = 0; k < n; k++)
+      if (!sp[k].reliable) {
+        g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_EMPTY,
+                     "calibration: phase %u shows no measurable stripes at %g px (snr %.1f)", k, period, sp[k].snr);
+        return FALSE;
+      }
     double cs = 0, sn = 0;
     g_autofree double *off = g_new (double, n);
     for (guint k = 0; k < n; k++) {
-      DsStripePhase sp;
-      if (!ds_stripe_phase_measure (means->pdata[k], period, NULL, &sp, error))
-        return FALSE;
-      if (!sp.reliable) {
-        g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_EMPTY,
-                     "calibration: phase %u shows no measurable stripes at %g px (snr %.1f)", k, period, sp.snr);
-        return FALSE;
-      }
-      off[k] = sp.phase - (double) k / n;
+      off[k] = sp[k].phase - (double) k / n;
       cs += cos (2 * G_PI * off[k]);
       sn += sin (2 * G_PI * off[k]);
     }
