@@ -3,6 +3,7 @@
 
 #include "daemon/operating/error_model.h"
 #include "daemon/operating/pattern_check.h"
+#include "daemon/operating/pilot_stripes.h"
 #include "daemon/protocol/protocol.h"
 #include "daemon/service/sequencer_private.h"
 #include "proc/stripe_phase.h"
@@ -167,6 +168,11 @@ ds_seq_choose_operating_point (DsSequencer *seq, DsCaptureSettings *s, DsFrameCo
   }
   DsOperatingReport *r = &s->operating;
   memset (r, 0, sizeof *r);
+  DsPilotStripes stripes;
+  if (!ds_pilot_stripes_check (&pf, &stripes, error)) {
+    g_prefix_error (error, "automatic operating point: ");
+    return FALSE;
+  }
   if (!pattern_matches (&pf, r, error))
     return FALSE;
   if (!ds_scene_probe_measure (&pf, &r->probe, error))
