@@ -7,6 +7,7 @@ values: period 9.5 px, duty 0.3, black level 0.1, edge blur 1 px). The calibrati
 them from the frames (nothing tells the daemon the blur, and the period is measured unless
 period_px is given). Expectations are the scene file's numbers."""
 import configparser
+import contextlib
 import glob
 import json
 import math
@@ -95,6 +96,31 @@ def stop_daemon(tmp, proc, log):
         print(open(os.path.join(tmp, "d.log")).read()[-3000:])
 
 
+@contextlib.contextmanager
+def daemon_running(tmp, scene, illuminator="", sim=""):
+    """start_daemon ... stop_daemon around a block; yields the socket."""
+    proc, sock, log = start_daemon(tmp, scene, illuminator, sim)
+    try:
+        yield sock
+    finally:
+        stop_daemon(tmp, proc, log)
+
+
+def calibrate_json(sock, what):
+    """`descatterctl calibrate --json --phases 8` on the rig, checked to exit 0: the reply ({} when not)."""
+    r = run(CTL, "-a", sock, "calibrate", "--json", "--phases", "8")
+    check(r.returncode == 0, f"{what} --json exits 0 {r.stderr.strip()}")
+    return json.loads(r.stdout) if r.returncode == 0 else {}
+
+
+def illuminator_lines(text):
+    """The [illuminator] section of the `# descatterd.conf` block calibrate printed."""
+    block = text.split("# descatterd.conf\n", 1)[1].split("\n\n", 1)[0]
+    kf = configparser.ConfigParser()
+    kf.read_string(block)
+    return kf["illuminator"]
+
+
 # A forward-scattering medium (g 0.9) in front of the reference: part of its scattered light
 # keeps the stripes and is read as black level.
 MEDIUM = "[medium]\nthickness-mm=5\nmua=0.0043\nmus=0.35\ng=0.9\nn=1.33\nphotons=100000\nseed=7\n"
@@ -106,11 +132,8 @@ def scattering_reference():
     with tempfile.TemporaryDirectory(prefix="ds-calibrate-") as tmp:
         scene = os.path.join(tmp, "reference.scene")
         reference_scene(scene, MEDIUM)
-        proc, sock, log = start_daemon(tmp, scene)
-        try:
-            r = run(CTL, "-a", sock, "calibrate", "--json", "--phases", "8")
-            check(r.returncode == 0, f"scattering reference: calibrate --json exits 0 {r.stderr.strip()}")
-            cal = json.loads(r.stdout) if r.returncode == 0 else {}
+        with daemon_running(tmp, scene) as sock:
+            cal = calibrate_json(sock, "scattering reference: calibrate")
             if cal:
                 check(cal["scattering"]["suspected"] and "the reference scatters" in cal.get("warning", ""),
                       f"scattering reference: suspected, with a warning ({cal['scattering']})")
@@ -120,8 +143,6 @@ def scattering_reference():
             check(r.returncode == 0 and "# WARNING: the reference scatters" in r.stdout
                   and "warning: the reference scatters" in r.stderr and "Calibrate on a clear reference" in r.stdout,
                   "scattering reference: the text output and stderr warn")
-        finally:
-            stop_daemon(tmp, proc, log)
 
 
 def sine_reference():
@@ -137,11 +158,8 @@ def sine_reference():
         check("pattern=square" in text, "the reference scene names its pattern")
         with open(scene, "w") as f:
             f.write(text.replace("pattern=square", "pattern=sine"))
-        proc, sock, log = start_daemon(tmp, scene)
-        try:
-            r = run(CTL, "-a", sock, "calibrate", "--json", "--phases", "8")
-            check(r.returncode == 0, f"sine reference: calibrate --json exits 0 {r.stderr.strip()}")
-            cal = json.loads(r.stdout) if r.returncode == 0 else {}
+        with daemon_running(tmp, scene) as sock:
+            cal = calibrate_json(sock, "sine reference: calibrate")
             if cal:
                 pc = cal["pattern_check"]
                 check(cal["pattern"] == "sine" and pc["detected"] and pc["sine_residual"] < pc["square_residual"],
@@ -154,8 +172,6 @@ def sine_reference():
             check(r.returncode == 0 and "the reference scatters" not in r.stdout + r.stderr
                   and "\npattern=sine\n" in r.stdout and "duty=" not in r.stdout,
                   "sine reference: the text output gives sine's lines, no warning")
-        finally:
-            stop_daemon(tmp, proc, log)
 
 
 # A sine illuminator whose black level and blur calibrate must tell apart (issue 12: calibrate
@@ -249,8 +265,7 @@ def calibrate_then_capture():
         measured = os.path.join(tmp, "grid.scene")
         sine_scene(reference, objects=False)
         sine_scene(measured, objects=True)
-        proc, sock, log = start_daemon(tmp, reference, "period-px=12\n", "geometry=config\n")
-        try:
+        with daemon_running(tmp, reference, "period-px=12\n", "geometry=config\n") as sock:
             r = run(CTL, "-a", sock, "calibrate", "--phases", "8")
             check(r.returncode == 0, f"workflow: calibrate exits 0 {r.stderr.strip()}")
             text = r.stdout
@@ -259,14 +274,9 @@ def calibrate_then_capture():
                   "workflow: configured square, stripes are sine: the notice, in the output and on stderr")
             check("assumed" not in text and "from the contrast at two periods" in text,
                   "workflow: the black level is measured at two periods, not assumed")
-        finally:
-            stop_daemon(tmp, proc, log)
         if r.returncode != 0:
             return
-        block = text.split("# descatterd.conf\n", 1)[1].split("\n\n", 1)[0]
-        kf = configparser.ConfigParser()
-        kf.read_string(block)
-        ill = kf["illuminator"]
+        ill = illuminator_lines(text)
         b, h = float(ill["black-level"]), float(ill["harmonic-gain"])
         want_h = (1 - SINE["black"]) / 2 * math.exp(-2 * math.pi ** 2 * SINE["blur"] ** 2 / SINE["period"] ** 2)
         check(ill["pattern"] == "sine" and abs(b - SINE["black"]) <= 0.01,
@@ -277,13 +287,10 @@ def calibrate_then_capture():
         r = run(os.path.join(BIN, "descatter-sim"), "render", measured, "-n", "4", "-o", truth)
         check(r.returncode == 0, f"workflow: the truth renders {r.stderr.strip()}")
         lines = "".join(f"{k}={v}\n" for k, v in ill.items())
-        proc, sock, log = start_daemon(tmp, measured, lines, "geometry=config\n")
-        try:
+        with daemon_running(tmp, measured, lines, "geometry=config\n") as sock:
             out = os.path.join(tmp, "capture")
             r = run(CTL, "-a", sock, "capture", "--target-error", "0.03", "-o", out, "-q")
             check(r.returncode == 0, f"workflow: the automatic capture with calibrate's lines succeeds {r.stderr.strip()}")
-        finally:
-            stop_daemon(tmp, proc, log)
         if r.returncode != 0:
             return
         meta = json.load(open(glob.glob(os.path.join(out, "*.json"))[0]))
@@ -304,11 +311,8 @@ def main():
     with tempfile.TemporaryDirectory(prefix="ds-calibrate-") as tmp:
         scene = os.path.join(tmp, "reference.scene")
         reference_scene(scene)
-        proc, sock, log = start_daemon(tmp, scene)
-        try:
-            r = run(CTL, "-a", sock, "calibrate", "--json", "--phases", "8")
-            check(r.returncode == 0, f"descatterctl calibrate --json exits 0 {r.stderr.strip()}")
-            cal = json.loads(r.stdout) if r.returncode == 0 else {}
+        with daemon_running(tmp, scene) as sock:
+            cal = calibrate_json(sock, "descatterctl calibrate")
             if cal:
                 check(cal["n_phases"] == 8 and cal["period_measured"], "8 phases, period measured")
                 close_to_truth(cal, "descatterctl calibrate")
@@ -320,10 +324,7 @@ def main():
             check(r.returncode == 0 and "# descatterd.conf" in text, "the text output has the configuration block")
             check("WARNING" not in text and "warning" not in r.stderr, "a clear reference: no warning printed")
             if r.returncode == 0:
-                block = text.split("# descatterd.conf\n", 1)[1].split("\n\n", 1)[0]
-                kf = configparser.ConfigParser()
-                kf.read_string(block)
-                ill = kf["illuminator"]
+                ill = illuminator_lines(text)
                 check(ill["pattern"] == "square", "config: pattern=square")
                 close_to_truth({"period_px": ill["period-px"], "duty": ill["duty"], "black_level": ill["black-level"],
                                 "edge_blur_px": 1.0}, "config lines")
@@ -355,8 +356,6 @@ def main():
                     return await c.calibrate(phases=4)
             cal = asyncio.run(calibrate_async())
             check(cal["n_phases"] == 4 and abs(cal["period_px"] - 9.5) <= 0.01, "asyncio client calibrate")
-        finally:
-            stop_daemon(tmp, proc, log)
     scattering_reference()
     sine_reference()
     calibrate_then_capture()

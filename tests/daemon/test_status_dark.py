@@ -57,15 +57,24 @@ def offline_dark_level(tmp):
     return png_mean(os.path.join(out, "black.png"))
 
 
+def fresh_daemon(tmp, name, conf=""):
+    """A descatterd on the scene in its own folder tmp/name, with conf added to its configuration."""
+    folder = os.path.join(tmp, name)
+    os.mkdir(folder)
+    return folder, LiveDaemon(DAEMON, CTL, folder, f"[sim]\nscene={SCENE}\n{conf}")
+
+
+def check_idle(d, mode, what):
+    """Before any set: the dark mode the configuration gives, and no dark frame taken yet."""
+    st = d.status()
+    check(st["dark"]["mode"] == mode and st["dark"]["last"] is None, f"{what}: {st['dark']}")
+
+
 def per_set_default(tmp, offline):
     """The default configuration: every set takes its own dark frame."""
-    folder = os.path.join(tmp, "per-set")
-    os.mkdir(folder)
-    d = LiveDaemon(DAEMON, CTL, folder, f"[sim]\nscene={SCENE}\n")
+    folder, d = fresh_daemon(tmp, "per-set")
     try:
-        st = d.status()
-        check(st["dark"]["mode"] == "per-set" and st["dark"]["last"] is None,
-              f"idle, default configuration: per-set, none taken yet: {st['dark']}")
+        check_idle(d, "per-set", "idle, default configuration: per-set, none taken yet")
         text = d.ctl("status").stdout
         check("taken by every set" in text and "none taken yet" in text,
               f"the summary says every set takes one: {text!r}")
@@ -107,13 +116,9 @@ def per_set_default(tmp, offline):
 
 def without_per_set(tmp, offline):
     """dark-frame=false: nothing subtracted until the dark command stores one at the sets' exposure."""
-    folder = os.path.join(tmp, "stored")
-    os.mkdir(folder)
-    d = LiveDaemon(DAEMON, CTL, folder, f"[sim]\nscene={SCENE}\n[acquisition]\ndark-frame=false\n")
+    folder, d = fresh_daemon(tmp, "stored", "[acquisition]\ndark-frame=false\n")
     try:
-        st = d.status()
-        check(st["dark"]["mode"] == "none" and st["dark"]["last"] is None,
-              f"dark-frame=false: none subtracted: {st['dark']}")
+        check_idle(d, "none", "dark-frame=false: none subtracted")
         check("NONE subtracted" in d.ctl("status").stdout, "the summary says nothing is subtracted")
         before = time.time()
         reply = json.loads(d.ctl("dark").stdout)
