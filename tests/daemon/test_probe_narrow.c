@@ -141,6 +141,20 @@ lower_bound_json (const DsSceneProbe *p, char **reasons)
   return r.point.lower_bound;
 }
 
+/* The probe leaves a narrow kernel unresolved, its note says note_says (NULL: not checked), and
+ * the prediction is a lower bound whose reasons say reasons_say (NULL: not checked). */
+static void
+assert_unresolved_lower_bound (const DsSceneProbe *p, const char *note_says, const char *reasons_say)
+{
+  g_assert_true (p->narrow_unresolved);
+  if (note_says)
+    g_assert_nonnull (strstr (p->narrow_note, note_says));
+  g_autofree char *reasons = NULL;
+  g_assert_true (lower_bound_json (p, &reasons));
+  if (reasons_say)
+    g_assert_nonnull (strstr (reasons, reasons_say));
+}
+
 /* The finer periods: halved while at least 4 px and 5.34 blur sigmas, in 1/100 px. */
 static void
 test_finer_periods (void)
@@ -209,10 +223,7 @@ test_period_too_fine (void)
   DsSceneProbe p;
   probe (&s, TRUE, TRUE, &p);
   g_test_message ("%s", p.narrow_note);
-  g_assert_true (p.narrow_unresolved);
-  g_assert_nonnull (strstr (p.narrow_note, "finer than the pilot resolves"));
-  g_autofree char *reasons = NULL;
-  g_assert_true (lower_bound_json (&p, &reasons));
+  assert_unresolved_lower_bound (&p, "finer than the pilot resolves", NULL);
 }
 
 /* A kernel of 0.97 px holding 80 % of Ld keeps 48 % of Ld modulated even at P/4 = 6 px (77 % at
@@ -227,11 +238,8 @@ test_narrower_than_finest (void)
   probe (&s, TRUE, TRUE, &p);
   g_test_message ("%s", p.narrow_note);
   g_assert_cmpfloat (truth_leak (&s, 6), >, 0.25);
-  g_assert_true (p.narrow_unresolved);
   g_assert_cmpfloat (p.narrow_fraction, ==, 0);
-  g_assert_nonnull (strstr (p.narrow_note, "even at the finest period"));
-  g_autofree char *reasons = NULL;
-  g_assert_true (lower_bound_json (&p, &reasons));
+  assert_unresolved_lower_bound (&p, "even at the finest period", NULL);
 }
 
 /* Nothing scatters: with P and 2P no lower bound is claimed (no scattered light seen); with the
@@ -327,10 +335,7 @@ test_kernel_or_blur (void)
   g_assert_cmpfloat (fabs (pa.ld_mean - pb.ld_mean), <, 0.01 * a.ld);
   g_assert_cmpfloat (b.ld, >, 1.09 * a.ld);
   g_assert_cmpfloat (pa.ld_mean, >, 1.05 * a.ld);
-  g_assert_true (pa.narrow_unresolved);
-  g_autofree char *reasons = NULL;
-  g_assert_true (lower_bound_json (&pa, &reasons));
-  g_assert_nonnull (strstr (reasons, "finer than the pilot resolves"));
+  assert_unresolved_lower_bound (&pa, NULL, "finer than the pilot resolves");
 }
 
 /* The scene itself as the error model takes it: the true Ld and scattered light, the Gaussian
