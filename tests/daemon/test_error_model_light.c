@@ -80,6 +80,34 @@ test_probe_dark_shot_noise (void)
   }
 }
 
+/* A probe of a 256 x 192 scene under sharp square stripes of duty 1/2 and period P, the blur
+ * calibrated, at 1000 µs, Ld uniform and the scattered stripes measured; each test sets the rest. */
+static DsSceneProbe
+square_probe (double period, double ld)
+{
+  DsSceneProbe p = { 0 };
+  p.geometry = (DsStripeModel){ DS_PATTERN_SQUARE, period, 0.5, 0, 0 };
+  p.blur_source = DS_BLUR_CALIBRATED;
+  p.exposure_us = 1000;
+  p.ld_mean = ld;
+  p.ld_spread = 1;
+  p.leak_measured = TRUE;
+  p.width = 256;
+  p.height = 192;
+  return p;
+}
+
+/* The separation's parameters for those stripes (N = 4; predict () takes its own N). */
+static DsSeparationParams
+square_params (void)
+{
+  DsSeparationParams sp;
+  ds_separation_params_init (&sp, 4);
+  sp.pattern = DS_PATTERN_SQUARE;
+  sp.duty = 0.5;
+  return sp;
+}
+
 /* The error model at a quarter of the pilot's exposure: sine's noise on sharp square stripes is
  * sqrt (2 var / (M N h^2)) / Ld (docs/estimators.md) with var = read^2 + S f, the dark frame's
  * shot noise S scaled by the exposure factor f and the read noise not; sine's Ld does not see
@@ -89,23 +117,12 @@ static void
 test_error_model_dark_shot_noise (void)
 {
   const double ld = 500, read_var = 1, S = 99, f = 0.25;
-  DsSceneProbe p = { 0 };
-  p.geometry = (DsStripeModel){ DS_PATTERN_SQUARE, 16, 0.5, 0, 0 };
-  p.blur_source = DS_BLUR_CALIBRATED;
-  p.exposure_us = 1000;
-  p.ld_mean = ld;
-  p.ld_spread = 1;
+  DsSceneProbe p = square_probe (16, ld);
   p.lg_mean = 1000;
-  p.leak_measured = TRUE;
   p.noise_var0 = read_var + S;
   p.noise_dark_shot = S;
   p.noise_gain = 0;
-  p.width = 256;
-  p.height = 192;
-  DsSeparationParams sp;
-  ds_separation_params_init (&sp, 4);
-  sp.pattern = DS_PATTERN_SQUARE;
-  sp.duty = 0.5;
+  DsSeparationParams sp = square_params ();
   g_autoptr (DsErrorModel) m = ds_error_model_new (&p, &sp);
   DsErrorParts parts;
   g_autoptr (GError) error = NULL;
@@ -131,21 +148,10 @@ static void
 test_error_model_leak_on_no_scattered_light (void)
 {
   const double P = 12, ld = 1000, alpha = log (1.03) / P; /* 3 % of the first harmonic at P */
-  DsSceneProbe p = { 0 };
-  p.geometry = (DsStripeModel){ DS_PATTERN_SQUARE, P, 0.5, 0, 0 };
-  p.blur_source = DS_BLUR_CALIBRATED;
-  p.exposure_us = 1000;
-  p.ld_mean = ld;
-  p.ld_spread = 1;
+  DsSceneProbe p = square_probe (P, ld);
   p.lg_mean = 0;
-  p.leak_measured = TRUE;
   p.leak_per_px = alpha;
-  p.width = 256;
-  p.height = 192;
-  DsSeparationParams sp;
-  ds_separation_params_init (&sp, 4);
-  sp.pattern = DS_PATTERN_SQUARE;
-  sp.duty = 0.5;
+  DsSeparationParams sp = square_params ();
   sp.geometry.period_px = P;
   sp.geometry.pixel_aperture = 1;
   g_autoptr (DsErrorModel) m = ds_error_model_new (&p, &sp);
@@ -183,24 +189,13 @@ test_error_model_leak_on_no_scattered_light (void)
 static void
 test_error_model_nothing_left (void)
 {
-  DsSceneProbe p = { 0 };
-  p.geometry = (DsStripeModel){ DS_PATTERN_SQUARE, 12, 0.5, 0, 0 };
-  p.blur_source = DS_BLUR_CALIBRATED;
-  p.exposure_us = 1000;
-  p.ld_mean = 1000;
-  p.ld_spread = 1;
-  p.leak_measured = TRUE;
+  DsSceneProbe p = square_probe (12, 1000);
   p.noise_var0 = 4;
   p.noise_gain = 0.25;
   p.saturation_dn = 1500;
   p.bright_dn = 1000;
   p.clip_flagged = TRUE;
-  p.width = 256;
-  p.height = 192;
-  DsSeparationParams sp;
-  ds_separation_params_init (&sp, 4);
-  sp.pattern = DS_PATTERN_SQUARE;
-  sp.duty = 0.5;
+  DsSeparationParams sp = square_params ();
   g_autoptr (DsErrorModel) m = ds_error_model_new (&p, &sp);
   DsErrorParts parts;
   g_autoptr (GError) error = NULL;
