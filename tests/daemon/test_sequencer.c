@@ -603,6 +603,17 @@ test_dark_frame_illuminator_lost (Fixture *f, gconstpointer d)
   assert_accounting (f);
 }
 
+/* An automatic capture of 8 phases for a relative error of 0.01: the operating model (the
+ * caller's: the sequencer keeps a pointer to it) at its defaults, 3 ms settle, 1 Gbit/s. */
+static void
+automatic_settings (Fixture *f, DsOperatingModel *model, DsCaptureSettings *s)
+{
+  ds_operating_model_init (model);
+  ds_sequencer_set_operating_model (f->seq, model, 3.0, 1000.0);
+  default_settings (s, 8);
+  s->target_error = 0.01;
+}
+
 /* The pilot of an automatic capture fails after its dark frame (the camera is lost at the
  * first lit pilot frame; on the rig, labsim --wrong-phase: the illuminator's APPLIED_PHASE
  * disagrees): the pilot's frames go down with the capture, counted `aborted`, so that
@@ -613,11 +624,8 @@ test_automatic_pilot_fails (Fixture *f, gconstpointer d)
 {
   (void) d;
   DsOperatingModel model;
-  ds_operating_model_init (&model);
-  ds_sequencer_set_operating_model (f->seq, &model, 3.0, 1000.0);
   DsCaptureSettings s;
-  default_settings (&s, 8);
-  s.target_error = 0.01;
+  automatic_settings (f, &model, &s);
   f->lab.disconnect_in = 2; /* the pilot's dark frame comes, then the camera is gone */
   capture (f, &s);
   g_assert_null (f->out.result);
@@ -645,11 +653,8 @@ test_automatic_operating_point (Fixture *f, gconstpointer d)
 {
   (void) d;
   DsOperatingModel model;
-  ds_operating_model_init (&model);
-  ds_sequencer_set_operating_model (f->seq, &model, 3.0, 1000.0);
   DsCaptureSettings s;
-  default_settings (&s, 8);
-  s.target_error = 0.01;
+  automatic_settings (f, &model, &s);
   capture (f, &s);
   g_assert_no_error (f->out.failure);
   const DsCaptureSettings *used = ds_result_settings (f->out.result);
