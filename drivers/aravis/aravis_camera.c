@@ -4,17 +4,18 @@
 #include <math.h>
 #include <string.h>
 
+#include "drivers/aravis/device_watch.h"
 #include "proc/pixfmt.h"
 
 typedef struct {
   char *address;           /* what the caller opened, used again by reconnect */
   guint n_buffers;
   ArvCamera *camera;
-  gulong control_lost_id;
+  DsArvDeviceWatch *watch; /* our reference to the camera's device and its "control-lost" */
   ArvStream *stream;
   guint stream_payload;    /* payload the pool was allocated for */
   gboolean stream_running; /* its receiving thread runs (Aravis asserts on a double stop) */
-  gint lost;               /* atomic: set by "control-lost" (Aravis heartbeat thread) */
+  gboolean lost;           /* the camera stopped answering (seen here; Aravis's report: watch) */
   gboolean configured, started;
   DsCameraSettings settings;
   DsPixelFormat fmt;
@@ -45,12 +46,11 @@ on_stream_event (void *data, ArvStreamCallbackType type, ArvBuffer *buffer)
   g_mutex_unlock (&c->begun_lock);
 }
 
-static void
-on_control_lost (ArvDevice *device, gpointer data)
+/* Lost: seen by the backend (a command or a frame unanswered) or reported by Aravis. */
+static gboolean
+camera_lost (AravisCam *c)
 {
-  (void) device;
-  AravisCam *c = data;
-  g_atomic_int_set (&c->lost, 1);
+  return c->lost || (c->watch && ds_arv_device_watch_lost (c->watch));
 }
 
 /* Statistics of the live stream (GV streams only: other stream types lack these infos). */
@@ -81,60 +81,13 @@ destroy_stream (AravisCam *c)
   c->stream_payload = 0;
 }
 
-static gboolean
-device_is_sole_reference (ArvDevice *device)
-{
-  return g_atomic_int_get ((gint *) &G_OBJECT (device)->ref_count) == 1;
-}
-
-static gpointer
-release_device_thread (gpointer data)
-{
-  ArvDevice *device = data;
-  gulong wait_us = 100;
-  while (!device_is_sole_reference (device)) {
-    g_usleep (wait_us);
-    wait_us = MIN (wait_us * 2, 20000ul);
-  }
-  g_object_unref (device); /* the last: finalized here, its heartbeat thread joined from here */
-  return NULL;
-}
-
-/* Drops the backend's reference on a closed camera's device so that the device is never
- * finalized on one of Aravis's own threads. Its heartbeat thread emits "control-lost" holding a
- * reference for the emission (GLib's); were ours dropped meanwhile, the emission's unref would
- * finalize the device on the heartbeat thread, and the finalize joins the heartbeat thread:
- * itself ("Resource deadlock avoided", descatterd aborting in daemon/labsim-faults under load).
- * Usually ours is the last reference and the device goes here, on the thread that closes the
- * camera (its owner). Otherwise (an emission in progress, or frames lent past the close, whose
- * streams hold the device) a thread of our own takes the reference and drops it once it is the
- * last one. That thread is detached: the lent frames it may wait for are freed by the very
- * thread that would join it. */
-static void
-release_device (ArvDevice *device)
-{
-  if (device_is_sole_reference (device)) {
-    g_object_unref (device);
-    return;
-  }
-  GThread *t = g_thread_new ("arv-device-release", release_device_thread, device);
-  g_thread_unref (t);
-}
-
 static void
 close_device (AravisCam *c)
 {
   destroy_stream (c);
-  if (c->camera) {
-    ArvDevice *device = g_object_ref (arv_camera_get_device (c->camera));
-    /* From here on an emission of "control-lost" that has not started takes no reference (no
-     * handler): only one already under way can hold the device. */
-    if (c->control_lost_id)
-      g_signal_handler_disconnect (device, c->control_lost_id);
-    c->control_lost_id = 0;
-    g_clear_object (&c->camera);
-    release_device (device);
-  }
+  g_clear_object (&c->camera);
+  /* Never the device's finalize on Aravis's heartbeat thread, which it joins: device_watch.h */
+  g_clear_pointer (&c->watch, ds_arv_device_watch_release);
   c->started = FALSE;
 }
 
@@ -186,13 +139,12 @@ open_device (AravisCam *c, GError **error)
   if (!cam)
     return fail (error, DS_DEVICE_ERROR_DISCONNECTED, e, "no camera answers at \"%s\"", c->address);
   c->camera = cam;
-  g_atomic_int_set (&c->lost, 0);
+  c->lost = FALSE;
   /* A camera may still be acquiring for a session that is gone (ours before a reconnect, or a
    * crashed one): it would keep streaming to that session's port. Stopping first makes the
    * next AcquisitionStart take the stream channel as configured now. */
   arv_camera_stop_acquisition (cam, NULL);
-  c->control_lost_id = g_signal_connect (arv_camera_get_device (cam), "control-lost",
-                                         G_CALLBACK (on_control_lost), c);
+  c->watch = ds_arv_device_watch_new (arv_camera_get_device (cam));
   memset (&c->info, 0, sizeof c->info);
   const char *s;
   if ((s = arv_camera_get_vendor_name (cam, NULL)))
@@ -215,7 +167,7 @@ open_device (AravisCam *c, GError **error)
 static gboolean
 check_connected (AravisCam *c, GError **error)
 {
-  if (!c->camera || g_atomic_int_get (&c->lost))
+  if (!c->camera || camera_lost (c))
     return fail (error, DS_DEVICE_ERROR_DISCONNECTED, NULL, "control of \"%s\" lost: reconnect",
                  c->address);
   return TRUE;
@@ -455,7 +407,7 @@ cam_stop (gpointer b)
   AravisCam *c = b;
   if (!c->started)
     return;
-  if (c->camera && !g_atomic_int_get (&c->lost))
+  if (c->camera && !camera_lost (c))
     arv_camera_stop_acquisition (c->camera, NULL);
   /* Stopping the thread hands frames in progress to the output queue; all go back to the
    * input queue, so the pool is whole while stopped. */
@@ -475,7 +427,7 @@ cam_stop (gpointer b)
 static gboolean
 still_there (AravisCam *c)
 {
-  if (g_atomic_int_get (&c->lost))
+  if (camera_lost (c))
     return FALSE;
   GError *e = NULL;
   guint32 version = 0;
@@ -485,7 +437,7 @@ still_there (AravisCam *c)
   gboolean gone = code_of (e) == DS_DEVICE_ERROR_TIMEOUT;
   g_error_free (e);
   if (gone)
-    g_atomic_int_set (&c->lost, 1);
+    c->lost = TRUE;
   return !gone;
 }
 
@@ -506,7 +458,7 @@ cam_trigger (gpointer b, GError **error)
   /* A control command that timed out went unanswered through all of Aravis's retries: the
    * camera is gone (asking it again would only wait as long once more). */
   if (e && code_of (e) == DS_DEVICE_ERROR_TIMEOUT) {
-    g_atomic_int_set (&c->lost, 1);
+    c->lost = TRUE;
     return fail (error, DS_DEVICE_ERROR_DISCONNECTED, e, "TriggerSoftware: \"%s\" does not answer: lost",
                  c->address);
   }
@@ -684,7 +636,7 @@ cam_get_info (gpointer b, DsCameraInfo *i)
 {
   AravisCam *c = b;
   *i = c->info;
-  i->connected = c->camera && !g_atomic_int_get (&c->lost);
+  i->connected = c->camera && !camera_lost (c);
 }
 
 static void
@@ -755,4 +707,13 @@ ds_aravis_camera_pool_counts (const DsCamera *camera, guint *n_input, guint *n_o
   *n_input = (guint) MAX (in, 0);
   *n_output = (guint) MAX (out, 0);
   *n_pool = c->n_buffers;
+}
+
+GObject *
+ds_aravis_camera_device (const DsCamera *camera)
+{
+  if (!ds_aravis_camera_is_aravis (camera))
+    return NULL;
+  AravisCam *c = camera->backend;
+  return c->camera ? G_OBJECT (arv_camera_get_device (c->camera)) : NULL;
 }

@@ -18,7 +18,7 @@
  * Threads: as drivers/core/camera.h (one caller thread). Aravis runs its own stream and
  * heartbeat threads; the only state they touch here is an atomic flag. */
 #pragma once
-#include <glib.h>
+#include <glib-object.h>
 
 #include "drivers/core/camera.h"
 
@@ -38,5 +38,9 @@ gboolean ds_aravis_camera_is_aravis (const DsCamera *camera);
  * back in the input queue. All zero when no stream exists. */
 void ds_aravis_camera_pool_counts (const DsCamera *camera, guint *n_input, guint *n_output,
                                    guint *n_pool);
+
+/* For tests: the open camera's ArvDevice (borrowed; it goes with the next close or reconnect),
+ * NULL when the camera is closed or not an Aravis backend. */
+GObject *ds_aravis_camera_device (const DsCamera *camera);
 
 G_END_DECLS

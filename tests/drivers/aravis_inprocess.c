@@ -3,6 +3,7 @@
  * Expectations are independent of the backend: the pixels the fill pattern wrote, ids counted
  * by the camera, the pool size the test asked for. */
 #include <arv.h>
+#include <dlfcn.h>
 #include <string.h>
 
 #include "drivers/aravis/aravis_camera.h"
@@ -429,7 +430,10 @@ hold_control_lost (GSignalInvocationHint *hint, guint n_values, const GValue *va
          g_get_monotonic_time () < deadline)
     g_cond_wait_until (&e->cond, &e->lock, g_get_monotonic_time () + G_TIME_SPAN_MILLISECOND);
   g_mutex_unlock (&e->lock);
-  return FALSE; /* once */
+  /* Removed by the test: a hook that removes itself by returning FALSE leaves GLib 2.74's
+   * signal off its fast path for good (g_hook_destroy_link does not invalidate the node's
+   * single_va_closure), and every later emission would reference the device. */
+  return TRUE;
 }
 
 static void
@@ -467,10 +471,150 @@ test_control_lost_during_close (Rig *r, gconstpointer data)
   gboolean finalized = e.finalized;
   GThread *finalized_on = e.finalized_on;
   g_mutex_unlock (&e.lock);
+  g_signal_remove_emission_hook (signal_id, hook); /* the emission is over: finalized after */
   g_assert_true (finalized);                       /* released, not leaked */
   g_assert_true (finalized_on != e.heartbeat);     /* and never by the thread it joins */
   g_mutex_clear (&e.lock);
   g_cond_clear (&e.cond);
+}
+
+/* The narrower window of the same race. "control-lost" has no va marshaller (Aravis registers
+ * it with g_cclosure_marshal_VOID__VOID), so with a handler connected GLib 2.74's
+ * g_signal_emit_valist decides on its slow path under the signal lock, releases the lock and
+ * only then references the device; nothing shows that the emission has begun. A close that
+ * sees a reference count of 1 in between finalizes the device: its finalize joins the
+ * heartbeat thread, which then references a device whose count is 0 (GLib-CRITICAL
+ * "g_object_ref: assertion '!object_already_finalized' failed", and the emission's unref would
+ * finalize it once more, on the heartbeat thread). No emission hook may be used here (a hook
+ * changes GLib's path): this binary interposes g_thread_new, to know Aravis's heartbeat
+ * threads, and g_mutex_unlock (libgobject and libaravis call both through their PLT). The
+ * release of the signal lock inside g_signal_emit_valist on the heartbeat thread (its decision
+ * made) holds that thread until the backend's close is over or the device's finalize has
+ * begun. */
+static struct {
+  gint armed;                 /* atomic: until the window has been held once */
+  GObject *device;            /* the armed device (borrowed) */
+  GMutex lock;
+  GCond cond;
+  GThread *heartbeat;         /* the thread held in the window */
+  GThread *finalized_on;
+  gboolean entered, closed, finalized;
+} window;
+
+static __thread gboolean on_heartbeat_thread, in_window_check;
+
+typedef struct {
+  GThreadFunc func;
+  gpointer data;
+} ThreadStart;
+
+static gpointer
+heartbeat_start (gpointer data)
+{
+  ThreadStart start = *(ThreadStart *) data;
+  g_free (data);
+  on_heartbeat_thread = TRUE;
+  return start.func (start.data);
+}
+
+GThread *
+g_thread_new (const gchar *name, GThreadFunc func, gpointer data)
+{
+  GThread *(*real_new) (const gchar *, GThreadFunc, gpointer);
+  *(void **) &real_new = dlsym (RTLD_NEXT, "g_thread_new");
+  if (name && strcmp (name, "arv_gv_heartbeat") == 0) {
+    ThreadStart *start = g_new (ThreadStart, 1);
+    start->func = func;
+    start->data = data;
+    return real_new (name, heartbeat_start, start);
+  }
+  return real_new (name, func, data);
+}
+
+static void
+hold_in_window (void)
+{
+  if (!g_atomic_int_compare_and_exchange (&window.armed, 1, 0))
+    return;
+  g_mutex_lock (&window.lock);
+  window.heartbeat = g_thread_self ();
+  window.entered = TRUE;
+  g_cond_broadcast (&window.cond);
+  gint64 deadline = g_get_monotonic_time () + 60 * G_TIME_SPAN_SECOND;
+  /* The device's memory stays valid while this thread lives: its finalize joins it. */
+  while (!window.closed && g_atomic_int_get ((gint *) &window.device->ref_count) > 0 &&
+         g_get_monotonic_time () < deadline)
+    g_cond_wait_until (&window.cond, &window.lock, g_get_monotonic_time () + G_TIME_SPAN_MILLISECOND);
+  g_mutex_unlock (&window.lock);
+}
+
+void
+g_mutex_unlock (GMutex *mutex)
+{
+  static void (*real_unlock) (GMutex *);
+  void (*unlock) (GMutex *) = g_atomic_pointer_get (&real_unlock);
+  if (!unlock) {
+    *(void **) &unlock = dlsym (RTLD_NEXT, "g_mutex_unlock");
+    g_atomic_pointer_set (&real_unlock, unlock);
+  }
+  unlock (mutex);
+  if (!on_heartbeat_thread || in_window_check || !g_atomic_int_get (&window.armed))
+    return;
+  in_window_check = TRUE;
+  Dl_info info;
+  if (dladdr (__builtin_return_address (0), &info) && info.dli_sname &&
+      strcmp (info.dli_sname, "g_signal_emit_valist") == 0)
+    hold_in_window ();
+  in_window_check = FALSE;
+}
+
+static void
+on_window_device_finalized (gpointer data)
+{
+  (void) data;
+  g_mutex_lock (&window.lock);
+  window.finalized = TRUE;
+  window.finalized_on = g_thread_self ();
+  g_cond_broadcast (&window.cond);
+  g_mutex_unlock (&window.lock);
+}
+
+static void
+test_control_lost_window (Rig *r, gconstpointer data)
+{
+  (void) data;
+  DsCameraSettings s = settings ("Mono8", 16, 8);
+  configure_and_start (r, &s);
+  window.device = ds_aravis_camera_device (r->cam);
+  g_assert_nonnull (window.device);
+  /* Freed by GObject's own finalize: after Aravis's (heartbeat joined). */
+  g_object_set_data_full (window.device, "ds-test-finalized", &window, on_window_device_finalized);
+  g_atomic_int_set (&window.armed, 1);
+  g_clear_object (&r->gv); /* the camera vanishes: the heartbeat reports it within seconds */
+  gint64 deadline = g_get_monotonic_time () + 60 * G_TIME_SPAN_SECOND;
+  g_mutex_lock (&window.lock);
+  while (!window.entered && g_get_monotonic_time () < deadline)
+    g_cond_wait_until (&window.cond, &window.lock, deadline);
+  gboolean entered = window.entered;
+  g_mutex_unlock (&window.lock);
+  g_atomic_int_set (&window.armed, 0);
+  g_assert_true (entered);
+  /* The heartbeat thread has decided how to emit "control-lost" and holds no reference on the
+   * device yet: the backend reconnects (closing the device; the camera is gone, so opening it again fails). */
+  g_autoptr (GError) error = NULL;
+  g_assert_false (r->cam->ops->reconnect (r->cam->backend, &error));
+  g_assert_error (error, DS_CAMERA_ERROR, DS_DEVICE_ERROR_DISCONNECTED);
+  g_mutex_lock (&window.lock);
+  window.closed = TRUE;
+  g_cond_broadcast (&window.cond);
+  deadline = g_get_monotonic_time () + 30 * G_TIME_SPAN_SECOND;
+  while (!window.finalized && g_get_monotonic_time () < deadline)
+    g_cond_wait_until (&window.cond, &window.lock, deadline);
+  gboolean finalized = window.finalized;
+  GThread *finalized_on = window.finalized_on;
+  g_mutex_unlock (&window.lock);
+  g_assert_true (finalized);                        /* released, not leaked */
+  g_assert_true (finalized_on != window.heartbeat); /* and never by the thread it joins */
 }
 
 /* Mono16 frames lend the camera's buffer: while a frame is held its buffer is out of the
@@ -538,6 +682,7 @@ main (int argc, char **argv)
   ADD ("/aravis/disconnect-reconnect", test_disconnect_reconnect);
   ADD ("/aravis/lent-buffers", test_lent_buffers);
   ADD ("/aravis/control-lost-during-close", test_control_lost_during_close);
+  ADD ("/aravis/control-lost-window", test_control_lost_window);
   int rc = g_test_run ();
   arv_shutdown ();
   return rc;
