@@ -11,12 +11,14 @@
  *   leave the request unanswered; the frame then comes back INCOMPLETE).
  * - Frame ids are extended across the 16-bit GigE Vision wrap (drivers/core/frame.h); gaps go
  *   to DsFrame.ids_skipped and DsCameraStats.ids_skipped.
- * - Aravis's "control-lost" signal (heartbeat thread) marks the backend DISCONNECTED: trigger
- *   and grab fail DISCONNECTED until ops->reconnect reopens the device (by the same address)
- *   and reapplies the last settings. The camera is left stopped after a reconnect.
+ * - Aravis's loss of control (its GigE Vision heartbeat giving up: arv_gv_device_is_controller;
+ *   "control-lost" on other devices) marks the backend DISCONNECTED: trigger and grab fail
+ *   DISCONNECTED until ops->reconnect reopens the device (by the same address) and reapplies
+ *   the last settings. The camera is left stopped after a reconnect. A device is never
+ *   finalized on an Aravis thread (device_watch.h).
  *
  * Threads: as drivers/core/camera.h (one caller thread). Aravis runs its own stream and
- * heartbeat threads; the only state they touch here is an atomic flag. */
+ * heartbeat threads; the only state of ours they touch is an atomic flag (USB3 Vision). */
 #pragma once
 #include <glib-object.h>
 
