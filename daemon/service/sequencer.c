@@ -29,8 +29,8 @@ typedef struct {
 const char *
 ds_stage_name (DsStage stage)
 {
-  static const char *const names[DS_STAGE_N] = { "set_phase", "trigger", "grab", "verify",
-                                                 "fold", "finalize", "set" };
+  static const char *const names[DS_STAGE_N] = { "set_phase", "trigger", "expose", "grab",
+                                                 "verify", "fold", "finalize", "set" };
   return (guint) stage < DS_STAGE_N ? names[stage] : "unknown";
 }
 

@@ -99,6 +99,9 @@ typedef struct {
 typedef enum {
   DS_STAGE_SET_PHASE = 0,
   DS_STAGE_TRIGGER,
+  /* After a trigger, until the camera began sending the frame (its exposure over), when the
+   * next phase is applied during the transfer: the camera's time, as much as the grab's. */
+  DS_STAGE_EXPOSE,
   DS_STAGE_GRAB,
   DS_STAGE_VERIFY,
   DS_STAGE_FOLD,

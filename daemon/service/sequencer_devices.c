@@ -135,8 +135,11 @@ ds_seq_wait_exposure_over (DsSequencer *seq, guint64 before)
   if (!seq->dev->sends_after_exposure || !cam->ops->frames_begun)
     return FALSE;
   /* The frame's own deadline, as its grab has. */
+  gint64 t = g_get_monotonic_time ();
   ds_seq_blocking (seq, seq->dev->grab_timeout_ms);
-  return cam->ops->frames_begun (cam->backend, before, seq->dev->grab_timeout_ms) > before;
+  gboolean begun = cam->ops->frames_begun (cam->backend, before, seq->dev->grab_timeout_ms) > before;
+  ds_seq_stage_add (seq, DS_STAGE_EXPOSE, t);
+  return begun;
 }
 
 void

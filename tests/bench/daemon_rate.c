@@ -298,19 +298,23 @@ daemon_rate (DsClient *c, double seconds, gboolean print_stages)
   if (!print_stages)
     return r;
   JsonObject *sm = obj (s1->reply->body, "stage_mean_ms");
-  /* Where the time goes: the acquisition thread's stages per frame (set_phase, trigger, grab;
-   * verify and fold run on the fold thread meanwhile), finalize (last frame -> result: in
-   * continuous mode the next set's phase 0 is applied and triggered meanwhile, so it includes
-   * that set_phase) and the whole set; per frame, 1000/fps. */
+  /* Where the time goes: the acquisition thread's stages per frame (set_phase, trigger,
+   * expose: from the trigger until the frame began arriving, waited for N - 1 frames of each
+   * set, those whose transfer lights the next phase; grab: the rest; verify and fold run on the
+   * fold thread meanwhile), finalize (last frame -> result: in continuous mode the next set's
+   * first frame is triggered meanwhile) and the whole set; per frame, 1000/fps. */
   double set_ms = json_object_get_double_member (sm, "set");
-  printf ("    daemon stage means (ms): set_phase %.2f trigger %.2f grab %.2f verify %.2f fold %.2f "
+  double expose = json_object_get_double_member_with_default (sm, "expose", 0.0);
+  printf ("    daemon stage means (ms): set_phase %.2f trigger %.2f expose %.2f grab %.2f verify %.2f fold %.2f "
           "finalize %.2f set %.2f (%.2f per frame; acquisition stages %.2f)\n",
           json_object_get_double_member (sm, "set_phase"),
-          json_object_get_double_member (sm, "trigger"), json_object_get_double_member (sm, "grab"),
+          json_object_get_double_member (sm, "trigger"), expose,
+          json_object_get_double_member (sm, "grab"),
           json_object_get_double_member (sm, "verify"), json_object_get_double_member (sm, "fold"),
           json_object_get_double_member (sm, "finalize"), set_ms, set_ms / N_PHASES,
-          json_object_get_double_member (sm, "set_phase") +
-              json_object_get_double_member (sm, "trigger") + json_object_get_double_member (sm, "grab"));
+          json_object_get_double_member (sm, "set_phase") + json_object_get_double_member (sm, "trigger") +
+              expose * (N_PHASES - 1) / N_PHASES +
+              json_object_get_double_member (sm, "grab"));
   return r;
 }
 
