@@ -1,6 +1,7 @@
 /* Continuous mode: the next set's first frame triggered ahead. As soon as a set's last frame
  * arrived (its exposure is over), the illuminator moves to phase 0 (or goes off, when the next
- * set starts with its dark frame) and the trigger goes out;
+ * set starts with its dark frame) and the trigger goes out; phase 0 is usually lit already,
+ * during the last frame's transfer (sequencer_pipeline.c), and then only the trigger is left;
  * the last frame's verification and fold and the set's finalize then overlap with that
  * frame's exposure and transfer instead of preceding them. The frame belongs to the next set:
  * it is grabbed, counted and verified there like any first frame (or, when the last frame was
@@ -34,7 +35,7 @@ carry_device_error (DsSequencer *seq, GError *e, const char *what)
 }
 
 void
-ds_seq_carry_trigger (DsSequencer *seq, const DsCaptureSettings *s)
+ds_seq_carry_trigger (DsSequencer *seq, const DsCaptureSettings *s, gint64 lit_since)
 {
   DsSeqCarry *cy = &seq->carry;
   memset (cy, 0, sizeof *cy);
@@ -43,23 +44,30 @@ ds_seq_carry_trigger (DsSequencer *seq, const DsCaptureSettings *s)
   cy->dark = s->dark_frame;
   g_autoptr (GError) e = NULL;
   const char *first = cy->dark ? "dark frame" : "phase 0";
-  if (cy->dark) {
-    if (!ds_seq_illuminator_off (seq, &cy->counters, &e)) {
-      carry_device_error (seq, e, first); /* prefixed "dark frame: illuminator off" */
-      return;
-    }
+  if (lit_since > 0) {
+    /* Phase 0 went on during the last frame's transfer, and what arrived before was flushed
+     * after that frame's grab: only the trigger is left. */
+    g_assert (!cy->dark);
+    cy->applied_at_us = lit_since;
   } else {
-    gint64 t = g_get_monotonic_time ();
-    if (!ds_seq_set_phase (seq, 0, &e)) {
-      cy->counters.device_errors++;
-      g_prefix_error (&e, "illuminator: ");
-      carry_device_error (seq, e, first);
-      return;
+    if (cy->dark) {
+      if (!ds_seq_illuminator_off (seq, &cy->counters, &e)) {
+        carry_device_error (seq, e, first); /* prefixed "dark frame: illuminator off" */
+        return;
+      }
+    } else {
+      gint64 t = g_get_monotonic_time ();
+      if (!ds_seq_set_phase (seq, 0, &e)) {
+        cy->counters.device_errors++;
+        g_prefix_error (&e, "illuminator: ");
+        carry_device_error (seq, e, first);
+        return;
+      }
+      ds_seq_stage_add (seq, DS_STAGE_SET_PHASE, t);
     }
-    ds_seq_stage_add (seq, DS_STAGE_SET_PHASE, t);
+    ds_seq_flush_stale (seq, &cy->counters);
+    cy->applied_at_us = g_get_monotonic_time ();
   }
-  ds_seq_flush_stale (seq, &cy->counters);
-  cy->applied_at_us = g_get_monotonic_time ();
   cy->begun_before = ds_seq_frames_begun (seq);
   if (!ds_seq_trigger (seq, &cy->counters, &e)) {
     g_prefix_error (&e, "camera: ");

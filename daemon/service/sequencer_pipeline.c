@@ -48,6 +48,9 @@ typedef struct {
    * that frame was grabbed and handed to the worker, as if applying it had failed then. */
   GError *early_error;
   guint early_phase;
+  /* Continuous mode: the next set's phase 0 was lit during the transfer of this set's last
+   * frame, and stale buffers flushed after its grab at this time (0: not). */
+  gint64 next_set_lit_at;
 } Pipeline;
 
 /* Consumes one retry of phase k after `why`; fails with `why` when none are left. */
@@ -147,14 +150,20 @@ frames_of (const Pipeline *pl, guint k)
 }
 
 /* The phase the illuminator may move to while the frame just triggered for phase k transfers:
- * k + 1 when that frame completes phase k (once accepted) and k + 1 still needs frames;
- * G_MAXUINT when it stays (more frames of k, a frame kept back, the set's last phase: the next
- * set's phase 0 is sequencer_carry.c's). */
+ * k + 1 when that frame completes phase k (once accepted) and k + 1 still needs frames; 0 when
+ * it completes the set and the next set's first frame will be triggered ahead with phase 0 lit
+ * (continuous mode, sequencer_carry.c; not for a next set that starts with its dark frame, nor
+ * with one phase, which stays lit); G_MAXUINT when it stays (more frames of k, a frame kept
+ * back). */
 static guint
 phase_to_move_to (const Pipeline *pl, guint k)
 {
-  if (pl->held || frames_of (pl, k) + 1 < pl->s->averages || k + 1 >= pl->s->phases ||
-      frames_of (pl, k + 1) >= pl->s->averages)
+  const DsCaptureSettings *s = pl->s;
+  if (pl->held || frames_of (pl, k) + 1 < s->averages)
+    return G_MAXUINT;
+  if (k + 1 >= s->phases)
+    return pl->ahead && s->phases > 1 && !s->dark_frame && ds_seq_carry_allowed (pl->seq, s) ? 0 : G_MAXUINT;
+  if (frames_of (pl, k + 1) >= s->averages)
     return G_MAXUINT;
   return k + 1;
 }
@@ -169,6 +178,7 @@ trigger_and_grab (Pipeline *pl, guint k, int *applied, gint64 *applied_at, GErro
   DsSequencer *seq = pl->seq;
   guint next = phase_to_move_to (pl, k);
   guint64 before;
+  pl->next_set_lit_at = 0;
   if (pl->grab_only) {
     pl->grab_only = FALSE;
     before = pl->grab_begun_before;
@@ -189,13 +199,19 @@ trigger_and_grab (Pipeline *pl, guint k, int *applied, gint64 *applied_at, GErro
   }
   /* Frame k is exposed: phase `next` is lit during its transfer, settling meanwhile. */
   t = g_get_monotonic_time ();
-  if (ds_seq_set_phase (seq, next, &pl->early_error)) {
+  g_autoptr (GError) next_set_error = NULL;
+  /* The next set's phase 0 (next < k): failing to light it is not this set's failure; the
+   * carry applies it again and handles a failure as its own (sequencer_carry.c). */
+  GError **set_phase_error = next < k ? &next_set_error : &pl->early_error;
+  if (ds_seq_set_phase (seq, next, set_phase_error)) {
     ds_seq_stage_add (seq, DS_STAGE_SET_PHASE, t);
     *applied = (int) next;
   } else {
     pl->c->device_errors++;
-    g_prefix_error (&pl->early_error, "illuminator: ");
-    pl->early_phase = next;
+    if (next > k) {
+      g_prefix_error (&pl->early_error, "illuminator: ");
+      pl->early_phase = next;
+    }
     *applied = -1;
   }
   DsFrame *frame = ds_seq_grab (seq, pl->c, error);
@@ -203,6 +219,8 @@ trigger_and_grab (Pipeline *pl, guint k, int *applied, gint64 *applied_at, GErro
    * can only arrive after this (verification's "arrived after the phase was applied"). */
   ds_seq_flush_stale (seq, pl->c);
   *applied_at = g_get_monotonic_time ();
+  if (frame && next < k && *applied == (int) next)
+    pl->next_set_lit_at = *applied_at;
   return frame;
 }
 
@@ -231,7 +249,7 @@ run (Pipeline *pl, int applied, gint64 applied_at, GError **error)
       if (pl->ahead && !seq->carry.active && ds_seq_carry_allowed (seq, s)) {
         /* The last frame arrived, so its exposure is over: the next set's first frame is
          * exposed while it is verified and folded and while the result is finalized. */
-        ds_seq_carry_trigger (seq, s);
+        ds_seq_carry_trigger (seq, s, 0);
         applied = seq->carry.pending && !seq->carry.dark ? 0 : -1;
       }
       gboolean re;
@@ -296,6 +314,17 @@ run (Pipeline *pl, int applied, gint64 applied_at, GError **error)
        * lost trigger may arrive: flush before the next trigger. */
       ds_seq_flush_stale (seq, pl->c);
       continue;
+    }
+    if (pl->next_set_lit_at > 0) {
+      /* The set's last frame is here and the next set's phase 0 is lit: that set's first
+       * frame goes out now, before the verdict on the frame before this one and before this
+       * one's job (whose finalize takes every core), so that the trigger waits for neither.
+       * When that verdict is a drop, this frame is kept back and the frame triggered ahead is
+       * grabbed before the dropped phase is lit again (below), as after a drop of the last
+       * frame. */
+      if (!seq->carry.active && ds_seq_carry_allowed (seq, s))
+        ds_seq_carry_trigger (seq, s, pl->next_set_lit_at);
+      pl->next_set_lit_at = 0;
     }
     gboolean re;
     if (!collect (pl, &dropped, &re, error)) {

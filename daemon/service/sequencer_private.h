@@ -179,9 +179,11 @@ gboolean ds_seq_acquire_phases (DsSequencer *seq, const DsCaptureSettings *s, gu
  * whole (ds_phase_check_confirm), like any first frame; a dark frame as any dark frame. */
 gboolean ds_seq_carry_allowed (DsSequencer *seq, const DsCaptureSettings *s);
 /* After the set's last frame arrived (so its exposure is over): applies phase 0, or turns the
- * illuminator off when the next set takes a dark frame, and triggers. Failures are counted in
- * the carry and leave the next set to start as usual. */
-void ds_seq_carry_trigger (DsSequencer *seq, const DsCaptureSettings *s);
+ * illuminator off when the next set takes a dark frame, and triggers. lit_since > 0: phase 0
+ * was applied during that frame's transfer and stale buffers were flushed after its grab, at
+ * lit_since (sequencer_pipeline.c); it is not applied again. Failures are counted in the carry
+ * and leave the next set to start as usual. */
+void ds_seq_carry_trigger (DsSequencer *seq, const DsCaptureSettings *s, gint64 lit_since);
 /* Grabs the frame triggered ahead, before the illuminator moves again for this set. */
 void ds_seq_carry_grab (DsSequencer *seq);
 /* Whether the set about to run with settings s can start from the carry. */

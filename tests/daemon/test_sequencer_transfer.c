@@ -29,6 +29,7 @@ typedef struct {
   int truth[N_TRUTH];       /* phase shown, by frame id */
   guint moves_during_exposure, moves_during_transfer, set_phases;
   guint moves_between_frames; /* to a phase other than 0 with no frame exposing or in transfer */
+  guint zero_between_frames;  /* to phase 0 likewise */
   /* Faults, counted down (0 never): */
   guint report_early_in;    /* that frame is reported begun at its trigger, while it still exposes */
   gboolean report_early_always;
@@ -161,6 +162,8 @@ light (Lab *lab, int phase)
     lab->moves_during_transfer++;
   } else if (phase > 0) {
     lab->moves_between_frames++;
+  } else if (phase == 0) {
+    lab->zero_between_frames++;
   }
   lab->lit = phase;
 }
@@ -561,17 +564,11 @@ test_lost_frame_keeps_the_phase (Fixture *f, gconstpointer d)
   g_assert_cmpuint (folded_wrong (&f->lab), ==, 0);
 }
 
-/* Continuous mode: phase 0 of the next set is lit and triggered once the last frame arrived
- * (sequencer_carry.c), and phase 1 is lit during that frame's transfer, which the next set
- * grabs without triggering it. Every result whole, every folded frame lit with its phase. */
+/* Runs continuous mode until `sets` results came, each whole, and stops it. */
 static void
-test_continuous (Fixture *f, gconstpointer d)
+run_continuous (Fixture *f, const DsCaptureSettings *s, guint sets)
 {
-  (void) d;
-  DsCaptureSettings s;
-  settings (&s, 8, 1);
-  ds_sequencer_start (f->seq, &s);
-  guint sets = 4;
+  ds_sequencer_start (f->seq, s);
   while (f->results < sets) {
     g_main_loop_run (f->loop);
     g_assert_no_error (f->failure);
@@ -589,13 +586,98 @@ test_continuous (Fixture *f, gconstpointer d)
   while (g_main_context_iteration (NULL, FALSE))
     ;
   g_assert_no_error (f->failure);
+}
+
+/* Continuous mode: phase 0 of the next set is lit during the transfer of the set's last frame
+ * and triggered once that frame arrived (sequencer_carry.c), and phase 1 is lit during that
+ * frame's transfer, which the next set grabs without triggering it. Every result whole, every
+ * folded frame lit with its phase, and phase 0 lit between frames only for the first set:
+ * fails if a set boundary still applies phase 0 after the last frame arrived. */
+static void
+test_continuous (Fixture *f, gconstpointer d)
+{
+  (void) d;
+  DsCaptureSettings s;
+  settings (&s, 8, 1);
+  guint sets = 4;
+  run_continuous (f, &s, sets);
   DsSequencerStatus st;
   status (f, &st);
   g_assert_cmpuint (st.frames.by_reason[DS_DROP_WRONG_PHASE], ==, 0);
   g_assert_cmpuint (f->lab.moves_during_exposure, ==, 0);
-  /* Phases 1..7 of every set moved during a transfer, phase 1 of a set started ahead too. */
-  g_assert_cmpuint (f->lab.moves_during_transfer, >=, 7 * sets);
+  /* Phases 1..7 and the next set's phase 0 during a transfer, phase 1 of a set started ahead
+   * too. */
+  g_assert_cmpuint (f->lab.moves_during_transfer, >=, 8 * (sets - 1) + 7);
   g_assert_cmpuint (f->lab.moves_between_frames, ==, 0);
+  g_assert_cmpuint (f->lab.zero_between_frames, ==, 1);
+  g_assert_cmpuint (folded_wrong (&f->lab), ==, 0);
+}
+
+/* Continuous mode, the set's last frame reported begun while it still exposes: the next set's
+ * phase 0, lit "during its transfer", lands in its exposure and the frame shows phase 0. It is
+ * refused (wrong phase) after the next set's first frame was triggered ahead; that frame is
+ * grabbed and kept before phase 7 is lit again, phase 7 is taken again and the next set starts
+ * from the kept frame. Not one frame folded into a phase it was not lit with. */
+static void
+test_continuous_last_frame_sends_while_exposing (Fixture *f, gconstpointer d)
+{
+  (void) d;
+  DsCaptureSettings s;
+  settings (&s, 8, 1);
+  /* Triggers 1-8: the first set; 9: the second set's phase 0, ahead; 10-16: its phases 1-7. */
+  f->lab.report_early_in = 16;
+  run_continuous (f, &s, 4);
+  DsSequencerStatus st;
+  status (f, &st);
+  g_assert_cmpuint (f->lab.moves_during_exposure, ==, 1);
+  g_assert_cmpuint (st.frames.by_reason[DS_DROP_WRONG_PHASE], ==, 1);
+  g_assert_cmpuint (st.frames.by_reason[DS_DROP_ABORTED], <=, 1); /* a frame ahead at the stop */
+  g_assert_cmpuint (st.frames.folded, >=, 4 * 8);
+  g_assert_cmpuint (folded_wrong (&f->lab), ==, 0);
+}
+
+/* Continuous mode, the frame before the set's last one is refused (it was reported begun while
+ * exposing and shows phase 7) only after the last frame arrived, phase 0 was lit during its
+ * transfer and the next set's first frame was triggered: the last frame is kept back, the
+ * frame triggered ahead is grabbed and kept before phase 6 is lit again, and both are folded
+ * where they belong (the last frame into phase 7 once phase 6 has its frame, the frame ahead
+ * into the next set's phase 0). */
+static void
+test_continuous_drop_before_last (Fixture *f, gconstpointer d)
+{
+  (void) d;
+  DsCaptureSettings s;
+  settings (&s, 8, 1);
+  f->lab.report_early_in = 15; /* the second set's phase 6 */
+  run_continuous (f, &s, 4);
+  DsSequencerStatus st;
+  status (f, &st);
+  g_assert_cmpuint (f->lab.moves_during_exposure, ==, 1);
+  g_assert_cmpuint (st.frames.by_reason[DS_DROP_WRONG_PHASE], ==, 1);
+  g_assert_cmpuint (st.frames.folded, >=, 4 * 8);
+  g_assert_cmpuint (folded_wrong (&f->lab), ==, 0);
+}
+
+/* Continuous mode, lighting the next set's phase 0 during the last frame's transfer fails
+ * (BUSY): the set it was lit for is not charged a retry and this set is whole; the frame ahead
+ * is triggered after phase 0 is applied again once the last frame arrived. */
+static void
+test_continuous_phase0_fails_during_transfer (Fixture *f, gconstpointer d)
+{
+  (void) d;
+  DsCaptureSettings s;
+  settings (&s, 8, 1);
+  f->lab.busy_in = 9; /* set_phase calls: 0-7 of the first set, then the next set's 0 */
+  run_continuous (f, &s, 3);
+  DsSequencerStatus st;
+  status (f, &st);
+  g_assert_cmpuint (st.frames.device_errors, ==, 1);
+  g_assert_cmpuint (st.frames.retries, ==, 0);
+  g_assert_cmpuint (st.sets_failed, ==, 0);
+  g_assert_cmpuint (st.frames.dropped - st.frames.by_reason[DS_DROP_ABORTED], ==, 0);
+  /* Phase 0 between frames: for the first set, and again after the failure. */
+  g_assert_cmpuint (f->lab.zero_between_frames, ==, 2);
+  g_assert_cmpuint (f->lab.moves_during_exposure, ==, 0);
   g_assert_cmpuint (folded_wrong (&f->lab), ==, 0);
 }
 
@@ -614,5 +696,10 @@ main (int argc, char **argv)
   ADD ("illuminator-lost-during-transfer", test_illuminator_lost_during_transfer, NULL, setup_trusted);
   ADD ("lost-frame-keeps-the-phase", test_lost_frame_keeps_the_phase, NULL, setup_trusted);
   ADD ("continuous", test_continuous, NULL, setup_trusted);
+  ADD ("continuous-last-frame-sends-while-exposing", test_continuous_last_frame_sends_while_exposing, NULL,
+       setup_trusted);
+  ADD ("continuous-drop-before-last", test_continuous_drop_before_last, NULL, setup_trusted);
+  ADD ("continuous-phase0-fails-during-transfer", test_continuous_phase0_fails_during_transfer, NULL,
+       setup_trusted);
   return g_test_run ();
 }
