@@ -240,10 +240,15 @@ def check_spool(d, daemon, ctl, tmp, conf_text):
     with h5py.File(os.path.join(spool, runs[0]), "r") as f:
         assert f["entry/end_time"][()]
 
-    # kill -9 in the middle of a run.
+    # kill -9 in the middle of a run, once the spool has written at least one of its sets whole
+    # (appended to the run file, then its own files, sidecar last: sets_written counts it): the
+    # run file read back below must hold a set to compare with the spool's files, whatever the
+    # disk's pace against acquisition.
+    written = d.status()["spool"]["sets_written"]
     d.ctl("start", "--phases", "4")
     before = d.status()["sets_done"]
     wait_for(lambda: d.status()["sets_done"] >= before + 3, "continuous sets")
+    wait_for(lambda: d.status()["spool"]["sets_written"] >= written + 1, "a set of the run written whole")
     d.kill()
     partial = [n for n in os.listdir(spool) if n.endswith(".h5.partial")]
     assert len(partial) == 1, os.listdir(spool)
