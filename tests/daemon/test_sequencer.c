@@ -9,10 +9,10 @@
 #include "daemon/operating/operating_point.h"
 #include "daemon/service/phase_check.h"
 #include "daemon/service/sequencer.h"
+#include "scripted_lab.h"
 
 #define W 64
 #define H 16
-#define PERIOD 8.0
 
 /* ---- the scripted lab: one applied phase shared by illuminator and camera ---- */
 
@@ -47,26 +47,12 @@ typedef struct {
   guint64 stop_at_trigger; /* ... this one (the command is then queued during that trigger) */
 } Lab;
 
-static gboolean
-fault_now (guint *counter)
-{
-  if (*counter == 0)
-    return FALSE;
-  return --(*counter) == 0;
-}
-
-/* Square stripes, duty 1/2, black 0, stripes centred at x = (j + k/N) P: the project's
- * convention (docs/estimators.md). */
 static guint16
 pixel_value (const Lab *lab, int phase, guint x)
 {
   if (phase < 0)
     return (guint16) lround (lab->lg * 0.0 + 2.0); /* illuminator off: only a dark offset of 2 DN */
-  /* Sampled at pixel centres: exactly half of each period's 8 pixels are lit. */
-  double u = (x + 0.5) / PERIOD - (double) phase / lab->n_phases;
-  u -= floor (u + 0.5);
-  double lit = fabs (u) < 0.25 ? 1.0 : 0.0;
-  return (guint16) lround (lab->ld * lit + lab->lg * 0.5 + 2.0);
+  return (guint16) lround (lab->ld * scripted_stripe_lit (x, phase, lab->n_phases) + lab->lg * 0.5 + 2.0);
 }
 
 static DsFrame *
@@ -130,7 +116,7 @@ cam_grab_scripted (gpointer b, guint timeout_ms, GError **e)
     f->host_time_us = g_get_monotonic_time ();
     return f;
   }
-  if (lab->triggered && fault_now (&lab->late_in)) {
+  if (lab->triggered && scripted_fault_now (&lab->late_in)) {
     lab->triggered = FALSE;
     lab->withheld = render (lab, lab->applied_phase);
     lab->withheld_at_phase_log = lab->n_phase_log;
@@ -138,33 +124,33 @@ cam_grab_scripted (gpointer b, guint timeout_ms, GError **e)
     g_set_error (e, DS_CAMERA_ERROR, DS_DEVICE_ERROR_TIMEOUT, "no frame (delayed)");
     return NULL;
   }
-  if (!lab->triggered || fault_now (&lab->timeout_in) ||
+  if (!lab->triggered || scripted_fault_now (&lab->timeout_in) ||
       (lab->dead_after && lab->frame_id >= lab->dead_after)) {
     lab->triggered = FALSE;
     g_set_error (e, DS_CAMERA_ERROR, DS_DEVICE_ERROR_TIMEOUT, "no frame");
     return NULL;
   }
   lab->triggered = FALSE;
-  if (fault_now (&lab->disconnect_in)) {
+  if (scripted_fault_now (&lab->disconnect_in)) {
     lab->disconnected = TRUE;
     g_set_error (e, DS_CAMERA_ERROR, DS_DEVICE_ERROR_DISCONNECTED, "camera gone");
     return NULL;
   }
-  if (fault_now (&lab->incomplete_in)) {
+  if (scripted_fault_now (&lab->incomplete_in)) {
     lab->frame_id++;
     g_set_error (e, DS_CAMERA_ERROR, DS_DEVICE_ERROR_INCOMPLETE, "missing packets");
     return NULL;
   }
   int phase = lab->applied_phase;
-  if (fault_now (&lab->stale_in))
+  if (scripted_fault_now (&lab->stale_in))
     phase = lab->last_lit_phase; /* a frame of the previous phase, delivered late */
   DsFrame *f = render (lab, phase);
-  if (fault_now (&lab->gap_in)) {
+  if (scripted_fault_now (&lab->gap_in)) {
     f->frame_id++;
     f->ids_skipped = 1;
   }
   lab->last_lit_phase = lab->applied_phase;
-  if (fault_now (&lab->vanish_in))
+  if (scripted_fault_now (&lab->vanish_in))
     lab->disconnected = TRUE;
   return f;
 }
@@ -229,7 +215,7 @@ ill_phase (gpointer b, guint phase, guint timeout_ms, GError **e)
   if (lab->n_phase_log < G_N_ELEMENTS (lab->phase_log))
     lab->phase_log[lab->n_phase_log++] = (int) phase;
   lab->applied_phase = (int) phase;
-  if (fault_now (&lab->wrong_phase_in))
+  if (scripted_fault_now (&lab->wrong_phase_in))
     lab->applied_phase = (int) ((phase + 1) % lab->n_phases);
   return TRUE;
 }
@@ -239,7 +225,7 @@ ill_off (gpointer b, guint t, GError **e)
 {
   (void) t;
   Lab *lab = b;
-  if (fault_now (&lab->off_lost_in)) {
+  if (scripted_fault_now (&lab->off_lost_in)) {
     g_set_error (e, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_DISCONNECTED, "illuminator gone");
     return FALSE;
   }
@@ -270,21 +256,7 @@ static DsDevices *
 open_scripted (gpointer data, GError **error)
 {
   (void) error;
-  Lab *lab = data;
-  DsDevices *d = g_new0 (DsDevices, 1);
-  d->camera = g_new0 (DsCamera, 1);
-  d->camera->ops = &cam_ops;
-  d->camera->backend = lab;
-  d->illuminator = g_new0 (DsIlluminator, 1);
-  d->illuminator->ops = &ill_ops;
-  d->illuminator->backend = lab;
-  d->trigger = ds_software_trigger_new (d->camera);
-  d->pattern = (DsStripePattern) { .kind = DS_STRIPES_SQUARE, .period_px = PERIOD, .duty = 0.5,
-                                   .black_level = 0, .intensity = 1, .n_phases = 8 };
-  d->grab_timeout_ms = 100;
-  d->settle_timeout_ms = 100;
-  d->description = g_strdup ("scripted");
-  return d;
+  return scripted_devices_new (&cam_ops, &ill_ops, data, "scripted");
 }
 
 /* ---- harness ---- */
@@ -355,7 +327,7 @@ default_settings (DsCaptureSettings *s, guint n)
   s->exposure_us = 1000;
   s->estimator = DS_ESTIMATOR_MAXMIN;
   s->pattern = DS_PATTERN_SQUARE;
-  s->period_px = PERIOD;
+  s->period_px = SCRIPTED_PERIOD;
   s->duty = 0.5;
   s->phase_retries = 3;
   s->verify_phase = TRUE;
@@ -404,25 +376,9 @@ capture (Fixture *f, const DsCaptureSettings *s)
   g_main_loop_run (f->out.loop);
 }
 
-/* The separation equals the scene: Ld = 1000, Lg = 600 (the 2 DN offset cancels in max-min
- * and is the only error in 2*min: Lg + 4). */
-static void
-assert_scene_recovered (const DsResult *r)
-{
-  const DsSeparation *sep = ds_result_separation (r);
-  for (guint y = 0; y < H; y++) {
-    const float *t = ds_image_row (sep->transmissive, y);
-    const float *g = ds_image_row (sep->scattered, y);
-    for (guint x = 0; x < W; x++) {
-      g_assert_cmpfloat_with_epsilon (t[x], 1000.0, 1e-3);
-      g_assert_cmpfloat_with_epsilon (g[x], 604.0, 1e-3);
-    }
-  }
-}
-
-/* The same, as a verdict (for results checked as they arrive). With the dark frame (the 2 DN
- * offset) subtracted, 2*min is Lg = 600 exactly; a dark frame exposed while stripes were lit
- * would take 302 or 1302 DN off instead. */
+/* scripted_assert_scene_recovered as a verdict (for results checked as they arrive). With the
+ * dark frame (the 2 DN offset) subtracted, 2*min is Lg = 600 exactly; a dark frame exposed
+ * while stripes were lit would take 302 or 1302 DN off instead. */
 static gboolean
 scene_recovered (const DsResult *r, gboolean dark_subtracted)
 {
@@ -461,7 +417,7 @@ test_clean_set (Fixture *f, gconstpointer d)
   capture (f, &s);
   g_assert_no_error (f->out.failure);
   g_assert_nonnull (f->out.result);
-  assert_scene_recovered (f->out.result);
+  scripted_assert_scene_recovered (f->out.result);
   g_assert_cmpuint (f->out.progress, ==, 8);
   g_assert_cmpuint (ds_result_settings (f->out.result)->phases, ==, 8);
   assert_accounting (f);
@@ -496,7 +452,7 @@ test_fault_is_dropped_not_folded (Fixture *f, gconstpointer data)
   ds_sequencer_get_status (f->seq, &before);
   capture (f, &s);
   g_assert_no_error (f->out.failure);
-  assert_scene_recovered (f->out.result);
+  scripted_assert_scene_recovered (f->out.result);
   DsSequencerStatus after;
   ds_sequencer_get_status (f->seq, &after);
   if (reason != DS_DROP_N_REASONS)
@@ -546,7 +502,7 @@ test_disconnect_reconnects (Fixture *f, gconstpointer d)
   g_assert_nonnull (strstr (f->out.failure->message, "camera gone"));
   capture (f, &s);
   g_assert_no_error (f->out.failure);
-  assert_scene_recovered (f->out.result);
+  scripted_assert_scene_recovered (f->out.result);
   g_assert_cmpuint (f->lab.reconnects, ==, 1);
   assert_accounting (f);
 }
@@ -561,7 +517,7 @@ test_averages (Fixture *f, gconstpointer d)
   s.averages = 3;
   capture (f, &s);
   g_assert_no_error (f->out.failure);
-  assert_scene_recovered (f->out.result);
+  scripted_assert_scene_recovered (f->out.result);
   DsSequencerStatus st;
   ds_sequencer_get_status (f->seq, &st);
   g_assert_cmpuint (st.frames.folded, ==, 12);
@@ -639,7 +595,7 @@ test_automatic_pilot_fails (Fixture *f, gconstpointer d)
   /* Reconnected, the next automatic capture is whole. */
   capture (f, &s);
   g_assert_no_error (f->out.failure);
-  assert_scene_recovered (f->out.result);
+  scripted_assert_scene_recovered (f->out.result);
   assert_accounting (f);
 }
 
@@ -666,7 +622,7 @@ test_automatic_operating_point (Fixture *f, gconstpointer d)
   g_assert_false (used->operating.probe.leak_measured);
   g_assert_true (used->operating.point.lower_bound);
   g_assert_nonnull (strstr (used->operating.probe.leak_note, "no stripes at it"));
-  assert_scene_recovered (f->out.result);
+  scripted_assert_scene_recovered (f->out.result);
   DsSequencerStatus st;
   ds_sequencer_get_status (f->seq, &st);
   g_assert_cmpuint (st.frames.by_reason[DS_DROP_PREVIEW], ==, 5);
@@ -680,7 +636,7 @@ test_automatic_operating_point (Fixture *f, gconstpointer d)
   /* What calibration printed and the configured clip level reach the probe: h and the blur of
    * this lab's stripes as if blurred by 0.6 px (the N chosen for them is checked for its stripe
    * phase elsewhere: /sequencer/pipeline-*). */
-  DsStripeModel blurred = { DS_PATTERN_SQUARE, PERIOD, 0.5, 0, 0.6 };
+  DsStripeModel blurred = { DS_PATTERN_SQUARE, SCRIPTED_PERIOD, 0.5, 0, 0.6 };
   s.harmonic_gain = ds_stripe_harmonic (&blurred, 1);
   s.edge_blur_known = TRUE;
   s.edge_blur_px = 0.6;
@@ -733,7 +689,7 @@ test_pipeline_late_frame (Fixture *f, gconstpointer d)
   f->lab.late_in = 3; /* the first frame of phase 2 */
   capture (f, &s);
   g_assert_no_error (f->out.failure);
-  assert_scene_recovered (f->out.result);
+  scripted_assert_scene_recovered (f->out.result);
   ds_sequencer_get_status (f->seq, &after);
   g_assert_cmpuint (after.frames.timeouts - before.frames.timeouts, ==, 1);
   g_assert_cmpuint (after.frames.by_reason[DS_DROP_WRONG_PHASE] - before.frames.by_reason[DS_DROP_WRONG_PHASE], ==, 1);
@@ -761,7 +717,7 @@ test_pipeline_drop_after_move (Fixture *f, gconstpointer data)
   f->lab.stale_in = bad;
   capture (f, &s);
   g_assert_no_error (f->out.failure);
-  assert_scene_recovered (f->out.result);
+  scripted_assert_scene_recovered (f->out.result);
   ds_sequencer_get_status (f->seq, &after);
   g_assert_cmpuint (after.frames.acquired - before.frames.acquired, ==, 9);
   g_assert_cmpuint (after.frames.by_reason[DS_DROP_WRONG_PHASE] - before.frames.by_reason[DS_DROP_WRONG_PHASE], ==, 1);
@@ -795,7 +751,7 @@ test_pipeline_averages_drop (Fixture *f, gconstpointer d)
   f->lab.gap_in = 5; /* the second frame of phase 1 */
   capture (f, &s);
   g_assert_no_error (f->out.failure);
-  assert_scene_recovered (f->out.result);
+  scripted_assert_scene_recovered (f->out.result);
   DsSequencerStatus st;
   ds_sequencer_get_status (f->seq, &st);
   g_assert_cmpuint (st.frames.folded, ==, 12);
@@ -1102,13 +1058,13 @@ test_result_planes_reused (Fixture *f, gconstpointer d)
   const void *first = ds_result_separation (f->out.result)->transmissive->data;
   DsResult *held = ds_result_ref (f->out.result);
   capture (f, &s); /* drops the fixture's ref on the first result; `held` keeps it */
-  assert_scene_recovered (f->out.result);
+  scripted_assert_scene_recovered (f->out.result);
   const void *second = ds_result_separation (f->out.result)->transmissive->data;
   g_assert_true (second != first);
-  assert_scene_recovered (held);
+  scripted_assert_scene_recovered (held);
   ds_result_unref (held);
   capture (f, &s);
-  assert_scene_recovered (f->out.result);
+  scripted_assert_scene_recovered (f->out.result);
   const void *third = ds_result_separation (f->out.result)->transmissive->data;
   g_assert_true (third == first || third == second);
 }
@@ -1134,7 +1090,7 @@ test_phase_check_tall_frame (void)
 {
   Lab lab = { .n_phases = 8, .ld = 1000, .lg = 600 };
   DsPhaseCheck check;
-  ds_phase_check_init (&check, PERIOD, ds_phase_check_default_tolerance_deg (8));
+  ds_phase_check_init (&check, SCRIPTED_PERIOD, ds_phase_check_default_tolerance_deg (8));
   double measured;
   ds_phase_check_begin_set (&check);
   for (guint k = 0; k < 8; k++) {
@@ -1180,7 +1136,7 @@ test_release_acquire (Fixture *f, gconstpointer d)
   g_assert_cmpstr (st.state, ==, "idle");
   capture (f, &s);
   g_assert_no_error (f->out.failure);
-  assert_scene_recovered (f->out.result);
+  scripted_assert_scene_recovered (f->out.result);
   g_assert_cmpuint (f->out.control_events, ==, 2);
   assert_accounting (f);
 }

@@ -11,10 +11,10 @@
 
 #include "daemon/service/phase_check.h"
 #include "daemon/service/sequencer.h"
+#include "scripted_lab.h"
 
 #define W 64
 #define H 16
-#define PERIOD 8.0
 #define N_TRUTH 4096
 
 typedef struct {
@@ -42,20 +42,10 @@ typedef struct {
   guint folded, folded_wrong;
 } Lab;
 
-static gboolean
-fault_now (guint *counter)
-{
-  if (*counter == 0)
-    return FALSE;
-  return --(*counter) == 0;
-}
-
 static guint16
 pixel_value (int phase, guint n, guint x)
 {
-  double u = (x + 0.5) / PERIOD - (double) phase / n;
-  u -= floor (u + 0.5);
-  return (guint16) lround ((fabs (u) < 0.25 ? 1000.0 : 0.0) + 300.0 + 2.0);
+  return (guint16) lround (1000.0 * scripted_stripe_lit (x, phase, n) + 300.0 + 2.0);
 }
 
 static void
@@ -98,13 +88,13 @@ cam_trigger (gpointer b, GError **e)
   Lab *lab = b;
   finish_exposure (lab); /* a previous frame never grabbed is over by now */
   lab->sent = FALSE;
-  if (fault_now (&lab->lose_in))
+  if (scripted_fault_now (&lab->lose_in))
     return TRUE;
   lab->exposing = TRUE;
   lab->exposure_end = g_get_monotonic_time () + lab->exposure_us;
   lab->exposed_phase = lab->lit;
   /* A camera that sends rows while later rows still expose: the frame begins at once. */
-  lab->reported = lab->report_early_always || fault_now (&lab->report_early_in);
+  lab->reported = lab->report_early_always || scripted_fault_now (&lab->report_early_in);
   lab->begun += lab->reported;
   return TRUE;
 }
@@ -181,11 +171,11 @@ ill_phase (gpointer b, guint phase, guint timeout_ms, GError **e)
 {
   (void) timeout_ms;
   Lab *lab = b;
-  if (fault_now (&lab->busy_in)) {
+  if (scripted_fault_now (&lab->busy_in)) {
     g_set_error (e, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_BUSY, "not ready");
     return FALSE;
   }
-  if (fault_now (&lab->lost_in)) {
+  if (scripted_fault_now (&lab->lost_in)) {
     g_set_error (e, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_DISCONNECTED, "illuminator gone");
     return FALSE;
   }
@@ -227,20 +217,8 @@ open_lab (gpointer data, GError **error)
 {
   (void) error;
   Lab *lab = data;
-  DsDevices *d = g_new0 (DsDevices, 1);
-  d->camera = g_new0 (DsCamera, 1);
-  d->camera->ops = &cam_ops;
-  d->camera->backend = lab;
-  d->illuminator = g_new0 (DsIlluminator, 1);
-  d->illuminator->ops = &ill_ops;
-  d->illuminator->backend = lab;
-  d->trigger = ds_software_trigger_new (d->camera);
-  d->pattern = (DsStripePattern) { .kind = DS_STRIPES_SQUARE, .period_px = PERIOD, .duty = 0.5,
-                                   .n_phases = 8, .intensity = 1 };
-  d->grab_timeout_ms = 100;
-  d->settle_timeout_ms = 100;
+  DsDevices *d = scripted_devices_new (&cam_ops, &ill_ops, lab, "exposing");
   d->sends_after_exposure = lab->trusted;
-  d->description = g_strdup ("exposing");
   return d;
 }
 
@@ -302,7 +280,7 @@ settings (DsCaptureSettings *s, guint n, guint m)
   s->exposure_us = 2000;
   s->estimator = DS_ESTIMATOR_MAXMIN;
   s->pattern = DS_PATTERN_SQUARE;
-  s->period_px = PERIOD;
+  s->period_px = SCRIPTED_PERIOD;
   s->duty = 0.5;
   s->phase_retries = 3;
   s->verify_phase = TRUE;
@@ -360,23 +338,6 @@ capture (Fixture *f, const DsCaptureSettings *s)
   g_main_loop_run (f->loop);
 }
 
-/* The closed form: square stripes of 1000 DN over 300 DN of global light (Lg = 600 in the
- * half-lit convention) and a 2 DN offset: max - min = 1000, 2 min = 604. A frame folded into
- * a wrong phase (lit one step off) breaks it at the pixels where the two phases differ. */
-static void
-assert_scene_recovered (const DsResult *r)
-{
-  const DsSeparation *sep = ds_result_separation (r);
-  for (guint y = 0; y < H; y++) {
-    const float *t = ds_image_row (sep->transmissive, y);
-    const float *g = ds_image_row (sep->scattered, y);
-    for (guint x = 0; x < W; x++) {
-      g_assert_cmpfloat_with_epsilon (t[x], 1000.0, 1e-3);
-      g_assert_cmpfloat_with_epsilon (g[x], 604.0, 1e-3);
-    }
-  }
-}
-
 static void
 status (Fixture *f, DsSequencerStatus *st)
 {
@@ -410,7 +371,7 @@ test_moves_during_transfer (Fixture *f, gconstpointer d)
   for (guint set = 0; set < 2; set++) {
     capture (f, &s);
     g_assert_no_error (f->failure);
-    assert_scene_recovered (f->result);
+    scripted_assert_scene_recovered (f->result);
   }
   g_assert_cmpuint (f->lab.moves_during_exposure, ==, 0);
   /* Phases 1..7 of each set, during the transfer of the last frame of the phase before. */
@@ -441,7 +402,7 @@ test_camera_sends_while_exposing (Fixture *f, gconstpointer d)
   f->lab.report_early_in = 3; /* phase 2's frame */
   capture (f, &s);
   g_assert_no_error (f->failure);
-  assert_scene_recovered (f->result);
+  scripted_assert_scene_recovered (f->result);
   status (f, &after);
   g_assert_cmpuint (f->lab.moves_during_exposure, ==, 1);
   g_assert_cmpuint (after.frames.by_reason[DS_DROP_WRONG_PHASE] - before.frames.by_reason[DS_DROP_WRONG_PHASE], ==, 1);
@@ -468,7 +429,7 @@ test_camera_always_sends_while_exposing (Fixture *f, gconstpointer d)
   for (guint set = 0; set < 3; set++) {
     capture (f, &s);
     g_assert_no_error (f->failure);
-    assert_scene_recovered (f->result);
+    scripted_assert_scene_recovered (f->result);
   }
   status (f, &after);
   g_assert_cmpuint (f->lab.moves_during_exposure, >=, 3);
@@ -489,7 +450,7 @@ test_untrusted_camera (Fixture *f, gconstpointer d)
   settings (&s, 8, 1);
   capture (f, &s);
   g_assert_no_error (f->failure);
-  assert_scene_recovered (f->result);
+  scripted_assert_scene_recovered (f->result);
   g_assert_cmpuint (f->lab.moves_during_exposure, ==, 0);
   g_assert_cmpuint (f->lab.moves_during_transfer, ==, 0);
   g_assert_cmpuint (folded_wrong (&f->lab), ==, 0);
@@ -507,7 +468,7 @@ test_set_phase_fails_during_transfer (Fixture *f, gconstpointer d)
   f->lab.busy_in = 2; /* phase 1, during phase 0's transfer */
   capture (f, &s);
   g_assert_no_error (f->failure);
-  assert_scene_recovered (f->result);
+  scripted_assert_scene_recovered (f->result);
   DsSequencerStatus st;
   status (f, &st);
   g_assert_cmpuint (st.frames.device_errors, ==, 1);
@@ -537,7 +498,7 @@ test_illuminator_lost_during_transfer (Fixture *f, gconstpointer d)
   g_assert_cmpuint (st.frames.by_reason[DS_DROP_ABORTED], ==, 3);
   capture (f, &s);
   g_assert_no_error (f->failure);
-  assert_scene_recovered (f->result);
+  scripted_assert_scene_recovered (f->result);
   g_assert_cmpuint (f->lab.moves_during_exposure, ==, 0);
   g_assert_cmpuint (folded_wrong (&f->lab), ==, 0);
 }
@@ -553,7 +514,7 @@ test_lost_frame_keeps_the_phase (Fixture *f, gconstpointer d)
   f->lab.lose_in = 5; /* phase 4's frame */
   capture (f, &s);
   g_assert_no_error (f->failure);
-  assert_scene_recovered (f->result);
+  scripted_assert_scene_recovered (f->result);
   DsSequencerStatus st;
   status (f, &st);
   g_assert_cmpuint (st.frames.timeouts, ==, 1);
@@ -572,7 +533,7 @@ run_continuous (Fixture *f, const DsCaptureSettings *s, guint sets)
   while (f->results < sets) {
     g_main_loop_run (f->loop);
     g_assert_no_error (f->failure);
-    assert_scene_recovered (f->result);
+    scripted_assert_scene_recovered (f->result);
   }
   ds_sequencer_stop (f->seq);
   for (;;) {
