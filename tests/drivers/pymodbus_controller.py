@@ -21,10 +21,14 @@ after that line gets the fault, so a test that waits for the line knows which re
   SIGUSR2   toggles silence: no answer at all until the next SIGUSR2
 
 Prints "pymodbus-controller: ready rtu=DEVICE light=HOST:PORT" once serving; on SIGTERM prints
-"pymodbus-controller: requests=R applies=A" and exits 0.
+"pymodbus-controller: requests=R applies=A" and the last serial events (bytes read, requests and
+what each got, knobs armed), with their times, to stderr, and exits 0: a test that fails on a
+missing answer dies with SIGTERM to this process, so its log says whether the requests reached
+the controller and what the controller did with them.
 """
 import argparse
 import asyncio
+import collections
 import logging
 import os
 import signal
@@ -121,18 +125,37 @@ class Controller:
         return request.doException(ModbusExceptions.IllegalFunction)
 
 
+class Trace:
+    """The last serial events, each with its monotonic time."""
+
+    def __init__(self, size=48):
+        self.events = collections.deque(maxlen=size)
+
+    def note(self, text):
+        self.events.append((time.monotonic(), text))
+
+    def dump(self, out):
+        now = time.monotonic()
+        print(f"pymodbus-controller: last {len(self.events)} serial events (seconds before exit):", file=out)
+        for t, text in self.events:
+            print(f"  -{now - t:8.3f} {text}", file=out)
+
+
 class Faults:
-    def __init__(self, args):
+    def __init__(self, args, trace):
         self.busy_count = args.busy_count
         self.busy_left = 0
         self.silent = False
+        self.trace = trace
 
     def arm_busy(self):
         self.busy_left = self.busy_count
+        self.trace.note("armed busy")
         print("pymodbus-controller: armed busy", flush=True)
 
     def toggle_silent(self):
         self.silent = not self.silent
+        self.trace.note(f"silent {'on' if self.silent else 'off'}")
         print(f"pymodbus-controller: silent {'on' if self.silent else 'off'}", flush=True)
 
     def verdict(self):
@@ -148,10 +171,16 @@ class Faults:
 class RtuHandler(ModbusSingleRequestHandler):
     """The serial side: every request goes through the model (and the fault knobs)."""
 
+    def data_received(self, data):
+        self.server.trace.note(f"read {data.hex()}")
+        super().data_received(data)
+
     def execute(self, request, *addr):
         ctl, faults = self.server.controller, self.server.faults
         ctl.requests += 1
         verdict = faults.verdict()
+        self.server.trace.note(f"request fc {request.function_code} address {getattr(request, 'address', '-')}: "
+                               f"{verdict or 'answered'}")
         if verdict == "silent":
             return
         if verdict == "busy":
@@ -201,7 +230,9 @@ async def main():
     serial_server = ModbusSerialServer(context, framer=ModbusRtuFramer, port=args.device, baudrate=args.baud,
                                        parity=args.parity, bytesize=8, stopbits=1, handler=RtuHandler)
     serial_server.controller = controller
-    faults = Faults(args)
+    trace = Trace()
+    serial_server.trace = trace
+    faults = Faults(args, trace)
     serial_server.faults = faults
     await serial_server.start()
     tasks = []
@@ -228,6 +259,7 @@ async def main():
         t.cancel()
     await serial_server.shutdown()
     print(f"pymodbus-controller: requests={controller.requests} applies={controller.apply_count}", file=sys.stderr)
+    trace.dump(sys.stderr)
 
 
 if __name__ == "__main__":
