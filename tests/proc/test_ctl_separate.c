@@ -8,6 +8,7 @@
 
 #include "daemon/ctl/ctl_commands.h"
 #include "proc/image.h"
+#include "separate_run.h"
 #include "tests/test_tree.h"
 
 #define W 37 /* odd on purpose */
@@ -62,32 +63,6 @@ make_folder (const char *dir, double a, double b, gboolean with_black)
   make_folder_typed (dir, a, b, with_black, DS_SAMPLE_U16);
 }
 
-static int
-run (const char *first, ...)
-{
-  g_autoptr (GPtrArray) args = g_ptr_array_new ();
-  g_ptr_array_add (args, (gpointer) "separate");
-  va_list ap;
-  va_start (ap, first);
-  for (const char *s = first; s; s = va_arg (ap, const char *))
-    g_ptr_array_add (args, (gpointer) s);
-  va_end (ap);
-  g_ptr_array_add (args, NULL);
-  /* GOption rearranges argv; give it a copy of the pointers. */
-  g_autofree char **argv = g_memdup2 (args->pdata, args->len * sizeof (char *));
-  return ds_ctl_separate ((int) args->len - 1, argv);
-}
-
-static DsImage *
-read_out (const char *dir, const char *name)
-{
-  g_autofree char *path = g_build_filename (dir, name, NULL);
-  g_autoptr (GError) error = NULL;
-  DsImage *img = ds_image_read (path, &error);
-  g_assert_no_error (error);
-  return img;
-}
-
 /* The scale of a 16-bit PNG output, from separation.json's list of files. */
 static double
 png_scale (const char *out, const char *name)
@@ -110,11 +85,11 @@ check_outputs (const char *out, double a, double b)
   int e;
   g_assert_cmpfloat (frexp (sd, &e), ==, 0.5);
   g_assert_cmpfloat (frexp (sg, &e), ==, 0.5);
-  g_autoptr (DsImage) direct = read_out (out, "direct.png");
-  g_autoptr (DsImage) global = read_out (out, "global.png");
-  g_autoptr (DsImage) trans = read_out (out, "transmissive.tiff");
-  g_autoptr (DsImage) scat = read_out (out, "scattered.tiff");
-  g_autoptr (DsImage) mask = read_out (out, "mask.png");
+  g_autoptr (DsImage) direct = separate_read_out (out, "direct.png");
+  g_autoptr (DsImage) global = separate_read_out (out, "global.png");
+  g_autoptr (DsImage) trans = separate_read_out (out, "transmissive.tiff");
+  g_autoptr (DsImage) scat = separate_read_out (out, "scattered.tiff");
+  g_autoptr (DsImage) mask = separate_read_out (out, "mask.png");
   g_assert_cmpint (direct->type, ==, DS_SAMPLE_U16);
   g_assert_cmpint (global->type, ==, DS_SAMPLE_U16);
   g_assert_cmpint (trans->type, ==, DS_SAMPLE_F32);
@@ -137,7 +112,7 @@ test_defaults_with_black (void)
 {
   g_autofree char *dir = g_dir_make_tmp ("ds-sep-XXXXXX", NULL);
   make_folder (dir, 0.5, 0.0, TRUE);
-  g_assert_cmpint (run ("--quiet", dir, NULL), ==, 0);
+  g_assert_cmpint (separate_run ("--quiet", dir, NULL), ==, 0);
   check_outputs (dir, 0.5, 0.0);
 
   g_autofree char *json = g_build_filename (dir, "separation.json", NULL);
@@ -160,7 +135,7 @@ test_defaults_with_black (void)
   g_assert_cmpfloat (json_object_get_double_member (params, "duty"), ==, 0.5);
 
   /* A second run in the same folder skips its own outputs and gives the same result. */
-  g_assert_cmpint (run ("--quiet", dir, NULL), ==, 0);
+  g_assert_cmpint (separate_run ("--quiet", dir, NULL), ==, 0);
   check_outputs (dir, 0.5, 0.0);
   test_remove_tree (dir);
 }
@@ -171,13 +146,13 @@ test_duty_black_level_out_extrema (void)
   g_autofree char *dir = g_dir_make_tmp ("ds-sep-XXXXXX", NULL);
   g_autofree char *out = g_build_filename (dir, "results", "run1", NULL);
   make_folder (dir, 0.25, 0.1, FALSE);
-  g_assert_cmpint (run ("-q", "--duty", "0.25", "--black-level", "0.1", "--extrema", "--out", out, dir, NULL),
+  g_assert_cmpint (separate_run ("-q", "--duty", "0.25", "--black-level", "0.1", "--extrema", "--out", out, dir, NULL),
                    ==, 0);
   check_outputs (out, 0.25, 0.1);
   /* max = Ld + Lg (a + b (1 - a)), min = b Ld + Lg (a + b (1 - a)). */
-  g_autoptr (DsImage) mx = read_out (out, "max.tiff");
-  g_autoptr (DsImage) mn = read_out (out, "min.tiff");
-  g_autoptr (DsImage) mean = read_out (out, "mean.tiff");
+  g_autoptr (DsImage) mx = separate_read_out (out, "max.tiff");
+  g_autoptr (DsImage) mn = separate_read_out (out, "min.tiff");
+  g_autoptr (DsImage) mean = separate_read_out (out, "mean.tiff");
   for (guint y = 0; y < H; y++)
     for (guint x = 0; x < W; x++) {
       double ld = ld_at (x, y), lg = lg_at (x, y), c = 0.25 + 0.1 * 0.75;
@@ -197,9 +172,9 @@ test_float_input (void)
   /* Float32 TIFF phases: the "like input" outputs are float TIFFs too, unclamped. */
   g_autofree char *dir = g_dir_make_tmp ("ds-sep-XXXXXX", NULL);
   make_folder_typed (dir, 0.5, 0.0, FALSE, DS_SAMPLE_F32);
-  g_assert_cmpint (run ("-q", "--no-preview", dir, NULL), ==, 0);
-  g_autoptr (DsImage) direct = read_out (dir, "direct.tiff");
-  g_autoptr (DsImage) global = read_out (dir, "global.tiff");
+  g_assert_cmpint (separate_run ("-q", "--no-preview", dir, NULL), ==, 0);
+  g_autoptr (DsImage) direct = separate_read_out (dir, "direct.tiff");
+  g_autoptr (DsImage) global = separate_read_out (dir, "global.tiff");
   g_assert_cmpint (direct->type, ==, DS_SAMPLE_F32);
   for (guint y = 0; y < H; y++)
     for (guint x = 0; x < W; x++) {
@@ -216,17 +191,17 @@ test_errors (void)
 {
   g_autofree char *dir = g_dir_make_tmp ("ds-sep-XXXXXX", NULL);
   /* Empty folder: the operation fails (1), nothing written. */
-  g_assert_cmpint (run ("-q", dir, NULL), ==, 1);
+  g_assert_cmpint (separate_run ("-q", dir, NULL), ==, 1);
   g_autofree char *json = g_build_filename (dir, "separation.json", NULL);
   g_assert_false (g_file_test (json, G_FILE_TEST_EXISTS));
   /* Usage errors (2). */
-  g_assert_cmpint (run ("-q", NULL), ==, 2);
-  g_assert_cmpint (run ("-q", "--no-such-option", dir, NULL), ==, 2);
-  g_assert_cmpint (run ("-q", "--duty", "half", dir, NULL), ==, 2);
+  g_assert_cmpint (separate_run ("-q", NULL), ==, 2);
+  g_assert_cmpint (separate_run ("-q", "--no-such-option", dir, NULL), ==, 2);
+  g_assert_cmpint (separate_run ("-q", "--duty", "half", dir, NULL), ==, 2);
   make_folder (dir, 0.5, 0.0, FALSE);
-  g_assert_cmpint (run ("-q", "--estimator", "magic", dir, NULL), ==, 2);
-  g_assert_cmpint (run ("-q", "--duty", "1.5", dir, NULL), ==, 2);
-  g_assert_cmpint (run ("-q", "--black-level", "0.999", dir, NULL), ==, 2);
+  g_assert_cmpint (separate_run ("-q", "--estimator", "magic", dir, NULL), ==, 2);
+  g_assert_cmpint (separate_run ("-q", "--duty", "1.5", dir, NULL), ==, 2);
+  g_assert_cmpint (separate_run ("-q", "--black-level", "0.999", dir, NULL), ==, 2);
   g_assert_false (g_file_test (json, G_FILE_TEST_EXISTS));
   test_remove_tree (dir);
 }

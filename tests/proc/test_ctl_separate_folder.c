@@ -10,6 +10,7 @@
 
 #include "daemon/ctl/ctl_commands.h"
 #include "proc/image.h"
+#include "separate_run.h"
 #include "tests/test_tree.h"
 
 #define W 60
@@ -56,31 +57,6 @@ write_text (const char *dir, const char *name, const char *text)
   g_assert_true (g_file_set_contents (path, text, -1, NULL));
 }
 
-static int
-run (const char *first, ...)
-{
-  g_autoptr (GPtrArray) args = g_ptr_array_new ();
-  g_ptr_array_add (args, (gpointer) "separate");
-  va_list ap;
-  va_start (ap, first);
-  for (const char *s = first; s; s = va_arg (ap, const char *))
-    g_ptr_array_add (args, (gpointer) s);
-  va_end (ap);
-  g_ptr_array_add (args, NULL);
-  g_autofree char **argv = g_memdup2 (args->pdata, args->len * sizeof (char *));
-  return ds_ctl_separate ((int) args->len - 1, argv);
-}
-
-static DsImage *
-read_out (const char *dir, const char *name)
-{
-  g_autofree char *path = g_build_filename (dir, name, NULL);
-  g_autoptr (GError) error = NULL;
-  DsImage *img = ds_image_read (path, &error);
-  g_assert_no_error (error);
-  return img;
-}
-
 /* The four phases as phase-0k.png, in order. */
 static char *
 make_set (void)
@@ -106,8 +82,8 @@ sidecar (guint width, guint height, guint bits, double saturation, guint n, doub
 static void
 assert_exact (const char *out)
 {
-  g_autoptr (DsImage) t = read_out (out, "transmissive.tiff");
-  g_autoptr (DsImage) s = read_out (out, "scattered.tiff");
+  g_autoptr (DsImage) t = separate_read_out (out, "transmissive.tiff");
+  g_autoptr (DsImage) s = separate_read_out (out, "scattered.tiff");
   for (guint y = 0; y < H; y++)
     for (guint x = 0; x < W; x++) {
       g_assert_cmpfloat (((float *) ds_image_row (t, y))[x], ==, ld_at (x, y));
@@ -118,7 +94,7 @@ assert_exact (const char *out)
 static guint
 mask_at (const char *out, guint x, guint y)
 {
-  g_autoptr (DsImage) m = read_out (out, "mask.png");
+  g_autoptr (DsImage) m = separate_read_out (out, "mask.png");
   return ((guint8 *) ds_image_row (m, y))[x];
 }
 
@@ -135,7 +111,7 @@ test_bit_depth_saturation (void)
                          "{\"file\": \"phase-02.png\", \"phase\": 2}, {\"file\": \"phase-03.png\", \"phase\": 3}";
     g_autofree char *sc = sidecar (W, H, 12u, 4095.0, N, P, frames);
     write_text (dir, "frames.json", sc);
-    int status = run ("-q", "--no-preview", dir, NULL);
+    int status = separate_run ("-q", "--no-preview", dir, NULL);
     test_remove_tree (dir);
     g_assert_cmpint (status, ==, 1);
     return;
@@ -150,20 +126,22 @@ test_bit_depth_saturation (void)
   set_pixel (dir, "phase-01.png", 3, 1, 4095);
   set_pixel (dir, "phase-00.png", 20, 4, 3950);
   g_autofree char *out = g_build_filename (dir, "out", NULL);
-  g_assert_cmpint (run ("-q", "--no-preview", "--no-phase-check", "--out", out, dir, NULL), ==, 0);
+  g_assert_cmpint (separate_run ("-q", "--no-preview", "--no-phase-check", "--out", out, dir, NULL), ==, 0);
   g_assert_cmpuint (mask_at (out, 3, 1) & 1, ==, 0); /* 16 bits: 65535 would be the level */
-  g_assert_cmpint (run ("-q", "--no-preview", "--no-phase-check", "--bit-depth", "12", "--out", out, dir, NULL), ==, 0);
+  g_assert_cmpint (separate_run ("-q", "--no-preview", "--no-phase-check", "--bit-depth", "12", "--out", out, dir, NULL),
+                   ==, 0);
   g_assert_cmpuint (mask_at (out, 3, 1) & 1, ==, 1);
   g_assert_cmpuint (mask_at (out, 20, 4) & 1, ==, 0);
   g_assert_cmpuint (mask_at (out, 3, 2) & 1, ==, 0);
-  g_assert_cmpint (run ("-q", "--no-preview", "--no-phase-check", "--saturation", "3900", "--out", out, dir, NULL), ==, 0);
+  g_assert_cmpint (
+      separate_run ("-q", "--no-preview", "--no-phase-check", "--saturation", "3900", "--out", out, dir, NULL), ==, 0);
   g_assert_cmpuint (mask_at (out, 20, 4) & 1, ==, 1);
   /* the same from frames.json */
   const char *frames = "{\"file\": \"phase-00.png\", \"phase\": 0}, {\"file\": \"phase-01.png\", \"phase\": 1},"
                        "{\"file\": \"phase-02.png\", \"phase\": 2}, {\"file\": \"phase-03.png\", \"phase\": 3}";
   g_autofree char *sc = sidecar (W, H, 12u, 3900.0, N, P, frames);
   write_text (dir, "frames.json", sc);
-  g_assert_cmpint (run ("-q", "--no-preview", "--out", out, dir, NULL), ==, 0);
+  g_assert_cmpint (separate_run ("-q", "--no-preview", "--out", out, dir, NULL), ==, 0);
   g_assert_cmpuint (mask_at (out, 3, 1) & 1, ==, 1);
   g_assert_cmpuint (mask_at (out, 20, 4) & 1, ==, 1);
   g_assert_cmpuint (mask_at (out, 21, 4) & 1, ==, 0);
@@ -189,7 +167,7 @@ test_sidecar_averaging (void)
   g_string_free (frames, TRUE);
   write_text (dir, "frames.json", sc);
   g_autofree char *out = g_build_filename (dir, "out", NULL);
-  g_assert_cmpint (run ("-q", "--no-preview", "--out", out, dir, NULL), ==, 0);
+  g_assert_cmpint (separate_run ("-q", "--no-preview", "--out", out, dir, NULL), ==, 0);
   assert_exact (out);
   g_autofree char *json = g_build_filename (out, "separation.json", NULL);
   g_autoptr (JsonParser) parser = json_parser_new ();
@@ -234,7 +212,7 @@ test_sidecar_error (gconstpointer data)
                                               : sidecar (bad_sidecars[i].width, H,
                                                                  bad_sidecars[i].bits, 65535.0, bad_sidecars[i].n, P, frames);
     write_text (dir, "frames.json", sc);
-    int status = run ("-q", "--no-preview", dir, NULL);
+    int status = separate_run ("-q", "--no-preview", dir, NULL);
     g_autofree char *json = g_build_filename (dir, "separation.json", NULL);
     gboolean written = g_file_test (json, G_FILE_TEST_EXISTS);
     test_remove_tree (dir);
@@ -290,9 +268,9 @@ test_phase_order (gconstpointer data)
         g_assert_true (ds_image_write (img, path, NULL));
       }
     }
-    int status = g_str_equal (what, "strict") ? run ("--no-preview", "--out", out, "--strict-phases", dir, NULL)
-                 : g_str_equal (what, "flat") ? run ("--no-preview", "--out", out, "--period", "10", dir, NULL)
-                                              : run ("--no-preview", "--out", out, dir, NULL);
+    int status = g_str_equal (what, "strict") ? separate_run ("--no-preview", "--out", out, "--strict-phases", dir, NULL)
+                 : g_str_equal (what, "flat") ? separate_run ("--no-preview", "--out", out, "--period", "10", dir, NULL)
+                                              : separate_run ("--no-preview", "--out", out, dir, NULL);
     if (status == 0 && !g_str_equal (what, "flat"))
       assert_exact (out);
     test_remove_tree (dir);
