@@ -110,20 +110,35 @@ probe (const Scene *s, gboolean coarse, gboolean finer, DsSceneProbe *p)
     ds_image_free (owned[i]);
 }
 
+/* The error model of a scene probed with 4 phases, as the daemon makes it. */
+static DsErrorModel *
+error_model (const DsSceneProbe *p)
+{
+  DsSeparationParams params;
+  ds_separation_params_init (&params, 4);
+  return ds_error_model_new (p, &params);
+}
+
+/* The operating point the daemon chooses for a probed scene (the default operating model and rig
+ * timing) for a target error and a time budget (0: none). */
+static gboolean
+choose_point (const DsSceneProbe *p, double target_error, double time_budget_ms, DsOperatingPoint *op, GError **error)
+{
+  DsOperatingModel m;
+  ds_operating_model_init (&m);
+  DsRigTiming timing;
+  ds_rig_timing_init (&timing);
+  g_autoptr (DsErrorModel) em = error_model (p);
+  return ds_operating_point_choose (&m, em, p, &timing, W, H, target_error, time_budget_ms, op, error);
+}
+
 /* The prediction's lower-bound flag and reasons, as the result's operating_point carries them. */
 static gboolean
 lower_bound_json (const DsSceneProbe *p, char **reasons)
 {
-  DsOperatingModel m;
-  ds_operating_model_init (&m);
-  DsRigTiming t;
-  ds_rig_timing_init (&t);
-  DsSeparationParams params;
-  ds_separation_params_init (&params, 4);
-  g_autoptr (DsErrorModel) em = ds_error_model_new (p, &params);
   DsOperatingReport r = { .time_budget_ms = 200, .probe = *p };
   g_autoptr (GError) error = NULL;
-  gboolean chosen = ds_operating_point_choose (&m, em, p, &t, W, H, 0, 200, &r.point, &error);
+  gboolean chosen = choose_point (p, 0, 200, &r.point, &error);
   g_assert_no_error (error);
   g_assert_true (chosen);
   g_autoptr (JsonBuilder) b = json_builder_new ();
@@ -386,19 +401,12 @@ test_interval_single_kernel (void)
    * blur term): it is the same frames' scene. */
   g_assert_cmpfloat (fabs (worst.ld_mean * (1 + leak_hi) - at_finest), <, 0.03 * at_finest);
 
-  DsOperatingModel m;
-  ds_operating_model_init (&m);
-  DsRigTiming timing;
-  ds_rig_timing_init (&timing);
-  DsSeparationParams params;
-  ds_separation_params_init (&params, 4);
-  g_autoptr (DsErrorModel) em = ds_error_model_new (&p, &params);
   true_scene (&s, &p, &t);
-  g_autoptr (DsErrorModel) truth_em = ds_error_model_new (&t, &params);
+  g_autoptr (DsErrorModel) truth_em = error_model (&t);
   DsOperatingPoint op;
   double target = 0.9 * truth;
   g_autoptr (GError) error = NULL;
-  gboolean chosen = ds_operating_point_choose (&m, em, &p, &timing, W, H, target, 0, &op, &error);
+  gboolean chosen = choose_point (&p, target, 0, &op, &error);
   g_test_message ("target %.4f: %s", target, chosen ? "chosen" : error->message);
   g_assert_false (chosen);
   g_assert_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT);
@@ -407,7 +415,7 @@ test_interval_single_kernel (void)
   g_clear_error (&error);
   g_assert_cmpfloat (op.predicted_error_upper, >, op.predicted_error);
   target = 1.3 * op.predicted_error_upper;
-  g_assert_true (ds_operating_point_choose (&m, em, &p, &timing, W, H, target, 0, &op, &error));
+  g_assert_true (choose_point (&p, target, 0, &op, &error));
   g_assert_no_error (error);
   g_assert_cmpfloat (op.predicted_error_upper, <=, target);
   DsErrorParts real;
@@ -430,16 +438,9 @@ test_interval_clear (void)
   g_assert_false (p.narrow_unresolved);
   g_assert_false (p.ld_interval);
   g_assert_false (ds_scene_probe_worst_case (&p, &worst));
-  DsOperatingModel m;
-  ds_operating_model_init (&m);
-  DsRigTiming timing;
-  ds_rig_timing_init (&timing);
-  DsSeparationParams params;
-  ds_separation_params_init (&params, 4);
-  g_autoptr (DsErrorModel) em = ds_error_model_new (&p, &params);
   DsOperatingPoint op;
   g_autoptr (GError) error = NULL;
-  g_assert_true (ds_operating_point_choose (&m, em, &p, &timing, W, H, 0.05, 0, &op, &error));
+  g_assert_true (choose_point (&p, 0.05, 0, &op, &error));
   g_assert_no_error (error);
   g_assert_cmpfloat (op.predicted_error_upper, ==, op.predicted_error);
 }
