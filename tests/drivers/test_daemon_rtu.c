@@ -95,6 +95,28 @@ capture (DsClient *c, Tally *t, const char *must_name)
   return message;
 }
 
+/* The daemon's configuration for a serial line at `device` (this test's line settings). */
+static char *
+line_config (const char *device)
+{
+  g_autofree char *uri = g_strdup_printf ("rtu:%s?baud=115200&parity=N", device);
+  return daemon_config (uri);
+}
+
+/* descatterd on the serial line at `device` and a client, after two sets that must be correct. */
+static TestDaemon *
+daemon_on_line (const char *device, DsClient **client, Tally *t)
+{
+  g_autofree char *conf = line_config (device);
+  TestDaemon *d = test_daemon_start (conf, NULL);
+  *client = test_daemon_connect (d);
+  memset (t, 0, sizeof *t);
+  g_free (capture (*client, t, NULL));
+  g_free (capture (*client, t, NULL));
+  g_assert_cmpuint (t->ok, ==, 2);
+  return d;
+}
+
 /* labsim's controller on its own pty: a clean set, then answers with bad CRCs, silences and the
  * line going away for a second. */
 static void
@@ -106,14 +128,9 @@ test_labsim_rtu (void)
   g_autofree char *link = g_build_filename (dir, "ttyLAB", NULL);
   const char *args[] = { "--modbus-rtu", "pty", "--modbus-rtu-link", link, NULL };
   TestLabsim *l = test_labsim_start (labsim_path, scene_path, args);
-  g_autofree char *uri = g_strdup_printf ("rtu:%s?baud=115200&parity=N", link);
-  g_autofree char *conf = daemon_config (uri);
-  TestDaemon *d = test_daemon_start (conf, NULL);
-  g_autoptr (DsClient) c = test_daemon_connect (d);
-  Tally t = { 0 };
-  g_free (capture (c, &t, NULL));
-  g_free (capture (c, &t, NULL));
-  g_assert_cmpuint (t.ok, ==, 2);
+  g_autoptr (DsClient) c = NULL;
+  Tally t;
+  TestDaemon *d = daemon_on_line (link, &c, &t);
   test_daemon_frames (c);
   /* What the controller says of its period reaches the daemon's status (labsim's projector:
    * PERIOD_ADJUSTABLE, 2.00 .. 655.35 px). */
@@ -134,6 +151,7 @@ test_labsim_rtu (void)
                            "--modbus-rtu-vanish-for", "1", NULL };
   g_clear_pointer (&c, ds_client_free);
   l = test_labsim_start (labsim_path, scene_path, faults);
+  g_autofree char *conf = line_config (link);
   d = test_daemon_start (conf, NULL);
   c = test_daemon_connect (d);
   memset (&t, 0, sizeof t);
@@ -247,14 +265,9 @@ test_pymodbus_controller (void)
   g_autofree char *light = g_strdup_printf ("tcp://127.0.0.1:%u", ln.light_port);
   const char *args[] = { "--light-from", light, NULL };
   TestLabsim *l = test_labsim_start (labsim_path, scene_path, args);
-  g_autofree char *uri = g_strdup_printf ("rtu:%s?baud=115200&parity=N", ln.b);
-  g_autofree char *conf = daemon_config (uri);
-  TestDaemon *d = test_daemon_start (conf, NULL);
-  g_autoptr (DsClient) c = test_daemon_connect (d);
-  Tally t = { 0 };
-  g_free (capture (c, &t, NULL));
-  g_free (capture (c, &t, NULL));
-  g_assert_cmpuint (t.ok, ==, 2);
+  g_autoptr (DsClient) c = NULL;
+  Tally t;
+  TestDaemon *d = daemon_on_line (ln.b, &c, &t);
 
   /* Busy for 4 requests: more than one access's 3 attempts (the set's first access, loading the
    * pattern, fails: the sequencer does not retry that), fewer than two accesses' (the next set
