@@ -169,7 +169,7 @@ typedef struct {
                                      narrower than P would pass for direct light (a lower bound) */
   gboolean narrow_beyond;         /* a kernel still keeping > DS_PROBE_NARROW_MAX_AT_FINEST of Ld at the
                                      finest period: not fitted, a lower bound */
-  char narrow_note[320];          /* why (narrow_unresolved), or what the finer periods showed */
+  char narrow_note[448];          /* why (narrow_unresolved), or what the finer periods showed */
   /* Where narrow_unresolved: how low the direct light can be (ld_mean is the interval's upper end,
    * ds_scene_probe_worst_case () the scene at its lower end). */
   gboolean ld_interval;           /* ld_lower, unbounded and interval_note are set */
