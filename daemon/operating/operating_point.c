@@ -199,7 +199,7 @@ predict (const DsOperatingModel *m, const Models *em, const DsSceneProbe *probe,
   p->period_px = period > 0 ? period : probe->geometry.period_px;
   p->predicted_error = m->scale * p->parts.total;
   p->predicted_time_ms = ds_rig_timing_set_ms (t, w, h, n, mm, p->exposure_us, TRUE);
-  p->lower_bound = !probe->leak_measured || probe->narrow_unresolved;
+  p->lower_bound = !probe->leak_measured || probe->narrow_unresolved || probe->fit_inconsistent;
   return TRUE;
 }
 
@@ -497,6 +497,8 @@ ds_operating_point_choose (const DsOperatingModel *m, DsErrorModel *errors, cons
     g_string_append_printf (msg, " (%s; %s)", probe->narrow_note, probe->interval_note);
   else if (target > 0 && probe->narrow_unresolved)
     g_string_append_printf (msg, " (%s)", probe->narrow_note);
+  if (target > 0 && probe->fit_inconsistent)
+    g_string_append_printf (msg, " (%s)", probe->fit_note);
   g_set_error_literal (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT, msg->str);
   g_string_free (msg, TRUE);
   return FALSE;
@@ -549,6 +551,8 @@ ds_operating_report_to_json (const DsOperatingReport *r, JsonBuilder *b)
     json_builder_add_string_value (b, pr->leak_note);
   if (pr->narrow_unresolved)
     json_builder_add_string_value (b, pr->narrow_note);
+  if (pr->fit_inconsistent)
+    json_builder_add_string_value (b, pr->fit_note);
   json_builder_end_array (b);
   json_builder_set_member_name (b, "assumptions");
   json_builder_begin_array (b);

@@ -99,6 +99,8 @@ G_BEGIN_DECLS
  * modulation from the coarsest period to the finest under 3 times this (with the fit's noise) is
  * no sign of a kernel at the edge of what the pilot resolves. */
 #define DS_PROBE_PAIR_SCATTER 0.01
+/* The normal quantile of the fit's consistency test (fit_inconsistent): 99.9 %. */
+#define DS_PROBE_FIT_Z 3.09
 
 /* The finer pilot periods for period P and blur sigma (0 when unknown): P/2 and P/4 as long as they
  * are resolvable (above), rounded to 1/100 px (a projector's PERIOD register unit). Returns how
@@ -196,6 +198,13 @@ typedef struct {
   guint width, height;
   guint equations;                /* harmonics the fit used */
   double fit_rms;                 /* rms of the fit's residuals in log amplitude */
+  /* The fit's weighted squared residuals beyond the 99.9 % quantile of chi^2 for its degrees of
+   * freedom: no transfer the probe models explains the harmonics at the pilot's periods within
+   * their noise and the fit's 2 % floor (objects or the places that clip shape the profile), so
+   * Ld and the scattered stripes read from them are no measurement and the prediction is a lower
+   * bound (fit_note says why). */
+  gboolean fit_inconsistent;
+  char fit_note[280];
 } DsSceneProbe;
 
 gboolean ds_scene_probe_measure (const DsProbeFrames *frames, DsSceneProbe *out, GError **error);
