@@ -6,6 +6,13 @@
 
 #include "proc/proc_error.h"
 
+/* Noise strata (ds_column_stats_noise_dn): at most this many, of at least this many samples; and
+ * the floor of the robust scale of a second difference (DN). */
+#define DS_NOISE_STRATA 16u
+#define DS_NOISE_STRATUM_MIN 500u
+#define DS_NOISE_SCALE_FLOOR 1.5
+#define DS_NOISE_MAX_FRAMES 4u
+
 gboolean
 ds_column_stats_compute (const DsImage *a, const DsImage *b, double ceiling, DsColumnStats *out,
                          GError **error)
@@ -64,56 +71,177 @@ compare_float (const void *x, const void *y)
   return (a > b) - (a < b);
 }
 
-double
-ds_column_stats_noise_dn (const DsImage *a, const DsImage *b, double ceiling)
+typedef struct {
+  float level, d;
+} LevelSample;
+
+static int
+compare_double (const void *x, const void *y)
 {
-  if (a->height < 3 || (b && (a->width != b->width || a->height != b->height)))
+  double a = *(const double *) x, b = *(const double *) y;
+  return (a > b) - (a < b);
+}
+
+/* The median of v[0..n) (sorted in place); 0 for none. */
+static double
+median_of (double *v, guint n)
+{
+  if (n == 0)
+    return 0;
+  qsort (v, n, sizeof *v, compare_double);
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+static int
+compare_level (const void *x, const void *y)
+{
+  float a = ((const LevelSample *) x)->level, b = ((const LevelSample *) y)->level;
+  return (a > b) - (a < b);
+}
+
+/* The level of a sample of the second difference at (x, y): the sum of the frames in the same
+ * row, in the columns on either side. Not the sample's own column: its noise is in d, and a level
+ * read from the same samples would select d's size or sign when sorted by (for a single frame,
+ * a(y) is in both); the neighbours' noise is independent of d. And in the same row, so that a
+ * sample on a scene edge along y is sorted with the side of the edge it is on, not into a stratum
+ * between the two sides that only edges would fill. Stripes vary along x, by little over two
+ * columns. */
+static double
+level_beside (const DsImage *const *f, const void *const *rows, guint n_f, guint x)
+{
+  double sum = 0;
+  guint k = 0;
+  for (int dx = -1; dx <= 1; dx += 2) {
+    if ((dx < 0 && x == 0) || (dx > 0 && x + 1 >= f[0]->width))
+      continue;
+    guint xx = (guint) ((int) x + dx);
+    double v = 0;
+    for (guint i = 0; i < n_f; i++)
+      v += ds_image_sample (f[i], rows[i], xx);
+    if (isfinite (v)) {
+      sum += v;
+      k++;
+    }
+  }
+  return k ? sum / k : 0.0;
+}
+
+/* The noise (1 sigma, DN) of sum_i sign[i] f[i], from its second difference along y. */
+static double
+noise_of_combination (const DsImage *const *f, const double *sign, guint n_f, double ceiling, guint max_strata,
+                      double *mean_level)
+{
+  const DsImage *a = f[0];
+  if (a->height < 3)
     return NAN;
+  for (guint i = 1; i < n_f; i++)
+    if (f[i]->width != a->width || f[i]->height != a->height)
+      return NAN;
   const double top = ceiling > 0 ? ceiling : INFINITY;
   gsize cap = (gsize) a->width * (a->height - 2);
-  g_autofree float *d = g_new (float, cap);
+  g_autofree LevelSample *d = g_new (LevelSample, cap);
   gsize n = 0;
+  const void *rows[3][DS_NOISE_MAX_FRAMES];
   for (guint y = 1; y + 1 < a->height; y++) {
-    const void *r[3] = { ds_image_row (a, y - 1), ds_image_row (a, y), ds_image_row (a, y + 1) };
-    const void *q[3] = { NULL, NULL, NULL };
-    if (b)
-      for (int i = 0; i < 3; i++)
-        q[i] = ds_image_row (b, y - 1 + (guint) i);
+    for (guint j = 0; j < 3; j++)
+      for (guint i = 0; i < n_f; i++)
+        rows[j][i] = ds_image_row (f[i], y - 1 + j);
     for (guint x = 0; x < a->width; x++) {
-      double v[3];
+      double v[3] = { 0, 0, 0 };
       gboolean ok = TRUE;
-      for (int i = 0; i < 3 && ok; i++) {
-        double va = ds_image_sample (a, r[i], x), vb = b ? ds_image_sample (b, q[i], x) : 0.0;
-        ok = isfinite (va) && isfinite (vb) && va < top && vb < top;
-        v[i] = va - vb;
-      }
+      for (guint j = 0; j < 3 && ok; j++)
+        for (guint i = 0; i < n_f && ok; i++) {
+          double s = ds_image_sample (f[i], rows[j][i], x);
+          ok = isfinite (s) && s < top;
+          v[j] += sign[i] * s;
+        }
       if (ok)
-        d[n++] = (float) (v[0] - 2.0 * v[1] + v[2]);
+        d[n++] = (LevelSample){ (float) level_beside (f, rows[1], n_f, x), (float) (v[0] - 2.0 * v[1] + v[2]) };
     }
   }
   if (n == 0)
     return NAN;
-  /* Robust scale from the median of |d| (sorted copy), then the truncated second moment. */
-  g_autofree float *abs_d = g_new (float, n);
-  for (gsize i = 0; i < n; i++)
-    abs_d[i] = fabsf (d[i]);
-  qsort (abs_d, n, sizeof *abs_d, compare_float);
-  double robust = abs_d[n / 2] / 0.6744897501960817;
-  /* Wide enough that quantised integer samples (a median of 1 or 2 DN for a true 1.6) never
-   * cut into the Gaussian core, narrow enough to drop scene edges. */
-  double cut = 5.0 * MAX (robust, 1.5);
-  double sum = 0;
+  /* Shot noise makes the variance grow with the signal: where dim places (objects' shadows) are
+   * most of the samples, one robust scale for all is theirs, and a cut at 5 of it falls inside
+   * the bright places' Gaussian core (gen-11-06: the shot noise read at 0.41 of the sensor's).
+   * So, with max_strata > 1, the scale is a line in the level (read noise plus shot noise): the samples sorted by level
+   * (level_beside (): why it is read in the neighbouring columns), a robust scale from the median
+   * of |d| per stratum of equal count, a robust line through their squares against the strata's
+   * mean levels; then each sample is cut at 5 of its own level's scale, and the variance is the
+   * truncated mean square of the samples kept, corrected for the truncation. A line, not the
+   * strata's own scales: a stratum at the step between dim and bright places holds both, and its
+   * median is the majority's. */
+  qsort (d, n, sizeof *d, compare_level);
+  guint strata = (guint) CLAMP (n / DS_NOISE_STRATUM_MIN, 1, max_strata);
+  g_autofree float *scratch = g_new (float, n / strata + 1);
+  double strata_level[DS_NOISE_STRATA], strata_r2[DS_NOISE_STRATA];
+  for (guint k = 0; k < strata; k++) {
+    gsize lo = n * k / strata, hi = n * (k + 1) / strata;
+    double level = 0;
+    for (gsize i = lo; i < hi; i++) {
+      scratch[i - lo] = fabsf (d[i].d);
+      level += d[i].level;
+    }
+    strata_level[k] = level / (double) (hi - lo);
+    qsort (scratch, hi - lo, sizeof *scratch, compare_float);
+    /* The floor: quantised integer samples (a median of 1 or 2 DN for a true 1.6) must never be
+     * cut into their Gaussian core. */
+    double robust = MAX (scratch[(hi - lo) / 2] / 0.6744897501960817, DS_NOISE_SCALE_FLOOR);
+    strata_r2[k] = robust * robust;
+  }
+  /* The line by Theil-Sen (the median of the slopes between strata, then the median intercept):
+   * a few strata of what is left of the scene would tilt a least-squares line until the cut let
+   * it in (on one pair of gen-11-02, 100 times the sensor's gain). */
+  g_autofree double *slopes = g_new (double, (gsize) strata * strata / 2 + 1);
+  guint n_slopes = 0;
+  for (guint i = 0; i < strata; i++)
+    for (guint j = i + 1; j < strata; j++)
+      if (strata_level[j] > strata_level[i] * (1 + 1e-9) + 1e-9)
+        slopes[n_slopes++] = (strata_r2[j] - strata_r2[i]) / (strata_level[j] - strata_level[i]);
+  double slope = MAX (median_of (slopes, n_slopes), 0.0);
+  for (guint k = 0; k < strata; k++)
+    slopes[k] = strata_r2[k] - slope * strata_level[k];
+  double intercept = median_of (slopes, strata);
+  /* Cut at 5 sigma: narrow enough to drop sharp scene edges. */
+  const double c = 5.0;
+  double sum = 0, sum_level = 0;
   gsize used = 0;
-  for (gsize i = 0; i < n; i++)
-    if (fabs (d[i]) < cut) {
-      sum += (double) d[i] * d[i];
+  for (gsize i = 0; i < n; i++) {
+    double scale = sqrt (MAX (intercept + slope * d[i].level, DS_NOISE_SCALE_FLOOR * DS_NOISE_SCALE_FLOOR));
+    if (fabs (d[i].d) < c * scale) {
+      sum += (double) d[i].d * d[i].d;
+      sum_level += d[i].level;
       used++;
     }
+  }
   if (used == 0)
     return NAN;
   /* E[z^2 ; |z| < c] / P(|z| < c) = 1 - 2 c phi(c) / (2 Phi(c) - 1) for a unit normal. */
-  double c = cut / MAX (robust, 1e-12);
   double phi = exp (-0.5 * c * c) / sqrt (2 * G_PI), inside = erf (c / G_SQRT2);
-  double shrink = c > 8 ? 1.0 : 1.0 - 2 * c * phi / inside;
+  double shrink = 1.0 - 2 * c * phi / inside;
+  if (mean_level)
+    *mean_level = sum_level / (double) used;
   return sqrt (sum / (double) used / shrink / 6.0);
+}
+
+double
+ds_column_stats_noise_dn (const DsImage *a, const DsImage *b, double ceiling)
+{
+  const DsImage *f[2] = { a, b };
+  const double sign[2] = { 1, -1 };
+  /* One stratum: a single frame or pair holds the scene, whose structure can fill whole strata
+   * (gen-11-02: two of ten strata at 17 and 36 times the others' scale, and the shot noise read
+   * at twice the sensor's gain even on a robust line); one scale for all keeps it out. */
+  return noise_of_combination (f, sign, b ? 2 : 1, ceiling, 1, NULL);
+}
+
+double
+ds_column_stats_noise_sets_dn (const DsImage *const set_a[2], const DsImage *const set_b[2], double ceiling,
+                               double *mean_level)
+{
+  const DsImage *f[4] = { set_a[0], set_a[1], set_b[0], set_b[1] };
+  const double sign[4] = { 1, 1, -1, -1 };
+  if (mean_level)
+    *mean_level = NAN;
+  return noise_of_combination (f, sign, 4, ceiling, DS_NOISE_STRATA, mean_level);
 }

@@ -32,8 +32,25 @@ void ds_column_stats_clear (DsColumnStats *stats);
  * d = v(y-1) - 2 v(y) + v(y+1) (stripes vary along x and cancel; var d = 6 sigma^2 for white
  * noise): the mean of d^2 over the samples within 5 robust sigmas (from the median of |d|),
  * corrected for the truncation. Unlike the median alone it is not quantised by integer
- * samples (a dark frame's 1.5 DN), and unlike the plain mean it ignores scene edges along y.
+ * samples (a dark frame's 1.5 DN), and unlike the plain mean it ignores sharp scene edges along
+ * y (not soft ones: ds_column_stats_noise_sets_dn ()). One scale for all the samples: where most
+ * of them are dim it cuts into the bright ones' noise (ds_column_stats_noise_sets_dn () does not).
  * Samples at or above `ceiling` (0: none) are left out. NAN below 3 rows or without samples. */
 double ds_column_stats_noise_dn (const DsImage *a, const DsImage *b, double ceiling);
+
+/* The temporal noise (DN, 1 sigma) of (a0 + a1) - (b0 + b1), as ds_column_stats_noise_dn () reads
+ * it, for two pairs of opposite phases of stripes whose two opposite phases sum to a constant
+ * (sine stripes, square ones of duty 1/2, blurred or not) at two periods: each pair sums to the
+ * scene under the pattern's mean, whatever the period, so the scene itself cancels, its soft
+ * structure along y too (objects' blurred edges, which the second difference of one pair keeps
+ * within its cut: gen-11-06's shot noise read at 2.3 times the sensor's), and only the four
+ * frames' noise is left: var = var a0 + var a1 + var b0 + var b1, the rms over the samples of a
+ * noise that grows with the signal: each sample is cut at its own level's scale (a robust line
+ * in the level, column_stats.c), so dim places in the majority do not cut into the bright ones'
+ * core. All four of one size.
+ * mean_level (NULL: not wanted): the mean of a0 + a1 + b0 + b1 over the samples the noise was read
+ * on (the signal whose shot noise it holds; a frame's dark level not taken off). */
+double ds_column_stats_noise_sets_dn (const DsImage *const set_a[2], const DsImage *const set_b[2], double ceiling,
+                                      double *mean_level);
 
 G_END_DECLS

@@ -1,0 +1,150 @@
+/* The pilot frames' temporal noise (proc/column_stats.h) against its closed form: frames drawn with
+ * the photon-transfer variance var = r^2 + K s (read noise r DN, K DN per DN of signal s), so the
+ * noise a - b holds is known, sample by sample, and its mean square over the scene is
+ * 2 r^2 + K mean (a + b). The scenes are what fooled the readings: most of the scene dark (objects'
+ * shadows), with the bright places a minority whose noise is several times the dark places', and
+ * objects whose edges along y are soft (blurred over several rows). */
+#include <glib.h>
+#include <math.h>
+
+#include "proc/column_stats.h"
+#include "proc/image.h"
+
+#define W 256u
+#define H 192u
+#define READ_DN 0.7
+#define K_DN 0.05
+#define PERIOD 23.75
+#define DARK_DN 3.0
+
+/* Ld of the scene at (x, y): a bright field with a dark object covering the rows below
+ * `dark_from`, its edge along y blurred over about `edge_rows` rows, one more dark band, and where
+ * `soft`, a soft grating along y (period 12 rows, a smooth object's shading). */
+static double
+scene_ld (guint x, guint y, double dark_from, double edge_rows, gboolean soft)
+{
+  double inside = 0.5 * (1 + erf ((y - dark_from) / (edge_rows * G_SQRT2)));
+  double band = x > 40 && x < 60 ? 1.0 : 0.0;
+  double shade = soft ? 0.75 + 0.25 * cos (2 * G_PI * y / 12.0) : 1.0;
+  return 600.0 * (1 - inside) * (1 - band) * shade;
+}
+
+/* One phase (0 or 1/2) of sine stripes at `period` on the scene, with scattered light lg, a dark
+ * level and the noise of its signal. */
+static DsImage *
+frame (GRand *r, double period, guint phase, double dark_from, double edge_rows, gboolean soft, double lg)
+{
+  DsImage *f = ds_image_new (DS_SAMPLE_F32, W, H, NULL);
+  for (guint y = 0; y < H; y++) {
+    float *row = ds_image_row (f, y);
+    for (guint x = 0; x < W; x++) {
+      double stripe = 0.5 + 0.5 * cos (2 * G_PI * (x / period - 0.5 * phase));
+      double s = scene_ld (x, y, dark_from, edge_rows, soft) * stripe + 0.5 * lg;
+      double sd = sqrt (READ_DN * READ_DN + K_DN * s);
+      /* Box-Muller */
+      double u1 = 1.0 - g_rand_double (r), u2 = g_rand_double (r);
+      row[x] = (float) (DARK_DN + s + sd * sqrt (-2 * log (u1)) * cos (2 * G_PI * u2));
+    }
+  }
+  return f;
+}
+
+/* The closed form over the rows and columns the second difference covers: mean over samples of
+ * the variance of a - b (each frame's r^2 + K s). */
+static double
+expected_var_diff (const DsImage *a, const DsImage *b)
+{
+  double sum = 0;
+  guint n = 0;
+  for (guint y = 1; y + 1 < H; y++) {
+    const float *ra = ds_image_row (a, y), *rb = ds_image_row (b, y);
+    for (guint x = 0; x < W; x++, n++)
+      sum += 2 * READ_DN * READ_DN + K_DN * (ra[x] + rb[x] - 2 * DARK_DN);
+  }
+  return sum / n;
+}
+
+/* A sharp-edged dark object over 70 % of the rows: one robust scale for all the samples is the
+ * dark places', and its cut falls inside the bright places' core (asserted: one pair's reading
+ * is under 0.8 of the closed form). The sets' noise, cut at each level's own scale, must come out
+ * at the closed form within 4 %. */
+static void
+test_dark_majority (void)
+{
+  g_autoptr (GRand) r = g_rand_new_with_seed (11);
+  g_autoptr (DsImage) a0 = frame (r, PERIOD, 0, 0.3 * H, 0.01, FALSE, 4);
+  g_autoptr (DsImage) a1 = frame (r, PERIOD, 1, 0.3 * H, 0.01, FALSE, 4);
+  g_autoptr (DsImage) b0 = frame (r, 2 * PERIOD, 0, 0.3 * H, 0.01, FALSE, 4);
+  g_autoptr (DsImage) b1 = frame (r, 2 * PERIOD, 1, 0.3 * H, 0.01, FALSE, 4);
+  const DsImage *set_a[2] = { a0, a1 }, *set_b[2] = { b0, b1 };
+  double got = ds_column_stats_noise_sets_dn (set_a, set_b, 0, NULL);
+  double want = expected_var_diff (a0, a1) + expected_var_diff (b0, b1);
+  double single = ds_column_stats_noise_dn (a0, a1, 0), single_want = expected_var_diff (a0, a1);
+  g_test_message ("dark majority: sets var %.3f, closed form %.3f (one pair %.3f against %.3f)", got * got, want,
+                  single * single, single_want);
+  g_assert_cmpfloat (single * single, <, 0.8 * single_want);
+  g_assert_cmpfloat (fabs (got * got / want - 1), <, 0.04);
+}
+
+/* Soft structure along y (an edge blurred over 4 rows, a shading of 12 rows' period) is structure
+ * the second difference of one pair keeps inside its cut (asserted: it reads more than the
+ * closed form); between two pairs at two periods, whose sums are both the scene under the
+ * pattern's mean, it cancels. The noise of the sets must be the four frames' (closed form) within
+ * 4 %, and the level it reports their mean sum. */
+static void
+test_sets_cancel_the_scene (void)
+{
+  g_autoptr (GRand) r = g_rand_new_with_seed (12);
+  g_autoptr (DsImage) a0 = frame (r, PERIOD, 0, 0.45 * H, 4, TRUE, 20);
+  g_autoptr (DsImage) a1 = frame (r, PERIOD, 1, 0.45 * H, 4, TRUE, 20);
+  g_autoptr (DsImage) b0 = frame (r, 2 * PERIOD, 0, 0.45 * H, 4, TRUE, 20);
+  g_autoptr (DsImage) b1 = frame (r, 2 * PERIOD, 1, 0.45 * H, 4, TRUE, 20);
+  const DsImage *set_a[2] = { a0, a1 }, *set_b[2] = { b0, b1 };
+  double level = NAN;
+  double got = ds_column_stats_noise_sets_dn (set_a, set_b, 0, &level);
+  double want = expected_var_diff (a0, a1) + expected_var_diff (b0, b1);
+  double single = ds_column_stats_noise_dn (a0, a1, 0), single_want = expected_var_diff (a0, a1);
+  g_test_message ("sets: var %.3f, closed form %.3f (one pair's own reading %.3f against %.3f)", got * got, want,
+                  single * single, single_want);
+  g_assert_cmpfloat (fabs (got * got / want - 1), <, 0.04);
+  g_assert_cmpfloat (single * single, >, 1.2 * single_want);
+  /* The level: the four frames' mean sum over the samples read, dark level and all. */
+  double sum = 0;
+  guint n = 0;
+  const DsImage *all[4] = { a0, a1, b0, b1 };
+  for (guint y = 1; y + 1 < H; y++)
+    for (guint x = 0; x < W; x++, n++)
+      for (guint i = 0; i < 4; i++)
+        sum += ((const float *) ds_image_row (all[i], y))[x];
+  g_assert_cmpfloat (fabs (level / (sum / n) - 1), <, 0.02);
+}
+
+/* Where every sample has the same noise the result is that noise (the line through the strata is
+ * flat), on integer samples too: a dark frame of 1.6 DN rounded to whole DN. */
+static void
+test_uniform_noise (void)
+{
+  g_autoptr (GRand) r = g_rand_new_with_seed (13);
+  g_autoptr (DsImage) f = ds_image_new (DS_SAMPLE_F32, W, H, NULL);
+  for (guint y = 0; y < H; y++) {
+    float *row = ds_image_row (f, y);
+    for (guint x = 0; x < W; x++) {
+      double u1 = 1.0 - g_rand_double (r), u2 = g_rand_double (r);
+      row[x] = (float) round (100 + 1.6 * sqrt (-2 * log (u1)) * cos (2 * G_PI * u2));
+    }
+  }
+  /* Rounding adds 1/12 DN^2. */
+  double got = ds_column_stats_noise_dn (f, NULL, 0), want = sqrt (1.6 * 1.6 + 1.0 / 12);
+  g_test_message ("uniform: %.3f DN, closed form %.3f", got, want);
+  g_assert_cmpfloat (fabs (got / want - 1), <, 0.03);
+}
+
+int
+main (int argc, char **argv)
+{
+  g_test_init (&argc, &argv, NULL);
+  g_test_add_func ("/column-noise/dark-majority", test_dark_majority);
+  g_test_add_func ("/column-noise/sets-cancel-the-scene", test_sets_cancel_the_scene);
+  g_test_add_func ("/column-noise/uniform", test_uniform_noise);
+  return g_test_run ();
+}
