@@ -90,6 +90,14 @@ clipped_pixels (const DsImage *a, const DsImage *b, double ceiling)
   return n;
 }
 
+/* Whether phase 0 and phase 1/2 of the pattern sum to a constant: sine stripes, and square ones of
+ * duty 1/2 (their blur keeps the sum flat). */
+static gboolean
+opposite_phases_sum_flat (const DsStripeModel *g)
+{
+  return g->kind == DS_PATTERN_SINE || fabs (g->duty - 0.5) < 1e-3;
+}
+
 /* a, b: the pair as taken (for the clip count), stat_a, stat_b: what the statistics read (the
  * pair with the clipped places left out, mask_clipped_places ()). */
 static gboolean
@@ -839,9 +847,22 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
     sum_w += fine.stats.count[x];
   }
   double mean_sum = sum_w > 0 ? sum_signal / sum_w : 0;
-  double noise_diff = ds_column_stats_noise_dn (stat[0], stat[1], ceiling);
-  double var_diff = isfinite (noise_diff) ? noise_diff * noise_diff : 2 * out->noise_var0;
-  out->noise_gain = mean_sum > 0 ? MAX (0.0, (var_diff - 2 * out->noise_var0) / mean_sum) : 0;
+  double var_diff = NAN, noise_signal = mean_sum;
+  if (fr->coarse[0] && opposite_phases_sum_flat (&fr->geometry)) {
+    /* The scene cancels between the pairs' sums (ds_column_stats_noise_sets_dn), and the coarse
+     * pair's sum has the fine pair's mean: var (a - b) = var a + var b is half of it, over the
+     * samples it was read on, whose signal is half their level. */
+    double level = NAN, noise_sets = ds_column_stats_noise_sets_dn (stat, stat + 2, ceiling, &level);
+    if (isfinite (noise_sets) && isfinite (level)) {
+      var_diff = noise_sets * noise_sets / 2;
+      noise_signal = level / 2 - 2 * out->dark_dn;
+    }
+  }
+  if (!isfinite (var_diff)) {
+    double noise_diff = ds_column_stats_noise_dn (stat[0], stat[1], ceiling);
+    var_diff = isfinite (noise_diff) ? noise_diff * noise_diff : 2 * out->noise_var0;
+  }
+  out->noise_gain = noise_signal > 0 ? MAX (0.0, (var_diff - 2 * out->noise_var0) / noise_signal) : 0;
   out->noise_dark_shot = dark_shot_noise (fr->dark, out->dark_dn, out->noise_var0, out->noise_gain);
 
   /* Harmonics -> blur, Ld, alpha. */
