@@ -82,7 +82,7 @@ ds_stripe_blur_from_gain (const DsStripeModel *g, double h)
   return 0.5 * (lo + hi);
 }
 
-#define MAX_UNKNOWNS (2 * DS_STRIPE_MAX_HARMONICS + 1)
+#define MAX_UNKNOWNS (4 * DS_STRIPE_MAX_HARMONICS + 1)
 
 /* Inverts the n x n matrix a in place (Gauss-Jordan, partial pivoting); FALSE when singular. */
 static gboolean
@@ -130,9 +130,33 @@ invert (double *a, guint n)
   return TRUE;
 }
 
+/* The basis at column x: the mean, each harmonic's cosine and sine, and with an envelope e the
+ * same harmonics times e(x) - 1 (the stripes on the scene's own variation across the columns). */
+static void
+basis_at (double x, double w0, guint nh, const double *envelope, guint i, double *basis)
+{
+  basis[0] = 1;
+  for (guint h = 1; h <= nh; h++) {
+    basis[2 * h - 1] = cos (w0 * h * x);
+    basis[2 * h] = sin (w0 * h * x);
+    if (envelope) {
+      basis[2 * nh + 2 * h - 1] = basis[2 * h - 1] * (envelope[i] - 1);
+      basis[2 * nh + 2 * h] = basis[2 * h] * (envelope[i] - 1);
+    }
+  }
+}
+
 gboolean
 ds_stripe_harmonics_fit (const double *profile, const guint32 *weight, guint x0, guint count,
                          double period_px, guint n_harmonics, DsStripeHarmonics *out, GError **error)
+{
+  return ds_stripe_harmonics_fit_envelope (profile, weight, NULL, x0, count, period_px, n_harmonics, out, error);
+}
+
+gboolean
+ds_stripe_harmonics_fit_envelope (const double *profile, const guint32 *weight, const double *envelope, guint x0,
+                                  guint count, double period_px, guint n_harmonics, DsStripeHarmonics *out,
+                                  GError **error)
 {
   memset (out, 0, sizeof *out);
   guint nh = MIN (n_harmonics, DS_STRIPE_MAX_HARMONICS);
@@ -140,7 +164,7 @@ ds_stripe_harmonics_fit (const double *profile, const guint32 *weight, guint x0,
     nh--;
   guint periods = period_px > 0 ? (guint) floor ((double) count / period_px) : 0;
   guint cols = MIN (count, (guint) lround (periods * period_px));
-  guint n = 2 * nh + 1;
+  guint n = (envelope ? 4 : 2) * nh + 1;
   if (nh == 0 || periods == 0 || cols < n + 2) {
     g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT,
                  "stripe harmonics: %u columns at period %g px do not hold a whole period and %u unknowns",
@@ -154,11 +178,7 @@ ds_stripe_harmonics_fit (const double *profile, const guint32 *weight, guint x0,
     if (weight && weight[i] == 0)
       continue;
     double x = (double) (x0 + i), basis[MAX_UNKNOWNS];
-    basis[0] = 1;
-    for (guint h = 1; h <= nh; h++) {
-      basis[2 * h - 1] = cos (w0 * h * x);
-      basis[2 * h] = sin (w0 * h * x);
-    }
+    basis_at (x, w0, nh, envelope, i, basis);
     for (guint a = 0; a < n; a++) {
       atb[a] += basis[a] * profile[i];
       for (guint b = 0; b < n; b++)
@@ -180,9 +200,10 @@ ds_stripe_harmonics_fit (const double *profile, const guint32 *weight, guint x0,
   for (guint i = 0; i < cols; i++) {
     if (weight && weight[i] == 0)
       continue;
-    double x = (double) (x0 + i), model = p[0];
-    for (guint h = 1; h <= nh; h++)
-      model += p[2 * h - 1] * cos (w0 * h * x) + p[2 * h] * sin (w0 * h * x);
+    double x = (double) (x0 + i), basis[MAX_UNKNOWNS], model = 0;
+    basis_at (x, w0, nh, envelope, i, basis);
+    for (guint a = 0; a < n; a++)
+      model += p[a] * basis[a];
     rss += (profile[i] - model) * (profile[i] - model);
   }
   double sigma2 = rss / (double) (used - n);

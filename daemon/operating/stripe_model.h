@@ -54,6 +54,17 @@ gboolean ds_stripe_harmonics_fit (const double *profile, const guint32 *weight, 
                                   guint count, double period_px, guint n_harmonics,
                                   DsStripeHarmonics *out, GError **error);
 
+/* The same, for a profile that is the stripes times a scene varying across the columns, with
+ * envelope[i] (for profile[i]; mean 1 over the columns used) the scene's relative level: the
+ * fit holds, for each harmonic, its cosine and sine times envelope - 1 as well, so that the
+ * scene's variation at frequencies that beat with the stripes' (objects' edges within a period,
+ * a grid whose pitch's harmonics lie next to twice the stripes') is not read as the harmonics'
+ * amplitudes; those (amplitude, phase, sigma_amplitude) are the stripes' on the scene's mean.
+ * envelope NULL: ds_stripe_harmonics_fit (). */
+gboolean ds_stripe_harmonics_fit_envelope (const double *profile, const guint32 *weight, const double *envelope,
+                                           guint x0, guint count, double period_px, guint n_harmonics,
+                                           DsStripeHarmonics *out, GError **error);
+
 /* The fitted profile (mean and harmonics) at column x. */
 double ds_stripe_harmonics_eval (const DsStripeHarmonics *h, double period_px, double x);
 
