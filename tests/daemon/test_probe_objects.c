@@ -5,9 +5,9 @@
 #include <glib.h>
 #include <math.h>
 
-#include "daemon/ctl/sim_rig.h"
 #include "daemon/ctl/validate.h"
 #include "daemon/operating/stripe_model.h"
+#include "probe_rig.h"
 
 /* The opaque lines of a grid of pitch `pitch` and line width `line` at column x. */
 static double
@@ -66,23 +66,6 @@ test_envelope_fit (void)
   g_assert_cmpfloat_with_epsilon (fitted.phase[1], 0.3, 1e-3);
 }
 
-static void
-probe_scene (const char *text, const char *name, DsValidateScene *vs, double *leak_truth, double *gain_truth)
-{
-  g_autoptr (GError) error = NULL;
-  g_autoptr (DsSimRig) rig = ds_sim_rig_new_from_data (text, name, &error);
-  g_assert_no_error (error);
-  DsValidateOptions opt = { .calibrated = TRUE, .seed = 1 };
-  g_assert_true (ds_validate_probe (rig, &opt, vs, &error));
-  g_assert_no_error (error);
-  DsRendererScattering sc;
-  *leak_truth = ds_renderer_scattering (ds_sim_rig_renderer (rig), &sc) && sc.ballistic > 0
-                  ? sc.modulated * sc.held * sc.scattered_in_cone / sc.ballistic
-                  : 0.0;
-  /* The pilot's gain is 0 dB: a frame's shot noise is the system gain in DN^2 per DN. */
-  *gain_truth = ds_scene_system_gain (ds_sim_rig_scene (rig));
-}
-
 /* Generated scene 12-0: two opaque grids (42 px with 7 px lines, 16 px with 4 px lines) behind a
  * medium that scatters next to nothing (optical depth 0.08), sine stripes at 18.75 px. The probe
  * read 3.4 % of the direct light as scattered stripes at P (the grid beating with the pilot's
@@ -105,7 +88,7 @@ test_grids (void)
     "[object.o2]\nshape=grid\npitch=16\nline-width=4\ndepth-mm=8.98971\ntransmittance=0\n";
   DsValidateScene vs;
   double truth, gain;
-  probe_scene (text, "grids", &vs, &truth, &gain);
+  probe_rig_probe_scene (text, "grids", &vs, &truth, &gain);
   double leak = ds_scene_probe_leak (&vs.probe, vs.probe.geometry.period_px, 1);
   g_test_message ("grids: scattered stripes at P %.4f (truth %.4f), Ld %.1f (truth %.1f)", leak, truth,
                   vs.probe.ld_mean, vs.truth_ld_mean);
@@ -137,7 +120,7 @@ test_shot_noise_under_objects (void)
     "[object.o2]\nshape=grid\npitch=64\nline-width=9\ndepth-mm=0.304467\ntransmittance=0.62093\n";
   DsValidateScene vs;
   double truth, gain;
-  probe_scene (text, "shadows", &vs, &truth, &gain);
+  probe_rig_probe_scene (text, "shadows", &vs, &truth, &gain);
   g_test_message ("shadows: shot noise %.5f DN^2 per DN, the sensor's %.5f", vs.probe.noise_gain, gain);
   g_assert_cmpfloat (fabs (vs.probe.noise_gain / gain - 1), <, 0.10);
 }

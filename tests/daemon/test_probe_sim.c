@@ -11,21 +11,7 @@
 #include "daemon/ctl/sim_rig.h"
 #include "daemon/ctl/validate.h"
 #include "daemon/operating/stripe_model.h"
-
-static void
-probe_scene (const char *text, const char *name, DsValidateScene *vs, double *truth)
-{
-  g_autoptr (GError) error = NULL;
-  g_autoptr (DsSimRig) rig = ds_sim_rig_new_from_data (text, name, &error);
-  g_assert_no_error (error);
-  DsValidateOptions opt = { .calibrated = TRUE, .seed = 1 };
-  g_assert_true (ds_validate_probe (rig, &opt, vs, &error));
-  g_assert_no_error (error);
-  DsRendererScattering sc;
-  *truth = ds_renderer_scattering (ds_sim_rig_renderer (rig), &sc) && sc.ballistic > 0
-             ? sc.modulated * sc.held * sc.scattered_in_cone / sc.ballistic
-             : 0.0;
-}
+#include "probe_rig.h"
 
 static char *
 shipped (const char *file)
@@ -48,7 +34,7 @@ test_media (void)
     g_autofree char *text = shipped (files[i]);
     DsValidateScene vs;
     double truth;
-    probe_scene (text, files[i], &vs, &truth);
+    probe_rig_probe_scene (text, files[i], &vs, &truth, NULL);
     double leak = ds_scene_probe_leak (&vs.probe, vs.probe.geometry.period_px, 1);
     g_test_message ("%s: scattered stripes at the period %.4f of the direct light, truth %.4f", files[i], leak, truth);
     g_assert_true (vs.probe.leak_measured);
@@ -72,7 +58,7 @@ test_no_medium (void)
     "[object.o0]\nshape=rect\nposition=60;20\nsize=90;70\ntransmittance=0.5\n";
   DsValidateScene vs;
   double truth;
-  probe_scene (text, "clear-blurred", &vs, &truth);
+  probe_rig_probe_scene (text, "clear-blurred", &vs, &truth, NULL);
   double leak = ds_scene_probe_leak (&vs.probe, vs.probe.geometry.period_px, 1);
   g_test_message ("clear, blurred: scattered stripes at the period %.4f (truth 0)", leak);
   g_assert_cmpfloat (truth, ==, 0);
@@ -101,7 +87,7 @@ test_narrow_kernel (void)
     "[object.o1]\nshape=disc\nposition=178;95\nradius=34\ndepth-mm=1.90375\ntransmittance=0.70692\n";
   DsValidateScene vs;
   double truth;
-  probe_scene (text, "narrow-kernel", &vs, &truth);
+  probe_rig_probe_scene (text, "narrow-kernel", &vs, &truth, NULL);
   double leak = ds_scene_probe_leak (&vs.probe, vs.probe.geometry.period_px, 1);
   g_test_message ("narrow kernel: scattered stripes at the period %.4f, truth %.4f; Ld %.1f, truth %.1f; %s", leak,
                   truth, vs.probe.ld_mean, vs.truth_ld_mean, vs.probe.narrow_note);
