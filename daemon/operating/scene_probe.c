@@ -98,6 +98,21 @@ opposite_phases_sum_flat (const DsStripeModel *g)
   return g->kind == DS_PATTERN_SINE || fabs (g->duty - 0.5) < 1e-3;
 }
 
+/* Whether the noise is read on the two pairs' sums (ds_column_stats_noise_sets_dn) rather than on
+ * the fine pair's difference: where the sums are flat, and for square stripes of a duty a near 1/2.
+ * Their opposite phases sum to 1 - b but in gaps (a < 1/2) or overlaps (a > 1/2) of width
+ * |1/2 - a| P per half period, so the two pairs' sums differ by at most 2 |1/2 - a| (1 - b) of Ld,
+ * where the pair's difference is (1 - b) of Ld: scene structure along y (the rows of a grid) enters
+ * the sets' combination at that share, its variance at the square (1 % at |1/2 - a| = 0.05), and
+ * the second difference along y cannot tell it from noise. On the pair's difference it enters
+ * whole: gen-13-04 (duty 0.457, a grid of pitch 12 with 1 px lines) read the shot noise at 5.5
+ * times the sensor's gain there, 1.28 times on the sets, and every prediction x0.42-0.64 low. */
+static gboolean
+noise_on_sets (const DsStripeModel *g)
+{
+  return opposite_phases_sum_flat (g) || fabs (g->duty - 0.5) <= DS_PROBE_SETS_DUTY;
+}
+
 /* The scene's level per column relative to its mean, (a + b - 2 dark) over the rows, for stripes
  * whose opposite phases sum to a constant: the columns' Ld + Lg, whatever the stripes. The pair's
  * difference profile is the stripes times the columns' Ld: where objects make Ld vary across the
@@ -885,9 +900,9 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
   }
   double mean_sum = sum_w > 0 ? sum_signal / sum_w : 0;
   double var_diff = NAN, noise_signal = mean_sum;
-  if (fr->coarse[0] && opposite_phases_sum_flat (&fr->geometry)) {
-    /* The scene cancels between the pairs' sums (ds_column_stats_noise_sets_dn), and the coarse
-     * pair's sum has the fine pair's mean: var (a - b) = var a + var b is half of it, over the
+  if (fr->coarse[0] && noise_on_sets (&fr->geometry)) {
+    /* The scene cancels between the pairs' sums (ds_column_stats_noise_sets_dn), or nearly
+     * (noise_on_sets ()), and the coarse pair's sum has the fine pair's mean: var (a - b) = var a + var b is half of it, over the
      * samples it was read on, whose signal is half their level. */
     double level = NAN, noise_sets = ds_column_stats_noise_sets_dn (stat, stat + 2, ceiling, &level);
     if (isfinite (noise_sets) && isfinite (level)) {

@@ -99,6 +99,9 @@ G_BEGIN_DECLS
  * modulation from the coarsest period to the finest under 3 times this (with the fit's noise) is
  * no sign of a kernel at the edge of what the pilot resolves. */
 #define DS_PROBE_PAIR_SCATTER 0.01
+/* Square stripes of a duty within this of 1/2 have the probe read the noise on two pairs' sums, in
+ * which the scene nearly cancels (scene_probe.c: noise_on_sets). */
+#define DS_PROBE_SETS_DUTY 0.05
 /* The normal quantile of the fit's consistency test (fit_inconsistent): 99.9 %. */
 #define DS_PROBE_FIT_Z 3.09
 
