@@ -7,7 +7,7 @@
  * The stripes are the difference of phases 0 and 1/2, rows averaged into a column profile
  * (the scene cancels, the stripes double; clipped samples left out): its first harmonic at the
  * configured period must stand DS_PILOT_MIN_SNR standard errors of the profile's fit clear of
- * zero (what the probe needs to use a harmonic at all, scene_probe.c), and one frame's share of it be at least DS_PILOT_MIN_MODULATION of the lit
+ * zero (what the probe needs to use a harmonic at all, scene_probe_transfer.c), and one frame's share of it be at least DS_PILOT_MIN_MODULATION of the lit
  * frames' mean level. The floor is where no operating point separates anything: shot noise of
  * a full well of 100 000 electrons is 3.2e-3 of the mean per frame; averaged over the largest
  * set (64 phases x 64 frames) it leaves a first harmonic's standard error of 7e-5 of the mean,

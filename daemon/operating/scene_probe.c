@@ -4,6 +4,8 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "daemon/operating/scene_probe_pairs.h"
+#include "daemon/operating/scene_probe_transfer.h"
 #include "daemon/protocol/protocol.h"
 #include "proc/column_stats.h"
 #include "proc/image_stats.h"
@@ -21,22 +23,14 @@ ds_blur_source_name (DsBlurSource s)
   }
 }
 
-/* The narrow kernel's MTF at the frequency 1 / x, k = 2 pi b / x: (1 + k^2 / nu)^-nu
- * (scene_probe.h: why this form and not a Gaussian). */
-static double
-kernel_mtf (double b, double nu, double x)
-{
-  double k = 2 * G_PI * b / x;
-  return x > 0 ? pow (1 + k * k / nu, -nu) : 0.0;
-}
-
 double
 ds_scene_probe_leak (const DsSceneProbe *p, double period_px, guint n)
 {
   if (!p->leak_measured)
     return 0.0;
   double x = period_px / n;
-  double leak = exp (p->leak_per_px * x) * (1 + p->narrow_fraction * kernel_mtf (p->narrow_kernel_px, p->narrow_shape, x)) - 1;
+  double leak = exp (p->leak_per_px * x) *
+                    (1 + p->narrow_fraction * ds_probe_kernel_mtf (p->narrow_kernel_px, p->narrow_shape, x)) - 1;
   return p->leak_bounded ? MIN (leak, MAX (0.0, p->leak_max)) : leak;
 }
 
@@ -56,36 +50,6 @@ ds_scene_probe_finer_periods (double period_px, double blur_px, double out[DS_PR
     if (!(rounded >= finest - 1e-9))
       break;
     out[n++] = rounded;
-  }
-  return n;
-}
-
-/* One harmonic of the difference of two opposite phases at period Q. */
-typedef struct {
-  double period;
-  guint n;
-  double amplitude, sigma;
-  double offset;             /* phase of the first harmonic at this period (cycles) */
-} Equation;
-
-typedef struct {
-  DsColumnStats stats;
-  DsStripeHarmonics fit;
-  guint64 clipped;           /* pixels at the clip level in either frame */
-  gboolean ok;
-} PairFit;
-
-/* Pixels where either frame of a pair is at or above the ceiling. */
-static guint64
-clipped_pixels (const DsImage *a, const DsImage *b, double ceiling)
-{
-  guint64 n = 0;
-  if (!(ceiling > 0))
-    return 0;
-  for (guint y = 0; y < a->height; y++) {
-    const void *ra = ds_image_row (a, y), *rb = ds_image_row (b, y);
-    for (guint x = 0; x < a->width; x++)
-      n += ds_image_sample (a, ra, x) >= ceiling || ds_image_sample (b, rb, x) >= ceiling;
   }
   return n;
 }
@@ -113,378 +77,6 @@ noise_on_sets (const DsStripeModel *g)
   return opposite_phases_sum_flat (g) || fabs (g->duty - 0.5) <= DS_PROBE_SETS_DUTY;
 }
 
-/* The scene's level per column relative to its mean, (a + b - 2 dark) over the rows, for stripes
- * whose opposite phases sum to a constant: the columns' Ld + Lg, whatever the stripes. The pair's
- * difference profile is the stripes times the columns' Ld: where objects make Ld vary across the
- * columns at frequencies next to twice the stripes' (a grid's pitch; gen-12-00: a 42 px grid's
- * 9th harmonic 0.5 % from twice the 9.38 px pilot's frequency), the product has components at
- * the stripes' own frequency that a plain fit reads as their amplitude, differently at each
- * period (gen-12-00: the first harmonic 5 % low at P/2, read as 3.4 % of scattered stripes at
- * P; the kernel's truth 0.45 %). The harmonics are fitted on this envelope
- * (ds_stripe_harmonics_fit_envelope), which follows Ld as far as Lg is even across the columns.
- * NULL when the level is not positive. */
-static double *
-scene_envelope (const DsColumnStats *st, double dark_dn)
-{
-  double sum = 0, n = 0;
-  for (guint x = 0; x < st->width; x++) {
-    sum += (st->mean_sum[x] - 2 * dark_dn) * st->count[x];
-    n += st->count[x];
-  }
-  if (!(n > 0 && sum > 0))
-    return NULL;
-  double mean = sum / n;
-  double *e = g_new (double, st->width);
-  for (guint x = 0; x < st->width; x++)
-    e[x] = st->count[x] ? (st->mean_sum[x] - 2 * dark_dn) / mean : 1.0;
-  return e;
-}
-
-/* a, b: the pair as taken (for the clip count), stat_a, stat_b: what the statistics read (the
- * pair with the clipped places left out, mask_clipped_places ()). envelope_dn >= 0: the harmonics
- * are fitted on the scene's envelope (scene_envelope ()), with this dark level taken off. */
-static gboolean
-fit_pair (const DsImage *a, const DsImage *b, const DsImage *stat_a, const DsImage *stat_b, double ceiling,
-          double period, double envelope_dn, PairFit *out, GError **error)
-{
-  guint64 n_px = (guint64) a->width * a->height, clipped = clipped_pixels (a, b, ceiling);
-  if (clipped * 2 > n_px) {
-    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_DEVICE,
-                 "%.0f %% of the pixels are at the clip level (%.0f DN): lower the exposure or the gain",
-                 100.0 * (double) clipped / (double) n_px, ceiling);
-    return FALSE;
-  }
-  if (!ds_column_stats_compute (stat_a, stat_b, ceiling, &out->stats, error))
-    return FALSE;
-  out->clipped = clipped;
-  guint32 *weight = out->stats.count;
-  g_autofree double *envelope = envelope_dn >= 0 ? scene_envelope (&out->stats, envelope_dn) : NULL;
-  if (!(envelope && ds_stripe_harmonics_fit_envelope (out->stats.mean_diff, weight, envelope, 0, out->stats.width,
-                                                      period, DS_STRIPE_MAX_HARMONICS, &out->fit, NULL)) &&
-      !ds_stripe_harmonics_fit (out->stats.mean_diff, weight, 0, out->stats.width, period,
-                                DS_STRIPE_MAX_HARMONICS, &out->fit, error))
-    return FALSE;
-  out->ok = TRUE;
-  return TRUE;
-}
-
-/* The places whose stripes' peaks reach the clip level in the pilot frames, and what their
- * troughs say about their light. */
-typedef struct {
-  double fraction;           /* of the samples */
-  double mean_peak_over_trough, mean_sq_peak_over_trough, mean_trough;   /* DN, over those samples */
-} ClippedPlaces;
-
-/* The pilot frames with every sample within half the coarsest period (along x, the stripes'
- * direction of change) of a clipped sample in any lit frame set to NAN, which the column
- * statistics leave out. A sample clips where the light reaches the clip level at that stripe
- * phase: leaving out only the clipped samples keeps, at the stripes' peaks, only the places dim
- * enough not to clip there, but every place between the peaks, so the kept population depends
- * on the phase and the difference profile loses its first harmonic (gen-5-04: Ld read at half,
- * gen-5-08: Lg). A place whose peak clips goes whole, at every phase and at both periods alike
- * (one population for the scattered stripes' fit), and is counted back by
- * count_clipped_places () from the clip level and its trough: the lowest sample of the pair at
- * P within half a period, a whole period of either phase, which does not clip. NULL copies when
- * nothing clips. */
-static void
-mask_clipped_places (const DsImage *const *lit, guint n_lit, double ceiling, double period_px,
-                     DsImage **masked, ClippedPlaces *places)
-{
-  memset (places, 0, sizeof *places);
-  for (guint i = 0; i < n_lit; i++)
-    masked[i] = NULL;
-  if (!(ceiling > 0) || !isfinite (ceiling))
-    return;
-  const DsImage *l = lit[0];
-  guint w = l->width, h = l->height;
-  guint half = (guint) ceil ((n_lit / 2) * period_px / 2), half_fine = (guint) ceil (period_px / 2);
-  g_autofree guint8 *out = g_new0 (guint8, w);
-  g_autofree guint8 *clipped = g_new (guint8, w);
-  g_autofree double *low = g_new (double, w);
-  guint64 left_out = 0;
-  for (guint y = 0; y < h; y++) {
-    memset (clipped, 0, w);
-    for (guint i = 0; i < n_lit; i++) {
-      const void *r = ds_image_row (lit[i], y);
-      for (guint x = 0; x < w; x++)
-        clipped[x] |= ds_image_sample (lit[i], r, x) >= ceiling;
-    }
-    /* Dilation along the row by `half` on either side: a running count of clipped samples. */
-    guint run = 0, row_out = 0;
-    for (guint x = 0; x < MIN (half, w); x++)
-      run += clipped[x];
-    for (guint x = 0; x < w; x++) {
-      if (x + half < w)
-        run += clipped[x + half];
-      if (x > half)
-        run -= clipped[x - half - 1];
-      out[x] = run > 0;
-      row_out += out[x];
-    }
-    if (row_out && !masked[0])
-      for (guint i = 0; i < n_lit; i++) {
-        masked[i] = ds_image_new (DS_SAMPLE_F32, w, h, NULL);
-        for (guint yy = 0; yy < y; yy++) {
-          const void *r = ds_image_row (lit[i], yy);
-          float *m = ds_image_row (masked[i], yy);
-          for (guint x = 0; x < w; x++)
-            m[x] = (float) ds_image_sample (lit[i], r, x);
-        }
-      }
-    if (!masked[0])
-      continue;
-    for (guint i = 0; i < n_lit; i++) {
-      const void *r = ds_image_row (lit[i], y);
-      float *m = ds_image_row (masked[i], y);
-      for (guint x = 0; x < w; x++)
-        m[x] = out[x] ? NAN : (float) ds_image_sample (lit[i], r, x);
-    }
-    if (!row_out)
-      continue;
-    const void *r0 = ds_image_row (lit[0], y), *r1 = ds_image_row (lit[1], y);
-    for (guint x = 0; x < w; x++)
-      low[x] = MIN (ds_image_sample (lit[0], r0, x), ds_image_sample (lit[1], r1, x));
-    for (guint x = 0; x < w; x++) {
-      if (!out[x])
-        continue;
-      double trough = INFINITY;
-      for (guint k = x > half_fine ? x - half_fine : 0; k <= MIN (w - 1, x + half_fine); k++)
-        trough = MIN (trough, low[k]);
-      if (!(trough < ceiling))
-        trough = ceiling;
-      places->mean_peak_over_trough += ceiling - trough;
-      places->mean_sq_peak_over_trough += (ceiling - trough) * (ceiling - trough);
-      places->mean_trough += trough;
-      left_out++;
-    }
-  }
-  places->fraction = (double) left_out / ((double) w * h);
-  if (left_out) {
-    places->mean_peak_over_trough /= (double) left_out;
-    places->mean_sq_peak_over_trough /= (double) left_out;
-    places->mean_trough /= (double) left_out;
-  }
-}
-
-/* Amplitude of harmonic n of the model's difference profile, fitted the way the frames are (same
- * columns, same fit), so that the sampling of integer periods aliases alike. */
-static double
-model_gain (const DsStripeModel *g, double period, double sigma, double offset, guint width, guint n)
-{
-  DsStripeModel m = *g;
-  m.period_px = period;
-  m.blur_px = sigma;
-  g_autofree double *profile = g_new (double, width);
-  for (guint x = 0; x < width; x++)
-    profile[x] = ds_stripe_value (&m, x, offset) - ds_stripe_value (&m, x, offset + 0.5);
-  DsStripeHarmonics h;
-  if (!ds_stripe_harmonics_fit (profile, NULL, 0, width, period, n, &h, NULL) || h.n_harmonics < n)
-    return 0;
-  return h.amplitude[n];
-}
-
-typedef struct {
-  double log_ld, alpha, residual;
-} Solution;
-
-/* Solves the k x k system a z = b in place (Gaussian elimination, partial pivoting); FALSE when
- * singular to rounding (e.g. a slope over equations that all share one x). */
-static gboolean
-solve_small (double a[3][3], double *b, guint k)
-{
-  double scale = 0;
-  for (guint r = 0; r < k; r++)
-    for (guint c = 0; c < k; c++)
-      scale = MAX (scale, fabs (a[r][c]));
-  for (guint c = 0; c < k; c++) {
-    guint piv = c;
-    for (guint r = c + 1; r < k; r++)
-      if (fabs (a[r][c]) > fabs (a[piv][c]))
-        piv = r;
-    if (!(fabs (a[piv][c]) > 1e-9 * scale))
-      return FALSE;
-    for (guint j = 0; j < k; j++) {
-      double t = a[c][j];
-      a[c][j] = a[piv][j];
-      a[piv][j] = t;
-    }
-    double t = b[c];
-    b[c] = b[piv];
-    b[piv] = t;
-    for (guint r = 0; r < k; r++) {
-      if (r == c)
-        continue;
-      double f = a[r][c] / a[c][c];
-      for (guint j = c; j < k; j++)
-        a[r][j] -= f * a[c][j];
-      b[r] -= f * b[c];
-    }
-  }
-  for (guint c = 0; c < k; c++)
-    b[c] /= a[c][c];
-  return TRUE;
-}
-
-/* Weighted least squares of log (A / G) = log Ld + alpha x + t g, x = Q / n, alpha >= 0; alpha is
- * free only when the equations span two periods. g (NULL: none) is how log G of each equation
- * moves when the blur is off by DS_PROBE_BLUR_UNCERTAINTY_PX: one error common to all the
- * equations, so it is a parameter of the fit, with a unit normal prior on t, not a variance per
- * equation (a blur slightly wider than modelled lowers every higher harmonic at once, the more
- * the more the blur has erased it, which a transfer fitted without t reads as a rise with x). */
-static Solution
-solve_linear (const double *y, const double *w, const double *g, const Equation *eq, guint n_eq, gboolean leak)
-{
-  double x[16];
-  for (guint i = 0; i < n_eq; i++)
-    x[i] = eq[i].period / eq[i].n;
-  Solution s = { 0 };
-  double t = 0;
-  /* Parameters: log Ld, then alpha when free, then t when g is given. */
-  for (int attempt = 0; attempt < 2; attempt++) {
-    gboolean free_alpha = leak && attempt == 0;
-    guint ia = free_alpha ? 1 : 0, it = ia + 1, k = g ? it + 1 : ia + 1;
-    double a[3][3] = { { 0 } }, b[3] = { 0 };
-    for (guint i = 0; i < n_eq; i++) {
-      double z[3] = { 1, 0, 0 };
-      if (free_alpha)
-        z[ia] = x[i];
-      if (g)
-        z[it] = g[i];
-      for (guint r = 0; r < k; r++) {
-        b[r] += w[i] * z[r] * y[i];
-        for (guint c = 0; c < k; c++)
-          a[r][c] += w[i] * z[r] * z[c];
-      }
-    }
-    if (g)
-      a[it][it] += 1;
-    if (!solve_small (a, b, k)) {
-      if (free_alpha)
-        continue;
-      break;
-    }
-    s.log_ld = b[0];
-    s.alpha = free_alpha ? b[ia] : 0;
-    t = g ? b[it] : 0;
-    if (s.alpha >= 0)
-      break;
-    s.alpha = 0;
-  }
-  for (guint i = 0; i < n_eq; i++) {
-    double r = y[i] - (s.log_ld + s.alpha * x[i] + (g ? t * g[i] : 0));
-    s.residual += w[i] * r * r;
-  }
-  return s;
-}
-
-/* How far log G of an equation moves when the blur is off by DS_PROBE_BLUR_UNCERTAINTY_PX
- * (INFINITY when the harmonic then vanishes). */
-static double
-gain_shift (const DsStripeModel *g, const Equation *e, double sigma, double G, guint width)
-{
-  double Gb = model_gain (g, e->period, sigma + DS_PROBE_BLUR_UNCERTAINTY_PX, e->offset, width, e->n);
-  return Gb > 0 && G > 0 ? log (G / Gb) : INFINITY;
-}
-
-/* The leak line at one blur: log A / G has the fit's variance and a 2 % floor for what the model
- * leaves out. With blur_uncertain, the blur's error is a parameter of the fit (solve_linear);
- * without, as in the blur search that moves sigma itself, it is not. */
-static void
-prepare (const DsStripeModel *g, const Equation *eq, guint n_eq, double sigma, guint width,
-         gboolean blur_uncertain, double *y, double *w, double *shift)
-{
-  for (guint i = 0; i < n_eq; i++) {
-    shift[i] = 0;
-    double G = model_gain (g, eq[i].period, sigma, eq[i].offset, width, eq[i].n);
-    double rel = eq[i].sigma / eq[i].amplitude;
-    y[i] = G > 0 ? log (eq[i].amplitude / G) : 0;
-    w[i] = G > 0 ? 1.0 / (rel * rel + 0.02 * 0.02) : 0;
-    if (blur_uncertain) {
-      shift[i] = gain_shift (g, &eq[i], sigma, G, width);
-      if (!isfinite (shift[i]))
-        w[i] = shift[i] = 0;
-    }
-  }
-}
-
-static Solution
-solve_at (const DsStripeModel *g, const Equation *eq, guint n_eq, double sigma, guint width,
-          gboolean two_periods, gboolean blur_uncertain)
-{
-  double y[16] = { 0 }, w[16] = { 0 }, shift[16] = { 0 };
-  prepare (g, eq, n_eq, sigma, width, blur_uncertain, y, w, shift);
-  return solve_linear (y, w, blur_uncertain ? shift : NULL, eq, n_eq, two_periods);
-}
-
-typedef struct {
-  Solution s;
-  double beta, width, shape;
-} NarrowFit;
-
-/* The narrow kernel's term (scene_probe.h): beta and w on a grid, Ld, alpha and the blur's error
- * linear at each. Only kernels whose MTF changes within the x the harmonics span can be told from
- * Ld (all at 1) or from nothing (all at 0): from 0.9 at the finest x to 0.1 at the coarsest; and
- * only kernels narrow against the period (MTF >= 1/2 at P): a wider one is the small-angle
- * line's, whose rise with x the harmonics below P follow (tissue-veins: a kernel term there
- * reads 61 % where the kernel's truth is 47 % and the line 42 %).
- * FALSE when none explains the harmonics DS_PROBE_NARROW_MIN_CHI2 better than the line alone. */
-static gboolean
-fit_narrow (const DsStripeModel *g, const Equation *eq, guint n_eq, double sigma, guint width,
-            double period, const Solution *line, NarrowFit *out)
-{
-  double y[16] = { 0 }, w[16] = { 0 }, shift[16] = { 0 }, x[16], x_min = INFINITY, x_max = 0;
-  prepare (g, eq, n_eq, sigma, width, TRUE, y, w, shift);
-  for (guint i = 0; i < n_eq; i++) {
-    x[i] = eq[i].period / eq[i].n;
-    if (w[i] > 0) {
-      x_min = MIN (x_min, x[i]);
-      x_max = MAX (x_max, x[i]);
-    }
-  }
-  out->s = *line;
-  out->beta = out->width = out->shape = 0;
-  if (!(x_max > x_min * 1.5))
-    return FALSE;
-  double lo = x_min / (6 * G_PI), hi = MIN (3 * x_max, period) / (2 * G_PI);
-  double best = INFINITY;
-  gboolean found = FALSE;
-  static const double shapes[] = { 1, 2 }; /* scene_probe.h: why these */
-  for (guint sh = 0; sh < G_N_ELEMENTS (shapes); sh++)
-    for (double kw = lo; kw <= hi; kw *= 1.06)
-      for (double beta = 0.005; beta <= 20; beta *= 1.08) {
-        double yy[16];
-        for (guint i = 0; i < n_eq; i++)
-          yy[i] = y[i] - log1p (beta * kernel_mtf (kw, shapes[sh], x[i]));
-        Solution so = solve_linear (yy, w, shift, eq, n_eq, TRUE);
-        if (so.residual < best) {
-          best = so.residual;
-          out->s = so;
-          out->beta = beta;
-          out->width = kw;
-          out->shape = shapes[sh];
-        }
-      }
-  found = best < line->residual - DS_PROBE_NARROW_MIN_CHI2;
-  return found;
-}
-
-static guint
-collect (const PairFit *f, double period, const DsStripeModel *g, guint width, Equation *eq, guint n_eq)
-{
-  double offset = f->fit.phase[1];
-  double g1 = model_gain (g, period, 0, offset, width, 1);
-  for (guint n = 1; n <= f->fit.n_harmonics && n_eq < 16; n += 2) {
-    double a = f->fit.amplitude[n];
-    if (period / n < 2.5 || !(a > 4 * f->fit.sigma_amplitude))
-      continue;
-    if (n > 1 && model_gain (g, period, 0, offset, width, n) < 0.03 * g1)
-      continue;
-    eq[n_eq++] = (Equation){ .period = period, .n = n, .amplitude = a, .sigma = f->fit.sigma_amplitude,
-                             .offset = offset };
-  }
-  return n_eq;
-}
-
 /* The spread of Ld from one column to the next, mean_x (Ld(x)^2) / mean_x (Ld(x))^2 over the
  * columns' mean Ld: the column statistics' mean square holds only the spread within each column
  * (an object that spans the rows, a vertical grid line, is not in it: gen-5-00 read 1.30 against
@@ -493,7 +85,7 @@ collect (const PairFit *f, double period, const DsStripeModel *g, guint width, E
  * same ratio for the model's own profile, whose harmonics the fit leaves out (those at or
  * above the Nyquist frequency, aliased), divides out. */
 static double
-spread_across_columns (const PairFit *f, const DsStripeModel *geometry, const DsSceneProbe *out)
+spread_across_columns (const DsProbePairFit *f, const DsStripeModel *geometry, const DsSceneProbe *out)
 {
   DsStripeModel g = *geometry;
   guint w = f->stats.width;
@@ -522,52 +114,13 @@ spread_across_columns (const PairFit *f, const DsStripeModel *geometry, const Ds
   return MAX (1.0, (data / data_fit) / (model_all / model_fit));
 }
 
-/* Counts the places mask_clipped_places () left out back into Ld, its spread and Lg: the
- * predictions are over the whole scene, at exposures where those places no longer clip, and
- * they are its brightest, which weigh most in a relative RMSE. A place's stripes' peak is at
- * least the clip level c and its trough t is measured: with the pattern's lit level 1, its
- * black level b and mean m, c <= D + Ld + m Lg and t = D + b Ld + m Lg, so Ld >= (c - t) / (1 - b)
- * and Lg = (t - D - b Ld) / m: a lower bound on Ld (a brighter place only makes the prediction
- * more cautious), whatever share of it the scattered light is (a narrow kernel's Lg follows the
- * direct light, a wide one's does not). Blur raises the troughs of fine stripes: Ld lower
- * still. */
-static void
-count_clipped_places (DsSceneProbe *out, const ClippedPlaces *c, double black_level, double pattern_mean)
-{
-  if (!(c->fraction > 0) || !(c->fraction < 1) || !(black_level < 1) || !(pattern_mean > 0))
-    return;
-  double ld_c = c->mean_peak_over_trough / (1 - black_level);
-  double ld_c_sq = c->mean_sq_peak_over_trough / ((1 - black_level) * (1 - black_level));
-  double lg_c = MAX (0.0, (c->mean_trough - out->dark_dn - black_level * ld_c) / pattern_mean);
-  double kept = 1 - c->fraction;
-  double mean = kept * out->ld_mean + c->fraction * ld_c;
-  double mean_sq = kept * out->ld_spread * out->ld_mean * out->ld_mean + c->fraction * ld_c_sq;
-  double lg = kept * out->lg_mean + c->fraction * lg_c;
-  /* The scattered stripes were measured on the kept places, as a share of their direct light:
-   * the kernel's transfer times their scattered light over their direct light. Left are the dim
-   * places, where the light scattered in from bright neighbours is a larger share (gen-5-08:
-   * 4.4 times the direct light there, 0.7 over the scene): the same transfer over the whole
-   * scene's share. */
-  double share_kept = out->ld_mean > 0 ? out->lg_mean / out->ld_mean : 0, share = mean > 0 ? lg / mean : 0;
-  if (out->leak_measured && share_kept > 0 && out->leak_per_px > 0) {
-    double p = out->geometry.period_px, leak = expm1 (out->leak_per_px * p) * share / share_kept;
-    out->leak_per_px = log1p (leak) / p;
-    gsize len = strlen (out->leak_note);
-    g_snprintf (out->leak_note + len, sizeof out->leak_note - len,
-                " (%.1f %% over the scene, the places that clip counted in)", 100 * leak);
-  }
-  out->lg_mean = lg;
-  out->ld_mean = mean;
-  out->ld_spread = mean > 0 ? CLAMP (mean_sq / (mean * mean), 1.0, 25.0) : 1.0;
-}
-
 /* Whether a kernel narrower than the periods measured could hide scattered light in Ld (then the
  * prediction is a lower bound), and why. Only a scene that shows scattered light at all (Lg or
  * the leak at P at 1 % of Ld) is suspected: without any, a medium whose every scattered photon
  * stays within a pixel or two is indistinguishable from no medium, and flagging every clear scene
  * would make the flag say nothing. But "none seen" needs a pilot that could have seen 1 %: Lg is
  * the mean less Ld, and Ld is the first harmonic at P over its gain, which the blur's uncertainty
- * (DS_PROBE_BLUR_UNCERTAINTY_PX) and the harmonic's noise move by ld_uncertainty (a share of Ld).
+ * (DS_PROBE_BLUR_UNCERTAINTY_PX) and the harmonic's noise move by ds_probe_ld_uncertainty (a share of Ld).
  * Where that is above 1 % (fine periods, wide blur: 2.5 % at P = 7 px, 0.6 px), Lg under 1 % does
  * not tell a clear scene from one whose medium keeps the stripes at P and 2P (held-out gen-12-05:
  * Lg read 0.8 % of Ld where the truth's is 8.8 %, nine tenths of it in a kernel of about a pixel;
@@ -593,7 +146,7 @@ narrow_verdict (const DsProbeFrames *fr, gboolean finer_used, double ld_uncertai
                   "periods down to %g px: a narrow kernel (%.2f px) holds %.1f %% of Ld and keeps %.1f %% of it "
                   "modulated at %g px",
                   out->finest_period_px, out->narrow_kernel_px, 100 * out->narrow_fraction,
-                  100 * kernel_mtf (out->narrow_kernel_px, out->narrow_shape, P), P);
+                  100 * ds_probe_kernel_mtf (out->narrow_kernel_px, out->narrow_shape, P), P);
     else
       g_snprintf (out->narrow_note, sizeof out->narrow_note,
                   "periods down to %g px: no kernel narrower than the period seen", out->finest_period_px);
@@ -637,111 +190,6 @@ narrow_verdict (const DsProbeFrames *fr, gboolean finer_used, double ld_uncertai
                 P, 100 * out->lg_mean / out->ld_mean, 100 * ld_uncertainty, why);
 }
 
-/* How far Ld, read from the first harmonic at the period P, can be off as a share of it: the
- * harmonic's noise and how far its gain moves for the blur's uncertainty (narrow_verdict ()). 0 when
- * the fit has no first harmonic at P. */
-static double
-ld_uncertainty (const Equation *eq, guint n_eq, const DsStripeModel *g, double sigma, guint width)
-{
-  for (guint i = 0; i < n_eq; i++) {
-    if (eq[i].n != 1 || fabs (eq[i].period - g->period_px) > 1e-9 * g->period_px)
-      continue;
-    double G = model_gain (g, eq[i].period, sigma, eq[i].offset, width, 1);
-    double shift = gain_shift (g, &eq[i], sigma, G, width), rel = eq[i].sigma / eq[i].amplitude;
-    return isfinite (shift) && isfinite (rel) ? sqrt (shift * shift + rel * rel) : 0;
-  }
-  return 0;
-}
-
-/* 1 - T for the bound's kernel, (1 + 2 k^2)^-1/2 (scene_probe.h), without cancellation at small k. */
-static double
-lost_share (double k)
-{
-  return -expm1 (-0.5 * log1p (2 * k * k));
-}
-
-/* What the interval of Ld needs from the harmonics, before the places that clip are counted
- * back (the ratio of the lower end to the fit's Ld carries over to the scene). */
-typedef struct {
-  gboolean computed, unbounded;
-  double ratio;              /* ld_lower / the fit's Ld */
-  double kernel_px;
-  char note[360];
-} DirectInterval;
-
-/* ds_scene_probe_worst_case ()'s lower end of Ld (scene_probe.h: the physics and its limit) from
- * the first harmonics at the finest and the coarsest period the fit used, the fit's Ld and the
- * mean's M = Ld + Lg. */
-static void
-direct_interval (const Equation *eq, guint n_eq, const DsStripeModel *g, double sigma, guint width,
-                 double ld_fit, double total, DirectInterval *out)
-{
-  memset (out, 0, sizeof *out);
-  out->ratio = 1;
-  const Equation *f = NULL, *c = NULL;
-  for (guint i = 0; i < n_eq; i++) {
-    if (eq[i].n != 1)
-      continue;
-    if (!f || eq[i].period < f->period)
-      f = &eq[i];
-    if (!c || eq[i].period > c->period)
-      c = &eq[i];
-  }
-  if (!f || !c || !(c->period > 1.01 * f->period) || !(ld_fit > 0) || !(total > 0))
-    return;
-  double gf = model_gain (g, f->period, sigma, f->offset, width, 1), gc = model_gain (g, c->period, sigma, c->offset, width, 1);
-  if (!(gf > 0 && gc > 0))
-    return;
-  out->computed = TRUE;
-  double af = f->amplitude / gf, ac = c->amplitude / gc, sf = f->sigma / gf, sc = c->sigma / gc;
-  double noise = sqrt (sf * sf + sc * sc + DS_PROBE_PAIR_SCATTER * af * DS_PROBE_PAIR_SCATTER * af);
-  double drop = ac - af, lost_f = total - af, lost_c = total - ac, rho = f->period / c->period;
-  if (!(drop > 3 * noise)) {
-    g_snprintf (out->note, sizeof out->note,
-                "the modulation falls by %.1f %% from %g px to %g px, within the noise (%.1f %%): no kernel at the edge "
-                "of what the pilot resolves; one narrower than every period would not show at all (the method's limit)",
-                100 * drop / af, c->period, f->period, 300 * noise / af);
-    return;
-  }
-  if (!(lost_c > 3 * noise) || !(lost_c / lost_f > rho * rho)) {
-    out->unbounded = TRUE;
-    g_snprintf (out->note, sizeof out->note,
-                "the modulation falls by %.1f %% from %g px to %g px while the mean holds only %.1f %% more light than "
-                "the modulation at %g px: scattered light narrower than any kernel with a 1/k tail keeps the stripes, "
-                "and the direct light could be any part of the %.0f DN modulated at %g px",
-                100 * drop / af, c->period, f->period, 100 * lost_c / af, c->period, af, f->period);
-    return;
-  }
-  double r = lost_c / lost_f, lo = 1e-4, hi = 1e4;
-  if (r >= 1)
-    return;
-  /* lost_share (k rho) / lost_share (k) rises from rho^2 (k -> 0) to 1 (k -> infinity). */
-  for (int i = 0; i < 100; i++) {
-    double k = sqrt (lo * hi);
-    if (lost_share (k * rho) / lost_share (k) < r)
-      lo = k;
-    else
-      hi = k;
-  }
-  double k = sqrt (lo * hi), scattered = lost_f / lost_share (k), ld = total - scattered;
-  out->kernel_px = k * f->period / (2 * G_PI);
-  if (!(ld > 0)) {
-    out->unbounded = TRUE;
-    g_snprintf (out->note, sizeof out->note,
-                "the modulation falls by %.1f %% from %g px to %g px: one kernel of %.2f px with a 1/k tail would hold all "
-                "the light the mean shows, so the direct light could be any part of the %.0f DN modulated at %g px",
-                100 * drop / af, c->period, f->period, out->kernel_px, af, f->period);
-    return;
-  }
-  out->ratio = MIN (1.0, ld / ld_fit);
-  g_snprintf (out->note, sizeof out->note,
-              "the modulation falls by %.1f %% from %g px to %g px: if all the scattered light shares one kernel with a 1/k "
-              "tail (%.2f px), it keeps %.0f %% of its stripes at %g px and Ld is %.0f %% of the fit's; a second kernel "
-              "narrower than every period would not show (the method's limit)",
-              100 * drop / af, c->period, f->period, out->kernel_px, 100 * (1 - lost_share (k)), f->period,
-              100 * out->ratio);
-}
-
 gboolean
 ds_scene_probe_worst_case (const DsSceneProbe *p, DsSceneProbe *worst)
 {
@@ -759,39 +207,6 @@ ds_scene_probe_worst_case (const DsSceneProbe *p, DsSceneProbe *worst)
   worst->narrow_shape = 0.5;
   worst->leak_max = worst->lg_mean / worst->ld_mean; /* its kernel's MTF <= 1 keeps it there anyway */
   return TRUE;
-}
-
-/* The 1 - p quantile of chi^2 with k degrees of freedom (Wilson and Hilferty's cube-root normal
- * approximation; within 3 % of the table at 99.9 % for k >= 1), z the normal quantile. */
-static double
-chi2_quantile (double k, double z)
-{
-  double c = 2 / (9 * k), t = 1 - c + z * sqrt (c);
-  return k * t * t * t;
-}
-
-/* Whether the fit's weighted squared residuals (chi^2: each harmonic's noise and the fit's 2 % floor
- * for what the model leaves out) are beyond the 99.9 % quantile for n_eq equations and n_par
- * parameters (the blur's error has its own prior). held-out gen-11-02: 76 % of the scene's places
- * clip and the rest is an opaque disc's shadow and a grid, and the first harmonics at 5.25, 10.5
- * and 21 px read Ld 6036, 4607 and 3901 DN with 4 % noise each (chi^2 35 for one degree of
- * freedom): the probe kept no leak and Ld 22 % high, the predictions x3.6 and x2.2 low, unflagged.
- * A model that cannot fit its own data measures nothing: a lower bound, saying why. */
-static void
-fit_consistency (double chi2, guint n_eq, guint n_par, DsSceneProbe *out)
-{
-  out->fit_inconsistent = FALSE;
-  if (n_eq <= n_par || !(chi2 >= 0))
-    return;
-  double dof = n_eq - n_par, limit = chi2_quantile (dof, DS_PROBE_FIT_Z);
-  if (!(chi2 > limit))
-    return;
-  out->fit_inconsistent = TRUE;
-  g_snprintf (out->fit_note, sizeof out->fit_note,
-              "the stripes' harmonics at the pilot's periods disagree with every transfer the probe models "
-              "(chi^2 %.1f for %u equations, at most %.1f from their noise): Ld and the scattered stripes are not "
-              "measured, so the prediction is a lower bound",
-              chi2, n_eq, limit);
 }
 
 /* The shot noise of the dark frame's own signal, DN^2: ambient light and dark current reach the
@@ -851,8 +266,8 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
   const DsImage *lit[4] = { l0, l1, fr->coarse[0], fr->coarse[1] };
   guint n_lit = fr->coarse[0] ? 4 : 2;
   DsImage *masked[4] = { NULL };
-  ClippedPlaces places;
-  mask_clipped_places (lit, n_lit, ceiling, fr->geometry.period_px, masked, &places);
+  DsProbeClippedPlaces places;
+  ds_probe_mask_clipped_places (lit, n_lit, ceiling, fr->geometry.period_px, masked, &places);
   g_autoptr (DsImage) m0 = masked[0];
   g_autoptr (DsImage) m1 = masked[1];
   g_autoptr (DsImage) m2 = masked[2];
@@ -860,7 +275,7 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
   const DsImage *stat[4];
   for (guint i = 0; i < 4; i++)
     stat[i] = masked[i] ? masked[i] : lit[i];
-  PairFit fine = { 0 }, coarse = { 0 }, finer[DS_PROBE_FINER_MAX];
+  DsProbePairFit fine = { 0 }, coarse = { 0 }, finer[DS_PROBE_FINER_MAX];
   memset (finer, 0, sizeof finer);
   /* On the scene's envelope for sine stripes only. Square ones of duty 1/2 sum flat too, but with
    * the envelope the daemon's uncalibrated milk-disc (an opaque disc under a wide scattered
@@ -868,15 +283,16 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
    * the drop of its modulation between periods as a kernel (tests/daemon/test_ctl.py's automatic
    * capture refused); not traced. */
   double envelope_dn = fr->geometry.kind == DS_PATTERN_SINE ? out->dark_dn : -1;
-  gboolean ok = fit_pair (l0, l1, stat[0], stat[1], ceiling, fr->geometry.period_px, envelope_dn, &fine, error);
+  gboolean ok =
+    ds_probe_pair_fit (l0, l1, stat[0], stat[1], ceiling, fr->geometry.period_px, envelope_dn, &fine, error);
   if (ok && fr->coarse[0])
-    ok = fit_pair (fr->coarse[0], fr->coarse[1], stat[2], stat[3], ceiling, 2 * fr->geometry.period_px,
-                   envelope_dn, &coarse, error);
+    ok = ds_probe_pair_fit (fr->coarse[0], fr->coarse[1], stat[2], stat[3], ceiling, 2 * fr->geometry.period_px,
+                            envelope_dn, &coarse, error);
   /* The finer pairs are not masked: a place that clips there clips at P too, and is left out of
    * the column statistics at the clip level all the same. */
   for (guint i = 0; ok && i < fr->n_finer; i++)
-    ok = fit_pair (fr->finer[i].frame[0], fr->finer[i].frame[1], fr->finer[i].frame[0], fr->finer[i].frame[1], ceiling,
-                   fr->finer[i].period_px, envelope_dn, &finer[i], error);
+    ok = ds_probe_pair_fit (fr->finer[i].frame[0], fr->finer[i].frame[1], fr->finer[i].frame[0], fr->finer[i].frame[1],
+                            ceiling, fr->finer[i].period_px, envelope_dn, &finer[i], error);
   if (!ok) {
     g_prefix_error (error, "pilot frames: ");
     ds_column_stats_clear (&fine.stats);
@@ -918,12 +334,12 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
   out->noise_dark_shot = dark_shot_noise (fr->dark, out->dark_dn, out->noise_var0, out->noise_gain);
 
   /* Harmonics -> blur, Ld, alpha. */
-  Equation eq[16];
-  guint n_eq = collect (&fine, fr->geometry.period_px, &fr->geometry, l0->width, eq, 0);
+  DsProbeEquation eq[DS_PROBE_MAX_EQUATIONS];
+  guint n_eq = ds_probe_collect_equations (&fine.fit, fr->geometry.period_px, &fr->geometry, l0->width, eq, 0);
   gboolean two = coarse.ok;
   if (two) {
     guint before = n_eq;
-    n_eq = collect (&coarse, 2 * fr->geometry.period_px, &fr->geometry, l0->width, eq, n_eq);
+    n_eq = ds_probe_collect_equations (&coarse.fit, 2 * fr->geometry.period_px, &fr->geometry, l0->width, eq, n_eq);
     if (n_eq == before)
       two = FALSE;
   }
@@ -950,7 +366,7 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
   } else if (n_eq >= (two ? 3u : 2u)) {
     double best = INFINITY, hi = MIN (fr->geometry.period_px / 2, 4.0);
     for (double s = 0; s <= hi + 1e-9; s += 0.025) {
-      Solution so = solve_at (&fr->geometry, eq, n_eq, s, l0->width, two, FALSE);
+      DsProbeSolution so = ds_probe_solve_at (&fr->geometry, eq, n_eq, s, l0->width, two, FALSE);
       if (so.residual < best) {
         best = so.residual;
         sigma = s;
@@ -971,14 +387,14 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
     if (q < ds_scene_probe_finest_period (sigma) - 1e-9)
       continue;
     guint had = n_eq;
-    n_eq = collect (&finer[i], q, &fr->geometry, l0->width, eq, n_eq);
+    n_eq = ds_probe_collect_equations (&finer[i].fit, q, &fr->geometry, l0->width, eq, n_eq);
     for (guint k = had; k < n_eq; k++)
       if (eq[k].n == 1)
         out->finest_period_px = MIN (out->finest_period_px, q);
   }
   gboolean finer_used = n_eq > before_finer;
   two = two || finer_used;
-  Equation eq_all[16];
+  DsProbeEquation eq_all[DS_PROBE_MAX_EQUATIONS];
   guint n_all = 0;
   /* Then Ld and alpha. The transfer's logarithm is linear in x = Q / n only while x is small
    * against the distance over which forward-scattered light spreads (beyond, it saturates at the
@@ -992,9 +408,9 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
     guint near = 0;
     double x_min = INFINITY, x_max = 0;
     for (guint i = 0; i < n_eq; i++) {
-      double G = model_gain (&fr->geometry, eq[i].period, sigma, eq[i].offset, l0->width, eq[i].n);
+      double G = ds_probe_model_gain (&fr->geometry, eq[i].period, sigma, eq[i].offset, l0->width, eq[i].n);
       gboolean known = eq[i].sigma < 0.05 * eq[i].amplitude &&
-                       fabs (gain_shift (&fr->geometry, &eq[i], sigma, G, l0->width)) < 0.05;
+                       fabs (ds_probe_gain_shift (&fr->geometry, &eq[i], sigma, G, l0->width)) < 0.05;
       if (known && eq[i].period / eq[i].n <= fr->geometry.period_px * 1.001) {
         x_min = MIN (x_min, eq[i].period / eq[i].n);
         x_max = MAX (x_max, eq[i].period / eq[i].n);
@@ -1015,14 +431,15 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
     }
   }
   out->equations = n_eq;
-  Solution so = solve_at (&fr->geometry, eq, n_eq, sigma, l0->width, two, TRUE);
+  DsProbeSolution so = ds_probe_solve_at (&fr->geometry, eq, n_eq, sigma, l0->width, two, TRUE);
   /* The narrow kernel shows as a transfer that rises from the finer periods to P and stops: the
    * line through x <= P alone cannot tell it from the small-angle rise, the coarse period
    * (where the line would go on rising) can. So line and narrow term are compared over all
    * the harmonics; the narrow term, when it wins, is the fit. */
-  NarrowFit narrow = { { 0 }, 0, 0, 0 };
-  Solution line_all = solve_at (&fr->geometry, eq_all, n_all, sigma, l0->width, two, TRUE);
-  gboolean narrow_won = finer_used && fit_narrow (&fr->geometry, eq_all, n_all, sigma, l0->width, fr->geometry.period_px, &line_all, &narrow);
+  DsProbeNarrowFit narrow = { { 0 }, 0, 0, 0 };
+  DsProbeSolution line_all = ds_probe_solve_at (&fr->geometry, eq_all, n_all, sigma, l0->width, two, TRUE);
+  gboolean narrow_won = finer_used && ds_probe_fit_narrow (&fr->geometry, eq_all, n_all, sigma, l0->width,
+                                                           fr->geometry.period_px, &line_all, &narrow);
   /* Two checks against a kernel made up from the harmonics' scatter (development seeds 1 and 5:
    * 7.7 of Ld read on a sine scene whose four first harmonics the five parameters fit exactly,
    * 15-18 % on scenes with about no scattered light). The scene must show scattered light in its
@@ -1046,10 +463,11 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
     narrow_won = FALSE;
   if (narrow_won) {
     double x = out->finest_period_px;
-    double at_finest = exp (narrow.s.alpha * x) * (1 + narrow.beta * kernel_mtf (narrow.width, narrow.shape, x)) - 1;
+    double at_finest =
+      exp (narrow.s.alpha * x) * (1 + narrow.beta * ds_probe_kernel_mtf (narrow.width, narrow.shape, x)) - 1;
     if (at_finest > DS_PROBE_NARROW_MAX_AT_FINEST)
       narrow_won = FALSE, beyond = TRUE;
-    else if (kernel_mtf (narrow.width, narrow.shape, x) > DS_PROBE_NARROW_MAX_OWN_AT_FINEST)
+    else if (ds_probe_kernel_mtf (narrow.width, narrow.shape, x) > DS_PROBE_NARROW_MAX_OWN_AT_FINEST)
       narrow_won = FALSE;
   }
   out->narrow_beyond = beyond;
@@ -1065,7 +483,7 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
 
   out->leak_measured = two;
   out->fit_rms = n_eq > (two ? 2u : 1u) ? sqrt (so.residual / n_eq) : 0;
-  fit_consistency (so.residual, narrow_won ? n_all : n_eq, 1 + (two ? 1 : 0) + (narrow_won ? 2 : 0), out);
+  ds_probe_fit_consistency (so.residual, narrow_won ? n_all : n_eq, 1 + (two ? 1 : 0) + (narrow_won ? 2 : 0), out);
   if (two)
     g_snprintf (out->leak_note, sizeof out->leak_note,
                 "measured at periods %g and %g px: scattered light keeps %.1f %% of the stripes' "
@@ -1099,10 +517,10 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
   }
   out->ld_spread = den > 0 && num > den ? MIN (num / den, 25.0) : 1.0;
   out->ld_spread = MIN (out->ld_spread * spread_across_columns (&fine, &out->geometry, out), 25.0);
-  DirectInterval interval;
-  direct_interval (eq_all, n_all, &out->geometry, sigma, l0->width, out->ld_mean, out->ld_mean + out->lg_mean,
-                   &interval);
-  count_clipped_places (out, &places, fr->geometry.black_level, m);
+  DsProbeDirectInterval interval;
+  ds_probe_direct_interval (eq_all, n_all, &out->geometry, sigma, l0->width, out->ld_mean, out->ld_mean + out->lg_mean,
+                            &interval);
+  ds_probe_count_clipped_places (out, &places, fr->geometry.black_level, m);
   /* The leak the harmonics read can exceed the scattered light the mean shows (gen-7-08: 1.7 % of
    * Ld at P read, Lg 0.6 % of it, the truth's 0: the prediction x1.8 too high): the harmonics' scatter
    * and the blur's uncertainty put a few % on a transfer, the mean knows the light to 0.1 %. */
@@ -1117,7 +535,7 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
       g_snprintf (out->leak_note + len, sizeof out->leak_note - len,
                   ", held to the scattered light the mean shows (%.1f %% of Ld)", 100 * out->leak_max);
   }
-  narrow_verdict (fr, finer_used, ld_uncertainty (eq_all, n_all, &fr->geometry, sigma, l0->width), out);
+  narrow_verdict (fr, finer_used, ds_probe_ld_uncertainty (eq_all, n_all, &fr->geometry, sigma, l0->width), out);
   if (out->narrow_unresolved && two && interval.computed) {
     out->ld_interval = TRUE;
     out->ld_unbounded = interval.unbounded;

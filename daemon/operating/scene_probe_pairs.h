@@ -1,0 +1,41 @@
+/* The scene probe's pilot pairs (scene_probe.h): the column statistics and stripe harmonics of
+ * one pair of opposite phases, and the places whose stripes' peaks clip, left out of those
+ * statistics and counted back into the probe's Ld, its spread and Lg from their troughs.
+ * Internal to the scene probe: scene_probe.c is the only user. Pure functions, any thread;
+ * CPU only (passes over the pilot frames). */
+#pragma once
+#include <glib.h>
+
+#include "daemon/operating/scene_probe.h"
+#include "daemon/operating/stripe_model.h"
+#include "proc/column_stats.h"
+#include "proc/image.h"
+
+typedef struct {
+  DsColumnStats stats;
+  DsStripeHarmonics fit;
+  guint64 clipped;           /* pixels at the clip level in either frame */
+  gboolean ok;
+} DsProbePairFit;
+
+/* The places whose stripes' peaks reach the clip level in the pilot frames, and what their
+ * troughs say about their light. */
+typedef struct {
+  double fraction;           /* of the samples */
+  double mean_peak_over_trough, mean_sq_peak_over_trough, mean_trough;   /* DN, over those samples */
+} DsProbeClippedPlaces;
+
+/* Fills out, which the caller zeroes first and clears with ds_column_stats_clear (&out->stats)
+ * whether or not this succeeds (the statistics may be allocated before the harmonics' fit fails);
+ * FALSE with DS_PROTOCOL_ERROR_DEVICE when most pixels clip, or the statistics' or the fit's error. */
+gboolean ds_probe_pair_fit (const DsImage *a, const DsImage *b, const DsImage *stat_a, const DsImage *stat_b,
+                            double ceiling, double period, double envelope_dn, DsProbePairFit *out, GError **error);
+
+/* masked[i]: a new F32 copy of lit[i] with the places that clip set to NAN, or NULL when none do
+ * (the caller owns the copies). */
+void ds_probe_mask_clipped_places (const DsImage *const *lit, guint n_lit, double ceiling, double period_px,
+                                   DsImage **masked, DsProbeClippedPlaces *places);
+
+/* Updates out's ld_mean, ld_spread, lg_mean (and the leak and its note) for the places left out. */
+void ds_probe_count_clipped_places (DsSceneProbe *out, const DsProbeClippedPlaces *c, double black_level,
+                                    double pattern_mean);
