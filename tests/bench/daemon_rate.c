@@ -258,23 +258,30 @@ check_data_dir (DsClient *c)
 /* Frames folded per second in continuous mode, from the daemon's own counters, and the
  * camera's transport failures meanwhile (same meaning as the ceiling's). */
 static RateSample
-daemon_rate (DsClient *c, double seconds, gboolean print_stages)
+daemon_rate (DsClient *c, GPid pid, double seconds, gboolean print_stages)
 {
   g_autoptr (DsMessage) started = test_daemon_call_ok (c, "start", NULL);
   g_usleep (300000);
   gint64 t0, t1;
   g_autoptr (DsMessage) s0 = at_set_end (c, &t0);
+  g_autoptr (ThreadCpu) daemon0 = thread_cpu_read (pid);
+  g_autoptr (ThreadCpu) rig0 = thread_cpu_read (0);
   guint64 drops0 = rate_udp_rcvbuf_errors ();
   gint64 f0 = test_json_int (s0->reply->body, "frames.folded");
   g_usleep ((gulong) (seconds * 1e6));
   g_autoptr (DsMessage) s1 = at_set_end (c, &t1);
+  g_autoptr (ThreadCpu) daemon1 = thread_cpu_read (pid);
+  g_autoptr (ThreadCpu) rig1 = thread_cpu_read (0);
   gint64 f1 = test_json_int (s1->reply->body, "frames.folded");
   g_autoptr (DsMessage) stopped = test_daemon_call_ok (c, "stop", NULL);
   RateSample r = { .fps = (f1 - f0) / ((t1 - t0) / 1e6),
                    .incomplete = (guint) (camera_stat (s1, "failures") - camera_stat (s0, "failures")),
                    .lost = (guint) (camera_stat (s1, "timeouts") - camera_stat (s0, "timeouts")),
                    .reconnects = (guint) (camera_stat (s1, "reconnects") - camera_stat (s0, "reconnects")),
-                   .rcvbuf_drops = rate_udp_rcvbuf_errors () - drops0 };
+                   .rcvbuf_drops = rate_udp_rcvbuf_errors () - drops0,
+                   .frames = (guint64) (f1 - f0) };
+  thread_cpu_add_delta (&r.cpu, daemon0, daemon1);
+  thread_cpu_add_delta (&r.rig_cpu, rig0, rig1);
   gint64 acquired = test_json_int (s1->reply->body, "frames.acquired");
   gint64 dropped = test_json_int (s1->reply->body, "frames.dropped");
   /* A set may fail on a starved machine (the camera's heartbeat answered too late: control
@@ -339,13 +346,44 @@ typedef struct {
   guint n_clean;
 } CeilingRounds;
 
+/* CPU per frame over every slice of one side (a ceiling, or the daemon) in all rounds. */
+typedef struct {
+  ThreadCpuTotals own;     /* the loop's or the daemon's threads */
+  ThreadCpuTotals rig;     /* the benchmark's: fake camera, Modbus controller */
+  guint64 frames;
+} SideCpu;
+
 typedef struct {
   gboolean want[N_CEILINGS];
   double goal[N_CEILINGS]; /* 0: no goal */
   CeilingRounds c[N_CEILINGS];
   double daemon_fps[MAX_ROUNDS];
   guint n;
+  SideCpu cpu[N_CEILINGS], daemon_cpu;
 } Rounds;
+
+static void
+side_cpu_add (SideCpu *side, const RateSample *s)
+{
+  thread_cpu_totals_merge (&side->own, &s->cpu);
+  thread_cpu_totals_merge (&side->rig, &s->rig_cpu);
+  side->frames += s->frames;
+}
+
+/* Where the CPU goes per frame: on a 2-core machine whatever the daemon's threads use beyond the
+ * ceiling loop's comes out of the fake camera's core (it runs one priority below them). These
+ * figures hold on a busy machine too (a thread's CPU per frame moves little with the load),
+ * where the rates do not. */
+static void
+side_cpu_print (const SideCpu *side, const char *what)
+{
+  if (!side->frames)
+    return;
+  g_autofree char *own = thread_cpu_totals_format (&side->own, (double) side->frames);
+  g_autofree char *rig = thread_cpu_totals_format (&side->rig, (double) side->frames);
+  printf ("    CPU per frame (ms, %" G_GUINT64_FORMAT " frames), %s: %s\n", side->frames, what, own);
+  printf ("      the rig's threads meanwhile: %s\n", rig);
+}
 
 static gboolean
 has_loss (const RateSample *s)
@@ -365,6 +403,7 @@ rounds_add (Rounds *rs, RateSample c[N_CEILINGS][MAX_SLICES + 1], const RateSamp
   for (guint j = 0; j < n; j++) {
     dsum += d[j].fps;
     dloss = dloss || has_loss (&d[j]);
+    side_cpu_add (&rs->daemon_cpu, &d[j]);
     printf ("    round %u, slice %u: daemon %.1f frames/s (incomplete/lost/reconnects %u/%u/%u; UDP "
             "receive-buffer drops %" G_GUINT64_FORMAT ")", i + 1, j + 1, d[j].fps, d[j].incomplete,
             d[j].lost, d[j].reconnects, d[j].rcvbuf_drops);
@@ -383,6 +422,7 @@ rounds_add (Rounds *rs, RateSample c[N_CEILINGS][MAX_SLICES + 1], const RateSamp
     printf ("      ceiling, %s:", ceiling_name[k]);
     for (guint j = 0; j <= n; j++) {
       csum += c[k][j].fps;
+      side_cpu_add (&rs->cpu[k], &c[k][j]);
       lo = MIN (lo, c[k][j].fps);
       hi = MAX (hi, c[k][j].fps);
       closs = closs || has_loss (&c[k][j]);
@@ -424,6 +464,12 @@ rounds_print (Rounds *rs, const char *what)
     printf ("      drift of this ceiling within a round (fastest/slowest slice): %s\n",
             spread (cr->drift, rs->n));
   }
+  side_cpu_print (&rs->daemon_cpu, "descatterd's threads, per frame folded");
+  for (guint k = 0; k < N_CEILINGS; k++)
+    if (rs->want[k]) {
+      g_autofree char *side = g_strdup_printf ("ceiling loop (%s), per frame grabbed", ceiling_name[k]);
+      side_cpu_print (&rs->cpu[k], side);
+    }
 }
 
 /* The lowest ratio of any round (the goal holds "in every round" when this meets it). */
@@ -535,7 +581,7 @@ measure_round (FakeRig *rig, guint w, guint h, double seconds, guint slices, Rou
     if (!ok || j == slices)
       break;
     control (cl, "acquire");
-    d[j] = daemon_rate (cl, slice_s, j + 1 == slices);
+    d[j] = daemon_rate (cl, (GPid) atoi (g_subprocess_get_identifier (td->proc)), slice_s, j + 1 == slices);
   }
   g_clear_pointer (&cl, ds_client_free);
   test_daemon_stop (td);

@@ -4,6 +4,7 @@
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "daemon/service/capture_settings.h"
 #include "daemon/service/config.h"
@@ -39,9 +40,15 @@ run_here (const char *conf_text, double seconds, gboolean with_phase, RateSample
   guint64 frames = 0, k = 0;
   gint64 t0 = 0, end = 0;
   gboolean ok = TRUE;
+  /* The CPU of this loop's threads and of the rig's (the parent: the benchmark, whose threads
+   * are the fake camera and the Modbus controller) over the measured interval. */
+  g_autoptr (ThreadCpu) self0 = NULL;
+  g_autoptr (ThreadCpu) rig0 = NULL;
   /* The first frames warm up (socket buffers, page faults of the stream buffers). */
   for (guint i = 0; ok; i++) {
     if (i == 3) {
+      self0 = thread_cpu_read (0);
+      rig0 = thread_cpu_read (getppid ());
       t0 = g_get_monotonic_time ();
       end = t0 + (gint64) (seconds * 1e6);
       frames = 0;
@@ -84,6 +91,11 @@ run_here (const char *conf_text, double seconds, gboolean with_phase, RateSample
     }
   }
   out->fps = frames / ((g_get_monotonic_time () - t0) / 1e6);
+  out->frames = frames;
+  g_autoptr (ThreadCpu) self1 = thread_cpu_read (0);
+  g_autoptr (ThreadCpu) rig1 = thread_cpu_read (getppid ());
+  thread_cpu_add_delta (&out->cpu, self0, self1);
+  thread_cpu_add_delta (&out->rig_cpu, rig0, rig1);
   cam->ops->stop (cam->backend);
   return ok;
 }
@@ -117,7 +129,10 @@ rate_ceiling_main (int argc, char **argv)
   RateSample r;
   if (!run_here (argv[2], g_ascii_strtod (argv[3], NULL), strcmp (argv[4], "1") == 0, &r))
     return 1;
-  printf ("%.3f %u %u %u\n", r.fps, r.incomplete, r.lost, r.reconnects);
+  g_autofree char *cpu = thread_cpu_totals_serialize (&r.cpu, "cpu");
+  g_autofree char *rig_cpu = thread_cpu_totals_serialize (&r.rig_cpu, "rig");
+  printf ("%.3f %u %u %u %" G_GUINT64_FORMAT "\n%s%s", r.fps, r.incomplete, r.lost, r.reconnects, r.frames,
+          cpu, rig_cpu);
   return 0;
 }
 
@@ -138,11 +153,14 @@ rate_ceiling_measure (const char *self_path, const char *conf_text, double secon
     return FALSE;
   }
   memset (out, 0, sizeof *out);
-  if (sscanf (text, "%lf %u %u %u", &out->fps, &out->incomplete, &out->lost, &out->reconnects) != 4 ||
+  if (sscanf (text, "%lf %u %u %u %" G_GUINT64_FORMAT, &out->fps, &out->incomplete, &out->lost,
+              &out->reconnects, &out->frames) != 5 ||
       !isfinite (out->fps)) {
     fprintf (stderr, "ceiling: unexpected answer \"%s\"\n", text);
     return FALSE;
   }
   out->rcvbuf_drops = rate_udp_rcvbuf_errors () - drops0;
+  thread_cpu_totals_parse (&out->cpu, text, "cpu");
+  thread_cpu_totals_parse (&out->rig_cpu, text, "rig");
   return TRUE;
 }

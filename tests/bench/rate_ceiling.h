@@ -9,6 +9,8 @@
 #pragma once
 #include <glib.h>
 
+#include "thread_cpu.h"
+
 G_BEGIN_DECLS
 
 typedef struct {
@@ -18,6 +20,11 @@ typedef struct {
   guint reconnects;    /* control of the camera lost and taken again */
   guint64 rcvbuf_drops; /* UDP datagrams the kernel dropped meanwhile because a receive buffer
                          * was full (this network namespace: the rig's GVSP packets) */
+  /* Where the CPU went over the measured interval (thread_cpu.h), and the frames it was
+   * divided among: the frames the loop grabbed complete, or the daemon folded. */
+  guint64 frames;
+  ThreadCpuTotals cpu;     /* the loop's (or the daemon's) own threads */
+  ThreadCpuTotals rig_cpu; /* the rig's: the benchmark process (fake camera, Modbus controller) */
 } RateSample;
 
 /* The network namespace's count of UDP datagrams dropped for a full receive buffer
