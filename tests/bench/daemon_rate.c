@@ -381,7 +381,7 @@ side_cpu_print (const SideCpu *side, const char *what)
     return;
   g_autofree char *own = thread_cpu_totals_format (&side->own, (double) side->frames);
   g_autofree char *rig = thread_cpu_totals_format (&side->rig, (double) side->frames);
-  printf ("    CPU per frame (ms, %" G_GUINT64_FORMAT " frames), %s: %s\n", side->frames, what, own);
+  printf ("    CPU per frame (ms/runs on a CPU, %" G_GUINT64_FORMAT " frames), %s: %s\n", side->frames, what, own);
   printf ("      the rig's threads meanwhile: %s\n", rig);
 }
 

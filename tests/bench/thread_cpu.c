@@ -7,7 +7,7 @@
 typedef struct {
   long tid;
   char name[16];
-  double ns;
+  double ns, runs;
 } Entry;
 
 struct ThreadCpu {
@@ -25,7 +25,10 @@ read_thread (const char *dir, const char *tid, Entry *e)
     return FALSE;
   /* schedstat: time on a CPU (ns), time waiting for one (ns), time slices run. */
   e->tid = atol (tid);
-  e->ns = g_ascii_strtod (sched, NULL);
+  char *end = NULL;
+  e->ns = g_ascii_strtod (sched, &end);
+  g_ascii_strtod (end, &end);
+  e->runs = g_ascii_strtod (end, NULL);
   g_strchomp (comm);
   g_strlcpy (e->name, comm, sizeof e->name);
   return TRUE;
@@ -59,17 +62,19 @@ thread_cpu_free (ThreadCpu *snap)
 }
 
 void
-thread_cpu_totals_add (ThreadCpuTotals *acc, const char *name, double ns)
+thread_cpu_totals_add (ThreadCpuTotals *acc, const char *name, double ns, double runs)
 {
   for (guint i = 0; i < acc->n; i++)
     if (strcmp (acc->g[i].name, name) == 0) {
       acc->g[i].ns += ns;
+      acc->g[i].runs += runs;
       return;
     }
   if (acc->n == THREAD_CPU_MAX_GROUPS)
     return;
   g_strlcpy (acc->g[acc->n].name, name, sizeof acc->g[acc->n].name);
-  acc->g[acc->n++].ns = ns;
+  acc->g[acc->n].ns = ns;
+  acc->g[acc->n++].runs = runs;
 }
 
 void
@@ -79,15 +84,16 @@ thread_cpu_add_delta (ThreadCpuTotals *acc, const ThreadCpu *before, const Threa
     return;
   for (guint i = 0; i < after->threads->len; i++) {
     const Entry *a = &g_array_index (after->threads, Entry, i);
-    double start = 0;
+    double start = 0, start_runs = 0;
     for (guint j = 0; j < before->threads->len; j++) {
       const Entry *b = &g_array_index (before->threads, Entry, j);
       if (b->tid == a->tid) {
         start = b->ns;
+        start_runs = b->runs;
         break;
       }
     }
-    thread_cpu_totals_add (acc, a->name, MAX (a->ns - start, 0.0));
+    thread_cpu_totals_add (acc, a->name, MAX (a->ns - start, 0.0), MAX (a->runs - start_runs, 0.0));
   }
 }
 
@@ -95,7 +101,7 @@ void
 thread_cpu_totals_merge (ThreadCpuTotals *acc, const ThreadCpuTotals *more)
 {
   for (guint i = 0; i < more->n; i++)
-    thread_cpu_totals_add (acc, more->g[i].name, more->g[i].ns);
+    thread_cpu_totals_add (acc, more->g[i].name, more->g[i].ns, more->g[i].runs);
 }
 
 double
@@ -124,7 +130,8 @@ thread_cpu_totals_format (const ThreadCpuTotals *t, double units)
     double ms = sorted.g[i].ns / 1e6 / units;
     if (ms < 0.005)
       continue;
-    g_string_append_printf (s, "%s%s %.3f", s->len ? ", " : "", sorted.g[i].name, ms);
+    g_string_append_printf (s, "%s%s %.3f/%.1f", s->len ? ", " : "", sorted.g[i].name, ms,
+                            sorted.g[i].runs / units);
   }
   g_string_append_printf (s, "%s(total %.3f)", s->len ? " " : "", thread_cpu_totals_sum (t) / 1e6 / units);
   return g_string_free (s, FALSE);
@@ -136,7 +143,7 @@ thread_cpu_totals_serialize (const ThreadCpuTotals *t, const char *tag)
   GString *s = g_string_new (NULL);
   for (guint i = 0; i < t->n; i++) {
     /* Thread names may hold spaces: the number comes first. */
-    g_string_append_printf (s, "%s %.0f %s\n", tag, t->g[i].ns, t->g[i].name);
+    g_string_append_printf (s, "%s %.0f %.0f %s\n", tag, t->g[i].ns, t->g[i].runs, t->g[i].name);
   }
   return g_string_free (s, FALSE);
 }
@@ -150,10 +157,13 @@ thread_cpu_totals_parse (ThreadCpuTotals *t, const char *text, const char *tag)
     if (strncmp (lines[i], tag, tl) != 0 || lines[i][tl] != ' ')
       continue;
     const char *num = lines[i] + tl + 1;
-    char *end = NULL;
+    char *end = NULL, *end2 = NULL;
     double ns = g_ascii_strtod (num, &end);
     if (end == num || *end != ' ' || !(ns >= 0))
       continue;
-    thread_cpu_totals_add (t, end + 1, ns);
+    double runs = g_ascii_strtod (end + 1, &end2);
+    if (end2 == end + 1 || *end2 != ' ' || !(runs >= 0))
+      continue;
+    thread_cpu_totals_add (t, end2 + 1, ns, runs);
   }
 }
