@@ -29,7 +29,8 @@ typedef enum {
   DS_SEQUENCER_EVENT_READY = 0,   /* devices open (error set if opening failed: the thread ends) */
   DS_SEQUENCER_EVENT_RESULT,      /* a set finished: result set; tag of the capture or 0 */
   DS_SEQUENCER_EVENT_FAILED,      /* a set failed: error says why; tag of the capture or 0 */
-  DS_SEQUENCER_EVENT_PROGRESS,    /* phase (0-based) of n_phases done for tag */
+  DS_SEQUENCER_EVENT_PROGRESS,    /* phase (0-based) of n_phases done for tag (a capture's:
+                                   * continuous sets, tag 0, report none) */
   DS_SEQUENCER_EVENT_DARK,        /* dark frame calibrated (dark_mean_dn) or error */
   DS_SEQUENCER_EVENT_DEVICE,      /* a device state change worth logging: message */
   DS_SEQUENCER_EVENT_CONTROL,     /* devices released or acquired for `tag` (error set if not) */

@@ -69,6 +69,11 @@ ds_seq_emit (DsSequencer *seq, DsSequencerEventKind kind, guint64 tag, DsResult 
 void
 ds_seq_emit_progress (DsSequencer *seq, guint64 tag, guint phase, guint n)
 {
+  /* Progress answers a capture request; continuous sets (tag 0) have no one to answer, and
+   * each event would wake the main thread, which at 1 MP takes a core the camera needs
+   * (docs/benchmarks.md, "Daemon rate"). */
+  if (tag == 0)
+    return;
   PendingEvent *p = g_new0 (PendingEvent, 1);
   p->seq = seq;
   p->kind = DS_SEQUENCER_EVENT_PROGRESS;

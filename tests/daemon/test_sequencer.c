@@ -956,14 +956,18 @@ test_pipeline_continuous_then_capture (Fixture *f, gconstpointer d)
   f->out.expect_dark = dark;
   f->lab.log_off = TRUE;
   guint log0 = f->lab.n_phase_log;
+  f->out.progress = 0;
   ds_sequencer_start (f->seq, &s);
   while (f->out.results < 2)
     g_main_loop_run (f->out.loop);
   /* Waits for the stop: a result of a continuous set still on its way must not stand in for
    * the capture's. */
   stop_continuous (f);
+  /* Progress is a capture's: continuous sets report none (each would wake the main thread). */
+  g_assert_cmpuint (f->out.progress, ==, 0);
   f->out.check_results = FALSE;
   capture (f, &s);
+  g_assert_cmpuint (f->out.progress, ==, 8);
   g_assert_no_error (f->out.failure);
   g_assert_true (scene_recovered (f->out.result, dark));
   g_assert_cmpuint (f->out.results_wrong, ==, 0);
