@@ -1,0 +1,100 @@
+/* What an automatic capture records about its choice: the result's `settings.operating_point`
+ * (docs/protocol.md). */
+#include "daemon/operating/operating_point.h"
+
+#include <math.h>
+
+void
+ds_operating_report_to_json (const DsOperatingReport *r, JsonBuilder *b)
+{
+#define DBL(k, v) (json_builder_set_member_name (b, k), json_builder_add_double_value (b, v))
+#define STR(k, v) (json_builder_set_member_name (b, k), json_builder_add_string_value (b, v))
+#define BOOL(k, v) (json_builder_set_member_name (b, k), json_builder_add_boolean_value (b, v))
+  const DsOperatingPoint *p = &r->point;
+  const DsSceneProbe *pr = &r->probe;
+  DBL ("target_error", r->target_error);
+  DBL ("time_budget_ms", r->time_budget_ms);
+  DBL ("predicted_error", p->predicted_error);
+  /* The interval's upper end (docs/protocol.md): null when the pilot cannot bound it. */
+  json_builder_set_member_name (b, "predicted_error_upper");
+  if (isfinite (p->predicted_error_upper))
+    json_builder_add_double_value (b, p->predicted_error_upper);
+  else
+    json_builder_add_null_value (b);
+  DBL ("predicted_time_ms", p->predicted_time_ms);
+  DBL ("scale", r->scale);
+  json_builder_set_member_name (b, "parts");
+  json_builder_begin_object (b);
+  DBL ("noise", p->parts.noise);
+  DBL ("systematic", p->parts.systematic);
+  DBL ("sampling", p->parts.sampling);
+  DBL ("scattered_stripes", p->parts.scattered_stripes);
+  DBL ("cancellation", p->parts.cancellation);
+  json_builder_end_object (b);
+  /* What the prediction contains: noise and the pattern's sampling always; the blur when it was
+   * calibrated or measured; the scattered stripes when measured at two periods. Saturated
+   * pixels are excluded from the error (and from the result's valid pixels), never chosen into. */
+  json_builder_set_member_name (b, "contains");
+  json_builder_begin_array (b);
+  json_builder_add_string_value (b, "noise");
+  json_builder_add_string_value (b, "sampling");
+  if (pr->blur_source != DS_BLUR_ASSUMED_SHARP)
+    json_builder_add_string_value (b, "blur");
+  if (pr->leak_measured)
+    json_builder_add_string_value (b, "scattered_stripes");
+  json_builder_add_string_value (b, "saturation");
+  json_builder_end_array (b);
+  BOOL ("lower_bound", p->lower_bound);
+  json_builder_set_member_name (b, "lower_bound_reasons");
+  json_builder_begin_array (b);
+  if (!pr->leak_measured)
+    json_builder_add_string_value (b, pr->leak_note);
+  if (pr->narrow_unresolved)
+    json_builder_add_string_value (b, pr->narrow_note);
+  if (pr->fit_inconsistent)
+    json_builder_add_string_value (b, pr->fit_note);
+  json_builder_end_array (b);
+  json_builder_set_member_name (b, "assumptions");
+  json_builder_begin_array (b);
+  if (pr->blur_source == DS_BLUR_ASSUMED_SHARP) {
+    g_autofree char *note = g_strdup_printf (
+      "stripe blur neither calibrated (descatterctl calibrate) nor measurable from the pilot frames at %g px: "
+      "the worse of sharp stripes and a blur of %g px",
+      pr->geometry.period_px, MIN (DS_ERROR_MODEL_UNKNOWN_BLUR_PX, pr->geometry.period_px / 8));
+    json_builder_add_string_value (b, note);
+  }
+  if (r->pattern_assumption[0])
+    json_builder_add_string_value (b, r->pattern_assumption);
+  json_builder_end_array (b);
+  json_builder_set_member_name (b, "scene");
+  json_builder_begin_object (b);
+  DBL ("direct_dn", pr->ld_mean);
+  DBL ("direct_spread", pr->ld_spread);
+  DBL ("scattered_dn", pr->lg_mean);
+  DBL ("noise_dn", sqrt (pr->noise_var0 + pr->noise_gain * (pr->ld_mean + pr->lg_mean)));
+  DBL ("blur_px", pr->geometry.blur_px);
+  STR ("blur_source", ds_blur_source_name (pr->blur_source));
+  DBL ("scattered_stripes_at_period", ds_scene_probe_leak (pr, pr->geometry.period_px, 1));
+  STR ("scattered_stripes_note", pr->leak_note);
+  DBL ("finest_period_px", pr->finest_period_px);
+  DBL ("narrow_kernel_px", pr->narrow_kernel_px);
+  DBL ("narrow_scattered_fraction", pr->narrow_fraction);
+  STR ("narrow_kernel_note", pr->narrow_note);
+  json_builder_set_member_name (b, "direct_dn_lower");
+  if (pr->ld_interval && pr->ld_unbounded)
+    json_builder_add_null_value (b);
+  else
+    json_builder_add_double_value (b, pr->ld_interval ? pr->ld_lower : pr->ld_mean);
+  STR ("direct_interval_note", pr->ld_interval ? pr->interval_note : "");
+  DBL ("clip_dn", pr->saturation_dn);
+  BOOL ("clip_known", pr->clip_known);
+  DBL ("saturated_fraction", pr->saturated_fraction);
+  DBL ("exposure_us", pr->exposure_us);
+  json_builder_end_object (b);
+  json_builder_set_member_name (b, "pilot_frames");
+  json_builder_add_int_value (b, r->pilot_frames);
+  DBL ("pilot_ms", r->pilot_ms);
+#undef DBL
+#undef STR
+#undef BOOL
+}
