@@ -4,7 +4,10 @@ Usage: validation_summary.py DIR...   (each DIR holds a validation.csv)
 
 Recomputes every verdict from the CSV's numbers (not its verdict column): a chosen point is
 right when achieved/predicted lies within [1/1.5, 1.5]; a refusal is right when the best
-reachable point it names indeed misses the target (or nothing fits the budget). A prediction
+reachable point it names indeed misses the target (or nothing fits the budget). A target chosen on
+the margin (the CSV's target_may_be_missed: no point predicted to meet it, the target within the
+best one's uncertainty) is judged as any chosen point, on its prediction; how many of them missed
+the target is counted on its own. A prediction
 marked as a lower bound (the CSV's lower_bound) is judged the same way: achieved above 1.5 x a
 lower bound is a miss, not a hit because the bound held; lower bounds are counted on their own
 too. Prints a Markdown summary per kind of scene (given, generated) and the worst cases by
@@ -60,6 +63,14 @@ def main():
                   f"({lv.count('within')} within the factor, {lv.count('off')} outside it, "
                   f"{lv.count('refused-right')} correctly refused, {lv.count('refused-wrong')} refused wrongly); "
                   f"they are counted above as any other.")
+        margin = [r for r in sel if r.get("target_may_be_missed") == "1" and r["outcome"] == "chosen"]
+        if margin:
+            mv = [verdict(r)[0] for r in margin]
+            missed = sum(1 for r in margin if float(r["achieved"]) > float(r["target_error"]))
+            print(f"On the margin: {len(margin)} targets were chosen although no point was predicted to meet "
+                  f"them (within the best prediction's uncertainty; {mv.count('within')} within the factor, "
+                  f"{mv.count('off')} outside it); {missed} of them missed the target, "
+                  f"{len(margin) - missed} met it.")
         worst.sort(key=lambda w: -w[0])
         for _, ratio, r in worst[:3]:
             req = f"target {r['target_error']}" if float(r["target_error"]) > 0 else f"budget {r['time_budget_ms']} ms"

@@ -307,6 +307,8 @@ ds_validate_config (const DsSimRig *rig, const DsValidateScene *vs, DsErrorModel
                                                p->exposure_us, TRUE);
   p->lower_bound = !vs->probe.leak_measured || vs->probe.narrow_unresolved || vs->probe.fit_inconsistent ||
                    vs->probe.blur_source == DS_BLUR_ASSUMED_SHARP;
+  p->upper_bounded = !p->lower_bound;
+  p->uncertainty = ds_operating_point_uncertainty (model, &vs->probe, &p->parts);
   if (!ds_validate_run (rig, vs, estimator, phases, averages, p->exposure_us, seed, &out->achieved,
                         &out->achieved_systematic, error))
     return FALSE;

@@ -83,11 +83,13 @@ load_into (DsOperatingModel *m, const char *path, GError **error)
     return FALSE;
   }
   g_auto (GStrv) keys = g_key_file_get_keys (kf, GROUP, NULL, NULL);
-  static const char *const known[] = { "scale", "phases", "averages", "exposure-factors", "fitted-on", NULL };
+  static const char *const known[] = { "scale", "scale-spread", "phases", "averages", "exposure-factors", "fitted-on",
+                                       NULL };
   for (guint i = 0; keys && keys[i]; i++)
     if (!g_strv_contains (known, keys[i])) {
       g_set_error (error, G_KEY_FILE_ERROR, G_KEY_FILE_ERROR_KEY_NOT_FOUND,
-                   "%s: [" GROUP "] unknown key %s (known: scale, phases, averages, exposure-factors, fitted-on)",
+                   "%s: [" GROUP "] unknown key %s (known: scale, scale-spread, phases, averages, exposure-factors, "
+                   "fitted-on)",
                    path, keys[i]);
       return FALSE;
     }
@@ -100,6 +102,16 @@ load_into (DsOperatingModel *m, const char *path, GError **error)
       return FALSE;
     }
     m->scale = v;
+  }
+  if (g_key_file_has_key (kf, GROUP, "scale-spread", NULL)) {
+    g_autoptr (GError) e = NULL;
+    double v = g_key_file_get_double (kf, GROUP, "scale-spread", &e);
+    if (e || !(v >= 0 && v <= 1)) {
+      g_set_error (error, G_KEY_FILE_ERROR, G_KEY_FILE_ERROR_INVALID_VALUE,
+                   "%s: [" GROUP "] scale-spread: a number in [0, 1] expected", path);
+      return FALSE;
+    }
+    m->scale_spread = v;
   }
   if (!load_uints (kf, path, "phases", 2, DS_MAX_PHASES, m->phases, &m->n_phases, error) ||
       !load_uints (kf, path, "averages", 1, DS_MAX_PHASES, m->averages, &m->n_averages, error))
@@ -136,6 +148,7 @@ ds_operating_model_write (const DsOperatingModel *m, const char *path, GError **
   for (guint i = 0; i < m->n_averages; i++)
     averages[i] = (gint) m->averages[i];
   g_key_file_set_double (kf, GROUP, "scale", m->scale);
+  g_key_file_set_double (kf, GROUP, "scale-spread", m->scale_spread);
   g_key_file_set_integer_list (kf, GROUP, "phases", phases, m->n_phases);
   g_key_file_set_integer_list (kf, GROUP, "averages", averages, m->n_averages);
   g_key_file_set_double_list (kf, GROUP, "exposure-factors", (double *) m->exposure_factors,
@@ -143,7 +156,8 @@ ds_operating_model_write (const DsOperatingModel *m, const char *path, GError **
   g_key_file_set_string (kf, GROUP, "fitted-on", m->fitted_on);
   g_key_file_set_comment (kf, NULL, NULL,
                           " descatter operating model (docs/accuracy.md): the candidates the automatic\n"
-                          " operating point searches, and the scale its predictions are multiplied by.\n"
+                          " operating point searches, the scale its predictions are multiplied by, and how far\n"
+                          " they are off on a scene left out of the fit (scale-spread).\n"
                           " Written by `descatterctl validate --fit`.",
                           NULL);
   g_autofree char *text = g_key_file_to_data (kf, NULL, NULL);

@@ -53,7 +53,42 @@ predict (const DsOperatingModel *m, const Models *em, const DsSceneProbe *probe,
   p->predicted_error = m->scale * p->parts.total;
   p->predicted_time_ms = ds_rig_timing_set_ms (t, w, h, n, mm, p->exposure_us, TRUE);
   p->lower_bound = !probe->leak_measured || probe->narrow_unresolved || probe->fit_inconsistent;
+  /* The interval bounds the light a narrow kernel hides, not a leak left unmeasured or harmonics
+   * that measure nothing. */
+  p->upper_bounded = !p->lower_bound || (em->upper && !em->unbounded && probe->leak_measured &&
+                                         !probe->fit_inconsistent && isfinite (p->predicted_error_upper));
+  p->uncertainty = ds_operating_point_uncertainty (m, probe, &p->parts);
   return TRUE;
+}
+
+/* The robust scale's asymptotic efficiency against the standard deviation at normal noise (the
+ * median absolute deviation's, 0.37; the probe's truncated estimators are no better): its
+ * relative standard error on n samples is 1 / sqrt (2 n efficiency). */
+#define ROBUST_SCALE_EFFICIENCY 0.37
+
+double
+ds_operating_point_uncertainty (const DsOperatingModel *m, const DsSceneProbe *probe, const DsErrorParts *parts)
+{
+  double spread = m->scale_spread, e2 = parts->total * parts->total;
+  if (!(e2 > 0))
+    return spread;
+  /* total^2 = noise^2 + systematic^2, so d ln total = sum (part^2 / total^2) d ln part. The noise
+   * (shot and read noise over Ld) and the scattered stripes (the light keeping them over Ld) move by
+   * at most Ld's own relative error; the sampling part is the pattern's and does not. */
+  double ld_share = MIN (1.0, (parts->noise * parts->noise + parts->scattered_stripes * parts->scattered_stripes) / e2);
+  double u_ld = ld_share * MAX (0.0, probe->ld_uncertainty);
+  /* The frame noise is a robust scale read on about every unclipped pixel. */
+  double n = (double) probe->width * probe->height * (1 - CLAMP (probe->saturated_fraction, 0.0, 1.0));
+  double u_noise = n >= 2 ? MIN (1.0, parts->noise * parts->noise / e2) / sqrt (2 * ROBUST_SCALE_EFFICIENCY * n) : 0;
+  return sqrt (spread * spread + u_ld * u_ld + u_noise * u_noise);
+}
+
+/* Where the target is decided: the upper end of the prediction (meets_target ()) over the
+ * prediction's uncertainty, one standard uncertainty towards the better. */
+static double
+optimistic_end (const DsOperatingPoint *p)
+{
+  return p->predicted_error_upper * exp (-p->uncertainty);
 }
 
 typedef struct {
@@ -321,20 +356,32 @@ ds_operating_point_choose (const DsOperatingModel *m, DsErrorModel *errors, cons
   *out = s.least_in_budget.p;
   if (!s.least_in_budget.found)
     out->predicted_error = INFINITY;
+  /* On the margin: no point is predicted to meet the target, but the most accurate one may, within
+   * its prediction's uncertainty. Refusing would leave the user without a set whose error may well be
+   * within the target (and whose best guess is within a few % of it); it is run, and says so. */
+  const DsOperatingPoint *best = &s.least_in_budget.p;
+  gboolean margin = target > 0 && s.least_in_budget.found && isfinite (best->predicted_error_upper) &&
+                    optimistic_end (best) <= target;
   GString *msg = g_string_new (NULL);
   if (target > 0)
-    g_string_append_printf (msg, "no operating point reaches a relative error of %.4f", target);
+    g_string_append_printf (msg, "no operating point %s a relative error of %.4f",
+                            margin ? "is predicted to reach" : "reaches", target);
   else
     g_string_append (msg, "no operating point");
   if (budget > 0)
     g_string_append_printf (msg, " within %.0f ms", budget);
   if (s.least_in_budget.found) {
     g_string_append (msg, "; the best reachable is ");
-    append_point (msg, &s.least_in_budget.p);
-    if (s.least_in_budget.p.lower_bound && isinf (s.least_in_budget.p.predicted_error_upper))
+    append_point (msg, best);
+    if (best->lower_bound && isinf (best->predicted_error_upper))
       g_string_append (msg, ", a lower bound whose upper end the pilot cannot bound");
-    else if (s.least_in_budget.p.lower_bound)
+    else if (best->lower_bound)
       g_string_append (msg, ", a lower bound");
+    if (target > 0 && isfinite (best->predicted_error_upper) && best->uncertainty > 0)
+      g_string_append_printf (msg, margin ? ", uncertain by %.0f %%: its optimistic end %.4f reaches the target, so "
+                                            "it is run and the target may be missed"
+                                          : ", uncertain by %.0f %%: even its optimistic end %.4f is above the target",
+                              100 * expm1 (best->uncertainty), optimistic_end (best));
   } else if (budget > 0)
     g_string_append_printf (msg, "; the fastest candidate does not fit a budget of %.0f ms", budget);
   else
@@ -352,6 +399,12 @@ ds_operating_point_choose (const DsOperatingModel *m, DsErrorModel *errors, cons
     g_string_append_printf (msg, " (%s)", probe->narrow_note);
   if (target > 0 && probe->fit_inconsistent)
     g_string_append_printf (msg, " (%s)", probe->fit_note);
+  if (margin) {
+    out->target_may_be_missed = TRUE;
+    g_strlcpy (out->target_note, msg->str, sizeof out->target_note);
+    g_string_free (msg, TRUE);
+    return TRUE;
+  }
   g_set_error_literal (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT, msg->str);
   g_string_free (msg, TRUE);
   return FALSE;

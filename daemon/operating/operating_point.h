@@ -23,6 +23,10 @@ G_BEGIN_DECLS
 
 typedef struct DsOperatingModel {
   double scale;                /* predictions x this, [0.5, 2] */
+  /* How far a prediction on a scene the scale was not fitted on is off by the model alone: the
+   * RMS of log (achieved / predicted) over the fitted scenes, each predicted with the scale fitted
+   * without it (leave one scene out). 0: not measured (a built-in or older model). [0, 1] */
+  double scale_spread;
   guint phases[DS_OPERATING_MAX_CANDIDATES];
   guint n_phases;
   guint averages[DS_OPERATING_MAX_CANDIDATES];
@@ -55,7 +59,24 @@ typedef struct {
   double predicted_time_ms;
   gboolean lower_bound;        /* the scattered stripes could not be measured, or no period finer than P
                                   was on a scene that scatters: the error may be larger */
+  gboolean upper_bounded;      /* the pilot bounds the error from above: predicted_error_upper is that
+                                  bound. FALSE for a lower bound without an interval (the target is then
+                                  decided on predicted_error) and where the interval has no lower end of Ld */
+  /* The prediction's relative standard uncertainty (of its logarithm): the model's scale_spread and
+   * what the probe knows about its own measurements (ds_operating_point_uncertainty) */
+  double uncertainty;
+  /* Chosen on the margin: no candidate is predicted to meet the target, but it lies within the
+   * uncertainty of the most accurate one's prediction, which is run; target_note says so */
+  gboolean target_may_be_missed;
+  char target_note[2048];
 } DsOperatingPoint;
+
+/* The relative standard uncertainty of a prediction with these parts on this probe's scene: the
+ * model's scale_spread, Ld's uncertainty (probe->ld_uncertainty) on the parts relative to Ld (the
+ * noise and the scattered stripes), and the sampling error of the frame noise's estimate, added in
+ * quadrature (docs/accuracy.md, "Decisions on the margin"). */
+double ds_operating_point_uncertainty (const DsOperatingModel *model, const DsSceneProbe *probe,
+                                       const DsErrorParts *parts);
 
 /* The longest exposure (µs) that keeps the probe's brightest pixels (99.9th percentile) below
  * 90 % of its clip level; when that level is only the pixel format's top (not configured, no
@@ -67,6 +88,9 @@ double ds_scene_probe_max_exposure (const DsSceneProbe *probe);
  * candidate meeting it within the budget; with only a budget: the most accurate within it. Where
  * the probe's direct light has an interval (scene_probe.h), a candidate meets a target only with
  * the upper end of its prediction, and "most accurate" is by the upper end first.
+ * No candidate within the budget meets the target, but the most accurate one's prediction (its
+ * upper end) divided by exp (its uncertainty) does: that one is chosen, target_may_be_missed set
+ * and target_note says why (the target lies within the prediction's own uncertainty).
  * Neither possible: BAD_ARGUMENT with the best reachable error and what would reach the
  * target (a larger budget, a finer stripe period, a longer exposure), each with its prediction;
  * *out is then the best reachable point (predicted_error INFINITY when none fits the budget). */

@@ -15,12 +15,17 @@ ds_operating_report_to_json (const DsOperatingReport *r, JsonBuilder *b)
   DBL ("target_error", r->target_error);
   DBL ("time_budget_ms", r->time_budget_ms);
   DBL ("predicted_error", p->predicted_error);
-  /* The interval's upper end (docs/protocol.md): null when the pilot cannot bound it. */
+  /* The upper end the pilot bounds (docs/protocol.md): null where it bounds none, also for a lower
+   * bound whose interval is the prediction alone: a number equal to the prediction would read as an
+   * error known exactly. */
   json_builder_set_member_name (b, "predicted_error_upper");
-  if (isfinite (p->predicted_error_upper))
+  if (p->upper_bounded && isfinite (p->predicted_error_upper))
     json_builder_add_double_value (b, p->predicted_error_upper);
   else
     json_builder_add_null_value (b);
+  DBL ("predicted_error_uncertainty", p->uncertainty);
+  BOOL ("target_may_be_missed", p->target_may_be_missed);
+  STR ("target_note", p->target_note);
   DBL ("predicted_time_ms", p->predicted_time_ms);
   DBL ("scale", r->scale);
   json_builder_set_member_name (b, "parts");

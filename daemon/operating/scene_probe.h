@@ -157,6 +157,9 @@ typedef struct {
   double exposure_us;
   double ld_mean;                 /* direct light Ld (DN at exposure_us), mean over unclipped pixels */
   double ld_spread;               /* mean (Ld^2) / mean (Ld)^2, >= 1 */
+  double ld_uncertainty;          /* how far Ld can be off as a share of it (one standard uncertainty):
+                                     the first harmonic's noise at P and how far its gain moves for the
+                                     blur's uncertainty; 0 when not known */
   double lg_mean;                 /* scattered light Lg (full illumination), DN */
   double leak_per_px;             /* alpha (1/px); 0 when not measured */
   gboolean leak_measured;

@@ -114,6 +114,123 @@ test_refusal (void)
   g_assert_true (op.lower_bound);
 }
 
+/* The most accurate candidate within a budget (0: none) by brute force over every candidate the
+ * model holds, as the chooser must find it on the margin. */
+static double
+most_accurate (const DsOperatingModel *m, DsErrorModel *em, const DsSceneProbe *p, const DsRigTiming *t,
+               double budget)
+{
+  const DsEstimator est[] = { DS_ESTIMATOR_MAXMIN, DS_ESTIMATOR_SINE, DS_ESTIMATOR_ROBUST };
+  double best = INFINITY, max_e = ds_scene_probe_max_exposure (p);
+  for (guint e = 0; e < 3; e++)
+    for (guint i = 0; i < m->n_phases; i++)
+      for (guint j = 0; j < m->n_averages; j++)
+        for (guint k = 0; k < m->n_exposure_factors; k++) {
+          double exposure = p->exposure_us * m->exposure_factors[k];
+          DsErrorParts parts;
+          if (exposure > max_e * (1 + 1e-9) ||
+              (budget > 0 && ds_rig_timing_set_ms (t, 256, 192, m->phases[i], m->averages[j], exposure, TRUE) > budget) ||
+              !ds_error_model_predict (em, est[e], m->phases[i], m->averages[j], m->exposure_factors[k], 0, &parts, NULL))
+            continue;
+          best = MIN (best, m->scale * parts.total);
+        }
+  return best;
+}
+
+/* A target no candidate is predicted to meet, but within the most accurate one's uncertainty
+ * (one standard uncertainty: the model's leave-one-out spread and the probe's own): that point is
+ * run and the result says the target may be missed; beyond the uncertainty it is refused as
+ * before; a target the prediction meets is chosen as before, unflagged. */
+static void
+test_margin (void)
+{
+  DsOperatingModel m;
+  ds_operating_model_init (&m);
+  m.n_phases = 5;
+  m.scale_spread = 0.2;
+  DsRigTiming t;
+  ds_rig_timing_init (&t);
+  DsSceneProbe p = probe_of (400, 800, 3, 0);
+  g_autoptr (DsErrorModel) em = ds_error_model_new (&p, &params);
+  double best = most_accurate (&m, em, &p, &t, 0);
+  g_assert_true (isfinite (best));
+  g_autoptr (GError) error = NULL;
+  DsOperatingPoint op;
+  /* 10 % under the best prediction: inside exp (-0.2) = 0.82. */
+  g_assert_true (ds_operating_point_choose (&m, em, &p, &t, 256, 192, 0.9 * best, 0, &op, &error));
+  g_assert_no_error (error);
+  g_assert_true (op.target_may_be_missed);
+  g_assert_cmpfloat_with_epsilon (op.predicted_error, best, 1e-12 * best);
+  g_assert_cmpfloat (op.uncertainty, >=, 0.2);
+  g_assert_nonnull (strstr (op.target_note, "is predicted to reach"));
+  g_assert_nonnull (strstr (op.target_note, "the target may be missed"));
+  g_test_message ("%s", op.target_note);
+  /* 25 % under it: beyond one standard uncertainty, refused with the optimistic end named. */
+  g_assert_false (ds_operating_point_choose (&m, em, &p, &t, 256, 192, 0.75 * best, 0, &op, &error));
+  g_assert_nonnull (strstr (error->message, "even its optimistic end"));
+  g_clear_error (&error);
+  /* Without a spread the same 10 % is refused: the probe's own uncertainty here is well under it. */
+  m.scale_spread = 0;
+  g_assert_false (ds_operating_point_choose (&m, em, &p, &t, 256, 192, 0.9 * best, 0, &op, &error));
+  g_clear_error (&error);
+  /* A target the best prediction meets: chosen as before (the fastest meeting it), not flagged. */
+  m.scale_spread = 0.2;
+  g_assert_true (ds_operating_point_choose (&m, em, &p, &t, 256, 192, 1.5 * best, 0, &op, &error));
+  g_assert_false (op.target_may_be_missed);
+  g_assert_cmpfloat (op.predicted_error, <=, 1.5 * best);
+  g_assert_cmpstr (op.target_note, ==, "");
+  /* With a budget the margin is the most accurate point within it. */
+  double budget = 40, in_budget = most_accurate (&m, em, &p, &t, budget);
+  g_assert_cmpfloat (in_budget, >, best);
+  g_assert_true (ds_operating_point_choose (&m, em, &p, &t, 256, 192, 0.95 * in_budget, budget, &op, &error));
+  g_assert_true (op.target_may_be_missed);
+  g_assert_cmpfloat (op.predicted_time_ms, <=, budget);
+  g_assert_cmpfloat_with_epsilon (op.predicted_error, in_budget, 1e-12 * in_budget);
+}
+
+/* The probe's part of the uncertainty against the error model itself: Ld moved by its uncertainty
+ * moves the prediction by the uncertainty's Ld term within [1/2, 1] of it (the noise over Ld falls
+ * as Ld^-1/2 where shot noise of the direct light dominates, as Ld^-1 where read noise or the
+ * scattered light's does; the sampling part does not move). */
+static void
+test_uncertainty_ld (void)
+{
+  DsOperatingModel m;
+  ds_operating_model_init (&m);
+  const double u_ld = 0.1;
+  const struct {
+    double ld, lg, read_dn;
+  } scenes[] = { { 400, 800, 3 }, { 3000, 0, 1 }, { 200, 50, 12 } };
+  for (guint i = 0; i < G_N_ELEMENTS (scenes); i++) {
+    DsSceneProbe p = probe_of (scenes[i].ld, scenes[i].lg, scenes[i].read_dn, 0);
+    p.ld_uncertainty = u_ld;
+    DsSceneProbe q = p;
+    q.ld_mean *= 1 + u_ld;
+    g_autoptr (DsErrorModel) ep = ds_error_model_new (&p, &params);
+    g_autoptr (DsErrorModel) eq = ds_error_model_new (&q, &params);
+    DsErrorParts a, b;
+    g_assert_true (ds_error_model_predict (ep, DS_ESTIMATOR_SINE, 8, 1, 1, 0, &a, NULL));
+    g_assert_true (ds_error_model_predict (eq, DS_ESTIMATOR_SINE, 8, 1, 1, 0, &b, NULL));
+    double moved = log (a.total / b.total);
+    /* The Ld term alone: the uncertainty without it (the noise estimate's term) taken out in quadrature. */
+    double with = ds_operating_point_uncertainty (&m, &p, &a);
+    p.ld_uncertainty = 0;
+    double without = ds_operating_point_uncertainty (&m, &p, &a);
+    double term = sqrt (with * with - without * without);
+    g_test_message ("Ld %g Lg %g read %g: prediction %.5f -> %.5f (%.4f), Ld term %.4f", scenes[i].ld, scenes[i].lg,
+                    scenes[i].read_dn, a.total, b.total, moved, term);
+    /* log (1.1) = 0.953 x 0.1, and Ld^-1/2 at the least (0.48; the synthetic sets' own noise moves it by a few %) */
+    g_assert_cmpfloat (moved, <=, 1.02 * term);
+    g_assert_cmpfloat (moved, >=, 0.4 * term);
+  }
+  /* The spread adds in quadrature. */
+  DsSceneProbe p = probe_of (400, 800, 3, 0);
+  DsErrorParts noise_free = { .total = 0.05, .sampling = 0.05, .systematic = 0.05 };
+  m.scale_spread = 0.15;
+  p.ld_uncertainty = 0.3;
+  g_assert_cmpfloat_with_epsilon (ds_operating_point_uncertainty (&m, &p, &noise_free), 0.15, 1e-12);
+}
+
 static void
 test_report_json (void)
 {
@@ -133,6 +250,11 @@ test_report_json (void)
   JsonObject *o = json_node_get_object (root);
   g_assert_cmpfloat (json_object_get_double_member (o, "predicted_error"), ==, 0.048);
   g_assert_true (json_object_get_boolean_member (o, "lower_bound"));
+  /* A lower bound the pilot does not bound from above: no upper end, not one equal to the
+   * prediction (which would read as an error known exactly). */
+  g_assert_true (json_object_get_null_member (o, "predicted_error_upper"));
+  g_assert_false (json_object_get_boolean_member (o, "target_may_be_missed"));
+  g_assert_cmpstr (json_object_get_string_member (o, "target_note"), ==, "");
   JsonArray *contains = json_object_get_array_member (o, "contains");
   gboolean has_noise = FALSE, has_leak = FALSE;
   for (guint i = 0; i < json_array_get_length (contains); i++) {
@@ -156,6 +278,23 @@ test_report_json (void)
   JsonArray *assumed = json_object_get_array_member (json_node_get_object (root2), "assumptions");
   g_assert_cmpuint (json_array_get_length (assumed), ==, 1);
   g_assert_cmpstr (json_array_get_string_element (assumed, 0), ==, "off-stripe level taken as scattered light");
+  /* Not a lower bound: the upper end is the prediction; chosen on the margin: said so. */
+  r.point.lower_bound = FALSE;
+  r.point.upper_bounded = TRUE;
+  r.point.predicted_error_upper = 0.048;
+  r.point.uncertainty = 0.19;
+  r.point.target_may_be_missed = TRUE;
+  g_strlcpy (r.point.target_note, "no operating point is predicted to reach", sizeof r.point.target_note);
+  g_autoptr (JsonBuilder) b3 = json_builder_new ();
+  json_builder_begin_object (b3);
+  ds_operating_report_to_json (&r, b3);
+  json_builder_end_object (b3);
+  g_autoptr (JsonNode) root3 = json_builder_get_root (b3);
+  JsonObject *o3 = json_node_get_object (root3);
+  g_assert_cmpfloat (json_object_get_double_member (o3, "predicted_error_upper"), ==, 0.048);
+  g_assert_cmpfloat (json_object_get_double_member (o3, "predicted_error_uncertainty"), ==, 0.19);
+  g_assert_true (json_object_get_boolean_member (o3, "target_may_be_missed"));
+  g_assert_cmpstr (json_object_get_string_member (o3, "target_note"), ==, "no operating point is predicted to reach");
 }
 
 static void
@@ -166,6 +305,7 @@ test_model_file (void)
   DsOperatingModel m;
   ds_operating_model_init (&m);
   m.scale = 1.25;
+  m.scale_spread = 0.1875;
   m.n_averages = 2;
   g_strlcpy (m.fitted_on, "a;b", sizeof m.fitted_on);
   g_autoptr (GError) error = NULL;
@@ -173,6 +313,7 @@ test_model_file (void)
   g_autoptr (DsOperatingModel) back = ds_operating_model_load (path, &error);
   g_assert_no_error (error);
   g_assert_cmpfloat (back->scale, ==, 1.25);
+  g_assert_cmpfloat (back->scale_spread, ==, 0.1875);
   g_assert_cmpuint (back->n_averages, ==, 2);
   g_assert_cmpuint (back->n_phases, ==, m.n_phases);
   g_assert_cmpstr (back->fitted_on, ==, "a;b");
@@ -181,6 +322,7 @@ test_model_file (void)
     const char *text, *expect;
   } bad[] = {
     { "[operating-model]\nscale=0.3\n", "scale" },
+    { "[operating-model]\nscale-spread=-0.1\n", "scale-spread: a number in [0, 1]" },
     { "[operating-model]\nphases=1;4\n", "phases: 1 is outside" },
     { "[operating-model]\nexposure-factors=1;-2\n", "exposure-factors" },
     { "[operating-model]\nspeed=3\n", "unknown key speed" },
@@ -205,6 +347,8 @@ main (int argc, char **argv)
   ds_separation_params_init (&params, 4);
   g_test_add_func ("/operating-point/choice", test_choice);
   g_test_add_func ("/operating-point/refusal", test_refusal);
+  g_test_add_func ("/operating-point/margin", test_margin);
+  g_test_add_func ("/operating-point/uncertainty-ld", test_uncertainty_ld);
   g_test_add_func ("/operating-point/report-json", test_report_json);
   g_test_add_func ("/operating-point/model-file", test_model_file);
   return g_test_run ();
