@@ -348,7 +348,7 @@ ds_operating_point_choose (const DsOperatingModel *m, DsErrorModel *errors, cons
   }
   if (reachable || budget > 0)
     search (m, &em, probe, t, w, h, m->phases, m->n_phases, m->averages, m->n_averages, factors, n_factors, 0,
-            reachable ? target : INFINITY, budget, &s);
+            reachable ? target : 0, budget, &s);
   if (reachable && s.in_budget_meeting.found) {
     *out = s.in_budget_meeting.p;
     return TRUE;

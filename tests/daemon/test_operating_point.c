@@ -186,6 +186,13 @@ test_margin (void)
   g_assert_true (op.target_may_be_missed);
   g_assert_cmpfloat (op.predicted_time_ms, <=, budget);
   g_assert_cmpfloat_with_epsilon (op.predicted_error, in_budget, 1e-12 * in_budget);
+  /* A target no point reaches at any time, with a budget: refused naming the most accurate point
+   * within the budget (it named the fastest candidate, the first to "meet" an infinite target). */
+  g_assert_false (ds_operating_point_choose (&m, em, &p, &t, 256, 192, 0.5 * best, budget, &op, &error));
+  g_assert_cmpfloat_with_epsilon (op.predicted_error, in_budget, 1e-12 * in_budget);
+  g_autofree char *named = g_strdup_printf ("the best reachable is %.4f", in_budget);
+  g_assert_nonnull (strstr (error->message, named));
+  g_clear_error (&error);
 }
 
 /* The probe's part of the uncertainty against the error model itself: Ld moved by its uncertainty
