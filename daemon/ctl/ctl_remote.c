@@ -299,6 +299,13 @@ ds_ctl_capture (const DsCtlTarget *target, int argc, char **argv)
     fprintf (stderr, "descatterctl capture: writing %s: %s\n", dir, error->message);
     return 1;
   }
+  /* Chosen on the margin (docs/protocol.md): the user asked for a target no point is predicted to
+   * meet, and should not learn it from the metadata only. */
+  JsonNode *margin = ds_json_path (m->reply->body, "settings.operating_point.target_may_be_missed");
+  if (margin && JSON_NODE_HOLDS_VALUE (margin) && json_node_get_value_type (margin) == G_TYPE_BOOLEAN &&
+      json_node_get_boolean (margin))
+    fprintf (stderr, "descatterctl capture: the target may be missed: %s\n",
+             ds_json_path_string (m->reply->body, "settings.operating_point.target_note", ""));
   JsonObject *body = json_node_get_object (m->reply->body);
   printf ("set %" G_GINT64_FORMAT " written to %s/%s: %s\n", json_object_get_int_member_with_default (body, "set_id", 0),
           dir, out ? "" : " (a new folder here: no --out given)",
