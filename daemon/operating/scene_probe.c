@@ -535,7 +535,9 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
       g_snprintf (out->leak_note + len, sizeof out->leak_note - len,
                   ", held to the scattered light the mean shows (%.1f %% of Ld)", 100 * out->leak_max);
   }
-  narrow_verdict (fr, finer_used, ds_probe_ld_uncertainty (eq_all, n_all, &fr->geometry, sigma, l0->width), out);
+  /* Also the prediction's (ds_operating_point_uncertainty ()). */
+  out->ld_uncertainty = ds_probe_ld_uncertainty (eq_all, n_all, &fr->geometry, sigma, l0->width);
+  narrow_verdict (fr, finer_used, out->ld_uncertainty, out);
   if (out->narrow_unresolved && two && interval.computed) {
     out->ld_interval = TRUE;
     out->ld_unbounded = interval.unbounded;

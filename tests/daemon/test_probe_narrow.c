@@ -362,6 +362,14 @@ test_kernel_or_blur (void)
  * (the first harmonic's gain exp (-2 pi^2 sigma^2 / P^2), 4 pi^2 sigma / P^2 x 0.05 px), so Lg under
  * 1 % does not show that there is none: the prediction is a lower bound and says why. The same
  * stripes with a blur of 0.1 px (Ld known to 0.4 %) and no medium: none seen, no flag. */
+/* How far the blur's uncertainty moves the logarithm of a first harmonic's Gaussian gain. */
+static double
+blur_share (double sigma, double period)
+{
+  double up = sigma + DS_PROBE_BLUR_UNCERTAINTY_PX;
+  return 2 * G_PI * G_PI * (up * up - sigma * sigma) / (period * period);
+}
+
 static void
 test_hidden_under_one_percent (void)
 {
@@ -377,10 +385,22 @@ test_hidden_under_one_percent (void)
   g_assert_cmpfloat (p.lg_mean, <, 0.01 * p.ld_mean);
   g_assert_cmpfloat (p.ld_mean, >, 1.04 * s.ld);
   assert_unresolved_lower_bound (&p, "cannot rule it out", "finer than the pilot resolves");
+  /* The share of Ld it is known to, which the prediction's uncertainty carries too: the blur's
+   * 0.05 px alone moves the first harmonic's gain exp (-2 pi^2 sigma^2 / P^2) by 2 pi^2 ((sigma +
+   * 0.05)^2 - sigma^2) / P^2 in its logarithm (2.5 % at the 0.6 px blur); the harmonic's noise adds. */
+  double by_blur = blur_share (p.geometry.blur_px, s.period);
+  g_test_message ("Ld known to %.4f (the blur's share %.4f at %.3f px)", p.ld_uncertainty, by_blur, p.geometry.blur_px);
+  g_assert_cmpfloat (by_blur, >, 0.02);
+  g_assert_cmpfloat (p.ld_uncertainty, >=, 0.99 * by_blur);
+  g_assert_cmpfloat (p.ld_uncertainty, <=, 1.2 * by_blur);
 
   const Scene sharp = { .period = 7, .duty = 0.44, .blur = 0.1, .ld = 9248, .lg_wide = 0, .dark = 40 };
   probe (&sharp, TRUE, TRUE, &p);
-  g_test_message ("sharp, no medium: Ld %.1f, Lg %.1f; %s", p.ld_mean, p.lg_mean, p.narrow_note);
+  g_test_message ("sharp, no medium: Ld %.1f, Lg %.1f, known to %.4f; %s", p.ld_mean, p.lg_mean, p.ld_uncertainty,
+                  p.narrow_note);
+  /* (under the Gaussian's 0.5 % at 0.1 px: the model's pixel-sampled edge is not a Gaussian's there) */
+  g_assert_cmpfloat (p.ld_uncertainty, >, 0);
+  g_assert_cmpfloat (p.ld_uncertainty, <, 0.01);
   g_assert_false (p.narrow_unresolved);
   g_assert_nonnull (strstr (p.narrow_note, "no scattered light seen"));
   g_autofree char *reasons = NULL;
