@@ -17,6 +17,7 @@
 #include "daemon/operating/scene_probe.h"
 #include "daemon/protocol/protocol.h"
 #include "tests/daemon/calibrate_lines.h"
+#include "tests/test_random.h"
 
 #define W 256
 #define H 96
@@ -98,13 +99,6 @@ gauss_blur (double *plane, double sigma)
   }
 }
 
-static double
-normal (GRand *r)
-{
-  double u = g_rand_double_range (r, 1e-12, 1), v = g_rand_double (r);
-  return sqrt (-2 * log (u)) * cos (2 * G_PI * v);
-}
-
 /* A 16-bit frame of phase shift `shift` at `period` (illuminator on), or the dark frame. */
 static DsImage *
 render (const Scene *s, double period, double shift, gboolean on, GRand *rng)
@@ -129,7 +123,7 @@ render (const Scene *s, double period, double shift, gboolean on, GRand *rng)
       gsize i = y * W + x;
       double light = direct[i] + (on ? s->scatter * (s->keep * narrow[i] + (1 - s->keep) * wide[i]) : 0);
       double e = s->photons * light + 200; /* 200 e of dark signal */
-      double dn = e + sqrt (e + s->read_e * s->read_e) * normal (rng);
+      double dn = e + sqrt (e + s->read_e * s->read_e) * test_normal (rng);
       row[x] = (guint16) CLAMP (lround (dn * 0.5), 0, 65534);
     }
   }

@@ -10,6 +10,7 @@
 
 #include "daemon/operating/pilot_stripes.h"
 #include "daemon/protocol/protocol.h"
+#include "tests/test_random.h"
 
 #define W 320u
 #define H 96u
@@ -18,13 +19,6 @@
 typedef struct {
   double period, stripes, scattered, noise, ripple; /* ripple: a noise-free cosine at P, DN */
 } Scene;
-
-static double
-gauss (GRand *r)
-{
-  double u = g_rand_double_range (r, 1e-12, 1), v = g_rand_double (r);
-  return sqrt (-2 * log (u)) * cos (2 * G_PI * v);
-}
 
 /* phase: 0 or 0.5 of a period; lit FALSE: the dark frame. */
 static DsImage *
@@ -40,7 +34,7 @@ frame (const Scene *s, double phase, gboolean lit, GRand *r)
       if (lit)
         v += object * (s->stripes * (u - floor (u) < 0.5) + s->scattered) +
              s->ripple * cos (2 * G_PI * ((x + 0.5) / P - phase));
-      v += s->noise * gauss (r);
+      v += s->noise * test_normal (r);
       row[x] = (guint16) CLAMP (lround (v), 0, 65535);
     }
   }

@@ -10,6 +10,7 @@
 
 #include "proc/calibration.h"
 #include "proc/proc_error.h"
+#include "tests/test_random.h"
 
 #define W 240u
 #define H 8u
@@ -40,13 +41,6 @@ lit (const Stripes *s, double d)
   return v;
 }
 
-static double
-gauss (GRand *r)
-{
-  double u = g_rand_double_range (r, 1e-12, 1), v = g_rand_double (r);
-  return sqrt (-2 * log (u)) * cos (2 * G_PI * v);
-}
-
 static void
 calibrate (const Stripes *s, gboolean forced, DsCalibration *out)
 {
@@ -64,7 +58,7 @@ calibrate (const Stripes *s, gboolean forced, DsCalibration *out)
           double px = x - 0.5 + (i + 0.5) / SUB;
           v += lit (s, px - (0.3 + (double) k / N) * s->period) / SUB;
         }
-        row[x] = (float) (1000 * (s->black + (1 - s->black) * v + s->noise * gauss (r)));
+        row[x] = (float) (1000 * (s->black + (1 - s->black) * v + s->noise * test_normal (r)));
       }
     }
     g_assert_true (ds_calibrator_add (cal, k, img, &error));

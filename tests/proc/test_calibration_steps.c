@@ -10,18 +10,12 @@
 #include "proc/calibration.h"
 #include "proc/calibration_steps.h"
 #include "proc/proc_error.h"
+#include "tests/test_random.h"
 
 #define W 512u
 #define H 64u
 
 typedef enum { RAMP, STATIC_STRIPES, FLAT, STEPPING } Picture;
-
-static double
-gauss (GRand *r)
-{
-  double u = g_rand_double_range (r, 1e-12, 1), v = g_rand_double (r);
-  return sqrt (-2 * log (u)) * cos (2 * G_PI * v);
-}
 
 /* Square stripes of period 16 px (duty 0.5) at 1000 DN over 100 DN, or the ramp. */
 static DsImage *
@@ -38,7 +32,7 @@ frame (Picture what, guint k, guint n, GRand *r)
         double shift = what == STEPPING ? (double) k / n : 0;
         double u = (x + 0.5) / 16.0 - shift;
         gboolean on = what != FLAT && u - floor (u) < 0.5;
-        v = 100 + (on ? 1000 : 0) + (what == FLAT ? 500 : 0) + 20 * gauss (r);
+        v = 100 + (on ? 1000 : 0) + (what == FLAT ? 500 : 0) + 20 * test_normal (r);
       }
       row[x] = (guint16) CLAMP (lround (v), 0, 65535);
     }

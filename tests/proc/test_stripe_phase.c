@@ -6,6 +6,7 @@
 #include "proc/phase_order.h"
 #include "proc/proc_error.h"
 #include "proc/stripe_phase.h"
+#include "tests/test_random.h"
 
 typedef struct {
   double period, duty, black;
@@ -14,13 +15,6 @@ typedef struct {
   double global;    /* Lg: scattered, pattern-blind */
   double noise;     /* Gaussian sigma per pixel */
 } Scene;
-
-static double
-gauss (GRand *r)
-{
-  double u1 = g_rand_double_range (r, 1e-12, 1.0), u2 = g_rand_double (r);
-  return sqrt (-2.0 * log (u1)) * cos (2.0 * G_PI * u2);
-}
 
 /* value = Lg * mean(pattern) + Ld * (b + (1 - b) * pattern(u)), u = frac(x/P - k/N) in [-1/2, 1/2),
  * integrated over the pixel [x - 1/2, x + 1/2) as a sensor does (16 sub-samples). */
@@ -41,7 +35,7 @@ render (const Scene *s, DsSampleType type, guint w, guint h, guint k, guint n, G
       }
       double v = s->global * lit_mean + s->direct * (s->black + (1.0 - s->black) * pat);
       if (s->noise > 0)
-        v += s->noise * gauss (rand);
+        v += s->noise * test_normal (rand);
       if (type == DS_SAMPLE_F32) {
         ((float *) ds_image_row (img, y))[x] = (float) v;
       } else {
