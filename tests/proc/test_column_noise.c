@@ -64,6 +64,41 @@ expected_var_diff (const DsImage *a, const DsImage *b)
   return sum / n;
 }
 
+/* Two pilot pairs over one scene, as the probe takes them: phases 0 and 1/2 at PERIOD, then at
+ * 2 PERIOD (drawn from r in that order), and what the sets' and the first pair's noise readings
+ * and their closed forms say of them. */
+typedef struct {
+  DsImage *frame[4];                /* a0, a1 at PERIOD; b0, b1 at 2 PERIOD */
+  double sets_var, sets_want;       /* the sets' noise squared, DN^2, and its closed form */
+  double single_var, single_want;   /* the same of the pair at PERIOD alone */
+} TwoPairs;
+
+static void
+two_pairs_clear (TwoPairs *t)
+{
+  for (guint i = 0; i < 4; i++)
+    g_clear_pointer (&t->frame[i], ds_image_free);
+}
+
+G_DEFINE_AUTO_CLEANUP_CLEAR_FUNC (TwoPairs, two_pairs_clear)
+
+/* level: where the sets' noise reports its level (NULL: not asked). */
+static void
+two_pairs_read (TwoPairs *t, GRand *r, double dark_from, double edge_rows, gboolean soft, double lg, double *level)
+{
+  t->frame[0] = frame (r, PERIOD, 0, dark_from, edge_rows, soft, lg);
+  t->frame[1] = frame (r, PERIOD, 1, dark_from, edge_rows, soft, lg);
+  t->frame[2] = frame (r, 2 * PERIOD, 0, dark_from, edge_rows, soft, lg);
+  t->frame[3] = frame (r, 2 * PERIOD, 1, dark_from, edge_rows, soft, lg);
+  const DsImage *set_a[2] = { t->frame[0], t->frame[1] }, *set_b[2] = { t->frame[2], t->frame[3] };
+  double sets = ds_column_stats_noise_sets_dn (set_a, set_b, 0, level);
+  double single = ds_column_stats_noise_dn (t->frame[0], t->frame[1], 0);
+  t->sets_var = sets * sets;
+  t->sets_want = expected_var_diff (t->frame[0], t->frame[1]) + expected_var_diff (t->frame[2], t->frame[3]);
+  t->single_var = single * single;
+  t->single_want = expected_var_diff (t->frame[0], t->frame[1]);
+}
+
 /* A sharp-edged dark object over 70 % of the rows: one robust scale for all the samples is the
  * dark places', and its cut falls inside the bright places' core (asserted: one pair's reading
  * is under 0.8 of the closed form). The sets' noise, cut at each level's own scale, must come out
@@ -72,18 +107,12 @@ static void
 test_dark_majority (void)
 {
   g_autoptr (GRand) r = g_rand_new_with_seed (11);
-  g_autoptr (DsImage) a0 = frame (r, PERIOD, 0, 0.3 * H, 0.01, FALSE, 4);
-  g_autoptr (DsImage) a1 = frame (r, PERIOD, 1, 0.3 * H, 0.01, FALSE, 4);
-  g_autoptr (DsImage) b0 = frame (r, 2 * PERIOD, 0, 0.3 * H, 0.01, FALSE, 4);
-  g_autoptr (DsImage) b1 = frame (r, 2 * PERIOD, 1, 0.3 * H, 0.01, FALSE, 4);
-  const DsImage *set_a[2] = { a0, a1 }, *set_b[2] = { b0, b1 };
-  double got = ds_column_stats_noise_sets_dn (set_a, set_b, 0, NULL);
-  double want = expected_var_diff (a0, a1) + expected_var_diff (b0, b1);
-  double single = ds_column_stats_noise_dn (a0, a1, 0), single_want = expected_var_diff (a0, a1);
-  g_test_message ("dark majority: sets var %.3f, closed form %.3f (one pair %.3f against %.3f)", got * got, want,
-                  single * single, single_want);
-  g_assert_cmpfloat (single * single, <, 0.8 * single_want);
-  g_assert_cmpfloat (fabs (got * got / want - 1), <, 0.04);
+  g_auto (TwoPairs) t = { 0 };
+  two_pairs_read (&t, r, 0.3 * H, 0.01, FALSE, 4, NULL);
+  g_test_message ("dark majority: sets var %.3f, closed form %.3f (one pair %.3f against %.3f)", t.sets_var,
+                  t.sets_want, t.single_var, t.single_want);
+  g_assert_cmpfloat (t.single_var, <, 0.8 * t.single_want);
+  g_assert_cmpfloat (fabs (t.sets_var / t.sets_want - 1), <, 0.04);
 }
 
 /* Soft structure along y (an edge blurred over 4 rows, a shading of 12 rows' period) is structure
@@ -95,27 +124,20 @@ static void
 test_sets_cancel_the_scene (void)
 {
   g_autoptr (GRand) r = g_rand_new_with_seed (12);
-  g_autoptr (DsImage) a0 = frame (r, PERIOD, 0, 0.45 * H, 4, TRUE, 20);
-  g_autoptr (DsImage) a1 = frame (r, PERIOD, 1, 0.45 * H, 4, TRUE, 20);
-  g_autoptr (DsImage) b0 = frame (r, 2 * PERIOD, 0, 0.45 * H, 4, TRUE, 20);
-  g_autoptr (DsImage) b1 = frame (r, 2 * PERIOD, 1, 0.45 * H, 4, TRUE, 20);
-  const DsImage *set_a[2] = { a0, a1 }, *set_b[2] = { b0, b1 };
+  g_auto (TwoPairs) t = { 0 };
   double level = NAN;
-  double got = ds_column_stats_noise_sets_dn (set_a, set_b, 0, &level);
-  double want = expected_var_diff (a0, a1) + expected_var_diff (b0, b1);
-  double single = ds_column_stats_noise_dn (a0, a1, 0), single_want = expected_var_diff (a0, a1);
-  g_test_message ("sets: var %.3f, closed form %.3f (one pair's own reading %.3f against %.3f)", got * got, want,
-                  single * single, single_want);
-  g_assert_cmpfloat (fabs (got * got / want - 1), <, 0.04);
-  g_assert_cmpfloat (single * single, >, 1.2 * single_want);
+  two_pairs_read (&t, r, 0.45 * H, 4, TRUE, 20, &level);
+  g_test_message ("sets: var %.3f, closed form %.3f (one pair's own reading %.3f against %.3f)", t.sets_var,
+                  t.sets_want, t.single_var, t.single_want);
+  g_assert_cmpfloat (fabs (t.sets_var / t.sets_want - 1), <, 0.04);
+  g_assert_cmpfloat (t.single_var, >, 1.2 * t.single_want);
   /* The level: the four frames' mean sum over the samples read, dark level and all. */
   double sum = 0;
   guint n = 0;
-  const DsImage *all[4] = { a0, a1, b0, b1 };
   for (guint y = 1; y + 1 < H; y++)
     for (guint x = 0; x < W; x++, n++)
       for (guint i = 0; i < 4; i++)
-        sum += ((const float *) ds_image_row (all[i], y))[x];
+        sum += ((const float *) ds_image_row (t.frame[i], y))[x];
   g_assert_cmpfloat (fabs (level / (sum / n) - 1), <, 0.02);
 }
 
