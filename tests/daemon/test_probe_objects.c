@@ -99,6 +99,18 @@ test_grids (void)
   g_assert_cmpfloat (fabs (vs.probe.ld_mean / vs.truth_ld_mean - 1), <, 0.03);
 }
 
+/* The shot noise the probe reads on the scene (DN^2 per DN of signal) against the gain of the
+ * simulator's sensor, within `tolerance` of it. */
+static void
+assert_shot_noise (const char *text, const char *name, double tolerance)
+{
+  DsValidateScene vs;
+  double truth, gain;
+  probe_rig_probe_scene (text, name, &vs, &truth, &gain);
+  g_test_message ("%s: shot noise %.5f DN^2 per DN, the sensor's %.5f", name, vs.probe.noise_gain, gain);
+  g_assert_cmpfloat (fabs (vs.probe.noise_gain / gain - 1), <, tolerance);
+}
+
 /* Generated scene 11-6: two opaque rectangles over a fifth of the frame and a grid, a 10-bit
  * sensor whose pilot frames clip over most of the lit field: what the noise is read on is mostly
  * the objects' shadows, with soft edges along y. The probe read the shot noise at 0.41 of the
@@ -118,11 +130,7 @@ test_shot_noise_under_objects (void)
     "[object.o0]\nshape=rect\nposition=76;4\nsize=101;77\ndepth-mm=0.0853433\ntransmittance=0\n\n"
     "[object.o1]\nshape=rect\nposition=92;11\nsize=127;70\ndepth-mm=1.681\ntransmittance=0\n\n"
     "[object.o2]\nshape=grid\npitch=64\nline-width=9\ndepth-mm=0.304467\ntransmittance=0.62093\n";
-  DsValidateScene vs;
-  double truth, gain;
-  probe_rig_probe_scene (text, "shadows", &vs, &truth, &gain);
-  g_test_message ("shadows: shot noise %.5f DN^2 per DN, the sensor's %.5f", vs.probe.noise_gain, gain);
-  g_assert_cmpfloat (fabs (vs.probe.noise_gain / gain - 1), <, 0.10);
+  assert_shot_noise (text, "shadows", 0.10);
 }
 
 /* Generated scene 13-4: square stripes of duty 0.457 at 6 px on a grid of pitch 12 with opaque
@@ -147,11 +155,7 @@ test_shot_noise_grid_rows (void)
     "[object.o0]\nshape=grid\npitch=12\nline-width=1\ndepth-mm=12.7323\ntransmittance=0\n\n"
     "[object.o1]\nshape=lines\npitch=24\nline-width=3\namplitude=2\ndepth-mm=4.43921\ntransmittance=0.314281\n\n"
     "[object.o2]\nshape=lines\npitch=49\nline-width=9\namplitude=3\ndepth-mm=6.03779\ntransmittance=0\n";
-  DsValidateScene vs;
-  double truth, gain;
-  probe_rig_probe_scene (text, "grid rows", &vs, &truth, &gain);
-  g_test_message ("grid rows: shot noise %.5f DN^2 per DN, the sensor's %.5f", vs.probe.noise_gain, gain);
-  g_assert_cmpfloat (fabs (vs.probe.noise_gain / gain - 1), <, 0.35);
+  assert_shot_noise (text, "grid rows", 0.35);
 }
 
 int
