@@ -30,16 +30,6 @@ copy_member (JsonBuilder *b, JsonNode *meta, const char *path, const char *key)
   json_builder_add_value (b, json_node_copy (n));
 }
 
-static void
-add_double (JsonBuilder *b, const char *key, double v)
-{
-  json_builder_set_member_name (b, key);
-  if (isfinite (v))
-    json_builder_add_double_value (b, v);
-  else
-    json_builder_add_null_value (b);
-}
-
 JsonNode *
 ds_phase_folder_sidecar (const DsRawFrames *raw, JsonNode *meta)
 {
@@ -89,9 +79,12 @@ ds_phase_folder_sidecar (const DsRawFrames *raw, JsonNode *meta)
   json_builder_set_member_name (b, "kind");
   json_builder_add_string_value (b, ds_json_path_string (meta, "pattern.kind",
                                                          ds_json_path_string (meta, "settings.pattern", "square")));
-  add_double (b, "period_px", ds_json_path_double (meta, "pattern.period_px", ds_json_path_double (meta, "settings.period_px", NAN)));
-  add_double (b, "duty", ds_json_path_double (meta, "pattern.duty", ds_json_path_double (meta, "separation.duty", 0.5)));
-  add_double (b, "black_level", ds_json_path_double (meta, "pattern.black_level", ds_json_path_double (meta, "separation.black_level", 0.0)));
+  ds_json_add_double_or_null (b, "period_px", ds_json_path_double (meta, "pattern.period_px",
+                                                                  ds_json_path_double (meta, "settings.period_px", NAN)));
+  ds_json_add_double_or_null (b, "duty", ds_json_path_double (meta, "pattern.duty",
+                                                             ds_json_path_double (meta, "separation.duty", 0.5)));
+  ds_json_add_double_or_null (b, "black_level", ds_json_path_double (meta, "pattern.black_level",
+                                                                    ds_json_path_double (meta, "separation.black_level", 0.0)));
   copy_member (b, meta, "pattern.phase_offset_cycles", "phase_offset_cycles");
   json_builder_end_object (b);
 

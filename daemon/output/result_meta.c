@@ -39,14 +39,14 @@ ds_output_producer_json (const char *program)
   return json_builder_get_root (b);
 }
 
-static void
-add_double_or_null (JsonBuilder *b, const char *key, double v)
+void
+ds_json_add_double_or_null (JsonBuilder *b, const char *key, double v)
 {
   json_builder_set_member_name (b, key);
   if (isfinite (v))
     json_builder_add_double_value (b, v);
   else
-    json_builder_add_null_value (b); /* JSON has no NaN */
+    json_builder_add_null_value (b);
 }
 
 JsonNode *
@@ -60,14 +60,14 @@ ds_output_separation_json (const DsSeparationMeta *m)
   json_builder_add_int_value (b, m->n_phases);
   json_builder_set_member_name (b, "frames_per_phase");
   json_builder_add_int_value (b, m->frames_per_phase);
-  add_double_or_null (b, "duty", m->duty);
-  add_double_or_null (b, "black_level", m->black_level);
-  add_double_or_null (b, "pattern_mean", m->pattern_mean);
-  add_double_or_null (b, "harmonic_gain", m->harmonic_gain);
-  add_double_or_null (b, "saturation_level", m->saturation_level);
+  ds_json_add_double_or_null (b, "duty", m->duty);
+  ds_json_add_double_or_null (b, "black_level", m->black_level);
+  ds_json_add_double_or_null (b, "pattern_mean", m->pattern_mean);
+  ds_json_add_double_or_null (b, "harmonic_gain", m->harmonic_gain);
+  ds_json_add_double_or_null (b, "saturation_level", m->saturation_level);
   json_builder_set_member_name (b, "dark_subtracted");
   json_builder_add_boolean_value (b, m->dark_subtracted);
-  add_double_or_null (b, "noise_dn", m->noise_dn);
+  ds_json_add_double_or_null (b, "noise_dn", m->noise_dn);
   json_builder_set_member_name (b, "valid_pixels");
   json_builder_add_int_value (b, (gint64) m->valid_pixels);
   json_builder_set_member_name (b, "flagged");

@@ -55,4 +55,8 @@ const char *ds_json_path_string (JsonNode *root, const char *dotted, const char 
 double ds_json_path_double (JsonNode *root, const char *dotted, double fallback);
 gint64 ds_json_path_int (JsonNode *root, const char *dotted, gint64 fallback);
 
+/* For writing metadata: the member `key` with the value v, or null where v is not finite (JSON has
+ * no NaN or infinity, and json-glib's generator writes them as text no parser reads). */
+void ds_json_add_double_or_null (JsonBuilder *b, const char *key, double v);
+
 G_END_DECLS

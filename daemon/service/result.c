@@ -182,16 +182,6 @@ ds_result_raw_frames (const DsResult *result)
 }
 
 static void
-add_double_or_null (JsonBuilder *b, const char *key, double v)
-{
-  json_builder_set_member_name (b, key);
-  if (isfinite (v))
-    json_builder_add_double_value (b, v);
-  else
-    json_builder_add_null_value (b);
-}
-
-static void
 add_string (JsonBuilder *b, const char *key, const char *v)
 {
   json_builder_set_member_name (b, key);
@@ -244,7 +234,7 @@ add_camera (JsonBuilder *b, const DsResult *r)
   json_builder_set_member_name (b, "illuminator");
   json_builder_begin_object (b);
   add_string (b, "backend", p->illuminator_backend);
-  add_double_or_null (b, "temperature_c", p->illuminator_temperature_c);
+  ds_json_add_double_or_null (b, "temperature_c", p->illuminator_temperature_c);
   add_string (b, "trigger", p->trigger_backend);
   json_builder_end_object (b);
 }
@@ -256,10 +246,11 @@ add_pattern (JsonBuilder *b, const DsResult *r)
   json_builder_set_member_name (b, "pattern");
   json_builder_begin_object (b);
   add_string (b, "kind", s->pattern == DS_PATTERN_SINE ? "sine" : "square");
-  add_double_or_null (b, "period_px", s->period_px);
-  add_double_or_null (b, "duty", s->duty);
-  add_double_or_null (b, "black_level", s->black_level);
-  add_double_or_null (b, "phase_offset_cycles", r->have_provenance ? r->provenance.phase_offset_cycles : NAN);
+  ds_json_add_double_or_null (b, "period_px", s->period_px);
+  ds_json_add_double_or_null (b, "duty", s->duty);
+  ds_json_add_double_or_null (b, "black_level", s->black_level);
+  ds_json_add_double_or_null (b, "phase_offset_cycles",
+                              r->have_provenance ? r->provenance.phase_offset_cycles : NAN);
   json_builder_end_object (b);
 }
 

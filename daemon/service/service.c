@@ -746,16 +746,6 @@ add_uint (JsonBuilder *b, const char *k, guint64 v)
 }
 
 static void
-add_double (JsonBuilder *b, const char *k, double v)
-{
-  json_builder_set_member_name (b, k);
-  if (isfinite (v))
-    json_builder_add_double_value (b, v);
-  else
-    json_builder_add_null_value (b);
-}
-
-static void
 add_string (JsonBuilder *b, const char *k, const char *v)
 {
   json_builder_set_member_name (b, k);
@@ -773,7 +763,7 @@ status_to_json (DsService *svc)
   json_builder_begin_object (b);
   add_string (b, "version", DS_VERSION);
   add_string (b, "git", DS_GIT_DESCRIBE);
-  add_double (b, "uptime_s", (double) (g_get_monotonic_time () - svc->started_us) / 1e6);
+  ds_json_add_double_or_null (b, "uptime_s", (double) (g_get_monotonic_time () - svc->started_us) / 1e6);
   add_string (b, "state", st.state);
   /* Ready: devices open, the configured settings taken, no device being reconnected; else
    * the reason, naming the setting and what the device allows. */
@@ -802,7 +792,7 @@ status_to_json (DsService *svc)
   json_builder_add_boolean_value (b, st.has_dark);
   json_builder_set_member_name (b, "dark");
   json_builder_add_value (b, ds_status_dark_to_json (&st, g_get_real_time ()));
-  add_double (b, "phase_offset_cycles", st.phase_offset_cycles);
+  ds_json_add_double_or_null (b, "phase_offset_cycles", st.phase_offset_cycles);
   json_builder_set_member_name (b, "frames");
   json_builder_add_value (b, ds_frame_counters_to_json (&st.frames));
   /* Without a model, captures with target_error/time_budget_ms are refused: say so up front. */
@@ -817,7 +807,8 @@ status_to_json (DsService *svc)
   json_builder_set_member_name (b, "stage_mean_ms");
   json_builder_begin_object (b);
   for (guint i = 0; i < DS_STAGE_N; i++)
-    add_double (b, ds_stage_name (i), st.stages[i].count ? st.stages[i].total_ms / st.stages[i].count : NAN);
+    ds_json_add_double_or_null (b, ds_stage_name (i),
+                                st.stages[i].count ? st.stages[i].total_ms / st.stages[i].count : NAN);
   json_builder_end_object (b);
   json_builder_set_member_name (b, "devices");
   json_builder_begin_object (b);
@@ -851,12 +842,12 @@ status_to_json (DsService *svc)
   json_builder_set_member_name (b, "applied_phase");
   json_builder_add_int_value (b, st.illuminator.applied_phase);
   add_uint (b, "apply_count", st.illuminator.apply_count);
-  add_double (b, "temperature_c", st.illuminator.temperature_c);
+  ds_json_add_double_or_null (b, "temperature_c", st.illuminator.temperature_c);
   /* Whether a second stripe period can be asked for (docs/registers.md, CAPABILITIES). */
   json_builder_set_member_name (b, "period_adjustable");
   json_builder_add_boolean_value (b, st.illuminator.period_adjustable);
-  add_double (b, "period_min_px", st.illuminator.period_min_px);
-  add_double (b, "period_max_px", st.illuminator.period_max_px);
+  ds_json_add_double_or_null (b, "period_min_px", st.illuminator.period_min_px);
+  ds_json_add_double_or_null (b, "period_max_px", st.illuminator.period_max_px);
   /* Retried requests slow the sets without failing them: where they went is said here. */
   add_uint (b, "failed_attempts", st.illuminator.failed_attempts);
   add_uint (b, "failed_accesses", st.illuminator.failed_accesses);

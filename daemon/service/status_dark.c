@@ -1,8 +1,8 @@
 /* status "dark": what a lab needs to trust the dark subtraction at a glance — which dark frame
  * the next set subtracts, and when the last one was measured and at what level. */
-#include <math.h>
-
 #include "daemon/service/status_dark.h"
+
+#include "daemon/output/result_meta.h"
 
 static JsonNode *
 frame_to_json (const DsDarkFrameInfo *d, gint64 now_unix_us)
@@ -20,11 +20,7 @@ frame_to_json (const DsDarkFrameInfo *d, gint64 now_unix_us)
   json_builder_add_string_value (b, iso ? iso : "");
   json_builder_set_member_name (b, "age_s");
   json_builder_add_double_value (b, (double) MAX (0, now_unix_us - d->taken_unix_us) / 1e6);
-  json_builder_set_member_name (b, "mean_dn");
-  if (isfinite (d->mean_dn))
-    json_builder_add_double_value (b, d->mean_dn);
-  else
-    json_builder_add_null_value (b);
+  ds_json_add_double_or_null (b, "mean_dn", d->mean_dn);
   json_builder_set_member_name (b, "frames");
   json_builder_add_int_value (b, d->frames);
   json_builder_set_member_name (b, "exposure_us");
