@@ -70,6 +70,11 @@ ds_phase_check_default_tolerance_deg (guint n)
   return 180.0 / n;
 }
 
+/* The temporal noise of one pixel (DN), from the median absolute difference of adjacent rows
+ * (up to 32 pairs of rows, 256 columns of each); INFINITY when it cannot be read (fewer than 2
+ * rows, no finite difference). */
+double ds_phase_check_pixel_noise (const DsImage *frame);
+
 void ds_phase_check_init (DsPhaseCheck *check, double period_px, double tolerance_deg);
 /* A new set begins. */
 void ds_phase_check_begin_set (DsPhaseCheck *check);
