@@ -178,7 +178,11 @@ answer_write (DsModbusServer *s, const guint8 *pdu, gsize len, gint64 now, DsMbA
   memcpy (s->hold, tentative, sizeof s->hold);
   s->pending = TRUE;
   s->pending_at_us = now + s->cfg.settle_us;
-  g_cond_signal (&s->pending_cond);
+  /* Only a sync output needs the apply on the controller's own clock; without one every
+   * request and state read applies it when due (advance), and waking the thread per write
+   * would only take a core from the rate benchmark's camera (docs/benchmarks.md). */
+  if (s->on_apply)
+    g_cond_signal (&s->pending_cond);
   /* Both answers echo the first five bytes of the request (address and value or count). */
   memcpy (a->pdu, pdu, 5);
   a->len = 5;
@@ -340,7 +344,8 @@ ds_modbus_server_get_state (DsModbusServer *s, DsModbusServerState *st)
 }
 
 /* Applies each write when its settle time is over, whether or not anyone asks, and tells the
- * sync output: a projector lights the pattern on its own clock. */
+ * sync output: a projector lights the pattern on its own clock. Without a sync output it only
+ * wakes every 50 ms (knobs may change): requests and state reads apply what is due. */
 static gpointer
 sync_thread (gpointer data)
 {
@@ -361,7 +366,7 @@ sync_thread (gpointer data)
       continue;
     }
     gint64 now = g_get_monotonic_time ();
-    if (s->pending && !s->cfg.stuck_not_ready && !s->cfg.fault && !s->cfg.over_temperature) {
+    if (s->on_apply && s->pending && !s->cfg.stuck_not_ready && !s->cfg.fault && !s->cfg.over_temperature) {
       if (now >= s->pending_at_us)
         advance (s, now);
       else
@@ -379,6 +384,7 @@ ds_modbus_server_set_apply_callback (DsModbusServer *s, DsModbusApplyFunc func, 
   g_mutex_lock (&s->lock);
   s->on_apply = func;
   s->on_apply_data = user_data;
+  g_cond_signal (&s->pending_cond); /* a write may be pending: time it now */
   g_mutex_unlock (&s->lock);
 }
 
