@@ -36,23 +36,29 @@ lit_length (const DsStripeModel *g, double x0, double x1, double shift)
   return CLAMP (lit, 0.0, x1 - x0);
 }
 
+static double
+aperture (const DsStripeModel *g)
+{
+  return g->pixel_aperture > 0 ? MAX (g->pixel_aperture, DS_STRIPE_POINT_APERTURE) : 1.0;
+}
+
 double
 ds_stripe_value (const DsStripeModel *g, double x, double shift)
 {
-  double b = g->black_level, p;
+  double b = g->black_level, p, w = aperture (g);
   if (g->kind == DS_PATTERN_SINE)
     p = 0.5 + ds_stripe_harmonic (g, 1) / (1.0 - b) * cos (2 * G_PI * (x / g->period_px - shift));
   else
-    p = lit_length (g, x - 0.5, x + 0.5, shift);
+    p = lit_length (g, x - w / 2, x + w / 2, shift) / w;
   return b + (1.0 - b) * p;
 }
 
 double
 ds_stripe_harmonic (const DsStripeModel *g, guint n)
 {
-  double f = (double) n / g->period_px;
+  double f = (double) n / g->period_px, wf = aperture (g) * f;
   double blur = exp (-2 * G_PI * G_PI * g->blur_px * g->blur_px * f * f);
-  double pixel = sin (G_PI * f) / (G_PI * f);
+  double pixel = sin (G_PI * wf) / (G_PI * wf);
   double b = g->black_level;
   if (g->kind == DS_PATTERN_SINE)
     return n == 1 ? (1.0 - b) * 0.5 * blur * pixel : 0.0;
@@ -80,6 +86,34 @@ ds_stripe_blur_from_gain (const DsStripeModel *g, double h)
       hi = t.blur_px;
   }
   return 0.5 * (lo + hi);
+}
+
+gboolean
+ds_stripe_match_gain (DsStripeModel *g, double h)
+{
+  if (!(h > 0))
+    return FALSE;
+  g->pixel_aperture = 0;
+  double sigma = ds_stripe_blur_from_gain (g, h);
+  g->blur_px = sigma < 0 ? g->period_px / 2 : sigma;
+  if (sigma != 0)
+    return sigma > 0;
+  /* At or above the sharp whole pixel's C_1: no blur, a narrower aperture. C_1 rises as the
+   * aperture narrows (sinc falls on [0, 1], and w / P < 1 at every period the pilot uses):
+   * bisect. */
+  g->pixel_aperture = DS_STRIPE_POINT_APERTURE;
+  if (ds_stripe_harmonic (g, 1) <= h)
+    return TRUE;
+  double lo = DS_STRIPE_POINT_APERTURE, hi = 1.0;
+  for (int i = 0; i < 60; i++) {
+    g->pixel_aperture = 0.5 * (lo + hi);
+    if (ds_stripe_harmonic (g, 1) > h)
+      lo = g->pixel_aperture;
+    else
+      hi = g->pixel_aperture;
+  }
+  g->pixel_aperture = 0.5 * (lo + hi);
+  return TRUE;
 }
 
 #define MAX_UNKNOWNS (4 * DS_STRIPE_MAX_HARMONICS + 1)

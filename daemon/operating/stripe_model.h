@@ -1,6 +1,7 @@
 /* The stripe pattern as a pixel of the camera sees it, for the automatic operating point: the
  * projector's defocus blurs the pattern (Gaussian, sigma px), the pixel integrates it over its
- * width (pixel x covers [x - 1/2, x + 1/2]; x is the column index, as in proc/stripe_phase.h).
+ * sensitive width w (pixel x covers [x - w/2, x + w/2]; x is the column index, as in
+ * proc/stripe_phase.h; w = 1, the whole pitch, unless a calibrated gain says less).
  * Phase shift s (cycles): u = x/P - s, square lit where |u| (wrapped) < a/2, sine
  * (1 + cos 2 pi u)/2; value b + (1 - b) pattern (proc/harmonic_gain.h's convention).
  *
@@ -20,7 +21,14 @@ typedef struct {
   double duty;          /* square only */
   double black_level;
   double blur_px;       /* Gaussian sigma of the projector's defocus on the sensor */
+  double pixel_aperture; /* sensitive width w of a pixel along x, px; 0 = the whole pitch (1 px).
+                            Narrower where a calibrated gain exceeds the whole pixel's
+                            (ds_stripe_match_gain), down to DS_STRIPE_POINT_APERTURE */
 } DsStripeModel;
+
+/* A pixel that samples the pattern at its centre (the simulator's sine stripes,
+ * drivers/sim/stage_pattern.c): its sinc (w n / P) is 1 to 1e-7 at any period of 4 px and up. */
+#define DS_STRIPE_POINT_APERTURE 1e-3
 
 /* The pattern's value at pixel x for phase shift `shift` (cycles), in [b, 1]. */
 double ds_stripe_value (const DsStripeModel *g, double x, double shift);
@@ -28,12 +36,23 @@ double ds_stripe_value (const DsStripeModel *g, double x, double shift);
 /* Cosine coefficient of harmonic n (>= 1) of the pattern as pixels see it:
  * pattern(x) = m + sum_n C_n cos (2 pi n (x/P - shift)), with
  * C_n = (1 - b) (2 / (n pi)) sin (n pi a) B_n S_n for square stripes (B_n the blur's
- * exp (-2 pi^2 sigma^2 n^2 / P^2), S_n the pixel's sinc (n / P)), (1 - b)/2 B_1 S_1 for sine. */
+ * exp (-2 pi^2 sigma^2 n^2 / P^2), S_n the pixel's sinc (w n / P)), (1 - b)/2 B_1 S_1 for sine. */
 double ds_stripe_harmonic (const DsStripeModel *g, guint n);
 
-/* sigma such that the first harmonic C_1 equals h (a calibrated harmonic gain); 0 when h is at
- * or above the sharp pattern's, -1 when no blur up to P/2 brings it that low. */
+/* sigma such that the first harmonic C_1 equals h (a calibrated harmonic gain), at g's aperture;
+ * 0 when h is at or above the sharp pattern's, -1 when no blur up to P/2 brings it that low. */
 double ds_stripe_blur_from_gain (const DsStripeModel *g, double h);
+
+/* Sets g's blur and aperture so that its first harmonic C_1 is h, a calibrated harmonic gain (the
+ * first harmonic as the rig's pixels see it, which is what the sine estimator divides by): a blur
+ * on the whole pixel where h is below the sharp whole pixel's C_1; where h is above it, no blur
+ * can explain it and the pixel integrates less than its pitch (a fill factor, or a sensor that
+ * samples the pattern at the pixel centre as the simulator does for sine stripes): the aperture
+ * whose sinc gives h, down to DS_STRIPE_POINT_APERTURE. FALSE when h is not positive (g
+ * unchanged) or no blur up to P/2 brings C_1 down to h (blur P/2). Only the first harmonic is measured: blur and aperture lower it alike
+ * (sinc (w f) ~ exp (-pi^2 w^2 f^2 / 6), a Gaussian of sigma^2 = w^2 / 12), so below the whole
+ * pixel's C_1 the whole pixel is kept. */
+gboolean ds_stripe_match_gain (DsStripeModel *g, double h);
 
 #define DS_STRIPE_MAX_HARMONICS 8
 

@@ -11,15 +11,16 @@
 #include "daemon/operating/scene_probe.h"
 #include "daemon/operating/stripe_model.h"
 
-/* The blurred square stripe at pixel x, by brute force: the pixel sampled at 2000 points, each
- * the lit fraction of the Gaussian-blurred indicator computed with erf. */
+/* The blurred square stripe at pixel x, by brute force: the pixel's aperture w (1 when 0)
+ * sampled at 2000 points, each the lit fraction of the Gaussian-blurred indicator computed with
+ * erf. */
 static double
 brute_value (const DsStripeModel *g, double x, double shift)
 {
   const int sub = 2000;
-  double acc = 0, P = g->period_px, half = g->duty * P / 2;
+  double acc = 0, P = g->period_px, half = g->duty * P / 2, w = g->pixel_aperture > 0 ? g->pixel_aperture : 1;
   for (int i = 0; i < sub; i++) {
-    double t = x - 0.5 + (i + 0.5) / sub, v = 0;
+    double t = x - w / 2 + w * (i + 0.5) / sub, v = 0;
     for (int j = -3; j <= 3; j++) {
       double c = P * (floor (t / P - shift) + j + shift);
       if (g->blur_px > 0)
@@ -35,13 +36,16 @@ brute_value (const DsStripeModel *g, double x, double shift)
 static void
 test_stripe_value (void)
 {
-  DsStripeModel g = { DS_PATTERN_SQUARE, 7.3, 0.35, 0.05, 0.0 };
-  for (int b = 0; b < 2; b++) {
-    g.blur_px = b ? 0.8 : 0.0;
-    for (double x = 0; x < 15; x += 1)
-      for (double s = 0; s < 1; s += 0.37)
-        g_assert_cmpfloat_with_epsilon (ds_stripe_value (&g, x, s), brute_value (&g, x, s), 2e-3);
-  }
+  DsStripeModel g = { DS_PATTERN_SQUARE, 7.3, 0.35, 0.05, 0.0, 0 };
+  for (int b = 0; b < 2; b++)
+    for (int a = 0; a < 3; a++) {
+      g.blur_px = b ? 0.8 : 0.0;
+      g.pixel_aperture = a == 0 ? 0 : a == 1 ? 0.4 : DS_STRIPE_POINT_APERTURE;
+      for (double x = 0; x < 15; x += 1)
+        for (double s = 0; s < 1; s += 0.37)
+          g_assert_cmpfloat_with_epsilon (ds_stripe_value (&g, x, s), brute_value (&g, x, s), 2e-3);
+    }
+  g.pixel_aperture = 0;
   /* The harmonic coefficient is the DFT of the pixel values over many columns of a period
    * that is not a divisor (every phase position is visited). */
   g.blur_px = 0.6;
@@ -55,10 +59,48 @@ test_stripe_value (void)
     }
     g_assert_cmpfloat_with_epsilon (2 * hypot (c, s) / cols, fabs (ds_stripe_harmonic (&g, n)), 2e-3);
   }
+  /* A pixel of half the pitch (closed form: sinc (w n / P)), and one sampling the centre. */
+  for (guint n = 1; n <= 3; n++) {
+    DsStripeModel whole = g, half = g, point = g;
+    half.pixel_aperture = 0.5;
+    point.pixel_aperture = DS_STRIPE_POINT_APERTURE;
+    double f = n / g.period_px;
+    g_assert_cmpfloat_with_epsilon (ds_stripe_harmonic (&half, n) / ds_stripe_harmonic (&whole, n),
+                                    sin (G_PI * 0.5 * f) / (G_PI * 0.5 * f) / (sin (G_PI * f) / (G_PI * f)), 1e-9);
+    g_assert_cmpfloat_with_epsilon (ds_stripe_harmonic (&point, n) / ds_stripe_harmonic (&whole, n),
+                                    1 / (sin (G_PI * f) / (G_PI * f)), 1e-6);
+  }
   /* The blur that gives a harmonic gain is the one that had it. */
   double h = ds_stripe_harmonic (&g, 1);
   g.blur_px = 0;
   g_assert_cmpfloat_with_epsilon (ds_stripe_blur_from_gain (&g, h), 0.6, 1e-6);
+
+  /* A calibrated gain gives blur and aperture (ds_stripe_match_gain). Below the sharp whole
+   * pixel's: that blur on the whole pixel. A sine as the simulator draws it, (1 - b)/2 sampled at
+   * the pixel centre, is above it (by 1/sinc (1/P)): no blur and a point aperture, and the model's
+   * first harmonic is the calibrated gain at every period (gen-14-04: the model integrated the
+   * whole pixel, 1.9 % below it at 9.25 px). A pixel of half the pitch: aperture 0.5. */
+  DsStripeModel m = g;
+  m.pixel_aperture = 0.3;
+  g_assert_true (ds_stripe_match_gain (&m, h));
+  g_assert_cmpfloat_with_epsilon (m.blur_px, 0.6, 1e-6);
+  g_assert_cmpfloat (m.pixel_aperture, ==, 0);
+  DsStripeModel sine = { DS_PATTERN_SINE, 9.25, 0.5, 0.04, 0.3, 0 };
+  g_assert_true (ds_stripe_match_gain (&sine, (1 - 0.04) / 2));
+  g_assert_cmpfloat (sine.blur_px, ==, 0);
+  g_assert_cmpfloat (sine.pixel_aperture, <=, DS_STRIPE_POINT_APERTURE);
+  for (double q = 18.5; q > 4; q /= 2) {
+    sine.period_px = q;
+    g_assert_cmpfloat_with_epsilon (ds_stripe_harmonic (&sine, 1), (1 - 0.04) / 2, 1e-6);
+  }
+  sine.period_px = 9.25;
+  double half_pixel = (1 - 0.04) / 2 * sin (G_PI * 0.5 / 9.25) / (G_PI * 0.5 / 9.25);
+  g_assert_true (ds_stripe_match_gain (&sine, half_pixel));
+  g_assert_cmpfloat (sine.blur_px, ==, 0);
+  g_assert_cmpfloat_with_epsilon (sine.pixel_aperture, 0.5, 1e-6);
+  g_assert_false (ds_stripe_match_gain (&sine, 0));
+  g_assert_false (ds_stripe_match_gain (&sine, 1e-6));
+  g_assert_cmpfloat (sine.blur_px, ==, 9.25 / 2);
 }
 
 static void
@@ -157,7 +199,7 @@ probe_synth (const Synth *s, gboolean two_periods, double calibrated_gain, DsSce
 static void
 test_probe_plain (void)
 {
-  Synth s = { { DS_PATTERN_SQUARE, 10, 0.5, 0, 0.4 }, 800, 1200, 50, 3.0, 0.25, 0, 0.25, 0, 0, 0 };
+  Synth s = { { DS_PATTERN_SQUARE, 10, 0.5, 0, 0.4, 0 }, 800, 1200, 50, 3.0, 0.25, 0, 0.25, 0, 0, 0 };
   DsSceneProbe p;
   probe_synth (&s, TRUE, 0, &p);
   double ld_mean = s.ld * (1 - s.blocked);
@@ -180,7 +222,7 @@ test_probe_plain (void)
 static void
 test_probe_leak (void)
 {
-  Synth s = { { DS_PATTERN_SQUARE, 12, 0.5, 0, 0.0 }, 500, 3000, 20, 2.0, 0.25, 0.04, 0, 0, 0, 0 };
+  Synth s = { { DS_PATTERN_SQUARE, 12, 0.5, 0, 0.0, 0 }, 500, 3000, 20, 2.0, 0.25, 0.04, 0, 0, 0, 0 };
   DsSceneProbe p;
   DsStripeModel sharp = s.g;
   probe_synth (&s, TRUE, ds_stripe_harmonic (&sharp, 1), &p);
@@ -203,7 +245,7 @@ test_probe_leak (void)
 static void
 test_probe_blurred_harmonics (void)
 {
-  Synth s = { { DS_PATTERN_SQUARE, 12, 0.4, 0, 1.2 }, 2000, 300, 20, 2.0, 0.25, 0, 0, 0, 0, 0 };
+  Synth s = { { DS_PATTERN_SQUARE, 12, 0.4, 0, 1.2, 0 }, 2000, 300, 20, 2.0, 0.25, 0, 0, 0, 0, 0 };
   g_autoptr (GRand) r = g_rand_new_with_seed (11);
   g_autoptr (DsImage) dark = synth_frame (&s, 12, 0, FALSE, r);
   g_autoptr (DsImage) l0 = synth_frame (&s, 12, 0.1, TRUE, r);
@@ -231,7 +273,7 @@ test_probe_blurred_harmonics (void)
 static void
 test_probe_clip_level (void)
 {
-  Synth s = { { DS_PATTERN_SQUARE, 10, 0.5, 0, 0.0 }, 800, 300, 50, 3.0, 0.25, 0, 0.25, 0, 0, 0 };
+  Synth s = { { DS_PATTERN_SQUARE, 10, 0.5, 0, 0.0, 0 }, 800, 300, 50, 3.0, 0.25, 0, 0.25, 0, 0, 0 };
   g_autoptr (GRand) r = g_rand_new_with_seed (11);
   DsImage *raw[3] = { synth_frame (&s, 10, 0, FALSE, r), synth_frame (&s, 10, 0.1, TRUE, r),
                       synth_frame (&s, 10, 0.6, TRUE, r) };
@@ -287,7 +329,7 @@ static void
 test_probe_clip_quiet_sensor (void)
 {
   for (int noisy = 0; noisy < 2; noisy++) {
-    Synth s = { { DS_PATTERN_SQUARE, 10, 0.5, 0, 0.0 }, 800, 300, 50, noisy ? 0.2 : 0.0, noisy ? 0.25 : 0.0, 0, 0.25, 0, 0, 0 };
+    Synth s = { { DS_PATTERN_SQUARE, 10, 0.5, 0, 0.0, 0 }, 800, 300, 50, noisy ? 0.2 : 0.0, noisy ? 0.25 : 0.0, 0, 0.25, 0, 0, 0 };
     g_autoptr (GRand) r = g_rand_new_with_seed (13);
     DsImage *f[3];
     for (int i = 0; i < 3; i++) {
@@ -326,7 +368,7 @@ static void
 test_probe_clipped_places (void)
 {
   for (int two = 0; two < 2; two++) {
-    Synth s = { { DS_PATTERN_SQUARE, 10, 0.5, 0.1, 0.0 }, 500, 200, 50, 3.0, 0.25, 0, 0.25, 0.35, 1300, 0 };
+    Synth s = { { DS_PATTERN_SQUARE, 10, 0.5, 0.1, 0.0, 0 }, 500, 200, 50, 3.0, 0.25, 0, 0.25, 0.35, 1300, 0 };
     const double m = 0.5 + 0.1 * 0.5, clip = 1400;
     g_assert_cmpfloat (s.dark + s.ld_bright + m * s.lg, >, clip);
     g_autoptr (GRand) r = g_rand_new_with_seed (17);
@@ -372,7 +414,7 @@ test_probe_spread (void)
 {
   /* Rows blocked, columns blocked, both. */
   for (guint i = 0; i < 3; i++) {
-    Synth s = { { DS_PATTERN_SQUARE, 10, 0.5, 0, 0.4 }, 800, 600, 50, 3.0, 0.25, 0, i == 1 ? 0 : 0.25, 0, 0,
+    Synth s = { { DS_PATTERN_SQUARE, 10, 0.5, 0, 0.4, 0 }, 800, 600, 50, 3.0, 0.25, 0, i == 1 ? 0 : 0.25, 0, 0,
                 i == 0 ? 0 : 0.3 };
     DsSceneProbe p;
     probe_synth (&s, TRUE, 0, &p);
@@ -392,7 +434,7 @@ static DsSceneProbe
 hand_probe (double period, double duty, double ld, double lg, double var0, double gain)
 {
   DsSceneProbe p = { 0 };
-  p.geometry = (DsStripeModel){ DS_PATTERN_SQUARE, period, duty, 0, 0 };
+  p.geometry = (DsStripeModel){ DS_PATTERN_SQUARE, period, duty, 0, 0, 0 };
   p.blur_source = DS_BLUR_CALIBRATED;
   p.exposure_us = 1000;
   p.ld_mean = ld;

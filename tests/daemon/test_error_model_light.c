@@ -86,7 +86,7 @@ static DsSceneProbe
 square_probe (double period, double ld)
 {
   DsSceneProbe p = { 0 };
-  p.geometry = (DsStripeModel){ DS_PATTERN_SQUARE, period, 0.5, 0, 0 };
+  p.geometry = (DsStripeModel){ DS_PATTERN_SQUARE, period, 0.5, 0, 0, 0 };
   p.blur_source = DS_BLUR_CALIBRATED;
   p.exposure_us = 1000;
   p.ld_mean = ld;

@@ -13,7 +13,7 @@ static DsSceneProbe
 probe_of (double ld, double lg, double read_dn, double leak_per_px)
 {
   DsSceneProbe p = { 0 };
-  p.geometry = (DsStripeModel){ DS_PATTERN_SQUARE, 12, 0.5, 0, 0.3 };
+  p.geometry = (DsStripeModel){ DS_PATTERN_SQUARE, 12, 0.5, 0, 0.3, 0 };
   p.blur_source = DS_BLUR_CALIBRATED;
   p.exposure_us = 2000;
   p.ld_mean = ld;

@@ -636,7 +636,7 @@ test_automatic_operating_point (Fixture *f, gconstpointer d)
   /* What calibration printed and the configured clip level reach the probe: h and the blur of
    * this lab's stripes as if blurred by 0.6 px (the N chosen for them is checked for its stripe
    * phase elsewhere: /sequencer/pipeline-*). */
-  DsStripeModel blurred = { DS_PATTERN_SQUARE, SCRIPTED_PERIOD, 0.5, 0, 0.6 };
+  DsStripeModel blurred = { DS_PATTERN_SQUARE, SCRIPTED_PERIOD, 0.5, 0, 0.6, 0 };
   s.harmonic_gain = ds_stripe_harmonic (&blurred, 1);
   s.edge_blur_known = TRUE;
   s.edge_blur_px = 0.6;
