@@ -360,8 +360,16 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
     sigma = CLAMP (fr->calibrated_blur_px, 0.0, fr->geometry.period_px / 2);
     out->blur_source = DS_BLUR_CALIBRATED;
   } else if (fr->calibrated_gain > 0) {
-    sigma = ds_stripe_blur_from_gain (&fr->geometry, fr->calibrated_gain);
-    sigma = sigma < 0 ? fr->geometry.period_px / 2 : sigma;
+    /* The calibrated gain is the first harmonic as the rig's pixels see it. Above what the sharp
+     * pattern integrated over the whole pixel gives, no blur explains it: the pixel integrates
+     * less (the simulator samples sine stripes at the pixel centre), and a whole pixel's sinc
+     * (1/P) would put the gains of every pilot period, and so Ld, too low (gen-14-04: 1.9 % at
+     * 9.25 px, 7.5 % at 4.63 px, Ld read 3.7 % high) and the sine estimator's error at
+     * 1 - sinc (1/P) where it divides by the very gain the pixels see. */
+    DsStripeModel matched = fr->geometry;
+    ds_stripe_match_gain (&matched, fr->calibrated_gain);
+    sigma = matched.blur_px;
+    out->geometry.pixel_aperture = matched.pixel_aperture;
     out->blur_source = DS_BLUR_CALIBRATED;
   } else if (n_eq >= (two ? 3u : 2u)) {
     double best = INFINITY, hi = MIN (fr->geometry.period_px / 2, 4.0);
@@ -387,7 +395,7 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
     if (q < ds_scene_probe_finest_period (sigma) - 1e-9)
       continue;
     guint had = n_eq;
-    n_eq = ds_probe_collect_equations (&finer[i].fit, q, &fr->geometry, l0->width, eq, n_eq);
+    n_eq = ds_probe_collect_equations (&finer[i].fit, q, &out->geometry, l0->width, eq, n_eq);
     for (guint k = had; k < n_eq; k++)
       if (eq[k].n == 1)
         out->finest_period_px = MIN (out->finest_period_px, q);
@@ -408,9 +416,9 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
     guint near = 0;
     double x_min = INFINITY, x_max = 0;
     for (guint i = 0; i < n_eq; i++) {
-      double G = ds_probe_model_gain (&fr->geometry, eq[i].period, sigma, eq[i].offset, l0->width, eq[i].n);
+      double G = ds_probe_model_gain (&out->geometry, eq[i].period, sigma, eq[i].offset, l0->width, eq[i].n);
       gboolean known = eq[i].sigma < 0.05 * eq[i].amplitude &&
-                       fabs (ds_probe_gain_shift (&fr->geometry, &eq[i], sigma, G, l0->width)) < 0.05;
+                       fabs (ds_probe_gain_shift (&out->geometry, &eq[i], sigma, G, l0->width)) < 0.05;
       if (known && eq[i].period / eq[i].n <= fr->geometry.period_px * 1.001) {
         x_min = MIN (x_min, eq[i].period / eq[i].n);
         x_max = MAX (x_max, eq[i].period / eq[i].n);
@@ -431,14 +439,14 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
     }
   }
   out->equations = n_eq;
-  DsProbeSolution so = ds_probe_solve_at (&fr->geometry, eq, n_eq, sigma, l0->width, two, TRUE);
+  DsProbeSolution so = ds_probe_solve_at (&out->geometry, eq, n_eq, sigma, l0->width, two, TRUE);
   /* The narrow kernel shows as a transfer that rises from the finer periods to P and stops: the
    * line through x <= P alone cannot tell it from the small-angle rise, the coarse period
    * (where the line would go on rising) can. So line and narrow term are compared over all
    * the harmonics; the narrow term, when it wins, is the fit. */
   DsProbeNarrowFit narrow = { { 0 }, 0, 0, 0 };
-  DsProbeSolution line_all = ds_probe_solve_at (&fr->geometry, eq_all, n_all, sigma, l0->width, two, TRUE);
-  gboolean narrow_won = finer_used && ds_probe_fit_narrow (&fr->geometry, eq_all, n_all, sigma, l0->width,
+  DsProbeSolution line_all = ds_probe_solve_at (&out->geometry, eq_all, n_all, sigma, l0->width, two, TRUE);
+  gboolean narrow_won = finer_used && ds_probe_fit_narrow (&out->geometry, eq_all, n_all, sigma, l0->width,
                                                            fr->geometry.period_px, &line_all, &narrow);
   /* Two checks against a kernel made up from the harmonics' scatter (development seeds 1 and 5:
    * 7.7 of Ld read on a sine scene whose four first harmonics the five parameters fit exactly,
@@ -536,7 +544,7 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
                   ", held to the scattered light the mean shows (%.1f %% of Ld)", 100 * out->leak_max);
   }
   /* Also the prediction's (ds_operating_point_uncertainty ()). */
-  out->ld_uncertainty = ds_probe_ld_uncertainty (eq_all, n_all, &fr->geometry, sigma, l0->width);
+  out->ld_uncertainty = ds_probe_ld_uncertainty (eq_all, n_all, &out->geometry, sigma, l0->width);
   narrow_verdict (fr, finer_used, out->ld_uncertainty, out);
   if (out->narrow_unresolved && two && interval.computed) {
     out->ld_interval = TRUE;

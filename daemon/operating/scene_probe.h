@@ -151,7 +151,8 @@ typedef struct {
 gboolean ds_probe_frames_check (const DsProbeFrames *frames, GError **error);
 
 typedef struct {
-  DsStripeModel geometry;      /* with the blur found */
+  DsStripeModel geometry;      /* with the blur found, and the pixel's aperture where a calibrated
+                                  gain shows it integrates less than its pitch (ds_stripe_match_gain) */
   DsBlurSource blur_source;
   double phase_offset;            /* cycles: phase 0's stripes are centred at x = P (j + offset) */
   double exposure_us;
