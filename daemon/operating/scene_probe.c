@@ -127,10 +127,29 @@ spread_across_columns (const DsProbePairFit *f, const DsStripeModel *geometry, c
  * its prediction x6.3 low and not flagged): the scene is suspected unless Lg plus that
  * uncertainty stays under 1 %. Called once ld_mean, lg_mean and the leak are known. */
 static void
-narrow_verdict (const DsProbeFrames *fr, gboolean finer_used, double ld_uncertainty, DsSceneProbe *out)
+narrow_verdict (const DsProbeFrames *fr, gboolean finer_used, double ld_uncertainty, const DsConeFit *cone,
+                DsSceneProbe *out)
 {
   double P = fr->geometry.period_px;
   out->narrow_unresolved = FALSE;
+  if (cone && cone->told) {
+    g_snprintf (out->narrow_note, sizeof out->narrow_note,
+                "the harmonics over the pilot's periods resolve a kernel of the lens's acceptance cone (radius %.2f px): "
+                "the leak at %g px is %.1f %% of Ld, %.1f to %.1f %% within the fit's noise (a second kernel narrower "
+                "than every period would not show)",
+                cone->radius_px, P, 100 * cone->leak, 100 * cone->leak_low, 100 * cone->leak_high);
+    return;
+  }
+  if (finer_used && cone) {
+    out->narrow_unresolved = TRUE;
+    g_snprintf (out->narrow_note, sizeof out->narrow_note,
+                "a kernel of the lens's acceptance cone (radius %.2f px) keeps the stripes at every period measured (%g px "
+                "and up), and the harmonics read its leak at %g px between %.1f and %.1f %% of Ld (%.1f %% taken), not "
+                "within a factor %.1f, so the prediction is a lower bound",
+                cone->radius_px, out->finest_period_px, P, 100 * cone->leak_low, 100 * cone->leak_high, 100 * cone->leak,
+                DS_CONE_TOLD_FACTOR);
+    return;
+  }
   if (finer_used && out->narrow_beyond) {
     out->narrow_unresolved = TRUE;
     g_snprintf (out->narrow_note, sizeof out->narrow_note,
@@ -177,7 +196,13 @@ narrow_verdict (const DsProbeFrames *fr, gboolean finer_used, double ld_uncertai
   else
     g_snprintf (why, sizeof why, "the pilot at %g px shows no stripes above the noise", fr->finer[0].period_px);
   out->narrow_unresolved = TRUE;
-  if (seen)
+  if (cone)
+    g_snprintf (out->narrow_note, sizeof out->narrow_note,
+                "a kernel of the lens's acceptance cone (radius %.2f px) keeps the stripes at every period measured, and "
+                "the harmonics read its leak at %g px between %.1f and %.1f %% of Ld (%.1f %% taken), not within a "
+                "factor %.1f, so the prediction is a lower bound: %s",
+                cone->radius_px, P, 100 * cone->leak_low, 100 * cone->leak_high, 100 * cone->leak, DS_CONE_TOLD_FACTOR, why);
+  else if (seen)
     g_snprintf (out->narrow_note, sizeof out->narrow_note,
                 "scattered light whose kernel is narrower than the period keeps the stripes at every period measured "
                 "(%g px and up) and passes for direct light, so the prediction is a lower bound: %s",
@@ -488,6 +513,20 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
   }
   out->ld_mean = exp (so.log_ld);
   out->leak_per_px = so.alpha;
+  /* The acceptance cone's kernel where the line cannot follow its saturation (scene_probe.h). */
+  DsConeFit cone = { 0 };
+  gboolean cone_used = two && !narrow_won &&
+                       ds_probe_fit_cone (&out->geometry, eq_all, n_all, sigma, l0->width, mean_sum / (2 * pattern_mean),
+                                          out->ld_mean, &cone);
+  if (cone_used) {
+    so.residual = cone.chi2;
+    n_eq = out->equations = n_all;
+    out->ld_mean = cone.ld;
+    out->leak_per_px = 0;
+    out->narrow_fraction = (mean_sum / (2 * pattern_mean) - cone.ld) / cone.ld;
+    out->narrow_kernel_px = cone.radius_px;
+    out->narrow_shape = DS_PROBE_SHAPE_CONE;
+  }
 
   out->leak_measured = two;
   out->fit_rms = n_eq > (two ? 2u : 1u) ? sqrt (so.residual / n_eq) : 0;
@@ -498,7 +537,12 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
                 "first harmonic at %g px",
                 fr->geometry.period_px, 2 * fr->geometry.period_px,
                 100 * ds_scene_probe_leak (out, fr->geometry.period_px, 1), fr->geometry.period_px);
-  else
+  if (cone_used) {
+    gsize len = strlen (out->leak_note);
+    g_snprintf (out->leak_note + len, sizeof out->leak_note - len, " (the lens's acceptance cone: a kernel of %.2f px)",
+                cone.radius_px);
+  }
+  if (!two)
     g_snprintf (out->leak_note, sizeof out->leak_note,
                 "not measured (%s): scattered light that keeps the stripes is not in the prediction, "
                 "which is a lower bound",
@@ -545,7 +589,7 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
   }
   /* Also the prediction's (ds_operating_point_uncertainty ()). */
   out->ld_uncertainty = ds_probe_ld_uncertainty (eq_all, n_all, &out->geometry, sigma, l0->width);
-  narrow_verdict (fr, finer_used, out->ld_uncertainty, out);
+  narrow_verdict (fr, finer_used, out->ld_uncertainty, cone_used ? &cone : NULL, out);
   if (out->narrow_unresolved && two && interval.computed) {
     out->ld_interval = TRUE;
     out->ld_unbounded = interval.unbounded;

@@ -3,11 +3,15 @@
 #include <math.h>
 #include <string.h>
 
+#include "daemon/operating/cone_kernel.h"
+
 /* The narrow kernel's MTF at the frequency 1 / x, k = 2 pi b / x: (1 + k^2 / nu)^-nu
  * (scene_probe.h: why this form and not a Gaussian). */
 double
 ds_probe_kernel_mtf (double b, double nu, double x)
 {
+  if (nu == DS_PROBE_SHAPE_CONE)
+    return ds_cone_kernel_mtf (b, x);
   double k = 2 * G_PI * b / x;
   return x > 0 ? pow (1 + k * k / nu, -nu) : 0.0;
 }
@@ -156,6 +160,20 @@ ds_probe_solve_at (const DsStripeModel *g, const DsProbeEquation *eq, guint n_eq
   double y[DS_PROBE_MAX_EQUATIONS] = { 0 }, w[DS_PROBE_MAX_EQUATIONS] = { 0 }, shift[DS_PROBE_MAX_EQUATIONS] = { 0 };
   prepare (g, eq, n_eq, sigma, width, blur_uncertain, y, w, shift);
   return solve_linear (y, w, blur_uncertain ? shift : NULL, eq, n_eq, two_periods);
+}
+
+gboolean
+ds_probe_fit_cone (const DsStripeModel *g, const DsProbeEquation *eq, guint n_eq, double sigma, guint width,
+                   double total, double ld_line, DsConeFit *out)
+{
+  double y[DS_PROBE_MAX_EQUATIONS] = { 0 }, w[DS_PROBE_MAX_EQUATIONS] = { 0 }, shift[DS_PROBE_MAX_EQUATIONS] = { 0 };
+  double x[DS_PROBE_MAX_EQUATIONS] = { 0 };
+  prepare (g, eq, n_eq, sigma, width, TRUE, y, w, shift);
+  for (guint i = 0; i < n_eq; i++)
+    x[i] = eq[i].period / eq[i].n;
+  if (!ds_cone_kernel_fit (x, y, w, shift, n_eq, total, g->period_px, out))
+    return FALSE;
+  return out->seen && ds_cone_kernel_mtf (out->radius_px, g->period_px) >= 0.5 && out->ld < ld_line;
 }
 
 /* The narrow kernel's term (scene_probe.h): beta and w on a grid, Ld, alpha and the blur's error

@@ -7,6 +7,7 @@
 #pragma once
 #include <glib.h>
 
+#include "daemon/operating/cone_kernel.h"
 #include "daemon/operating/scene_probe.h"
 #include "daemon/operating/stripe_model.h"
 
@@ -55,6 +56,16 @@ DsProbeSolution ds_probe_solve_at (const DsStripeModel *g, const DsProbeEquation
 
 gboolean ds_probe_fit_narrow (const DsStripeModel *g, const DsProbeEquation *eq, guint n_eq, double sigma, guint width,
                               double period, const DsProbeSolution *line, DsProbeNarrowFit *out);
+
+/* The acceptance cone's kernel (cone_kernel.h) over all the equations, total the light the mean
+ * shows, in place of the line (Ld ld_line) where the line cannot follow it: the harmonics see a
+ * kernel radius between the fit's two limits (cone_kernel.h: DS_CONE_SEEN_CHI2), the kernel keeps
+ * at least half its stripes at P (narrow against the period: a wider one is the small-angle line's
+ * regime, where the line reads the leak right, e.g. tissue-veins), and it reads more of the light
+ * as scattered than the line's extrapolation, which removes only the slope between the periods of
+ * a transfer that has saturated. FALSE (the line stays) otherwise; *out holds the fit either way. */
+gboolean ds_probe_fit_cone (const DsStripeModel *g, const DsProbeEquation *eq, guint n_eq, double sigma, guint width,
+                            double total, double ld_line, DsConeFit *out);
 
 double ds_probe_ld_uncertainty (const DsProbeEquation *eq, guint n_eq, const DsStripeModel *g, double sigma,
                                 guint width);
