@@ -360,6 +360,14 @@ write_file (const char *dir, const char *name, const GString *text, GError **err
   return g_file_set_contents_full (path, text->str, (gssize) text->len, G_FILE_SET_CONTENTS_CONSISTENT, 0644, error);
 }
 
+/* g_ptr_array_sort hands the comparison pointers to the elements, not the elements: comparing
+ * those as strings ordered the shipped scenes by where their names happened to be allocated. */
+static gint
+compare_names (gconstpointer a, gconstpointer b)
+{
+  return g_strcmp0 (*(const char *const *) a, *(const char *const *) b);
+}
+
 int
 ds_ctl_validate (int argc, char **argv)
 {
@@ -462,7 +470,7 @@ ds_ctl_validate (int argc, char **argv)
     while ((n = g_dir_read_name (d)))
       if (g_str_has_suffix (n, ".scene") && !strstr (n, "1024"))
         g_ptr_array_add (names, g_strdup (n));
-    g_ptr_array_sort (names, (GCompareFunc) g_strcmp0);
+    g_ptr_array_sort (names, compare_names);
     for (guint i = 0; i < names->len; i++) {
       SceneRun *s = g_new0 (SceneRun, 1);
       s->name = g_strdup (g_ptr_array_index (names, i));
