@@ -10,29 +10,11 @@
 #include <modbus.h>
 #include <string.h>
 
-#include "drivers/labsim/modbus_server.h"
-#include "drivers/modbus/modbus_illuminator.h"
+#include "modbus_fixture.h"
 #include "drivers/modbus/registers.h"
 
-typedef struct {
-  DsModbusServer *server;
-  DsModbusServerConfig cfg;
-  DsIlluminator *ill;
-  char *uri;
-  char *dir;               /* RTU: where the line's symlink lives */
-} Fixture;
-
-static const DsStripePattern four_phases = {
-  .kind = DS_STRIPES_SQUARE, .period_px = 6.0, .duty = 0.5, .black_level = 0.0, .intensity = 1.0, .n_phases = 4,
-};
-
-/* The controller is a thread of this process, which a loaded machine schedules late: at load 20
- * on 2 cores it missed a 100 ms response timeout. Where no answer is meant to be late, the
- * backend waits ANSWER_MS for one and a phase is awaited up to DEADLINE_MS; SHORT_TIMEOUT_MS is
- * for the tests of answers that are late or never come (where a loaded machine can only make
- * them later). */
-#define ANSWER_MS 1000
-#define DEADLINE_MS 5000
+/* Answers that are late or never come are awaited SHORT_TIMEOUT_MS (where a loaded machine can
+ * only make them later); ANSWER_MS and DEADLINE_MS: modbus_fixture.h. */
 #define SHORT_TIMEOUT_MS 100
 
 static void
@@ -40,49 +22,23 @@ fixture_setup (Fixture *f, gconstpointer data)
 {
   (void) data;
   ds_modbus_server_config_init (&f->cfg);
-  g_autoptr (GError) error = NULL;
-  f->server = ds_modbus_server_new ("127.0.0.1", 0, &f->cfg, &error);
-  g_assert_no_error (error);
-  f->uri = g_strdup_printf ("tcp://127.0.0.1:%u", ds_modbus_server_port (f->server));
-  f->ill = ds_modbus_illuminator_open (f->uri, 1, ANSWER_MS, &error);
-  g_assert_no_error (error);
-  g_assert_nonnull (f->ill);
+  modbus_fixture_open (f, FALSE);
 }
 
-/* The same controller on a serial line only: a pty, reached through a symlink that survives
- * the line going away and coming back. */
+/* The same controller on a serial line only. */
 static void
 fixture_setup_rtu (Fixture *f, gconstpointer data)
 {
   (void) data;
   ds_modbus_server_config_init (&f->cfg);
-  g_autoptr (GError) error = NULL;
-  f->server = ds_modbus_server_new (NULL, 0, &f->cfg, &error);
-  g_assert_no_error (error);
-  f->dir = g_dir_make_tmp ("ds-rtu-XXXXXX", &error);
-  g_assert_no_error (error);
-  g_autofree char *link = g_build_filename (f->dir, "ttyLAB", NULL);
-  DsModbusRtuConfig rc = { .device = "pty", .link = link, .unit_id = 1 };
-  g_assert_true (ds_modbus_server_add_rtu (f->server, &rc, &error));
-  g_assert_no_error (error);
-  g_assert_cmpstr (ds_modbus_server_rtu_path (f->server), ==, link);
-  f->uri = g_strdup_printf ("rtu:%s?baud=115200&parity=N&data=8&stop=1", link);
-  f->ill = ds_modbus_illuminator_open (f->uri, 1, ANSWER_MS, &error);
-  g_assert_no_error (error);
-  g_assert_nonnull (f->ill);
+  modbus_fixture_open (f, TRUE);
 }
 
 static void
 fixture_teardown (Fixture *f, gconstpointer data)
 {
   (void) data;
-  ds_illuminator_close (f->ill);
-  ds_modbus_server_free (f->server);
-  g_free (f->uri);
-  if (f->dir) {
-    g_rmdir (f->dir);
-    g_free (f->dir);
-  }
+  modbus_fixture_close (f);
 }
 
 static void
@@ -183,7 +139,7 @@ test_sequence (Fixture *f, gconstpointer data)
   (void) data;
   g_autoptr (GError) error = NULL;
   DsModbusServerState st;
-  g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &four_phases, &error));
+  g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &modbus_fixture_four_phases, &error));
   g_assert_no_error (error);
   /* set_pattern's own write applies after the settle time: count from then on. */
   for (guint i = 0; i < 200; i++) {
@@ -243,7 +199,7 @@ test_settle (Fixture *f, gconstpointer data)
   g_autoptr (GError) error = NULL;
   f->cfg.settle_us = 60000;
   reconfigure (f);
-  g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &four_phases, &error));
+  g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &modbus_fixture_four_phases, &error));
   for (guint k = 0; k < 4; k++) {
     g_assert_true (f->ill->ops->set_phase (f->ill->backend, (k + 1) % 4, DEADLINE_MS, &error));
     g_assert_no_error (error);
@@ -276,7 +232,7 @@ test_exceptions (Fixture *f, gconstpointer data)
     { MODBUS_EXCEPTION_SLAVE_OR_SERVER_BUSY, DS_DEVICE_ERROR_BUSY, DS_MODBUS_MAX_ATTEMPTS, "busy" },
   };
   g_autoptr (GError) error = NULL;
-  g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &four_phases, &error));
+  g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &modbus_fixture_four_phases, &error));
   for (guint i = 0; i < G_N_ELEMENTS (cases); i++) {
     f->cfg.exception_rate = 1.0;
     f->cfg.exception_code = cases[i].exception;
@@ -325,7 +281,7 @@ test_fault_bits (Fixture *f, gconstpointer data)
 {
   (void) data;
   g_autoptr (GError) error = NULL;
-  g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &four_phases, &error));
+  g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &modbus_fixture_four_phases, &error));
   f->cfg.over_temperature = TRUE;
   reconfigure (f);
   g_assert_false (f->ill->ops->set_phase (f->ill->backend, 0, DEADLINE_MS, &error));
@@ -439,7 +395,7 @@ test_delay (Fixture *f, gconstpointer data)
     g_usleep (600000); /* the line's backlog drained (requests_settled): the last one's answer */
   f->ill = ds_modbus_illuminator_open (f->uri, 1, ANSWER_MS, &error);
   g_assert_no_error (error);
-  g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &four_phases, &error));
+  g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &modbus_fixture_four_phases, &error));
   g_assert_no_error (error);
   for (guint k = 0; k < 4; k++) {
     g_clear_error (&error);
@@ -460,7 +416,7 @@ test_dropped_connection (Fixture *f, gconstpointer data)
 {
   (void) data;
   g_autoptr (GError) error = NULL;
-  g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &four_phases, &error));
+  g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &modbus_fixture_four_phases, &error));
   g_assert_true (f->ill->ops->set_phase (f->ill->backend, 0, DEADLINE_MS, &error));
   DsModbusServerState st;
   ds_modbus_server_get_state (f->server, &st);
@@ -522,7 +478,7 @@ test_stuck_not_ready (Fixture *f, gconstpointer data)
 {
   (void) data;
   g_autoptr (GError) error = NULL;
-  g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &four_phases, &error));
+  g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &modbus_fixture_four_phases, &error));
   f->cfg.stuck_not_ready = TRUE;
   reconfigure (f);
   g_assert_false (f->ill->ops->set_phase (f->ill->backend, 1, 50, &error));
@@ -540,7 +496,7 @@ test_wrong_phase (Fixture *f, gconstpointer data)
 {
   (void) data;
   g_autoptr (GError) error = NULL;
-  g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &four_phases, &error));
+  g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &modbus_fixture_four_phases, &error));
   f->cfg.wrong_phase = TRUE;
   reconfigure (f);
   g_assert_false (f->ill->ops->set_phase (f->ill->backend, 1, DEADLINE_MS, &error));
@@ -608,7 +564,7 @@ test_period_adjustable (void)
   g_assert_true (s.period_adjustable);
   g_assert_cmpfloat (s.period_min_px, ==, 4.0);
   g_assert_cmpfloat (s.period_max_px, ==, 30.0);
-  DsStripePattern p = four_phases;
+  DsStripePattern p = modbus_fixture_four_phases;
   const double periods[] = { 4.0, 12.34, 30.0 };
   for (guint i = 0; i < G_N_ELEMENTS (periods); i++) {
     p.period_px = periods[i];
@@ -659,7 +615,7 @@ test_period_fixed (void)
   g_assert_false (s.period_adjustable);
   g_assert_cmpfloat (s.period_min_px, ==, 8.25);
   g_assert_cmpfloat (s.period_max_px, ==, 8.25);
-  DsStripePattern p = four_phases;
+  DsStripePattern p = modbus_fixture_four_phases;
   p.period_px = 16.5;
   g_assert_false (ill->ops->set_pattern (ill->backend, &p, &error));
   g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_UNSUPPORTED);
@@ -704,7 +660,7 @@ test_period_revision_1 (void)
   g_assert_false (s.period_adjustable);
   g_assert_cmpfloat (s.period_min_px, ==, 0);
   g_assert_cmpfloat (s.period_max_px, ==, 0);
-  DsStripePattern p = four_phases;
+  DsStripePattern p = modbus_fixture_four_phases;
   p.period_px = 7.5;
   for (guint i = 0; i < 2; i++) {
     g_assert_true (ill->ops->set_pattern (ill->backend, &p, &error));
@@ -808,7 +764,7 @@ test_rtu_bad_crc (Fixture *f, gconstpointer data)
 {
   (void) data;
   g_autoptr (GError) error = NULL;
-  g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &four_phases, &error));
+  g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &modbus_fixture_four_phases, &error));
   f->cfg.bad_crc_every = 1;
   reconfigure (f);
   DsModbusServerState before;
@@ -845,7 +801,7 @@ test_rtu_line_away (Fixture *f, gconstpointer data)
 {
   (void) data;
   g_autoptr (GError) error = NULL;
-  g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &four_phases, &error));
+  g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &modbus_fixture_four_phases, &error));
   g_assert_true (f->ill->ops->set_phase (f->ill->backend, 1, DEADLINE_MS, &error));
   const char *path = ds_modbus_server_rtu_path (f->server);
   ds_modbus_server_rtu_vanish (f->server, 600);

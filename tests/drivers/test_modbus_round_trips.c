@@ -10,48 +10,18 @@
 #include <glib/gstdio.h>
 #include <modbus.h>
 
-#include "drivers/labsim/modbus_server.h"
-#include "drivers/modbus/modbus_illuminator.h"
+#include "modbus_fixture.h"
 #include "drivers/modbus/registers.h"
-
-typedef struct {
-  DsModbusServer *server;
-  DsModbusServerConfig cfg;
-  DsIlluminator *ill;
-  char *uri;
-  char *dir; /* RTU: where the line's symlink lives */
-} Fixture;
-
-static const DsStripePattern four_phases = {
-  .kind = DS_STRIPES_SQUARE, .period_px = 6.0, .duty = 0.5, .black_level = 0.0, .intensity = 1.0, .n_phases = 4,
-};
-
-/* Generous on a loaded machine: nothing here is meant to be late. */
-#define ANSWER_MS 1000
-#define DEADLINE_MS 5000
 
 static void
 fixture_setup (Fixture *f, gconstpointer data)
 {
-  gboolean rtu = GPOINTER_TO_INT (data);
   ds_modbus_server_config_init (&f->cfg);
   /* Applied at once: every request then counts (no poll waits for a settle time). */
   f->cfg.settle_us = 0;
+  modbus_fixture_open (f, GPOINTER_TO_INT (data));
   g_autoptr (GError) error = NULL;
-  f->server = ds_modbus_server_new (rtu ? NULL : "127.0.0.1", 0, &f->cfg, &error);
-  g_assert_no_error (error);
-  if (rtu) {
-    f->dir = g_dir_make_tmp ("ds-rtu-XXXXXX", &error);
-    g_assert_no_error (error);
-    g_autofree char *link = g_build_filename (f->dir, "ttyLAB", NULL);
-    DsModbusRtuConfig rc = { .device = "pty", .link = link, .unit_id = 1 };
-    g_assert_true (ds_modbus_server_add_rtu (f->server, &rc, &error));
-    f->uri = g_strdup_printf ("rtu:%s?baud=115200&parity=N&data=8&stop=1", link);
-  } else
-    f->uri = g_strdup_printf ("tcp://127.0.0.1:%u", ds_modbus_server_port (f->server));
-  f->ill = ds_modbus_illuminator_open (f->uri, 1, ANSWER_MS, &error);
-  g_assert_no_error (error);
-  g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &four_phases, &error));
+  g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &modbus_fixture_four_phases, &error));
   g_assert_no_error (error);
 }
 
@@ -59,13 +29,7 @@ static void
 fixture_teardown (Fixture *f, gconstpointer data)
 {
   (void) data;
-  ds_illuminator_close (f->ill);
-  ds_modbus_server_free (f->server);
-  g_free (f->uri);
-  if (f->dir) {
-    g_rmdir (f->dir);
-    g_free (f->dir);
-  }
+  modbus_fixture_close (f);
 }
 
 static DsModbusServerState
@@ -111,7 +75,7 @@ test_own_applies (Fixture *f, gconstpointer data)
   g_assert_cmpuint (after.requests - before.requests, ==, 2);
   assert_set_phase (f, 2, 2, 1);
   /* set_pattern writes, and its apply moves the count: the next set_phase reads it again. */
-  g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &four_phases, &error));
+  g_assert_true (f->ill->ops->set_pattern (f->ill->backend, &modbus_fixture_four_phases, &error));
   assert_set_phase (f, 3, 3, 1);
 }
 
@@ -181,7 +145,7 @@ test_restart (Fixture *f, gconstpointer data)
   g_autoptr (GError) error = NULL;
   f->server = ds_modbus_server_new ("127.0.0.1", port, &f->cfg, &error);
   g_assert_no_error (error);
-  /* Power-up: 4 phases of square stripes at 6 px, as four_phases. */
+  /* Power-up: 4 phases of square stripes at 6 px, as modbus_fixture_four_phases. */
   modbus_t *other = modbus_new_tcp ("127.0.0.1", (int) port);
   modbus_set_response_timeout (other, ANSWER_MS / 1000, (ANSWER_MS % 1000) * 1000);
   g_assert_cmpint (modbus_connect (other), ==, 0);
