@@ -176,6 +176,17 @@ test_calibrated_blur_reaches_sets (void)
   g_assert_cmpfloat (err[0], >, 2 * err[1]);
 }
 
+/* The operating model the project ships, as validate and the daemon load it. */
+static DsOperatingModel *
+shipped_model (void)
+{
+  g_autoptr (GError) error = NULL;
+  g_autofree char *path = g_build_filename (DS_SOURCE_DIR, "etc", "operating-model.conf", NULL);
+  DsOperatingModel *model = ds_operating_model_load (path, &error);
+  g_assert_no_error (error);
+  return model;
+}
+
 /* Sine stripes, blurred (sigma 0.8 px at P = 8 px: 18 % of the contrast lost, 55 % at the pilot's
  * P/2), no medium: `descatterctl validate` calibrates as the rig's `descatterctl calibrate` does,
  * with a second set at 2P. The simulator samples the sine at the pixel centre, so the contrast at
@@ -235,9 +246,7 @@ test_sine_two_periods (void)
   g_assert_false (vs.probe.ld_unbounded);
   g_assert_cmpfloat (fabs (vs.probe.ld_mean / vs.truth_ld_mean - 1), <, 0.05);
 
-  g_autofree char *model_path = g_build_filename (DS_SOURCE_DIR, "etc", "operating-model.conf", NULL);
-  g_autoptr (DsOperatingModel) model = ds_operating_model_load (model_path, &error);
-  g_assert_no_error (error);
+  g_autoptr (DsOperatingModel) model = shipped_model ();
   DsRigTiming timing;
   ds_rig_timing_init (&timing);
   g_autoptr (DsErrorModel) errors = ds_error_model_new (&vs.probe, &vs.params);
@@ -306,9 +315,7 @@ test_sine_sharp (void)
   g_test_message ("Ld %.1f (truth %.1f)", vs.probe.ld_mean, vs.truth_ld_mean);
   g_assert_cmpfloat (fabs (vs.probe.ld_mean / vs.truth_ld_mean - 1), <, 0.01);
 
-  g_autofree char *model_path = g_build_filename (DS_SOURCE_DIR, "etc", "operating-model.conf", NULL);
-  g_autoptr (DsOperatingModel) model = ds_operating_model_load (model_path, &error);
-  g_assert_no_error (error);
+  g_autoptr (DsOperatingModel) model = shipped_model ();
   DsRigTiming timing;
   ds_rig_timing_init (&timing);
   g_autoptr (DsErrorModel) errors = ds_error_model_new (&vs.probe, &vs.params);
