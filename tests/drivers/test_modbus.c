@@ -432,8 +432,7 @@ test_dropped_connection (Fixture *f, gconstpointer data)
   reconfigure (f);
   g_assert_false (f->ill->ops->set_phase (f->ill->backend, 2, DEADLINE_MS, &error));
   g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_DISCONNECTED);
-  /* Right after a confirmed apply the first access is the write (no STATUS read before it). */
-  g_assert_nonnull (strstr (error->message, "writing holding register PHASE"));
+  g_assert_nonnull (strstr (error->message, "STATUS"));
   f->cfg.drop_every = 0;
   reconfigure (f);
   g_clear_error (&error);
@@ -812,8 +811,7 @@ test_rtu_line_away (Fixture *f, gconstpointer data)
   g_assert_false (f->ill->ops->set_phase (f->ill->backend, 2, DEADLINE_MS, &error));
   log_access_time (t0, ANSWER_MS);
   g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_DISCONNECTED);
-  /* Right after a confirmed apply the first access is the write (no STATUS read before it). */
-  g_assert_nonnull (strstr (error->message, "writing holding register PHASE"));
+  g_assert_nonnull (strstr (error->message, "STATUS"));
   g_assert_nonnull (strstr (error->message, path));
   /* Back within a few seconds: the caller's reconnect (the sequencer's backoff) finds it. */
   gboolean back = FALSE;
