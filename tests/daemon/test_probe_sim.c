@@ -187,6 +187,21 @@ shipped_model (void)
   return model;
 }
 
+/* The scene `text` (named `name` in messages) on a simulated rig calibrated on its clear
+ * reference, probed into *vs with the noise seed `seed` as `descatterctl validate` probes it;
+ * aborts the test on any error. Returns the rig, for the sets that follow. */
+static DsSimRig *
+calibrated_probe (const char *text, const char *name, guint64 seed, DsValidateScene *vs)
+{
+  g_autoptr (GError) error = NULL;
+  DsSimRig *rig = ds_sim_rig_new_from_data (text, name, &error);
+  g_assert_no_error (error);
+  DsValidateOptions opt = { .calibrated = TRUE, .seed = seed };
+  g_assert_true (ds_validate_probe (rig, &opt, vs, &error));
+  g_assert_no_error (error);
+  return rig;
+}
+
 /* Sine stripes, blurred (sigma 0.8 px at P = 8 px: 18 % of the contrast lost, 55 % at the pilot's
  * P/2), no medium: `descatterctl validate` calibrates as the rig's `descatterctl calibrate` does,
  * with a second set at 2P. The simulator samples the sine at the pixel centre, so the contrast at
@@ -208,12 +223,8 @@ test_sine_two_periods (void)
     "[object.o0]\nshape=rect\nposition=50;20\nsize=70;50\ntransmittance=0.5\n";
   const double P = 8, b = 0.06, sigma = 0.8;
   g_autoptr (GError) error = NULL;
-  g_autoptr (DsSimRig) rig = ds_sim_rig_new_from_data (text, "clear-blurred-sine", &error);
-  g_assert_no_error (error);
-  DsValidateOptions opt = { .calibrated = TRUE, .seed = 2 };
   DsValidateScene vs;
-  g_assert_true (ds_validate_probe (rig, &opt, &vs, &error));
-  g_assert_no_error (error);
+  g_autoptr (DsSimRig) rig = calibrated_probe (text, "clear-blurred-sine", 2, &vs);
   const DsCalibration *cal = &vs.calibration;
   double total_blur = sqrt (cal->edge_blur_px * cal->edge_blur_px + 1.0 / 12);
   g_test_message ("calibration: black level %.4f (scene %.2f), blur %.3f px + the pixel's = %.3f (scene %.2f), "
@@ -294,12 +305,8 @@ test_sine_sharp (void)
     "[object.o0]\nshape=rect\nposition=50;20\nsize=70;50\ntransmittance=0.5\n";
   const double P = 9.25;
   g_autoptr (GError) error = NULL;
-  g_autoptr (DsSimRig) rig = ds_sim_rig_new_from_data (text, "clear-sharp-sine", &error);
-  g_assert_no_error (error);
-  DsValidateOptions opt = { .calibrated = TRUE, .seed = 3 };
   DsValidateScene vs;
-  g_assert_true (ds_validate_probe (rig, &opt, &vs, &error));
-  g_assert_no_error (error);
+  g_autoptr (DsSimRig) rig = calibrated_probe (text, "clear-sharp-sine", 3, &vs);
   double b = vs.calibration.black_level, drawn = (1 - b) / 2;
   g_test_message ("calibration: harmonic gain %.4f, black level %.4f; the probe's blur %.3f px, aperture %.3f px (%s)",
                   vs.calibration.harmonic_gain, b, vs.probe.geometry.blur_px, vs.probe.geometry.pixel_aperture,
