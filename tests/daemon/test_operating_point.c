@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "daemon/operating/operating_point.h"
+#include "report_json.h"
 
 static DsSeparationParams params; /* square stripes, duty 1/2, no black level */
 
@@ -249,11 +250,7 @@ test_report_json (void)
                                 .period_px = 12, .predicted_error = 0.048, .predicted_time_ms = 90,
                                 .lower_bound = TRUE,
                                 .parts = { .total = 0.04, .noise = 0.03, .systematic = 0.0265, .sampling = 0.0265 } };
-  g_autoptr (JsonBuilder) b = json_builder_new ();
-  json_builder_begin_object (b);
-  ds_operating_report_to_json (&r, b);
-  json_builder_end_object (b);
-  g_autoptr (JsonNode) root = json_builder_get_root (b);
+  g_autoptr (JsonNode) root = report_json (&r);
   JsonObject *o = json_node_get_object (root);
   g_assert_cmpfloat (json_object_get_double_member (o, "predicted_error"), ==, 0.048);
   g_assert_true (json_object_get_boolean_member (o, "lower_bound"));
@@ -277,11 +274,7 @@ test_report_json (void)
   /* The probe measured the blur: no assumption listed; the pattern check's, when it made one. */
   g_assert_cmpuint (json_array_get_length (json_object_get_array_member (o, "assumptions")), ==, 0);
   g_strlcpy (r.pattern_assumption, "off-stripe level taken as scattered light", sizeof r.pattern_assumption);
-  g_autoptr (JsonBuilder) b2 = json_builder_new ();
-  json_builder_begin_object (b2);
-  ds_operating_report_to_json (&r, b2);
-  json_builder_end_object (b2);
-  g_autoptr (JsonNode) root2 = json_builder_get_root (b2);
+  g_autoptr (JsonNode) root2 = report_json (&r);
   JsonArray *assumed = json_object_get_array_member (json_node_get_object (root2), "assumptions");
   g_assert_cmpuint (json_array_get_length (assumed), ==, 1);
   g_assert_cmpstr (json_array_get_string_element (assumed, 0), ==, "off-stripe level taken as scattered light");
@@ -292,11 +285,7 @@ test_report_json (void)
   r.point.uncertainty = 0.19;
   r.point.target_may_be_missed = TRUE;
   g_strlcpy (r.point.target_note, "no operating point is predicted to reach", sizeof r.point.target_note);
-  g_autoptr (JsonBuilder) b3 = json_builder_new ();
-  json_builder_begin_object (b3);
-  ds_operating_report_to_json (&r, b3);
-  json_builder_end_object (b3);
-  g_autoptr (JsonNode) root3 = json_builder_get_root (b3);
+  g_autoptr (JsonNode) root3 = report_json (&r);
   JsonObject *o3 = json_node_get_object (root3);
   g_assert_cmpfloat (json_object_get_double_member (o3, "predicted_error_upper"), ==, 0.048);
   g_assert_cmpfloat (json_object_get_double_member (o3, "predicted_error_uncertainty"), ==, 0.19);

@@ -15,6 +15,7 @@
 #include "daemon/operating/operating_point.h"
 #include "daemon/operating/scene_probe.h"
 #include "daemon/protocol/protocol.h"
+#include "report_json.h"
 
 typedef struct {
   double period, duty, blur;  /* square stripes, black level 0 */
@@ -141,11 +142,7 @@ lower_bound_json (const DsSceneProbe *p, char **reasons)
   gboolean chosen = choose_point (p, 0, 200, &r.point, &error);
   g_assert_no_error (error);
   g_assert_true (chosen);
-  g_autoptr (JsonBuilder) b = json_builder_new ();
-  json_builder_begin_object (b);
-  ds_operating_report_to_json (&r, b);
-  json_builder_end_object (b);
-  g_autoptr (JsonNode) root = json_builder_get_root (b);
+  g_autoptr (JsonNode) root = report_json (&r);
   JsonObject *o = json_node_get_object (root);
   JsonArray *why = json_object_get_array_member (o, "lower_bound_reasons");
   GString *all = g_string_new (NULL);
