@@ -62,29 +62,6 @@ opposite_phases_sum_flat (const DsStripeModel *g)
   return g->kind == DS_PATTERN_SINE || fabs (g->duty - 0.5) < 1e-3;
 }
 
-/* The pattern as the rig's pixels see it by its calibration: the calibrated edge blur, or the blur
- * and aperture a calibrated gain gives. The calibrated gain is the first harmonic as the rig's
- * pixels see it. Above what the sharp pattern integrated over the whole pixel gives, no blur
- * explains it: the pixel integrates less (the simulator samples sine stripes at the pixel
- * centre), and a whole pixel's sinc (1/P) would put the gains of every pilot period, and so Ld,
- * too low (gen-14-04: 1.9 % at 9.25 px, 7.5 % at 4.63 px, Ld read 3.7 % high) and the sine
- * estimator's error at 1 - sinc (1/P) where it divides by the very gain the pixels see. FALSE (g
- * the configured geometry) without a calibration. */
-static gboolean
-calibrated_pattern (const DsProbeFrames *fr, DsStripeModel *g)
-{
-  *g = fr->geometry;
-  if (fr->blur_known) {
-    g->blur_px = CLAMP (fr->calibrated_blur_px, 0.0, fr->geometry.period_px / 2);
-    return TRUE;
-  }
-  if (fr->calibrated_gain > 0) {
-    ds_stripe_match_gain (g, fr->calibrated_gain);
-    return TRUE;
-  }
-  return FALSE;
-}
-
 /* Whether the noise is read on the two pairs' sums (ds_column_stats_noise_sets_dn) rather than on
  * the fine pair's difference: where the sums are flat, and for square stripes of a duty a near 1/2.
  * Their opposite phases sum to 1 - b but in gaps (a < 1/2) or overlaps (a > 1/2) of width
@@ -325,16 +302,11 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
     stat[i] = masked[i] ? masked[i] : lit[i];
   DsProbePairFit fine = { 0 }, coarse = { 0 }, finer[DS_PROBE_FINER_MAX];
   memset (finer, 0, sizeof finer);
-  /* On the scene's envelope for sine stripes as each pair is fitted; for square stripes of a duty
-   * other than 1/2 on a calibrated rig once every pair is fitted, the stripes' even harmonics taken
-   * off the envelope (ds_probe_pairs_refit_pattern ()). Not for square stripes of duty 1/2, whose
-   * opposite phases sum flat too: with the envelope the daemon's uncalibrated milk-disc (an opaque
-   * disc under a wide scattered shadow, the blur fitted to the harmonics at P and 2P) read its blur
-   * at 0.20 px against 0.5 and the drop of its modulation between periods as a kernel
-   * (tests/daemon/test_ctl.py's automatic capture refused), and the calibrated clear-grid (no
-   * medium) 0.8 % of scattered stripes at P; not traced. */
-  DsStripeModel calibrated;
-  gboolean pattern_known = calibrated_pattern (fr, &calibrated);
+  /* On the scene's envelope for sine stripes only. Square ones of duty 1/2 sum flat too, but with
+   * the envelope the daemon's uncalibrated milk-disc (an opaque disc under a wide scattered
+   * shadow, the blur fitted to the harmonics at P and 2P) read its blur at 0.20 px against 0.5 and
+   * the drop of its modulation between periods as a kernel (tests/daemon/test_ctl.py's automatic
+   * capture refused); not traced. */
   double envelope_dn = fr->geometry.kind == DS_PATTERN_SINE ? out->dark_dn : -1;
   gboolean ok =
     ds_probe_pair_fit (l0, l1, stat[0], stat[1], ceiling, fr->geometry.period_px, envelope_dn, &fine, error);
@@ -346,15 +318,6 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
   for (guint i = 0; ok && i < fr->n_finer; i++)
     ok = ds_probe_pair_fit (fr->finer[i].frame[0], fr->finer[i].frame[1], fr->finer[i].frame[0], fr->finer[i].frame[1],
                             ceiling, fr->finer[i].period_px, envelope_dn, &finer[i], error);
-  if (ok && pattern_known && !opposite_phases_sum_flat (&fr->geometry)) {
-    DsProbePairFit *pairs[2 + DS_PROBE_FINER_MAX] = { &fine, &coarse };
-    double periods[2 + DS_PROBE_FINER_MAX] = { fr->geometry.period_px, 2 * fr->geometry.period_px };
-    for (guint i = 0; i < fr->n_finer; i++) {
-      pairs[2 + i] = &finer[i];
-      periods[2 + i] = fr->finer[i].period_px;
-    }
-    ds_probe_pairs_refit_pattern (pairs, periods, 2 + fr->n_finer, out->dark_dn, &calibrated);
-  }
   if (!ok) {
     g_prefix_error (error, "pilot frames: ");
     ds_column_stats_clear (&fine.stats);
@@ -418,10 +381,20 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
    * the scattered stripes raise the coarse period against the fine one; every harmonic at both
    * periods is needed to tell them apart. */
   double sigma = 0;
-  if (pattern_known) {
-    /* A calibrated gain is the first harmonic as the rig's pixels see it (calibrated_pattern ()). */
-    sigma = calibrated.blur_px;
-    out->geometry.pixel_aperture = calibrated.pixel_aperture;
+  if (fr->blur_known) {
+    sigma = CLAMP (fr->calibrated_blur_px, 0.0, fr->geometry.period_px / 2);
+    out->blur_source = DS_BLUR_CALIBRATED;
+  } else if (fr->calibrated_gain > 0) {
+    /* The calibrated gain is the first harmonic as the rig's pixels see it. Above what the sharp
+     * pattern integrated over the whole pixel gives, no blur explains it: the pixel integrates
+     * less (the simulator samples sine stripes at the pixel centre), and a whole pixel's sinc
+     * (1/P) would put the gains of every pilot period, and so Ld, too low (gen-14-04: 1.9 % at
+     * 9.25 px, 7.5 % at 4.63 px, Ld read 3.7 % high) and the sine estimator's error at
+     * 1 - sinc (1/P) where it divides by the very gain the pixels see. */
+    DsStripeModel matched = fr->geometry;
+    ds_stripe_match_gain (&matched, fr->calibrated_gain);
+    sigma = matched.blur_px;
+    out->geometry.pixel_aperture = matched.pixel_aperture;
     out->blur_source = DS_BLUR_CALIBRATED;
   } else if (n_eq >= (two ? 3u : 2u)) {
     double best = INFINITY, hi = MIN (fr->geometry.period_px / 2, 4.0);

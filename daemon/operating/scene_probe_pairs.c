@@ -3,7 +3,6 @@
 #include <math.h>
 #include <string.h>
 
-#include "daemon/operating/scene_probe_transfer.h"
 #include "daemon/protocol/protocol.h"
 
 /* Pixels where either frame of a pair is at or above the ceiling. */
@@ -46,131 +45,6 @@ scene_envelope (const DsColumnStats *st, double dark_dn)
   for (guint x = 0; x < st->width; x++)
     e[x] = st->count[x] ? (st->mean_sum[x] - 2 * dark_dn) / mean : 1.0;
   return e;
-}
-
-void
-ds_probe_light_pool_add (DsProbeLightPool *pool, const DsStripeHarmonics *fit, const DsStripeModel *pattern,
-                         double period, guint width)
-{
-  DsStripeModel m = *pattern;
-  m.period_px = period;
-  double a = fit->n_harmonics >= 1 ? fit->amplitude[1] : 0;
-  if (pool->n >= DS_PROBE_POOL_MAX || !(a > 4 * fit->sigma_amplitude))
-    return;
-  double g = ds_probe_model_gain (&m, period, m.blur_px, fit->phase[1], width, 1);
-  if (!(g > 0))
-    return;
-  /* Sorted by x. */
-  guint i = pool->n++;
-  for (; i > 0 && pool->x[i - 1] > period; i--) {
-    pool->x[i] = pool->x[i - 1];
-    pool->y[i] = pool->y[i - 1];
-  }
-  pool->x[i] = period;
-  pool->y[i] = a / g;
-}
-
-double
-ds_probe_light_pool_at (const DsProbeLightPool *pool, double x)
-{
-  if (pool->n == 0)
-    return 0;
-  if (x <= pool->x[0])
-    return pool->y[0];
-  for (guint i = 1; i < pool->n; i++)
-    if (x <= pool->x[i])
-      return pool->y[i - 1] + (pool->y[i] - pool->y[i - 1]) * (x - pool->x[i - 1]) / (pool->x[i] - pool->x[i - 1]);
-  return pool->y[pool->n - 1];
-}
-
-/* The same for square stripes of a duty a other than 1/2, whose opposite phases do not sum to a
- * constant: a shift by half a period flips the sign of a square wave's odd harmonics and keeps its
- * even ones, so the pair's sum is Ld(x) q(x) + 2 m Lg(x) + 2 dark with q = v(x, s) + v(x, s + 1/2),
- * the pattern's two phases as the pixels see them (ds_stripe_value: g's duty, black level,
- * calibrated blur and aperture; s the pair's phase), whose even harmonics are
- * (4/(n pi)) sin (n pi a) (1 - b) B_n S_n. Taken as the envelope, they beat with the stripes'
- * harmonics in the fit exactly as objects do, onto the harmonics n +- 2 (gen-16-07, duty 0.47 at
- * 8.25 px, no medium: the sum's second harmonic 11 % of its mean; the plain fit's harmonics
- * scattered by 3 %, Lg read 100 DN against 0). So they are taken off, each at the light that
- * carries it: the direct light plus what scattered light keeps of the stripes at its own x = Q/k,
- * read off the pilot pairs' first harmonics (pool: ds_probe_light_pool_at ()), since a kernel keeps
- * every harmonic of the sum and of the difference alike by its transfer there (gen-16-09: a
- * kernel of 24 px keeping 72 % of its light modulated at P and 37 % at P/2, where one light for
- * all left the third harmonic at P 16 % high on the scene without its objects). What is left is
- * Ld(x) mean q + 2 m Lg(x), the sine case's envelope, to within the objects' variation times the
- * stripes' even harmonics, which is not periodic in the stripes. The objects' own variation at
- * the even harmonics' frequencies stays in: that is what beats onto the stripes' harmonics (the
- * sum's even harmonics fitted and taken off instead left gen-16-07's harmonics as scattered as
- * the plain fit's). NULL when the level is not positive. */
-static double *
-pattern_envelope (const DsColumnStats *st, double dark_dn, const DsStripeModel *g, double period, double phase,
-                  const DsProbeLightPool *pool, double *objects_rms, double *stripes_rms)
-{
-  DsStripeModel m = *g;
-  m.period_px = period;
-  g_autofree double *q = g_new (double, st->width);
-  double sum = 0, n = 0;
-  for (guint x = 0; x < st->width; x++) {
-    q[x] = ds_stripe_value (&m, x, phase) + ds_stripe_value (&m, x, phase + 0.5);
-    sum += (st->mean_sum[x] - 2 * dark_dn) * st->count[x];
-    n += st->count[x];
-  }
-  DsStripeHarmonics qh;
-  if (!(n > 0 && sum > 0) ||
-      !ds_stripe_harmonics_fit (q, st->count, 0, st->width, period, DS_STRIPE_MAX_HARMONICS, &qh, NULL))
-    return NULL;
-  double ld[DS_STRIPE_MAX_HARMONICS + 1] = { 0 };
-  for (guint k = 2; k <= qh.n_harmonics; k += 2)
-    ld[k] = ds_probe_light_pool_at (pool, period / k);
-  /* The harmonics of q beyond those fitted (sharp stripes' edges: up to Nyquist, and aliased
-   * beyond it) at the light the pool reads at its finest x. */
-  double ld_rest = ds_probe_light_pool_at (pool, 0), mean = sum / n;
-  double *e = g_new (double, st->width);
-  double sq_objects = 0, sq_stripes = 0;
-  for (guint x = 0; x < st->width; x++) {
-    double even = ld_rest * (q[x] - ds_stripe_harmonics_eval (&qh, period, x));
-    for (guint k = 2; k <= qh.n_harmonics; k += 2)
-      even += ld[k] * qh.amplitude[k] * cos (2 * G_PI * k * (x / period - qh.phase[k]));
-    e[x] = st->count[x] ? (st->mean_sum[x] - 2 * dark_dn - even) / mean : 1.0;
-    sq_objects += (e[x] - 1) * (e[x] - 1) * st->count[x];
-    sq_stripes += (even / mean) * (even / mean) * st->count[x];
-  }
-  *objects_rms = sqrt (sq_objects / n);
-  *stripes_rms = sqrt (sq_stripes / n);
-  return e;
-}
-
-gboolean
-ds_probe_pairs_refit_pattern (DsProbePairFit *const *pairs, const double *periods, guint n_pairs, double dark_dn,
-                              const DsStripeModel *pattern)
-{
-  for (int pass = 0; pass < DS_PROBE_POOL_PASSES; pass++) {
-    DsProbeLightPool pool = { 0 };
-    for (guint i = 0; i < n_pairs; i++)
-      if (pairs[i]->ok)
-        ds_probe_light_pool_add (&pool, &pairs[i]->fit, pattern, periods[i], pairs[i]->stats.width);
-    for (guint i = 0; i < n_pairs; i++) {
-      DsProbePairFit *f = pairs[i];
-      if (!f->ok || f->fit.n_harmonics < 1)
-        continue;
-      double objects_rms = 0, stripes_rms = 0;
-      g_autofree double *envelope = pattern_envelope (&f->stats, dark_dn, pattern, periods[i], f->fit.phase[1], &pool,
-                                                      &objects_rms, &stripes_rms);
-      /* The envelope's gain is the objects' beats, its cost the stripes' part taken off at a light
-       * known to a few %: where the columns' level varies less than the stripes' even harmonics
-       * do, the plain fit stays (decided on the pair at P, for all). */
-      if (pass == 0 && i == 0 && !(envelope && objects_rms > stripes_rms))
-        return FALSE;
-      DsStripeHarmonics on_envelope;
-      if (envelope && ds_stripe_harmonics_fit_envelope (f->stats.mean_diff, f->stats.count, envelope, 0, f->stats.width,
-                                                        periods[i], DS_STRIPE_MAX_HARMONICS, &on_envelope, NULL))
-        f->on_envelope = on_envelope;
-    }
-    for (guint i = 0; i < n_pairs; i++)
-      if (pairs[i]->ok && pairs[i]->on_envelope.n_harmonics > 0)
-        pairs[i]->fit = pairs[i]->on_envelope;
-  }
-  return TRUE;
 }
 
 /* a, b: the pair as taken (for the clip count), stat_a, stat_b: what the statistics read (the
