@@ -830,6 +830,7 @@ status_to_json (DsService *svc)
   add_uint (b, "timeouts", st.camera_stats.timeouts);
   add_uint (b, "ids_skipped", st.camera_stats.ids_skipped);
   add_uint (b, "reconnects", st.camera_stats.reconnects);
+  add_uint (b, "unfilled_buffers", st.camera_stats.unfilled_buffers);
   json_builder_end_object (b);
   json_builder_set_member_name (b, "illuminator");
   json_builder_begin_object (b);

@@ -46,6 +46,38 @@ on_stream_event (void *data, ArvStreamCallbackType type, ArvBuffer *buffer)
   g_mutex_unlock (&c->begun_lock);
 }
 
+/* What a stream buffer held when the backend last took it from the stream. Aravis 0.8.26 can
+ * hand back a buffer it never filled: a packet that begins no frame it can size (content it
+ * cannot take, or any packet at all reaching the receiving thread, such as, as root, one of
+ * loopback's other packets caught by the packet socket before its filter is attached) takes a
+ * buffer from the input queue and puts it straight into the output queue, as it was: cleared if
+ * new, else with the status, frame id and pixels of the frame it carried before
+ * (arvgvstream.c, _find_frame_data). Such a buffer is no frame: neither grabbed nor flushed as
+ * one (it was counted as a stale frame, or would come back as a copy of an old frame). */
+typedef struct {
+  ArvBufferStatus status;
+  guint64 frame_id, system_timestamp;
+} BufferSeen;
+
+G_DEFINE_QUARK (ds-aravis-buffer-seen, buffer_seen)
+
+/* TRUE when buf holds what the stream filled since the backend last took it: not cleared, and
+ * not exactly as it was then (status, frame id and the host time of its leader). Records what
+ * it holds now. */
+static gboolean
+freshly_filled (ArvBuffer *buf)
+{
+  BufferSeen now = { arv_buffer_get_status (buf), arv_buffer_get_frame_id (buf),
+                     arv_buffer_get_system_timestamp (buf) };
+  BufferSeen *seen = g_object_get_qdata (G_OBJECT (buf), buffer_seen_quark ());
+  gboolean fresh = now.status != ARV_BUFFER_STATUS_CLEARED &&
+                   !(seen && seen->status == now.status && seen->frame_id == now.frame_id &&
+                     seen->system_timestamp == now.system_timestamp);
+  if (seen)
+    *seen = now;
+  return fresh;
+}
+
 /* Lost: seen by the backend (a command or a frame unanswered) or reported by Aravis. */
 static gboolean
 camera_lost (AravisCam *c)
@@ -339,8 +371,13 @@ create_pool (AravisCam *c, guint payload, GError **error)
     g_object_set (stream, "socket-buffer", ARV_GV_STREAM_SOCKET_BUFFER_AUTO, "packet-resend",
                   ARV_GV_STREAM_PACKET_RESEND_ALWAYS, NULL);
   /* Each buffer knows its stream (user data), so that a frame lending it can give it back. */
-  for (guint i = 0; i < c->n_buffers; i++)
-    arv_stream_push_buffer (stream, arv_buffer_new_full (payload, NULL, stream, NULL));
+  for (guint i = 0; i < c->n_buffers; i++) {
+    ArvBuffer *buf = arv_buffer_new_full (payload, NULL, stream, NULL);
+    BufferSeen *seen = g_new (BufferSeen, 1);
+    *seen = (BufferSeen) { ARV_BUFFER_STATUS_CLEARED, 0, 0 };
+    g_object_set_qdata_full (G_OBJECT (buf), buffer_seen_quark (), seen, g_free);
+    arv_stream_push_buffer (stream, buf);
+  }
   c->stream = stream;
   c->stream_payload = payload;
   c->stream_running = TRUE; /* created streams start receiving at once */
@@ -355,6 +392,11 @@ drain_output (AravisCam *c)
   guint n = 0;
   ArvBuffer *buf;
   while (c->stream && (buf = arv_stream_try_pop_buffer (c->stream))) {
+    if (!freshly_filled (buf)) {
+      arv_stream_push_buffer (c->stream, buf);
+      c->stats.unfilled_buffers++;
+      continue;
+    }
     guint64 raw_id = arv_buffer_get_frame_id (buf);
     guint32 skipped = 0;
     if (raw_id) {
@@ -505,7 +547,16 @@ cam_grab (gpointer b, guint timeout_ms, GError **error)
     fail (error, DS_DEVICE_ERROR_INVALID, NULL, "grab before start");
     return NULL;
   }
-  ArvBuffer *buf = arv_stream_timeout_pop_buffer (c->stream, (guint64) timeout_ms * 1000);
+  gint64 deadline = g_get_monotonic_time () + (gint64) timeout_ms * 1000;
+  ArvBuffer *buf;
+  for (;;) {
+    gint64 left = MAX (deadline - g_get_monotonic_time (), 0);
+    buf = arv_stream_timeout_pop_buffer (c->stream, (guint64) left);
+    if (!buf || freshly_filled (buf))
+      break;
+    arv_stream_push_buffer (c->stream, buf); /* no frame: wait on for one */
+    c->stats.unfilled_buffers++;
+  }
   if (!buf) {
     if (!check_connected (c, error))
       return NULL;

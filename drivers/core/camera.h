@@ -34,6 +34,7 @@ typedef struct {
   guint64 timeouts;
   guint64 ids_skipped;     /* frame-id gaps seen */
   guint64 reconnects;
+  guint64 unfilled_buffers; /* buffers the library handed back without a frame in them: no frames */
 } DsCameraStats;
 
 typedef struct {

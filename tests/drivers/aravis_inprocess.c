@@ -658,6 +658,91 @@ test_lent_buffers (Rig *r, gconstpointer data)
   ds_frame_free (last); /* gives the buffer back to a stream only this frame still holds */
 }
 
+/* One GVSP packet to the stream's address, as the camera would send it: status OK, frame id
+ * `id`, content type H.264 (0x05), packet 0. Aravis 0.8.26 sizes no frame from it and moves
+ * the next input buffer, unfilled, to the output queue. */
+static void
+send_stray_packet (Rig *r, guint16 id)
+{
+  g_autoptr (GError) error = NULL;
+  g_autoptr (GSocketAddress) to = arv_fake_camera_get_stream_address (arv_gv_fake_camera_get_fake_camera (r->gv));
+  g_assert_cmpuint (g_inet_socket_address_get_port (G_INET_SOCKET_ADDRESS (to)), >, 0);
+  g_autoptr (GSocket) sock = g_socket_new (G_SOCKET_FAMILY_IPV4, G_SOCKET_TYPE_DATAGRAM, G_SOCKET_PROTOCOL_UDP, &error);
+  g_assert_no_error (error);
+  g_autoptr (GSocketAddress) from = g_inet_socket_address_new_from_string (ADDRESS, 0);
+  g_assert_true (g_socket_bind (sock, from, FALSE, &error));
+  const guint8 packet[8] = { 0, 0, (guint8) (id >> 8), (guint8) (id & 0xff), 0x05, 0, 0, 0 };
+  g_assert_cmpint (g_socket_send_to (sock, to, (const char *) packet, sizeof packet, NULL, &error), ==, sizeof packet);
+  g_assert_no_error (error);
+  /* Wait until the stream has handed the buffer out. */
+  for (guint t = 0; t < 200; t++) {
+    guint in, out, pool;
+    ds_aravis_camera_pool_counts (r->cam, &in, &out, &pool);
+    if (out == 1)
+      return;
+    g_usleep (10000);
+  }
+  g_error ("the stream handed out no buffer for the stray packet");
+}
+
+/* A frame id ahead of frame f's on the 16-bit circle without 0, as a new frame's would be. */
+static guint16
+id_ahead (const DsFrame *f)
+{
+  guint id = (guint) ((f->frame_id + 100) % 65536);
+  return (guint16) (id ? id : 1);
+}
+
+/* A buffer the stream hands back without filling it is no frame: flush does not count it, and
+ * grab waits on for the frame the trigger made, whether the buffer was new (cleared) or still
+ * held an earlier frame's pixels. Without the check a flush counted a stale frame (what
+ * drivers/daemon-gpio-trigger saw as root, where loopback's other packets reached the stream),
+ * and a grab returned a copy of an old frame. */
+static void
+test_unfilled_buffers (Rig *r, gconstpointer data)
+{
+  (void) data;
+  DsCameraSettings s = settings ("Mono8", 16, 8);
+  configure_and_start (r, &s);
+  g_autoptr (GError) error = NULL;
+  guint n;
+  {
+    g_autoptr (DsFrame) f = trigger_and_grab (r->cam, &error);
+    g_assert_no_error (error);
+    n = check_pixels (f, 255);
+    /* The next input buffer was never filled: it comes back cleared. */
+    send_stray_packet (r, id_ahead (f));
+  }
+  g_assert_cmpuint (r->cam->ops->flush (r->cam->backend), ==, 0);
+  /* Every buffer has held a frame... */
+  guint64 last_id = 0;
+  for (guint i = 0; i < N_BUFFERS + 1; i++) {
+    g_autoptr (DsFrame) f = trigger_and_grab (r->cam, &error);
+    g_assert_no_error (error);
+    g_assert_cmpuint (check_pixels (f, 255), ==, ++n);
+    last_id = f->frame_id;
+  }
+  /* ... so the next one comes back as it was, success, with an old frame in it. */
+  DsFrame probe = { .frame_id = last_id };
+  send_stray_packet (r, id_ahead (&probe));
+  g_autoptr (DsFrame) f = trigger_and_grab (r->cam, &error);
+  g_assert_no_error (error);
+  g_assert_cmpuint (check_pixels (f, 255), ==, n + 1); /* the trigger's frame, not a copy */
+  g_assert_cmpuint (f->frame_id, ==, last_id + 1);
+  g_assert_cmpuint (f->ids_skipped, ==, 0);
+  g_assert_cmpuint (r->cam->ops->flush (r->cam->backend), ==, 0);
+  DsCameraStats st;
+  r->cam->ops->get_stats (r->cam->backend, &st);
+  g_assert_cmpuint (st.unfilled_buffers, ==, 2);
+  g_assert_cmpuint (st.completed, ==, N_BUFFERS + 3);
+  g_assert_cmpuint (st.failures, ==, 0);
+  g_clear_pointer (&f, ds_frame_free);
+  r->cam->ops->stop (r->cam->backend);
+  guint in, out, pool;
+  ds_aravis_camera_pool_counts (r->cam, &in, &out, &pool);
+  g_assert_cmpuint (in, ==, N_BUFFERS);
+}
+
 static void
 test_open_bad_arguments (void)
 {
@@ -679,6 +764,7 @@ main (int argc, char **argv)
   ADD ("/aravis/ids-across-wrap", test_ids_across_wrap);
   ADD ("/aravis/packet-loss", test_packet_loss);
   ADD ("/aravis/flush", test_flush);
+  ADD ("/aravis/unfilled-buffers", test_unfilled_buffers);
   ADD ("/aravis/disconnect-reconnect", test_disconnect_reconnect);
   ADD ("/aravis/lent-buffers", test_lent_buffers);
   ADD ("/aravis/control-lost-during-close", test_control_lost_during_close);
