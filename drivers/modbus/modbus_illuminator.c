@@ -26,6 +26,11 @@ typedef struct {
   guint16 first_period;    /* rev1: PERIOD_CENTIPX of the first set_pattern; 0 = none yet */
   guint64 failed_attempts, failed_accesses; /* since open (DsIlluminatorStatus) */
   char last_link_problem[160];
+  /* APPLY_COUNT as the poll that confirmed our last apply read it (apply_and_wait). Known only
+   * from that confirmation until anything else could move the count unseen: any failure of an
+   * apply, a write of ours not waited for (set_pattern), a lost or new connection. */
+  gboolean count_known;
+  guint16 count_confirmed;
 } ModbusIlluminator;
 
 /* ---- URI ---------------------------------------------------------------------------------- */
@@ -180,6 +185,8 @@ disconnect (ModbusIlluminator *m)
   if (m->connected)
     modbus_close (m->ctx);
   m->connected = FALSE;
+  /* The controller may restart while we are away (its count starts again from 0). */
+  m->count_known = FALSE;
 }
 
 static gboolean
@@ -375,17 +382,34 @@ check_status_bits (ModbusIlluminator *m, guint16 status, GError **error)
 }
 
 /* Writes regs at addr, then polls until APPLY_COUNT advanced with the device ready and
- * APPLIED_PHASE == expect, or the deadline. */
+ * APPLIED_PHASE == expect, or the deadline.
+ *
+ * "Advanced" is counted from APPLY_COUNT read before the write. Right after an apply of ours
+ * that this function confirmed, that read is skipped (one round trip of three at settle 0) and
+ * the count that confirmation read stands in for it: then only an advance of exactly one, with
+ * the device ready, is our write's. Any other count once ready, the same count included, means
+ * that the count moved without us since (another master wrote, the controller restarted and
+ * counts from 0 again): whether our write is among the applies cannot be told, so the count
+ * read then becomes the reference and the write goes out again, as if the first read had been
+ * made (docs/registers.md: every write schedules one apply, a write during the settle time
+ * restarts it). What is lit is always checked the same way: READY, the count advanced,
+ * APPLIED_PHASE the phase asked for. A fault that appeared since our last apply is then seen at
+ * the first poll, after the write (which a faulted controller holds without applying it). */
 static gboolean
 apply_and_wait (ModbusIlluminator *m, int addr, int nb, guint16 *regs, guint expect,
-                guint timeout_ms, GError **error)
+                     guint timeout_ms, GError **error)
 {
   gint64 deadline = g_get_monotonic_time () + (gint64) timeout_ms * 1000;
   guint16 in[3]; /* STATUS, APPLIED_PHASE, APPLY_COUNT */
-  if (!mb_access (m, READ_INPUT, DS_MB_INPUT_STATUS, 3, in, error) ||
-      !check_status_bits (m, in[0], error))
-    return FALSE;
-  guint16 count0 = in[2];
+  gboolean from_confirmed = m->count_known;
+  guint16 count0 = m->count_confirmed;
+  m->count_known = FALSE;
+  if (!from_confirmed) {
+    if (!mb_access (m, READ_INPUT, DS_MB_INPUT_STATUS, 3, in, error) ||
+        !check_status_bits (m, in[0], error))
+      return FALSE;
+    count0 = in[2];
+  }
   if (!mb_access (m, WRITE_HOLDING, addr, nb, regs, error))
     return FALSE;
   for (;;) {
@@ -393,9 +417,20 @@ apply_and_wait (ModbusIlluminator *m, int addr, int nb, guint16 *regs, guint exp
         !check_status_bits (m, in[0], error))
       return FALSE;
     gboolean ready = (in[0] & DS_MB_STATUS_READY) != 0;
+    if (ready && from_confirmed && in[2] != (guint16) (count0 + 1)) {
+      /* Not exactly our one apply: start over from this count, as a first read would. */
+      from_confirmed = FALSE;
+      count0 = in[2];
+      if (!mb_access (m, WRITE_HOLDING, addr, nb, regs, error))
+        return FALSE;
+      continue;
+    }
     if (ready && in[2] != count0) {
-      if (in[1] == expect)
+      if (in[1] == expect) {
+        m->count_known = TRUE;
+        m->count_confirmed = in[2];
         return TRUE;
+      }
       g_set_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_INVALID,
                    "Modbus %s: register APPLIED_PHASE reads %s%u, expected %s%u", m->uri_text,
                    in[1] == DS_MB_PHASE_OFF ? "off " : "", in[1] == DS_MB_PHASE_OFF ? 0 : in[1],
@@ -486,6 +521,8 @@ modbus_set_pattern (gpointer backend, const DsStripePattern *pattern, GError **e
   if (!ds_modbus_pattern_to_registers (pattern, regs, error) ||
       !check_period (m, regs[DS_MB_HOLD_PERIOD_CENTIPX], error))
     return FALSE;
+  /* This write schedules an apply that nobody waits for: the count moves unseen. */
+  m->count_known = FALSE;
   if (!mb_access (m, WRITE_HOLDING, DS_MB_HOLD_PHASE, DS_MB_HOLD_COUNT, regs, error))
     return FALSE;
   m->n_phases = pattern->n_phases;
