@@ -4,6 +4,7 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "daemon/operating/scene_probe_hidden.h"
 #include "daemon/operating/scene_probe_pairs.h"
 #include "daemon/operating/scene_probe_transfer.h"
 #include "daemon/protocol/protocol.h"
@@ -125,10 +126,13 @@ spread_across_columns (const DsProbePairFit *f, const DsStripeModel *geometry, c
  * not tell a clear scene from one whose medium keeps the stripes at P and 2P (held-out gen-12-05:
  * Lg read 0.8 % of Ld where the truth's is 8.8 %, nine tenths of it in a kernel of about a pixel;
  * its prediction x6.3 low and not flagged): the scene is suspected unless Lg plus that
- * uncertainty stays under 1 %. Called once ld_mean, lg_mean and the leak are known. */
+ * uncertainty stays under 1 %. Where the finer periods saw no kernel, the mean's scattered light that the
+ * coarsest period keeps and the fit's leak at P does not (hidden, scene_probe_hidden.h) makes it a lower
+ * bound too, with the leak at P bounded by what that period keeps (hidden_leak). Called once ld_mean,
+ * lg_mean and the leak are known. */
 static void
 narrow_verdict (const DsProbeFrames *fr, gboolean finer_used, double ld_uncertainty, const DsConeFit *cone,
-                DsSceneProbe *out)
+                const DsProbeHiddenLight *hidden, DsSceneProbe *out)
 {
   double P = fr->geometry.period_px;
   out->narrow_unresolved = FALSE;
@@ -157,6 +161,13 @@ narrow_verdict (const DsProbeFrames *fr, gboolean finer_used, double ld_uncertai
                 "resolves (%g px): its kernel is narrower than the periods show and passes for direct light, so "
                 "the prediction is a lower bound",
                 100 * DS_PROBE_NARROW_MAX_AT_FINEST, out->finest_period_px);
+    return;
+  }
+  if (finer_used && out->narrow_fraction <= 0 && hidden->suspect) {
+    out->narrow_unresolved = TRUE;
+    out->hidden_leak = hidden->kept;
+    g_snprintf (out->narrow_note, sizeof out->narrow_note, "periods down to %g px: no kernel narrower than the period "
+                "seen, but %s", out->finest_period_px, hidden->note);
     return;
   }
   if (finer_used) {
@@ -215,9 +226,29 @@ narrow_verdict (const DsProbeFrames *fr, gboolean finer_used, double ld_uncertai
                 P, 100 * out->lg_mean / out->ld_mean, 100 * ld_uncertainty, why);
 }
 
+/* The upper end where the coarsest period bounds the leak (scene_probe_hidden.h): Ld as read, the
+ * leak at every harmonic and period at hidden_leak (a kernel of width 0 keeps every harmonic). */
+static gboolean
+hidden_worst_case (const DsSceneProbe *p, DsSceneProbe *worst)
+{
+  if (!p->narrow_unresolved || !(p->hidden_leak > 0) || (p->ld_interval && p->ld_unbounded))
+    return FALSE;
+  *worst = *p;
+  worst->leak_per_px = 0;
+  worst->leak_measured = TRUE;
+  worst->narrow_fraction = p->hidden_leak;
+  worst->narrow_kernel_px = 0;
+  worst->narrow_shape = 1;
+  worst->leak_bounded = TRUE;
+  worst->leak_max = MAX (p->leak_max, p->hidden_leak);
+  return TRUE;
+}
+
 gboolean
 ds_scene_probe_worst_case (const DsSceneProbe *p, DsSceneProbe *worst)
 {
+  if (hidden_worst_case (p, worst) && !(p->ld_interval && p->ld_lower < p->ld_mean))
+    return TRUE;
   if (!p->narrow_unresolved || !p->ld_interval || p->ld_unbounded || !(p->ld_lower < p->ld_mean) ||
       !(p->ld_lower > 0) || !(p->worst_kernel_px > 0))
     return FALSE;
@@ -572,6 +603,7 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
   DsProbeDirectInterval interval;
   ds_probe_direct_interval (eq_all, n_all, &out->geometry, sigma, l0->width, out->ld_mean, out->ld_mean + out->lg_mean,
                             &interval);
+  double ld_fit = out->ld_mean, total_fit = out->ld_mean + out->lg_mean;
   ds_probe_count_clipped_places (out, &places, fr->geometry.black_level, m);
   /* The leak the harmonics read can exceed the scattered light the mean shows (gen-7-08: 1.7 % of
    * Ld at P read, Lg 0.6 % of it, the truth's 0: the prediction x1.8 too high): the harmonics' scatter
@@ -589,7 +621,10 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
   }
   /* Also the prediction's (ds_operating_point_uncertainty ()). */
   out->ld_uncertainty = ds_probe_ld_uncertainty (eq_all, n_all, &out->geometry, sigma, l0->width);
-  narrow_verdict (fr, finer_used, out->ld_uncertainty, cone_used ? &cone : NULL, out);
+  DsProbeHiddenLight hidden;
+  ds_probe_hidden_light (eq_all, n_all, &out->geometry, sigma, l0->width, ld_fit, total_fit, out->ld_uncertainty,
+                         ds_scene_probe_leak (out, fr->geometry.period_px, 1), &hidden);
+  narrow_verdict (fr, finer_used, out->ld_uncertainty, cone_used ? &cone : NULL, &hidden, out);
   if (out->narrow_unresolved && two && interval.computed) {
     out->ld_interval = TRUE;
     out->ld_unbounded = interval.unbounded;

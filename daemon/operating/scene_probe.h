@@ -203,6 +203,10 @@ typedef struct {
   double ld_lower;                /* DN; ld_mean when the frames show no narrow kernel at the edge */
   double worst_kernel_px;         /* the single kernel at the lower end (w, nu = 1/2); 0 = none */
   char interval_note[360];        /* how the lower end was found, or why there is none */
+  /* Where the finer periods saw no kernel but the mean shows scattered light that the coarsest period
+   * keeps and the fit's leak at P does not (scene_probe_hidden.h): the leak at P can be up to this
+   * share of Ld, and ds_scene_probe_worst_case () takes it at every harmonic and period; 0 = none. */
+  double hidden_leak;
   double noise_var0;              /* DN^2 of one frame without signal (read, dark, quantisation) */
   double noise_gain;              /* DN^2 per DN of signal (shot noise) */
   double noise_dark_shot;         /* the part of noise_var0 that is the shot noise of the dark frame's

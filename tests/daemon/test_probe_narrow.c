@@ -454,6 +454,25 @@ true_scene (const Scene *s, const DsSceneProbe *measured, DsSceneProbe *t)
   t->narrow_unresolved = FALSE;
 }
 
+/* The point chosen on the probe p for target meets it with its upper end, and with the error the
+ * estimators make on the true scene (truth_em). */
+static void
+assert_true_error_meets (const DsSceneProbe *p, DsErrorModel *truth_em, double target)
+{
+  DsOperatingPoint op;
+  g_autoptr (GError) error = NULL;
+  g_assert_true (choose_point (p, target, 0, &op, &error));
+  g_assert_no_error (error);
+  g_assert_cmpfloat (op.predicted_error_upper, <=, target);
+  DsErrorParts real;
+  g_assert_true (ds_error_model_predict (truth_em, op.estimator, op.phases, op.averages,
+                                         op.exposure_us / p->exposure_us, 0, &real, NULL));
+  g_test_message ("target %.4f: %s N=%u M=%u, predicted %.4f to %.4f, true error %.4f", target,
+                  ds_estimator_name (op.estimator), op.phases, op.averages, op.predicted_error, op.predicted_error_upper,
+                  real.total);
+  g_assert_cmpfloat (real.total, <=, target);
+}
+
 /* All the scattered light in one Gaussian kernel (sigma 2 px, 60 % of Ld), P = 8 px and 2P alone
  * (an illuminator that cannot go finer): the kernel keeps 29 % of its stripes at P and 73 % at 2P.
  * The interval must hold the truth: Ld at most the modulation at the finest period (scattering
@@ -496,17 +515,7 @@ test_interval_single_kernel (void)
   g_assert_nonnull (strstr (error->message, "one kernel"));
   g_clear_error (&error);
   g_assert_cmpfloat (op.predicted_error_upper, >, op.predicted_error);
-  target = 1.3 * op.predicted_error_upper;
-  g_assert_true (choose_point (&p, target, 0, &op, &error));
-  g_assert_no_error (error);
-  g_assert_cmpfloat (op.predicted_error_upper, <=, target);
-  DsErrorParts real;
-  g_assert_true (ds_error_model_predict (truth_em, op.estimator, op.phases, op.averages,
-                                         op.exposure_us / p.exposure_us, 0, &real, NULL));
-  g_test_message ("target %.4f: %s N=%u M=%u, predicted %.4f to %.4f, true error %.4f", target,
-                  ds_estimator_name (op.estimator), op.phases, op.averages, op.predicted_error, op.predicted_error_upper,
-                  real.total);
-  g_assert_cmpfloat (real.total, <=, target);
+  assert_true_error_meets (&p, truth_em, 1.3 * op.predicted_error_upper);
 }
 
 /* No medium: no interval below Ld is claimed, nothing is refused that the noise allows. (At P = 8 px
@@ -528,6 +537,54 @@ test_interval_clear (void)
   g_assert_cmpfloat (op.predicted_error_upper, ==, op.predicted_error);
 }
 
+/* Scattered light whose kernel lies between the pilot's periods, and the first harmonic at P pulled
+ * 3 % down by objects' column profile (held-out gen-16-06 in closed form: P = 17 px, blur 1.17 px,
+ * so the finer periods stop at P/2; a Gaussian kernel of 3.4 px holding 8 % of Ld keeps 45 % of
+ * its stripes at P and 82 % at 2P, 3.6 % of Ld at P). The fit's leak at P is then far under the
+ * truth (the harmonics at P/2 and P read no rise), but the mean's scattered light is significant
+ * and the stripes at 2P keep most of it: the prediction is a lower bound whose upper end's leak at
+ * P is at least the truth's (the kernel's MTF rises with the period, so the leak at P is at most
+ * what 2P keeps), and a target above that upper end is met by the true scene's error. The same
+ * frames without the medium are not flagged (scene_probe_hidden.h). The objects' texture (0.27) sets the
+ * harmonics' fit noise near gen-16-06's; with less (0.25) the drop between the periods is significant and
+ * the interval of Ld is unbounded, with more (0.3 under 4c17873.s square-stripe envelope) the narrow term's
+ * check fires first: both flag too, by other rules, and are not what this tests. */
+static void
+test_kept_at_coarse (void)
+{
+  const Scene s = { .period = 17, .duty = 0.4, .blur = 1.17, .ld = 450, .lg_wide = 0, .dark = 20,
+                    .beta = 0.08, .kernel_px = 3.4, .first_error = { -0.03, 0 }, .texture = 0.27 };
+  DsSceneProbe p, worst, t;
+  probe (&s, TRUE, TRUE, &p);
+  double truth = truth_leak (&s, s.period), read = ds_scene_probe_leak (&p, s.period, 1);
+  g_test_message ("leak at P read %.4f, truth %.4f; Ld %.1f (truth %.1f), Lg %.1f (truth %.1f); %s", read, truth,
+                  p.ld_mean, s.ld, p.lg_mean, s.beta * s.ld, p.narrow_note);
+  g_assert_cmpfloat (read, <, truth / 1.5); /* what the fit misses: the case this is about */
+  g_assert_false (p.ld_interval && p.ld_lower < p.ld_mean); /* the drop is within the noise: no interval of Ld */
+  assert_unresolved_lower_bound (&p, "kept by the stripes at 34 px", "kept by the stripes");
+  g_assert_true (ds_scene_probe_worst_case (&p, &worst));
+  double leak_hi = ds_scene_probe_leak (&worst, s.period, 1);
+  g_test_message ("upper end: leak at P %.4f (truth %.4f, kept at 2P %.4f)", leak_hi, truth, truth_leak (&s, 2 * s.period));
+  g_assert_cmpfloat (leak_hi, >=, truth);
+  g_assert_cmpfloat (leak_hi, <=, 1.5 * truth_leak (&s, 2 * s.period));
+
+  true_scene (&s, &p, &t);
+  g_autoptr (DsErrorModel) truth_em = error_model (&t);
+  DsOperatingPoint op;
+  g_autoptr (GError) error = NULL;
+  g_assert_true (choose_point (&p, 0, 200, &op, &error));
+  g_assert_no_error (error);
+  g_assert_cmpfloat (op.predicted_error_upper, >, op.predicted_error);
+  assert_true_error_meets (&p, truth_em, 1.3 * op.predicted_error_upper);
+
+  Scene clear = s;
+  clear.beta = 0;
+  probe (&clear, TRUE, TRUE, &p);
+  g_test_message ("no medium: Lg %.1f, Ld %.1f; %s", p.lg_mean, p.ld_mean, p.narrow_note);
+  g_assert_false (p.narrow_unresolved);
+  g_assert_cmpfloat (p.hidden_leak, ==, 0);
+}
+
 int
 main (int argc, char **argv)
 {
@@ -544,5 +601,6 @@ main (int argc, char **argv)
   g_test_add_func ("/probe-narrow/inconsistent-harmonics", test_inconsistent_harmonics);
   g_test_add_func ("/probe-narrow/interval-single-kernel", test_interval_single_kernel);
   g_test_add_func ("/probe-narrow/interval-clear", test_interval_clear);
+  g_test_add_func ("/probe-narrow/kept-at-coarse", test_kept_at_coarse);
   return g_test_run ();
 }
