@@ -7,6 +7,7 @@
 #include "daemon/operating/scene_probe_hidden.h"
 #include "daemon/operating/scene_probe_pairs.h"
 #include "daemon/operating/scene_probe_transfer.h"
+#include "daemon/operating/scene_probe_wide.h"
 #include "daemon/protocol/protocol.h"
 #include "proc/column_stats.h"
 #include "proc/image_stats.h"
@@ -458,6 +459,23 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
   }
   gboolean finer_used = n_eq > before_finer;
   two = two || finer_used;
+  /* A rise at 2P that no kernel the flat harmonics at and below P allow is light wide against P:
+   * left out of the transfer fit (scene_probe_wide.h) and so of the interval of Ld, whose single
+   * kernel with a 1/k tail is one of the forms that rule out; kept for the hidden light's bound
+   * (the leak at P is at most what the coarsest period keeps, whatever the kernel). */
+  DsProbeEquation eq_seen[DS_PROBE_MAX_EQUATIONS];
+  guint n_seen = n_eq;
+  memcpy (eq_seen, eq, n_eq * sizeof *eq);
+  DsProbeWideRise wide;
+  n_eq = ds_probe_drop_wide_rise (&out->geometry, eq, n_eq, sigma, l0->width, fr->geometry.period_px, &wide);
+  if (wide.left_out) {
+    for (guint i = 0; i < n_seen; i++)
+      g_debug ("scene probe: harmonic %u at %g px: x %.3g px, A %.4g +- %.2g DN, A/G %.4g", eq_seen[i].n,
+               eq_seen[i].period, eq_seen[i].period / eq_seen[i].n, eq_seen[i].amplitude, eq_seen[i].sigma,
+               eq_seen[i].amplitude / ds_probe_model_gain (&out->geometry, eq_seen[i].period, sigma,
+                                                           eq_seen[i].offset, l0->width, eq_seen[i].n));
+    g_debug ("scene probe: %s", wide.note + 2);
+  }
   DsProbeEquation eq_all[DS_PROBE_MAX_EQUATIONS];
   guint n_all = 0;
   /* Then Ld and alpha. The transfer's logarithm is linear in x = Q / n only while x is small
@@ -568,6 +586,10 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
                 "first harmonic at %g px",
                 fr->geometry.period_px, 2 * fr->geometry.period_px,
                 100 * ds_scene_probe_leak (out, fr->geometry.period_px, 1), fr->geometry.period_px);
+  if (two && wide.left_out) {
+    gsize len = strlen (out->leak_note);
+    g_strlcpy (out->leak_note + len, wide.note, sizeof out->leak_note - len);
+  }
   if (cone_used) {
     gsize len = strlen (out->leak_note);
     g_snprintf (out->leak_note + len, sizeof out->leak_note - len, " (the lens's acceptance cone: a kernel of %.2f px)",
@@ -622,7 +644,7 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
   /* Also the prediction's (ds_operating_point_uncertainty ()). */
   out->ld_uncertainty = ds_probe_ld_uncertainty (eq_all, n_all, &out->geometry, sigma, l0->width);
   DsProbeHiddenLight hidden;
-  ds_probe_hidden_light (eq_all, n_all, &out->geometry, sigma, l0->width, ld_fit, total_fit, out->ld_uncertainty,
+  ds_probe_hidden_light (eq_seen, n_seen, &out->geometry, sigma, l0->width, ld_fit, total_fit, out->ld_uncertainty,
                          ds_scene_probe_leak (out, fr->geometry.period_px, 1), &hidden);
   narrow_verdict (fr, finer_used, out->ld_uncertainty, cone_used ? &cone : NULL, &hidden, out);
   if (out->narrow_unresolved && two && interval.computed) {

@@ -184,7 +184,7 @@ typedef struct {
    * ds_scene_probe_leak () returns no more than leak_max (the probe's Lg / Ld). */
   gboolean leak_bounded;
   double leak_max;
-  char leak_note[200];            /* how it was measured, or why not */
+  char leak_note[360];            /* how it was measured, or why not */
   double narrow_fraction;         /* beta: the narrow kernel's light over Ld; 0 when none was seen */
   double narrow_kernel_px;        /* w: its width, px (scene_probe.h: the MTF's form) */
   double narrow_shape;            /* nu of that form (1 or 2), or DS_PROBE_SHAPE_CONE: the kernel of the lens's

@@ -6,6 +6,7 @@
 #include <math.h>
 
 #include "daemon/operating/cone_kernel.h"
+#include "daemon/operating/scene_probe_wide.h"
 
 /* The MTF along x at period x of the displacements R u rho (cos phi, sin phi), u even on [0, 1],
  * the direction even over the cone's disc (rho = sqrt of an even variate), phi even: the mean of
@@ -121,11 +122,31 @@ test_fit (void)
   g_assert_false (ds_cone_kernel_fit (e.x, e.y, e.w, e.shift, e.n, 0, 9.25, &f));
 }
 
+/* The most the cone's kernel adds to the transfer from P to 2P per unit of its rise from P/2 to P
+ * (scene_probe_wide.h), against the Monte Carlo MTF scanned over the radius where the closed form
+ * puts the maximum (the Bessel ripple at P/2, R near 1.2 P): at least the line's 2 (the kernel's
+ * short-period limit x / (pi R)), and the Monte Carlo's largest within its noise. */
+static void
+test_wide_rise_ratio (void)
+{
+  double ratio = ds_probe_wide_rise_ratio (5, 10, 20), best = 0;
+  for (double R = 9; R <= 15.01; R += 0.5) {
+    double lo = monte_carlo_mtf (R, 5, 400000, 101), mid = monte_carlo_mtf (R, 10, 400000, 102),
+           hi = monte_carlo_mtf (R, 20, 400000, 103);
+    best = MAX (best, (hi - mid) / (mid - lo));
+  }
+  g_test_message ("rise from P to 2P over the rise from P/2 to P: %.3f, Monte Carlo's largest %.3f", ratio, best);
+  g_assert_cmpfloat (ratio, >=, 2);
+  g_assert_cmpfloat (fabs (ratio / best - 1), <, 0.04);
+  g_assert_cmpfloat (ds_probe_wide_rise_ratio (10, 5, 20), ==, 0);
+}
+
 int
 main (int argc, char **argv)
 {
   g_test_init (&argc, &argv, NULL);
   g_test_add_func ("/cone-kernel/mtf", test_mtf);
   g_test_add_func ("/cone-kernel/fit", test_fit);
+  g_test_add_func ("/cone-kernel/wide-rise-ratio", test_wide_rise_ratio);
   return g_test_run ();
 }

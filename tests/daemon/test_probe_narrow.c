@@ -585,6 +585,43 @@ test_kept_at_coarse (void)
   g_assert_cmpfloat (p.hidden_leak, ==, 0);
 }
 
+/* Scattered light wide against P, seen only at 2P (gen-16-02 in closed form: P = 6.25 px, square
+ * stripes of duty 0.49, blur 0.32 px; a Gaussian kernel of 3.7 px holding 1.1 Ld keeps
+ * exp (-2 pi^2 s^2 / Q^2) of its stripes: 0.1 % at P, so 0.1 % of Ld, and 18 % at 2P, 20 % of Ld).
+ * The harmonics at and below P (x = 2.1 to 6.25 px) are flat at Ld; the first at 2P is 20 % above.
+ * No kernel that is flat over x = 2.5 to 6.25 px in the probe's forms adds that much at 12.5 px
+ * (scene_probe_wide.h: at most 2.63 times the rise from P/2 to P), so that point is left out and
+ * the leak at P and Ld are what the harmonics at and below P say: the kernel's truth. Fitted with
+ * the rest, it made a slope (Ld 16 % low on gen-16-02). */
+static void
+test_wide_kernel_at_coarse (void)
+{
+  const Scene s = { .period = 6.25, .duty = 0.49, .blur = 0.32, .ld = 320, .lg_wide = 2000, .dark = 20,
+                    .beta = 1.1, .kernel_px = 3.7 };
+  DsSceneProbe p;
+  probe (&s, TRUE, TRUE, &p);
+  double truth = truth_leak (&s, s.period), read = ds_scene_probe_leak (&p, s.period, 1);
+  g_test_message ("leak at P read %.4f, truth %.4f (at 2P %.3f); Ld %.1f (truth %.1f); %s", read, truth,
+                  truth_leak (&s, 2 * s.period), p.ld_mean, s.ld, p.leak_note);
+  g_assert_cmpfloat (truth, <, 0.002);
+  g_assert_cmpfloat (truth_leak (&s, 2 * s.period), >, 0.15);
+  g_assert_true (p.leak_measured);
+  g_assert_cmpfloat (fabs (p.ld_mean - s.ld), <, 0.03 * s.ld);
+  g_assert_cmpfloat (read, <, 0.01);
+  g_assert_nonnull (strstr (p.leak_note, "wide against 6.25 px"));
+
+  /* The same kernel 2.5 times narrower (1.48 px, 0.3 Ld) keeps 0.1 % of its stripes at x = 2.5 px,
+   * 8 % at 4.2 px, 33 % at P and 76 % at 2P: a rise over the harmonics at and below P that carries
+   * on to 2P, and no point is left out. */
+  Scene narrow = s;
+  narrow.kernel_px = 1.48;
+  narrow.beta = 0.3;
+  probe (&narrow, TRUE, TRUE, &p);
+  g_test_message ("narrower kernel: Ld %.1f, leak at P %.4f (truth %.4f); %s", p.ld_mean,
+                  ds_scene_probe_leak (&p, s.period, 1), truth_leak (&narrow, s.period), p.leak_note);
+  g_assert_null (strstr (p.leak_note, "wide against"));
+}
+
 int
 main (int argc, char **argv)
 {
@@ -602,5 +639,6 @@ main (int argc, char **argv)
   g_test_add_func ("/probe-narrow/interval-single-kernel", test_interval_single_kernel);
   g_test_add_func ("/probe-narrow/interval-clear", test_interval_clear);
   g_test_add_func ("/probe-narrow/kept-at-coarse", test_kept_at_coarse);
+  g_test_add_func ("/probe-narrow/wide-kernel-at-coarse", test_wide_kernel_at_coarse);
   return g_test_run ();
 }
