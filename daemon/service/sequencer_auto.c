@@ -8,31 +8,107 @@
 #include "daemon/service/sequencer_private.h"
 #include "proc/stripe_phase.h"
 
-/* One pilot frame of phase k of a two-phase pattern already applied. */
-static DsImage *
-pilot_frame (DsSequencer *seq, guint k, DsFrameCounters *c, GError **error)
+/* A pair of pilot frames (phases 0 and 1/2 of one period) as it is acquired: the phase check
+ * of its frames, the pilot's own (a pilot is not a phase set: the sequencer's templates and
+ * offset stay as the sets left them). */
+typedef struct {
+  DsPhaseCheck check;
+  gboolean *lost; /* the pilot lost or rejected a frame: a late frame of it may still come */
+} PilotPair;
+
+static void
+pilot_pair_init (PilotPair *pair, double period_px, gboolean *lost)
 {
-  if (!ds_seq_set_phase (seq, k, error)) {
-    c->device_errors++;
-    g_prefix_error (error, "pilot: illuminator: ");
-    ds_seq_fatal_device_error (seq, *error);
-    return NULL;
+  ds_phase_check_init (&pair->check, period_px, ds_phase_check_default_tolerance_deg (2));
+  ds_phase_check_begin_set (&pair->check);
+  pair->lost = lost;
+}
+
+/* A pilot frame is verified as a phase set's (docs/design.md, "Phase verification"), as far as
+ * a pilot can be: it arrived after its phase was applied, no frame id is missing before it and,
+ * once the pilot lost a frame (whose buffer may still arrive late, after the next phase was
+ * applied and flushed), it does not repeat the frame of the pair's other phase. The stripes are
+ * not required here: the pilot measures how much modulation is left (none at a period the
+ * illuminator cannot draw, little at a fine one through a scattering scene), and a weak moving
+ * part next to the scene's own texture at that period would pass for a repeat; the pilot's
+ * stripes check decides about the configured period (daemon/operating/pilot_stripes.h). */
+static void
+pilot_verify (DsSequencer *seq, const DsCaptureSettings *s, PilotPair *pair, guint k, const DsFrame *f,
+              gint64 applied_at, DsFrameVerdict *v)
+{
+  DsCaptureSettings timing_only = *s;
+  timing_only.verify_phase = FALSE;
+  ds_seq_verify_frame (seq, &timing_only, k, f, applied_at, v);
+  if (v->reason != DS_DROP_N_REASONS || !s->verify_phase)
+    return;
+  double measured;
+  g_autofree char *why = NULL;
+  if (ds_phase_check_frame (&pair->check, f->image, k, 2, &measured, &why) == DS_PHASE_VERDICT_WRONG && *pair->lost) {
+    v->reason = DS_DROP_WRONG_PHASE;
+    v->detail = g_steal_pointer (&why);
+    v->reapply_phase = TRUE;
   }
-  ds_seq_flush_stale (seq, c);
-  g_autoptr (DsFrame) f = ds_seq_trigger_and_grab (seq, c, error);
-  if (!f) {
-    g_prefix_error (error, "pilot: ");
-    ds_seq_fatal_device_error (seq, *error);
-    return NULL;
+}
+
+/* One pilot frame of phase k of a two-phase pattern already applied, re-acquired like a phase
+ * set's frame (ds_seq_retry_or_fail: lost, incomplete or rejected frames and an illuminator that
+ * timed out, up to phase-retries times; counted in `retries`). */
+static DsImage *
+pilot_frame (DsSequencer *seq, const DsCaptureSettings *s, PilotPair *pair, guint k, DsFrameCounters *c,
+             GError **error)
+{
+  guint retries_left = s->phase_retries;
+  gboolean lit = FALSE;
+  gint64 applied_at = 0;
+  for (;;) {
+    GError *why = NULL;
+    if (!ds_seq_check_quit (seq, error))
+      return NULL;
+    if (!lit) {
+      if (!ds_seq_set_phase (seq, k, &why)) {
+        c->device_errors++;
+        g_prefix_error (&why, "illuminator: ");
+        *pair->lost = TRUE;
+        if (!ds_seq_retry_or_fail (seq, &retries_left, c, &why, error, "pilot: phase %u", k))
+          return NULL;
+        continue;
+      }
+      ds_seq_flush_stale (seq, c);
+      applied_at = g_get_monotonic_time ();
+      lit = TRUE;
+    }
+    g_autoptr (DsFrame) f = ds_seq_trigger_and_grab (seq, c, &why);
+    if (!f) {
+      g_prefix_error (&why, "camera: ");
+      *pair->lost = TRUE;
+      if (!ds_seq_retry_or_fail (seq, &retries_left, c, &why, error, "pilot: phase %u", k))
+        return NULL;
+      /* The illuminator still shows k, but the lost trigger's buffer may come late. */
+      ds_seq_flush_stale (seq, c);
+      continue;
+    }
+    DsFrameVerdict v;
+    pilot_verify (seq, s, pair, k, f, applied_at, &v);
+    if (v.reason != DS_DROP_N_REASONS) {
+      ds_frame_counters_drop (c, v.reason, 1);
+      why = g_error_new (DS_SEQUENCER_ERROR, DS_SEQUENCER_ERROR_FRAME_REJECTED, "frame dropped (%s): %s",
+                         ds_drop_reason_name (v.reason), v.detail ? v.detail : "");
+      lit = lit && !v.reapply_phase;
+      ds_frame_verdict_clear (&v);
+      *pair->lost = TRUE;
+      if (!ds_seq_retry_or_fail (seq, &retries_left, c, &why, error, "pilot: phase %u", k))
+        return NULL;
+      continue;
+    }
+    return ds_image_copy (f->image, error);
   }
-  return ds_image_copy (f->image, error);
 }
 
 /* The two phases at another period (twice the period, or a finer one), where the illuminator
  * can change it; NULL frames and a reason otherwise (the prediction is then a lower bound). */
 static gboolean
-period_frames (DsSequencer *seq, const DsCaptureSettings *s, double period, DsFrameCounters *c, DsImage **out,
-               char **reason, GError **error)
+period_frames (DsSequencer *seq, const DsCaptureSettings *s, double period, gboolean *lost, DsFrameCounters *c,
+               DsImage **out, char **reason, GError **error)
 {
   DsStripePattern p = seq->dev->pattern;
   p.kind = s->pattern == DS_PATTERN_SINE ? DS_STRIPES_SINE : DS_STRIPES_SQUARE;
@@ -52,8 +128,10 @@ period_frames (DsSequencer *seq, const DsCaptureSettings *s, double period, DsFr
     *reason = g_strdup_printf ("the illuminator cannot change its period: %s", refused->message);
     return TRUE;
   }
+  PilotPair pair;
+  pilot_pair_init (&pair, period, lost);
   for (guint k = 0; k < 2; k++)
-    if (!(out[k] = pilot_frame (seq, k, c, error)))
+    if (!(out[k] = pilot_frame (seq, s, &pair, k, c, error)))
       return FALSE;
   /* A device that takes the register but keeps its period shows no stripes at the new one. */
   DsStripePhase sp;
@@ -107,23 +185,26 @@ ds_seq_choose_operating_point (DsSequencer *seq, DsCaptureSettings *s, DsFrameCo
   DsCaptureSettings pilot = *s;
   pilot.averages = 1;
   pilot.phases = 2;
-  guint64 before = c->acquired, dropped_before = c->dropped;
+  guint64 before = c->acquired, dropped_before = c->dropped, retries_before = c->retries;
   g_autoptr (DsImage) dark = ds_seq_acquire_dark (seq, &pilot, c, NULL, error);
   if (!dark)
     return FALSE;
+  gboolean lost = c->retries > retries_before;
   if (!ds_seq_apply_pattern (seq, &pilot, error)) {
     c->device_errors++;
     g_prefix_error (error, "pilot: illuminator: ");
     ds_seq_fatal_device_error (seq, *error);
     return FALSE;
   }
-  g_autoptr (DsImage) lit0 = pilot_frame (seq, 0, c, error);
-  g_autoptr (DsImage) lit1 = lit0 ? pilot_frame (seq, 1, c, error) : NULL;
+  PilotPair pair;
+  pilot_pair_init (&pair, s->period_px, &lost);
+  g_autoptr (DsImage) lit0 = pilot_frame (seq, s, &pair, 0, c, error);
+  g_autoptr (DsImage) lit1 = lit0 ? pilot_frame (seq, s, &pair, 1, c, error) : NULL;
   if (!lit1)
     return FALSE;
   DsImage *coarse[2] = { NULL, NULL };
   g_autofree char *coarse_missing = NULL;
-  gboolean ok = period_frames (seq, s, 2 * s->period_px, c, coarse, &coarse_missing, error);
+  gboolean ok = period_frames (seq, s, 2 * s->period_px, &lost, c, coarse, &coarse_missing, error);
   g_autoptr (DsImage) coarse0 = coarse[0];
   g_autoptr (DsImage) coarse1 = coarse[1];
   /* Finer periods, while the sensor resolves them (scene_probe.h), and not after the illuminator
@@ -134,7 +215,7 @@ ds_seq_choose_operating_point (DsSequencer *seq, DsCaptureSettings *s, DsFrameCo
   g_autofree char *finer_missing = NULL;
   guint got = 0;
   for (guint i = 0; ok && i < n_finer && !finer_missing && !coarse_missing; i++) {
-    ok = period_frames (seq, s, finer_period[i], c, finer[got], &finer_missing, error);
+    ok = period_frames (seq, s, finer_period[i], &lost, c, finer[got], &finer_missing, error);
     got += ok && finer[got][0];
   }
   if (coarse_missing && n_finer)
@@ -144,7 +225,9 @@ ds_seq_choose_operating_point (DsSequencer *seq, DsCaptureSettings *s, DsFrameCo
   g_autoptr (DsImage) finer01 = finer[0][1];
   g_autoptr (DsImage) finer10 = finer[1][0];
   g_autoptr (DsImage) finer11 = finer[1][1];
-  ds_frame_counters_drop (c, DS_DROP_PREVIEW, (c->acquired - before) - (c->dropped - dropped_before));
+  /* The frames the pilot used; those it dropped and re-acquired keep their reasons. */
+  guint pilot_frames = (guint) ((c->acquired - before) - (c->dropped - dropped_before));
+  ds_frame_counters_drop (c, DS_DROP_PREVIEW, pilot_frames);
   if (!ok)
     return FALSE;
 
@@ -188,7 +271,7 @@ ds_seq_choose_operating_point (DsSequencer *seq, DsCaptureSettings *s, DsFrameCo
   r->time_budget_ms = s->time_budget_ms;
   r->point = op;
   r->scale = seq->model->scale;
-  r->pilot_frames = (guint) (c->acquired - before);
+  r->pilot_frames = pilot_frames;
   r->pilot_ms = (g_get_monotonic_time () - started) / 1000.0;
   s->estimator = op.estimator;
   s->phases = op.phases;

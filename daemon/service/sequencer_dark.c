@@ -84,13 +84,8 @@ ds_seq_acquire_dark (DsSequencer *seq, const DsCaptureSettings *s, DsFrameCounte
       }
     }
     if (!f) {
-      if (ds_seq_fatal_device_error (seq, why) || retries_left == 0) {
-        g_propagate_prefixed_error (error, why, "dark frame: ");
+      if (!ds_seq_retry_or_fail (seq, &retries_left, c, &why, error, "dark frame"))
         return NULL;
-      }
-      retries_left--;
-      c->retries++;
-      g_clear_error (&why);
       continue;
     }
     const DsImage *img = f->image;

@@ -53,31 +53,13 @@ typedef struct {
   gint64 next_set_lit_at;
 } Pipeline;
 
-/* Consumes one retry of phase k after `why`; fails with `why` when none are left. */
-static gboolean
-use_retry (Pipeline *pl, guint k, GError **why, GError **error)
-{
-  if (pl->retries_left[k] == 0) {
-    g_propagate_prefixed_error (error, g_steal_pointer (why), "phase %u: retries exhausted: ", k);
-    return FALSE;
-  }
-  pl->retries_left[k]--;
-  pl->c->retries++;
-  g_clear_error (why);
-  return TRUE;
-}
-
-/* After a device failure in phase k: the policy says whether to retry (then one retry is
- * used, if any is left) or to fail the set now. Each failure is prefixed once: "phase k: "
+/* After a device failure in phase k, or a frame of it dropped: the one retry rule
+ * (ds_seq_retry_or_fail), with phase k's retries. Each failure is prefixed once: "phase k: "
  * when it ends the set at once, "phase k: retries exhausted: " when the retries ran out. */
 static gboolean
 retry_or_fail (Pipeline *pl, guint k, GError **why, GError **error)
 {
-  if (ds_seq_fatal_device_error (pl->seq, *why)) {
-    g_propagate_prefixed_error (error, g_steal_pointer (why), "phase %u: ", k);
-    return FALSE;
-  }
-  return use_retry (pl, k, why, error);
+  return ds_seq_retry_or_fail (pl->seq, &pl->retries_left[k], pl->c, why, error, "phase %u", k);
 }
 
 /* Waits for the frame in the worker and accounts for it. *dropped_phase receives its phase when
@@ -103,7 +85,7 @@ collect (Pipeline *pl, guint *dropped_phase, gboolean *reapply, GError **error)
     *dropped_phase = k;
     *reapply = job.verdict.reapply_phase;
     ds_frame_verdict_clear (&job.verdict);
-    return use_retry (pl, k, &why, error);
+    return retry_or_fail (pl, k, &why, error);
   }
   if (!job.folded) {
     ds_frame_counters_drop (pl->c, DS_DROP_ABORTED, 1);

@@ -12,6 +12,7 @@
  *   sequencer_carry.c    continuous mode: the next set's first frame, triggered while this
  *                        set's last frame is verified and its result finalized
  *   sequencer_verify.c   frame verification (stale, frame gap, stripe phase)
+ *   sequencer_retry.c    the retry rule of every frame acquired (phase sets, dark, pilot)
  *   sequencer_dark.c     dark-frame acquisition
  *   sequencer_auto.c     the automatic operating point (preview frames)
  * Everything here runs on the acquisition thread unless it says otherwise. */
@@ -206,6 +207,15 @@ typedef struct {
 void ds_seq_verify_frame (DsSequencer *seq, const DsCaptureSettings *s, guint k,
                           const DsFrame *frame, gint64 applied_at_us, DsFrameVerdict *verdict);
 void ds_frame_verdict_clear (DsFrameVerdict *verdict);
+
+/* ---- sequencer_retry.c ---- */
+
+/* After `why` (a device failure, or a frame rejected by verification): FALSE with *error set to
+ * why, prefixed "WHAT: " when the policy ends the acquisition at once (ds_seq_fatal_device_error)
+ * and "WHAT: retries exhausted: " when *retries_left is 0; otherwise one retry is used
+ * (*retries_left decremented, c->retries counted) and why cleared. WHAT is what_format. */
+gboolean ds_seq_retry_or_fail (DsSequencer *seq, guint *retries_left, DsFrameCounters *c, GError **why,
+                               GError **error, const char *what_format, ...) G_GNUC_PRINTF (6, 7);
 
 /* ---- sequencer_worker.c ---- */
 
