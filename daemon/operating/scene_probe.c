@@ -4,6 +4,7 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "daemon/operating/scene_probe_determined.h"
 #include "daemon/operating/scene_probe_hidden.h"
 #include "daemon/operating/scene_probe_pairs.h"
 #include "daemon/operating/scene_probe_transfer.h"
@@ -552,6 +553,13 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
     else if (ds_probe_kernel_mtf (narrow.width, narrow.shape, x) > DS_PROBE_NARROW_MAX_OWN_AT_FINEST)
       narrow_won = FALSE;
   }
+  /* And where the harmonics do not over-determine the term, only if it passes through them
+   * (scene_probe_determined.h: gen-17-02's sine stripes at four periods read 16.6 % of Ld from
+   * differences no kernel makes); a kernel keeping the stripes at the finest period has made the
+   * prediction a lower bound above all the same. */
+  char undetermined[200] = "";
+  if (narrow_won && !ds_probe_narrow_measured (eq_all, n_all, narrow.s.residual, undetermined, sizeof undetermined))
+    narrow_won = FALSE;
   out->narrow_beyond = beyond;
   if (narrow_won) {
     so = narrow.s;
@@ -647,6 +655,10 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
   ds_probe_hidden_light (eq_seen, n_seen, &out->geometry, sigma, l0->width, ld_fit, total_fit, out->ld_uncertainty,
                          ds_scene_probe_leak (out, fr->geometry.period_px, 1), &hidden);
   narrow_verdict (fr, finer_used, out->ld_uncertainty, cone_used ? &cone : NULL, &hidden, out);
+  if (finer_used && undetermined[0]) {
+    gsize len = strlen (out->narrow_note);
+    g_strlcpy (out->narrow_note + len, undetermined, sizeof out->narrow_note - len);
+  }
   if (out->narrow_unresolved && two && interval.computed) {
     out->ld_interval = TRUE;
     out->ld_unbounded = interval.unbounded;
