@@ -157,7 +157,24 @@ ds_frame_id_tracker_init (DsFrameIdTracker *t, guint bits)
   t->started = FALSE;
   t->last = 0;
   t->last_raw = 0;
+  t->lost = 0;
   t->bits = bits == 16 ? 16 : 64;
+}
+
+void
+ds_frame_id_tracker_note_lost (DsFrameIdTracker *t)
+{
+  if (t->lost < G_MAXUINT)
+    t->lost++;
+}
+
+/* missing ids before this one, less those the noted losses account for; the notes are used up. */
+static guint32
+unaccounted (DsFrameIdTracker *t, guint64 missing)
+{
+  guint64 accounted = MIN (missing, (guint64) t->lost);
+  t->lost = 0;
+  return (guint32) MIN (missing - accounted, G_MAXUINT32);
 }
 
 guint64
@@ -165,8 +182,7 @@ ds_frame_id_tracker_update (DsFrameIdTracker *t, guint64 raw, guint32 *skipped)
 {
   *skipped = 0;
   if (t->bits == 64) {
-    if (t->started && raw > t->last + 1)
-      *skipped = (guint32) MIN (raw - t->last - 1, G_MAXUINT32);
+    *skipped = unaccounted (t, t->started && raw > t->last + 1 ? raw - t->last - 1 : 0);
     t->started = TRUE;
     t->last = raw;
     return raw;
@@ -176,6 +192,7 @@ ds_frame_id_tracker_update (DsFrameIdTracker *t, guint64 raw, guint32 *skipped)
     t->started = TRUE;
     t->last = raw;
     t->last_raw = (guint) raw;
+    t->lost = 0;
     return raw;
   }
   /* Distance forward from the last id on the 16-bit circle, where id 0 does not exist (GigE
@@ -187,10 +204,11 @@ ds_frame_id_tracker_update (DsFrameIdTracker *t, guint64 raw, guint32 *skipped)
   if (forward == 0 || forward > 32768) {
     /* Backwards or the same id: a duplicate or a restarted camera. Not a gap: the extended id
      * stays monotonic from here. */
+    t->lost = 0;
     t->last += 1;
     return t->last;
   }
-  *skipped = (guint32) (forward - 1);
+  *skipped = unaccounted (t, forward - 1);
   t->last += forward;
   return t->last;
 }

@@ -53,17 +53,28 @@ DsFrame *ds_frame_pool_take_borrowed (DsFramePool *pool, DsSampleType type, guin
 void ds_frame_pool_counts (DsFramePool *pool, guint *n_free, guint *n_out);
 
 /* Extends 16-bit (GigE Vision 1.x) frame ids to 64 bits across wrap-around and counts gaps.
- * Id 0 is invalid in GigE Vision and is skipped by the wrap. */
+ * Id 0 is invalid in GigE Vision and is skipped by the wrap.
+ *
+ * A gap is an id missing that no loss accounts for. The backend notes each frame it already
+ * reported lost whose id it never saw (a grab that timed out, a frame that came without its id):
+ * up to that many ids missing before the next id seen are that loss, counted once already (a
+ * timeout, an incomplete frame), and not a gap again. Notes excuse only the gap before the next
+ * id seen, whatever it is: a lost trigger makes no id, and its note must not excuse a later gap. */
 typedef struct {
   gboolean started;
   guint64 last;            /* extended id of the last frame */
   guint bits;              /* width of the raw id: 16 or 64 */
   guint last_raw;          /* last raw 16-bit id (the extended id's low bits do not follow it
                               because the raw sequence skips 0) */
+  guint lost;              /* losses noted since the last id seen */
 } DsFrameIdTracker;
 
 void ds_frame_id_tracker_init (DsFrameIdTracker *tracker, guint bits);
-/* Returns the extended id of raw; *skipped receives how many ids were missed (0 if contiguous). */
+/* The backend reported a frame lost whose id it did not see (ds_frame_id_tracker_note_lost
+ * before the next update). */
+void ds_frame_id_tracker_note_lost (DsFrameIdTracker *tracker);
+/* Returns the extended id of raw; *skipped receives how many ids were missed that no noted loss
+ * accounts for (0 if contiguous, or if every missing id was noted lost). Clears the notes. */
 guint64 ds_frame_id_tracker_update (DsFrameIdTracker *tracker, guint64 raw, guint32 *skipped);
 
 G_END_DECLS
