@@ -65,17 +65,33 @@ G_DEFINE_QUARK (ds-aravis-buffer-seen, buffer_seen)
  * not exactly as it was then (status, frame id and the host time of its leader). Records what
  * it holds now. */
 static gboolean
-freshly_filled (ArvBuffer *buf)
+freshly_filled (ArvBuffer *buf, guint64 *previous_id)
 {
   BufferSeen now = { arv_buffer_get_status (buf), arv_buffer_get_frame_id (buf),
                      arv_buffer_get_system_timestamp (buf) };
   BufferSeen *seen = g_object_get_qdata (G_OBJECT (buf), buffer_seen_quark ());
+  if (previous_id)
+    *previous_id = seen ? seen->frame_id : 0;
   gboolean fresh = now.status != ARV_BUFFER_STATUS_CLEARED &&
                    !(seen && seen->status == now.status && seen->frame_id == now.frame_id &&
                      seen->system_timestamp == now.system_timestamp);
   if (seen)
     *seen = now;
   return fresh;
+}
+
+/* The id of a filled buffer, 0 when it carries none of its own: Aravis writes a buffer's frame id
+ * from the frame's leader only (arvgvstream.c, _process_data_leader), so a frame whose leader
+ * was lost comes back (not whole) with the id of the frame the buffer held before, or 0 if it
+ * held none. That id is not this frame's: the frame counts as lost with its id unseen. A whole
+ * frame had its leader. */
+static guint64
+own_frame_id (ArvBuffer *buf, guint64 previous_id)
+{
+  guint64 id = arv_buffer_get_frame_id (buf);
+  if (arv_buffer_get_status (buf) != ARV_BUFFER_STATUS_SUCCESS && id == previous_id)
+    return 0;
+  return id;
 }
 
 /* Lost: seen by the backend (a command or a frame unanswered) or reported by Aravis. */
@@ -392,17 +408,19 @@ drain_output (AravisCam *c)
   guint n = 0;
   ArvBuffer *buf;
   while (c->stream && (buf = arv_stream_try_pop_buffer (c->stream))) {
-    if (!freshly_filled (buf)) {
+    guint64 previous_id;
+    if (!freshly_filled (buf, &previous_id)) {
       arv_stream_push_buffer (c->stream, buf);
       c->stats.unfilled_buffers++;
       continue;
     }
-    guint64 raw_id = arv_buffer_get_frame_id (buf);
+    guint64 raw_id = own_frame_id (buf, previous_id);
     guint32 skipped = 0;
     if (raw_id) {
       ds_frame_id_tracker_update (&c->ids, raw_id, &skipped);
       c->stats.ids_skipped += skipped;
-    }
+    } else
+      ds_frame_id_tracker_note_lost (&c->ids); /* flushed (counted), its id unseen */
     arv_stream_push_buffer (c->stream, buf);
     n++;
   }
@@ -549,10 +567,11 @@ cam_grab (gpointer b, guint timeout_ms, GError **error)
   }
   gint64 deadline = g_get_monotonic_time () + (gint64) timeout_ms * 1000;
   ArvBuffer *buf;
+  guint64 previous_id = 0;
   for (;;) {
     gint64 left = MAX (deadline - g_get_monotonic_time (), 0);
     buf = arv_stream_timeout_pop_buffer (c->stream, (guint64) left);
-    if (!buf || freshly_filled (buf))
+    if (!buf || freshly_filled (buf, &previous_id))
       break;
     arv_stream_push_buffer (c->stream, buf); /* no frame: wait on for one */
     c->stats.unfilled_buffers++;
@@ -561,6 +580,8 @@ cam_grab (gpointer b, guint timeout_ms, GError **error)
     if (!check_connected (c, error))
       return NULL;
     c->stats.timeouts++;
+    /* Counted as a timeout: if the trigger's frame went, its id is missing from now on. */
+    ds_frame_id_tracker_note_lost (&c->ids);
     if (!still_there (c))
       fail (error, DS_DEVICE_ERROR_DISCONNECTED, NULL,
             "no frame within %u ms, and \"%s\" does not answer on its control channel: lost", timeout_ms,
@@ -570,17 +591,25 @@ cam_grab (gpointer b, guint timeout_ms, GError **error)
     return NULL;
   }
   ArvBufferStatus st = arv_buffer_get_status (buf);
-  guint64 raw_id = arv_buffer_get_frame_id (buf);
+  guint64 raw_id = own_frame_id (buf, previous_id);
   guint32 skipped = 0;
-  guint64 id = raw_id ? ds_frame_id_tracker_update (&c->ids, raw_id, &skipped) : 0;
+  guint64 id = 0;
+  if (raw_id)
+    id = ds_frame_id_tracker_update (&c->ids, raw_id, &skipped);
+  else
+    ds_frame_id_tracker_note_lost (&c->ids); /* counted below as incomplete, its id unseen */
   c->stats.ids_skipped += skipped;
   if (st != ARV_BUFFER_STATUS_SUCCESS) {
     arv_stream_push_buffer (c->stream, buf);
     c->stats.failures++;
     /* Every failed buffer is a frame that exists but is not whole (Aravis's TIMEOUT status is
      * a frame whose missing packets never came): INCOMPLETE. TIMEOUT is kept for "no frame". */
-    fail (error, DS_DEVICE_ERROR_INCOMPLETE, NULL, "frame %" G_GUINT64_FORMAT ": %s", raw_id,
-          status_name (st));
+    if (raw_id)
+      fail (error, DS_DEVICE_ERROR_INCOMPLETE, NULL, "frame %" G_GUINT64_FORMAT ": %s", raw_id,
+            status_name (st));
+    else
+      fail (error, DS_DEVICE_ERROR_INCOMPLETE, NULL, "a frame without its leader (id unknown): %s",
+            status_name (st));
     return NULL;
   }
   DsPixelFormat fmt;

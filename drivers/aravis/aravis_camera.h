@@ -10,7 +10,9 @@
  * - GV streams: socket buffer AUTO, packet resend ALWAYS (cameras that do not resend simply
  *   leave the request unanswered; the frame then comes back INCOMPLETE).
  * - Frame ids are extended across the 16-bit GigE Vision wrap (drivers/core/frame.h); gaps go
- *   to DsFrame.ids_skipped and DsCameraStats.ids_skipped.
+ *   to DsFrame.ids_skipped and DsCameraStats.ids_skipped. A grab that timed out and a frame
+ *   without its own id (its leader lost: Aravis leaves the buffer's previous id) are noted as
+ *   losses, so their missing ids are no gap for the next frame.
  * - Aravis's loss of control (its GigE Vision heartbeat giving up: arv_gv_device_is_controller;
  *   "control-lost" on other devices) marks the backend DISCONNECTED: trigger and grab fail
  *   DISCONNECTED until ops->reconnect reopens the device (by the same address) and reapplies

@@ -340,6 +340,8 @@ cam_grab (gpointer b, guint timeout_ms, GError **error)
     return NULL;
   if (g_queue_is_empty (&lab->pending)) {
     lab->stats.timeouts++;
+    /* Counted as a timeout: a frame lost in transit ("drop") leaves its id missing. */
+    ds_frame_id_tracker_note_lost (&lab->ids);
     g_set_error (error, DS_CAMERA_ERROR, DS_DEVICE_ERROR_TIMEOUT, "simulated camera: no frame within %u ms",
                  timeout_ms);
     return NULL;
