@@ -82,7 +82,8 @@ ds_sim_faults_parse (const char *text, DsSimFaults *out, GError **error)
     struct {
       const char *name;
       guint *field;
-    } counts[] = { { "disconnect-after", &out->disconnect_after }, { "stale-next", &out->stale_next },
+    } counts[] = { { "disconnect-after", &out->disconnect_after }, { "faults-after", &out->faults_after },
+                   { "stale-next", &out->stale_next },
                    { "incomplete-next", &out->incomplete_next }, { "timeout-next", &out->timeout_next },
                    { "drop-next", &out->drop_next }, { "wrong-phase-next", &out->wrong_phase_next },
                    { "not-ready-next", &out->not_ready_next } };
@@ -99,7 +100,7 @@ ds_sim_faults_parse (const char *text, DsSimFaults *out, GError **error)
     if (!known) {
       g_set_error (error, G_KEY_FILE_ERROR, G_KEY_FILE_ERROR_INVALID_VALUE,
                    "faults: unknown fault \"%s\" (stale, incomplete, timeout, drop, wrong-phase, "
-                   "not-ready, disconnect-after, and <name>-next counts)", name);
+                   "not-ready, disconnect-after, faults-after, and <name>-next counts)", name);
       return FALSE;
     }
   }
@@ -288,9 +289,11 @@ cam_trigger (gpointer b, GError **error)
   /* Faults are drawn only for a trigger that goes out, so a counted fault hits a real frame. */
   g_mutex_lock (&lab->lock);
   DsSimFaults *lf = &lab->faults;
-  gboolean timeout = dice (lab, lf->timeout, &lf->timeout_next), drop = dice (lab, lf->drop, &lf->drop_next),
-           incomplete = dice (lab, lf->incomplete, &lf->incomplete_next),
-           stale = dice (lab, lf->stale, &lf->stale_next);
+  gboolean spared = lab->frames_triggered < lf->faults_after;
+  gboolean timeout = !spared && dice (lab, lf->timeout, &lf->timeout_next),
+           drop = !spared && dice (lab, lf->drop, &lf->drop_next),
+           incomplete = !spared && dice (lab, lf->incomplete, &lf->incomplete_next),
+           stale = !spared && dice (lab, lf->stale, &lf->stale_next);
   g_mutex_unlock (&lab->lock);
   lab->frames_triggered++;
   if (timeout)

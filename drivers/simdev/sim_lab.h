@@ -21,6 +21,8 @@ typedef struct {
   double wrong_phase;      /* probability: the illuminator shows k+1 while reporting k */
   double not_ready;        /* probability: set_phase fails BUSY */
   guint disconnect_after;  /* frames; 0 = never. The camera is gone until reconnect. */
+  guint faults_after;      /* triggers: the camera's faults (stale, incomplete, timeout, drop,
+                              and their counts) spare the first N triggers; 0 = none spared */
   /* Counted faults: the next N triggers (camera knobs) or set_phase calls (illuminator knobs)
    * get the fault for sure, before the probabilities above are rolled. Counted down under the
    * lab's lock; 0 = none. */

@@ -209,6 +209,25 @@ test_fault_drop_unaccounted (Lab *l, gconstpointer data)
   g_assert_cmpuint (c->ids_skipped, ==, 1);
 }
 
+/* faults-after=N spares the first N triggers: the counted fault hits trigger N + 1. */
+static void
+test_faults_after (Lab *l, gconstpointer data)
+{
+  (void) data;
+  set_phase (l, 0);
+  set_faults (l, "faults-after=2,drop-next=1");
+  g_autoptr (GError) error = NULL;
+  for (guint i = 0; i < 2; i++) {
+    g_autoptr (DsFrame) f = shoot (l, &error);
+    g_assert_no_error (error);
+  }
+  g_assert_null (shoot (l, &error));
+  g_assert_error (error, DS_CAMERA_ERROR, DS_DEVICE_ERROR_TIMEOUT);
+  g_clear_error (&error);
+  g_autoptr (DsFrame) f = shoot (l, &error);
+  g_assert_no_error (error);
+}
+
 static void
 test_fault_timeout (Lab *l, gconstpointer data)
 {
@@ -405,6 +424,7 @@ main (int argc, char **argv)
   ADD ("/simdev/exposure-doubles-signal", test_exposure_doubles_signal);
   ADD ("/simdev/fault/drop", test_fault_drop);
   ADD ("/simdev/fault/drop-unaccounted", test_fault_drop_unaccounted);
+  ADD ("/simdev/fault/faults-after", test_faults_after);
   ADD ("/simdev/fault/timeout", test_fault_timeout);
   ADD ("/simdev/fault/incomplete", test_fault_incomplete);
   ADD ("/simdev/fault/stale", test_fault_stale);
