@@ -106,7 +106,7 @@ test_faults_automatic_over_the_wire (void)
   for (guint i = 0; i < 6; i++) {
     g_autoptr (JsonObject) args = json_object_new ();
     /* Target errors only: a time budget here picks sets of a hundred frames and more, whose
-     * own retries (a lost frame, then a frame gap) this loss ratio can exhaust. */
+     * own retries (lost and incomplete frames) this loss ratio can exhaust. */
     json_object_set_double_member (args, "target_error", i % 2 ? 0.2 : 0.1);
     g_autoptr (DsMessage) m = test_daemon_call_ok (c, "capture", args);
     JsonObject *settings = json_object_get_object_member (json_node_get_object (m->reply->body), "settings");
