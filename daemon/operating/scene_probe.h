@@ -251,9 +251,10 @@ gboolean ds_scene_probe_measure (const DsProbeFrames *frames, DsSceneProbe *out,
  * light the stripes lost by each period, M - A(Q) = S (1 - T(Q)), gives T's ratio between the two
  * periods without Ld, hence w, hence S and Ld = M - S. A drop steeper than any such kernel
  * (r = (M - A(Q_c)) / (M - A(Q_f)) <= (Q_f / Q_c)^2, or A(Q_c) at M) leaves no lower end
- * (ld_unbounded). A drop within the noise says nothing about a kernel narrower than every period
- * (the method's limit, docs/accuracy.md): the interval is then [ld_mean, ld_mean] and the flag
- * alone says so. Light kept by a second, narrower kernel than the one the drop shows is not
+ * (ld_unbounded); that is decided on the measured r, the one the lower end is read at, not on
+ * whether M - A(Q_c) alone stands out of the noise. A drop within the noise says nothing about a
+ * kernel narrower than every period (the method's limit, docs/accuracy.md): the interval is then
+ * [ld_mean, ld_mean] and the flag alone says so. Light kept by a second, narrower kernel than the one the drop shows is not
  * bounded either: that too is the limit, stated in interval_note.
  * Returns FALSE when the probe has no finite lower end below ld_mean; otherwise *worst is the
  * probe with Ld at ld_lower, all the rest of the mean scattered by that kernel. */
