@@ -108,7 +108,7 @@ test_faults_automatic_over_the_wire (void)
     /* Target errors only: a time budget here picks sets of a hundred frames and more, whose
      * own retries (lost and incomplete frames) this loss ratio can exhaust. Targets well above
      * what this scene's best point is predicted to reach (0.09-0.15, a lower bound, varying with
-     * the pilot's noise): a target at that edge is refused in some runs, rightly, and this test
+     * the pilot's noise): a target at that edge is refused in some runs and not in others, and this test
      * is about the pilot's lost frames, not about where the edge lies. */
     json_object_set_double_member (args, "target_error", i % 2 ? 0.3 : 0.2);
     g_autoptr (DsMessage) m = test_daemon_call_ok (c, "capture", args);
