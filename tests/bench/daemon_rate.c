@@ -284,7 +284,7 @@ daemon_rate (DsClient *c, GPid pid, double seconds, gboolean print_stages)
                    .lost = (guint) (camera_stat (s1, "timeouts") - camera_stat (s0, "timeouts")),
                    .reconnects = (guint) (camera_stat (s1, "reconnects") - camera_stat (s0, "reconnects")),
                    .rcvbuf_drops = rate_udp_rcvbuf_errors () - drops0,
-                   .frames = (guint64) (f1 - f0) };
+                   .frames = (guint64) (f1 - f0), .from_us = t0, .to_us = t1 };
   thread_cpu_add_delta (&r.cpu, daemon0, daemon1);
   thread_cpu_add_delta (&r.rig_cpu, rig0, rig1);
   gint64 acquired = test_json_int (s1->reply->body, "frames.acquired");
@@ -358,6 +358,15 @@ typedef struct {
   guint64 frames;
 } SideCpu;
 
+/* The camera's cycles in whole trigger-poll periods (fake_rig_cycles): 0..CYCLE_BINS - 2, and
+ * CYCLE_BINS - 1 or more. */
+#define CYCLE_BINS 6
+
+typedef struct {
+  guint64 counts[CYCLE_BINS];
+  guint64 fills, frames;
+} SideCycles;
+
 typedef struct {
   gboolean want[N_CEILINGS];
   double goal[N_CEILINGS]; /* 0: no goal */
@@ -365,7 +374,44 @@ typedef struct {
   double daemon_fps[MAX_ROUNDS];
   guint n;
   SideCpu cpu[N_CEILINGS], daemon_cpu;
+  SideCycles cycles[N_CEILINGS], daemon_cycles;
+  guint64 trigger_period_us;
 } Rounds;
+
+/* The camera's cycles over one slice, added to its side's. Every frame the side counted was
+ * filled by the camera within the slice (the daemon's first frame of a slice may have been
+ * triggered ahead, just before it): the camera's log and the counters agree, or the cycles
+ * describe other frames than the rates. */
+static void
+side_cycles_add (SideCycles *side, FakeRig *rig, const RateSample *s, const char *what)
+{
+  guint64 counts[CYCLE_BINS];
+  guint64 fills = fake_rig_cycles (rig, s->from_us, s->to_us, counts, CYCLE_BINS);
+  CHECK (fills + 1 >= s->frames, "%s: the camera filled %" G_GUINT64_FORMAT " frames in a slice that counted %"
+         G_GUINT64_FORMAT, what, fills, s->frames);
+  for (guint i = 0; i < CYCLE_BINS; i++)
+    side->counts[i] += counts[i];
+  side->fills += fills;
+  side->frames += s->frames;
+}
+
+/* "2: 45.1 %, 3: 52.0 % ..." and the mean cycle, over every slice of one side. */
+static void
+side_cycles_print (const SideCycles *side, guint64 period_us, const char *what)
+{
+  guint64 n = 0;
+  double periods = 0;
+  for (guint i = 0; i < CYCLE_BINS; i++) {
+    n += side->counts[i];
+    periods += (double) i * side->counts[i];
+  }
+  if (!n)
+    return;
+  printf ("      %-22s", what);
+  for (guint i = 1; i < CYCLE_BINS; i++)
+    printf (" %s%u: %4.1f %%", i + 1 == CYCLE_BINS ? ">=" : "", i, 100.0 * side->counts[i] / n);
+  printf ("  (%" G_GUINT64_FORMAT " cycles, mean >= %.2f ms)\n", n, periods / n * period_us / 1000.0);
+}
 
 static void
 side_cpu_add (SideCpu *side, const RateSample *s)
@@ -475,6 +521,16 @@ rounds_print (Rounds *rs, const char *what)
       g_autofree char *side = g_strdup_printf ("ceiling loop (%s), per frame grabbed", ceiling_name[k]);
       side_cpu_print (&rs->cpu[k], side);
     }
+  /* Why a little CPU costs a lot of rate here: the camera starts a frame only at a poll of its
+   * trigger, so a cycle that ends after the poll instant waits for the next one. */
+  printf ("    the camera's cycles (fill to fill) in trigger-poll periods of %.1f ms, all slices:\n",
+          rs->trigger_period_us / 1000.0);
+  for (guint k = 0; k < N_CEILINGS; k++)
+    if (rs->want[k]) {
+      g_autofree char *side = g_strdup_printf ("ceiling, %s:", ceiling_name[k]);
+      side_cycles_print (&rs->cycles[k], rs->trigger_period_us, side);
+    }
+  side_cycles_print (&rs->daemon_cycles, rs->trigger_period_us, "daemon:");
 }
 
 /* The lowest ratio of any round (the goal holds "in every round" when this meets it). */
@@ -594,6 +650,14 @@ measure_round (FakeRig *rig, guint w, guint h, double seconds, guint slices, Rou
   if (!ok) {
     failures++;
     return FALSE;
+  }
+  rs->trigger_period_us = fake_rig_trigger_period_us (rig);
+  for (guint j = 0; j <= slices; j++) {
+    for (guint k = 0; k < N_CEILINGS; k++)
+      if (rs->want[k])
+        side_cycles_add (&rs->cycles[k], rig, &c[k][j], ceiling_name[k]);
+    if (j < slices)
+      side_cycles_add (&rs->daemon_cycles, rig, &d[j], "daemon");
   }
   rounds_add (rs, c, d, slices);
   return TRUE;

@@ -34,4 +34,17 @@ guint64 fake_rig_frames (FakeRig *rig);
  * frame. */
 double fake_rig_camera_cpu_s (FakeRig *rig);
 
+/* The camera's cycles between from_us and to_us (g_get_monotonic_time, which is
+ * CLOCK_MONOTONIC: the same clock in every process): the intervals between consecutive fills,
+ * each the poll instant at which the camera took a trigger, rounded to whole trigger-poll
+ * periods. A camera that polls its trigger every millisecond starts a frame only on the
+ * millisecond: a cycle of 2.0x ms takes 3 ms. counts[i] is the number of intervals of i
+ * periods (i < n_bins - 1), counts[n_bins - 1] those of n_bins - 1 or more; intervals longer
+ * than FAKE_RIG_CYCLE_MAX_PERIODS periods (no trigger: between slices) are left out. Returns
+ * the number of fills in the interval, counted or not. Any thread. */
+#define FAKE_RIG_CYCLE_MAX_PERIODS 20
+guint64 fake_rig_cycles (FakeRig *rig, gint64 from_us, gint64 to_us, guint64 *counts, guint n_bins);
+/* The trigger-poll period in microseconds. */
+guint64 fake_rig_trigger_period_us (const FakeRig *rig);
+
 G_END_DECLS

@@ -90,7 +90,10 @@ run_here (const char *conf_text, double seconds, gboolean with_phase, RateSample
       g_clear_error (&e);
     }
   }
-  out->fps = frames / ((g_get_monotonic_time () - t0) / 1e6);
+  gint64 t1 = g_get_monotonic_time ();
+  out->fps = frames / ((t1 - t0) / 1e6);
+  out->from_us = t0;
+  out->to_us = t1;
   out->frames = frames;
   g_autoptr (ThreadCpu) self1 = thread_cpu_read (0);
   g_autoptr (ThreadCpu) rig1 = thread_cpu_read (getppid ());
@@ -131,8 +134,8 @@ rate_ceiling_main (int argc, char **argv)
     return 1;
   g_autofree char *cpu = thread_cpu_totals_serialize (&r.cpu, "cpu");
   g_autofree char *rig_cpu = thread_cpu_totals_serialize (&r.rig_cpu, "rig");
-  printf ("%.3f %u %u %u %" G_GUINT64_FORMAT "\n%s%s", r.fps, r.incomplete, r.lost, r.reconnects, r.frames,
-          cpu, rig_cpu);
+  printf ("%.3f %u %u %u %" G_GUINT64_FORMAT " %" G_GINT64_FORMAT " %" G_GINT64_FORMAT "\n%s%s", r.fps,
+          r.incomplete, r.lost, r.reconnects, r.frames, r.from_us, r.to_us, cpu, rig_cpu);
   return 0;
 }
 
@@ -153,8 +156,8 @@ rate_ceiling_measure (const char *self_path, const char *conf_text, double secon
     return FALSE;
   }
   memset (out, 0, sizeof *out);
-  if (sscanf (text, "%lf %u %u %u %" G_GUINT64_FORMAT, &out->fps, &out->incomplete, &out->lost,
-              &out->reconnects, &out->frames) != 5 ||
+  if (sscanf (text, "%lf %u %u %u %" G_GUINT64_FORMAT " %" G_GINT64_FORMAT " %" G_GINT64_FORMAT, &out->fps,
+              &out->incomplete, &out->lost, &out->reconnects, &out->frames, &out->from_us, &out->to_us) != 7 ||
       !isfinite (out->fps)) {
     fprintf (stderr, "ceiling: unexpected answer \"%s\"\n", text);
     return FALSE;

@@ -25,6 +25,8 @@ typedef struct {
   guint64 frames;
   ThreadCpuTotals cpu;     /* the loop's (or the daemon's) own threads */
   ThreadCpuTotals rig_cpu; /* the rig's: the benchmark process (fake camera, Modbus controller) */
+  /* The measured interval (g_get_monotonic_time: CLOCK_MONOTONIC, the same in every process). */
+  gint64 from_us, to_us;
 } RateSample;
 
 /* The network namespace's count of UDP datagrams dropped for a full receive buffer
