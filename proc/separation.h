@@ -193,11 +193,16 @@ gboolean ds_phase_set_set_dark (DsPhaseSet *set, const DsImage *dark, GError **e
 gboolean ds_phase_set_accumulate (DsPhaseSet *set, guint phase, const DsImage *frame,
                                   GError **error);
 /* How many of the set's threads (params.threads) the following ds_phase_set_accumulate calls
- * use, the caller's included; 0 (the default): all. Finalize always uses all. Folding is per
- * pixel, so the result is the same bit for bit with any number. A caller folding while the
- * same cores receive the next frame (descatterd) folds on one, leaving the others to the
- * transfer, and uses all for the last frame, which nothing overlaps. */
+ * use, the caller's included; 0 (the default): all. Folding is per pixel, so the result is the
+ * same bit for bit with any number. A caller folding while the same cores receive the next
+ * frame (descatterd) folds on one, leaving the others to the transfer, and uses all for the
+ * last frame, which nothing overlaps. */
 void ds_phase_set_set_fold_threads (DsPhaseSet *set, guint threads);
+/* The same for the finalize (every ds_phase_set_finalize* call, and the finalize of
+ * ds_phase_set_accumulate_finalize_into); 0 (the default): all. The result, its flags and
+ * counts are the same bit for bit with any number. descatterd finalizes on one thread when the
+ * next set's first frame is being acquired meanwhile (continuous mode). */
+void ds_phase_set_set_finalize_threads (DsPhaseSet *set, guint threads);
 
 /* Computes the result; every phase must have at least one frame. The set can then be reset. */
 DsSeparation *ds_phase_set_finalize (DsPhaseSet *set, GError **error);

@@ -206,6 +206,12 @@ ds_phase_set_set_fold_threads (DsPhaseSet *set, guint threads)
 }
 
 void
+ds_phase_set_set_finalize_threads (DsPhaseSet *set, guint threads)
+{
+  set->finalize_threads = threads;
+}
+
+void
 ds_phase_set_reserve_scratch (DsPhaseSet *set, gsize doubles)
 {
   if (set->scratch && set->scratch_doubles >= doubles)
@@ -562,6 +568,7 @@ ds_phase_set_accumulate (DsPhaseSet *set, guint phase, const DsImage *frame, GEr
 void
 ds_phase_set_fold_pending (DsPhaseSet *set)
 {
-  fold_pending_phase (set, 0);
+  /* The finalize's first step (the last phase's mean, when averaging). */
+  fold_pending_phase (set, set->finalize_threads);
   set->current = -1;
 }

@@ -294,7 +294,7 @@ finalize_run (DsPhaseSet *set, DsSeparation *sep, guint m_frames, const DsImage 
   j.row_mean_count = row_count;
   j.counts = counts;
   ds_phase_set_reserve_scratch (set, (gsize) DS_ROW_DOUBLES * set->width);
-  ds_phase_set_run_rows (set, finalize_rows, &j);
+  ds_phase_set_run_rows_on (set, set->finalize_threads, finalize_rows, &j);
 
   DsSeparationMeta *meta = &sep->meta;
   memset (meta, 0, sizeof *meta);

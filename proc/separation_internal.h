@@ -53,6 +53,7 @@ struct DsPhaseSet {
   /* Threads: the pool is made on the first frame large enough to share. */
   guint threads;           /* resolved from params.threads */
   guint fold_threads;      /* accumulate uses at most this many; 0: all */
+  guint finalize_threads;  /* the finalize uses at most this many; 0: all */
   DsWorkerPool *pool;
   double *scratch;         /* threads x scratch_doubles, for row buffers */
   gsize scratch_doubles;

@@ -300,7 +300,7 @@ run (Pipeline *pl, int applied, gint64 applied_at, GError **error)
     if (pl->next_set_lit_at > 0) {
       /* The set's last frame is here and the next set's phase 0 is lit: that set's first
        * frame goes out now, before the verdict on the frame before this one and before this
-       * one's job (whose finalize takes every core), so that the trigger waits for neither.
+       * one's job (whose finalize takes a core), so that the trigger waits for neither.
        * When that verdict is a drop, this frame is kept back and the frame triggered ahead is
        * grabbed before the dropped phase is lit again (below), as after a drop of the last
        * frame. */

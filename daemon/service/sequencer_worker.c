@@ -32,14 +32,18 @@ run_job (DsSequencer *seq, DsFoldJob *job, gboolean overlapped)
     return;
   t = g_get_monotonic_time ();
   /* While the next frame is acquired, the transfer (and on a rig like the benchmark's, the
-   * camera and the illuminator's controller) need a core: the fold takes one. Nothing overlaps
-   * with the last frame of a set: it takes all. */
+   * camera and the illuminator's controller) need a core: the fold takes one, and so does the
+   * finalize of a set whose successor's first frame is acquired meanwhile (continuous mode):
+   * on two cores a finalize on both held up that frame's transfer, the camera's cycle of phase 0
+   * the longest of the set (docs/benchmarks.md, "run U"). Nothing overlaps with the last frame
+   * of a set otherwise: it takes all. */
   ds_phase_set_set_fold_threads (seq->set, overlapped ? 1 : 0);
+  ds_phase_set_set_finalize_threads (seq->set, overlapped ? 1 : 0);
   if (job->finalize_into) {
     /* The set's last frame: the result's planes now, in the same job (on the fold thread in
-     * continuous mode, while the next set's first frame exposes; docs/design.md), the frame
-     * folded on the finalize's pass over the pixels. Every core: the finalize's row workers.
-     * The fold stage's time then includes the finalize. */
+     * continuous mode, while the next set's first frame exposes, on this thread alone;
+     * docs/design.md), the frame folded on the finalize's pass over the pixels. The fold
+     * stage's time then includes the finalize. */
     job->finalized = ds_phase_set_accumulate_finalize_into (seq->set, job->phase, job->frame->image,
                                                             job->finalize_into, &job->folded, &job->fold_error);
   } else {

@@ -365,6 +365,8 @@ typedef struct {
 typedef struct {
   guint64 counts[CYCLE_BINS];
   guint64 fills, frames;
+  double phase_sum_us[N_PHASES]; /* cycles by the phase lit at their fill */
+  guint64 phase_n[N_PHASES];
 } SideCycles;
 
 typedef struct {
@@ -391,6 +393,7 @@ side_cycles_add (SideCycles *side, FakeRig *rig, const RateSample *s, const char
          G_GUINT64_FORMAT, what, fills, s->frames);
   for (guint i = 0; i < CYCLE_BINS; i++)
     side->counts[i] += counts[i];
+  fake_rig_cycles_by_phase (rig, s->from_us, s->to_us, side->phase_sum_us, side->phase_n);
   side->fills += fills;
   side->frames += s->frames;
 }
@@ -411,6 +414,23 @@ side_cycles_print (const SideCycles *side, guint64 period_us, const char *what)
   for (guint i = 1; i < CYCLE_BINS; i++)
     printf (" %s%u: %4.1f %%", i + 1 == CYCLE_BINS ? ">=" : "", i, 100.0 * side->counts[i] / n);
   printf ("  (%" G_GUINT64_FORMAT " cycles, mean >= %.2f ms)\n", n, periods / n * period_us / 1000.0);
+}
+
+/* The mean cycle by the phase that began it: a set's first frame (phase 0) is the one whose
+ * cycle overlaps the previous set's finalize in continuous mode. Printed when phases moved. */
+static void
+side_cycles_print_by_phase (const SideCycles *side, const char *what)
+{
+  guint with = 0;
+  for (guint k = 0; k < N_PHASES; k++)
+    with += side->phase_n[k] > 0;
+  if (with < 2)
+    return;
+  printf ("      %-22s mean cycle (ms) by the phase lit at its start:", what);
+  for (guint k = 0; k < N_PHASES; k++)
+    if (side->phase_n[k])
+      printf (" %u: %.2f", k, side->phase_sum_us[k] / side->phase_n[k] / 1000.0);
+  printf ("\n");
 }
 
 static void
@@ -531,6 +551,7 @@ rounds_print (Rounds *rs, const char *what)
       side_cycles_print (&rs->cycles[k], rs->trigger_period_us, side);
     }
   side_cycles_print (&rs->daemon_cycles, rs->trigger_period_us, "daemon:");
+  side_cycles_print_by_phase (&rs->daemon_cycles, "daemon:");
 }
 
 /* The lowest ratio of any round (the goal holds "in every round" when this meets it). */

@@ -28,6 +28,7 @@ struct FakeRig {
   /* When each fill began (fake_rig_cycles), written by the camera's thread only: an entry is
    * written before n_fills counts it. Full: the later fills are not recorded. */
   gint64 *fill_us;
+  guint8 *fill_phase;      /* the phase lit at that fill; G_MAXUINT8 when off */
   gint n_fills;            /* atomic */
 };
 
@@ -104,11 +105,7 @@ fill (ArvBuffer *buffer, void *data, guint32 exposure_time_us, guint32 gain, Arv
       camera_thread_rig = rig;
     }
   }
-  gint logged = g_atomic_int_get (&rig->n_fills);
-  if (logged < FILL_LOG_CAPACITY) {
-    rig->fill_us[logged] = g_get_monotonic_time ();
-    g_atomic_int_set (&rig->n_fills, logged + 1);
-  }
+  gint64 filled_at = g_get_monotonic_time ();
   guint8 *out = (guint8 *) arv_buffer_get_data (buffer, NULL);
   gint x0 = 0, y0 = 0, w = 0, h = 0;
   arv_buffer_get_image_region (buffer, &x0, &y0, &w, &h);
@@ -117,6 +114,12 @@ fill (ArvBuffer *buffer, void *data, guint32 exposure_time_us, guint32 gain, Arv
   DsModbusServerState st;
   ds_modbus_server_get_state (rig->modbus, &st);
   const guint16 *src = st.enabled ? rig->lit[st.phase % rig->n_phases] : rig->dark;
+  gint logged = g_atomic_int_get (&rig->n_fills);
+  if (logged < FILL_LOG_CAPACITY) {
+    rig->fill_us[logged] = filled_at;
+    rig->fill_phase[logged] = st.enabled ? (guint8) (st.phase % rig->n_phases) : G_MAXUINT8;
+    g_atomic_int_set (&rig->n_fills, logged + 1);
+  }
   memcpy (out, src, (gsize) rig->width * rig->height * 2);
   g_atomic_int_inc (&rig->frames);
 }
@@ -197,6 +200,7 @@ fake_rig_new (guint width, guint height, guint n_phases, guint settle_us)
       memcpy (rig->lit[k] + (gsize) y * width, rig->lit[k], width * 2);
   }
   rig->fill_us = g_new (gint64, FILL_LOG_CAPACITY);
+  rig->fill_phase = g_new (guint8, FILL_LOG_CAPACITY);
   rig->dark = g_new (guint16, npix);
   for (gsize i = 0; i < npix; i++)
     rig->dark[i] = (guint16) FAKE_RIG_DARK_DN;
@@ -258,6 +262,7 @@ fake_rig_free (FakeRig *rig)
   g_free (rig->lit);
   g_free (rig->dark);
   g_free (rig->fill_us);
+  g_free (rig->fill_phase);
   g_free (rig);
 }
 
@@ -331,4 +336,19 @@ fake_rig_cycles (FakeRig *rig, gint64 from_us, gint64 to_us, guint64 *counts, gu
     previous = t;
   }
   return fills;
+}
+
+void
+fake_rig_cycles_by_phase (FakeRig *rig, gint64 from_us, gint64 to_us, double *sum_us, guint64 *n)
+{
+  gint count = g_atomic_int_get (&rig->n_fills);
+  double longest = (double) rig->trigger_period_us * FAKE_RIG_CYCLE_MAX_PERIODS;
+  for (gint i = 0; i + 1 < count; i++) {
+    gint64 t = rig->fill_us[i], next = rig->fill_us[i + 1];
+    guint k = rig->fill_phase[i];
+    if (t < from_us || next > to_us || k >= rig->n_phases || (double) (next - t) > longest)
+      continue;
+    sum_us[k] += (double) (next - t);
+    n[k]++;
+  }
 }

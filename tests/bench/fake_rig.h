@@ -44,6 +44,10 @@ double fake_rig_camera_cpu_s (FakeRig *rig);
  * the number of fills in the interval, counted or not. Any thread. */
 #define FAKE_RIG_CYCLE_MAX_PERIODS 20
 guint64 fake_rig_cycles (FakeRig *rig, gint64 from_us, gint64 to_us, guint64 *counts, guint n_bins);
+/* The same cycles by the phase lit at the fill that began them: their total duration in
+ * microseconds and their number, into sum_us[k] and n[k] (added to), for k < the rig's phases
+ * (each n_phases long). Any thread. */
+void fake_rig_cycles_by_phase (FakeRig *rig, gint64 from_us, gint64 to_us, double *sum_us, guint64 *n);
 /* The trigger-poll period in microseconds. */
 guint64 fake_rig_trigger_period_us (const FakeRig *rig);
 

@@ -94,6 +94,8 @@ run_case (const Case *cs, guint threads, gboolean mixed_folds, guint w, guint h,
       g_assert_true (ds_phase_set_accumulate (set, k, f, &error));
     }
   g_rand_free (r);
+  if (mixed_folds) /* and the finalize on one thread (descatterd's continuous mode) */
+    ds_phase_set_set_finalize_threads (set, 1);
   DsSeparation *sep = ds_phase_set_finalize (set, &error);
   g_assert_no_error (error);
   return sep;
