@@ -364,7 +364,6 @@ typedef struct {
 
 typedef struct {
   guint64 counts[CYCLE_BINS];
-  guint64 fills, frames;
   double phase_sum_us[N_PHASES]; /* cycles by the phase lit at their fill */
   guint64 phase_n[N_PHASES];
 } SideCycles;
@@ -387,15 +386,10 @@ typedef struct {
 static void
 side_cycles_add (SideCycles *side, FakeRig *rig, const RateSample *s, const char *what)
 {
-  guint64 counts[CYCLE_BINS];
-  guint64 fills = fake_rig_cycles (rig, s->from_us, s->to_us, counts, CYCLE_BINS);
+  guint64 fills = fake_rig_cycles (rig, s->from_us, s->to_us, side->counts, CYCLE_BINS, side->phase_sum_us,
+                                   side->phase_n);
   CHECK (fills + 1 >= s->frames, "%s: the camera filled %" G_GUINT64_FORMAT " frames in a slice that counted %"
          G_GUINT64_FORMAT, what, fills, s->frames);
-  for (guint i = 0; i < CYCLE_BINS; i++)
-    side->counts[i] += counts[i];
-  fake_rig_cycles_by_phase (rig, s->from_us, s->to_us, side->phase_sum_us, side->phase_n);
-  side->fills += fills;
-  side->frames += s->frames;
 }
 
 /* "2: 45.1 %, 3: 52.0 % ..." and the mean cycle, over every slice of one side. */

@@ -314,41 +314,29 @@ fake_rig_trigger_period_us (const FakeRig *rig)
 }
 
 guint64
-fake_rig_cycles (FakeRig *rig, gint64 from_us, gint64 to_us, guint64 *counts, guint n_bins)
+fake_rig_cycles (FakeRig *rig, gint64 from_us, gint64 to_us, guint64 *counts, guint n_bins,
+                 double *by_phase_us, guint64 *by_phase_n)
 {
-  memset (counts, 0, n_bins * sizeof *counts);
   gint n = g_atomic_int_get (&rig->n_fills);
   double period = (double) rig->trigger_period_us;
   guint64 fills = 0;
-  gint64 previous = 0;
   for (gint i = 0; i < n; i++) {
     gint64 t = rig->fill_us[i];
-    if (t < from_us || t > to_us) {
-      previous = 0;
+    if (t < from_us || t > to_us)
       continue;
-    }
     fills++;
-    if (previous) {
-      double periods = round ((double) (t - previous) / period);
-      if (periods <= FAKE_RIG_CYCLE_MAX_PERIODS)
-        counts[MIN ((guint) periods, n_bins - 1)]++;
+    if (i == 0 || rig->fill_us[i - 1] < from_us)
+      continue; /* the interval began before this one */
+    double dt = (double) (t - rig->fill_us[i - 1]);
+    double periods = round (dt / period);
+    if (periods > FAKE_RIG_CYCLE_MAX_PERIODS)
+      continue;
+    counts[MIN ((guint) periods, n_bins - 1)]++;
+    guint k = rig->fill_phase[i - 1];
+    if (k < rig->n_phases) {
+      by_phase_us[k] += dt;
+      by_phase_n[k]++;
     }
-    previous = t;
   }
   return fills;
-}
-
-void
-fake_rig_cycles_by_phase (FakeRig *rig, gint64 from_us, gint64 to_us, double *sum_us, guint64 *n)
-{
-  gint count = g_atomic_int_get (&rig->n_fills);
-  double longest = (double) rig->trigger_period_us * FAKE_RIG_CYCLE_MAX_PERIODS;
-  for (gint i = 0; i + 1 < count; i++) {
-    gint64 t = rig->fill_us[i], next = rig->fill_us[i + 1];
-    guint k = rig->fill_phase[i];
-    if (t < from_us || next > to_us || k >= rig->n_phases || (double) (next - t) > longest)
-      continue;
-    sum_us[k] += (double) (next - t);
-    n[k]++;
-  }
 }

@@ -38,16 +38,15 @@ double fake_rig_camera_cpu_s (FakeRig *rig);
  * CLOCK_MONOTONIC: the same clock in every process): the intervals between consecutive fills,
  * each the poll instant at which the camera took a trigger, rounded to whole trigger-poll
  * periods. A camera that polls its trigger every millisecond starts a frame only on the
- * millisecond: a cycle of 2.0x ms takes 3 ms. counts[i] is the number of intervals of i
- * periods (i < n_bins - 1), counts[n_bins - 1] those of n_bins - 1 or more; intervals longer
- * than FAKE_RIG_CYCLE_MAX_PERIODS periods (no trigger: between slices) are left out. Returns
- * the number of fills in the interval, counted or not. Any thread. */
+ * millisecond: a cycle of 2.0x ms takes 3 ms. Added to counts[i]: the intervals of i periods
+ * (i < n_bins - 1), counts[n_bins - 1] those of n_bins - 1 or more; added to by_phase_us[k]
+ * and by_phase_n[k] (each as long as the rig's phases): their duration in microseconds and
+ * number, by the phase lit at the fill that began them. Intervals longer than
+ * FAKE_RIG_CYCLE_MAX_PERIODS periods (no trigger: between slices) are left out. Returns the
+ * number of fills in the interval, counted or not. Any thread. */
 #define FAKE_RIG_CYCLE_MAX_PERIODS 20
-guint64 fake_rig_cycles (FakeRig *rig, gint64 from_us, gint64 to_us, guint64 *counts, guint n_bins);
-/* The same cycles by the phase lit at the fill that began them: their total duration in
- * microseconds and their number, into sum_us[k] and n[k] (added to), for k < the rig's phases
- * (each n_phases long). Any thread. */
-void fake_rig_cycles_by_phase (FakeRig *rig, gint64 from_us, gint64 to_us, double *sum_us, guint64 *n);
+guint64 fake_rig_cycles (FakeRig *rig, gint64 from_us, gint64 to_us, guint64 *counts, guint n_bins,
+                         double *by_phase_us, guint64 *by_phase_n);
 /* The trigger-poll period in microseconds. */
 guint64 fake_rig_trigger_period_us (const FakeRig *rig);
 
