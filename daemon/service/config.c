@@ -89,6 +89,12 @@ static const KeySpec keys[] = {
     "trigger source of the camera" },
   { "camera", "grab-timeout-ms", K_UINT, F (grab_timeout_ms), "2000", 10, 600000, NULL,
     "deadline for a frame after its trigger, beyond the exposure" },
+  { "camera", "receive-buffer-frames", K_UINT, F (receive_buffer_frames), "4", 1, 64, NULL,
+    "aravis, GigE Vision: the UDP receive buffer asked for, in frames (payloads): packets wait there "
+    "while the daemon's threads have the CPUs; net.core.rmem_max caps it" },
+  { "camera", "frame-retention-ms", K_UINT, F (frame_retention_ms), "100", 1, 10000, NULL,
+    "aravis, GigE Vision: how long a frame missing packets waits after its last packet for resent or "
+    "late ones before it counts as incomplete" },
   { "camera", "sends-after-exposure", K_BOOL, F (sends_after_exposure), "true", 0, 0, NULL,
     "the camera begins sending a frame only once the whole frame's exposure is over (global shutter, "
     "or a rolling shutter that reads out before sending): the illuminator then moves to the next phase "

@@ -48,6 +48,8 @@ typedef struct {
   char *roi;              /* "x,y,w,h" or NULL (full sensor) */
   char *camera_trigger;   /* "software" | "line0".."line3" */
   guint grab_timeout_ms;
+  guint receive_buffer_frames; /* aravis, GigE Vision */
+  guint frame_retention_ms;    /* aravis, GigE Vision */
   gboolean sends_after_exposure;
   /* [illuminator] */
   char *illuminator_backend; /* "sim" | "modbus" | "gpio" */

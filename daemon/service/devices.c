@@ -85,7 +85,10 @@ ds_devices_open (const DsConfig *config, GError **error)
   if (strcmp (config->camera_backend, "sim") == 0)
     dev->camera = ds_sim_camera_new (lab);
   else {
-    dev->camera = ds_aravis_camera_open (config->camera_address, 8, error);
+    DsAravisStreamOptions o = DS_ARAVIS_STREAM_OPTIONS_DEFAULT;
+    o.receive_buffer_frames = config->receive_buffer_frames;
+    o.frame_retention_ms = config->frame_retention_ms;
+    dev->camera = ds_aravis_camera_open_with (config->camera_address, &o, error);
   }
   if (!dev->camera) {
     g_prefix_error (error, "[camera] backend=%s: ", config->camera_backend);

@@ -1,15 +1,19 @@
 #include "drivers/aravis/aravis_camera.h"
 
 #include <arv.h>
+#include <dirent.h>
 #include <math.h>
+#include <netinet/in.h>
+#include <stdlib.h>
 #include <string.h>
+#include <sys/socket.h>
 
 #include "drivers/aravis/device_watch.h"
 #include "proc/pixfmt.h"
 
 typedef struct {
   char *address;           /* what the caller opened, used again by reconnect */
-  guint n_buffers;
+  DsAravisStreamOptions options;
   ArvCamera *camera;
   DsArvDeviceWatch *watch; /* our reference to the camera's device and its "control-lost" */
   ArvStream *stream;
@@ -374,6 +378,24 @@ cam_configure (gpointer b, const DsCameraSettings *s, GError **error)
   return TRUE;
 }
 
+/* The kernel grants a receive buffer up to net.core.rmem_max without a word: say what that
+ * leaves, since a buffer short of a frame loses packets whenever the stream's thread waits for
+ * a CPU (docs/drivers.md). Unreadable (no procfs): nothing to say. */
+static void
+say_if_capped (const AravisCam *c, guint payload, gsize want)
+{
+  g_autofree char *text = NULL;
+  if (!g_file_get_contents ("/proc/sys/net/core/rmem_max", &text, NULL, NULL))
+    return;
+  guint64 cap = g_ascii_strtoull (text, NULL, 10);
+  if (cap == 0 || cap >= want)
+    return;
+  g_message ("aravis camera %s: the UDP receive buffer holds %.2f frames of %u bytes, not the %u of "
+             "[camera] receive-buffer-frames: net.core.rmem_max (%" G_GUINT64_FORMAT " bytes) caps it; "
+             "raise it to at least %" G_GSIZE_FORMAT " (the package's 60-descatter-gige.conf sets 64 MiB)",
+             c->address, (double) cap / payload, payload, c->options.receive_buffer_frames, cap, want);
+}
+
 static gboolean
 create_pool (AravisCam *c, guint payload, GError **error)
 {
@@ -383,11 +405,15 @@ create_pool (AravisCam *c, guint payload, GError **error)
     return fail (error, code_of (e) == DS_DEVICE_ERROR_TIMEOUT ? DS_DEVICE_ERROR_DISCONNECTED
                                                                : DS_DEVICE_ERROR_FAULT,
                  e, "creating the stream");
-  if (ARV_IS_GV_STREAM (stream))
-    g_object_set (stream, "socket-buffer", ARV_GV_STREAM_SOCKET_BUFFER_AUTO, "packet-resend",
-                  ARV_GV_STREAM_PACKET_RESEND_ALWAYS, NULL);
+  if (ARV_IS_GV_STREAM (stream)) {
+    gsize want = (gsize) payload * c->options.receive_buffer_frames;
+    g_object_set (stream, "socket-buffer", ARV_GV_STREAM_SOCKET_BUFFER_FIXED, "socket-buffer-size",
+                  (int) MIN (want, (gsize) G_MAXINT), "frame-retention", c->options.frame_retention_ms * 1000,
+                  "packet-resend", ARV_GV_STREAM_PACKET_RESEND_ALWAYS, NULL);
+    say_if_capped (c, payload, want);
+  }
   /* Each buffer knows its stream (user data), so that a frame lending it can give it back. */
-  for (guint i = 0; i < c->n_buffers; i++) {
+  for (guint i = 0; i < c->options.n_buffers; i++) {
     ArvBuffer *buf = arv_buffer_new_full (payload, NULL, stream, NULL);
     BufferSeen *seen = g_new (BufferSeen, 1);
     *seen = (BufferSeen) { ARV_BUFFER_STATUS_CLEARED, 0, 0 };
@@ -740,17 +766,25 @@ static const DsCameraOps aravis_camera_ops = {
 };
 
 DsCamera *
-ds_aravis_camera_open (const char *address_or_id, guint n_buffers, GError **error)
+ds_aravis_camera_open_with (const char *address_or_id, const DsAravisStreamOptions *o, GError **error)
 {
-  if (!address_or_id || !*address_or_id || n_buffers < 2 || n_buffers > 1024) {
+  const char *what = address_or_id ? address_or_id : "(null)";
+  if (!address_or_id || !*address_or_id || o->n_buffers < 2 || o->n_buffers > 1024) {
     fail (error, DS_DEVICE_ERROR_INVALID, NULL, "open \"%s\" with %u buffers: need an address and 2..1024 buffers",
-          address_or_id ? address_or_id : "(null)", n_buffers);
+          what, o->n_buffers);
+    return NULL;
+  }
+  if (o->receive_buffer_frames < 1 || o->receive_buffer_frames > 64 || o->frame_retention_ms < 1 ||
+      o->frame_retention_ms > 10000) {
+    fail (error, DS_DEVICE_ERROR_INVALID, NULL,
+          "open \"%s\" with a receive buffer of %u frames and a frame retention of %u ms: need 1..64 "
+          "frames and 1..10000 ms", what, o->receive_buffer_frames, o->frame_retention_ms);
     return NULL;
   }
   AravisCam *c = g_new0 (AravisCam, 1);
   c->address = g_strdup (address_or_id);
   c->frames = ds_frame_pool_new ();
-  c->n_buffers = n_buffers;
+  c->options = *o;
   g_mutex_init (&c->begun_lock);
   g_cond_init (&c->begun_cond);
   if (!open_device (c, error)) {
@@ -765,6 +799,14 @@ ds_aravis_camera_open (const char *address_or_id, guint n_buffers, GError **erro
   cam->ops = &aravis_camera_ops;
   cam->backend = c;
   return cam;
+}
+
+DsCamera *
+ds_aravis_camera_open (const char *address_or_id, guint n_buffers, GError **error)
+{
+  DsAravisStreamOptions o = DS_ARAVIS_STREAM_OPTIONS_DEFAULT;
+  o.n_buffers = n_buffers;
+  return ds_aravis_camera_open_with (address_or_id, &o, error);
 }
 
 gboolean
@@ -786,7 +828,7 @@ ds_aravis_camera_pool_counts (const DsCamera *camera, guint *n_input, guint *n_o
   arv_stream_get_n_buffers (c->stream, &in, &out);
   *n_input = (guint) MAX (in, 0);
   *n_output = (guint) MAX (out, 0);
-  *n_pool = c->n_buffers;
+  *n_pool = c->options.n_buffers;
 }
 
 GObject *
@@ -796,4 +838,37 @@ ds_aravis_camera_device (const DsCamera *camera)
     return NULL;
   AravisCam *c = camera->backend;
   return c->camera ? G_OBJECT (arv_camera_get_device (c->camera)) : NULL;
+}
+
+gsize
+ds_aravis_camera_receive_buffer (const DsCamera *camera)
+{
+  if (!ds_aravis_camera_is_aravis (camera))
+    return 0;
+  AravisCam *c = camera->backend;
+  if (!c->stream || !ARV_IS_GV_STREAM (c->stream))
+    return 0;
+  /* Aravis keeps the socket to itself: the datagram socket of this process bound to the
+   * stream's port. */
+  guint16 port = arv_gv_stream_get_port (ARV_GV_STREAM (c->stream));
+  DIR *dir = opendir ("/proc/self/fd");
+  if (!dir)
+    return 0;
+  gsize size = 0;
+  struct dirent *d;
+  while (size == 0 && (d = readdir (dir))) {
+    int fd = atoi (d->d_name);
+    struct sockaddr_in a;
+    socklen_t alen = sizeof a;
+    int type = 0, rcvbuf = 0;
+    socklen_t tlen = sizeof type, rlen = sizeof rcvbuf;
+    if (d->d_name[0] < '0' || d->d_name[0] > '9' || fd == dirfd (dir) ||
+        getsockopt (fd, SOL_SOCKET, SO_TYPE, &type, &tlen) != 0 || type != SOCK_DGRAM ||
+        getsockname (fd, (struct sockaddr *) &a, &alen) != 0 || a.sin_family != AF_INET ||
+        ntohs (a.sin_port) != port || getsockopt (fd, SOL_SOCKET, SO_RCVBUF, &rcvbuf, &rlen) != 0)
+      continue;
+    size = (gsize) MAX (rcvbuf, 0);
+  }
+  closedir (dir);
+  return size;
 }
