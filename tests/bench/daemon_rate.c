@@ -126,13 +126,17 @@ summary_print (void)
 static char *
 rig_config (guint modbus_port)
 {
+  /* DS_BENCH_RECEIVE_BUFFER_FRAMES=1 gives the stream the receive buffer Aravis chooses itself
+   * (one payload), as before [camera] receive-buffer-frames existed: for comparing the two. */
+  const char *frames = g_getenv ("DS_BENCH_RECEIVE_BUFFER_FRAMES");
+  g_autofree char *receive_buffer = frames ? g_strdup_printf ("receive-buffer-frames=%s\n", frames) : g_strdup ("");
   return g_strdup_printf (
       "[daemon]\nmax-clients=8\n"
       "[camera]\nbackend=aravis\naddress=127.0.0.1\npixel-format=Mono16\nexposure-us=1000\n"
-      "grab-timeout-ms=2000\n"
+      "grab-timeout-ms=2000\n%s"
       "[illuminator]\nbackend=modbus\nmodbus-uri=tcp://127.0.0.1:%u\nperiod-px=%g\nduty=0.5\n"
       "[acquisition]\nphases=%d\ndark-frame=false\n",
-      modbus_port, FAKE_RIG_PERIOD_PX, N_PHASES);
+      receive_buffer, modbus_port, FAKE_RIG_PERIOD_PX, N_PHASES);
 }
 
 /* ---- the daemon ---- */
@@ -730,6 +734,9 @@ main (int argc, char **argv)
     slices = quick ? 2 : 3;
   printf ("each round: the ceilings and the daemon alternated, %u daemon slices of %.2f s between "
           "%u slices of each ceiling\n", slices, seconds / slices, slices + 1);
+  printf ("both sides' GigE Vision stream: a UDP receive buffer of %s payloads ([camera] "
+          "receive-buffer-frames; DS_BENCH_RECEIVE_BUFFER_FRAMES)\n",
+          g_getenv ("DS_BENCH_RECEIVE_BUFFER_FRAMES") ? g_getenv ("DS_BENCH_RECEIVE_BUFFER_FRAMES") : "4 (the default)");
   if (geteuid () == 0)
     printf ("note: running as root: Aravis then receives through a packet socket (5 ms ring "
             "timeout); the figures are not those of the service (run as an unprivileged user)\n");

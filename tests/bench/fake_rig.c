@@ -124,32 +124,35 @@ fill (ArvBuffer *buffer, void *data, guint32 exposure_time_us, guint32 gain, Arv
   g_atomic_int_inc (&rig->frames);
 }
 
-/* run_rate_bench.sh gives the benchmark real-time priority 2, which the camera's thread would
- * inherit: filling and sending a frame, it would then take a core from the daemon (a real
- * camera does its work on its own hardware). So by default the camera is made on a thread one
- * real-time priority lower (the normal class when there is none lower), which its thread
- * inherits: it takes what the daemon's and the ceiling's threads leave, a core whenever they
- * wait, and still comes before the other users' processes. The rest of the rig (the Modbus
- * controller) keeps the caller's priority.
- * That order has the opposite flaw: every wake-up of a daemon thread on the camera's core
- * preempts the camera in the middle of a frame, which a real camera never suffers (the daemon
- * put the camera on a CPU 11 times per frame at 1 MP, the ceiling loop 3 times). With
- * DS_BENCH_CAMERA_PRIORITY=same the camera keeps the benchmark's own priority: under SCHED_RR
- * neither side preempts the other, a thread that wakes waits for a core in turn (in the normal
- * class: the same nice). Neither order is a camera on hardware of its own; docs/benchmarks.md
- * quotes both. */
+/* run_rate_bench.sh gives the benchmark real-time priority 2, which the camera's thread
+ * inherits. A real camera fills and sends on hardware of its own: the daemon's CPU use never
+ * slows it, and the daemon never waits for it. Two cores shared with a fake camera cannot give
+ * both; the rig offers two orders (docs/benchmarks.md, "Daemon rate").
+ * - same (the default since run V): the camera keeps the benchmark's priority. Under SCHED_RR
+ *   neither side preempts the other: the camera, once it fills and sends a frame, finishes it
+ *   whatever the daemon does, as a real camera would, and a daemon thread that wakes meanwhile
+ *   waits for a core in turn, which a real camera would not make it do (in the normal class:
+ *   the same nice). Until the stream asked for a receive buffer of several frames, that wait
+ *   overflowed the one-frame buffer Aravis asks for and cost frames (run U).
+ * - below: the camera is made on a thread one real-time priority lower (the normal class when
+ *   there is none lower), which its thread inherits: it takes what the daemon's and the
+ *   ceiling's threads leave. Then every wake-up of a daemon thread on the camera's core preempts
+ *   the camera in the middle of a frame (the daemon put the camera on a CPU 11 times per frame
+ *   at 1 MP, the ceiling loop 3 times), and the daemon's CPU slows the camera it is measured
+ *   against, which a real camera never suffers.
+ * The rest of the rig (the Modbus controller) keeps the caller's priority. */
 typedef enum { CAMERA_PRIORITY_BELOW, CAMERA_PRIORITY_SAME } CameraPriority;
 
 static CameraPriority
 camera_priority_from_env (void)
 {
   const char *v = g_getenv ("DS_BENCH_CAMERA_PRIORITY");
-  if (!v || strcmp (v, "below") == 0)
-    return CAMERA_PRIORITY_BELOW;
-  if (strcmp (v, "same") == 0)
+  if (!v || strcmp (v, "same") == 0)
     return CAMERA_PRIORITY_SAME;
-  fprintf (stderr, "fake rig: DS_BENCH_CAMERA_PRIORITY is below or same, not \"%s\"; using below\n", v);
-  return CAMERA_PRIORITY_BELOW;
+  if (strcmp (v, "below") == 0)
+    return CAMERA_PRIORITY_BELOW;
+  fprintf (stderr, "fake rig: DS_BENCH_CAMERA_PRIORITY is same or below, not \"%s\"; using same\n", v);
+  return CAMERA_PRIORITY_SAME;
 }
 
 static gpointer
@@ -216,8 +219,8 @@ fake_rig_new (guint width, guint height, guint n_phases, guint settle_us)
   }
   CameraPriority priority = camera_priority_from_env ();
   printf ("fake rig: camera thread priority %s\n",
-          priority == CAMERA_PRIORITY_SAME ? "the same as the benchmark's (DS_BENCH_CAMERA_PRIORITY=same)"
-                                           : "one below the benchmark's (DS_BENCH_CAMERA_PRIORITY=below, the default)");
+          priority == CAMERA_PRIORITY_SAME ? "the same as the benchmark's (DS_BENCH_CAMERA_PRIORITY=same, the default)"
+                                           : "one below the benchmark's (DS_BENCH_CAMERA_PRIORITY=below)");
   rig->gv = g_thread_join (g_thread_new ("fake-rig-camera", new_camera_thread, GINT_TO_POINTER (priority)));
   if (!rig->gv || !arv_gv_fake_camera_is_running (rig->gv)) {
     fprintf (stderr, "fake rig: the GigE Vision fake camera cannot serve on 127.0.0.1:3956 "

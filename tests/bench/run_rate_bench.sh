@@ -2,8 +2,8 @@
 # Runs a GigE Vision rate benchmark the way docs/benchmarks.md quotes it, as root:
 #   - in a private network namespace (the fake camera binds UDP 127.0.0.1:3956);
 #   - with real-time priority SCHED_RR 2 for the benchmark and everything it starts (ceiling
-#     loop, daemon), unless DS_BENCH_SCHED=other; the fake camera's thread takes priority 1
-#     (tests/bench/fake_rig.c) so that it yields to them. On a shared,
+#     loop, daemon, and the fake camera's thread; DS_BENCH_CAMERA_PRIORITY=below gives that
+#     thread priority 1: tests/bench/fake_rig.c), unless DS_BENCH_SCHED=other. On a shared,
 #     loaded machine a receiving thread that waits for a CPU lets the UDP receive buffer
 #     overflow (net.core.rmem_max caps it; 4 MiB on the development VM, less than a 4 MP
 #     frame), and every lost packet then costs the stream's 100 ms frame retention: the rates
