@@ -440,7 +440,8 @@ side_cpu_add (SideCpu *side, const RateSample *s)
 }
 
 /* Where the CPU goes per frame: on a 2-core machine whatever the daemon's threads use beyond the
- * ceiling loop's comes out of the fake camera's core (it runs one priority below them). These
+ * ceiling loop's comes out of the fake camera's time (camera one priority below) or delays the
+ * daemon's own threads (camera at the same priority, the default: fake_rig.c). These
  * figures hold on a busy machine too (a thread's CPU per frame moves little with the load),
  * where the rates do not. */
 static void
