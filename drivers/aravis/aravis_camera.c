@@ -14,6 +14,7 @@
 typedef struct {
   char *address;           /* what the caller opened, used again by reconnect */
   DsAravisStreamOptions options;
+  guint capped_said_for;   /* the payload whose capped receive buffer was logged (once each) */
   ArvCamera *camera;
   DsArvDeviceWatch *watch; /* our reference to the camera's device and its "control-lost" */
   ArvStream *stream;
@@ -380,16 +381,18 @@ cam_configure (gpointer b, const DsCameraSettings *s, GError **error)
 
 /* The kernel grants a receive buffer up to net.core.rmem_max without a word: say what that
  * leaves, since a buffer short of a frame loses packets whenever the stream's thread waits for
- * a CPU (docs/drivers.md). Unreadable (no procfs): nothing to say. */
+ * a CPU (docs/drivers.md). Once per payload: every capture configures a new stream. Unreadable
+ * (no procfs): nothing to say. */
 static void
-say_if_capped (const AravisCam *c, guint payload, gsize want)
+say_if_capped (AravisCam *c, guint payload, gsize want)
 {
   g_autofree char *text = NULL;
-  if (!g_file_get_contents ("/proc/sys/net/core/rmem_max", &text, NULL, NULL))
+  if (c->capped_said_for == payload || !g_file_get_contents ("/proc/sys/net/core/rmem_max", &text, NULL, NULL))
     return;
   guint64 cap = g_ascii_strtoull (text, NULL, 10);
   if (cap == 0 || cap >= want)
     return;
+  c->capped_said_for = payload;
   g_message ("aravis camera %s: the UDP receive buffer holds %.2f frames of %u bytes, not the %u of "
              "[camera] receive-buffer-frames: net.core.rmem_max (%" G_GUINT64_FORMAT " bytes) caps it; "
              "raise it to at least %" G_GSIZE_FORMAT " (the package's 60-descatter-gige.conf sets 64 MiB)",
