@@ -29,6 +29,7 @@
 
 #include "../daemon/daemon_harness.h"
 #include "fake_rig.h"
+#include "daemon/service/config.h"
 #include "rate_ceiling.h"
 #include "proc/separation.h"
 
@@ -735,9 +736,15 @@ main (int argc, char **argv)
     slices = quick ? 2 : 3;
   printf ("each round: the ceilings and the daemon alternated, %u daemon slices of %.2f s between "
           "%u slices of each ceiling\n", slices, seconds / slices, slices + 1);
-  printf ("both sides' GigE Vision stream: a UDP receive buffer of %s payloads ([camera] "
-          "receive-buffer-frames; DS_BENCH_RECEIVE_BUFFER_FRAMES)\n",
-          g_getenv ("DS_BENCH_RECEIVE_BUFFER_FRAMES") ? g_getenv ("DS_BENCH_RECEIVE_BUFFER_FRAMES") : "4 (the default)");
+  {
+    /* The configuration's own default, not a copy of it. */
+    g_autoptr (DsConfig) defaults = ds_config_new_default ();
+    g_autofree char *frames = g_getenv ("DS_BENCH_RECEIVE_BUFFER_FRAMES")
+                                  ? g_strdup (g_getenv ("DS_BENCH_RECEIVE_BUFFER_FRAMES"))
+                                  : g_strdup_printf ("%u (the default)", defaults->receive_buffer_frames);
+    printf ("both sides' GigE Vision stream: a UDP receive buffer of %s payloads ([camera] "
+            "receive-buffer-frames; DS_BENCH_RECEIVE_BUFFER_FRAMES)\n", frames);
+  }
   if (geteuid () == 0)
     printf ("note: running as root: Aravis then receives through a packet socket (5 ms ring "
             "timeout); the figures are not those of the service (run as an unprivileged user)\n");
