@@ -1,11 +1,12 @@
-/* Row-band worker pool (see worker_pool.h). One job at a time; a generation counter tells the
- * workers that a new job is posted, a count of finished bands tells the caller when to return. */
+/* Row worker pool (see worker_pool.h). One job at a time; a generation counter tells the
+ * workers that a new job is posted. Rows are claimed a chunk at a time from an atomic cursor;
+ * the caller returns once the cursor passed the last row and no worker is inside the job. */
 #include "proc/worker_pool.h"
 
 struct DsWorkerPool {
   GMutex lock;
   GCond posted;     /* a new job (or quit) */
-  GCond finished;   /* a band finished */
+  GCond finished;   /* a worker left the job */
   GThread **workers;
   guint threads;    /* the caller's included */
   guint64 generation;
@@ -13,8 +14,9 @@ struct DsWorkerPool {
   /* the job being run */
   DsRowJob job;
   gpointer data;
-  guint n_rows, bands;
-  guint done;
+  guint n_rows, bands, chunk;
+  gsize next_row;   /* the first row not claimed yet (atomic; 64 bits: claims never wrap) */
+  guint inside;     /* workers that took this job and have not left it */
 };
 
 typedef struct {
@@ -22,12 +24,22 @@ typedef struct {
   guint index;
 } WorkerArg;
 
-void
-ds_worker_pool_band (guint n_rows, guint threads, guint t, guint *y0, guint *y1)
+guint
+ds_worker_pool_chunk_rows (guint n_rows, guint threads)
 {
-  /* Bands differ by at most one row; 64-bit products cannot overflow for 2^32 rows. */
-  *y0 = (guint) ((guint64) n_rows * t / threads);
-  *y1 = (guint) ((guint64) n_rows * (t + 1) / threads);
+  return MAX (1u, n_rows / (MAX (threads, 1u) * 8u));
+}
+
+/* Claims and runs chunks until none is left. Any thread, the caller's included. */
+static void
+run_chunks (DsWorkerPool *pool, DsRowJob job, gpointer data, guint n_rows, guint chunk, guint index)
+{
+  for (;;) {
+    gsize y0 = __atomic_fetch_add (&pool->next_row, (gsize) chunk, __ATOMIC_RELAXED);
+    if (y0 >= n_rows)
+      return;
+    job (data, (guint) y0, (guint) MIN (y0 + chunk, (gsize) n_rows), index);
+  }
 }
 
 static gpointer
@@ -45,16 +57,20 @@ worker_main (gpointer p)
     if (pool->quit)
       break;
     seen = pool->generation;
-    if (index >= pool->bands)
-      continue; /* fewer rows than threads: this one sits the job out */
+    /* Fewer threads asked for than the pool has: this one sits the job out. Every row already
+     * claimed: the caller may be returning, and nothing is left to take. */
+    if (index >= pool->bands || __atomic_load_n (&pool->next_row, __ATOMIC_RELAXED) >= pool->n_rows)
+      continue;
+    /* Entered under the lock: the caller, which checks `inside` under it, waits for this
+     * thread before it returns (and before it posts another job that reuses the cursor). */
+    pool->inside++;
     DsRowJob job = pool->job;
     gpointer data = pool->data;
-    guint y0, y1;
-    ds_worker_pool_band (pool->n_rows, pool->bands, index, &y0, &y1);
+    guint n_rows = pool->n_rows, chunk = pool->chunk;
     g_mutex_unlock (&pool->lock);
-    job (data, y0, y1, index);
+    run_chunks (pool, job, data, n_rows, chunk, index);
     g_mutex_lock (&pool->lock);
-    pool->done++;
+    pool->inside--;
     g_cond_signal (&pool->finished);
   }
   g_mutex_unlock (&pool->lock);
@@ -129,22 +145,24 @@ ds_worker_pool_run_on (DsWorkerPool *pool, guint max_threads, guint n_rows, DsRo
     job (data, 0, n_rows, 0);
     return;
   }
+  guint chunk = ds_worker_pool_chunk_rows (n_rows, bands);
   g_mutex_lock (&pool->lock);
   pool->job = job;
   pool->data = data;
   pool->n_rows = n_rows;
   pool->bands = bands;
-  pool->done = 0;
+  pool->chunk = chunk;
+  __atomic_store_n (&pool->next_row, 0, __ATOMIC_RELAXED);
   pool->generation++;
   g_cond_broadcast (&pool->posted);
   g_mutex_unlock (&pool->lock);
 
-  guint y0, y1;
-  ds_worker_pool_band (n_rows, bands, 0, &y0, &y1);
-  job (data, y0, y1, 0);
+  run_chunks (pool, job, data, n_rows, chunk, 0);
 
+  /* Every row is claimed; the ones workers claimed are done when they left. The mutex orders
+   * their writes before the caller's return. */
   g_mutex_lock (&pool->lock);
-  while (pool->done < bands - 1)
+  while (pool->inside > 0)
     g_cond_wait (&pool->finished, &pool->lock);
   g_mutex_unlock (&pool->lock);
 }
