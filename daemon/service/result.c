@@ -85,6 +85,7 @@ struct DsResult {
   DsCaptureSettings settings;
   DsFrameCounters counters;
   gint64 started_us, acquired_us, finished_us;
+  DsLastFrameTimes last_frame;
   gint64 finished_real_us;   /* wall clock when the result was made: dates the monotonic times */
   gboolean have_provenance;
   DsResultProvenance provenance;
@@ -173,6 +174,12 @@ ds_result_set_raw_frames (DsResult *result, DsRawFrames *raw)
 {
   ds_raw_frames_free (result->raw);
   result->raw = raw;
+}
+
+void
+ds_result_set_last_frame_times (DsResult *result, const DsLastFrameTimes *times)
+{
+  result->last_frame = *times;
 }
 
 const DsRawFrames *
@@ -327,6 +334,18 @@ build_meta (DsResult *r)
   json_builder_add_double_value (b, (double) (r->acquired_us - r->started_us) / 1000.0);
   json_builder_set_member_name (b, "compute_after_last_frame");
   json_builder_add_double_value (b, (double) (r->finished_us - r->acquired_us) / 1000.0);
+  const DsLastFrameTimes *lf = &r->last_frame;
+  gboolean lf_known = lf->verify_started_us > 0;
+  if (lf_known) {
+    /* The parts of compute_after_last_frame: what remains is the set's finalize when not
+     * folded on it, its phase check as a whole, and the bookkeeping. */
+    json_builder_set_member_name (b, "last_frame_wait");
+    json_builder_add_double_value (b, (double) (lf->verify_started_us - r->acquired_us) / 1000.0);
+    json_builder_set_member_name (b, "last_frame_verify");
+    json_builder_add_double_value (b, (double) (lf->verified_us - lf->verify_started_us) / 1000.0);
+    json_builder_set_member_name (b, "last_frame_fold");
+    json_builder_add_double_value (b, (double) (lf->folded_us - lf->verified_us) / 1000.0);
+  }
   json_builder_end_object (b);
   /* CLOCK_MONOTONIC is one clock for the whole machine: a local client can measure the
    * latency from the last frame to its own receipt of the result. */
@@ -334,6 +353,11 @@ build_meta (DsResult *r)
   json_builder_begin_object (b);
   add_int (b, "started", r->started_us);
   add_int (b, "last_frame", r->acquired_us);
+  if (lf_known) {
+    add_int (b, "last_frame_verify_started", lf->verify_started_us);
+    add_int (b, "last_frame_verified", lf->verified_us);
+    add_int (b, "last_frame_folded", lf->folded_us);
+  }
   add_int (b, "finished", r->finished_us);
   json_builder_end_object (b);
   if (r->raw)

@@ -79,6 +79,15 @@ typedef struct {
 
 void ds_result_set_provenance (DsResult *result, const DsResultProvenance *provenance);
 
+/* Where the time after the set's last frame went (the metadata's monotonic_us and timing_ms):
+ * monotonic stamps of its verification's start and end and of the end of its fold, which
+ * includes the set's finalize where the frame is folded on the finalize's pass (maxmin, one
+ * frame per phase). All 0: not known. Set by the sequencer before the result is shared. */
+typedef struct {
+  gint64 verify_started_us, verified_us, folded_us;
+} DsLastFrameTimes;
+void ds_result_set_last_frame_times (DsResult *result, const DsLastFrameTimes *times);
+
 /* The raw frames of the set (capture with save_phases); takes ownership. Acquisition thread,
  * before the result is emitted. */
 void ds_result_set_raw_frames (DsResult *result, DsRawFrames *raw);

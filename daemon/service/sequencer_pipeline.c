@@ -93,7 +93,10 @@ collect (Pipeline *pl, guint *dropped_phase, gboolean *reapply, GError **error)
     return FALSE;
   }
   gint64 arrival = frame->host_time_us ? (gint64) frame->host_time_us : g_get_monotonic_time ();
-  pl->seq->last_frame_us = MAX (pl->seq->last_frame_us, arrival);
+  if (arrival >= pl->seq->last_frame_us) {
+    pl->seq->last_frame_us = arrival;
+    pl->seq->last_frame_times = job.times;
+  }
   if (++pl->accepted[k] == pl->s->averages && !pl->failing)
     ds_seq_emit_progress (pl->seq, pl->tag, k, pl->s->phases);
   if (job.finalize_into && !job.finalized) {
@@ -338,6 +341,7 @@ ds_seq_acquire_phases (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag
   for (guint k = 0; k < s->phases; k++)
     retries_left[k] = s->phase_retries;
   seq->last_frame_us = 0;
+  memset (&seq->last_frame_times, 0, sizeof seq->last_frame_times);
   Pipeline pl = { .seq = seq, .s = s, .tag = tag, .c = c, .accepted = accepted,
                   .retries_left = retries_left, .ahead = seq->continuous_set, .planes = planes };
   int applied = -1;

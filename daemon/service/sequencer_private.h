@@ -82,6 +82,7 @@ struct DsSequencer {
   double phase_check_period;
   gboolean need_reconnect;
   gint64 last_frame_us;     /* arrival of the last folded frame */
+  DsLastFrameTimes last_frame_times; /* ... and its job's stamps */
   const DsOperatingModel *model; /* set before the thread uses it; read-only */
   DsRigTiming timing;
   DsFoldWorker *worker;     /* verifies and folds while the next frame is acquired */
@@ -230,6 +231,7 @@ typedef struct {
   gboolean folded;                   /* out: verified and folded */
   gboolean finalized;                /* out: ... and the set finalized into finalize_into */
   GError *fold_error;                /* out: verified, but the fold (or the finalize) failed */
+  DsLastFrameTimes times;            /* out: when it was verified and folded */
 } DsFoldJob;
 
 DsFoldWorker *ds_fold_worker_new (DsSequencer *seq);

@@ -167,6 +167,7 @@ ds_seq_run_set (DsSequencer *seq, const DsCaptureSettings *requested, guint64 ta
   ds_seq_account (seq, &c, TRUE);
   DsResult *result = ds_result_new (++seq->next_set_id, g_steal_pointer (&sep), seq->planes, s, &c, started,
                                     acquired, finished);
+  ds_result_set_last_frame_times (result, &seq->last_frame_times);
   if (seq->raw && !seq->raw_incomplete)
     ds_result_set_raw_frames (result, g_steal_pointer (&seq->raw));
   g_clear_pointer (&seq->raw, ds_raw_frames_free);

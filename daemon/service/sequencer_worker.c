@@ -26,11 +26,13 @@ static void
 run_job (DsSequencer *seq, DsFoldJob *job, gboolean overlapped)
 {
   gint64 t = g_get_monotonic_time ();
+  job->times.verify_started_us = t;
   ds_seq_verify_frame (seq, job->settings, job->phase, job->frame, job->applied_at_us, &job->verdict);
   ds_seq_stage_add (seq, DS_STAGE_VERIFY, t);
   if (job->verdict.reason != DS_DROP_N_REASONS)
     return;
   t = g_get_monotonic_time ();
+  job->times.verified_us = t;
   /* While the next frame is acquired, the transfer (and on a rig like the benchmark's, the
    * camera and the illuminator's controller) need a core: the fold takes one, and so does the
    * finalize of a set whose successor's first frame is acquired meanwhile (continuous mode):
@@ -51,6 +53,7 @@ run_job (DsSequencer *seq, DsFoldJob *job, gboolean overlapped)
   }
   if (!job->folded)
     return;
+  job->times.folded_us = g_get_monotonic_time ();
   ds_seq_stage_add (seq, DS_STAGE_FOLD, t);
   /* Copies made here overlap with the next exposure instead of delaying it. */
   const DsFrame *f = job->frame;

@@ -615,6 +615,7 @@ status_kib (TestDaemon *d, const char *key)
 typedef struct {
   gboolean single_captures;
   double *lat;
+  double *wait, *verify, *fold; /* the latency's parts (the result's timing_ms) */
   guint n_lat;
   guint64 idle_kib, peak_kib;
 } DaemonExtras;
@@ -644,9 +645,22 @@ measure_round (FakeRig *rig, guint w, guint h, double seconds, guint slices, Rou
     guint n = quick ? 3 : 11;
     for (guint i = 0; i < n; i++) {
       g_autoptr (DsMessage) m = checked_capture (cl, w, h);
-      if (m && i > 0) /* the first set configures the camera and learns the phase offset */
-        x->lat[x->n_lat++] = (test_json_int (m->reply->body, "monotonic_us.finished") -
-                              test_json_int (m->reply->body, "monotonic_us.last_frame")) / 1000.0;
+      if (m && i > 0) { /* the first set configures the camera and learns the phase offset */
+        JsonNode *b = m->reply->body;
+        gint64 last = test_json_int (b, "monotonic_us.last_frame"), done = test_json_int (b, "monotonic_us.finished");
+        gint64 vs = test_json_int (b, "monotonic_us.last_frame_verify_started");
+        gint64 vd = test_json_int (b, "monotonic_us.last_frame_verified");
+        gint64 fd = test_json_int (b, "monotonic_us.last_frame_folded");
+        /* One clock: the parts follow each other inside the latency. */
+        CHECK (last > 0 && last <= vs && vs <= vd && vd <= fd && fd <= done,
+               "the last frame's stamps out of order: arrival %" G_GINT64_FORMAT " verify %" G_GINT64_FORMAT
+               "..%" G_GINT64_FORMAT " folded %" G_GINT64_FORMAT " result %" G_GINT64_FORMAT,
+               last, vs, vd, fd, done);
+        x->wait[x->n_lat] = (vs - last) / 1000.0;
+        x->verify[x->n_lat] = (vd - vs) / 1000.0;
+        x->fold[x->n_lat] = (fd - vd) / 1000.0;
+        x->lat[x->n_lat++] = (done - last) / 1000.0;
+      }
       if (i == 0)
         x->peak_kib = status_kib (td, "VmHWM:");
     }
@@ -765,8 +779,8 @@ main (int argc, char **argv)
 
     /* Rate: ceiling, daemon, ceiling in each round, so that a change of load hits both. */
     Rounds rs = { .want = { TRUE, TRUE }, .goal = { mp > 2 ? 0.90 : 0.95, 0 } };
-    double lat[16];
-    DaemonExtras x = { .single_captures = TRUE, .lat = lat };
+    double lat[16], wait[16], verify[16], fold[16];
+    DaemonExtras x = { .single_captures = TRUE, .lat = lat, .wait = wait, .verify = verify, .fold = fold };
     for (guint r = 0; r < rounds; r++) {
       measure_round (rig, w, h, seconds, slices, &rs, r == 0 ? &x : NULL, quick);
       print_load ("after the round");
@@ -788,6 +802,12 @@ main (int argc, char **argv)
     printf ("  latency, last frame -> result ready: %.2f ms = %.2f ms/MP (goal <= 1); library "
             "finalize alone %.2f ms -> daemon/library %.2f\n",
             lat_ms, lat_ms / mp, lib_ms, lat_ms / lib_ms);
+    if (x.n_lat) {
+      /* Medians of each part on their own: they need not add up to the latency's median. */
+      printf ("    its parts (medians, the results' timing_ms): until the last frame's verification %.3f ms, "
+              "verification %.3f, fold and finalize %.3f\n",
+              median (wait, x.n_lat), median (verify, x.n_lat), median (fold, x.n_lat));
+    }
     /* What must exist for an 8-phase maxmin set: max and min accumulators (u16) and the result
      * planes (transmissive, scattered f32, mask u8): 13 bytes per pixel. */
     double minimum_mb = 13.0 * w * h / 1e6;

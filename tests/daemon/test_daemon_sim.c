@@ -64,6 +64,24 @@ test_capture_matches_truth (void)
 
   JsonObject *meta = json_node_get_object (m->reply->body);
   g_assert_cmpint (test_json_int (m->reply->body, "settings.phases"), ==, 8);
+  /* The latency's parts: instants of one clock in their order, and the durations their
+   * differences. */
+  const char *order[] = { "started", "last_frame", "last_frame_verify_started", "last_frame_verified",
+                          "last_frame_folded", "finished" };
+  gint64 at[G_N_ELEMENTS (order)];
+  for (guint i = 0; i < G_N_ELEMENTS (order); i++) {
+    g_autofree char *path = g_strdup_printf ("monotonic_us.%s", order[i]);
+    at[i] = test_json_int (m->reply->body, path);
+    g_assert_cmpint (at[i], >, 0);
+    if (i > 0)
+      g_assert_cmpint (at[i], >=, at[i - 1]);
+  }
+  JsonObject *timing = json_object_get_object_member (meta, "timing_ms");
+  const char *parts[] = { "last_frame_wait", "last_frame_verify", "last_frame_fold" };
+  for (guint i = 0; i < G_N_ELEMENTS (parts); i++)
+    g_assert_cmpfloat_with_epsilon (json_object_get_double_member (timing, parts[i]), (at[i + 2] - at[i + 1]) / 1000.0, 1e-9);
+  g_assert_cmpfloat_with_epsilon (json_object_get_double_member (timing, "compute_after_last_frame"),
+                                  (at[5] - at[1]) / 1000.0, 1e-9);
   g_assert_true (json_object_get_boolean_member (json_object_get_object_member (meta, "separation"), "dark_subtracted"));
   g_autoptr (DsMessage) st = test_daemon_call_ok (c, "status", NULL);
   assert_accounting (st->reply->body);
