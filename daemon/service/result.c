@@ -335,7 +335,9 @@ build_meta (DsResult *r)
   json_builder_set_member_name (b, "compute_after_last_frame");
   json_builder_add_double_value (b, (double) (r->finished_us - r->acquired_us) / 1000.0);
   const DsLastFrameTimes *lf = &r->last_frame;
-  gboolean lf_known = lf->verify_started_us > 0;
+  /* A camera that does not stamp its frames' arrival leaves the collect's time as the last
+   * frame's, after its job: no parts then. */
+  gboolean lf_known = lf->verify_started_us > 0 && lf->verify_started_us >= r->acquired_us;
   if (lf_known) {
     /* The parts of compute_after_last_frame: what remains is the set's finalize when not
      * folded on it, its phase check as a whole, and the bookkeeping. */

@@ -82,7 +82,8 @@ void ds_result_set_provenance (DsResult *result, const DsResultProvenance *prove
 /* Where the time after the set's last frame went (the metadata's monotonic_us and timing_ms):
  * monotonic stamps of its verification's start and end and of the end of its fold, which
  * includes the set's finalize where the frame is folded on the finalize's pass (maxmin, one
- * frame per phase). All 0: not known. Set by the sequencer before the result is shared. */
+ * frame per phase). All 0: not known; the metadata leaves them out then, and when the camera
+ * did not stamp the frame's arrival. Set by the sequencer before the result is shared. */
 typedef struct {
   gint64 verify_started_us, verified_us, folded_us;
 } DsLastFrameTimes;
