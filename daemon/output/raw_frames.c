@@ -1,5 +1,7 @@
 #include "daemon/output/raw_frames.h"
 
+#include <string.h>
+
 static void
 raw_frame_free (gpointer data)
 {
@@ -15,6 +17,7 @@ ds_raw_frames_new (guint n_phases)
   raw->n_phases = n_phases;
   raw->frames = g_ptr_array_new_with_free_func (raw_frame_free);
   raw->black_ids = g_array_new (FALSE, FALSE, sizeof (guint64));
+  raw->spare = g_ptr_array_new_with_free_func ((GDestroyNotify) ds_image_free);
   return raw;
 }
 
@@ -25,6 +28,7 @@ ds_raw_frames_free (DsRawFrames *raw)
     return;
   g_ptr_array_unref (raw->frames);
   g_array_unref (raw->black_ids);
+  g_ptr_array_unref (raw->spare);
   ds_image_free (raw->black);
   g_free (raw);
 }
@@ -41,10 +45,42 @@ ds_raw_frames_add_owned (DsRawFrames *raw, guint phase, guint64 frame_id, guint6
 }
 
 gboolean
+ds_raw_frames_reserve (DsRawFrames *raw, guint count, DsSampleType type, guint width, guint height,
+                       GError **error)
+{
+  for (guint i = 0; i < count; i++) {
+    DsImage *img = ds_image_new (type, width, height, error);
+    if (!img)
+      return FALSE;
+    memset (img->data, 0, img->stride * img->height);
+    g_ptr_array_add (raw->spare, img);
+  }
+  return TRUE;
+}
+
+void
+ds_raw_frames_trim (DsRawFrames *raw)
+{
+  g_ptr_array_set_size (raw->spare, 0);
+}
+
+gboolean
 ds_raw_frames_add (DsRawFrames *raw, guint phase, guint64 frame_id, guint64 timestamp_ns, const DsImage *image,
                    GError **error)
 {
-  DsImage *copy = ds_image_copy (image, error);
+  DsImage *copy = NULL;
+  if (raw->spare->len > 0) {
+    DsImage *room = g_ptr_array_index (raw->spare, raw->spare->len - 1);
+    if (room->type == image->type && room->width == image->width && room->height == image->height) {
+      copy = g_ptr_array_steal_index_fast (raw->spare, raw->spare->len - 1);
+      gsize row = (gsize) image->width * ds_sample_size (image->type);
+      for (guint y = 0; y < image->height; y++)
+        memcpy (ds_image_row (copy, y), ds_image_row (image, y), row);
+      copy->bit_depth = image->bit_depth;
+    }
+  }
+  if (!copy)
+    copy = ds_image_copy (image, error);
   if (!copy)
     return FALSE;
   ds_raw_frames_add_owned (raw, phase, frame_id, timestamp_ns, copy);

@@ -22,13 +22,23 @@ typedef struct {
   GPtrArray *frames;     /* DsRawFrame *, acquisition order */
   DsImage *black;        /* the dark frame subtracted (the average), or NULL */
   GArray *black_ids;     /* guint64: ids of the frames averaged into black (may be empty) */
+  GPtrArray *spare;      /* DsImage *: room reserved for frames not added yet */
 } DsRawFrames;
 
 DsRawFrames *ds_raw_frames_new (guint n_phases);
 void ds_raw_frames_free (DsRawFrames *raw);
 G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsRawFrames, ds_raw_frames_free)
 
-/* Keeps a copy of image (the caller keeps its frame; the copy costs one memcpy). */
+/* Room for `count` frames of this type and size, allocated and written now: the first-touch
+ * page faults of their memory fall here instead of when the frames are added (descatterd
+ * reserves a set's frames before its first frame, so that keeping the last one costs a copy,
+ * not fresh memory, between the last frame and the result). */
+gboolean ds_raw_frames_reserve (DsRawFrames *raw, guint count, DsSampleType type, guint width, guint height,
+                                GError **error);
+/* Frees the room reserved and not used (before the frames are published). */
+void ds_raw_frames_trim (DsRawFrames *raw);
+/* Keeps a copy of image (the caller keeps its frame; the copy costs one memcpy), into reserved
+ * room of its type and size if there is any left. */
 gboolean ds_raw_frames_add (DsRawFrames *raw, guint phase, guint64 frame_id, guint64 timestamp_ns,
                             const DsImage *image, GError **error);
 /* Takes ownership of image. */

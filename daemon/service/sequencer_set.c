@@ -90,6 +90,14 @@ acquire_set (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag, DsFrameC
   seq->raw_incomplete = FALSE;
   if (s->save_phases) {
     seq->raw = ds_raw_frames_new (s->phases);
+    /* Every frame a single capture will fold, now, as the result's planes above (Mono8
+     * arrives as u8, every other format as u16; a frame of another type is copied into new
+     * memory). Not in continuous mode: there the next set's first frame is already on its way
+     * (sequencer_carry.c), and writing a set's worth of fresh memory here would hold up its
+     * grab; each copy is made on the fold thread instead, overlapped with the next frame. */
+    DsSampleType type = g_strcmp0 (cs->pixel_format, "Mono8") == 0 ? DS_SAMPLE_U8 : DS_SAMPLE_U16;
+    if (!seq->continuous_set && !ds_raw_frames_reserve (seq->raw, s->phases * s->averages, type, w, h, NULL))
+      seq->raw_incomplete = TRUE;
     GArray *ids = dark ? seq->dark_ids : seq->stored_dark_ids;
     if (use_dark && !ds_raw_frames_set_black (seq->raw, use_dark, (const guint64 *) ids->data, ids->len, NULL))
       seq->raw_incomplete = TRUE;
@@ -168,8 +176,10 @@ ds_seq_run_set (DsSequencer *seq, const DsCaptureSettings *requested, guint64 ta
   DsResult *result = ds_result_new (++seq->next_set_id, g_steal_pointer (&sep), seq->planes, s, &c, started,
                                     acquired, finished);
   ds_result_set_last_frame_times (result, &seq->last_frame_times);
-  if (seq->raw && !seq->raw_incomplete)
+  if (seq->raw && !seq->raw_incomplete) {
+    ds_raw_frames_trim (seq->raw);
     ds_result_set_raw_frames (result, g_steal_pointer (&seq->raw));
+  }
   g_clear_pointer (&seq->raw, ds_raw_frames_free);
   ds_seq_refresh_device_status (seq);
   ds_seq_emit (seq, DS_SEQUENCER_EVENT_RESULT, tag, result, NULL, NULL);
