@@ -68,6 +68,12 @@ ds_pixfmt_bit_depth (DsPixelFormat fmt)
   return valid_format (fmt) ? formats[fmt].depth : 0;
 }
 
+DsSampleType
+ds_pixfmt_sample_type (DsPixelFormat fmt)
+{
+  return fmt == DS_PIXFMT_MONO8 ? DS_SAMPLE_U8 : DS_SAMPLE_U16;
+}
+
 guint
 ds_pixfmt_bits_per_pixel (DsPixelFormat fmt)
 {
@@ -159,8 +165,7 @@ ds_pixfmt_unpack (DsPixelFormat fmt, const void *data, gsize size, guint width, 
 {
   if (!ds_pixfmt_check_payload (fmt, data, size, width, height, stride, error))
     return NULL;
-  g_autoptr (DsImage) img = ds_image_new (fmt == DS_PIXFMT_MONO8 ? DS_SAMPLE_U8 : DS_SAMPLE_U16, width,
-                                          height, error);
+  g_autoptr (DsImage) img = ds_image_new (ds_pixfmt_sample_type (fmt), width, height, error);
   if (!img || !ds_pixfmt_unpack_into (fmt, data, size, stride, img, error))
     return NULL;
   return g_steal_pointer (&img);

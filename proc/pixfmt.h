@@ -44,6 +44,9 @@ gboolean ds_pixfmt_from_pfnc (guint32 code, DsPixelFormat *out);
 
 /* Significant bits per pixel: 8, 10, 12 or 16. */
 guint ds_pixfmt_bit_depth (DsPixelFormat fmt);
+/* The sample type a frame of this format is held in once unpacked: u8 for Mono8, u16 for every
+ * other format. */
+DsSampleType ds_pixfmt_sample_type (DsPixelFormat fmt);
 /* Bits one pixel occupies in the payload: 8, 16, 10 or 12. */
 guint ds_pixfmt_bits_per_pixel (DsPixelFormat fmt);
 /* Bytes of one row of `width` pixels starting a fresh row (rounded up to whole bytes). */

@@ -339,8 +339,9 @@ build_meta (DsResult *r)
    * frame's, after its job: no parts then. */
   gboolean lf_known = lf->verify_started_us > 0 && lf->verify_started_us >= r->acquired_us;
   if (lf_known) {
-    /* The parts of compute_after_last_frame: what remains is the set's finalize when not
-     * folded on it, its phase check as a whole, and the bookkeeping. */
+    /* The parts of compute_after_last_frame: what remains is the copy of the last raw frame
+     * when they are kept, the set's finalize when not folded on it, its phase check as a
+     * whole, and the bookkeeping. */
     json_builder_set_member_name (b, "last_frame_wait");
     json_builder_add_double_value (b, (double) (lf->verify_started_us - r->acquired_us) / 1000.0);
     json_builder_set_member_name (b, "last_frame_verify");

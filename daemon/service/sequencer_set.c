@@ -4,6 +4,7 @@
 #include <string.h>
 
 #include "daemon/service/sequencer_private.h"
+#include "proc/pixfmt.h"
 
 static gboolean
 prepare_phase_set (DsSequencer *seq, const DsCaptureSettings *s, guint width, guint height,
@@ -90,12 +91,14 @@ acquire_set (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag, DsFrameC
   seq->raw_incomplete = FALSE;
   if (s->save_phases) {
     seq->raw = ds_raw_frames_new (s->phases);
-    /* Every frame a single capture will fold, now, as the result's planes above (Mono8
-     * arrives as u8, every other format as u16; a frame of another type is copied into new
+    /* Every frame a single capture will fold, now, as the result's planes above (in the type
+     * the camera's format unpacks to; a frame of another type or size is copied into new
      * memory). Not in continuous mode: there the next set's first frame is already on its way
      * (sequencer_carry.c), and writing a set's worth of fresh memory here would hold up its
      * grab; each copy is made on the fold thread instead, overlapped with the next frame. */
-    DsSampleType type = g_strcmp0 (cs->pixel_format, "Mono8") == 0 ? DS_SAMPLE_U8 : DS_SAMPLE_U16;
+    DsPixelFormat fmt = DS_PIXFMT_MONO16;
+    ds_pixfmt_from_name (cs->pixel_format, &fmt); /* none configured: the camera's, most likely 16 bits */
+    DsSampleType type = ds_pixfmt_sample_type (fmt);
     if (!seq->continuous_set && !ds_raw_frames_reserve (seq->raw, s->phases * s->averages, type, w, h, NULL))
       seq->raw_incomplete = TRUE;
     GArray *ids = dark ? seq->dark_ids : seq->stored_dark_ids;

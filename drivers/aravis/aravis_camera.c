@@ -665,13 +665,13 @@ cam_grab (gpointer b, guint timeout_ms, GError **error)
      * which goes back to the stream when the frame is freed. */
     ArvStream *stream = ARV_STREAM ((gpointer) arv_buffer_get_user_data (buf));
     g_object_ref (stream);
-    f = ds_frame_pool_take_borrowed (c->frames, fmt == DS_PIXFMT_MONO8 ? DS_SAMPLE_U8 : DS_SAMPLE_U16,
+    f = ds_frame_pool_take_borrowed (c->frames, ds_pixfmt_sample_type (fmt),
                                      (guint) w, (guint) h, bytes, fmt == DS_PIXFMT_MONO8 ? 8 : 16,
                                      (void *) data, return_buffer, buf);
   } else {
     /* Packed or narrower formats: unpacked into a pooled image, the buffer returned at once. */
     GError *e = NULL;
-    f = ds_frame_pool_take (c->frames, fmt == DS_PIXFMT_MONO8 ? DS_SAMPLE_U8 : DS_SAMPLE_U16, (guint) w,
+    f = ds_frame_pool_take (c->frames, ds_pixfmt_sample_type (fmt), (guint) w,
                             (guint) h, &e);
     if (f && !ds_pixfmt_unpack_into (fmt, data, size, 0, f->image, &e))
       g_clear_pointer (&f, ds_frame_free);

@@ -76,6 +76,8 @@ test_names_codes (void)
     g_assert_true (ds_pixfmt_from_pfnc (table[i].code, &g));
     g_assert_cmpint (f, ==, g);
     g_assert_cmpuint (ds_pixfmt_bit_depth (f), ==, table[i].depth);
+    /* held in the smallest sample that fits the depth: u8 for 8 bits, u16 above */
+    g_assert_cmpint (ds_pixfmt_sample_type (f), ==, table[i].depth <= 8 ? DS_SAMPLE_U8 : DS_SAMPLE_U16);
   }
   DsPixelFormat f = DS_PIXFMT_MONO8;
   g_assert_false (ds_pixfmt_from_name ("Mono14", &f));
