@@ -8,7 +8,7 @@
 
 /* Column sums of integer rows in 32 bits, for the vector units (proc/simd.h): exact, so the
  * profile is the same as summed in doubles, at a fraction of the cost. descatterd measures
- * every frame before folding it (daemon/service/phase_check.c), and 256 rows of a 1 MP frame
+ * every frame before folding it (proc/phase_check.c), and 256 rows of a 1 MP frame
  * summed in doubles were the largest part of that check. At most ROWS_PER_U32 rows go into one
  * 32-bit sum: 65536 x 65535 < 2^32. */
 #define ROWS_PER_U32 65536u

@@ -144,7 +144,7 @@ ds_validate_probe (const DsSimRig *rig, const DsValidateOptions *o, DsValidateSc
     if (!c1)
       return FALSE;
   }
-  /* The finer pilot periods, as descatterd takes them (sequencer_auto.c): with the blur the rig
+  /* The finer pilot periods, as descatterd takes them (auto_point.c): with the blur the rig
    * knows, the calibrated one (edge-blur-px), or only the 4 px floor without it. */
   double finer_period[DS_PROBE_FINER_MAX];
   guint n_finer = o->fixed_period ? 0

@@ -8,7 +8,7 @@
 #pragma once
 #include <json-glib/json-glib.h>
 
-#include "daemon/service/result.h"
+#include "daemon/acquire/result.h"
 #include "proc/calibration.h"
 
 G_BEGIN_DECLS

@@ -6,7 +6,7 @@
 #include <systemd/sd-daemon.h>
 
 #include "build_info.h"
-#include "daemon/service/config.h"
+#include "daemon/config/config.h"
 #include "daemon/service/preflight.h"
 #include "daemon/service/probe.h"
 #include "daemon/service/service.h"

@@ -6,7 +6,7 @@
 #pragma once
 #include <glib.h>
 
-#include "daemon/service/result.h"
+#include "daemon/acquire/result.h"
 #include "proc/image.h"
 
 G_BEGIN_DECLS

@@ -22,7 +22,7 @@
 #include <libsoup/soup.h>
 
 #include "daemon/service/metrics.h"
-#include "daemon/service/result.h"
+#include "daemon/acquire/result.h"
 #include "daemon/service/server.h"
 
 G_BEGIN_DECLS

@@ -5,7 +5,7 @@
 #pragma once
 #include <glib.h>
 
-#include "daemon/service/sequencer.h"
+#include "daemon/acquire/sequencer.h"
 #include "daemon/service/server.h"
 #include "daemon/service/spool.h"
 

@@ -9,7 +9,7 @@
 #include <glib.h>
 
 #include "daemon/operating/operating_point.h"
-#include "daemon/service/config.h"
+#include "daemon/config/config.h"
 
 G_BEGIN_DECLS
 

@@ -3,10 +3,10 @@
 #include <math.h>
 #include <string.h>
 
-#include "daemon/service/capture_settings.h"
-#include "daemon/service/config.h"
-#include "daemon/service/devices.h"
-#include "daemon/service/sequencer.h"
+#include "daemon/acquire/capture_settings.h"
+#include "daemon/config/config.h"
+#include "daemon/acquire/devices.h"
+#include "daemon/acquire/sequencer.h"
 
 typedef struct {
   gboolean opened;

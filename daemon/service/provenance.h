@@ -2,9 +2,9 @@
  * configuration's fingerprint, the backends, the camera's identity, pixel format and ROI, the
  * illuminator's temperature and the learned stripe offset. Main thread. */
 #pragma once
-#include "daemon/service/config.h"
-#include "daemon/service/result.h"
-#include "daemon/service/sequencer.h"
+#include "daemon/config/config.h"
+#include "daemon/acquire/result.h"
+#include "daemon/acquire/sequencer.h"
 
 G_BEGIN_DECLS
 

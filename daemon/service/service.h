@@ -4,7 +4,7 @@
 #pragma once
 #include <glib.h>
 
-#include "daemon/service/config.h"
+#include "daemon/config/config.h"
 
 G_BEGIN_DECLS
 

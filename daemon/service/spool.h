@@ -12,7 +12,7 @@
 #pragma once
 #include <glib.h>
 
-#include "daemon/service/result.h"
+#include "daemon/acquire/result.h"
 
 G_BEGIN_DECLS
 

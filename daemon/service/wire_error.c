@@ -2,8 +2,8 @@
 
 #include <gio/gio.h>
 
-#include "daemon/service/config.h"
-#include "daemon/service/sequencer.h"
+#include "daemon/config/config.h"
+#include "daemon/acquire/sequencer.h"
 #include "drivers/core/device_error.h"
 
 #define ANY_CODE (-1)

@@ -29,7 +29,7 @@
 
 #include "../daemon/daemon_harness.h"
 #include "fake_rig.h"
-#include "daemon/service/config.h"
+#include "daemon/config/config.h"
 #include "rate_ceiling.h"
 #include "proc/separation.h"
 

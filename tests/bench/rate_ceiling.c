@@ -6,9 +6,9 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "daemon/service/capture_settings.h"
-#include "daemon/service/config.h"
-#include "daemon/service/devices.h"
+#include "daemon/acquire/capture_settings.h"
+#include "daemon/config/config.h"
+#include "daemon/acquire/devices.h"
 
 /* The loop, configured as the sequencer configures the devices for a set with the
  * configuration's defaults (ds_devices_open, ds_devices_camera_settings, the camera's configure

@@ -2,8 +2,8 @@
  * the synthetic scene and its closed form, the devices' common set-up and the fault counters.
  * Each test keeps its own camera and illuminator: they script different things. */
 #pragma once
-#include "daemon/service/devices.h"
-#include "daemon/service/result.h"
+#include "daemon/acquire/devices.h"
+#include "daemon/acquire/result.h"
 
 G_BEGIN_DECLS
 

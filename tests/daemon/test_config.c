@@ -1,7 +1,7 @@
 /* descatterd's configuration parser: defaults, errors that point at the mistake, round trip,
  * and the shipped example (etc/descatterd.conf) documenting every key. */
-#include "daemon/service/capture_settings.h"
-#include "daemon/service/config.h"
+#include "daemon/acquire/capture_settings.h"
+#include "daemon/config/config.h"
 #include "proc/calibration_json.h"
 
 #include <math.h>

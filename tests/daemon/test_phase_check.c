@@ -1,4 +1,4 @@
-/* The daemon's per-frame phase check (daemon/service/phase_check.c) on synthetic frames whose
+/* The daemon's per-frame phase check (proc/phase_check.c) on synthetic frames whose
  * stripe phase is known in closed form: the stripes are a Fourier series (sine: one term;
  * square of duty D: 2 sin(pi m D) / (pi m) per harmonic m), integrated over a 1-px pixel (a
  * factor sinc(m/P)) and blurred by a Gaussian (exp(-2 pi^2 s^2 m^2 / P^2)), lit onto an
@@ -17,7 +17,7 @@
 #include <math.h>
 #include <stdlib.h>
 
-#include "daemon/service/phase_check.h"
+#include "proc/phase_check.h"
 
 #define W 256
 #define H 32

@@ -7,7 +7,7 @@
 #include <json-glib/json-glib.h>
 #include <string.h>
 
-#include "daemon/service/capture_settings.h"
+#include "daemon/acquire/capture_settings.h"
 
 typedef struct {
   GHashTable *keys;     /* dotted path -> "optional" or "" */

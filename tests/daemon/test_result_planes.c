@@ -6,8 +6,8 @@
 #include <math.h>
 #include <string.h>
 
-#include "daemon/service/result.h"
-#include "daemon/service/result_planes.h"
+#include "daemon/acquire/result.h"
+#include "daemon/acquire/result_planes.h"
 
 static DsSeparation *
 filled (DsPlanePool *pool, guint w, guint h)

@@ -7,8 +7,8 @@
 #include <string.h>
 
 #include "daemon/operating/operating_point.h"
-#include "daemon/service/phase_check.h"
-#include "daemon/service/sequencer.h"
+#include "proc/phase_check.h"
+#include "daemon/acquire/sequencer.h"
 #include "scripted_lab.h"
 
 #define W 64
@@ -877,7 +877,7 @@ test_pipeline_quit_mid_set (Fixture *f, gconstpointer d)
   f->seq = NULL;
 }
 
-/* ---- continuous mode: the next set's first frame triggered ahead (sequencer_carry.c) ---- */
+/* ---- continuous mode: the next set's first frame triggered ahead (carry.c) ---- */
 
 /* Every frame the sequencer folds, compared with the frame of the phase it was folded into:
  * maxmin alone would not notice one phase's frame standing in for its neighbour's (each pixel

@@ -9,8 +9,8 @@
 #include <math.h>
 #include <string.h>
 
-#include "daemon/service/phase_check.h"
-#include "daemon/service/sequencer.h"
+#include "proc/phase_check.h"
+#include "daemon/acquire/sequencer.h"
 #include "scripted_lab.h"
 
 #define W 64
@@ -413,7 +413,7 @@ test_camera_sends_while_exposing (Fixture *f, gconstpointer d)
 /* Every frame reported begun at its trigger: every move lands in an exposure, and every frame
  * exposed across a move (it shows the next phase) is refused; not one is folded wrong. A phase
  * whose frame was refused is taken again without a move during its exposure (the frame grabbed
- * meanwhile is kept back, and nothing moves while one is: sequencer_pipeline.c), so the sets
+ * meanwhile is kept back, and nothing moves while one is: pipeline.c), so the sets
  * still complete, at one retry per phase. */
 static void
 test_camera_always_sends_while_exposing (Fixture *f, gconstpointer d)
@@ -550,7 +550,7 @@ run_continuous (Fixture *f, const DsCaptureSettings *s, guint sets)
 }
 
 /* Continuous mode: phase 0 of the next set is lit during the transfer of the set's last frame
- * and triggered once that frame arrived (sequencer_carry.c), and phase 1 is lit during that
+ * and triggered once that frame arrived (carry.c), and phase 1 is lit during that
  * frame's transfer, which the next set grabs without triggering it. Every result whole, every
  * folded frame lit with its phase, and phase 0 lit between frames only for the first set:
  * fails if a set boundary still applies phase 0 after the last frame arrived. */

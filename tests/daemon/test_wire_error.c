@@ -4,8 +4,8 @@
  * table and docs/design.md's policy table, written out here independently of the code. */
 #include <gio/gio.h>
 
-#include "daemon/service/config.h"
-#include "daemon/service/sequencer.h"
+#include "daemon/config/config.h"
+#include "daemon/acquire/sequencer.h"
 #include "daemon/service/wire_error.h"
 #include "drivers/core/device_error.h"
 #include "proc/proc_error.h"

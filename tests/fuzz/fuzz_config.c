@@ -3,7 +3,7 @@
 #include <stdint.h>
 #include <string.h>
 
-#include "daemon/service/config.h"
+#include "daemon/config/config.h"
 
 int LLVMFuzzerTestOneInput (const uint8_t *data, size_t size);
 

@@ -1,5 +1,5 @@
-#include "daemon/service/result.h"
-#include "daemon/service/result_planes.h"
+#include "daemon/acquire/result.h"
+#include "daemon/acquire/result_planes.h"
 
 #include <math.h>
 #include <string.h>

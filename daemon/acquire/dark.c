@@ -4,7 +4,7 @@
 #include <string.h>
 
 #include "daemon/protocol/protocol.h"
-#include "daemon/service/sequencer_private.h"
+#include "daemon/acquire/sequencer_private.h"
 #include "proc/stripe_phase.h"
 
 gboolean
@@ -23,7 +23,7 @@ ds_seq_illuminator_off (DsSequencer *seq, DsFrameCounters *c, GError **error)
 
 /* Averages `n` frames into an image of the frames' type. Each frame is checked against the
  * time the illuminator went off before it was exposed: a frame triggered ahead by the previous
- * set (continuous mode, sequencer_carry.c) against the time it went off for that frame, even
+ * set (continuous mode, carry.c) against the time it went off for that frame, even
  * when the illuminator lit a phase again since (the previous set re-acquired its dropped last
  * phase after grabbing it); the illuminator is then turned off again for the frames after it. */
 DsImage *

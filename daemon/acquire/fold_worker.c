@@ -10,7 +10,7 @@
  * frame (and returns its buffer to the camera) and does the accounting after collect. */
 #include <string.h>
 
-#include "daemon/service/sequencer_private.h"
+#include "daemon/acquire/sequencer_private.h"
 
 struct DsFoldWorker {
   DsSequencer *seq;

@@ -1,7 +1,7 @@
 /* What every user of DsDevices needs whatever backends it holds (closing goes through the ops;
  * camera settings come from the stored [camera] ones), apart from the configuration-to-backend
  * mapping in devices.c: the sequencer and its tests need only this. */
-#include "daemon/service/devices.h"
+#include "daemon/acquire/devices.h"
 
 void
 ds_devices_close (DsDevices *dev)

@@ -2,7 +2,7 @@
  * status snapshot the main thread reads under the lock. */
 #include <math.h>
 
-#include "daemon/service/sequencer_private.h"
+#include "daemon/acquire/sequencer_private.h"
 
 typedef struct {
   DsSequencer *seq;

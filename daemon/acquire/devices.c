@@ -1,4 +1,4 @@
-#include "daemon/service/devices.h"
+#include "daemon/acquire/devices.h"
 
 #include <string.h>
 
@@ -9,7 +9,7 @@
 #include "drivers/sim/scene.h"
 #include "drivers/simdev/sim_lab.h"
 #include "drivers/gpio/gpio_backends.h"
-#include "daemon/service/default_scene.h"
+#include "daemon/acquire/default_scene.h"
 
 static gboolean
 parse_roi (const char *roi, DsCameraSettings *cs, GError **error)

@@ -1,11 +1,11 @@
 /* The acquisition thread and its command queue: requests from the main thread are queued,
  * the thread runs them one at a time (or sets back to back in continuous mode) and reports
- * through events. What a set does is in sequencer_set.c; the file map is in
+ * through events. What a set does is in set_runner.c; the file map is in
  * sequencer_private.h. */
 #include <math.h>
 
 #include "daemon/protocol/protocol.h"
-#include "daemon/service/sequencer_private.h"
+#include "daemon/acquire/sequencer_private.h"
 
 typedef enum {
   CMD_CAPTURE,

@@ -1,7 +1,7 @@
 /* Continuous mode: the next set's first frame triggered ahead. As soon as a set's last frame
  * arrived (its exposure is over), the illuminator moves to phase 0 (or goes off, when the next
  * set starts with its dark frame) and the trigger goes out; phase 0 is usually lit already,
- * during the last frame's transfer (sequencer_pipeline.c), and then only the trigger is left;
+ * during the last frame's transfer (pipeline.c), and then only the trigger is left;
  * the last frame's verification and fold and the set's finalize then overlap with that
  * frame's exposure and transfer instead of preceding them. The frame belongs to the next set:
  * it is grabbed, counted and verified there like any first frame (or, when the last frame was
@@ -11,7 +11,7 @@
  * (docs/design.md, "The pipeline"). */
 #include <string.h>
 
-#include "daemon/service/sequencer_private.h"
+#include "daemon/acquire/sequencer_private.h"
 
 gboolean
 ds_seq_carry_allowed (DsSequencer *seq, const DsCaptureSettings *s)

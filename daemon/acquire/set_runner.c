@@ -3,7 +3,7 @@
 #include <math.h>
 #include <string.h>
 
-#include "daemon/service/sequencer_private.h"
+#include "daemon/acquire/sequencer_private.h"
 #include "proc/pixfmt.h"
 
 static gboolean
@@ -94,7 +94,7 @@ acquire_set (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag, DsFrameC
     /* Every frame a single capture will fold, now, as the result's planes above (in the type
      * the camera's format unpacks to; a frame of another type or size is copied into new
      * memory). Not in continuous mode: there the next set's first frame is already on its way
-     * (sequencer_carry.c), and writing a set's worth of fresh memory here would hold up its
+     * (carry.c), and writing a set's worth of fresh memory here would hold up its
      * grab; each copy is made on the fold thread instead, overlapped with the next frame. */
     DsPixelFormat fmt = DS_PIXFMT_MONO16;
     ds_pixfmt_from_name (cs->pixel_format, &fmt); /* none configured: the camera's, most likely 16 bits */
@@ -121,7 +121,7 @@ acquire_set (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag, DsFrameC
     return NULL;
   }
   *last_frame_us = seq->last_frame_us;
-  /* The job of the set's last frame finalized it already (sequencer_pipeline.c). */
+  /* The job of the set's last frame finalized it already (pipeline.c). */
   return finalized ? planes : ds_phase_set_finalize_reusing (seq->set, planes, error);
 }
 

@@ -1,4 +1,4 @@
-#include "daemon/service/result_planes.h"
+#include "daemon/acquire/result_planes.h"
 
 #include <string.h>
 

@@ -1,20 +1,20 @@
-/* Private to daemon/service/sequencer*.c: the acquisition thread's state and the helpers its
+/* Private to daemon/acquire/sequencer*.c: the acquisition thread's state and the helpers its
  * files share. Each file has one concern:
  *   sequencer.c          the thread, its command queue and the public requests
- *   sequencer_report.c   events to the main context, status, accounting
- *   sequencer_devices.c  device operations with their counting (trigger, grab, flush,
+ *   report.c   events to the main context, status, accounting
+ *   device_ops.c  device operations with their counting (trigger, grab, flush,
  *                        camera settings, reconnect) and the retry/fail policy
- *   sequencer_set.c      the set runner: one phase set from settings to result
- *   sequencer_pipeline.c the N x M frames of a set, pipelined: the next phase is applied during
+ *   set_runner.c      the set runner: one phase set from settings to result
+ *   pipeline.c the N x M frames of a set, pipelined: the next phase is applied during
  *                        the transfer of the previous phase's last frame, and the next frame
  *                        exposed while the worker verifies and folds the previous frame
- *   sequencer_worker.c   the verify-and-fold worker thread
- *   sequencer_carry.c    continuous mode: the next set's first frame, triggered while this
+ *   fold_worker.c   the verify-and-fold worker thread
+ *   carry.c    continuous mode: the next set's first frame, triggered while this
  *                        set's last frame is verified and its result finalized
- *   sequencer_verify.c   frame verification (stale, frame gap, stripe phase)
- *   sequencer_retry.c    the retry rule of every frame acquired (phase sets, dark, pilot)
- *   sequencer_dark.c     dark-frame acquisition
- *   sequencer_auto.c     the automatic operating point (preview frames)
+ *   verify.c   frame verification (stale, frame gap, stripe phase)
+ *   retry.c    the retry rule of every frame acquired (phase sets, dark, pilot)
+ *   dark.c     dark-frame acquisition
+ *   auto_point.c     the automatic operating point (preview frames)
  * Everything here runs on the acquisition thread unless it says otherwise. */
 #pragma once
 #include <glib.h>
@@ -22,9 +22,9 @@
 #include "daemon/operating/operating_point.h"
 #include "daemon/output/raw_frames.h"
 #include "daemon/operating/rig_timing.h"
-#include "daemon/service/phase_check.h"
-#include "daemon/service/result_planes.h"
-#include "daemon/service/sequencer.h"
+#include "proc/phase_check.h"
+#include "daemon/acquire/result_planes.h"
+#include "daemon/acquire/sequencer.h"
 
 G_BEGIN_DECLS
 
@@ -99,7 +99,7 @@ struct DsSequencer {
   gpointer frame_hook_data;
 };
 
-/* ---- sequencer_report.c: events (any order of posting is the order of dispatch) ---- */
+/* ---- report.c: events (any order of posting is the order of dispatch) ---- */
 
 /* Takes ownership of result and error. */
 void ds_seq_emit (DsSequencer *seq, DsSequencerEventKind kind, guint64 tag, DsResult *result,
@@ -125,14 +125,14 @@ void ds_seq_account (DsSequencer *seq, const DsFrameCounters *c, gboolean ok);
 /* Adds frame counters to the totals without counting a set (frames of no set). */
 void ds_seq_account_frames (DsSequencer *seq, const DsFrameCounters *c);
 
-/* ---- sequencer_devices.c ---- */
+/* ---- device_ops.c ---- */
 
 gboolean ds_seq_ensure_camera (DsSequencer *seq, const DsCaptureSettings *s, GError **error);
 gboolean ds_seq_apply_pattern (DsSequencer *seq, const DsCaptureSettings *s, GError **error);
 /* Lights phase k, within the illuminator's settle timeout. */
 gboolean ds_seq_set_phase (DsSequencer *seq, guint k, GError **error);
 /* One frame: trigger and grab. Counts what happened. Returns NULL with error set. The two
- * halves apart, for a frame triggered ahead (sequencer_carry.c). */
+ * halves apart, for a frame triggered ahead (carry.c). */
 gboolean ds_seq_trigger (DsSequencer *seq, DsFrameCounters *c, GError **error);
 DsFrame *ds_seq_grab (DsSequencer *seq, DsFrameCounters *c, GError **error);
 /* The same within timeout_ms instead of the grab timeout. */
@@ -159,11 +159,11 @@ void ds_seq_reconnect (DsSequencer *seq);
  * outcome (status.settings_ok / settings_error) and reports a change as a device event. */
 gboolean ds_seq_apply_defaults (DsSequencer *seq);
 
-/* ---- sequencer_set.c ---- */
+/* ---- set_runner.c ---- */
 
 void ds_seq_run_set (DsSequencer *seq, const DsCaptureSettings *requested, guint64 tag);
 
-/* ---- sequencer_pipeline.c ---- */
+/* ---- pipeline.c ---- */
 
 /* Acquires the N x M frames of a set and folds them into seq->set (which is prepared); emits
  * progress per completed phase. The job of the frame that completes the set also finalizes it
@@ -173,7 +173,7 @@ gboolean ds_seq_acquire_phases (DsSequencer *seq, const DsCaptureSettings *s, gu
                                 DsFrameCounters *c, DsSeparation *planes, gboolean *finalized,
                                 GError **error);
 
-/* ---- sequencer_carry.c ---- */
+/* ---- carry.c ---- */
 
 /* Whether the set running may trigger the next set's first frame ahead: a continuous set
  * with nothing queued, whose next set chooses no operating point (that needs preview frames
@@ -183,7 +183,7 @@ gboolean ds_seq_carry_allowed (DsSequencer *seq, const DsCaptureSettings *s);
 /* After the set's last frame arrived (so its exposure is over): applies phase 0, or turns the
  * illuminator off when the next set takes a dark frame, and triggers. lit_since > 0: phase 0
  * was applied during that frame's transfer and stale buffers were flushed after its grab, at
- * lit_since (sequencer_pipeline.c); it is not applied again. Failures are counted in the carry
+ * lit_since (pipeline.c); it is not applied again. Failures are counted in the carry
  * and leave the next set to start as usual. */
 void ds_seq_carry_trigger (DsSequencer *seq, const DsCaptureSettings *s, gint64 lit_since);
 /* Grabs the frame triggered ahead, before the illuminator moves again for this set. */
@@ -195,7 +195,7 @@ gboolean ds_seq_carry_fits (DsSequencer *seq, const DsCaptureSettings *s);
  * set is reported failed with it (tag 0: a continuous set). No-op without a carry. */
 void ds_seq_carry_discard (DsSequencer *seq);
 
-/* ---- sequencer_verify.c ---- */
+/* ---- verify.c ---- */
 
 typedef struct {
   DsDropReason reason;     /* DS_DROP_N_REASONS: the frame may be folded */
@@ -209,7 +209,7 @@ void ds_seq_verify_frame (DsSequencer *seq, const DsCaptureSettings *s, guint k,
                           const DsFrame *frame, gint64 applied_at_us, DsFrameVerdict *verdict);
 void ds_frame_verdict_clear (DsFrameVerdict *verdict);
 
-/* ---- sequencer_retry.c ---- */
+/* ---- retry.c ---- */
 
 /* After `why` (a device failure, or a frame rejected by verification): FALSE with *error set to
  * why, prefixed "WHAT: " when the policy ends the acquisition at once (ds_seq_fatal_device_error)
@@ -218,7 +218,7 @@ void ds_frame_verdict_clear (DsFrameVerdict *verdict);
 gboolean ds_seq_retry_or_fail (DsSequencer *seq, guint *retries_left, DsFrameCounters *c, GError **why,
                                GError **error, const char *what_format, ...) G_GNUC_PRINTF (6, 7);
 
-/* ---- sequencer_worker.c ---- */
+/* ---- fold_worker.c ---- */
 
 typedef struct {
   const DsCaptureSettings *settings; /* borrowed for the job */
@@ -246,7 +246,7 @@ void ds_fold_worker_submit (DsFoldWorker *worker, const DsCaptureSettings *s, gu
 /* Waits for the submitted job and moves its outcome (verdict, fold error) to *job. */
 void ds_fold_worker_collect (DsFoldWorker *worker, DsFoldJob *job);
 
-/* ---- sequencer_dark.c ---- */
+/* ---- dark.c ---- */
 
 /* Turns the illuminator off, within its settle timeout; counts a failure in c. */
 gboolean ds_seq_illuminator_off (DsSequencer *seq, DsFrameCounters *c, GError **error);
@@ -259,7 +259,7 @@ DsImage *ds_seq_acquire_dark (DsSequencer *seq, const DsCaptureSettings *s, DsFr
 void ds_seq_note_dark (DsSequencer *seq, const DsCaptureSettings *s, double mean_dn, gboolean by_set);
 void ds_seq_run_dark (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag);
 
-/* ---- sequencer_auto.c ---- */
+/* ---- auto_point.c ---- */
 
 /* Picks estimator, N, M and exposure for a target error or time budget from a dark and a
  * preview frame; rewrites *s. */

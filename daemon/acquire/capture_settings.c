@@ -1,5 +1,5 @@
-#include "daemon/service/capture_settings.h"
-#include "daemon/service/phase_check.h"
+#include "daemon/acquire/capture_settings.h"
+#include "proc/phase_check.h"
 
 #include <math.h>
 #include <string.h>

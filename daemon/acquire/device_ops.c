@@ -3,7 +3,7 @@
 #include <string.h>
 
 #include "daemon/protocol/protocol.h"
-#include "daemon/service/sequencer_private.h"
+#include "daemon/acquire/sequencer_private.h"
 
 static gboolean
 is_code (const GError *error, int code)
@@ -187,7 +187,7 @@ ds_seq_apply_defaults (DsSequencer *seq)
   g_mutex_lock (&seq->lock);
   s = seq->defaults;
   g_mutex_unlock (&seq->lock);
-  /* The stripe geometry is the illuminator's, as a set uses it (sequencer_set.c). */
+  /* The stripe geometry is the illuminator's, as a set uses it (set_runner.c). */
   s.pattern = seq->dev->pattern.kind == DS_STRIPES_SINE ? DS_PATTERN_SINE : DS_PATTERN_SQUARE;
   s.period_px = seq->dev->pattern.period_px;
   s.duty = seq->dev->pattern.duty;

@@ -6,7 +6,7 @@
 #include <json-glib/json-glib.h>
 
 #include "daemon/operating/operating_point.h"
-#include "daemon/service/config.h"
+#include "daemon/config/config.h"
 #include "proc/separation.h"
 
 G_BEGIN_DECLS

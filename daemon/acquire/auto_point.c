@@ -5,7 +5,7 @@
 #include "daemon/operating/pattern_check.h"
 #include "daemon/operating/pilot_stripes.h"
 #include "daemon/protocol/protocol.h"
-#include "daemon/service/sequencer_private.h"
+#include "daemon/acquire/sequencer_private.h"
 #include "proc/stripe_phase.h"
 
 /* A pair of pilot frames (phases 0 and 1/2 of one period) as it is acquired: the phase check

@@ -1,12 +1,12 @@
-/* The one retry rule of the frames the sequencer acquires: a phase set's (sequencer_pipeline.c),
- * a dark frame's (sequencer_dark.c) and the automatic operating point's pilot frames
- * (sequencer_auto.c). A frame lost in transport, a device that timed out or a frame that failed
+/* The one retry rule of the frames the sequencer acquires: a phase set's (pipeline.c),
+ * a dark frame's (dark.c) and the automatic operating point's pilot frames
+ * (auto_point.c). A frame lost in transport, a device that timed out or a frame that failed
  * verification is re-acquired, counted in `retries`, up to [acquisition] phase-retries times per
  * phase (or per dark frame, per pilot frame); an error the policy calls fatal
  * (ds_seq_fatal_device_error: invalid, unsupported, disconnected) ends it at once. */
 #include <stdarg.h>
 
-#include "daemon/service/sequencer_private.h"
+#include "daemon/acquire/sequencer_private.h"
 
 gboolean
 ds_seq_retry_or_fail (DsSequencer *seq, guint *retries_left, DsFrameCounters *c, GError **why, GError **error,

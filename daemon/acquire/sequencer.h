@@ -8,9 +8,9 @@
 #pragma once
 #include <glib.h>
 
-#include "daemon/service/capture_settings.h"
-#include "daemon/service/devices.h"
-#include "daemon/service/result.h"
+#include "daemon/acquire/capture_settings.h"
+#include "daemon/acquire/devices.h"
+#include "daemon/acquire/result.h"
 
 G_BEGIN_DECLS
 

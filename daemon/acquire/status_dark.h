@@ -3,7 +3,7 @@
 #pragma once
 #include <json-glib/json-glib.h>
 
-#include "daemon/service/sequencer.h"
+#include "daemon/acquire/sequencer.h"
 
 G_BEGIN_DECLS
 

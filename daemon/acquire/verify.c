@@ -3,7 +3,7 @@
  * phase measured in it is k's. Checked in that order; the first failure is the reason. */
 #include <math.h>
 
-#include "daemon/service/sequencer_private.h"
+#include "daemon/acquire/sequencer_private.h"
 
 void
 ds_seq_verify_frame (DsSequencer *seq, const DsCaptureSettings *s, guint k, const DsFrame *frame,

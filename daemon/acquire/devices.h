@@ -6,7 +6,7 @@
 #pragma once
 #include <glib.h>
 
-#include "daemon/service/config.h"
+#include "daemon/config/config.h"
 #include "drivers/core/camera.h"
 #include "drivers/core/illuminator.h"
 #include "drivers/core/trigger.h"

@@ -8,7 +8,7 @@
 
 #include "daemon/output/raw_frames.h"
 #include "daemon/output/output_result.h"
-#include "daemon/service/capture_settings.h"
+#include "daemon/acquire/capture_settings.h"
 #include "daemon/protocol/protocol.h"
 #include "drivers/core/camera.h"
 #include "proc/separation.h"

@@ -1,4 +1,4 @@
-#include "daemon/service/phase_check.h"
+#include "proc/phase_check.h"
 
 #include <math.h>
 #include <string.h>

@@ -16,7 +16,7 @@
 #include <string.h>
 
 #include "daemon/protocol/protocol.h"
-#include "daemon/service/sequencer_private.h"
+#include "daemon/acquire/sequencer_private.h"
 
 typedef struct {
   DsSequencer *seq;
@@ -36,7 +36,7 @@ typedef struct {
   gint64 held_applied_at;
   gboolean failing;       /* the set failed: collect the last job without reporting progress */
   /* Continuous mode: the next set's first frame is triggered ahead once this set's last frame
-   * is in the worker (sequencer_carry.c). */
+   * is in the worker (carry.c). */
   gboolean ahead;
   /* This set's first frame was triggered ahead by the previous set: grab it without a trigger
    * (grab_begun_before: the camera's frames_begun before that trigger). */
@@ -137,7 +137,7 @@ frames_of (const Pipeline *pl, guint k)
 /* The phase the illuminator may move to while the frame just triggered for phase k transfers:
  * k + 1 when that frame completes phase k (once accepted) and k + 1 still needs frames; 0 when
  * it completes the set and the next set's first frame will be triggered ahead with phase 0 lit
- * (continuous mode, sequencer_carry.c; not for a next set that starts with its dark frame, nor
+ * (continuous mode, carry.c; not for a next set that starts with its dark frame, nor
  * with one phase, which stays lit); G_MAXUINT when it stays (more frames of k, a frame kept
  * back). */
 static guint
@@ -186,7 +186,7 @@ trigger_and_grab (Pipeline *pl, guint k, int *applied, gint64 *applied_at, GErro
   t = g_get_monotonic_time ();
   g_autoptr (GError) next_set_error = NULL;
   /* The next set's phase 0 (next < k): failing to light it is not this set's failure; the
-   * carry applies it again and handles a failure as its own (sequencer_carry.c). */
+   * carry applies it again and handles a failure as its own (carry.c). */
   GError **set_phase_error = next < k ? &next_set_error : &pl->early_error;
   if (ds_seq_set_phase (seq, next, set_phase_error)) {
     ds_seq_stage_add (seq, DS_STAGE_SET_PHASE, t);

@@ -1,6 +1,6 @@
 /* status "dark": what a lab needs to trust the dark subtraction at a glance — which dark frame
  * the next set subtracts, and when the last one was measured and at what level. */
-#include "daemon/service/status_dark.h"
+#include "daemon/acquire/status_dark.h"
 
 #include "daemon/output/result_meta.h"
 
