@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Plots of `descatterctl study` output (docs/accuracy.md):
+"""Plots of `descatterctl study` output (docs/accuracy.md, "What the measurements say"):
     /usr/bin/python3 tools/plot_study.py STUDY_DIR
 writes, per scene,
   error-vs-time-<scene>.png   transmissive (solid) and scattered (dashed) error against acquisition

@@ -1,6 +1,7 @@
 """Reading `descatterctl study` output (STUDY_DIR/study.csv), shared by tools/study_tables.py
-and tools/plot_study.py so that the tables and the plots of docs/accuracy.md average the same
-rows in the same way.
+and tools/plot_study.py so that the tables (docs/records/accuracy-validation.md, "What the
+measurements say") and the plots (docs/accuracy/, named in docs/accuracy.md, "What the
+measurements say") average the same rows in the same way.
 
 study.csv has one row per configuration and seed. load() returns
   configurations  {Key: {column: value}}, the seeds of each configuration averaged;

@@ -1,5 +1,6 @@
 #!/usr/bin/python3
-"""The tables of docs/accuracy.md "What the measurements say", from `descatterctl study` output:
+"""The per-scene tables of docs/records/accuracy-validation.md, "What the measurements say" (whose
+findings docs/accuracy.md, "What the measurements say", quotes), from `descatterctl study` output:
     /usr/bin/python3 tools/study_tables.py STUDY_DIR
 prints Markdown: the error of each component against N (M = 1, base exposure, the first period
 of --periods: the scene's own by default), how the noise part falls with M and with exposure,

@@ -1,5 +1,7 @@
 #!/usr/bin/python3
-"""Totals over several `descatterctl validate` outputs (docs/accuracy.md, "Validation").
+"""Totals over several `descatterctl validate` outputs: the command and the latest totals are in
+docs/accuracy.md, "Validation"; every round's totals and per-scene tables in
+docs/records/accuracy-validation.md, "Validation on scenes nobody tuned for".
 Usage: validation_summary.py DIR...   (each DIR holds a validation.csv)
 
 Recomputes every verdict from the CSV's numbers (not its verdict column): a chosen point is

@@ -12,7 +12,8 @@ Independent expectations:
 - --fit writes an operating model that names the scenes it was fitted on, with a scale in its
   documented range.
 Generated scenes are validated by the full run only (each renders its medium by Monte Carlo at
-several periods: minutes per scene), whose table is docs/accuracy.md's."""
+several periods: minutes per scene): its command and totals are in docs/accuracy.md, "Validation",
+its per-scene tables in docs/records/accuracy-validation.md."""
 import csv
 import os
 import subprocess
