@@ -1,4 +1,5 @@
 #include "daemon/service/server.h"
+#include "daemon/service/json_build.h"
 #include "daemon/service/token.h"
 
 #include "build_info.h"
@@ -206,20 +207,13 @@ handle_hello (DsServer *s, DsConnection *conn, ClientState *st, DsRequest *req)
     }
   }
   st->authenticated = TRUE;
-  g_autoptr (JsonBuilder) b = json_builder_new ();
-  json_builder_begin_object (b);
-  json_builder_set_member_name (b, "server");
-  json_builder_add_string_value (b, "descatterd");
-  json_builder_set_member_name (b, "version");
-  json_builder_add_string_value (b, DS_VERSION);
-  json_builder_set_member_name (b, "git");
-  json_builder_add_string_value (b, DS_GIT_DESCRIBE);
-  json_builder_set_member_name (b, "protocol");
-  json_builder_add_int_value (b, DS_PROTOCOL_VERSION);
-  json_builder_set_member_name (b, "max_line");
-  json_builder_add_int_value (b, (gint64) s->limits.max_line);
-  json_builder_end_object (b);
-  g_autoptr (JsonNode) result = json_builder_get_root (b);
+  g_autoptr (JsonBuilder) b = ds_json_object_begin ();
+  ds_json_add_string (b, "server", "descatterd");
+  ds_json_add_string (b, "version", DS_VERSION);
+  ds_json_add_string (b, "git", DS_GIT_DESCRIBE);
+  ds_json_add_int (b, "protocol", DS_PROTOCOL_VERSION);
+  ds_json_add_uint (b, "max_line", s->limits.max_line);
+  g_autoptr (JsonNode) result = ds_json_object_end (b);
   ds_server_reply_ok (s, conn, req->id, result, NULL, NULL, 0);
 }
 
@@ -233,14 +227,10 @@ handle_subscription (DsServer *s, DsConnection *conn, ClientState *st, DsRequest
     return;
   }
   st->subscribed = on;
-  g_autoptr (JsonBuilder) b = json_builder_new ();
-  json_builder_begin_object (b);
-  json_builder_set_member_name (b, "subscribed");
-  json_builder_add_boolean_value (b, on);
-  json_builder_set_member_name (b, "next_seq");
-  json_builder_add_int_value (b, (gint64) s->seq + 1);
-  json_builder_end_object (b);
-  g_autoptr (JsonNode) result = json_builder_get_root (b);
+  g_autoptr (JsonBuilder) b = ds_json_object_begin ();
+  ds_json_add_bool (b, "subscribed", on);
+  ds_json_add_uint (b, "next_seq", s->seq + 1);
+  g_autoptr (JsonNode) result = ds_json_object_end (b);
   ds_server_reply_ok (s, conn, req->id, result, NULL, NULL, 0);
 }
 

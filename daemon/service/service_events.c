@@ -8,6 +8,7 @@
 
 #include "daemon/output/result_meta.h"
 #include "daemon/protocol/protocol.h"
+#include "daemon/service/json_build.h"
 #include "daemon/service/provenance.h"
 #include "daemon/service/wire_error.h"
 
@@ -36,8 +37,9 @@ reply_result (DsService *svc, PendingCapture *p, DsResult *result)
                       (GBytes *const *) sel_bytes->pdata, sel_infos->len);
 }
 
+/* The pending request's error reply: the acquisition's error in the wire's terms. */
 static void
-reply_calibration_error (DsService *svc, PendingCapture *p, const GError *error)
+reply_wire_error (DsService *svc, PendingCapture *p, const GError *error)
 {
   g_autoptr (GError) wire = ds_wire_error_new (error);
   ds_server_reply_error (svc->server, p->conn, p->id, wire);
@@ -59,7 +61,7 @@ reply_calibration_pair (DsService *svc, PendingCapture *p, DsResult *second, con
                "period: %s", second_error);
   g_autoptr (JsonNode) body = ds_calibrate_reply (p->calibrate_first_set, c, second ? ds_result_set_id (second) : 0,
                                                   second_error);
-  ds_server_reply_ok (svc->server, p->conn, p->id, body, NULL, NULL, 0);
+  ds_service_reply_ok (svc, p->conn, p->id, body);
 }
 
 /* A calibrate request's set came. Sine stripes whose black level one period cannot tell
@@ -74,7 +76,7 @@ calibration_step (DsService *svc, PendingCapture *p, DsResult *result)
     return FALSE;
   }
   if (!ds_calibrate_measure (result, &p->calibration, 0, &p->calibrate_first, &error)) {
-    reply_calibration_error (svc, p, error);
+    reply_wire_error (svc, p, error);
     return FALSE;
   }
   p->calibrate_first_set = ds_result_set_id (result);
@@ -102,16 +104,11 @@ send_progress (DsService *svc, PendingCapture *p, guint phase, guint n)
   (void) svc;
   if (!p->progress || ds_connection_is_closed (p->conn))
     return;
-  g_autoptr (JsonBuilder) b = json_builder_new ();
-  json_builder_begin_object (b);
-  json_builder_set_member_name (b, "id");
-  json_builder_add_value (b, p->id ? json_node_copy (p->id) : json_node_new (JSON_NODE_NULL));
-  json_builder_set_member_name (b, "phase");
-  json_builder_add_int_value (b, phase);
-  json_builder_set_member_name (b, "phases");
-  json_builder_add_int_value (b, n);
-  json_builder_end_object (b);
-  g_autoptr (JsonNode) body = json_builder_get_root (b);
+  g_autoptr (JsonBuilder) b = ds_json_object_begin ();
+  ds_json_add_node (b, "id", p->id ? json_node_copy (p->id) : NULL);
+  ds_json_add_int (b, "phase", phase);
+  ds_json_add_int (b, "phases", n);
+  g_autoptr (JsonNode) body = ds_json_object_end (b);
   gsize len;
   g_autofree char *line = ds_event_build ("progress", 0, body, NULL, 0, &len);
   g_autoptr (GBytes) bytes = g_bytes_new (line, len);
@@ -144,122 +141,142 @@ publish_result (DsService *svc, DsResult *result)
     g_warning ("spool: set %" G_GUINT64_FORMAT " not recorded: the disk is behind", ds_result_set_id (result));
 }
 
+static void
+on_ready (DsService *svc, const DsSequencerEvent *ev)
+{
+  if (ev->error) {
+    g_critical ("devices: %s", ev->error->message);
+    sd_notifyf (0, "STATUS=devices failed: %s", ev->error->message);
+    svc->devices_failed = TRUE;
+    /* Without devices the service is of no use; systemd restarts it (Restart=on-failure). */
+    g_main_loop_quit (svc->loop);
+    return;
+  }
+  svc->ready = TRUE;
+  g_message ("devices open: %s", ev->message);
+  sd_notifyf (0, "READY=1\nSTATUS=ready: %s", ev->message);
+}
+
+/* A set's result: stamped with its provenance, answered to its request (a calibrate request may
+ * go on to a second set) and published. FALSE while the request awaits that second set. */
+static gboolean
+on_result (DsService *svc, PendingCapture *p, const DsSequencerEvent *ev)
+{
+  DsSequencerStatus status;
+  ds_sequencer_get_status (svc->sequencer, &status);
+  DsResultProvenance prov;
+  ds_provenance_fill (&prov, svc->config, svc->config_sha256, &status);
+  ds_result_set_provenance (ev->result, &prov);
+  g_autofree char *st = g_strdup_printf ("set %" G_GUINT64_FORMAT " done", ds_result_set_id (ev->result));
+  notify_status (svc, st);
+  gboolean awaits_second = FALSE;
+  if (p && p->calibrate)
+    awaits_second = calibration_step (svc, p, ev->result);
+  else if (p)
+    reply_result (svc, p, ev->result);
+  publish_result (svc, ev->result);
+  return !awaits_second;
+}
+
+static void
+on_failed (DsService *svc, PendingCapture *p, const DsSequencerEvent *ev)
+{
+  g_warning ("phase set failed: %s", ev->error->message);
+  notify_status (svc, "last set failed");
+  g_autoptr (GError) wire = ds_wire_error_new (ev->error);
+  /* an illuminator that cannot draw twice its period: the first set's calibration stands */
+  if (p && p->calibrate_second)
+    reply_calibration_pair (svc, p, NULL, ev->error->message);
+  else if (p)
+    ds_server_reply_error (svc->server, p->conn, p->id, wire);
+  g_autoptr (JsonBuilder) b = ds_json_object_begin ();
+  ds_json_add_string (b, "reason", ev->error->message);
+  ds_json_add_string (b, "code", ds_protocol_error_name ((DsProtocolError) wire->code));
+  g_autoptr (JsonNode) body = ds_json_object_end (b);
+  ds_server_publish (svc->server, "failed", body, NULL, NULL, 0);
+}
+
+static void
+on_dark (DsService *svc, PendingCapture *p, const DsSequencerEvent *ev)
+{
+  if (ev->error) {
+    reply_wire_error (svc, p, ev->error);
+    return;
+  }
+  g_autoptr (JsonBuilder) b = ds_json_object_begin ();
+  ds_json_add_double (b, "dark_mean_dn", ev->dark_mean_dn);
+  g_autoptr (JsonNode) body = ds_json_object_end (b);
+  ds_service_reply_ok (svc, p->conn, p->id, body);
+}
+
+/* release or acquire done (or refused): logged, and answered with the state it left. */
+static void
+on_control (DsService *svc, PendingCapture *p, const DsSequencerEvent *ev)
+{
+  if (ev->error)
+    g_warning ("%s", ev->error->message);
+  else
+    g_message ("%s", ev->message);
+  if (!p)
+    return;
+  if (ev->error) {
+    reply_wire_error (svc, p, ev->error);
+    return;
+  }
+  DsSequencerStatus st;
+  ds_sequencer_get_status (svc->sequencer, &st);
+  g_autoptr (JsonBuilder) b = ds_json_object_begin ();
+  ds_json_add_string (b, "state", st.state);
+  ds_json_add_string (b, "message", ev->message);
+  g_autoptr (JsonNode) body = ds_json_object_end (b);
+  ds_service_reply_ok (svc, p->conn, p->id, body);
+}
+
+static void
+on_device (DsService *svc, const DsSequencerEvent *ev)
+{
+  g_message ("%s", ev->message);
+  notify_status (svc, ev->message);
+  g_autoptr (JsonBuilder) b = ds_json_object_begin ();
+  ds_json_add_string (b, "message", ev->message);
+  g_autoptr (JsonNode) body = ds_json_object_end (b);
+  ds_server_publish (svc->server, "device", body, NULL, NULL, 0);
+}
+
 void
 ds_service_on_sequencer_event (const DsSequencerEvent *ev, gpointer user_data)
 {
   DsService *svc = user_data;
   PendingCapture *p = ev->tag ? g_hash_table_lookup (svc->pending, &ev->tag) : NULL;
+  gboolean answered = FALSE; /* the request of ev->tag, when there is one, got its reply */
   switch (ev->kind) {
   case DS_SEQUENCER_EVENT_READY:
-    if (ev->error) {
-      g_critical ("devices: %s", ev->error->message);
-      sd_notifyf (0, "STATUS=devices failed: %s", ev->error->message);
-      svc->devices_failed = TRUE;
-      /* Without devices the service is of no use; systemd restarts it (Restart=on-failure). */
-      g_main_loop_quit (svc->loop);
-      return;
-    }
-    svc->ready = TRUE;
-    g_message ("devices open: %s", ev->message);
-    sd_notifyf (0, "READY=1\nSTATUS=ready: %s", ev->message);
-    return;
+    on_ready (svc, ev);
+    break;
   case DS_SEQUENCER_EVENT_PROGRESS:
     if (p)
       send_progress (svc, p, ev->phase, ev->n_phases);
-    return;
-  case DS_SEQUENCER_EVENT_RESULT: {
-    DsSequencerStatus status;
-    ds_sequencer_get_status (svc->sequencer, &status);
-    DsResultProvenance prov;
-    ds_provenance_fill (&prov, svc->config, svc->config_sha256, &status);
-    ds_result_set_provenance (ev->result, &prov);
-    g_autofree char *st = g_strdup_printf ("set %" G_GUINT64_FORMAT " done",
-                                           ds_result_set_id (ev->result));
-    notify_status (svc, st);
-    gboolean awaits_second = FALSE;
-    if (p && p->calibrate)
-      awaits_second = calibration_step (svc, p, ev->result);
-    else if (p)
-      reply_result (svc, p, ev->result);
-    publish_result (svc, ev->result);
-    if (awaits_second)
-      return;
     break;
-  }
-  case DS_SEQUENCER_EVENT_FAILED: {
-    g_warning ("phase set failed: %s", ev->error->message);
-    notify_status (svc, "last set failed");
-    g_autoptr (GError) wire = ds_wire_error_new (ev->error);
-    /* an illuminator that cannot draw twice its period: the first set's calibration stands */
-    if (p && p->calibrate_second)
-      reply_calibration_pair (svc, p, NULL, ev->error->message);
-    else if (p)
-      ds_server_reply_error (svc->server, p->conn, p->id, wire);
-    {
-      g_autoptr (JsonBuilder) b = json_builder_new ();
-      json_builder_begin_object (b);
-      json_builder_set_member_name (b, "reason");
-      json_builder_add_string_value (b, ev->error->message);
-      json_builder_set_member_name (b, "code");
-      json_builder_add_string_value (b, ds_protocol_error_name ((DsProtocolError) wire->code));
-      json_builder_end_object (b);
-      g_autoptr (JsonNode) body = json_builder_get_root (b);
-      ds_server_publish (svc->server, "failed", body, NULL, NULL, 0);
-    }
+  case DS_SEQUENCER_EVENT_RESULT:
+    answered = on_result (svc, p, ev);
     break;
-  }
+  case DS_SEQUENCER_EVENT_FAILED:
+    on_failed (svc, p, ev);
+    answered = TRUE;
+    break;
   case DS_SEQUENCER_EVENT_DARK:
-    if (p) {
-      if (ev->error) {
-        g_autoptr (GError) wire = ds_wire_error_new (ev->error);
-        ds_server_reply_error (svc->server, p->conn, p->id, wire);
-      } else {
-        g_autoptr (JsonBuilder) b = json_builder_new ();
-        json_builder_begin_object (b);
-        json_builder_set_member_name (b, "dark_mean_dn");
-        json_builder_add_double_value (b, ev->dark_mean_dn);
-        json_builder_end_object (b);
-        g_autoptr (JsonNode) body = json_builder_get_root (b);
-        ds_server_reply_ok (svc->server, p->conn, p->id, body, NULL, NULL, 0);
-      }
-    }
+    if (p)
+      on_dark (svc, p, ev);
+    answered = TRUE;
     break;
   case DS_SEQUENCER_EVENT_CONTROL:
-    if (ev->error)
-      g_warning ("%s", ev->error->message);
-    else
-      g_message ("%s", ev->message);
-    if (p && ev->error) {
-      g_autoptr (GError) wire = ds_wire_error_new (ev->error);
-      ds_server_reply_error (svc->server, p->conn, p->id, wire);
-    } else if (p) {
-      DsSequencerStatus st;
-      ds_sequencer_get_status (svc->sequencer, &st);
-      g_autoptr (JsonBuilder) b = json_builder_new ();
-      json_builder_begin_object (b);
-      json_builder_set_member_name (b, "state");
-      json_builder_add_string_value (b, st.state);
-      json_builder_set_member_name (b, "message");
-      json_builder_add_string_value (b, ev->message);
-      json_builder_end_object (b);
-      g_autoptr (JsonNode) body = json_builder_get_root (b);
-      ds_server_reply_ok (svc->server, p->conn, p->id, body, NULL, NULL, 0);
-    }
+    on_control (svc, p, ev);
+    answered = TRUE;
     break;
   case DS_SEQUENCER_EVENT_DEVICE:
-    g_message ("%s", ev->message);
-    notify_status (svc, ev->message);
-    {
-      g_autoptr (JsonBuilder) b = json_builder_new ();
-      json_builder_begin_object (b);
-      json_builder_set_member_name (b, "message");
-      json_builder_add_string_value (b, ev->message);
-      json_builder_end_object (b);
-      g_autoptr (JsonNode) body = json_builder_get_root (b);
-      ds_server_publish (svc->server, "device", body, NULL, NULL, 0);
-    }
-    return;
+    on_device (svc, ev);
+    break;
   }
-  if (p)
+  if (p && answered)
     g_hash_table_remove (svc->pending, &ev->tag);
 }

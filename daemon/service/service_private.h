@@ -77,6 +77,8 @@ extern const char *const ds_service_output_names[DS_SERVICE_N_OUTPUTS];
 
 /* service_requests.c: every command the server does not answer itself. */
 void ds_service_on_request (DsServer *server, DsConnection *conn, DsRequest *req, gpointer user_data);
+/* The success reply to a request (id copied), with body and no payloads. */
+void ds_service_reply_ok (DsService *svc, DsConnection *conn, JsonNode *id, JsonNode *body);
 /* A PendingCapture's destructor (the pending table's value). */
 void ds_service_pending_free (gpointer pending);
 

@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "daemon/protocol/protocol.h"
+#include "daemon/service/json_build.h"
 #include "proc/phase_check.h"
 
 const char *const ds_service_output_names[DS_SERVICE_N_OUTPUTS] = { "transmissive", "scattered", "mask",
@@ -134,6 +135,12 @@ outputs_from_request (const DsRequest *req, guint *outputs, gboolean *extrema, G
   return TRUE;
 }
 
+void
+ds_service_reply_ok (DsService *svc, DsConnection *conn, JsonNode *id, JsonNode *body)
+{
+  ds_server_reply_ok (svc->server, conn, id, body, NULL, NULL, 0);
+}
+
 /* A request the sequencer answers later, by its tag: the connection is held (no further request
  * is read from it) until the reply is sent. */
 static PendingCapture *
@@ -153,8 +160,21 @@ static void
 reply_not_queued (DsService *svc, DsConnection *conn, DsRequest *req)
 {
   g_autoptr (GError) error = g_error_new (DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BUSY, "%s: %s", req->cmd,
-                                          svc->ready ? "too many requests queued" : "the devices are not open yet");
+                                          svc->ready ? "too many requests queued; try again later"
+                                                     : "the devices are not open yet");
   ds_server_reply_error (svc->server, conn, req->id, error);
+}
+
+/* A command without arguments: TRUE when it has none, else answered with the error. */
+static gboolean
+no_arguments (DsService *svc, DsConnection *conn, DsRequest *req)
+{
+  static const char *const keys[] = { NULL };
+  g_autoptr (GError) error = NULL;
+  if (ds_request_check_keys (req, keys, &error))
+    return TRUE;
+  ds_server_reply_error (svc->server, conn, req->id, error);
+  return FALSE;
 }
 
 static void
@@ -177,16 +197,9 @@ handle_capture (DsService *svc, DsConnection *conn, DsRequest *req)
     return;
   }
   s.keep_extrema = extrema;
-  if (!svc->ready) {
-    g_set_error (&error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BUSY, "capture: the devices are not open yet");
-    ds_server_reply_error (svc->server, conn, req->id, error);
-    return;
-  }
   guint64 tag = ++svc->next_tag;
-  if (!ds_sequencer_capture (svc->sequencer, &s, tag)) {
-    g_set_error (&error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BUSY,
-                 "capture: too many captures queued; try again later");
-    ds_server_reply_error (svc->server, conn, req->id, error);
+  if (!svc->ready || !ds_sequencer_capture (svc->sequencer, &s, tag)) {
+    reply_not_queued (svc, conn, req);
     return;
   }
   PendingCapture *p = pending_add (svc, conn, req, tag);
@@ -220,12 +233,8 @@ handle_dark (DsService *svc, DsConnection *conn, DsRequest *req)
 static void
 handle_control (DsService *svc, DsConnection *conn, DsRequest *req, gboolean release)
 {
-  static const char *const keys[] = { NULL };
-  g_autoptr (GError) error = NULL;
-  if (!ds_request_check_keys (req, keys, &error)) {
-    ds_server_reply_error (svc->server, conn, req->id, error);
+  if (!no_arguments (svc, conn, req))
     return;
-  }
   guint64 tag = ++svc->next_tag;
   gboolean queued = svc->ready && (release ? ds_sequencer_release (svc->sequencer, tag)
                                            : ds_sequencer_acquire (svc->sequencer, tag));
@@ -287,28 +296,16 @@ handle_calibrate (DsService *svc, DsConnection *conn, DsRequest *req)
   s.estimator = DS_ESTIMATOR_SINE;
   s.target_error = 0;
   s.time_budget_ms = 0;
-  if (!svc->ready) {
-    g_set_error (&error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BUSY, "calibrate: the devices are not open yet");
-    ds_server_reply_error (svc->server, conn, req->id, error);
-    return;
-  }
   guint64 tag = ++svc->next_tag;
-  if (!ds_sequencer_capture (svc->sequencer, &s, tag)) {
-    g_set_error (&error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BUSY,
-                 "calibrate: too many captures queued; try again later");
-    ds_server_reply_error (svc->server, conn, req->id, error);
+  if (!svc->ready || !ds_sequencer_capture (svc->sequencer, &s, tag)) {
+    reply_not_queued (svc, conn, req);
     return;
   }
-  PendingCapture *p = g_new0 (PendingCapture, 1);
-  p->tag = tag;
-  p->conn = ds_connection_ref (conn);
-  ds_connection_hold (conn);
-  p->id = req->id ? json_node_copy (req->id) : NULL;
+  PendingCapture *p = pending_add (svc, conn, req, tag);
   p->progress = progress;
   p->calibrate = TRUE;
   p->calibration = cr;
   p->calibrate_settings = s;
-  g_hash_table_insert (svc->pending, &p->tag, p);
 }
 
 static void
@@ -327,18 +324,14 @@ handle_start (DsService *svc, DsConnection *conn, DsRequest *req)
   ds_sequencer_start (svc->sequencer, json_object_get_size (req->args) ? &s : NULL);
   svc->in_run = TRUE;
   g_autoptr (JsonNode) body = ds_capture_settings_to_json (&s);
-  ds_server_reply_ok (svc->server, conn, req->id, body, NULL, NULL, 0);
+  ds_service_reply_ok (svc, conn, req->id, body);
 }
 
 static void
 handle_stop (DsService *svc, DsConnection *conn, DsRequest *req)
 {
-  static const char *const keys[] = { NULL };
-  g_autoptr (GError) error = NULL;
-  if (!ds_request_check_keys (req, keys, &error)) {
-    ds_server_reply_error (svc->server, conn, req->id, error);
+  if (!no_arguments (svc, conn, req))
     return;
-  }
   ds_sequencer_stop (svc->sequencer);
   /* The set in progress still completes: it goes into the run file, which closes after it. */
   gboolean was_running = svc->in_run;
@@ -346,16 +339,12 @@ handle_stop (DsService *svc, DsConnection *conn, DsRequest *req)
   if (svc->spool)
     ds_spool_end_run (svc->spool);
   /* Said in words: a bare {} left a user wondering whether anything was running or stopped. */
-  g_autoptr (JsonBuilder) b = json_builder_new ();
-  json_builder_begin_object (b);
-  json_builder_set_member_name (b, "was_running");
-  json_builder_add_boolean_value (b, was_running);
-  json_builder_set_member_name (b, "message");
-  json_builder_add_string_value (b, was_running ? "continuous acquisition stops after the set in progress"
+  g_autoptr (JsonBuilder) b = ds_json_object_begin ();
+  ds_json_add_bool (b, "was_running", was_running);
+  ds_json_add_string (b, "message", was_running ? "continuous acquisition stops after the set in progress"
                                                 : "continuous acquisition was not running");
-  json_builder_end_object (b);
-  g_autoptr (JsonNode) body = json_builder_get_root (b);
-  ds_server_reply_ok (svc->server, conn, req->id, body, NULL, NULL, 0);
+  g_autoptr (JsonNode) body = ds_json_object_end (b);
+  ds_service_reply_ok (svc, conn, req->id, body);
 }
 
 static void
@@ -371,31 +360,20 @@ handle_config (DsService *svc, DsConnection *conn, DsRequest *req)
     return;
   }
   g_autofree char *text = ds_service_effective_config_text (svc);
-  g_autoptr (JsonBuilder) b = json_builder_new ();
-  json_builder_begin_object (b);
-  json_builder_set_member_name (b, "path");
-  if (svc->config_path)
-    json_builder_add_string_value (b, svc->config_path);
-  else
-    json_builder_add_null_value (b);
-  json_builder_set_member_name (b, "text");
-  json_builder_add_string_value (b, text);
-  json_builder_end_object (b);
-  g_autoptr (JsonNode) body = json_builder_get_root (b);
-  ds_server_reply_ok (svc->server, conn, req->id, body, NULL, NULL, 0);
+  g_autoptr (JsonBuilder) b = ds_json_object_begin ();
+  ds_json_add_string (b, "path", svc->config_path);
+  ds_json_add_string (b, "text", text);
+  g_autoptr (JsonNode) body = ds_json_object_end (b);
+  ds_service_reply_ok (svc, conn, req->id, body);
 }
 
 static void
 handle_status (DsService *svc, DsConnection *conn, DsRequest *req)
 {
-  static const char *const keys[] = { NULL };
-  g_autoptr (GError) error = NULL;
-  if (!ds_request_check_keys (req, keys, &error)) {
-    ds_server_reply_error (svc->server, conn, req->id, error);
+  if (!no_arguments (svc, conn, req))
     return;
-  }
   g_autoptr (JsonNode) body = ds_service_status_to_json (svc);
-  ds_server_reply_ok (svc->server, conn, req->id, body, NULL, NULL, 0);
+  ds_service_reply_ok (svc, conn, req->id, body);
 }
 
 void
