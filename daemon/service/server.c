@@ -234,6 +234,37 @@ handle_subscription (DsServer *s, DsConnection *conn, ClientState *st, DsRequest
   ds_server_reply_ok (s, conn, req->id, result, NULL, NULL, 0);
 }
 
+static void
+handle_subscribe (DsServer *s, DsConnection *conn, ClientState *st, DsRequest *req)
+{
+  handle_subscription (s, conn, st, req, TRUE);
+}
+
+static void
+handle_unsubscribe (DsServer *s, DsConnection *conn, ClientState *st, DsRequest *req)
+{
+  handle_subscription (s, conn, st, req, FALSE);
+}
+
+/* The commands the server answers itself; every other one goes to the service's handler. Only
+ * hello may come before the token (a TCP client's first request). */
+static const struct {
+  const char *cmd;
+  gboolean before_token;
+  void (*handle) (DsServer *s, DsConnection *conn, ClientState *st, DsRequest *req);
+} server_commands[] = {
+  { "hello", TRUE, handle_hello },
+  { "subscribe", FALSE, handle_subscribe },
+  { "unsubscribe", FALSE, handle_unsubscribe },
+};
+
+void
+ds_server_add_own_commands (GPtrArray *names)
+{
+  for (guint i = 0; i < G_N_ELEMENTS (server_commands); i++)
+    g_ptr_array_add (names, (gpointer) server_commands[i].cmd);
+}
+
 /* ---- the connection policy (docs/protocol.md, "Connections") ---- */
 
 static gboolean
@@ -394,21 +425,20 @@ on_line (DsConnection *conn, const char *line, gsize len, gboolean too_long, gpo
     ds_server_reply_error (s, conn, req->id, error);
     return;
   }
-  if (strcmp (req->cmd, "hello") == 0) {
-    handle_hello (s, conn, st, req);
-    return;
-  }
-  if (!st->authenticated) {
+  guint own = 0;
+  while (own < G_N_ELEMENTS (server_commands) && strcmp (req->cmd, server_commands[own].cmd) != 0)
+    own++;
+  gboolean is_own = own < G_N_ELEMENTS (server_commands);
+  if (!st->authenticated && !(is_own && server_commands[own].before_token)) {
     g_set_error (&error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_UNAUTHORIZED,
                  "%s: send hello with the token first", req->cmd);
     ds_server_reply_error (s, conn, req->id, error);
     return;
   }
-  if (strcmp (req->cmd, "subscribe") == 0 || strcmp (req->cmd, "unsubscribe") == 0) {
-    handle_subscription (s, conn, st, req, req->cmd[0] == 's');
-    return;
-  }
-  s->on_request (s, conn, req, s->user_data);
+  if (is_own)
+    server_commands[own].handle (s, conn, st, req);
+  else
+    s->on_request (s, conn, req, s->user_data);
 }
 
 static void

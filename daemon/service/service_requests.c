@@ -376,26 +376,40 @@ handle_status (DsService *svc, DsConnection *conn, DsRequest *req)
   ds_service_reply_ok (svc, conn, req->id, body);
 }
 
+/* Every command the service answers; the server answers hello, subscribe and unsubscribe
+ * itself (ds_server_add_own_commands). An unknown command's error lists both. */
+static const struct {
+  const char *cmd;
+  void (*handle) (DsService *svc, DsConnection *conn, DsRequest *req);
+} commands[] = {
+  { "status", handle_status },   { "capture", handle_capture }, { "dark", handle_dark },
+  { "start", handle_start },     { "stop", handle_stop },       { "config", handle_config },
+  { "release", handle_release }, { "acquire", handle_acquire }, { "calibrate", handle_calibrate },
+};
+
+/* "hello, subscribe, unsubscribe, status, capture, ...": what the daemon answers. */
+static char *
+command_list (void)
+{
+  g_autoptr (GPtrArray) names = g_ptr_array_new ();
+  ds_server_add_own_commands (names);
+  for (guint i = 0; i < G_N_ELEMENTS (commands); i++)
+    g_ptr_array_add (names, (gpointer) commands[i].cmd);
+  g_ptr_array_add (names, NULL);
+  return g_strjoinv (", ", (char **) names->pdata);
+}
+
 void
 ds_service_on_request (DsServer *server, DsConnection *conn, DsRequest *req, gpointer user_data)
 {
   DsService *svc = user_data;
-  static const struct {
-    const char *cmd;
-    void (*handle) (DsService *, DsConnection *, DsRequest *);
-  } commands[] = {
-    { "status", handle_status }, { "capture", handle_capture }, { "dark", handle_dark },
-    { "start", handle_start },   { "stop", handle_stop },       { "config", handle_config },
-    { "release", handle_release }, { "acquire", handle_acquire }, { "calibrate", handle_calibrate },
-  };
   for (guint i = 0; i < G_N_ELEMENTS (commands); i++)
     if (strcmp (req->cmd, commands[i].cmd) == 0) {
       commands[i].handle (svc, conn, req);
       return;
     }
+  g_autofree char *known = command_list ();
   g_autoptr (GError) error = g_error_new (DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_UNKNOWN_COMMAND,
-                                          "unknown command \"%s\" (commands: hello, status, capture, "
-                                          "subscribe, unsubscribe, start, stop, dark, calibrate, config, release, acquire)",
-                                          req->cmd);
+                                          "unknown command \"%s\" (commands: %s)", req->cmd, known);
   ds_server_reply_error (server, conn, req->id, error);
 }
