@@ -200,33 +200,6 @@ ds_service_new (DsConfig *config, const DsServiceOptions *options, GMainLoop *lo
   return g_steal_pointer (&svc);
 }
 
-/* Device settings cannot change under a running acquisition thread: a reload that touches
- * them is refused (restart the service instead), the rest applies from the next set. */
-static gboolean
-device_settings_equal (const DsConfig *a, const DsConfig *b)
-{
-  g_autofree char *ta = NULL, *tb = NULL;
-  g_autoptr (DsConfig) ca = ds_config_copy (a);
-  g_autoptr (DsConfig) cb = ds_config_copy (b);
-  /* Compare everything but [acquisition] (which applies per set): blank those fields. */
-  DsConfig *cs[] = { ca, cb };
-  for (guint i = 0; i < 2; i++) {
-    cs[i]->phases = 0;
-    cs[i]->averages = 0;
-    g_free (cs[i]->estimator);
-    cs[i]->estimator = g_strdup ("maxmin");
-    cs[i]->dark_frame = FALSE;
-    cs[i]->phase_retries = 0;
-    cs[i]->verify_phase = FALSE;
-    cs[i]->phase_tolerance_deg = 0;
-    cs[i]->exposure_us = 0;
-    cs[i]->gain_db = 0;
-  }
-  ta = ds_config_to_data (ca);
-  tb = ds_config_to_data (cb);
-  return strcmp (ta, tb) == 0;
-}
-
 gboolean
 ds_service_reload (DsService *svc, GError **error)
 {
@@ -248,12 +221,16 @@ ds_service_reload (DsService *svc, GError **error)
   }
   g_clear_pointer (&fresh, ds_config_free);
   fresh = g_steal_pointer (&pf->config);
-  if (!device_settings_equal (svc->config, fresh)) {
+  /* The key table's reload column decides (daemon/config/config.c): a key used only at start
+   * cannot change under the running acquisition thread. The file is then refused as a whole,
+   * so that the daemon never runs half of it. */
+  g_autofree char *restart_keys = ds_config_restart_keys_changed (svc->config, fresh);
+  if (restart_keys) {
+    g_autofree char *live_keys = ds_config_live_keys ();
     g_set_error (error, DS_CONFIG_ERROR, DS_CONFIG_ERROR_INCONSISTENT,
-                 "reload refused, keeping the running configuration: %s changes device, socket or "
-                 "spool settings, which need a restart (only [acquisition], exposure-us and "
-                 "gain-db apply on reload)",
-                 svc->config_path);
+                 "reload refused, keeping the running configuration: %s changes keys that need a restart: %s "
+                 "(a reload applies only %s, from the next set)",
+                 svc->config_path, restart_keys, live_keys);
     return FALSE;
   }
   ds_config_free (svc->config);
