@@ -338,7 +338,7 @@ handle_stop (DsService *svc, DsConnection *conn, DsRequest *req)
   svc->in_run = FALSE;
   if (svc->spool)
     ds_spool_end_run (svc->spool);
-  /* Said in words: a bare {} left a user wondering whether anything was running or stopped. */
+  /* Said in words as well as a flag: whether acquisition was running, and what stops it. */
   g_autoptr (JsonBuilder) b = ds_json_object_begin ();
   ds_json_add_bool (b, "was_running", was_running);
   ds_json_add_string (b, "message", was_running ? "continuous acquisition stops after the set in progress"
