@@ -20,7 +20,8 @@
 
 G_BEGIN_DECLS
 
-/* A capture or dark request waiting for the acquisition thread. */
+/* A request the acquisition thread answers later (capture, dark, calibrate, release, acquire),
+ * by its tag. */
 typedef struct {
   guint64 tag;
   DsConnection *conn; /* ref + hold */
