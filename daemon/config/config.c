@@ -1,4 +1,5 @@
 #include "daemon/config/config.h"
+#include "daemon/config/config_rules.h"
 
 #include <errno.h>
 #include <fcntl.h>
@@ -17,10 +18,22 @@ G_STATIC_ASSERT (sizeof (((struct sockaddr_un *) NULL)->sun_path) == DS_CONFIG_M
 /* K_CHOICES: a comma-separated subset of `choices` (stored normalized, "a,b"). */
 typedef enum { K_STRING, K_CHOICE, K_UINT, K_UINT64, K_INT, K_DOUBLE, K_BOOL, K_MODE, K_CHOICES } KeyType;
 
+/* What SIGHUP may do with a key's new value (ds_config_restart_keys_changed).
+ * LIVE: the value reaches the acquisition only through the capture defaults
+ * (ds_capture_settings_from_config), which the acquisition thread takes from its command queue
+ * between sets: it applies from the next set, never within one.
+ * RESTART: the value was used once, at start: to open a device (which the acquisition thread
+ * owns), bind a socket, set up the spool or the HTTP side, or to load the operating model and the
+ * timing of automatic captures, which the acquisition thread reads without a lock. Changing it
+ * under a running daemon would race with that thread or leave the daemon saying one thing and
+ * doing another, so a reload that changes it is refused. */
+typedef enum { RESTART, LIVE } ReloadRule;
+
 typedef struct {
   const char *group;
   const char *key;
   KeyType type;
+  ReloadRule reload;
   size_t offset;
   const char *def;      /* textual default, NULL = unset */
   double min, max;      /* numeric range */
@@ -31,135 +44,138 @@ typedef struct {
 #define F(field) offsetof (DsConfig, field)
 
 static const KeySpec keys[] = {
-  { "daemon", "socket", K_STRING, F (socket_path), "/run/descatterd/descatterd.sock", 0, 0, NULL,
+  { "daemon", "socket", K_STRING, RESTART, F (socket_path), "/run/descatterd/descatterd.sock", 0, 0, NULL,
     "UNIX socket path (ignored when systemd passes sockets)" },
-  { "daemon", "socket-mode", K_MODE, F (socket_mode), "0660", 0, 0777, NULL,
+  { "daemon", "socket-mode", K_MODE, RESTART, F (socket_mode), "0660", 0, 0777, NULL,
     "permissions of the UNIX socket (octal); the group decides who may connect" },
-  { "daemon", "tcp-listen", K_STRING, F (tcp_listen), NULL, 0, 0, NULL,
+  { "daemon", "tcp-listen", K_STRING, RESTART, F (tcp_listen), NULL, 0, 0, NULL,
     "host:port for TCP, empty = off; a non-loopback host needs tcp-token-file" },
-  { "daemon", "tcp-token-file", K_STRING, F (tcp_token_file), NULL, 0, 0, NULL,
+  { "daemon", "tcp-token-file", K_STRING, RESTART, F (tcp_token_file), NULL, 0, 0, NULL,
     "file holding the token TCP clients must send in hello" },
-  { "daemon", "max-clients", K_UINT, F (max_clients), "32", 1, 1024, NULL,
+  { "daemon", "max-clients", K_UINT, RESTART, F (max_clients), "32", 1, 1024, NULL,
     "connections served at once; when full, the connection quiet longest makes room (docs/protocol.md)" },
-  { "daemon", "max-tcp-clients", K_UINT, F (max_tcp_clients), "0", 0, 1023, NULL,
+  { "daemon", "max-tcp-clients", K_UINT, RESTART, F (max_tcp_clients), "0", 0, 1023, NULL,
     "of which TCP at most, so that local clients always find room; 0 = half of max-clients" },
-  { "daemon", "idle-timeout-ms", K_UINT, F (idle_timeout_ms), "60000", 0, 86400000, NULL,
+  { "daemon", "idle-timeout-ms", K_UINT, RESTART, F (idle_timeout_ms), "60000", 0, 86400000, NULL,
     "a connection without a complete request for this long is closed (subscribers and "
     "connections waiting for a reply excepted); 0 = never" },
-  { "daemon", "auth-timeout-ms", K_UINT, F (auth_timeout_ms), "5000", 100, 600000, NULL,
+  { "daemon", "auth-timeout-ms", K_UINT, RESTART, F (auth_timeout_ms), "5000", 100, 600000, NULL,
     "a TCP connection that owes the token must send hello within this time" },
-  { "daemon", "max-queued-bytes", K_UINT64, F (max_queued_bytes), "268435456", 65536, 17179869184.0, NULL,
+  { "daemon", "max-queued-bytes", K_UINT64, RESTART, F (max_queued_bytes), "268435456", 65536, 17179869184.0, NULL,
     "bytes queued per client before its stream results are dropped" },
-  { "daemon", "spool-dir", K_STRING, F (spool_dir), NULL, 0, 0, NULL,
+  { "daemon", "spool-dir", K_STRING, RESTART, F (spool_dir), NULL, 0, 0, NULL,
     "record every result here (float32 TIFF + JSON), empty = off" },
-  { "daemon", "spool-max-bytes", K_UINT64, F (spool_max_bytes), "10737418240", 1048576, 1e15, NULL,
+  { "daemon", "spool-max-bytes", K_UINT64, RESTART, F (spool_max_bytes), "10737418240", 1048576, 1e15, NULL,
     "oldest recordings are removed beyond this size" },
-  { "daemon", "spool-formats", K_CHOICES, F (spool_formats), "tiff", 0, 0, "tiff|png16|preview|hdf5|hdf5-run",
+  { "daemon", "spool-formats", K_CHOICES, RESTART, F (spool_formats), "tiff", 0, 0,
+    "tiff|png16|preview|hdf5|hdf5-run",
     "files per recorded set: float32 TIFF (+ mask PNG), 16-bit direct/global PNG, 8-bit previews, one HDF5 "
     "(NeXus) file per set, or one growing HDF5 file per continuous run" },
-  { "daemon", "spool-save-phases", K_BOOL, F (spool_save_phases), "false", 0, 0, NULL,
+  { "daemon", "spool-save-phases", K_BOOL, RESTART, F (spool_save_phases), "false", 0, 0, NULL,
     "also record every set's raw phase and dark frames (a phase folder; in the HDF5 files too)" },
-  { "daemon", "spool-max-pending", K_UINT, F (spool_max_pending), "8", 1, 1024, NULL,
+  { "daemon", "spool-max-pending", K_UINT, RESTART, F (spool_max_pending), "8", 1, 1024, NULL,
     "results waiting for the disk before further ones are not recorded (counted) rather than delay "
     "acquisition" },
 
-  { "http", "listen", K_STRING, F (http_listen), NULL, 0, 0, NULL,
+  { "http", "listen", K_STRING, RESTART, F (http_listen), NULL, 0, 0, NULL,
     "host:port of the live view and /metrics (HTTP + WebSocket), empty = off; a non-loopback host "
     "needs token-file" },
-  { "http", "token-file", K_STRING, F (http_token_file), NULL, 0, 0, NULL,
+  { "http", "token-file", K_STRING, RESTART, F (http_token_file), NULL, 0, 0, NULL,
     "file holding the token HTTP clients must present (?token= or Authorization: Bearer)" },
-  { "http", "live-fps", K_DOUBLE, F (http_live_fps), "10", 0.1, 100, NULL,
+  { "http", "live-fps", K_DOUBLE, RESTART, F (http_live_fps), "10", 0.1, 100, NULL,
     "most raw frames per second copied for the live view" },
 
-  { "camera", "backend", K_CHOICE, F (camera_backend), NULL, 0, 0, "aravis|sim",
+  { "camera", "backend", K_CHOICE, RESTART, F (camera_backend), NULL, 0, 0, "aravis|sim",
     "camera driver: aravis (GigE Vision) or sim (the simulated lab); no default, so that a file "
     "never runs simulated devices by omission" },
-  { "camera", "address", K_STRING, F (camera_address), NULL, 0, 0, NULL,
+  { "camera", "address", K_STRING, RESTART, F (camera_address), NULL, 0, 0, NULL,
     "aravis: camera IP address or device id" },
-  { "camera", "pixel-format", K_CHOICE, F (pixel_format), "Mono16", 0, 0,
+  { "camera", "pixel-format", K_CHOICE, RESTART, F (pixel_format), "Mono16", 0, 0,
     "Mono8|Mono10|Mono12|Mono16|Mono10p|Mono12p|Mono12Packed", "pixel format on the wire" },
-  { "camera", "exposure-us", K_DOUBLE, F (exposure_us), "5000", 1, 10e6, NULL, "exposure time (µs)" },
-  { "camera", "gain-db", K_DOUBLE, F (gain_db), "0", 0, 48, NULL, "analogue gain (dB)" },
-  { "camera", "saturation-dn", K_DOUBLE, F (saturation_dn), "", 1, 65535, NULL,
+  { "camera", "exposure-us", K_DOUBLE, LIVE, F (exposure_us), "5000", 1, 10e6, NULL, "exposure time (µs)" },
+  { "camera", "gain-db", K_DOUBLE, LIVE, F (gain_db), "0", 0, 48, NULL, "analogue gain (dB)" },
+  { "camera", "saturation-dn", K_DOUBLE, RESTART, F (saturation_dn), "", 1, 65535, NULL,
     "level (DN) at which the sensor clips, for a full well below the pixel format's top; clipped "
     "samples are flagged and the automatic operating point keeps exposures below it; empty = the "
     "pixel format's top" },
-  { "camera", "roi", K_STRING, F (roi), NULL, 0, 0, NULL, "x,y,width,height; empty = full sensor" },
-  { "camera", "trigger", K_CHOICE, F (camera_trigger), "software", 0, 0, "software|line0|line1|line2|line3",
+  { "camera", "roi", K_STRING, RESTART, F (roi), NULL, 0, 0, NULL, "x,y,width,height; empty = full sensor" },
+  { "camera", "trigger", K_CHOICE, RESTART, F (camera_trigger), "software", 0, 0, "software|line0|line1|line2|line3",
     "trigger source of the camera" },
-  { "camera", "grab-timeout-ms", K_UINT, F (grab_timeout_ms), "2000", 10, 600000, NULL,
+  { "camera", "grab-timeout-ms", K_UINT, RESTART, F (grab_timeout_ms), "2000", 10, 600000, NULL,
     "deadline for a frame after its trigger, beyond the exposure" },
-  { "camera", "receive-buffer-frames", K_UINT, F (receive_buffer_frames), "4", 1, 64, NULL,
+  { "camera", "receive-buffer-frames", K_UINT, RESTART, F (receive_buffer_frames), "4", 1, 64, NULL,
     "aravis, GigE Vision: the UDP receive buffer asked for, in frames (payloads): packets wait there "
     "while the daemon's threads have the CPUs; net.core.rmem_max caps it" },
-  { "camera", "frame-retention-ms", K_UINT, F (frame_retention_ms), "100", 1, 10000, NULL,
+  { "camera", "frame-retention-ms", K_UINT, RESTART, F (frame_retention_ms), "100", 1, 10000, NULL,
     "aravis, GigE Vision: how long a frame missing packets waits after its last packet for resent or "
     "late ones before it counts as incomplete" },
-  { "camera", "sends-after-exposure", K_BOOL, F (sends_after_exposure), "true", 0, 0, NULL,
+  { "camera", "sends-after-exposure", K_BOOL, RESTART, F (sends_after_exposure), "true", 0, 0, NULL,
     "the camera begins sending a frame only once the whole frame's exposure is over (global shutter, "
     "or a rolling shutter that reads out before sending): the illuminator then moves to the next phase "
     "during the transfer; false = only after the frame arrived" },
 
-  { "illuminator", "backend", K_CHOICE, F (illuminator_backend), NULL, 0, 0, "modbus|gpio|sim",
+  { "illuminator", "backend", K_CHOICE, RESTART, F (illuminator_backend), NULL, 0, 0, "modbus|gpio|sim",
     "illuminator driver: modbus, gpio, or sim (the simulated lab); no default" },
-  { "illuminator", "modbus-uri", K_STRING, F (modbus_uri), NULL, 0, 0, NULL,
+  { "illuminator", "modbus-uri", K_STRING, RESTART, F (modbus_uri), NULL, 0, 0, NULL,
     "tcp://host:port or rtu:/dev/ttyUSB0?baud=115200&parity=N&data=8&stop=1" },
-  { "illuminator", "modbus-unit-id", K_UINT, F (modbus_unit_id), "1", 0, 247, NULL, "Modbus unit id" },
-  { "illuminator", "modbus-timeout-ms", K_UINT, F (modbus_timeout_ms), "200", 5, 10000, NULL,
+  { "illuminator", "modbus-unit-id", K_UINT, RESTART, F (modbus_unit_id), "1", 0, 247, NULL, "Modbus unit id" },
+  { "illuminator", "modbus-timeout-ms", K_UINT, RESTART, F (modbus_timeout_ms), "200", 5, 10000, NULL,
     "response timeout per Modbus request" },
-  { "illuminator", "gpio-chip", K_STRING, F (gpio_chip), NULL, 0, 0, NULL,
+  { "illuminator", "gpio-chip", K_STRING, RESTART, F (gpio_chip), NULL, 0, 0, NULL,
     "gpio: chip name or path (libgpiod), or labsim:/path/of/its.sock for descatter-labsim's --gpio-chip" },
-  { "illuminator", "gpio-lines", K_STRING, F (gpio_lines), NULL, 0, 0, NULL,
+  { "illuminator", "gpio-lines", K_STRING, RESTART, F (gpio_lines), NULL, 0, 0, NULL,
     "gpio: comma-separated line offsets, one per stripe group" },
-  { "illuminator", "gpio-enable-line", K_INT, F (gpio_enable_line), "-1", -1, 4095, NULL,
+  { "illuminator", "gpio-enable-line", K_INT, RESTART, F (gpio_enable_line), "-1", -1, 4095, NULL,
     "gpio: enable line offset, -1 = none" },
-  { "illuminator", "pattern", K_CHOICE, F (pattern), "square", 0, 0, "square|sine", "stripe profile" },
-  { "illuminator", "period-px", K_DOUBLE, F (period_px), "16", 2, 4096, NULL,
+  { "illuminator", "pattern", K_CHOICE, RESTART, F (pattern), "square", 0, 0, "square|sine", "stripe profile" },
+  { "illuminator", "period-px", K_DOUBLE, RESTART, F (period_px), "16", 2, 4096, NULL,
     "stripe period as seen by the camera (pixels)" },
-  { "illuminator", "duty", K_DOUBLE, F (duty), "0.5", 0.01, 0.99, NULL, "lit fraction of a period" },
-  { "illuminator", "black-level", K_DOUBLE, F (black_level), "0", 0, 0.99, NULL,
+  { "illuminator", "duty", K_DOUBLE, RESTART, F (duty), "0.5", 0.01, 0.99, NULL, "lit fraction of a period" },
+  { "illuminator", "black-level", K_DOUBLE, RESTART, F (black_level), "0", 0, 0.99, NULL,
     "off-stripe leakage relative to on (b)" },
-  { "illuminator", "harmonic-gain", K_DOUBLE, F (harmonic_gain), "", 0.001, 1, NULL,
+  { "illuminator", "harmonic-gain", K_DOUBLE, RESTART, F (harmonic_gain), "", 0.001, 1, NULL,
     "stripe modulation h as the camera sees it (descatterctl calibrate); used by the sine estimator and "
     "the automatic operating point's blur; empty = the sharp pattern's" },
-  { "illuminator", "edge-blur-px", K_DOUBLE, F (edge_blur_px), "", 0, 2048, NULL,
+  { "illuminator", "edge-blur-px", K_DOUBLE, RESTART, F (edge_blur_px), "", 0, 2048, NULL,
     "Gaussian sigma of the stripes' edges on the sensor in pixels (descatterctl calibrate), for the "
     "automatic operating point; empty = from harmonic-gain, or measured by the pilot frames" },
-  { "illuminator", "intensity", K_DOUBLE, F (intensity), "1", 0, 1, NULL, "drive level" },
-  { "illuminator", "settle-timeout-ms", K_UINT, F (settle_timeout_ms), "500", 1, 60000, NULL,
+  { "illuminator", "intensity", K_DOUBLE, RESTART, F (intensity), "1", 0, 1, NULL, "drive level" },
+  { "illuminator", "settle-timeout-ms", K_UINT, RESTART, F (settle_timeout_ms), "500", 1, 60000, NULL,
     "deadline for a phase to be applied and read back" },
 
-  { "trigger", "backend", K_CHOICE, F (trigger_backend), "software", 0, 0, "software|gpio|projector-sync",
+  { "trigger", "backend", K_CHOICE, RESTART, F (trigger_backend), "software", 0, 0,
+    "software|gpio|projector-sync",
     "how frames are triggered (projector-sync: the illuminator's sync output drives the camera's line)" },
-  { "trigger", "gpio-line", K_INT, F (trigger_gpio_line), "-1", -1, 4095, NULL, "gpio: trigger line offset" },
-  { "trigger", "pulse-us", K_UINT, F (trigger_pulse_us), "100", 1, 1000000, NULL, "gpio: pulse width" },
-  { "trigger", "active-low", K_BOOL, F (trigger_active_low), "false", 0, 0, NULL, "gpio: pulse polarity" },
+  { "trigger", "gpio-line", K_INT, RESTART, F (trigger_gpio_line), "-1", -1, 4095, NULL, "gpio: trigger line offset" },
+  { "trigger", "pulse-us", K_UINT, RESTART, F (trigger_pulse_us), "100", 1, 1000000, NULL, "gpio: pulse width" },
+  { "trigger", "active-low", K_BOOL, RESTART, F (trigger_active_low), "false", 0, 0, NULL, "gpio: pulse polarity" },
 
-  { "acquisition", "phases", K_UINT, F (phases), "8", 2, 64, NULL, "phases per set (N)" },
-  { "acquisition", "averages", K_UINT, F (averages), "1", 1, 64, NULL, "frames averaged per phase (M)" },
-  { "acquisition", "estimator", K_CHOICE, F (estimator), "maxmin", 0, 0, "maxmin|sine|robust",
+  { "acquisition", "phases", K_UINT, LIVE, F (phases), "8", 2, 64, NULL, "phases per set (N)" },
+  { "acquisition", "averages", K_UINT, LIVE, F (averages), "1", 1, 64, NULL, "frames averaged per phase (M)" },
+  { "acquisition", "estimator", K_CHOICE, LIVE, F (estimator), "maxmin", 0, 0, "maxmin|sine|robust",
     "separation estimator" },
-  { "acquisition", "dark-frame", K_BOOL, F (dark_frame), "true", 0, 0, NULL,
+  { "acquisition", "dark-frame", K_BOOL, LIVE, F (dark_frame), "true", 0, 0, NULL,
     "take a frame with the illuminator off and subtract it" },
-  { "acquisition", "phase-retries", K_UINT, F (phase_retries), "3", 0, 20, NULL,
+  { "acquisition", "phase-retries", K_UINT, LIVE, F (phase_retries), "3", 0, 20, NULL,
     "retries of one phase before the set fails" },
-  { "acquisition", "verify-phase", K_BOOL, F (verify_phase), "true", 0, 0, NULL,
+  { "acquisition", "verify-phase", K_BOOL, LIVE, F (verify_phase), "true", 0, 0, NULL,
     "measure the stripe phase in each frame and refuse frames lit with the wrong phase" },
-  { "acquisition", "operating-model", K_STRING, F (operating_model), NULL, 0, 0, NULL,
-    "operating model for captures with target_error/time_budget_ms (descatterctl validate --fit); empty = the installed one" },
-  { "acquisition", "settle-ms", K_DOUBLE, F (timing_settle_ms), "3", 0, 10000, NULL,
+  { "acquisition", "operating-model", K_STRING, RESTART, F (operating_model), NULL, 0, 0, NULL,
+    "operating model for captures with target_error/time_budget_ms (descatterctl validate --fit); empty = the "
+    "installed one" },
+  { "acquisition", "settle-ms", K_DOUBLE, RESTART, F (timing_settle_ms), "3", 0, 10000, NULL,
     "illuminator settle time, for the acquisition-time model of automatic captures" },
-  { "acquisition", "link-mbit", K_DOUBLE, F (timing_link_mbit), "1000", 1, 100000, NULL,
+  { "acquisition", "link-mbit", K_DOUBLE, RESTART, F (timing_link_mbit), "1000", 1, 100000, NULL,
     "camera link bandwidth, for the acquisition-time model of automatic captures" },
-  { "acquisition", "phase-tolerance-deg", K_DOUBLE, F (phase_tolerance_deg), "", 1, 180, NULL,
+  { "acquisition", "phase-tolerance-deg", K_DOUBLE, LIVE, F (phase_tolerance_deg), "", 1, 180, NULL,
     "largest accepted stripe-phase error; empty = half the phase step (180/N)" },
 
-  { "sim", "scene", K_STRING, F (sim_scene), NULL, 0, 0, NULL,
+  { "sim", "scene", K_STRING, RESTART, F (sim_scene), NULL, 0, 0, NULL,
     "scene file for the simulated devices; empty = the built-in demo scene" },
-  { "sim", "seed", K_UINT64, F (sim_seed), "1", 0, 1e18, NULL, "noise seed of the simulation" },
-  { "sim", "faults", K_STRING, F (sim_faults), NULL, 0, 0, NULL,
+  { "sim", "seed", K_UINT64, RESTART, F (sim_seed), "1", 0, 1e18, NULL, "noise seed of the simulation" },
+  { "sim", "faults", K_STRING, RESTART, F (sim_faults), NULL, 0, 0, NULL,
     "injected faults of the simulated devices, e.g. stale=0.05,incomplete=0.02 (docs/reliability.md); empty = none" },
-  { "sim", "geometry", K_CHOICE, F (sim_geometry), "scene", 0, 0, "scene|config",
+  { "sim", "geometry", K_CHOICE, RESTART, F (sim_geometry), "scene", 0, 0, "scene|config",
     "the stripe pattern descatterd assumes: scene = the simulated illuminator's (the scene's), config = "
     "[illuminator] pattern, period-px, duty and black-level as configured, as with real devices, while the "
     "simulated illuminator still draws the scene's stripes (to try a configuration or a calibration against a "
@@ -381,108 +397,6 @@ ds_config_parse_host_port (const char *text, char **host, guint16 *port)
   return TRUE;
 }
 
-/* The largest sample a pixel format of the [camera] pixel-format choices carries (DN): MonoB,
- * MonoBp and MonoBPacked hold B bits. */
-static double
-pixel_format_top (const char *name)
-{
-  guint64 bits = g_ascii_strtoull (name + strlen ("Mono"), NULL, 10);
-  return bits >= 8 && bits <= 16 ? (double) ((1u << bits) - 1) : 65535.0;
-}
-
-/* Cross-key rules that no single range can express. */
-static gboolean
-check_consistency (const DsConfig *c, const char *name, GError **error)
-{
-#define INCONSISTENT(...)                                                                          \
-  do {                                                                                             \
-    g_autofree char *msg_ = g_strdup_printf (__VA_ARGS__);                                         \
-    g_set_error (error, DS_CONFIG_ERROR, DS_CONFIG_ERROR_INCONSISTENT, "%s: %s", name, msg_);      \
-    return FALSE;                                                                                  \
-  } while (0)
-  if (!c->camera_backend)
-    INCONSISTENT ("[camera] backend is not set: aravis for a GigE Vision camera, or sim for the "
-                  "simulated lab (descatterd --sim runs that without a file)");
-  if (!c->illuminator_backend)
-    INCONSISTENT ("[illuminator] backend is not set: modbus or gpio for a stripe projector, or sim "
-                  "for the simulated lab (descatterd --sim runs that without a file)");
-  gboolean sim_camera = strcmp (c->camera_backend, "sim") == 0;
-  gboolean sim_illuminator = strcmp (c->illuminator_backend, "sim") == 0;
-  if (sim_camera != sim_illuminator)
-    INCONSISTENT ("[camera] backend = %s with [illuminator] backend = %s: the simulated camera sees only "
-                  "the simulated illuminator's stripes and the simulated illuminator lights only the "
-                  "simulated scene; use sim for both, or real devices for both",
-                  c->camera_backend, c->illuminator_backend);
-  if (!sim_camera && (c->sim_scene || c->sim_faults))
-    INCONSISTENT ("[sim] %s is set but no device is simulated ([camera] backend = %s): it would be "
-                  "ignored; remove it", c->sim_scene ? "scene" : "faults", c->camera_backend);
-  if (strcmp (c->camera_backend, "aravis") == 0 && !c->camera_address)
-    INCONSISTENT ("[camera] backend = aravis needs [camera] address");
-  if (strcmp (c->illuminator_backend, "modbus") == 0 && !c->modbus_uri)
-    INCONSISTENT ("[illuminator] backend = modbus needs [illuminator] modbus-uri");
-  if (strcmp (c->illuminator_backend, "gpio") == 0 && (!c->gpio_chip || !c->gpio_lines))
-    INCONSISTENT ("[illuminator] backend = gpio needs [illuminator] gpio-chip and gpio-lines");
-  if (strcmp (c->trigger_backend, "gpio") == 0 && (c->trigger_gpio_line < 0 || !c->gpio_chip))
-    INCONSISTENT ("[trigger] backend = gpio needs [trigger] gpio-line and [illuminator] gpio-chip");
-  if (strcmp (c->trigger_backend, "gpio") == 0 && strcmp (c->camera_trigger, "software") == 0)
-    INCONSISTENT ("[trigger] backend = gpio pulses a line, so [camera] trigger must name a line, not software");
-  if (strcmp (c->trigger_backend, "software") == 0 && strcmp (c->camera_trigger, "software") != 0)
-    INCONSISTENT ("[camera] trigger = %s waits for a pulse on that line, but [trigger] backend = software "
-                  "sends none: set [trigger] backend = gpio with its gpio-line, or [camera] trigger = software",
-                  c->camera_trigger);
-  if (strcmp (c->trigger_backend, "gpio") == 0 && sim_camera)
-    INCONSISTENT ("[trigger] backend = gpio pulses a line wired to a camera input, and the simulated camera "
-                  "([camera] backend = sim) has none: use a GigE Vision camera ([camera] backend = aravis; "
-                  "descatter-labsim's camera sees its own chip, [illuminator] gpio-chip = labsim:PATH)");
-  if (c->gpio_chip && g_str_has_prefix (c->gpio_chip, "labsim:") && !g_path_is_absolute (c->gpio_chip + 7))
-    INCONSISTENT ("[illuminator] gpio-chip = \"%s\": labsim: must be followed by the absolute path of "
-                  "descatter-labsim's --gpio-chip socket", c->gpio_chip);
-  guint roi[4];
-  if (c->roi && !ds_config_parse_roi (c->roi, roi, error)) {
-    g_prefix_error (error, "%s: ", name);
-    return FALSE;
-  }
-  /* Paths: a relative one depends on the directory the daemon happens to start in (/ under
-   * systemd); a socket path must fit sockaddr_un or bind would cut it short. */
-  const struct { const char *group, *key, *value; } paths[] = {
-    { "daemon", "socket", c->socket_path },        { "daemon", "spool-dir", c->spool_dir },
-    { "daemon", "tcp-token-file", c->tcp_token_file }, { "acquisition", "operating-model", c->operating_model },
-    { "sim", "scene", c->sim_scene },              { "http", "token-file", c->http_token_file },
-  };
-  for (guint i = 0; i < G_N_ELEMENTS (paths); i++)
-    if (paths[i].value && !g_path_is_absolute (paths[i].value))
-      INCONSISTENT ("[%s] %s = \"%s\" must be an absolute path", paths[i].group, paths[i].key, paths[i].value);
-  if (c->socket_path && strlen (c->socket_path) >= DS_CONFIG_MAX_SOCKET_PATH)
-    INCONSISTENT ("[daemon] socket = \"%s\" is %zu bytes long; a UNIX socket path has at most %d",
-                  c->socket_path, strlen (c->socket_path), DS_CONFIG_MAX_SOCKET_PATH - 1);
-  if (c->max_tcp_clients && c->max_tcp_clients >= c->max_clients)
-    INCONSISTENT ("[daemon] max-tcp-clients = %u must be below max-clients = %u, so that local "
-                  "clients always find room", c->max_tcp_clients, c->max_clients);
-  if (strcmp (c->trigger_backend, "projector-sync") == 0 && strcmp (c->camera_trigger, "software") == 0)
-    INCONSISTENT ("[trigger] backend = projector-sync: the sync output drives a camera line, so [camera] trigger "
-                  "must name that line, not software");
-  if (strcmp (c->trigger_backend, "projector-sync") == 0 && sim_camera)
-    INCONSISTENT ("[trigger] backend = projector-sync needs a camera whose line the projector drives; the "
-                  "simulated camera has none");
-  if (!isnan (c->edge_blur_px) && !(c->edge_blur_px < c->period_px / 2))
-    INCONSISTENT ("[illuminator] edge-blur-px = %g must be below half the period (period-px = %g): blur that "
-                  "wide leaves no stripes to separate", c->edge_blur_px, c->period_px);
-  if (!isnan (c->saturation_dn) && c->saturation_dn > pixel_format_top (c->pixel_format))
-    INCONSISTENT ("[camera] saturation-dn = %g is above the top of pixel-format = %s (%.0f DN): samples never "
-                  "reach it", c->saturation_dn, c->pixel_format, pixel_format_top (c->pixel_format));
-  if (strcmp (c->estimator, "sine") == 0 && c->phases < 3)
-    INCONSISTENT ("[acquisition] estimator = sine needs phases >= 3 (got %u)", c->phases);
-  if (c->spool_dir && (!c->spool_formats || !*c->spool_formats))
-    INCONSISTENT ("[daemon] spool-formats is empty: name at least one of tiff, png16, preview, hdf5, hdf5-run");
-  if (c->http_listen && !ds_config_parse_host_port (c->http_listen, NULL, NULL))
-    INCONSISTENT ("[http] listen = \"%s\" must be IP:PORT (a numeric address, port 0..65535)", c->http_listen);
-  if (c->tcp_listen && !ds_config_parse_host_port (c->tcp_listen, NULL, NULL))
-    INCONSISTENT ("[daemon] tcp-listen = \"%s\" must be IP:PORT (a numeric address, port 0..65535)",
-                  c->tcp_listen);
-#undef INCONSISTENT
-  return TRUE;
-}
-
 /* GKeyFile keeps no line numbers; a person fixing a file wants one, so find it in the text. */
 static guint
 find_line (const char *data, const char *group, const char *key)
@@ -556,7 +470,7 @@ load_keyfile (GKeyFile *kf, const char *data, const char *name, GError **error)
       }
     }
   }
-  if (!check_consistency (c, name, error))
+  if (!ds_config_check_consistency (c, name, error))
     return NULL;
   return g_steal_pointer (&c);
 }
@@ -698,6 +612,70 @@ format_value (const DsConfig *c, const KeySpec *k)
   return g_strdup ("");
 }
 
+/* Whether a key holds the same value in a and b. Text compares with unset as empty, as
+ * ds_config_to_data writes it; an empty double (NAN, "automatic") equals another. */
+static gboolean
+value_equal (const DsConfig *a, const DsConfig *b, const KeySpec *k)
+{
+  gconstpointer pa = field ((DsConfig *) a, k), pb = field ((DsConfig *) b, k);
+  switch (k->type) {
+  case K_STRING:
+  case K_CHOICE:
+  case K_CHOICES: {
+    const char *sa = *(char *const *) pa, *sb = *(char *const *) pb;
+    return strcmp (sa ? sa : "", sb ? sb : "") == 0;
+  }
+  case K_UINT:
+  case K_MODE: return *(const guint *) pa == *(const guint *) pb;
+  case K_UINT64: return *(const guint64 *) pa == *(const guint64 *) pb;
+  case K_INT: return *(const int *) pa == *(const int *) pb;
+  case K_DOUBLE: {
+    double da = *(const double *) pa, db = *(const double *) pb;
+    return da == db || (isnan (da) && isnan (db));
+  }
+  case K_BOOL: return !*(const gboolean *) pa == !*(const gboolean *) pb;
+  }
+  return FALSE;
+}
+
+/* "[camera] exposure-us, gain-db; [acquisition] phases" for the keys picked: a group named once
+ * for each run of its keys. NULL when none is picked. */
+static char *
+key_list (const gboolean *picked)
+{
+  GString *out = g_string_new (NULL);
+  const char *group = NULL;
+  for (guint i = 0; i < G_N_ELEMENTS (keys); i++) {
+    if (!picked[i])
+      continue;
+    if (!group || strcmp (group, keys[i].group) != 0)
+      g_string_append_printf (out, "%s[%s] ", group ? "; " : "", keys[i].group);
+    else
+      g_string_append (out, ", ");
+    g_string_append (out, keys[i].key);
+    group = keys[i].group;
+  }
+  return out->len ? g_string_free (out, FALSE) : (g_string_free (out, TRUE), NULL);
+}
+
+char *
+ds_config_restart_keys_changed (const DsConfig *running, const DsConfig *fresh)
+{
+  gboolean changed[G_N_ELEMENTS (keys)];
+  for (guint i = 0; i < G_N_ELEMENTS (keys); i++)
+    changed[i] = keys[i].reload == RESTART && !value_equal (running, fresh, &keys[i]);
+  return key_list (changed);
+}
+
+char *
+ds_config_live_keys (void)
+{
+  gboolean live[G_N_ELEMENTS (keys)];
+  for (guint i = 0; i < G_N_ELEMENTS (keys); i++)
+    live[i] = keys[i].reload == LIVE;
+  return key_list (live);
+}
+
 char *
 ds_config_to_data (const DsConfig *config)
 {
@@ -717,7 +695,8 @@ ds_config_to_data (const DsConfig *config)
 char *
 ds_config_describe_keys (void)
 {
-  GString *out = g_string_new ("| group | key | values | default | meaning |\n|---|---|---|---|---|\n");
+  GString *out = g_string_new ("| group | key | values | default | on reload | meaning |\n"
+                                "|---|---|---|---|---|---|\n");
   for (guint i = 0; i < G_N_ELEMENTS (keys); i++) {
     const KeySpec *k = &keys[i];
     g_autofree char *range = NULL;
@@ -730,8 +709,9 @@ ds_config_describe_keys (void)
     case K_DOUBLE: range = g_strdup_printf ("%g..%g", k->min, k->max); break;
     default: range = g_strdup_printf ("%.0f..%.0f", k->min, k->max); break;
     }
-    g_string_append_printf (out, "| %s | %s | %s | %s | %s |\n", k->group, k->key, range,
-                            k->def && k->def[0] ? k->def : "(empty)", k->doc);
+    g_string_append_printf (out, "| %s | %s | %s | %s | %s | %s |\n", k->group, k->key, range,
+                            k->def && k->def[0] ? k->def : "(empty)",
+                            k->reload == LIVE ? "applies from the next set" : "needs a restart", k->doc);
   }
   return g_string_free (out, FALSE);
 }

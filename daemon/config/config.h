@@ -1,6 +1,7 @@
 /* descatterd's configuration: a GKeyFile (etc/descatterd.conf documents every key), checked
- * against one table of keys with types and ranges, so that the parser, `--check` and the
- * documentation cannot disagree. Loading is pure (no device is touched): main thread. */
+ * against one table of keys with types, ranges and reload rules, so that the parser, `--check`,
+ * a reload and the documentation cannot disagree. Loading is pure (no device is touched): main
+ * thread. */
 #pragma once
 #include <glib.h>
 
@@ -114,7 +115,13 @@ gboolean ds_config_parse_host_port (const char *text, char **host, guint16 *port
 
 /* The effective configuration as a key file text (what `descatterd --check` prints). */
 char *ds_config_to_data (const DsConfig *config);
-/* Markdown table of every key with type, range, default and meaning (docs/configuration.md). */
+/* SIGHUP's rule, the key table's reload column: the keys that take effect only at start and
+ * whose value differs between `running` and `fresh`, named as "[group] key, key; [group] key";
+ * NULL when there are none (every change applies from the next set). */
+char *ds_config_restart_keys_changed (const DsConfig *running, const DsConfig *fresh);
+/* The keys a reload applies from the next set, named the same way. */
+char *ds_config_live_keys (void);
+/* Markdown table of every key with type, range, default, reload rule and meaning. */
 char *ds_config_describe_keys (void);
 
 G_END_DECLS

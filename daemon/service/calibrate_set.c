@@ -2,6 +2,7 @@
 #include <math.h>
 
 #include "daemon/service/calibrate_set.h"
+#include "daemon/service/json_build.h"
 #include "proc/calibration_json.h"
 #include "proc/proc_error.h"
 
@@ -49,21 +50,13 @@ JsonNode *
 ds_calibrate_reply (guint64 set_id, const DsCalibration *c, guint64 second_set_id, const char *second_period_error)
 {
   g_autofree char *config = ds_calibration_config_lines (c);
-  g_autoptr (JsonBuilder) b = json_builder_new ();
-  json_builder_begin_object (b);
-  json_builder_set_member_name (b, "set_id");
-  json_builder_add_int_value (b, (gint64) set_id);
-  if (second_set_id) {
-    json_builder_set_member_name (b, "second_set_id");
-    json_builder_add_int_value (b, (gint64) second_set_id);
-  }
-  if (second_period_error) {
-    json_builder_set_member_name (b, "second_period_error");
-    json_builder_add_string_value (b, second_period_error);
-  }
+  g_autoptr (JsonBuilder) b = ds_json_object_begin ();
+  ds_json_add_uint (b, "set_id", set_id);
+  if (second_set_id)
+    ds_json_add_uint (b, "second_set_id", second_set_id);
+  if (second_period_error)
+    ds_json_add_string (b, "second_period_error", second_period_error);
   ds_calibration_add_json_members (b, c);
-  json_builder_set_member_name (b, "config");
-  json_builder_add_string_value (b, config);
-  json_builder_end_object (b);
-  return json_builder_get_root (b);
+  ds_json_add_string (b, "config", config);
+  return ds_json_object_end (b);
 }

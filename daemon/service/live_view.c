@@ -3,6 +3,7 @@
 #include <string.h>
 
 #include "daemon/service/live_bridge.h"
+#include "daemon/service/json_build.h"
 #include "daemon/service/live_encode.h"
 
 /* Pictures no larger than this a side: enough to focus by, small for a network. */
@@ -114,21 +115,14 @@ on_bridge_line (const char *line, gpointer data)
 static void
 reply_error (Client *c, JsonNode *id, const char *message)
 {
-  g_autoptr (JsonBuilder) b = json_builder_new ();
-  json_builder_begin_object (b);
-  json_builder_set_member_name (b, "id");
-  json_builder_add_value (b, id ? json_node_copy (id) : json_node_new (JSON_NODE_NULL));
-  json_builder_set_member_name (b, "ok");
-  json_builder_add_boolean_value (b, FALSE);
-  json_builder_set_member_name (b, "error");
-  json_builder_begin_object (b);
-  json_builder_set_member_name (b, "code");
-  json_builder_add_string_value (b, "bad_request");
-  json_builder_set_member_name (b, "message");
-  json_builder_add_string_value (b, message);
+  g_autoptr (JsonBuilder) b = ds_json_object_begin ();
+  ds_json_add_node (b, "id", id ? json_node_copy (id) : NULL);
+  ds_json_add_bool (b, "ok", FALSE);
+  ds_json_begin_member_object (b, "error");
+  ds_json_add_string (b, "code", "bad_request");
+  ds_json_add_string (b, "message", message);
   json_builder_end_object (b);
-  json_builder_end_object (b);
-  g_autoptr (JsonNode) root = json_builder_get_root (b);
+  g_autoptr (JsonNode) root = ds_json_object_end (b);
   g_autofree char *text = json_to_string (root, FALSE);
   send_text (c, text);
 }
@@ -225,14 +219,10 @@ status_tick (gpointer data)
   if (lv->clients->len == 0)
     return G_SOURCE_CONTINUE;
   g_autoptr (JsonNode) status = lv->status_func (lv->status_data);
-  g_autoptr (JsonBuilder) b = json_builder_new ();
-  json_builder_begin_object (b);
-  json_builder_set_member_name (b, "type");
-  json_builder_add_string_value (b, "status");
-  json_builder_set_member_name (b, "status");
-  json_builder_add_value (b, json_node_ref (status));
-  json_builder_end_object (b);
-  g_autoptr (JsonNode) root = json_builder_get_root (b);
+  g_autoptr (JsonBuilder) b = ds_json_object_begin ();
+  ds_json_add_string (b, "type", "status");
+  ds_json_add_node (b, "status", json_node_ref (status));
+  g_autoptr (JsonNode) root = ds_json_object_end (b);
   char *text = json_to_string (root, FALSE);
   publish (lv, KIND_STATUS, g_bytes_new_take (text, strlen (text) + 1)); /* with its NUL, for send_text */
   return G_SOURCE_CONTINUE;

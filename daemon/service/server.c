@@ -1,4 +1,5 @@
 #include "daemon/service/server.h"
+#include "daemon/service/json_build.h"
 #include "daemon/service/token.h"
 
 #include "build_info.h"
@@ -206,20 +207,13 @@ handle_hello (DsServer *s, DsConnection *conn, ClientState *st, DsRequest *req)
     }
   }
   st->authenticated = TRUE;
-  g_autoptr (JsonBuilder) b = json_builder_new ();
-  json_builder_begin_object (b);
-  json_builder_set_member_name (b, "server");
-  json_builder_add_string_value (b, "descatterd");
-  json_builder_set_member_name (b, "version");
-  json_builder_add_string_value (b, DS_VERSION);
-  json_builder_set_member_name (b, "git");
-  json_builder_add_string_value (b, DS_GIT_DESCRIBE);
-  json_builder_set_member_name (b, "protocol");
-  json_builder_add_int_value (b, DS_PROTOCOL_VERSION);
-  json_builder_set_member_name (b, "max_line");
-  json_builder_add_int_value (b, (gint64) s->limits.max_line);
-  json_builder_end_object (b);
-  g_autoptr (JsonNode) result = json_builder_get_root (b);
+  g_autoptr (JsonBuilder) b = ds_json_object_begin ();
+  ds_json_add_string (b, "server", "descatterd");
+  ds_json_add_string (b, "version", DS_VERSION);
+  ds_json_add_string (b, "git", DS_GIT_DESCRIBE);
+  ds_json_add_int (b, "protocol", DS_PROTOCOL_VERSION);
+  ds_json_add_uint (b, "max_line", s->limits.max_line);
+  g_autoptr (JsonNode) result = ds_json_object_end (b);
   ds_server_reply_ok (s, conn, req->id, result, NULL, NULL, 0);
 }
 
@@ -233,15 +227,42 @@ handle_subscription (DsServer *s, DsConnection *conn, ClientState *st, DsRequest
     return;
   }
   st->subscribed = on;
-  g_autoptr (JsonBuilder) b = json_builder_new ();
-  json_builder_begin_object (b);
-  json_builder_set_member_name (b, "subscribed");
-  json_builder_add_boolean_value (b, on);
-  json_builder_set_member_name (b, "next_seq");
-  json_builder_add_int_value (b, (gint64) s->seq + 1);
-  json_builder_end_object (b);
-  g_autoptr (JsonNode) result = json_builder_get_root (b);
+  g_autoptr (JsonBuilder) b = ds_json_object_begin ();
+  ds_json_add_bool (b, "subscribed", on);
+  ds_json_add_uint (b, "next_seq", s->seq + 1);
+  g_autoptr (JsonNode) result = ds_json_object_end (b);
   ds_server_reply_ok (s, conn, req->id, result, NULL, NULL, 0);
+}
+
+static void
+handle_subscribe (DsServer *s, DsConnection *conn, ClientState *st, DsRequest *req)
+{
+  handle_subscription (s, conn, st, req, TRUE);
+}
+
+static void
+handle_unsubscribe (DsServer *s, DsConnection *conn, ClientState *st, DsRequest *req)
+{
+  handle_subscription (s, conn, st, req, FALSE);
+}
+
+/* The commands the server answers itself; every other one goes to the service's handler. Only
+ * hello may come before the token (a TCP client's first request). */
+static const struct {
+  const char *cmd;
+  gboolean before_token;
+  void (*handle) (DsServer *s, DsConnection *conn, ClientState *st, DsRequest *req);
+} server_commands[] = {
+  { "hello", TRUE, handle_hello },
+  { "subscribe", FALSE, handle_subscribe },
+  { "unsubscribe", FALSE, handle_unsubscribe },
+};
+
+void
+ds_server_add_own_commands (GPtrArray *names)
+{
+  for (guint i = 0; i < G_N_ELEMENTS (server_commands); i++)
+    g_ptr_array_add (names, (gpointer) server_commands[i].cmd);
 }
 
 /* ---- the connection policy (docs/protocol.md, "Connections") ---- */
@@ -404,21 +425,20 @@ on_line (DsConnection *conn, const char *line, gsize len, gboolean too_long, gpo
     ds_server_reply_error (s, conn, req->id, error);
     return;
   }
-  if (strcmp (req->cmd, "hello") == 0) {
-    handle_hello (s, conn, st, req);
-    return;
-  }
-  if (!st->authenticated) {
+  guint own = 0;
+  while (own < G_N_ELEMENTS (server_commands) && strcmp (req->cmd, server_commands[own].cmd) != 0)
+    own++;
+  gboolean is_own = own < G_N_ELEMENTS (server_commands);
+  if (!st->authenticated && !(is_own && server_commands[own].before_token)) {
     g_set_error (&error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_UNAUTHORIZED,
                  "%s: send hello with the token first", req->cmd);
     ds_server_reply_error (s, conn, req->id, error);
     return;
   }
-  if (strcmp (req->cmd, "subscribe") == 0 || strcmp (req->cmd, "unsubscribe") == 0) {
-    handle_subscription (s, conn, st, req, req->cmd[0] == 's');
-    return;
-  }
-  s->on_request (s, conn, req, s->user_data);
+  if (is_own)
+    server_commands[own].handle (s, conn, st, req);
+  else
+    s->on_request (s, conn, req, s->user_data);
 }
 
 static void

@@ -36,6 +36,9 @@ typedef void (*DsServerRequestFunc) (DsServer *server, DsConnection *conn, DsReq
 
 DsServer *ds_server_new (const DsServerLimits *limits, DsServerRequestFunc on_request,
                          gpointer user_data);
+/* Appends the names of the commands the server answers itself (for a message listing every
+ * command the daemon knows); static strings. */
+void ds_server_add_own_commands (GPtrArray *names);
 void ds_server_free (DsServer *server);
 G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsServer, ds_server_free)
 

@@ -112,6 +112,49 @@ test_round_trip (void)
   g_assert_cmpstr (text, ==, text3);
 }
 
+/* SIGHUP's rule comes from the key table: a key the daemon uses only at start (a device's, the
+ * operating model and the timing of automatic captures) is named when it changes; a key of the
+ * capture defaults is not, and an unset double equals another. */
+static void
+test_reload_rule (void)
+{
+  g_autoptr (GError) error = NULL;
+  g_autoptr (DsConfig) running = ds_config_load_data (SIM, "running.conf", &error);
+  g_assert_no_error (error);
+  g_autoptr (DsConfig) live = ds_config_load_data (SIM "[acquisition]\nphases=10\nestimator=sine\n"
+                                                   "phase-tolerance-deg=20\n[camera]\nexposure-us=700\n",
+                                                   "live.conf", &error);
+  g_assert_no_error (error);
+  g_assert_null (ds_config_restart_keys_changed (running, live));
+  g_autoptr (DsConfig) same = ds_config_copy (running);
+  g_assert_true (isnan (same->saturation_dn));
+  g_assert_null (ds_config_restart_keys_changed (running, same));
+  static const char *const restart[][2] = {
+    { "[acquisition]\noperating-model=/etc/descatterd/other-model.conf\n", "[acquisition] operating-model" },
+    { "[acquisition]\nsettle-ms=7\n", "[acquisition] settle-ms" },
+    { "[acquisition]\nlink-mbit=100\n", "[acquisition] link-mbit" },
+    { "[camera]\npixel-format=Mono8\n", "[camera] pixel-format" },
+    { "[illuminator]\nperiod-px=24\n", "[illuminator] period-px" },
+    { "[daemon]\nspool-dir=/var/lib/descatterd\n", "[daemon] spool-dir" },
+  };
+  for (guint i = 0; i < G_N_ELEMENTS (restart); i++) {
+    g_autofree char *text = g_strconcat (SIM, restart[i][0], "[acquisition]\nphases=6\n", NULL);
+    g_autoptr (DsConfig) fresh = ds_config_load_data (text, "fresh.conf", &error);
+    g_assert_no_error (error);
+    g_autofree char *changed = ds_config_restart_keys_changed (running, fresh);
+    g_assert_cmpstr (changed, ==, restart[i][1]);
+  }
+  g_autoptr (DsConfig) two = ds_config_load_data (SIM "[camera]\ngain-db=3\nroi=0,0,8,8\n"
+                                                  "[acquisition]\nsettle-ms=7\nlink-mbit=100\n",
+                                                  "two.conf", &error);
+  g_assert_no_error (error);
+  g_autofree char *changed = ds_config_restart_keys_changed (running, two);
+  g_assert_cmpstr (changed, ==, "[camera] roi; [acquisition] settle-ms, link-mbit");
+  g_autofree char *live_keys = ds_config_live_keys ();
+  g_assert_cmpstr (live_keys, ==, "[camera] exposure-us, gain-db; [acquisition] phases, averages, estimator, "
+                                  "dark-frame, phase-retries, verify-phase, phase-tolerance-deg");
+}
+
 static void
 test_example_documents_every_key (void)
 {
@@ -299,6 +342,7 @@ main (int argc, char **argv)
   g_test_add_func ("/config/errors", test_errors_name_the_place);
   g_test_add_func ("/config/round-trip", test_round_trip);
   g_test_add_func ("/config/example", test_example_documents_every_key);
+  g_test_add_func ("/config/reload-rule", test_reload_rule);
   g_test_add_func ("/config/refusals", test_refusals);
   g_test_add_func ("/config/calibration-lines-and-clip-level", test_calibration_lines_and_clip_level);
   g_test_add_func ("/config/file-limits", test_file_limits);

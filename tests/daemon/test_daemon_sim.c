@@ -1,9 +1,11 @@
 /* descatterd end to end on the in-process simulated lab: a real daemon process, real sockets,
  * the simulator's ground truth as the independent expectation. */
+#include <fcntl.h>
 #include <glib/gstdio.h>
 #include <math.h>
 #include <signal.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "daemon_harness.h"
 #include "truth_check.h"
@@ -166,6 +168,10 @@ test_bad_requests (void)
     { "capture", "{\"outputs\": [\"nope\"]}", DS_PROTOCOL_ERROR_BAD_ARGUMENT, "outputs" },
     { "capture", "{\"path\": \"/etc/passwd\"}", DS_PROTOCOL_ERROR_BAD_ARGUMENT, "path" },
     { "selfdestruct", "{}", DS_PROTOCOL_ERROR_UNKNOWN_COMMAND, "selfdestruct" },
+    /* The list comes from the server's and the service's dispatch tables: every command. */
+    { "selfdestruct", "{}", DS_PROTOCOL_ERROR_UNKNOWN_COMMAND,
+      "(commands: hello, subscribe, unsubscribe, status, capture, dark, start, stop, config, release, acquire, "
+      "calibrate)" },
   };
   for (guint i = 0; i < G_N_ELEMENTS (cases); i++) {
     g_autoptr (JsonNode) node = json_from_string (cases[i].json_args, NULL);
@@ -207,6 +213,92 @@ test_reload (void)
   g_assert_cmpint (test_json_int (cap->reply->body, "settings.phases"), ==, 10);
   g_assert_cmpint (test_daemon_stop (d), ==, 0);
   test_daemon_free (d);
+}
+
+/* The daemon started with its standard error going to a file of the test's folder: what it
+ * logs can be read back. The test's own standard error is restored at once. */
+static TestDaemon *
+start_logging_to (const char *conf, char **log_path)
+{
+  g_autofree char *dir = g_dir_make_tmp ("descatterd-log-XXXXXX", NULL);
+  *log_path = g_build_filename (dir, "stderr.log", NULL);
+  int log_fd = g_open (*log_path, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0600);
+  g_assert_cmpint (log_fd, >=, 0);
+  int saved = dup (STDERR_FILENO);
+  g_assert_cmpint (dup2 (log_fd, STDERR_FILENO), ==, STDERR_FILENO);
+  TestDaemon *d = test_daemon_start (conf, NULL);
+  g_assert_cmpint (dup2 (saved, STDERR_FILENO), ==, STDERR_FILENO);
+  close (saved);
+  close (log_fd);
+  return d;
+}
+
+/* Waits until the log holds `text` (10 s at most); returns the log. */
+static char *
+wait_for_log (const char *log_path, const char *text)
+{
+  for (guint i = 0; i < 200; i++) {
+    char *log = NULL;
+    if (g_file_get_contents (log_path, &log, NULL, NULL) && strstr (log, text))
+      return log;
+    g_free (log);
+    g_usleep (50000);
+  }
+  g_error ("descatterd did not log \"%s\" within 10 s", text);
+  return NULL;
+}
+
+static char *
+running_config_text (DsClient *c)
+{
+  g_autoptr (DsMessage) m = test_daemon_call_ok (c, "config", NULL);
+  return g_strdup (json_object_get_string_member (json_node_get_object (m->reply->body), "text"));
+}
+
+/* SIGHUP follows the key table's reload rule: a file changing keys that take effect only at
+ * start (the operating model, the timing of automatic captures, a device setting) is refused
+ * with a log line naming them, and nothing of it applies, not even its live keys; a file
+ * changing only capture defaults applies. */
+static void
+test_reload_rule (void)
+{
+  g_autofree char *conf = config_text ("[acquisition]\nphases=6\n");
+  g_autofree char *log_path = NULL;
+  TestDaemon *d = start_logging_to (conf, &log_path);
+  g_autoptr (DsClient) c = test_daemon_connect (d);
+  GPid pid = (GPid) g_ascii_strtoll (g_subprocess_get_identifier (d->proc), NULL, 10);
+  /* Another operating model: a copy of the one in use, under another name (a model named in
+   * the file must load, or the reload is refused for that). */
+  g_autoptr (DsMessage) st = test_daemon_call_ok (c, "status", NULL);
+  JsonObject *om = json_object_get_object_member (json_node_get_object (st->reply->body), "operating_model");
+  g_autofree char *model_text = NULL;
+  g_assert_true (g_file_get_contents (json_object_get_string_member (om, "path"), &model_text, NULL, NULL));
+  g_autofree char *model = g_build_filename (d->dir, "model.conf", NULL);
+  g_assert_true (g_file_set_contents (model, model_text, -1, NULL));
+  g_autofree char *extra = g_strdup_printf ("[acquisition]\nphases=10\noperating-model=%s\nsettle-ms=7\n"
+                                            "link-mbit=100\n", model);
+  g_autofree char *restart = config_text (extra);
+  g_assert_true (g_file_set_contents (d->config_path, restart, -1, NULL));
+  kill (pid, SIGHUP);
+  g_autofree char *log = wait_for_log (log_path, "reload refused");
+  g_assert_nonnull (strstr (log, "[acquisition] operating-model, settle-ms, link-mbit"));
+  g_assert_nonnull (strstr (log, "need a restart"));
+  g_autofree char *kept = running_config_text (c);
+  g_assert_nonnull (strstr (kept, "phases=6\n"));
+  g_assert_nonnull (strstr (kept, "settle-ms=3\n"));
+
+  g_autofree char *live = config_text ("[acquisition]\nphases=10\n[camera]\nexposure-us=3000\n");
+  g_assert_true (g_file_set_contents (d->config_path, live, -1, NULL));
+  kill (pid, SIGHUP);
+  g_free (wait_for_log (log_path, "configuration reloaded"));
+  g_autofree char *applied = running_config_text (c);
+  g_assert_nonnull (strstr (applied, "phases=10\n"));
+  g_assert_nonnull (strstr (applied, "exposure-us=3000\n"));
+  g_assert_cmpint (test_daemon_stop (d), ==, 0);
+  test_daemon_free (d);
+  g_autofree char *log_dir = g_path_get_dirname (log_path);
+  g_unlink (log_path);
+  g_rmdir (log_dir);
 }
 
 /* SIGTERM in the middle of continuous acquisition: clean exit (status 0) and every set in the
@@ -372,6 +464,7 @@ main (int argc, char **argv)
   g_test_add_func ("/daemon-sim/continuous-slow-subscriber", test_continuous_slow_subscriber);
   g_test_add_func ("/daemon-sim/bad-requests", test_bad_requests);
   g_test_add_func ("/daemon-sim/reload", test_reload);
+  g_test_add_func ("/daemon-sim/reload-rule", test_reload_rule);
   g_test_add_func ("/daemon-sim/sigterm-mid-set", test_sigterm_mid_set_leaves_whole_files);
   g_test_add_func ("/daemon-sim/automatic-operating-point", test_automatic_operating_point);
   g_test_add_func ("/daemon-sim/automatic-assumption-in-result", test_automatic_assumption_in_result);

@@ -1,0 +1,96 @@
+/* The service's state, shared by the files that make up DsService and by no one else:
+ * service.c (lifecycle, watchdog, reload), service_events.c (what the sequencer reports),
+ * service_requests.c (clients' commands) and service_status.c (status and metrics documents).
+ * Main thread only: the acquisition thread reaches the service through sequencer events. */
+#pragma once
+#include <glib.h>
+
+#include "daemon/acquire/capture_settings.h"
+#include "daemon/acquire/result.h"
+#include "daemon/acquire/sequencer.h"
+#include "daemon/output/result_files.h"
+#include "daemon/operating/operating_point.h"
+#include "daemon/service/calibrate_set.h"
+#include "daemon/service/http_server.h"
+#include "daemon/service/live_view.h"
+#include "daemon/service/metrics.h"
+#include "daemon/service/server.h"
+#include "daemon/service/service.h"
+#include "daemon/service/spool.h"
+
+G_BEGIN_DECLS
+
+/* A request the acquisition thread answers later (capture, dark, calibrate, release, acquire),
+ * by its tag. */
+typedef struct {
+  guint64 tag;
+  DsConnection *conn; /* ref + hold */
+  JsonNode *id;
+  DsOutputFormat format;
+  gboolean extrema;
+  guint outputs;      /* bit i: payload i of the result's payload set */
+  gboolean progress;
+  gboolean save_phases; /* the raw frames go back with the reply */
+  gboolean calibrate;   /* a calibrate request: the reply is the set's calibration */
+  DsCalibrateRequest calibration;
+  DsCaptureSettings calibrate_settings; /* the first set's, for a second period */
+  gboolean calibrate_second;            /* this is the set at the second period (calibrate_set.h) */
+  DsCalibration calibrate_first;        /* ... and the first set's calibration */
+  guint64 calibrate_first_set;
+} PendingCapture;
+
+typedef struct {
+  DsConfig *config;
+} OpenData;
+
+struct DsService {
+  OpenData open_data;
+  DsConfig *config;
+  char *config_path;
+  DsServiceOptions options;
+  char *scene_override;
+  GMainLoop *loop;
+  DsServer *server;
+  DsSequencer *sequencer;
+  DsSpool *spool;
+  char *socket_path;
+  GHashTable *pending;   /* tag -> PendingCapture */
+  guint64 next_tag;
+  gboolean ready;
+  gboolean devices_failed;
+  guint watchdog_source;
+  guint64 watchdog_usec;
+  gint64 started_us;
+  guint64 results_published;
+  char config_sha256[65];    /* of the effective configuration: in every result */
+  DsMetrics *metrics;
+  DsLiveView *live;          /* with http: NULL when [http] listen is off */
+  DsHttpServer *http;
+  gboolean in_run;           /* continuous acquisition started and not stopped */
+  DsOperatingModel *model;  /* NULL when no model file could be read (automatic captures fail) */
+  char *model_error;
+  char *model_path;         /* the file the model was (or failed to be) read from */
+};
+
+/* The result's payloads a capture may ask for, in the order of PendingCapture.outputs' bits. */
+#define DS_SERVICE_N_OUTPUTS 6
+extern const char *const ds_service_output_names[DS_SERVICE_N_OUTPUTS];
+
+/* service_requests.c: every command the server does not answer itself. */
+void ds_service_on_request (DsServer *server, DsConnection *conn, DsRequest *req, gpointer user_data);
+/* The success reply to a request (id copied), with body and no payloads. */
+void ds_service_reply_ok (DsService *svc, DsConnection *conn, JsonNode *id, JsonNode *body);
+/* A PendingCapture's destructor (the pending table's value). */
+void ds_service_pending_free (gpointer pending);
+
+/* service_events.c: events of the acquisition thread, delivered on the main loop. */
+void ds_service_on_sequencer_event (const DsSequencerEvent *ev, gpointer user_data);
+
+/* service_status.c: the `status` document (also the live view's) and the /metrics text. */
+JsonNode *ds_service_status_to_json (DsService *svc);
+char *ds_service_metrics_text (DsService *svc);
+
+/* service.c: the configuration in effect, as `config` prints it and every result hashes it. */
+char *ds_service_effective_config_text (DsService *svc);
+
+G_END_DECLS
