@@ -170,16 +170,14 @@ ds_seq_run_dark (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag)
   } else
     dark = ds_seq_acquire_dark (seq, s, &c, &mean, &error);
   if (!dark) {
-    ds_frame_counters_drop (&c, DS_DROP_ABORTED, c.acquired - c.dropped);
+    ds_frame_counters_abort_rest (&c);
     ds_seq_account (seq, &c, FALSE);
     ds_seq_record_error (seq, error);
     ds_seq_emit (seq, DS_SEQUENCER_EVENT_DARK, tag, NULL, g_steal_pointer (&error), NULL);
     return;
   }
-  c.folded = c.acquired - c.dropped;
-  g_mutex_lock (&seq->lock);
-  ds_frame_counters_add (&seq->status.frames, &c);
-  g_mutex_unlock (&seq->lock);
+  ds_frame_counters_fold_rest (&c);
+  ds_seq_account_frames (seq, &c);
   ds_seq_note_dark (seq, s, mean, FALSE);
   g_clear_pointer (&seq->dark, ds_image_free);
   seq->dark = dark;

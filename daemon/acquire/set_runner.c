@@ -145,7 +145,7 @@ ds_seq_run_set (DsSequencer *seq, const DsCaptureSettings *requested, guint64 ta
     if (!ds_seq_ensure_camera (seq, s, &error) || !ds_seq_choose_operating_point (seq, &settings, &c, &error)) {
       /* Pilot frames not yet counted as `preview` (the pilot stopped part way) go down with
        * the capture, as a failing set's frames do. */
-      ds_frame_counters_drop (&c, DS_DROP_ABORTED, c.acquired - c.dropped);
+      ds_frame_counters_abort_rest (&c);
       ds_seq_account (seq, &c, FALSE);
       ds_seq_record_error (seq, error);
       ds_seq_emit (seq, DS_SEQUENCER_EVENT_FAILED, tag, NULL, g_steal_pointer (&error), NULL);
@@ -157,7 +157,7 @@ ds_seq_run_set (DsSequencer *seq, const DsCaptureSettings *requested, guint64 ta
   g_autoptr (DsSeparation) sep = acquire_set (seq, s, tag, &c, &acquired, &error);
   if (!sep) {
     /* Whatever was not dropped already (folded frames, dark frames) goes down with the set. */
-    ds_frame_counters_drop (&c, DS_DROP_ABORTED, c.acquired - c.dropped);
+    ds_frame_counters_abort_rest (&c);
     ds_seq_account (seq, &c, FALSE);
     ds_seq_record_error (seq, error);
     ds_seq_refresh_device_status (seq);
@@ -174,7 +174,7 @@ ds_seq_run_set (DsSequencer *seq, const DsCaptureSettings *requested, guint64 ta
   ds_seq_stage_add (seq, DS_STAGE_SET, started);
   /* Every frame not dropped went into the result: folded into a phase, or averaged into its
    * dark frame. */
-  c.folded = c.acquired - c.dropped;
+  ds_frame_counters_fold_rest (&c);
   ds_seq_account (seq, &c, TRUE);
   DsResult *result = ds_result_new (++seq->next_set_id, g_steal_pointer (&sep), seq->planes, s, &c, started,
                                     acquired, finished);
