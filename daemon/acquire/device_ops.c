@@ -170,7 +170,7 @@ ds_seq_fatal_device_error (DsSequencer *seq, const GError *e)
   case DS_DEVICE_POLICY_RECONNECT:
     seq->need_reconnect = TRUE;
     /* In status at once, before the failure reaches anyone: not ready until reconnected. */
-    ds_seq_set_state (seq, "reconnecting");
+    ds_seq_set_state (seq, DS_SEQUENCER_STATE_RECONNECTING);
     return TRUE;
   case DS_DEVICE_POLICY_FAIL:
     return TRUE;
@@ -220,7 +220,7 @@ ds_seq_apply_defaults (DsSequencer *seq)
 void
 ds_seq_reconnect (DsSequencer *seq)
 {
-  ds_seq_set_state (seq, "reconnecting");
+  ds_seq_set_state (seq, DS_SEQUENCER_STATE_RECONNECTING);
   ds_seq_emit (seq, DS_SEQUENCER_EVENT_DEVICE, 0, NULL, NULL, "device disconnected: reconnecting");
   guint delay_ms = 100;
   while (!g_atomic_int_get (&seq->quit)) {

@@ -95,10 +95,10 @@ ds_seq_emit_dark (DsSequencer *seq, guint64 tag, double dark_mean_dn)
 }
 
 void
-ds_seq_set_state (DsSequencer *seq, const char *state)
+ds_seq_set_state (DsSequencer *seq, DsSequencerState state)
 {
   g_mutex_lock (&seq->lock);
-  g_strlcpy (seq->status.state, state, sizeof seq->status.state);
+  seq->status.state = state;
   seq->status.heartbeat_us = g_get_monotonic_time ();
   seq->status.blocking_until_us = 0;
   g_mutex_unlock (&seq->lock);

@@ -27,6 +27,21 @@ typedef struct {
 #define MAX_PENDING 8
 
 const char *
+ds_sequencer_state_name (DsSequencerState state)
+{
+  static const char *const names[DS_SEQUENCER_STATE_N] = {
+    [DS_SEQUENCER_STATE_OPENING] = "opening",
+    [DS_SEQUENCER_STATE_IDLE] = "idle",
+    [DS_SEQUENCER_STATE_ACQUIRING] = "acquiring",
+    [DS_SEQUENCER_STATE_CONTINUOUS] = "continuous",
+    [DS_SEQUENCER_STATE_RECONNECTING] = "reconnecting",
+    [DS_SEQUENCER_STATE_RELEASED] = "released",
+    [DS_SEQUENCER_STATE_FAILED] = "failed",
+  };
+  return (guint) state < DS_SEQUENCER_STATE_N ? names[state] : "unknown";
+}
+
+const char *
 ds_stage_name (DsStage stage)
 {
   static const char *const names[DS_STAGE_N] = { "set_phase", "trigger", "expose", "grab",
@@ -57,7 +72,7 @@ release_devices (DsSequencer *seq, guint64 tag)
     seq->status.continuous = FALSE;
     g_mutex_unlock (&seq->lock);
   }
-  ds_seq_set_state (seq, "released");
+  ds_seq_set_state (seq, DS_SEQUENCER_STATE_RELEASED);
   ds_seq_emit (seq, DS_SEQUENCER_EVENT_CONTROL, tag, NULL, NULL, "devices released: another program may open the camera");
 }
 
@@ -81,12 +96,12 @@ acquire_devices (DsSequencer *seq, guint64 tag)
     ds_seq_emit (seq, DS_SEQUENCER_EVENT_CONTROL, tag, NULL, NULL, "devices already open");
     return;
   }
-  ds_seq_set_state (seq, "opening");
+  ds_seq_set_state (seq, DS_SEQUENCER_STATE_OPENING);
   GError *error = NULL;
   seq->dev = seq->open_devices (seq->open_data, &error);
   if (!seq->dev) {
     ds_seq_record_error (seq, error);
-    ds_seq_set_state (seq, "released");
+    ds_seq_set_state (seq, DS_SEQUENCER_STATE_RELEASED);
     g_prefix_error (&error, "acquire: ");
     ds_seq_emit (seq, DS_SEQUENCER_EVENT_CONTROL, tag, NULL, error, NULL);
     return;
@@ -97,7 +112,7 @@ acquire_devices (DsSequencer *seq, guint64 tag)
   ds_seq_refresh_device_status (seq);
   /* Devices opened again must take the settings again, as at start and after a reconnect. */
   ds_seq_apply_defaults (seq);
-  ds_seq_set_state (seq, "idle");
+  ds_seq_set_state (seq, DS_SEQUENCER_STATE_IDLE);
   ds_seq_emit (seq, DS_SEQUENCER_EVENT_CONTROL, tag, NULL, NULL, seq->dev->description);
 }
 
@@ -116,10 +131,10 @@ thread_main (gpointer data)
 {
   DsSequencer *seq = data;
   g_autoptr (GError) error = NULL;
-  ds_seq_set_state (seq, "opening");
+  ds_seq_set_state (seq, DS_SEQUENCER_STATE_OPENING);
   seq->dev = seq->open_devices (seq->open_data, &error);
   if (!seq->dev) {
-    ds_seq_set_state (seq, "failed");
+    ds_seq_set_state (seq, DS_SEQUENCER_STATE_FAILED);
     ds_seq_record_error (seq, error);
     ds_seq_emit (seq, DS_SEQUENCER_EVENT_READY, 0, NULL, g_steal_pointer (&error), NULL);
     /* Nothing to drive: wait for the quit command so that status stays answerable. */
@@ -148,7 +163,7 @@ thread_main (gpointer data)
   /* Settings applied now, not at the first capture: a pixel format or a gain the camera
    * refuses shows in status (ready false, with the camera's reason) right after start. */
   ds_seq_apply_defaults (seq);
-  ds_seq_set_state (seq, "idle");
+  ds_seq_set_state (seq, DS_SEQUENCER_STATE_IDLE);
   ds_seq_emit (seq, DS_SEQUENCER_EVENT_READY, 0, NULL, NULL, seq->dev->description);
 
   guint consecutive_failures = 0;
@@ -173,7 +188,7 @@ thread_main (gpointer data)
           seq->continuous_settings = seq->defaults;
           g_mutex_unlock (&seq->lock);
         }
-        ds_seq_set_state (seq, "continuous");
+        ds_seq_set_state (seq, DS_SEQUENCER_STATE_CONTINUOUS);
         g_mutex_lock (&seq->lock);
         guint64 failed_before = seq->status.sets_failed;
         g_mutex_unlock (&seq->lock);
@@ -204,12 +219,12 @@ thread_main (gpointer data)
     }
     switch (kind) {
     case CMD_CAPTURE:
-      ds_seq_set_state (seq, "acquiring");
+      ds_seq_set_state (seq, DS_SEQUENCER_STATE_ACQUIRING);
       ds_seq_run_set (seq, &cmd->settings, cmd->tag);
       g_atomic_int_add (&seq->pending, -1);
       break;
     case CMD_DARK:
-      ds_seq_set_state (seq, "acquiring");
+      ds_seq_set_state (seq, DS_SEQUENCER_STATE_ACQUIRING);
       ds_seq_run_dark (seq, &cmd->settings, cmd->tag);
       g_atomic_int_add (&seq->pending, -1);
       break;
@@ -252,8 +267,9 @@ thread_main (gpointer data)
     seq->status.continuous = seq->continuous;
     update_dark_mode (seq);
     g_mutex_unlock (&seq->lock);
-    ds_seq_set_state (seq, !seq->dev ? "released" : seq->need_reconnect ? "reconnecting"
-                           : seq->continuous ? "continuous" : "idle");
+    ds_seq_set_state (seq, !seq->dev ? DS_SEQUENCER_STATE_RELEASED
+                           : seq->need_reconnect ? DS_SEQUENCER_STATE_RECONNECTING
+                           : seq->continuous ? DS_SEQUENCER_STATE_CONTINUOUS : DS_SEQUENCER_STATE_IDLE);
   }
   ds_seq_carry_discard (seq);
   if (seq->dev && seq->camera_started)
@@ -285,7 +301,7 @@ ds_sequencer_new (DsDevicesOpenFunc open_devices, gpointer open_data,
   /* Two sets of planes kept: one being written while the previous result is still sent. */
   seq->planes = ds_plane_pool_new (2);
   g_mutex_init (&seq->lock);
-  g_strlcpy (seq->status.state, "opening", sizeof seq->status.state);
+  seq->status.state = DS_SEQUENCER_STATE_OPENING;
   seq->status.phase_offset_cycles = NAN;
   seq->status.settings_ok = TRUE;
   update_dark_mode (seq);

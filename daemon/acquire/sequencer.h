@@ -113,6 +113,22 @@ typedef enum {
 
 const char *ds_stage_name (DsStage stage);
 
+/* What the acquisition thread is doing, as status reports it. The names are the wire's
+ * (docs/protocol.md, status `state`): ds_sequencer_state_name gives them. */
+typedef enum {
+  DS_SEQUENCER_STATE_OPENING = 0, /* opening the devices */
+  DS_SEQUENCER_STATE_IDLE,        /* devices open, nothing to do */
+  DS_SEQUENCER_STATE_ACQUIRING,   /* a capture or a dark frame */
+  DS_SEQUENCER_STATE_CONTINUOUS,  /* continuous mode: sets back to back */
+  DS_SEQUENCER_STATE_RECONNECTING,/* a device was lost: reopening it */
+  DS_SEQUENCER_STATE_RELEASED,    /* devices released for another program */
+  DS_SEQUENCER_STATE_FAILED,      /* the devices failed to open: the thread waits for quit */
+  DS_SEQUENCER_STATE_N
+} DsSequencerState;
+
+/* The state's wire name ("opening", "idle", ...); "unknown" out of range. Any thread. */
+const char *ds_sequencer_state_name (DsSequencerState state);
+
 /* A dark frame as status reports it: what was measured, when, and by whom. */
 typedef struct {
   gboolean taken;               /* FALSE: none yet */
@@ -124,7 +140,7 @@ typedef struct {
 } DsDarkFrameInfo;
 
 typedef struct {
-  char state[32];               /* opening, idle, acquiring, continuous, reconnecting, failed */
+  DsSequencerState state;
   gboolean continuous;
   gboolean has_dark;            /* a stored dark frame (the dark command's): stored_dark.taken */
   /* Whether the next set takes its own dark frame: the running stream's settings in continuous

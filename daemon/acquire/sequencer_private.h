@@ -108,7 +108,7 @@ void ds_seq_emit_progress (DsSequencer *seq, guint64 tag, guint phase, guint n);
 void ds_seq_emit_dark (DsSequencer *seq, guint64 tag, double dark_mean_dn);
 
 /* Status (under seq->lock). */
-void ds_seq_set_state (DsSequencer *seq, const char *state);
+void ds_seq_set_state (DsSequencer *seq, DsSequencerState state);
 void ds_seq_heartbeat (DsSequencer *seq);
 /* Before a device call that may block: a sign of life, and the call's own bound. The watchdog
  * stays fed while the thread waits that long (a camera timing out is not a wedged thread),

@@ -331,7 +331,7 @@ on_sequencer_event (const DsSequencerEvent *ev, gpointer user_data)
       g_autoptr (JsonBuilder) b = json_builder_new ();
       json_builder_begin_object (b);
       json_builder_set_member_name (b, "state");
-      json_builder_add_string_value (b, st.state);
+      json_builder_add_string_value (b, ds_sequencer_state_name (st.state));
       json_builder_set_member_name (b, "message");
       json_builder_add_string_value (b, ev->message);
       json_builder_end_object (b);
@@ -764,14 +764,14 @@ status_to_json (DsService *svc)
   add_string (b, "version", DS_VERSION);
   add_string (b, "git", DS_GIT_DESCRIBE);
   ds_json_add_double_or_null (b, "uptime_s", (double) (g_get_monotonic_time () - svc->started_us) / 1e6);
-  add_string (b, "state", st.state);
+  add_string (b, "state", ds_sequencer_state_name (st.state));
   /* Ready: devices open, the configured settings taken, no device being reconnected; else
    * the reason, naming the setting and what the device allows. */
   g_autofree char *not_ready = NULL;
   if (!svc->ready)
-    not_ready = strcmp (st.state, "failed") == 0 ? g_strdup_printf ("devices failed to open: %s", st.last_error)
+    not_ready = st.state == DS_SEQUENCER_STATE_FAILED ? g_strdup_printf ("devices failed to open: %s", st.last_error)
                                                   : g_strdup ("devices are opening");
-  else if (strcmp (st.state, "reconnecting") == 0)
+  else if (st.state == DS_SEQUENCER_STATE_RECONNECTING)
     not_ready = g_strdup_printf ("reconnecting: %s", st.last_error);
   else if (!st.settings_ok)
     not_ready = g_strdup_printf ("devices refuse the configured settings: %s", st.settings_error);
