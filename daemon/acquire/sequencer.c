@@ -20,8 +20,11 @@ typedef enum {
 
 typedef struct {
   CommandKind kind;
-  DsCaptureSettings settings;
-  guint64 tag;
+  DsCaptureSettings settings;  /* CMD_CAPTURE, CMD_DARK, CMD_DEFAULTS; CMD_START unless
+                                * follow_defaults */
+  gboolean follow_defaults;    /* CMD_START without settings: each set takes the defaults as
+                                * they are when it starts (a reload changes the stream) */
+  guint64 tag;                 /* the request's, echoed in its events; 0 for none */
 } Command;
 
 #define MAX_PENDING 8
@@ -236,7 +239,7 @@ thread_main (gpointer data)
       }
       seq->continuous = TRUE;
       seq->continuous_settings = cmd->settings;
-      seq->continuous_uses_defaults = cmd->tag == 1;
+      seq->continuous_uses_defaults = cmd->follow_defaults;
       break;
     case CMD_STOP:
       seq->continuous = FALSE;
@@ -312,15 +315,21 @@ ds_sequencer_new (DsDevicesOpenFunc open_devices, gpointer open_data,
   return seq;
 }
 
-static void
-push (DsSequencer *seq, CommandKind kind, const DsCaptureSettings *s, guint64 tag)
+static Command *
+command_new (CommandKind kind, const DsCaptureSettings *s, guint64 tag)
 {
   Command *cmd = g_new0 (Command, 1);
   cmd->kind = kind;
   if (s)
     cmd->settings = *s;
   cmd->tag = tag;
-  g_async_queue_push (seq->queue, cmd);
+  return cmd;
+}
+
+static void
+push (DsSequencer *seq, CommandKind kind, const DsCaptureSettings *s, guint64 tag)
+{
+  g_async_queue_push (seq->queue, command_new (kind, s, tag));
 }
 
 void
@@ -398,8 +407,9 @@ ds_sequencer_acquire (DsSequencer *seq, guint64 tag)
 void
 ds_sequencer_start (DsSequencer *seq, const DsCaptureSettings *settings)
 {
-  /* tag 1 marks "follow the defaults" (no explicit settings given): the thread reads them. */
-  push (seq, CMD_START, settings, settings ? 0 : 1);
+  Command *cmd = command_new (CMD_START, settings, 0);
+  cmd->follow_defaults = settings == NULL;
+  g_async_queue_push (seq->queue, cmd);
 }
 
 void

@@ -71,7 +71,9 @@ gboolean ds_sequencer_capture (DsSequencer *seq, const DsCaptureSettings *settin
  * Answered by a CONTROL event with `tag`. FALSE (busy) like ds_sequencer_capture. */
 gboolean ds_sequencer_release (DsSequencer *seq, guint64 tag);
 gboolean ds_sequencer_acquire (DsSequencer *seq, guint64 tag);
-/* Continuous mode: sets back to back with these settings until stopped (tag 0 events). */
+/* Continuous mode: sets back to back with these settings until stopped (tag 0 events); with
+ * settings NULL, each set takes the defaults as they are when it starts (ds_sequencer_set_defaults
+ * changes the stream). */
 void ds_sequencer_start (DsSequencer *seq, const DsCaptureSettings *settings);
 void ds_sequencer_stop (DsSequencer *seq);
 /* Measures the dark frame (illuminator off, `averages` frames) used by later sets. */
