@@ -14,9 +14,9 @@
 #include "daemon/acquire/sequencer_private.h"
 
 gboolean
-ds_seq_carry_allowed (DsSequencer *seq, const DsCaptureSettings *s)
+ds_seq_carry_allowed (DsSequencer *seq, DsSetOrigin origin, const DsCaptureSettings *s)
 {
-  return seq->continuous_set && seq->continuous && !seq->carry.active && !seq->need_reconnect &&
+  return origin == DS_SET_FOR_STREAM && seq->run.mode != DS_RUN_ON_REQUEST && !seq->carry.active && !seq->need_reconnect &&
          g_async_queue_length (seq->queue) <= 0 && !g_atomic_int_get (&seq->quit) &&
          s->target_error <= 0 && s->time_budget_ms <= 0;
 }
@@ -94,9 +94,9 @@ ds_seq_carry_grab (DsSequencer *seq)
 }
 
 gboolean
-ds_seq_carry_fits (DsSequencer *seq, const DsCaptureSettings *s)
+ds_seq_carry_fits (DsSequencer *seq, DsSetOrigin origin, const DsCaptureSettings *s)
 {
-  return seq->carry.active && !seq->carry.error && seq->continuous_set && !seq->need_reconnect &&
+  return seq->carry.active && !seq->carry.error && origin == DS_SET_FOR_STREAM && !seq->need_reconnect &&
          seq->dev && memcmp (&seq->carry.settings, s, sizeof *s) == 0;
 }
 

@@ -35,9 +35,10 @@ typedef struct {
   guint held_phase;
   gint64 held_applied_at;
   gboolean failing;       /* the set failed: collect the last job without reporting progress */
-  /* Continuous mode: the next set's first frame is triggered ahead once this set's last frame
+  /* A stream's set: the next set's first frame is triggered ahead once this set's last frame
    * is in the worker (carry.c). */
-  gboolean ahead;
+  DsSetOrigin origin;
+  gboolean ahead;         /* origin is DS_SET_FOR_STREAM */
   /* This set's first frame was triggered ahead by the previous set: grab it without a trigger
    * (grab_begun_before: the camera's frames_begun before that trigger). */
   gboolean grab_only;
@@ -147,7 +148,7 @@ phase_to_move_to (const Pipeline *pl, guint k)
   if (pl->held || frames_of (pl, k) + 1 < s->averages)
     return G_MAXUINT;
   if (k + 1 >= s->phases)
-    return pl->ahead && s->phases > 1 && !s->dark_frame && ds_seq_carry_allowed (pl->seq, s) ? 0 : G_MAXUINT;
+    return pl->ahead && s->phases > 1 && !s->dark_frame && ds_seq_carry_allowed (pl->seq, pl->origin, s) ? 0 : G_MAXUINT;
   if (frames_of (pl, k + 1) >= s->averages)
     return G_MAXUINT;
   return k + 1;
@@ -231,7 +232,7 @@ run (Pipeline *pl, int applied, gint64 applied_at, GError **error)
       /* Every phase has its frames, the last one perhaps still in the worker. */
       if (!pl->in_flight)
         return TRUE;
-      if (pl->ahead && !seq->carry.active && ds_seq_carry_allowed (seq, s)) {
+      if (pl->ahead && !seq->carry.active && ds_seq_carry_allowed (seq, pl->origin, s)) {
         /* The last frame arrived, so its exposure is over: the next set's first frame is
          * exposed while it is verified and folded and while the result is finalized. */
         ds_seq_carry_trigger (seq, s, 0);
@@ -307,7 +308,7 @@ run (Pipeline *pl, int applied, gint64 applied_at, GError **error)
        * When that verdict is a drop, this frame is kept back and the frame triggered ahead is
        * grabbed before the dropped phase is lit again (below), as after a drop of the last
        * frame. */
-      if (!seq->carry.active && ds_seq_carry_allowed (seq, s))
+      if (!seq->carry.active && ds_seq_carry_allowed (seq, pl->origin, s))
         ds_seq_carry_trigger (seq, s, pl->next_set_lit_at);
       pl->next_set_lit_at = 0;
     }
@@ -333,7 +334,7 @@ run (Pipeline *pl, int applied, gint64 applied_at, GError **error)
 }
 
 gboolean
-ds_seq_acquire_phases (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag,
+ds_seq_acquire_phases (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag, DsSetOrigin origin,
                        DsFrameCounters *c, DsSeparation *planes, gboolean *finalized, GError **error)
 {
   g_autofree guint *accepted = g_new0 (guint, s->phases);
@@ -343,7 +344,8 @@ ds_seq_acquire_phases (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag
   seq->last_frame_us = 0;
   memset (&seq->last_frame_times, 0, sizeof seq->last_frame_times);
   Pipeline pl = { .seq = seq, .s = s, .tag = tag, .c = c, .accepted = accepted,
-                  .retries_left = retries_left, .ahead = seq->continuous_set, .planes = planes };
+                  .retries_left = retries_left, .origin = origin,
+                  .ahead = origin == DS_SET_FOR_STREAM, .planes = planes };
   int applied = -1;
   gint64 applied_at = 0;
   if (seq->carry.active) {

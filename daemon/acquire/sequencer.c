@@ -60,7 +60,7 @@ static void
 release_devices (DsSequencer *seq, guint64 tag)
 {
   if (seq->dev) {
-    seq->continuous = FALSE;
+    seq->run.mode = DS_RUN_ON_REQUEST;
     if (seq->camera_started)
       seq->dev->camera->ops->stop (seq->dev->camera->backend);
     g_autoptr (GError) off_error = NULL;
@@ -84,8 +84,7 @@ release_devices (DsSequencer *seq, guint64 tag)
 static void
 update_dark_mode (DsSequencer *seq)
 {
-  const DsCaptureSettings *next =
-    seq->continuous && !seq->continuous_uses_defaults ? &seq->continuous_settings : &seq->defaults;
+  const DsCaptureSettings *next = seq->run.mode == DS_RUN_STREAM ? &seq->run.settings : &seq->defaults;
   const DsDarkFrameInfo *stored = &seq->status.stored_dark;
   seq->status.per_set_dark = next->dark_frame;
   seq->status.stored_dark_applies = stored->taken && stored->exposure_us == next->exposure_us &&
@@ -175,29 +174,28 @@ thread_main (gpointer data)
       ds_seq_carry_discard (seq);
       ds_seq_reconnect (seq);
     }
-    Command *cmd = seq->continuous ? g_async_queue_try_pop (seq->queue)
+    gboolean streaming = seq->run.mode != DS_RUN_ON_REQUEST;
+    Command *cmd = streaming ? g_async_queue_try_pop (seq->queue)
                                    : g_async_queue_timeout_pop (seq->queue, G_USEC_PER_SEC / 2);
     ds_seq_heartbeat (seq);
     /* A frame triggered ahead for the next continuous set: any command comes first (it may
      * change settings, stop, capture once or release the devices), so the frame is aborted. */
-    if (cmd || !seq->continuous || g_atomic_int_get (&seq->quit))
+    if (cmd || !streaming || g_atomic_int_get (&seq->quit))
       ds_seq_carry_discard (seq);
     if (!cmd) {
       if (g_atomic_int_get (&seq->quit))
         break;
-      if (seq->continuous) {
-        if (seq->continuous_uses_defaults) {
+      if (streaming) {
+        if (seq->run.mode == DS_RUN_STREAM_DEFAULTS) {
           g_mutex_lock (&seq->lock);
-          seq->continuous_settings = seq->defaults;
+          seq->run.settings = seq->defaults;
           g_mutex_unlock (&seq->lock);
         }
         ds_seq_set_state (seq, DS_SEQUENCER_STATE_CONTINUOUS);
         g_mutex_lock (&seq->lock);
         guint64 failed_before = seq->status.sets_failed;
         g_mutex_unlock (&seq->lock);
-        seq->continuous_set = TRUE;
-        ds_seq_run_set (seq, &seq->continuous_settings, 0);
-        seq->continuous_set = FALSE;
+        ds_seq_run_set (seq, &seq->run.settings, 0, DS_SET_FOR_STREAM);
         g_mutex_lock (&seq->lock);
         gboolean failed = seq->status.sets_failed != failed_before;
         g_mutex_unlock (&seq->lock);
@@ -223,7 +221,7 @@ thread_main (gpointer data)
     switch (kind) {
     case CMD_CAPTURE:
       ds_seq_set_state (seq, DS_SEQUENCER_STATE_ACQUIRING);
-      ds_seq_run_set (seq, &cmd->settings, cmd->tag);
+      ds_seq_run_set (seq, &cmd->settings, cmd->tag, DS_SET_FOR_REQUEST);
       g_atomic_int_add (&seq->pending, -1);
       break;
     case CMD_DARK:
@@ -237,12 +235,11 @@ thread_main (gpointer data)
                      "continuous acquisition not started: the devices are released (send acquire first)");
         break;
       }
-      seq->continuous = TRUE;
-      seq->continuous_settings = cmd->settings;
-      seq->continuous_uses_defaults = cmd->follow_defaults;
+      seq->run.mode = cmd->follow_defaults ? DS_RUN_STREAM_DEFAULTS : DS_RUN_STREAM;
+      seq->run.settings = cmd->settings;
       break;
     case CMD_STOP:
-      seq->continuous = FALSE;
+      seq->run.mode = DS_RUN_ON_REQUEST;
       break;
     case CMD_DEFAULTS:
       g_mutex_lock (&seq->lock);
@@ -267,12 +264,12 @@ thread_main (gpointer data)
     if (kind == CMD_QUIT)
       break;
     g_mutex_lock (&seq->lock);
-    seq->status.continuous = seq->continuous;
+    seq->status.continuous = seq->run.mode != DS_RUN_ON_REQUEST;
     update_dark_mode (seq);
     g_mutex_unlock (&seq->lock);
     ds_seq_set_state (seq, !seq->dev ? DS_SEQUENCER_STATE_RELEASED
                            : seq->need_reconnect ? DS_SEQUENCER_STATE_RECONNECTING
-                           : seq->continuous ? DS_SEQUENCER_STATE_CONTINUOUS : DS_SEQUENCER_STATE_IDLE);
+                           : seq->run.mode != DS_RUN_ON_REQUEST ? DS_SEQUENCER_STATE_CONTINUOUS : DS_SEQUENCER_STATE_IDLE);
   }
   ds_seq_carry_discard (seq);
   if (seq->dev && seq->camera_started)

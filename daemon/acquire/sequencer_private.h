@@ -48,6 +48,27 @@ typedef struct {
   GError *error;              /* a device failure that fails the set it belongs to */
 } DsSeqCarry;
 
+/* What the acquisition thread does between commands. */
+typedef enum {
+  DS_RUN_ON_REQUEST = 0,   /* sets only for captures (and dark frames for the dark command) */
+  DS_RUN_STREAM,           /* continuous mode: sets back to back with DsRun.settings */
+  DS_RUN_STREAM_DEFAULTS,  /* continuous mode: sets back to back with the defaults as they are
+                            * when each set starts (a reload changes the stream) */
+} DsRunMode;
+
+typedef struct {
+  DsRunMode mode;
+  DsCaptureSettings settings; /* the stream's next set (the defaults copied in before each set
+                               * with DS_RUN_STREAM_DEFAULTS); unused with DS_RUN_ON_REQUEST */
+} DsRun;
+
+/* Whom a set is for. A stream's set may trigger the next set's first frame ahead (carry.c)
+ * and keeps its raw frames without reserving them first (set_runner.c). */
+typedef enum {
+  DS_SET_FOR_REQUEST = 0,  /* a capture: answered with its tag */
+  DS_SET_FOR_STREAM,       /* continuous mode's (tag 0) */
+} DsSetOrigin;
+
 struct DsSequencer {
   GThread *thread;
   GAsyncQueue *queue;
@@ -74,9 +95,7 @@ struct DsSequencer {
   double dark_exposure_us, dark_gain_db;
   gboolean camera_configured, camera_started;
   double camera_exposure_us, camera_gain_db;
-  gboolean continuous;
-  DsCaptureSettings continuous_settings;
-  gboolean continuous_uses_defaults;
+  DsRun run;
   guint64 next_set_id;
   DsPhaseCheck phase_check;
   double phase_check_period;
@@ -86,7 +105,6 @@ struct DsSequencer {
   const DsOperatingModel *model; /* set before the thread uses it; read-only */
   DsRigTiming timing;
   DsFoldWorker *worker;     /* verifies and folds while the next frame is acquired */
-  gboolean continuous_set;  /* the set running is one of continuous mode's */
   DsSeqCarry carry;
   DsPlanePool *planes;      /* result planes, back from results nobody holds any more */
   /* The raw frames of the set in progress when it keeps them (save_phases): filled by the
@@ -161,7 +179,8 @@ gboolean ds_seq_apply_defaults (DsSequencer *seq);
 
 /* ---- set_runner.c ---- */
 
-void ds_seq_run_set (DsSequencer *seq, const DsCaptureSettings *requested, guint64 tag);
+void ds_seq_run_set (DsSequencer *seq, const DsCaptureSettings *requested, guint64 tag,
+                     DsSetOrigin origin);
 
 /* ---- pipeline.c ---- */
 
@@ -169,7 +188,7 @@ void ds_seq_run_set (DsSequencer *seq, const DsCaptureSettings *requested, guint
  * progress per completed phase. The job of the frame that completes the set also finalizes it
  * into `planes` (*finalized then TRUE). FALSE with error when the set fails; every frame is
  * counted in c (the ones neither folded nor dropped are the caller's to count as aborted). */
-gboolean ds_seq_acquire_phases (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag,
+gboolean ds_seq_acquire_phases (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag, DsSetOrigin origin,
                                 DsFrameCounters *c, DsSeparation *planes, gboolean *finalized,
                                 GError **error);
 
@@ -179,7 +198,7 @@ gboolean ds_seq_acquire_phases (DsSequencer *seq, const DsCaptureSettings *s, gu
  * with nothing queued, whose next set chooses no operating point (that needs preview frames
  * first). The frame is verified in the next set, after this set's frames were confirmed as a
  * whole (ds_phase_check_confirm), like any first frame; a dark frame as any dark frame. */
-gboolean ds_seq_carry_allowed (DsSequencer *seq, const DsCaptureSettings *s);
+gboolean ds_seq_carry_allowed (DsSequencer *seq, DsSetOrigin origin, const DsCaptureSettings *s);
 /* After the set's last frame arrived (so its exposure is over): applies phase 0, or turns the
  * illuminator off when the next set takes a dark frame, and triggers. lit_since > 0: phase 0
  * was applied during that frame's transfer and stale buffers were flushed after its grab, at
@@ -189,7 +208,7 @@ void ds_seq_carry_trigger (DsSequencer *seq, const DsCaptureSettings *s, gint64 
 /* Grabs the frame triggered ahead, before the illuminator moves again for this set. */
 void ds_seq_carry_grab (DsSequencer *seq);
 /* Whether the set about to run with settings s can start from the carry. */
-gboolean ds_seq_carry_fits (DsSequencer *seq, const DsCaptureSettings *s);
+gboolean ds_seq_carry_fits (DsSequencer *seq, DsSetOrigin origin, const DsCaptureSettings *s);
 /* The carry is not used: its frame (grabbed now if pending) is counted as aborted, and its
  * counters go to the totals; after a device failure that ends the set it belonged to, that
  * set is reported failed with it (tag 0: a continuous set). No-op without a carry. */

@@ -35,7 +35,7 @@ prepare_phase_set (DsSequencer *seq, const DsCaptureSettings *s, guint width, gu
  * with error set; the caller accounts for the frames in `c` either way. Early returns only: no
  * jump may cross an auto-cleanup declaration (-Wjump-misses-init). */
 static DsSeparation *
-acquire_set (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag, DsFrameCounters *c,
+acquire_set (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag, DsSetOrigin origin, DsFrameCounters *c,
              gint64 *last_frame_us, GError **error)
 {
   if (seq->phase_check_period != s->period_px || !seq->phase_check.offset_known) {
@@ -99,14 +99,14 @@ acquire_set (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag, DsFrameC
     DsPixelFormat fmt = DS_PIXFMT_MONO16;
     ds_pixfmt_from_name (cs->pixel_format, &fmt); /* none configured: the camera's, most likely 16 bits */
     DsSampleType type = ds_pixfmt_sample_type (fmt);
-    if (!seq->continuous_set && !ds_raw_frames_reserve (seq->raw, s->phases * s->averages, type, w, h, NULL))
+    if (origin == DS_SET_FOR_REQUEST && !ds_raw_frames_reserve (seq->raw, s->phases * s->averages, type, w, h, NULL))
       seq->raw_incomplete = TRUE;
     GArray *ids = dark ? seq->dark_ids : seq->stored_dark_ids;
     if (use_dark && !ds_raw_frames_set_black (seq->raw, use_dark, (const guint64 *) ids->data, ids->len, NULL))
       seq->raw_incomplete = TRUE;
   }
   gboolean finalized = FALSE;
-  if (!ds_seq_acquire_phases (seq, s, tag, c, planes, &finalized, error)) {
+  if (!ds_seq_acquire_phases (seq, s, tag, origin, c, planes, &finalized, error)) {
     ds_plane_pool_give (seq->planes, planes);
     if (seq->phase_check.provisional)
       ds_phase_check_abandon (&seq->phase_check);
@@ -126,7 +126,7 @@ acquire_set (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag, DsFrameC
 }
 
 void
-ds_seq_run_set (DsSequencer *seq, const DsCaptureSettings *requested, guint64 tag)
+ds_seq_run_set (DsSequencer *seq, const DsCaptureSettings *requested, guint64 tag, DsSetOrigin origin)
 {
   /* The stripe geometry is the illuminator's (configured for real devices, the scene's for
    * the simulated lab), never a per-capture choice: the set records what was projected. */
@@ -139,7 +139,7 @@ ds_seq_run_set (DsSequencer *seq, const DsCaptureSettings *requested, guint64 ta
   settings.black_level = seq->dev->pattern.black_level;
   DsFrameCounters c = { 0 };
   g_autoptr (GError) error = NULL;
-  if (!ds_seq_carry_fits (seq, s))
+  if (!ds_seq_carry_fits (seq, origin, s))
     ds_seq_carry_discard (seq);
   if (settings.target_error > 0 || settings.time_budget_ms > 0) {
     if (!ds_seq_ensure_camera (seq, s, &error) || !ds_seq_choose_operating_point (seq, &settings, &c, &error)) {
@@ -154,7 +154,7 @@ ds_seq_run_set (DsSequencer *seq, const DsCaptureSettings *requested, guint64 ta
   }
   gint64 started = g_get_monotonic_time ();
   gint64 acquired = 0;
-  g_autoptr (DsSeparation) sep = acquire_set (seq, s, tag, &c, &acquired, &error);
+  g_autoptr (DsSeparation) sep = acquire_set (seq, s, tag, origin, &c, &acquired, &error);
   if (!sep) {
     /* Whatever was not dropped already (folded frames, dark frames) goes down with the set. */
     ds_frame_counters_abort_rest (&c);
