@@ -130,7 +130,11 @@ ds_acquisition_streaming (const DsAcquisition *acq)
 /* Reads the devices' statistics, identity and illuminator status into the shared status. */
 void ds_seq_refresh_device_status (DsAcquisition *acq);
 
-/* ---- device_ops.c ---- */
+/* ---- device_ops.c ----
+ * Each call blocks on its device within a bound it first declares to the watchdog
+ * (ds_seq_blocking): the control bound, the settle timeout or the grab timeout. A failure is
+ * FALSE (or NULL) with error set, counted in c where one is given; whether it ends the set is
+ * ds_seq_fatal_device_error's to say. */
 
 gboolean ds_seq_ensure_camera (DsAcquisition *acq, const DsCaptureSettings *s, GError **error);
 gboolean ds_seq_apply_pattern (DsAcquisition *acq, const DsCaptureSettings *s, GError **error);
@@ -166,10 +170,13 @@ gboolean ds_seq_apply_defaults (DsAcquisition *acq);
 
 /* ---- set_runner.c ---- */
 
+/* One phase set with `requested` (the stripe geometry taken from the illuminator), from the
+ * camera settings to a RESULT event, or a FAILED event saying why; every frame is accounted
+ * in the totals either way. Blocks for the whole set; fails only through the event. */
 void ds_seq_run_set (DsAcquisition *acq, const DsCaptureSettings *requested, guint64 tag,
                      DsSetOrigin origin);
 
-/* ---- pipeline.c ---- */
+/* ---- pipeline.c: blocks for the set's frames (device calls, and waits for fold jobs) ---- */
 
 /* Acquires the N x M frames of a set and folds them into acq->set (which is prepared); emits
  * progress per completed phase. The job of the frame that completes the set also finalizes it
@@ -179,7 +186,7 @@ gboolean ds_seq_acquire_phases (DsAcquisition *acq, const DsCaptureSettings *s, 
                                 DsFrameCounters *c, DsSeparation *planes, gboolean *finalized,
                                 GError **error);
 
-/* ---- carry.c ---- */
+/* ---- carry.c: blocks on the devices like device_ops.c; a failure stays in the carry ---- */
 
 /* Whether the set running may trigger the next set's first frame ahead: a continuous set
  * with nothing queued, whose next set chooses no operating point (that needs preview frames
@@ -201,7 +208,7 @@ gboolean ds_seq_carry_fits (DsAcquisition *acq, DsSetOrigin origin, const DsCapt
  * set is reported failed with it (tag 0: a continuous set). No-op without a carry. */
 void ds_seq_carry_discard (DsAcquisition *acq);
 
-/* ---- retry.c ---- */
+/* ---- retry.c: CPU only ---- */
 
 /* After `why` (a device failure, or a frame rejected by verification): FALSE with *error set to
  * why, prefixed "WHAT: " when the policy ends the acquisition at once (ds_seq_fatal_device_error)
@@ -210,7 +217,7 @@ void ds_seq_carry_discard (DsAcquisition *acq);
 gboolean ds_seq_retry_or_fail (DsAcquisition *acq, guint *retries_left, DsFrameCounters *c, GError **why,
                                GError **error, const char *what_format, ...) G_GNUC_PRINTF (6, 7);
 
-/* ---- dark.c ---- */
+/* ---- dark.c: blocks on the devices for the dark frame's frames ---- */
 
 /* Turns the illuminator off, within its settle timeout; counts a failure in c. */
 gboolean ds_seq_illuminator_off (DsAcquisition *acq, DsFrameCounters *c, GError **error);
@@ -221,12 +228,16 @@ DsImage *ds_seq_acquire_dark (DsAcquisition *acq, const DsCaptureSettings *s, Ds
 /* Records a dark frame taken with settings s (mean of what is subtracted) for status: a set's
  * own (by_set), or the dark command's, which is also the stored one. Acquisition thread. */
 void ds_seq_note_dark (DsAcquisition *acq, const DsCaptureSettings *s, double mean_dn, gboolean by_set);
+/* The dark command: a dark frame with settings s, stored for later sets; answered by a DARK
+ * event (with the error when it failed). */
 void ds_seq_run_dark (DsAcquisition *acq, const DsCaptureSettings *s, guint64 tag);
 
 /* ---- auto_point.c ---- */
 
 /* Picks estimator, N, M and exposure for a target error or time budget from a dark and a
- * preview frame; rewrites *s. */
+ * preview frame; rewrites *s. Blocks on the devices for the pilot frames (counted in c as
+ * previews); FALSE with error when there is no operating model, the pilot fails or no point
+ * meets the target. */
 gboolean ds_seq_choose_operating_point (DsAcquisition *acq, DsCaptureSettings *s, DsFrameCounters *c,
                                         GError **error);
 

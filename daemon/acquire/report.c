@@ -71,8 +71,8 @@ void
 ds_seq_emit_progress (DsSequencerShared *shared, guint64 tag, guint phase, guint n)
 {
   /* Progress answers a capture request; continuous sets (tag 0) have no one to answer, and
-   * each event would wake the main thread, which at 1 MP takes a core the camera needs
-   * (docs/benchmarks.md, "Daemon rate"). */
+   * each event would wake the main thread, which at a megapixel frame rate takes a core the
+   * camera's transfer needs. */
   if (tag == 0)
     return;
   PendingEvent *p = g_new0 (PendingEvent, 1);

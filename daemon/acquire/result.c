@@ -1,3 +1,6 @@
+/* One finished phase set as the daemon publishes it: its metadata and its wire payloads, built
+ * lazily on the main thread and shared by every client and the spool. The frame counters it
+ * reports are frame_counters.c's. */
 #include "daemon/acquire/result.h"
 #include "daemon/acquire/result_planes.h"
 

@@ -78,8 +78,9 @@ void ds_sequencer_start (DsSequencer *seq, const DsCaptureSettings *settings);
 void ds_sequencer_stop (DsSequencer *seq);
 /* Measures the dark frame (illuminator off, `averages` frames) used by later sets. */
 gboolean ds_sequencer_dark (DsSequencer *seq, const DsCaptureSettings *settings, guint64 tag);
-/* The model for captures with a target error or time budget (daemon/operating_point.h).
- * Borrowed: must outlive the sequencer. Call before the first such capture (main thread). */
+/* The model for captures with a target error or time budget (daemon/operating/operating_point.h).
+ * Borrowed: must outlive the sequencer. Queued like a capture (never blocks): the captures
+ * requested after it use it. Main thread. */
 struct DsOperatingModel;
 void ds_sequencer_set_operating_model (DsSequencer *seq, const struct DsOperatingModel *model,
                                        double settle_ms, double link_mbit);
