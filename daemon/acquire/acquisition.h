@@ -35,18 +35,27 @@
 #include "proc/phase_check.h"
 
 G_BEGIN_DECLS
+
+/* How far the next set's first frame, triggered ahead, got. */
+typedef enum {
+  DS_CARRY_NONE = 0,   /* no carry */
+  DS_CARRY_COUNTED,    /* nothing to grab: applying phase 0 (or off), the trigger or the grab
+                        * failed; only its counters (and error) are left */
+  DS_CARRY_TRIGGERED,  /* triggered, not grabbed yet */
+  DS_CARRY_HELD,       /* grabbed: frame (this set's last frame was dropped meanwhile) */
+} DsCarryStage;
+
 /* Continuous mode: the first frame of the next set (phase 0, or its first dark frame when it
  * takes one), triggered as soon as this set's last frame arrived, so that its exposure and
  * transfer overlap with the last frame's verification and fold and with the finalize
  * (docs/design.md, "The pipeline"). Acquisition thread only. */
 typedef struct {
-  gboolean active;            /* there is a carry (pending, frame or only counters) */
+  DsCarryStage stage;
   gboolean dark;              /* for the next set's dark frame: the illuminator was turned off,
                                * not moved to phase 0 */
-  gboolean pending;           /* triggered, not grabbed yet */
   guint64 begun_before;       /* ds_seq_frames_begun before its trigger: the next set may light
                                * phase 1 during its transfer */
-  DsFrame *frame;             /* grabbed already (this set's last frame was dropped meanwhile) */
+  DsFrame *frame;             /* DS_CARRY_HELD: the frame grabbed */
   gint64 applied_at_us;       /* when phase 0 (or off) was applied for it */
   DsCaptureSettings settings; /* the settings of the set it was taken after */
   DsFrameCounters counters;   /* what applying phase 0, triggering and grabbing counted */
@@ -203,7 +212,7 @@ void ds_seq_carry_trigger (DsAcquisition *acq, const DsCaptureSettings *s, gint6
 void ds_seq_carry_grab (DsAcquisition *acq);
 /* Whether the set about to run with settings s can start from the carry. */
 gboolean ds_seq_carry_fits (DsAcquisition *acq, DsSetOrigin origin, const DsCaptureSettings *s);
-/* The carry is not used: its frame (grabbed now if pending) is counted as aborted, and its
+/* The carry is not used: its frame (grabbed now if only triggered) is counted as aborted, and its
  * counters go to the totals; after a device failure that ends the set it belonged to, that
  * set is reported failed with it (tag 0: a continuous set). No-op without a carry. */
 void ds_seq_carry_discard (DsAcquisition *acq);

@@ -16,7 +16,8 @@
 gboolean
 ds_seq_carry_allowed (DsAcquisition *acq, DsSetOrigin origin, const DsCaptureSettings *s)
 {
-  return origin == DS_SET_FOR_STREAM && acq->run.mode != DS_RUN_ON_REQUEST && !acq->carry.active && !acq->need_reconnect &&
+  return origin == DS_SET_FOR_STREAM && ds_acquisition_streaming (acq) &&
+         acq->carry.stage == DS_CARRY_NONE && !acq->need_reconnect &&
          g_async_queue_length (acq->shared->queue) <= 0 && !g_atomic_int_get (&acq->shared->quit) &&
          s->target_error <= 0 && s->time_budget_ms <= 0;
 }
@@ -39,7 +40,7 @@ ds_seq_carry_trigger (DsAcquisition *acq, const DsCaptureSettings *s, gint64 lit
 {
   DsSeqCarry *cy = &acq->carry;
   memset (cy, 0, sizeof *cy);
-  cy->active = TRUE;
+  cy->stage = DS_CARRY_COUNTED;
   cy->settings = *s;
   cy->dark = s->dark_frame;
   g_autoptr (GError) e = NULL;
@@ -74,18 +75,18 @@ ds_seq_carry_trigger (DsAcquisition *acq, const DsCaptureSettings *s, gint64 lit
     carry_device_error (acq, e, first);
     return;
   }
-  cy->pending = TRUE;
+  cy->stage = DS_CARRY_TRIGGERED;
 }
 
 void
 ds_seq_carry_grab (DsAcquisition *acq)
 {
   DsSeqCarry *cy = &acq->carry;
-  if (!cy->pending)
+  if (cy->stage != DS_CARRY_TRIGGERED)
     return;
-  cy->pending = FALSE;
   g_autoptr (GError) e = NULL;
   cy->frame = ds_seq_grab (acq, &cy->counters, &e);
+  cy->stage = cy->frame ? DS_CARRY_HELD : DS_CARRY_COUNTED;
   if (!cy->frame) {
     g_prefix_error (&e, "camera: ");
     carry_device_error (acq, e, cy->dark ? "dark frame" : "phase 0");
@@ -96,7 +97,7 @@ ds_seq_carry_grab (DsAcquisition *acq)
 gboolean
 ds_seq_carry_fits (DsAcquisition *acq, DsSetOrigin origin, const DsCaptureSettings *s)
 {
-  return acq->carry.active && !acq->carry.error && origin == DS_SET_FOR_STREAM && !acq->need_reconnect &&
+  return acq->carry.stage != DS_CARRY_NONE && !acq->carry.error && origin == DS_SET_FOR_STREAM && !acq->need_reconnect &&
          acq->dev && memcmp (&acq->carry.settings, s, sizeof *s) == 0;
 }
 
@@ -104,9 +105,9 @@ void
 ds_seq_carry_discard (DsAcquisition *acq)
 {
   DsSeqCarry *cy = &acq->carry;
-  if (!cy->active)
+  if (cy->stage == DS_CARRY_NONE)
     return;
-  if (cy->pending && acq->dev && !acq->need_reconnect)
+  if (cy->stage == DS_CARRY_TRIGGERED && acq->dev && !acq->need_reconnect)
     ds_seq_carry_grab (acq);
   if (cy->frame) {
     ds_frame_counters_drop (&cy->counters, DS_DROP_ABORTED, 1);

@@ -34,14 +34,14 @@ ds_seq_acquire_dark (DsAcquisition *acq, const DsCaptureSettings *s, DsFrameCoun
   gint64 off_at = 0, carried_off_at = 0;
   g_autoptr (DsFrame) carried = NULL;
   DsSeqCarry *cy = &acq->carry;
-  if (cy->active) {
+  if (cy->stage != DS_CARRY_NONE) {
     /* The set runner checked that it fits this set (ds_seq_carry_fits). */
     g_assert (cy->dark);
     ds_frame_counters_add (c, &cy->counters);
-    if (cy->pending) {
+    if (cy->stage == DS_CARRY_TRIGGERED) {
       off = grab_only = TRUE;
       off_at = cy->applied_at_us;
-    } else if (cy->frame) {
+    } else if (cy->stage == DS_CARRY_HELD) {
       carried = g_steal_pointer (&cy->frame);
       carried_off_at = cy->applied_at_us;
     }

@@ -241,11 +241,11 @@ run (Pipeline *pl, int applied, gint64 applied_at, GError **error)
       /* Every phase has its frames, the last one perhaps still in the worker. */
       if (!pl->in_flight)
         return TRUE;
-      if (pl->ahead && !acq->carry.active && ds_seq_carry_allowed (acq, pl->origin, s)) {
+      if (pl->ahead && acq->carry.stage == DS_CARRY_NONE && ds_seq_carry_allowed (acq, pl->origin, s)) {
         /* The last frame arrived, so its exposure is over: the next set's first frame is
          * exposed while it is verified and folded and while the result is finalized. */
         ds_seq_carry_trigger (acq, s, 0);
-        applied = acq->carry.pending && !acq->carry.dark ? 0 : -1;
+        applied = acq->carry.stage == DS_CARRY_TRIGGERED && !acq->carry.dark ? 0 : -1;
       }
       gboolean re;
       if (!collect (pl, &dropped, &re, error))
@@ -278,7 +278,7 @@ run (Pipeline *pl, int applied, gint64 applied_at, GError **error)
     }
     /* A frame triggered ahead for the next set is fetched before this set moves the
      * illuminator or triggers again (the last frame was dropped: its phase is acquired again). */
-    if (acq->carry.pending)
+    if (acq->carry.stage == DS_CARRY_TRIGGERED)
       ds_seq_carry_grab (acq);
     GError *why = NULL;
     if (applied != (int) k) {
@@ -317,7 +317,7 @@ run (Pipeline *pl, int applied, gint64 applied_at, GError **error)
        * When that verdict is a drop, this frame is kept back and the frame triggered ahead is
        * grabbed before the dropped phase is lit again (below), as after a drop of the last
        * frame. */
-      if (!acq->carry.active && ds_seq_carry_allowed (acq, pl->origin, s))
+      if (acq->carry.stage == DS_CARRY_NONE && ds_seq_carry_allowed (acq, pl->origin, s))
         ds_seq_carry_trigger (acq, s, pl->next_set_lit_at);
       pl->next_set_lit_at = 0;
     }
@@ -357,22 +357,22 @@ ds_seq_acquire_phases (DsAcquisition *acq, const DsCaptureSettings *s, guint64 t
                   .ahead = origin == DS_SET_FOR_STREAM, .planes = planes };
   int applied = -1;
   gint64 applied_at = 0;
-  if (acq->carry.active) {
+  if (acq->carry.stage != DS_CARRY_NONE) {
     /* The set runner checked that it fits this set (ds_seq_carry_fits): phase 0 was applied
      * for this set's first frame, triggered or grabbed already. (A carry for a dark frame was
      * taken over by the dark frame's acquisition before.) */
     DsSeqCarry *cy = &acq->carry;
     g_assert (!cy->dark);
     ds_frame_counters_add (c, &cy->counters);
-    if (cy->pending) {
+    if (cy->stage == DS_CARRY_TRIGGERED) {
       /* A frame kept (cy->frame) was grabbed before the previous set lit its dropped phase
        * again: the illuminator no longer shows phase 0 then. */
       applied = 0;
       applied_at = cy->applied_at_us;
     }
-    pl.grab_only = cy->pending;
+    pl.grab_only = cy->stage == DS_CARRY_TRIGGERED;
     pl.grab_begun_before = cy->begun_before;
-    if (cy->frame) {
+    if (cy->stage == DS_CARRY_HELD) {
       pl.held = g_steal_pointer (&cy->frame);
       pl.held_phase = 0;
       pl.held_applied_at = cy->applied_at_us;

@@ -53,7 +53,7 @@ acquire_set (DsAcquisition *acq, const DsCaptureSettings *s, guint64 tag, DsSetO
   }
   /* A set that starts from a frame triggered ahead has the previous set's pattern, the same
    * (ds_seq_carry_fits): loading it again could change the light while that frame exposes. */
-  if (!acq->carry.active && !ds_seq_apply_pattern (acq, s, error)) {
+  if (acq->carry.stage == DS_CARRY_NONE && !ds_seq_apply_pattern (acq, s, error)) {
     g_prefix_error (error, "illuminator: ");
     ds_seq_fatal_device_error (acq, *error);
     return NULL;
