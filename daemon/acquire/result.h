@@ -20,7 +20,7 @@ typedef struct DsResult DsResult;
 typedef struct DsPlanePool DsPlanePool;
 
 /* Takes ownership of sep; when the result and every payload sent from it are gone, sep goes
- * back to pool (daemon/service/result_planes.h), or is freed when pool is NULL. */
+ * back to pool (result_planes.h), or is freed when pool is NULL. */
 DsResult *ds_result_new (guint64 set_id, DsSeparation *sep, DsPlanePool *pool,
                          const DsCaptureSettings *settings,
                          const DsFrameCounters *counters, gint64 started_us, gint64 acquired_us,
