@@ -15,6 +15,9 @@
  *   retry.c        the retry rule of every frame acquired (phase sets, dark, pilot)
  *   dark.c         dark-frame acquisition
  *   auto_point.c   the automatic operating point (preview frames)
+ * Beside the thread, each with its own header: frame_counters.c (frame accounting),
+ * result.c and result_planes.c (the published result and its planes), capture_settings.c,
+ * devices.c and devices_common.c (the devices from the configuration), status_dark.c.
  *
  * Ownership: a DsAcquisition belongs to the acquisition thread alone; every function declared
  * here takes it and runs on that thread (unless it says otherwise). What the main thread reads
