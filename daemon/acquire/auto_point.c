@@ -5,7 +5,7 @@
 #include "daemon/operating/pattern_check.h"
 #include "daemon/operating/pilot_stripes.h"
 #include "daemon/protocol/protocol.h"
-#include "daemon/acquire/sequencer_private.h"
+#include "daemon/acquire/acquisition.h"
 #include "proc/stripe_phase.h"
 
 /* A pair of pilot frames (phases 0 and 1/2 of one period) as it is acquired: the phase check
@@ -33,12 +33,12 @@ pilot_pair_init (PilotPair *pair, double period_px, gboolean *lost)
  * part next to the scene's own texture at that period would pass for a repeat; the pilot's
  * stripes check decides about the configured period (daemon/operating/pilot_stripes.h). */
 static void
-pilot_verify (DsSequencer *seq, const DsCaptureSettings *s, PilotPair *pair, guint k, const DsFrame *f,
+pilot_verify (DsAcquisition *acq, const DsCaptureSettings *s, PilotPair *pair, guint k, const DsFrame *f,
               gint64 applied_at, DsFrameVerdict *v)
 {
   DsCaptureSettings timing_only = *s;
   timing_only.verify_phase = FALSE;
-  ds_seq_verify_frame (seq, &timing_only, k, f, applied_at, v);
+  ds_seq_verify_frame (&acq->phase_check, &timing_only, k, f, applied_at, v);
   if (v->reason != DS_DROP_N_REASONS || !s->verify_phase)
     return;
   double measured;
@@ -54,7 +54,7 @@ pilot_verify (DsSequencer *seq, const DsCaptureSettings *s, PilotPair *pair, gui
  * set's frame (ds_seq_retry_or_fail: lost, incomplete or rejected frames and an illuminator that
  * timed out, up to phase-retries times; counted in `retries`). */
 static DsImage *
-pilot_frame (DsSequencer *seq, const DsCaptureSettings *s, PilotPair *pair, guint k, DsFrameCounters *c,
+pilot_frame (DsAcquisition *acq, const DsCaptureSettings *s, PilotPair *pair, guint k, DsFrameCounters *c,
              GError **error)
 {
   guint retries_left = s->phase_retries;
@@ -62,33 +62,33 @@ pilot_frame (DsSequencer *seq, const DsCaptureSettings *s, PilotPair *pair, guin
   gint64 applied_at = 0;
   for (;;) {
     GError *why = NULL;
-    if (!ds_seq_check_quit (seq, error))
+    if (!ds_seq_check_quit (acq, error))
       return NULL;
     if (!lit) {
-      if (!ds_seq_set_phase (seq, k, &why)) {
+      if (!ds_seq_set_phase (acq, k, &why)) {
         c->device_errors++;
         g_prefix_error (&why, "illuminator: ");
         *pair->lost = TRUE;
-        if (!ds_seq_retry_or_fail (seq, &retries_left, c, &why, error, "pilot: phase %u", k))
+        if (!ds_seq_retry_or_fail (acq, &retries_left, c, &why, error, "pilot: phase %u", k))
           return NULL;
         continue;
       }
-      ds_seq_flush_stale (seq, c);
+      ds_seq_flush_stale (acq, c);
       applied_at = g_get_monotonic_time ();
       lit = TRUE;
     }
-    g_autoptr (DsFrame) f = ds_seq_trigger_and_grab (seq, c, &why);
+    g_autoptr (DsFrame) f = ds_seq_trigger_and_grab (acq, c, &why);
     if (!f) {
       g_prefix_error (&why, "camera: ");
       *pair->lost = TRUE;
-      if (!ds_seq_retry_or_fail (seq, &retries_left, c, &why, error, "pilot: phase %u", k))
+      if (!ds_seq_retry_or_fail (acq, &retries_left, c, &why, error, "pilot: phase %u", k))
         return NULL;
       /* The illuminator still shows k, but the lost trigger's buffer may come late. */
-      ds_seq_flush_stale (seq, c);
+      ds_seq_flush_stale (acq, c);
       continue;
     }
     DsFrameVerdict v;
-    pilot_verify (seq, s, pair, k, f, applied_at, &v);
+    pilot_verify (acq, s, pair, k, f, applied_at, &v);
     if (v.reason != DS_DROP_N_REASONS) {
       ds_frame_counters_drop (c, v.reason, 1);
       why = g_error_new (DS_SEQUENCER_ERROR, DS_SEQUENCER_ERROR_FRAME_REJECTED, "frame dropped (%s): %s",
@@ -96,7 +96,7 @@ pilot_frame (DsSequencer *seq, const DsCaptureSettings *s, PilotPair *pair, guin
       lit = lit && !v.reapply_phase;
       ds_frame_verdict_clear (&v);
       *pair->lost = TRUE;
-      if (!ds_seq_retry_or_fail (seq, &retries_left, c, &why, error, "pilot: phase %u", k))
+      if (!ds_seq_retry_or_fail (acq, &retries_left, c, &why, error, "pilot: phase %u", k))
         return NULL;
       continue;
     }
@@ -107,22 +107,22 @@ pilot_frame (DsSequencer *seq, const DsCaptureSettings *s, PilotPair *pair, guin
 /* The two phases at another period (twice the period, or a finer one), where the illuminator
  * can change it; NULL frames and a reason otherwise (the prediction is then a lower bound). */
 static gboolean
-period_frames (DsSequencer *seq, const DsCaptureSettings *s, double period, gboolean *lost, DsFrameCounters *c,
+period_frames (DsAcquisition *acq, const DsCaptureSettings *s, double period, gboolean *lost, DsFrameCounters *c,
                DsImage **out, char **reason, GError **error)
 {
-  DsStripePattern p = seq->dev->pattern;
+  DsStripePattern p = acq->dev->pattern;
   p.kind = s->pattern == DS_PATTERN_SINE ? DS_STRIPES_SINE : DS_STRIPES_SQUARE;
   p.period_px = period;
   p.duty = s->duty;
   p.black_level = s->black_level;
   p.n_phases = 2;
   g_autoptr (GError) refused = NULL;
-  ds_seq_blocking (seq, DS_SEQ_CONTROL_BOUND_MS);
-  if (!seq->dev->illuminator->ops->set_pattern (seq->dev->illuminator->backend, &p, &refused)) {
+  ds_seq_blocking (acq->shared, DS_SEQ_CONTROL_BOUND_MS);
+  if (!acq->dev->illuminator->ops->set_pattern (acq->dev->illuminator->backend, &p, &refused)) {
     if (refused->code != DS_DEVICE_ERROR_INVALID && refused->code != DS_DEVICE_ERROR_UNSUPPORTED) {
       g_propagate_prefixed_error (error, g_steal_pointer (&refused), "pilot: illuminator: ");
       c->device_errors++;
-      ds_seq_fatal_device_error (seq, *error);
+      ds_seq_fatal_device_error (acq, *error);
       return FALSE;
     }
     *reason = g_strdup_printf ("the illuminator cannot change its period: %s", refused->message);
@@ -131,7 +131,7 @@ period_frames (DsSequencer *seq, const DsCaptureSettings *s, double period, gboo
   PilotPair pair;
   pilot_pair_init (&pair, period, lost);
   for (guint k = 0; k < 2; k++)
-    if (!(out[k] = pilot_frame (seq, s, &pair, k, c, error)))
+    if (!(out[k] = pilot_frame (acq, s, &pair, k, c, error)))
       return FALSE;
   /* A device that takes the register but keeps its period shows no stripes at the new one. */
   DsStripePhase sp;
@@ -174,9 +174,9 @@ pattern_matches (const DsProbeFrames *pf, DsOperatingReport *report, GError **er
  * predicts every candidate; the choice and its prediction are recorded in the settings. The
  * pilot frames are counted as `preview` drops. */
 gboolean
-ds_seq_choose_operating_point (DsSequencer *seq, DsCaptureSettings *s, DsFrameCounters *c, GError **error)
+ds_seq_choose_operating_point (DsAcquisition *acq, DsCaptureSettings *s, DsFrameCounters *c, GError **error)
 {
-  if (!seq->model) {
+  if (!acq->model) {
     g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_FAILED,
                  "automatic operating point: no operating model loaded");
     return FALSE;
@@ -186,25 +186,25 @@ ds_seq_choose_operating_point (DsSequencer *seq, DsCaptureSettings *s, DsFrameCo
   pilot.averages = 1;
   pilot.phases = 2;
   guint64 before = c->acquired, dropped_before = c->dropped, retries_before = c->retries;
-  g_autoptr (DsImage) dark = ds_seq_acquire_dark (seq, &pilot, c, NULL, error);
+  g_autoptr (DsImage) dark = ds_seq_acquire_dark (acq, &pilot, c, NULL, error);
   if (!dark)
     return FALSE;
   gboolean lost = c->retries > retries_before;
-  if (!ds_seq_apply_pattern (seq, &pilot, error)) {
+  if (!ds_seq_apply_pattern (acq, &pilot, error)) {
     c->device_errors++;
     g_prefix_error (error, "pilot: illuminator: ");
-    ds_seq_fatal_device_error (seq, *error);
+    ds_seq_fatal_device_error (acq, *error);
     return FALSE;
   }
   PilotPair pair;
   pilot_pair_init (&pair, s->period_px, &lost);
-  g_autoptr (DsImage) lit0 = pilot_frame (seq, s, &pair, 0, c, error);
-  g_autoptr (DsImage) lit1 = lit0 ? pilot_frame (seq, s, &pair, 1, c, error) : NULL;
+  g_autoptr (DsImage) lit0 = pilot_frame (acq, s, &pair, 0, c, error);
+  g_autoptr (DsImage) lit1 = lit0 ? pilot_frame (acq, s, &pair, 1, c, error) : NULL;
   if (!lit1)
     return FALSE;
   DsImage *coarse[2] = { NULL, NULL };
   g_autofree char *coarse_missing = NULL;
-  gboolean ok = period_frames (seq, s, 2 * s->period_px, &lost, c, coarse, &coarse_missing, error);
+  gboolean ok = period_frames (acq, s, 2 * s->period_px, &lost, c, coarse, &coarse_missing, error);
   g_autoptr (DsImage) coarse0 = coarse[0];
   g_autoptr (DsImage) coarse1 = coarse[1];
   /* Finer periods, while the sensor resolves them (scene_probe.h), and not after the illuminator
@@ -215,7 +215,7 @@ ds_seq_choose_operating_point (DsSequencer *seq, DsCaptureSettings *s, DsFrameCo
   g_autofree char *finer_missing = NULL;
   guint got = 0;
   for (guint i = 0; ok && i < n_finer && !finer_missing && !coarse_missing; i++) {
-    ok = period_frames (seq, s, finer_period[i], &lost, c, finer[got], &finer_missing, error);
+    ok = period_frames (acq, s, finer_period[i], &lost, c, finer[got], &finer_missing, error);
     got += ok && finer[got][0];
   }
   if (coarse_missing && n_finer)
@@ -264,13 +264,13 @@ ds_seq_choose_operating_point (DsSequencer *seq, DsCaptureSettings *s, DsFrameCo
   ds_capture_settings_separation_params (s, &params);
   g_autoptr (DsErrorModel) errors = ds_error_model_new (&r->probe, &params);
   DsOperatingPoint op;
-  if (!ds_operating_point_choose (seq->model, errors, &r->probe, &seq->timing, lit0->width, lit0->height,
+  if (!ds_operating_point_choose (acq->model, errors, &r->probe, &acq->timing, lit0->width, lit0->height,
                                   s->target_error, s->time_budget_ms, &op, error))
     return FALSE;
   r->target_error = s->target_error;
   r->time_budget_ms = s->time_budget_ms;
   r->point = op;
-  r->scale = seq->model->scale;
+  r->scale = acq->model->scale;
   r->pilot_frames = pilot_frames;
   r->pilot_ms = (g_get_monotonic_time () - started) / 1000.0;
   s->estimator = op.estimator;

@@ -1,3 +1,5 @@
+/* The settings a phase set is taken with: from the configuration's defaults, to the
+ * separation's parameters, to JSON for a result's metadata. Plain data, CPU only: any thread. */
 #include "daemon/acquire/capture_settings.h"
 #include "proc/phase_check.h"
 

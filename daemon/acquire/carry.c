@@ -11,13 +11,14 @@
  * (docs/design.md, "The pipeline"). */
 #include <string.h>
 
-#include "daemon/acquire/sequencer_private.h"
+#include "daemon/acquire/acquisition.h"
 
 gboolean
-ds_seq_carry_allowed (DsSequencer *seq, const DsCaptureSettings *s)
+ds_seq_carry_allowed (DsAcquisition *acq, DsSetOrigin origin, const DsCaptureSettings *s)
 {
-  return seq->continuous_set && seq->continuous && !seq->carry.active && !seq->need_reconnect &&
-         g_async_queue_length (seq->queue) <= 0 && !g_atomic_int_get (&seq->quit) &&
+  return origin == DS_SET_FOR_STREAM && ds_acquisition_streaming (acq) &&
+         acq->carry.stage == DS_CARRY_NONE && !acq->need_reconnect &&
+         g_async_queue_length (acq->shared->queue) <= 0 && !g_atomic_int_get (&acq->shared->quit) &&
          s->target_error <= 0 && s->time_budget_ms <= 0;
 }
 
@@ -27,19 +28,19 @@ ds_seq_carry_allowed (DsSequencer *seq, const DsCaptureSettings *s)
  * overlap (a camera lost between two continuous sets is reported as lost, not only
  * reconnected). */
 static void
-carry_device_error (DsSequencer *seq, GError *e, const char *what)
+carry_device_error (DsAcquisition *acq, GError *e, const char *what)
 {
-  DsSeqCarry *cy = &seq->carry;
-  if (ds_seq_fatal_device_error (seq, e) && !cy->error)
+  DsSeqCarry *cy = &acq->carry;
+  if (ds_seq_fatal_device_error (acq, e) && !cy->error)
     cy->error = g_error_new (e->domain, e->code, "%s: %s", what, e->message);
 }
 
 void
-ds_seq_carry_trigger (DsSequencer *seq, const DsCaptureSettings *s, gint64 lit_since)
+ds_seq_carry_trigger (DsAcquisition *acq, const DsCaptureSettings *s, gint64 lit_since)
 {
-  DsSeqCarry *cy = &seq->carry;
+  DsSeqCarry *cy = &acq->carry;
   memset (cy, 0, sizeof *cy);
-  cy->active = TRUE;
+  cy->stage = DS_CARRY_COUNTED;
   cy->settings = *s;
   cy->dark = s->dark_frame;
   g_autoptr (GError) e = NULL;
@@ -51,77 +52,77 @@ ds_seq_carry_trigger (DsSequencer *seq, const DsCaptureSettings *s, gint64 lit_s
     cy->applied_at_us = lit_since;
   } else {
     if (cy->dark) {
-      if (!ds_seq_illuminator_off (seq, &cy->counters, &e)) {
-        carry_device_error (seq, e, first); /* prefixed "dark frame: illuminator off" */
+      if (!ds_seq_illuminator_off (acq, &cy->counters, &e)) {
+        carry_device_error (acq, e, first); /* prefixed "dark frame: illuminator off" */
         return;
       }
     } else {
       gint64 t = g_get_monotonic_time ();
-      if (!ds_seq_set_phase (seq, 0, &e)) {
+      if (!ds_seq_set_phase (acq, 0, &e)) {
         cy->counters.device_errors++;
         g_prefix_error (&e, "illuminator: ");
-        carry_device_error (seq, e, first);
+        carry_device_error (acq, e, first);
         return;
       }
-      ds_seq_stage_add (seq, DS_STAGE_SET_PHASE, t);
+      ds_seq_stage_add (acq->shared, DS_STAGE_SET_PHASE, t);
     }
-    ds_seq_flush_stale (seq, &cy->counters);
+    ds_seq_flush_stale (acq, &cy->counters);
     cy->applied_at_us = g_get_monotonic_time ();
   }
-  cy->begun_before = ds_seq_frames_begun (seq);
-  if (!ds_seq_trigger (seq, &cy->counters, &e)) {
+  cy->begun_before = ds_seq_frames_begun (acq);
+  if (!ds_seq_trigger (acq, &cy->counters, &e)) {
     g_prefix_error (&e, "camera: ");
-    carry_device_error (seq, e, first);
+    carry_device_error (acq, e, first);
     return;
   }
-  cy->pending = TRUE;
+  cy->stage = DS_CARRY_TRIGGERED;
 }
 
 void
-ds_seq_carry_grab (DsSequencer *seq)
+ds_seq_carry_grab (DsAcquisition *acq)
 {
-  DsSeqCarry *cy = &seq->carry;
-  if (!cy->pending)
+  DsSeqCarry *cy = &acq->carry;
+  if (cy->stage != DS_CARRY_TRIGGERED)
     return;
-  cy->pending = FALSE;
   g_autoptr (GError) e = NULL;
-  cy->frame = ds_seq_grab (seq, &cy->counters, &e);
+  cy->frame = ds_seq_grab (acq, &cy->counters, &e);
+  cy->stage = cy->frame ? DS_CARRY_HELD : DS_CARRY_COUNTED;
   if (!cy->frame) {
     g_prefix_error (&e, "camera: ");
-    carry_device_error (seq, e, cy->dark ? "dark frame" : "phase 0");
+    carry_device_error (acq, e, cy->dark ? "dark frame" : "phase 0");
     /* A frame of the lost trigger that still comes is flushed after the next set_phase. */
   }
 }
 
 gboolean
-ds_seq_carry_fits (DsSequencer *seq, const DsCaptureSettings *s)
+ds_seq_carry_fits (DsAcquisition *acq, DsSetOrigin origin, const DsCaptureSettings *s)
 {
-  return seq->carry.active && !seq->carry.error && seq->continuous_set && !seq->need_reconnect &&
-         seq->dev && memcmp (&seq->carry.settings, s, sizeof *s) == 0;
+  return acq->carry.stage != DS_CARRY_NONE && !acq->carry.error && origin == DS_SET_FOR_STREAM && !acq->need_reconnect &&
+         acq->dev && memcmp (&acq->carry.settings, s, sizeof *s) == 0;
 }
 
 void
-ds_seq_carry_discard (DsSequencer *seq)
+ds_seq_carry_discard (DsAcquisition *acq)
 {
-  DsSeqCarry *cy = &seq->carry;
-  if (!cy->active)
+  DsSeqCarry *cy = &acq->carry;
+  if (cy->stage == DS_CARRY_NONE)
     return;
-  if (cy->pending && seq->dev && !seq->need_reconnect)
-    ds_seq_carry_grab (seq);
+  if (cy->stage == DS_CARRY_TRIGGERED && acq->dev && !acq->need_reconnect)
+    ds_seq_carry_grab (acq);
   if (cy->frame) {
     ds_frame_counters_drop (&cy->counters, DS_DROP_ABORTED, 1);
     g_clear_pointer (&cy->frame, ds_frame_free);
   }
   if (cy->error) {
     /* The set it belonged to failed on its first frame (carry_device_error). */
-    ds_seq_account (seq, &cy->counters, FALSE);
-    ds_seq_record_error (seq, cy->error);
-    ds_seq_refresh_device_status (seq);
-    ds_seq_emit (seq, DS_SEQUENCER_EVENT_FAILED, 0, NULL, g_steal_pointer (&cy->error), NULL);
+    ds_seq_account (acq->shared, &cy->counters, FALSE);
+    ds_seq_record_error (acq->shared, cy->error);
+    ds_seq_refresh_device_status (acq);
+    ds_seq_emit (acq->shared, DS_SEQUENCER_EVENT_FAILED, 0, NULL, g_steal_pointer (&cy->error), NULL);
   } else {
-    ds_seq_account_frames (seq, &cy->counters);
+    ds_seq_account_frames (acq->shared, &cy->counters);
     /* The camera's statistics count the frame grabbed here as the counters now do. */
-    ds_seq_refresh_device_status (seq);
+    ds_seq_refresh_device_status (acq);
   }
   memset (cy, 0, sizeof *cy);
 }

@@ -4,18 +4,18 @@
 #include <string.h>
 
 #include "daemon/protocol/protocol.h"
-#include "daemon/acquire/sequencer_private.h"
+#include "daemon/acquire/acquisition.h"
 #include "proc/stripe_phase.h"
 
 gboolean
-ds_seq_illuminator_off (DsSequencer *seq, DsFrameCounters *c, GError **error)
+ds_seq_illuminator_off (DsAcquisition *acq, DsFrameCounters *c, GError **error)
 {
-  ds_seq_blocking (seq, seq->dev->settle_timeout_ms + DS_SEQ_CONTROL_BOUND_MS);
-  if (!seq->dev->illuminator->ops->off (seq->dev->illuminator->backend, seq->dev->settle_timeout_ms,
+  ds_seq_blocking (acq->shared, acq->dev->settle_timeout_ms + DS_SEQ_CONTROL_BOUND_MS);
+  if (!acq->dev->illuminator->ops->off (acq->dev->illuminator->backend, acq->dev->settle_timeout_ms,
                                         error)) {
     c->device_errors++;
     g_prefix_error (error, "dark frame: illuminator off: ");
-    ds_seq_fatal_device_error (seq, *error); /* a lost illuminator is reconnected */
+    ds_seq_fatal_device_error (acq, *error); /* a lost illuminator is reconnected */
     return FALSE;
   }
   return TRUE;
@@ -27,45 +27,45 @@ ds_seq_illuminator_off (DsSequencer *seq, DsFrameCounters *c, GError **error)
  * when the illuminator lit a phase again since (the previous set re-acquired its dropped last
  * phase after grabbing it); the illuminator is then turned off again for the frames after it. */
 DsImage *
-ds_seq_acquire_dark (DsSequencer *seq, const DsCaptureSettings *s, DsFrameCounters *c, double *mean_dn,
+ds_seq_acquire_dark (DsAcquisition *acq, const DsCaptureSettings *s, DsFrameCounters *c, double *mean_dn,
                      GError **error)
 {
   gboolean off = FALSE, grab_only = FALSE;
   gint64 off_at = 0, carried_off_at = 0;
   g_autoptr (DsFrame) carried = NULL;
-  DsSeqCarry *cy = &seq->carry;
-  if (cy->active) {
+  DsSeqCarry *cy = &acq->carry;
+  if (cy->stage != DS_CARRY_NONE) {
     /* The set runner checked that it fits this set (ds_seq_carry_fits). */
     g_assert (cy->dark);
     ds_frame_counters_add (c, &cy->counters);
-    if (cy->pending) {
+    if (cy->stage == DS_CARRY_TRIGGERED) {
       off = grab_only = TRUE;
       off_at = cy->applied_at_us;
-    } else if (cy->frame) {
+    } else if (cy->stage == DS_CARRY_HELD) {
       carried = g_steal_pointer (&cy->frame);
       carried_off_at = cy->applied_at_us;
     }
     memset (cy, 0, sizeof *cy);
   }
-  g_array_set_size (seq->dark_ids, 0);
+  g_array_set_size (acq->dark_ids, 0);
   g_autofree double *sum = NULL;
   guint w = 0, h = 0, got = 0, retries_left = s->phase_retries, bit_depth = 16;
   DsSampleType type = DS_SAMPLE_U16;
   while (got < s->averages) {
     GError *why = NULL;
-    if (!ds_seq_check_quit (seq, error))
+    if (!ds_seq_check_quit (acq, error))
       return NULL;
     gint64 exposed_after = carried ? carried_off_at : off_at;
     if (!carried && !off) {
-      if (!ds_seq_illuminator_off (seq, c, error))
+      if (!ds_seq_illuminator_off (acq, c, error))
         return NULL;
-      ds_seq_flush_stale (seq, c);
+      ds_seq_flush_stale (acq, c);
       off = TRUE;
       exposed_after = off_at = g_get_monotonic_time ();
     }
     g_autoptr (DsFrame) f = carried      ? g_steal_pointer (&carried)
-                            : grab_only ? ds_seq_grab (seq, c, &why)
-                                        : ds_seq_trigger_and_grab (seq, c, &why);
+                            : grab_only ? ds_seq_grab (acq, c, &why)
+                                        : ds_seq_trigger_and_grab (acq, c, &why);
     grab_only = FALSE;
     if (f && f->host_time_us != 0 && (gint64) f->host_time_us < exposed_after) {
       ds_frame_counters_drop (c, DS_DROP_STALE, 1);
@@ -84,7 +84,7 @@ ds_seq_acquire_dark (DsSequencer *seq, const DsCaptureSettings *s, DsFrameCounte
       }
     }
     if (!f) {
-      if (!ds_seq_retry_or_fail (seq, &retries_left, c, &why, error, "dark frame"))
+      if (!ds_seq_retry_or_fail (acq, &retries_left, c, &why, error, "dark frame"))
         return NULL;
       continue;
     }
@@ -110,7 +110,7 @@ ds_seq_acquire_dark (DsSequencer *seq, const DsCaptureSettings *s, DsFrameCounte
                   : img->type == DS_SAMPLE_U16 ? ((const guint16 *) row)[x]
                                                : ((const float *) row)[x];
     }
-    g_array_append_val (seq->dark_ids, f->frame_id);
+    g_array_append_val (acq->dark_ids, f->frame_id);
     got++;
   }
   /* The dark frame has the frames' own sample type, as the accumulator subtracts like from
@@ -143,49 +143,47 @@ ds_seq_acquire_dark (DsSequencer *seq, const DsCaptureSettings *s, DsFrameCounte
 }
 
 void
-ds_seq_note_dark (DsSequencer *seq, const DsCaptureSettings *s, double mean_dn, gboolean by_set)
+ds_seq_note_dark (DsAcquisition *acq, const DsCaptureSettings *s, double mean_dn, gboolean by_set)
 {
   DsDarkFrameInfo info = { .taken = TRUE, .by_set = by_set, .taken_unix_us = g_get_real_time (),
                            .mean_dn = mean_dn, .frames = s->averages, .exposure_us = s->exposure_us,
                            .gain_db = s->gain_db };
-  g_mutex_lock (&seq->lock);
-  seq->status.last_dark = info;
+  g_mutex_lock (&acq->shared->lock);
+  acq->shared->status.last_dark = info;
   if (!by_set) {
-    seq->status.stored_dark = info;
-    seq->status.has_dark = TRUE;
+    acq->shared->status.stored_dark = info;
+    acq->shared->status.has_dark = TRUE;
   }
-  g_mutex_unlock (&seq->lock);
+  g_mutex_unlock (&acq->shared->lock);
 }
 
 void
-ds_seq_run_dark (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag)
+ds_seq_run_dark (DsAcquisition *acq, const DsCaptureSettings *s, guint64 tag)
 {
   DsFrameCounters c = { 0 };
   g_autoptr (GError) error = NULL;
   DsImage *dark = NULL;
   double mean = NAN;
-  if (!ds_seq_ensure_camera (seq, s, &error)) {
+  if (!ds_seq_ensure_camera (acq, s, &error)) {
     g_prefix_error (&error, "camera: ");
-    ds_seq_fatal_device_error (seq, error);
+    ds_seq_fatal_device_error (acq, error);
   } else
-    dark = ds_seq_acquire_dark (seq, s, &c, &mean, &error);
+    dark = ds_seq_acquire_dark (acq, s, &c, &mean, &error);
   if (!dark) {
-    ds_frame_counters_drop (&c, DS_DROP_ABORTED, c.acquired - c.dropped);
-    ds_seq_account (seq, &c, FALSE);
-    ds_seq_record_error (seq, error);
-    ds_seq_emit (seq, DS_SEQUENCER_EVENT_DARK, tag, NULL, g_steal_pointer (&error), NULL);
+    ds_frame_counters_abort_rest (&c);
+    ds_seq_account (acq->shared, &c, FALSE);
+    ds_seq_record_error (acq->shared, error);
+    ds_seq_emit (acq->shared, DS_SEQUENCER_EVENT_DARK, tag, NULL, g_steal_pointer (&error), NULL);
     return;
   }
-  c.folded = c.acquired - c.dropped;
-  g_mutex_lock (&seq->lock);
-  ds_frame_counters_add (&seq->status.frames, &c);
-  g_mutex_unlock (&seq->lock);
-  ds_seq_note_dark (seq, s, mean, FALSE);
-  g_clear_pointer (&seq->dark, ds_image_free);
-  seq->dark = dark;
-  g_array_set_size (seq->stored_dark_ids, 0);
-  g_array_append_vals (seq->stored_dark_ids, seq->dark_ids->data, seq->dark_ids->len);
-  seq->dark_exposure_us = s->exposure_us;
-  seq->dark_gain_db = s->gain_db;
-  ds_seq_emit_dark (seq, tag, mean);
+  ds_frame_counters_fold_rest (&c);
+  ds_seq_account_frames (acq->shared, &c);
+  ds_seq_note_dark (acq, s, mean, FALSE);
+  g_clear_pointer (&acq->dark, ds_image_free);
+  acq->dark = dark;
+  g_array_set_size (acq->stored_dark_ids, 0);
+  g_array_append_vals (acq->stored_dark_ids, acq->dark_ids->data, acq->dark_ids->len);
+  acq->dark_exposure_us = s->exposure_us;
+  acq->dark_gain_db = s->gain_db;
+  ds_seq_emit_dark (acq->shared, tag, mean);
 }

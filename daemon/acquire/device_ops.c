@@ -3,7 +3,7 @@
 #include <string.h>
 
 #include "daemon/protocol/protocol.h"
-#include "daemon/acquire/sequencer_private.h"
+#include "daemon/acquire/acquisition.h"
 
 static gboolean
 is_code (const GError *error, int code)
@@ -12,89 +12,89 @@ is_code (const GError *error, int code)
 }
 
 gboolean
-ds_seq_ensure_camera (DsSequencer *seq, const DsCaptureSettings *s, GError **error)
+ds_seq_ensure_camera (DsAcquisition *acq, const DsCaptureSettings *s, GError **error)
 {
-  DsCamera *cam = seq->dev->camera;
-  if (seq->camera_configured && seq->camera_exposure_us == s->exposure_us &&
-      seq->camera_gain_db == s->gain_db) {
-    if (!seq->camera_started) {
+  DsCamera *cam = acq->dev->camera;
+  if (acq->camera_configured && acq->camera_exposure_us == s->exposure_us &&
+      acq->camera_gain_db == s->gain_db) {
+    if (!acq->camera_started) {
       if (!cam->ops->start (cam->backend, error))
         return FALSE;
-      seq->camera_started = TRUE;
+      acq->camera_started = TRUE;
     }
     return TRUE;
   }
   /* Configuring is a few dozen control round trips; any one of them failing ends it. */
-  ds_seq_blocking (seq, 2 * DS_SEQ_CONTROL_BOUND_MS);
-  if (seq->camera_started) {
+  ds_seq_blocking (acq->shared, 2 * DS_SEQ_CONTROL_BOUND_MS);
+  if (acq->camera_started) {
     cam->ops->stop (cam->backend);
-    seq->camera_started = FALSE;
+    acq->camera_started = FALSE;
   }
   DsCameraSettings cs;
-  ds_devices_camera_settings (seq->dev, s->exposure_us, s->gain_db, &cs);
+  ds_devices_camera_settings (acq->dev, s->exposure_us, s->gain_db, &cs);
   if (!cam->ops->configure (cam->backend, &cs, error)) {
-    seq->camera_configured = FALSE;
+    acq->camera_configured = FALSE;
     return FALSE;
   }
-  seq->camera_configured = TRUE;
-  seq->camera_exposure_us = s->exposure_us;
-  seq->camera_gain_db = s->gain_db;
+  acq->camera_configured = TRUE;
+  acq->camera_exposure_us = s->exposure_us;
+  acq->camera_gain_db = s->gain_db;
   if (!cam->ops->start (cam->backend, error))
     return FALSE;
-  seq->camera_started = TRUE;
+  acq->camera_started = TRUE;
   return TRUE;
 }
 
 gboolean
-ds_seq_apply_pattern (DsSequencer *seq, const DsCaptureSettings *s, GError **error)
+ds_seq_apply_pattern (DsAcquisition *acq, const DsCaptureSettings *s, GError **error)
 {
-  DsStripePattern p = seq->dev->pattern;
+  DsStripePattern p = acq->dev->pattern;
   p.kind = s->pattern == DS_PATTERN_SINE ? DS_STRIPES_SINE : DS_STRIPES_SQUARE;
   p.period_px = s->period_px;
   p.duty = s->duty;
   p.black_level = s->black_level;
   p.n_phases = s->phases;
-  ds_seq_blocking (seq, DS_SEQ_CONTROL_BOUND_MS);
-  return seq->dev->illuminator->ops->set_pattern (seq->dev->illuminator->backend, &p, error);
+  ds_seq_blocking (acq->shared, DS_SEQ_CONTROL_BOUND_MS);
+  return acq->dev->illuminator->ops->set_pattern (acq->dev->illuminator->backend, &p, error);
 }
 
 gboolean
-ds_seq_set_phase (DsSequencer *seq, guint k, GError **error)
+ds_seq_set_phase (DsAcquisition *acq, guint k, GError **error)
 {
-  ds_seq_blocking (seq, seq->dev->settle_timeout_ms + DS_SEQ_CONTROL_BOUND_MS);
-  return seq->dev->illuminator->ops->set_phase (seq->dev->illuminator->backend, k,
-                                                seq->dev->settle_timeout_ms, error);
+  ds_seq_blocking (acq->shared, acq->dev->settle_timeout_ms + DS_SEQ_CONTROL_BOUND_MS);
+  return acq->dev->illuminator->ops->set_phase (acq->dev->illuminator->backend, k,
+                                                acq->dev->settle_timeout_ms, error);
 }
 
 gboolean
-ds_seq_trigger (DsSequencer *seq, DsFrameCounters *c, GError **error)
+ds_seq_trigger (DsAcquisition *acq, DsFrameCounters *c, GError **error)
 {
   gint64 t = g_get_monotonic_time ();
-  ds_seq_blocking (seq, DS_SEQ_CONTROL_BOUND_MS);
-  if (!seq->dev->trigger->ops->fire (seq->dev->trigger->backend, error)) {
+  ds_seq_blocking (acq->shared, DS_SEQ_CONTROL_BOUND_MS);
+  if (!acq->dev->trigger->ops->fire (acq->dev->trigger->backend, error)) {
     c->device_errors++;
     return FALSE;
   }
-  ds_seq_stage_add (seq, DS_STAGE_TRIGGER, t);
+  ds_seq_stage_add (acq->shared, DS_STAGE_TRIGGER, t);
   return TRUE;
 }
 
 DsFrame *
-ds_seq_grab (DsSequencer *seq, DsFrameCounters *c, GError **error)
+ds_seq_grab (DsAcquisition *acq, DsFrameCounters *c, GError **error)
 {
-  return ds_seq_grab_within (seq, c, seq->dev->grab_timeout_ms, error);
+  return ds_seq_grab_within (acq, c, acq->dev->grab_timeout_ms, error);
 }
 
 DsFrame *
-ds_seq_grab_within (DsSequencer *seq, DsFrameCounters *c, guint timeout_ms, GError **error)
+ds_seq_grab_within (DsAcquisition *acq, DsFrameCounters *c, guint timeout_ms, GError **error)
 {
   gint64 t = g_get_monotonic_time ();
   GError *local = NULL;
   /* The grab's own deadline, then one control round trip asking a silent camera whether it
    * is still there. */
-  ds_seq_blocking (seq, timeout_ms + DS_SEQ_CONTROL_BOUND_MS);
-  DsFrame *frame = seq->dev->camera->ops->grab (seq->dev->camera->backend, timeout_ms, &local);
-  ds_seq_stage_add (seq, DS_STAGE_GRAB, t);
+  ds_seq_blocking (acq->shared, timeout_ms + DS_SEQ_CONTROL_BOUND_MS);
+  DsFrame *frame = acq->dev->camera->ops->grab (acq->dev->camera->backend, timeout_ms, &local);
+  ds_seq_stage_add (acq->shared, DS_STAGE_GRAB, t);
   if (frame) {
     c->acquired++;
     return frame;
@@ -112,55 +112,55 @@ ds_seq_grab_within (DsSequencer *seq, DsFrameCounters *c, guint timeout_ms, GErr
 
 /* One frame: trigger and grab. Counts what happened. Returns NULL with error set. */
 DsFrame *
-ds_seq_trigger_and_grab (DsSequencer *seq, DsFrameCounters *c, GError **error)
+ds_seq_trigger_and_grab (DsAcquisition *acq, DsFrameCounters *c, GError **error)
 {
-  if (!ds_seq_trigger (seq, c, error))
+  if (!ds_seq_trigger (acq, c, error))
     return NULL;
-  return ds_seq_grab (seq, c, error);
+  return ds_seq_grab (acq, c, error);
 }
 
 guint64
-ds_seq_frames_begun (DsSequencer *seq)
+ds_seq_frames_begun (DsAcquisition *acq)
 {
-  DsCamera *cam = seq->dev->camera;
-  if (!seq->dev->sends_after_exposure || !cam->ops->frames_begun)
+  DsCamera *cam = acq->dev->camera;
+  if (!acq->dev->sends_after_exposure || !cam->ops->frames_begun)
     return 0;
   return cam->ops->frames_begun (cam->backend, 0, 0);
 }
 
 gboolean
-ds_seq_wait_exposure_over (DsSequencer *seq, guint64 before)
+ds_seq_wait_exposure_over (DsAcquisition *acq, guint64 before)
 {
-  DsCamera *cam = seq->dev->camera;
-  if (!seq->dev->sends_after_exposure || !cam->ops->frames_begun)
+  DsCamera *cam = acq->dev->camera;
+  if (!acq->dev->sends_after_exposure || !cam->ops->frames_begun)
     return FALSE;
   /* The frame's own deadline, as its grab has. */
   gint64 t = g_get_monotonic_time ();
-  ds_seq_blocking (seq, seq->dev->grab_timeout_ms);
-  gboolean begun = cam->ops->frames_begun (cam->backend, before, seq->dev->grab_timeout_ms) > before;
-  ds_seq_stage_add (seq, DS_STAGE_EXPOSE, t);
+  ds_seq_blocking (acq->shared, acq->dev->grab_timeout_ms);
+  gboolean begun = cam->ops->frames_begun (cam->backend, before, acq->dev->grab_timeout_ms) > before;
+  ds_seq_stage_add (acq->shared, DS_STAGE_EXPOSE, t);
   return begun;
 }
 
 void
-ds_seq_flush_stale (DsSequencer *seq, DsFrameCounters *c)
+ds_seq_flush_stale (DsAcquisition *acq, DsFrameCounters *c)
 {
-  guint n = seq->dev->camera->ops->flush (seq->dev->camera->backend);
+  guint n = acq->dev->camera->ops->flush (acq->dev->camera->backend);
   c->acquired += n;
   ds_frame_counters_drop (c, DS_DROP_STALE, n);
 }
 
 gboolean
-ds_seq_check_quit (DsSequencer *seq, GError **error)
+ds_seq_check_quit (DsAcquisition *acq, GError **error)
 {
-  if (!g_atomic_int_get (&seq->quit))
+  if (!g_atomic_int_get (&acq->shared->quit))
     return TRUE;
   g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_CANCELLED, "the daemon is stopping");
   return FALSE;
 }
 
 gboolean
-ds_seq_fatal_device_error (DsSequencer *seq, const GError *e)
+ds_seq_fatal_device_error (DsAcquisition *acq, const GError *e)
 {
   /* The one policy (drivers/core/device_error.h); an error that is not a device's (a rejected
    * frame) is the caller's to retry. */
@@ -168,9 +168,9 @@ ds_seq_fatal_device_error (DsSequencer *seq, const GError *e)
     return FALSE;
   switch (ds_device_error_policy (e)) {
   case DS_DEVICE_POLICY_RECONNECT:
-    seq->need_reconnect = TRUE;
+    acq->need_reconnect = TRUE;
     /* In status at once, before the failure reaches anyone: not ready until reconnected. */
-    ds_seq_set_state (seq, "reconnecting");
+    ds_seq_set_state (acq->shared, DS_SEQUENCER_STATE_RECONNECTING);
     return TRUE;
   case DS_DEVICE_POLICY_FAIL:
     return TRUE;
@@ -181,36 +181,36 @@ ds_seq_fatal_device_error (DsSequencer *seq, const GError *e)
 }
 
 gboolean
-ds_seq_apply_defaults (DsSequencer *seq)
+ds_seq_apply_defaults (DsAcquisition *acq)
 {
   DsCaptureSettings s;
-  g_mutex_lock (&seq->lock);
-  s = seq->defaults;
-  g_mutex_unlock (&seq->lock);
+  g_mutex_lock (&acq->shared->lock);
+  s = acq->shared->defaults;
+  g_mutex_unlock (&acq->shared->lock);
   /* The stripe geometry is the illuminator's, as a set uses it (set_runner.c). */
-  s.pattern = seq->dev->pattern.kind == DS_STRIPES_SINE ? DS_PATTERN_SINE : DS_PATTERN_SQUARE;
-  s.period_px = seq->dev->pattern.period_px;
-  s.duty = seq->dev->pattern.duty;
-  s.black_level = seq->dev->pattern.black_level;
+  s.pattern = acq->dev->pattern.kind == DS_STRIPES_SINE ? DS_PATTERN_SINE : DS_PATTERN_SQUARE;
+  s.period_px = acq->dev->pattern.period_px;
+  s.duty = acq->dev->pattern.duty;
+  s.black_level = acq->dev->pattern.black_level;
   g_autoptr (GError) error = NULL;
-  gboolean ok = ds_seq_ensure_camera (seq, &s, &error);
+  gboolean ok = ds_seq_ensure_camera (acq, &s, &error);
   if (!ok)
     g_prefix_error (&error, "camera: ");
-  else if (!(ok = ds_seq_apply_pattern (seq, &s, &error)))
+  else if (!(ok = ds_seq_apply_pattern (acq, &s, &error)))
     g_prefix_error (&error, "illuminator: ");
   if (!ok)
-    ds_seq_fatal_device_error (seq, error);
-  g_mutex_lock (&seq->lock);
+    ds_seq_fatal_device_error (acq, error);
+  g_mutex_lock (&acq->shared->lock);
   /* Reported when it changes (settings_ok starts TRUE: a normal start says nothing). */
-  gboolean changed = seq->status.settings_ok != ok ||
-                     (!ok && strcmp (seq->status.settings_error, error->message) != 0);
-  seq->status.settings_ok = ok;
-  g_strlcpy (seq->status.settings_error, ok ? "" : error->message, sizeof seq->status.settings_error);
-  g_mutex_unlock (&seq->lock);
+  gboolean changed = acq->shared->status.settings_ok != ok ||
+                     (!ok && strcmp (acq->shared->status.settings_error, error->message) != 0);
+  acq->shared->status.settings_ok = ok;
+  g_strlcpy (acq->shared->status.settings_error, ok ? "" : error->message, sizeof acq->shared->status.settings_error);
+  g_mutex_unlock (&acq->shared->lock);
   if (changed) {
     g_autofree char *msg = ok ? g_strdup ("devices took the configured settings")
                               : g_strdup_printf ("devices refuse the configured settings: %s", error->message);
-    ds_seq_emit (seq, DS_SEQUENCER_EVENT_DEVICE, 0, NULL, NULL, msg);
+    ds_seq_emit (acq->shared, DS_SEQUENCER_EVENT_DEVICE, 0, NULL, NULL, msg);
   }
   return ok;
 }
@@ -218,34 +218,34 @@ ds_seq_apply_defaults (DsSequencer *seq)
 /* Reopens a lost camera (or illuminator) with capped exponential backoff, until it works or
  * the daemon stops. Commands wait in the queue meanwhile. */
 void
-ds_seq_reconnect (DsSequencer *seq)
+ds_seq_reconnect (DsAcquisition *acq)
 {
-  ds_seq_set_state (seq, "reconnecting");
-  ds_seq_emit (seq, DS_SEQUENCER_EVENT_DEVICE, 0, NULL, NULL, "device disconnected: reconnecting");
+  ds_seq_set_state (acq->shared, DS_SEQUENCER_STATE_RECONNECTING);
+  ds_seq_emit (acq->shared, DS_SEQUENCER_EVENT_DEVICE, 0, NULL, NULL, "device disconnected: reconnecting");
   guint delay_ms = 100;
-  while (!g_atomic_int_get (&seq->quit)) {
+  while (!g_atomic_int_get (&acq->shared->quit)) {
     g_autoptr (GError) e1 = NULL;
     g_autoptr (GError) e2 = NULL;
-    ds_seq_blocking (seq, 4 * DS_SEQ_CONTROL_BOUND_MS); /* opening both again */
-    gboolean cam_ok = seq->dev->camera->ops->reconnect (seq->dev->camera->backend, &e1);
-    gboolean ill_ok = cam_ok && seq->dev->illuminator->ops->reconnect (seq->dev->illuminator->backend, &e2);
-    ds_seq_heartbeat (seq);
+    ds_seq_blocking (acq->shared, 4 * DS_SEQ_CONTROL_BOUND_MS); /* opening both again */
+    gboolean cam_ok = acq->dev->camera->ops->reconnect (acq->dev->camera->backend, &e1);
+    gboolean ill_ok = cam_ok && acq->dev->illuminator->ops->reconnect (acq->dev->illuminator->backend, &e2);
+    ds_seq_heartbeat (acq->shared);
     if (cam_ok && ill_ok) {
-      seq->camera_started = FALSE;
-      seq->camera_configured = FALSE;
-      seq->need_reconnect = FALSE;
-      g_mutex_lock (&seq->lock);
-      seq->status.camera_stats.reconnects++;
-      g_mutex_unlock (&seq->lock);
-      ds_seq_emit (seq, DS_SEQUENCER_EVENT_DEVICE, 0, NULL, NULL, "devices reconnected");
+      acq->camera_started = FALSE;
+      acq->camera_configured = FALSE;
+      acq->need_reconnect = FALSE;
+      g_mutex_lock (&acq->shared->lock);
+      acq->shared->status.camera_stats.reconnects++;
+      g_mutex_unlock (&acq->shared->lock);
+      ds_seq_emit (acq->shared, DS_SEQUENCER_EVENT_DEVICE, 0, NULL, NULL, "devices reconnected");
       /* A camera that came back (or another one at that address) must take the settings
        * again; a refusal shows in status before the next set. */
-      ds_seq_apply_defaults (seq);
+      ds_seq_apply_defaults (acq);
       return;
     }
-    ds_seq_record_error (seq, e1 ? e1 : e2);
+    ds_seq_record_error (acq->shared, e1 ? e1 : e2);
     /* Sleep in slices so that quitting stays prompt. */
-    for (guint slept = 0; slept < delay_ms && !g_atomic_int_get (&seq->quit); slept += 50)
+    for (guint slept = 0; slept < delay_ms && !g_atomic_int_get (&acq->shared->quit); slept += 50)
       g_usleep (50 * 1000);
     delay_ms = MIN (delay_ms * 2, 2000);
   }

@@ -1,3 +1,6 @@
+/* The devices opened from the configuration: which backend (Aravis, Modbus, GPIO, simulated
+ * lab, built-in scene) stands behind each interface. Runs on the acquisition thread (opening
+ * may block on the network); fails with the backend's error when a device does not open. */
 #include "daemon/acquire/devices.h"
 
 #include <string.h>

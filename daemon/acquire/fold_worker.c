@@ -4,16 +4,19 @@
  *
  * One job at a time, handed over and collected under one mutex: the acquisition thread never
  * submits a second job before it collected the first, so frames are verified and folded in the
- * order they were grabbed. The worker touches the phase set and the phase check only between
- * submit and collect; the acquisition thread touches them only outside, so the mutex orders
- * every access. The worker calls no driver and counts nothing: the acquisition thread owns the
- * frame (and returns its buffer to the camera) and does the accounting after collect. */
+ * order they were grabbed. The worker touches what the job lends it (phase set, phase check,
+ * raw frames) only between submit and collect; the acquisition thread touches them only
+ * outside, so the mutex orders every access. The worker calls no driver, counts nothing and
+ * writes none of the acquisition thread's fields: its findings go into the job's out fields;
+ * the acquisition thread owns the frame (and returns its buffer to the camera) and does the
+ * accounting after collect. The only shared state it writes is the stage times, under the
+ * shared lock. */
 #include <string.h>
 
-#include "daemon/acquire/sequencer_private.h"
+#include "daemon/acquire/fold_worker.h"
 
 struct DsFoldWorker {
-  DsSequencer *seq;
+  DsSequencerShared *shared;
   GThread *thread;
   GMutex lock;
   GCond cond;
@@ -21,49 +24,49 @@ struct DsFoldWorker {
   DsFoldJob job;
 };
 
-/* overlapped: the next frame is being acquired meanwhile (the fold thread). */
+/* Verifies, folds (and for the set's last frame finalizes) one job, filling its out fields.
+ * overlapped: on the worker thread, while the next frame is acquired; else on the acquisition
+ * thread with nothing to overlap with. CPU only; a failure goes to job->fold_error. */
 static void
-run_job (DsSequencer *seq, DsFoldJob *job, gboolean overlapped)
+run_job (DsSequencerShared *shared, DsFoldJob *job, gboolean overlapped)
 {
   gint64 t = g_get_monotonic_time ();
   job->times.verify_started_us = t;
-  ds_seq_verify_frame (seq, job->settings, job->phase, job->frame, job->applied_at_us, &job->verdict);
-  ds_seq_stage_add (seq, DS_STAGE_VERIFY, t);
+  ds_seq_verify_frame (job->phase_check, job->settings, job->phase, job->frame, job->applied_at_us,
+                       &job->verdict);
+  ds_seq_stage_add (shared, DS_STAGE_VERIFY, t);
   if (job->verdict.reason != DS_DROP_N_REASONS)
     return;
   t = g_get_monotonic_time ();
   job->times.verified_us = t;
-  /* While the next frame is acquired, the transfer (and on a rig like the benchmark's, the
-   * camera and the illuminator's controller) need a core: the fold takes one, and so does the
-   * finalize of a set whose successor's first frame is acquired meanwhile (continuous mode):
-   * on two cores a finalize on both held up that frame's transfer, the camera's cycle of phase 0
-   * the longest of the set (docs/benchmarks.md, "run U"). Nothing overlaps with the last frame
-   * of a set otherwise: it takes all. */
-  ds_phase_set_set_fold_threads (seq->set, overlapped ? 1 : 0);
-  ds_phase_set_set_finalize_threads (seq->set, overlapped ? 1 : 0);
+  /* While the next frame is acquired, its transfer (and on a rig with a software camera or
+   * illuminator controller, those too) needs a core of its own: an overlapped fold takes one
+   * thread, and so does the finalize of a set whose successor's first frame is acquired
+   * meanwhile (continuous mode), since a finalize spread over every core delays that frame's
+   * transfer and with it the next set. Nothing overlaps with the last frame of a set
+   * otherwise: it takes every core. */
+  ds_phase_set_set_fold_threads (job->set, overlapped ? 1 : 0);
+  ds_phase_set_set_finalize_threads (job->set, overlapped ? 1 : 0);
   if (job->finalize_into) {
     /* The set's last frame: the result's planes now, in the same job (on the fold thread in
      * continuous mode, while the next set's first frame exposes, on this thread alone;
      * docs/design.md), the frame folded on the finalize's pass over the pixels. The fold
      * stage's time then includes the finalize. */
-    job->finalized = ds_phase_set_accumulate_finalize_into (seq->set, job->phase, job->frame->image,
+    job->finalized = ds_phase_set_accumulate_finalize_into (job->set, job->phase, job->frame->image,
                                                             job->finalize_into, &job->folded, &job->fold_error);
   } else {
-    job->folded = ds_phase_set_accumulate (seq->set, job->phase, job->frame->image, &job->fold_error);
+    job->folded = ds_phase_set_accumulate (job->set, job->phase, job->frame->image, &job->fold_error);
   }
   if (!job->folded)
     return;
   job->times.folded_us = g_get_monotonic_time ();
-  ds_seq_stage_add (seq, DS_STAGE_FOLD, t);
+  ds_seq_stage_add (shared, DS_STAGE_FOLD, t);
   /* Copies made here overlap with the next exposure instead of delaying it. */
   const DsFrame *f = job->frame;
-  if (seq->raw && !seq->raw_incomplete &&
-      !ds_raw_frames_add (seq->raw, job->phase, f->frame_id, f->timestamp_ns, f->image, NULL))
-    seq->raw_incomplete = TRUE;
-  g_mutex_lock (&seq->lock);
-  DsSequencerFrameFunc hook = seq->frame_hook;
-  gpointer hook_data = seq->frame_hook_data;
-  g_mutex_unlock (&seq->lock);
+  if (job->raw && !ds_raw_frames_add (job->raw, job->phase, f->frame_id, f->timestamp_ns, f->image, NULL))
+    job->raw_copy_failed = TRUE;
+  gpointer hook_data = NULL;
+  DsSequencerFrameFunc hook = ds_seq_frame_hook (shared, &hook_data);
   if (hook)
     hook (f, job->phase, job->settings, hook_data);
 }
@@ -79,7 +82,7 @@ worker_main (gpointer data)
     if (w->quit)
       break;
     g_mutex_unlock (&w->lock);
-    run_job (w->seq, &w->job, TRUE);
+    run_job (w->shared, &w->job, TRUE);
     g_mutex_lock (&w->lock);
     w->has_job = FALSE;
     w->done = TRUE;
@@ -90,10 +93,10 @@ worker_main (gpointer data)
 }
 
 DsFoldWorker *
-ds_fold_worker_new (DsSequencer *seq)
+ds_fold_worker_new (DsSequencerShared *shared)
 {
   DsFoldWorker *w = g_new0 (DsFoldWorker, 1);
-  w->seq = seq;
+  w->shared = shared;
   g_mutex_init (&w->lock);
   g_cond_init (&w->cond);
   w->thread = g_thread_new ("fold", worker_main, w);
@@ -120,18 +123,20 @@ ds_fold_worker_free (DsFoldWorker *w)
 }
 
 void
-ds_fold_worker_submit (DsFoldWorker *w, const DsCaptureSettings *s, guint phase, DsFrame *frame,
-                       gint64 applied_at_us, DsSeparation *finalize_into, gboolean here)
+ds_fold_worker_submit (DsFoldWorker *w, const DsFoldJob *job, gboolean here)
 {
   g_mutex_lock (&w->lock);
   g_assert (!w->has_job && !w->done);
-  w->job = (DsFoldJob) { .settings = s, .phase = phase, .frame = frame,
-                         .applied_at_us = applied_at_us, .finalize_into = finalize_into };
+  /* The in fields only: the out fields start cleared. */
+  w->job = (DsFoldJob) { .settings = job->settings, .phase = job->phase, .frame = job->frame,
+                         .applied_at_us = job->applied_at_us, .set = job->set,
+                         .phase_check = job->phase_check, .raw = job->raw,
+                         .finalize_into = job->finalize_into };
   if (here) {
     /* Nothing to overlap with (the last frame of a set): no hand-over, no wake-up latency.
      * The worker is idle (no job), so the phase set is this thread's. */
     g_mutex_unlock (&w->lock);
-    run_job (w->seq, &w->job, FALSE);
+    run_job (w->shared, &w->job, FALSE);
     g_mutex_lock (&w->lock);
     w->done = TRUE;
   } else {

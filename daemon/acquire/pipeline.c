@@ -16,10 +16,10 @@
 #include <string.h>
 
 #include "daemon/protocol/protocol.h"
-#include "daemon/acquire/sequencer_private.h"
+#include "daemon/acquire/acquisition.h"
 
 typedef struct {
-  DsSequencer *seq;
+  DsAcquisition *acq;
   const DsCaptureSettings *s;
   guint64 tag;
   DsFrameCounters *c;
@@ -35,9 +35,10 @@ typedef struct {
   guint held_phase;
   gint64 held_applied_at;
   gboolean failing;       /* the set failed: collect the last job without reporting progress */
-  /* Continuous mode: the next set's first frame is triggered ahead once this set's last frame
+  /* A stream's set: the next set's first frame is triggered ahead once this set's last frame
    * is in the worker (carry.c). */
-  gboolean ahead;
+  DsSetOrigin origin;
+  gboolean ahead;         /* origin is DS_SET_FOR_STREAM */
   /* This set's first frame was triggered ahead by the previous set: grab it without a trigger
    * (grab_begun_before: the camera's frames_begun before that trigger). */
   gboolean grab_only;
@@ -59,7 +60,7 @@ typedef struct {
 static gboolean
 retry_or_fail (Pipeline *pl, guint k, GError **why, GError **error)
 {
-  return ds_seq_retry_or_fail (pl->seq, &pl->retries_left[k], pl->c, why, error, "phase %u", k);
+  return ds_seq_retry_or_fail (pl->acq, &pl->retries_left[k], pl->c, why, error, "phase %u", k);
 }
 
 /* Waits for the frame in the worker and accounts for it. *dropped_phase receives its phase when
@@ -73,8 +74,12 @@ collect (Pipeline *pl, guint *dropped_phase, gboolean *reapply, GError **error)
   if (!pl->in_flight)
     return TRUE;
   DsFoldJob job;
-  ds_fold_worker_collect (pl->seq->worker, &job);
+  ds_fold_worker_collect (pl->acq->worker, &job);
   pl->in_flight = FALSE;
+  /* Once a copy failed, no later job copies (submit lends no raw frames): the set's raw
+   * frames are not published. */
+  if (job.raw_copy_failed)
+    pl->acq->raw_incomplete = TRUE;
   guint k = pl->in_flight_phase;
   g_autoptr (DsFrame) frame = g_steal_pointer (&pl->in_flight_frame);
   if (job.verdict.reason != DS_DROP_N_REASONS) {
@@ -93,12 +98,12 @@ collect (Pipeline *pl, guint *dropped_phase, gboolean *reapply, GError **error)
     return FALSE;
   }
   gint64 arrival = frame->host_time_us ? (gint64) frame->host_time_us : g_get_monotonic_time ();
-  if (arrival >= pl->seq->last_frame_us) {
-    pl->seq->last_frame_us = arrival;
-    pl->seq->last_frame_times = job.times;
+  if (arrival >= pl->acq->last_frame_us) {
+    pl->acq->last_frame_us = arrival;
+    pl->acq->last_frame_times = job.times;
   }
   if (++pl->accepted[k] == pl->s->averages && !pl->failing)
-    ds_seq_emit_progress (pl->seq, pl->tag, k, pl->s->phases);
+    ds_seq_emit_progress (pl->acq->shared, pl->tag, k, pl->s->phases);
   if (job.finalize_into && !job.finalized) {
     /* Folded (the set fails, so it goes down as aborted with the others), not finalized. */
     g_propagate_prefixed_error (error, job.fold_error, "finalize: ");
@@ -120,11 +125,16 @@ submit (Pipeline *pl, guint k, DsFrame *frame, gint64 applied_at)
    * unless the next set's first frame is triggered ahead (continuous mode), which then
    * overlaps with all three. */
   gboolean last = k + 1 == pl->s->phases && frames_of (pl, k) + 1 >= pl->s->averages && !pl->held;
+  DsAcquisition *acq = pl->acq;
   pl->in_flight = TRUE;
   pl->in_flight_phase = k;
   pl->in_flight_frame = frame;
-  ds_fold_worker_submit (pl->seq->worker, pl->s, k, frame, applied_at, last ? pl->planes : NULL,
-                         last && !pl->ahead);
+  /* The job's context, lent to the worker until collect. */
+  DsFoldJob job = { .settings = pl->s, .phase = k, .frame = frame, .applied_at_us = applied_at,
+                    .set = acq->set, .phase_check = &acq->phase_check,
+                    .raw = acq->raw_incomplete ? NULL : acq->raw,
+                    .finalize_into = last ? pl->planes : NULL };
+  ds_fold_worker_submit (acq->worker, &job, last && !pl->ahead);
 }
 
 static guint
@@ -147,7 +157,7 @@ phase_to_move_to (const Pipeline *pl, guint k)
   if (pl->held || frames_of (pl, k) + 1 < s->averages)
     return G_MAXUINT;
   if (k + 1 >= s->phases)
-    return pl->ahead && s->phases > 1 && !s->dark_frame && ds_seq_carry_allowed (pl->seq, s) ? 0 : G_MAXUINT;
+    return pl->ahead && s->phases > 1 && !s->dark_frame && ds_seq_carry_allowed (pl->acq, pl->origin, s) ? 0 : G_MAXUINT;
   if (frames_of (pl, k + 1) >= s->averages)
     return G_MAXUINT;
   return k + 1;
@@ -160,7 +170,7 @@ phase_to_move_to (const Pipeline *pl, guint k)
 static DsFrame *
 trigger_and_grab (Pipeline *pl, guint k, int *applied, gint64 *applied_at, GError **error)
 {
-  DsSequencer *seq = pl->seq;
+  DsAcquisition *acq = pl->acq;
   guint next = phase_to_move_to (pl, k);
   guint64 before;
   pl->next_set_lit_at = 0;
@@ -168,19 +178,19 @@ trigger_and_grab (Pipeline *pl, guint k, int *applied, gint64 *applied_at, GErro
     pl->grab_only = FALSE;
     before = pl->grab_begun_before;
   } else {
-    before = next != G_MAXUINT ? ds_seq_frames_begun (seq) : 0;
-    if (!ds_seq_trigger (seq, pl->c, error))
+    before = next != G_MAXUINT ? ds_seq_frames_begun (acq) : 0;
+    if (!ds_seq_trigger (acq, pl->c, error))
       return NULL;
   }
   if (next == G_MAXUINT)
-    return ds_seq_grab (seq, pl->c, error);
+    return ds_seq_grab (acq, pl->c, error);
   gint64 t = g_get_monotonic_time ();
-  if (!ds_seq_wait_exposure_over (seq, before)) {
+  if (!ds_seq_wait_exposure_over (acq, before)) {
     /* No frame began within the grab timeout (or the camera cannot tell): the illuminator
      * stays, and the grab's deadline is what is left of it. */
     guint waited_ms = (guint) ((g_get_monotonic_time () - t) / 1000);
-    guint left = seq->dev->grab_timeout_ms > waited_ms ? seq->dev->grab_timeout_ms - waited_ms : 1;
-    return ds_seq_grab_within (seq, pl->c, left, error);
+    guint left = acq->dev->grab_timeout_ms > waited_ms ? acq->dev->grab_timeout_ms - waited_ms : 1;
+    return ds_seq_grab_within (acq, pl->c, left, error);
   }
   /* Frame k is exposed: phase `next` is lit during its transfer, settling meanwhile. */
   t = g_get_monotonic_time ();
@@ -188,8 +198,8 @@ trigger_and_grab (Pipeline *pl, guint k, int *applied, gint64 *applied_at, GErro
   /* The next set's phase 0 (next < k): failing to light it is not this set's failure; the
    * carry applies it again and handles a failure as its own (carry.c). */
   GError **set_phase_error = next < k ? &next_set_error : &pl->early_error;
-  if (ds_seq_set_phase (seq, next, set_phase_error)) {
-    ds_seq_stage_add (seq, DS_STAGE_SET_PHASE, t);
+  if (ds_seq_set_phase (acq, next, set_phase_error)) {
+    ds_seq_stage_add (acq->shared, DS_STAGE_SET_PHASE, t);
     *applied = (int) next;
   } else {
     pl->c->device_errors++;
@@ -199,10 +209,10 @@ trigger_and_grab (Pipeline *pl, guint k, int *applied, gint64 *applied_at, GErro
     }
     *applied = -1;
   }
-  DsFrame *frame = ds_seq_grab (seq, pl->c, error);
+  DsFrame *frame = ds_seq_grab (acq, pl->c, error);
   /* What was delivered besides frame k is stale, as after any phase change; frames of `next`
    * can only arrive after this (verification's "arrived after the phase was applied"). */
-  ds_seq_flush_stale (seq, pl->c);
+  ds_seq_flush_stale (acq, pl->c);
   *applied_at = g_get_monotonic_time ();
   if (frame && next < k && *applied == (int) next)
     pl->next_set_lit_at = *applied_at;
@@ -213,11 +223,11 @@ static gboolean
 run (Pipeline *pl, int applied, gint64 applied_at, GError **error)
 {
   /* applied: the phase the illuminator shows, -1 unknown; applied_at: since when. */
-  DsSequencer *seq = pl->seq;
+  DsAcquisition *acq = pl->acq;
   const DsCaptureSettings *s = pl->s;
   guint k = 0;
   for (;;) {
-    if (!ds_seq_check_quit (seq, error))
+    if (!ds_seq_check_quit (acq, error))
       return FALSE;
     if (pl->early_error) {
       /* Applying phase early_phase during the previous frame's transfer failed. */
@@ -231,11 +241,11 @@ run (Pipeline *pl, int applied, gint64 applied_at, GError **error)
       /* Every phase has its frames, the last one perhaps still in the worker. */
       if (!pl->in_flight)
         return TRUE;
-      if (pl->ahead && !seq->carry.active && ds_seq_carry_allowed (seq, s)) {
+      if (pl->ahead && acq->carry.stage == DS_CARRY_NONE && ds_seq_carry_allowed (acq, pl->origin, s)) {
         /* The last frame arrived, so its exposure is over: the next set's first frame is
          * exposed while it is verified and folded and while the result is finalized. */
-        ds_seq_carry_trigger (seq, s, 0);
-        applied = seq->carry.pending && !seq->carry.dark ? 0 : -1;
+        ds_seq_carry_trigger (acq, s, 0);
+        applied = acq->carry.stage == DS_CARRY_TRIGGERED && !acq->carry.dark ? 0 : -1;
       }
       gboolean re;
       if (!collect (pl, &dropped, &re, error))
@@ -268,13 +278,13 @@ run (Pipeline *pl, int applied, gint64 applied_at, GError **error)
     }
     /* A frame triggered ahead for the next set is fetched before this set moves the
      * illuminator or triggers again (the last frame was dropped: its phase is acquired again). */
-    if (seq->carry.pending)
-      ds_seq_carry_grab (seq);
+    if (acq->carry.stage == DS_CARRY_TRIGGERED)
+      ds_seq_carry_grab (acq);
     GError *why = NULL;
     if (applied != (int) k) {
       /* Overlaps with the worker verifying and folding the previous phase's last frame. */
       gint64 t = g_get_monotonic_time ();
-      if (!ds_seq_set_phase (seq, k, &why)) {
+      if (!ds_seq_set_phase (acq, k, &why)) {
         pl->c->device_errors++;
         applied = -1;
         g_prefix_error (&why, "illuminator: ");
@@ -282,8 +292,8 @@ run (Pipeline *pl, int applied, gint64 applied_at, GError **error)
           return FALSE;
         continue;
       }
-      ds_seq_stage_add (seq, DS_STAGE_SET_PHASE, t);
-      ds_seq_flush_stale (seq, pl->c);
+      ds_seq_stage_add (acq->shared, DS_STAGE_SET_PHASE, t);
+      ds_seq_flush_stale (acq, pl->c);
       applied = (int) k;
       applied_at = g_get_monotonic_time ();
     }
@@ -297,7 +307,7 @@ run (Pipeline *pl, int applied, gint64 applied_at, GError **error)
         return FALSE;
       /* After a lost frame the illuminator's state is still right, but a late buffer of the
        * lost trigger may arrive: flush before the next trigger. */
-      ds_seq_flush_stale (seq, pl->c);
+      ds_seq_flush_stale (acq, pl->c);
       continue;
     }
     if (pl->next_set_lit_at > 0) {
@@ -307,8 +317,8 @@ run (Pipeline *pl, int applied, gint64 applied_at, GError **error)
        * When that verdict is a drop, this frame is kept back and the frame triggered ahead is
        * grabbed before the dropped phase is lit again (below), as after a drop of the last
        * frame. */
-      if (!seq->carry.active && ds_seq_carry_allowed (seq, s))
-        ds_seq_carry_trigger (seq, s, pl->next_set_lit_at);
+      if (acq->carry.stage == DS_CARRY_NONE && ds_seq_carry_allowed (acq, pl->origin, s))
+        ds_seq_carry_trigger (acq, s, pl->next_set_lit_at);
       pl->next_set_lit_at = 0;
     }
     gboolean re;
@@ -333,35 +343,36 @@ run (Pipeline *pl, int applied, gint64 applied_at, GError **error)
 }
 
 gboolean
-ds_seq_acquire_phases (DsSequencer *seq, const DsCaptureSettings *s, guint64 tag,
+ds_seq_acquire_phases (DsAcquisition *acq, const DsCaptureSettings *s, guint64 tag, DsSetOrigin origin,
                        DsFrameCounters *c, DsSeparation *planes, gboolean *finalized, GError **error)
 {
   g_autofree guint *accepted = g_new0 (guint, s->phases);
   g_autofree guint *retries_left = g_new (guint, s->phases);
   for (guint k = 0; k < s->phases; k++)
     retries_left[k] = s->phase_retries;
-  seq->last_frame_us = 0;
-  memset (&seq->last_frame_times, 0, sizeof seq->last_frame_times);
-  Pipeline pl = { .seq = seq, .s = s, .tag = tag, .c = c, .accepted = accepted,
-                  .retries_left = retries_left, .ahead = seq->continuous_set, .planes = planes };
+  acq->last_frame_us = 0;
+  memset (&acq->last_frame_times, 0, sizeof acq->last_frame_times);
+  Pipeline pl = { .acq = acq, .s = s, .tag = tag, .c = c, .accepted = accepted,
+                  .retries_left = retries_left, .origin = origin,
+                  .ahead = origin == DS_SET_FOR_STREAM, .planes = planes };
   int applied = -1;
   gint64 applied_at = 0;
-  if (seq->carry.active) {
+  if (acq->carry.stage != DS_CARRY_NONE) {
     /* The set runner checked that it fits this set (ds_seq_carry_fits): phase 0 was applied
      * for this set's first frame, triggered or grabbed already. (A carry for a dark frame was
      * taken over by the dark frame's acquisition before.) */
-    DsSeqCarry *cy = &seq->carry;
+    DsSeqCarry *cy = &acq->carry;
     g_assert (!cy->dark);
     ds_frame_counters_add (c, &cy->counters);
-    if (cy->pending) {
+    if (cy->stage == DS_CARRY_TRIGGERED) {
       /* A frame kept (cy->frame) was grabbed before the previous set lit its dropped phase
        * again: the illuminator no longer shows phase 0 then. */
       applied = 0;
       applied_at = cy->applied_at_us;
     }
-    pl.grab_only = cy->pending;
+    pl.grab_only = cy->stage == DS_CARRY_TRIGGERED;
     pl.grab_begun_before = cy->begun_before;
-    if (cy->frame) {
+    if (cy->stage == DS_CARRY_HELD) {
       pl.held = g_steal_pointer (&cy->frame);
       pl.held_phase = 0;
       pl.held_applied_at = cy->applied_at_us;

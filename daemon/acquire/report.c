@@ -1,11 +1,12 @@
 /* Reporting from the acquisition thread: events posted to the main context in order, and the
- * status snapshot the main thread reads under the lock. */
+ * status the main thread reads under the shared lock (sequencer_shared.h). Each function takes
+ * the lock briefly or posts to the main context; none blocks on a device, none fails. */
 #include <math.h>
 
-#include "daemon/acquire/sequencer_private.h"
+#include "daemon/acquire/acquisition.h"
 
 typedef struct {
-  DsSequencer *seq;
+  DsSequencerShared *shared;
   DsSequencerEventKind kind;
   guint64 tag;
   DsResult *result;
@@ -30,154 +31,164 @@ static gboolean
 pending_event_dispatch (gpointer data)
 {
   PendingEvent *p = data;
-  if (!g_atomic_int_get (&p->seq->alive))
+  if (!g_atomic_int_get (&p->shared->alive))
     return G_SOURCE_REMOVE;
   DsSequencerEvent ev = { .kind = p->kind, .tag = p->tag, .result = p->result, .error = p->error,
                           .phase = p->phase, .n_phases = p->n_phases,
                           .dark_mean_dn = p->dark_mean_dn, .message = p->message };
-  p->seq->on_event (&ev, p->seq->user_data);
+  p->shared->on_event (&ev, p->shared->user_data);
   return G_SOURCE_REMOVE;
 }
 
 /* Every event goes through one priority, so they are dispatched in the order they were
  * posted (a progress event never overtakes the result that follows it). */
 static void
-post (DsSequencer *seq, PendingEvent *p)
+post (DsSequencerShared *shared, PendingEvent *p)
 {
   GSource *src = g_idle_source_new ();
   g_source_set_priority (src, G_PRIORITY_DEFAULT);
   g_source_set_callback (src, pending_event_dispatch, p, pending_event_free);
-  g_source_attach (src, seq->context);
+  g_source_attach (src, shared->context);
   g_source_unref (src);
 }
 
 /* Takes ownership of result and error. */
 void
-ds_seq_emit (DsSequencer *seq, DsSequencerEventKind kind, guint64 tag, DsResult *result, GError *error,
+ds_seq_emit (DsSequencerShared *shared, DsSequencerEventKind kind, guint64 tag, DsResult *result, GError *error,
       const char *message)
 {
   PendingEvent *p = g_new0 (PendingEvent, 1);
-  p->seq = seq;
+  p->shared = shared;
   p->kind = kind;
   p->tag = tag;
   p->result = result;
   p->error = error;
   p->message = g_strdup (message);
-  post (seq, p);
+  post (shared, p);
 }
 
 void
-ds_seq_emit_progress (DsSequencer *seq, guint64 tag, guint phase, guint n)
+ds_seq_emit_progress (DsSequencerShared *shared, guint64 tag, guint phase, guint n)
 {
   /* Progress answers a capture request; continuous sets (tag 0) have no one to answer, and
-   * each event would wake the main thread, which at 1 MP takes a core the camera needs
-   * (docs/benchmarks.md, "Daemon rate"). */
+   * each event would wake the main thread, which at a megapixel frame rate takes a core the
+   * camera's transfer needs. */
   if (tag == 0)
     return;
   PendingEvent *p = g_new0 (PendingEvent, 1);
-  p->seq = seq;
+  p->shared = shared;
   p->kind = DS_SEQUENCER_EVENT_PROGRESS;
   p->tag = tag;
   p->phase = phase;
   p->n_phases = n;
-  post (seq, p);
+  post (shared, p);
 }
 
 void
-ds_seq_emit_dark (DsSequencer *seq, guint64 tag, double dark_mean_dn)
+ds_seq_emit_dark (DsSequencerShared *shared, guint64 tag, double dark_mean_dn)
 {
   PendingEvent *p = g_new0 (PendingEvent, 1);
-  p->seq = seq;
+  p->shared = shared;
   p->kind = DS_SEQUENCER_EVENT_DARK;
   p->tag = tag;
   p->dark_mean_dn = dark_mean_dn;
-  post (seq, p);
+  post (shared, p);
 }
 
 void
-ds_seq_set_state (DsSequencer *seq, const char *state)
+ds_seq_set_state (DsSequencerShared *shared, DsSequencerState state)
 {
-  g_mutex_lock (&seq->lock);
-  g_strlcpy (seq->status.state, state, sizeof seq->status.state);
-  seq->status.heartbeat_us = g_get_monotonic_time ();
-  seq->status.blocking_until_us = 0;
-  g_mutex_unlock (&seq->lock);
+  g_mutex_lock (&shared->lock);
+  shared->status.state = state;
+  shared->status.heartbeat_us = g_get_monotonic_time ();
+  shared->status.blocking_until_us = 0;
+  g_mutex_unlock (&shared->lock);
 }
 
 void
-ds_seq_heartbeat (DsSequencer *seq)
+ds_seq_heartbeat (DsSequencerShared *shared)
 {
-  g_mutex_lock (&seq->lock);
-  seq->status.heartbeat_us = g_get_monotonic_time ();
-  seq->status.blocking_until_us = 0;
-  g_mutex_unlock (&seq->lock);
+  g_mutex_lock (&shared->lock);
+  shared->status.heartbeat_us = g_get_monotonic_time ();
+  shared->status.blocking_until_us = 0;
+  g_mutex_unlock (&shared->lock);
 }
 
 void
-ds_seq_blocking (DsSequencer *seq, guint bound_ms)
+ds_seq_blocking (DsSequencerShared *shared, guint bound_ms)
 {
-  g_mutex_lock (&seq->lock);
-  seq->status.heartbeat_us = g_get_monotonic_time ();
-  seq->status.blocking_until_us = seq->status.heartbeat_us + (gint64) bound_ms * 1000;
-  g_mutex_unlock (&seq->lock);
+  g_mutex_lock (&shared->lock);
+  shared->status.heartbeat_us = g_get_monotonic_time ();
+  shared->status.blocking_until_us = shared->status.heartbeat_us + (gint64) bound_ms * 1000;
+  g_mutex_unlock (&shared->lock);
 }
 
 void
-ds_seq_stage_add (DsSequencer *seq, DsStage stage, gint64 since_us)
+ds_seq_stage_add (DsSequencerShared *shared, DsStage stage, gint64 since_us)
 {
   double ms = (double) (g_get_monotonic_time () - since_us) / 1000.0;
-  g_mutex_lock (&seq->lock);
-  seq->status.stages[stage].total_ms += ms;
-  seq->status.stages[stage].count++;
-  seq->status.heartbeat_us = g_get_monotonic_time ();
-  seq->status.blocking_until_us = 0;
-  g_mutex_unlock (&seq->lock);
+  g_mutex_lock (&shared->lock);
+  shared->status.stages[stage].total_ms += ms;
+  shared->status.stages[stage].count++;
+  shared->status.heartbeat_us = g_get_monotonic_time ();
+  shared->status.blocking_until_us = 0;
+  g_mutex_unlock (&shared->lock);
 }
 
 void
-ds_seq_record_error (DsSequencer *seq, const GError *error)
+ds_seq_record_error (DsSequencerShared *shared, const GError *error)
 {
-  g_mutex_lock (&seq->lock);
-  g_strlcpy (seq->status.last_error, error->message, sizeof seq->status.last_error);
-  g_mutex_unlock (&seq->lock);
+  g_mutex_lock (&shared->lock);
+  g_strlcpy (shared->status.last_error, error->message, sizeof shared->status.last_error);
+  g_mutex_unlock (&shared->lock);
 }
 
 void
-ds_seq_refresh_device_status (DsSequencer *seq)
+ds_seq_refresh_device_status (DsAcquisition *acq)
 {
-  if (!seq->dev)
+  if (!acq->dev)
     return;
   DsCameraStats cs = { 0 };
   DsCameraInfo ci = { 0 };
   DsIlluminatorStatus is = { .applied_phase = -1, .temperature_c = NAN };
-  seq->dev->camera->ops->get_stats (seq->dev->camera->backend, &cs);
-  seq->dev->camera->ops->get_info (seq->dev->camera->backend, &ci);
+  acq->dev->camera->ops->get_stats (acq->dev->camera->backend, &cs);
+  acq->dev->camera->ops->get_info (acq->dev->camera->backend, &ci);
   g_autoptr (GError) error = NULL;
-  gboolean have_ill = seq->dev->illuminator->ops->get_status (seq->dev->illuminator->backend, &is, &error);
-  g_mutex_lock (&seq->lock);
-  seq->status.camera_stats = cs;
-  seq->status.camera_info = ci;
+  gboolean have_ill = acq->dev->illuminator->ops->get_status (acq->dev->illuminator->backend, &is, &error);
+  g_mutex_lock (&acq->shared->lock);
+  acq->shared->status.camera_stats = cs;
+  acq->shared->status.camera_info = ci;
   if (have_ill)
-    seq->status.illuminator = is;
-  g_mutex_unlock (&seq->lock);
+    acq->shared->status.illuminator = is;
+  g_mutex_unlock (&acq->shared->lock);
 }
 
 void
-ds_seq_account (DsSequencer *seq, const DsFrameCounters *c, gboolean ok)
+ds_seq_account (DsSequencerShared *shared, const DsFrameCounters *c, gboolean ok)
 {
-  g_mutex_lock (&seq->lock);
-  ds_frame_counters_add (&seq->status.frames, c);
+  g_mutex_lock (&shared->lock);
+  ds_frame_counters_add (&shared->status.frames, c);
   if (ok)
-    seq->status.sets_done++;
+    shared->status.sets_done++;
   else
-    seq->status.sets_failed++;
-  g_mutex_unlock (&seq->lock);
+    shared->status.sets_failed++;
+  g_mutex_unlock (&shared->lock);
 }
 
 void
-ds_seq_account_frames (DsSequencer *seq, const DsFrameCounters *c)
+ds_seq_account_frames (DsSequencerShared *shared, const DsFrameCounters *c)
 {
-  g_mutex_lock (&seq->lock);
-  ds_frame_counters_add (&seq->status.frames, c);
-  g_mutex_unlock (&seq->lock);
+  g_mutex_lock (&shared->lock);
+  ds_frame_counters_add (&shared->status.frames, c);
+  g_mutex_unlock (&shared->lock);
+}
+
+DsSequencerFrameFunc
+ds_seq_frame_hook (DsSequencerShared *shared, gpointer *user_data)
+{
+  g_mutex_lock (&shared->lock);
+  DsSequencerFrameFunc hook = shared->frame_hook;
+  *user_data = shared->frame_hook_data;
+  g_mutex_unlock (&shared->lock);
+  return hook;
 }

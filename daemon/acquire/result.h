@@ -9,49 +9,18 @@
 #include "daemon/output/raw_frames.h"
 #include "daemon/output/output_result.h"
 #include "daemon/acquire/capture_settings.h"
+#include "daemon/acquire/frame_counters.h"
 #include "daemon/protocol/protocol.h"
 #include "drivers/core/camera.h"
 #include "proc/separation.h"
 
 G_BEGIN_DECLS
 
-/* Why an acquired frame was not folded. Stable names: `status` and result metadata report
- * them. A grab that times out produced no frame and is counted in `timeouts` instead. */
-typedef enum {
-  DS_DROP_INCOMPLETE = 0, /* missing packets / short buffer */
-  DS_DROP_FRAME_GAP,      /* frame ids not continuous: a frame in between was lost */
-  DS_DROP_WRONG_PHASE,    /* stripe phase measured in the frame disagrees with the applied one */
-  DS_DROP_STALE,          /* exposed before the phase was applied (flushed or too early) */
-  DS_DROP_UNVERIFIABLE,   /* the stripe phase could not be measured (no modulation) */
-  DS_DROP_ABORTED,        /* folded into a set that then failed or was abandoned */
-  DS_DROP_PREVIEW,        /* a preview for the automatic operating point, never folded */
-  DS_DROP_N_REASONS
-} DsDropReason;
-
-const char *ds_drop_reason_name (DsDropReason reason);
-
-/* Frame accounting. Invariant (tested): acquired == folded + dropped, and dropped is the sum
- * of by_reason. `folded` counts only frames of published results. */
-typedef struct {
-  guint64 acquired;       /* frames that came out of the camera (complete or not) */
-  guint64 folded;         /* frames folded into a published result */
-  guint64 dropped;        /* frames not folded, = sum of by_reason */
-  guint64 by_reason[DS_DROP_N_REASONS];
-  guint64 retries;        /* re-acquisitions (a frame or a phase) after a drop or device error */
-  guint64 timeouts;       /* grabs that returned no frame in time */
-  guint64 device_errors;  /* illuminator/camera/trigger operations that failed */
-} DsFrameCounters;
-
-/* Counts one dropped frame. */
-void ds_frame_counters_drop (DsFrameCounters *counters, DsDropReason reason, guint64 n);
-void ds_frame_counters_add (DsFrameCounters *total, const DsFrameCounters *part);
-JsonNode *ds_frame_counters_to_json (const DsFrameCounters *counters);
-
 typedef struct DsResult DsResult;
 typedef struct DsPlanePool DsPlanePool;
 
 /* Takes ownership of sep; when the result and every payload sent from it are gone, sep goes
- * back to pool (daemon/service/result_planes.h), or is freed when pool is NULL. */
+ * back to pool (result_planes.h), or is freed when pool is NULL. */
 DsResult *ds_result_new (guint64 set_id, DsSeparation *sep, DsPlanePool *pool,
                          const DsCaptureSettings *settings,
                          const DsFrameCounters *counters, gint64 started_us, gint64 acquired_us,

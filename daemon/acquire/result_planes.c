@@ -1,3 +1,6 @@
+/* The pool of result planes: a set writes into planes of results nobody holds any more, so
+ * that no page fault falls between the last frame and the result. Any thread; one mutex
+ * guards the free list. */
 #include "daemon/acquire/result_planes.h"
 
 #include <string.h>

@@ -6,13 +6,13 @@
  * (ds_seq_fatal_device_error: invalid, unsupported, disconnected) ends it at once. */
 #include <stdarg.h>
 
-#include "daemon/acquire/sequencer_private.h"
+#include "daemon/acquire/acquisition.h"
 
 gboolean
-ds_seq_retry_or_fail (DsSequencer *seq, guint *retries_left, DsFrameCounters *c, GError **why, GError **error,
+ds_seq_retry_or_fail (DsAcquisition *acq, guint *retries_left, DsFrameCounters *c, GError **why, GError **error,
                       const char *what_format, ...)
 {
-  gboolean fatal = ds_seq_fatal_device_error (seq, *why);
+  gboolean fatal = ds_seq_fatal_device_error (acq, *why);
   if (fatal || *retries_left == 0) {
     va_list ap;
     va_start (ap, what_format);

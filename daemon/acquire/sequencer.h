@@ -71,13 +71,16 @@ gboolean ds_sequencer_capture (DsSequencer *seq, const DsCaptureSettings *settin
  * Answered by a CONTROL event with `tag`. FALSE (busy) like ds_sequencer_capture. */
 gboolean ds_sequencer_release (DsSequencer *seq, guint64 tag);
 gboolean ds_sequencer_acquire (DsSequencer *seq, guint64 tag);
-/* Continuous mode: sets back to back with these settings until stopped (tag 0 events). */
+/* Continuous mode: sets back to back with these settings until stopped (tag 0 events); with
+ * settings NULL, each set takes the defaults as they are when it starts (ds_sequencer_set_defaults
+ * changes the stream). */
 void ds_sequencer_start (DsSequencer *seq, const DsCaptureSettings *settings);
 void ds_sequencer_stop (DsSequencer *seq);
 /* Measures the dark frame (illuminator off, `averages` frames) used by later sets. */
 gboolean ds_sequencer_dark (DsSequencer *seq, const DsCaptureSettings *settings, guint64 tag);
-/* The model for captures with a target error or time budget (daemon/operating_point.h).
- * Borrowed: must outlive the sequencer. Call before the first such capture (main thread). */
+/* The model for captures with a target error or time budget (daemon/operating/operating_point.h).
+ * Borrowed: must outlive the sequencer. Queued like a capture (never blocks): the captures
+ * requested after it use it. Main thread. */
 struct DsOperatingModel;
 void ds_sequencer_set_operating_model (DsSequencer *seq, const struct DsOperatingModel *model,
                                        double settle_ms, double link_mbit);
@@ -113,6 +116,22 @@ typedef enum {
 
 const char *ds_stage_name (DsStage stage);
 
+/* What the acquisition thread is doing, as status reports it. The names are the wire's
+ * (docs/protocol.md, status `state`): ds_sequencer_state_name gives them. */
+typedef enum {
+  DS_SEQUENCER_STATE_OPENING = 0, /* opening the devices */
+  DS_SEQUENCER_STATE_IDLE,        /* devices open, nothing to do */
+  DS_SEQUENCER_STATE_ACQUIRING,   /* a capture or a dark frame */
+  DS_SEQUENCER_STATE_CONTINUOUS,  /* continuous mode: sets back to back */
+  DS_SEQUENCER_STATE_RECONNECTING,/* a device was lost: reopening it */
+  DS_SEQUENCER_STATE_RELEASED,    /* devices released for another program */
+  DS_SEQUENCER_STATE_FAILED,      /* the devices failed to open: the thread waits for quit */
+  DS_SEQUENCER_STATE_N
+} DsSequencerState;
+
+/* The state's wire name ("opening", "idle", ...); "unknown" out of range. Any thread. */
+const char *ds_sequencer_state_name (DsSequencerState state);
+
 /* A dark frame as status reports it: what was measured, when, and by whom. */
 typedef struct {
   gboolean taken;               /* FALSE: none yet */
@@ -124,7 +143,7 @@ typedef struct {
 } DsDarkFrameInfo;
 
 typedef struct {
-  char state[32];               /* opening, idle, acquiring, continuous, reconnecting, failed */
+  DsSequencerState state;
   gboolean continuous;
   gboolean has_dark;            /* a stored dark frame (the dark command's): stored_dark.taken */
   /* Whether the next set takes its own dark frame: the running stream's settings in continuous

@@ -3,10 +3,10 @@
  * phase measured in it is k's. Checked in that order; the first failure is the reason. */
 #include <math.h>
 
-#include "daemon/acquire/sequencer_private.h"
+#include "daemon/acquire/fold_worker.h"
 
 void
-ds_seq_verify_frame (DsSequencer *seq, const DsCaptureSettings *s, guint k, const DsFrame *frame,
+ds_seq_verify_frame (DsPhaseCheck *check, const DsCaptureSettings *s, guint k, const DsFrame *frame,
                      gint64 applied_at_us, DsFrameVerdict *v)
 {
   v->reason = DS_DROP_N_REASONS;
@@ -21,7 +21,7 @@ ds_seq_verify_frame (DsSequencer *seq, const DsCaptureSettings *s, guint k, cons
                                  frame->ids_skipped, frame->frame_id);
   } else if (s->verify_phase) {
     double measured = NAN;
-    DsPhaseVerdict pv = ds_phase_check_frame (&seq->phase_check, frame->image, k, s->phases,
+    DsPhaseVerdict pv = ds_phase_check_frame (check, frame->image, k, s->phases,
                                               &measured, &v->detail);
     if (pv == DS_PHASE_VERDICT_WRONG) {
       v->reason = DS_DROP_WRONG_PHASE;

@@ -100,7 +100,7 @@ ds_metrics_render (DsMetrics *m, const DsMetricsSources *src)
   family (out, "descatter_build_info", "gauge", "The version and build of descatterd (always 1).");
   sample (out, "descatter_build_info", info, 1);
   gauge (out, "descatter_uptime_seconds", "Time since descatterd started.", src->uptime_s);
-  g_autofree char *state = label_value (st->state);
+  g_autofree char *state = label_value (ds_sequencer_state_name (st->state));
   g_autofree char *state_label = g_strdup_printf ("state=\"%s\"", state);
   family (out, "descatter_acquisition_state", "gauge", "The acquisition thread's state (the one labelled is 1).");
   sample (out, "descatter_acquisition_state", state_label, 1);

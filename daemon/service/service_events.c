@@ -226,7 +226,7 @@ on_control (DsService *svc, PendingCapture *p, const DsSequencerEvent *ev)
   DsSequencerStatus st;
   ds_sequencer_get_status (svc->sequencer, &st);
   g_autoptr (JsonBuilder) b = ds_json_object_begin ();
-  ds_json_add_string (b, "state", st.state);
+  ds_json_add_string (b, "state", ds_sequencer_state_name (st.state));
   ds_json_add_string (b, "message", ev->message);
   g_autoptr (JsonNode) body = ds_json_object_end (b);
   ds_service_reply_ok (svc, p->conn, p->id, body);

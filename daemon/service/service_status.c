@@ -17,9 +17,9 @@ static char *
 not_ready_reason (const DsService *svc, const DsSequencerStatus *st)
 {
   if (!svc->ready)
-    return strcmp (st->state, "failed") == 0 ? g_strdup_printf ("devices failed to open: %s", st->last_error)
+    return st->state == DS_SEQUENCER_STATE_FAILED ? g_strdup_printf ("devices failed to open: %s", st->last_error)
                                               : g_strdup ("devices are opening");
-  if (strcmp (st->state, "reconnecting") == 0)
+  if (st->state == DS_SEQUENCER_STATE_RECONNECTING)
     return g_strdup_printf ("reconnecting: %s", st->last_error);
   if (!st->settings_ok)
     return g_strdup_printf ("devices refuse the configured settings: %s", st->settings_error);
@@ -141,7 +141,7 @@ ds_service_status_to_json (DsService *svc)
   ds_json_add_string (b, "version", DS_VERSION);
   ds_json_add_string (b, "git", DS_GIT_DESCRIBE);
   ds_json_add_double_or_null (b, "uptime_s", (double) (g_get_monotonic_time () - svc->started_us) / 1e6);
-  ds_json_add_string (b, "state", st.state);
+  ds_json_add_string (b, "state", ds_sequencer_state_name (st.state));
   g_autofree char *not_ready = not_ready_reason (svc, &st);
   ds_json_add_bool (b, "ready", not_ready == NULL);
   ds_json_add_string (b, "not_ready_reason", not_ready);

@@ -1223,7 +1223,8 @@ test_release_acquire (Fixture *f, gconstpointer d)
   g_assert_no_error (f->out.control_error);
   DsSequencerStatus st;
   ds_sequencer_get_status (f->seq, &st);
-  g_assert_cmpstr (st.state, ==, "released");
+  g_assert_cmpint (st.state, ==, DS_SEQUENCER_STATE_RELEASED);
+  g_assert_cmpstr (ds_sequencer_state_name (st.state), ==, "released");
   g_assert_cmpstr (st.devices, ==, "released");
   DsCaptureSettings s;
   default_settings (&s, 8);
@@ -1235,12 +1236,25 @@ test_release_acquire (Fixture *f, gconstpointer d)
   g_main_loop_run (f->out.loop);
   g_assert_no_error (f->out.control_error);
   ds_sequencer_get_status (f->seq, &st);
-  g_assert_cmpstr (st.state, ==, "idle");
+  g_assert_cmpint (st.state, ==, DS_SEQUENCER_STATE_IDLE);
   capture (f, &s);
   g_assert_no_error (f->out.failure);
   scripted_assert_scene_recovered (f->out.result);
   g_assert_cmpuint (f->out.control_events, ==, 2);
   assert_accounting (f);
+}
+
+/* The state's names are the wire's (docs/protocol.md, status `state`): each state has one,
+ * and no two share it. */
+static void
+test_state_names (void)
+{
+  static const char *const wire[] = { "opening", "idle", "acquiring", "continuous",
+                                      "reconnecting", "released", "failed" };
+  G_STATIC_ASSERT (G_N_ELEMENTS (wire) == DS_SEQUENCER_STATE_N);
+  for (guint i = 0; i < DS_SEQUENCER_STATE_N; i++)
+    g_assert_cmpstr (ds_sequencer_state_name ((DsSequencerState) i), ==, wire[i]);
+  g_assert_cmpstr (ds_sequencer_state_name (DS_SEQUENCER_STATE_N), ==, "unknown");
 }
 
 int
@@ -1287,6 +1301,7 @@ main (int argc, char **argv)
   ADD ("pipeline/continuous-dark-camera-lost-ahead", test_pipeline_continuous_lost_ahead, "dark");
   ADD ("result-planes-reused", test_result_planes_reused, NULL);
   g_test_add_func ("/sequencer/phase-check-tall-frame", test_phase_check_tall_frame);
+  g_test_add_func ("/sequencer/state-names", test_state_names);
   ADD ("release-acquire", test_release_acquire, NULL);
   return g_test_run ();
 }
