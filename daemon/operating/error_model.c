@@ -197,8 +197,8 @@ run_sets (DsErrorModel *m, guint n, guint averages, double factor, double period
   const PatternTable *table = pattern_table (m, period, leak);
   /* The scattered stripes are scattered light: modulated light with no mean of its own rides on
    * the scattered light's mean, and no light is negative. A probe whose Lg holds less than their
-   * troughs take (a leak read on a scene whose mean shows no scattered light: gen-3-01, 1.9 % at
-   * P and Lg 0) would put the lit pixels' troughs below the dark frame, where the sets flag every
+   * troughs take (a leak of a few % read at P on a scene whose mean shows no scattered light)
+   * would put the lit pixels' troughs below the dark frame, where the sets flag every
    * lit pixel and the noise-free error is that of no pixel (+inf). So Lg is at least what the
    * stripes' troughs at the lit pixels take. */
   double lg = MAX (pr->lg_mean, pattern_mean > 0 ? -table->leak_min * m->ld_lit / pattern_mean : 0.0);

@@ -72,8 +72,8 @@ opposite_phases_sum_flat (const DsStripeModel *g)
  * where the pair's difference is (1 - b) of Ld: scene structure along y (the rows of a grid) enters
  * the sets' combination at that share, its variance at the square (1 % at |1/2 - a| = 0.05), and
  * the second difference along y cannot tell it from noise. On the pair's difference it enters
- * whole: gen-13-04 (duty 0.457, a grid of pitch 12 with 1 px lines) read the shot noise at 5.5
- * times the sensor's gain there, 1.28 times on the sets, and every prediction x0.42-0.64 low. */
+ * whole, and a grid's rows read as shot noise several times the sensor's gain, which would make
+ * every prediction several times too pessimistic. */
 static gboolean
 noise_on_sets (const DsStripeModel *g)
 {
@@ -82,8 +82,8 @@ noise_on_sets (const DsStripeModel *g)
 
 /* The spread of Ld from one column to the next, mean_x (Ld(x)^2) / mean_x (Ld(x))^2 over the
  * columns' mean Ld: the column statistics' mean square holds only the spread within each column
- * (an object that spans the rows, a vertical grid line, is not in it: gen-5-00 read 1.30 against
- * the scene's 1.64). The columns' mean differences are Ld(x) Dp(x); their energy against the
+ * (an object that spans the rows, a vertical grid line, is not in it, and the spread would read
+ * low). The columns' mean differences are Ld(x) Dp(x); their energy against the
  * fitted harmonics' (a uniform Ld times the pattern) is the spread across columns, once the
  * same ratio for the model's own profile, whose harmonics the fit leaves out (those at or
  * above the Nyquist frequency, aliased), divides out. */
@@ -125,9 +125,9 @@ spread_across_columns (const DsProbePairFit *f, const DsStripeModel *geometry, c
  * the mean less Ld, and Ld is the first harmonic at P over its gain, which the blur's uncertainty
  * (DS_PROBE_BLUR_UNCERTAINTY_PX) and the harmonic's noise move by ds_probe_ld_uncertainty (a share of Ld).
  * Where that is above 1 % (fine periods, wide blur: 2.5 % at P = 7 px, 0.6 px), Lg under 1 % does
- * not tell a clear scene from one whose medium keeps the stripes at P and 2P (held-out gen-12-05:
- * Lg read 0.8 % of Ld where the truth's is 8.8 %, nine tenths of it in a kernel of about a pixel;
- * its prediction x6.3 low and not flagged): the scene is suspected unless Lg plus that
+ * not tell a clear scene from one whose medium keeps the stripes at P and 2P (a kernel of about a
+ * pixel holding most of the scattered light leaves Lg, the mean less an Ld that absorbed that
+ * light, at a fraction of the truth): the scene is suspected unless Lg plus that
  * uncertainty stays under 1 %. Where the finer periods saw no kernel, the mean's scattered light that the
  * coarsest period keeps and the fit's leak at P does not (hidden, scene_probe_hidden.h) makes it a lower
  * bound too, with the leak at P bounded by what that period keeps (hidden_leak). Called once ld_mean,
@@ -268,8 +268,9 @@ ds_scene_probe_worst_case (const DsSceneProbe *p, DsSceneProbe *worst)
 }
 
 /* The shot noise of the dark frame's own signal, DN^2: ambient light and dark current reach the
- * sensor with the illuminator off, and their photons are as Poisson as the stripes' (gen-7-05:
- * ambient light of 306 DN puts 52 of the dark frame's 54 DN^2 there, read noise 1). That part
+ * sensor with the illuminator off, and their photons are as Poisson as the stripes' (with ambient
+ * light of a few hundred DN, most of the dark frame's variance is that shot noise, not read
+ * noise). That part
  * scales with the exposure, read noise and quantisation do not: counted as read noise, a quarter
  * of the pilot's exposure was predicted with four times the dark frame's shot noise. The dark
  * level is taken as signal over a sensor zero (the simulated sensor has no black offset; a camera
@@ -335,11 +336,11 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
     stat[i] = masked[i] ? masked[i] : lit[i];
   DsProbePairFit fine = { 0 }, coarse = { 0 }, finer[DS_PROBE_FINER_MAX];
   memset (finer, 0, sizeof finer);
-  /* On the scene's envelope for sine stripes only. Square ones of duty 1/2 sum flat too, but with
-   * the envelope the daemon's uncalibrated milk-disc (an opaque disc under a wide scattered
-   * shadow, the blur fitted to the harmonics at P and 2P) read its blur at 0.20 px against 0.5 and
-   * the drop of its modulation between periods as a kernel (tests/daemon/test_ctl.py's automatic
-   * capture refused); not traced. */
+  /* On the scene's envelope for sine stripes only. Square ones of duty 1/2 sum flat too, but
+   * their higher harmonics carry the blur when it is fitted to P and 2P, and the envelope, a
+   * smooth division of the difference profile, moves them against the first: under a wide
+   * scattered shadow the blur reads low and the modulation's drop between periods reads as a
+   * kernel (tests/daemon/test_ctl.py's automatic capture covers such a scene). */
   double envelope_dn = fr->geometry.kind == DS_PATTERN_SINE ? out->dark_dn : -1;
   gboolean ok =
     ds_probe_pair_fit (l0, l1, stat[0], stat[1], ceiling, fr->geometry.period_px, envelope_dn, &fine, error);
@@ -421,8 +422,9 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
     /* The calibrated gain is the first harmonic as the rig's pixels see it. Above what the sharp
      * pattern integrated over the whole pixel gives, no blur explains it: the pixel integrates
      * less (the simulator samples sine stripes at the pixel centre), and a whole pixel's sinc
-     * (1/P) would put the gains of every pilot period, and so Ld, too low (gen-14-04: 1.9 % at
-     * 9.25 px, 7.5 % at 4.63 px, Ld read 3.7 % high) and the sine estimator's error at
+     * (1/P) would put the gains of every pilot period too low, the more so the finer the period
+     * (so Ld high, and the narrow periods' harmonics read as a kernel) and the sine estimator's
+     * error at
      * 1 - sinc (1/P) where it divides by the very gain the pixels see. */
     DsStripeModel matched = fr->geometry;
     ds_stripe_match_gain (&matched, fr->calibrated_gain);
@@ -523,20 +525,20 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
   DsProbeSolution line_all = ds_probe_solve_at (&out->geometry, eq_all, n_all, sigma, l0->width, two, TRUE);
   gboolean narrow_won = finer_used && ds_probe_fit_narrow (&out->geometry, eq_all, n_all, sigma, l0->width,
                                                            fr->geometry.period_px, &line_all, &narrow);
-  /* Two checks against a kernel made up from the harmonics' scatter (development seeds 1 and 5:
-   * 7.7 of Ld read on a sine scene whose four first harmonics the five parameters fit exactly,
-   * 15-18 % on scenes with about no scattered light). The scene must show scattered light in its
-   * mean (the line's Lg, at least DS_PROBE_NARROW_MIN_LG of its Ld): a narrow kernel's light is
-   * taken from what the line called direct, so a scene whose mean holds next to nothing beyond
-   * the line's Ld is not given one. And the kernel must have let go of the stripes at the finest
-   * period (its transfer there under DS_PROBE_NARROW_MAX_AT_FINEST): one that still keeps more
-   * is narrower than the pilot resolves, and below the finest period only the form would speak;
-   * narrow_verdict () then makes the prediction a lower bound. A kernel that keeps more than
+  /* Two checks against a kernel made up from the harmonics' scatter (five parameters fit four first
+   * harmonics of sine stripes exactly, and the harmonics' scatter alone can pass for a kernel
+   * holding a tenth of Ld on a scene with about no scattered light). The scene must show scattered
+   * light in its mean (the line's Lg, at least DS_PROBE_NARROW_MIN_LG of its Ld): a narrow kernel's
+   * light is taken from what the line called direct, so a scene whose mean holds next to nothing
+   * beyond the line's Ld is not given one. And the kernel must have let go of the stripes at the
+   * finest period (its transfer there under DS_PROBE_NARROW_MAX_AT_FINEST): one that still keeps
+   * more is narrower than the pilot resolves, and below the finest period only the form would
+   * speak; narrow_verdict () then makes the prediction a lower bound. A kernel that keeps more than
    * DS_PROBE_NARROW_MAX_OWN_AT_FINEST of its own stripes at the finest first harmonic is not
    * resolved by the first harmonics at all: only the higher harmonics, whose gain the blur's
-   * uncertainty moves by 5-10 %, then carry the term (gen-9-05: one third harmonic 4.8 % low
-   * read as a kernel of 0.25 px holding 18.6 % of Ld, 95 % of it modulated at 7 px; the kernel's
-   * truth is 0.3 %, the leak over-read x60), and the line is the fit. */
+   * uncertainty moves by 5-10 %, then carry the term (a single higher harmonic a few % low would
+   * read as a sub-pixel kernel holding a large share of Ld, nearly all of it modulated at P), and
+   * the line is the fit. */
   double pattern_mean = fr->geometry.kind == DS_PATTERN_SINE
                           ? fr->geometry.black_level + (1 - fr->geometry.black_level) / 2
                           : fr->geometry.duty + fr->geometry.black_level * (1 - fr->geometry.duty);
@@ -554,9 +556,9 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
       narrow_won = FALSE;
   }
   /* And where the harmonics do not over-determine the term, only if it passes through them
-   * (scene_probe_determined.h: gen-17-02's sine stripes at four periods read 16.6 % of Ld from
-   * differences no kernel makes); a kernel keeping the stripes at the finest period has made the
-   * prediction a lower bound above all the same. */
+   * (scene_probe_determined.h: sine stripes at four periods give as many equations as the term's
+   * parameters, and it fits differences no kernel makes); a kernel keeping the stripes at the
+   * finest period has made the prediction a lower bound above all the same. */
   char undetermined[200] = "";
   if (narrow_won && !ds_probe_narrow_measured (eq_all, n_all, narrow.s.residual, undetermined, sizeof undetermined))
     narrow_won = FALSE;
@@ -635,9 +637,9 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
                             &interval);
   double ld_fit = out->ld_mean, total_fit = out->ld_mean + out->lg_mean;
   ds_probe_count_clipped_places (out, &places, fr->geometry.black_level, m);
-  /* The leak the harmonics read can exceed the scattered light the mean shows (gen-7-08: 1.7 % of
-   * Ld at P read, Lg 0.6 % of it, the truth's 0: the prediction x1.8 too high): the harmonics' scatter
-   * and the blur's uncertainty put a few % on a transfer, the mean knows the light to 0.1 %. */
+  /* The leak the harmonics read can exceed the scattered light the mean shows, and a scattered
+   * stripe is scattered light (A_n = G_n (Ld + S T_n), T_n <= 1): the harmonics' scatter and the
+   * blur's uncertainty put a few % on a transfer, the mean knows the light to 0.1 %. */
   out->leak_bounded = out->leak_measured && out->ld_mean > 0;
   out->leak_max = out->leak_bounded ? out->lg_mean / out->ld_mean : 0;
   if (out->leak_bounded) {

@@ -35,27 +35,26 @@
  * that loses its stripes at P/4 but keeps them at P is scattered light, not direct. The small-angle
  * transfer exp(alpha x), fitted over x <= P, rises from 1 at x = 0 without limit; a kernel only a
  * few pixels wide instead keeps almost all its light modulated at P and 2P and loses it within a
- * factor 2-4 below P (gen-6-07: 94.5 % of its scattered light modulated at 23.25 px, a kernel of
- * ~5 px), a step in x that a line through log (A / G) follows only between P/4 and P and then
- * extrapolates to x = 0 too high (Ld 1888 DN against the truth's 1706, the leak at P 12 % against
- * 22 %). So the transfer carries a second, narrow term, a kernel holding beta Ld of light whose
+ * factor 2-4 below P, a step in x that a line through log (A / G) follows only between P/4 and P
+ * and then extrapolates to x = 0 too high (Ld too high, the leak at P too low by as much). So the
+ * transfer carries a second, narrow term, a kernel holding beta Ld of light whose
  * MTF has a closed form, k = 2 pi w n / Q:
  *     A_n(Q) = Ld G_n(Q, sigma) exp(alpha Q / n) (1 + beta (1 + k^2 / nu)^-nu),   nu = 1 or 2
  * nu = 1 is the MTF of a line spread exp (-|u| / w) / 2w. Not a Gaussian (nu -> infinity): the
  * simulator's narrow Monte Carlo kernels have a sharp core (light scattered near the exit moves
- * little) and their MTF falls as a power of the frequency, not as exp(-f^2) (gen-6-07's kernel:
- * 98.6, 94.5, 80.6, 49.9, 34.7 % at 46.5, 23.25, 11.63, 5.81, 4 px; nu = 1, w = 0.89 px gives
- * 98.6, 94.5, 81.2, 51.9, 33.9 %, a Gaussian through 94.5 % at P 40 % at 5.81 px and 15 % at 4).
+ * little) and their MTF falls as a power of the frequency, not as exp(-f^2): nu = 1 follows such
+ * a kernel within a few % from 2P down to 4 px, a Gaussian through the same point at P falls far
+ * below it at the finest periods.
  * Below the finest period the harmonics say nothing, so the form is a prior on how the transfer
- * goes on to 0: with nu free up to a Gaussian the fit follows the noise there (gen-6-07: 14.6 %
- * at P against the truth's 22.4 %; nu = 1 alone 25.9 %, nu 1 or 2 20.2 %), and a Gaussian kernel
+ * goes on to 0: with nu free up to a Gaussian the fit follows the noise there (and reads the leak
+ * at P low; nu 1 or 2 comes closest, nu = 1 alone reads it high), and a Gaussian kernel
  * in closed form is read 28 % high with nu 1 or 2 (tests/daemon/test_probe_narrow.c; 63 % with
  * nu = 1 alone). The term is fitted (nu, beta, w on a grid; Ld, alpha and the blur's error linear
  * at each) only with the finer periods, over all the harmonics including 2P (where a line would
  * go on rising and the narrow kernel's transfer has stopped), for kernels narrow against P (MTF
  * >= 1/2 there), and kept when it fits those harmonics better than the line alone
- * (DS_PROBE_NARROW_MIN_CHI2): the amplitudes' scatter (1-2 %, the objects' column profile) is as
- * large as the step itself on gen-6-07, so no significance test can pass, while the line is known
+ * (DS_PROBE_NARROW_MIN_CHI2): the amplitudes' scatter (1-2 %, the objects' column profile) can be
+ * as large as the step itself, so no significance test can pass, while the line is known
  * to extrapolate such a step wrongly. Without finer periods (an illuminator that cannot change
  * its period, or P/2 below what the sensor resolves) a kernel narrower than P cannot be told
  * from direct light: where the pilot shows scattered light at all, the prediction is then a
@@ -66,7 +65,7 @@
  * light a lens accepts has moved at most d tan theta_c (thickness, cone half-angle inside the
  * medium): against periods long to that the transfer saturates at the whole scattered light, and
  * the line, extrapolating the small slope left between the periods, removes that slope's worth of
- * the leak and counts the rest as direct light (held-out gen-14-05: 1.9 % read at P, 8.1 % true).
+ * the leak and counts the rest as direct light (the leak at P read at a fraction of the truth).
  * cone_kernel.h derives that kernel's transfer; where no narrow term won and the harmonics over all
  * the periods see its radius (the fit DS_CONE_SEEN_CHI2 below both its limits), the kernel keeps at
  * least half its stripes at P and reads more scattered light than the line, it is the fit
@@ -107,7 +106,8 @@ G_BEGIN_DECLS
  * one that keeps more is seen only in the higher harmonics, whose gain rests on the blur. */
 #define DS_PROBE_NARROW_MAX_OWN_AT_FINEST 0.75
 /* What objects in the column profile put between the first harmonics of two periods, as a share
- * of the modulation (docs/accuracy.md: gen-3-07's pair differs by 1.7 % +- 1.0 %): a drop of the
+ * of the modulation (a scene's objects put 1-2 % between two periods' pairs, docs/accuracy.md):
+ * a drop of the
  * modulation from the coarsest period to the finest under 3 times this (with the fit's noise) is
  * no sign of a kernel at the edge of what the pilot resolves. */
 #define DS_PROBE_PAIR_SCATTER 0.01
