@@ -176,7 +176,7 @@ ds_probe_mask_clipped_places (const DsImage *const *lit, guint n_lit, double cei
  * still. */
 void
 ds_probe_count_clipped_places (DsSceneProbe *out, const DsProbeClippedPlaces *c, double black_level,
-                               double pattern_mean)
+                               double pattern_mean, GString *leak_note)
 {
   if (!(c->fraction > 0) || !(c->fraction < 1) || !(black_level < 1) || !(pattern_mean > 0))
     return;
@@ -196,9 +196,7 @@ ds_probe_count_clipped_places (DsSceneProbe *out, const DsProbeClippedPlaces *c,
   if (out->leak_measured && share_kept > 0 && out->leak_per_px > 0) {
     double p = out->geometry.period_px, leak = expm1 (out->leak_per_px * p) * share / share_kept;
     out->leak_per_px = log1p (leak) / p;
-    gsize len = strlen (out->leak_note);
-    g_snprintf (out->leak_note + len, sizeof out->leak_note - len,
-                " (%.1f %% over the scene, the places that clip counted in)", 100 * leak);
+    g_string_append_printf (leak_note, " (%.1f %% over the scene, the places that clip counted in)", 100 * leak);
   }
   out->lg_mean = lg;
   out->ld_mean = mean;
