@@ -9,7 +9,7 @@
 #include "daemon/operating/scene_probe_pairs.h"
 #include "daemon/operating/scene_probe_transfer.h"
 #include "daemon/operating/scene_probe_wide.h"
-#include "daemon/protocol/protocol.h"
+#include "daemon/operating/operating_error.h"
 #include "proc/column_stats.h"
 #include "proc/harmonic_gain.h"
 #include "proc/image_stats.h"
@@ -422,7 +422,7 @@ stage_harmonics (const DsProbeFrames *fr, const ProbePairs *pairs, ProbeHarmonic
       h->two = FALSE;
   }
   if (h->n_eq == 0) {
-    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_DEVICE,
+    g_set_error (error, DS_OPERATING_ERROR, DS_OPERATING_ERROR_NO_MODULATION,
                  "pilot frames: no stripe modulation above the noise at period %g px (amplitude %.3g DN, "
                  "noise %.3g DN): no direct light to separate",
                  period, pairs->fine.fit.amplitude[1], pairs->fine.fit.sigma_amplitude);

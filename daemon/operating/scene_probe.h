@@ -162,7 +162,7 @@ typedef struct {
 /* The frames' shape, as both the probe and the pattern check need it: a dark frame and the pair
  * at P, the pair at 2P whole or absent, the finer pairs whole and below P, all of one size and
  * sample type. Fails with
- * DS_PROTOCOL_ERROR_BAD_ARGUMENT naming the frame that is missing or differs. Any thread. */
+ * DS_OPERATING_ERROR_PILOT_FRAMES naming the frame that is missing or differs. Any thread. */
 gboolean ds_probe_frames_check (const DsProbeFrames *frames, GError **error);
 
 typedef struct {

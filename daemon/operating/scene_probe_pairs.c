@@ -3,7 +3,7 @@
 #include <math.h>
 #include <string.h>
 
-#include "daemon/protocol/protocol.h"
+#include "daemon/operating/operating_error.h"
 
 /* Pixels where either frame of a pair is at or above the ceiling. */
 static guint64
@@ -55,7 +55,7 @@ ds_probe_pair_fit (const DsImage *a, const DsImage *b, const DsImage *stat_a, co
 {
   guint64 n_px = (guint64) a->width * a->height, clipped = clipped_pixels (a, b, ceiling);
   if (clipped * 2 > n_px) {
-    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_DEVICE,
+    g_set_error (error, DS_OPERATING_ERROR, DS_OPERATING_ERROR_CLIPPED,
                  "%.0f %% of the pixels are at the clip level (%.0f DN): lower the exposure or the gain",
                  100.0 * (double) clipped / (double) n_px, ceiling);
     return FALSE;

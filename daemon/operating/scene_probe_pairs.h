@@ -27,7 +27,7 @@ typedef struct {
 
 /* Fills out, which the caller zeroes first and clears with ds_column_stats_clear (&out->stats)
  * whether or not this succeeds (the statistics may be allocated before the harmonics' fit fails);
- * FALSE with DS_PROTOCOL_ERROR_DEVICE when most pixels clip, or the statistics' or the fit's error. */
+ * FALSE with DS_OPERATING_ERROR_CLIPPED when most pixels clip, or the statistics' or the fit's error. */
 gboolean ds_probe_pair_fit (const DsImage *a, const DsImage *b, const DsImage *stat_a, const DsImage *stat_b,
                             double ceiling, double period, double envelope_dn, DsProbePairFit *out, GError **error);
 
