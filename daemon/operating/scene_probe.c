@@ -27,14 +27,28 @@ ds_blur_source_name (DsBlurSource s)
   }
 }
 
+/* The probe's narrow kernel's MTF at the frequency 1 / x; 0 where it has none. */
+static double
+narrow_kernel_mtf (const DsSceneProbe *p, double x)
+{
+  switch (p->narrow_form) {
+  case DS_PROBE_KERNEL_POWER:
+    return ds_probe_kernel_mtf (p->narrow_kernel_px, p->narrow_shape, x);
+  case DS_PROBE_KERNEL_CONE:
+    return ds_cone_kernel_mtf (p->narrow_kernel_px, x);
+  case DS_PROBE_KERNEL_NONE:
+  default:
+    return 0.0;
+  }
+}
+
 double
 ds_scene_probe_leak (const DsSceneProbe *p, double period_px, guint n)
 {
   if (!p->leak_measured)
     return 0.0;
   double x = period_px / n;
-  double leak = exp (p->leak_per_px * x) *
-                    (1 + p->narrow_fraction * ds_probe_kernel_mtf (p->narrow_kernel_px, p->narrow_shape, x)) - 1;
+  double leak = exp (p->leak_per_px * x) * (1 + p->narrow_fraction * narrow_kernel_mtf (p, x)) - 1;
   return p->leak_bounded ? MIN (leak, MAX (0.0, p->leak_max)) : leak;
 }
 
@@ -179,7 +193,7 @@ narrow_verdict (const DsProbeFrames *fr, gboolean finer_used, double ld_uncertai
         "periods down to %g px: a narrow kernel (%.2f px) holds %.1f %% of Ld and keeps %.1f %% of it "
         "modulated at %g px",
         out->finest_period_px, out->narrow_kernel_px, 100 * out->narrow_fraction,
-        100 * ds_probe_kernel_mtf (out->narrow_kernel_px, out->narrow_shape, P), P);
+        100 * narrow_kernel_mtf (out, P), P);
     else
       g_string_printf (note,
         "periods down to %g px: no kernel narrower than the period seen", out->finest_period_px);
@@ -608,6 +622,7 @@ stage_transfer (const DsProbeFrames *fr, ProbeHarmonics *h, DsSceneProbe *out, P
     out->equations = h->n_all;
     out->narrow_fraction = narrow.beta;
     out->narrow_kernel_px = narrow.width;
+    out->narrow_form = DS_PROBE_KERNEL_POWER;
     out->narrow_shape = narrow.shape;
   }
   out->ld_mean = exp (t->solution.log_ld);
@@ -622,7 +637,8 @@ stage_transfer (const DsProbeFrames *fr, ProbeHarmonics *h, DsSceneProbe *out, P
     out->leak_per_px = 0;
     out->narrow_fraction = (t->total - t->cone.ld) / t->cone.ld;
     out->narrow_kernel_px = t->cone.radius_px;
-    out->narrow_shape = DS_PROBE_SHAPE_CONE;
+    out->narrow_form = DS_PROBE_KERNEL_CONE;
+    out->narrow_shape = 0;
   }
   out->leak_measured = h->two;
   out->fit_rms = n_fit > (h->two ? 2u : 1u) ? sqrt (t->solution.residual / n_fit) : 0;

@@ -69,7 +69,7 @@
  * cone_kernel.h derives that kernel's transfer; where no narrow term won and the harmonics over all
  * the periods see its radius (the fit DS_CONE_SEEN_CHI2 below both its limits), the kernel keeps at
  * least half its stripes at P and reads more scattered light than the line, it is the fit
- * (narrow_shape DS_PROBE_SHAPE_CONE), with the light that keeps the stripes bounded by the mean's.
+ * (narrow_form DS_PROBE_KERNEL_CONE), with the light that keeps the stripes bounded by the mean's.
  * Its leak at P known within DS_CONE_TOLD_FACTOR is a measurement; otherwise the prediction is a
  * lower bound and narrow_note gives the range.
  *
@@ -116,9 +116,14 @@ G_BEGIN_DECLS
 #define DS_PROBE_SETS_DUTY 0.05
 /* The normal quantile of the fit's consistency test (fit_inconsistent): 99.9 %. */
 #define DS_PROBE_FIT_Z 3.09
-/* narrow_shape of the acceptance cone's kernel (cone_kernel.h), which the probe fits in place of the
- * line where the line cannot follow a transfer that saturates between the periods. */
-#define DS_PROBE_SHAPE_CONE 0.0
+/* The form of the narrow kernel's transfer (DsSceneProbe's narrow_form). */
+typedef enum {
+  DS_PROBE_KERNEL_NONE = 0,   /* no narrow kernel: narrow_fraction is 0 */
+  DS_PROBE_KERNEL_POWER,      /* the MTF (1 + k^2 / nu)^-nu above, nu = narrow_shape, w = narrow_kernel_px */
+  DS_PROBE_KERNEL_CONE,       /* the kernel of the lens's acceptance cone (cone_kernel.h), which the probe
+                                 fits in place of the line where the line cannot follow a transfer that
+                                 saturates between the periods; narrow_kernel_px is its radius */
+} DsProbeKernelForm;
 
 /* The finer pilot periods for period P and blur sigma (0 when unknown): P/2 and P/4 as long as they
  * are resolvable (above), rounded to 1/100 px (a projector's PERIOD register unit). Returns how
@@ -187,8 +192,8 @@ typedef struct {
   char leak_note[360];            /* how it was measured, or why not */
   double narrow_fraction;         /* beta: the narrow kernel's light over Ld; 0 when none was seen */
   double narrow_kernel_px;        /* w: its width, px (scene_probe.h: the MTF's form) */
-  double narrow_shape;            /* nu of that form (1 or 2), or DS_PROBE_SHAPE_CONE: the kernel of the lens's
-                                     acceptance cone (cone_kernel.h), narrow_kernel_px its radius */
+  DsProbeKernelForm narrow_form;  /* which kernel narrow_fraction and narrow_kernel_px describe */
+  double narrow_shape;            /* nu of the power form (1 or 2; 1/2 for the interval's kernel) */
   double finest_period_px;        /* the finest period whose first harmonic the fit used */
   gboolean narrow_unresolved;     /* scattered light was seen but no finer period was: a kernel
                                      narrower than P would pass for direct light (a lower bound) */

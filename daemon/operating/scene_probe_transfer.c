@@ -10,8 +10,6 @@
 double
 ds_probe_kernel_mtf (double b, double nu, double x)
 {
-  if (nu == DS_PROBE_SHAPE_CONE)
-    return ds_cone_kernel_mtf (b, x);
   double k = 2 * G_PI * b / x;
   return x > 0 ? pow (1 + k * k / nu, -nu) : 0.0;
 }

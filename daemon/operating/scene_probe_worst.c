@@ -14,6 +14,7 @@ hidden_worst_case (const DsSceneProbe *p, DsSceneProbe *worst)
   worst->leak_measured = TRUE;
   worst->narrow_fraction = p->hidden_leak;
   worst->narrow_kernel_px = 0;
+  worst->narrow_form = DS_PROBE_KERNEL_POWER;
   worst->narrow_shape = 1;
   worst->leak_bounded = TRUE;
   worst->leak_max = MAX (p->leak_max, p->hidden_leak);
@@ -36,6 +37,7 @@ ds_scene_probe_worst_case (const DsSceneProbe *p, DsSceneProbe *worst)
   worst->leak_measured = TRUE;
   worst->narrow_fraction = worst->lg_mean / worst->ld_mean;
   worst->narrow_kernel_px = p->worst_kernel_px;
+  worst->narrow_form = DS_PROBE_KERNEL_POWER;
   worst->narrow_shape = 0.5;
   worst->leak_max = worst->lg_mean / worst->ld_mean; /* its kernel's MTF <= 1 keeps it there anyway */
   return TRUE;

@@ -450,6 +450,7 @@ true_scene (const Scene *s, const DsSceneProbe *measured, DsSceneProbe *t)
   t->leak_measured = TRUE;
   t->narrow_fraction = s->beta;
   t->narrow_kernel_px = s->kernel_px / G_SQRT2;
+  t->narrow_form = DS_PROBE_KERNEL_POWER;
   t->narrow_shape = 1000;
   t->narrow_unresolved = FALSE;
 }
