@@ -787,6 +787,8 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
     g_string_append (narrow_note, t.undetermined);
   g_strlcpy (out->narrow_note, narrow_note->str, sizeof out->narrow_note);
   stage_interval (fr, h, &t, out);
+  out->leak_at_period = ds_scene_probe_leak (out, fr->geometry.period_px, 1);
+  out->noise_at_mean_dn = sqrt (out->noise_var0 + out->noise_gain * (out->ld_mean + out->lg_mean));
   probe_pairs_clear (&pairs);
   return TRUE;
 }

@@ -237,6 +237,9 @@ typedef struct {
    * bound (fit_note says why). */
   gboolean fit_inconsistent;
   char fit_note[280];
+  /* What a result reports of the probe (ds_operating_report_to_json ()), as the probe ended: */
+  double leak_at_period;          /* ds_scene_probe_leak () of the first harmonic at the period */
+  double noise_at_mean_dn;        /* one frame's noise at the scene's mean light Ld + Lg, DN */
 } DsSceneProbe;
 
 gboolean ds_scene_probe_measure (const DsProbeFrames *frames, DsSceneProbe *out, GError **error);
