@@ -247,8 +247,8 @@ narrow_verdict (const DsProbeFrames *fr, gboolean finer_used, double ld_uncertai
  * sensor with the illuminator off, and their photons are as Poisson as the stripes' (with ambient
  * light of a few hundred DN, most of the dark frame's variance is that shot noise, not read
  * noise). That part scales with the exposure, read noise and quantisation do not: counted as read
- * noise, a quarter of the pilot's exposure was predicted with four times the dark frame's shot
- * noise. The dark level is taken as signal over a sensor zero (the simulated sensor has no black
+ * noise, it would stay whole at a quarter of the pilot's exposure, four times what that exposure
+ * gets. The dark level is taken as signal over a sensor zero (the simulated sensor has no black
  * offset; a camera whose black offset B is not subtracted would have g B of its read noise
  * counted here), at the lit frames' shot-noise gain, and no more than the dark frame's variance
  * leaves over its quantisation. */

@@ -178,8 +178,8 @@ ds_probe_fit_cone (const DsStripeModel *g, const DsProbeEquation *eq, guint n_eq
  * linear at each. Only kernels whose MTF changes within the x the harmonics span can be told from
  * Ld (all at 1) or from nothing (all at 0): from 0.9 at the finest x to 0.1 at the coarsest; and
  * only kernels narrow against the period (MTF >= 1/2 at P): a wider one is the small-angle
- * line's, whose rise with x the harmonics below P follow (tissue-veins: a kernel term there
- * reads 61 % where the kernel's truth is 47 % and the line 42 %).
+ * line's, whose rise with x the harmonics below P follow, and a kernel term fitted to it
+ * over-reads the leak by more than the line under-reads it.
  * FALSE when none explains the harmonics DS_PROBE_NARROW_MIN_CHI2 better than the line alone. */
 gboolean
 ds_probe_fit_narrow (const DsStripeModel *g, const DsProbeEquation *eq, guint n_eq, double sigma, guint width,
