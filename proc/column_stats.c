@@ -163,7 +163,7 @@ noise_of_combination (const DsImage *const *f, const double *sign, guint n_f, do
     return NAN;
   /* Shot noise makes the variance grow with the signal: where dim places (objects' shadows) are
    * most of the samples, one robust scale for all is theirs, and a cut at 5 of it falls inside
-   * the bright places' Gaussian core (gen-11-06: the shot noise read at 0.41 of the sensor's).
+   * the bright places' Gaussian core (and the shot noise reads at a fraction of the sensor's).
    * So, with max_strata > 1, the scale is a line in the level (read noise plus shot noise): the samples sorted by level
    * (level_beside (): why it is read in the neighbouring columns), a robust scale from the median
    * of |d| per stratum of equal count, a robust line through their squares against the strata's
@@ -191,7 +191,7 @@ noise_of_combination (const DsImage *const *f, const double *sign, guint n_f, do
   }
   /* The line by Theil-Sen (the median of the slopes between strata, then the median intercept):
    * a few strata of what is left of the scene would tilt a least-squares line until the cut let
-   * it in (on one pair of gen-11-02, 100 times the sensor's gain). */
+   * it in (and the gain read orders of magnitude above the sensor's). */
   g_autofree double *slopes = g_new (double, (gsize) strata * strata / 2 + 1);
   guint n_slopes = 0;
   for (guint i = 0; i < strata; i++)
@@ -230,8 +230,8 @@ ds_column_stats_noise_dn (const DsImage *a, const DsImage *b, double ceiling)
   const DsImage *f[2] = { a, b };
   const double sign[2] = { 1, -1 };
   /* One stratum: a single frame or pair holds the scene, whose structure can fill whole strata
-   * (gen-11-02: two of ten strata at 17 and 36 times the others' scale, and the shot noise read
-   * at twice the sensor's gain even on a robust line); one scale for all keeps it out. */
+   * (a few strata at tens of times the others' scale tilt even a robust line, and the shot noise
+   * reads above the sensor's gain); one scale for all keeps it out. */
   return noise_of_combination (f, sign, b ? 2 : 1, ceiling, 1, NULL);
 }
 

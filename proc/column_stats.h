@@ -43,7 +43,7 @@ double ds_column_stats_noise_dn (const DsImage *a, const DsImage *b, double ceil
  * (sine stripes, square ones of duty 1/2, blurred or not) at two periods: each pair sums to the
  * scene under the pattern's mean, whatever the period, so the scene itself cancels, its soft
  * structure along y too (objects' blurred edges, which the second difference of one pair keeps
- * within its cut: gen-11-06's shot noise read at 2.3 times the sensor's), and only the four
+ * within its cut, and reads as shot noise above the sensor's), and only the four
  * frames' noise is left: var = var a0 + var a1 + var b0 + var b1, the rms over the samples of a
  * noise that grows with the signal: each sample is cut at its own level's scale (a robust line
  * in the level, column_stats.c), so dim places in the majority do not cut into the bright ones'

@@ -4,9 +4,9 @@
  * Its rows are handed out in chunks of consecutive rows to whichever thread asks next, the
  * caller's own thread included, and ds_worker_pool_run returns when every row is done. A thread
  * that is late (woken late, or sharing its core) thus takes fewer rows instead of holding the
- * others up: with one fixed band per thread, descatterd's result waited for the last band of
- * the last frame's finalize whenever its thread woke late or shared its core with the camera
- * (docs/benchmarks.md, run W). Which thread runs a row
+ * others up: with one fixed band per thread, the job's end waits for the slowest band, and a
+ * thread that wakes late or shares its core with the camera delays the whole job by its own
+ * delay. Which thread runs a row
  * depends on timing, but every row runs exactly once: a job whose rows are independent (any
  * per-thread total exact, as integer counts are) gives bit-identical results with any number
  * of threads.

@@ -368,6 +368,136 @@ compare_names (gconstpointer a, gconstpointer b)
   return g_strcmp0 (*(const char *const *) a, *(const char *const *) b);
 }
 
+/* --configs: ESTIMATOR:N:M:EXPOSURE-FACTOR,... into *list (the caller's), *n_configs of them.
+ * FALSE with the message printed. */
+static gboolean
+parse_configs (const char *configs, Config **list, guint *n_configs)
+{
+  g_auto (GStrv) cfg = configs ? g_strsplit (configs, ",", -1) : NULL;
+  *list = g_new0 (Config, cfg ? g_strv_length (cfg) + 1 : 1);
+  for (guint i = 0; cfg && cfg[i]; i++) {
+    g_auto (GStrv) f = g_strsplit (cfg[i], ":", -1);
+    guint64 n = 0, m = 0;
+    char *end = NULL;
+    Config *c = &(*list)[(*n_configs)++];
+    if (g_strv_length (f) != 4 || !ds_estimator_from_name (f[0], &c->estimator) ||
+        !g_ascii_string_to_unsigned (f[1], 10, 2, DS_MAX_PHASES, &n, NULL) ||
+        !g_ascii_string_to_unsigned (f[2], 10, 1, DS_MAX_PHASES, &m, NULL) ||
+        !((c->factor = g_ascii_strtod (f[3], &end)) > 0) || *end) {
+      fprintf (stderr, "descatterctl validate: --configs: \"%s\" is not ESTIMATOR:N:M:EXPOSURE-FACTOR\n", cfg[i]);
+      return FALSE;
+    }
+    c->phases = (guint) n;
+    c->averages = (guint) m;
+  }
+  return TRUE;
+}
+
+/* The scenes to run: the given files, the shipped ones in name order, then the generated ones
+ * (written to scene_dir); *n_given counts the first two. FALSE with the message printed. */
+static gboolean
+collect_scenes (GPtrArray *runs, char **scene_files, gboolean shipped, gint generate, gint64 seed,
+                const char *scene_dir, guint *n_given)
+{
+  g_autoptr (GError) error = NULL;
+  for (guint i = 0; scene_files && scene_files[i]; i++) {
+    SceneRun *s = g_new0 (SceneRun, 1);
+    s->path = g_strdup (scene_files[i]);
+    s->name = g_path_get_basename (scene_files[i]);
+    g_ptr_array_add (runs, s);
+  }
+  if (shipped) {
+    g_autofree char *sd = ds_data_path ("scenes");
+    g_autoptr (GDir) d = g_dir_open (sd, 0, &error);
+    if (!d) {
+      fprintf (stderr, "descatterctl validate: %s\n", error->message);
+      return FALSE;
+    }
+    g_autoptr (GPtrArray) names = g_ptr_array_new_with_free_func (g_free);
+    const char *n;
+    while ((n = g_dir_read_name (d)))
+      if (g_str_has_suffix (n, ".scene") && !strstr (n, "1024"))
+        g_ptr_array_add (names, g_strdup (n));
+    g_ptr_array_sort (names, compare_names);
+    for (guint i = 0; i < names->len; i++) {
+      SceneRun *s = g_new0 (SceneRun, 1);
+      s->name = g_strdup (g_ptr_array_index (names, i));
+      s->path = g_build_filename (sd, s->name, NULL);
+      g_ptr_array_add (runs, s);
+    }
+  }
+  *n_given = runs->len;
+  for (gint i = 0; i < generate; i++) {
+    g_autofree char *text = ds_scene_generate ((guint64) seed, (guint) i, &error);
+    SceneRun *s = g_new0 (SceneRun, 1);
+    s->generated = TRUE;
+    s->name = g_strdup_printf ("gen-%" G_GINT64_FORMAT "-%02d.scene", seed, i);
+    s->path = g_build_filename (scene_dir, s->name, NULL);
+    g_ptr_array_add (runs, s);
+    if (!text || !g_file_set_contents (s->path, text, -1, &error)) {
+      fprintf (stderr, "descatterctl validate: %s: %s\n", s->name, error->message);
+      return FALSE;
+    }
+  }
+  return TRUE;
+}
+
+/* Leave one scene out: each given scene is validated again with the scale fitted on the others;
+ * the model written to DIR/operating-model.conf is fitted on all of them. */
+static gboolean
+fit_model (GPtrArray *runs, guint n_given, Plan *plan, const char *dir, GError **error)
+{
+  double scales[64];
+  guint n_s = MIN (n_given, G_N_ELEMENTS (scales));
+  for (guint i = 0; i < n_s; i++)
+    scales[i] = fit_scale (runs, g_ptr_array_index (runs, i));
+  plan->model.scale = fit_scale (runs, NULL);
+  GString *fitted = g_string_new (NULL);
+  for (guint i = 0; i < n_given; i++)
+    g_string_append_printf (fitted, "%s%s", i ? ";" : "", ((SceneRun *) g_ptr_array_index (runs, i))->name);
+  g_strlcpy (plan->model.fitted_on, fitted->str, sizeof plan->model.fitted_on);
+  g_string_free (fitted, TRUE);
+  for (guint i = 0; i < n_s; i++) {
+    DsOperatingModel loso = plan->model;
+    loso.scale = scales[i];
+    if (!run_scene (g_ptr_array_index (runs, i), plan, &loso, error))
+      return FALSE;
+  }
+  /* Measured with a spread of 0 (the model being fitted has none yet), so that no target was
+   * taken on the margin by the spread being measured. */
+  plan->model.scale_spread = fit_spread (runs, n_s);
+  g_autofree char *mp = g_build_filename (dir, "operating-model.conf", NULL);
+  return ds_operating_model_write (&plan->model, mp, error);
+}
+
+/* DIR/validation.csv and DIR/validation.md: every scene's outcome, the given and the generated
+ * scenes in tables of their own. */
+static gboolean
+write_reports (GPtrArray *runs, guint n_given, gint generate, const Plan *plan, gboolean fit, gint64 seed,
+               const char *dir, GError **error)
+{
+  GString *csv = g_string_new ("scene,kind,target_error,time_budget_ms,outcome,estimator,phases,averages,exposure_us,"
+                               "predicted,noise,sampling,scattered_stripes,scale,lower_bound,achieved,"
+                               "achieved_systematic,verdict,target_may_be_missed,uncertainty\n");
+  for (guint i = 0; i < runs->len; i++)
+    write_csv (csv, g_ptr_array_index (runs, i));
+  GString *md = g_string_new ("# Validation of the automatic operating point\n\nMade by `descatterctl validate`");
+  g_string_append_printf (md, " (rig: %s, %s, %s; seed %" G_GINT64_FORMAT "; scale %.3f, spread %.3f, fitted on %s).\n",
+                          plan->options.calibrated ? "calibrated harmonic gain" : "uncalibrated",
+                          plan->options.fixed_period ? "fixed stripe period" : "stripe period can change",
+                          plan->options.saturation_known ? "clip level configured"
+                                                         : "clip level unknown below the format's top",
+                          seed, plan->model.scale, plan->model.scale_spread, plan->model.fitted_on);
+  if (n_given)
+    write_md (md, fit ? "Given scenes, leave one scene out" : "Given scenes", runs, FALSE);
+  if ((guint) generate > 0)
+    write_md (md, "Generated scenes (never fitted to)", runs, TRUE);
+  gboolean ok = write_file (dir, "validation.csv", csv, error) && write_file (dir, "validation.md", md, error);
+  g_string_free (csv, TRUE);
+  g_string_free (md, TRUE);
+  return ok;
+}
+
 int
 ds_ctl_validate (int argc, char **argv)
 {
@@ -416,23 +546,9 @@ ds_ctl_validate (int argc, char **argv)
   }
   plan.targets = t_list;
   plan.budgets = b_list;
-  g_auto (GStrv) cfg = configs ? g_strsplit (configs, ",", -1) : NULL;
-  g_autofree Config *c_list = g_new0 (Config, cfg ? g_strv_length (cfg) + 1 : 1);
-  for (guint i = 0; cfg && cfg[i]; i++) {
-    g_auto (GStrv) f = g_strsplit (cfg[i], ":", -1);
-    guint64 n = 0, m = 0;
-    char *end = NULL;
-    Config *c = &c_list[plan.n_configs++];
-    if (g_strv_length (f) != 4 || !ds_estimator_from_name (f[0], &c->estimator) ||
-        !g_ascii_string_to_unsigned (f[1], 10, 2, DS_MAX_PHASES, &n, NULL) ||
-        !g_ascii_string_to_unsigned (f[2], 10, 1, DS_MAX_PHASES, &m, NULL) ||
-        !((c->factor = g_ascii_strtod (f[3], &end)) > 0) || *end) {
-      fprintf (stderr, "descatterctl validate: --configs: \"%s\" is not ESTIMATOR:N:M:EXPOSURE-FACTOR\n", cfg[i]);
-      return 2;
-    }
-    c->phases = (guint) n;
-    c->averages = (guint) m;
-  }
+  g_autofree Config *c_list = NULL;
+  if (!parse_configs (configs, &c_list, &plan.n_configs))
+    return 2;
   plan.configs = c_list;
   g_autofree char *default_model = ds_data_path ("operating-model.conf");
   if (fit)
@@ -452,45 +568,9 @@ ds_ctl_validate (int argc, char **argv)
     return 1;
   }
   g_autoptr (GPtrArray) runs = g_ptr_array_new_with_free_func ((GDestroyNotify) scene_run_free);
-  for (guint i = 0; scene_files && scene_files[i]; i++) {
-    SceneRun *s = g_new0 (SceneRun, 1);
-    s->path = g_strdup (scene_files[i]);
-    s->name = g_path_get_basename (scene_files[i]);
-    g_ptr_array_add (runs, s);
-  }
-  if (shipped) {
-    g_autofree char *sd = ds_data_path ("scenes");
-    g_autoptr (GDir) d = g_dir_open (sd, 0, &error);
-    if (!d) {
-      fprintf (stderr, "descatterctl validate: %s\n", error->message);
-      return 1;
-    }
-    g_autoptr (GPtrArray) names = g_ptr_array_new_with_free_func (g_free);
-    const char *n;
-    while ((n = g_dir_read_name (d)))
-      if (g_str_has_suffix (n, ".scene") && !strstr (n, "1024"))
-        g_ptr_array_add (names, g_strdup (n));
-    g_ptr_array_sort (names, compare_names);
-    for (guint i = 0; i < names->len; i++) {
-      SceneRun *s = g_new0 (SceneRun, 1);
-      s->name = g_strdup (g_ptr_array_index (names, i));
-      s->path = g_build_filename (sd, s->name, NULL);
-      g_ptr_array_add (runs, s);
-    }
-  }
-  guint n_given = runs->len;
-  for (gint i = 0; i < generate; i++) {
-    g_autofree char *text = ds_scene_generate ((guint64) seed, (guint) i, &error);
-    SceneRun *s = g_new0 (SceneRun, 1);
-    s->generated = TRUE;
-    s->name = g_strdup_printf ("gen-%" G_GINT64_FORMAT "-%02d.scene", seed, i);
-    s->path = g_build_filename (scene_dir, s->name, NULL);
-    g_ptr_array_add (runs, s);
-    if (!text || !g_file_set_contents (s->path, text, -1, &error)) {
-      fprintf (stderr, "descatterctl validate: %s: %s\n", s->name, error->message);
-      return 1;
-    }
-  }
+  guint n_given = 0;
+  if (!collect_scenes (runs, scene_files, shipped, generate, seed, scene_dir, &n_given))
+    return 1;
   if (runs->len == 0) {
     fprintf (stderr, "descatterctl validate: no scenes (--scene, --shipped, --generate)\n");
     return 2;
@@ -501,61 +581,16 @@ ds_ctl_validate (int argc, char **argv)
       fprintf (stderr, "descatterctl validate: %s\n", error->message);
       return 1;
     }
-  if (fit) {
-    /* Leave one scene out: each given scene is validated again with the scale fitted on the
-     * others; the model written is fitted on all of them. */
-    double scales[64];
-    guint n_s = MIN (n_given, G_N_ELEMENTS (scales));
-    for (guint i = 0; i < n_s; i++)
-      scales[i] = fit_scale (runs, g_ptr_array_index (runs, i));
-    plan.model.scale = fit_scale (runs, NULL);
-    GString *fitted = g_string_new (NULL);
-    for (guint i = 0; i < n_given; i++)
-      g_string_append_printf (fitted, "%s%s", i ? ";" : "", ((SceneRun *) g_ptr_array_index (runs, i))->name);
-    g_strlcpy (plan.model.fitted_on, fitted->str, sizeof plan.model.fitted_on);
-    g_string_free (fitted, TRUE);
-    for (guint i = 0; i < n_s; i++) {
-      DsOperatingModel loso = plan.model;
-      loso.scale = scales[i];
-      if (!run_scene (g_ptr_array_index (runs, i), &plan, &loso, &error)) {
-        fprintf (stderr, "descatterctl validate: %s\n", error->message);
-        return 1;
-      }
-    }
-    /* Measured with a spread of 0 (the model being fitted has none yet), so that no target was
-     * taken on the margin by the spread being measured. */
-    plan.model.scale_spread = fit_spread (runs, n_s);
-    g_autofree char *mp = g_build_filename (dir, "operating-model.conf", NULL);
-    if (!ds_operating_model_write (&plan.model, mp, &error)) {
-      fprintf (stderr, "descatterctl validate: %s\n", error->message);
-      return 1;
-    }
+  if (fit && !fit_model (runs, n_given, &plan, dir, &error)) {
+    fprintf (stderr, "descatterctl validate: %s\n", error->message);
+    return 1;
   }
   for (guint i = n_given; i < runs->len; i++)
     if (!run_scene (g_ptr_array_index (runs, i), &plan, &plan.model, &error)) {
       fprintf (stderr, "descatterctl validate: %s\n", error->message);
       return 1;
     }
-  GString *csv = g_string_new ("scene,kind,target_error,time_budget_ms,outcome,estimator,phases,averages,exposure_us,"
-                               "predicted,noise,sampling,scattered_stripes,scale,lower_bound,achieved,"
-                               "achieved_systematic,verdict,target_may_be_missed,uncertainty\n");
-  for (guint i = 0; i < runs->len; i++)
-    write_csv (csv, g_ptr_array_index (runs, i));
-  GString *md = g_string_new ("# Validation of the automatic operating point\n\nMade by `descatterctl validate`");
-  g_string_append_printf (md, " (rig: %s, %s, %s; seed %" G_GINT64_FORMAT "; scale %.3f, spread %.3f, fitted on %s).\n",
-                          uncalibrated ? "uncalibrated" : "calibrated harmonic gain",
-                          fixed_period ? "fixed stripe period" : "stripe period can change",
-                          saturation_known ? "clip level configured" : "clip level unknown below the format's top",
-                          seed, plan.model.scale, plan.model.scale_spread,
-                          plan.model.fitted_on);
-  if (n_given)
-    write_md (md, fit ? "Given scenes, leave one scene out" : "Given scenes", runs, FALSE);
-  if ((guint) generate > 0)
-    write_md (md, "Generated scenes (never fitted to)", runs, TRUE);
-  gboolean ok = write_file (dir, "validation.csv", csv, &error) && write_file (dir, "validation.md", md, &error);
-  g_string_free (csv, TRUE);
-  g_string_free (md, TRUE);
-  if (!ok) {
+  if (!write_reports (runs, n_given, generate, &plan, fit, seed, dir, &error)) {
     fprintf (stderr, "descatterctl validate: %s\n", error->message);
     return 1;
   }

@@ -21,11 +21,10 @@
  * Between, the transfer saturates at the whole scattered light S = M - Ld (M the mean's light),
  * and the line, whose slope it reads between the periods, does not: where the cone keeps most of
  * the stripes at P and 2P, the slope between them is small, and the extrapolation removes that
- * slope's worth of the leak, not the leak (held-out gen-14-05: 1.9 % of Ld read at P, the kernel's
- * truth 8.1 %; Lg read 468 DN against 1107). The simulator's Monte Carlo kernel of that scene
- * (multiple scattering included, a kernel radius of 9 px) has the MTF 19.5 ... 99.2 % at 2 ... 64 px;
- * this form with R = 4.09 px follows it within 1.3 % rms (the Monte Carlo noise), and the
- * geometry gives R = d tan theta_c = 3.93 px. So the apparent direct light of harmonic n at period
+ * slope's worth of the leak, not the leak (a leak several times the one read at P, and Lg read
+ * at a fraction of the mean's). A Monte Carlo kernel with multiple scattering included follows
+ * this form within its own noise, with R close to the geometry's d tan theta_c
+ * (tests/daemon/test_probe_sim.c). So the apparent direct light of harmonic n at period
  * Q is
  *     A_n (Q) / G_n (Q) = Ld + (M - Ld) T (Q / n),
  * one unknown besides Ld (R; the daemon knows neither d nor theta_c), and the scattered light that

@@ -3,7 +3,7 @@
 #include <math.h>
 #include <string.h>
 
-#include "daemon/protocol/protocol.h"
+#include "daemon/operating/operating_error.h"
 #include "proc/harmonic_gain.h"
 
 /* Synthetic pixels: every column position of the sensor's first SYN_MAX_WIDTH columns (they
@@ -197,8 +197,8 @@ run_sets (DsErrorModel *m, guint n, guint averages, double factor, double period
   const PatternTable *table = pattern_table (m, period, leak);
   /* The scattered stripes are scattered light: modulated light with no mean of its own rides on
    * the scattered light's mean, and no light is negative. A probe whose Lg holds less than their
-   * troughs take (a leak read on a scene whose mean shows no scattered light: gen-3-01, 1.9 % at
-   * P and Lg 0) would put the lit pixels' troughs below the dark frame, where the sets flag every
+   * troughs take (a leak of a few % read at P on a scene whose mean shows no scattered light)
+   * would put the lit pixels' troughs below the dark frame, where the sets flag every
    * lit pixel and the noise-free error is that of no pixel (+inf). So Lg is at least what the
    * stripes' troughs at the lit pixels take. */
   double lg = MAX (pr->lg_mean, pattern_mean > 0 ? -table->leak_min * m->ld_lit / pattern_mean : 0.0);
@@ -299,12 +299,12 @@ ds_error_model_predict (DsErrorModel *m, DsEstimator estimator, guint phases, gu
     e++;
   double period = period_px > 0 ? period_px : m->probe.geometry.period_px;
   if (e == N_EST || phases < 2 || averages < 1 || !(exposure_factor > 0)) {
-    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT, "error model: no such configuration");
+    g_set_error (error, DS_OPERATING_ERROR, DS_OPERATING_ERROR_CONFIGURATION, "error model: no such configuration");
     return FALSE;
   }
   const SetResult *total = run_sets (m, phases, averages, exposure_factor, period, TRUE, 1);
   if (!total->valid[e]) {
-    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT, "%s",
+    g_set_error (error, DS_OPERATING_ERROR, DS_OPERATING_ERROR_CONFIGURATION, "%s",
                  total->refusal[e] ? total->refusal[e] : "no valid pixel in the synthetic set");
     return FALSE;
   }
@@ -315,7 +315,7 @@ ds_error_model_predict (DsErrorModel *m, DsEstimator estimator, guint phases, gu
    * finite. Such a configuration is refused with the reason. */
   const SetResult *invalid = !sys->valid[e] ? sys : !samp->valid[e] ? samp : NULL;
   if (invalid) {
-    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT, "%s",
+    g_set_error (error, DS_OPERATING_ERROR, DS_OPERATING_ERROR_CONFIGURATION, "%s",
                  invalid->refusal[e] ? invalid->refusal[e] : "no valid pixel in the noise-free synthetic set");
     return FALSE;
   }

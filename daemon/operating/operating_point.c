@@ -4,7 +4,7 @@
 #include <stdio.h>
 #include <string.h>
 
-#include "daemon/protocol/protocol.h"
+#include "daemon/operating/operating_error.h"
 
 static const DsEstimator all_estimators[] = { DS_ESTIMATOR_MAXMIN, DS_ESTIMATOR_SINE, DS_ESTIMATOR_ROBUST };
 
@@ -325,7 +325,7 @@ ds_operating_point_choose (const DsOperatingModel *m, DsErrorModel *errors, cons
   double factors[DS_OPERATING_MAX_CANDIDATES];
   guint n_factors = usable_factors (m, probe, factors);
   if (n_factors == 0) {
-    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_DEVICE,
+    g_set_error (error, DS_OPERATING_ERROR, DS_OPERATING_ERROR_CLIPPED,
                  "the pilot frames' brightest pixels are at the clip level (%.0f DN) whatever the exposure: "
                  "lower the gain or the illumination", probe->saturation_dn);
     return FALSE;
@@ -405,7 +405,7 @@ ds_operating_point_choose (const DsOperatingModel *m, DsErrorModel *errors, cons
     g_string_free (msg, TRUE);
     return TRUE;
   }
-  g_set_error_literal (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT, msg->str);
+  g_set_error_literal (error, DS_OPERATING_ERROR, DS_OPERATING_ERROR_UNREACHABLE, msg->str);
   g_string_free (msg, TRUE);
   return FALSE;
 }

@@ -1,5 +1,5 @@
 /* What an automatic capture records about its choice: the result's `settings.operating_point`
- * (docs/protocol.md). */
+ * (docs/protocol.md), from what the probe and the choice stored; no probe math here. */
 #include "daemon/operating/operating_point.h"
 
 #include <math.h>
@@ -76,10 +76,10 @@ ds_operating_report_to_json (const DsOperatingReport *r, JsonBuilder *b)
   DBL ("direct_dn", pr->ld_mean);
   DBL ("direct_spread", pr->ld_spread);
   DBL ("scattered_dn", pr->lg_mean);
-  DBL ("noise_dn", sqrt (pr->noise_var0 + pr->noise_gain * (pr->ld_mean + pr->lg_mean)));
+  DBL ("noise_dn", pr->noise_at_mean_dn);
   DBL ("blur_px", pr->geometry.blur_px);
   STR ("blur_source", ds_blur_source_name (pr->blur_source));
-  DBL ("scattered_stripes_at_period", ds_scene_probe_leak (pr, pr->geometry.period_px, 1));
+  DBL ("scattered_stripes_at_period", pr->leak_at_period);
   STR ("scattered_stripes_note", pr->leak_note);
   DBL ("finest_period_px", pr->finest_period_px);
   DBL ("narrow_kernel_px", pr->narrow_kernel_px);

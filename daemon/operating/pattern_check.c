@@ -5,7 +5,6 @@
 #include <stdarg.h>
 #include <string.h>
 
-#include "daemon/protocol/protocol.h"
 #include "proc/calibration_scatter.h"
 #include "proc/calibration_sine.h"
 #include "proc/stripe_profile.h"

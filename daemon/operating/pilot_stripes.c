@@ -4,7 +4,7 @@
 #include <math.h>
 
 #include "daemon/operating/stripe_model.h"
-#include "daemon/protocol/protocol.h"
+#include "daemon/operating/operating_error.h"
 #include "proc/column_stats.h"
 #include "proc/image_stats.h"
 
@@ -33,7 +33,7 @@ ds_pilot_stripes_check (const DsProbeFrames *f, DsPilotStripes *out, GError **er
   double snr = out->sigma > 0 ? out->amplitude / out->sigma : (out->amplitude > 0 ? INFINITY : 0);
   if (snr >= DS_PILOT_MIN_SNR && modulation >= DS_PILOT_MIN_MODULATION)
     return TRUE;
-  g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_FAILED,
+  g_set_error (error, DS_OPERATING_ERROR, DS_OPERATING_ERROR_NO_STRIPES,
                "no stripes at the configured period %g px: the pilot frames show no modulation there (phase 0 "
                "less phase 1/2: a first harmonic of %.3g DN, %.1f standard errors of the noise (%.3g DN) where %.0f "
                "are needed, and %.2g of the frames' mean level %.4g DN where %g is needed; the lit frames are "

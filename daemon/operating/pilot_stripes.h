@@ -32,7 +32,7 @@ typedef struct {
   double light_dn;    /* the same less the dark frame's mean: the illuminator's light */
 } DsPilotStripes;
 
-/* TRUE when the stripes are there; FALSE with DS_PROTOCOL_ERROR_FAILED ("no stripes at the
+/* TRUE when the stripes are there; FALSE with DS_OPERATING_ERROR_NO_STRIPES ("no stripes at the
  * configured period ...", naming what was measured) when not, or with the error of
  * ds_probe_frames_check. */
 gboolean ds_pilot_stripes_check (const DsProbeFrames *frames, DsPilotStripes *out, GError **error);

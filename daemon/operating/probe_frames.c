@@ -2,17 +2,17 @@
  * that both refuse the same inputs with the same error. */
 #include "daemon/operating/scene_probe.h"
 
-#include "daemon/protocol/protocol.h"
+#include "daemon/operating/operating_error.h"
 
 static gboolean
 frame_fits (const DsImage *frame, const char *name, const DsImage *dark, GError **error)
 {
   if (!frame) {
-    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT, "pilot frames: the %s is missing", name);
+    g_set_error (error, DS_OPERATING_ERROR, DS_OPERATING_ERROR_PILOT_FRAMES, "pilot frames: the %s is missing", name);
     return FALSE;
   }
   if (!ds_image_same_shape (frame, dark)) {
-    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT,
+    g_set_error (error, DS_OPERATING_ERROR, DS_OPERATING_ERROR_PILOT_FRAMES,
                  "pilot frames: the %s is %ux%u %s, the dark frame %ux%u %s: all pilot frames must "
                  "have one size and sample type",
                  name, frame->width, frame->height, ds_sample_type_name (frame->type), dark->width, dark->height,
@@ -26,7 +26,7 @@ gboolean
 ds_probe_frames_check (const DsProbeFrames *fr, GError **error)
 {
   if (!fr->dark) {
-    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT, "pilot frames: the dark frame is missing");
+    g_set_error (error, DS_OPERATING_ERROR, DS_OPERATING_ERROR_PILOT_FRAMES, "pilot frames: the dark frame is missing");
     return FALSE;
   }
   if (!frame_fits (fr->lit[0], "phase-0 frame at the period", fr->dark, error) ||
@@ -39,7 +39,7 @@ ds_probe_frames_check (const DsProbeFrames *fr, GError **error)
     return FALSE;
   /* The finer pairs: whole, below the period. */
   if (fr->n_finer > DS_PROBE_FINER_MAX) {
-    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT,
+    g_set_error (error, DS_OPERATING_ERROR, DS_OPERATING_ERROR_PILOT_FRAMES,
                  "pilot frames: %u finer periods, at most %u", fr->n_finer, DS_PROBE_FINER_MAX);
     return FALSE;
   }
@@ -50,7 +50,7 @@ ds_probe_frames_check (const DsProbeFrames *fr, GError **error)
         !frame_fits (fr->finer[i].frame[1], n1, fr->dark, error))
       return FALSE;
     if (!(fr->finer[i].period_px > 0 && fr->finer[i].period_px < fr->geometry.period_px)) {
-      g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT,
+      g_set_error (error, DS_OPERATING_ERROR, DS_OPERATING_ERROR_PILOT_FRAMES,
                    "pilot frames: a finer period of %g px is not below the period %g px", fr->finer[i].period_px,
                    fr->geometry.period_px);
       return FALSE;

@@ -35,27 +35,26 @@
  * that loses its stripes at P/4 but keeps them at P is scattered light, not direct. The small-angle
  * transfer exp(alpha x), fitted over x <= P, rises from 1 at x = 0 without limit; a kernel only a
  * few pixels wide instead keeps almost all its light modulated at P and 2P and loses it within a
- * factor 2-4 below P (gen-6-07: 94.5 % of its scattered light modulated at 23.25 px, a kernel of
- * ~5 px), a step in x that a line through log (A / G) follows only between P/4 and P and then
- * extrapolates to x = 0 too high (Ld 1888 DN against the truth's 1706, the leak at P 12 % against
- * 22 %). So the transfer carries a second, narrow term, a kernel holding beta Ld of light whose
+ * factor 2-4 below P, a step in x that a line through log (A / G) follows only between P/4 and P
+ * and then extrapolates to x = 0 too high (Ld too high, the leak at P too low by as much). So the
+ * transfer carries a second, narrow term, a kernel holding beta Ld of light whose
  * MTF has a closed form, k = 2 pi w n / Q:
  *     A_n(Q) = Ld G_n(Q, sigma) exp(alpha Q / n) (1 + beta (1 + k^2 / nu)^-nu),   nu = 1 or 2
  * nu = 1 is the MTF of a line spread exp (-|u| / w) / 2w. Not a Gaussian (nu -> infinity): the
  * simulator's narrow Monte Carlo kernels have a sharp core (light scattered near the exit moves
- * little) and their MTF falls as a power of the frequency, not as exp(-f^2) (gen-6-07's kernel:
- * 98.6, 94.5, 80.6, 49.9, 34.7 % at 46.5, 23.25, 11.63, 5.81, 4 px; nu = 1, w = 0.89 px gives
- * 98.6, 94.5, 81.2, 51.9, 33.9 %, a Gaussian through 94.5 % at P 40 % at 5.81 px and 15 % at 4).
+ * little) and their MTF falls as a power of the frequency, not as exp(-f^2): nu = 1 follows such
+ * a kernel within a few % from 2P down to 4 px, a Gaussian through the same point at P falls far
+ * below it at the finest periods.
  * Below the finest period the harmonics say nothing, so the form is a prior on how the transfer
- * goes on to 0: with nu free up to a Gaussian the fit follows the noise there (gen-6-07: 14.6 %
- * at P against the truth's 22.4 %; nu = 1 alone 25.9 %, nu 1 or 2 20.2 %), and a Gaussian kernel
+ * goes on to 0: with nu free up to a Gaussian the fit follows the noise there (and reads the leak
+ * at P low; nu 1 or 2 comes closest, nu = 1 alone reads it high), and a Gaussian kernel
  * in closed form is read 28 % high with nu 1 or 2 (tests/daemon/test_probe_narrow.c; 63 % with
  * nu = 1 alone). The term is fitted (nu, beta, w on a grid; Ld, alpha and the blur's error linear
  * at each) only with the finer periods, over all the harmonics including 2P (where a line would
  * go on rising and the narrow kernel's transfer has stopped), for kernels narrow against P (MTF
  * >= 1/2 there), and kept when it fits those harmonics better than the line alone
- * (DS_PROBE_NARROW_MIN_CHI2): the amplitudes' scatter (1-2 %, the objects' column profile) is as
- * large as the step itself on gen-6-07, so no significance test can pass, while the line is known
+ * (DS_PROBE_NARROW_MIN_CHI2): the amplitudes' scatter (1-2 %, the objects' column profile) can be
+ * as large as the step itself, so no significance test can pass, while the line is known
  * to extrapolate such a step wrongly. Without finer periods (an illuminator that cannot change
  * its period, or P/2 below what the sensor resolves) a kernel narrower than P cannot be told
  * from direct light: where the pilot shows scattered light at all, the prediction is then a
@@ -66,11 +65,11 @@
  * light a lens accepts has moved at most d tan theta_c (thickness, cone half-angle inside the
  * medium): against periods long to that the transfer saturates at the whole scattered light, and
  * the line, extrapolating the small slope left between the periods, removes that slope's worth of
- * the leak and counts the rest as direct light (held-out gen-14-05: 1.9 % read at P, 8.1 % true).
+ * the leak and counts the rest as direct light (the leak at P read at a fraction of the truth).
  * cone_kernel.h derives that kernel's transfer; where no narrow term won and the harmonics over all
  * the periods see its radius (the fit DS_CONE_SEEN_CHI2 below both its limits), the kernel keeps at
  * least half its stripes at P and reads more scattered light than the line, it is the fit
- * (narrow_shape DS_PROBE_SHAPE_CONE), with the light that keeps the stripes bounded by the mean's.
+ * (narrow_form DS_PROBE_KERNEL_CONE), with the light that keeps the stripes bounded by the mean's.
  * Its leak at P known within DS_CONE_TOLD_FACTOR is a measurement; otherwise the prediction is a
  * lower bound and narrow_note gives the range.
  *
@@ -107,7 +106,8 @@ G_BEGIN_DECLS
  * one that keeps more is seen only in the higher harmonics, whose gain rests on the blur. */
 #define DS_PROBE_NARROW_MAX_OWN_AT_FINEST 0.75
 /* What objects in the column profile put between the first harmonics of two periods, as a share
- * of the modulation (docs/accuracy.md: gen-3-07's pair differs by 1.7 % +- 1.0 %): a drop of the
+ * of the modulation (a scene's objects put 1-2 % between two periods' pairs, docs/accuracy.md):
+ * a drop of the
  * modulation from the coarsest period to the finest under 3 times this (with the fit's noise) is
  * no sign of a kernel at the edge of what the pilot resolves. */
 #define DS_PROBE_PAIR_SCATTER 0.01
@@ -116,9 +116,14 @@ G_BEGIN_DECLS
 #define DS_PROBE_SETS_DUTY 0.05
 /* The normal quantile of the fit's consistency test (fit_inconsistent): 99.9 %. */
 #define DS_PROBE_FIT_Z 3.09
-/* narrow_shape of the acceptance cone's kernel (cone_kernel.h), which the probe fits in place of the
- * line where the line cannot follow a transfer that saturates between the periods. */
-#define DS_PROBE_SHAPE_CONE 0.0
+/* The form of the narrow kernel's transfer (DsSceneProbe's narrow_form). */
+typedef enum {
+  DS_PROBE_KERNEL_NONE = 0,   /* no narrow kernel: narrow_fraction is 0 */
+  DS_PROBE_KERNEL_POWER,      /* the MTF (1 + k^2 / nu)^-nu above, nu = narrow_shape, w = narrow_kernel_px */
+  DS_PROBE_KERNEL_CONE,       /* the kernel of the lens's acceptance cone (cone_kernel.h), which the probe
+                                 fits in place of the line where the line cannot follow a transfer that
+                                 saturates between the periods; narrow_kernel_px is its radius */
+} DsProbeKernelForm;
 
 /* The finer pilot periods for period P and blur sigma (0 when unknown): P/2 and P/4 as long as they
  * are resolvable (above), rounded to 1/100 px (a projector's PERIOD register unit). Returns how
@@ -162,7 +167,7 @@ typedef struct {
 /* The frames' shape, as both the probe and the pattern check need it: a dark frame and the pair
  * at P, the pair at 2P whole or absent, the finer pairs whole and below P, all of one size and
  * sample type. Fails with
- * DS_PROTOCOL_ERROR_BAD_ARGUMENT naming the frame that is missing or differs. Any thread. */
+ * DS_OPERATING_ERROR_PILOT_FRAMES naming the frame that is missing or differs. Any thread. */
 gboolean ds_probe_frames_check (const DsProbeFrames *frames, GError **error);
 
 typedef struct {
@@ -187,8 +192,8 @@ typedef struct {
   char leak_note[360];            /* how it was measured, or why not */
   double narrow_fraction;         /* beta: the narrow kernel's light over Ld; 0 when none was seen */
   double narrow_kernel_px;        /* w: its width, px (scene_probe.h: the MTF's form) */
-  double narrow_shape;            /* nu of that form (1 or 2), or DS_PROBE_SHAPE_CONE: the kernel of the lens's
-                                     acceptance cone (cone_kernel.h), narrow_kernel_px its radius */
+  DsProbeKernelForm narrow_form;  /* which kernel narrow_fraction and narrow_kernel_px describe */
+  double narrow_shape;            /* nu of the power form (1 or 2; 1/2 for the interval's kernel) */
   double finest_period_px;        /* the finest period whose first harmonic the fit used */
   gboolean narrow_unresolved;     /* scattered light was seen but no finer period was: a kernel
                                      narrower than P would pass for direct light (a lower bound) */
@@ -232,6 +237,9 @@ typedef struct {
    * bound (fit_note says why). */
   gboolean fit_inconsistent;
   char fit_note[280];
+  /* What a result reports of the probe (ds_operating_report_to_json ()), as the probe ended: */
+  double leak_at_period;          /* ds_scene_probe_leak () of the first harmonic at the period */
+  double noise_at_mean_dn;        /* one frame's noise at the scene's mean light Ld + Lg, DN */
 } DsSceneProbe;
 
 gboolean ds_scene_probe_measure (const DsProbeFrames *frames, DsSceneProbe *out, GError **error);

@@ -1,25 +1,20 @@
 /* Whether the narrow kernel term measures a kernel where the harmonics do not over-determine it
- * (docs/accuracy.md, "Automatic operating point": isotropic scattering read as stripes, gen-17-02).
+ * (docs/accuracy.md, "Automatic operating point": isotropic scattering read as stripes).
  *
  * The term (scene_probe.h) adds a kernel holding beta Ld of light with an MTF of width w to the
  * line's Ld and alpha: four free parameters (the blur's error has its unit prior and the form nu
  * two values). Sine stripes have one harmonic per period, so a pilot at P/4, P/2, P and 2P gives
  * four equations, as many as the parameters, and the fit has no degree of freedom left to be
  * tested with. What it still cannot do is fall with the period: every kernel's transfer rises
- * with x = Q / n, so the term passes through harmonics that a kernel made (development sine scenes
- * where it won: gen-4-01, gen-8-02, gen-10-03, gen-12-03, gen-14-06, and square gen-13-00 with
- * three usable harmonics, leave a weighted RMS under 0.05 % of their amplitudes) and
- * misses harmonics whose differences are something else: objects' column profiles, or a Monte
- * Carlo kernel's own structure. gen-17-02 (15.9 mm of a near-isotropic medium, sine stripes at
- * 19.25 px): the renderer's kernel keeps 1.3 to 4.3 % of its scattered light modulated at the four
- * periods, magnitudes at its Monte Carlo noise with signs of their own (`descatter-sim describe`
- * with period-px changed), so A / G reads 2341, 2303, 2418 and 2392 DN at 4.81, 9.63, 19.25 and
- * 38.5 px without the scene's objects (Ld 2368): up at P, down at P/2 and at 2P. The term turned
- * that into a kernel of 1.4 px holding 15 % of Ld and keeping 83 % of it at P (its MTF only halves
- * from P to P/2, so the step is magnified about three times), the harmonic at P/4, which
- * contradicts it by 8 %, put down to the blur's error, and still missed them by 0.96 % RMS (1.28 %
- * with the objects): Ld 2119, the leak at P 12 % (with the objects, Ld 1498 against 1738 and
- * 16.6 %).
+ * with x = Q / n, so the term passes through harmonics that a kernel made (a weighted RMS of a
+ * small fraction of a % of their amplitudes) and misses harmonics whose differences are something
+ * else: objects' column profiles, or a kernel's own structure. A thick, near-isotropic medium keeps
+ * a few % of its scattered light modulated at every period, with differences between periods at
+ * the level of its own noise and of either sign: A / G then goes up at P and down at P/2 and at 2P.
+ * The term turns such a pattern into a kernel a pixel or so wide that keeps most of its light at
+ * P (its MTF only halves from P to P/2, so a step between them is magnified about three times),
+ * puts the harmonic at P/4 that contradicts it down to the blur's error, still misses the
+ * harmonics by about 1 % RMS, and takes a tenth or more of Ld from the direct light.
  *
  * So where the equations do not over-determine the term (no more distinct x = Q / n than its
  * parameters), it is taken only if it passes through them: a weighted RMS of its relative

@@ -8,16 +8,16 @@
  * Q_c keeps K = A(Q_c) - Ld of it. Where K is most of Lg the kernel is narrow against Q_c, and
  * since T rises with the period the leak at P is at most K / Ld: the fit's leak at P can be
  * anything from 0 to that, and where the fit read much less (no kernel seen at the finer periods,
- * the first harmonic at P pulled down by objects' column profile: held-out gen-16-06, Lg 5.1 % of
- * Ld, K 4.1 %, the fit's leak 0.0 %, the renderer's 3.6 %) the prediction is a lower bound whose
+ * the first harmonic at P pulled down by objects' column profile, a fit can read no leak where K
+ * holds most of Lg) the prediction is a lower bound whose
  * upper end takes the leak at K / Ld at every harmonic and period. Only where Lg is significant:
  * at least DS_PROBE_HIDDEN_Z standard uncertainties (Ld's at P, and what objects put between the
  * harmonics and the mean, DS_PROBE_PAIR_SCATTER) above zero; a clear scene reads Lg within them.
  *
  * What this cannot see: a kernel narrow against every period the pilot draws keeps the stripes at
- * all of them, so Ld absorbs it, Lg holds only S (1 - T) and K nothing (held-out gen-16-10: a
- * kernel of about 1 px, 1 - T = 0.9 % of S at P and 3.5 % at P/2, which is 0.1 and 0.3 % of Ld
- * against the first harmonics' 0.6 % noise and the 0.05 px blur uncertainty's 1.3 and 5 %).
+ * all of them, so Ld absorbs it, Lg holds only S (1 - T) and K nothing (a kernel of about 1 px
+ * loses only a few % of S even at P/2, a few tenths of a % of Ld, below the first harmonics'
+ * noise and what the blur's uncertainty moves them by).
  *
  * Internal to the scene probe; pure function, any thread. */
 #pragma once

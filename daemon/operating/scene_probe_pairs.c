@@ -3,7 +3,7 @@
 #include <math.h>
 #include <string.h>
 
-#include "daemon/protocol/protocol.h"
+#include "daemon/operating/operating_error.h"
 
 /* Pixels where either frame of a pair is at or above the ceiling. */
 static guint64
@@ -23,11 +23,10 @@ clipped_pixels (const DsImage *a, const DsImage *b, double ceiling)
 /* The scene's level per column relative to its mean, (a + b - 2 dark) over the rows, for stripes
  * whose opposite phases sum to a constant: the columns' Ld + Lg, whatever the stripes. The pair's
  * difference profile is the stripes times the columns' Ld: where objects make Ld vary across the
- * columns at frequencies next to twice the stripes' (a grid's pitch; gen-12-00: a 42 px grid's
- * 9th harmonic 0.5 % from twice the 9.38 px pilot's frequency), the product has components at
- * the stripes' own frequency that a plain fit reads as their amplitude, differently at each
- * period (gen-12-00: the first harmonic 5 % low at P/2, read as 3.4 % of scattered stripes at
- * P; the kernel's truth 0.45 %). The harmonics are fitted on this envelope
+ * columns at frequencies next to twice the stripes' (a high harmonic of a grid's pitch), the
+ * product has components at the stripes' own frequency that a plain fit reads as their
+ * amplitude, differently at each period (a first harmonic a few % low at one period reads as
+ * scattered stripes several times the kernel's). The harmonics are fitted on this envelope
  * (ds_stripe_harmonics_fit_envelope), which follows Ld as far as Lg is even across the columns.
  * NULL when the level is not positive. */
 static double *
@@ -56,7 +55,7 @@ ds_probe_pair_fit (const DsImage *a, const DsImage *b, const DsImage *stat_a, co
 {
   guint64 n_px = (guint64) a->width * a->height, clipped = clipped_pixels (a, b, ceiling);
   if (clipped * 2 > n_px) {
-    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_DEVICE,
+    g_set_error (error, DS_OPERATING_ERROR, DS_OPERATING_ERROR_CLIPPED,
                  "%.0f %% of the pixels are at the clip level (%.0f DN): lower the exposure or the gain",
                  100.0 * (double) clipped / (double) n_px, ceiling);
     return FALSE;
@@ -80,8 +79,8 @@ ds_probe_pair_fit (const DsImage *a, const DsImage *b, const DsImage *stat_a, co
  * statistics leave out. A sample clips where the light reaches the clip level at that stripe
  * phase: leaving out only the clipped samples keeps, at the stripes' peaks, only the places dim
  * enough not to clip there, but every place between the peaks, so the kept population depends
- * on the phase and the difference profile loses its first harmonic (gen-5-04: Ld read at half,
- * gen-5-08: Lg). A place whose peak clips goes whole, at every phase and at both periods alike
+ * on the phase and the difference profile loses its first harmonic (Ld, and with it Lg, read far
+ * off). A place whose peak clips goes whole, at every phase and at both periods alike
  * (one population for the scattered stripes' fit), and is counted back by
  * ds_probe_count_clipped_places () from the clip level and its trough: the lowest sample of the pair at
  * P within half a period, a whole period of either phase, which does not clip. NULL copies when
@@ -177,7 +176,7 @@ ds_probe_mask_clipped_places (const DsImage *const *lit, guint n_lit, double cei
  * still. */
 void
 ds_probe_count_clipped_places (DsSceneProbe *out, const DsProbeClippedPlaces *c, double black_level,
-                               double pattern_mean)
+                               double pattern_mean, GString *leak_note)
 {
   if (!(c->fraction > 0) || !(c->fraction < 1) || !(black_level < 1) || !(pattern_mean > 0))
     return;
@@ -190,16 +189,14 @@ ds_probe_count_clipped_places (DsSceneProbe *out, const DsProbeClippedPlaces *c,
   double lg = kept * out->lg_mean + c->fraction * lg_c;
   /* The scattered stripes were measured on the kept places, as a share of their direct light:
    * the kernel's transfer times their scattered light over their direct light. Left are the dim
-   * places, where the light scattered in from bright neighbours is a larger share (gen-5-08:
-   * 4.4 times the direct light there, 0.7 over the scene): the same transfer over the whole
+   * places, where the light scattered in from bright neighbours is a larger share (next to places
+   * that clip it can be several times their direct light): the same transfer over the whole
    * scene's share. */
   double share_kept = out->ld_mean > 0 ? out->lg_mean / out->ld_mean : 0, share = mean > 0 ? lg / mean : 0;
   if (out->leak_measured && share_kept > 0 && out->leak_per_px > 0) {
     double p = out->geometry.period_px, leak = expm1 (out->leak_per_px * p) * share / share_kept;
     out->leak_per_px = log1p (leak) / p;
-    gsize len = strlen (out->leak_note);
-    g_snprintf (out->leak_note + len, sizeof out->leak_note - len,
-                " (%.1f %% over the scene, the places that clip counted in)", 100 * leak);
+    g_string_append_printf (leak_note, " (%.1f %% over the scene, the places that clip counted in)", 100 * leak);
   }
   out->lg_mean = lg;
   out->ld_mean = mean;

@@ -27,7 +27,7 @@ typedef struct {
 
 /* Fills out, which the caller zeroes first and clears with ds_column_stats_clear (&out->stats)
  * whether or not this succeeds (the statistics may be allocated before the harmonics' fit fails);
- * FALSE with DS_PROTOCOL_ERROR_DEVICE when most pixels clip, or the statistics' or the fit's error. */
+ * FALSE with DS_OPERATING_ERROR_CLIPPED when most pixels clip, or the statistics' or the fit's error. */
 gboolean ds_probe_pair_fit (const DsImage *a, const DsImage *b, const DsImage *stat_a, const DsImage *stat_b,
                             double ceiling, double period, double envelope_dn, DsProbePairFit *out, GError **error);
 
@@ -36,6 +36,7 @@ gboolean ds_probe_pair_fit (const DsImage *a, const DsImage *b, const DsImage *s
 void ds_probe_mask_clipped_places (const DsImage *const *lit, guint n_lit, double ceiling, double period_px,
                                    DsImage **masked, DsProbeClippedPlaces *places);
 
-/* Updates out's ld_mean, ld_spread, lg_mean (and the leak and its note) for the places left out. */
+/* Updates out's ld_mean, ld_spread, lg_mean and leak for the places left out, the leak's change appended
+ * to leak_note. */
 void ds_probe_count_clipped_places (DsSceneProbe *out, const DsProbeClippedPlaces *c, double black_level,
-                                    double pattern_mean);
+                                    double pattern_mean, GString *leak_note);

@@ -10,8 +10,6 @@
 double
 ds_probe_kernel_mtf (double b, double nu, double x)
 {
-  if (nu == DS_PROBE_SHAPE_CONE)
-    return ds_cone_kernel_mtf (b, x);
   double k = 2 * G_PI * b / x;
   return x > 0 ? pow (1 + k * k / nu, -nu) : 0.0;
 }
@@ -180,8 +178,8 @@ ds_probe_fit_cone (const DsStripeModel *g, const DsProbeEquation *eq, guint n_eq
  * linear at each. Only kernels whose MTF changes within the x the harmonics span can be told from
  * Ld (all at 1) or from nothing (all at 0): from 0.9 at the finest x to 0.1 at the coarsest; and
  * only kernels narrow against the period (MTF >= 1/2 at P): a wider one is the small-angle
- * line's, whose rise with x the harmonics below P follow (tissue-veins: a kernel term there
- * reads 61 % where the kernel's truth is 47 % and the line 42 %).
+ * line's, whose rise with x the harmonics below P follow, and a kernel term fitted to it
+ * over-reads the leak by more than the line under-reads it.
  * FALSE when none explains the harmonics DS_PROBE_NARROW_MIN_CHI2 better than the line alone. */
 gboolean
 ds_probe_fit_narrow (const DsStripeModel *g, const DsProbeEquation *eq, guint n_eq, double sigma, guint width,
@@ -303,8 +301,8 @@ ds_probe_direct_interval (const DsProbeEquation *eq, guint n_eq, const DsStripeM
   /* No lower end only where the measured ratio of the losses is outside what the family allows
    * (r <= rho^2; lost_c <= 0 among them): the lower end below is read at the same, measured r.
    * A loss at Q_c within the noise of zero is no evidence of r <= rho^2 when r itself is above
-   * it (gen-19-07: lost_c 204 +- 70 DN, r 0.40 against rho^2 0.063; the renderer's 0.41): it
-   * left no lower end though the family's kernel at that r brackets the truth. */
+   * it: the noise makes lost_c uncertain, not r's side of rho^2, and the family's kernel read at
+   * that r still brackets the direct light. */
   if (!(lost_c > 0) || !(lost_c > rho * rho * lost_f)) {
     out->unbounded = TRUE;
     g_snprintf (out->note, sizeof out->note,
@@ -355,11 +353,11 @@ chi2_quantile (double k, double z)
 
 /* Whether the fit's weighted squared residuals (chi^2: each harmonic's noise and the fit's 2 % floor
  * for what the model leaves out) are beyond the 99.9 % quantile for n_eq equations and n_par
- * parameters (the blur's error has its own prior). held-out gen-11-02: 76 % of the scene's places
- * clip and the rest is an opaque disc's shadow and a grid, and the first harmonics at 5.25, 10.5
- * and 21 px read Ld 6036, 4607 and 3901 DN with 4 % noise each (chi^2 35 for one degree of
- * freedom): the probe kept no leak and Ld 22 % high, the predictions x3.6 and x2.2 low, unflagged.
- * A model that cannot fit its own data measures nothing: a lower bound, saying why. */
+ * parameters (the blur's error has its own prior). Where most places clip and what is left is
+ * shaped by objects (a shadow, a grid), the first harmonics at successive periods can read Ld
+ * values far apart against their noise, which no transfer the probe models makes: Ld and the
+ * leak read from such a fit are no measurement. A model that cannot fit its own data measures
+ * nothing: a lower bound, saying why. */
 void
 ds_probe_fit_consistency (double chi2, guint n_eq, guint n_par, DsSceneProbe *out)
 {

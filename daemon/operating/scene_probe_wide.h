@@ -17,8 +17,8 @@
  * is t^4, t, t^(1/4), flat at 0 up to P and 0.3 at 2P for t = 0.01), whose leak at P is within the
  * flat harmonics' noise. Fitted with the rest, that one point turns into a slope (the line) or a
  * kernel that keeps the stripes (the cone), both of which extrapolate a leak at P the harmonics
- * at P do not show (gen-16-02: A / G 318, 323, 318 at and below P = 6.25 px, 384 at 2P; the line
- * read Ld 269 against 321). Such points are left out of the transfer fit, and the leak at P is
+ * at P do not show (A / G flat at and below P and 20 % higher at 2P puts the line's Ld a sixth
+ * low). Such points are left out of the transfer fit, and the leak at P is
  * what the harmonics at and below P say.
  *
  * Internal to the scene probe; pure function, any thread. */

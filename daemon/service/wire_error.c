@@ -4,6 +4,7 @@
 
 #include "daemon/config/config.h"
 #include "daemon/acquire/sequencer.h"
+#include "daemon/operating/operating_error.h"
 #include "drivers/core/device_error.h"
 
 #define ANY_CODE (-1)
@@ -20,6 +21,12 @@ static const WireRule rules[] = {
   { ds_sequencer_error_quark, DS_SEQUENCER_ERROR_NOT_READY, DS_PROTOCOL_ERROR_DEVICE },
   { ds_sequencer_error_quark, DS_SEQUENCER_ERROR_FRAME_REJECTED, DS_PROTOCOL_ERROR_FAILED },
   { ds_config_error_quark, ANY_CODE, DS_PROTOCOL_ERROR_FAILED },
+  { ds_operating_error_quark, DS_OPERATING_ERROR_PILOT_FRAMES, DS_PROTOCOL_ERROR_BAD_ARGUMENT },
+  { ds_operating_error_quark, DS_OPERATING_ERROR_NO_MODULATION, DS_PROTOCOL_ERROR_DEVICE },
+  { ds_operating_error_quark, DS_OPERATING_ERROR_CLIPPED, DS_PROTOCOL_ERROR_DEVICE },
+  { ds_operating_error_quark, DS_OPERATING_ERROR_NO_STRIPES, DS_PROTOCOL_ERROR_FAILED },
+  { ds_operating_error_quark, DS_OPERATING_ERROR_CONFIGURATION, DS_PROTOCOL_ERROR_BAD_ARGUMENT },
+  { ds_operating_error_quark, DS_OPERATING_ERROR_UNREACHABLE, DS_PROTOCOL_ERROR_BAD_ARGUMENT },
   { g_io_error_quark, G_IO_ERROR_CANCELLED, DS_PROTOCOL_ERROR_CANCELLED },
 };
 

@@ -22,7 +22,7 @@
 #define CACHE_MAX_BYTES ((gsize) 1 << 30)
 
 /* A trigger waits at most this long for its lighting state (a frame late, never wrong): longer
- * than any state of a servable scene takes to render on a loaded machine (gen-7-00: a few
+ * than any state of a servable scene takes to render on a loaded machine (the heaviest take a few
  * seconds). A client whose grab times out first triggers again; the late frame then arrives as
  * a surplus one, of the same light, which the daemon drops as stale. */
 #define ORDER_WAIT_US 10000000

@@ -15,7 +15,7 @@
 
 #include "daemon/operating/pattern_check.h"
 #include "daemon/operating/scene_probe.h"
-#include "daemon/protocol/protocol.h"
+#include "daemon/operating/operating_error.h"
 #include "tests/daemon/calibrate_lines.h"
 #include "tests/test_random.h"
 
@@ -383,14 +383,14 @@ test_frame_shapes (void)
     g_snprintf (what, sizeof what, "frame shapes case %u: %s", i, cases[i].names ? cases[i].names : "accepted");
     if (!cases[i].names) {
       /* Blank frames show no stripes: the probe may refuse them, but not for their shape. */
-      check (shape_ok && check_ok && (probe_ok || !g_error_matches (e_probe, DS_PROTOCOL_ERROR,
-                                                                    DS_PROTOCOL_ERROR_BAD_ARGUMENT)),
+      check (shape_ok && check_ok && (probe_ok || !g_error_matches (e_probe, DS_OPERATING_ERROR,
+                                                                    DS_OPERATING_ERROR_PILOT_FRAMES)),
              what);
       continue;
     }
     check (!shape_ok && !check_ok && !probe_ok &&
-               g_error_matches (e_check, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT) &&
-               g_error_matches (e_probe, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT) &&
+               g_error_matches (e_check, DS_OPERATING_ERROR, DS_OPERATING_ERROR_PILOT_FRAMES) &&
+               g_error_matches (e_probe, DS_OPERATING_ERROR, DS_OPERATING_ERROR_PILOT_FRAMES) &&
                strcmp (e_check->message, e_shape->message) == 0 && strcmp (e_probe->message, e_shape->message) == 0 &&
                strstr (e_shape->message, cases[i].names) != NULL,
            what);

@@ -9,7 +9,7 @@
 #include <string.h>
 
 #include "daemon/operating/pilot_stripes.h"
-#include "daemon/protocol/protocol.h"
+#include "daemon/operating/operating_error.h"
 #include "tests/test_random.h"
 
 #define W 320u
@@ -79,7 +79,7 @@ assert_refused (const Scene *s, const char *what)
   g_autoptr (GError) error = NULL;
   DsPilotStripes st;
   g_assert_false (check (s, &st, &error));
-  g_assert_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_FAILED);
+  g_assert_error (error, DS_OPERATING_ERROR, DS_OPERATING_ERROR_NO_STRIPES);
   g_test_message ("%s: %s", what, error->message);
   g_assert_nonnull (strstr (error->message, "no stripes at the configured period 16 px"));
   g_assert_nonnull (strstr (error->message, "standard errors of the noise"));

@@ -14,7 +14,7 @@
 #include "daemon/operating/error_model.h"
 #include "daemon/operating/operating_point.h"
 #include "daemon/operating/scene_probe.h"
-#include "daemon/protocol/protocol.h"
+#include "daemon/operating/operating_error.h"
 #include "report_json.h"
 
 typedef struct {
@@ -450,6 +450,7 @@ true_scene (const Scene *s, const DsSceneProbe *measured, DsSceneProbe *t)
   t->leak_measured = TRUE;
   t->narrow_fraction = s->beta;
   t->narrow_kernel_px = s->kernel_px / G_SQRT2;
+  t->narrow_form = DS_PROBE_KERNEL_POWER;
   t->narrow_shape = 1000;
   t->narrow_unresolved = FALSE;
 }
@@ -510,7 +511,7 @@ test_interval_single_kernel (void)
   gboolean chosen = choose_point (&p, target, 0, &op, &error);
   g_test_message ("target %.4f: %s", target, chosen ? "chosen" : error->message);
   g_assert_false (chosen);
-  g_assert_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT);
+  g_assert_error (error, DS_OPERATING_ERROR, DS_OPERATING_ERROR_UNREACHABLE);
   g_assert_nonnull (strstr (error->message, " to "));
   g_assert_nonnull (strstr (error->message, "one kernel"));
   g_clear_error (&error);

@@ -131,7 +131,7 @@ test_cone_kernel (void)
                   vs.probe.narrow_note);
   g_assert_cmpfloat (truth, >, 0.5);
   g_assert_true (vs.probe.leak_measured);
-  g_assert_cmpfloat (vs.probe.narrow_shape, ==, DS_PROBE_SHAPE_CONE);
+  g_assert_cmpint (vs.probe.narrow_form, ==, DS_PROBE_KERNEL_CONE);
   g_assert_cmpfloat (leak, <, 1.5 * truth);
   g_assert_cmpfloat (leak, >, truth / 1.5);
   g_assert_cmpfloat (fabs (vs.probe.ld_mean - vs.truth_ld_mean), <, 0.1 * vs.truth_ld_mean);

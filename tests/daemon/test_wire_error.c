@@ -6,6 +6,7 @@
 
 #include "daemon/config/config.h"
 #include "daemon/acquire/sequencer.h"
+#include "daemon/operating/operating_error.h"
 #include "daemon/service/wire_error.h"
 #include "drivers/core/device_error.h"
 #include "proc/proc_error.h"
@@ -57,6 +58,12 @@ test_wire_codes (void)
     { DS_SEQUENCER_ERROR, DS_SEQUENCER_ERROR_FRAME_REJECTED, "failed" },
     { DS_SEQUENCER_ERROR, DS_SEQUENCER_ERROR_NOT_READY, "device_error" },
     { DS_CONFIG_ERROR, DS_CONFIG_ERROR_BAD_VALUE, "failed" },
+    { DS_OPERATING_ERROR, DS_OPERATING_ERROR_PILOT_FRAMES, "bad_argument" },
+    { DS_OPERATING_ERROR, DS_OPERATING_ERROR_NO_MODULATION, "device_error" },
+    { DS_OPERATING_ERROR, DS_OPERATING_ERROR_CLIPPED, "device_error" },
+    { DS_OPERATING_ERROR, DS_OPERATING_ERROR_NO_STRIPES, "failed" },
+    { DS_OPERATING_ERROR, DS_OPERATING_ERROR_CONFIGURATION, "bad_argument" },
+    { DS_OPERATING_ERROR, DS_OPERATING_ERROR_UNREACHABLE, "bad_argument" },
     { DS_PROC_ERROR, 1, "failed" },
     { G_IO_ERROR, G_IO_ERROR_CANCELLED, "cancelled" },
     { G_IO_ERROR, G_IO_ERROR_FAILED, "failed" },
