@@ -10,6 +10,10 @@ build=$(cd "${1:?usage: tools/demo.sh BUILD_DIR [OUT]}" && pwd)
 out=${2:-out}
 mkdir -p "$out"
 out=$(cd "$out" && pwd)
+# The demo's own folders from an earlier run go first: capture refuses to write into a folder
+# that holds files, so a second `tools/lab.sh demo` would otherwise fail. Nothing else in OUT
+# is touched.
+rm -rf "$out/capture" "$out/capture-sine" "$out/phases" "$out/separated"
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 # No DESCATTER_DATA_DIR: the build tree's programs find the scenes and the operating model in
 # etc/ of the source tree by themselves (the marker build/bin/descatter-source-data-dir).
