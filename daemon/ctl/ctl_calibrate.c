@@ -281,7 +281,7 @@ ds_ctl_calibrate (const DsCtlTarget *target, int argc, char **argv)
     { "exposure-us", 'e', 0, G_OPTION_ARG_STRING, &o.exposure, "without DIR: exposure (µs, 1..1e7)", "E" },
     { "gain-db", 'g', 0, G_OPTION_ARG_STRING, &o.gain, "without DIR: gain (dB, 0..48)", "G" },
     { "no-dark-frame", 0, 0, G_OPTION_ARG_NONE, &o.no_dark_frame, "without DIR: no dark frame subtracted", NULL },
-    { "json", 0, 0, G_OPTION_ARG_NONE, &o.json, "print the measurements as JSON", NULL },
+    { "json", 'j', 0, G_OPTION_ARG_NONE, &o.json, "print the measurements as JSON", NULL },
     { "quiet", 'q', 0, G_OPTION_ARG_NONE, &o.quiet, "no notices on stderr", NULL },
     { NULL },
   };
@@ -292,6 +292,7 @@ ds_ctl_calibrate (const DsCtlTarget *target, int argc, char **argv)
                                      "period, phase offset, duty, black level, harmonic gain and edge blur, and the "
                                      "configuration lines that use them.");
   g_option_context_add_main_entries (ctx, entries, NULL);
+  ds_ctl_describe_globals (ctx);
   g_autoptr (GError) error = NULL;
   int status;
   gboolean usage = FALSE;

@@ -9,10 +9,21 @@
 #include "daemon/ctl/ctl_output.h"
 #include "daemon/output/result_meta.h"
 
-static int
-simple_command (const DsCtlTarget *target, int argc, char **argv, const char *cmd, const char *summary)
+/* Human output of the replies that carry a `message` (stop, release, acquire): that sentence,
+ * which the daemon words for people. */
+static void
+print_message (JsonObject *body)
 {
-  GOptionEntry entries[] = { { NULL } };
+  printf ("%s\n", json_object_get_string_member_with_default (body, "message", "done"));
+}
+
+/* A command without arguments whose reply is printed by human (the JSON with --json). */
+static int
+simple_command (const DsCtlTarget *target, int argc, char **argv, const char *cmd, const char *summary,
+                void (*human) (JsonObject *body))
+{
+  gboolean json = FALSE;
+  GOptionEntry entries[] = { DS_CTL_JSON_ENTRY (json), { NULL } };
   if (!ds_ctl_parse_options (&argc, &argv, entries, summary))
     return 2;
   g_autoptr (DsClient) c = ds_ctl_connect (target, cmd);
@@ -21,14 +32,25 @@ simple_command (const DsCtlTarget *target, int argc, char **argv, const char *cm
   g_autoptr (DsMessage) m = ds_ctl_call (c, cmd, NULL, NULL, NULL);
   if (!m)
     return 1;
-  ds_ctl_print_json (m->reply->body);
+  ds_ctl_print_reply (m->reply->body, json, human);
   return 0;
+}
+
+static void
+print_hello (JsonObject *body)
+{
+  printf ("%s %s (%s), protocol %" G_GINT64_FORMAT "\n",
+          json_object_get_string_member_with_default (body, "server", "?"),
+          json_object_get_string_member_with_default (body, "version", "?"),
+          json_object_get_string_member_with_default (body, "git", "?"),
+          json_object_get_int_member_with_default (body, "protocol", 0));
 }
 
 int
 ds_ctl_hello (const DsCtlTarget *target, int argc, char **argv)
 {
-  GOptionEntry entries[] = { { NULL } };
+  gboolean json = FALSE;
+  GOptionEntry entries[] = { DS_CTL_JSON_ENTRY (json), { NULL } };
   if (!ds_ctl_parse_options (&argc, &argv, entries, "Prints the daemon's protocol version, version and build."))
     return 2;
   g_autoptr (DsClient) c = ds_ctl_connect (target, "hello");
@@ -42,14 +64,15 @@ ds_ctl_hello (const DsCtlTarget *target, int argc, char **argv)
   g_autoptr (DsMessage) m = ds_ctl_call (c, "hello", args, NULL, NULL);
   if (!m)
     return 1;
-  ds_ctl_print_json (m->reply->body);
+  ds_ctl_print_reply (m->reply->body, json, print_hello);
   return 0;
 }
 
 int
 ds_ctl_stop (const DsCtlTarget *target, int argc, char **argv)
 {
-  return simple_command (target, argc, argv, "stop", "Stops continuous acquisition.");
+  return simple_command (target, argc, argv, "stop", "Stops continuous acquisition after the set in progress.",
+                         print_message);
 }
 
 int
@@ -57,13 +80,15 @@ ds_ctl_release (const DsCtlTarget *target, int argc, char **argv)
 {
   return simple_command (target, argc, argv, "release",
                          "Closes the camera and illuminator so that another program (arv-viewer) can open the "
-                         "camera; captures are refused until `descatterctl acquire`.");
+                         "camera; captures are refused until `descatterctl acquire`.",
+                         print_message);
 }
 
 int
 ds_ctl_acquire (const DsCtlTarget *target, int argc, char **argv)
 {
-  return simple_command (target, argc, argv, "acquire", "Opens the devices again after `descatterctl release`.");
+  return simple_command (target, argc, argv, "acquire", "Opens the devices again after `descatterctl release`.",
+                         print_message);
 }
 
 int
@@ -313,11 +338,26 @@ ds_ctl_capture (const DsCtlTarget *target, int argc, char **argv)
   return 0;
 }
 
+/* start's reply is the settings the sets run with (docs/protocol.md, "Result settings"). */
+static void
+print_started (JsonObject *s)
+{
+  gint64 m = json_object_get_int_member_with_default (s, "averages", 1);
+  printf ("continuous acquisition started: %" G_GINT64_FORMAT " phases x %" G_GINT64_FORMAT " frame%s, %s, "
+          "exposure %g µs, gain %g dB, dark frame %s; results go to subscribers (descatterctl stream)\n",
+          json_object_get_int_member_with_default (s, "phases", 0), m, m == 1 ? "" : "s",
+          json_object_get_string_member_with_default (s, "estimator", "?"),
+          json_object_get_double_member_with_default (s, "exposure_us", 0),
+          json_object_get_double_member_with_default (s, "gain_db", 0),
+          json_object_get_boolean_member_with_default (s, "dark_frame", FALSE) ? "on" : "off");
+}
+
 int
 ds_ctl_start (const DsCtlTarget *target, int argc, char **argv)
 {
   g_auto (AcqOptions) o = { 0 };
-  GOptionEntry entries[] = { ACQ_ENTRIES (o), { NULL } };
+  gboolean json = FALSE;
+  GOptionEntry entries[] = { ACQ_ENTRIES (o), DS_CTL_JSON_ENTRY (json), { NULL } };
   if (!ds_ctl_parse_options (&argc, &argv, entries,
                              "Starts continuous acquisition (results go to subscribers: "
                              "descatterctl stream). Without options the configuration's settings "
@@ -332,15 +372,24 @@ ds_ctl_start (const DsCtlTarget *target, int argc, char **argv)
   g_autoptr (DsMessage) m = ds_ctl_call (c, "start", args, NULL, NULL);
   if (!m)
     return 1;
-  ds_ctl_print_json (m->reply->body);
+  ds_ctl_print_reply (m->reply->body, json, print_started);
   return 0;
+}
+
+static void
+print_dark (JsonObject *body)
+{
+  printf ("dark frame stored: mean %.2f DN; later sets with the same exposure and gain subtract it\n",
+          json_object_get_double_member_with_default (body, "dark_mean_dn", 0));
 }
 
 int
 ds_ctl_dark (const DsCtlTarget *target, int argc, char **argv)
 {
   g_autofree char *averages = NULL, *exposure = NULL, *gain = NULL;
+  gboolean json = FALSE;
   GOptionEntry entries[] = {
+    DS_CTL_JSON_ENTRY (json),
     { "averages", 'm', 0, G_OPTION_ARG_STRING, &averages, "Frames averaged (1..64)", "M" },
     { "exposure-us", 'e', 0, G_OPTION_ARG_STRING, &exposure, "Exposure (µs, 1..1e7)", "E" },
     { "gain-db", 'g', 0, G_OPTION_ARG_STRING, &gain, "Gain (dB, 0..48)", "G" },
@@ -359,7 +408,7 @@ ds_ctl_dark (const DsCtlTarget *target, int argc, char **argv)
   g_autoptr (DsMessage) m = ds_ctl_call (c, "dark", args, NULL, NULL);
   if (!m)
     return 1;
-  ds_ctl_print_json (m->reply->body);
+  ds_ctl_print_reply (m->reply->body, json, print_dark);
   return 0;
 }
 

@@ -417,9 +417,9 @@ ds_ctl_separate (int argc, char **argv)
   Options o = { .duty = NAN, .black_level = NAN, .harmonic_gain = NAN, .system_gain = NAN,
                 .read_noise = NAN, .saturation = NAN, .period = NAN, .edge_blur = NAN };
   GOptionEntry entries[] = {
-    { "estimator", 'e', 0, G_OPTION_ARG_STRING, &o.estimator, "maxmin (default), sine or robust", "NAME" },
+    { "estimator", 0, 0, G_OPTION_ARG_STRING, &o.estimator, "maxmin (default), sine or robust", "NAME" },
     { "pattern", 0, 0, G_OPTION_ARG_STRING, &o.pattern, "stripe profile: square (default) or sine", "KIND" },
-    { "duty", 'a', 0, G_OPTION_ARG_DOUBLE, &o.duty, "lit fraction of a period (default 0.5)", "A" },
+    { "duty", 0, 0, G_OPTION_ARG_DOUBLE, &o.duty, "lit fraction of a period (default 0.5)", "A" },
     { "black-level", 'b', 0, G_OPTION_ARG_DOUBLE, &o.black_level, "off-stripe leakage relative to on (default 0)", "B" },
     { "harmonic-gain", 0, 0, G_OPTION_ARG_DOUBLE, &o.harmonic_gain, "first-harmonic gain h for sine (default: theory)", "H" },
     { "system-gain", 0, 0, G_OPTION_ARG_DOUBLE, &o.system_gain, "sensor gain K in DN per electron (enables uncertainty)", "K" },
@@ -440,6 +440,7 @@ ds_ctl_separate (int argc, char **argv)
   g_option_context_set_summary (ctx, "Writes direct.png, global.png, transmissive.tiff, scattered.tiff, "
                                      "mask.png and separation.json.");
   g_option_context_add_main_entries (ctx, entries, NULL);
+  ds_ctl_describe_globals (ctx);
   g_autoptr (GError) error = NULL;
   int status;
   gboolean usage = FALSE;

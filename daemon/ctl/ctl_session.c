@@ -10,6 +10,7 @@ ds_ctl_parse_options (int *argc, char ***argv, const GOptionEntry *entries, cons
   g_autoptr (GOptionContext) ctx = g_option_context_new (NULL);
   g_option_context_set_summary (ctx, summary);
   g_option_context_add_main_entries (ctx, entries, NULL);
+  ds_ctl_describe_globals (ctx);
   g_autoptr (GError) error = NULL;
   if (!g_option_context_parse (ctx, argc, argv, &error)) {
     fprintf (stderr, "descatterctl %s: %s\n", (*argv)[0], error->message);
@@ -137,4 +138,13 @@ ds_ctl_print_json (JsonNode *node)
   }
   g_autofree char *text = json_to_string (node, TRUE);
   printf ("%s\n", text);
+}
+
+void
+ds_ctl_print_reply (JsonNode *body, gboolean json, void (*human) (JsonObject *body))
+{
+  if (json || !body || !JSON_NODE_HOLDS_OBJECT (body))
+    ds_ctl_print_json (body);
+  else
+    human (json_node_get_object (body));
 }

@@ -17,6 +17,33 @@ typedef struct {
   const char *token;   /* NULL: none; --token, --token-file or $DESCATTER_TOKEN */
 } DsCtlTarget;
 
+/* Short option letters have one meaning across descatterctl (tests/daemon/test_ctl_options.py
+ * checks every command's --help): the global ones (-a --address, -V --version, -h --help) are
+ * taken nowhere else, and a letter a command uses means what it means everywhere (-n phases,
+ * -m averages, -e exposure-us, -g gain-db, -o out, -q quiet, -s scene, -j json, ...). An
+ * option whose natural letter is taken by another meaning is long-only. */
+
+/* The global options' lines (address, token, token file) as descatterctl --help prints them:
+ * the one text for the program's usage and the end of every command's --help. In the header,
+ * not ctl_session.c, because `separate` is also a library of its own (ds_ctl_separate). */
+#define DS_CTL_GLOBAL_OPTIONS_HELP                                                                        \
+  "  -a, --address ADDR   the daemon: a UNIX socket path (default " DS_CTL_DEFAULT_ADDRESS "),\n"           \
+  "                       unix:PATH or tcp:HOST:PORT; also $DESCATTER_ADDRESS\n"                           \
+  "  --token TOKEN        the daemon's TCP token (also $DESCATTER_TOKEN)\n"                                \
+  "  --token-file FILE    read the token from FILE (keeps it out of the process list)\n"
+
+/* Ends a command's --help with the global options (given before the command). */
+static inline void
+ds_ctl_describe_globals (GOptionContext *ctx)
+{
+  g_option_context_set_description (ctx, "Global options (before the command: descatterctl [OPTIONS] "
+                                          "COMMAND ...):\n" DS_CTL_GLOBAL_OPTIONS_HELP);
+}
+
+/* --json for the commands whose reply is printed for people by default. */
+#define DS_CTL_JSON_ENTRY(var)                                                                            \
+  { "json", 'j', 0, G_OPTION_ARG_NONE, &(var), "Print the daemon's reply as JSON (for scripts)", NULL }
+
 /* Parses a subcommand's options; refuses positional arguments. FALSE: the message is printed. */
 gboolean ds_ctl_parse_options (int *argc, char ***argv, const GOptionEntry *entries, const char *summary);
 
@@ -43,5 +70,7 @@ gboolean ds_ctl_parse_int (const char *cmd, const char *option, const char *text
 gboolean ds_ctl_parse_double (const char *cmd, const char *option, const char *text, double *out);
 
 void ds_ctl_print_json (JsonNode *node);
+/* A reply's body: as JSON when json is set (or the body is not an object), else through human. */
+void ds_ctl_print_reply (JsonNode *body, gboolean json, void (*human) (JsonObject *body));
 
 G_END_DECLS

@@ -406,6 +406,7 @@ ds_ctl_study (int argc, char **argv)
   g_option_context_set_summary (ctx, "Sweeps estimator, N, M, exposure, stripe period and seeds over simulated "
                                      "scenes; writes study.csv and pareto.md (docs/accuracy.md).");
   g_option_context_add_main_entries (ctx, entries, NULL);
+  ds_ctl_describe_globals (ctx);
   g_autoptr (GError) error = NULL;
   if (!g_option_context_parse (ctx, &argc, &argv, &error)) {
     fprintf (stderr, "descatterctl study: %s\n", error->message);

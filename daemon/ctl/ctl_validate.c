@@ -510,13 +510,13 @@ ds_ctl_validate (int argc, char **argv)
   GOptionEntry entries[] = {
     { "scene", 's', 0, G_OPTION_ARG_FILENAME_ARRAY, &scene_files, "Scene file (repeat)", "FILE" },
     { "shipped", 0, 0, G_OPTION_ARG_NONE, &shipped, "The example scenes (etc/scenes)", NULL },
-    { "generate", 'g', 0, G_OPTION_ARG_INT, &generate, "Also K generated scenes (never fitted to)", "K" },
+    { "generate", 0, 0, G_OPTION_ARG_INT, &generate, "Also K generated scenes (never fitted to)", "K" },
     { "seed", 0, 0, G_OPTION_ARG_INT64, &seed, "Generator and noise seed (default 1)", "S" },
     { "targets", 0, 0, G_OPTION_ARG_STRING, &targets, "Target errors requested (default 0.03,0.1,0.3; none)", "LIST" },
     { "budgets", 0, 0, G_OPTION_ARG_STRING, &budgets, "Time budgets requested alone, ms (default 60; none)", "LIST" },
-    { "configs", 'c', 0, G_OPTION_ARG_STRING, &configs, "Also these fixed configurations, ESTIMATOR:N:M:EXPOSURE-FACTOR,...", "LIST" },
+    { "configs", 0, 0, G_OPTION_ARG_STRING, &configs, "Also these fixed configurations, ESTIMATOR:N:M:EXPOSURE-FACTOR,...", "LIST" },
     { "fit", 0, 0, G_OPTION_ARG_NONE, &fit, "Fit the prediction's scale leave-one-scene-out on the given (not generated) scenes; write OUT/operating-model.conf", NULL },
-    { "model", 'm', 0, G_OPTION_ARG_FILENAME, &model_path, "Operating model (default: the installed one)", "FILE" },
+    { "model", 0, 0, G_OPTION_ARG_FILENAME, &model_path, "Operating model (default: the installed one)", "FILE" },
     { "uncalibrated", 0, 0, G_OPTION_ARG_NONE, &uncalibrated, "The rig has no calibrated harmonic gain", NULL },
     { "fixed-period", 0, 0, G_OPTION_ARG_NONE, &fixed_period, "The illuminator cannot change its period", NULL },
     { "saturation-known", 0, 0, G_OPTION_ARG_NONE, &saturation_known, "The rig is configured with the sensor's clip level ([camera] saturation-dn)", NULL },
@@ -529,6 +529,7 @@ ds_ctl_validate (int argc, char **argv)
                                      "against achieved error on the given and on generated scenes "
                                      "(docs/accuracy.md). Writes OUT/validation.csv and OUT/validation.md.");
   g_option_context_add_main_entries (ctx, entries, NULL);
+  ds_ctl_describe_globals (ctx);
   g_autoptr (GError) error = NULL;
   if (!g_option_context_parse (ctx, &argc, &argv, &error)) {
     fprintf (stderr, "descatterctl validate: %s\n", error->message);
@@ -606,7 +607,7 @@ ds_ctl_generate_scenes (int argc, char **argv)
   gint count = 1;
   gint64 seed = 1;
   GOptionEntry entries[] = {
-    { "count", 'n', 0, G_OPTION_ARG_INT, &count, "How many (default 1)", "K" },
+    { "count", 0, 0, G_OPTION_ARG_INT, &count, "How many (default 1)", "K" },
     { "seed", 0, 0, G_OPTION_ARG_INT64, &seed, "Seed (default 1)", "S" },
     { "out", 'o', 0, G_OPTION_ARG_FILENAME, &out, "Output folder (default .)", "DIR" },
     { NULL },
@@ -616,6 +617,7 @@ ds_ctl_generate_scenes (int argc, char **argv)
                                      "thickness, pattern, duty, black level, period, blur, objects, ambient "
                                      "light and sensor drawn from wide ranges; the same seed gives the same scenes.");
   g_option_context_add_main_entries (ctx, entries, NULL);
+  ds_ctl_describe_globals (ctx);
   g_autoptr (GError) error = NULL;
   if (!g_option_context_parse (ctx, &argc, &argv, &error) || count < 1) {
     fprintf (stderr, "descatterctl generate-scenes: %s\n", error ? error->message : "--count must be >= 1");

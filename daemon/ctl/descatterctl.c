@@ -14,7 +14,7 @@ static const struct {
   const char *help;
 } commands[] = {
   { "hello", ds_ctl_hello, NULL, "protocol version and daemon identity" },
-  { "status", ds_ctl_status, NULL, "state, devices, counters, timings, clients (--json: raw)" },
+  { "status", ds_ctl_status, NULL, "state, devices, counters, timings, clients" },
   { "capture", ds_ctl_capture, NULL, "acquire one phase set; write TIFF + PNG previews" },
   { "stream", ds_ctl_stream, NULL, "subscribe and write/print results as they come" },
   { "start", ds_ctl_start, NULL, "start continuous acquisition" },
@@ -35,16 +35,12 @@ usage (FILE *f)
 {
   fprintf (f, "usage: descatterctl [OPTIONS] COMMAND [COMMAND OPTIONS]\n\ncommands:\n");
   for (size_t i = 0; i < G_N_ELEMENTS (commands); i++)
-    fprintf (f, "  %-10s %s\n", commands[i].name, commands[i].help);
-  fprintf (f, "\noptions:\n"
-              "  -a, --address ADDR   the daemon: a UNIX socket path (default %s),\n"
-              "                       unix:PATH or tcp:HOST:PORT; also $DESCATTER_ADDRESS\n"
-              "  --token TOKEN        the daemon's TCP token (also $DESCATTER_TOKEN)\n"
-              "  --token-file FILE    read the token from FILE (keeps it out of the process list)\n"
+    fprintf (f, "  %-16s %s\n", commands[i].name, commands[i].help);
+  fprintf (f, "\noptions:\n%s"
               "  -V, --version        print the version and exit\n"
               "  -h, --help           print this help and exit\n"
               "\n`descatterctl COMMAND --help` lists a command's options.\n",
-           DS_CTL_DEFAULT_ADDRESS);
+           DS_CTL_GLOBAL_OPTIONS_HELP);
 }
 
 /* "--name VALUE" or "--name=VALUE" at argv[*i]; advances *i past what it used. */

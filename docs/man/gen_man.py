@@ -114,7 +114,8 @@ def commands_scdoc(bindir, program, where):
         text = help_text(bindir, [program, name, "--help"], where)
         out.append(f"## {name}\n")
         out.append(scdoc_escape(summary_of(text) or oneline) + "\n")
-        groups = parse_help(text)
+        # The page lists the global options once (its GLOBAL OPTIONS section), not per command.
+        groups = [g for g in parse_help(text) if not g[0].lower().startswith("global options")]
         if groups:
             out.append(options_scdoc(groups))
     if not out:

@@ -130,7 +130,7 @@ def out_folders(d, tmp):
 
 
 def dark_and_versions(d, tmp):
-    hello = json.loads(d.ctl("hello").stdout)
+    hello = json.loads(d.ctl("hello", "--json").stdout)
     results = {}
     for flag in ("--no-dark-frame", "--dark-frame"):
         out = os.path.join(tmp, "dark" + flag)
@@ -147,6 +147,44 @@ def dark_and_versions(d, tmp):
     sw = (nd or {}).get("producer", {})
     check(sw.get("version") == VERSION and sw.get("git") == hello.get("git"),
           f"the result's metadata names the same version and build: {sw}")
+
+
+def is_json(text):
+    try:
+        json.loads(text)
+        return True
+    except ValueError:
+        return False
+
+
+def human_and_json_replies(d):
+    # start/stop (and the other commands whose reply used to be raw JSON) print a sentence by
+    # default and the daemon's reply with --json; the expectations come from the request made.
+    r = d.ctl("start", "-n", "4", "--no-dark-frame")
+    check(r.returncode == 0 and not is_json(r.stdout) and "started" in r.stdout and "4 phases" in r.stdout
+          and "dark frame off" in r.stdout, f"start prints a sentence with the settings asked for: {r.stdout.strip()}")
+    r = d.ctl("stop")
+    check(r.returncode == 0 and not is_json(r.stdout) and "continuous acquisition" in r.stdout,
+          f"stop prints the daemon's message: {r.stdout.strip()}")
+    r = d.ctl("stop", "--json")
+    reply = json.loads(r.stdout) if r.returncode == 0 and is_json(r.stdout) else {}
+    check(reply.get("was_running") is False, f"stop --json: the reply, nothing was running any more: {reply}")
+    r = d.ctl("start", "--json", "-n", "6", "--dark-frame")
+    reply = json.loads(r.stdout) if r.returncode == 0 and is_json(r.stdout) else {}
+    check(reply.get("phases") == 6 and reply.get("dark_frame") is True,
+          f"start --json: the settings document with the phases asked for: {reply}")
+    r = d.ctl("stop", "-j")
+    reply = json.loads(r.stdout) if r.returncode == 0 and is_json(r.stdout) else {}
+    check(reply.get("was_running") is True, f"stop -j: the reply, acquisition was running: {reply}")
+    r = d.ctl("hello")
+    check(r.returncode == 0 and not is_json(r.stdout) and r.stdout.startswith(f"descatterd {VERSION} "),
+          f"hello prints one line: {r.stdout.strip()}")
+    r = d.ctl("dark", "-m", "2")
+    check(r.returncode == 0 and not is_json(r.stdout) and "dark frame stored" in r.stdout,
+          f"dark prints a sentence: {r.stdout.strip()}")
+    r = d.ctl("dark", "--json")
+    check(r.returncode == 0 and is_json(r.stdout) and "dark_mean_dn" in json.loads(r.stdout),
+          f"dark --json: the reply: {r.stdout.strip()}")
 
 
 def status_and_config(d):
@@ -277,7 +315,7 @@ def tcp_token(tmp):
         check(r.returncode == 0 and "frames" in json.loads(r.stdout), "--token authenticates")
         r = run(CTL, "-a", addr, "status", "--json", env=dict(os.environ, DESCATTER_TOKEN=token))
         check(r.returncode == 0, "$DESCATTER_TOKEN authenticates")
-        r = run(CTL, "-a", addr, "--token-file", tok, "hello")
+        r = run(CTL, "-a", addr, "--token-file", tok, "hello", "--json")
         check(r.returncode == 0, "--token-file authenticates")
         # No operating model in the data dir: a visible state, and the capture says why.
         st = json.loads(run(CTL, "-a", addr, "--token", token, "status", "--json").stdout)
@@ -304,6 +342,7 @@ def main():
             status_and_config(d)
             automatic_capture(d, tmp)
             stream_and_start(d)
+            human_and_json_replies(d)
         finally:
             check(d.stop() == 0, "descatterd exits cleanly")
         stream_counts_failed_sets(tmp)

@@ -289,7 +289,7 @@ def main():
         d = Daemon(daemon, ctl, tmp, conf_text)
         try:
             config_hash = hashlib.sha256(d.ctl("config").stdout.encode()).hexdigest()
-            version = json.loads(d.ctl("hello").stdout)["version"]
+            version = json.loads(d.ctl("hello", "--json").stdout)["version"]
             check_capture_files(d, tmp, config_hash, version)
             for estimator, averages in (("maxmin", 1), ("sine", 1), ("maxmin", 2)):
                 check_reprocessing(d, tmp, estimator, averages)

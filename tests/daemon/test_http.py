@@ -202,11 +202,11 @@ def main():
             check_metrics(d)
             check_websocket(d)
             # descatterctl release / acquire (the labsim test shows another program taking the camera).
-            assert json.loads(d.ctl("release").stdout)["state"] == "released"
+            assert json.loads(d.ctl("release", "--json").stdout)["state"] == "released"
             r = d.ctl("capture", "--quiet", "--out", os.path.join(tmp, "refused"), check=False)
             assert r.returncode != 0 and "acquire" in r.stderr, r.stderr
             assert value(metrics(d.url), "descatter_acquisition_state", state="released") == 1
-            assert json.loads(d.ctl("acquire").stdout)["state"] == "idle"
+            assert json.loads(d.ctl("acquire", "--json").stdout)["state"] == "idle"
         finally:
             d.stop()
         check_refusals(daemon, ctl, tmp)

@@ -121,7 +121,7 @@ def without_per_set(tmp, offline):
         check_idle(d, "none", "dark-frame=false: none subtracted")
         check("NONE subtracted" in d.ctl("status").stdout, "the summary says nothing is subtracted")
         before = time.time()
-        reply = json.loads(d.ctl("dark").stdout)
+        reply = json.loads(d.ctl("dark", "--json").stdout)
         after = time.time()
         st = d.status()
         stored = st["dark"]["stored"]
@@ -147,11 +147,11 @@ def without_per_set(tmp, offline):
         check(st["dark"]["mode"] == "per-set" and st["continuous"] is True,
               f"start --dark-frame: per-set while running: {st['dark']}")
         check(abs(st["dark"]["last"]["mean_dn"] - offline) < 0.5, "the set's dark frame has the scene's level")
-        stopped = json.loads(d.ctl("stop").stdout)
+        stopped = json.loads(d.ctl("stop", "--json").stdout)
         check(stopped.get("was_running") is True and "stops after the set in progress" in stopped.get("message", ""),
               f"stop says that continuous acquisition was on and stops (it printed {{}}): {stopped}")
         st = d.wait_for(lambda s: not s["continuous"], "continuous mode to stop")
-        again = json.loads(d.ctl("stop").stdout)
+        again = json.loads(d.ctl("stop", "--json").stdout)
         check(again.get("was_running") is False and "was not running" in again.get("message", ""),
               f"a second stop says nothing was running: {again}")
         check(st["dark"]["mode"] == "none", f"stopped: back to the configuration's: {st['dark']}")
