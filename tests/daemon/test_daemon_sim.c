@@ -5,8 +5,8 @@
 #include <signal.h>
 #include <string.h>
 
-#include "daemon_harness.h"
-#include "truth_check.h"
+#include "tests/common/daemon_harness.h"
+#include "tests/common/truth_check.h"
 #include "drivers/sim/renderer.h"
 #include "drivers/sim/scene.h"
 

@@ -11,7 +11,7 @@
 #include "daemon/ctl/ctl_commands.h"
 #include "proc/image.h"
 #include "separate_run.h"
-#include "tests/test_tree.h"
+#include "tests/common/test_tree.h"
 
 #define W 60
 #define H 6
