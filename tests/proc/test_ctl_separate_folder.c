@@ -8,7 +8,7 @@
 #include <math.h>
 #include <string.h>
 
-#include "daemon/ctl/ctl_commands.h"
+#include "daemon/ctl/ctl_separate.h"
 #include "proc/image.h"
 #include "separate_run.h"
 #include "tests/common/test_tree.h"
