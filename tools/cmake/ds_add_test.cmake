@@ -3,17 +3,19 @@
 #
 #   ds_add_test(NAME <area>/<name>          ctest name; <area> is the default label
 #     [TARGET <exe>]                        the program (default: test_<name of first source>)
-#     [SOURCES <file>...]                   build TARGET from these; without, TARGET must exist
+#     [SOURCES <file>...]                   build TARGET from these (it sees the tests' headers,
+#                                           ds_test_tree); without, TARGET must exist
 #     [LIBS <lib>...]                       linked to TARGET
 #     [DEFINITIONS <def>...]                compile definitions of TARGET
 #     [DEPENDS <target>...]                 built before TARGET (programs the test starts)
 #     [COMMAND <cmd>...]                    run this instead of TARGET (scripts)
 #     [ARGS <arg>...]                       appended to the command
-#     [NETNS]                               run inside tools' private network namespace wrapper
+#     [NETNS]                               run through tests/drivers/netns_run.sh (a private
+#                                           network namespace where the machine allows one)
 #     [LABELS <label>...]                   default: <area>
 #     [TIMEOUT <s>] [RESOURCE_LOCK <lock>...] [SKIP_RETURN_CODE <n>]
 #     [ENV <VAR=value>...]                  put before DS_TEST_ENV
-#     [NO_DATA_ENV])                        leave DS_TEST_ENV out (the program sets what it needs)
+#     [NO_DATA_ENV])                        leave DS_TEST_ENV out (a test that reads no data)
 #
 # Rules it keeps: anything that binds the GigE Vision port 3956 passes NETNS and
 # RESOURCE_LOCK gige_port_3956; programs from the build tree find the data through DS_TEST_ENV,
