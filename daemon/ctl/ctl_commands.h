@@ -4,6 +4,7 @@
 #pragma once
 #include <glib.h>
 
+#include "daemon/ctl/ctl_separate.h"
 #include "daemon/ctl/ctl_session.h"
 
 int ds_ctl_hello (const DsCtlTarget *target, int argc, char **argv);
@@ -19,8 +20,7 @@ int ds_ctl_config (const DsCtlTarget *target, int argc, char **argv);
 /* A folder given: offline; none: the daemon calibrates on the rig. */
 int ds_ctl_calibrate (const DsCtlTarget *target, int argc, char **argv);
 
-/* Offline: no daemon. */
-int ds_ctl_separate (int argc, char **argv);
+/* Offline: no daemon (and ds_ctl_separate, ctl_separate.h). */
 int ds_ctl_study (int argc, char **argv);
 int ds_ctl_validate (int argc, char **argv);
 int ds_ctl_generate_scenes (int argc, char **argv);

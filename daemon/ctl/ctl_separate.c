@@ -24,7 +24,8 @@
 #include <math.h>
 #include <stdio.h>
 
-#include "daemon/ctl/ctl_commands.h"
+#include "daemon/ctl/ctl_separate.h"
+#include "daemon/ctl/ctl_globals.h"
 #include "daemon/ctl/ctl_folder.h"
 #include "daemon/output/result_files.h"
 #include "daemon/output/result_meta.h"

@@ -3,6 +3,11 @@
  * stripe period (an illuminator that can change it), the clear reference a user calibrates on,
  * the truth, and the separation of one configuration as descatterd would compute it.
  *
+ * A rig of its own beside drivers/simdev: the study asks for a frame at a given phase, exposure
+ * and noise seed, with the truth and the clear reference beside it and no trigger or device
+ * timing between; simdev is the pair of devices that descatterd --sim drives through its
+ * sequencer, one triggered frame at a time.
+ *
  * Threads: a rig is used by one thread at a time. */
 #pragma once
 #include <glib.h>

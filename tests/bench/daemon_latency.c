@@ -6,7 +6,7 @@
 #include <stdio.h>
 #include <string.h>
 
-#include "../daemon/daemon_harness.h"
+#include "tests/common/daemon_harness.h"
 
 static int
 compare_double (const void *a, const void *b)

@@ -27,7 +27,7 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "../daemon/daemon_harness.h"
+#include "tests/common/daemon_harness.h"
 #include "fake_rig.h"
 #include "daemon/config/config.h"
 #include "rate_ceiling.h"

@@ -81,15 +81,6 @@ g_poll (GPollFD *fds, guint nfds, gint timeout)
   return ppoll ((struct pollfd *) fds, nfds, &ts, NULL);
 }
 
-static guint16
-scene_value (guint x, guint phase, guint n)
-{
-  double u = (x + 0.5) / FAKE_RIG_PERIOD_PX - (double) phase / n;
-  u -= floor (u + 0.5);
-  double lit = fabs (u) < 0.25 ? 1.0 : 0.0;
-  return (guint16) lround (FAKE_RIG_DIRECT_DN * lit + FAKE_RIG_GLOBAL_DN * 0.5 + FAKE_RIG_DARK_DN);
-}
-
 /* The fake camera's thread: copy the frame of the phase lit now. */
 static void
 fill (ArvBuffer *buffer, void *data, guint32 exposure_time_us, guint32 gain, ArvPixelFormat format)
@@ -198,7 +189,7 @@ fake_rig_new (guint width, guint height, guint n_phases, guint settle_us)
   for (guint k = 0; k < n_phases; k++) {
     rig->lit[k] = g_new (guint16, npix);
     for (guint x = 0; x < width; x++)
-      rig->lit[k][x] = scene_value (x, k, n_phases);
+      rig->lit[k][x] = stripe_scene_value (x, (int) k, n_phases, FAKE_RIG_PERIOD_PX);
     for (guint y = 1; y < height; y++)
       memcpy (rig->lit[k] + (gsize) y * width, rig->lit[k], width * 2);
   }

@@ -3,22 +3,25 @@
  * prebuilt per stripe phase, its software trigger polled at 1 kHz (its thread sleeping between
  * the polls: fake_rig.c), and the lab's Modbus TCP illuminator controller
  * (drivers/labsim/modbus_server.h) in-process, whose lit phase chooses the frame. The frames
- * are the closed-form scene of tests/daemon/test_sequencer.c: square stripes, period 16 px,
- * duty 1/2, direct 1000 DN, global 600 DN, dark offset 2 DN, 12 bits in Mono16; so maxmin gives
- * transmissive 1000 and scattered 604 exactly (no noise). Nothing here depends on labsim's
- * renderer. */
+ * are the closed-form scene of the sequencer's tests (tests/common/stripe_scene.h) at period
+ * 16 px, 12 bits in Mono16; so maxmin gives transmissive 1000 and scattered 604 exactly (no
+ * noise). Nothing here depends on labsim's renderer.
+ *
+ * A rig of its own, not labsim: the benchmark measures the daemon, so its camera must cost no
+ * more than a copy per frame and give frames known exactly, which labsim's rendered scenes with
+ * per-frame sensor noise do not. */
 #pragma once
 #include <glib.h>
 
 #include "drivers/labsim/modbus_server.h"
+#include "tests/common/stripe_scene.h"
 
 G_BEGIN_DECLS
 
 #define FAKE_RIG_PERIOD_PX 16.0
-#define FAKE_RIG_DIRECT_DN 1000.0
-#define FAKE_RIG_GLOBAL_DN 600.0
-#define FAKE_RIG_DARK_DN 2.0
-#define FAKE_RIG_SCATTERED_EXPECTED (FAKE_RIG_GLOBAL_DN + 2 * FAKE_RIG_DARK_DN)
+#define FAKE_RIG_DIRECT_DN STRIPE_SCENE_DIRECT_DN
+#define FAKE_RIG_DARK_DN STRIPE_SCENE_DARK_DN
+#define FAKE_RIG_SCATTERED_EXPECTED STRIPE_SCENE_SCATTERED_DN
 
 typedef struct FakeRig FakeRig;
 

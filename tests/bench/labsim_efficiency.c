@@ -8,7 +8,7 @@
 #include <stdio.h>
 #include <string.h>
 
-#include "../daemon/daemon_harness.h"
+#include "tests/common/daemon_harness.h"
 #include "daemon/operating/rig_timing.h"
 #include "drivers/sim/scene.h"
 

@@ -18,7 +18,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "../daemon/daemon_harness.h"
+#include "tests/common/daemon_harness.h"
 #include "drivers/modbus/modbus_illuminator.h"
 #include "drivers/sim/scene.h"
 #include "proc/pixfmt.h"

@@ -1,6 +1,9 @@
 /* What the probe tests against the simulator (test_probe_sim.c, test_probe_objects.c) share:
  * pilot frames rendered from a scene text as `descatterctl validate` takes them, probed as
- * descatterd probes, and the renderer's own truth to compare the probe with. */
+ * descatterd probes, and the renderer's own truth to compare the probe with.
+ *
+ * Not a rig of its own: the calibrated simulated rig of `descatterctl validate`
+ * (daemon/ctl/sim_rig.h), so that the tests probe exactly the frames the validation probes. */
 #pragma once
 #include "daemon/ctl/validate.h"
 

@@ -1,7 +1,5 @@
 #include "scripted_lab.h"
 
-#include <math.h>
-
 gboolean
 scripted_fault_now (guint *counter)
 {
@@ -13,9 +11,7 @@ scripted_fault_now (guint *counter)
 double
 scripted_stripe_lit (guint x, int phase, guint n_phases)
 {
-  double u = (x + 0.5) / SCRIPTED_PERIOD - (double) phase / n_phases;
-  u -= floor (u + 0.5);
-  return fabs (u) < 0.25 ? 1.0 : 0.0;
+  return stripe_scene_lit (x, phase, n_phases, SCRIPTED_PERIOD);
 }
 
 void
@@ -26,8 +22,8 @@ scripted_assert_scene_recovered (const DsResult *r)
     const float *t = ds_image_row (sep->transmissive, y);
     const float *g = ds_image_row (sep->scattered, y);
     for (guint x = 0; x < sep->transmissive->width; x++) {
-      g_assert_cmpfloat_with_epsilon (t[x], 1000.0, 1e-3);
-      g_assert_cmpfloat_with_epsilon (g[x], 604.0, 1e-3);
+      g_assert_cmpfloat_with_epsilon (t[x], STRIPE_SCENE_DIRECT_DN, 1e-3);
+      g_assert_cmpfloat_with_epsilon (g[x], STRIPE_SCENE_SCATTERED_DN, 1e-3);
     }
   }
 }

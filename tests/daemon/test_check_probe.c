@@ -8,7 +8,7 @@
 #include <glib/gstdio.h>
 #include <string.h>
 
-#include "daemon_harness.h"
+#include "tests/common/daemon_harness.h"
 
 static const char *labsim_path, *scene_path;
 

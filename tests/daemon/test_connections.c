@@ -8,7 +8,7 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "daemon_harness.h"
+#include "tests/common/daemon_harness.h"
 
 static char *
 sim_config (const char *daemon_extra)

@@ -10,8 +10,8 @@
 
 #include <arv.h>
 
-#include "daemon_harness.h"
-#include "truth_check.h"
+#include "tests/common/daemon_harness.h"
+#include "tests/common/truth_check.h"
 
 static const char *labsim_path, *scene_path;
 static DsScene *the_scene;

@@ -7,8 +7,8 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "daemon_harness.h"
-#include "truth_check.h"
+#include "tests/common/daemon_harness.h"
+#include "tests/common/truth_check.h"
 #include "drivers/sim/renderer.h"
 #include "drivers/sim/scene.h"
 

@@ -4,7 +4,7 @@
  * the subscribers' `failed` event both carry the code, and the message says what failed. */
 #include <string.h>
 
-#include "daemon_harness.h"
+#include "tests/common/daemon_harness.h"
 
 typedef struct {
   const char *faults;     /* [sim] faults */

@@ -12,8 +12,8 @@
 #include <sys/un.h>
 #include <unistd.h>
 
-#include "daemon_harness.h"
-#include "truth_check.h"
+#include "tests/common/daemon_harness.h"
+#include "tests/common/truth_check.h"
 
 static const char *labsim_path, *scene_path;
 static DsScene *the_scene;

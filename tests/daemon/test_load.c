@@ -7,7 +7,7 @@
 #include <stdio.h>
 #include <string.h>
 
-#include "daemon_harness.h"
+#include "tests/common/daemon_harness.h"
 
 typedef enum {
   ROLE_CAPTURE,

@@ -11,7 +11,7 @@
  * folded into a wrong phase. */
 #include <string.h>
 
-#include "daemon_harness.h"
+#include "tests/common/daemon_harness.h"
 
 typedef struct {
   gint64 acquired, folded, dropped, retries, timeouts, frame_gap, incomplete;

@@ -17,7 +17,7 @@
 #include "daemon/operating/scene_probe.h"
 #include "daemon/operating/operating_error.h"
 #include "tests/daemon/calibrate_lines.h"
-#include "tests/test_random.h"
+#include "tests/common/test_random.h"
 
 #define W 256
 #define H 96

@@ -10,7 +10,7 @@
 
 #include "daemon/operating/pilot_stripes.h"
 #include "daemon/operating/operating_error.h"
-#include "tests/test_random.h"
+#include "tests/common/test_random.h"
 
 #define W 320u
 #define H 96u

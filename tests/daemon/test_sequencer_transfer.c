@@ -45,7 +45,7 @@ typedef struct {
 static guint16
 pixel_value (int phase, guint n, guint x)
 {
-  return (guint16) lround (1000.0 * scripted_stripe_lit (x, phase, n) + 300.0 + 2.0);
+  return stripe_scene_value (x, phase, n, SCRIPTED_PERIOD);
 }
 
 static void

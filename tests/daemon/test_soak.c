@@ -9,8 +9,8 @@
 #include <stdio.h>
 #include <string.h>
 
-#include "daemon_harness.h"
-#include "truth_check.h"
+#include "tests/common/daemon_harness.h"
+#include "tests/common/truth_check.h"
 
 int
 main (int argc, char **argv)

@@ -8,7 +8,7 @@
 
 #include "daemon/output/result_files.h"
 #include "daemon/service/spool.h"
-#include "tests/test_tree.h"
+#include "tests/common/test_tree.h"
 
 static DsResult *
 make_result (guint64 set_id, guint w, guint h)

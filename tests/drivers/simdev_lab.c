@@ -1,6 +1,7 @@
 /* The in-process simulated camera and illuminator: each frame shows the phase the illuminator
  * applied at trigger time (measured in the frame with proc/stripe_phase, against k/N), the
- * signal scales with exposure, and every fault knob gives its typed error or wrong frame. */
+ * signal scales with exposure, and every fault knob gives its typed error or wrong frame.
+ * The test of drivers/simdev (the devices of `descatterd --sim`), not a rig of the tests. */
 #include <math.h>
 #include <string.h>
 

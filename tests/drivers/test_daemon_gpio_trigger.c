@@ -11,8 +11,8 @@
 #include <stdio.h>
 #include <string.h>
 
-#include "../daemon/daemon_harness.h"
-#include "../daemon/truth_check.h"
+#include "tests/common/daemon_harness.h"
+#include "tests/common/truth_check.h"
 #include "drivers/gpio/gpio_backends.h"
 
 static const char *labsim_path, *scene_path;

@@ -11,8 +11,8 @@
 #include <stdio.h>
 #include <string.h>
 
-#include "../daemon/daemon_harness.h"
-#include "../daemon/truth_check.h"
+#include "tests/common/daemon_harness.h"
+#include "tests/common/truth_check.h"
 #include "drivers/aravis/aravis_camera.h"
 #include "drivers/modbus/modbus_illuminator.h"
 #include "period_check.h"

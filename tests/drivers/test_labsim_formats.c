@@ -9,7 +9,7 @@
 #include <stdio.h>
 #include <string.h>
 
-#include "../daemon/daemon_harness.h"
+#include "tests/common/daemon_harness.h"
 #include "drivers/aravis/aravis_camera.h"
 #include "drivers/modbus/modbus_illuminator.h"
 #include "drivers/sim/renderer.h"

@@ -17,7 +17,7 @@
 #include "proc/phase_folder.h"
 #include "proc/separation.h"
 #include "sample_result.h"
-#include "tests/test_tree.h"
+#include "tests/common/test_tree.h"
 
 static void
 assert_images_equal (const DsImage *a, const DsImage *b)

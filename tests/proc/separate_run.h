@@ -4,7 +4,7 @@
 #include <glib.h>
 #include <stdarg.h>
 
-#include "daemon/ctl/ctl_commands.h"
+#include "daemon/ctl/ctl_separate.h"
 #include "proc/image.h"
 
 /* `descatterctl separate` with the arguments up to NULL; its exit status. */

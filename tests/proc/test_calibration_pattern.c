@@ -10,7 +10,7 @@
 
 #include "proc/calibration.h"
 #include "proc/proc_error.h"
-#include "tests/test_random.h"
+#include "tests/common/test_random.h"
 
 #define W 240u
 #define H 8u

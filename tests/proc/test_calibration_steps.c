@@ -10,7 +10,7 @@
 #include "proc/calibration.h"
 #include "proc/calibration_steps.h"
 #include "proc/proc_error.h"
-#include "tests/test_random.h"
+#include "tests/common/test_random.h"
 
 #define W 512u
 #define H 64u

@@ -11,7 +11,7 @@
 #include <string.h>
 
 #include "proc/image.h"
-#include "tests/test_tree.h"
+#include "tests/common/test_tree.h"
 
 static char *
 spawn (const char *const *argv, int *status)

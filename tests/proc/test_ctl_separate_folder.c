@@ -8,10 +8,10 @@
 #include <math.h>
 #include <string.h>
 
-#include "daemon/ctl/ctl_commands.h"
+#include "daemon/ctl/ctl_separate.h"
 #include "proc/image.h"
 #include "separate_run.h"
-#include "tests/test_tree.h"
+#include "tests/common/test_tree.h"
 
 #define W 60
 #define H 6

@@ -6,7 +6,7 @@
 
 #include "proc/phase_folder.h"
 #include "proc/proc_error.h"
-#include "tests/test_tree.h"
+#include "tests/common/test_tree.h"
 
 static void
 write_image (const char *dir, const char *name, DsSampleType type, guint w, guint h, guint value)

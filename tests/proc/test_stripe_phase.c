@@ -6,7 +6,7 @@
 #include "proc/phase_order.h"
 #include "proc/proc_error.h"
 #include "proc/stripe_phase.h"
-#include "tests/test_random.h"
+#include "tests/common/test_random.h"
 
 typedef struct {
   double period, duty, black;

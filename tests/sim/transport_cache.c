@@ -9,7 +9,7 @@
 
 #include "drivers/sim/sim_error.h"
 #include "drivers/sim/transport.h"
-#include "tests/test_tree.h"
+#include "tests/common/test_tree.h"
 
 static const DsSlab slab = { 0.1, 4.0, 0.7, 1.0, 1.33, 1.0, 1.0 };
 

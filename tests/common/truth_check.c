@@ -1,4 +1,4 @@
-#include "truth_check.h"
+#include "tests/common/truth_check.h"
 
 #include <math.h>
 #include <string.h>

@@ -1,11 +1,11 @@
-#include "daemon_harness.h"
+#include "tests/common/daemon_harness.h"
 
 #include <glib/gstdio.h>
 #include <signal.h>
 #include <sys/prctl.h>
 #include <string.h>
 #include <unistd.h>
-#include "tests/test_tree.h"
+#include "tests/common/test_tree.h"
 
 static void
 die_with_parent (gpointer data)
