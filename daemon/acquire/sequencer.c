@@ -587,8 +587,11 @@ ds_sequencer_get_status (DsSequencer *seq, DsSequencerStatus *status)
   g_mutex_lock (&seq->shared.lock);
   *status = seq->shared.status;
   status->pending = (guint) g_atomic_int_get (&seq->shared.pending);
-  /* At once, before the thread notices: a cancel not yet taken. */
-  if (g_atomic_int_get (&seq->shared.cancel_gen) != g_atomic_int_get (&seq->shared.cancel_acked))
+  /* At once, before the thread notices: a cancel not yet taken, over the states of work (opening,
+   * reconnecting, released and failed say more about the devices, and cancel nothing). */
+  gboolean working = status->state == DS_SEQUENCER_STATE_IDLE || status->state == DS_SEQUENCER_STATE_ACQUIRING ||
+                     status->state == DS_SEQUENCER_STATE_CONTINUOUS;
+  if (working && g_atomic_int_get (&seq->shared.cancel_gen) != g_atomic_int_get (&seq->shared.cancel_acked))
     status->state = DS_SEQUENCER_STATE_CANCELLING;
   g_mutex_unlock (&seq->shared.lock);
 }
