@@ -75,6 +75,8 @@ typedef enum {
 
 typedef struct {
   DsRunMode mode;
+  gint gen;                   /* cancel_gen stamped on the CMD_START: a cancel after it ends
+                               * the stream's set in progress */
   DsCaptureSettings settings; /* the stream's next set (the defaults copied in before each set
                                * with DS_RUN_STREAM_DEFAULTS); unused with DS_RUN_ON_REQUEST */
 } DsRun;
@@ -100,6 +102,8 @@ typedef struct {
 
   /* What the thread does between commands, and the frame triggered ahead for the next set. */
   DsRun run;
+  gint work_gen;                  /* cancel_gen stamped on the work running (a capture's or dark
+                                   * command's, the stream's): ds_seq_check_quit compares them */
   DsSeqCarry carry;
 
   /* The set in progress (lent to the fold worker during a job: fold_worker.h). */
@@ -168,7 +172,9 @@ guint64 ds_seq_frames_begun (DsAcquisition *acq);
 gboolean ds_seq_wait_exposure_over (DsAcquisition *acq, guint64 before);
 /* Drops (and counts as stale) every frame already delivered but not grabbed. */
 void ds_seq_flush_stale (DsAcquisition *acq, DsFrameCounters *c);
-/* FALSE with CANCELLED when the daemon is stopping. */
+/* FALSE with CANCELLED when the daemon is stopping or the work running (acq->work_gen) was
+ * cancelled (sequencer_shared.h, cancel_gen). Checked between frames: a cancel takes effect
+ * within one frame plus the device calls' own bounds. */
 gboolean ds_seq_check_quit (DsAcquisition *acq, GError **error);
 /* TRUE when retrying cannot help (invalid, unsupported) or the device is gone (disconnected:
  * marks it for reconnection). */

@@ -170,9 +170,7 @@ ds_seq_run_dark (DsAcquisition *acq, const DsCaptureSettings *s, guint64 tag)
   } else
     dark = ds_seq_acquire_dark (acq, s, &c, &mean, &error);
   if (!dark) {
-    ds_frame_counters_abort_rest (&c);
-    ds_seq_account (acq->shared, &c, FALSE);
-    ds_seq_record_error (acq->shared, error);
+    ds_seq_account_unfinished (acq->shared, &c, error);
     ds_seq_emit (acq->shared, DS_SEQUENCER_EVENT_DARK, tag, NULL, g_steal_pointer (&error), NULL);
     return;
   }

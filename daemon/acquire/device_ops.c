@@ -153,10 +153,16 @@ ds_seq_flush_stale (DsAcquisition *acq, DsFrameCounters *c)
 gboolean
 ds_seq_check_quit (DsAcquisition *acq, GError **error)
 {
-  if (!g_atomic_int_get (&acq->shared->quit))
-    return TRUE;
-  g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_CANCELLED, "the daemon is stopping");
-  return FALSE;
+  if (g_atomic_int_get (&acq->shared->quit)) {
+    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_CANCELLED, "the daemon is stopping");
+    return FALSE;
+  }
+  /* A cancel queued after this work was: the work's stamp is older than the count. */
+  if (g_atomic_int_get (&acq->shared->cancel_gen) != acq->work_gen) {
+    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_CANCELLED, "cancelled by a cancel request");
+    return FALSE;
+  }
+  return TRUE;
 }
 
 gboolean

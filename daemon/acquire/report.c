@@ -4,6 +4,7 @@
 #include <math.h>
 
 #include "daemon/acquire/acquisition.h"
+#include "daemon/protocol/protocol.h"
 
 typedef struct {
   DsSequencerShared *shared;
@@ -173,6 +174,28 @@ ds_seq_account (DsSequencerShared *shared, const DsFrameCounters *c, gboolean ok
   else
     shared->status.sets_failed++;
   g_mutex_unlock (&shared->lock);
+}
+
+gboolean
+ds_seq_error_is_cancel (const GError *error)
+{
+  return g_error_matches (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_CANCELLED);
+}
+
+void
+ds_seq_account_unfinished (DsSequencerShared *shared, DsFrameCounters *c, const GError *error)
+{
+  ds_frame_counters_abort_rest (c);
+  gboolean cancelled = ds_seq_error_is_cancel (error);
+  g_mutex_lock (&shared->lock);
+  ds_frame_counters_add (&shared->status.frames, c);
+  if (cancelled)
+    shared->status.sets_cancelled++;
+  else
+    shared->status.sets_failed++;
+  g_mutex_unlock (&shared->lock);
+  if (!cancelled)
+    ds_seq_record_error (shared, error);
 }
 
 void

@@ -20,6 +20,7 @@ typedef enum {
   CMD_RELEASE,
   CMD_ACQUIRE,
   CMD_OPERATING_MODEL,
+  CMD_CANCEL,
   CMD_QUIT,
 } CommandKind;
 
@@ -30,6 +31,8 @@ typedef struct {
   gboolean follow_defaults;    /* CMD_START without settings: each set takes the defaults as
                                 * they are when it starts (a reload changes the stream) */
   guint64 tag;                 /* the request's, echoed in its events; 0 for none */
+  gint gen;                    /* shared.cancel_gen when queued (CMD_CANCEL: the value it
+                                * publishes): a later cancel cancels the command */
   const DsOperatingModel *model; /* CMD_OPERATING_MODEL, with the rig's timing */
   DsRigTiming timing;
 } Command;
@@ -53,6 +56,7 @@ ds_sequencer_state_name (DsSequencerState state)
     [DS_SEQUENCER_STATE_RECONNECTING] = "reconnecting",
     [DS_SEQUENCER_STATE_RELEASED] = "released",
     [DS_SEQUENCER_STATE_FAILED] = "failed",
+    [DS_SEQUENCER_STATE_CANCELLING] = "cancelling",
   };
   return (guint) state < DS_SEQUENCER_STATE_N ? names[state] : "unknown";
 }
@@ -156,6 +160,47 @@ refuse_released (DsAcquisition *acq, const Command *cmd)
                NULL);
 }
 
+/* Whether a cancel was queued after cmd: then it is answered cancelled instead of run. */
+static gboolean
+command_cancelled (DsAcquisition *acq, const Command *cmd)
+{
+  return cmd->gen != g_atomic_int_get (&acq->shared->cancel_gen);
+}
+
+/* A capture or dark frame cancelled before its first frame: answered as a set cancelled between
+ * frames would be (no frame to count), so the requester cannot tell the two apart. */
+static void
+refuse_cancelled (DsAcquisition *acq, const Command *cmd)
+{
+  g_mutex_lock (&acq->shared->lock);
+  acq->shared->status.sets_cancelled++;
+  g_mutex_unlock (&acq->shared->lock);
+  ds_seq_emit (acq->shared, cmd->kind == CMD_DARK ? DS_SEQUENCER_EVENT_DARK : DS_SEQUENCER_EVENT_FAILED, cmd->tag,
+               NULL, g_error_new (DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_CANCELLED, "cancelled by a cancel request"),
+               NULL);
+}
+
+/* CMD_CANCEL taken: every command queued before it was answered (FIFO), the set it cancelled
+ * ended; continuous mode stops with its frame triggered ahead. The cancel is acknowledged
+ * (status leaves `cancelling`) and answered. */
+static void
+finish_cancel (DsAcquisition *acq, const Command *cmd)
+{
+  gboolean was_streaming = ds_acquisition_streaming (acq);
+  acq->run.mode = DS_RUN_ON_REQUEST;
+  ds_seq_carry_discard (acq);
+  g_mutex_lock (&acq->shared->lock);
+  acq->shared->status.continuous = FALSE;
+  g_mutex_unlock (&acq->shared->lock);
+  /* The state before the answer, so that a status read after it shows the thread idle. Without
+   * devices (released, failed to open) the state stays. */
+  if (acq->dev)
+    ds_seq_set_state (acq->shared, acq->need_reconnect ? DS_SEQUENCER_STATE_RECONNECTING : DS_SEQUENCER_STATE_IDLE);
+  g_atomic_int_set (&acq->shared->cancel_acked, cmd->gen);
+  ds_seq_emit (acq->shared, DS_SEQUENCER_EVENT_CONTROL, cmd->tag, NULL, NULL,
+               was_streaming ? "cancelled: continuous acquisition stopped" : "cancelled");
+}
+
 /* The devices failed to open: nothing to drive. Captures and darks are refused, until the
  * quit command comes, so that status stays answerable. Blocks on the queue (1 s slices). */
 static void
@@ -165,6 +210,8 @@ run_without_devices (DsAcquisition *acq)
     Command *cmd = g_async_queue_timeout_pop (acq->shared->queue, G_USEC_PER_SEC);
     ds_seq_heartbeat (acq->shared);
     gboolean quit = cmd && cmd->kind == CMD_QUIT;
+    if (cmd && cmd->kind == CMD_CANCEL)
+      finish_cancel (acq, cmd);
     if (cmd && (cmd->kind == CMD_CAPTURE || cmd->kind == CMD_DARK)) {
       g_atomic_int_dec_and_test (&acq->shared->pending);
       g_mutex_lock (&acq->shared->lock);
@@ -196,6 +243,7 @@ run_stream_set (DsAcquisition *acq, guint *consecutive_failures)
   g_mutex_lock (&acq->shared->lock);
   guint64 failed_before = acq->shared->status.sets_failed;
   g_mutex_unlock (&acq->shared->lock);
+  acq->work_gen = acq->run.gen;
   ds_seq_run_set (acq, &acq->run.settings, 0, DS_SET_FOR_STREAM);
   g_mutex_lock (&acq->shared->lock);
   gboolean failed = acq->shared->status.sets_failed != failed_before;
@@ -218,6 +266,15 @@ static void
 run_command (DsAcquisition *acq, const Command *cmd)
 {
   CommandKind kind = cmd->kind;
+  if ((kind == CMD_CAPTURE || kind == CMD_DARK) && command_cancelled (acq, cmd)) {
+    refuse_cancelled (acq, cmd);
+    g_atomic_int_add (&acq->shared->pending, -1);
+    return;
+  }
+  /* A start queued before a cancel: the cancel stops continuous mode, so it never starts. */
+  if (kind == CMD_START && command_cancelled (acq, cmd))
+    return;
+  acq->work_gen = cmd->gen;
   if (!acq->dev && (kind == CMD_CAPTURE || kind == CMD_DARK)) {
     refuse_released (acq, cmd);
     g_atomic_int_add (&acq->shared->pending, -1);
@@ -241,6 +298,7 @@ run_command (DsAcquisition *acq, const Command *cmd)
       break;
     }
     acq->run.mode = cmd->follow_defaults ? DS_RUN_STREAM_DEFAULTS : DS_RUN_STREAM;
+    acq->run.gen = cmd->gen;
     acq->run.settings = cmd->settings;
     break;
   case CMD_STOP:
@@ -263,6 +321,7 @@ run_command (DsAcquisition *acq, const Command *cmd)
     g_atomic_int_add (&acq->shared->pending, -1);
     break;
   case CMD_OPERATING_MODEL:
+  case CMD_CANCEL:
   case CMD_QUIT:
     g_assert_not_reached ();
   }
@@ -308,6 +367,11 @@ run_commands (DsAcquisition *acq)
         return;
       if (streaming)
         run_stream_set (acq, &consecutive_failures);
+      continue;
+    }
+    if (cmd->kind == CMD_CANCEL) {
+      finish_cancel (acq, cmd);
+      g_free (cmd);
       continue;
     }
     gboolean quit = cmd->kind == CMD_QUIT;
@@ -389,10 +453,11 @@ ds_sequencer_new (DsDevicesOpenFunc open_devices, gpointer open_data,
 }
 
 static Command *
-command_new (CommandKind kind, const DsCaptureSettings *s, guint64 tag)
+command_new (DsSequencer *seq, CommandKind kind, const DsCaptureSettings *s, guint64 tag)
 {
   Command *cmd = g_new0 (Command, 1);
   cmd->kind = kind;
+  cmd->gen = g_atomic_int_get (&seq->shared.cancel_gen);
   if (s)
     cmd->settings = *s;
   cmd->tag = tag;
@@ -402,7 +467,7 @@ command_new (CommandKind kind, const DsCaptureSettings *s, guint64 tag)
 static void
 push (DsSequencer *seq, CommandKind kind, const DsCaptureSettings *s, guint64 tag)
 {
-  g_async_queue_push (seq->shared.queue, command_new (kind, s, tag));
+  g_async_queue_push (seq->shared.queue, command_new (seq, kind, s, tag));
 }
 
 /* What the thread owned, once it joined. */
@@ -478,9 +543,21 @@ ds_sequencer_acquire (DsSequencer *seq, guint64 tag)
 void
 ds_sequencer_start (DsSequencer *seq, const DsCaptureSettings *settings)
 {
-  Command *cmd = command_new (CMD_START, settings, 0);
+  Command *cmd = command_new (seq, CMD_START, settings, 0);
   cmd->follow_defaults = settings == NULL;
   g_async_queue_push (seq->shared.queue, cmd);
+}
+
+void
+ds_sequencer_cancel (DsSequencer *seq, guint64 tag)
+{
+  /* Queued first, published second: the thread, once it sees the new count (and ends its set),
+   * finds the CMD_CANCEL in the queue and stops the stream there, so no stream set starts in
+   * between. Main thread only: one writer, so the read and the set cannot interleave. */
+  Command *cmd = command_new (seq, CMD_CANCEL, NULL, tag);
+  gint gen = ++cmd->gen;
+  g_async_queue_push (seq->shared.queue, cmd); /* the thread's from here: not read again */
+  g_atomic_int_set (&seq->shared.cancel_gen, gen);
 }
 
 void
@@ -510,6 +587,12 @@ ds_sequencer_get_status (DsSequencer *seq, DsSequencerStatus *status)
   g_mutex_lock (&seq->shared.lock);
   *status = seq->shared.status;
   status->pending = (guint) g_atomic_int_get (&seq->shared.pending);
+  /* At once, before the thread notices: a cancel not yet taken, over the states of work (opening,
+   * reconnecting, released and failed say more about the devices, and cancel nothing). */
+  gboolean working = status->state == DS_SEQUENCER_STATE_IDLE || status->state == DS_SEQUENCER_STATE_ACQUIRING ||
+                     status->state == DS_SEQUENCER_STATE_CONTINUOUS;
+  if (working && g_atomic_int_get (&seq->shared.cancel_gen) != g_atomic_int_get (&seq->shared.cancel_acked))
+    status->state = DS_SEQUENCER_STATE_CANCELLING;
   g_mutex_unlock (&seq->shared.lock);
 }
 
@@ -518,7 +601,7 @@ ds_sequencer_set_operating_model (DsSequencer *seq, const DsOperatingModel *mode
                                   double link_mbit)
 {
   /* Queued like the captures that use it, so that it reaches the thread before them. */
-  Command *cmd = command_new (CMD_OPERATING_MODEL, NULL, 0);
+  Command *cmd = command_new (seq, CMD_OPERATING_MODEL, NULL, 0);
   cmd->model = model;
   ds_rig_timing_init (&cmd->timing);
   cmd->timing.settle_ms = settle_ms;

@@ -71,6 +71,15 @@ gboolean ds_sequencer_capture (DsSequencer *seq, const DsCaptureSettings *settin
  * Answered by a CONTROL event with `tag`. FALSE (busy) like ds_sequencer_capture. */
 gboolean ds_sequencer_release (DsSequencer *seq, guint64 tag);
 gboolean ds_sequencer_acquire (DsSequencer *seq, guint64 tag);
+/* Cancels all the work queued before it, whoever asked for it: the set running (a capture's,
+ * a calibrate's, the stream's) ends between two frames with DS_PROTOCOL_ERROR_CANCELLED (a
+ * FAILED event; a dark frame's DARK event), its frames counted as aborted and the set as
+ * cancelled, nothing published; captures and darks queued before it are answered the same way
+ * without a frame; continuous mode stops (a start queued before it does not start). Releases,
+ * acquires and defaults queued before it still run. Never blocks; answered by a CONTROL event
+ * with `tag` once every command queued before it was answered, so that after it the thread is
+ * idle unless something was queued since. Not counted against max_pending. Main thread. */
+void ds_sequencer_cancel (DsSequencer *seq, guint64 tag);
 /* Continuous mode: sets back to back with these settings until stopped (tag 0 events); with
  * settings NULL, each set takes the defaults as they are when it starts (ds_sequencer_set_defaults
  * changes the stream). */
@@ -126,6 +135,8 @@ typedef enum {
   DS_SEQUENCER_STATE_RECONNECTING,/* a device was lost: reopening it */
   DS_SEQUENCER_STATE_RELEASED,    /* devices released for another program */
   DS_SEQUENCER_STATE_FAILED,      /* the devices failed to open: the thread waits for quit */
+  DS_SEQUENCER_STATE_CANCELLING,  /* a cancel is queued: the thread has not taken it yet (the
+                                   * set running stops at its next frame) */
   DS_SEQUENCER_STATE_N
 } DsSequencerState;
 
@@ -155,6 +166,7 @@ typedef struct {
   gboolean stored_dark_applies; /* ... and it is taken at the next set's exposure and gain */
   guint pending;
   guint64 sets_done, sets_failed;
+  guint64 sets_cancelled;       /* sets and dark frames ended by a cancel or the daemon stopping */
   DsFrameCounters frames;
   DsStageTime stages[DS_STAGE_N];
   DsCameraStats camera_stats;

@@ -24,6 +24,15 @@ typedef struct {
 
   gint quit;     /* atomic: the daemon is stopping; set by the main thread */
   gint pending;  /* atomic: captures, darks, releases and acquires queued */
+  /* Cancellation (ds_sequencer_cancel). cancel_gen counts the cancels: every command is stamped
+   * with its value when queued, and work stamped with an older value is cancelled (a running set
+   * between two frames, a queued one before its first). Written by the main thread only, which
+   * queues the CMD_CANCEL of a new value before publishing it, so the thread always finds that
+   * command queued once it sees the new value. cancel_acked: the value of the last CMD_CANCEL the
+   * thread took, i.e. every command queued before it was answered; status says `cancelling` while
+   * the two differ. */
+  gint cancel_gen;
+  gint cancel_acked;
   /* Delivery of events after free must not happen: pending events check this first. */
   gint alive;    /* atomic: cleared by ds_sequencer_free once the thread joined */
 
@@ -66,6 +75,14 @@ void ds_seq_record_error (DsSequencerShared *shared, const GError *error);
 void ds_seq_account (DsSequencerShared *shared, const DsFrameCounters *c, gboolean ok);
 /* Adds frame counters to the totals without counting a set (frames of no set, a dark frame). */
 void ds_seq_account_frames (DsSequencerShared *shared, const DsFrameCounters *c);
+/* Whether an error ends work because it was cancelled (a cancel, or the daemon stopping):
+ * DS_PROTOCOL_ERROR_CANCELLED. */
+gboolean ds_seq_error_is_cancel (const GError *error);
+/* A set (or dark frame) that did not finish: its frames not dropped already are aborted
+ * (counted in c), the totals take them, and the set counts as cancelled when `error` is a
+ * cancel (not in last_error: nothing went wrong with the rig), else as failed with `error` as
+ * last_error. */
+void ds_seq_account_unfinished (DsSequencerShared *shared, DsFrameCounters *c, const GError *error);
 /* The frame hook as the main thread set it last (NULL: none). Fold worker or acquisition
  * thread. */
 DsSequencerFrameFunc ds_seq_frame_hook (DsSequencerShared *shared, gpointer *user_data);

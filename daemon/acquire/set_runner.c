@@ -145,9 +145,7 @@ ds_seq_run_set (DsAcquisition *acq, const DsCaptureSettings *requested, guint64 
     if (!ds_seq_ensure_camera (acq, s, &error) || !ds_seq_choose_operating_point (acq, &settings, &c, &error)) {
       /* Pilot frames not yet counted as `preview` (the pilot stopped part way) go down with
        * the capture, as a failing set's frames do. */
-      ds_frame_counters_abort_rest (&c);
-      ds_seq_account (acq->shared, &c, FALSE);
-      ds_seq_record_error (acq->shared, error);
+      ds_seq_account_unfinished (acq->shared, &c, error);
       ds_seq_emit (acq->shared, DS_SEQUENCER_EVENT_FAILED, tag, NULL, g_steal_pointer (&error), NULL);
       return;
     }
@@ -156,10 +154,10 @@ ds_seq_run_set (DsAcquisition *acq, const DsCaptureSettings *requested, guint64 
   gint64 acquired = 0;
   g_autoptr (DsSeparation) sep = acquire_set (acq, s, tag, origin, &c, &acquired, &error);
   if (!sep) {
-    /* Whatever was not dropped already (folded frames, dark frames) goes down with the set. */
-    ds_frame_counters_abort_rest (&c);
-    ds_seq_account (acq->shared, &c, FALSE);
-    ds_seq_record_error (acq->shared, error);
+    /* Whatever was not dropped already (folded frames, dark frames) goes down with the set; a
+     * cancelled set (ds_seq_check_quit) ends here too: no result, so nothing is published or
+     * spooled, and its planes went back to the pool in acquire_set. */
+    ds_seq_account_unfinished (acq->shared, &c, error);
     ds_seq_refresh_device_status (acq);
     ds_seq_emit (acq->shared, DS_SEQUENCER_EVENT_FAILED, tag, NULL, g_steal_pointer (&error), NULL);
     return;

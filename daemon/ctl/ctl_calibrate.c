@@ -10,6 +10,7 @@
 
 #include "daemon/ctl/ctl_commands.h"
 #include "daemon/ctl/ctl_folder.h"
+#include "daemon/ctl/ctl_interrupt.h"
 #include "daemon/ctl/ctl_session.h"
 #include "proc/calibration.h"
 #include "proc/calibration_json.h"
@@ -239,7 +240,11 @@ calibrate_on_rig (const DsCtlTarget *target, const Options *o)
   g_autoptr (DsClient) c = ds_ctl_connect (target, "calibrate");
   if (!c)
     return 1;
+  /* Ctrl-C cancels the calibrate in the daemon as well (ctl_interrupt.h). */
+  ds_ctl_interrupt_begin (target, "calibrate");
   g_autoptr (DsMessage) m = ds_ctl_call (c, "calibrate", args, NULL, NULL);
+  if (ds_ctl_interrupt_end ())
+    return DS_CTL_EXIT_INTERRUPTED;
   if (!m)
     return 1;
   DsCalibration cal;

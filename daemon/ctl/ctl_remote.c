@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include "daemon/ctl/ctl_commands.h"
+#include "daemon/ctl/ctl_interrupt.h"
 #include "daemon/ctl/ctl_output.h"
 #include "daemon/output/result_meta.h"
 
@@ -73,6 +74,25 @@ ds_ctl_stop (const DsCtlTarget *target, int argc, char **argv)
 {
   return simple_command (target, argc, argv, "stop", "Stops continuous acquisition after the set in progress.",
                          print_message);
+}
+
+static void
+print_cancelled (JsonObject *body)
+{
+  gint64 n = json_object_get_int_member_with_default (body, "cancelled", 0);
+  gboolean stream = json_object_get_boolean_member_with_default (body, "stream_stopped", FALSE);
+  printf ("%" G_GINT64_FORMAT " request%s cancelled%s; state %s\n", n, n == 1 ? "" : "s",
+          stream ? ", continuous acquisition stopped" : "",
+          json_object_get_string_member_with_default (body, "state", "?"));
+}
+
+int
+ds_ctl_cancel (const DsCtlTarget *target, int argc, char **argv)
+{
+  return simple_command (target, argc, argv, "cancel",
+                         "Stops what the daemon acquires, whoever asked: the set in progress, every capture, "
+                         "calibrate and dark waiting (answered `cancelled`) and continuous acquisition.",
+                         print_cancelled);
 }
 
 int
@@ -306,13 +326,16 @@ ds_ctl_capture (const DsCtlTarget *target, int argc, char **argv)
   if (!dir)
     return 1;
   gboolean tty = isatty (2);
+  /* Ctrl-C cancels the capture in the daemon as well (ctl_interrupt.h): nothing is written. */
+  ds_ctl_interrupt_begin (target, "capture");
   g_autoptr (DsMessage) m = ds_ctl_call (c, "capture", args, on_progress, &tty);
+  gboolean interrupted = ds_ctl_interrupt_end ();
   if (tty && !quiet)
     fprintf (stderr, "\n");
-  if (!m) {
+  if (!m || interrupted) {
     if (!out)
       g_rmdir (dir); /* the folder we made is still empty */
-    return 1;
+    return interrupted ? DS_CTL_EXIT_INTERRUPTED : 1;
   }
   g_autoptr (GError) error = NULL;
   if (save_phases && !ds_json_path (m->reply->body, "raw_frames")) {

@@ -138,8 +138,9 @@ print_summary (JsonObject *st)
   const char *why = str_of (st, "not_ready_reason");
   if (why && *why)
     printf ("              %s\n", why);
-  printf ("sets:         %" G_GINT64_FORMAT " done, %" G_GINT64_FORMAT " failed, %" G_GINT64_FORMAT " waiting\n",
-          int_of (st, "sets_done"), int_of (st, "sets_failed"), int_of (st, "pending"));
+  printf ("sets:         %" G_GINT64_FORMAT " done, %" G_GINT64_FORMAT " failed, %" G_GINT64_FORMAT
+          " cancelled, %" G_GINT64_FORMAT " waiting\n",
+          int_of (st, "sets_done"), int_of (st, "sets_failed"), int_of (st, "sets_cancelled"), int_of (st, "pending"));
   const char *last_error = str_of (st, "last_error");
   if (last_error && *last_error)
     printf ("last error:   %s\n", last_error);

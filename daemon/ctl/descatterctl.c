@@ -19,6 +19,7 @@ static const struct {
   { "stream", ds_ctl_stream, NULL, "subscribe and write/print results as they come" },
   { "start", ds_ctl_start, NULL, "start continuous acquisition" },
   { "stop", ds_ctl_stop, NULL, "stop continuous acquisition" },
+  { "cancel", ds_ctl_cancel, NULL, "stop the running capture, calibrate or stream now, and what waits" },
   { "release", ds_ctl_release, NULL, "close the devices so that arv-viewer can take the camera" },
   { "acquire", ds_ctl_acquire, NULL, "open the devices again after release" },
   { "dark", ds_ctl_dark, NULL, "calibrate the dark frame (illuminator off)" },

@@ -105,9 +105,10 @@ ds_metrics_render (DsMetrics *m, const DsMetricsSources *src)
   family (out, "descatter_acquisition_state", "gauge", "The acquisition thread's state (the one labelled is 1).");
   sample (out, "descatter_acquisition_state", state_label, 1);
 
-  family (out, "descatter_sets_total", "counter", "Phase sets completed (done) or failed.");
+  family (out, "descatter_sets_total", "counter", "Phase sets completed (done), failed or cancelled.");
   sample (out, "descatter_sets_total", "outcome=\"done\"", (double) st->sets_done);
   sample (out, "descatter_sets_total", "outcome=\"failed\"", (double) st->sets_failed);
+  sample (out, "descatter_sets_total", "outcome=\"cancelled\"", (double) st->sets_cancelled);
   counter (out, "descatter_frames_acquired_total", "Frames that came out of the camera.", f->acquired);
   counter (out, "descatter_frames_folded_total", "Frames folded into published results.", f->folded);
   family (out, "descatter_frames_dropped_total", "counter", "Frames not folded, by reason (docs/protocol.md, \"Frame accounting\").");

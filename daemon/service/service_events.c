@@ -80,6 +80,12 @@ calibration_step (DsService *svc, PendingCapture *p, DsResult *result)
     return FALSE;
   }
   p->calibrate_first_set = ds_result_set_id (result);
+  /* A cancel since the request: no second set (the first one completed before the cancel). */
+  if (p->cancels_before != svc->cancels) {
+    error = g_error_new (DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_CANCELLED, "cancelled by a cancel request");
+    reply_wire_error (svc, p, error);
+    return FALSE;
+  }
   if (!ds_calibration_wants_second_period (&p->calibrate_first)) {
     reply_calibration_pair (svc, p, NULL, NULL);
     return FALSE;
@@ -181,11 +187,17 @@ on_result (DsService *svc, PendingCapture *p, const DsSequencerEvent *ev)
 static void
 on_failed (DsService *svc, PendingCapture *p, const DsSequencerEvent *ev)
 {
-  g_warning ("phase set failed: %s", ev->error->message);
-  notify_status (svc, "last set failed");
   g_autoptr (GError) wire = ds_wire_error_new (ev->error);
-  /* an illuminator that cannot draw twice its period: the first set's calibration stands */
-  if (p && p->calibrate_second)
+  gboolean cancelled = wire->code == DS_PROTOCOL_ERROR_CANCELLED;
+  /* A cancel is asked for, not a fault: no warning. */
+  if (cancelled)
+    g_message ("phase set cancelled: %s", ev->error->message);
+  else
+    g_warning ("phase set failed: %s", ev->error->message);
+  notify_status (svc, cancelled ? "last set cancelled" : "last set failed");
+  /* an illuminator that cannot draw twice its period: the first set's calibration stands (not
+   * when the set was cancelled: the whole request is) */
+  if (p && p->calibrate_second && !cancelled)
     reply_calibration_pair (svc, p, NULL, ev->error->message);
   else if (p)
     ds_server_reply_error (svc->server, p->conn, p->id, wire);
@@ -221,6 +233,10 @@ on_control (DsService *svc, PendingCapture *p, const DsSequencerEvent *ev)
     return;
   if (ev->error) {
     reply_wire_error (svc, p, ev->error);
+    return;
+  }
+  if (p->cancel) {
+    ds_service_reply_cancel (svc, p->conn, p->id, p->cancelled, p->stream_stopped);
     return;
   }
   DsSequencerStatus st;

@@ -37,6 +37,12 @@ typedef struct {
   gboolean calibrate_second;            /* this is the set at the second period (calibrate_set.h) */
   DsCalibration calibrate_first;        /* ... and the first set's calibration */
   guint64 calibrate_first_set;
+  gboolean cancellable;   /* capture, dark, calibrate: work a `cancel` answers `cancelled` */
+  guint64 cancels_before; /* DsService.cancels when it was asked: a calibrate's second set is
+                           * not queued after a cancel */
+  gboolean cancel;        /* a `cancel` request: answered once the thread took the cancel ... */
+  guint cancelled;        /* ... with how many requests it answered `cancelled` ... */
+  gboolean stream_stopped;/* ... and whether continuous acquisition was running */
 } PendingCapture;
 
 typedef struct {
@@ -67,6 +73,7 @@ struct DsService {
   DsLiveView *live;          /* with http: NULL when [http] listen is off */
   DsHttpServer *http;
   gboolean in_run;           /* continuous acquisition started and not stopped */
+  guint64 cancels;           /* `cancel` requests taken */
   DsOperatingModel *model;  /* NULL when no model file could be read (automatic captures fail) */
   char *model_error;
   char *model_path;         /* the file the model was (or failed to be) read from */
@@ -80,6 +87,9 @@ extern const char *const ds_service_output_names[DS_SERVICE_N_OUTPUTS];
 void ds_service_on_request (DsServer *server, DsConnection *conn, DsRequest *req, gpointer user_data);
 /* The success reply to a request (id copied), with body and no payloads. */
 void ds_service_reply_ok (DsService *svc, DsConnection *conn, JsonNode *id, JsonNode *body);
+/* The reply to a `cancel` request. */
+void ds_service_reply_cancel (DsService *svc, DsConnection *conn, JsonNode *id, guint cancelled,
+                              gboolean stream_stopped);
 /* A PendingCapture's destructor (the pending table's value). */
 void ds_service_pending_free (gpointer pending);
 

@@ -151,6 +151,7 @@ pending_add (DsService *svc, DsConnection *conn, DsRequest *req, guint64 tag)
   p->conn = ds_connection_ref (conn);
   ds_connection_hold (conn);
   p->id = req->id ? json_node_copy (req->id) : NULL;
+  p->cancels_before = svc->cancels;
   g_hash_table_insert (svc->pending, &p->tag, p);
   return p;
 }
@@ -203,6 +204,7 @@ handle_capture (DsService *svc, DsConnection *conn, DsRequest *req)
     return;
   }
   PendingCapture *p = pending_add (svc, conn, req, tag);
+  p->cancellable = TRUE;
   p->format = strcmp (format, "u16") == 0 ? DS_OUTPUT_U16 : DS_OUTPUT_F32;
   p->extrema = extrema;
   p->outputs = outputs;
@@ -226,7 +228,7 @@ handle_dark (DsService *svc, DsConnection *conn, DsRequest *req)
     reply_not_queued (svc, conn, req);
     return;
   }
-  pending_add (svc, conn, req, tag);
+  pending_add (svc, conn, req, tag)->cancellable = TRUE;
 }
 
 /* release / acquire: the devices closed for another program (arv-viewer) and opened again. */
@@ -302,6 +304,7 @@ handle_calibrate (DsService *svc, DsConnection *conn, DsRequest *req)
     return;
   }
   PendingCapture *p = pending_add (svc, conn, req, tag);
+  p->cancellable = TRUE;
   p->progress = progress;
   p->calibrate = TRUE;
   p->calibration = cr;
@@ -347,6 +350,55 @@ handle_stop (DsService *svc, DsConnection *conn, DsRequest *req)
   ds_service_reply_ok (svc, conn, req->id, body);
 }
 
+/* The cancel's reply: how many requests it answered `cancelled`, whether continuous
+ * acquisition stopped, and the state it left. */
+void
+ds_service_reply_cancel (DsService *svc, DsConnection *conn, JsonNode *id, guint cancelled, gboolean stream_stopped)
+{
+  DsSequencerStatus st;
+  ds_sequencer_get_status (svc->sequencer, &st);
+  g_autoptr (JsonBuilder) b = ds_json_object_begin ();
+  ds_json_add_uint (b, "cancelled", cancelled);
+  ds_json_add_bool (b, "stream_stopped", stream_stopped);
+  ds_json_add_string (b, "state", ds_sequencer_state_name (st.state));
+  g_autoptr (JsonNode) body = ds_json_object_end (b);
+  ds_service_reply_ok (svc, conn, id, body);
+}
+
+/* Stops all acquisition work, whoever asked for it (docs/protocol.md, `cancel`): the set running
+ * and every capture, dark and calibrate waiting are answered `cancelled`, continuous mode stops.
+ * One rig, one acquisition thread: there is no one else's work to spare, and the reply counts
+ * what it cancelled so that no cancel goes unnoticed. Answered once the acquisition thread took
+ * it (after the `cancelled` replies), so a client that gets the reply finds the daemon idle. */
+static void
+handle_cancel (DsService *svc, DsConnection *conn, DsRequest *req)
+{
+  if (!no_arguments (svc, conn, req))
+    return;
+  guint cancelled = 0;
+  GHashTableIter it;
+  gpointer value;
+  g_hash_table_iter_init (&it, svc->pending);
+  while (g_hash_table_iter_next (&it, NULL, &value))
+    cancelled += ((PendingCapture *) value)->cancellable;
+  gboolean stream_stopped = svc->in_run;
+  svc->in_run = FALSE;
+  if (svc->spool)
+    ds_spool_end_run (svc->spool);
+  svc->cancels++;
+  /* Devices still opening: nothing can be queued or running yet. */
+  if (!svc->ready) {
+    ds_service_reply_cancel (svc, conn, req->id, 0, FALSE);
+    return;
+  }
+  guint64 tag = ++svc->next_tag;
+  PendingCapture *p = pending_add (svc, conn, req, tag);
+  p->cancel = TRUE;
+  p->cancelled = cancelled;
+  p->stream_stopped = stream_stopped;
+  ds_sequencer_cancel (svc->sequencer, tag);
+}
+
 static void
 handle_config (DsService *svc, DsConnection *conn, DsRequest *req)
 {
@@ -385,6 +437,7 @@ static const struct {
   { "status", handle_status },   { "capture", handle_capture }, { "dark", handle_dark },
   { "start", handle_start },     { "stop", handle_stop },       { "config", handle_config },
   { "release", handle_release }, { "acquire", handle_acquire }, { "calibrate", handle_calibrate },
+  { "cancel", handle_cancel },
 };
 
 /* "hello, subscribe, unsubscribe, status, capture, ...": what the daemon answers. */

@@ -149,6 +149,7 @@ ds_service_status_to_json (DsService *svc)
   ds_json_add_uint (b, "pending", st.pending);
   ds_json_add_uint (b, "sets_done", st.sets_done);
   ds_json_add_uint (b, "sets_failed", st.sets_failed);
+  ds_json_add_uint (b, "sets_cancelled", st.sets_cancelled);
   ds_json_add_string (b, "last_error", st.last_error);
   ds_json_add_bool (b, "has_dark", st.has_dark);
   ds_json_add_node (b, "dark", ds_status_dark_to_json (&st, g_get_real_time ()));

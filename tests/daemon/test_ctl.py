@@ -13,6 +13,7 @@ import os
 import pty
 import re
 import select
+import signal
 import socket
 import subprocess
 import sys
@@ -223,6 +224,50 @@ def stream_and_start(d):
     d.ctl("stop")
 
 
+def capture_interrupted(d, tmp):
+    # Ctrl-C of a long capture once its first phase is in: descatterctl cancels it in the daemon
+    # and exits 130; the daemon is idle, counts the set cancelled and acquires nothing more.
+    # The waits are guards (the full capture, 64 x 8 frames, would take far longer), not timings.
+    # The set the earlier `stop` let finish must be over first: its result is not this test's.
+    deadline = time.time() + 120
+    while (d.status()["state"] != "idle" or d.status()["continuous"]) and time.time() < deadline:
+        time.sleep(0.2)
+    before = d.status()
+    out = os.path.join(tmp, "interrupted")
+    p = subprocess.Popen([CTL, "-a", d.sock, "capture", "-n", "64", "-m", "8", "--out", out],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    line = ""
+    deadline = time.time() + 60
+    while "phase 1/64" not in line and time.time() < deadline:
+        ready, _, _ = select.select([p.stderr], [], [], 5)
+        if ready:
+            line = p.stderr.readline()
+            if not line:
+                break
+    check("phase 1/64" in line, f"the capture reports its first phase: {line.strip()}")
+    p.send_signal(signal.SIGINT)
+    try:
+        _, err = p.communicate(timeout=60)
+    except subprocess.TimeoutExpired:
+        p.kill()
+        _, err = p.communicate()
+    check(p.returncode == 130, f"Ctrl-C of capture exits 130: {p.returncode} {err.strip()}")
+    check("cancelled: " in err, f"it says the capture was cancelled: {err.strip()}")
+    after = d.status()
+    check(after["state"] == "idle" and after["sets_cancelled"] == before["sets_cancelled"] + 1
+          and after["sets_done"] == before["sets_done"],
+          f"the daemon cancelled the set: {after['state']}, cancelled {before['sets_cancelled']} -> "
+          f"{after['sets_cancelled']}, done {before['sets_done']} -> {after['sets_done']}")
+    acquired = after["frames"]["acquired"] - before["frames"]["acquired"]
+    check(0 < acquired < 64 * 8, f"the set stopped part way: {acquired} frames acquired")
+    time.sleep(0.3)
+    check(d.status()["frames"]["acquired"] == after["frames"]["acquired"], "nothing acquired after the reply")
+    check(not [n for n in os.listdir(out) if n.startswith("set-")] if os.path.isdir(out) else True,
+          "no result written")
+    r = d.ctl("cancel")
+    check(r.returncode == 0 and r.stdout.startswith("0 requests cancelled"), f"cancel when idle: {r.stdout.strip()}")
+
+
 def stream_counts_failed_sets(tmp):
     # Every frame is stale (an earlier exposure): every set fails verification. `stream --count 2` must end
     # after two failed sets, say so and exit 1, not wait for results that never come.
@@ -342,6 +387,7 @@ def main():
             status_and_config(d)
             automatic_capture(d, tmp)
             stream_and_start(d)
+            capture_interrupted(d, tmp)
             human_and_json_replies(d)
         finally:
             check(d.stop() == 0, "descatterd exits cleanly")

@@ -18,6 +18,9 @@ Independent checks:
   transmissive (maxmin), computed here with numpy from the frames alone;
 - release() closes the devices (state "released", captures raise DeviceError naming acquire),
   acquire() opens them again and captures work; the same through the asyncio client;
+- cancel() from a second client ends a capture another thread waits on (Cancelled, the set
+  counted cancelled with fewer frames than it asked for), and a Timeout in a capture cancels it
+  in the daemon before it is raised (status idle, nothing acquired after);
 - TCP with a token; the asyncio client; every example of docs/python.md runs."""
 import asyncio
 import os
@@ -274,6 +277,16 @@ def asyncio_client(d):
                 check(isinstance(ev, descatter.ResultEvent) and ev.images["transmissive"].flags.writeable,
                       "asyncio: subscription results")
             check((await c.status())["clients"]["subscribers"] == 0, "asyncio: async with unsubscribed")
+            # A phase of 64 frames is far more than 0.3 s of silence: the Timeout cancels first.
+            try:
+                await c.capture(phases=64, averages=64, timeout=0.3)
+                check(False, "asyncio: a capture with timeout=0.3 s times out")
+            except descatter.Timeout as e:
+                check(e.cancel_reply is not None and e.cancel_reply["cancelled"] == 1,
+                      f"asyncio: the Timeout cancelled the capture: {e.cancel_reply} {e.cancel_error}")
+            st = await c.status()
+            check(st["state"] == "idle" and st["pending"] == 0, f"asyncio: idle after the Timeout ({st['state']})")
+            check((await c.cancel())["cancelled"] == 0, "asyncio: cancel() with nothing running cancels nothing")
     asyncio.run(run())
 
 
@@ -347,6 +360,55 @@ def cancelled(tmp):
     check(out and isinstance(out[0], descatter.Cancelled), f"SIGTERM during a capture: Cancelled ({out})")
 
 
+def cancel_and_timeout(d):
+    # cancel() from a second client while the first waits on a long capture (after its first
+    # phase, so the set is under way): the capture raises Cancelled, the daemon is idle and
+    # counts the set cancelled. Counts, not times: the set stopped short of its 64 x 16 frames.
+    with d.client() as c, d.client() as other:
+        before = other.status()
+        started = threading.Event()
+        out = []
+
+        def capture():
+            try:
+                c.capture(phases=64, averages=16, timeout=120, on_progress=lambda ev: started.set())
+                out.append("result")
+            except descatter.DescatterError as e:
+                out.append(e)
+        t = threading.Thread(target=capture)
+        t.start()
+        check(started.wait(120), "the capture reports a phase")
+        reply = other.cancel()
+        t.join(120)
+        check(out and isinstance(out[0], descatter.Cancelled), f"cancel(): the capture raises Cancelled ({out})")
+        check(reply["cancelled"] == 1 and reply["state"] == "idle" and not reply["stream_stopped"],
+              f"cancel() says what it cancelled: {reply}")
+        after = other.status()
+        acquired = after["frames"]["acquired"] - before["frames"]["acquired"]
+        check(after["state"] == "idle" and after["sets_cancelled"] == before["sets_cancelled"] + 1
+              and after["sets_done"] == before["sets_done"] and 0 < acquired < 64 * 16,
+              f"the daemon cancelled the set part way ({acquired} frames)")
+        check(after["frames"]["folded"] == before["frames"]["folded"], "no frame of it folded")
+
+    # A Timeout in a capture (a phase of 64 frames is far more than 0.3 s of silence) cancels it
+    # in the daemon before it is raised; the connection stays usable.
+    with d.client() as c:
+        before = c.status()
+        try:
+            c.capture(phases=64, averages=64, timeout=0.3)
+            check(False, "a capture with timeout=0.3 s times out")
+        except descatter.Timeout as e:
+            check(e.cancel_reply is not None and e.cancel_reply["cancelled"] == 1 and e.cancel_error is None,
+                  f"the Timeout cancelled the capture: {e.cancel_reply} {e.cancel_error}")
+        after = c.status()
+        acquired = after["frames"]["acquired"] - before["frames"]["acquired"]
+        check(after["state"] == "idle" and after["sets_cancelled"] == before["sets_cancelled"] + 1
+              and acquired < 64 * 64, f"after the Timeout the daemon is idle ({acquired} frames acquired)")
+        time.sleep(0.3)
+        check(c.status()["frames"]["acquired"] == after["frames"]["acquired"], "nothing acquired after the cancel")
+        check(c.capture(phases=4).set_id > 0, "a capture after the Timeout works on the same connection")
+
+
 def main():
     with tempfile.TemporaryDirectory() as tmp:
         d = Daemon(tmp, "sim")
@@ -355,6 +417,7 @@ def main():
             subscriptions(d)
             asyncio_client(d)
             raw_frames_and_release(d)
+            cancel_and_timeout(d)
             doc_examples(d)
         finally:
             check(d.stop() == 0, "descatterd exits cleanly")

@@ -9,6 +9,7 @@
 #include "daemon/operating/operating_point.h"
 #include "proc/phase_check.h"
 #include "daemon/acquire/sequencer.h"
+#include "daemon/protocol/protocol.h"
 #include "scripted_lab.h"
 
 #define W 64
@@ -46,6 +47,11 @@ typedef struct {
   guint64 triggers;
   DsSequencer *stop_seq;   /* when set: stop continuous mode from within trigger number ... */
   guint64 stop_at_trigger; /* ... this one (the command is then queued during that trigger) */
+  /* When set: ds_sequencer_cancel (tag 99) from within trigger number cancel_at_trigger, so
+   * that the cancel lands at a known frame. Called on the acquisition thread while the main
+   * thread waits in its loop: still one caller at a time, as the function requires. */
+  DsSequencer *cancel_seq;
+  guint64 cancel_at_trigger, cancel_triggers;
 } Lab;
 
 static guint16
@@ -89,6 +95,10 @@ cam_trigger (gpointer b, GError **e)
   lab->triggered = TRUE;
   if (lab->stop_seq && ++lab->triggers == lab->stop_at_trigger)
     ds_sequencer_stop (lab->stop_seq);
+  if (lab->cancel_seq)
+    lab->cancel_triggers++;
+  if (lab->cancel_seq && lab->cancel_triggers == lab->cancel_at_trigger)
+    ds_sequencer_cancel (lab->cancel_seq, 99);
   return TRUE;
 }
 
@@ -278,6 +288,8 @@ typedef struct {
   gboolean check_results; /* compare every result with the scene (continuous mode) */
   gboolean expect_dark;   /* ... and with its dark frame subtracted */
   guint results_wrong;
+  guint failed_cancelled; /* FAILED events with DS_PROTOCOL_ERROR_CANCELLED */
+  guint64 control_tag;    /* of the last CONTROL event */
 } Outcome;
 
 static gboolean scene_recovered (const DsResult *r, gboolean dark_subtracted);
@@ -302,6 +314,10 @@ on_event (const DsSequencerEvent *ev, gpointer data)
     break;
   case DS_SEQUENCER_EVENT_FAILED:
   case DS_SEQUENCER_EVENT_DARK:
+    if (g_error_matches (ev->error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_CANCELLED))
+      o->failed_cancelled++;
+    if (ev->error)
+      g_clear_error (&o->failure);
     if (ev->error)
       o->failure = g_error_copy (ev->error);
     g_main_loop_quit (o->loop);
@@ -314,6 +330,7 @@ on_event (const DsSequencerEvent *ev, gpointer data)
     break;
   case DS_SEQUENCER_EVENT_CONTROL:
     o->control_events++;
+    o->control_tag = ev->tag;
     g_clear_error (&o->control_error);
     if (ev->error)
       o->control_error = g_error_copy (ev->error);
@@ -1250,11 +1267,107 @@ static void
 test_state_names (void)
 {
   static const char *const wire[] = { "opening", "idle", "acquiring", "continuous",
-                                      "reconnecting", "released", "failed" };
+                                      "reconnecting", "released", "failed", "cancelling" };
   G_STATIC_ASSERT (G_N_ELEMENTS (wire) == DS_SEQUENCER_STATE_N);
   for (guint i = 0; i < DS_SEQUENCER_STATE_N; i++)
     g_assert_cmpstr (ds_sequencer_state_name ((DsSequencerState) i), ==, wire[i]);
   g_assert_cmpstr (ds_sequencer_state_name (DS_SEQUENCER_STATE_N), ==, "unknown");
+}
+
+/* Waits for the cancel's CONTROL event (tag 99): every command queued before it was answered. */
+static void
+wait_cancel_answered (Fixture *f)
+{
+  while (f->out.control_events == 0)
+    g_main_loop_run (f->out.loop);
+  g_assert_cmpuint (f->out.control_tag, ==, 99);
+  g_assert_no_error (f->out.control_error);
+}
+
+/* A cancel during the 10th frame of a capture of 8 phases x 4 (32 frames), with a second capture
+ * queued behind it: the running set ends before an 11th trigger, both captures are answered
+ * CANCELLED, the 10 frames are aborted, nothing is published, and a capture after the cancel
+ * runs normally. */
+static void
+test_cancel_mid_set (Fixture *f, gconstpointer d)
+{
+  (void) d;
+  DsCaptureSettings s;
+  default_settings (&s, 8);
+  s.averages = 4;
+  f->lab.cancel_seq = f->seq;
+  f->lab.cancel_at_trigger = 10;
+  g_assert_true (ds_sequencer_capture (f->seq, &s, 7));
+  g_assert_true (ds_sequencer_capture (f->seq, &s, 8));
+  wait_cancel_answered (f);
+  g_assert_cmpuint (f->out.failed_cancelled, ==, 2);
+  g_assert_cmpuint (f->out.results, ==, 0);
+  g_assert_cmpuint (f->lab.cancel_triggers, ==, 10);
+  DsSequencerStatus st;
+  ds_sequencer_get_status (f->seq, &st);
+  g_assert_cmpstr (ds_sequencer_state_name (st.state), ==, "idle");
+  g_assert_cmpuint (st.sets_cancelled, ==, 2);
+  g_assert_cmpuint (st.sets_failed, ==, 0);
+  g_assert_cmpuint (st.sets_done, ==, 0);
+  g_assert_cmpuint (st.pending, ==, 0);
+  g_assert_cmpuint (st.frames.acquired, ==, 10);
+  g_assert_cmpuint (st.frames.folded, ==, 0);
+  g_assert_cmpuint (st.frames.by_reason[DS_DROP_ABORTED], ==, 10);
+  /* Not a fault of the rig: last_error stays empty. */
+  g_assert_cmpstr (st.last_error, ==, "");
+  assert_accounting (f);
+
+  f->lab.cancel_seq = NULL;
+  default_settings (&s, 8);
+  capture (f, &s);
+  g_assert_no_error (f->out.failure);
+  g_assert_nonnull (f->out.result);
+  scripted_assert_scene_recovered (f->out.result);
+  ds_sequencer_get_status (f->seq, &st);
+  g_assert_cmpuint (st.sets_done, ==, 1);
+  g_assert_cmpuint (st.frames.acquired, ==, 10 + 8);
+  assert_accounting (f);
+}
+
+/* A cancel during the second set of continuous mode: that set ends cancelled, continuous mode
+ * stops, no further set runs. */
+static void
+test_cancel_stream (Fixture *f, gconstpointer d)
+{
+  (void) d;
+  DsCaptureSettings s;
+  default_settings (&s, 8);
+  f->lab.cancel_seq = f->seq;
+  f->lab.cancel_at_trigger = 8 + 3; /* the first set's 8 frames, then the next set's third */
+  ds_sequencer_start (f->seq, &s);
+  wait_cancel_answered (f);
+  DsSequencerStatus st;
+  ds_sequencer_get_status (f->seq, &st);
+  g_assert_false (st.continuous);
+  g_assert_cmpstr (ds_sequencer_state_name (st.state), ==, "idle");
+  g_assert_cmpuint (st.sets_cancelled, ==, 1);
+  g_assert_cmpuint (st.sets_done, ==, 1);
+  g_assert_cmpuint (st.sets_failed, ==, 0);
+  g_assert_cmpuint (st.frames.folded, ==, 8);
+  assert_accounting (f);
+  /* No set after the cancel: a while later, still no further trigger. */
+  guint64 triggers = f->lab.cancel_triggers;
+  g_usleep (200 * 1000);
+  g_assert_cmpuint (f->lab.cancel_triggers, ==, triggers);
+}
+
+/* Nothing running: the cancel is answered at once, and nothing is counted. */
+static void
+test_cancel_idle (Fixture *f, gconstpointer d)
+{
+  (void) d;
+  ds_sequencer_cancel (f->seq, 99);
+  wait_cancel_answered (f);
+  DsSequencerStatus st;
+  ds_sequencer_get_status (f->seq, &st);
+  g_assert_cmpstr (ds_sequencer_state_name (st.state), ==, "idle");
+  g_assert_cmpuint (st.sets_cancelled, ==, 0);
+  g_assert_cmpuint (st.frames.acquired, ==, 0);
 }
 
 int
@@ -1303,5 +1416,8 @@ main (int argc, char **argv)
   g_test_add_func ("/sequencer/phase-check-tall-frame", test_phase_check_tall_frame);
   g_test_add_func ("/sequencer/state-names", test_state_names);
   ADD ("release-acquire", test_release_acquire, NULL);
+  ADD ("cancel/mid-set", test_cancel_mid_set, NULL);
+  ADD ("cancel/stream", test_cancel_stream, NULL);
+  ADD ("cancel/idle", test_cancel_idle, NULL);
   return g_test_run ();
 }

@@ -16,7 +16,7 @@ import asyncio
 from . import wire
 from ._version import __version__
 from .client import _ACQ_KEYS, _CALIBRATE_KEYS, DEFAULT_TIMEOUT, acquisition_args, resolve, split_address
-from .errors import BadReply, Timeout, error_from_reply
+from .errors import BadReply, DescatterError, Timeout, error_from_reply
 from .events import ProgressEvent, Result, make_event
 
 
@@ -29,6 +29,7 @@ async def connect(address=None, token=None, timeout=DEFAULT_TIMEOUT):
     else:
         reader, writer = await asyncio.wait_for(asyncio.open_unix_connection(where, limit=wire.MAX_LINE + 2), timeout)
     client = AsyncClient(reader, writer, token, timeout)
+    client.address = address
     if token:
         try:
             await client.hello()
@@ -42,6 +43,7 @@ class AsyncClient:
     def __init__(self, reader, writer, token, timeout):
         self._reader, self._writer = reader, writer
         self.token, self.timeout = token, timeout
+        self.address = None  # set by connect(): a second connection for cancel
         self._next_id = 0
         self._waiting = {}  # request id -> (future, on_progress)
         self._events = asyncio.Queue()
@@ -150,7 +152,8 @@ class AsyncClient:
             args["format"] = format
         if outputs is not None:
             args["outputs"] = list(outputs)
-        meta, images = await self.call("capture", timeout=timeout, on_progress=on_progress, progress=True, **args)
+        meta, images = await self._acquiring_call("capture", timeout=timeout, on_progress=on_progress,
+                                                  progress=True, **args)
         return Result(meta, images)
 
     async def start(self, **settings):
@@ -162,7 +165,7 @@ class AsyncClient:
     async def dark(self, *, averages=None, exposure_us=None, gain_db=None, timeout=None):
         args = acquisition_args(dict(averages=averages, exposure_us=exposure_us, gain_db=gain_db),
                                 ("averages", "exposure_us", "gain_db"))
-        return (await self.call("dark", timeout=timeout, **args))[0]
+        return (await self._acquiring_call("dark", timeout=timeout, **args))[0]
 
     async def release(self, timeout=None):
         return (await self.call("release", timeout=timeout))[0]
@@ -172,7 +175,27 @@ class AsyncClient:
 
     async def calibrate(self, *, timeout=None, **settings):
         args = acquisition_args(settings, _CALIBRATE_KEYS)
-        return (await self.call("calibrate", timeout=timeout, **args))[0]
+        return (await self._acquiring_call("calibrate", timeout=timeout, **args))[0]
+
+    async def cancel(self, timeout=None):
+        """As descatter.Client.cancel (the request waiting on this connection is answered first:
+        cancel another task's capture from a client of its own)."""
+        return (await self.call("cancel", timeout=timeout))[0]
+
+    async def _acquiring_call(self, cmd, **kw):
+        """As descatter.Client: a Timeout cancels the daemon's acquisition before it is raised."""
+        try:
+            return await self.call(cmd, **kw)
+        except Timeout as exc:
+            try:
+                other = await connect(self.address, self.token, self.timeout)
+                try:
+                    exc.cancel_reply = await other.cancel()
+                finally:
+                    await other.close()
+            except (OSError, DescatterError, asyncio.TimeoutError) as e:
+                exc.cancel_error = e
+            raise
 
     async def subscribe(self):
         self._subscribed = True  # before the reply: events may follow it at once

@@ -11,7 +11,8 @@
 
 One thread at a time per client. Every wait for the daemon is bounded by `timeout` seconds of
 silence (captures ask for progress events, so a long set keeps the line alive); a reply that
-does not come in time raises descatter.Timeout.
+does not come in time raises descatter.Timeout, after cancelling the daemon's acquisition when
+the request was a capture, calibrate or dark (Client.cancel).
 """
 import collections
 import os
@@ -20,7 +21,7 @@ import socket
 
 from . import wire
 from ._version import __version__
-from .errors import BadReply, Timeout, error_from_reply
+from .errors import BadReply, DescatterError, Timeout, error_from_reply
 from .events import ProgressEvent, Result, make_event
 
 DEFAULT_ADDRESS = "/run/descatterd/descatterd.sock"
@@ -220,7 +221,8 @@ class Client:
             args["format"] = format
         if outputs is not None:
             args["outputs"] = list(outputs)
-        meta, images = self.call("capture", timeout=timeout, on_progress=on_progress, progress=True, **args)
+        meta, images = self._acquiring_call("capture", timeout=timeout, on_progress=on_progress, progress=True,
+                                            **args)
         return Result(meta, images)
 
     def start(self, **settings):
@@ -235,7 +237,7 @@ class Client:
         """Measures the dark frame; returns {"dark_mean_dn": ...}."""
         args = acquisition_args(dict(averages=averages, exposure_us=exposure_us, gain_db=gain_db),
                                 ("averages", "exposure_us", "gain_db"))
-        return self.call("dark", timeout=timeout, **args)[0]
+        return self._acquiring_call("dark", timeout=timeout, **args)[0]
 
     def release(self, timeout=None):
         """Closes the daemon's devices so that another program (arv-viewer) can take the
@@ -254,7 +256,29 @@ class Client:
         phase_offset_cycles, duty, black_level, harmonic_gain, edge_blur_px, ..., set_id and
         `config`, the descatterd.conf lines that use them (docs/protocol.md)."""
         args = acquisition_args(settings, _CALIBRATE_KEYS)
-        return self.call("calibrate", timeout=timeout, **args)[0]
+        return self._acquiring_call("calibrate", timeout=timeout, **args)[0]
+
+    def cancel(self, timeout=None):
+        """Stops what the daemon acquires, whoever asked for it (docs/protocol.md, `cancel`): the
+        set in progress ends at its next frame, every capture, calibrate and dark waiting raises
+        descatter.Cancelled, continuous acquisition stops. Returns {"cancelled": how many
+        requests, "stream_stopped", "state"} once the daemon has stopped. A connection answers
+        one request at a time: to cancel a capture another thread waits on, call this on a
+        client of its own."""
+        return self.call("cancel", timeout=timeout)[0]
+
+    def _acquiring_call(self, cmd, **kw):
+        """call() for a request that makes the daemon acquire: on a Timeout the daemon is told to
+        cancel (on a second connection: this one is still waiting) before the Timeout is raised."""
+        try:
+            return self.call(cmd, **kw)
+        except Timeout as exc:
+            try:
+                with Client(self.address, self.token, timeout=self.timeout) as other:
+                    exc.cancel_reply = other.cancel()
+            except (OSError, DescatterError) as e:
+                exc.cancel_error = e
+            raise
 
     # -- subscription ------------------------------------------------------------------------
 

@@ -77,10 +77,18 @@ class BadReply(DescatterError):
 
 
 class Timeout(DescatterError, TimeoutError):
-    """No message from the daemon within the timeout (client side). The connection is closed:
-    a reply that arrived later would be out of sync."""
+    """No message from the daemon within the timeout (client side). A timeout before a message
+    started leaves the connection usable (the late reply is skipped by its id); one in the middle
+    of a message closes it (the stream would be out of sync).
+
+    A capture, calibrate or dark that times out has sent `cancel` on a second connection before
+    this was raised, so that the daemon stops acquiring for nobody (docs/python.md, "Timeouts"):
+    `cancel_reply` is the cancel's reply ({"cancelled", "stream_stopped", "state"}), or None
+    with `cancel_error` saying why it could not be sent. None on other requests."""
 
     code = "timeout"
+    cancel_reply = None
+    cancel_error = None
 
 
 ERRORS = {cls.code: cls for cls in (LineTooLong, BadJson, TooDeep, BadRequest, UnknownCommand, BadArgument,
