@@ -104,7 +104,7 @@ run_scene (SceneRun *s, const Plan *plan, const DsOperatingModel *model, GError 
                                                : "configured, assumed: ",
                cal->pattern == DS_PATTERN_SINE && !cal->black_level_measured ? s->probe.second_period_note : "",
                cal->harmonic_gain, cal->edge_blur_px, s->probe.probe.geometry.blur_px,
-               ds_blur_source_name (s->probe.probe.blur_source));
+               ds_blur_source_name (s->probe.probe.blur.source));
   }
   if (s->outcomes) {
     for (guint i = 0; i < s->outcomes->len; i++)
@@ -292,14 +292,14 @@ write_md (GString *md, const char *title, GPtrArray *scenes, gboolean generated)
       const DsValidateOutcome *o = &g_array_index (s->outcomes, DsValidateOutcome, j);
       if (j == 0) {
         /* Where the probe bounds Ld from below too (scene_probe.h): its lower end. */
-        g_autofree char *interval = !p->ld_interval ? g_strdup ("")
-                                    : p->ld_unbounded ? g_strdup (", Ld not bounded below")
-                                    : p->ld_lower < p->ld_mean ? g_strdup_printf (", Ld ≥ %.0f", p->ld_lower)
+        g_autofree char *interval = !p->interval.set ? g_strdup ("")
+                                    : p->interval.unbounded ? g_strdup (", Ld not bounded below")
+                                    : p->interval.ld_lower < p->light.ld_mean ? g_strdup_printf (", Ld ≥ %.0f", p->interval.ld_lower)
                                     : g_strdup ("");
-        g_string_append_printf (md, "| %s | %.0f (%.0f), %.0f (%.0f), %.2f px %s, %.1f %%%s%s |", s->name, p->ld_mean,
-                                s->probe.truth_ld_mean, p->lg_mean, s->probe.truth_lg_mean, p->geometry.blur_px,
-                                ds_blur_source_name (p->blur_source), 100 * ds_scene_probe_leak (p, p->geometry.period_px, 1),
-                                p->leak_measured ? "" : " (not measured)", interval);
+        g_string_append_printf (md, "| %s | %.0f (%.0f), %.0f (%.0f), %.2f px %s, %.1f %%%s%s |", s->name, p->light.ld_mean,
+                                s->probe.truth_ld_mean, p->light.lg_mean, s->probe.truth_lg_mean, p->geometry.blur_px,
+                                ds_blur_source_name (p->blur.source), 100 * ds_scene_probe_leak (p, p->geometry.period_px, 1),
+                                p->leak.measured ? "" : " (not measured)", interval);
       } else
         g_string_append (md, "| | |");
       if (o->target_error > 0)

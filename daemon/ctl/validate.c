@@ -305,8 +305,8 @@ ds_validate_config (const DsSimRig *rig, const DsValidateScene *vs, DsErrorModel
   p->predicted_error_upper = p->predicted_error; /* a fixed configuration: the probe's own scene only */
   p->predicted_time_ms = ds_rig_timing_set_ms (timing, vs->probe.width, vs->probe.height, phases, averages,
                                                p->exposure_us, TRUE);
-  p->lower_bound = !vs->probe.leak_measured || vs->probe.narrow_unresolved || vs->probe.fit_inconsistent ||
-                   vs->probe.blur_source == DS_BLUR_ASSUMED_SHARP;
+  p->lower_bound = !vs->probe.leak.measured || vs->probe.narrow.unresolved || vs->probe.transfer.inconsistent ||
+                   vs->probe.blur.source == DS_BLUR_ASSUMED_SHARP;
   p->upper_bounded = !p->lower_bound;
   p->uncertainty = ds_operating_point_uncertainty (model, &vs->probe, &p->parts);
   if (!ds_validate_run (rig, vs, estimator, phases, averages, p->exposure_us, seed, &out->achieved,

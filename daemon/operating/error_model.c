@@ -53,15 +53,15 @@ ds_error_model_new (const DsSceneProbe *probe, const DsSeparationParams *params)
   m->probe = *probe;
   m->params = *params;
   m->width = MIN (probe->width ? probe->width : SYN_MAX_WIDTH, SYN_MAX_WIDTH);
-  double spread = MAX (1.0, probe->ld_spread);
+  double spread = MAX (1.0, probe->light.ld_spread);
   m->blank_fraction = 1.0 - 1.0 / spread;
-  m->ld_lit = MAX (probe->ld_mean, 1e-9) * spread;
+  m->ld_lit = MAX (probe->light.ld_mean, 1e-9) * spread;
   m->rand = g_rand_new_with_seed (0x5eedu);
   m->cache = g_hash_table_new_full (g_str_hash, g_str_equal, g_free, set_result_free);
-  if (probe->blur_source == DS_BLUR_ASSUMED_SHARP) {
+  if (probe->blur.source == DS_BLUR_ASSUMED_SHARP) {
     DsSceneProbe b = *probe;
     b.geometry.blur_px = MIN (DS_ERROR_MODEL_UNKNOWN_BLUR_PX, b.geometry.period_px / 8);
-    b.blur_source = DS_BLUR_MEASURED; /* no further alternative */
+    b.blur.source = DS_BLUR_MEASURED; /* no further alternative */
     m->blurred = ds_error_model_new (&b, params);
   }
   m->tables = g_hash_table_new_full (g_str_hash, g_str_equal, g_free, g_free);
@@ -168,11 +168,11 @@ run_sets (DsErrorModel *m, guint n, guint averages, double factor, double period
    * clipped samples when the rig's sets flag at that level (not at a full well the pilot found
    * below the level they know: those pass unflagged, as on the rig). The two-valued Ld keeps
    * the scene's mean and mean square, not its brightest pixels: the level is scaled so that the
-   * synthetic brightest pixel clips when the pilot's brightest (bright_dn) would. */
+   * synthetic brightest pixel clips when the pilot's brightest (clip.bright_dn) would. */
   double syn_bright = m->ld_lit * ds_stripe_value (&g, 0, 0) +
-                      pr->lg_mean * ds_pattern_mean (g.kind, g.duty, g.black_level);
-  double to_syn = pr->bright_dn > 0 && syn_bright > 0 ? syn_bright / pr->bright_dn : 1.0;
-  double clip = pr->saturation_dn > 0 ? pedestal + (pr->saturation_dn - pr->dark_dn) * to_syn : INFINITY;
+                      pr->light.lg_mean * ds_pattern_mean (g.kind, g.duty, g.black_level);
+  double to_syn = pr->clip.bright_dn > 0 && syn_bright > 0 ? syn_bright / pr->clip.bright_dn : 1.0;
+  double clip = pr->clip.saturation_dn > 0 ? pedestal + (pr->clip.saturation_dn - pr->noise.dark_dn) * to_syn : INFINITY;
   for (int e = 0; e < N_EST; e++) {
     gpointer key_set = GUINT_TO_POINTER (n << 2 | (guint) e);
     sets[e] = g_hash_table_lookup (m->sets, key_set);
@@ -183,7 +183,7 @@ run_sets (DsErrorModel *m, guint n, guint averages, double factor, double period
     DsSeparationParams p = m->params;
     p.n_phases = n;
     p.estimator = estimators[e];
-    p.saturation_level = pr->clip_flagged && isfinite (clip) ? clip : 0;
+    p.saturation_level = pr->clip.flagged && isfinite (clip) ? clip : 0;
     GError *err = NULL;
     sets[e] = ds_phase_set_new (&p, m->width, SYN_ROWS, &err);
     if (!sets[e]) {
@@ -201,13 +201,13 @@ run_sets (DsErrorModel *m, guint n, guint averages, double factor, double period
    * would put the lit pixels' troughs below the dark frame, where the sets flag every
    * lit pixel and the noise-free error is that of no pixel (+inf). So Lg is at least what the
    * stripes' troughs at the lit pixels take. */
-  double lg = MAX (pr->lg_mean, pattern_mean > 0 ? -table->leak_min * m->ld_lit / pattern_mean : 0.0);
+  double lg = MAX (pr->light.lg_mean, pattern_mean > 0 ? -table->leak_min * m->ld_lit / pattern_mean : 0.0);
   if (noise)
     ensure_normals (m, n + 1);
   g_autoptr (DsImage) frame = ds_image_new (DS_SAMPLE_F32, m->width, SYN_ROWS, NULL);
   /* The dark frame's variance at this exposure: read noise and quantisation as in the pilot, the
    * shot noise of its own signal (ambient light, dark current) scaled with the exposure. */
-  double var0 = MAX (0.0, pr->noise_var0 - pr->noise_dark_shot) + pr->noise_dark_shot * factor;
+  double var0 = MAX (0.0, pr->noise.var0 - pr->noise.dark_shot) + pr->noise.dark_shot * factor;
   for (guint y = 0; y < SYN_ROWS; y++) {
     float *row = ds_image_row (frame, y);
     const float *z = noise ? m->normals + ((gsize) n * SYN_ROWS + y) * m->width : NULL;
@@ -234,7 +234,7 @@ run_sets (DsErrorModel *m, guint n, guint averages, double factor, double period
       for (guint x = 0; x < m->width; x++) {
         double s = factor * (ld * lit[x] + lg * pattern_mean);
         if (z)
-          s += sqrt (MAX (0.0, var0 + pr->noise_gain * s) / averages) * z[x];
+          s += sqrt (MAX (0.0, var0 + pr->noise.gain * s) / averages) * z[x];
         row[x] = (float) MIN (pedestal + s, clip);
       }
     }

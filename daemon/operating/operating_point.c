@@ -13,11 +13,11 @@ ds_scene_probe_max_exposure (const DsSceneProbe *p)
 {
   /* Float frames (no clip level at all) scale freely; an unknown full well caps at the pilot's
    * exposure, the longest one the frames show unclipped. */
-  double unknown_cap = p->saturation_dn > 0 && !p->clip_known ? p->exposure_us : 16 * p->exposure_us;
-  if (!(p->saturation_dn > 0) || !(p->bright_dn > 0))
+  double unknown_cap = p->clip.saturation_dn > 0 && !p->clip.known ? p->exposure_us : 16 * p->exposure_us;
+  if (!(p->clip.saturation_dn > 0) || !(p->clip.bright_dn > 0))
     return unknown_cap;
-  double room = 0.9 * p->saturation_dn - p->dark_dn;
-  return room > 0 ? MIN (unknown_cap, p->exposure_us * room / p->bright_dn) : 0;
+  double room = 0.9 * p->clip.saturation_dn - p->noise.dark_dn;
+  return room > 0 ? MIN (unknown_cap, p->exposure_us * room / p->clip.bright_dn) : 0;
 }
 
 /* The scene at both ends of the probe's interval of the direct light (scene_probe.h): `lower` the
@@ -52,11 +52,11 @@ predict (const DsOperatingModel *m, const Models *em, const DsSceneProbe *probe,
   p->period_px = period > 0 ? period : probe->geometry.period_px;
   p->predicted_error = m->scale * p->parts.total;
   p->predicted_time_ms = ds_rig_timing_set_ms (t, w, h, n, mm, p->exposure_us, TRUE);
-  p->lower_bound = !probe->leak_measured || probe->narrow_unresolved || probe->fit_inconsistent;
+  p->lower_bound = !probe->leak.measured || probe->narrow.unresolved || probe->transfer.inconsistent;
   /* The interval bounds the light a narrow kernel hides, not a leak left unmeasured or harmonics
    * that measure nothing. */
-  p->upper_bounded = !p->lower_bound || (em->upper && !em->unbounded && probe->leak_measured &&
-                                         !probe->fit_inconsistent && isfinite (p->predicted_error_upper));
+  p->upper_bounded = !p->lower_bound || (em->upper && !em->unbounded && probe->leak.measured &&
+                                         !probe->transfer.inconsistent && isfinite (p->predicted_error_upper));
   p->uncertainty = ds_operating_point_uncertainty (m, probe, &p->parts);
   return TRUE;
 }
@@ -76,9 +76,9 @@ ds_operating_point_uncertainty (const DsOperatingModel *m, const DsSceneProbe *p
    * (shot and read noise over Ld) and the scattered stripes (the light keeping them over Ld) move by
    * at most Ld's own relative error; the sampling part is the pattern's and does not. */
   double ld_share = MIN (1.0, (parts->noise * parts->noise + parts->scattered_stripes * parts->scattered_stripes) / e2);
-  double u_ld = ld_share * MAX (0.0, probe->ld_uncertainty);
+  double u_ld = ld_share * MAX (0.0, probe->light.ld_uncertainty);
   /* The frame noise is a robust scale read on about every unclipped pixel. */
-  double n = (double) probe->width * probe->height * (1 - CLAMP (probe->saturated_fraction, 0.0, 1.0));
+  double n = (double) probe->width * probe->height * (1 - CLAMP (probe->clip.saturated_fraction, 0.0, 1.0));
   double u_noise = n >= 2 ? MIN (1.0, parts->noise * parts->noise / e2) / sqrt (2 * ROBUST_SCALE_EFFICIENCY * n) : 0;
   return sqrt (spread * spread + u_ld * u_ld + u_noise * u_noise);
 }
@@ -279,9 +279,9 @@ append_remedies (GString *msg, const DsOperatingModel *m, const Models *errors, 
     g_string_append (msg, ". More frames or light would reach it: ");
     append_point (msg, &more.meeting_any_time.p);
     double max_us = ds_scene_probe_max_exposure (probe);
-    double clip_us = probe->clip_known ? max_us : max_us * 16; /* what the clip level alone allows */
-    if (!probe->clip_known && probe->saturation_dn > 0 && probe->bright_dn > 0)
-      clip_us = probe->exposure_us * (0.9 * probe->saturation_dn - probe->dark_dn) / probe->bright_dn;
+    double clip_us = probe->clip.known ? max_us : max_us * 16; /* what the clip level alone allows */
+    if (!probe->clip.known && probe->clip.saturation_dn > 0 && probe->clip.bright_dn > 0)
+      clip_us = probe->exposure_us * (0.9 * probe->clip.saturation_dn - probe->noise.dark_dn) / probe->clip.bright_dn;
     if (more.meeting_any_time.p.exposure_us > max_us && more.meeting_any_time.p.exposure_us <= clip_us)
       g_string_append_printf (msg, ", but exposures above the pilot's %.0f µs may clip unseen (the sensor's clip "
                                    "level is not known: set [camera] saturation-dn)",
@@ -327,12 +327,12 @@ ds_operating_point_choose (const DsOperatingModel *m, DsErrorModel *errors, cons
   if (n_factors == 0) {
     g_set_error (error, DS_OPERATING_ERROR, DS_OPERATING_ERROR_CLIPPED,
                  "the pilot frames' brightest pixels are at the clip level (%.0f DN) whatever the exposure: "
-                 "lower the gain or the illumination", probe->saturation_dn);
+                 "lower the gain or the illumination", probe->clip.saturation_dn);
     return FALSE;
   }
   DsSceneProbe worst;
   g_autoptr (DsErrorModel) upper = ds_scene_probe_worst_case (probe, &worst) ? ds_error_model_new_like (errors, &worst) : NULL;
-  const Models em = { errors, upper, probe->narrow_unresolved && probe->ld_interval && probe->ld_unbounded };
+  const Models em = { errors, upper, probe->narrow.unresolved && probe->interval.set && probe->interval.unbounded };
   double longest = 0;
   for (guint i = 0; i < n_factors; i++)
     longest = MAX (longest, factors[i]);
@@ -391,14 +391,14 @@ ds_operating_point_choose (const DsOperatingModel *m, DsErrorModel *errors, cons
     append_point (msg, &s.meeting_any_time.p);
   } else if (target > 0)
     append_remedies (msg, m, &em, probe, t, w, h, longest, target, budget);
-  if (target > 0 && !probe->leak_measured)
-    g_string_append_printf (msg, " (scattered light that keeps the stripes: %s)", probe->leak_note);
-  else if (target > 0 && probe->narrow_unresolved && probe->ld_interval)
-    g_string_append_printf (msg, " (%s; %s)", probe->narrow_note, probe->interval_note);
-  else if (target > 0 && probe->narrow_unresolved)
-    g_string_append_printf (msg, " (%s)", probe->narrow_note);
-  if (target > 0 && probe->fit_inconsistent)
-    g_string_append_printf (msg, " (%s)", probe->fit_note);
+  if (target > 0 && !probe->leak.measured)
+    g_string_append_printf (msg, " (scattered light that keeps the stripes: %s)", probe->leak.note);
+  else if (target > 0 && probe->narrow.unresolved && probe->interval.set)
+    g_string_append_printf (msg, " (%s; %s)", probe->narrow.note, probe->interval.note);
+  else if (target > 0 && probe->narrow.unresolved)
+    g_string_append_printf (msg, " (%s)", probe->narrow.note);
+  if (target > 0 && probe->transfer.inconsistent)
+    g_string_append_printf (msg, " (%s)", probe->transfer.note);
   if (margin) {
     out->target_may_be_missed = TRUE;
     g_strlcpy (out->target_note, msg->str, sizeof out->target_note);

@@ -72,7 +72,7 @@ typedef struct {
 } DsOperatingPoint;
 
 /* The relative standard uncertainty of a prediction with these parts on this probe's scene: the
- * model's scale_spread, Ld's uncertainty (probe->ld_uncertainty) on the parts relative to Ld (the
+ * model's scale_spread, Ld's uncertainty (probe->light.ld_uncertainty) on the parts relative to Ld (the
  * noise and the scattered stripes), and the sampling error of the frame noise's estimate, added in
  * quadrature (docs/accuracy.md, "Decisions on the margin"). */
 double ds_operating_point_uncertainty (const DsOperatingModel *model, const DsSceneProbe *probe,

@@ -43,25 +43,25 @@ ds_operating_report_to_json (const DsOperatingReport *r, JsonBuilder *b)
   json_builder_begin_array (b);
   json_builder_add_string_value (b, "noise");
   json_builder_add_string_value (b, "sampling");
-  if (pr->blur_source != DS_BLUR_ASSUMED_SHARP)
+  if (pr->blur.source != DS_BLUR_ASSUMED_SHARP)
     json_builder_add_string_value (b, "blur");
-  if (pr->leak_measured)
+  if (pr->leak.measured)
     json_builder_add_string_value (b, "scattered_stripes");
   json_builder_add_string_value (b, "saturation");
   json_builder_end_array (b);
   BOOL ("lower_bound", p->lower_bound);
   json_builder_set_member_name (b, "lower_bound_reasons");
   json_builder_begin_array (b);
-  if (!pr->leak_measured)
-    json_builder_add_string_value (b, pr->leak_note);
-  if (pr->narrow_unresolved)
-    json_builder_add_string_value (b, pr->narrow_note);
-  if (pr->fit_inconsistent)
-    json_builder_add_string_value (b, pr->fit_note);
+  if (!pr->leak.measured)
+    json_builder_add_string_value (b, pr->leak.note);
+  if (pr->narrow.unresolved)
+    json_builder_add_string_value (b, pr->narrow.note);
+  if (pr->transfer.inconsistent)
+    json_builder_add_string_value (b, pr->transfer.note);
   json_builder_end_array (b);
   json_builder_set_member_name (b, "assumptions");
   json_builder_begin_array (b);
-  if (pr->blur_source == DS_BLUR_ASSUMED_SHARP) {
+  if (pr->blur.source == DS_BLUR_ASSUMED_SHARP) {
     g_autofree char *note = g_strdup_printf (
       "stripe blur neither calibrated (descatterctl calibrate) nor measurable from the pilot frames at %g px: "
       "the worse of sharp stripes and a blur of %g px",
@@ -73,27 +73,27 @@ ds_operating_report_to_json (const DsOperatingReport *r, JsonBuilder *b)
   json_builder_end_array (b);
   json_builder_set_member_name (b, "scene");
   json_builder_begin_object (b);
-  DBL ("direct_dn", pr->ld_mean);
-  DBL ("direct_spread", pr->ld_spread);
-  DBL ("scattered_dn", pr->lg_mean);
-  DBL ("noise_dn", pr->noise_at_mean_dn);
+  DBL ("direct_dn", pr->light.ld_mean);
+  DBL ("direct_spread", pr->light.ld_spread);
+  DBL ("scattered_dn", pr->light.lg_mean);
+  DBL ("noise_dn", pr->noise.at_mean_dn);
   DBL ("blur_px", pr->geometry.blur_px);
-  STR ("blur_source", ds_blur_source_name (pr->blur_source));
-  DBL ("scattered_stripes_at_period", pr->leak_at_period);
-  STR ("scattered_stripes_note", pr->leak_note);
-  DBL ("finest_period_px", pr->finest_period_px);
-  DBL ("narrow_kernel_px", pr->narrow_kernel_px);
-  DBL ("narrow_scattered_fraction", pr->narrow_fraction);
-  STR ("narrow_kernel_note", pr->narrow_note);
+  STR ("blur_source", ds_blur_source_name (pr->blur.source));
+  DBL ("scattered_stripes_at_period", pr->leak.at_period);
+  STR ("scattered_stripes_note", pr->leak.note);
+  DBL ("finest_period_px", pr->transfer.finest_period_px);
+  DBL ("narrow_kernel_px", pr->narrow.kernel_px);
+  DBL ("narrow_scattered_fraction", pr->narrow.fraction);
+  STR ("narrow_kernel_note", pr->narrow.note);
   json_builder_set_member_name (b, "direct_dn_lower");
-  if (pr->ld_interval && pr->ld_unbounded)
+  if (pr->interval.set && pr->interval.unbounded)
     json_builder_add_null_value (b);
   else
-    json_builder_add_double_value (b, pr->ld_interval ? pr->ld_lower : pr->ld_mean);
-  STR ("direct_interval_note", pr->ld_interval ? pr->interval_note : "");
-  DBL ("clip_dn", pr->saturation_dn);
-  BOOL ("clip_known", pr->clip_known);
-  DBL ("saturated_fraction", pr->saturated_fraction);
+    json_builder_add_double_value (b, pr->interval.set ? pr->interval.ld_lower : pr->light.ld_mean);
+  STR ("direct_interval_note", pr->interval.set ? pr->interval.note : "");
+  DBL ("clip_dn", pr->clip.saturation_dn);
+  BOOL ("clip_known", pr->clip.known);
+  DBL ("saturated_fraction", pr->clip.saturated_fraction);
   DBL ("exposure_us", pr->exposure_us);
   json_builder_end_object (b);
   json_builder_set_member_name (b, "pilot_frames");

@@ -31,11 +31,11 @@ ds_blur_source_name (DsBlurSource s)
 static double
 narrow_kernel_mtf (const DsSceneProbe *p, double x)
 {
-  switch (p->narrow_form) {
+  switch (p->narrow.form) {
   case DS_PROBE_KERNEL_POWER:
-    return ds_probe_kernel_mtf (p->narrow_kernel_px, p->narrow_shape, x);
+    return ds_probe_kernel_mtf (p->narrow.kernel_px, p->narrow.shape, x);
   case DS_PROBE_KERNEL_CONE:
-    return ds_cone_kernel_mtf (p->narrow_kernel_px, x);
+    return ds_cone_kernel_mtf (p->narrow.kernel_px, x);
   case DS_PROBE_KERNEL_NONE:
   default:
     return 0.0;
@@ -45,11 +45,11 @@ narrow_kernel_mtf (const DsSceneProbe *p, double x)
 double
 ds_scene_probe_leak (const DsSceneProbe *p, double period_px, guint n)
 {
-  if (!p->leak_measured)
+  if (!p->leak.measured)
     return 0.0;
   double x = period_px / n;
-  double leak = exp (p->leak_per_px * x) * (1 + p->narrow_fraction * narrow_kernel_mtf (p, x)) - 1;
-  return p->leak_bounded ? MIN (leak, MAX (0.0, p->leak_max)) : leak;
+  double leak = exp (p->leak.per_px * x) * (1 + p->narrow.fraction * narrow_kernel_mtf (p, x)) - 1;
+  return p->leak.bounded ? MIN (leak, MAX (0.0, p->leak.max)) : leak;
 }
 
 double
@@ -119,7 +119,7 @@ spread_across_columns (const DsProbePairFit *f, const DsStripeModel *geometry, c
     guint32 c = f->stats.count[x];
     if (!c)
       continue;
-    double v = 2 * out->noise_var0 + out->noise_gain * MAX (0.0, f->stats.mean_sum[x] - 2 * out->dark_dn);
+    double v = 2 * out->noise.var0 + out->noise.gain * MAX (0.0, f->stats.mean_sum[x] - 2 * out->noise.dark_dn);
     double d = f->stats.mean_diff[x], df = ds_stripe_harmonics_eval (&f->fit, g.period_px, x) - f->fit.mean;
     double mfit = ds_stripe_harmonics_eval (&mf, g.period_px, x) - mf.mean;
     data += (d * d - v / c) * c;
@@ -145,14 +145,14 @@ spread_across_columns (const DsProbePairFit *f, const DsStripeModel *geometry, c
  * light, at a fraction of the truth): the scene is suspected unless Lg plus that
  * uncertainty stays under 1 %. Where the finer periods saw no kernel, the mean's scattered light that the
  * coarsest period keeps and the fit's leak at P does not (hidden, scene_probe_hidden.h) makes it a lower
- * bound too, with the leak at P bounded by what that period keeps (hidden_leak). Called once ld_mean,
- * lg_mean and the leak are known. */
+ * bound too, with the leak at P bounded by what that period keeps (narrow.hidden_leak). Called once
+ * light.ld_mean, light.lg_mean and the leak are known. */
 static void
 narrow_verdict (const DsProbeFrames *fr, gboolean finer_used, double ld_uncertainty, const DsConeFit *cone,
                 const DsProbeHiddenLight *hidden, DsSceneProbe *out, GString *note)
 {
   double P = fr->geometry.period_px;
-  out->narrow_unresolved = FALSE;
+  out->narrow.unresolved = FALSE;
   if (cone && cone->told) {
     g_string_printf (note,
       "the harmonics over the pilot's periods resolve a kernel of the lens's acceptance cone (radius %.2f px): "
@@ -162,47 +162,47 @@ narrow_verdict (const DsProbeFrames *fr, gboolean finer_used, double ld_uncertai
     return;
   }
   if (finer_used && cone) {
-    out->narrow_unresolved = TRUE;
+    out->narrow.unresolved = TRUE;
     g_string_printf (note,
       "a kernel of the lens's acceptance cone (radius %.2f px) keeps the stripes at every period measured (%g px "
       "and up), and the harmonics read its leak at %g px between %.1f and %.1f %% of Ld (%.1f %% taken), not "
       "within a factor %.1f, so the prediction is a lower bound",
-      cone->radius_px, out->finest_period_px, P, 100 * cone->leak_low, 100 * cone->leak_high, 100 * cone->leak,
+      cone->radius_px, out->transfer.finest_period_px, P, 100 * cone->leak_low, 100 * cone->leak_high, 100 * cone->leak,
       DS_CONE_TOLD_FACTOR);
     return;
   }
-  if (finer_used && out->narrow_beyond) {
-    out->narrow_unresolved = TRUE;
+  if (finer_used && out->narrow.beyond) {
+    out->narrow.unresolved = TRUE;
     g_string_printf (note,
       "scattered light keeps more than %.0f %% of Ld modulated even at the finest period the pilot "
       "resolves (%g px): its kernel is narrower than the periods show and passes for direct light, so "
       "the prediction is a lower bound",
-      100 * DS_PROBE_NARROW_MAX_AT_FINEST, out->finest_period_px);
+      100 * DS_PROBE_NARROW_MAX_AT_FINEST, out->transfer.finest_period_px);
     return;
   }
-  if (finer_used && out->narrow_fraction <= 0 && hidden->suspect) {
-    out->narrow_unresolved = TRUE;
-    out->hidden_leak = hidden->kept;
+  if (finer_used && out->narrow.fraction <= 0 && hidden->suspect) {
+    out->narrow.unresolved = TRUE;
+    out->narrow.hidden_leak = hidden->kept;
     g_string_printf (note, "periods down to %g px: no kernel narrower than the period "
-      "seen, but %s", out->finest_period_px, hidden->note);
+      "seen, but %s", out->transfer.finest_period_px, hidden->note);
     return;
   }
   if (finer_used) {
-    if (out->narrow_fraction > 0)
+    if (out->narrow.fraction > 0)
       g_string_printf (note,
         "periods down to %g px: a narrow kernel (%.2f px) holds %.1f %% of Ld and keeps %.1f %% of it "
         "modulated at %g px",
-        out->finest_period_px, out->narrow_kernel_px, 100 * out->narrow_fraction,
+        out->transfer.finest_period_px, out->narrow.kernel_px, 100 * out->narrow.fraction,
         100 * narrow_kernel_mtf (out, P), P);
     else
       g_string_printf (note,
-        "periods down to %g px: no kernel narrower than the period seen", out->finest_period_px);
+        "periods down to %g px: no kernel narrower than the period seen", out->transfer.finest_period_px);
     return;
   }
-  if (!out->leak_measured)
-    return; /* the leak_note already makes the prediction a lower bound */
-  gboolean seen = out->lg_mean >= 0.01 * out->ld_mean || ds_scene_probe_leak (out, P, 1) >= 0.01;
-  if (!seen && out->lg_mean + ld_uncertainty * out->ld_mean < 0.01 * out->ld_mean) {
+  if (!out->leak.measured)
+    return; /* the leak's note already makes the prediction a lower bound */
+  gboolean seen = out->light.lg_mean >= 0.01 * out->light.ld_mean || ds_scene_probe_leak (out, P, 1) >= 0.01;
+  if (!seen && out->light.lg_mean + ld_uncertainty * out->light.ld_mean < 0.01 * out->light.ld_mean) {
     g_string_printf (note,
       "no finer period measured, and no scattered light seen (Lg and the leak at %g px under 1 %% of Ld, "
       "Ld known to %.1f %%)", P, 100 * ld_uncertainty);
@@ -223,7 +223,7 @@ narrow_verdict (const DsProbeFrames *fr, gboolean finer_used, double ld_uncertai
                 fr->finer[0].period_px, out->geometry.blur_px);
   else
     g_snprintf (why, sizeof why, "the pilot at %g px shows no stripes above the noise", fr->finer[0].period_px);
-  out->narrow_unresolved = TRUE;
+  out->narrow.unresolved = TRUE;
   if (cone)
     g_string_printf (note,
       "a kernel of the lens's acceptance cone (radius %.2f px) keeps the stripes at every period measured, and "
@@ -240,7 +240,7 @@ narrow_verdict (const DsProbeFrames *fr, gboolean finer_used, double ld_uncertai
       "scattered light whose kernel is narrower than the period would keep the stripes at every period "
       "measured (%g px and up) and pass for direct light, and the pilot cannot rule it out (Lg %.1f %% of Ld, "
       "Ld known to %.1f %% for the blur's uncertainty and the noise), so the prediction is a lower bound: %s",
-      P, 100 * out->lg_mean / out->ld_mean, 100 * ld_uncertainty, why);
+      P, 100 * out->light.lg_mean / out->light.ld_mean, 100 * ld_uncertainty, why);
 }
 
 /* The shot noise of the dark frame's own signal, DN^2: ambient light and dark current reach the
@@ -310,9 +310,9 @@ probe_pairs_clear (ProbePairs *pairs)
 static void
 stage_dark (const DsProbeFrames *fr, DsSceneProbe *out)
 {
-  out->dark_dn = ds_image_mean (fr->dark);
+  out->noise.dark_dn = ds_image_mean (fr->dark);
   double noise_dark = ds_column_stats_noise_dn (fr->dark, NULL, 0);
-  out->noise_var0 = isfinite (noise_dark) ? noise_dark * noise_dark : 0;
+  out->noise.var0 = isfinite (noise_dark) ? noise_dark * noise_dark : 0;
 }
 
 /* Clip level: the given one, or a pile-up of samples at one value below it (a sensor's full
@@ -324,22 +324,22 @@ static void
 stage_clip (const DsProbeFrames *fr, DsSceneProbe *out)
 {
   double clip = fr->saturation_dn > 0 ? fr->saturation_dn : INFINITY;
-  out->clip_known = fr->saturation_known && fr->saturation_dn > 0;
+  out->clip.known = fr->saturation_known && fr->saturation_dn > 0;
   for (int i = 0; i < 2; i++) {
     const DsImage *f = fr->lit[i];
     if (f->type == DS_SAMPLE_F32)
       continue;
     double top = ds_image_percentile (f, 100), near = ds_image_percentile (f, 99.98);
-    double lit_noise = out->noise_var0 >= 0.25 ? INFINITY : ds_column_stats_noise_dn (f, NULL, top);
-    if (top > out->dark_dn && near >= top && top <= clip && lit_noise >= 0.5) {
+    double lit_noise = out->noise.var0 >= 0.25 ? INFINITY : ds_column_stats_noise_dn (f, NULL, top);
+    if (top > out->noise.dark_dn && near >= top && top <= clip && lit_noise >= 0.5) {
       clip = top;
-      out->clip_known = TRUE;
+      out->clip.known = TRUE;
     }
   }
-  out->saturation_dn = isfinite (clip) ? clip : 0;
-  out->clip_flagged = fr->saturation_dn > 0 && clip >= fr->saturation_dn;
-  out->bright_dn =
-    MAX (ds_image_percentile (fr->lit[0], 99.9), ds_image_percentile (fr->lit[1], 99.9)) - out->dark_dn;
+  out->clip.saturation_dn = isfinite (clip) ? clip : 0;
+  out->clip.flagged = fr->saturation_dn > 0 && clip >= fr->saturation_dn;
+  out->clip.bright_dn =
+    MAX (ds_image_percentile (fr->lit[0], 99.9), ds_image_percentile (fr->lit[1], 99.9)) - out->noise.dark_dn;
 }
 
 /* Pairs: each pair of opposite phases gives per column the mean difference (the stripes times
@@ -356,12 +356,12 @@ stage_clip (const DsProbeFrames *fr, DsSceneProbe *out)
 static gboolean
 stage_pairs (const DsProbeFrames *fr, DsSceneProbe *out, ProbePairs *pairs, GError **error)
 {
-  double ceiling = out->saturation_dn, period = fr->geometry.period_px;
+  double ceiling = out->clip.saturation_dn, period = fr->geometry.period_px;
   const DsImage *lit[4] = { fr->lit[0], fr->lit[1], fr->coarse[0], fr->coarse[1] };
   ds_probe_mask_clipped_places (lit, fr->coarse[0] ? 4 : 2, ceiling, period, pairs->masked, &pairs->places);
   for (guint i = 0; i < 4; i++)
     pairs->stat[i] = pairs->masked[i] ? pairs->masked[i] : lit[i];
-  double envelope_dn = fr->geometry.kind == DS_PATTERN_SINE ? out->dark_dn : -1;
+  double envelope_dn = fr->geometry.kind == DS_PATTERN_SINE ? out->noise.dark_dn : -1;
   gboolean ok = ds_probe_pair_fit (lit[0], lit[1], pairs->stat[0], pairs->stat[1], ceiling, period, envelope_dn,
                                    &pairs->fine, error);
   if (ok && fr->coarse[0])
@@ -377,7 +377,7 @@ stage_pairs (const DsProbeFrames *fr, DsSceneProbe *out, ProbePairs *pairs, GErr
     return FALSE;
   }
   guint64 n_px = (guint64) out->width * out->height;
-  out->saturated_fraction = (double) pairs->fine.clipped / (double) n_px;
+  out->clip.saturated_fraction = (double) pairs->fine.clipped / (double) n_px;
   out->phase_offset = pairs->fine.fit.phase[1];
   return TRUE;
 }
@@ -394,7 +394,7 @@ stage_noise (const DsProbeFrames *fr, const ProbePairs *pairs, DsSceneProbe *out
   const DsColumnStats *fine = &pairs->fine.stats;
   double sum_signal = 0, sum_w = 0;
   for (guint x = 0; x < fine->width; x++) {
-    sum_signal += (fine->mean_sum[x] - 2 * out->dark_dn) * fine->count[x];
+    sum_signal += (fine->mean_sum[x] - 2 * out->noise.dark_dn) * fine->count[x];
     sum_w += fine->count[x];
   }
   double mean_sum = sum_w > 0 ? sum_signal / sum_w : 0;
@@ -403,18 +403,18 @@ stage_noise (const DsProbeFrames *fr, const ProbePairs *pairs, DsSceneProbe *out
     /* The coarse pair's sum has the fine pair's mean: var (a - b) = var a + var b is half of it,
      * over the samples it was read on, whose signal is half their level. */
     double level = NAN;
-    double noise_sets = ds_column_stats_noise_sets_dn (pairs->stat, pairs->stat + 2, out->saturation_dn, &level);
+    double noise_sets = ds_column_stats_noise_sets_dn (pairs->stat, pairs->stat + 2, out->clip.saturation_dn, &level);
     if (isfinite (noise_sets) && isfinite (level)) {
       var_diff = noise_sets * noise_sets / 2;
-      noise_signal = level / 2 - 2 * out->dark_dn;
+      noise_signal = level / 2 - 2 * out->noise.dark_dn;
     }
   }
   if (!isfinite (var_diff)) {
-    double noise_diff = ds_column_stats_noise_dn (pairs->stat[0], pairs->stat[1], out->saturation_dn);
-    var_diff = isfinite (noise_diff) ? noise_diff * noise_diff : 2 * out->noise_var0;
+    double noise_diff = ds_column_stats_noise_dn (pairs->stat[0], pairs->stat[1], out->clip.saturation_dn);
+    var_diff = isfinite (noise_diff) ? noise_diff * noise_diff : 2 * out->noise.var0;
   }
-  out->noise_gain = noise_signal > 0 ? MAX (0.0, (var_diff - 2 * out->noise_var0) / noise_signal) : 0;
-  out->noise_dark_shot = dark_shot_noise (fr->dark, out->dark_dn, out->noise_var0, out->noise_gain);
+  out->noise.gain = noise_signal > 0 ? MAX (0.0, (var_diff - 2 * out->noise.var0) / noise_signal) : 0;
+  out->noise.dark_shot = dark_shot_noise (fr->dark, out->noise.dark_dn, out->noise.var0, out->noise.gain);
   return mean_sum;
 }
 
@@ -461,13 +461,13 @@ stage_blur (const DsProbeFrames *fr, const ProbeHarmonics *h, DsSceneProbe *out)
   double sigma = 0;
   if (fr->blur_known) {
     sigma = CLAMP (fr->calibrated_blur_px, 0.0, fr->geometry.period_px / 2);
-    out->blur_source = DS_BLUR_CALIBRATED;
+    out->blur.source = DS_BLUR_CALIBRATED;
   } else if (fr->calibrated_gain > 0) {
     DsStripeModel matched = fr->geometry;
     ds_stripe_match_gain (&matched, fr->calibrated_gain);
     sigma = matched.blur_px;
     out->geometry.pixel_aperture = matched.pixel_aperture;
-    out->blur_source = DS_BLUR_CALIBRATED;
+    out->blur.source = DS_BLUR_CALIBRATED;
   } else if (h->n_eq >= (h->two ? 3u : 2u)) {
     double best = INFINITY, hi = MIN (fr->geometry.period_px / 2, 4.0);
     for (double s = 0; s <= hi + 1e-9; s += 0.025) {
@@ -477,9 +477,9 @@ stage_blur (const DsProbeFrames *fr, const ProbeHarmonics *h, DsSceneProbe *out)
         sigma = s;
       }
     }
-    out->blur_source = DS_BLUR_MEASURED;
+    out->blur.source = DS_BLUR_MEASURED;
   } else
-    out->blur_source = DS_BLUR_ASSUMED_SHARP;
+    out->blur.source = DS_BLUR_ASSUMED_SHARP;
   out->geometry.blur_px = sigma;
 }
 
@@ -496,7 +496,7 @@ stage_finer (const DsProbeFrames *fr, const ProbePairs *pairs, DsSceneProbe *out
 {
   double sigma = out->geometry.blur_px;
   guint width = fr->lit[0]->width;
-  out->finest_period_px = fr->geometry.period_px;
+  out->transfer.finest_period_px = fr->geometry.period_px;
   guint before_finer = h->n_eq;
   for (guint i = 0; i < fr->n_finer; i++) {
     double q = fr->finer[i].period_px;
@@ -506,7 +506,7 @@ stage_finer (const DsProbeFrames *fr, const ProbePairs *pairs, DsSceneProbe *out
     h->n_eq = ds_probe_collect_equations (&pairs->finer[i].fit, q, &out->geometry, width, h->eq, h->n_eq);
     for (guint k = had; k < h->n_eq; k++)
       if (h->eq[k].n == 1)
-        out->finest_period_px = MIN (out->finest_period_px, q);
+        out->transfer.finest_period_px = MIN (out->transfer.finest_period_px, q);
   }
   h->finer_used = h->n_eq > before_finer;
   h->two = h->two || h->finer_used;
@@ -584,7 +584,7 @@ narrow_term_holds (const DsProbeNarrowFit *narrow, const DsProbeSolution *line_a
   double ld_line = exp (line_all->log_ld), lg_line = t->total - ld_line;
   if (!(lg_line >= DS_PROBE_NARROW_MIN_LG * ld_line))
     return FALSE;
-  double x = out->finest_period_px;
+  double x = out->transfer.finest_period_px;
   double at_finest =
     exp (narrow->s.alpha * x) * (1 + narrow->beta * ds_probe_kernel_mtf (narrow->width, narrow->shape, x)) - 1;
   if (at_finest > DS_PROBE_NARROW_MAX_AT_FINEST) {
@@ -607,7 +607,7 @@ stage_transfer (const DsProbeFrames *fr, ProbeHarmonics *h, DsSceneProbe *out, P
 {
   double sigma = out->geometry.blur_px;
   guint width = fr->lit[0]->width;
-  out->equations = h->n_eq;
+  out->transfer.equations = h->n_eq;
   t->solution = ds_probe_solve_at (&out->geometry, h->eq, h->n_eq, sigma, width, h->two, TRUE);
   DsProbeNarrowFit narrow = { { 0 }, 0, 0, 0 };
   DsProbeSolution line_all = ds_probe_solve_at (&out->geometry, h->all, h->n_all, sigma, width, h->two, TRUE);
@@ -616,32 +616,32 @@ stage_transfer (const DsProbeFrames *fr, ProbeHarmonics *h, DsSceneProbe *out, P
                   ds_probe_fit_narrow (&out->geometry, h->all, h->n_all, sigma, width, fr->geometry.period_px,
                                        &line_all, &narrow) &&
                   narrow_term_holds (&narrow, &line_all, h, out, t, &beyond);
-  out->narrow_beyond = beyond;
+  out->narrow.beyond = beyond;
   if (t->narrow_won) {
     t->solution = narrow.s;
-    out->equations = h->n_all;
-    out->narrow_fraction = narrow.beta;
-    out->narrow_kernel_px = narrow.width;
-    out->narrow_form = DS_PROBE_KERNEL_POWER;
-    out->narrow_shape = narrow.shape;
+    out->transfer.equations = h->n_all;
+    out->narrow.fraction = narrow.beta;
+    out->narrow.kernel_px = narrow.width;
+    out->narrow.form = DS_PROBE_KERNEL_POWER;
+    out->narrow.shape = narrow.shape;
   }
-  out->ld_mean = exp (t->solution.log_ld);
-  out->leak_per_px = t->solution.alpha;
+  out->light.ld_mean = exp (t->solution.log_ld);
+  out->leak.per_px = t->solution.alpha;
   t->cone_used = h->two && !t->narrow_won &&
-                 ds_probe_fit_cone (&out->geometry, h->all, h->n_all, sigma, width, t->total, out->ld_mean, &t->cone);
+                 ds_probe_fit_cone (&out->geometry, h->all, h->n_all, sigma, width, t->total, out->light.ld_mean, &t->cone);
   guint n_fit = h->n_eq;
   if (t->cone_used) {
     t->solution.residual = t->cone.chi2;
-    n_fit = out->equations = h->n_all;
-    out->ld_mean = t->cone.ld;
-    out->leak_per_px = 0;
-    out->narrow_fraction = (t->total - t->cone.ld) / t->cone.ld;
-    out->narrow_kernel_px = t->cone.radius_px;
-    out->narrow_form = DS_PROBE_KERNEL_CONE;
-    out->narrow_shape = 0;
+    n_fit = out->transfer.equations = h->n_all;
+    out->light.ld_mean = t->cone.ld;
+    out->leak.per_px = 0;
+    out->narrow.fraction = (t->total - t->cone.ld) / t->cone.ld;
+    out->narrow.kernel_px = t->cone.radius_px;
+    out->narrow.form = DS_PROBE_KERNEL_CONE;
+    out->narrow.shape = 0;
   }
-  out->leak_measured = h->two;
-  out->fit_rms = n_fit > (h->two ? 2u : 1u) ? sqrt (t->solution.residual / n_fit) : 0;
+  out->leak.measured = h->two;
+  out->transfer.rms = n_fit > (h->two ? 2u : 1u) ? sqrt (t->solution.residual / n_fit) : 0;
   ds_probe_fit_consistency (t->solution.residual, t->narrow_won ? h->n_all : n_fit,
                             1 + (h->two ? 1 : 0) + (t->narrow_won ? 2 : 0), out);
 }
@@ -679,20 +679,20 @@ leak_note_measured (const DsProbeFrames *fr, const ProbeHarmonics *h, const Prob
 static void
 stage_light (const ProbePairs *pairs, const ProbeTransfer *t, DsSceneProbe *out)
 {
-  out->lg_mean = MAX (0.0, t->total - out->ld_mean);
+  out->light.lg_mean = MAX (0.0, t->total - out->light.ld_mean);
   const DsColumnStats *fine = &pairs->fine.stats;
   double num = 0, den = 0;
   for (guint x = 0; x < fine->width; x++) {
     guint32 c = fine->count[x];
     if (!c)
       continue;
-    double v = 2 * out->noise_var0 + out->noise_gain * MAX (0.0, fine->mean_sum[x] - 2 * out->dark_dn);
+    double v = 2 * out->noise.var0 + out->noise.gain * MAX (0.0, fine->mean_sum[x] - 2 * out->noise.dark_dn);
     double d = fine->mean_diff[x];
     num += (fine->mean_sq_diff[x] - v) * c;
     den += (d * d - v / c) * c;
   }
-  out->ld_spread = den > 0 && num > den ? MIN (num / den, 25.0) : 1.0;
-  out->ld_spread = MIN (out->ld_spread * spread_across_columns (&pairs->fine, &out->geometry, out), 25.0);
+  out->light.ld_spread = den > 0 && num > den ? MIN (num / den, 25.0) : 1.0;
+  out->light.ld_spread = MIN (out->light.ld_spread * spread_across_columns (&pairs->fine, &out->geometry, out), 25.0);
 }
 
 /* The leak's bound: a scattered stripe is scattered light, A_n = G_n (Ld + S T_n) with T_n <= 1,
@@ -702,20 +702,20 @@ stage_light (const ProbePairs *pairs, const ProbeTransfer *t, DsSceneProbe *out)
 static void
 stage_leak_bound (const DsProbeFrames *fr, DsSceneProbe *out, GString *leak_note)
 {
-  out->leak_bounded = out->leak_measured && out->ld_mean > 0;
-  out->leak_max = out->leak_bounded ? out->lg_mean / out->ld_mean : 0;
-  if (!out->leak_bounded)
+  out->leak.bounded = out->leak.measured && out->light.ld_mean > 0;
+  out->leak.max = out->leak.bounded ? out->light.lg_mean / out->light.ld_mean : 0;
+  if (!out->leak.bounded)
     return;
-  out->leak_bounded = FALSE;
+  out->leak.bounded = FALSE;
   double read = ds_scene_probe_leak (out, fr->geometry.period_px, 1);
-  out->leak_bounded = TRUE;
-  if (read > out->leak_max)
+  out->leak.bounded = TRUE;
+  if (read > out->leak.max)
     g_string_append_printf (leak_note, ", held to the scattered light the mean shows (%.1f %% of Ld)",
-                            100 * out->leak_max);
+                            100 * out->leak.max);
 }
 
 /* Interval: where a kernel narrower than the periods could hide scattered light in Ld (the
- * verdict's narrow_unresolved), how low the direct light can be (ds_scene_probe_worst_case ()):
+ * verdict's narrow.unresolved), how low the direct light can be (ds_scene_probe_worst_case ()):
  * read from the drop of the modulation between the coarsest period and the finest at the fit's
  * Ld and light, before the clipped places were counted in (scene_probe.h, the interval). */
 static void
@@ -724,14 +724,14 @@ stage_interval (const DsProbeFrames *fr, const ProbeHarmonics *h, const ProbeTra
   DsProbeDirectInterval interval;
   ds_probe_direct_interval (h->all, h->n_all, &out->geometry, out->geometry.blur_px, fr->lit[0]->width, t->ld_fit,
                             t->total_fit, &interval);
-  if (out->narrow_unresolved && h->two && interval.computed) {
-    out->ld_interval = TRUE;
-    out->ld_unbounded = interval.unbounded;
-    out->ld_lower = interval.unbounded ? 0 : interval.ratio * out->ld_mean;
-    out->worst_kernel_px = interval.unbounded ? 0 : interval.kernel_px;
-    g_strlcpy (out->interval_note, interval.note, sizeof out->interval_note);
+  if (out->narrow.unresolved && h->two && interval.computed) {
+    out->interval.set = TRUE;
+    out->interval.unbounded = interval.unbounded;
+    out->interval.ld_lower = interval.unbounded ? 0 : interval.ratio * out->light.ld_mean;
+    out->interval.worst_kernel_px = interval.unbounded ? 0 : interval.kernel_px;
+    g_strlcpy (out->interval.note, interval.note, sizeof out->interval.note);
   } else
-    out->ld_lower = out->ld_mean;
+    out->interval.ld_lower = out->light.ld_mean;
 }
 
 gboolean
@@ -768,27 +768,27 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
   g_autoptr (GString) leak_note = g_string_new (NULL);
   leak_note_measured (fr, h, &t, out, leak_note);
   stage_light (&pairs, &t, out);
-  t.ld_fit = out->ld_mean;
-  t.total_fit = out->ld_mean + out->lg_mean;
+  t.ld_fit = out->light.ld_mean;
+  t.total_fit = out->light.ld_mean + out->light.lg_mean;
   ds_probe_count_clipped_places (out, &pairs.places, fr->geometry.black_level, pattern_mean, leak_note);
   stage_leak_bound (fr, out, leak_note);
-  g_strlcpy (out->leak_note, leak_note->str, sizeof out->leak_note);
+  g_strlcpy (out->leak.note, leak_note->str, sizeof out->leak.note);
 
   /* Verdict: Ld's uncertainty (also the prediction's, ds_operating_point_uncertainty ()), the
    * light the coarsest period keeps beyond the fit's leak, and whether a kernel narrower than
    * the periods could pass for direct light. */
-  out->ld_uncertainty = ds_probe_ld_uncertainty (h->all, h->n_all, &out->geometry, out->geometry.blur_px, out->width);
+  out->light.ld_uncertainty = ds_probe_ld_uncertainty (h->all, h->n_all, &out->geometry, out->geometry.blur_px, out->width);
   DsProbeHiddenLight hidden;
   ds_probe_hidden_light (h->seen, h->n_seen, &out->geometry, out->geometry.blur_px, out->width, t.ld_fit, t.total_fit,
-                         out->ld_uncertainty, ds_scene_probe_leak (out, fr->geometry.period_px, 1), &hidden);
+                         out->light.ld_uncertainty, ds_scene_probe_leak (out, fr->geometry.period_px, 1), &hidden);
   g_autoptr (GString) narrow_note = g_string_new (NULL);
-  narrow_verdict (fr, h->finer_used, out->ld_uncertainty, t.cone_used ? &t.cone : NULL, &hidden, out, narrow_note);
+  narrow_verdict (fr, h->finer_used, out->light.ld_uncertainty, t.cone_used ? &t.cone : NULL, &hidden, out, narrow_note);
   if (h->finer_used)
     g_string_append (narrow_note, t.undetermined);
-  g_strlcpy (out->narrow_note, narrow_note->str, sizeof out->narrow_note);
+  g_strlcpy (out->narrow.note, narrow_note->str, sizeof out->narrow.note);
   stage_interval (fr, h, &t, out);
-  out->leak_at_period = ds_scene_probe_leak (out, fr->geometry.period_px, 1);
-  out->noise_at_mean_dn = sqrt (out->noise_var0 + out->noise_gain * (out->ld_mean + out->lg_mean));
+  out->leak.at_period = ds_scene_probe_leak (out, fr->geometry.period_px, 1);
+  out->noise.at_mean_dn = sqrt (out->noise.var0 + out->noise.gain * (out->light.ld_mean + out->light.lg_mean));
   probe_pairs_clear (&pairs);
   return TRUE;
 }

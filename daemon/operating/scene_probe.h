@@ -58,7 +58,7 @@
  * to extrapolate such a step wrongly. Without finer periods (an illuminator that cannot change
  * its period, or P/2 below what the sensor resolves) a kernel narrower than P cannot be told
  * from direct light: where the pilot shows scattered light at all, the prediction is then a
- * lower bound (narrow_unresolved, and narrow_note says why); docs/accuracy.md, "Automatic
+ * lower bound (narrow.unresolved, and narrow.note says why); docs/accuracy.md, "Automatic
  * operating point".
  *
  * The line's rise without end is the small-angle law of a kernel wide against the periods. The
@@ -69,9 +69,9 @@
  * cone_kernel.h derives that kernel's transfer; where no narrow term won and the harmonics over all
  * the periods see its radius (the fit DS_CONE_SEEN_CHI2 below both its limits), the kernel keeps at
  * least half its stripes at P and reads more scattered light than the line, it is the fit
- * (narrow_form DS_PROBE_KERNEL_CONE), with the light that keeps the stripes bounded by the mean's.
+ * (narrow.form DS_PROBE_KERNEL_CONE), with the light that keeps the stripes bounded by the mean's.
  * Its leak at P known within DS_CONE_TOLD_FACTOR is a measurement; otherwise the prediction is a
- * lower bound and narrow_note gives the range.
+ * lower bound and narrow.note gives the range.
  *
  * Pure function of the frames; any thread; CPU only (a few passes over the frames). */
 #pragma once
@@ -114,12 +114,12 @@ G_BEGIN_DECLS
 /* Square stripes of a duty within this of 1/2 have the probe read the noise on two pairs' sums, in
  * which the scene nearly cancels (scene_probe.c: noise_on_sets). */
 #define DS_PROBE_SETS_DUTY 0.05
-/* The normal quantile of the fit's consistency test (fit_inconsistent): 99.9 %. */
+/* The normal quantile of the fit's consistency test (transfer.inconsistent): 99.9 %. */
 #define DS_PROBE_FIT_Z 3.09
-/* The form of the narrow kernel's transfer (DsSceneProbe's narrow_form). */
+/* The form of the narrow kernel's transfer (DsSceneProbe's narrow.form). */
 typedef enum {
-  DS_PROBE_KERNEL_NONE = 0,   /* no narrow kernel: narrow_fraction is 0 */
-  DS_PROBE_KERNEL_POWER,      /* the MTF (1 + k^2 / nu)^-nu above, nu = narrow_shape, w = narrow_kernel_px */
+  DS_PROBE_KERNEL_NONE = 0,   /* no narrow kernel: narrow.fraction is 0 */
+  DS_PROBE_KERNEL_POWER,      /* the MTF (1 + k^2 / nu)^-nu above, nu = narrow.shape, w = narrow.kernel_px */
   DS_PROBE_KERNEL_CONE,       /* the kernel of the lens's acceptance cone (cone_kernel.h), which the probe
                                  fits in place of the line where the line cannot follow a transfer that
                                  saturates between the periods; narrow_kernel_px is its radius */
@@ -170,82 +170,136 @@ typedef struct {
  * DS_OPERATING_ERROR_PILOT_FRAMES naming the frame that is missing or differs. Any thread. */
 gboolean ds_probe_frames_check (const DsProbeFrames *frames, GError **error);
 
+/* Clip (stage_clip, stage_pairs): where the sensor stops counting. Relies on noise spreading
+ * unclipped values over many levels, so that a pile-up of samples at one top value is a clip. */
 typedef struct {
-  DsStripeModel geometry;      /* with the blur found, and the pixel's aperture where a calibrated
-                                  gain shows it integrates less than its pitch (ds_stripe_match_gain) */
-  DsBlurSource blur_source;
-  double phase_offset;            /* cycles: phase 0's stripes are centred at x = P (j + offset) */
-  double exposure_us;
+  double saturation_dn;           /* the clip level applied: given, or a pile-up found lower */
+  gboolean known;                 /* saturation_dn is known to be where the sensor clips (given as
+                                     known, or a pile-up found): exposures may rise up to it.
+                                     FALSE: a full well below the format's top would go unseen,
+                                     so no exposure above the pilot's is safe */
+  gboolean flagged;               /* the separation flags samples at saturation_dn (it is the level
+                                     given, not a full well the pilot found below it) */
+  double bright_dn;               /* 99.9th percentile of the brighter pilot frame minus dark */
+  double saturated_fraction;      /* pixels at the clip level in a pilot frame */
+} DsProbeClip;
+
+/* Noise (stage_dark, stage_noise): one frame's variance is var0 + gain * signal. Relies on the
+ * dark frame having no stripes (its temporal noise is the floor) and on the photons being
+ * Poisson (the variance grows linearly with the signal). */
+typedef struct {
+  double dark_dn;                 /* the dark frame's mean: every offset the lit frames carry */
+  double var0;                    /* DN^2 of one frame without signal (read, dark, quantisation) */
+  double gain;                    /* DN^2 per DN of signal (shot noise) */
+  double dark_shot;               /* the part of var0 that is the shot noise of the dark frame's
+                                     own signal (ambient light, dark current): it scales with the
+                                     exposure, the rest (read noise, quantisation) does not */
+  double at_mean_dn;              /* one frame's noise at the scene's mean light Ld + Lg, DN (what a
+                                     result reports, ds_operating_report_to_json ()) */
+} DsProbeNoise;
+
+/* Blur (stage_blur): how the stripes' blur in geometry.blur_px was found. Relies on the blur
+ * lowering the higher harmonics against the first at one period, which the scattered stripes
+ * (rising with the period) do not. */
+typedef struct {
+  DsBlurSource source;
+} DsProbeBlur;
+
+/* Transfer fit (stage_transfer, stage_finer): the harmonics' fit of A_n(Q) = Ld G_n T_n(Q).
+ * Relies on the harmonics' noise and the fit's 2 % floor describing their scatter: beyond it
+ * the fit is no measurement (inconsistent). */
+typedef struct {
+  guint equations;                /* harmonics the fit used */
+  double finest_period_px;        /* the finest period whose first harmonic the fit used */
+  double rms;                     /* rms of the fit's residuals in log amplitude */
+  /* The fit's weighted squared residuals beyond the 99.9 % quantile of chi^2 for its degrees of
+   * freedom: no transfer the probe models explains the harmonics at the pilot's periods within
+   * their noise and the fit's 2 % floor (objects or the places that clip shape the profile), so
+   * Ld and the scattered stripes read from them are no measurement and the prediction is a lower
+   * bound (note says why). */
+  gboolean inconsistent;
+  char note[280];
+} DsProbeTransfer;
+
+/* Light (stage_transfer, stage_light, the verdict): the direct light is the transfer's
+ * extrapolation to period 0, the scattered light what the mean holds beyond it. Relies on two
+ * opposite phases summing to the pattern's mean twice over whole periods. */
+typedef struct {
   double ld_mean;                 /* direct light Ld (DN at exposure_us), mean over unclipped pixels */
   double ld_spread;               /* mean (Ld^2) / mean (Ld)^2, >= 1 */
   double ld_uncertainty;          /* how far Ld can be off as a share of it (one standard uncertainty):
                                      the first harmonic's noise at P and how far its gain moves for the
                                      blur's uncertainty; 0 when not known */
   double lg_mean;                 /* scattered light Lg (full illumination), DN */
-  double leak_per_px;             /* alpha (1/px); 0 when not measured */
-  gboolean leak_measured;
-  /* The leaked light cannot exceed the scattered light: A_n(Q) = G_n (Ld + S T_n(Q)) with the
-   * kernel's MTF T_n <= 1, so every harmonic's leak is at most S / Ld. Where leak_bounded,
-   * ds_scene_probe_leak () returns no more than leak_max (the probe's Lg / Ld). */
-  gboolean leak_bounded;
-  double leak_max;
-  char leak_note[360];            /* how it was measured, or why not */
-  double narrow_fraction;         /* beta: the narrow kernel's light over Ld; 0 when none was seen */
-  double narrow_kernel_px;        /* w: its width, px (scene_probe.h: the MTF's form) */
-  DsProbeKernelForm narrow_form;  /* which kernel narrow_fraction and narrow_kernel_px describe */
-  double narrow_shape;            /* nu of the power form (1 or 2; 1/2 for the interval's kernel) */
-  double finest_period_px;        /* the finest period whose first harmonic the fit used */
-  gboolean narrow_unresolved;     /* scattered light was seen but no finer period was: a kernel
+} DsProbeLight;
+
+/* Leak (stage_transfer, stage_leak_bound): the scattered light that keeps the stripes. Relies on
+ * the leaked light being scattered light: A_n(Q) = G_n (Ld + S T_n(Q)) with the kernel's MTF
+ * T_n <= 1, so every harmonic's leak is at most S / Ld. Where bounded, ds_scene_probe_leak ()
+ * returns no more than max (the probe's Lg / Ld). */
+typedef struct {
+  double per_px;                  /* alpha (1/px); 0 when not measured */
+  gboolean measured;
+  gboolean bounded;
+  double max;
+  double at_period;               /* ds_scene_probe_leak () of the first harmonic at the period, as
+                                     the probe ended (what a result reports) */
+  char note[360];                 /* how it was measured, or why not */
+} DsProbeLeak;
+
+/* Narrow kernel and its verdict (stage_transfer, narrow_verdict): scattered light whose kernel
+ * is narrow against the periods. Relies on finer periods: without them such a kernel keeps the
+ * stripes at every period measured and cannot be told from direct light (unresolved). */
+typedef struct {
+  double fraction;                /* beta: the narrow kernel's light over Ld; 0 when none was seen */
+  double kernel_px;               /* w: its width, px (scene_probe.h: the MTF's form) */
+  DsProbeKernelForm form;         /* which kernel fraction and kernel_px describe */
+  double shape;                   /* nu of the power form (1 or 2; 1/2 for the interval's kernel) */
+  gboolean unresolved;            /* scattered light was seen but no finer period was: a kernel
                                      narrower than P would pass for direct light (a lower bound) */
-  gboolean narrow_beyond;         /* a kernel still keeping > DS_PROBE_NARROW_MAX_AT_FINEST of Ld at the
+  gboolean beyond;                /* a kernel still keeping > DS_PROBE_NARROW_MAX_AT_FINEST of Ld at the
                                      finest period: not fitted, a lower bound */
-  char narrow_note[448];          /* why (narrow_unresolved), or what the finer periods showed */
-  /* Where narrow_unresolved: how low the direct light can be (ld_mean is the interval's upper end,
-   * ds_scene_probe_worst_case () the scene at its lower end). */
-  gboolean ld_interval;           /* ld_lower, unbounded and interval_note are set */
-  gboolean ld_unbounded;          /* the frames show scattered light that keeps the stripes more than any
-                                     kernel of the bound's family: no lower end (targets are refused) */
-  double ld_lower;                /* DN; ld_mean when the frames show no narrow kernel at the edge */
-  double worst_kernel_px;         /* the single kernel at the lower end (w, nu = 1/2); 0 = none */
-  char interval_note[360];        /* how the lower end was found, or why there is none */
   /* Where the finer periods saw no kernel but the mean shows scattered light that the coarsest period
    * keeps and the fit's leak at P does not (scene_probe_hidden.h): the leak at P can be up to this
    * share of Ld, and ds_scene_probe_worst_case () takes it at every harmonic and period; 0 = none. */
   double hidden_leak;
-  double noise_var0;              /* DN^2 of one frame without signal (read, dark, quantisation) */
-  double noise_gain;              /* DN^2 per DN of signal (shot noise) */
-  double noise_dark_shot;         /* the part of noise_var0 that is the shot noise of the dark frame's
-                                     own signal (ambient light, dark current): it scales with the
-                                     exposure, the rest (read noise, quantisation) does not */
-  double dark_dn;
-  double saturation_dn;           /* the clip level applied: given, or a pile-up found lower */
-  gboolean clip_known;            /* saturation_dn is known to be where the sensor clips (given as
-                                     known, or a pile-up found): exposures may rise up to it.
-                                     FALSE: a full well below the format's top would go unseen,
-                                     so no exposure above the pilot's is safe */
-  gboolean clip_flagged;          /* the separation flags samples at saturation_dn (it is the level
-                                     given, not a full well the pilot found below it) */
-  double bright_dn;               /* 99.9th percentile of the brighter pilot frame minus dark */
-  double saturated_fraction;      /* pixels at the clip level in a pilot frame */
+  char note[448];                 /* why (unresolved), or what the finer periods showed */
+} DsProbeNarrow;
+
+/* Interval of the direct light (stage_interval), where narrow.unresolved: how low the direct
+ * light can be (light.ld_mean is the interval's upper end, ds_scene_probe_worst_case () the scene
+ * at its lower end). Relies on all the scattered light sharing one kernel whose displacement
+ * density is finite at 0 (ds_scene_probe_worst_case () below). */
+typedef struct {
+  gboolean set;                   /* ld_lower, unbounded and note are set */
+  gboolean unbounded;             /* the frames show scattered light that keeps the stripes more than any
+                                     kernel of the bound's family: no lower end (targets are refused) */
+  double ld_lower;                /* DN; light.ld_mean when the frames show no narrow kernel at the edge */
+  double worst_kernel_px;         /* the single kernel at the lower end (w, nu = 1/2); 0 = none */
+  char note[360];                 /* how the lower end was found, or why there is none */
+} DsProbeInterval;
+
+/* The probe: each stage of ds_scene_probe_measure () fills its own part. */
+typedef struct {
+  DsStripeModel geometry;      /* with the blur found, and the pixel's aperture where a calibrated
+                                  gain shows it integrates less than its pitch (ds_stripe_match_gain) */
+  double phase_offset;            /* cycles: phase 0's stripes are centred at x = P (j + offset) */
+  double exposure_us;
   guint width, height;
-  guint equations;                /* harmonics the fit used */
-  double fit_rms;                 /* rms of the fit's residuals in log amplitude */
-  /* The fit's weighted squared residuals beyond the 99.9 % quantile of chi^2 for its degrees of
-   * freedom: no transfer the probe models explains the harmonics at the pilot's periods within
-   * their noise and the fit's 2 % floor (objects or the places that clip shape the profile), so
-   * Ld and the scattered stripes read from them are no measurement and the prediction is a lower
-   * bound (fit_note says why). */
-  gboolean fit_inconsistent;
-  char fit_note[280];
-  /* What a result reports of the probe (ds_operating_report_to_json ()), as the probe ended: */
-  double leak_at_period;          /* ds_scene_probe_leak () of the first harmonic at the period */
-  double noise_at_mean_dn;        /* one frame's noise at the scene's mean light Ld + Lg, DN */
+  DsProbeClip clip;
+  DsProbeNoise noise;
+  DsProbeBlur blur;
+  DsProbeTransfer transfer;
+  DsProbeLight light;
+  DsProbeLeak leak;
+  DsProbeNarrow narrow;
+  DsProbeInterval interval;
 } DsSceneProbe;
 
 gboolean ds_scene_probe_measure (const DsProbeFrames *frames, DsSceneProbe *out, GError **error);
 
 /* The interval of the direct light where scattered light narrower than the periods measured
- * could pass for direct light (narrow_unresolved). The modulation of the first harmonic at a
+ * could pass for direct light (narrow.unresolved). The modulation of the first harmonic at a
  * period Q, after the calibrated blur, is A(Q) = Ld + S T(Q), S the scattered light and T its
  * kernel's MTF at 1/Q, 0 <= T <= 1 and rising with Q; the mean holds M = Ld + S. So the finest
  * period bounds Ld from above (T >= 0), and the drop of the modulation from the coarsest period
@@ -259,17 +313,18 @@ gboolean ds_scene_probe_measure (const DsProbeFrames *frames, DsSceneProbe *out,
  * light the stripes lost by each period, M - A(Q) = S (1 - T(Q)), gives T's ratio between the two
  * periods without Ld, hence w, hence S and Ld = M - S. A drop steeper than any such kernel
  * (r = (M - A(Q_c)) / (M - A(Q_f)) <= (Q_f / Q_c)^2, or A(Q_c) at M) leaves no lower end
- * (ld_unbounded); that is decided on the measured r, the one the lower end is read at, not on
+ * (interval.unbounded); that is decided on the measured r, the one the lower end is read at, not on
  * whether M - A(Q_c) alone stands out of the noise. A drop within the noise says nothing about a
  * kernel narrower than every period (the method's limit, docs/accuracy.md): the interval is then
- * [ld_mean, ld_mean] and the flag alone says so. Light kept by a second, narrower kernel than the one the drop shows is not
- * bounded either: that too is the limit, stated in interval_note.
- * Returns FALSE when the probe has no finite lower end below ld_mean; otherwise *worst is the
- * probe with Ld at ld_lower, all the rest of the mean scattered by that kernel. */
+ * [light.ld_mean, light.ld_mean] and the flag alone says so. Light kept by a second, narrower
+ * kernel than the one the drop shows is not bounded either: that too is the limit, stated in
+ * interval.note.
+ * Returns FALSE when the probe has no finite lower end below light.ld_mean; otherwise *worst is the
+ * probe with Ld at interval.ld_lower, all the rest of the mean scattered by that kernel. */
 gboolean ds_scene_probe_worst_case (const DsSceneProbe *probe, DsSceneProbe *worst);
 
 /* The transfer exp(alpha Q / n) (1 + beta M_w (Q / n)) - 1 of harmonic n at period Q: the part of
- * the apparent Ld that is scattered light keeping the stripes; at most leak_max (leak_bounded). */
+ * the apparent Ld that is scattered light keeping the stripes; at most leak.max (leak.bounded). */
 double ds_scene_probe_leak (const DsSceneProbe *probe, double period_px, guint n);
 
 G_END_DECLS

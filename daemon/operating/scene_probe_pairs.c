@@ -182,23 +182,23 @@ ds_probe_count_clipped_places (DsSceneProbe *out, const DsProbeClippedPlaces *c,
     return;
   double ld_c = c->mean_peak_over_trough / (1 - black_level);
   double ld_c_sq = c->mean_sq_peak_over_trough / ((1 - black_level) * (1 - black_level));
-  double lg_c = MAX (0.0, (c->mean_trough - out->dark_dn - black_level * ld_c) / pattern_mean);
+  double lg_c = MAX (0.0, (c->mean_trough - out->noise.dark_dn - black_level * ld_c) / pattern_mean);
   double kept = 1 - c->fraction;
-  double mean = kept * out->ld_mean + c->fraction * ld_c;
-  double mean_sq = kept * out->ld_spread * out->ld_mean * out->ld_mean + c->fraction * ld_c_sq;
-  double lg = kept * out->lg_mean + c->fraction * lg_c;
+  double mean = kept * out->light.ld_mean + c->fraction * ld_c;
+  double mean_sq = kept * out->light.ld_spread * out->light.ld_mean * out->light.ld_mean + c->fraction * ld_c_sq;
+  double lg = kept * out->light.lg_mean + c->fraction * lg_c;
   /* The scattered stripes were measured on the kept places, as a share of their direct light:
    * the kernel's transfer times their scattered light over their direct light. Left are the dim
    * places, where the light scattered in from bright neighbours is a larger share (next to places
    * that clip it can be several times their direct light): the same transfer over the whole
    * scene's share. */
-  double share_kept = out->ld_mean > 0 ? out->lg_mean / out->ld_mean : 0, share = mean > 0 ? lg / mean : 0;
-  if (out->leak_measured && share_kept > 0 && out->leak_per_px > 0) {
-    double p = out->geometry.period_px, leak = expm1 (out->leak_per_px * p) * share / share_kept;
-    out->leak_per_px = log1p (leak) / p;
+  double share_kept = out->light.ld_mean > 0 ? out->light.lg_mean / out->light.ld_mean : 0, share = mean > 0 ? lg / mean : 0;
+  if (out->leak.measured && share_kept > 0 && out->leak.per_px > 0) {
+    double p = out->geometry.period_px, leak = expm1 (out->leak.per_px * p) * share / share_kept;
+    out->leak.per_px = log1p (leak) / p;
     g_string_append_printf (leak_note, " (%.1f %% over the scene, the places that clip counted in)", 100 * leak);
   }
-  out->lg_mean = lg;
-  out->ld_mean = mean;
-  out->ld_spread = mean > 0 ? CLAMP (mean_sq / (mean * mean), 1.0, 25.0) : 1.0;
+  out->light.lg_mean = lg;
+  out->light.ld_mean = mean;
+  out->light.ld_spread = mean > 0 ? CLAMP (mean_sq / (mean * mean), 1.0, 25.0) : 1.0;
 }

@@ -36,7 +36,7 @@ gboolean ds_probe_pair_fit (const DsImage *a, const DsImage *b, const DsImage *s
 void ds_probe_mask_clipped_places (const DsImage *const *lit, guint n_lit, double ceiling, double period_px,
                                    DsImage **masked, DsProbeClippedPlaces *places);
 
-/* Updates out's ld_mean, ld_spread, lg_mean and leak for the places left out, the leak's change appended
- * to leak_note. */
+/* Updates out's light (ld_mean, ld_spread, lg_mean) and leak for the places left out, the leak's
+ * change appended to leak_note (the leak's note as it is built). */
 void ds_probe_count_clipped_places (DsSceneProbe *out, const DsProbeClippedPlaces *c, double black_level,
                                     double pattern_mean, GString *leak_note);

@@ -361,14 +361,14 @@ chi2_quantile (double k, double z)
 void
 ds_probe_fit_consistency (double chi2, guint n_eq, guint n_par, DsSceneProbe *out)
 {
-  out->fit_inconsistent = FALSE;
+  out->transfer.inconsistent = FALSE;
   if (n_eq <= n_par || !(chi2 >= 0))
     return;
   double dof = n_eq - n_par, limit = chi2_quantile (dof, DS_PROBE_FIT_Z);
   if (!(chi2 > limit))
     return;
-  out->fit_inconsistent = TRUE;
-  g_snprintf (out->fit_note, sizeof out->fit_note,
+  out->transfer.inconsistent = TRUE;
+  g_snprintf (out->transfer.note, sizeof out->transfer.note,
               "the stripes' harmonics at the pilot's periods disagree with every transfer the probe models "
               "(chi^2 %.1f for %u equations, at most %.1f from their noise): Ld and the scattered stripes are not "
               "measured, so the prediction is a lower bound",

@@ -35,7 +35,7 @@ typedef struct {
  * back (the ratio of the lower end to the fit's Ld carries over to the scene). */
 typedef struct {
   gboolean computed, unbounded;
-  double ratio;              /* ld_lower / the fit's Ld */
+  double ratio;              /* interval.ld_lower / the fit's Ld */
   double kernel_px;
   char note[360];
 } DsProbeDirectInterval;

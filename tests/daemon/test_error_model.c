@@ -203,17 +203,17 @@ test_probe_plain (void)
   DsSceneProbe p;
   probe_synth (&s, TRUE, 0, &p);
   double ld_mean = s.ld * (1 - s.blocked);
-  g_assert_cmpfloat_with_epsilon (p.ld_mean, ld_mean, 0.02 * ld_mean);
-  g_assert_cmpfloat_with_epsilon (p.lg_mean, s.lg, 0.02 * s.lg);
-  g_assert_cmpfloat_with_epsilon (p.noise_var0, 9.0, 0.9);
-  g_assert_cmpfloat_with_epsilon (p.noise_gain, 0.25, 0.03);
+  g_assert_cmpfloat_with_epsilon (p.light.ld_mean, ld_mean, 0.02 * ld_mean);
+  g_assert_cmpfloat_with_epsilon (p.light.lg_mean, s.lg, 0.02 * s.lg);
+  g_assert_cmpfloat_with_epsilon (p.noise.var0, 9.0, 0.9);
+  g_assert_cmpfloat_with_epsilon (p.noise.gain, 0.25, 0.03);
   /* mean(Ld^2) / mean(Ld)^2 of a quarter blocked: 1 / 0.75 */
-  g_assert_cmpfloat_with_epsilon (p.ld_spread, 1 / 0.75, 0.05);
+  g_assert_cmpfloat_with_epsilon (p.light.ld_spread, 1 / 0.75, 0.05);
   g_assert_cmpfloat_with_epsilon (p.phase_offset, 0.1, 0.01);
-  g_assert_true (p.leak_measured);
+  g_assert_true (p.leak.measured);
   g_assert_cmpfloat (ds_scene_probe_leak (&p, 10, 1), <, 0.02);
   /* The blur, measured from the harmonics at two periods. */
-  g_assert_cmpint (p.blur_source, ==, DS_BLUR_MEASURED);
+  g_assert_cmpint (p.blur.source, ==, DS_BLUR_MEASURED);
   g_assert_cmpfloat_with_epsilon (p.geometry.blur_px, 0.4, 0.1);
 }
 
@@ -226,13 +226,13 @@ test_probe_leak (void)
   DsSceneProbe p;
   DsStripeModel sharp = s.g;
   probe_synth (&s, TRUE, ds_stripe_harmonic (&sharp, 1), &p);
-  g_assert_cmpint (p.blur_source, ==, DS_BLUR_CALIBRATED);
-  g_assert_cmpfloat_with_epsilon (p.ld_mean, s.ld, 0.05 * s.ld);
+  g_assert_cmpint (p.blur.source, ==, DS_BLUR_CALIBRATED);
+  g_assert_cmpfloat_with_epsilon (p.light.ld_mean, s.ld, 0.05 * s.ld);
   g_assert_cmpfloat_with_epsilon (ds_scene_probe_leak (&p, 12, 1), expm1 (0.04 * 12), 0.1 * expm1 (0.04 * 12));
-  g_assert_true (p.leak_measured);
+  g_assert_true (p.leak.measured);
   probe_synth (&s, FALSE, ds_stripe_harmonic (&sharp, 1), &p);
-  g_assert_false (p.leak_measured);
-  g_assert_nonnull (strstr (p.leak_note, "fixed by the test"));
+  g_assert_false (p.leak.measured);
+  g_assert_nonnull (strstr (p.leak.note, "fixed by the test"));
   g_assert_cmpfloat (ds_scene_probe_leak (&p, 12, 1), ==, 0);
 }
 
@@ -260,10 +260,10 @@ test_probe_blurred_harmonics (void)
   DsSceneProbe p;
   g_assert_true (ds_scene_probe_measure (&fr, &p, &error));
   g_assert_no_error (error);
-  g_assert_true (p.leak_measured);
+  g_assert_true (p.leak.measured);
   g_assert_cmpfloat (ds_scene_probe_leak (&p, 12, 1), <, 0.04);
   /* Ld is the same line's intercept: off by as much, the other way. */
-  g_assert_cmpfloat_with_epsilon (p.ld_mean, s.ld, 0.04 * s.ld);
+  g_assert_cmpfloat_with_epsilon (p.light.ld_mean, s.ld, 0.04 * s.ld);
 }
 
 /* The clip level: a full well below the pixel format's top shows as a pile-up in the pilot frames
@@ -293,23 +293,23 @@ test_probe_clip_level (void)
     gboolean measured = ds_scene_probe_measure (&fr, &p, &error);
     g_assert_no_error (error);
     g_assert_true (measured);
-    g_assert_cmpint (p.blur_source, ==, DS_BLUR_CALIBRATED);
+    g_assert_cmpint (p.blur.source, ==, DS_BLUR_CALIBRATED);
     g_assert_cmpfloat (p.geometry.blur_px, ==, 0.7);
     if (clipped) {
-      g_assert_cmpfloat (p.saturation_dn, ==, 1010);
-      g_assert_true (p.clip_known);
-      g_assert_false (p.clip_flagged);
+      g_assert_cmpfloat (p.clip.saturation_dn, ==, 1010);
+      g_assert_true (p.clip.known);
+      g_assert_false (p.clip.flagged);
     } else {
-      g_assert_cmpfloat (p.saturation_dn, ==, 4095);
-      g_assert_false (p.clip_known);
+      g_assert_cmpfloat (p.clip.saturation_dn, ==, 4095);
+      g_assert_false (p.clip.known);
       /* Unknown full well: the pilot's exposure is the longest allowed, though 4095 DN is far. */
       g_assert_cmpfloat (ds_scene_probe_max_exposure (&p), ==, 1000);
       /* Configured: known and flagged; 90 % of it over the brightest pixels. */
       fr.saturation_dn = 3000;
       fr.saturation_known = TRUE;
       g_assert_true (ds_scene_probe_measure (&fr, &p, &error));
-      g_assert_true (p.clip_known && p.clip_flagged);
-      g_assert_cmpfloat_with_epsilon (ds_scene_probe_max_exposure (&p), 1000 * (0.9 * 3000 - p.dark_dn) / p.bright_dn,
+      g_assert_true (p.clip.known && p.clip.flagged);
+      g_assert_cmpfloat_with_epsilon (ds_scene_probe_max_exposure (&p), 1000 * (0.9 * 3000 - p.noise.dark_dn) / p.clip.bright_dn,
                                       1e-9);
       g_assert_cmpfloat (ds_scene_probe_max_exposure (&p), >, 2000);
     }
@@ -343,14 +343,14 @@ test_probe_clip_quiet_sensor (void)
     g_autoptr (GError) error = NULL;
     g_assert_true (ds_scene_probe_measure (&fr, &p, &error));
     g_assert_no_error (error);
-    g_assert_cmpfloat (p.noise_var0, <, 0.25);
+    g_assert_cmpfloat (p.noise.var0, <, 0.25);
     if (noisy) {
-      g_assert_cmpfloat (p.saturation_dn, ==, 1030);
-      g_assert_true (p.clip_known);
-      g_assert_cmpfloat_with_epsilon (p.noise_gain, 0.25, 0.05);
+      g_assert_cmpfloat (p.clip.saturation_dn, ==, 1030);
+      g_assert_true (p.clip.known);
+      g_assert_cmpfloat_with_epsilon (p.noise.gain, 0.25, 0.05);
     } else {
-      g_assert_cmpfloat (p.saturation_dn, ==, 4095);
-      g_assert_false (p.clip_known);
+      g_assert_cmpfloat (p.clip.saturation_dn, ==, 4095);
+      g_assert_false (p.clip.known);
     }
     for (int i = 0; i < 3; i++)
       ds_image_free (f[i]);
@@ -390,15 +390,15 @@ test_probe_clipped_places (void)
     double ld_mean = dim * s.ld + s.bright * s.ld_bright;
     double spread = (dim * s.ld * s.ld + s.bright * s.ld_bright * s.ld_bright) / (ld_mean * ld_mean);
     g_test_message ("%s: Ld %.1f (scene %.1f), Lg %.1f (%.1f), spread %.3f (%.3f), scattered stripes %.4f",
-                    two ? "two periods" : "one period", p.ld_mean, ld_mean, p.lg_mean, s.lg, p.ld_spread,
+                    two ? "two periods" : "one period", p.light.ld_mean, ld_mean, p.light.lg_mean, s.lg, p.light.ld_spread,
                     spread, ds_scene_probe_leak (&p, 10, 1));
     /* Every pixel of the bright rows clips in one of the two phases (duty 0.5). */
-    g_assert_cmpfloat_with_epsilon (p.saturated_fraction, s.bright, 0.03);
-    g_assert_cmpfloat (p.ld_mean, <, 1.01 * ld_mean);
-    g_assert_cmpfloat (p.ld_mean, >, 0.95 * ld_mean);
-    g_assert_cmpfloat_with_epsilon (p.lg_mean, s.lg, 0.15 * s.lg);
-    g_assert_cmpfloat_with_epsilon (p.ld_spread, spread, 0.08 * spread);
-    g_assert_cmpfloat_with_epsilon (p.noise_gain, 0.25, 0.05);
+    g_assert_cmpfloat_with_epsilon (p.clip.saturated_fraction, s.bright, 0.03);
+    g_assert_cmpfloat (p.light.ld_mean, <, 1.01 * ld_mean);
+    g_assert_cmpfloat (p.light.ld_mean, >, 0.95 * ld_mean);
+    g_assert_cmpfloat_with_epsilon (p.light.lg_mean, s.lg, 0.15 * s.lg);
+    g_assert_cmpfloat_with_epsilon (p.light.ld_spread, spread, 0.08 * spread);
+    g_assert_cmpfloat_with_epsilon (p.noise.gain, 0.25, 0.05);
     /* One population at both periods: no scattered stripes read into the difference. */
     g_assert_cmpfloat (ds_scene_probe_leak (&p, 10, 1), <, 0.02);
     for (int i = 0; i < 5; i++)
@@ -423,9 +423,9 @@ test_probe_spread (void)
       lit_cols += !(x % 37 < s.blocked_columns * 37);
     double lit = (1 - s.blocked) * lit_cols / 240.0;
     g_test_message ("rows blocked %.2f, columns %.2f: spread %.3f, the scene's %.3f, Ld %.1f (%.1f)", s.blocked,
-                    s.blocked_columns, p.ld_spread, 1 / lit, p.ld_mean, s.ld * lit);
-    g_assert_cmpfloat_with_epsilon (p.ld_spread, 1 / lit, 0.05 / lit);
-    g_assert_cmpfloat_with_epsilon (p.ld_mean, s.ld * lit, 0.03 * s.ld * lit);
+                    s.blocked_columns, p.light.ld_spread, 1 / lit, p.light.ld_mean, s.ld * lit);
+    g_assert_cmpfloat_with_epsilon (p.light.ld_spread, 1 / lit, 0.05 / lit);
+    g_assert_cmpfloat_with_epsilon (p.light.ld_mean, s.ld * lit, 0.03 * s.ld * lit);
   }
 }
 
@@ -435,14 +435,14 @@ hand_probe (double period, double duty, double ld, double lg, double var0, doubl
 {
   DsSceneProbe p = { 0 };
   p.geometry = (DsStripeModel){ DS_PATTERN_SQUARE, period, duty, 0, 0, 0 };
-  p.blur_source = DS_BLUR_CALIBRATED;
+  p.blur.source = DS_BLUR_CALIBRATED;
   p.exposure_us = 1000;
-  p.ld_mean = ld;
-  p.ld_spread = 1;
-  p.lg_mean = lg;
-  p.leak_measured = TRUE;
-  p.noise_var0 = var0;
-  p.noise_gain = gain;
+  p.light.ld_mean = ld;
+  p.light.ld_spread = 1;
+  p.light.lg_mean = lg;
+  p.leak.measured = TRUE;
+  p.noise.var0 = var0;
+  p.noise.gain = gain;
   p.width = 256;
   p.height = 192;
   return p;
@@ -585,9 +585,9 @@ static void
 test_error_model_clipping (void)
 {
   DsSceneProbe p = hand_probe (12, 0.5, 1000, 0, 0, 0);
-  p.saturation_dn = 1500;
-  p.dark_dn = 0;
-  p.bright_dn = 1000; /* the lit stripes: the synthetic pixels are the scene's brightest */
+  p.clip.saturation_dn = 1500;
+  p.noise.dark_dn = 0;
+  p.clip.bright_dn = 1000; /* the lit stripes: the synthetic pixels are the scene's brightest */
   DsSeparationParams sp = params_of (&p);
   DsErrorParts parts;
   g_autoptr (GError) error = NULL;
@@ -598,7 +598,7 @@ test_error_model_clipping (void)
     g_assert_true (ds_error_model_predict (m, DS_ESTIMATOR_MAXMIN, 12, 1, 2, 0, &parts, &error));
     g_assert_cmpfloat_with_epsilon (parts.total, 1 - 1500.0 / 2000, 1e-3);
   }
-  p.clip_flagged = TRUE;
+  p.clip.flagged = TRUE;
   g_autoptr (DsErrorModel) m = ds_error_model_new (&p, &sp);
   g_assert_false (ds_error_model_predict (m, DS_ESTIMATOR_MAXMIN, 12, 1, 2, 0, &parts, &error));
 }
@@ -616,7 +616,7 @@ test_error_model_cancellation (void)
   for (guint i = 0; i < G_N_ELEMENTS (cases); i++) {
     double L = cases[i];
     DsSceneProbe p = hand_probe (P, 0.5, 500, 3000, 0, 0);
-    p.leak_per_px = log1p (L) / P;
+    p.leak.per_px = log1p (L) / P;
     DsSeparationParams sp = params_of (&p);
     g_autoptr (DsErrorModel) m = ds_error_model_new (&p, &sp);
     DsErrorParts parts;
@@ -641,7 +641,7 @@ static void
 test_error_model_leak (void)
 {
   DsSceneProbe p = hand_probe (12, 0.5, 500, 3000, 0, 0);
-  p.leak_per_px = 0.02;
+  p.leak.per_px = 0.02;
   DsSeparationParams sp = params_of (&p);
   g_autoptr (DsErrorModel) m = ds_error_model_new (&p, &sp);
   DsErrorParts parts;

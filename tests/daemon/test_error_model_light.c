@@ -70,13 +70,13 @@ test_probe_dark_shot_noise (void)
     g_assert_true (ds_scene_probe_measure (&fr, &p, &error));
     g_assert_no_error (error);
     double shot = gain * ambient, var0 = read_dn * read_dn + shot;
-    g_assert_cmpfloat_with_epsilon (p.noise_var0, var0, 0.1 * var0);
-    g_assert_cmpfloat_with_epsilon (p.noise_gain, gain, 0.03);
+    g_assert_cmpfloat_with_epsilon (p.noise.var0, var0, 0.1 * var0);
+    g_assert_cmpfloat_with_epsilon (p.noise.gain, gain, 0.03);
     if (with_ambient)
-      g_assert_cmpfloat_with_epsilon (p.noise_dark_shot, shot, 0.1 * shot);
+      g_assert_cmpfloat_with_epsilon (p.noise.dark_shot, shot, 0.1 * shot);
     else
-      g_assert_cmpfloat (p.noise_dark_shot, <, 0.5);
-    g_assert_cmpfloat (p.noise_dark_shot, <=, p.noise_var0);
+      g_assert_cmpfloat (p.noise.dark_shot, <, 0.5);
+    g_assert_cmpfloat (p.noise.dark_shot, <=, p.noise.var0);
   }
 }
 
@@ -87,11 +87,11 @@ square_probe (double period, double ld)
 {
   DsSceneProbe p = { 0 };
   p.geometry = (DsStripeModel){ DS_PATTERN_SQUARE, period, 0.5, 0, 0, 0 };
-  p.blur_source = DS_BLUR_CALIBRATED;
+  p.blur.source = DS_BLUR_CALIBRATED;
   p.exposure_us = 1000;
-  p.ld_mean = ld;
-  p.ld_spread = 1;
-  p.leak_measured = TRUE;
+  p.light.ld_mean = ld;
+  p.light.ld_spread = 1;
+  p.leak.measured = TRUE;
   p.width = 256;
   p.height = 192;
   return p;
@@ -118,10 +118,10 @@ test_error_model_dark_shot_noise (void)
 {
   const double ld = 500, read_var = 1, S = 99, f = 0.25;
   DsSceneProbe p = square_probe (16, ld);
-  p.lg_mean = 1000;
-  p.noise_var0 = read_var + S;
-  p.noise_dark_shot = S;
-  p.noise_gain = 0;
+  p.light.lg_mean = 1000;
+  p.noise.var0 = read_var + S;
+  p.noise.dark_shot = S;
+  p.noise.gain = 0;
   DsSeparationParams sp = square_params ();
   g_autoptr (DsErrorModel) m = ds_error_model_new (&p, &sp);
   DsErrorParts parts;
@@ -149,8 +149,8 @@ test_error_model_leak_on_no_scattered_light (void)
 {
   const double P = 12, ld = 1000, alpha = log (1.03) / P; /* 3 % of the first harmonic at P */
   DsSceneProbe p = square_probe (P, ld);
-  p.lg_mean = 0;
-  p.leak_per_px = alpha;
+  p.light.lg_mean = 0;
+  p.leak.per_px = alpha;
   DsSeparationParams sp = square_params ();
   sp.geometry.period_px = P;
   sp.geometry.pixel_aperture = 1;
@@ -190,11 +190,11 @@ static void
 test_error_model_nothing_left (void)
 {
   DsSceneProbe p = square_probe (12, 1000);
-  p.noise_var0 = 4;
-  p.noise_gain = 0.25;
-  p.saturation_dn = 1500;
-  p.bright_dn = 1000;
-  p.clip_flagged = TRUE;
+  p.noise.var0 = 4;
+  p.noise.gain = 0.25;
+  p.clip.saturation_dn = 1500;
+  p.clip.bright_dn = 1000;
+  p.clip.flagged = TRUE;
   DsSeparationParams sp = square_params ();
   g_autoptr (DsErrorModel) m = ds_error_model_new (&p, &sp);
   DsErrorParts parts;

@@ -15,19 +15,19 @@ probe_of (double ld, double lg, double read_dn, double leak_per_px)
 {
   DsSceneProbe p = { 0 };
   p.geometry = (DsStripeModel){ DS_PATTERN_SQUARE, 12, 0.5, 0, 0.3, 0 };
-  p.blur_source = DS_BLUR_CALIBRATED;
+  p.blur.source = DS_BLUR_CALIBRATED;
   p.exposure_us = 2000;
-  p.ld_mean = ld;
-  p.ld_spread = 1.1;
-  p.lg_mean = lg;
-  p.leak_per_px = leak_per_px;
-  p.leak_measured = TRUE;
-  g_strlcpy (p.leak_note, "measured", sizeof p.leak_note);
-  p.noise_var0 = read_dn * read_dn;
-  p.noise_gain = 0.25;
-  p.dark_dn = 20;
-  p.saturation_dn = 4095;
-  p.bright_dn = 1000;
+  p.light.ld_mean = ld;
+  p.light.ld_spread = 1.1;
+  p.light.lg_mean = lg;
+  p.leak.per_px = leak_per_px;
+  p.leak.measured = TRUE;
+  g_strlcpy (p.leak.note, "measured", sizeof p.leak.note);
+  p.noise.var0 = read_dn * read_dn;
+  p.noise.gain = 0.25;
+  p.noise.dark_dn = 20;
+  p.clip.saturation_dn = 4095;
+  p.clip.bright_dn = 1000;
   p.width = 256;
   p.height = 192;
   return p;
@@ -108,8 +108,8 @@ test_refusal (void)
   g_assert_null (strstr (error->message, "A time budget of"));
   g_clear_error (&error);
   /* Not measured: the prediction is a lower bound, and the refusal says why. */
-  leaky.leak_measured = FALSE;
-  g_strlcpy (leaky.leak_note, "not measured (the illuminator cannot change its period)", sizeof leaky.leak_note);
+  leaky.leak.measured = FALSE;
+  g_strlcpy (leaky.leak.note, "not measured (the illuminator cannot change its period)", sizeof leaky.leak.note);
   g_autoptr (DsErrorModel) em3 = ds_error_model_new (&leaky, &params);
   g_assert_true (ds_operating_point_choose (&m, em3, &leaky, &t, 256, 192, 0.15, 0, &op, &error));
   g_assert_true (op.lower_bound);
@@ -211,9 +211,9 @@ test_uncertainty_ld (void)
   } scenes[] = { { 400, 800, 3 }, { 3000, 0, 1 }, { 200, 50, 12 } };
   for (guint i = 0; i < G_N_ELEMENTS (scenes); i++) {
     DsSceneProbe p = probe_of (scenes[i].ld, scenes[i].lg, scenes[i].read_dn, 0);
-    p.ld_uncertainty = u_ld;
+    p.light.ld_uncertainty = u_ld;
     DsSceneProbe q = p;
-    q.ld_mean *= 1 + u_ld;
+    q.light.ld_mean *= 1 + u_ld;
     g_autoptr (DsErrorModel) ep = ds_error_model_new (&p, &params);
     g_autoptr (DsErrorModel) eq = ds_error_model_new (&q, &params);
     DsErrorParts a, b;
@@ -222,7 +222,7 @@ test_uncertainty_ld (void)
     double moved = log (a.total / b.total);
     /* The Ld term alone: the uncertainty without it (the noise estimate's term) taken out in quadrature. */
     double with = ds_operating_point_uncertainty (&m, &p, &a);
-    p.ld_uncertainty = 0;
+    p.light.ld_uncertainty = 0;
     double without = ds_operating_point_uncertainty (&m, &p, &a);
     double term = sqrt (with * with - without * without);
     g_test_message ("Ld %g Lg %g read %g: prediction %.5f -> %.5f (%.4f), Ld term %.4f", scenes[i].ld, scenes[i].lg,
@@ -235,7 +235,7 @@ test_uncertainty_ld (void)
   DsSceneProbe p = probe_of (400, 800, 3, 0);
   DsErrorParts noise_free = { .total = 0.05, .sampling = 0.05, .systematic = 0.05 };
   m.scale_spread = 0.15;
-  p.ld_uncertainty = 0.3;
+  p.light.ld_uncertainty = 0.3;
   g_assert_cmpfloat_with_epsilon (ds_operating_point_uncertainty (&m, &p, &noise_free), 0.15, 1e-12);
 }
 
@@ -244,8 +244,8 @@ test_report_json (void)
 {
   DsOperatingReport r = { .target_error = 0.05, .scale = 1.2, .pilot_frames = 5, .pilot_ms = 30 };
   r.probe = probe_of (400, 800, 3, 0.01);
-  r.probe.leak_measured = FALSE;
-  g_strlcpy (r.probe.leak_note, "not measured (no second period)", sizeof r.probe.leak_note);
+  r.probe.leak.measured = FALSE;
+  g_strlcpy (r.probe.leak.note, "not measured (no second period)", sizeof r.probe.leak.note);
   r.point = (DsOperatingPoint){ .estimator = DS_ESTIMATOR_SINE, .phases = 8, .averages = 2, .exposure_us = 4000,
                                 .period_px = 12, .predicted_error = 0.048, .predicted_time_ms = 90,
                                 .lower_bound = TRUE,

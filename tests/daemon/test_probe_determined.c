@@ -98,7 +98,7 @@ probe_reported (const Scene *s, const char *what, DsSceneProbe *p, double *truth
   double leak = ds_scene_probe_leak (p, s->period, 1);
   g_test_message ("%s, sine at four periods: leak at P %.4f (truth %.4f), Ld %.1f (truth %.1f), narrow kernel %.3f "
                   "of Ld, unresolved %d; %s",
-                  what, leak, *truth, p->ld_mean, s->ld, p->narrow_fraction, p->narrow_unresolved, p->narrow_note);
+                  what, leak, *truth, p->light.ld_mean, s->ld, p->narrow.fraction, p->narrow.unresolved, p->narrow.note);
   return leak;
 }
 
@@ -117,9 +117,9 @@ test_isotropic_sine (void)
   DsSceneProbe p;
   double truth, leak = probe_reported (&s, "isotropic", &p, &truth);
   g_assert_cmpfloat (fabs (leak - truth), <, 0.02);
-  g_assert_cmpfloat (fabs (p.ld_mean - s.ld), <, 0.03 * s.ld);
-  g_assert_cmpfloat (p.narrow_fraction, ==, 0);
-  g_assert_nonnull (strstr (p.narrow_note, "narrow kernel not taken"));
+  g_assert_cmpfloat (fabs (p.light.ld_mean - s.ld), <, 0.03 * s.ld);
+  g_assert_cmpfloat (p.narrow.fraction, ==, 0);
+  g_assert_nonnull (strstr (p.narrow.note, "narrow kernel not taken"));
 }
 
 /* A narrow kernel that is there, on sine stripes: a Gaussian of 1.5 px holding 25 % of Ld at P =
@@ -135,10 +135,10 @@ test_narrow_sine (void)
   const Scene s = { .period = 24, .blur = 0.5, .ld = 1500, .lg = 675, .dark = 30, .beta = 0.25, .kernel_px = 1.5 };
   DsSceneProbe p;
   double truth, leak = probe_reported (&s, "narrower than resolved", &p, &truth);
-  g_assert_cmpfloat (p.ld_mean, <, s.ld * (1 + truth) * 1.01);
+  g_assert_cmpfloat (p.light.ld_mean, <, s.ld * (1 + truth) * 1.01);
   g_assert_cmpfloat (leak, <, truth);
-  g_assert_true (p.narrow_unresolved);
-  g_assert_nonnull (strstr (p.narrow_note, "narrower than the periods show"));
+  g_assert_true (p.narrow.unresolved);
+  g_assert_nonnull (strstr (p.narrow.note, "narrower than the periods show"));
 }
 
 /* A narrow kernel the four first harmonics show as a kernel does, rising with the period (gen-10-03's
@@ -151,9 +151,9 @@ test_kernel_sine (void)
   const Scene s = { .period = 23.25, .blur = 1.0, .ld = 4100, .lg = 300, .dark = 30, .beta = 0.065, .kernel_px = 2 };
   DsSceneProbe p;
   double truth, leak = probe_reported (&s, "kernel", &p, &truth);
-  g_assert_cmpfloat (p.narrow_fraction, >, 0);
+  g_assert_cmpfloat (p.narrow.fraction, >, 0);
   g_assert_cmpfloat (fabs (leak - truth), <, 0.35 * truth);
-  g_assert_cmpfloat (fabs (p.ld_mean - s.ld), <, 0.03 * s.ld);
+  g_assert_cmpfloat (fabs (p.light.ld_mean - s.ld), <, 0.03 * s.ld);
 }
 
 /* Distinct points: harmonics at the same x = Q / n count once; a term on as many points as its

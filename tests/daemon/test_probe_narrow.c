@@ -158,9 +158,9 @@ lower_bound_json (const DsSceneProbe *p, char **reasons)
 static void
 assert_unresolved_lower_bound (const DsSceneProbe *p, const char *note_says, const char *reasons_say)
 {
-  g_assert_true (p->narrow_unresolved);
+  g_assert_true (p->narrow.unresolved);
   if (note_says)
-    g_assert_nonnull (strstr (p->narrow_note, note_says));
+    g_assert_nonnull (strstr (p->narrow.note, note_says));
   g_autofree char *reasons = NULL;
   g_assert_true (lower_bound_json (p, &reasons));
   if (reasons_say)
@@ -196,11 +196,11 @@ test_narrow_kernel (void)
   probe (&s, TRUE, TRUE, &p);
   double leak = ds_scene_probe_leak (&p, s.period, 1);
   g_test_message ("four periods: leak at P %.4f (truth %.4f), Ld %.1f (truth %.1f), kernel %.2f px, %.3f of Ld",
-                  leak, truth, p.ld_mean, s.ld, p.narrow_kernel_px, p.narrow_fraction);
+                  leak, truth, p.light.ld_mean, s.ld, p.narrow.kernel_px, p.narrow.fraction);
   g_assert_cmpfloat (fabs (leak - truth), <, 0.35 * truth);
-  g_assert_cmpfloat (fabs (p.ld_mean - s.ld), <, 0.07 * s.ld);
-  g_assert_cmpfloat (p.finest_period_px, ==, 6);
-  g_assert_false (p.narrow_unresolved);
+  g_assert_cmpfloat (fabs (p.light.ld_mean - s.ld), <, 0.07 * s.ld);
+  g_assert_cmpfloat (p.transfer.finest_period_px, ==, 6);
+  g_assert_false (p.narrow.unresolved);
   g_autofree char *reasons = NULL;
   g_assert_false (lower_bound_json (&p, &reasons));
   /* P and 2P alone: both keep the stripes (the higher harmonics at P, down to x = 4.8 px, see
@@ -208,18 +208,18 @@ test_narrow_kernel (void)
    * bound saying why. */
   probe (&s, TRUE, FALSE, &p);
   leak = ds_scene_probe_leak (&p, s.period, 1);
-  g_test_message ("two periods: leak at P %.4f (truth %.4f), Ld %.1f; %s", leak, truth, p.ld_mean, p.narrow_note);
-  g_assert_true (p.leak_measured);
+  g_test_message ("two periods: leak at P %.4f (truth %.4f), Ld %.1f; %s", leak, truth, p.light.ld_mean, p.narrow.note);
+  g_assert_true (p.leak.measured);
   g_assert_cmpfloat (leak, <, 0.7 * truth);
-  g_assert_cmpfloat (p.ld_mean, >, 1.05 * s.ld);
-  g_assert_true (p.narrow_unresolved);
+  g_assert_cmpfloat (p.light.ld_mean, >, 1.05 * s.ld);
+  g_assert_true (p.narrow.unresolved);
   g_clear_pointer (&reasons, g_free);
   g_assert_true (lower_bound_json (&p, &reasons));
   g_assert_nonnull (strstr (reasons, "narrower than the period"));
   g_assert_nonnull (strstr (reasons, "fixed by the test"));
   /* P alone: nothing about the scattered stripes is measured; a lower bound as before. */
   probe (&s, FALSE, FALSE, &p);
-  g_assert_false (p.leak_measured);
+  g_assert_false (p.leak.measured);
   g_clear_pointer (&reasons, g_free);
   g_assert_true (lower_bound_json (&p, &reasons));
   g_assert_nonnull (strstr (reasons, "fixed by the test"));
@@ -234,7 +234,7 @@ test_period_too_fine (void)
                     .beta = 0.2, .kernel_px = 0.4 };
   DsSceneProbe p;
   probe (&s, TRUE, TRUE, &p);
-  g_test_message ("%s", p.narrow_note);
+  g_test_message ("%s", p.narrow.note);
   assert_unresolved_lower_bound (&p, "finer than the pilot resolves", NULL);
 }
 
@@ -248,9 +248,9 @@ test_narrower_than_finest (void)
                     .beta = 0.8, .kernel_px = 0.97 };
   DsSceneProbe p;
   probe (&s, TRUE, TRUE, &p);
-  g_test_message ("%s", p.narrow_note);
+  g_test_message ("%s", p.narrow.note);
   g_assert_cmpfloat (truth_leak (&s, 6), >, 0.25);
-  g_assert_cmpfloat (p.narrow_fraction, ==, 0);
+  g_assert_cmpfloat (p.narrow.fraction, ==, 0);
   assert_unresolved_lower_bound (&p, "even at the finest period", NULL);
 }
 
@@ -263,13 +263,13 @@ test_clear (void)
                     .beta = 0, .kernel_px = 0 };
   DsSceneProbe p;
   probe (&s, TRUE, FALSE, &p);
-  g_assert_false (p.narrow_unresolved);
+  g_assert_false (p.narrow.unresolved);
   probe (&s, TRUE, TRUE, &p);
   double leak = ds_scene_probe_leak (&p, s.period, 1);
-  g_test_message ("clear: leak at P %.4f, Ld %.1f, %s", leak, p.ld_mean, p.narrow_note);
+  g_test_message ("clear: leak at P %.4f, Ld %.1f, %s", leak, p.light.ld_mean, p.narrow.note);
   g_assert_cmpfloat (leak, <, 0.01);
-  g_assert_cmpfloat (fabs (p.ld_mean - s.ld), <, 0.02 * s.ld);
-  g_assert_false (p.narrow_unresolved);
+  g_assert_cmpfloat (fabs (p.light.ld_mean - s.ld), <, 0.02 * s.ld);
+  g_assert_false (p.narrow.unresolved);
 }
 
 /* gen-9-05's case: no narrow kernel at all (a wide medium, 7 % of Ld scattered without
@@ -288,12 +288,12 @@ test_higher_harmonic_only (void)
   DsSceneProbe p;
   probe (&s, TRUE, TRUE, &p);
   double leak = ds_scene_probe_leak (&p, s.period, 1);
-  g_test_message ("leak at P %.4f (truth 0), Ld %.1f (truth %.1f), narrow kernel %.3f of Ld; %s", leak, p.ld_mean, s.ld,
-                  p.narrow_fraction, p.narrow_note);
-  g_assert_cmpfloat (p.finest_period_px, ==, 7);
-  g_assert_cmpfloat (p.narrow_fraction, ==, 0);
+  g_test_message ("leak at P %.4f (truth 0), Ld %.1f (truth %.1f), narrow kernel %.3f of Ld; %s", leak, p.light.ld_mean, s.ld,
+                  p.narrow.fraction, p.narrow.note);
+  g_assert_cmpfloat (p.transfer.finest_period_px, ==, 7);
+  g_assert_cmpfloat (p.narrow.fraction, ==, 0);
   g_assert_cmpfloat (leak, <, 0.02);
-  g_assert_cmpfloat (fabs (p.ld_mean - s.ld), <, 0.03 * s.ld);
+  g_assert_cmpfloat (fabs (p.light.ld_mean - s.ld), <, 0.03 * s.ld);
 }
 
 /* gen-7-08's case: no scattered light at all, but the first harmonic reads 1 % high at P and
@@ -310,16 +310,16 @@ test_leak_held_to_scattered_light (void)
                     .first_error = { 0.01, 0.03 } };
   DsSceneProbe p;
   probe (&s, TRUE, FALSE, &p);
-  double leak = ds_scene_probe_leak (&p, s.period, 1), scattered = s.ld - p.ld_mean;
+  double leak = ds_scene_probe_leak (&p, s.period, 1), scattered = s.ld - p.light.ld_mean;
   g_test_message ("leak at P %.4f x Ld %.1f = %.2f DN, the scene's mean beyond that Ld %.2f DN (Lg read %.2f); %s", leak,
-                  p.ld_mean, leak * p.ld_mean, scattered, p.lg_mean, p.leak_note);
-  g_assert_true (p.leak_measured);
-  g_assert_cmpfloat (fabs (p.ld_mean - s.ld), <, 0.02 * s.ld);
-  g_assert_cmpfloat (leak * p.ld_mean, <=, MAX (scattered, 0.0) + 0.002 * s.ld);
+                  p.light.ld_mean, leak * p.light.ld_mean, scattered, p.light.lg_mean, p.leak.note);
+  g_assert_true (p.leak.measured);
+  g_assert_cmpfloat (fabs (p.light.ld_mean - s.ld), <, 0.02 * s.ld);
+  g_assert_cmpfloat (leak * p.light.ld_mean, <=, MAX (scattered, 0.0) + 0.002 * s.ld);
   /* And at every harmonic and period the error model draws. */
   for (guint n = 1; n <= 7; n += 2)
-    g_assert_cmpfloat (ds_scene_probe_leak (&p, 4 * s.period, n) * p.ld_mean, <=, MAX (scattered, 0.0) + 0.002 * s.ld);
-  g_assert_nonnull (strstr (p.leak_note, "held to the scattered light"));
+    g_assert_cmpfloat (ds_scene_probe_leak (&p, 4 * s.period, n) * p.light.ld_mean, <=, MAX (scattered, 0.0) + 0.002 * s.ld);
+  g_assert_nonnull (strstr (p.leak.note, "held to the scattered light"));
 }
 
 /* held-out gen-9-02's case, the method's limit: P = 5.5 px, so P/2 is under the 4 px the pilot
@@ -340,13 +340,13 @@ test_kernel_or_blur (void)
   DsSceneProbe pa, pb;
   probe (&a, TRUE, TRUE, &pa);
   probe (&b, TRUE, TRUE, &pb);
-  g_test_message ("(a) kernel: Ld %.1f (truth %.1f), Lg %.1f, leak at P %.4f (truth %.4f); %s", pa.ld_mean, a.ld, pa.lg_mean,
-                  ds_scene_probe_leak (&pa, a.period, 1), truth_leak (&a, a.period), pa.interval_note);
-  g_test_message ("(b) blur: Ld %.1f (truth %.1f), Lg %.1f, leak at P %.4f (truth 0); %s", pb.ld_mean, b.ld, pb.lg_mean,
-                  ds_scene_probe_leak (&pb, b.period, 1), pb.interval_note);
-  g_assert_cmpfloat (fabs (pa.ld_mean - pb.ld_mean), <, 0.01 * a.ld);
+  g_test_message ("(a) kernel: Ld %.1f (truth %.1f), Lg %.1f, leak at P %.4f (truth %.4f); %s", pa.light.ld_mean, a.ld, pa.light.lg_mean,
+                  ds_scene_probe_leak (&pa, a.period, 1), truth_leak (&a, a.period), pa.interval.note);
+  g_test_message ("(b) blur: Ld %.1f (truth %.1f), Lg %.1f, leak at P %.4f (truth 0); %s", pb.light.ld_mean, b.ld, pb.light.lg_mean,
+                  ds_scene_probe_leak (&pb, b.period, 1), pb.interval.note);
+  g_assert_cmpfloat (fabs (pa.light.ld_mean - pb.light.ld_mean), <, 0.01 * a.ld);
   g_assert_cmpfloat (b.ld, >, 1.09 * a.ld);
-  g_assert_cmpfloat (pa.ld_mean, >, 1.05 * a.ld);
+  g_assert_cmpfloat (pa.light.ld_mean, >, 1.05 * a.ld);
   assert_unresolved_lower_bound (&pa, NULL, "finer than the pilot resolves");
 }
 
@@ -375,31 +375,31 @@ test_hidden_under_one_percent (void)
   DsSceneProbe p;
   probe (&s, TRUE, TRUE, &p);
   double leak = ds_scene_probe_leak (&p, s.period, 1), truth = truth_leak (&s, s.period);
-  g_test_message ("Ld %.1f (truth %.1f), Lg %.1f (truth %.1f), leak at P %.4f (truth %.4f); %s", p.ld_mean, s.ld, p.lg_mean,
-                  s.lg_wide + s.beta * s.ld, leak, truth, p.narrow_note);
+  g_test_message ("Ld %.1f (truth %.1f), Lg %.1f (truth %.1f), leak at P %.4f (truth %.4f); %s", p.light.ld_mean, s.ld, p.light.lg_mean,
+                  s.lg_wide + s.beta * s.ld, leak, truth, p.narrow.note);
   g_assert_cmpfloat (truth, >, 0.06);
   g_assert_cmpfloat (leak, <, 0.5 * truth);
-  g_assert_cmpfloat (p.lg_mean, <, 0.01 * p.ld_mean);
-  g_assert_cmpfloat (p.ld_mean, >, 1.04 * s.ld);
+  g_assert_cmpfloat (p.light.lg_mean, <, 0.01 * p.light.ld_mean);
+  g_assert_cmpfloat (p.light.ld_mean, >, 1.04 * s.ld);
   assert_unresolved_lower_bound (&p, "cannot rule it out", "finer than the pilot resolves");
   /* The share of Ld it is known to, which the prediction's uncertainty carries too: the blur's
    * 0.05 px alone moves the first harmonic's gain exp (-2 pi^2 sigma^2 / P^2) by 2 pi^2 ((sigma +
    * 0.05)^2 - sigma^2) / P^2 in its logarithm (2.5 % at the 0.6 px blur); the harmonic's noise adds. */
   double by_blur = blur_share (p.geometry.blur_px, s.period);
-  g_test_message ("Ld known to %.4f (the blur's share %.4f at %.3f px)", p.ld_uncertainty, by_blur, p.geometry.blur_px);
+  g_test_message ("Ld known to %.4f (the blur's share %.4f at %.3f px)", p.light.ld_uncertainty, by_blur, p.geometry.blur_px);
   g_assert_cmpfloat (by_blur, >, 0.02);
-  g_assert_cmpfloat (p.ld_uncertainty, >=, 0.99 * by_blur);
-  g_assert_cmpfloat (p.ld_uncertainty, <=, 1.2 * by_blur);
+  g_assert_cmpfloat (p.light.ld_uncertainty, >=, 0.99 * by_blur);
+  g_assert_cmpfloat (p.light.ld_uncertainty, <=, 1.2 * by_blur);
 
   const Scene sharp = { .period = 7, .duty = 0.44, .blur = 0.1, .ld = 9248, .lg_wide = 0, .dark = 40 };
   probe (&sharp, TRUE, TRUE, &p);
-  g_test_message ("sharp, no medium: Ld %.1f, Lg %.1f, known to %.4f; %s", p.ld_mean, p.lg_mean, p.ld_uncertainty,
-                  p.narrow_note);
+  g_test_message ("sharp, no medium: Ld %.1f, Lg %.1f, known to %.4f; %s", p.light.ld_mean, p.light.lg_mean, p.light.ld_uncertainty,
+                  p.narrow.note);
   /* (under the Gaussian's 0.5 % at 0.1 px: the model's pixel-sampled edge is not a Gaussian's there) */
-  g_assert_cmpfloat (p.ld_uncertainty, >, 0);
-  g_assert_cmpfloat (p.ld_uncertainty, <, 0.01);
-  g_assert_false (p.narrow_unresolved);
-  g_assert_nonnull (strstr (p.narrow_note, "no scattered light seen"));
+  g_assert_cmpfloat (p.light.ld_uncertainty, >, 0);
+  g_assert_cmpfloat (p.light.ld_uncertainty, <, 0.01);
+  g_assert_false (p.narrow.unresolved);
+  g_assert_nonnull (strstr (p.narrow.note, "no scattered light seen"));
   g_autofree char *reasons = NULL;
   g_assert_false (lower_bound_json (&p, &reasons));
 }
@@ -419,18 +419,18 @@ test_inconsistent_harmonics (void)
                       .first_error = { -0.15, -0.3 } };
   DsSceneProbe p;
   probe (&bad, TRUE, TRUE, &p);
-  g_test_message ("Ld %.1f (truth %.1f); %s", p.ld_mean, bad.ld, p.fit_note);
-  g_assert_cmpfloat (p.finest_period_px, ==, 5.25);
-  g_assert_true (p.fit_inconsistent);
+  g_test_message ("Ld %.1f (truth %.1f); %s", p.light.ld_mean, bad.ld, p.transfer.note);
+  g_assert_cmpfloat (p.transfer.finest_period_px, ==, 5.25);
+  g_assert_true (p.transfer.inconsistent);
   g_autofree char *reasons = NULL;
   g_assert_true (lower_bound_json (&p, &reasons));
   g_assert_nonnull (strstr (reasons, "disagree with every transfer"));
 
   const Scene good = { .period = 10.5, .duty = 0.33, .blur = 0.2, .ld = 1000, .lg_wide = 800, .dark = 40 };
   probe (&good, TRUE, TRUE, &p);
-  g_test_message ("read right: Ld %.1f (truth %.1f), fit rms %.2f", p.ld_mean, good.ld, p.fit_rms);
-  g_assert_false (p.fit_inconsistent);
-  g_assert_cmpfloat (fabs (p.ld_mean - good.ld), <, 0.02 * good.ld);
+  g_test_message ("read right: Ld %.1f (truth %.1f), fit rms %.2f", p.light.ld_mean, good.ld, p.transfer.rms);
+  g_assert_false (p.transfer.inconsistent);
+  g_assert_cmpfloat (fabs (p.light.ld_mean - good.ld), <, 0.02 * good.ld);
   g_clear_pointer (&reasons, g_free);
   g_assert_false (lower_bound_json (&p, &reasons));
 }
@@ -443,16 +443,16 @@ static void
 true_scene (const Scene *s, const DsSceneProbe *measured, DsSceneProbe *t)
 {
   *t = *measured;
-  t->ld_mean = s->ld;
-  t->lg_mean = s->lg_wide + s->beta * s->ld;
-  t->ld_spread = 1;
-  t->leak_per_px = 0;
-  t->leak_measured = TRUE;
-  t->narrow_fraction = s->beta;
-  t->narrow_kernel_px = s->kernel_px / G_SQRT2;
-  t->narrow_form = DS_PROBE_KERNEL_POWER;
-  t->narrow_shape = 1000;
-  t->narrow_unresolved = FALSE;
+  t->light.ld_mean = s->ld;
+  t->light.lg_mean = s->lg_wide + s->beta * s->ld;
+  t->light.ld_spread = 1;
+  t->leak.per_px = 0;
+  t->leak.measured = TRUE;
+  t->narrow.fraction = s->beta;
+  t->narrow.kernel_px = s->kernel_px / G_SQRT2;
+  t->narrow.form = DS_PROBE_KERNEL_POWER;
+  t->narrow.shape = 1000;
+  t->narrow.unresolved = FALSE;
 }
 
 /* The point chosen on the probe p for target meets it with its upper end, and with the error the
@@ -487,21 +487,21 @@ test_interval_single_kernel (void)
                     .beta = 0.6, .kernel_px = 2 };
   DsSceneProbe p, worst, t;
   probe (&s, TRUE, FALSE, &p);
-  double truth = truth_leak (&s, s.period), at_finest = p.ld_mean * (1 + ds_scene_probe_leak (&p, s.period, 1));
-  g_test_message ("Ld %.1f to %.1f (modulation at P %.1f), truth %.1f; leak at P %.4f (truth %.4f); %s", p.ld_lower,
-                  p.ld_mean, at_finest, s.ld, ds_scene_probe_leak (&p, s.period, 1), truth, p.interval_note);
-  g_assert_true (p.narrow_unresolved);
-  g_assert_true (p.ld_interval);
-  g_assert_false (p.ld_unbounded);
-  g_assert_cmpfloat (p.ld_lower, <=, s.ld);
+  double truth = truth_leak (&s, s.period), at_finest = p.light.ld_mean * (1 + ds_scene_probe_leak (&p, s.period, 1));
+  g_test_message ("Ld %.1f to %.1f (modulation at P %.1f), truth %.1f; leak at P %.4f (truth %.4f); %s", p.interval.ld_lower,
+                  p.light.ld_mean, at_finest, s.ld, ds_scene_probe_leak (&p, s.period, 1), truth, p.interval.note);
+  g_assert_true (p.narrow.unresolved);
+  g_assert_true (p.interval.set);
+  g_assert_false (p.interval.unbounded);
+  g_assert_cmpfloat (p.interval.ld_lower, <=, s.ld);
   g_assert_cmpfloat (s.ld, <=, at_finest);
   g_assert_true (ds_scene_probe_worst_case (&p, &worst));
   double leak_hi = ds_scene_probe_leak (&worst, s.period, 1);
-  g_test_message ("worst case: leak at P %.4f, kernel %.2f px", leak_hi, worst.narrow_kernel_px);
+  g_test_message ("worst case: leak at P %.4f, kernel %.2f px", leak_hi, worst.narrow.kernel_px);
   g_assert_cmpfloat (leak_hi, >=, truth);
   /* The worst case keeps the modulation measured at P (the raw first harmonic; the fit's differs by its
    * blur term): it is the same frames' scene. */
-  g_assert_cmpfloat (fabs (worst.ld_mean * (1 + leak_hi) - at_finest), <, 0.03 * at_finest);
+  g_assert_cmpfloat (fabs (worst.light.ld_mean * (1 + leak_hi) - at_finest), <, 0.03 * at_finest);
 
   true_scene (&s, &p, &t);
   g_autoptr (DsErrorModel) truth_em = error_model (&t);
@@ -529,7 +529,7 @@ test_interval_clear (void)
                     .beta = 0, .kernel_px = 0 };
   DsSceneProbe p, worst;
   probe (&s, TRUE, FALSE, &p);
-  g_assert_true (!p.ld_interval || (p.ld_lower == p.ld_mean && !p.ld_unbounded));
+  g_assert_true (!p.interval.set || (p.interval.ld_lower == p.light.ld_mean && !p.interval.unbounded));
   g_assert_false (ds_scene_probe_worst_case (&p, &worst));
   DsOperatingPoint op;
   g_autoptr (GError) error = NULL;
@@ -559,9 +559,9 @@ test_kept_at_coarse (void)
   probe (&s, TRUE, TRUE, &p);
   double truth = truth_leak (&s, s.period), read = ds_scene_probe_leak (&p, s.period, 1);
   g_test_message ("leak at P read %.4f, truth %.4f; Ld %.1f (truth %.1f), Lg %.1f (truth %.1f); %s", read, truth,
-                  p.ld_mean, s.ld, p.lg_mean, s.beta * s.ld, p.narrow_note);
+                  p.light.ld_mean, s.ld, p.light.lg_mean, s.beta * s.ld, p.narrow.note);
   g_assert_cmpfloat (read, <, truth / 1.5); /* what the fit misses: the case this is about */
-  g_assert_false (p.ld_interval && p.ld_lower < p.ld_mean); /* the drop is within the noise: no interval of Ld */
+  g_assert_false (p.interval.set && p.interval.ld_lower < p.light.ld_mean); /* the drop is within the noise: no interval of Ld */
   assert_unresolved_lower_bound (&p, "kept by the stripes at 34 px", "kept by the stripes");
   g_assert_true (ds_scene_probe_worst_case (&p, &worst));
   double leak_hi = ds_scene_probe_leak (&worst, s.period, 1);
@@ -581,9 +581,9 @@ test_kept_at_coarse (void)
   Scene clear = s;
   clear.beta = 0;
   probe (&clear, TRUE, TRUE, &p);
-  g_test_message ("no medium: Lg %.1f, Ld %.1f; %s", p.lg_mean, p.ld_mean, p.narrow_note);
-  g_assert_false (p.narrow_unresolved);
-  g_assert_cmpfloat (p.hidden_leak, ==, 0);
+  g_test_message ("no medium: Lg %.1f, Ld %.1f; %s", p.light.lg_mean, p.light.ld_mean, p.narrow.note);
+  g_assert_false (p.narrow.unresolved);
+  g_assert_cmpfloat (p.narrow.hidden_leak, ==, 0);
 }
 
 /* Scattered light wide against P, seen only at 2P (gen-16-02 in closed form: P = 6.25 px, square
@@ -603,13 +603,13 @@ test_wide_kernel_at_coarse (void)
   probe (&s, TRUE, TRUE, &p);
   double truth = truth_leak (&s, s.period), read = ds_scene_probe_leak (&p, s.period, 1);
   g_test_message ("leak at P read %.4f, truth %.4f (at 2P %.3f); Ld %.1f (truth %.1f); %s", read, truth,
-                  truth_leak (&s, 2 * s.period), p.ld_mean, s.ld, p.leak_note);
+                  truth_leak (&s, 2 * s.period), p.light.ld_mean, s.ld, p.leak.note);
   g_assert_cmpfloat (truth, <, 0.002);
   g_assert_cmpfloat (truth_leak (&s, 2 * s.period), >, 0.15);
-  g_assert_true (p.leak_measured);
-  g_assert_cmpfloat (fabs (p.ld_mean - s.ld), <, 0.03 * s.ld);
+  g_assert_true (p.leak.measured);
+  g_assert_cmpfloat (fabs (p.light.ld_mean - s.ld), <, 0.03 * s.ld);
   g_assert_cmpfloat (read, <, 0.01);
-  g_assert_nonnull (strstr (p.leak_note, "wide against 6.25 px"));
+  g_assert_nonnull (strstr (p.leak.note, "wide against 6.25 px"));
 
   /* The same kernel 2.5 times narrower (1.48 px, 0.3 Ld) keeps 0.1 % of its stripes at x = 2.5 px,
    * 8 % at 4.2 px, 33 % at P and 76 % at 2P: a rise over the harmonics at and below P that carries
@@ -618,9 +618,9 @@ test_wide_kernel_at_coarse (void)
   narrow.kernel_px = 1.48;
   narrow.beta = 0.3;
   probe (&narrow, TRUE, TRUE, &p);
-  g_test_message ("narrower kernel: Ld %.1f, leak at P %.4f (truth %.4f); %s", p.ld_mean,
-                  ds_scene_probe_leak (&p, s.period, 1), truth_leak (&narrow, s.period), p.leak_note);
-  g_assert_null (strstr (p.leak_note, "wide against"));
+  g_test_message ("narrower kernel: Ld %.1f, leak at P %.4f (truth %.4f); %s", p.light.ld_mean,
+                  ds_scene_probe_leak (&p, s.period, 1), truth_leak (&narrow, s.period), p.leak.note);
+  g_assert_null (strstr (p.leak.note, "wide against"));
 }
 
 int

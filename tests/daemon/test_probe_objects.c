@@ -91,12 +91,12 @@ test_grids (void)
   probe_rig_probe_scene (text, "grids", &vs, &truth, &gain);
   double leak = ds_scene_probe_leak (&vs.probe, vs.probe.geometry.period_px, 1);
   g_test_message ("grids: scattered stripes at P %.4f (truth %.4f), Ld %.1f (truth %.1f)", leak, truth,
-                  vs.probe.ld_mean, vs.truth_ld_mean);
+                  vs.probe.light.ld_mean, vs.truth_ld_mean);
   g_assert_cmpfloat (truth, <, 0.01);
-  g_assert_true (vs.probe.leak_measured);
+  g_assert_true (vs.probe.leak.measured);
   g_assert_cmpfloat (leak, <, 1.5 * truth);
   g_assert_cmpfloat (leak, >, truth / 1.5);
-  g_assert_cmpfloat (fabs (vs.probe.ld_mean / vs.truth_ld_mean - 1), <, 0.03);
+  g_assert_cmpfloat (fabs (vs.probe.light.ld_mean / vs.truth_ld_mean - 1), <, 0.03);
 }
 
 /* The shot noise the probe reads on the scene (DN^2 per DN of signal) against the gain of the
@@ -107,8 +107,8 @@ assert_shot_noise (const char *text, const char *name, double tolerance)
   DsValidateScene vs;
   double truth, gain;
   probe_rig_probe_scene (text, name, &vs, &truth, &gain);
-  g_test_message ("%s: shot noise %.5f DN^2 per DN, the sensor's %.5f", name, vs.probe.noise_gain, gain);
-  g_assert_cmpfloat (fabs (vs.probe.noise_gain / gain - 1), <, tolerance);
+  g_test_message ("%s: shot noise %.5f DN^2 per DN, the sensor's %.5f", name, vs.probe.noise.gain, gain);
+  g_assert_cmpfloat (fabs (vs.probe.noise.gain / gain - 1), <, tolerance);
 }
 
 /* Generated scene 11-6: two opaque rectangles over a fifth of the frame and a grid, a 10-bit

@@ -37,7 +37,7 @@ test_media (void)
     probe_rig_probe_scene (text, files[i], &vs, &truth, NULL);
     double leak = ds_scene_probe_leak (&vs.probe, vs.probe.geometry.period_px, 1);
     g_test_message ("%s: scattered stripes at the period %.4f of the direct light, truth %.4f", files[i], leak, truth);
-    g_assert_true (vs.probe.leak_measured);
+    g_assert_true (vs.probe.leak.measured);
     g_assert_cmpfloat (truth, >, 0.02);
     g_assert_cmpfloat (leak, <, 1.5 * truth);
     g_assert_cmpfloat (leak, >, truth / 1.5);
@@ -62,7 +62,7 @@ test_no_medium (void)
   double leak = ds_scene_probe_leak (&vs.probe, vs.probe.geometry.period_px, 1);
   g_test_message ("clear, blurred: scattered stripes at the period %.4f (truth 0)", leak);
   g_assert_cmpfloat (truth, ==, 0);
-  g_assert_true (vs.probe.leak_measured);
+  g_assert_true (vs.probe.leak.measured);
   g_assert_cmpfloat (leak, <, 0.005);
 }
 
@@ -90,14 +90,14 @@ test_narrow_kernel (void)
   probe_rig_probe_scene (text, "narrow-kernel", &vs, &truth, NULL);
   double leak = ds_scene_probe_leak (&vs.probe, vs.probe.geometry.period_px, 1);
   g_test_message ("narrow kernel: scattered stripes at the period %.4f, truth %.4f; Ld %.1f, truth %.1f; %s", leak,
-                  truth, vs.probe.ld_mean, vs.truth_ld_mean, vs.probe.narrow_note);
+                  truth, vs.probe.light.ld_mean, vs.truth_ld_mean, vs.probe.narrow.note);
   g_assert_cmpfloat (truth, >, 0.15);
-  g_assert_true (vs.probe.leak_measured);
-  g_assert_false (vs.probe.narrow_unresolved);
-  g_assert_cmpfloat (vs.probe.finest_period_px, <, 6);
+  g_assert_true (vs.probe.leak.measured);
+  g_assert_false (vs.probe.narrow.unresolved);
+  g_assert_cmpfloat (vs.probe.transfer.finest_period_px, <, 6);
   g_assert_cmpfloat (leak, <, 1.5 * truth);
   g_assert_cmpfloat (leak, >, truth / 1.5);
-  g_assert_cmpfloat (fabs (vs.probe.ld_mean - vs.truth_ld_mean), <, 0.1 * vs.truth_ld_mean);
+  g_assert_cmpfloat (fabs (vs.probe.light.ld_mean - vs.truth_ld_mean), <, 0.1 * vs.truth_ld_mean);
 }
 
 /* A medium whose scattered light keeps most of the stripes at every period the pilot takes
@@ -127,14 +127,14 @@ test_cone_kernel (void)
   double leak = ds_scene_probe_leak (&vs.probe, vs.probe.geometry.period_px, 1);
   g_test_message ("cone kernel: scattered stripes at the period %.4f, truth %.4f; Ld %.1f, truth %.1f; kernel %.2f px; "
                   "%s; %s",
-                  leak, truth, vs.probe.ld_mean, vs.truth_ld_mean, vs.probe.narrow_kernel_px, vs.probe.leak_note,
-                  vs.probe.narrow_note);
+                  leak, truth, vs.probe.light.ld_mean, vs.truth_ld_mean, vs.probe.narrow.kernel_px, vs.probe.leak.note,
+                  vs.probe.narrow.note);
   g_assert_cmpfloat (truth, >, 0.5);
-  g_assert_true (vs.probe.leak_measured);
-  g_assert_cmpint (vs.probe.narrow_form, ==, DS_PROBE_KERNEL_CONE);
+  g_assert_true (vs.probe.leak.measured);
+  g_assert_cmpint (vs.probe.narrow.form, ==, DS_PROBE_KERNEL_CONE);
   g_assert_cmpfloat (leak, <, 1.5 * truth);
   g_assert_cmpfloat (leak, >, truth / 1.5);
-  g_assert_cmpfloat (fabs (vs.probe.ld_mean - vs.truth_ld_mean), <, 0.1 * vs.truth_ld_mean);
+  g_assert_cmpfloat (fabs (vs.probe.light.ld_mean - vs.truth_ld_mean), <, 0.1 * vs.truth_ld_mean);
 }
 
 /* A rig calibrated on its clear reference knows its edge blur, and `descatterctl validate` runs
@@ -164,7 +164,7 @@ test_calibrated_blur_reaches_sets (void)
     if (calibrated) {
       g_test_message ("calibrated edge blur %.3f px (scene 1.0)", vs.params.geometry.edge_blur_px);
       g_assert_cmpfloat (fabs (vs.params.geometry.edge_blur_px - 1.0), <, 0.15);
-      g_assert_cmpint (vs.probe.blur_source, ==, DS_BLUR_CALIBRATED);
+      g_assert_cmpint (vs.probe.blur.source, ==, DS_BLUR_CALIBRATED);
     }
     gboolean ran = ds_validate_run (rig, &vs, DS_ESTIMATOR_ROBUST, 32, 1, vs.probe.exposure_us, 3, NULL,
                                     &err[calibrated], &error);
@@ -230,7 +230,7 @@ test_sine_two_periods (void)
   g_test_message ("calibration: black level %.4f (scene %.2f), blur %.3f px + the pixel's = %.3f (scene %.2f), "
                   "second period %.2f px; probe blur %.3f px (%s)",
                   cal->black_level, b, cal->edge_blur_px, total_blur, sigma, cal->second_period_px,
-                  vs.probe.geometry.blur_px, ds_blur_source_name (vs.probe.blur_source));
+                  vs.probe.geometry.blur_px, ds_blur_source_name (vs.probe.blur.source));
   g_assert_true (vs.calibrated);
   g_assert_cmpint (cal->pattern, ==, DS_PATTERN_SINE);
   g_assert_true (cal->black_level_measured);
@@ -240,7 +240,7 @@ test_sine_two_periods (void)
   /* what the sets and the probe are configured with */
   g_assert_cmpfloat (vs.params.black_level, ==, cal->black_level);
   g_assert_cmpfloat (vs.params.harmonic_gain, ==, cal->harmonic_gain);
-  g_assert_cmpint (vs.probe.blur_source, ==, DS_BLUR_CALIBRATED);
+  g_assert_cmpint (vs.probe.blur.source, ==, DS_BLUR_CALIBRATED);
   for (double q = P; q >= P / 2; q /= 2) {
     DsStripeModel m = vs.probe.geometry;
     m.period_px = q;
@@ -251,11 +251,11 @@ test_sine_two_periods (void)
   }
   double leak = ds_scene_probe_leak (&vs.probe, P, 1);
   g_test_message ("scattered stripes at the period %.4f of the direct light (truth 0), Ld %.1f (truth %.1f)%s",
-                  leak, vs.probe.ld_mean, vs.truth_ld_mean,
-                  vs.probe.ld_interval ? (vs.probe.ld_unbounded ? ", no lower end" : ", an interval") : "");
+                  leak, vs.probe.light.ld_mean, vs.truth_ld_mean,
+                  vs.probe.interval.set ? (vs.probe.interval.unbounded ? ", no lower end" : ", an interval") : "");
   g_assert_cmpfloat (leak, <, 0.01);
-  g_assert_false (vs.probe.ld_unbounded);
-  g_assert_cmpfloat (fabs (vs.probe.ld_mean / vs.truth_ld_mean - 1), <, 0.05);
+  g_assert_false (vs.probe.interval.unbounded);
+  g_assert_cmpfloat (fabs (vs.probe.light.ld_mean / vs.truth_ld_mean - 1), <, 0.05);
 
   g_autoptr (DsOperatingModel) model = shipped_model ();
   DsRigTiming timing;
@@ -310,8 +310,8 @@ test_sine_sharp (void)
   double b = vs.calibration.black_level, drawn = (1 - b) / 2;
   g_test_message ("calibration: harmonic gain %.4f, black level %.4f; the probe's blur %.3f px, aperture %.3f px (%s)",
                   vs.calibration.harmonic_gain, b, vs.probe.geometry.blur_px, vs.probe.geometry.pixel_aperture,
-                  ds_blur_source_name (vs.probe.blur_source));
-  g_assert_cmpint (vs.probe.blur_source, ==, DS_BLUR_CALIBRATED);
+                  ds_blur_source_name (vs.probe.blur.source));
+  g_assert_cmpint (vs.probe.blur.source, ==, DS_BLUR_CALIBRATED);
   for (double q = 2 * P; q >= P / 2; q /= 2) {
     DsStripeModel m = vs.probe.geometry;
     m.period_px = q;
@@ -319,8 +319,8 @@ test_sine_sharp (void)
                     ds_stripe_harmonic (&m, 1), drawn);
     g_assert_cmpfloat (fabs (ds_stripe_harmonic (&m, 1) / drawn - 1), <, 0.005);
   }
-  g_test_message ("Ld %.1f (truth %.1f)", vs.probe.ld_mean, vs.truth_ld_mean);
-  g_assert_cmpfloat (fabs (vs.probe.ld_mean / vs.truth_ld_mean - 1), <, 0.01);
+  g_test_message ("Ld %.1f (truth %.1f)", vs.probe.light.ld_mean, vs.truth_ld_mean);
+  g_assert_cmpfloat (fabs (vs.probe.light.ld_mean / vs.truth_ld_mean - 1), <, 0.01);
 
   g_autoptr (DsOperatingModel) model = shipped_model ();
   DsRigTiming timing;

@@ -101,8 +101,8 @@ test_settings_documented (void)
   full.operating.target_error = 0.05;
   full.operating.scale = 1;
   full.operating.probe.geometry.period_px = 8;
-  full.operating.probe.blur_source = DS_BLUR_ASSUMED_SHARP;
-  g_strlcpy (full.operating.probe.leak_note, "not measured (fixed by the test)", sizeof full.operating.probe.leak_note);
+  full.operating.probe.blur.source = DS_BLUR_ASSUMED_SHARP;
+  g_strlcpy (full.operating.probe.leak.note, "not measured (fixed by the test)", sizeof full.operating.probe.leak.note);
   g_autoptr (GHashTable) all = emitted (&full);
 
   GHashTableIter it;

@@ -638,11 +638,11 @@ test_automatic_operating_point (Fixture *f, gconstpointer d)
   g_assert_true (used->automatic);
   g_assert_cmpfloat (used->operating.point.predicted_error, <=, 0.01);
   /* The scene: Ld = 1000, Lg = 600 DN (Lg/2 under the stripes), a dark offset of 2 DN. */
-  g_assert_cmpfloat_with_epsilon (used->operating.probe.ld_mean, f->lab.ld, 0.02 * f->lab.ld);
-  g_assert_cmpfloat_with_epsilon (used->operating.probe.lg_mean, f->lab.lg, 0.02 * f->lab.lg);
-  g_assert_false (used->operating.probe.leak_measured);
+  g_assert_cmpfloat_with_epsilon (used->operating.probe.light.ld_mean, f->lab.ld, 0.02 * f->lab.ld);
+  g_assert_cmpfloat_with_epsilon (used->operating.probe.light.lg_mean, f->lab.lg, 0.02 * f->lab.lg);
+  g_assert_false (used->operating.probe.leak.measured);
   g_assert_true (used->operating.point.lower_bound);
-  g_assert_nonnull (strstr (used->operating.probe.leak_note, "no stripes at it"));
+  g_assert_nonnull (strstr (used->operating.probe.leak.note, "no stripes at it"));
   scripted_assert_scene_recovered (f->out.result);
   DsSequencerStatus st;
   ds_sequencer_get_status (f->seq, &st);
@@ -651,9 +651,9 @@ test_automatic_operating_point (Fixture *f, gconstpointer d)
   assert_accounting (f);
   /* The clip level is only the 12-bit top: no exposure above the pilot's (a full well below the
    * top would clip unseen); the blur was measured or assumed, not calibrated. */
-  g_assert_false (used->operating.probe.clip_known);
+  g_assert_false (used->operating.probe.clip.known);
   g_assert_cmpfloat (used->exposure_us, <=, s.exposure_us);
-  g_assert_cmpint (used->operating.probe.blur_source, !=, DS_BLUR_CALIBRATED);
+  g_assert_cmpint (used->operating.probe.blur.source, !=, DS_BLUR_CALIBRATED);
   /* What calibration printed and the configured clip level reach the probe: h and the blur of
    * this lab's stripes as if blurred by 0.6 px (the N chosen for them is checked for its stripe
    * phase elsewhere: /sequencer/pipeline-*). */
@@ -666,11 +666,11 @@ test_automatic_operating_point (Fixture *f, gconstpointer d)
   capture (f, &s);
   g_assert_no_error (f->out.failure);
   used = ds_result_settings (f->out.result);
-  g_assert_cmpint (used->operating.probe.blur_source, ==, DS_BLUR_CALIBRATED);
+  g_assert_cmpint (used->operating.probe.blur.source, ==, DS_BLUR_CALIBRATED);
   g_assert_cmpfloat (used->operating.probe.geometry.blur_px, ==, 0.6);
-  g_assert_true (used->operating.probe.clip_known);
-  g_assert_true (used->operating.probe.clip_flagged);
-  g_assert_cmpfloat (used->operating.probe.saturation_dn, ==, 3000);
+  g_assert_true (used->operating.probe.clip.known);
+  g_assert_true (used->operating.probe.clip.flagged);
+  g_assert_cmpfloat (used->operating.probe.clip.saturation_dn, ==, 3000);
   g_assert_cmpfloat (used->exposure_us, <=, ds_scene_probe_max_exposure (&used->operating.probe) * (1 + 1e-9));
   s.harmonic_gain = 0;
   s.edge_blur_known = FALSE;
@@ -745,11 +745,11 @@ test_automatic_pilot_retries (Fixture *f, gconstpointer data)
   g_assert_cmpuint (used->averages, ==, clean.averages);
   g_assert_cmpfloat (used->exposure_us, ==, clean.exposure_us);
   g_assert_cmpfloat (used->operating.point.predicted_error, ==, clean.operating.point.predicted_error);
-  g_assert_cmpfloat (used->operating.probe.ld_mean, ==, clean.operating.probe.ld_mean);
-  g_assert_cmpfloat (used->operating.probe.lg_mean, ==, clean.operating.probe.lg_mean);
+  g_assert_cmpfloat (used->operating.probe.light.ld_mean, ==, clean.operating.probe.light.ld_mean);
+  g_assert_cmpfloat (used->operating.probe.light.lg_mean, ==, clean.operating.probe.light.lg_mean);
   /* Against the scene itself, not only the other run: Ld = 1000, Lg = 600 DN. */
-  g_assert_cmpfloat_with_epsilon (used->operating.probe.ld_mean, f->lab.ld, 0.02 * f->lab.ld);
-  g_assert_cmpfloat_with_epsilon (used->operating.probe.lg_mean, f->lab.lg, 0.02 * f->lab.lg);
+  g_assert_cmpfloat_with_epsilon (used->operating.probe.light.ld_mean, f->lab.ld, 0.02 * f->lab.ld);
+  g_assert_cmpfloat_with_epsilon (used->operating.probe.light.lg_mean, f->lab.lg, 0.02 * f->lab.lg);
   scripted_assert_scene_recovered (f->out.result);
   assert_accounting (f);
 }
