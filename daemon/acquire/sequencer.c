@@ -212,13 +212,18 @@ run_without_devices (DsAcquisition *acq)
     gboolean quit = cmd && cmd->kind == CMD_QUIT;
     if (cmd && cmd->kind == CMD_CANCEL)
       finish_cancel (acq, cmd);
-    if (cmd && (cmd->kind == CMD_CAPTURE || cmd->kind == CMD_DARK)) {
+    /* Every counted command is answered and uncounted here as in run_command: a request left
+     * unanswered would hang its client, and its place in MAX_PENDING would never come back. */
+    if (cmd && (cmd->kind == CMD_CAPTURE || cmd->kind == CMD_DARK || cmd->kind == CMD_RELEASE ||
+                cmd->kind == CMD_ACQUIRE)) {
       g_atomic_int_dec_and_test (&acq->shared->pending);
       g_mutex_lock (&acq->shared->lock);
       g_autofree char *why = g_strdup (acq->shared->status.last_error);
       g_mutex_unlock (&acq->shared->lock);
-      ds_seq_emit (acq->shared, cmd->kind == CMD_DARK ? DS_SEQUENCER_EVENT_DARK : DS_SEQUENCER_EVENT_FAILED,
-                   cmd->tag, NULL,
+      DsSequencerEventKind kind = cmd->kind == CMD_DARK      ? DS_SEQUENCER_EVENT_DARK
+                                  : cmd->kind == CMD_CAPTURE ? DS_SEQUENCER_EVENT_FAILED
+                                                             : DS_SEQUENCER_EVENT_CONTROL;
+      ds_seq_emit (acq->shared, kind, cmd->tag, NULL,
                    g_error_new (DS_SEQUENCER_ERROR, DS_SEQUENCER_ERROR_NOT_READY, "devices are not open: %s", why),
                    NULL);
     }

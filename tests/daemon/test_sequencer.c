@@ -1261,6 +1261,57 @@ test_release_acquire (Fixture *f, gconstpointer d)
   assert_accounting (f);
 }
 
+static DsDevices *
+open_failing (gpointer data, GError **error)
+{
+  (void) data;
+  g_set_error (error, DS_CAMERA_ERROR, DS_DEVICE_ERROR_DISCONNECTED, "no camera at the address");
+  return NULL;
+}
+
+static gboolean
+quit_on_timeout (gpointer loop)
+{
+  g_main_loop_quit (loop);
+  return G_SOURCE_REMOVE;
+}
+
+/* Devices that failed to open: every counted request is still answered NOT_READY, release and
+ * acquire included, and gives its place in the queue back, so that more than a full queue's
+ * worth of them in turn are all taken and answered. */
+static void
+test_open_failed_answers_all (void)
+{
+  Outcome out = { 0 };
+  out.loop = g_main_loop_new (NULL, FALSE);
+  DsCaptureSettings s;
+  default_settings (&s, 8);
+  DsSequencer *seq = ds_sequencer_new (open_failing, NULL, &s, g_main_context_default (), on_event, &out);
+  g_main_loop_run (out.loop);
+  g_assert_false (out.ready);
+  /* A guard against a request never answered, not a measurement: 30 s is far beyond one
+   * queue round trip. */
+  guint guard = g_timeout_add_seconds (30, quit_on_timeout, out.loop);
+  for (guint i = 0; i < 20; i++) {
+    guint before = out.control_events;
+    gboolean release = i % 2 == 0;
+    g_assert_true (release ? ds_sequencer_release (seq, 100 + i) : ds_sequencer_acquire (seq, 100 + i));
+    g_main_loop_run (out.loop);
+    g_assert_cmpuint (out.control_events, ==, before + 1);
+    g_assert_cmpuint (out.control_tag, ==, 100 + i);
+    g_assert_error (out.control_error, DS_SEQUENCER_ERROR, DS_SEQUENCER_ERROR_NOT_READY);
+    g_assert_nonnull (strstr (out.control_error->message, "no camera at the address"));
+  }
+  g_assert_true (ds_sequencer_capture (seq, &s, 7));
+  g_main_loop_run (out.loop);
+  g_assert_error (out.failure, DS_SEQUENCER_ERROR, DS_SEQUENCER_ERROR_NOT_READY);
+  g_source_remove (guard);
+  ds_sequencer_free (seq);
+  g_clear_error (&out.failure);
+  g_clear_error (&out.control_error);
+  g_main_loop_unref (out.loop);
+}
+
 /* The state's names are the wire's (docs/protocol.md, status `state`): each state has one,
  * and no two share it. */
 static void
@@ -1415,6 +1466,7 @@ main (int argc, char **argv)
   ADD ("result-planes-reused", test_result_planes_reused, NULL);
   g_test_add_func ("/sequencer/phase-check-tall-frame", test_phase_check_tall_frame);
   g_test_add_func ("/sequencer/state-names", test_state_names);
+  g_test_add_func ("/sequencer/open-failed-answers-all", test_open_failed_answers_all);
   ADD ("release-acquire", test_release_acquire, NULL);
   ADD ("cancel/mid-set", test_cancel_mid_set, NULL);
   ADD ("cancel/stream", test_cancel_stream, NULL);
