@@ -47,14 +47,32 @@ family (GString *out, const char *name, const char *type, const char *help)
   g_string_append_printf (out, "# HELP %s %s\n# TYPE %s %s\n", name, help, name, type);
 }
 
+const char *
+ds_metrics_format_value (char *buf, gsize size, double value)
+{
+  if (isnan (value))
+    return g_strlcpy (buf, "NaN", size), buf;
+  if (isinf (value))
+    return g_strlcpy (buf, value > 0 ? "+Inf" : "-Inf", size), buf;
+  /* Doubles hold every integer up to 2^53: counts print whole, never as 1e+06. */
+  if (value == floor (value) && fabs (value) < 9007199254740992.0)
+    return g_ascii_formatd (buf, size, "%.0f", value);
+  /* 17 significant digits always round-trip; the first precision that does is the shortest. */
+  for (int digits = 1; digits <= 17; digits++) {
+    char fmt[8];
+    g_snprintf (fmt, sizeof fmt, "%%.%dg", digits);
+    g_ascii_formatd (buf, size, fmt, value);
+    if (g_ascii_strtod (buf, NULL) == value)
+      break;
+  }
+  return buf;
+}
+
 static void
 sample (GString *out, const char *name, const char *labels, double value)
 {
   char buf[G_ASCII_DTOSTR_BUF_SIZE];
-  /* Counts exactly (doubles hold integers up to 2^53), measurements to 9 significant digits. */
-  const char *fmt = value == floor (value) && fabs (value) < 9007199254740992.0 ? "%.0f" : "%.9g";
-  const char *v = isnan (value) ? "NaN" : isinf (value) ? (value > 0 ? "+Inf" : "-Inf")
-                                                        : g_ascii_formatd (buf, sizeof buf, fmt, value);
+  const char *v = ds_metrics_format_value (buf, sizeof buf, value);
   g_string_append_printf (out, "%s%s%s%s %s\n", name, labels ? "{" : "", labels ? labels : "", labels ? "}" : "", v);
 }
 
@@ -99,11 +117,20 @@ ds_metrics_render (DsMetrics *m, const DsMetricsSources *src)
   g_autofree char *info = g_strdup_printf ("version=\"%s\",build=\"%s\"", version, build);
   family (out, "descatter_build_info", "gauge", "The version and build of descatterd (always 1).");
   sample (out, "descatter_build_info", info, 1);
-  gauge (out, "descatter_uptime_seconds", "Time since descatterd started.", src->uptime_s);
-  g_autofree char *state = label_value (ds_sequencer_state_name (st->state));
-  g_autofree char *state_label = g_strdup_printf ("state=\"%s\"", state);
-  family (out, "descatter_acquisition_state", "gauge", "The acquisition thread's state (the one labelled is 1).");
-  sample (out, "descatter_acquisition_state", state_label, 1);
+  /* The standard process metric: a query computes uptime as time() - this, and a restart shows
+   * as a step that no counter reset can hide. */
+  gauge (out, "process_start_time_seconds", "Start time of the process since the Unix epoch in seconds.",
+         src->start_unix_s);
+  gauge (out, "descatter_ready", "1 when the devices are open, the settings taken and nothing reconnects (status.ready).",
+         src->ready ? 1 : 0);
+  /* A state set: every state is a series, so a query or an alert on one state always has data
+   * (absent series read as "no data", not as 0). */
+  family (out, "descatter_acquisition_state", "gauge", "The acquisition thread's state: 1 for the current one, 0 for the others.");
+  for (guint i = 0; i < DS_SEQUENCER_STATE_N; i++) {
+    g_autofree char *state = label_value (ds_sequencer_state_name ((DsSequencerState) i));
+    g_autofree char *state_label = g_strdup_printf ("state=\"%s\"", state);
+    sample (out, "descatter_acquisition_state", state_label, st->state == (DsSequencerState) i ? 1 : 0);
+  }
 
   family (out, "descatter_sets_total", "counter", "Phase sets completed (done), failed or cancelled.");
   sample (out, "descatter_sets_total", "outcome=\"done\"", (double) st->sets_done);
@@ -134,7 +161,9 @@ ds_metrics_render (DsMetrics *m, const DsMetricsSources *src)
   for (guint i = 0; i < N_BUCKETS; i++) {
     cumulative += m->buckets[i];
     char le[G_ASCII_DTOSTR_BUF_SIZE];
-    g_autofree char *l = g_strdup_printf ("le=\"%s\"", g_ascii_dtostr (le, sizeof le, bucket_bounds[i]));
+    /* Bucket labels as a query writes them (le="0.0025"): the shortest text that reads back as
+     * the bound, as Prometheus's own Go client prints them. */
+    g_autofree char *l = g_strdup_printf ("le=\"%s\"", ds_metrics_format_value (le, sizeof le, bucket_bounds[i]));
     sample (out, "descatter_result_latency_seconds_bucket", l, (double) cumulative);
   }
   sample (out, "descatter_result_latency_seconds_bucket", "le=\"+Inf\"", (double) m->count);
@@ -143,6 +172,9 @@ ds_metrics_render (DsMetrics *m, const DsMetricsSources *src)
 
   const DsServerStats *ss = src->server;
   counter (out, "descatter_results_published_total", "Results published to subscribers.", src->results_published);
+  if (src->last_result_unix_s > 0)
+    gauge (out, "descatter_last_result_timestamp_seconds", "When the last result was published (Unix time, seconds).",
+           src->last_result_unix_s);
   family (out, "descatter_results_dropped_total", "counter",
           "Result deliveries lost to slow clients: socket subscribers, or live-view updates replaced by newer ones.");
   sample (out, "descatter_results_dropped_total", "client=\"socket\"", (double) ss->dropped);
@@ -152,7 +184,17 @@ ds_metrics_render (DsMetrics *m, const DsMetricsSources *src)
   sample (out, "descatter_clients", "kind=\"subscriber\"", ss->subscribers);
   sample (out, "descatter_clients", "kind=\"live\"", src->live ? src->live->clients : 0);
   counter (out, "descatter_socket_requests_total", "Requests received on the socket.", ss->requests);
-  counter (out, "descatter_socket_bad_requests_total", "Requests answered with an error.", ss->bad_requests);
+  counter (out, "descatter_socket_bad_requests_total",
+           "Requests refused for what the client sent (malformed, unknown command, bad argument, no token).",
+           ss->bad_requests);
+  family (out, "descatter_socket_error_replies_total", "counter",
+          "Error replies by wire code (docs/protocol.md, \"Error codes\"): device errors, busy, cancelled...");
+  for (guint i = 1; i < G_N_ELEMENTS (ss->error_replies); i++) {
+    if (i == DS_PROTOCOL_ERROR_BAD_REPLY) /* a client-side code: the daemon never sends it */
+      continue;
+    g_autofree char *l = g_strdup_printf ("code=\"%s\"", ds_protocol_error_name ((DsProtocolError) i));
+    sample (out, "descatter_socket_error_replies_total", l, (double) ss->error_replies[i]);
+  }
   gauge (out, "descatter_socket_queued_bytes", "Bytes queued to socket clients now.", (double) ss->queued_bytes);
   if (src->live) {
     counter (out, "descatter_http_requests_total", "HTTP requests (page, metrics, WebSocket upgrades).",

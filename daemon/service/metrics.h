@@ -34,8 +34,16 @@ typedef struct {
   const DsSpoolStats *spool;  /* NULL: no spool */
   const DsLiveStats *live;    /* NULL: no HTTP server */
   guint64 results_published;
-  double uptime_s;
+  gboolean ready;             /* status.ready: devices open, settings taken, nothing reconnecting */
+  double start_unix_s;        /* when descatterd started (Unix time, seconds) */
+  double last_result_unix_s;  /* when the last result was published; 0: none yet */
 } DsMetricsSources;
+
+/* The shortest decimal text that reads back as exactly `value` (strtod), as Prometheus client
+ * libraries print it: "0.0025", not "0.0025000000000000001". Integers up to 2^53 print
+ * without exponent; NaN and infinities as the exposition format spells them. Writes into buf
+ * (at least G_ASCII_DTOSTR_BUF_SIZE bytes) and returns it. */
+const char *ds_metrics_format_value (char *buf, gsize size, double value);
 
 /* The exposition text; the caller frees it. */
 char *ds_metrics_render (DsMetrics *metrics, const DsMetricsSources *sources);

@@ -73,7 +73,11 @@ typedef struct {
   guint64 evicted;          /* closed to make room for a newcomer */
   guint64 timed_out;        /* closed for idle_timeout_ms or auth_timeout_ms */
   guint64 requests;
+  /* Requests refused for what the client sent: malformed lines, unknown commands, bad
+   * arguments, a missing token. A device that failed or a busy queue is not the client's
+   * fault and is counted only in error_replies. */
   guint64 bad_requests;
+  guint64 error_replies[DS_PROTOCOL_ERROR_BAD_REPLY + 1]; /* every error reply, by wire code */
   guint64 published;        /* events produced */
   guint64 dropped;          /* event deliveries lost to slow clients, all clients ever */
   gsize queued_bytes;       /* now, all clients */

@@ -150,6 +150,7 @@ ds_service_new (DsConfig *config, const DsServiceOptions *options, GMainLoop *lo
   svc->socket_path = NULL;
   svc->loop = g_main_loop_ref (loop);
   svc->started_us = g_get_monotonic_time ();
+  svc->started_unix_us = g_get_real_time ();
   svc->metrics = ds_metrics_new ();
   svc->pending = g_hash_table_new_full (g_int64_hash, g_int64_equal, NULL, ds_service_pending_free);
   svc->config = g_steal_pointer (&pf->config);

@@ -137,6 +137,7 @@ publish_result (DsService *svc, DsResult *result)
   g_autoptr (JsonNode) meta = ds_result_to_json (result);
   ds_server_publish (svc->server, "result", meta, infos, bytes, n);
   svc->results_published++;
+  svc->last_result_unix_us = g_get_real_time ();
   gint64 last_frame = ds_json_path_int (meta, "monotonic_us.last_frame", 0);
   if (last_frame > 0)
     ds_metrics_observe_result (svc->metrics, (double) (g_get_monotonic_time () - last_frame) / 1e6);

@@ -67,6 +67,8 @@ struct DsService {
   guint watchdog_source;
   guint64 watchdog_usec;
   gint64 started_us;
+  gint64 started_unix_us;       /* g_get_real_time () at start: process_start_time_seconds */
+  gint64 last_result_unix_us;   /* g_get_real_time () at the last result published; 0: none */
   guint64 results_published;
   char config_sha256[65];    /* of the effective configuration: in every result */
   DsMetrics *metrics;

@@ -96,6 +96,11 @@ add_clients (JsonBuilder *b, const DsService *svc)
   ds_json_add_uint (b, "timed_out", ss.timed_out);
   ds_json_add_uint (b, "requests", ss.requests);
   ds_json_add_uint (b, "bad_requests", ss.bad_requests);
+  ds_json_begin_member_object (b, "error_replies");
+  for (guint i = 1; i < G_N_ELEMENTS (ss.error_replies); i++)
+    if (ss.error_replies[i])
+      ds_json_add_uint (b, ds_protocol_error_name ((DsProtocolError) i), ss.error_replies[i]);
+  json_builder_end_object (b);
   ds_json_add_uint (b, "results_published", svc->results_published);
   ds_json_add_uint (b, "results_dropped", ss.dropped);
   ds_json_add_uint (b, "queued_bytes", ss.queued_bytes);
@@ -187,8 +192,11 @@ ds_service_metrics_text (DsService *svc)
   DsLiveStats ls;
   ds_live_view_get_stats (svc->live, &ls);
   ds_http_server_get_stats (svc->http, &ls.http_requests, &ls.http_unauthorized);
+  g_autofree char *not_ready = not_ready_reason (svc, &st);
   DsMetricsSources src = { .sequencer = &st, .server = &ss, .spool = svc->spool ? &sp : NULL, .live = &ls,
                            .results_published = svc->results_published,
-                           .uptime_s = (double) (g_get_monotonic_time () - svc->started_us) / 1e6 };
+                           .ready = not_ready == NULL,
+                           .start_unix_s = (double) svc->started_unix_us / 1e6,
+                           .last_result_unix_s = (double) svc->last_result_unix_us / 1e6 };
   return ds_metrics_render (svc->metrics, &src);
 }
