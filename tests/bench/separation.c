@@ -29,6 +29,7 @@
 #include "proc/pixfmt.h"
 #include "proc/separation.h"
 #include "proc/separation_internal.h" /* ds_separation_frame_noise, timed alone */
+#include "proc/single_frame.h"
 
 static double
 now (void)
@@ -275,6 +276,27 @@ bench_case (const Case *c, guint reps, guint threads, gboolean estimators)
     (void) sink;
     printf ("  noise estimate %6.3f ms per set (%.2f of one frame's fold at 1 thread)\n", best_noise * 1e3,
             best_noise / (one.accumulate / (c->n - 1)));
+    /* the single-frame estimator (one frame, P = 16) against folding one frame: target <= 1 */
+    for (DsEstimator e = DS_ESTIMATOR_MAXMIN; e <= DS_ESTIMATOR_SINE; e++) {
+      DsSeparationParams sp;
+      ds_separation_params_init (&sp, 8);
+      sp.estimator = e;
+      sp.geometry.period_px = 16;
+      double best_single = INFINITY;
+      for (guint r = 0; r < reps; r++) {
+        g_autoptr (DsSeparation) single = NULL;
+        g_autoptr (GError) error = NULL;
+        double t0 = now ();
+        if (!ds_single_frame_separate (frames[0], NULL, &sp, &single, NULL, &error)) {
+          fprintf (stderr, "single-frame %s: %s\n", ds_estimator_name (e), error->message);
+          ok = FALSE;
+          break;
+        }
+        best_single = MIN (best_single, now () - t0);
+      }
+      printf ("  single-frame %-6s %6.3f ms per frame (%.2fx one frame's fold at 1 thread; target <= 1)\n",
+              ds_estimator_name (e), best_single * 1e3, best_single / (one.accumulate / (c->n - 1)));
+    }
   }
 
   runner_clear (&r1);
