@@ -147,6 +147,28 @@ publish_result (DsService *svc, DsResult *result)
     g_warning ("spool: set %" G_GUINT64_FORMAT " not recorded: the disk is behind", ds_result_set_id (result));
 }
 
+/* The devices failed to open: the requests that waited for them (docs/protocol.md, "Error
+ * codes") are answered `device_error` with the reason now, before the service stops, since no
+ * device will ever take them; a waiting `cancel` had nothing left to stop. */
+static void
+answer_pending_devices_failed (DsService *svc, const GError *why)
+{
+  GHashTableIter it;
+  gpointer value;
+  g_hash_table_iter_init (&it, svc->pending);
+  while (g_hash_table_iter_next (&it, NULL, &value)) {
+    PendingCapture *p = value;
+    if (p->cancel)
+      ds_service_reply_cancel (svc, p->conn, p->id, p->cancelled, p->stream_stopped);
+    else {
+      g_autoptr (GError) error = g_error_new (DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_DEVICE,
+                                              "the devices failed to open: %s", why->message);
+      ds_server_reply_error (svc->server, p->conn, p->id, error);
+    }
+    g_hash_table_iter_remove (&it);
+  }
+}
+
 static void
 on_ready (DsService *svc, const DsSequencerEvent *ev)
 {
@@ -154,6 +176,7 @@ on_ready (DsService *svc, const DsSequencerEvent *ev)
     g_critical ("devices: %s", ev->error->message);
     sd_notifyf (0, "STATUS=devices failed: %s", ev->error->message);
     svc->devices_failed = TRUE;
+    answer_pending_devices_failed (svc, ev->error);
     /* Without devices the service is of no use; systemd restarts it (Restart=on-failure). */
     g_main_loop_quit (svc->loop);
     return;

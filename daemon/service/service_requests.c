@@ -156,13 +156,14 @@ pending_add (DsService *svc, DsConnection *conn, DsRequest *req, guint64 tag)
   return p;
 }
 
-/* A request the sequencer did not take: its queue is full, or the devices are not open yet. */
+/* A request the sequencer did not take: its queue is full. While the devices open (or
+ * reconnect) requests wait in that queue like any other: the acquisition thread takes them
+ * once the devices are open, or answers them `device_error` when they fail to open. */
 static void
 reply_not_queued (DsService *svc, DsConnection *conn, DsRequest *req)
 {
-  g_autoptr (GError) error = g_error_new (DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BUSY, "%s: %s", req->cmd,
-                                          svc->ready ? "too many requests queued; try again later"
-                                                     : "the devices are not open yet");
+  g_autoptr (GError) error = g_error_new (DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BUSY,
+                                          "%s: too many requests queued; try again later", req->cmd);
   ds_server_reply_error (svc->server, conn, req->id, error);
 }
 
@@ -199,7 +200,7 @@ handle_capture (DsService *svc, DsConnection *conn, DsRequest *req)
   }
   s.keep_extrema = extrema;
   guint64 tag = ++svc->next_tag;
-  if (!svc->ready || !ds_sequencer_capture (svc->sequencer, &s, tag)) {
+  if (!ds_sequencer_capture (svc->sequencer, &s, tag)) {
     reply_not_queued (svc, conn, req);
     return;
   }
@@ -224,7 +225,7 @@ handle_dark (DsService *svc, DsConnection *conn, DsRequest *req)
     return;
   }
   guint64 tag = ++svc->next_tag;
-  if (!svc->ready || !ds_sequencer_dark (svc->sequencer, &s, tag)) {
+  if (!ds_sequencer_dark (svc->sequencer, &s, tag)) {
     reply_not_queued (svc, conn, req);
     return;
   }
@@ -238,8 +239,7 @@ handle_control (DsService *svc, DsConnection *conn, DsRequest *req, gboolean rel
   if (!no_arguments (svc, conn, req))
     return;
   guint64 tag = ++svc->next_tag;
-  gboolean queued = svc->ready && (release ? ds_sequencer_release (svc->sequencer, tag)
-                                           : ds_sequencer_acquire (svc->sequencer, tag));
+  gboolean queued = release ? ds_sequencer_release (svc->sequencer, tag) : ds_sequencer_acquire (svc->sequencer, tag);
   if (!queued) {
     reply_not_queued (svc, conn, req);
     return;
@@ -299,7 +299,7 @@ handle_calibrate (DsService *svc, DsConnection *conn, DsRequest *req)
   s.target_error = 0;
   s.time_budget_ms = 0;
   guint64 tag = ++svc->next_tag;
-  if (!svc->ready || !ds_sequencer_capture (svc->sequencer, &s, tag)) {
+  if (!ds_sequencer_capture (svc->sequencer, &s, tag)) {
     reply_not_queued (svc, conn, req);
     return;
   }
@@ -386,11 +386,7 @@ handle_cancel (DsService *svc, DsConnection *conn, DsRequest *req)
   if (svc->spool)
     ds_spool_end_run (svc->spool);
   svc->cancels++;
-  /* Devices still opening: nothing can be queued or running yet. */
-  if (!svc->ready) {
-    ds_service_reply_cancel (svc, conn, req->id, 0, FALSE);
-    return;
-  }
+  /* Also while the devices open: the requests waiting for them are answered `cancelled`. */
   guint64 tag = ++svc->next_tag;
   PendingCapture *p = pending_add (svc, conn, req, tag);
   p->cancel = TRUE;
