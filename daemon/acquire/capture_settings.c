@@ -91,6 +91,15 @@ ds_capture_settings_to_json (const DsCaptureSettings *s)
     json_builder_end_object (b);
   }
   DBL ("phase_tolerance_deg", s->phase_tolerance_deg);
+  if (s->roi_width) {
+    json_builder_set_member_name (b, "roi");
+    json_builder_begin_object (b);
+    INT ("x", s->roi_x);
+    INT ("y", s->roi_y);
+    INT ("width", s->roi_width);
+    INT ("height", s->roi_height);
+    json_builder_end_object (b);
+  }
 #undef INT
 #undef DBL
 #undef STR

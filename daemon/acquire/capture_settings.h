@@ -41,6 +41,9 @@ typedef struct {
   double time_budget_ms;      /* 0 = none */
   gboolean automatic;         /* `operating` is valid */
   DsOperatingReport operating;
+  /* The region the set's frames came from (x, y, width, height), filled in by the set runner
+   * from the camera: 0 x 0 until then (no region reported). */
+  guint roi_x, roi_y, roi_width, roi_height;
 } DsCaptureSettings;
 
 /* The separation parameters of a set taken with these settings: the one place the sequencer and

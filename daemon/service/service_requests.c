@@ -33,6 +33,7 @@ static gboolean
 settings_from_request (DsService *svc, const DsRequest *req, DsCaptureSettings *s, GError **error)
 {
   ds_capture_settings_from_config (s, svc->config);
+  ds_service_camera_defaults (svc, s);
   guint64 u;
   double d;
   gboolean bval;
@@ -154,6 +155,12 @@ pending_add (DsService *svc, DsConnection *conn, DsRequest *req, guint64 tag)
   p->cancels_before = svc->cancels;
   g_hash_table_insert (svc->pending, &p->tag, p);
   return p;
+}
+
+PendingCapture *
+ds_service_pending_add (DsService *svc, DsConnection *conn, DsRequest *req, guint64 tag)
+{
+  return pending_add (svc, conn, req, tag);
 }
 
 /* A request the sequencer did not take: its queue is full. While the devices open (or
@@ -433,7 +440,7 @@ static const struct {
   { "status", handle_status },   { "capture", handle_capture }, { "dark", handle_dark },
   { "start", handle_start },     { "stop", handle_stop },       { "config", handle_config },
   { "release", handle_release }, { "acquire", handle_acquire }, { "calibrate", handle_calibrate },
-  { "cancel", handle_cancel },
+  { "cancel", handle_cancel },    { "set", ds_service_handle_set },
 };
 
 /* "hello, subscribe, unsubscribe, status, capture, ...": what the daemon answers. */

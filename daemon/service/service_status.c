@@ -155,6 +155,7 @@ ds_service_status_to_json (DsService *svc)
   ds_json_add_node (b, "dark", ds_status_dark_to_json (&st, g_get_real_time ()));
   ds_json_add_double_or_null (b, "phase_offset_cycles", st.phase_offset_cycles);
   ds_json_add_node (b, "frames", ds_frame_counters_to_json (&st.frames));
+  ds_service_status_add_camera_live (b, &st);
   add_operating_model (b, svc);
   ds_json_begin_member_object (b, "stage_mean_ms");
   for (guint i = 0; i < DS_STAGE_N; i++)
