@@ -203,6 +203,13 @@ void ds_seq_camera_live_report (DsAcquisition *acq);
 /* The frames' region: x, y, width, height (the whole sensor when no region is set). */
 void ds_seq_camera_region (DsAcquisition *acq, const DsCameraInfo *info, guint region[4]);
 
+/* ---- stream_stop.c: CPU only ---- */
+
+/* After a continuous set: when consecutive_failures reached the stream's max_failed_sets (0:
+ * never), continuous mode stops, status says when and why (last_error, from the last set's
+ * error) and a STREAM_STOPPED event tells the main thread. TRUE when it stopped. */
+gboolean ds_seq_stream_gives_up (DsAcquisition *acq, guint consecutive_failures);
+
 /* ---- set_runner.c ---- */
 
 /* One phase set with `requested` (the stripe geometry taken from the illuminator), from the

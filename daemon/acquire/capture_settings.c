@@ -26,6 +26,7 @@ ds_capture_settings_from_config (DsCaptureSettings *s, const DsConfig *c)
   s->saturation_dn = isnan (c->saturation_dn) ? 0 : c->saturation_dn;
   s->dark_frame = c->dark_frame;
   s->phase_retries = c->phase_retries;
+  s->max_failed_sets = c->max_failed_sets;
   s->verify_phase = c->verify_phase;
   /* A spool that records raw frames needs every set to keep them. */
   s->save_phases = c->spool_dir && c->spool_save_phases;

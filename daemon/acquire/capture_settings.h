@@ -31,6 +31,7 @@ typedef struct {
   double saturation_dn;
   gboolean dark_frame;
   guint phase_retries;
+  guint max_failed_sets;      /* continuous mode: stop after this many failed sets in a row; 0 = never */
   gboolean verify_phase;
   double phase_tolerance_deg; /* resolved: never NAN here */
   gboolean keep_extrema;      /* also compute max, min and mean (asked for by a client) */

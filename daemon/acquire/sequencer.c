@@ -258,6 +258,10 @@ run_stream_set (DsAcquisition *acq, guint *consecutive_failures)
   /* Sets that keep failing (a setting the camera refuses fails at once) are spaced out,
    * 0.1 s doubling to 2 s, instead of spinning: commands and quit still cut the wait. */
   *consecutive_failures = failed ? *consecutive_failures + 1 : 0;
+  if (ds_seq_stream_gives_up (acq, *consecutive_failures)) {
+    *consecutive_failures = 0;
+    return;
+  }
   guint n = *consecutive_failures;
   guint wait_ms = n ? MIN (100u << MIN (n - 1, 5u), 2000u) : 0;
   for (guint waited = 0; waited < wait_ms && !g_atomic_int_get (&acq->shared->quit) &&

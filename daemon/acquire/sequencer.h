@@ -35,6 +35,8 @@ typedef enum {
   DS_SEQUENCER_EVENT_DARK,        /* dark frame calibrated (dark_mean_dn) or error */
   DS_SEQUENCER_EVENT_DEVICE,      /* a device state change worth logging: message */
   DS_SEQUENCER_EVENT_CONTROL,     /* devices released or acquired for `tag` (error set if not) */
+  DS_SEQUENCER_EVENT_STREAM_STOPPED, /* continuous mode stopped by itself: message says when and
+                                      * why (its sets kept failing) */
 } DsSequencerEventKind;
 
 typedef struct {
@@ -180,7 +182,7 @@ typedef struct {
   DsCameraInfo camera_info;
   DsIlluminatorStatus illuminator;
   char devices[128];
-  char last_error[256];
+  char last_error[512];
   double phase_offset_cycles;   /* learned stripe-phase offset of phase 0; NAN until learned */
   gint64 heartbeat_us;          /* the thread's last sign of life (g_get_monotonic_time) */
   gint64 blocking_until_us;     /* inside a device call that may block until then (its own

@@ -286,6 +286,22 @@ on_device (DsService *svc, const DsSequencerEvent *ev)
   ds_server_publish (svc->server, "device", body, NULL, NULL, 0);
 }
 
+/* Continuous mode stopped by itself (its sets kept failing): the run ends as with `stop`, and
+ * subscribers are told when and why. */
+static void
+on_stream_stopped (DsService *svc, const DsSequencerEvent *ev)
+{
+  g_warning ("%s", ev->message);
+  notify_status (svc, "continuous acquisition stopped: its sets kept failing");
+  svc->in_run = FALSE;
+  if (svc->spool)
+    ds_spool_end_run (svc->spool);
+  g_autoptr (JsonBuilder) b = ds_json_object_begin ();
+  ds_json_add_string (b, "reason", ev->message);
+  g_autoptr (JsonNode) body = ds_json_object_end (b);
+  ds_server_publish (svc->server, "stream_stopped", body, NULL, NULL, 0);
+}
+
 void
 ds_service_on_sequencer_event (const DsSequencerEvent *ev, gpointer user_data)
 {
@@ -318,6 +334,9 @@ ds_service_on_sequencer_event (const DsSequencerEvent *ev, gpointer user_data)
     break;
   case DS_SEQUENCER_EVENT_DEVICE:
     on_device (svc, ev);
+    break;
+  case DS_SEQUENCER_EVENT_STREAM_STOPPED:
+    on_stream_stopped (svc, ev);
     break;
   }
   if (p && answered)
