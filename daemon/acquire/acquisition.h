@@ -15,6 +15,8 @@
  *   retry.c        the retry rule of every frame acquired (phase sets, dark, pilot)
  *   dark.c         dark-frame acquisition
  *   auto_point.c   the automatic operating point (preview frames)
+ *   camera_live.c  the `set` command: exposure, gain and region on the open camera
+ *   stream_stop.c  continuous mode that stops by itself when its sets keep failing
  * Beside the thread, each with its own header: frame_counters.c (frame accounting),
  * result.c and result_planes.c (the published result and its planes), capture_settings.c,
  * devices.c and devices_common.c (the devices from the configuration), status_dark.c.

@@ -1,6 +1,7 @@
 /* The service's state, shared by the files that make up DsService and by no one else:
  * service.c (lifecycle, watchdog, reload), service_events.c (what the sequencer reports),
- * service_requests.c (clients' commands) and service_status.c (status and metrics documents).
+ * service_requests.c (clients' commands), request_set.c (the `set` command and the camera's
+ * settings) and service_status.c (status and metrics documents).
  * Main thread only: the acquisition thread reaches the service through sequencer events. */
 #pragma once
 #include <glib.h>
