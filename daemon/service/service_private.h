@@ -110,6 +110,8 @@ void ds_service_on_sequencer_event (const DsSequencerEvent *ev, gpointer user_da
 
 /* service_status.c: the `status` document (also the live view's) and the /metrics text. */
 JsonNode *ds_service_status_to_json (DsService *svc);
+/* status `not_ready_reason`: NULL when ready, else why (free it). */
+char *ds_service_not_ready_reason (DsService *svc);
 char *ds_service_metrics_text (DsService *svc);
 
 /* service.c: the configuration in effect, as `config` prints it and every result hashes it. */

@@ -334,6 +334,16 @@ handle_start (DsService *svc, DsConnection *conn, DsRequest *req)
   ds_sequencer_start (svc->sequencer, json_object_get_size (req->args) ? &s : NULL);
   svc->in_run = TRUE;
   g_autoptr (JsonNode) body = ds_capture_settings_to_json (&s);
+  /* Said in words: a stream whose devices are not ready fails every set, and a reply that only
+   * echoed the settings read as success. */
+  g_autofree char *not_ready = ds_service_not_ready_reason (svc);
+  json_object_set_string_member (
+    json_node_get_object (body), "message",
+    !not_ready ? "continuous acquisition started"
+    : !svc->ready ? "continuous acquisition starts once the devices are open"
+                  : "continuous acquisition started, but the devices are not ready: its sets fail until they are");
+  if (not_ready)
+    json_object_set_string_member (json_node_get_object (body), "not_ready_reason", not_ready);
   ds_service_reply_ok (svc, conn, req->id, body);
 }
 

@@ -26,6 +26,14 @@ not_ready_reason (const DsService *svc, const DsSequencerStatus *st)
   return NULL;
 }
 
+char *
+ds_service_not_ready_reason (DsService *svc)
+{
+  DsSequencerStatus st;
+  ds_sequencer_get_status (svc->sequencer, &st);
+  return not_ready_reason (svc, &st);
+}
+
 /* Without a model, captures with target_error/time_budget_ms are refused: say so up front. */
 static void
 add_operating_model (JsonBuilder *b, const DsService *svc)

@@ -57,7 +57,8 @@ test_capture_waits_for_devices (void)
 
 /* Devices that cannot open: the simulated lab's scene file, there when the daemon checked its
  * configuration, is gone by the time the devices open. A capture sent while they open is
- * answered `device_error` naming the lab and why, and the daemon exits failed. */
+ * answered `device_error` naming the lab and why, and the daemon exits failed; a start sent
+ * meanwhile says it waits for the devices. */
 static void
 test_capture_answered_when_devices_fail (void)
 {
@@ -73,6 +74,12 @@ test_capture_answered_when_devices_fail (void)
   g_autoptr (DsClient) a = test_daemon_connect (d);
   g_assert_cmpstr (status_state (a), ==, "opening");
   g_assert_cmpint (g_remove (scene), ==, 0);
+  /* A start while they open is taken, and its reply says it waits for them. */
+  g_autoptr (DsMessage) st = test_daemon_call_ok (a, "start", NULL);
+  JsonObject *sto = json_node_get_object (st->reply->body);
+  g_assert_cmpstr (json_object_get_string_member (sto, "message"), ==,
+                   "continuous acquisition starts once the devices are open");
+  g_assert_cmpstr (json_object_get_string_member (sto, "not_ready_reason"), ==, "devices are opening");
   g_autoptr (GError) error = NULL;
   g_autoptr (DsMessage) m = ds_client_call (a, "capture", NULL, NULL, NULL, &error);
   g_assert_no_error (error);
