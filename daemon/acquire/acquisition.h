@@ -15,6 +15,8 @@
  *   retry.c        the retry rule of every frame acquired (phase sets, dark, pilot)
  *   dark.c         dark-frame acquisition
  *   auto_point.c   the automatic operating point (preview frames)
+ *   camera_live.c  the `set` command: exposure, gain and region on the open camera
+ *   stream_stop.c  continuous mode that stops by itself when its sets keep failing
  * Beside the thread, each with its own header: frame_counters.c (frame accounting),
  * result.c and result_planes.c (the published result and its planes), capture_settings.c,
  * devices.c and devices_common.c (the devices from the configuration), status_dark.c.
@@ -99,6 +101,8 @@ typedef struct {
   gboolean need_reconnect;        /* a device is gone: reopened before the next command */
   gboolean camera_configured, camera_started;
   double camera_exposure_us, camera_gain_db;
+  DsCameraChange live_camera;     /* what `set` commands changed (camera_live.c): kept over
+                                   * reloads and reopenings */
 
   /* What the thread does between commands, and the frame triggered ahead for the next set. */
   DsRun run;
@@ -185,6 +189,28 @@ void ds_seq_reconnect (DsAcquisition *acq);
  * setting the devices refuse shows in status at once, not at the first capture; records the
  * outcome (status.settings_ok / settings_error) and reports a change as a device event. */
 gboolean ds_seq_apply_defaults (DsAcquisition *acq);
+
+/* ---- camera_live.c: blocks on the camera's configure (its control bound) ---- */
+
+/* The `set` command between two sets: checks the change against the camera's ranges, stops the
+ * camera, configures it and starts it again (a new region gets new buffers). FALSE with error
+ * (DS_PROTOCOL_ERROR_BAD_ARGUMENT for a value the camera refuses, the camera's own error when it
+ * is lost) and nothing changed; else the new values are the defaults of the sets that follow. */
+gboolean ds_seq_camera_set (DsAcquisition *acq, const DsCameraChange *change, GError **error);
+/* Puts what `set` changed back over the defaults and the devices' camera settings, after new
+ * defaults (a reload) or devices opened again. */
+void ds_seq_camera_live_overlay (DsAcquisition *acq);
+/* The camera's settings as they stand, into status (camera_live). Devices open. */
+void ds_seq_camera_live_report (DsAcquisition *acq);
+/* The frames' region: x, y, width, height (the whole sensor when no region is set). */
+void ds_seq_camera_region (DsAcquisition *acq, const DsCameraInfo *info, guint region[4]);
+
+/* ---- stream_stop.c: CPU only ---- */
+
+/* After a continuous set: when consecutive_failures reached the stream's max_failed_sets (0:
+ * never), continuous mode stops, status says when and why (last_error, from the last set's
+ * error) and a STREAM_STOPPED event tells the main thread. TRUE when it stopped. */
+gboolean ds_seq_stream_gives_up (DsAcquisition *acq, guint consecutive_failures);
 
 /* ---- set_runner.c ---- */
 

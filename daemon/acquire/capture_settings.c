@@ -26,6 +26,7 @@ ds_capture_settings_from_config (DsCaptureSettings *s, const DsConfig *c)
   s->saturation_dn = isnan (c->saturation_dn) ? 0 : c->saturation_dn;
   s->dark_frame = c->dark_frame;
   s->phase_retries = c->phase_retries;
+  s->max_failed_sets = c->max_failed_sets;
   s->verify_phase = c->verify_phase;
   /* A spool that records raw frames needs every set to keep them. */
   s->save_phases = c->spool_dir && c->spool_save_phases;
@@ -91,6 +92,15 @@ ds_capture_settings_to_json (const DsCaptureSettings *s)
     json_builder_end_object (b);
   }
   DBL ("phase_tolerance_deg", s->phase_tolerance_deg);
+  if (s->roi_width) {
+    json_builder_set_member_name (b, "roi");
+    json_builder_begin_object (b);
+    INT ("x", s->roi_x);
+    INT ("y", s->roi_y);
+    INT ("width", s->roi_width);
+    INT ("height", s->roi_height);
+    json_builder_end_object (b);
+  }
 #undef INT
 #undef DBL
 #undef STR

@@ -31,6 +31,7 @@ typedef struct {
   double saturation_dn;
   gboolean dark_frame;
   guint phase_retries;
+  guint max_failed_sets;      /* continuous mode: stop after this many failed sets in a row; 0 = never */
   gboolean verify_phase;
   double phase_tolerance_deg; /* resolved: never NAN here */
   gboolean keep_extrema;      /* also compute max, min and mean (asked for by a client) */
@@ -41,6 +42,9 @@ typedef struct {
   double time_budget_ms;      /* 0 = none */
   gboolean automatic;         /* `operating` is valid */
   DsOperatingReport operating;
+  /* The region the set's frames came from (x, y, width, height), filled in by the set runner
+   * from the camera: 0 x 0 until then (no region reported). */
+  guint roi_x, roi_y, roi_width, roi_height;
 } DsCaptureSettings;
 
 /* The separation parameters of a set taken with these settings: the one place the sequencer and

@@ -189,6 +189,9 @@ ds_seq_fatal_device_error (DsAcquisition *acq, const GError *e)
 gboolean
 ds_seq_apply_defaults (DsAcquisition *acq)
 {
+  /* What `set` changed holds over new defaults and devices opened again. */
+  ds_seq_camera_live_overlay (acq);
+  ds_seq_camera_live_report (acq);
   DsCaptureSettings s;
   g_mutex_lock (&acq->shared->lock);
   s = acq->shared->defaults;

@@ -43,6 +43,14 @@ pattern_from_scene (const DsScene *scene, DsStripePattern *p)
 static DsSimLab *
 open_sim_lab (const DsConfig *config, DsStripePattern *pattern, GError **error)
 {
+  /* Faults first: an opening stretched by open-delay-ms comes before whatever fails it. */
+  DsSimFaults faults;
+  if (!ds_sim_faults_parse (config->sim_faults, &faults, error)) {
+    g_prefix_error (error, "[sim] ");
+    return NULL;
+  }
+  if (faults.open_delay_ms)
+    g_usleep ((gulong) faults.open_delay_ms * 1000);
   g_autoptr (DsScene) scene = NULL;
   if (config->sim_scene && *config->sim_scene)
     scene = ds_scene_load (config->sim_scene, error);
@@ -54,11 +62,6 @@ open_sim_lab (const DsConfig *config, DsStripePattern *pattern, GError **error)
   pattern_from_scene (scene, pattern);
   /* The unit sets DESCATTER_CACHE_DIR (systemd CacheDirectory=): scattering kernels survive
    * restarts there. */
-  DsSimFaults faults;
-  if (!ds_sim_faults_parse (config->sim_faults, &faults, error)) {
-    g_prefix_error (error, "[sim] ");
-    return NULL;
-  }
   DsRenderer *renderer = ds_renderer_new (scene, g_getenv ("DESCATTER_CACHE_DIR"), error);
   if (!renderer)
     return NULL;

@@ -21,6 +21,7 @@ typedef enum {
   CMD_ACQUIRE,
   CMD_OPERATING_MODEL,
   CMD_CANCEL,
+  CMD_SET_CAMERA,
   CMD_QUIT,
 } CommandKind;
 
@@ -35,6 +36,7 @@ typedef struct {
                                 * publishes): a later cancel cancels the command */
   const DsOperatingModel *model; /* CMD_OPERATING_MODEL, with the rig's timing */
   DsRigTiming timing;
+  DsCameraChange camera;       /* CMD_SET_CAMERA */
 } Command;
 
 struct DsSequencer {
@@ -215,7 +217,7 @@ run_without_devices (DsAcquisition *acq)
     /* Every counted command is answered and uncounted here as in run_command: a request left
      * unanswered would hang its client, and its place in MAX_PENDING would never come back. */
     if (cmd && (cmd->kind == CMD_CAPTURE || cmd->kind == CMD_DARK || cmd->kind == CMD_RELEASE ||
-                cmd->kind == CMD_ACQUIRE)) {
+                cmd->kind == CMD_ACQUIRE || cmd->kind == CMD_SET_CAMERA)) {
       g_atomic_int_dec_and_test (&acq->shared->pending);
       g_mutex_lock (&acq->shared->lock);
       g_autofree char *why = g_strdup (acq->shared->status.last_error);
@@ -256,6 +258,10 @@ run_stream_set (DsAcquisition *acq, guint *consecutive_failures)
   /* Sets that keep failing (a setting the camera refuses fails at once) are spaced out,
    * 0.1 s doubling to 2 s, instead of spinning: commands and quit still cut the wait. */
   *consecutive_failures = failed ? *consecutive_failures + 1 : 0;
+  if (ds_seq_stream_gives_up (acq, *consecutive_failures)) {
+    *consecutive_failures = 0;
+    return;
+  }
   guint n = *consecutive_failures;
   guint wait_ms = n ? MIN (100u << MIN (n - 1, 5u), 2000u) : 0;
   for (guint waited = 0; waited < wait_ms && !g_atomic_int_get (&acq->shared->quit) &&
@@ -325,6 +331,13 @@ run_command (DsAcquisition *acq, const Command *cmd)
     acquire_devices (acq, cmd->tag);
     g_atomic_int_add (&acq->shared->pending, -1);
     break;
+  case CMD_SET_CAMERA: {
+    GError *error = NULL;
+    gboolean ok = ds_seq_camera_set (acq, &cmd->camera, &error);
+    g_atomic_int_add (&acq->shared->pending, -1);
+    ds_seq_emit (acq->shared, DS_SEQUENCER_EVENT_CONTROL, cmd->tag, NULL, error, ok ? "camera settings applied" : NULL);
+    break;
+  }
   case CMD_OPERATING_MODEL:
   case CMD_CANCEL:
   case CMD_QUIT:
@@ -543,6 +556,19 @@ gboolean
 ds_sequencer_acquire (DsSequencer *seq, guint64 tag)
 {
   return push_counted (seq, CMD_ACQUIRE, NULL, tag);
+}
+
+gboolean
+ds_sequencer_set_camera (DsSequencer *seq, const DsCameraChange *change, guint64 tag)
+{
+  if (g_atomic_int_add (&seq->shared.pending, 1) >= MAX_PENDING) {
+    g_atomic_int_add (&seq->shared.pending, -1);
+    return FALSE;
+  }
+  Command *cmd = command_new (seq, CMD_SET_CAMERA, NULL, tag);
+  cmd->camera = *change;
+  g_async_queue_push (seq->shared.queue, cmd);
+  return TRUE;
 }
 
 void

@@ -8,6 +8,7 @@
 #pragma once
 #include <glib.h>
 
+#include "daemon/acquire/camera_live.h"
 #include "daemon/acquire/capture_settings.h"
 #include "daemon/acquire/devices.h"
 #include "daemon/acquire/result.h"
@@ -34,6 +35,8 @@ typedef enum {
   DS_SEQUENCER_EVENT_DARK,        /* dark frame calibrated (dark_mean_dn) or error */
   DS_SEQUENCER_EVENT_DEVICE,      /* a device state change worth logging: message */
   DS_SEQUENCER_EVENT_CONTROL,     /* devices released or acquired for `tag` (error set if not) */
+  DS_SEQUENCER_EVENT_STREAM_STOPPED, /* continuous mode stopped by itself: message says when and
+                                      * why (its sets kept failing) */
 } DsSequencerEventKind;
 
 typedef struct {
@@ -101,6 +104,12 @@ void ds_sequencer_set_operating_model (DsSequencer *seq, const struct DsOperatin
 typedef void (*DsSequencerFrameFunc) (const DsFrame *frame, guint phase, const DsCaptureSettings *settings,
                                       gpointer user_data);
 void ds_sequencer_set_frame_hook (DsSequencer *seq, DsSequencerFrameFunc func, gpointer user_data);
+/* The `set` command (camera_live.h): exposure, gain and region applied to the open camera
+ * between two sets, then the defaults of the sets that follow (a running stream's next set
+ * included). Answered by a CONTROL event with `tag`: its error (bad_argument on the wire for a
+ * value out of the camera's range, naming it and the range), or status.camera_live as applied.
+ * FALSE (busy) like ds_sequencer_capture. Main thread. */
+gboolean ds_sequencer_set_camera (DsSequencer *seq, const DsCameraChange *change, guint64 tag);
 /* New defaults (SIGHUP); continuous mode picks them up at its next set. */
 void ds_sequencer_set_defaults (DsSequencer *seq, const DsCaptureSettings *defaults);
 
@@ -173,7 +182,7 @@ typedef struct {
   DsCameraInfo camera_info;
   DsIlluminatorStatus illuminator;
   char devices[128];
-  char last_error[256];
+  char last_error[512];
   double phase_offset_cycles;   /* learned stripe-phase offset of phase 0; NAN until learned */
   gint64 heartbeat_us;          /* the thread's last sign of life (g_get_monotonic_time) */
   gint64 blocking_until_us;     /* inside a device call that may block until then (its own
@@ -183,6 +192,10 @@ typedef struct {
    * the device allows) when they refused one. */
   gboolean settings_ok;
   char settings_error[256];
+  /* The camera's exposure, gain and region as the next set without its own takes them (the
+   * configuration's, or a `set`'s): FALSE until the devices first opened. */
+  gboolean camera_live_known;
+  DsCameraLive camera_live;
 } DsSequencerStatus;
 
 void ds_sequencer_get_status (DsSequencer *seq, DsSequencerStatus *status);

@@ -174,6 +174,15 @@ ds_seq_run_set (DsAcquisition *acq, const DsCaptureSettings *requested, guint64 
    * dark frame. */
   ds_frame_counters_fold_rest (&c);
   ds_seq_account (acq->shared, &c, TRUE);
+  /* The result says where on the sensor its frames came from (a `set` may have moved it). */
+  DsCameraInfo info = { 0 };
+  acq->dev->camera->ops->get_info (acq->dev->camera->backend, &info);
+  guint region[4];
+  ds_seq_camera_region (acq, &info, region);
+  settings.roi_x = region[0];
+  settings.roi_y = region[1];
+  settings.roi_width = region[2];
+  settings.roi_height = region[3];
   DsResult *result = ds_result_new (++acq->next_set_id, g_steal_pointer (&sep), acq->planes, s, &c, started,
                                     acquired, finished);
   ds_result_set_last_frame_times (result, &acq->last_frame_times);

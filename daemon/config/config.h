@@ -79,6 +79,7 @@ typedef struct {
   char *estimator;
   gboolean dark_frame;
   guint phase_retries;
+  guint max_failed_sets;  /* continuous mode stops after this many failed sets in a row; 0 = never */
   gboolean verify_phase;
   double phase_tolerance_deg;
   char *operating_model;  /* NULL: built-in */

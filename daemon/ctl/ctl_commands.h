@@ -18,6 +18,7 @@ int ds_ctl_release (const DsCtlTarget *target, int argc, char **argv);
 int ds_ctl_acquire (const DsCtlTarget *target, int argc, char **argv);
 int ds_ctl_dark (const DsCtlTarget *target, int argc, char **argv);
 int ds_ctl_config (const DsCtlTarget *target, int argc, char **argv);
+int ds_ctl_set (const DsCtlTarget *target, int argc, char **argv);
 /* A folder given: offline; none: the daemon calibrates on the rig. */
 int ds_ctl_calibrate (const DsCtlTarget *target, int argc, char **argv);
 

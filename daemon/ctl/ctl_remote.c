@@ -365,6 +365,11 @@ ds_ctl_capture (const DsCtlTarget *target, int argc, char **argv)
 static void
 print_started (JsonObject *s)
 {
+  /* Not ready: the stream's sets fail until the devices are (the daemon's words, and why). */
+  const char *why = json_object_get_string_member_with_default (s, "not_ready_reason", NULL);
+  if (why)
+    fprintf (stderr, "descatterctl start: %s (%s)\n", json_object_get_string_member_with_default (s, "message", ""),
+             why);
   gint64 m = json_object_get_int_member_with_default (s, "averages", 1);
   printf ("continuous acquisition started: %" G_GINT64_FORMAT " phases x %" G_GINT64_FORMAT " frame%s, %s, "
           "exposure %g µs, gain %g dB, dark frame %s; results go to subscribers (descatterctl stream)\n",

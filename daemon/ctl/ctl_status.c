@@ -160,6 +160,15 @@ print_summary (JsonObject *st)
             int_of (cam, "completed"), int_of (cam, "failures"), int_of (cam, "missing_packets"),
             int_of (cam, "timeouts"), int_of (cam, "reconnects"));
   }
+  /* What captures without their own exposure and gain take (`descatterctl set` changes it). */
+  JsonObject *live = member_object (st, "camera");
+  JsonObject *roi = member_object (live, "roi");
+  if (live && roi)
+    printf ("settings:     exposure %g µs, gain %g dB, region %" G_GINT64_FORMAT ",%" G_GINT64_FORMAT " %" G_GINT64_FORMAT
+            "x%" G_GINT64_FORMAT "\n",
+            json_object_get_double_member_with_default (live, "exposure_us", 0),
+            json_object_get_double_member_with_default (live, "gain_db", 0), int_of (roi, "x"), int_of (roi, "y"),
+            int_of (roi, "width"), int_of (roi, "height"));
   JsonObject *ill = member_object (dev, "illuminator");
   if (ill) {
     printf ("illuminator:  %s%s%s, ", bool_of (ill, "ready") ? "ready" : "NOT ready",

@@ -24,6 +24,7 @@ static const struct {
   { "acquire", ds_ctl_acquire, NULL, "open the devices again after release" },
   { "dark", ds_ctl_dark, NULL, "calibrate the dark frame (illuminator off)" },
   { "config", ds_ctl_config, NULL, "print the daemon's effective configuration" },
+  { "set", ds_ctl_set, NULL, "change the open camera's exposure, gain or region, live" },
   { "separate", NULL, ds_ctl_separate, "separate a folder of phase images offline (no daemon)" },
   { "calibrate", ds_ctl_calibrate, NULL, "measure the stripe pattern on a reference: a phase folder, or the rig" },
   { "study", NULL, ds_ctl_study, "accuracy against acquisition time on simulated scenes (no daemon)" },

@@ -148,6 +148,28 @@ publish_result (DsService *svc, DsResult *result)
     g_warning ("spool: set %" G_GUINT64_FORMAT " not recorded: the disk is behind", ds_result_set_id (result));
 }
 
+/* The devices failed to open: the requests that waited for them (docs/protocol.md, "Error
+ * codes") are answered `device_error` with the reason now, before the service stops, since no
+ * device will ever take them; a waiting `cancel` had nothing left to stop. */
+static void
+answer_pending_devices_failed (DsService *svc, const GError *why)
+{
+  GHashTableIter it;
+  gpointer value;
+  g_hash_table_iter_init (&it, svc->pending);
+  while (g_hash_table_iter_next (&it, NULL, &value)) {
+    PendingCapture *p = value;
+    if (p->cancel)
+      ds_service_reply_cancel (svc, p->conn, p->id, p->cancelled, p->stream_stopped);
+    else {
+      g_autoptr (GError) error = g_error_new (DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_DEVICE,
+                                              "the devices failed to open: %s", why->message);
+      ds_server_reply_error (svc->server, p->conn, p->id, error);
+    }
+    g_hash_table_iter_remove (&it);
+  }
+}
+
 static void
 on_ready (DsService *svc, const DsSequencerEvent *ev)
 {
@@ -155,6 +177,7 @@ on_ready (DsService *svc, const DsSequencerEvent *ev)
     g_critical ("devices: %s", ev->error->message);
     sd_notifyf (0, "STATUS=devices failed: %s", ev->error->message);
     svc->devices_failed = TRUE;
+    answer_pending_devices_failed (svc, ev->error);
     /* Without devices the service is of no use; systemd restarts it (Restart=on-failure). */
     g_main_loop_quit (svc->loop);
     return;
@@ -240,6 +263,10 @@ on_control (DsService *svc, PendingCapture *p, const DsSequencerEvent *ev)
     ds_service_reply_cancel (svc, p->conn, p->id, p->cancelled, p->stream_stopped);
     return;
   }
+  if (p->camera_set) {
+    ds_service_reply_camera_set (svc, p->conn, p->id);
+    return;
+  }
   DsSequencerStatus st;
   ds_sequencer_get_status (svc->sequencer, &st);
   g_autoptr (JsonBuilder) b = ds_json_object_begin ();
@@ -258,6 +285,22 @@ on_device (DsService *svc, const DsSequencerEvent *ev)
   ds_json_add_string (b, "message", ev->message);
   g_autoptr (JsonNode) body = ds_json_object_end (b);
   ds_server_publish (svc->server, "device", body, NULL, NULL, 0);
+}
+
+/* Continuous mode stopped by itself (its sets kept failing): the run ends as with `stop`, and
+ * subscribers are told when and why. */
+static void
+on_stream_stopped (DsService *svc, const DsSequencerEvent *ev)
+{
+  g_warning ("%s", ev->message);
+  notify_status (svc, "continuous acquisition stopped: its sets kept failing");
+  svc->in_run = FALSE;
+  if (svc->spool)
+    ds_spool_end_run (svc->spool);
+  g_autoptr (JsonBuilder) b = ds_json_object_begin ();
+  ds_json_add_string (b, "reason", ev->message);
+  g_autoptr (JsonNode) body = ds_json_object_end (b);
+  ds_server_publish (svc->server, "stream_stopped", body, NULL, NULL, 0);
 }
 
 void
@@ -292,6 +335,9 @@ ds_service_on_sequencer_event (const DsSequencerEvent *ev, gpointer user_data)
     break;
   case DS_SEQUENCER_EVENT_DEVICE:
     on_device (svc, ev);
+    break;
+  case DS_SEQUENCER_EVENT_STREAM_STOPPED:
+    on_stream_stopped (svc, ev);
     break;
   }
   if (p && answered)

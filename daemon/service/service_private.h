@@ -1,6 +1,7 @@
 /* The service's state, shared by the files that make up DsService and by no one else:
  * service.c (lifecycle, watchdog, reload), service_events.c (what the sequencer reports),
- * service_requests.c (clients' commands) and service_status.c (status and metrics documents).
+ * service_requests.c (clients' commands), request_set.c (the `set` command and the camera's
+ * settings) and service_status.c (status and metrics documents).
  * Main thread only: the acquisition thread reaches the service through sequencer events. */
 #pragma once
 #include <glib.h>
@@ -43,6 +44,7 @@ typedef struct {
   gboolean cancel;        /* a `cancel` request: answered once the thread took the cancel ... */
   guint cancelled;        /* ... with how many requests it answered `cancelled` ... */
   gboolean stream_stopped;/* ... and whether continuous acquisition was running */
+  gboolean camera_set;    /* a `set` request: answered with the camera's settings */
 } PendingCapture;
 
 typedef struct {
@@ -92,14 +94,26 @@ void ds_service_reply_ok (DsService *svc, DsConnection *conn, JsonNode *id, Json
 /* The reply to a `cancel` request. */
 void ds_service_reply_cancel (DsService *svc, DsConnection *conn, JsonNode *id, guint cancelled,
                               gboolean stream_stopped);
+/* A request answered later by the acquisition thread's event with `tag`: the connection is held
+ * until then. */
+PendingCapture *ds_service_pending_add (DsService *svc, DsConnection *conn, DsRequest *req, guint64 tag);
 /* A PendingCapture's destructor (the pending table's value). */
 void ds_service_pending_free (gpointer pending);
+
+/* request_set.c: the `set` command, its reply, the camera's settings in status, and the
+ * exposure and gain of captures that give none (what `set` left, else the configuration's). */
+void ds_service_handle_set (DsService *svc, DsConnection *conn, DsRequest *req);
+void ds_service_reply_camera_set (DsService *svc, DsConnection *conn, JsonNode *id);
+void ds_service_status_add_camera_live (JsonBuilder *b, const DsSequencerStatus *st);
+void ds_service_camera_defaults (DsService *svc, DsCaptureSettings *s);
 
 /* service_events.c: events of the acquisition thread, delivered on the main loop. */
 void ds_service_on_sequencer_event (const DsSequencerEvent *ev, gpointer user_data);
 
 /* service_status.c: the `status` document (also the live view's) and the /metrics text. */
 JsonNode *ds_service_status_to_json (DsService *svc);
+/* status `not_ready_reason`: NULL when ready, else why (free it). */
+char *ds_service_not_ready_reason (DsService *svc);
 char *ds_service_metrics_text (DsService *svc);
 
 /* service.c: the configuration in effect, as `config` prints it and every result hashes it. */

@@ -33,6 +33,7 @@ static gboolean
 settings_from_request (DsService *svc, const DsRequest *req, DsCaptureSettings *s, GError **error)
 {
   ds_capture_settings_from_config (s, svc->config);
+  ds_service_camera_defaults (svc, s);
   guint64 u;
   double d;
   gboolean bval;
@@ -156,13 +157,20 @@ pending_add (DsService *svc, DsConnection *conn, DsRequest *req, guint64 tag)
   return p;
 }
 
-/* A request the sequencer did not take: its queue is full, or the devices are not open yet. */
+PendingCapture *
+ds_service_pending_add (DsService *svc, DsConnection *conn, DsRequest *req, guint64 tag)
+{
+  return pending_add (svc, conn, req, tag);
+}
+
+/* A request the sequencer did not take: its queue is full. While the devices open (or
+ * reconnect) requests wait in that queue like any other: the acquisition thread takes them
+ * once the devices are open, or answers them `device_error` when they fail to open. */
 static void
 reply_not_queued (DsService *svc, DsConnection *conn, DsRequest *req)
 {
-  g_autoptr (GError) error = g_error_new (DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BUSY, "%s: %s", req->cmd,
-                                          svc->ready ? "too many requests queued; try again later"
-                                                     : "the devices are not open yet");
+  g_autoptr (GError) error = g_error_new (DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BUSY,
+                                          "%s: too many requests queued; try again later", req->cmd);
   ds_server_reply_error (svc->server, conn, req->id, error);
 }
 
@@ -199,7 +207,7 @@ handle_capture (DsService *svc, DsConnection *conn, DsRequest *req)
   }
   s.keep_extrema = extrema;
   guint64 tag = ++svc->next_tag;
-  if (!svc->ready || !ds_sequencer_capture (svc->sequencer, &s, tag)) {
+  if (!ds_sequencer_capture (svc->sequencer, &s, tag)) {
     reply_not_queued (svc, conn, req);
     return;
   }
@@ -224,7 +232,7 @@ handle_dark (DsService *svc, DsConnection *conn, DsRequest *req)
     return;
   }
   guint64 tag = ++svc->next_tag;
-  if (!svc->ready || !ds_sequencer_dark (svc->sequencer, &s, tag)) {
+  if (!ds_sequencer_dark (svc->sequencer, &s, tag)) {
     reply_not_queued (svc, conn, req);
     return;
   }
@@ -238,8 +246,7 @@ handle_control (DsService *svc, DsConnection *conn, DsRequest *req, gboolean rel
   if (!no_arguments (svc, conn, req))
     return;
   guint64 tag = ++svc->next_tag;
-  gboolean queued = svc->ready && (release ? ds_sequencer_release (svc->sequencer, tag)
-                                           : ds_sequencer_acquire (svc->sequencer, tag));
+  gboolean queued = release ? ds_sequencer_release (svc->sequencer, tag) : ds_sequencer_acquire (svc->sequencer, tag);
   if (!queued) {
     reply_not_queued (svc, conn, req);
     return;
@@ -299,7 +306,7 @@ handle_calibrate (DsService *svc, DsConnection *conn, DsRequest *req)
   s.target_error = 0;
   s.time_budget_ms = 0;
   guint64 tag = ++svc->next_tag;
-  if (!svc->ready || !ds_sequencer_capture (svc->sequencer, &s, tag)) {
+  if (!ds_sequencer_capture (svc->sequencer, &s, tag)) {
     reply_not_queued (svc, conn, req);
     return;
   }
@@ -327,6 +334,16 @@ handle_start (DsService *svc, DsConnection *conn, DsRequest *req)
   ds_sequencer_start (svc->sequencer, json_object_get_size (req->args) ? &s : NULL);
   svc->in_run = TRUE;
   g_autoptr (JsonNode) body = ds_capture_settings_to_json (&s);
+  /* Said in words: a stream whose devices are not ready fails every set, and a reply that only
+   * echoed the settings read as success. */
+  g_autofree char *not_ready = ds_service_not_ready_reason (svc);
+  json_object_set_string_member (
+    json_node_get_object (body), "message",
+    !not_ready ? "continuous acquisition started"
+    : !svc->ready ? "continuous acquisition starts once the devices are open"
+                  : "continuous acquisition started, but the devices are not ready: its sets fail until they are");
+  if (not_ready)
+    json_object_set_string_member (json_node_get_object (body), "not_ready_reason", not_ready);
   ds_service_reply_ok (svc, conn, req->id, body);
 }
 
@@ -386,11 +403,7 @@ handle_cancel (DsService *svc, DsConnection *conn, DsRequest *req)
   if (svc->spool)
     ds_spool_end_run (svc->spool);
   svc->cancels++;
-  /* Devices still opening: nothing can be queued or running yet. */
-  if (!svc->ready) {
-    ds_service_reply_cancel (svc, conn, req->id, 0, FALSE);
-    return;
-  }
+  /* Also while the devices open: the requests waiting for them are answered `cancelled`. */
   guint64 tag = ++svc->next_tag;
   PendingCapture *p = pending_add (svc, conn, req, tag);
   p->cancel = TRUE;
@@ -437,7 +450,7 @@ static const struct {
   { "status", handle_status },   { "capture", handle_capture }, { "dark", handle_dark },
   { "start", handle_start },     { "stop", handle_stop },       { "config", handle_config },
   { "release", handle_release }, { "acquire", handle_acquire }, { "calibrate", handle_calibrate },
-  { "cancel", handle_cancel },
+  { "cancel", handle_cancel },    { "set", ds_service_handle_set },
 };
 
 /* "hello, subscribe, unsubscribe, status, capture, ...": what the daemon answers. */

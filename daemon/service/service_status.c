@@ -26,6 +26,14 @@ not_ready_reason (const DsService *svc, const DsSequencerStatus *st)
   return NULL;
 }
 
+char *
+ds_service_not_ready_reason (DsService *svc)
+{
+  DsSequencerStatus st;
+  ds_sequencer_get_status (svc->sequencer, &st);
+  return not_ready_reason (svc, &st);
+}
+
 /* Without a model, captures with target_error/time_budget_ms are refused: say so up front. */
 static void
 add_operating_model (JsonBuilder *b, const DsService *svc)
@@ -160,6 +168,7 @@ ds_service_status_to_json (DsService *svc)
   ds_json_add_node (b, "dark", ds_status_dark_to_json (&st, g_get_real_time ()));
   ds_json_add_double_or_null (b, "phase_offset_cycles", st.phase_offset_cycles);
   ds_json_add_node (b, "frames", ds_frame_counters_to_json (&st.frames));
+  ds_service_status_add_camera_live (b, &st);
   add_operating_model (b, svc);
   ds_json_begin_member_object (b, "stage_mean_ms");
   for (guint i = 0; i < DS_STAGE_N; i++)

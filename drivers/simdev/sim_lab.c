@@ -86,7 +86,7 @@ ds_sim_faults_parse (const char *text, DsSimFaults *out, GError **error)
                    { "stale-next", &out->stale_next },
                    { "incomplete-next", &out->incomplete_next }, { "timeout-next", &out->timeout_next },
                    { "drop-next", &out->drop_next }, { "wrong-phase-next", &out->wrong_phase_next },
-                   { "not-ready-next", &out->not_ready_next } };
+                   { "not-ready-next", &out->not_ready_next }, { "open-delay-ms", &out->open_delay_ms } };
     for (guint k = 0; k < G_N_ELEMENTS (counts); k++)
       if (strcmp (name, counts[k].name) == 0) {
         if (v != floor (v) || v > 1e9) {
@@ -100,7 +100,7 @@ ds_sim_faults_parse (const char *text, DsSimFaults *out, GError **error)
     if (!known) {
       g_set_error (error, G_KEY_FILE_ERROR, G_KEY_FILE_ERROR_INVALID_VALUE,
                    "faults: unknown fault \"%s\" (stale, incomplete, timeout, drop, wrong-phase, "
-                   "not-ready, disconnect-after, faults-after, and <name>-next counts)", name);
+                   "not-ready, disconnect-after, faults-after, open-delay-ms, and <name>-next counts)", name);
       return FALSE;
     }
   }

@@ -27,6 +27,10 @@ typedef struct {
    * get the fault for sure, before the probabilities above are rolled. Counted down under the
    * lab's lock; 0 = none. */
   guint stale_next, incomplete_next, timeout_next, drop_next, wrong_phase_next, not_ready_next;
+  /* Milliseconds the devices take to open (as a camera's discovery or a cold kernel cache
+   * would), so that what a daemon does while its devices open can be tried; 0 = none. Read by
+   * whoever opens the lab (daemon/acquire/devices.c), not by the lab. */
+  guint open_delay_ms;
 } DsSimFaults;
 
 /* Parses "name=value,..." (names as in the struct, with '-' for '_': "drop=0.1",

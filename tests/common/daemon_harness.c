@@ -46,9 +46,9 @@ test_daemon_start (const char *config_text, const char *const *extra_args)
   return test_daemon_start_full (config_text, extra_args, NULL, TRUE);
 }
 
-TestDaemon *
-test_daemon_start_full (const char *config_text, const char *const *extra_args, const char *const *env,
-                        gboolean wait_ready)
+/* The daemon process on a fresh folder holding config_text; not waited for. */
+static TestDaemon *
+daemon_spawn (const char *config_text, const char *const *extra_args, const char *const *env)
 {
   TestDaemon *d = g_new0 (TestDaemon, 1);
   g_autoptr (GError) error = NULL;
@@ -75,6 +75,29 @@ test_daemon_start_full (const char *config_text, const char *const *extra_args, 
   g_subprocess_launcher_set_child_setup (launcher, die_with_parent, NULL, NULL);
   d->proc = g_subprocess_launcher_spawnv (launcher, (const char *const *) argv->pdata, &error);
   g_assert_no_error (error);
+  return d;
+}
+
+TestDaemon *
+test_daemon_start_unready (const char *config_text)
+{
+  TestDaemon *d = daemon_spawn (config_text, NULL, NULL);
+  for (guint i = 0; i < 12000; i++) {
+    g_assert_nonnull (g_subprocess_get_identifier (d->proc));
+    g_autoptr (DsClient) c = ds_client_connect (d->socket_path, NULL);
+    if (c)
+      return d;
+    g_usleep (10 * 1000);
+  }
+  g_error ("descatterd did not open its socket within 120 s");
+  return NULL;
+}
+
+TestDaemon *
+test_daemon_start_full (const char *config_text, const char *const *extra_args, const char *const *env,
+                        gboolean wait_ready)
+{
+  TestDaemon *d = daemon_spawn (config_text, extra_args, env);
   /* Ready = `status` answers ready (the simulated lab may take seconds to build); or, when not
    * waiting for that, answers with the devices opened (ready or not, with a reason). */
   for (guint i = 0; i < 1200; i++) {

@@ -20,6 +20,9 @@ TestDaemon *test_daemon_start (const char *config_text, const char *const *extra
  * is FALSE, returning once the devices were opened, ready or not (a refused setting). */
 TestDaemon *test_daemon_start_full (const char *config_text, const char *const *extra_args,
                                     const char *const *env, gboolean wait_ready);
+/* The same, returning as soon as the daemon's socket accepts a connection, before its devices
+ * are open (status `opening`): for what a client sent right away gets. */
+TestDaemon *test_daemon_start_unready (const char *config_text);
 /* SIGTERM and wait; returns the exit status. */
 int test_daemon_stop (TestDaemon *d);
 void test_daemon_free (TestDaemon *d);

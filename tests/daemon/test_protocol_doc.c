@@ -96,6 +96,8 @@ test_settings_documented (void)
   full.edge_blur_known = TRUE;
   full.edge_blur_px = 0.5;
   full.saturation_dn = 4000;
+  full.roi_width = 64; /* a result's region, as the set runner fills it in */
+  full.roi_height = 48;
   full.automatic = TRUE;
   full.target_error = 0.05;
   full.operating.target_error = 0.05;

@@ -326,6 +326,7 @@ on_event (const DsSequencerEvent *ev, gpointer data)
     o->progress++;
     break;
   case DS_SEQUENCER_EVENT_DEVICE:
+  case DS_SEQUENCER_EVENT_STREAM_STOPPED:
     o->device_events++;
     break;
   case DS_SEQUENCER_EVENT_CONTROL:

@@ -15,7 +15,7 @@ import asyncio
 
 from . import wire
 from ._version import __version__
-from .client import _ACQ_KEYS, _CALIBRATE_KEYS, DEFAULT_TIMEOUT, acquisition_args, resolve, split_address
+from .client import _ACQ_KEYS, _CALIBRATE_KEYS, DEFAULT_TIMEOUT, acquisition_args, camera_args, resolve, split_address
 from .errors import BadReply, DescatterError, Timeout, error_from_reply
 from .events import ProgressEvent, Result, make_event
 
@@ -166,6 +166,10 @@ class AsyncClient:
         args = acquisition_args(dict(averages=averages, exposure_us=exposure_us, gain_db=gain_db),
                                 ("averages", "exposure_us", "gain_db"))
         return (await self._acquiring_call("dark", timeout=timeout, **args))[0]
+
+    async def set_camera(self, *, exposure_us=None, gain_db=None, roi=None, timeout=None):
+        """As descatter.Client.set_camera."""
+        return (await self.call("set", timeout=timeout, **camera_args(exposure_us, gain_db, roi)))[0]["camera"]
 
     async def release(self, timeout=None):
         return (await self.call("release", timeout=timeout))[0]

@@ -57,6 +57,21 @@ def acquisition_args(kwargs, allowed):
     return {k: v for k, v in kwargs.items() if v is not None}
 
 
+def camera_args(exposure_us=None, gain_db=None, roi=None):
+    """The arguments of `set`: the ones given. roi: (x, y, width, height) or a dict of those."""
+    args = acquisition_args(dict(exposure_us=exposure_us, gain_db=gain_db), ("exposure_us", "gain_db"))
+    if roi is not None:
+        if isinstance(roi, dict):
+            roi = tuple(roi.get(k) for k in ("x", "y", "width", "height"))
+        roi = tuple(roi)
+        if len(roi) != 4 or not all(isinstance(v, int) and not isinstance(v, bool) for v in roi):
+            raise TypeError("roi: (x, y, width, height), four ints (pixels on the sensor)")
+        args["roi"] = dict(zip(("x", "y", "width", "height"), roi))
+    if not args:
+        raise TypeError("set_camera: give exposure_us, gain_db or roi")
+    return args
+
+
 _CALIBRATE_KEYS = ("phases", "averages", "exposure_us", "gain_db", "dark_frame", "period_px", "pixel_aperture")
 
 
@@ -238,6 +253,14 @@ class Client:
         args = acquisition_args(dict(averages=averages, exposure_us=exposure_us, gain_db=gain_db),
                                 ("averages", "exposure_us", "gain_db"))
         return self._acquiring_call("dark", timeout=timeout, **args)[0]
+
+    def set_camera(self, *, exposure_us=None, gain_db=None, roi=None, timeout=None):
+        """Changes the open camera's exposure (µs), gain (dB) or region (x, y, width, height) between
+        two sets (docs/protocol.md, `set`); later captures without their own exposure and gain
+        use them. A value outside the camera's range raises descatter.BadArgument naming it and
+        the range. Returns the camera's settings as applied: {"exposure_us", "gain_db", "roi":
+        {"x", "y", "width", "height"}}."""
+        return self.call("set", timeout=timeout, **camera_args(exposure_us, gain_db, roi))[0]["camera"]
 
     def release(self, timeout=None):
         """Closes the daemon's devices so that another program (arv-viewer) can take the

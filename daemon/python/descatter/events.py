@@ -91,6 +91,17 @@ class DeviceEvent(Event):
         return self.body.get("message", "")
 
 
+class StreamStoppedEvent(Event):
+    """Continuous acquisition stopped by itself: its sets kept failing ([acquisition]
+    max-failed-sets in a row); `reason` says when and why."""
+
+    kind = "stream_stopped"
+
+    @property
+    def reason(self):
+        return self.body.get("reason", "")
+
+
 class ProgressEvent(Event):
     """A phase of a capture was acquired (captures ask for these to keep the line alive)."""
 
@@ -105,7 +116,8 @@ class ProgressEvent(Event):
         return self.body.get("phases")
 
 
-_KINDS = {"failed": FailedEvent, "device": DeviceEvent, "progress": ProgressEvent}
+_KINDS = {"failed": FailedEvent, "device": DeviceEvent, "stream_stopped": StreamStoppedEvent,
+          "progress": ProgressEvent}
 
 
 def make_event(header, images, last_seq):
