@@ -2,7 +2,7 @@
 """A failing rig on the live view, in headless Chromium: the simulated camera delivers every
 frame incomplete ([sim] faults = incomplete=1), so every set fails once its retries are exhausted.
 Start from the page: the daemon answers the start itself, but the page raises a loud banner
-that says every set of the run failed, with the time it saw it, the daemon's reason (status'
+that says every set of the run failed (and, loud still, once the run ended), with the time it saw it, the daemon's reason (status'
 last_error, read here over the socket) and a remedy naming the camera's network. A Capture from the
 page then fails and the banner shows the reply's error code and message. Optionally saves a
 screenshot of the loud banner (docs/live-view-failing.png is made so:
@@ -56,6 +56,11 @@ def main():
             b.click("#stop")
             b.wait(f"Number({BODY}.replies || 0) > {n}", "the stop's reply")
             d.wait_for(lambda s: s["state"] == "idle" and not s["continuous"], "idle after the stop", timeout=40)
+            # The run ended with every set failed: still loud.
+            b.wait(f"{BODY}.state === 'idle'", "the page seeing the daemon idle")
+            bn = banner(b)
+            assert b.js(f"{BODY}.banner") == "continuous-ended" and bn["cls"] == "loud", bn
+            assert re.search(r"Continuous run ended: all \d+ sets since \d\d:\d\d:\d\d failed", bn["text"]), bn["text"]
             # A single capture fails too: its reply's error is the banner's cause.
             b.js("document.getElementById('banner-dismiss').click()")
             assert not banner(b)["shown"]
