@@ -10,7 +10,8 @@ lab (12-bit sensor, 256 x 192) with an ROI at (32, 16):
   - the stripe phase prints wrapped to [0, 1) (0.99996 cycles reads 0.000);
   - after a resize the stripe overlay covers the frame canvas exactly and stays in its section;
   - idle after a capture, the frame is marked stale;
-  - Cancel on the page answers a long capture, sent over the socket, `cancelled`.
+  - Cancel on the page answers a long capture, sent over the socket, `cancelled`;
+  - a refused camera setting shows the daemon's message beside the inputs.
 Usage: test_live_align.py DESCATTERD DESCATTERCTL"""
 import json
 import math
@@ -123,7 +124,7 @@ def check_phase_wrap(b):
 def check_resize(b):
     for width in (760, 1400):
         b.set_viewport(width, 1000)
-        b.wait(f"document.getElementById('raw').width === Math.round(document.getElementById('view').clientWidth)",
+        b.wait("document.getElementById('raw').width === Math.round(document.getElementById('view').clientWidth)",
                "the frame canvas following the resize", timeout=20)
         raw, ov, view = (b.js(RECT.format(i)) for i in ("raw", "overlay", "view"))
         sec = b.js("(() => { const r = document.getElementById('view').closest('section').getBoundingClientRect();"
@@ -164,6 +165,18 @@ def check_cancel(b, d):
     assert st["sets_cancelled"] == cancelled0 + 1, st["sets_cancelled"]
 
 
+def check_refusal_shown(b):
+    """A refused camera setting shows the daemon's own message by the inputs: an exposure out of
+    range (with the daemon's `set`), or the unknown command (without it)."""
+    b.js("(() => { const e = document.getElementById('exposure'); e.value = '-5'; e.dispatchEvent(new Event('input')); })()")
+    n = replies(b)
+    b.click("#apply")
+    b.wait(f"Number({BODY}.replies || 0) > {n}", "the set's reply", timeout=30)
+    text, cls = b.js("[document.getElementById('camera-reply').textContent, document.getElementById('camera-reply').className]")
+    assert cls == "err" and b.js(f"{BODY}.cameraReply") == "error", (text, cls)
+    assert text.startswith(("bad_argument: ", "unknown_command: ")) and ("exposure" in text or '"set"' in text), text
+
+
 def main():
     daemon, ctl = sys.argv[1:3]
     with tempfile.TemporaryDirectory() as tmp:
@@ -184,6 +197,7 @@ def main():
             check_zoom_readout(b)
             check_phase_wrap(b)
             check_resize(b)
+            check_refusal_shown(b)
             # Four times the exposure clips the bright part: the histogram's top bin fires.
             d.ctl("capture", "--quiet", "--phases", "4", "--exposure-us", "20000", "--out", os.path.join(tmp, "clip"))
             b.wait(f"Number({BODY}.clipped || 0) > 0", "a clipped frame")

@@ -8,8 +8,9 @@ on the simulated lab (needs the daemon's `preview` and `set` commands):
     sensor's signal is dark level + rate x exposure: the step 1250 -> 3750 is twice the step
     1250 -> 2500, within 10 %); the page shows each frame's mean;
   - a refused exposure shows the daemon's own message next to the inputs;
-  - light off: the frames' mean falls below half the lit mean (only the ambient light is left);
-  - an ROI applied from the page: frames of its size, and the pixel under the cursor reads
+  - light off (preview off, then on again with the light off): the frames' mean falls below
+    half the lit mean (only the ambient light is left);
+  - an ROI applied from the page while idle: frames of its size, and the pixel under the cursor reads
     sensor coordinates offset by the ROI's origin;
   - Preview off: the daemon is idle again.
 Usage: test_live_preview.py DESCATTERD DESCATTERCTL"""
@@ -48,7 +49,8 @@ def mean(f):
 
 def set_inputs(b, **values):
     for k, v in values.items():
-        b.js(f"document.getElementById('{k}').value = '{v}'")
+        b.js(f"(() => {{ const e = document.getElementById('{k}'); e.value = '{v}';"
+             " e.dispatchEvent(new Event('input')); })()")  # as typed: status no longer refills it
 
 
 def main():
@@ -88,11 +90,15 @@ def main():
             set_inputs(b, exposure=2500)
             assert command_reply(b, "#apply", "camera-reply", "the set back")[0] == "ok"
             lit = mean(fresh_frame(b, exposure_us=2500))
+            assert command_reply(b, "#preview-off", "preview-reply", "preview off")[0] == "ok"
+            d.wait_for(lambda s: s["state"] == "idle", "idle after the preview")
             b.js("document.getElementById('light').value = 'off'")
             assert command_reply(b, "#preview-on", "preview-reply", "light off")[0] == "ok"
             dark = mean(fresh_frame(b, after=4))
             assert dark < 0.5 * lit, (dark, lit)
-            # An ROI: the frame shrinks, and the readout counts from the sensor's corner.
+            assert command_reply(b, "#preview-off", "preview-reply", "preview off")[0] == "ok"
+            d.wait_for(lambda s: s["state"] == "idle", "idle after the preview")
+            # An ROI (set while idle): the frame shrinks, and the readout counts from the sensor's corner.
             set_inputs(b, **{"roi-x": 48, "roi-y": 32, "roi-w": 128, "roi-h": 96})
             ok, text = command_reply(b, "#apply", "camera-reply", "the ROI")
             assert ok == "ok", text
