@@ -8,6 +8,9 @@
 #include "proc/stripe_phase.h"
 
 #define HISTOGRAM_BINS 64
+/* Full-resolution samples for frames up to this size (32 MB of u16): a page zooms to single
+ * pixels and reads their values only from these. */
+#define LIVE_MAX_SENSOR_PIXELS (16u * 1024 * 1024)
 
 typedef struct {
   GString *header; /* the "images" array being built */
@@ -52,21 +55,91 @@ pack (const char *header_head, Packer *p, const char *header_tail)
   return g_byte_array_free_to_bytes (out);
 }
 
+static const char *
+number_or_null (char buf[G_ASCII_DTOSTR_BUF_SIZE], double v)
+{
+  return isfinite (v) ? g_ascii_dtostr (buf, G_ASCII_DTOSTR_BUF_SIZE, v) : "null";
+}
+
 static void
 append_double (GString *s, const char *key, double v)
 {
   char buf[G_ASCII_DTOSTR_BUF_SIZE];
-  g_string_append_printf (s, ",\"%s\":%s", key, isfinite (v) ? g_ascii_dtostr (buf, sizeof buf, v) : "null");
+  g_string_append_printf (s, ",\"%s\":%s", key, number_or_null (buf, v));
 }
 
-GBytes *
-ds_live_encode_frame (const DsImage *frame, guint phase, guint n_phases, guint64 frame_id, double period_px,
-                      guint max_side)
+/* The sensor's significant bits and its full scale: a configured saturation level names both
+ * (12-bit data in a 16-bit container clips at 4095, not 65535); else the image's depth. */
+static void
+significant_range (const DsImage *frame, double saturation_dn, guint *bits, double *full_scale)
 {
-  GString *head = g_string_new ("{\"type\":\"frame\"");
-  g_string_append_printf (head, ",\"phase\":%u,\"phases\":%u,\"frame_id\":%" G_GUINT64_FORMAT
-                                ",\"width\":%u,\"height\":%u,\"bit_depth\":%u",
-                          phase, n_phases, frame_id, frame->width, frame->height, frame->bit_depth);
+  guint depth = frame->type == DS_SAMPLE_F32 ? 32 : frame->bit_depth;
+  if (frame->type != DS_SAMPLE_F32 && saturation_dn >= 1) {
+    guint b = 1;
+    while (b < depth && (double) (1u << b) - 1 < saturation_dn)
+      b++;
+    *bits = b;
+    *full_scale = MIN (saturation_dn, (double) ((1u << b) - 1));
+    return;
+  }
+  *bits = depth;
+  if (frame->type == DS_SAMPLE_F32) {
+    double lo, hi;
+    ds_image_levels (frame, 0, 100, &lo, &hi);
+    *full_scale = hi;
+  } else {
+    *full_scale = (double) ((1u << depth) - 1);
+  }
+}
+
+static double
+image_mean (const DsImage *frame)
+{
+  double sum = 0;
+  guint64 n = 0;
+  for (guint y = 0; y < frame->height; y++) {
+    const void *row = ds_image_row (frame, y);
+    for (guint x = 0; x < frame->width; x++) {
+      double v = ds_image_sample (frame, row, x);
+      if (isfinite (v)) {
+        sum += v;
+        n++;
+      }
+    }
+  }
+  return n ? sum / (double) n : NAN;
+}
+
+/* The samples at full resolution, rows back to back, little-endian, 4-byte aligned. */
+static void
+add_sensor (Packer *p, GString *head, const DsImage *frame)
+{
+  if ((guint64) frame->width * frame->height > LIVE_MAX_SENSOR_PIXELS)
+    return;
+  static const guint8 zeros[4] = { 0 };
+  g_byte_array_append (p->pixels, zeros, (4 - p->pixels->len % 4) % 4);
+  gsize size = ds_sample_size (frame->type);
+  g_string_append_printf (head, ",\"sensor\":{\"offset\":%u,\"width\":%u,\"height\":%u,\"sample\":\"%s\"}",
+                          p->pixels->len, frame->width, frame->height,
+                          frame->type == DS_SAMPLE_U8 ? "u8" : frame->type == DS_SAMPLE_U16 ? "u16" : "f32");
+  guint at = p->pixels->len;
+  for (guint y = 0; y < frame->height; y++)
+    g_byte_array_append (p->pixels, ds_image_row (frame, y), (guint) (frame->width * size));
+#if G_BYTE_ORDER == G_BIG_ENDIAN
+  for (guint i = at; i + size <= p->pixels->len; i += size)
+    for (gsize a = 0, b = size - 1; a < b; a++, b--) {
+      guint8 t = p->pixels->data[i + a];
+      p->pixels->data[i + a] = p->pixels->data[i + b];
+      p->pixels->data[i + b] = t;
+    }
+#else
+  (void) at;
+#endif
+}
+
+static void
+append_stripes (GString *head, const DsImage *frame, double period_px)
+{
   append_double (head, "period_configured_px", period_px);
   /* The period the camera sees, then the phase at that period. */
   DsStripePeriod sp = { .period_px = NAN };
@@ -83,20 +156,51 @@ ds_live_encode_frame (const DsImage *frame, guint phase, guint n_phases, guint64
   append_double (head, "modulation", ph.modulation);
   append_double (head, "snr", ph.snr);
   g_string_append_printf (head, ",\"phase_reliable\":%s", ph.reliable ? "true" : "false");
-  /* Histogram over the ADC's range; the top bin also counts what is at full scale. */
-  double fmin, fmax;
-  ds_image_levels (frame, 0, 100, &fmin, &fmax);
-  double top = frame->type == DS_SAMPLE_F32 ? fmax + 1 : (double) (1u << frame->bit_depth);
+}
+
+static void
+append_levels (GString *head, const DsImage *frame, double saturation_dn)
+{
+  guint bits;
+  double full_scale;
+  significant_range (frame, saturation_dn, &bits, &full_scale);
+  g_string_append_printf (head, ",\"significant_bits\":%u", bits);
+  append_double (head, "full_scale_dn", full_scale);
+  /* Bins from 0 to full scale; the top bin also counts what is at full scale (clipped). */
   guint32 bins[HISTOGRAM_BINS];
   guint64 full = 0;
-  ds_image_histogram (frame, frame->type == DS_SAMPLE_F32 ? top : top - 1, HISTOGRAM_BINS, bins, &full);
-  append_double (head, "histogram_top", top);
+  ds_image_histogram (frame, full_scale, HISTOGRAM_BINS, bins, &full);
+  append_double (head, "histogram_top", full_scale);
   g_string_append (head, ",\"histogram\":[");
   for (guint i = 0; i < HISTOGRAM_BINS; i++)
     g_string_append_printf (head, "%s%u", i ? "," : "", bins[i]);
   g_string_append_printf (head, "],\"at_full_scale\":%" G_GUINT64_FORMAT, full);
+  double p1, p50, p99, p999;
+  ds_image_levels (frame, 1, 99, &p1, &p99);
+  ds_image_levels (frame, 50, 99.9, &p50, &p999);
+  char b1[G_ASCII_DTOSTR_BUF_SIZE], b50[G_ASCII_DTOSTR_BUF_SIZE], b99[G_ASCII_DTOSTR_BUF_SIZE],
+      b999[G_ASCII_DTOSTR_BUF_SIZE];
+  g_string_append_printf (head, ",\"percentiles\":{\"p1\":%s,\"p50\":%s,\"p99\":%s,\"p99_9\":%s}",
+                          number_or_null (b1, p1), number_or_null (b50, p50), number_or_null (b99, p99),
+                          number_or_null (b999, p999));
+  append_double (head, "mean", image_mean (frame));
+}
+
+GBytes *
+ds_live_encode_frame (const DsImage *frame, const DsLiveFrameInfo *info, guint max_side)
+{
+  GString *head = g_string_new ("{\"type\":\"frame\"");
+  g_string_append_printf (head, ",\"phase\":%u,\"phases\":%u,\"frame_id\":%" G_GUINT64_FORMAT
+                                ",\"width\":%u,\"height\":%u,\"bit_depth\":%u,\"time_unix_ms\":%" G_GINT64_FORMAT,
+                          info->phase, info->n_phases, info->frame_id, frame->width, frame->height,
+                          frame->bit_depth, info->time_unix_ms);
+  append_double (head, "exposure_us", info->exposure_us);
+  append_double (head, "gain_db", info->gain_db);
+  append_stripes (head, frame, info->period_px);
+  append_levels (head, frame, info->saturation_dn);
   Packer p = { g_string_new ("["), g_byte_array_new () };
   add_plane (&p, "raw", frame, 0.1, 99.9, max_side);
+  add_sensor (&p, head, frame);
   GBytes *out = pack (head->str, &p, NULL);
   g_string_free (head, TRUE);
   return out;

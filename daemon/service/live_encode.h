@@ -11,12 +11,25 @@
 
 G_BEGIN_DECLS
 
-/* Phase `phase` of n_phases, as the camera delivered it: the picture (0.1..99.9th percentile),
- * a 64-bin histogram over the ADC's range, the stripe period measured in it (searched within
- * period_px / 2 .. 2 period_px, period_px being the configured one) and the stripe phase
- * measured at that period, with modulation (for focusing) and snr. */
-GBytes *ds_live_encode_frame (const DsImage *frame, guint phase, guint n_phases, guint64 frame_id,
-                              double period_px, guint max_side);
+/* What the live view knows of a raw frame besides its pixels (copied by the frame hook). */
+typedef struct {
+  guint phase, n_phases;   /* phase k of N as the sequencer lit it */
+  guint64 frame_id;
+  double period_px;        /* the configured stripe period */
+  double saturation_dn;    /* [camera] saturation-dn; 0: the pixel format's top */
+  double exposure_us, gain_db;
+  gint64 time_unix_ms;     /* when the hook copied it (the daemon's clock) */
+} DsLiveFrameInfo;
+
+/* A raw frame: the picture (0.1..99.9th percentile); the sensor's samples at full resolution
+ * ("sensor": u8, u16 little-endian or f32, 4-byte aligned after the pictures; absent for frames
+ * above 16 Mpixel) so that a page can zoom to single pixels and read their values; the
+ * significant bit depth (from saturation_dn when it is set, else the image's), a 64-bin
+ * histogram from 0 to full scale (the last bin also counts the samples at full scale), the
+ * 1st, 50th, 99th and 99.9th percentiles and the mean; the stripe period measured (searched
+ * within period_px / 2 .. 2 period_px) and the stripe phase at that period, with modulation
+ * (for focusing) and snr. */
+GBytes *ds_live_encode_frame (const DsImage *frame, const DsLiveFrameInfo *info, guint max_side);
 
 /* A result: transmissive, scattered (0.5..99.5th percentile each), the plain average of the
  * phases (the set's mean, or pattern_mean * (transmissive + scattered)), and the mask's flags

@@ -10,7 +10,8 @@
 #define LIVE_MAX_SIDE 640
 #define STATUS_INTERVAL_MS 500
 /* Commands a page may send (the daemon checks their arguments as for any client). */
-static const char *const page_commands[] = { "capture", "start", "stop", "status", "dark", "release", "acquire", NULL };
+static const char *const page_commands[] = { "capture", "start", "stop", "cancel", "status", "dark", "release",
+                                             "acquire", "preview", "set", NULL };
 
 typedef enum { KIND_STATUS, KIND_RESULT, KIND_FRAME, N_KINDS } Kind;
 
@@ -36,9 +37,7 @@ struct DsLiveView {
   GCond cond;
   DsImage *frame;           /* the newest frame not yet encoded, or NULL */
   DsImage *spare;           /* a frame buffer the encoder gave back */
-  guint frame_phase, frame_phases;
-  guint64 frame_id;
-  double period_px;
+  DsLiveFrameInfo frame_info;
   gint64 last_copy_us;
   DsResult *result;         /* the newest result not yet encoded */
   char *result_meta;
@@ -153,7 +152,7 @@ on_message (SoupWebsocketConnection *ws, gint type, GBytes *message, gpointer da
   JsonNode *id = json_object_get_member (o, "id");
   if (!cmd || !g_strv_contains (page_commands, cmd)) {
     g_autofree char *msg = g_strdup_printf ("\"%s\" is not a command of the live view (capture, start, stop, "
-                                            "status, dark, release, acquire)", cmd ? cmd : "");
+                                            "cancel, status, dark, release, acquire, preview, set)", cmd ? cmd : "");
     reply_error (c, id, msg);
     return;
   }
@@ -274,9 +273,7 @@ encoder_main (gpointer data)
     if (lv->quit)
       break;
     DsImage *frame = g_steal_pointer (&lv->frame);
-    guint phase = lv->frame_phase, phases = lv->frame_phases;
-    guint64 id = lv->frame_id;
-    double period = lv->period_px;
+    DsLiveFrameInfo info = lv->frame_info;
     DsResult *result = g_steal_pointer (&lv->result);
     g_autofree char *meta = g_steal_pointer (&lv->result_meta);
     g_mutex_unlock (&lv->lock);
@@ -285,7 +282,7 @@ encoder_main (gpointer data)
       ds_result_unref (result);
     }
     if (frame)
-      post (lv, KIND_FRAME, ds_live_encode_frame (frame, phase, phases, id, period, LIVE_MAX_SIDE));
+      post (lv, KIND_FRAME, ds_live_encode_frame (frame, &info, LIVE_MAX_SIDE));
     g_mutex_lock (&lv->lock);
     if (frame) {
       /* Back as the next copy's buffer. */
@@ -326,10 +323,10 @@ ds_live_view_on_frame (const DsFrame *frame, guint phase, const DsCaptureSetting
       memcpy (ds_image_row (dst, y), ds_image_row (src, y), row);
     dst->bit_depth = src->bit_depth;
     lv->frame = dst;
-    lv->frame_phase = phase;
-    lv->frame_phases = settings->phases;
-    lv->frame_id = frame->frame_id;
-    lv->period_px = settings->period_px;
+    lv->frame_info = (DsLiveFrameInfo) { .phase = phase, .n_phases = settings->phases, .frame_id = frame->frame_id,
+                                         .period_px = settings->period_px, .saturation_dn = settings->saturation_dn,
+                                         .exposure_us = frame->exposure_us, .gain_db = frame->gain_db,
+                                         .time_unix_ms = g_get_real_time () / 1000 };
     g_cond_signal (&lv->cond);
   }
   g_mutex_unlock (&lv->lock);

@@ -3,7 +3,8 @@
  *
  *   - raw frames: the sequencer's frame hook (fold worker thread) copies at most max_fps frames
  *     a second into a slot, and only while someone watches; the encoder thread turns the newest
- *     into a small picture with the measured stripe period and phase and a histogram;
+ *     into a small picture with the measured stripe period and phase, the histogram and levels
+ *     over the sensor's significant bits, and the samples at full resolution (live_encode.h);
  *   - results: every published result (main thread) is encoded the same way (transmissive,
  *     scattered, plain average, mask);
  *   - status: the daemon's status document twice a second (frame counters, drop reasons,

@@ -1,6 +1,8 @@
 """Headless Chromium driven through its DevTools protocol (python3-websocket; no npm, no
-download): start, open a page, evaluate JavaScript, click, take a screenshot."""
+download): start, open a page, evaluate JavaScript, click, move and drag the mouse, resize the
+viewport, keep the binary WebSocket messages the page receives, take a screenshot."""
 import base64
+import collections
 import json
 import os
 import shutil
@@ -39,6 +41,7 @@ class Browser:
         self.call("Page.enable")
         self.call("Runtime.enable")
         self.console = []
+        self.ws_messages = None  # the newest binary WebSocket messages, once capture_websocket()
 
     def call(self, method, **params):
         self.next_id += 1
@@ -46,7 +49,12 @@ class Browser:
         while True:
             m = json.loads(self.ws.recv())
             if m.get("method") == "Runtime.exceptionThrown":
-                self.console.append(m["params"]["exceptionDetails"].get("text", "exception"))
+                d = m["params"]["exceptionDetails"]
+                self.console.append(d.get("text", "exception") + ": " + str(d.get("exception", {}).get("description")))
+            if m.get("method") == "Network.webSocketFrameReceived" and self.ws_messages is not None:
+                r = m["params"]["response"]
+                if r.get("opcode") == 2:
+                    self.ws_messages.append(r["payloadData"])
             if m.get("id") == self.next_id:
                 if "error" in m:
                     raise RuntimeError(f"{method}: {m['error']}")
@@ -77,6 +85,32 @@ class Browser:
 
     def click(self, selector):
         self.js(f"document.querySelector({json.dumps(selector)}).click()")
+
+    def capture_websocket(self, keep=16):
+        """From now on keep the newest `keep` binary messages the page's WebSockets receive (bytes,
+        as the server sent them), read by received_messages()."""
+        self.ws_messages = collections.deque(maxlen=keep)
+        self.call("Network.enable", maxTotalBufferSize=256 << 20)
+
+    def received_messages(self):
+        self.js("0")  # reads the events that came meanwhile
+        return [base64.b64decode(p) for p in self.ws_messages]
+
+    def mouse(self, kind, x, y, buttons=0):
+        """A real mouse event at page coordinates (CSS pixels): kind moved, pressed or released."""
+        self.call("Input.dispatchMouseEvent", type={"moved": "mouseMoved", "pressed": "mousePressed",
+                                                    "released": "mouseReleased"}[kind], x=x, y=y,
+                  button="left" if buttons or kind != "moved" else "none", buttons=buttons, clickCount=1)
+
+    def drag(self, x0, y0, x1, y1, steps=5):
+        self.mouse("moved", x0, y0)
+        self.mouse("pressed", x0, y0, 1)
+        for i in range(1, steps + 1):
+            self.mouse("moved", x0 + (x1 - x0) * i / steps, y0 + (y1 - y0) * i / steps, 1)
+        self.mouse("released", x1, y1, 1)
+
+    def set_viewport(self, width, height):
+        self.call("Emulation.setDeviceMetricsOverride", width=width, height=height, deviceScaleFactor=1, mobile=False)
 
     def screenshot(self, path):
         data = self.call("Page.captureScreenshot", format="png")["data"]

@@ -3,7 +3,9 @@
 `descatterd` on the simulated lab: the page connects with the token, draws frames with the
 measured stripe period, sees its images change as sets complete (the transmissive canvas's
 pixels differ between two results), its Capture button makes the daemon take one set whose
-result the page then shows, and Release/Acquire close and reopen the devices. Optionally saves a screenshot (docs/live-view.png is made so:
+result the page then shows, and Release/Acquire close and reopen the devices (the frame shown
+is marked released meanwhile). Optionally saves a screenshot of the page streaming, zoomed 4:1
+with the cursor's pixel read out (docs/live-view.png is made so:
 tests/daemon/test_live_view.py DESCATTERD DESCATTERCTL docs/live-view.png).
 Usage: test_live_view.py DESCATTERD DESCATTERCTL [SCREENSHOT.png]"""
 import os
@@ -31,7 +33,7 @@ def main():
             f.write(TOKEN)
         d = LiveDaemon(daemon, ctl, tmp, f"[http]\nlisten=127.0.0.1:0\ntoken-file={token_file}\n"
                                          "[acquisition]\nphases=6\n")
-        b = Browser()
+        b = Browser(height=1500 if shot else 1000)
         try:
             b.open(d.url + "?token=" + TOKEN)
             b.wait(f"{BODY}.connected === '1'", "the page's WebSocket")
@@ -76,10 +78,22 @@ def main():
                 b.wait(f"Number({BODY}.replies || 0) > {replies}", f"the reply to {button}")
                 assert b.js(f"{BODY}.lastReply") == "ok", b.js("document.getElementById('reply').textContent")
                 assert d.status()["state"] == state, d.status()["state"]
+                if state == "released":
+                    b.wait(f"{BODY}.frameState === 'released'", "the frame marked released", timeout=10)
             assert not b.console, b.console
             if shot:
                 b.js("document.getElementById('phases').value = 6")
+                b.click("#start")
+                done = int(b.js(f"Number({BODY}.resultSet)"))
+                b.wait(f"Number({BODY}.resultSet) >= {done + 3}", "results for the screenshot")
+                b.js("(() => { const z = document.getElementById('zoom'); z.value = '4';"
+                     " z.dispatchEvent(new Event('change')); })()")
+                r = b.js("(() => { const r = document.getElementById('raw').getBoundingClientRect();"
+                         " return [r.left, r.top, r.width, r.height]; })()")
+                b.mouse("moved", r[0] + r[2] * 0.45, r[1] + r[3] * 0.4)
+                b.wait(f"Number({BODY}.focusPoints || 0) >= 20 && {BODY}.frameState === 'live'", "a focus trace")
                 b.screenshot(shot)
+                b.click("#stop")
         finally:
             b.close()
             d.stop()
