@@ -482,7 +482,8 @@ ds_hdf5_run_append (DsHdf5Run *run, const DsOutputResult *r, GError **error)
     return FALSE;
   guint64 set_id = (guint64) ds_json_path_int (r->meta, "set_id", 0);
   g_autofree char *json = json_to_string (r->meta, FALSE);
-  guint64 need = set_bytes (run, r, strlen (json)) + APPEND_SLACK_BYTES;
+  /* A retired run takes its reserve back when it reopens: that room is needed too. */
+  guint64 need = set_bytes (run, r, strlen (json)) + APPEND_SLACK_BYTES + (run->retired ? DS_DISK_RESERVE_BYTES : 0);
   guint64 room = ds_disk_free_bytes (run->partial);
   GError *local = NULL;
   /* No append that cannot fit is started: HDF5 is not trusted after a write failed half way. */
