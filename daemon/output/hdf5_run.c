@@ -4,23 +4,56 @@
 #include <string.h>
 
 #include "daemon/output/atomic_file.h"
+#include "daemon/output/disk_room.h"
 #include "daemon/output/hdf5_set.h"
 #include "daemon/output/hdf5_util.h"
 #include "daemon/output/output_error.h"
 #include "daemon/output/result_meta.h"
 
 #define TIME_CHARS 32
+#define REASON_CHARS 160
+/* Room kept free beyond a set's own bytes: HDF5's metadata (chunk indexes, object headers)
+ * grows with each append by far less. */
+#define APPEND_SLACK_BYTES (256 * 1024)
 
 enum { D_TRANS, D_SCAT, D_MASK, D_PHASES, D_PHASE, D_FRAME_ID, D_SET_INDEX, D_BLACK, D_HAS_BLACK,
-       D_TIME, D_META, D_META_END, D_SET_ID, D_N };
+       D_TIME, D_META, D_META_END, D_SET_ID, D_FRAMES_END, D_MISSING_ID, D_MISSING_REASON, D_N };
+
+/* What counts a dataset's rows: the committed sets, raw frames, metadata bytes or lost sets. */
+typedef enum { BY_SET, BY_FRAME, BY_META_BYTE, BY_MISSING } RowUnit;
+
+static const struct {
+  const char *path;
+  RowUnit unit;
+} dataset_info[D_N] = {
+  [D_TRANS] = { "entry/transmissive/data", BY_SET },   [D_SCAT] = { "entry/scattered/data", BY_SET },
+  [D_MASK] = { "entry/mask/data", BY_SET },            [D_PHASES] = { "entry/phases/data", BY_FRAME },
+  [D_PHASE] = { "entry/phases/phase", BY_FRAME },      [D_FRAME_ID] = { "entry/phases/frame_id", BY_FRAME },
+  [D_SET_INDEX] = { "entry/phases/set_index", BY_FRAME }, [D_BLACK] = { "entry/phases/black", BY_SET },
+  [D_HAS_BLACK] = { "entry/phases/has_black", BY_SET }, [D_TIME] = { "entry/sets/time_utc", BY_SET },
+  [D_META] = { "entry/sets/metadata", BY_META_BYTE },  [D_META_END] = { "entry/sets/metadata_end", BY_SET },
+  [D_SET_ID] = { "entry/sets/set_id", BY_SET },        [D_FRAMES_END] = { "entry/sets/frames_end", BY_SET },
+  [D_MISSING_ID] = { "entry/sets/missing_set_id", BY_MISSING },
+  [D_MISSING_REASON] = { "entry/sets/missing_reason", BY_MISSING },
+};
 
 struct DsHdf5Run {
-  char *path, *partial;
-  hid_t file;
-  hid_t d[D_N];     /* -1 when absent */
+  char *path, *partial, *reserve;
+  hid_t file;       /* -1 while retired and closed */
+  hid_t d[D_N];     /* -1 when absent or retired */
   guint width, height;
   gboolean phases;
-  guint64 sets, frames, meta_bytes;
+  /* The committed rows: what len(sets/set_id) counts. Every append writes at these offsets, so
+   * whatever a failed append left beyond them is overwritten by the next set: the rollback. */
+  guint64 sets, frames, meta_bytes, missing;
+  /* Sets lost since the last commit and why; written with the next set, or at close. */
+  GArray *lost_ids;
+  GPtrArray *lost_reasons;
+  /* An HDF5 write failed: the library's state of this file is not trusted any more, so the
+   * handle was closed; the next append reopens the file from what is on disk. */
+  gboolean retired;
+  /* Closing failed: the file cannot be used again in this process (see close_file). */
+  gboolean broken;
   char *last_time;
 };
 
@@ -40,12 +73,18 @@ extendible (hid_t parent, const char *name, hid_t type, guint rank, guint h, gui
 }
 
 static hid_t
-time_type (void)
+fixed_string_type (gsize chars)
 {
   hid_t t = H5Tcopy (H5T_C_S1);
-  H5Tset_size (t, TIME_CHARS);
+  H5Tset_size (t, chars);
   H5Tset_strpad (t, H5T_STR_NULLPAD);
   return t;
+}
+
+static hid_t
+time_type (void)
+{
+  return fixed_string_type (TIME_CHARS);
 }
 
 static hid_t
@@ -111,8 +150,17 @@ create_layout (DsHdf5Run *run, const DsOutputResult *first)
     run->d[D_META] = extendible (sets, "metadata", H5T_STD_U8LE, 1, 0, 0);
     run->d[D_META_END] = extendible (sets, "metadata_end", H5T_STD_U64LE, 1, 0, 0);
     run->d[D_SET_ID] = extendible (sets, "set_id", H5T_STD_U64LE, 1, 0, 0);
+    run->d[D_FRAMES_END] = extendible (sets, "frames_end", H5T_STD_U64LE, 1, 0, 0);
+    run->d[D_MISSING_ID] = extendible (sets, "missing_set_id", H5T_STD_U64LE, 1, 0, 0);
+    hid_t rt = fixed_string_type (REASON_CHARS);
+    run->d[D_MISSING_REASON] = extendible (sets, "missing_reason", rt, 1, 0, 0);
+    H5Tclose (rt);
     ok = run->d[D_TIME] >= 0 && run->d[D_META] >= 0 && run->d[D_META_END] >= 0 && run->d[D_SET_ID] >= 0 &&
-         ds_h5_attr_string (sets, "note", "set_id is written last: its length counts the complete sets");
+         run->d[D_FRAMES_END] >= 0 && run->d[D_MISSING_ID] >= 0 && run->d[D_MISSING_REASON] >= 0 &&
+         ds_h5_attr_string (sets, "note",
+                            "set_id is written last: its length counts the complete sets; rows of other "
+                            "datasets beyond it belong to no set. missing_set_id: sets the run lost, "
+                            "missing_reason: why");
     H5Gclose (sets);
   } else
     ok = FALSE;
@@ -130,16 +178,47 @@ close_datasets (DsHdf5Run *run)
     }
 }
 
+/* Closes the file. A close that fails (its last flush refused) leaves HDF5's state of the file
+ * half torn down: the handle is never used again, not even to close it (that crashes inside
+ * HDF5), and the run is broken. The .partial file stays as after a crash: readable up to its
+ * committed sets. HDF5 does not close it at exit either (ds_h5_quiet turns that off). */
+static gboolean
+close_file (DsHdf5Run *run)
+{
+  close_datasets (run);
+  if (run->file >= 0 && H5Fclose (run->file) < 0)
+    run->broken = TRUE;
+  run->file = -1;
+  return !run->broken;
+}
+
 static void
 run_free (DsHdf5Run *run)
 {
-  close_datasets (run);
-  if (run->file >= 0)
-    H5Fclose (run->file);
+  close_file (run);
+  ds_disk_reserve_release (run->reserve);
   g_free (run->path);
   g_free (run->partial);
+  g_free (run->reserve);
   g_free (run->last_time);
+  g_array_unref (run->lost_ids);
+  g_ptr_array_unref (run->lost_reasons);
   g_free (run);
+}
+
+static gboolean
+present (const DsHdf5Run *run, guint i)
+{
+  return run->phases || i < D_PHASES || i > D_HAS_BLACK;
+}
+
+static hid_t
+latest_format (void)
+{
+  /* SWMR needs the newest file format. */
+  hid_t fapl = H5Pcreate (H5P_FILE_ACCESS);
+  H5Pset_libver_bounds (fapl, H5F_LIBVER_LATEST, H5F_LIBVER_LATEST);
+  return fapl;
 }
 
 DsHdf5Run *
@@ -151,18 +230,24 @@ ds_hdf5_run_open (const char *path, const DsOutputResult *first, GError **error)
     run->d[i] = -1;
   run->path = g_strdup (path);
   run->partial = g_strconcat (path, ".partial", NULL);
+  run->reserve = ds_disk_reserve_path (run->partial);
+  run->lost_ids = g_array_new (FALSE, FALSE, sizeof (guint64));
+  run->lost_reasons = g_ptr_array_new_with_free_func (g_free);
   run->width = first->transmissive->width;
   run->height = first->transmissive->height;
   run->phases = first->raw && first->raw->frames->len > 0;
-  /* SWMR needs the newest file format. */
-  hid_t fapl = H5Pcreate (H5P_FILE_ACCESS);
-  H5Pset_libver_bounds (fapl, H5F_LIBVER_LATEST, H5F_LIBVER_LATEST);
+  hid_t fapl = latest_format ();
+  gboolean existed = g_file_test (run->partial, G_FILE_TEST_EXISTS);
   run->file = H5Fcreate (run->partial, H5F_ACC_EXCL, H5P_DEFAULT, fapl);
   H5Pclose (fapl);
   if (run->file < 0) {
     g_autofree char *what = g_strdup_printf ("%s: cannot create", run->partial);
     ds_h5_fail (error, what);
+    g_autofree char *partial = g_strdup (run->partial);
     run_free (run);
+    /* A file HDF5 began (a full disk) is no run; one that was there before is not ours. */
+    if (!existed)
+      g_unlink (partial);
     return NULL;
   }
   if (!create_layout (run, first) || H5Fstart_swmr_write (run->file) < 0) {
@@ -173,22 +258,27 @@ ds_hdf5_run_open (const char *path, const DsOutputResult *first, GError **error)
     g_unlink (partial);
     return NULL;
   }
+  /* Without room for the reserve the run still starts; a failed write may then leave the file
+   * open until the disk has room again. */
+  ds_disk_reserve_take (run->reserve);
   return run;
 }
 
-/* Appends `count` elements (1-D) or planes (3-D, one image) at the end of a dataset. */
+/* Writes `count` elements (1-D) or one image (3-D) at row `at`, growing the dataset if it is
+ * shorter. Rows are never appended at the dataset's end: that end may hold a failed set. */
 static gboolean
-append (hid_t d, hid_t mem_type, const void *data, guint64 count, const DsImage *img)
+write_at (hid_t d, hid_t mem_type, const void *data, guint64 at, guint64 count, const DsImage *img)
 {
   hid_t fs = H5Dget_space (d);
   int rank = H5Sget_simple_extent_ndims (fs);
   hsize_t dims[3] = { 0, 0, 0 };
   H5Sget_simple_extent_dims (fs, dims, NULL);
   H5Sclose (fs);
-  hsize_t at = dims[0];
-  dims[0] += count;
-  if (H5Dset_extent (d, dims) < 0)
-    return FALSE;
+  if (dims[0] < at + count) {
+    dims[0] = at + count;
+    if (H5Dset_extent (d, dims) < 0)
+      return FALSE;
+  }
   fs = H5Dget_space (d);
   hsize_t start[3] = { at, 0, 0 }, block[3] = { count, dims[1], dims[2] };
   hid_t ms;
@@ -228,20 +318,20 @@ widened (const DsImage *img)
   return w;
 }
 
+/* The raw frames of the set at rows run->frames.., its black plane at row run->sets. */
 static gboolean
-append_phases (DsHdf5Run *run, const DsRawFrames *raw)
+write_phases (DsHdf5Run *run, const DsRawFrames *raw)
 {
   gboolean ok = TRUE;
   for (guint i = 0; ok && raw && i < raw->frames->len; i++) {
     const DsRawFrame *f = raw->frames->pdata[i];
     g_autoptr (DsImage) wide = f->image->type == DS_SAMPLE_U16 ? NULL : widened (f->image);
     gint32 phase = (gint32) f->phase;
-    guint64 set_index = run->sets;
-    ok = append (run->d[D_PHASES], H5T_NATIVE_UINT16, NULL, 1, wide ? wide : f->image) &&
-         append (run->d[D_PHASE], H5T_NATIVE_INT32, &phase, 1, NULL) &&
-         append (run->d[D_FRAME_ID], H5T_NATIVE_UINT64, &f->frame_id, 1, NULL) &&
-         append (run->d[D_SET_INDEX], H5T_NATIVE_UINT64, &set_index, 1, NULL);
-    run->frames += ok ? 1 : 0;
+    guint64 set_index = run->sets, row = run->frames + i;
+    ok = write_at (run->d[D_PHASES], H5T_NATIVE_UINT16, NULL, row, 1, wide ? wide : f->image) &&
+         write_at (run->d[D_PHASE], H5T_NATIVE_INT32, &phase, row, 1, NULL) &&
+         write_at (run->d[D_FRAME_ID], H5T_NATIVE_UINT64, &f->frame_id, row, 1, NULL) &&
+         write_at (run->d[D_SET_INDEX], H5T_NATIVE_UINT64, &set_index, row, 1, NULL);
   }
   /* One black plane per set, zero when the set had none (has_black says which). */
   g_autoptr (DsImage) zero = NULL;
@@ -250,14 +340,80 @@ append_phases (DsHdf5Run *run, const DsRawFrames *raw)
   if (!black)
     black = zero = ds_image_new (DS_SAMPLE_U16, run->width, run->height, NULL);
   guint8 has = raw && raw->black ? 1 : 0;
-  return ok && black && append (run->d[D_BLACK], H5T_NATIVE_UINT16, NULL, 1, wide ? wide : black) &&
-         append (run->d[D_HAS_BLACK], H5T_NATIVE_UINT8, &has, 1, NULL);
+  return ok && black && write_at (run->d[D_BLACK], H5T_NATIVE_UINT16, NULL, run->sets, 1, wide ? wide : black) &&
+         write_at (run->d[D_HAS_BLACK], H5T_NATIVE_UINT8, &has, run->sets, 1, NULL);
 }
 
-gboolean
-ds_hdf5_run_append (DsHdf5Run *run, const DsOutputResult *r, GError **error)
+/* The sets lost since the last commit, at rows run->missing.. of missing_set_id/_reason. */
+static gboolean
+write_lost (DsHdf5Run *run)
 {
-  ds_h5_quiet ();
+  hid_t rt = fixed_string_type (REASON_CHARS);
+  gboolean ok = TRUE;
+  for (guint i = 0; ok && i < run->lost_ids->len; i++) {
+    char reason[REASON_CHARS] = { 0 };
+    g_strlcpy (reason, run->lost_reasons->pdata[i], sizeof reason);
+    ok = write_at (run->d[D_MISSING_REASON], rt, reason, run->missing + i, 1, NULL) &&
+         write_at (run->d[D_MISSING_ID], H5T_NATIVE_UINT64, &g_array_index (run->lost_ids, guint64, i),
+                   run->missing + i, 1, NULL);
+  }
+  H5Tclose (rt);
+  return ok;
+}
+
+static void
+lose (DsHdf5Run *run, guint64 set_id, const char *reason)
+{
+  /* The file's own name says nothing inside the file. */
+  gsize n = strlen (run->partial);
+  if (strncmp (reason, run->partial, n) == 0 && reason[n] == ':')
+    for (reason += n + 1; *reason == ' ';)
+      reason++;
+  g_array_append_val (run->lost_ids, set_id);
+  g_ptr_array_add (run->lost_reasons, g_strdelimit (g_strdup (reason), "\n", ' '));
+}
+
+/* After a failed write: the reserve goes first, so that closing (HDF5 flushes its metadata)
+ * has room even on a full disk. What the failed append wrote lies beyond the committed rows. */
+static void
+retire (DsHdf5Run *run)
+{
+  ds_disk_reserve_release (run->reserve);
+  run->retired = TRUE;
+  if (!close_file (run))
+    g_warning ("%s: HDF5 could not close the file after a failed write: the run ends there", run->partial);
+}
+
+/* A retired run opens its file again, from the disk, and takes back its reserve. */
+static gboolean
+reopen (DsHdf5Run *run, GError **error)
+{
+  if (run->broken) {
+    g_set_error (error, DS_OUTPUT_ERROR, DS_OUTPUT_ERROR_HDF5, "%s: the file could not be closed after a failed write",
+                 run->partial);
+    return FALSE;
+  }
+  hid_t fapl = latest_format ();
+  run->file = H5Fopen (run->partial, H5F_ACC_RDWR | H5F_ACC_SWMR_WRITE, fapl);
+  H5Pclose (fapl);
+  gboolean ok = run->file >= 0;
+  for (guint i = 0; ok && i < D_N; i++)
+    if (present (run, i))
+      ok = (run->d[i] = H5Dopen2 (run->file, dataset_info[i].path, H5P_DEFAULT)) >= 0;
+  if (!ok) {
+    g_autofree char *what = g_strdup_printf ("%s: reopening after a failed write", run->partial);
+    ds_h5_fail (error, what);
+    close_file (run);
+    return FALSE;
+  }
+  run->retired = FALSE;
+  ds_disk_reserve_take (run->reserve);
+  return TRUE;
+}
+
+static gboolean
+fits (const DsHdf5Run *run, const DsOutputResult *r, GError **error)
+{
   const DsImage *planes[] = { r->transmissive, r->scattered, r->mask };
   for (guint i = 0; i < G_N_ELEMENTS (planes); i++)
     if (planes[i]->width != run->width || planes[i]->height != run->height) {
@@ -274,33 +430,95 @@ ds_hdf5_run_append (DsHdf5Run *run, const DsOutputResult *r, GError **error)
         return FALSE;
       }
     }
-  g_autofree char *json = json_to_string (r->meta, FALSE);
+  return TRUE;
+}
+
+/* The bytes one set adds to the file, chunk rounding of the 1-D columns included. */
+static guint64
+set_bytes (const DsHdf5Run *run, const DsOutputResult *r, gsize json_len)
+{
+  guint64 plane = (guint64) run->width * run->height;
+  guint64 frames = run->phases && r->raw ? r->raw->frames->len : 0;
+  return plane * (4 + 4 + 1) + (run->phases ? (frames + 1) * plane * 2 : 0) + json_len + 16 * 4096;
+}
+
+/* Everything of the set at the committed rows, then its set_id: a set counts only once all of
+ * it is on disk. */
+static gboolean
+write_set (DsHdf5Run *run, const DsOutputResult *r, const char *json, const char *stamp, guint64 set_id)
+{
   guint64 len = strlen (json);
-  guint64 end = run->meta_bytes + len;
-  char stamp[TIME_CHARS] = { 0 };
-  g_strlcpy (stamp, ds_json_path_string (r->meta, "time_utc", ""), sizeof stamp);
+  guint64 meta_end = run->meta_bytes + len;
+  guint64 frames_end = run->frames + (run->phases && r->raw ? r->raw->frames->len : 0);
   hid_t tt = time_type ();
-  gboolean ok = append (run->d[D_TRANS], H5T_NATIVE_FLOAT, NULL, 1, r->transmissive) &&
-                append (run->d[D_SCAT], H5T_NATIVE_FLOAT, NULL, 1, r->scattered) &&
-                append (run->d[D_MASK], H5T_NATIVE_UINT8, NULL, 1, r->mask) &&
-                (!run->phases || append_phases (run, r->raw)) && append (run->d[D_TIME], tt, stamp, 1, NULL) &&
-                append (run->d[D_META], H5T_NATIVE_UINT8, json, len, NULL) &&
-                append (run->d[D_META_END], H5T_NATIVE_UINT64, &end, 1, NULL) &&
+  guint64 k = run->sets;
+  gboolean ok = write_at (run->d[D_TRANS], H5T_NATIVE_FLOAT, NULL, k, 1, r->transmissive) &&
+                write_at (run->d[D_SCAT], H5T_NATIVE_FLOAT, NULL, k, 1, r->scattered) &&
+                write_at (run->d[D_MASK], H5T_NATIVE_UINT8, NULL, k, 1, r->mask) &&
+                (!run->phases || write_phases (run, r->raw)) && write_at (run->d[D_TIME], tt, stamp, k, 1, NULL) &&
+                write_at (run->d[D_META], H5T_NATIVE_UINT8, json, run->meta_bytes, len, NULL) &&
+                write_at (run->d[D_META_END], H5T_NATIVE_UINT64, &meta_end, k, 1, NULL) &&
+                write_at (run->d[D_FRAMES_END], H5T_NATIVE_UINT64, &frames_end, k, 1, NULL) && write_lost (run) &&
                 H5Fflush (run->file, H5F_SCOPE_LOCAL) >= 0;
   H5Tclose (tt);
-  /* Last: the set counts only once everything above is on disk. */
-  guint64 set_id = (guint64) ds_json_path_int (r->meta, "set_id", 0);
-  ok = ok && append (run->d[D_SET_ID], H5T_NATIVE_UINT64, &set_id, 1, NULL) &&
+  ok = ok && write_at (run->d[D_SET_ID], H5T_NATIVE_UINT64, &set_id, k, 1, NULL) &&
        H5Fflush (run->file, H5F_SCOPE_LOCAL) >= 0;
-  if (!ok) {
-    g_autofree char *what = g_strdup_printf ("%s: appending set %" G_GUINT64_FORMAT, run->partial, set_id);
-    return ds_h5_fail (error, what);
+  if (ok) {
+    run->sets++;
+    run->frames = frames_end;
+    run->meta_bytes = meta_end;
+    run->missing += run->lost_ids->len;
+    g_array_set_size (run->lost_ids, 0);
+    g_ptr_array_set_size (run->lost_reasons, 0);
   }
-  run->meta_bytes = end;
-  run->sets++;
+  return ok;
+}
+
+gboolean
+ds_hdf5_run_append (DsHdf5Run *run, const DsOutputResult *r, GError **error)
+{
+  ds_h5_quiet ();
+  if (!fits (run, r, error))
+    return FALSE;
+  guint64 set_id = (guint64) ds_json_path_int (r->meta, "set_id", 0);
+  g_autofree char *json = json_to_string (r->meta, FALSE);
+  /* A retired run takes its reserve back when it reopens: that room is needed too. */
+  guint64 need = set_bytes (run, r, strlen (json)) + APPEND_SLACK_BYTES + (run->retired ? DS_DISK_RESERVE_BYTES : 0);
+  guint64 room = ds_disk_free_bytes (run->partial);
+  GError *local = NULL;
+  /* No append that cannot fit is started: HDF5 is not trusted after a write failed half way. */
+  if (room < need) {
+    g_autofree char *reason = g_strdup_printf ("no room on the disk: %" G_GUINT64_FORMAT " bytes free, %" G_GUINT64_FORMAT
+                                               " needed", room, need);
+    lose (run, set_id, reason);
+    g_set_error (error, DS_OUTPUT_ERROR, DS_OUTPUT_ERROR_NO_SPACE, "%s: set %" G_GUINT64_FORMAT " not appended: %s",
+                 run->partial, set_id, reason);
+    return FALSE;
+  }
+  if (run->retired && !reopen (run, &local)) {
+    lose (run, set_id, local->message);
+    g_propagate_error (error, local);
+    return FALSE;
+  }
+  char stamp[TIME_CHARS] = { 0 };
+  g_strlcpy (stamp, ds_json_path_string (r->meta, "time_utc", ""), sizeof stamp);
+  if (!write_set (run, r, json, stamp, set_id)) {
+    g_autofree char *what = g_strdup_printf ("%s: appending set %" G_GUINT64_FORMAT, run->partial, set_id);
+    ds_h5_fail (&local, what);
+    lose (run, set_id, local->message);
+    retire (run);
+    g_propagate_error (error, local);
+    return FALSE;
+  }
   g_free (run->last_time);
   run->last_time = g_strdup (stamp);
   return TRUE;
+}
+
+gboolean
+ds_hdf5_run_broken (const DsHdf5Run *run)
+{
+  return run->broken;
 }
 
 guint64
@@ -335,32 +553,70 @@ ds_hdf5_run_abandon (DsHdf5Run *run)
     run_free (run);
 }
 
+static guint64
+committed_rows (const DsHdf5Run *run, guint i)
+{
+  switch (dataset_info[i].unit) {
+  case BY_SET:
+    return run->sets;
+  case BY_FRAME:
+    return run->frames;
+  case BY_META_BYTE:
+    return run->meta_bytes;
+  case BY_MISSING:
+  default:
+    return run->missing;
+  }
+}
+
+/* Out of SWMR mode (the file closed and opened again): every dataset cut to its committed rows,
+ * so that no rolled-back row remains, the sets lost since the last commit recorded, end_time. */
+static gboolean
+finish (DsHdf5Run *run)
+{
+  hid_t fapl = latest_format ();
+  run->file = H5Fopen (run->partial, H5F_ACC_RDWR, fapl);
+  H5Pclose (fapl);
+  gboolean ok = run->file >= 0;
+  for (guint i = 0; ok && i < D_N; i++) {
+    if (!present (run, i))
+      continue;
+    ok = (run->d[i] = H5Dopen2 (run->file, dataset_info[i].path, H5P_DEFAULT)) >= 0;
+    hid_t fs = ok ? H5Dget_space (run->d[i]) : -1;
+    hsize_t dims[3] = { 0, 0, 0 };
+    if (fs >= 0) {
+      H5Sget_simple_extent_dims (fs, dims, NULL);
+      H5Sclose (fs);
+    }
+    dims[0] = committed_rows (run, i);
+    ok = ok && fs >= 0 && H5Dset_extent (run->d[i], dims) >= 0;
+  }
+  ok = ok && write_lost (run);
+  if (ok)
+    run->missing += run->lost_ids->len;
+  if (ok && run->last_time && *run->last_time) {
+    hid_t entry = H5Gopen2 (run->file, "entry", H5P_DEFAULT);
+    ok = entry >= 0 && ds_h5_string_dataset (entry, "end_time", run->last_time);
+    if (entry >= 0)
+      H5Gclose (entry);
+  }
+  return close_file (run) && ok;
+}
+
 gboolean
 ds_hdf5_run_close (DsHdf5Run *run, GError **error)
 {
   ds_h5_quiet ();
+  /* The reserve goes first: room for the last flush on a full disk. */
+  ds_disk_reserve_release (run->reserve);
   g_autofree char *partial = g_strdup (run->partial);
   g_autofree char *path = g_strdup (run->path);
-  g_autofree char *end_time = g_strdup (run->last_time);
-  close_datasets (run);
-  herr_t r = H5Fclose (run->file);
-  run->file = -1;
+  gboolean closed = close_file (run);
+  gboolean ok = closed && finish (run);
   run_free (run);
-  if (r < 0) {
-    g_autofree char *what = g_strdup_printf ("%s: closing failed", partial);
+  if (!ok) {
+    g_autofree char *what = g_strdup_printf ("%s: %s", partial, closed ? "finishing the run file" : "closing failed");
     return ds_h5_fail (error, what);
-  }
-  /* Out of SWMR mode now: objects may be added again. */
-  if (end_time && *end_time) {
-    hid_t file = H5Fopen (partial, H5F_ACC_RDWR, H5P_DEFAULT);
-    hid_t entry = file >= 0 ? H5Gopen2 (file, "entry", H5P_DEFAULT) : -1;
-    gboolean ok = entry >= 0 && ds_h5_string_dataset (entry, "end_time", end_time);
-    if (entry >= 0)
-      H5Gclose (entry);
-    if ((file >= 0 && H5Fclose (file) < 0) || !ok) {
-      g_autofree char *what = g_strdup_printf ("%s: writing end_time", partial);
-      return ds_h5_fail (error, what);
-    }
   }
   return ds_durable_rename (partial, path, error);
 }

@@ -42,6 +42,14 @@ note_error (hid_t stack, void *data)
 void
 ds_h5_quiet (void)
 {
+  /* No closing of files by HDF5 at exit: every file is closed by its writer, and one whose close
+   * failed (a full disk) must not be touched again, which HDF5's teardown would do and crash.
+   * Effective only before HDF5's first use in the process; later it changes nothing. */
+  static gsize once = 0;
+  if (g_once_init_enter (&once)) {
+    H5dont_atexit ();
+    g_once_init_leave (&once, 1);
+  }
   H5Eset_auto2 (H5E_DEFAULT, note_error, NULL);
   memset (&last_error, 0, sizeof last_error);
 }

@@ -12,6 +12,7 @@ typedef enum {
   DS_OUTPUT_ERROR_INVALID = 2,  /* an image or request the format cannot hold */
   DS_OUTPUT_ERROR_HDF5 = 3,     /* the HDF5 library refused an operation (the message says which) */
   DS_OUTPUT_ERROR_BUSY = 4,     /* the writer's queue is full: the job was not taken */
+  DS_OUTPUT_ERROR_NO_SPACE = 5, /* the disk has no room for the write: nothing was written */
 } DsOutputError;
 
 G_END_DECLS

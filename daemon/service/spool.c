@@ -292,6 +292,16 @@ append_to_run (DsSpool *spool, const DsOutputResult *planes, GError **error)
     spool->run_entry->bytes = now;
     if (ok)
       return TRUE;
+    /* A run file HDF5 could not close after a failed write takes nothing more: it stays as
+     * .partial (readable up to its last complete set) and the next set starts another run. */
+    if (ds_hdf5_run_broken (spool->run)) {
+      ds_hdf5_run_abandon (spool->run);
+      spool->run = NULL;
+      spool->run_entry = NULL;
+      g_mutex_lock (&spool->lock);
+      spool->stats.run_open = FALSE;
+      g_mutex_unlock (&spool->lock);
+    }
     /* A result of another shape starts a new run file; anything else is an error. */
     gboolean reshape = attempt == 0 && g_error_matches (local, DS_OUTPUT_ERROR, DS_OUTPUT_ERROR_INVALID);
     if (!reshape) {
@@ -314,22 +324,28 @@ record (DsSpool *spool, Job *job)
     kinds |= DS_FILES_HDF5; /* a capture outside a run gets a file of its own */
   if (!job->in_run)
     close_run (spool);
+  /* The run file and the set's own files fail apart: a set the run file could not take (the
+   * run records it as missing, with the reason) may still be recorded whole on its own. */
   gboolean ok = TRUE;
-  if (to_run)
-    ok = append_to_run (spool, &job->planes, &error);
-  if (ok && kinds) {
+  if (to_run && !append_to_run (spool, &job->planes, &error)) {
+    g_prefix_error (&error, "set %" G_GUINT64_FORMAT ": ", ds_result_set_id (job->result));
+    set_error (spool, error);
+    g_clear_error (&error);
+    ok = FALSE;
+  }
+  if (kinds) {
     g_autofree char *stem = ds_result_stem (job->planes.meta);
-    ok = ds_result_write_files (&job->planes, spool->dir, stem, kinds, NULL, &error);
-    if (ok) {
+    if (ds_result_write_files (&job->planes, spool->dir, stem, kinds, NULL, &error)) {
       SpoolEntry *e = entry_new (stem, FALSE, stem_bytes (spool->dir, stem));
       g_queue_push_tail (&spool->entries, e);
       add_bytes (spool, (gint64) e->bytes);
+    } else {
+      g_prefix_error (&error, "set %" G_GUINT64_FORMAT ": ", ds_result_set_id (job->result));
+      set_error (spool, error);
+      ok = FALSE;
     }
   }
-  if (!ok) {
-    g_prefix_error (&error, "set %" G_GUINT64_FORMAT ": ", ds_result_set_id (job->result));
-    set_error (spool, error);
-  } else {
+  if (ok) {
     g_mutex_lock (&spool->lock);
     spool->stats.sets_written++;
     g_mutex_unlock (&spool->lock);
