@@ -46,6 +46,7 @@ typedef struct {
   gboolean quiet;
   gboolean no_preview;
   gboolean no_phase_check, strict_phases;
+  gint64 max_side, max_pixels, max_memory_mib;
 } Options;
 
 /* Where the outputs go and what they are: the sidecar lists every file with its kind. */
@@ -263,10 +264,22 @@ make_params (const DsPhaseFolder *folder, const Options *o, DsSeparationParams *
 static gboolean
 separate (const char *dir, const Options *o, gboolean *usage, GError **error)
 {
-  g_autoptr (DsPhaseFolder) folder = ds_phase_folder_open (dir, error);
+  DsFolderLimits limits;
+  *usage = TRUE;
+  if (!ds_folder_limits_from_options (&limits, o->max_side, o->max_pixels, o->max_memory_mib, error))
+    return FALSE;
+  *usage = FALSE;
+  g_autoptr (DsPhaseFolder) folder = ds_phase_folder_open (dir, ds_folder_read_sidecar, error);
   if (!folder)
     return FALSE;
   guint n = ds_phase_folder_n_phases (folder), nf = ds_phase_folder_n_frames (folder);
+  /* Every size is checked before the first decode. Per pixel, at most: the accumulator's
+   * float path (min, max, raw max: 12; sums and phase sums in double: 16; cosine and sine
+   * sums: 16; one float plane per phase; a non-finite flag), the outputs (transmissive,
+   * scattered, extrema, sigmas in float: 28; mask and previews: 3), and the frame and dark
+   * frame being read, each decoded and converted (16). */
+  if (!ds_folder_check_images (folder, &limits, 92.0 + 4.0 * n, "a separation", error))
+    return FALSE;
   *usage = TRUE;
   if (o->bit_depth && !ds_phase_folder_set_bit_depth (folder, (guint) o->bit_depth, error)) {
     g_prefix_error (error, "--bit-depth: ");
@@ -435,6 +448,7 @@ ds_ctl_separate (int argc, char **argv)
     { "extrema", 0, 0, G_OPTION_ARG_NONE, &o.extrema, "also write max, min and mean (float32 TIFF)", NULL },
     { "no-preview", 0, 0, G_OPTION_ARG_NONE, &o.no_preview, "do not write the 8-bit preview pictures", NULL },
     { "quiet", 'q', 0, G_OPTION_ARG_NONE, &o.quiet, "print nothing on success", NULL },
+    DS_FOLDER_LIMIT_OPTIONS (&o.max_side, &o.max_pixels, &o.max_memory_mib),
     { NULL },
   };
   g_autoptr (GOptionContext) ctx = g_option_context_new ("DIR - separate a folder of phase images");
