@@ -25,7 +25,7 @@ typedef struct {
 
 #define F(f) offsetof (DsSceneSpec, f)
 static const KeySpec keys[] = {
-  { "scene", "max-render-s", T_DOUBLE, F (max_render_s), "60", 0, 1e9, TRUE, FALSE, NULL },
+  { "scene", "max-render-s", T_DOUBLE, F (max_render_s), "20", 0, 1e9, TRUE, FALSE, NULL },
   { "sensor", "width", T_UINT, F (width), NULL, 8, 16384, FALSE, FALSE, NULL },
   { "sensor", "height", T_UINT, F (height), NULL, 8, 16384, FALSE, FALSE, NULL },
   { "sensor", "bit-depth", T_UINT, F (bit_depth), "12", 8, 16, FALSE, FALSE, NULL },
