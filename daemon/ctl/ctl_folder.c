@@ -28,7 +28,10 @@ ds_folder_limits_from_options (DsFolderLimits *limits, gint64 max_side, gint64 m
                                GError **error)
 {
   ds_folder_limits_init (limits);
-  const char *bad = max_side < 0 ? "--max-side" : max_pixels < 0 ? "--max-pixels" : max_memory_mib < 0 ? "--max-memory" : NULL;
+  const char *bad = max_side < 0     ? "--max-side"
+                    : max_pixels < 0 ? "--max-pixels"
+                    : max_memory_mib < 0 ? "--max-memory"
+                                         : NULL;
   if (bad || max_memory_mib > (gint64) (G_MAXUINT64 >> 20)) {
     g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT, "%s: must be a positive number",
                  bad ? bad : "--max-memory");

@@ -260,26 +260,34 @@ make_params (const DsPhaseFolder *folder, const Options *o, DsSeparationParams *
   return TRUE;
 }
 
-/* *usage is set when the failure is a bad option value (exit status 2) rather than the data. */
-static gboolean
-separate (const char *dir, const Options *o, gboolean *usage, GError **error)
+/* The folder, its images' sizes checked against the limits before any decode. Per pixel, at
+ * most: the accumulator's float path (min, max, raw max: 12; sums and phase sums in double:
+ * 16; cosine and sine sums: 16; one float plane per phase; a non-finite flag), the outputs
+ * (transmissive, scattered, extrema, sigmas in float: 28; mask and previews: 3), and the frame
+ * and dark frame being read, each decoded and converted (16). */
+static DsPhaseFolder *
+open_folder (const char *dir, const Options *o, gboolean *usage, GError **error)
 {
   DsFolderLimits limits;
   *usage = TRUE;
   if (!ds_folder_limits_from_options (&limits, o->max_side, o->max_pixels, o->max_memory_mib, error))
-    return FALSE;
+    return NULL;
   *usage = FALSE;
   g_autoptr (DsPhaseFolder) folder = ds_phase_folder_open (dir, ds_folder_read_sidecar, error);
+  if (!folder ||
+      !ds_folder_check_images (folder, &limits, 92.0 + 4.0 * ds_phase_folder_n_phases (folder), "a separation", error))
+    return NULL;
+  return g_steal_pointer (&folder);
+}
+
+/* *usage is set when the failure is a bad option value (exit status 2) rather than the data. */
+static gboolean
+separate (const char *dir, const Options *o, gboolean *usage, GError **error)
+{
+  g_autoptr (DsPhaseFolder) folder = open_folder (dir, o, usage, error);
   if (!folder)
     return FALSE;
   guint n = ds_phase_folder_n_phases (folder), nf = ds_phase_folder_n_frames (folder);
-  /* Every size is checked before the first decode. Per pixel, at most: the accumulator's
-   * float path (min, max, raw max: 12; sums and phase sums in double: 16; cosine and sine
-   * sums: 16; one float plane per phase; a non-finite flag), the outputs (transmissive,
-   * scattered, extrema, sigmas in float: 28; mask and previews: 3), and the frame and dark
-   * frame being read, each decoded and converted (16). */
-  if (!ds_folder_check_images (folder, &limits, 92.0 + 4.0 * n, "a separation", error))
-    return FALSE;
   *usage = TRUE;
   if (o->bit_depth && !ds_phase_folder_set_bit_depth (folder, (guint) o->bit_depth, error)) {
     g_prefix_error (error, "--bit-depth: ");

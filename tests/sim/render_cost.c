@@ -56,7 +56,8 @@ test_refused_before_work (void)
                                                                            "max-render-s = 20", NULL });
   expect_refused (SENSOR (16384, 16384), (const char *const[]) { "268435456 pixels", "max-render-s", NULL });
   /* the ceiling is the scene's to set: a tiny one refuses even a small scene */
-  expect_refused ("[scene]\nmax-render-s=1e-9\n" SENSOR (64, 48), (const char *const[]) { "max-render-s = 1e-09", NULL });
+  expect_refused ("[scene]\nmax-render-s=1e-9\n" SENSOR (64, 48),
+                  (const char *const[]) { "max-render-s = 1e-09", NULL });
 }
 
 static void
