@@ -12,6 +12,7 @@
 #define NS_PER_SCATTER_PIXEL 120.0/* the scattering stage's convolutions, per plane they run at */
 #define ROULETTE_LOG 9.21         /* -ln 1e-4: the weight at which the roulette starts */
 #define MAX_KERNEL_RADIUS 2048.0  /* the transport's largest kernel (mc_slab.c) */
+#define CORE_PX 64.0              /* the kernel core convolved at full resolution (two_scale.c) */
 
 static guint
 interior_planes (const DsSceneSpec *s)
@@ -54,8 +55,13 @@ ds_render_cost_estimate (const DsSceneSpec *s, DsRenderCost *c)
   double w = s->width + 2 * margin, h = s->height + 2 * margin;
   c->frame_pixels = (guint64) (w * h);
   double px_ns = NS_PER_PIXEL * s->width * s->height;
-  if (scatters)
-    px_ns += NS_PER_SCATTER_PIXEL * (1.0 + 3.0 * planes) * w * h;
+  if (scatters) {
+    /* Two scales (two_scale.h): full resolution over the sensor and the kernel's core, 8 x 8
+     * blocks over the rest of the margin; each interior plane adds its steps. */
+    double core = MIN (margin, CORE_PX);
+    double fine = (s->width + 2 * core) * (s->height + 2 * core), coarse = w * h / 64.0;
+    px_ns += NS_PER_SCATTER_PIXEL * (1.0 + 3.0 * planes) * (fine + coarse);
+  }
   c->frame_s = px_ns * 1e-9;
   c->total_s = c->kernel_s + c->frame_s;
 }

@@ -6,8 +6,8 @@
  * smaller of the absorption bound (the weight falls by the albedo mu_s/mu_t per interaction
  * until the roulette threshold 1e-4) and the escape bound (a random walk of transport mean
  * free paths leaves a slab of optical thickness tau after about tau + tau x tau' steps); a
- * frame follows the pixels rendered (the sensor plus the kernel's margin on each side) times
- * the stages' work per pixel. Seconds are these counts at rates measured on the reference
+ * frame follows the pixels rendered (the sensor, and for scattering the kernel's core at full
+ * resolution and its margin in 8 x 8 blocks) times the stages' work per pixel. Seconds are these counts at rates measured on the reference
  * machine (docs/scene-format.md, "Render cost"); `descatter-sim describe` prints the estimate
  * beside the measured cost. Pure functions, any thread. */
 #pragma once
