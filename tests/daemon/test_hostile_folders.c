@@ -260,7 +260,7 @@ test_sidecar_duplicate_key (void)
 {
   g_autofree char *d = folder_with_sidecar ("duplicate-key");
   write_text (d, "frames.json", SIDECAR_HEAD "\"n_phases\": 3, " SIDECAR_FRAMES, -1);
-  expect_refused (d, NULL, (const char *const[]) { "frames.json", "n_phases", NULL });
+  expect_refused (d, NULL, (const char *const[]) { "frames.json", "duplicate member \"n_phases\"", NULL });
 }
 
 static void
