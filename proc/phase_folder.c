@@ -68,7 +68,7 @@ image_stem (const char *name)
 }
 
 DsPhaseFolder *
-ds_phase_folder_open (const char *dir, GError **error)
+ds_phase_folder_open (const char *dir, DsSidecarReader read_sidecar, GError **error)
 {
   GError *local = NULL;
   g_autoptr (GDir) d = g_dir_open (dir, 0, &local);
@@ -129,7 +129,7 @@ ds_phase_folder_open (const char *dir, GError **error)
     /* the sidecar's lists replace the names' guesses */
     g_ptr_array_set_size (f->phase_files, 0);
     g_clear_pointer (&f->black_file, g_free);
-    if (!ds_phase_folder_read_sidecar (f, sidecar, error))
+    if (!ds_phase_folder_read_sidecar (f, sidecar, read_sidecar, error))
       return NULL;
     for (guint i = 0; i < f->frames->len; i++)
       g_ptr_array_add (f->phase_files, g_strdup (g_array_index (f->frames, DsPhaseFolderFrame, i).file));

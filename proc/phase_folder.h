@@ -23,6 +23,8 @@
  * (size, sample type, bit depth) and a mismatch names both files. Not thread-safe: one user. */
 #pragma once
 #include <glib.h>
+/* json-glib's own type, declared here so that proc/ users need not include json-glib */
+typedef struct _JsonNode JsonNode;
 
 #include "proc/image.h"
 #include "proc/separation.h"
@@ -72,10 +74,17 @@ typedef struct {
   char *reference_file;
 } DsPhaseFolder;
 
-/* Lists the folder and reads frames.json if there is one. Fails IO (not a readable folder),
- * EMPTY (no phase image; the message says what was skipped), NOT_ENOUGH_PHASES (one phase
- * image only: a separation needs >= 2), FORMAT (frames.json: the message names the key). */
-DsPhaseFolder *ds_phase_folder_open (const char *dir, GError **error);
+/* Reads frames.json at path into a JSON tree, or fails with a message that does not repeat
+ * the path. proc/ has no JSON reader of its own: the caller gives the strict, bounded one
+ * (daemon/protocol/json_file.h), so that a hostile sidecar (a FIFO, /dev/zero, nesting that
+ * would overflow a recursive parser, duplicate keys) is refused the way the wire refuses it. */
+typedef JsonNode *(*DsSidecarReader) (const char *path, GError **error);
+
+/* Lists the folder and reads frames.json if there is one (with read_sidecar). Fails IO (not a
+ * readable folder), EMPTY (no phase image; the message says what was skipped),
+ * NOT_ENOUGH_PHASES (one phase image only: a separation needs >= 2), FORMAT (frames.json:
+ * unreadable, or the message names the key). */
+DsPhaseFolder *ds_phase_folder_open (const char *dir, DsSidecarReader read_sidecar, GError **error);
 void ds_phase_folder_free (DsPhaseFolder *folder);
 G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsPhaseFolder, ds_phase_folder_free)
 
@@ -101,6 +110,7 @@ int ds_natural_compare (const char *a, const char *b);
 
 /* Private to proc/phase_folder*.c: parses dir/frames.json into folder (frames, black files,
  * sidecar). */
-gboolean ds_phase_folder_read_sidecar (DsPhaseFolder *folder, const char *path, GError **error);
+gboolean ds_phase_folder_read_sidecar (DsPhaseFolder *folder, const char *path, DsSidecarReader read,
+                                       GError **error);
 
 G_END_DECLS

@@ -195,16 +195,16 @@ read_frames (Ctx *c, DsPhaseFolder *f, JsonObject *root)
 }
 
 gboolean
-ds_phase_folder_read_sidecar (DsPhaseFolder *f, const char *path, GError **error)
+ds_phase_folder_read_sidecar (DsPhaseFolder *f, const char *path, DsSidecarReader read, GError **error)
 {
   Ctx c = { path, error };
-  g_autoptr (JsonParser) parser = json_parser_new ();
   g_autoptr (GError) local = NULL;
-  if (!json_parser_load_from_file (parser, path, &local)) {
-    g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_FORMAT, "%s: does not parse: %s", path, local->message);
+  g_autoptr (JsonNode) rn = read ? read (path, &local) : NULL;
+  if (!rn) {
+    g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_FORMAT, "%s: %s", path,
+                 local ? local->message : "no JSON reader given to read it");
     return FALSE;
   }
-  JsonNode *rn = json_parser_get_root (parser);
   JsonObject *root = rn && JSON_NODE_HOLDS_OBJECT (rn) ? json_node_get_object (rn) : NULL;
   if (!root) {
     g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_FORMAT, "%s: not a JSON object", path);

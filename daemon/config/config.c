@@ -478,7 +478,46 @@ load_keyfile (GKeyFile *kf, const char *data, const char *name, GError **error)
 }
 
 /* What GKeyFile passes over in silence: a NUL byte ends its text (the keys after it, even
- * invalid ones, would be ignored), and a key given twice keeps its last value. */
+ * invalid ones, would be ignored), a key given twice keeps its last value (also when the
+ * copies are in two groups of one name, which GKeyFile merges), a locale key (backend[fr]=)
+ * is kept beside the key and never read, and a key without a name (=value) is stored under
+ * "". Each is refused with its line. */
+static gboolean
+check_line (const char *l, guint line, const char *name, char **group, GHashTable *seen, GError **error)
+{
+  if (l[0] == '[') {
+    char *close = strchr (l, ']');
+    g_free (*group);
+    *group = close ? g_strndup (l + 1, (gsize) (close - l - 1)) : g_strdup (l);
+    return TRUE;
+  }
+  char *eq = strchr (l, '=');
+  if (l[0] == '#' || !eq)
+    return TRUE;
+  g_autofree char *key = g_strstrip (g_strndup (l, (gsize) (eq - l)));
+  if (!*key) {
+    g_set_error (error, DS_CONFIG_ERROR, DS_CONFIG_ERROR_SYNTAX, "%s: line %u: a value without a key name", name,
+                 line);
+    return FALSE;
+  }
+  if (strchr (key, '[')) {
+    g_set_error (error, DS_CONFIG_ERROR, DS_CONFIG_ERROR_SYNTAX,
+                 "%s: line %u: [%s] %s: a localized key; a configuration has no translations", name, line, *group,
+                 key);
+    return FALSE;
+  }
+  char *full = g_strdup_printf ("[%s] %s", *group, key);
+  guint first = GPOINTER_TO_UINT (g_hash_table_lookup (seen, full));
+  if (first) {
+    g_set_error (error, DS_CONFIG_ERROR, DS_CONFIG_ERROR_SYNTAX, "%s: %s is set twice (lines %u and %u)", name, full,
+                 first, line);
+    g_free (full);
+    return FALSE;
+  }
+  g_hash_table_insert (seen, full, GUINT_TO_POINTER (line));
+  return TRUE;
+}
+
 static gboolean
 check_text (const char *data, gsize len, const char *name, GError **error)
 {
@@ -496,28 +535,9 @@ check_text (const char *data, gsize len, const char *name, GError **error)
   g_autoptr (GHashTable) seen = g_hash_table_new_full (g_str_hash, g_str_equal, g_free, NULL);
   g_autofree char *group = g_strdup ("");
   g_auto (GStrv) lines = g_strsplit (data, "\n", -1);
-  for (guint i = 0; lines[i]; i++) {
-    char *l = g_strstrip (lines[i]);
-    if (l[0] == '[') {
-      char *close = strchr (l, ']');
-      g_free (group);
-      group = close ? g_strndup (l + 1, (gsize) (close - l - 1)) : g_strdup (l);
-      continue;
-    }
-    char *eq = strchr (l, '=');
-    if (l[0] == '#' || !eq)
-      continue;
-    *eq = '\0';
-    char *full = g_strdup_printf ("[%s] %s", group, g_strstrip (l));
-    guint first = GPOINTER_TO_UINT (g_hash_table_lookup (seen, full));
-    if (first) {
-      g_set_error (error, DS_CONFIG_ERROR, DS_CONFIG_ERROR_SYNTAX, "%s: %s is set twice (lines %u and %u)", name,
-                   full, first, i + 1);
-      g_free (full);
+  for (guint i = 0; lines[i]; i++)
+    if (!check_line (g_strstrip (lines[i]), i + 1, name, &group, seen, error))
       return FALSE;
-    }
-    g_hash_table_insert (seen, full, GUINT_TO_POINTER (i + 1));
-  }
   return TRUE;
 }
 

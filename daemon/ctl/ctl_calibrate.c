@@ -24,6 +24,7 @@ typedef struct {
   /* the rig's set (text: "not given" told apart from any value, ctl_session.h) */
   char *phases, *averages, *exposure, *gain;
   gboolean no_dark_frame;
+  gint64 max_side, max_pixels, max_memory_mib;
 } Options;
 
 static void
@@ -111,8 +112,19 @@ static gboolean
 measure_folder (const char *dir, const Options *o, gboolean second, DsCalibration *result, gboolean *usage,
                 GError **error)
 {
-  g_autoptr (DsPhaseFolder) folder = ds_phase_folder_open (dir, error);
+  DsFolderLimits limits;
+  *usage = TRUE;
+  if (!ds_folder_limits_from_options (&limits, o->max_side, o->max_pixels, o->max_memory_mib, error))
+    return FALSE;
+  *usage = FALSE;
+  g_autoptr (DsPhaseFolder) folder = ds_phase_folder_open (dir, ds_folder_read_sidecar, error);
   if (!folder)
+    return FALSE;
+  /* Every size is checked before the first decode. Per pixel, at most: the calibrator's sums
+   * (a double per phase), its dark frame, result and lit-level planes (16), the stripe-phase
+   * measurement's working copy (8) and the frame being read, decoded and converted (16). */
+  if (!ds_folder_check_images (folder, &limits, 40.0 + 8.0 * ds_phase_folder_n_phases (folder), "a calibration",
+                               error))
     return FALSE;
   *usage = TRUE;
   DsCalibrationHints hints;
@@ -288,6 +300,7 @@ ds_ctl_calibrate (const DsCtlTarget *target, int argc, char **argv)
     { "no-dark-frame", 0, 0, G_OPTION_ARG_NONE, &o.no_dark_frame, "without DIR: no dark frame subtracted", NULL },
     { "json", 'j', 0, G_OPTION_ARG_NONE, &o.json, "print the measurements as JSON", NULL },
     { "quiet", 'q', 0, G_OPTION_ARG_NONE, &o.quiet, "no notices on stderr", NULL },
+    DS_FOLDER_LIMIT_OPTIONS (&o.max_side, &o.max_pixels, &o.max_memory_mib),
     { NULL },
   };
   g_autoptr (GOptionContext) ctx = g_option_context_new ("[DIR] - measure the stripe pattern on a reference with little scattering");

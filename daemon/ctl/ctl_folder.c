@@ -1,10 +1,131 @@
 /* The offline commands' view of a phase folder's stripes: period and phase order (ctl_folder.h). */
 #include <math.h>
+#include <stdio.h>
+#include <sys/resource.h>
+#include <unistd.h>
 
 #include "daemon/ctl/ctl_folder.h"
+#include "daemon/ctl/image_header.h"
+#include "daemon/protocol/json_file.h"
 #include "proc/proc_error.h"
 #include "proc/stripe_period.h"
 #include "proc/stripe_phase.h"
+
+JsonNode *
+ds_folder_read_sidecar (const char *path, GError **error)
+{
+  return ds_json_read_file_strict (path, DS_SIDECAR_MAX_BYTES, DS_SIDECAR_MAX_DEPTH, error);
+}
+
+void
+ds_folder_limits_init (DsFolderLimits *limits)
+{
+  *limits = (DsFolderLimits) { .max_side = DS_FOLDER_MAX_SIDE, .max_pixels = DS_FOLDER_MAX_PIXELS };
+}
+
+gboolean
+ds_folder_limits_from_options (DsFolderLimits *limits, gint64 max_side, gint64 max_pixels, gint64 max_memory_mib,
+                               GError **error)
+{
+  ds_folder_limits_init (limits);
+  const char *bad = max_side < 0     ? "--max-side"
+                    : max_pixels < 0 ? "--max-pixels"
+                    : max_memory_mib < 0 ? "--max-memory"
+                                         : NULL;
+  if (bad || max_memory_mib > (gint64) (G_MAXUINT64 >> 20)) {
+    g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT, "%s: must be a positive number",
+                 bad ? bad : "--max-memory");
+    return FALSE;
+  }
+  if (max_side)
+    limits->max_side = (guint64) max_side;
+  if (max_pixels)
+    limits->max_pixels = (guint64) max_pixels;
+  limits->max_memory = (guint64) max_memory_mib << 20;
+  return TRUE;
+}
+
+/* The bytes this process can still take: MemAvailable (what the kernel can hand out without
+ * swapping) and, under an address-space limit, what is left of it. G_MAXUINT64: unknown. */
+static guint64
+memory_available (void)
+{
+  guint64 avail = G_MAXUINT64;
+  FILE *f = fopen ("/proc/meminfo", "re");
+  if (f) {
+    char line[256];
+    unsigned long long kib;
+    while (fgets (line, sizeof line, f))
+      if (sscanf (line, "MemAvailable: %llu kB", &kib) == 1)
+        avail = (guint64) kib * 1024;
+    fclose (f);
+  }
+  struct rlimit rl;
+  if (getrlimit (RLIMIT_AS, &rl) == 0 && rl.rlim_cur != RLIM_INFINITY) {
+    guint64 used = 0;
+    FILE *s = fopen ("/proc/self/statm", "re");
+    unsigned long long pages;
+    if (s && fscanf (s, "%llu", &pages) == 1)
+      used = (guint64) pages * (guint64) sysconf (_SC_PAGESIZE);
+    if (s)
+      fclose (s);
+    guint64 left = (guint64) rl.rlim_cur > used ? (guint64) rl.rlim_cur - used : 0;
+    avail = MIN (avail, left);
+  }
+  return avail;
+}
+
+static gboolean
+check_one (DsPhaseFolder *folder, const char *name, const DsFolderLimits *lim, guint64 *largest, GError **error)
+{
+  g_autofree char *path = g_build_filename (folder->dir, name, NULL);
+  guint64 w = 0, h = 0;
+  if (!ds_image_header_size (path, &w, &h, error))
+    return FALSE;
+  if (w == 0 || h == 0) {
+    g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_FORMAT, "%s: header says %" G_GUINT64_FORMAT "x%"
+                 G_GUINT64_FORMAT " pixels", path, w, h);
+    return FALSE;
+  }
+  if (w > lim->max_side || h > lim->max_side) {
+    g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_TOO_LARGE,
+                 "%s: %" G_GUINT64_FORMAT "x%" G_GUINT64_FORMAT " pixels, a side above the limit of %"
+                 G_GUINT64_FORMAT " (--max-side)", path, w, h, lim->max_side);
+    return FALSE;
+  }
+  if (w * h > lim->max_pixels) {
+    g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_TOO_LARGE,
+                 "%s: %" G_GUINT64_FORMAT "x%" G_GUINT64_FORMAT " = %" G_GUINT64_FORMAT
+                 " pixels, above the limit of %" G_GUINT64_FORMAT " (--max-pixels)", path, w, h, w * h,
+                 lim->max_pixels);
+    return FALSE;
+  }
+  *largest = MAX (*largest, w * h);
+  return TRUE;
+}
+
+gboolean
+ds_folder_check_images (DsPhaseFolder *folder, const DsFolderLimits *lim, double bytes_per_pixel, const char *what,
+                        GError **error)
+{
+  guint64 largest = 0;
+  for (guint i = 0; i < ds_phase_folder_n_frames (folder); i++)
+    if (!check_one (folder, ds_phase_folder_frame (folder, i)->file, lim, &largest, error))
+      return FALSE;
+  for (guint i = 0; i < folder->black_files->len; i++)
+    if (!check_one (folder, folder->black_files->pdata[i], lim, &largest, error))
+      return FALSE;
+  double need = bytes_per_pixel * (double) largest;
+  guint64 have = lim->max_memory ? lim->max_memory : memory_available ();
+  if (need > (double) have) {
+    g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_TOO_LARGE,
+                 "%s: %s of %" G_GUINT64_FORMAT " pixels needs about %.0f MiB (%.0f bytes a pixel), more than "
+                 "the %.0f MiB %s", folder->dir, what, largest, need / 1048576.0, bytes_per_pixel,
+                 (double) have / 1048576.0, lim->max_memory ? "allowed (--max-memory)" : "available");
+    return FALSE;
+  }
+  return TRUE;
+}
 
 void
 ds_folder_phases_clear (DsFolderPhases *fp)

@@ -46,6 +46,7 @@ typedef struct {
   gboolean quiet;
   gboolean no_preview;
   gboolean no_phase_check, strict_phases;
+  gint64 max_side, max_pixels, max_memory_mib;
 } Options;
 
 /* Where the outputs go and what they are: the sidecar lists every file with its kind. */
@@ -259,11 +260,31 @@ make_params (const DsPhaseFolder *folder, const Options *o, DsSeparationParams *
   return TRUE;
 }
 
+/* The folder, its images' sizes checked against the limits before any decode. Per pixel, at
+ * most: the accumulator's float path (min, max, raw max: 12; sums and phase sums in double:
+ * 16; cosine and sine sums: 16; one float plane per phase; a non-finite flag), the outputs
+ * (transmissive, scattered, extrema, sigmas in float: 28; mask and previews: 3), and the frame
+ * and dark frame being read, each decoded and converted (16). */
+static DsPhaseFolder *
+open_folder (const char *dir, const Options *o, gboolean *usage, GError **error)
+{
+  DsFolderLimits limits;
+  *usage = TRUE;
+  if (!ds_folder_limits_from_options (&limits, o->max_side, o->max_pixels, o->max_memory_mib, error))
+    return NULL;
+  *usage = FALSE;
+  g_autoptr (DsPhaseFolder) folder = ds_phase_folder_open (dir, ds_folder_read_sidecar, error);
+  if (!folder ||
+      !ds_folder_check_images (folder, &limits, 92.0 + 4.0 * ds_phase_folder_n_phases (folder), "a separation", error))
+    return NULL;
+  return g_steal_pointer (&folder);
+}
+
 /* *usage is set when the failure is a bad option value (exit status 2) rather than the data. */
 static gboolean
 separate (const char *dir, const Options *o, gboolean *usage, GError **error)
 {
-  g_autoptr (DsPhaseFolder) folder = ds_phase_folder_open (dir, error);
+  g_autoptr (DsPhaseFolder) folder = open_folder (dir, o, usage, error);
   if (!folder)
     return FALSE;
   guint n = ds_phase_folder_n_phases (folder), nf = ds_phase_folder_n_frames (folder);
@@ -435,6 +456,7 @@ ds_ctl_separate (int argc, char **argv)
     { "extrema", 0, 0, G_OPTION_ARG_NONE, &o.extrema, "also write max, min and mean (float32 TIFF)", NULL },
     { "no-preview", 0, 0, G_OPTION_ARG_NONE, &o.no_preview, "do not write the 8-bit preview pictures", NULL },
     { "quiet", 'q', 0, G_OPTION_ARG_NONE, &o.quiet, "print nothing on success", NULL },
+    DS_FOLDER_LIMIT_OPTIONS (&o.max_side, &o.max_pixels, &o.max_memory_mib),
     { NULL },
   };
   g_autoptr (GOptionContext) ctx = g_option_context_new ("DIR - separate a folder of phase images");

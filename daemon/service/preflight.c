@@ -9,6 +9,7 @@
 #include "daemon/operating/data_dir.h"
 #include "drivers/gpio/gpio_lines.h"
 #include "drivers/modbus/modbus_illuminator.h"
+#include "drivers/sim/render_cost.h"
 #include "drivers/sim/scene.h"
 #include "drivers/simdev/sim_lab.h"
 
@@ -91,6 +92,108 @@ check_listen (const char *listen, const char *where, gboolean has_token, const c
   return TRUE;
 }
 
+/* What start's spool does (spool.c: g_mkdir_with_parents, then files written inside), tried
+ * and undone: the missing folders are created and removed again, and a folder that exists
+ * gets a folder created and removed inside it. Permissions, a read-only file system or a
+ * regular file on the way all refuse here as they would at start. */
+static gboolean
+check_spool_dir (const char *dir, GError **error)
+{
+  if (g_file_test (dir, G_FILE_TEST_EXISTS)) {
+    if (!g_file_test (dir, G_FILE_TEST_IS_DIR))
+      return refuse (error, "[daemon] spool-dir = \"%s\" exists and is not a directory", dir);
+    g_autofree char *probe = g_build_filename (dir, ".descatterd-check-XXXXXX", NULL);
+    if (!g_mkdtemp (probe)) {
+      int e = errno;
+      return refuse (error, "[daemon] spool-dir = \"%s\": cannot write in it: %s", dir, g_strerror (e));
+    }
+    g_rmdir (probe);
+    return TRUE;
+  }
+  g_autoptr (GPtrArray) missing = g_ptr_array_new_with_free_func (g_free);
+  g_autofree char *p = g_strdup (dir);
+  while (!g_file_test (p, G_FILE_TEST_EXISTS)) {
+    g_ptr_array_add (missing, g_strdup (p));
+    char *parent = g_path_get_dirname (p);
+    gboolean top = strcmp (parent, p) == 0;
+    g_free (p);
+    p = parent;
+    if (top)
+      break;
+  }
+  g_autoptr (GPtrArray) made = g_ptr_array_new ();
+  int e = 0;
+  const char *failed = NULL;
+  for (guint i = missing->len; !failed && i-- > 0;) {
+    if (g_mkdir (missing->pdata[i], 0750) == 0)
+      g_ptr_array_add (made, missing->pdata[i]);
+    else {
+      e = errno;
+      failed = missing->pdata[i];
+    }
+  }
+  for (guint k = made->len; k-- > 0;) /* undone deepest first */
+    g_rmdir (made->pdata[k]);
+  if (failed)
+    return refuse (error, "[daemon] spool-dir = \"%s\" cannot be created: %s: %s", dir, failed, g_strerror (e));
+  return TRUE;
+}
+
+typedef struct {
+  const char *where, *text;
+  const char *host;
+  guint16 port;
+} Listener;
+
+/* Two listeners on one port collide when their hosts are equal or either is the wildcard; a
+ * port of 0 is the kernel's choice and never collides. */
+static gboolean
+listeners_collide (const Listener *a, const Listener *b)
+{
+  if (a->port == 0 || a->port != b->port)
+    return FALSE;
+  g_autoptr (GInetAddress) ia = g_inet_address_new_from_string (a->host);
+  g_autoptr (GInetAddress) ib = g_inet_address_new_from_string (b->host);
+  return g_inet_address_equal (ia, ib) || g_inet_address_get_is_any (ia) || g_inet_address_get_is_any (ib);
+}
+
+/* Binds the address as the server will (GSocketListener: SO_REUSEADDR) and closes it again,
+ * so that a port held by another program refuses here and not after the socket file exists. */
+static gboolean
+test_bind (const Listener *l, GError **error)
+{
+  if (l->port == 0)
+    return TRUE;
+  g_autoptr (GInetAddress) ia = g_inet_address_new_from_string (l->host);
+  g_autoptr (GSocketAddress) sa = g_inet_socket_address_new (ia, l->port);
+  g_autoptr (GError) e = NULL;
+  g_autoptr (GSocket) sock = g_socket_new (g_inet_address_get_family (ia), G_SOCKET_TYPE_STREAM,
+                                           G_SOCKET_PROTOCOL_TCP, &e);
+  if (!sock || !g_socket_bind (sock, sa, TRUE, &e) || !g_socket_listen (sock, &e))
+    return refuse (error, "%s \"%s\": cannot listen there: %s", l->where, l->text, e->message);
+  g_socket_close (sock, NULL);
+  return TRUE;
+}
+
+static gboolean
+check_listeners (const DsPreflight *pf, const char *tcp_where, const char *tcp, const char *http_where,
+                 const char *http, gboolean running, GError **error)
+{
+  Listener ls[2];
+  guint n = 0;
+  if (pf->tcp_host)
+    ls[n++] = (Listener) { tcp_where, tcp, pf->tcp_host, pf->tcp_port };
+  if (pf->http_host)
+    ls[n++] = (Listener) { http_where, http, pf->http_host, pf->http_port };
+  if (n == 2 && listeners_collide (&ls[0], &ls[1]))
+    return refuse (error, "%s \"%s\" and %s \"%s\" are the same address; give each its own port", ls[0].where,
+                   ls[0].text, ls[1].where, ls[1].text);
+  for (guint i = 0; !running && i < n; i++)
+    if (!test_bind (&ls[i], error))
+      return FALSE;
+  return TRUE;
+}
+
 static gboolean
 check_gpio (const DsConfig *c, GError **error)
 {
@@ -158,11 +261,11 @@ run_checks (DsPreflight *pf, const DsConfig *config, const DsPreflightOverrides 
       !check_listen (http, ov && ov->http_listen ? "--http" : "[http] listen", pf->http_token != NULL,
                      "[http] token-file", &pf->http_host, &pf->http_port, error))
     return FALSE;
-  if (c->spool_dir && g_file_test (c->spool_dir, G_FILE_TEST_EXISTS) &&
-      !g_file_test (c->spool_dir, G_FILE_TEST_IS_DIR)) {
-    refuse (error, "[daemon] spool-dir = \"%s\" exists and is not a directory", c->spool_dir);
+  if (!check_listeners (pf, ov && ov->tcp_listen ? "--tcp" : "[daemon] tcp-listen", tcp,
+                        ov && ov->http_listen ? "--http" : "[http] listen", http, ov && ov->running, error))
     return FALSE;
-  }
+  if (c->spool_dir && *c->spool_dir && !check_spool_dir (c->spool_dir, error))
+    return FALSE;
   GError *e = NULL;
   if (strcmp (c->illuminator_backend, "modbus") == 0) {
     DsModbusUri uri;
@@ -182,7 +285,7 @@ run_checks (DsPreflight *pf, const DsConfig *config, const DsPreflightOverrides 
     }
     if (c->sim_scene) {
       g_autoptr (DsScene) scene = ds_scene_load (c->sim_scene, &e);
-      if (!scene) {
+      if (!scene || !ds_scene_check_files (scene, &e) || !ds_render_cost_check (scene, &e)) {
         refuse_with (error, e, ov && ov->scene_path ? "--scene" : "[sim] scene");
         return FALSE;
       }

@@ -2,9 +2,11 @@
  * that `descatterd --check` and start-up both run, so that --check passes exactly what start
  * accepts: the configuration's own rules (config.c), the command-line overrides, the device
  * addresses as their drivers parse them (Modbus URI, GPIO line lists, simulated faults), and
- * the files the configuration names (scene, operating model, TCP token). Opening the devices
- * is the next step (devices.c; `--check --probe`).
- * Main thread; reads files, touches no device and binds nothing. */
+ * the files the configuration names (scene and its masks, operating model, TCP token), and
+ * what start creates and binds: the spool folder is test-created (and removed again), the
+ * TCP and HTTP addresses must differ and are test-bound (and closed again). Opening the
+ * devices is the next step (devices.c; `--check --probe`).
+ * Main thread; reads files, touches no device, leaves nothing behind. */
 #pragma once
 #include <glib.h>
 
@@ -21,6 +23,9 @@ typedef struct {
   const char *tcp_listen;  /* --tcp */
   const char *scene_path;  /* --scene */
   const char *http_listen; /* --http */
+  /* The daemon is running (a reload): its own listeners hold their addresses, so they are not
+   * test-bound. */
+  gboolean running;
 } DsPreflightOverrides;
 
 typedef struct {

@@ -215,6 +215,7 @@ ds_service_reload (DsService *svc, GError **error)
     return FALSE;
   }
   DsPreflightOverrides ov = overrides_of (&svc->options);
+  ov.running = TRUE;
   g_autoptr (DsPreflight) pf = ds_preflight_run (fresh, &ov, error);
   if (!pf) {
     g_prefix_error (error, "reload refused, keeping the running configuration: ");

@@ -5,6 +5,7 @@
 #include <math.h>
 #include <string.h>
 
+#include "drivers/sim/render_cost.h"
 #include "drivers/sim/sim_error.h"
 #include "drivers/sim/stage.h"
 #include "drivers/sim/transport.h"
@@ -143,6 +144,9 @@ build (const DsScene *scene, const char *cache_dir, const DsSlabKernels *given, 
 DsRenderer *
 ds_renderer_new (const DsScene *scene, const char *psf_cache_dir, GError **error)
 {
+  /* Refused before the kernels start: their cost is what runs away. */
+  if (!ds_render_cost_check (scene, error))
+    return NULL;
   return build (scene, psf_cache_dir, NULL, error);
 }
 

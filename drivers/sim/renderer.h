@@ -28,7 +28,9 @@ typedef enum {
   DS_RENDER_N_STAGES
 } DsRenderStage;
 
-/* psf_cache_dir: where Monte Carlo kernels are cached; NULL = the transport's default. */
+/* psf_cache_dir: where Monte Carlo kernels are cached; NULL = the transport's default. Fails
+ * DS_SIM_ERROR_TOO_COSTLY, before any work, when the estimated cost exceeds the scene's
+ * [scene] max-render-s (render_cost.h). */
 DsRenderer *ds_renderer_new (const DsScene *scene, const char *psf_cache_dir, GError **error);
 /* As ds_renderer_new with the scattering kernels given instead of computed (tests): their
  * planes must be the scene's object depths inside the medium; copied from. */

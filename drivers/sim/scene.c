@@ -5,6 +5,8 @@
 #include <stddef.h>
 #include <string.h>
 
+#include "proc/image.h"
+
 struct DsScene {
   DsSceneSpec spec;
 };
@@ -23,6 +25,7 @@ typedef struct {
 
 #define F(f) offsetof (DsSceneSpec, f)
 static const KeySpec keys[] = {
+  { "scene", "max-render-s", T_DOUBLE, F (max_render_s), "20", 0, 1e9, TRUE, FALSE, NULL },
   { "sensor", "width", T_UINT, F (width), NULL, 8, 16384, FALSE, FALSE, NULL },
   { "sensor", "height", T_UINT, F (height), NULL, 8, 16384, FALSE, FALSE, NULL },
   { "sensor", "bit-depth", T_UINT, F (bit_depth), "12", 8, 16, FALSE, FALSE, NULL },
@@ -107,9 +110,45 @@ fail_at (GError **error, DsSimError code, const char *file, const char *text, co
     g_set_error (error, DS_SIM_ERROR, code, "%s: [%s]: %s", where, group, msg);
 }
 
+/* Decimal notation only: [+-]digits[.digits][e[+-]digits]. strtod also reads hexadecimal
+ * (0x10), inf and nan, which no scene means and the documented ranges never contain. */
+static gboolean
+is_decimal (const char *s)
+{
+  const char *p = s;
+  while (*p == ' ' || *p == '\t')
+    p++;
+  if (*p == '+' || *p == '-')
+    p++;
+  gsize digits = 0;
+  while (g_ascii_isdigit (*p))
+    p++, digits++;
+  if (*p == '.') {
+    p++;
+    while (g_ascii_isdigit (*p))
+      p++, digits++;
+  }
+  if (digits == 0)
+    return FALSE;
+  if (*p == 'e' || *p == 'E') {
+    p++;
+    if (*p == '+' || *p == '-')
+      p++;
+    if (!g_ascii_isdigit (*p))
+      return FALSE;
+    while (g_ascii_isdigit (*p))
+      p++;
+  }
+  while (*p == ' ' || *p == '\t')
+    p++;
+  return *p == 0;
+}
+
 static gboolean
 parse_number (const char *s, double *out)
 {
+  if (!is_decimal (s))
+    return FALSE;
   char *end = NULL;
   errno = 0;
   *out = g_ascii_strtod (s, &end);
@@ -199,6 +238,10 @@ parse_object (DsSceneSpec *spec, GKeyFile *kf, const char *group, const char *fi
       return FALSE;
     }
   o->name = g_strdup (group + strlen ("object."));
+  if (!*o->name) {
+    fail_at (error, DS_SIM_ERROR_PARSE, file, text, group, NULL, "an object needs a name: [object.NAME]");
+    return FALSE;
+  }
   g_autofree char *shape = g_key_file_get_value (kf, group, "shape", NULL);
   if (!shape) {
     fail_at (error, DS_SIM_ERROR_PARSE, file, text, group, NULL, "missing key shape (rect|disc|grid|lines|mask)");
@@ -356,8 +399,9 @@ load (GKeyFile *kf, const char *file, const char *text, GError **error)
   if (g_key_file_has_group (kf, "scene")) {
     g_auto (GStrv) ks = g_key_file_get_keys (kf, "scene", NULL, NULL);
     for (guint i = 0; ks && ks[i]; i++)
-      if (strcmp (ks[i], "name") != 0 && strcmp (ks[i], "description") != 0) {
-        fail_at (error, DS_SIM_ERROR_PARSE, file, text, "scene", ks[i], "unknown key (keys: name, description)");
+      if (strcmp (ks[i], "name") != 0 && strcmp (ks[i], "description") != 0 && strcmp (ks[i], "max-render-s") != 0) {
+        fail_at (error, DS_SIM_ERROR_PARSE, file, text, "scene", ks[i],
+                 "unknown key (keys: name, description, max-render-s)");
         goto fail;
       }
   }
@@ -490,6 +534,29 @@ gboolean ds_scene_pattern_is_sine (const DsScene *s) { return s->spec.sine; }
 double ds_scene_system_gain (const DsScene *s) { return s->spec.system_gain; }
 double ds_scene_read_noise_dn (const DsScene *s) { return s->spec.read_noise_e * s->spec.system_gain; }
 double ds_scene_default_exposure_us (const DsScene *s) { return s->spec.exposure_us; }
+
+gboolean
+ds_scene_check_files (const DsScene *scene, GError **error)
+{
+  const DsSceneSpec *sp = ds_scene_spec (scene);
+  for (guint i = 0; i < sp->n_objects; i++) {
+    const DsSceneObject *o = &sp->objects[i];
+    if (o->shape != DS_SHAPE_MASK)
+      continue;
+    g_autoptr (GError) local = NULL;
+    g_autoptr (DsImage) m = ds_image_read (o->mask_path, &local);
+    if (!m) {
+      g_set_error (error, DS_SIM_ERROR, DS_SIM_ERROR_IO, "[object.%s] mask: %s", o->name, local->message);
+      return FALSE;
+    }
+    if (m->width != sp->width || m->height != sp->height) {
+      g_set_error (error, DS_SIM_ERROR, DS_SIM_ERROR_INVALID, "[object.%s] mask %s is %ux%u, the sensor %ux%u",
+                   o->name, o->mask_path, m->width, m->height, sp->width, sp->height);
+      return FALSE;
+    }
+  }
+  return TRUE;
+}
 
 DsScene *
 ds_scene_copy (const DsScene *scene)

@@ -52,6 +52,8 @@ typedef struct {
   /* [object.*] */
   DsSceneObject *objects;
   guint n_objects;
+  /* [scene] max-render-s: the render cost (render_cost.h) beyond which the scene is refused */
+  double max_render_s;
   char *name;
   char *path;
 } DsSceneSpec;
@@ -61,6 +63,10 @@ typedef struct DsScene DsScene;
 DsScene *ds_scene_load (const char *path, GError **error);
 /* name is used in messages and to resolve relative mask paths (its folder). */
 DsScene *ds_scene_load_data (const char *data, gsize length, const char *name, GError **error);
+/* The files a scene names, as the renderer will open them: every mask must read as an image
+ * of the sensor's size. Fails DS_SIM_ERROR_IO or _INVALID naming the object and file. Reads
+ * (and decodes) each mask once; main thread of whoever validates the scene. */
+gboolean ds_scene_check_files (const DsScene *scene, GError **error);
 DsScene *ds_scene_copy (const DsScene *scene);
 /* A copy at another sensor size, object geometry scaled with it, stripe period kept (benchmarks). */
 DsScene *ds_scene_copy_resized (const DsScene *scene, guint width, guint height);

@@ -3,6 +3,7 @@
 #include <math.h>
 #include <stdio.h>
 
+#include "drivers/sim/render_cost.h"
 #include "drivers/sim/renderer.h"
 #include "drivers/sim/sim_cli.h"
 
@@ -58,6 +59,11 @@ describe_cost (const DsRenderer *r, const DsScene *scene)
   printf ("render cost: one frame in %.3g s here and now (%.0f %% of it %s); descatter-labsim renders each "
           "phase and dark once per phase count and period, before serving and then in the background\n", total,
           total > 0 ? 100 * secs[top] / total : 0.0, ds_render_stage_name ((DsRenderStage) top));
+  DsRenderCost est;
+  ds_render_cost_estimate (ds_scene_spec (scene), &est);
+  printf ("estimated before rendering: a frame %.3g s, the kernels %.3g s when not cached (%.3g interactions per "
+          "photon); refused above [scene] max-render-s = %g s\n", est.frame_s, est.kernel_s,
+          est.interactions_per_photon, ds_scene_spec (scene)->max_render_s);
   return 0;
 }
 

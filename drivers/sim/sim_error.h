@@ -12,6 +12,7 @@ typedef enum {
   DS_SIM_ERROR_PARSE = 2,   /* malformed scene text, unknown or missing group/key */
   DS_SIM_ERROR_IO = 3,      /* a file could not be read or written */
   DS_SIM_ERROR_NUMERIC = 4, /* a computation failed (convolution, transport) */
+  DS_SIM_ERROR_TOO_COSTLY = 5, /* the estimated render cost exceeds the scene's ceiling */
 } DsSimError;
 
 G_END_DECLS

@@ -7,6 +7,7 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "drivers/sim/render_cost.h"
 #include "drivers/sim/renderer.h"
 
 static double
@@ -102,6 +103,15 @@ bench_scene (const char *label, const DsScene *scene, guint frames, const char *
     DsRenderStage s = ds_renderer_stage (r, i);
     printf ("  %-22s %9.3f ms  %7.1f x memcpy\n", ds_render_stage_name (s), secs[s] * 1e3, secs[s] / baseline);
   }
+  /* The estimate the renderer refuses scenes by (render_cost.h), against this measurement: the
+   * ratio is the factor docs/scene-format.md states (within 4 either way on the reference
+   * machine). The kernels' build is compared only when this run computed them. */
+  DsRenderCost est;
+  ds_render_cost_estimate (ds_scene_spec (scene), &est);
+  printf ("  estimated frame %.2f ms = %.2f x measured; kernels %.3f s%s", est.frame_s * 1e3,
+          total > 0 ? est.frame_s / total : 0.0, est.kernel_s, est.kernel_s > 0 ? "" : "\n");
+  if (est.kernel_s > 0)
+    printf (" = %.2f x this build (a cached build is faster)\n", build > 0 ? est.kernel_s / build : 0.0);
   if (total_out)
     *total_out = total;
   return TRUE;

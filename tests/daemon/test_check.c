@@ -76,6 +76,36 @@ typedef struct {
 #define REAL_CAMERA "[camera]\nbackend=aravis\naddress=127.0.0.1\n"
 #define REAL "[camera]\nbackend=aravis\naddress=127.0.0.1\n[illuminator]\nbackend=modbus\nmodbus-uri=tcp://127.0.0.1:1502\n"
 
+/* A loopback port nothing listens on now (bound to 0, read back, closed). */
+static guint16
+free_port (GSocket **keep)
+{
+  g_autoptr (GError) error = NULL;
+  g_autoptr (GSocket) s = g_socket_new (G_SOCKET_FAMILY_IPV4, G_SOCKET_TYPE_STREAM, G_SOCKET_PROTOCOL_TCP, &error);
+  g_assert_no_error (error);
+  g_autoptr (GInetAddress) lo = g_inet_address_new_loopback (G_SOCKET_FAMILY_IPV4);
+  g_autoptr (GSocketAddress) any = g_inet_socket_address_new (lo, 0);
+  g_assert_true (g_socket_bind (s, any, TRUE, &error));
+  g_assert_true (g_socket_listen (s, &error));
+  g_autoptr (GSocketAddress) got = g_socket_get_local_address (s, &error);
+  guint16 port = g_inet_socket_address_get_port (G_INET_SOCKET_ADDRESS (got));
+  if (keep)
+    *keep = g_steal_pointer (&s);
+  else
+    g_socket_close (s, NULL);
+  return port;
+}
+
+#define MASK_SCENE "[sensor]\nwidth=64\nheight=48\n[illuminator]\nperiod-px=8\nirradiance=1\n" \
+                   "[object.m]\nshape=mask\nmask=%s\n"
+
+static char *
+write_mask_scene (const char *name, const char *mask)
+{
+  g_autofree char *text = g_strdup_printf (MASK_SCENE, mask);
+  return write_file (name, text, -1);
+}
+
 static void
 test_check_equals_start (void)
 {
@@ -85,6 +115,25 @@ test_check_equals_start (void)
   g_mkdir (token_dir, 0700);
   g_autofree char *not_scene = write_file ("not.scene", "this is not a scene\n", -1);
   g_autofree char *not_model = write_file ("not-model.csv", "a,b\n1,2\n", -1);
+  g_autofree char *good_token = write_file ("good-token", "a-token-of-more-than-16-characters\n", -1);
+  g_autofree char *a_file = write_file ("a-file", "", 0);
+  g_autofree char *spool_under_file = g_build_filename (a_file, "spool", NULL);
+  g_autofree char *not_image = write_file ("not-an-image.png", "this is text\n", -1);
+  /* a 10 x 10 greyscale PGM: an image, but not the sensor's 64 x 48 */
+  g_autoptr (GString) pgm = g_string_new ("P5\n10 10\n255\n");
+  for (int i = 0; i < 100; i++)
+    g_string_append_c (pgm, (char) 255);
+  g_autofree char *small_mask = write_file ("small-mask.pgm", pgm->str, (gssize) pgm->len);
+  g_autofree char *missing_mask_path = g_build_filename (dir, "missing-mask.png", NULL);
+  g_autofree char *scene_missing_mask = write_mask_scene ("missing-mask.scene", missing_mask_path);
+  g_autofree char *scene_text_mask = write_mask_scene ("text-mask.scene", not_image);
+  g_autofree char *scene_small_mask = write_mask_scene ("small-mask.scene", small_mask);
+  g_autofree char *scene_costly = write_file ("costly.scene", "[sensor]\nwidth=64\nheight=48\n[illuminator]\n"
+                                              "period-px=8\nirradiance=1\n[medium]\nthickness-mm=3\nmua=0.02\n"
+                                              "mus=2\nphotons=1e10\n", -1);
+  g_autofree char *port = g_strdup_printf ("%u", free_port (NULL));
+  g_autoptr (GSocket) holder = NULL;
+  g_autofree char *held_port = g_strdup_printf ("%u", free_port (&holder));
   g_autofree char *long_socket = g_strdup_printf ("%s/%s.sock", dir,
                                                   "a-socket-name-that-makes-the-path-longer-than-sun-path-"
                                                   "allows-on-linux-which-is-108-bytes");
@@ -120,6 +169,26 @@ test_check_equals_start (void)
       "[illuminator]\nbackend=sim\n", NULL, NULL, "[illuminator] backend = sim" },
     { "no devices chosen", "[acquisition]\nphases=8\n", NULL, NULL, "backend is not set" },
     { "a key twice", SIM "[acquisition]\nphases=8\nphases=4\n", NULL, NULL, "set twice" },
+    { "a locale key", SIM "[camera]\nbackend[fr]=aravis\n", NULL, NULL, "localized" },
+    { "a key without a name", SIM "[acquisition]\n=8\n", NULL, NULL, "without a key name" },
+    /* what start creates, binds or opens */
+    { "spool-dir under a regular file", SIM "[daemon]\nspool-dir=%SPOOL_UNDER_FILE%\n", NULL, NULL,
+      "cannot be created" },
+    { "tcp-listen and [http] listen on one address", SIM "[daemon]\ntcp-listen=127.0.0.1:%PORT%\n[http]\n"
+      "listen=127.0.0.1:%PORT%\n", NULL, NULL, "same address" },
+    { "--http on tcp-listen's address", SIM "[daemon]\ntcp-listen=127.0.0.1:%PORT%\n", "--http", "127.0.0.1:%PORT%",
+      "same address" },
+    { "[http] listen on the wildcard of tcp-listen's port", SIM "[daemon]\ntcp-listen=127.0.0.1:%PORT%\n[http]\n"
+      "listen=0.0.0.0:%PORT%\ntoken-file=%GOOD_TOKEN%\n", NULL, NULL, "same address" },
+    { "tcp-listen on a port another program holds", SIM "[daemon]\ntcp-listen=127.0.0.1:%HELD_PORT%\n", NULL, NULL,
+      "cannot listen there" },
+    { "[http] listen on a port another program holds", SIM "[http]\nlisten=127.0.0.1:%HELD_PORT%\n", NULL, NULL,
+      "cannot listen there" },
+    { "a mask file that is missing", SIM "[sim]\nscene=%SCENE_MISSING_MASK%\n", NULL, NULL, "[object.m] mask" },
+    { "a mask file that is not an image", SIM "[sim]\nscene=%SCENE_TEXT_MASK%\n", NULL, NULL, "[object.m] mask" },
+    { "a mask of another size than the sensor", SIM "[sim]\nscene=%SCENE_SMALL_MASK%\n", NULL, NULL, "10x10" },
+    { "a scene over its render cost ceiling", SIM "[sim]\nscene=%SCENE_COSTLY%\n", NULL, NULL, "max-render-s" },
+    { "--scene over its render cost ceiling", SIM, "--scene", "%SCENE_COSTLY%", "max-render-s" },
   };
   for (guint i = 0; i < G_N_ELEMENTS (cases); i++) {
     /* Every case binds (if it ever got that far) in the test folder, unless it is about the
@@ -129,7 +198,10 @@ test_check_equals_start (void)
                                 : g_strdup_printf ("[daemon]\nsocket=%s\n%s", sock, cases[i].config);
     const struct { const char *key, *value; } subst[] = {
       { "%NOT_SCENE%", not_scene }, { "%NOT_MODEL%", not_model }, { "%SHORT_TOKEN%", short_token },
-      { "%TOKEN_DIR%", token_dir }, { "%LONG_SOCKET%", long_socket },
+      { "%TOKEN_DIR%", token_dir }, { "%LONG_SOCKET%", long_socket }, { "%GOOD_TOKEN%", good_token },
+      { "%SPOOL_UNDER_FILE%", spool_under_file }, { "%PORT%", port }, { "%HELD_PORT%", held_port },
+      { "%SCENE_MISSING_MASK%", scene_missing_mask }, { "%SCENE_TEXT_MASK%", scene_text_mask },
+      { "%SCENE_SMALL_MASK%", scene_small_mask }, { "%SCENE_COSTLY%", scene_costly },
     };
     g_autofree char *extra_value = g_strdup (cases[i].extra_value);
     for (guint k = 0; k < G_N_ELEMENTS (subst); k++) {
@@ -137,9 +209,11 @@ test_check_equals_start (void)
       g_string_replace (b, subst[k].key, subst[k].value, 0);
       g_free (body);
       body = g_strdup (b->str);
-      if (extra_value && strcmp (extra_value, subst[k].key) == 0) {
+      if (extra_value && strstr (extra_value, subst[k].key)) {
+        g_autoptr (GString) v = g_string_new (extra_value);
+        g_string_replace (v, subst[k].key, subst[k].value, 0);
         g_free (extra_value);
-        extra_value = g_strdup (subst[k].value);
+        extra_value = g_strdup (v->str);
       }
     }
     /* The section given again by a case ([daemon], [camera]...) is a second group of the same
@@ -173,6 +247,14 @@ test_check_equals_start (void)
     g_unlink (conf);
   }
   g_unlink (short_token);
+  g_unlink (good_token);
+  g_unlink (a_file);
+  g_unlink (not_image);
+  g_unlink (small_mask);
+  g_unlink (scene_missing_mask);
+  g_unlink (scene_text_mask);
+  g_unlink (scene_small_mask);
+  g_unlink (scene_costly);
   g_rmdir (token_dir);
   g_unlink (not_scene);
   g_unlink (not_model);
@@ -183,12 +265,23 @@ static void
 test_check_accepts_what_starts (void)
 {
   g_autofree char *sock = g_build_filename (dir, "ok.sock", NULL);
-  g_autofree char *body = g_strdup_printf ("[daemon]\nsocket=%s\n" SIM "[sim]\nscene=%s\n", sock, SCENE_FILE);
+  /* what start creates and binds: a spool two folders deep that does not exist yet, TCP and
+   * HTTP on two ports of their own */
+  g_autofree char *spool_top = g_build_filename (dir, "spool", NULL);
+  g_autofree char *spool = g_build_filename (spool_top, "a", "b", NULL);
+  guint16 tcp_port = free_port (NULL), http_port = free_port (NULL);
+  if (http_port == tcp_port)
+    http_port = free_port (NULL);
+  g_autofree char *body = g_strdup_printf ("[daemon]\nsocket=%s\nspool-dir=%s\ntcp-listen=127.0.0.1:%u\n"
+                                           "[http]\nlisten=127.0.0.1:%u\n" SIM "[sim]\nscene=%s\n", sock, spool,
+                                           tcp_port, http_port, SCENE_FILE);
   g_autofree char *conf = write_file ("ok.conf", body, -1);
   const char *check_args[] = { "--check", "--config", conf, NULL };
   Run check = run_descatterd (check_args, 20);
   g_assert_cmpint (check.status, ==, 0);
   g_assert_null (check.first_error);
+  /* --check tried the spool and left nothing behind */
+  g_assert_false (g_file_test (spool_top, G_FILE_TEST_EXISTS));
   const char *start_args[] = { "--config", conf, "--no-socket-activation", NULL };
   g_autoptr (GError) error = NULL;
   g_autoptr (GPtrArray) argv = g_ptr_array_new ();
@@ -203,11 +296,16 @@ test_check_accepts_what_starts (void)
     g_usleep (50000);
   g_assert_true (g_file_test (sock, G_FILE_TEST_EXISTS));
   g_assert_nonnull (g_subprocess_get_identifier (p)); /* still running */
+  g_assert_true (g_file_test (spool, G_FILE_TEST_IS_DIR));
   g_subprocess_send_signal (p, SIGTERM);
   g_assert_true (g_subprocess_wait_check (p, NULL, &error));
   g_assert_no_error (error);
   run_free (&check);
   g_unlink (conf);
+  g_rmdir (spool);
+  g_autofree char *spool_a = g_path_get_dirname (spool);
+  g_rmdir (spool_a);
+  g_rmdir (spool_top);
 }
 
 int

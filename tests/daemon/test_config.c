@@ -229,6 +229,9 @@ test_refusals (void)
     /* what GKeyFile passed over: a key given twice kept its last value */
     { SIM "[acquisition]\nphases=8\nphases=4\n", DS_CONFIG_ERROR_SYNTAX, { "[acquisition] phases", "lines 6 and 7" } },
     { SIM "[acquisition]\nphases=8\n[acquisition]\nphases = 4\n", DS_CONFIG_ERROR_SYNTAX, { "set twice" } },
+    /* a locale key was kept beside the key and never read; a key without a name stored as "" */
+    { SIM "[camera]\nbackend[fr]=aravis\n", DS_CONFIG_ERROR_SYNTAX, { "line 6", "backend[fr]", "localized" } },
+    { SIM "[acquisition]\n =8\n", DS_CONFIG_ERROR_SYNTAX, { "line 6", "without a key name" } },
     { SIM "[acquisition]\nphases=\xff\n", DS_CONFIG_ERROR_SYNTAX, { "line 6", "UTF-8" } },
   };
   for (guint i = 0; i < G_N_ELEMENTS (cases); i++) {

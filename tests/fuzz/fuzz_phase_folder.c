@@ -1,13 +1,16 @@
 /* Fuzz target: phase folders. The input is a list of files, each record
  *   [name length: 1 byte][name][content length: 2 bytes little-endian][content]
  * (names mapped onto [a-z0-9._], at most 8 files of at most 4 KiB), written into a scratch
- * folder; the folder is then listed and every image read. Whatever the names and contents,
- * the result is a set of same-shaped images or an error with a message. */
+ * folder; the folder is then listed, the images' headers checked against the offline
+ * commands' limits (as separate and calibrate do before decoding) and every image read.
+ * Whatever the names and contents, the result is a set of same-shaped images or an error with
+ * a message. */
 #include <glib/gstdio.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "daemon/ctl/ctl_folder.h"
 #include "proc/phase_folder.h"
 
 int LLVMFuzzerTestOneInput (const uint8_t *data, size_t size);
@@ -68,13 +71,24 @@ LLVMFuzzerTestOneInput (const uint8_t *data, size_t size)
     pos += clen;
   }
   GError *error = NULL;
-  DsPhaseFolder *f = ds_phase_folder_open (dir, &error);
+  DsPhaseFolder *f = ds_phase_folder_open (dir, ds_folder_read_sidecar, &error);
   if (!f) {
     g_assert (error && error->message && *error->message);
     g_error_free (error);
     return 0;
   }
   g_assert (ds_phase_folder_n_phases (f) >= 2);
+  /* 1 GiB at most, whatever the machine has: a header that passes the side and pixel caps may
+   * still not be decoded here */
+  DsFolderLimits limits;
+  ds_folder_limits_init (&limits);
+  limits.max_memory = 1u << 30;
+  if (!ds_folder_check_images (f, &limits, 16.0, "a read", &error)) {
+    g_assert (error && error->message && *error->message);
+    g_error_free (error);
+    ds_phase_folder_free (f);
+    return 0;
+  }
   for (guint k = 0; k <= ds_phase_folder_n_phases (f); k++) {
     DsImage *img = k < ds_phase_folder_n_phases (f) ? ds_phase_folder_read (f, k, &error)
                    : f->black_file                  ? ds_phase_folder_read_black (f, &error)

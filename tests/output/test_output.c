@@ -7,6 +7,7 @@
 #include <math.h>
 #include <string.h>
 
+#include "daemon/ctl/ctl_folder.h"
 #include "daemon/output/hdf5_run.h"
 #include "daemon/output/hdf5_set.h"
 #include "daemon/output/output_error.h"
@@ -201,7 +202,7 @@ test_phase_folder_today_loader (void)
   g_autoptr (GError) error = NULL;
   g_assert_true (ds_phase_folder_write (s->raw, s->planes.meta, folder, &error));
   g_assert_no_error (error);
-  g_autoptr (DsPhaseFolder) pf = ds_phase_folder_open (folder, &error);
+  g_autoptr (DsPhaseFolder) pf = ds_phase_folder_open (folder, ds_folder_read_sidecar, &error);
   g_assert_no_error (error);
   g_assert_cmpuint (ds_phase_folder_n_phases (pf), ==, SAMPLE_PHASES);
   g_assert_cmpstr (pf->black_file, ==, "black.png");

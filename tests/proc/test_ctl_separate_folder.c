@@ -186,7 +186,7 @@ static const struct {
   const char *raw; /* the whole file instead */
   const char *expect;
 } bad_sidecars[] = {
-  { NULL, 0, 0, 0, "{\"format\": \"descatter-phase-folder\", \"version\": 1", "*frames.json: does not parse*" },
+  { NULL, 0, 0, 0, "{\"format\": \"descatter-phase-folder\", \"version\": 1", "*frames.json: not valid JSON at byte 49*" },
   { NULL, 0, 0, 0, "{\"format\": \"other\", \"version\": 1}", "*key \"format\"*" },
   { NULL, 0, 0, 0, "{\"format\": \"descatter-phase-folder\", \"version\": 2}", "*key \"version\"*newer*" },
   { "{\"file\": \"phase-00.png\", \"phase\": 0}, {\"file\": \"gone.png\", \"phase\": 1}", W, 16, 2, NULL,

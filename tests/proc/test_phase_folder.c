@@ -4,6 +4,7 @@
 #include <math.h>
 #include <string.h>
 
+#include "daemon/ctl/ctl_folder.h"
 #include "proc/phase_folder.h"
 #include "proc/proc_error.h"
 #include "tests/common/test_tree.h"
@@ -59,7 +60,7 @@ test_layout (void)
   g_assert_true (g_file_set_contents (hidden, "half-written", -1, NULL));
 
   g_autoptr (GError) error = NULL;
-  g_autoptr (DsPhaseFolder) f = ds_phase_folder_open (dir, &error);
+  g_autoptr (DsPhaseFolder) f = ds_phase_folder_open (dir, ds_folder_read_sidecar, &error);
   g_assert_no_error (error);
   g_assert_cmpuint (ds_phase_folder_n_phases (f), ==, 11);
   g_assert_cmpstr (f->black_file, ==, "black.png");
@@ -84,7 +85,7 @@ static void
 expect_open_error (const char *dir, int code, const char *fragment)
 {
   g_autoptr (GError) error = NULL;
-  DsPhaseFolder *f = ds_phase_folder_open (dir, &error);
+  DsPhaseFolder *f = ds_phase_folder_open (dir, ds_folder_read_sidecar, &error);
   g_assert_null (f);
   g_assert_error (error, DS_PROC_ERROR, code);
   if (!strstr (error->message, fragment))
@@ -96,7 +97,7 @@ static GError *
 read_all (const char *dir)
 {
   GError *error = NULL;
-  g_autoptr (DsPhaseFolder) f = ds_phase_folder_open (dir, &error);
+  g_autoptr (DsPhaseFolder) f = ds_phase_folder_open (dir, ds_folder_read_sidecar, &error);
   g_assert_no_error (error);
   for (guint k = 0; k < ds_phase_folder_n_phases (f); k++) {
     g_autoptr (DsImage) img = ds_phase_folder_read (f, k, &error);
@@ -180,7 +181,7 @@ test_sidecar (void)
     " \"frames\": [{\"file\": \"c.png\", \"phase\": 1, \"frame_id\": 17}, {\"file\": \"a.png\", \"phase\": 0},"
     " {\"file\": \"b.png\", \"phase\": 0}], \"black\": {\"files\": [\"dark1.png\", \"dark2.png\"]}}", -1, NULL));
   g_autoptr (GError) error = NULL;
-  g_autoptr (DsPhaseFolder) f = ds_phase_folder_open (dir, &error);
+  g_autoptr (DsPhaseFolder) f = ds_phase_folder_open (dir, ds_folder_read_sidecar, &error);
   g_assert_no_error (error);
   g_assert_true (f->sidecar.present);
   g_assert_cmpuint (ds_phase_folder_n_phases (f), ==, 2);

@@ -8,6 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "daemon/ctl/ctl_folder.h"
 #include "proc/phase_folder.h"
 
 static char *
@@ -34,7 +35,7 @@ check_render (const char *scene, gboolean expect_black, double expect_exposure, 
   int status = -1;
   g_autofree char *out = run (args, &status);
   g_assert_true (g_spawn_check_wait_status (status, NULL));
-  g_autoptr (DsPhaseFolder) f = ds_phase_folder_open (dir, &error);
+  g_autoptr (DsPhaseFolder) f = ds_phase_folder_open (dir, ds_folder_read_sidecar, &error);
   g_assert_no_error (error);
   g_assert_cmpuint (f->phase_files->len, ==, 4);
   for (guint k = 0; k < 4; k++) {

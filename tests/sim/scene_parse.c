@@ -110,9 +110,34 @@ test_ranges (void)
   g_assert_nonnull (strstr (error->message, "(0, 1)"));
 }
 
+/* Numbers are decimal: strtod's hexadecimal, infinity and NaN spellings are refused where they
+ * stand, and every decimal spelling reads as its value. */
+static void
+test_decimal_numbers (void)
+{
+  const char *refused[] = { "0x10", "0X1p3", "inf", "-infinity", "nan", "1e999", "1.5.2", "e5", "+", "1e" };
+  for (guint i = 0; i < G_N_ELEMENTS (refused); i++) {
+    g_autofree char *extra = g_strdup_printf ("[ambient]\nlevel=%s\n", refused[i]);
+    expect_error (extra, DS_SIM_ERROR_PARSE, (const char *[]) { "test.scene:8", "[ambient] level", refused[i],
+                                                                "not a number", NULL });
+  }
+  const struct { const char *text; double value; } read[] = {
+    { "16", 16 }, { "1e-3", 1e-3 }, { ".5", 0.5 }, { "5.", 5 }, { "+2.5E+1", 25 }, { "0", 0 },
+  };
+  for (guint i = 0; i < G_N_ELEMENTS (read); i++) {
+    g_autofree char *extra = g_strdup_printf ("[ambient]\nlevel=%s\n", read[i].text);
+    g_autoptr (GError) error = NULL;
+    g_autoptr (DsScene) s = load_with (extra, &error);
+    g_assert_no_error (error);
+    g_assert_cmpfloat (ds_scene_spec (s)->ambient_level, ==, read[i].value);
+  }
+}
+
 static void
 test_objects (void)
 {
+  expect_error ("[object.]\nshape=disc\nposition=1;2\nradius=3\n", DS_SIM_ERROR_PARSE,
+                (const char *[]) { "test.scene:7", "[object.]", "needs a name", NULL });
   expect_error ("[object.a]\nshape=star\n", DS_SIM_ERROR_INVALID,
                 (const char *[]) { "test.scene:8", "[object.a] shape", "rect|disc|grid|lines|mask", NULL });
   expect_error ("[object.a]\nshape=disc\nposition=1;2\n", DS_SIM_ERROR_PARSE,
@@ -179,6 +204,7 @@ main (int argc, char **argv)
   g_test_add_func ("/sim/scene/missing-key", test_missing_key);
   g_test_add_func ("/sim/scene/ranges", test_ranges);
   g_test_add_func ("/sim/scene/objects", test_objects);
+  g_test_add_func ("/sim/scene/decimal-numbers", test_decimal_numbers);
   g_test_add_func ("/sim/scene/syntax-and-io", test_bad_syntax_and_io);
   return g_test_run ();
 }
