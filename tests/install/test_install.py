@@ -93,6 +93,8 @@ def main():
             has(os.path.join(docdir, doc), "doc")
         py = [f for f in files if f.endswith("descatter/__init__.py")]
         check(len(py) == 1, f"the Python package: {py}")
+        if py:
+            has(os.path.join(stage, os.path.dirname(py[0]), "py.typed"), "the package's typing marker (PEP 561)")
 
         # Nothing installed names the trees it was built from.
         leaks = []
