@@ -79,6 +79,7 @@ def main():
         conf = os.path.join(etc, "descatterd/descatterd.conf")
         has(conf, "configuration")
         has(os.path.join(root, "share/descatter/operating-model.conf"), "operating model")
+        has(os.path.join(root, "share/descatter/plot_study.py"), "the study's figure helper (descatterctl study)")
         scenes = sorted(f for f in os.listdir(os.path.join(SRC, "etc/scenes")) if f.endswith(".scene"))
         staged_scenes = sorted(os.listdir(os.path.join(root, "share/descatter/scenes")))
         check(scenes == staged_scenes, f"every example scene is installed ({len(scenes)})")
