@@ -183,15 +183,18 @@ class AsyncClient:
         return header.get("result") or {}, images
 
     async def hello(self) -> JsonObject:
+        """As descatter.Client.hello."""
         args: JsonObject = {"client": f"descatter-python-asyncio/{__version__}"}
         if self.token:
             args["token"] = self.token
         return (await self.call("hello", **args))[0]
 
     async def status(self) -> JsonObject:
+        """As descatter.Client.status."""
         return (await self.call("status"))[0]
 
     async def config(self) -> JsonObject:
+        """As descatter.Client.config."""
         return (await self.call("config"))[0]
 
     async def capture(self, *, phases: Optional[int] = None, averages: Optional[int] = None,
@@ -226,6 +229,7 @@ class AsyncClient:
         return (await self.call("start", timeout=timeout, **args))[0]
 
     async def stop(self) -> JsonObject:
+        """As descatter.Client.stop."""
         return (await self.call("stop"))[0]
 
     async def dark(self, *, averages: Optional[int] = None, exposure_us: Optional[float] = None,
@@ -235,9 +239,11 @@ class AsyncClient:
         return (await self._acquiring_call("dark", timeout=timeout, **args))[0]
 
     async def release(self, timeout: Optional[float] = None) -> JsonObject:
+        """As descatter.Client.release."""
         return (await self.call("release", timeout=timeout))[0]
 
     async def acquire(self, timeout: Optional[float] = None) -> JsonObject:
+        """As descatter.Client.acquire."""
         return (await self.call("acquire", timeout=timeout))[0]
 
     async def calibrate(self, *, phases: Optional[int] = None, averages: Optional[int] = None,
@@ -284,6 +290,7 @@ class AsyncClient:
         return AsyncSubscription(self)
 
     async def unsubscribe(self) -> JsonObject:
+        """As descatter.Client.unsubscribe."""
         self._subscribed = False
         result = (await self.call("unsubscribe"))[0]
         while not self._events.empty():
@@ -318,6 +325,7 @@ class AsyncSubscription:
         return await self.next()
 
     async def close(self) -> None:
+        """Unsubscribes (unless the connection broke)."""
         if self.client._subscribed and not self.client._error:
             await self.client.unsubscribe()
 
