@@ -20,6 +20,7 @@ packages=(
   libgpiod-dev gpiod
   libopencv-dev
   python3-numpy python3-matplotlib
+  python3-venv python3-setuptools python3-wheel python3-mypy   # pip install daemon/python, mypy
   clang libclang-rt-14-dev valgrind
   libtiff-dev libhdf5-dev libsoup-3.0-dev
   prometheus                         # a real server scraping /metrics in the tests (and promtool)

@@ -90,6 +90,10 @@ ok "descatterd --sim + descatterctl capture"
 descatterctl study --quick --quiet --out study || fail "descatterctl study --quick"
 [ "$(wc -l <study/study.csv)" -gt 4 ] && [ -s study/pareto.md ] || fail "study wrote no results"
 ok "descatterctl study --quick on the installed scenes: $(($(wc -l <study/study.csv) - 1)) points"
+for f in error-vs-time-clear-grid error-vs-period-clear-grid examples-clear-grid; do
+  [ -s "study/$f.png" ] && [ -s "study/$f.svg" ] || fail "descatterctl study drew no $f figure"
+done
+ok "descatterctl study drew its figures (PNG, SVG) with the installed helper"
 descatter-sim describe /usr/share/descatter/scenes/milk-disc.scene >/dev/null || fail "descatter-sim describe"
 ok "descatter-sim describe an installed scene"
 

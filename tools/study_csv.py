@@ -1,7 +1,6 @@
-"""Reading `descatterctl study` output (STUDY_DIR/study.csv), shared by tools/study_tables.py
-and tools/plot_study.py so that the tables (docs/records/accuracy-validation.md, "What the
-measurements say") and the plots (docs/accuracy/, named in docs/accuracy.md, "What the
-measurements say") average the same rows in the same way.
+"""Reading `descatterctl study` output (STUDY_DIR/study.csv) for tools/study_tables.py (the
+tables of docs/records/accuracy-validation.md, "What the measurements say"). The study's
+figures average the rows in the same way (etc/plot_study.py, run by descatterctl study).
 
 study.csv has one row per configuration and seed. load() returns
   configurations  {Key: {column: value}}, the seeds of each configuration averaged;

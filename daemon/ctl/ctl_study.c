@@ -1,8 +1,9 @@
 /* `descatterctl study`: the accuracy-versus-time sweep (docs/accuracy.md). Writes
  * OUT/study.csv (one row per point) and OUT/pareto.md (per scene: the points no other point
  * beats in both acquisition time and transmissive error, seeds averaged, clipped points flagged;
- * and the best error at each stripe period with its noise and systematic parts). Plots are
- * drawn from the CSV by tools/plot_study.py. */
+ * and the best error at each stripe period with its noise and systematic parts) and the figures
+ * drawn from the CSV (study_figures.h: error against time with the front marked, against the
+ * stripe period and against N, the example previews labelled; PNG and SVG). */
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
@@ -11,7 +12,9 @@
 
 #include "daemon/ctl/ctl_commands.h"
 #include "daemon/ctl/ctl_progress.h"
+#include "daemon/ctl/csv.h"
 #include "daemon/ctl/study.h"
+#include "daemon/ctl/study_figures.h"
 #include "daemon/operating/data_dir.h"
 
 typedef struct {
@@ -65,17 +68,23 @@ static void
 on_point (const DsStudyPoint *p, gpointer data)
 {
   StudyOut *o = data;
-  /* Non-finite (a truth of zero) reads back as nan in every CSV reader. */
+  /* The scene is a file name, which may hold a comma or a quote: written quoted (RFC 4180).
+   * Non-finite (a truth of zero) reads back as nan in every CSV reader. */
+  g_autoptr (GString) row = g_string_new (NULL);
+  ds_csv_append_field (row, p->scene);
+  g_string_append_c (row, ',');
+  ds_csv_append_field (row, ds_estimator_name (p->estimator));
 #define F(v) (isfinite (v) ? (v) : NAN)
-  fprintf (o->csv, "%s,%s,%u,%u,%g,%g,%.1f,%" G_GUINT64_FORMAT ",%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%" G_GUINT64_FORMAT ",%" G_GUINT64_FORMAT ",%" G_GUINT64_FORMAT ",%.3f,%.3f,%.2f,%.5f,%d\n",
-           p->scene, ds_estimator_name (p->estimator), p->phases, p->averages, p->period_px, p->exposure_factor,
-           p->exposure_us, p->seed, F (p->rel_rmse_transmissive), F (p->rel_rmse_scattered),
-           F (p->systematic_transmissive), F (p->systematic_scattered),
-           F (noise_part (p->rel_rmse_transmissive, p->systematic_transmissive)),
-           F (noise_part (p->rel_rmse_scattered, p->systematic_scattered)), p->stripe_residue, p->valid, p->masked,
-           p->saturated, p->acquisition_ms, p->compute_ms, p->signal_dn, p->direct_fraction,
-           p->edge_blur_known ? 1 : 0);
+  g_string_append_printf (row, ",%u,%u,%g,%g,%.1f,%" G_GUINT64_FORMAT ",%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%" G_GUINT64_FORMAT ",%" G_GUINT64_FORMAT ",%" G_GUINT64_FORMAT ",%.3f,%.3f,%.2f,%.5f,%d\n",
+                          p->phases, p->averages, p->period_px, p->exposure_factor,
+                          p->exposure_us, p->seed, F (p->rel_rmse_transmissive), F (p->rel_rmse_scattered),
+                          F (p->systematic_transmissive), F (p->systematic_scattered),
+                          F (noise_part (p->rel_rmse_transmissive, p->systematic_transmissive)),
+                          F (noise_part (p->rel_rmse_scattered, p->systematic_scattered)), p->stripe_residue, p->valid,
+                          p->masked, p->saturated, p->acquisition_ms, p->compute_ms, p->signal_dn, p->direct_fraction,
+                          p->edge_blur_known ? 1 : 0);
 #undef F
+  fputs (row->str, o->csv);
   fflush (o->csv);
   DsStudyPoint copy = remember_point (o, p);
   /* A set's points (one per estimator) come together once the set is done: the first of them
@@ -291,20 +300,21 @@ load_csv (StudyOut *o, const char *path, GError **error)
   g_autofree char *text = NULL;
   if (!g_file_get_contents (path, &text, NULL, error))
     return FALSE;
-  g_auto (GStrv) lines = g_strsplit (text, "\n", -1);
-  g_auto (GStrv) header = lines[0] ? g_strsplit (g_strstrip (lines[0]), ",", -1) : NULL;
-  for (guint i = 1; lines[i]; i++) {
-    if (!*g_strstrip (lines[i]))
-      continue;
-    g_auto (GStrv) cells = g_strsplit (lines[i], ",", -1);
+  g_autoptr (GArray) records = ds_csv_parse (text, path, error);
+  if (!records)
+    return FALSE;
+  GStrv header = records->len ? g_array_index (records, DsCsvRecord, 0).fields : NULL;
+  for (guint i = 1; i < records->len; i++) {
+    const DsCsvRecord *r = &g_array_index (records, DsCsvRecord, i);
     DsStudyPoint p;
     const char *bad = NULL;
-    if (!header || !point_from_csv (header, cells, &p, &bad)) {
+    if (!point_from_csv (header, r->fields, &p, &bad)) {
       g_set_error (error, G_FILE_ERROR, G_FILE_ERROR_INVAL,
                    "%s:%u: column %s is missing or not a %s (a study.csv written by descatterctl study)", path,
-                   i + 1, bad ? bad : "?", bad && strcmp (bad, "estimator") == 0 ? "known estimator" : "number");
+                   r->line, bad ? bad : "?", bad && strcmp (bad, "estimator") == 0 ? "known estimator" : "number");
       return FALSE;
     }
+    /* remember_point copies the scene name: the record's cells may go. */
     remember_point (o, &p);
   }
   if (o->points->len == 0) {
@@ -314,9 +324,10 @@ load_csv (StudyOut *o, const char *path, GError **error)
   return TRUE;
 }
 
-/* descatterctl study --fronts-from CSV --out DIR: pareto.md again from a study's points. */
+/* descatterctl study --fronts-from CSV --out DIR: pareto.md (and the figures) again from a
+ * study's points. */
 static int
-fronts_from (const char *csv_path, const char *dir)
+fronts_from (const char *csv_path, const char *dir, gboolean figures)
 {
   g_autoptr (GError) error = NULL;
   StudyOut o = { .points = g_array_new (FALSE, FALSE, sizeof (DsStudyPoint)),
@@ -328,7 +339,7 @@ fronts_from (const char *csv_path, const char *dir)
     g_set_error (&error, G_FILE_ERROR, g_file_error_from_errno (e), "%s: %s", dir, g_strerror (e));
     ok = FALSE;
   }
-  ok = ok && write_pareto (&o, md, &error);
+  ok = ok && write_pareto (&o, md, &error) && (!figures || ds_study_draw_figures (csv_path, dir, &error));
   if (!ok)
     fprintf (stderr, "descatterctl study: %s\n", error->message);
   else
@@ -382,7 +393,7 @@ ds_ctl_study (int argc, char **argv)
                   *estimators = NULL, *periods = NULL;
   g_auto (GStrv) scenes = NULL;
   int seeds = 0;
-  gboolean quick = FALSE, quiet = FALSE;
+  gboolean quick = FALSE, quiet = FALSE, no_figures = FALSE;
   DsStudyPlan plan = { 0 };
   ds_rig_timing_init (&plan.timing);
   GOptionEntry entries[] = {
@@ -399,12 +410,14 @@ ds_ctl_study (int argc, char **argv)
     { "trigger-us", 0, 0, G_OPTION_ARG_DOUBLE, &plan.timing.trigger_overhead_us, "trigger overhead (default 200)", "US" },
     { "link-mbit", 0, 0, G_OPTION_ARG_DOUBLE, &plan.timing.link_mbit_s, "camera link (default 1000)", "MBIT" },
     { "quiet", 'q', 0, G_OPTION_ARG_NONE, &quiet, "No progress", NULL },
-    { "fronts-from", 0, 0, G_OPTION_ARG_FILENAME, &fronts_csv, "Write OUT/pareto.md from an earlier run's study.csv (no sweep)", "CSV" },
+    { "fronts-from", 0, 0, G_OPTION_ARG_FILENAME, &fronts_csv, "Write OUT/pareto.md and the figures from an earlier run's study.csv (no sweep)", "CSV" },
+    { "no-figures", 0, 0, G_OPTION_ARG_NONE, &no_figures, "Write no figures (they need python3-matplotlib)", NULL },
     { NULL },
   };
   g_autoptr (GOptionContext) ctx = g_option_context_new (NULL);
   g_option_context_set_summary (ctx, "Sweeps estimator, N, M, exposure, stripe period and seeds over simulated "
-                                     "scenes; writes study.csv and pareto.md (docs/accuracy.md).");
+                                     "scenes; writes study.csv, pareto.md and the figures, PNG and SVG (docs/accuracy.md, "
+                                     "docs/operations.md).");
   g_option_context_add_main_entries (ctx, entries, NULL);
   ds_ctl_describe_globals (ctx);
   g_autoptr (GError) error = NULL;
@@ -413,7 +426,7 @@ ds_ctl_study (int argc, char **argv)
     return 2;
   }
   if (fronts_csv)
-    return fronts_from (fronts_csv, out ? out : "study");
+    return fronts_from (fronts_csv, out ? out : "study", !no_figures);
   const char *def_n = quick ? "4,8" : "2,3,4,6,8,12,16,24,32";
   const char *def_m = quick ? "1,2" : "1,2,4,8";
   const char *def_e = quick ? "1" : "1,2,4";
@@ -506,11 +519,12 @@ ds_ctl_study (int argc, char **argv)
     status = 1;
   if (status == 0) {
     g_autofree char *md = g_build_filename (dir, "pareto.md", NULL);
-    if (!write_pareto (&o, md, &error)) {
+    if (!write_pareto (&o, md, &error) || (!no_figures && !ds_study_draw_figures (csv_path, dir, &error))) {
       fprintf (stderr, "descatterctl study: %s\n", error->message);
       status = 1;
     } else if (!quiet)
-      fprintf (stderr, "study: %u points in %s, fronts in %s\n", o.done, csv_path, md);
+      fprintf (stderr, "study: %u points in %s, fronts in %s%s\n", o.done, csv_path, md,
+               no_figures ? "" : ", figures (PNG, SVG) beside them");
   } else
     g_unlink (tmp_path);
   g_array_unref (o.points);

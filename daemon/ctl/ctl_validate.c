@@ -12,6 +12,7 @@
 #include <string.h>
 #include <glib/gstdio.h>
 
+#include "daemon/ctl/csv.h"
 #include "daemon/ctl/ctl_commands.h"
 #include "daemon/ctl/scene_gen.h"
 #include "daemon/ctl/validate.h"
@@ -196,15 +197,17 @@ fit_spread (GPtrArray *scenes, guint n_given)
 static void
 write_csv (GString *csv, const SceneRun *s)
 {
+  /* The scene is a file name: quoted when it holds a comma or a quote (RFC 4180). */
   if (!s->outcomes) {
-    g_string_append_printf (csv, "%s,%s,,,refused,,,,,,,,,,,,,pilot failed,,\n", s->name,
-                            s->generated ? "generated" : "shipped");
+    ds_csv_append_field (csv, s->name);
+    g_string_append_printf (csv, ",%s,,,refused,,,,,,,,,,,,,pilot failed,,\n", s->generated ? "generated" : "shipped");
     return;
   }
   for (guint j = 0; j < s->outcomes->len; j++) {
     const DsValidateOutcome *o = &g_array_index (s->outcomes, DsValidateOutcome, j);
     const DsOperatingPoint *p = &o->point;
-    g_string_append_printf (csv, "%s,%s,%g,%g,%s,%s,%u,%u,%.0f,%.4g,%.4g,%.4g,%.4g,%.4g,%d,%.4g,%.4g,%s,%d,%.4g\n", s->name,
+    ds_csv_append_field (csv, s->name);
+    g_string_append_printf (csv, ",%s,%g,%g,%s,%s,%u,%u,%.0f,%.4g,%.4g,%.4g,%.4g,%.4g,%d,%.4g,%.4g,%s,%d,%.4g\n",
                             s->generated ? "generated" : "shipped", o->target_error, o->time_budget_ms,
                             o->refused ? "refused" : o->target_error > 0 || o->time_budget_ms > 0 ? "chosen" : "fixed", ds_estimator_name (p->estimator), p->phases, p->averages,
                             p->exposure_us, p->predicted_error, p->parts.noise, p->parts.sampling,

@@ -79,6 +79,7 @@ def main():
         conf = os.path.join(etc, "descatterd/descatterd.conf")
         has(conf, "configuration")
         has(os.path.join(root, "share/descatter/operating-model.conf"), "operating model")
+        has(os.path.join(root, "share/descatter/plot_study.py"), "the study's figure helper (descatterctl study)")
         scenes = sorted(f for f in os.listdir(os.path.join(SRC, "etc/scenes")) if f.endswith(".scene"))
         staged_scenes = sorted(os.listdir(os.path.join(root, "share/descatter/scenes")))
         check(scenes == staged_scenes, f"every example scene is installed ({len(scenes)})")
@@ -93,6 +94,8 @@ def main():
             has(os.path.join(docdir, doc), "doc")
         py = [f for f in files if f.endswith("descatter/__init__.py")]
         check(len(py) == 1, f"the Python package: {py}")
+        if py:
+            has(os.path.join(stage, os.path.dirname(py[0]), "py.typed"), "the package's typing marker (PEP 561)")
 
         # Nothing installed names the trees it was built from.
         leaks = []

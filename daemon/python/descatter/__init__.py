@@ -6,7 +6,8 @@ service (docs/python.md, docs/protocol.md).
         r = c.capture(phases=8)
         r.transmissive, r.scattered, r.mask    # writable numpy arrays (height, width)
 
-descatter.aio has the same commands for asyncio.
+descatter.aio has the same commands for asyncio (`async with descatter.aio.connect() as c`).
+The package is typed (py.typed; mypy --strict clean).
 """
 from ._version import __version__
 from .client import DEFAULT_ADDRESS, DEFAULT_TIMEOUT, Client, Subscription

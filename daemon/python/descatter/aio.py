@@ -1,33 +1,41 @@
 """The asyncio client: the same commands as descatter.Client, as coroutines.
 
-    async with await descatter.aio.connect("/run/descatterd/descatterd.sock") as c:
+    async with descatter.aio.connect("/run/descatterd/descatterd.sock") as c:
         r = await c.capture(phases=8)
         async with await c.subscribe() as sub:
             async for ev in sub:
                 ...
 
-One task reads the connection and hands replies to the coroutines waiting for them and events
-to the subscription, so several commands may be in flight at once. As with the blocking
-client, `timeout` is the silence allowed: a reply awaited while nothing at all arrives for
-that long raises descatter.Timeout.
+`await connect()` gives the client too (`async with await connect()` keeps working). One task
+reads the connection and hands replies to the coroutines waiting for them and events to the
+subscription, so several commands may be in flight at once. As with the blocking client,
+`timeout` is the silence allowed: a reply awaited while nothing at all arrives for that long
+raises descatter.Timeout; the connection stays open and the late reply is dropped.
 """
 import asyncio
+from collections.abc import Awaitable, Generator, Iterable
+from types import TracebackType
+from typing import Any, Optional, Union
 
 from . import wire
 from ._version import __version__
-from .client import _ACQ_KEYS, _CALIBRATE_KEYS, DEFAULT_TIMEOUT, acquisition_args, camera_args, resolve, split_address
+from .client import (DEFAULT_TIMEOUT, Estimator, Format, ProgressCallback, Roi, acquisition_args, camera_args,
+                     given, resolve, split_address)
 from .errors import BadReply, DescatterError, Timeout, error_from_reply
-from .events import ProgressEvent, Result, make_event
+from .events import Event, ProgressEvent, Result, make_event
+from .wire import Image, JsonObject
+
+Reply = tuple[JsonObject, dict[str, Image]]
 
 
-async def connect(address=None, token=None, timeout=DEFAULT_TIMEOUT):
-    """Connects (and sends the token in hello when there is one)."""
+async def _open(address: Optional[str], token: Optional[str], timeout: float) -> "AsyncClient":
     address, token = resolve(address, token)
-    kind, where = split_address(address)
-    if kind == "tcp":
-        reader, writer = await asyncio.wait_for(asyncio.open_connection(*where, limit=wire.MAX_LINE + 2), timeout)
+    _, where = split_address(address)
+    limit = wire.MAX_LINE + 2
+    if isinstance(where, tuple):
+        reader, writer = await asyncio.wait_for(asyncio.open_connection(*where, limit=limit), timeout)
     else:
-        reader, writer = await asyncio.wait_for(asyncio.open_unix_connection(where, limit=wire.MAX_LINE + 2), timeout)
+        reader, writer = await asyncio.wait_for(asyncio.open_unix_connection(where, limit=limit), timeout)
     client = AsyncClient(reader, writer, token, timeout)
     client.address = address
     if token:
@@ -39,21 +47,59 @@ async def connect(address=None, token=None, timeout=DEFAULT_TIMEOUT):
     return client
 
 
+class Connecting(Awaitable["AsyncClient"]):
+    """What connect() returns: await it for the AsyncClient, or use it in `async with`, which
+    connects on entry and closes on exit."""
+
+    def __init__(self, address: Optional[str], token: Optional[str], timeout: float) -> None:
+        self._args = (address, token, timeout)
+        self._client: Optional[AsyncClient] = None
+
+    def __await__(self) -> Generator[Any, None, "AsyncClient"]:
+        return _open(*self._args).__await__()
+
+    async def __aenter__(self) -> "AsyncClient":
+        self._client = await _open(*self._args)
+        return self._client
+
+    async def __aexit__(self, exc_type: Optional[type[BaseException]], exc: Optional[BaseException],
+                        tb: Optional[TracebackType]) -> None:
+        if self._client is not None:
+            await self._client.close()
+            self._client = None
+
+
+def connect(address: Optional[str] = None, token: Optional[str] = None,
+            timeout: float = DEFAULT_TIMEOUT) -> Connecting:
+    """Connects to descatterd (address and token as descatter.Client; the token is sent in hello
+    at once): `async with connect() as c:` or `c = await connect()`. OSError when nobody
+    listens, descatter.Unauthorized on a wrong token, asyncio.TimeoutError when connecting
+    takes longer than timeout."""
+    return Connecting(address, token, timeout)
+
+
 class AsyncClient:
-    def __init__(self, reader, writer, token, timeout):
+    """An open connection (from connect()); an async context manager that closes it."""
+
+    def __init__(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter, token: Optional[str],
+                 timeout: float) -> None:
         self._reader, self._writer = reader, writer
         self.token, self.timeout = token, timeout
-        self.address = None  # set by connect(): a second connection for cancel
+        self.address: Optional[str] = None  # set by connect(): a second connection for cancel
         self._next_id = 0
-        self._waiting = {}  # request id -> (future, on_progress)
-        self._events = asyncio.Queue()
+        self._waiting: dict[int, tuple["asyncio.Future[Reply]", Optional[ProgressCallback]]] = {}
+        self._events: asyncio.Queue[Union[Event, BaseException]] = asyncio.Queue()
         self._subscribed = False
-        self._last_seq = None
-        self._error = None
+        self._last_seq: Optional[int] = None
+        self._error: Optional[BaseException] = None
         self._last_activity = asyncio.get_running_loop().time()
         self._task = asyncio.get_running_loop().create_task(self._read_loop())
 
-    async def close(self):
+    def __repr__(self) -> str:
+        return f"<descatter.aio.AsyncClient {self.address} {'broken' if self._error else 'open'}>"
+
+    async def close(self) -> None:
+        """Stops the reader task and closes the connection."""
         self._task.cancel()
         try:
             await self._task
@@ -65,18 +111,19 @@ class AsyncClient:
         except OSError:
             pass
 
-    async def __aenter__(self):
+    async def __aenter__(self) -> "AsyncClient":
         return self
 
-    async def __aexit__(self, *exc):
+    async def __aexit__(self, exc_type: Optional[type[BaseException]], exc: Optional[BaseException],
+                        tb: Optional[TracebackType]) -> None:
         await self.close()
 
-    async def _read_message(self):
+    async def _read_message(self) -> Reply:
         line = await self._reader.readline()
         if not line.endswith(b"\n"):
             raise ConnectionError("descatterd closed the connection")
         header = wire.decode_header(line)
-        images = {}
+        images: dict[str, Image] = {}
         for name, dtype, shape, nbytes in wire.payload_specs(header):
             array, view = wire.new_array(dtype, shape)
             if nbytes:
@@ -84,7 +131,7 @@ class AsyncClient:
             images[name] = array
         return header, images
 
-    async def _read_loop(self):
+    async def _read_loop(self) -> None:
         try:
             while True:
                 header, images = await self._read_message()
@@ -92,29 +139,31 @@ class AsyncClient:
                 if "event" in header:
                     ev, self._last_seq = make_event(header, images, self._last_seq)
                     if isinstance(ev, ProgressEvent):
-                        waiter = self._waiting.get(ev.body.get("id"))
+                        waiter = self._waiting.get(ev.body.get("id", -1))
                         if waiter and waiter[1]:
                             waiter[1](ev)
                     elif self._subscribed:
                         self._events.put_nowait(ev)
                     continue
-                waiter = self._waiting.pop(header.get("id"), None)
-                if waiter and not waiter[0].done():
-                    waiter[0].set_result((header, images))
+                reply = self._waiting.pop(header.get("id", -1), None)
+                if reply and not reply[0].done():
+                    reply[0].set_result((header, images))
         except (ConnectionError, BadReply, asyncio.IncompleteReadError, ValueError) as e:
-            self._error = e if isinstance(e, (ConnectionError, BadReply)) else ConnectionError(str(e))
+            error = e if isinstance(e, (ConnectionError, BadReply)) else ConnectionError(str(e))
+            self._error = error
             for fut, _ in self._waiting.values():
                 if not fut.done():
-                    fut.set_exception(self._error)
-            self._events.put_nowait(self._error)
+                    fut.set_exception(error)
+            self._events.put_nowait(error)
 
-    async def call(self, cmd, timeout=None, on_progress=None, **args):
+    async def call(self, cmd: str, timeout: Optional[float] = None, on_progress: Optional[ProgressCallback] = None,
+                   **args: Any) -> Reply:
         """As descatter.Client.call: (result dict, images), or the exception of the reply's code."""
         if self._error:
             raise self._error
         self._next_id += 1
         rid = self._next_id
-        fut = asyncio.get_running_loop().create_future()
+        fut: asyncio.Future[Reply] = asyncio.get_running_loop().create_future()
         self._waiting[rid] = (fut, on_progress)
         self._writer.write(wire.encode_request(rid, cmd, args))
         await self._writer.drain()
@@ -133,21 +182,32 @@ class AsyncClient:
             raise error_from_reply(header.get("error", {}))
         return header.get("result") or {}, images
 
-    async def hello(self):
-        args = {"client": f"descatter-python-asyncio/{__version__}"}
+    async def hello(self) -> JsonObject:
+        """As descatter.Client.hello."""
+        args: JsonObject = {"client": f"descatter-python-asyncio/{__version__}"}
         if self.token:
             args["token"] = self.token
         return (await self.call("hello", **args))[0]
 
-    async def status(self):
+    async def status(self) -> JsonObject:
+        """As descatter.Client.status."""
         return (await self.call("status"))[0]
 
-    async def config(self):
+    async def config(self) -> JsonObject:
+        """As descatter.Client.config."""
         return (await self.call("config"))[0]
 
-    async def capture(self, *, format=None, outputs=None, on_progress=None, timeout=None, **settings):
+    async def capture(self, *, phases: Optional[int] = None, averages: Optional[int] = None,
+                      exposure_us: Optional[float] = None, gain_db: Optional[float] = None,
+                      estimator: Optional[Estimator] = None, dark_frame: Optional[bool] = None,
+                      verify_phase: Optional[bool] = None, target_error: Optional[float] = None,
+                      time_budget_ms: Optional[float] = None, save_phases: Optional[bool] = None,
+                      format: Optional[Format] = None, outputs: Optional[Iterable[str]] = None,
+                      on_progress: Optional[ProgressCallback] = None, timeout: Optional[float] = None) -> Result:
         """As descatter.Client.capture."""
-        args = acquisition_args(settings, _ACQ_KEYS)
+        args = acquisition_args(phases=phases, averages=averages, exposure_us=exposure_us, gain_db=gain_db,
+                                estimator=estimator, dark_frame=dark_frame, verify_phase=verify_phase,
+                                target_error=target_error, time_budget_ms=time_budget_ms, save_phases=save_phases)
         if format is not None:
             args["format"] = format
         if outputs is not None:
@@ -156,40 +216,61 @@ class AsyncClient:
                                                   progress=True, **args)
         return Result(meta, images)
 
-    async def start(self, **settings):
-        return (await self.call("start", **acquisition_args(settings, _ACQ_KEYS)))[0]
+    async def start(self, *, phases: Optional[int] = None, averages: Optional[int] = None,
+                    exposure_us: Optional[float] = None, gain_db: Optional[float] = None,
+                    estimator: Optional[Estimator] = None, dark_frame: Optional[bool] = None,
+                    verify_phase: Optional[bool] = None, target_error: Optional[float] = None,
+                    time_budget_ms: Optional[float] = None, save_phases: Optional[bool] = None,
+                    timeout: Optional[float] = None) -> JsonObject:
+        """As descatter.Client.start."""
+        args = acquisition_args(phases=phases, averages=averages, exposure_us=exposure_us, gain_db=gain_db,
+                                estimator=estimator, dark_frame=dark_frame, verify_phase=verify_phase,
+                                target_error=target_error, time_budget_ms=time_budget_ms, save_phases=save_phases)
+        return (await self.call("start", timeout=timeout, **args))[0]
 
-    async def stop(self):
+    async def stop(self) -> JsonObject:
+        """As descatter.Client.stop."""
         return (await self.call("stop"))[0]
 
-    async def dark(self, *, averages=None, exposure_us=None, gain_db=None, timeout=None):
-        args = acquisition_args(dict(averages=averages, exposure_us=exposure_us, gain_db=gain_db),
-                                ("averages", "exposure_us", "gain_db"))
+    async def dark(self, *, averages: Optional[int] = None, exposure_us: Optional[float] = None,
+                   gain_db: Optional[float] = None, timeout: Optional[float] = None) -> JsonObject:
+        """As descatter.Client.dark."""
+        args = given(averages=averages, exposure_us=exposure_us, gain_db=gain_db)
         return (await self._acquiring_call("dark", timeout=timeout, **args))[0]
 
-    async def set_camera(self, *, exposure_us=None, gain_db=None, roi=None, timeout=None):
+    async def set_camera(self, *, exposure_us: Optional[float] = None, gain_db: Optional[float] = None,
+                         roi: Optional[Roi] = None, timeout: Optional[float] = None) -> JsonObject:
         """As descatter.Client.set_camera."""
-        return (await self.call("set", timeout=timeout, **camera_args(exposure_us, gain_db, roi)))[0]["camera"]
+        camera: Any = (await self.call("set", timeout=timeout, **camera_args(exposure_us, gain_db, roi)))[0]["camera"]
+        return dict(camera)
 
-    async def release(self, timeout=None):
+    async def release(self, timeout: Optional[float] = None) -> JsonObject:
+        """As descatter.Client.release."""
         return (await self.call("release", timeout=timeout))[0]
 
-    async def acquire(self, timeout=None):
+    async def acquire(self, timeout: Optional[float] = None) -> JsonObject:
+        """As descatter.Client.acquire."""
         return (await self.call("acquire", timeout=timeout))[0]
 
-    async def calibrate(self, *, timeout=None, **settings):
-        args = acquisition_args(settings, _CALIBRATE_KEYS)
+    async def calibrate(self, *, phases: Optional[int] = None, averages: Optional[int] = None,
+                        exposure_us: Optional[float] = None, gain_db: Optional[float] = None,
+                        dark_frame: Optional[bool] = None, period_px: Optional[float] = None,
+                        pixel_aperture: Optional[float] = None, timeout: Optional[float] = None) -> JsonObject:
+        """As descatter.Client.calibrate."""
+        args = given(phases=phases, averages=averages, exposure_us=exposure_us, gain_db=gain_db,
+                     dark_frame=dark_frame, period_px=period_px, pixel_aperture=pixel_aperture)
         return (await self._acquiring_call("calibrate", timeout=timeout, **args))[0]
 
-    async def cancel(self, timeout=None):
+    async def cancel(self, timeout: Optional[float] = None) -> JsonObject:
         """As descatter.Client.cancel (the request waiting on this connection is answered first:
         cancel another task's capture from a client of its own)."""
         return (await self.call("cancel", timeout=timeout))[0]
 
-    async def _acquiring_call(self, cmd, **kw):
+    async def _acquiring_call(self, cmd: str, timeout: Optional[float] = None,
+                              on_progress: Optional[ProgressCallback] = None, **args: Any) -> Reply:
         """As descatter.Client: a Timeout cancels the daemon's acquisition before it is raised."""
         try:
-            return await self.call(cmd, **kw)
+            return await self.call(cmd, timeout=timeout, on_progress=on_progress, **args)
         except Timeout as exc:
             try:
                 other = await connect(self.address, self.token, self.timeout)
@@ -201,7 +282,8 @@ class AsyncClient:
                 exc.cancel_error = e
             raise
 
-    async def subscribe(self):
+    async def subscribe(self) -> "AsyncSubscription":
+        """Subscribes; returns an AsyncSubscription (`async for`, `async with`)."""
         self._subscribed = True  # before the reply: events may follow it at once
         try:
             result, _ = await self.call("subscribe")
@@ -213,7 +295,8 @@ class AsyncClient:
             self._last_seq = nxt - 1
         return AsyncSubscription(self)
 
-    async def unsubscribe(self):
+    async def unsubscribe(self) -> JsonObject:
+        """As descatter.Client.unsubscribe."""
         self._subscribed = False
         result = (await self.call("unsubscribe"))[0]
         while not self._events.empty():
@@ -224,33 +307,37 @@ class AsyncClient:
 class AsyncSubscription:
     """As descatter.Subscription, for `async for` and `async with`."""
 
-    def __init__(self, client):
+    def __init__(self, client: AsyncClient) -> None:
         self.client = client
         self.lost_total = 0
 
-    async def next(self, timeout=None):
+    async def next(self, timeout: Optional[float] = None) -> Event:
+        """The next event; waits at most timeout seconds (None: for ever), then raises
+        descatter.Timeout with the subscription still usable."""
         try:
             ev = await asyncio.wait_for(self.client._events.get(), timeout)
         except asyncio.TimeoutError:
             raise Timeout(f"no event in {timeout:g} s") from None
-        if isinstance(ev, Exception):
+        if isinstance(ev, BaseException):
             self.client._events.put_nowait(ev)  # every later call sees it too
             raise ev
         self.lost_total += ev.lost
         return ev
 
-    def __aiter__(self):
+    def __aiter__(self) -> "AsyncSubscription":
         return self
 
-    async def __anext__(self):
+    async def __anext__(self) -> Event:
         return await self.next()
 
-    async def close(self):
+    async def close(self) -> None:
+        """Unsubscribes (unless the connection broke)."""
         if self.client._subscribed and not self.client._error:
             await self.client.unsubscribe()
 
-    async def __aenter__(self):
+    async def __aenter__(self) -> "AsyncSubscription":
         return self
 
-    async def __aexit__(self, *exc):
+    async def __aexit__(self, exc_type: Optional[type[BaseException]], exc: Optional[BaseException],
+                        tb: Optional[TracebackType]) -> None:
         await self.close()

@@ -13,24 +13,35 @@ One thread at a time per client. Every wait for the daemon is bounded by `timeou
 silence (captures ask for progress events, so a long set keeps the line alive); a reply that
 does not come in time raises descatter.Timeout, after cancelling the daemon's acquisition when
 the request was a capture, calibrate or dark (Client.cancel).
+
+The acquisition settings are keyword parameters with types (None, the default: the daemon's
+configuration decides); a misspelt one is Python's TypeError before anything is sent.
 """
 import collections
 import os
 import select
 import socket
+from collections.abc import Callable, Iterable, Iterator
+from types import TracebackType
+from typing import Any, Literal, Optional, Union
 
 from . import wire
 from ._version import __version__
 from .errors import BadReply, DescatterError, Timeout, error_from_reply
-from .events import ProgressEvent, Result, make_event
+from .events import Event, ProgressEvent, Result, ResultEvent, make_event
+from .wire import Image, JsonObject
 
 DEFAULT_ADDRESS = "/run/descatterd/descatterd.sock"
 DEFAULT_TIMEOUT = 60.0
-_ACQ_KEYS = ("phases", "averages", "exposure_us", "gain_db", "estimator", "dark_frame", "verify_phase",
-             "target_error", "time_budget_ms", "save_phases")
+
+# The estimators of docs/protocol.md; a newer daemon may know more (any str is sent).
+Estimator = Union[Literal["maxmin", "sine", "robust"], str]
+# The payload format of a capture.
+Format = Literal["f32", "u16"]
+ProgressCallback = Callable[[ProgressEvent], None]
 
 
-def resolve(address, token):
+def resolve(address: Optional[str], token: Optional[str]) -> tuple[str, Optional[str]]:
     """The address and token in use: given, else $DESCATTER_ADDRESS / $DESCATTER_TOKEN (as for
     descatterctl), else the default socket and no token."""
     address = address or os.environ.get("DESCATTER_ADDRESS") or DEFAULT_ADDRESS
@@ -39,7 +50,7 @@ def resolve(address, token):
     return address, token
 
 
-def split_address(address):
+def split_address(address: str) -> tuple[str, Union[str, tuple[str, int]]]:
     """("tcp", (host, port)) or ("unix", path) for "tcp:HOST:PORT", "unix:PATH" or a path."""
     if address.startswith("tcp:"):
         host, sep, port = address[4:].rpartition(":")
@@ -49,57 +60,74 @@ def split_address(address):
     return "unix", address[5:] if address.startswith("unix:") else address
 
 
-def acquisition_args(kwargs, allowed):
+def given(**kwargs: Any) -> JsonObject:
     """The arguments given (None = not given: the daemon's configuration decides)."""
-    unknown = set(kwargs) - set(allowed)
-    if unknown:
-        raise TypeError(f"unknown argument(s): {', '.join(sorted(unknown))}")
     return {k: v for k, v in kwargs.items() if v is not None}
 
 
-def camera_args(exposure_us=None, gain_db=None, roi=None):
+def acquisition_args(*, phases: Optional[int], averages: Optional[int], exposure_us: Optional[float],
+                     gain_db: Optional[float], estimator: Optional[str], dark_frame: Optional[bool],
+                     verify_phase: Optional[bool], target_error: Optional[float],
+                     time_budget_ms: Optional[float], save_phases: Optional[bool]) -> JsonObject:
+    """The settings of capture and start (docs/protocol.md, `capture`), as sent."""
+    return given(phases=phases, averages=averages, exposure_us=exposure_us, gain_db=gain_db, estimator=estimator,
+                 dark_frame=dark_frame, verify_phase=verify_phase, target_error=target_error,
+                 time_budget_ms=time_budget_ms, save_phases=save_phases)
+
+
+Roi = Union[tuple[int, int, int, int], dict[str, int]]
+
+
+def camera_args(exposure_us: Optional[float] = None, gain_db: Optional[float] = None,
+                roi: Optional[Roi] = None) -> JsonObject:
     """The arguments of `set`: the ones given. roi: (x, y, width, height) or a dict of those."""
-    args = acquisition_args(dict(exposure_us=exposure_us, gain_db=gain_db), ("exposure_us", "gain_db"))
+    args = given(exposure_us=exposure_us, gain_db=gain_db)
     if roi is not None:
+        values: tuple[Any, ...]
         if isinstance(roi, dict):
-            roi = tuple(roi.get(k) for k in ("x", "y", "width", "height"))
-        roi = tuple(roi)
-        if len(roi) != 4 or not all(isinstance(v, int) and not isinstance(v, bool) for v in roi):
+            values = tuple(roi.get(k) for k in ("x", "y", "width", "height"))
+        else:
+            values = tuple(roi)
+        if len(values) != 4 or not all(isinstance(v, int) and not isinstance(v, bool) for v in values):
             raise TypeError("roi: (x, y, width, height), four ints (pixels on the sensor)")
-        args["roi"] = dict(zip(("x", "y", "width", "height"), roi))
+        args["roi"] = dict(zip(("x", "y", "width", "height"), values))
     if not args:
         raise TypeError("set_camera: give exposure_us, gain_db or roi")
     return args
 
 
-_CALIBRATE_KEYS = ("phases", "averages", "exposure_us", "gain_db", "dark_frame", "period_px", "pixel_aperture")
-
-
 class Client:
-    def __init__(self, address=None, token=None, timeout=DEFAULT_TIMEOUT):
-        """address: a UNIX socket path, "unix:PATH" or "tcp:HOST:PORT"; token: the daemon's TCP
-        token (sent in hello at once); timeout: seconds of silence allowed while waiting."""
+    """A connection to descatterd. address: a UNIX socket path, "unix:PATH" or "tcp:HOST:PORT"
+    (None: $DESCATTER_ADDRESS, else the default socket); token: the daemon's TCP token, sent in
+    hello at once (None: $DESCATTER_TOKEN); timeout: seconds of silence allowed while waiting
+    for the daemon. Connects in the constructor (OSError when nobody listens); a wrong token
+    raises descatter.Unauthorized there. A context manager that closes the connection."""
+
+    def __init__(self, address: Optional[str] = None, token: Optional[str] = None,
+                 timeout: float = DEFAULT_TIMEOUT) -> None:
         self.address, self.token = resolve(address, token)
         self.timeout = timeout
-        kind, where = split_address(self.address)
-        if kind == "tcp":
-            self._sock = socket.create_connection(where, timeout=timeout)
+        _, where = split_address(self.address)
+        sock: socket.socket
+        if isinstance(where, tuple):
+            sock = socket.create_connection(where, timeout=timeout)
         else:
-            self._sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
-            self._sock.settimeout(timeout)
+            sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+            sock.settimeout(timeout)
             try:
-                self._sock.connect(where)
+                sock.connect(where)
             except OSError:
-                self._sock.close()
+                sock.close()
                 raise
-        self._sock.setblocking(True)
-        self._sock.settimeout(None)
+        sock.setblocking(True)
+        sock.settimeout(None)
+        self._sock: Optional[socket.socket] = sock
         self._buf = bytearray()
         self._next_id = 0
-        self._events = collections.deque()  # events read while waiting for a reply
+        self._events: collections.deque[Event] = collections.deque()  # read while waiting for a reply
         self._subscribed = False
-        self._last_seq = None
-        self._broken = None
+        self._last_seq: Optional[int] = None
+        self._broken: Optional[str] = None
         if self.token:
             try:
                 self.hello()
@@ -107,40 +135,50 @@ class Client:
                 self.close()
                 raise
 
+    def __repr__(self) -> str:
+        state = "open" if self._sock is not None else "closed"
+        return f"<descatter.Client {self.address} {state}>"
+
     # -- connection --------------------------------------------------------------------------
 
-    def close(self):
+    def close(self) -> None:
+        """Closes the connection (the daemon forgets this client's subscription); idempotent."""
         if self._sock is not None:
             self._sock.close()
             self._sock = None
 
-    def __enter__(self):
+    def __enter__(self) -> "Client":
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, exc_type: Optional[type[BaseException]], exc: Optional[BaseException],
+                 tb: Optional[TracebackType]) -> None:
         self.close()
 
-    def _fail(self, exc):
+    def _fail(self, exc: BaseException) -> Any:
         """The stream is out of sync: nothing more can be read from this connection."""
         self._broken = str(exc)
         self.close()
         raise exc
 
-    def _fill(self, timeout, mid_message):
+    def _connected(self) -> socket.socket:
         if self._sock is None:
             raise ConnectionError(f"connection closed ({self._broken or 'closed by the caller'})")
-        ready, _, _ = select.select([self._sock], [], [], timeout)
+        return self._sock
+
+    def _fill(self, timeout: float, mid_message: bool) -> None:
+        sock = self._connected()
+        ready, _, _ = select.select([sock], [], [], timeout)
         if not ready:
             exc = Timeout(f"no message from descatterd in {timeout:g} s")
             if mid_message:
                 self._fail(exc)
             raise exc
-        chunk = self._sock.recv(1 << 20)
+        chunk = sock.recv(1 << 20)
         if not chunk:
             self._fail(ConnectionError("descatterd closed the connection"))
         self._buf += chunk
 
-    def _read_line(self, timeout):
+    def _read_line(self, timeout: float) -> bytes:
         start = 0
         while True:
             nl = self._buf.find(b"\n", start)
@@ -153,39 +191,41 @@ class Client:
             start = len(self._buf)
             self._fill(timeout, mid_message=bool(self._buf))
 
-    def _read_into(self, view, timeout):
+    def _read_into(self, view: memoryview, timeout: float) -> None:
         n = min(len(view), len(self._buf))
         view[:n] = self._buf[:n]
         del self._buf[:n]
+        sock = self._connected()
         while n < len(view):
-            ready, _, _ = select.select([self._sock], [], [], timeout)
+            ready, _, _ = select.select([sock], [], [], timeout)
             if not ready:
                 self._fail(Timeout(f"payload stalled for {timeout:g} s"))
-            got = self._sock.recv_into(view[n:])
+            got = sock.recv_into(view[n:])
             if got == 0:
                 self._fail(ConnectionError("descatterd closed the connection mid-payload"))
             n += got
 
-    def read_message(self, timeout=None):
+    def read_message(self, timeout: Optional[float] = None) -> tuple[JsonObject, dict[str, Image]]:
         """The next message as (header dict, {payload name: writable numpy array}). timeout:
-        seconds to wait for it (None: the client's); a timeout before the message started
-        leaves the connection usable."""
-        timeout = self.timeout if timeout is None else timeout
+        seconds to wait for it (None: the client's). Raises Timeout: before the message started
+        the connection stays usable, in the middle of it the connection is closed."""
+        limit = self.timeout if timeout is None else timeout
         try:
-            header = wire.decode_header(self._read_line(timeout))
-            images = {}
+            header = wire.decode_header(self._read_line(limit))
+            images: dict[str, Image] = {}
             for name, dtype, shape, nbytes in wire.payload_specs(header):
                 array, view = wire.new_array(dtype, shape)
                 if nbytes:
-                    self._read_into(view, timeout)
+                    self._read_into(view, limit)
                 images[name] = array
             return header, images
         except BadReply as e:
-            self._fail(e)
+            return self._fail(e)  # type: ignore[no-any-return]
 
     # -- requests ----------------------------------------------------------------------------
 
-    def _queue_event(self, header, images, on_progress):
+    def _queue_event(self, header: JsonObject, images: dict[str, Image],
+                     on_progress: Optional[ProgressCallback]) -> None:
         ev, self._last_seq = make_event(header, images, self._last_seq)
         if isinstance(ev, ProgressEvent):
             if on_progress:
@@ -193,15 +233,16 @@ class Client:
         elif self._subscribed:
             self._events.append(ev)
 
-    def call(self, cmd, timeout=None, on_progress=None, **args):
-        """Sends a command and returns (result dict, images). A reply with ok=false raises the
-        exception of its code (descatter.BadArgument, descatter.Busy, ...). Events that arrive
-        meanwhile are kept for the subscription (progress events go to on_progress)."""
+    def call(self, cmd: str, timeout: Optional[float] = None, on_progress: Optional[ProgressCallback] = None,
+             **args: Any) -> tuple[JsonObject, dict[str, Image]]:
+        """Sends any command with `args` as its JSON arguments (no check here: the daemon's
+        bad_argument names what it refuses) and returns (result dict, images). A reply with
+        ok=false raises the exception of its code (descatter.BadArgument, descatter.Busy, ...).
+        Events that arrive meanwhile are kept for the subscription (progress events go to
+        on_progress)."""
         self._next_id += 1
         rid = self._next_id
-        if self._sock is None:
-            raise ConnectionError(f"connection closed ({self._broken or 'closed by the caller'})")
-        self._sock.sendall(wire.encode_request(rid, cmd, args))
+        self._connected().sendall(wire.encode_request(rid, cmd, args))
         while True:
             header, images = self.read_message(timeout)
             if "event" in header:
@@ -213,25 +254,38 @@ class Client:
                 raise error_from_reply(header.get("error", {}))
             return header.get("result") or {}, images
 
-    def hello(self):
-        args = {"client": f"descatter-python/{__version__}"}
+    def hello(self) -> JsonObject:
+        """Names this client (and sends the token); returns the daemon's version, git and state."""
+        args: JsonObject = {"client": f"descatter-python/{__version__}"}
         if self.token:
             args["token"] = self.token
         return self.call("hello", **args)[0]
 
-    def status(self):
+    def status(self) -> JsonObject:
+        """The daemon's state, devices, counters and settings (docs/protocol.md, `status`)."""
         return self.call("status")[0]
 
-    def config(self):
+    def config(self) -> JsonObject:
         """{"path": the file, "text": the effective configuration}."""
         return self.call("config")[0]
 
-    def capture(self, *, format=None, outputs=None, on_progress=None, timeout=None, **settings):
-        """One phase set: phases, averages, exposure_us, gain_db, estimator, dark_frame,
-        verify_phase, target_error, time_budget_ms (None or absent: the configuration's);
-        format "f32"/"u16"; outputs, e.g. ["transmissive", "scattered", "mask", "max"];
-        save_phases=True: the raw frames too (Result.raw_frames, Result.black)."""
-        args = acquisition_args(settings, _ACQ_KEYS)
+    def capture(self, *, phases: Optional[int] = None, averages: Optional[int] = None,
+                exposure_us: Optional[float] = None, gain_db: Optional[float] = None,
+                estimator: Optional[Estimator] = None, dark_frame: Optional[bool] = None,
+                verify_phase: Optional[bool] = None, target_error: Optional[float] = None,
+                time_budget_ms: Optional[float] = None, save_phases: Optional[bool] = None,
+                format: Optional[Format] = None, outputs: Optional[Iterable[str]] = None,
+                on_progress: Optional[ProgressCallback] = None, timeout: Optional[float] = None) -> Result:
+        """Acquires and separates one phase set and returns its Result once it is done. The
+        settings are docs/protocol.md's (None: the daemon's configuration); target_error and/or
+        time_budget_ms let the daemon choose the rest; format "f32" or "u16"; outputs, e.g.
+        ["transmissive", "scattered", "mask", "max"]; save_phases=True: the raw frames too
+        (Result.raw_frames, Result.black). on_progress is called with each phase's
+        ProgressEvent. Raises the class of the daemon's error code (BadArgument, Busy,
+        DeviceError, Failed, Cancelled), or Timeout after the daemon was told to cancel."""
+        args = acquisition_args(phases=phases, averages=averages, exposure_us=exposure_us, gain_db=gain_db,
+                                estimator=estimator, dark_frame=dark_frame, verify_phase=verify_phase,
+                                target_error=target_error, time_budget_ms=time_budget_ms, save_phases=save_phases)
         if format is not None:
             args["format"] = format
         if outputs is not None:
@@ -240,48 +294,65 @@ class Client:
                                             **args)
         return Result(meta, images)
 
-    def start(self, **settings):
-        """Continuous acquisition (results go to subscribers); no settings: the configuration's,
-        following its reloads. Returns the settings used."""
-        return self.call("start", **acquisition_args(settings, _ACQ_KEYS))[0]
+    def start(self, *, phases: Optional[int] = None, averages: Optional[int] = None,
+              exposure_us: Optional[float] = None, gain_db: Optional[float] = None,
+              estimator: Optional[Estimator] = None, dark_frame: Optional[bool] = None,
+              verify_phase: Optional[bool] = None, target_error: Optional[float] = None,
+              time_budget_ms: Optional[float] = None, save_phases: Optional[bool] = None,
+              timeout: Optional[float] = None) -> JsonObject:
+        """Starts continuous acquisition and returns the settings used; results go to
+        subscribers (subscribe()). No settings: the configuration's, following its reloads.
+        Busy when the daemon already acquires."""
+        args = acquisition_args(phases=phases, averages=averages, exposure_us=exposure_us, gain_db=gain_db,
+                                estimator=estimator, dark_frame=dark_frame, verify_phase=verify_phase,
+                                target_error=target_error, time_budget_ms=time_budget_ms, save_phases=save_phases)
+        return self.call("start", timeout=timeout, **args)[0]
 
-    def stop(self):
+    def stop(self) -> JsonObject:
+        """Stops continuous acquisition after the set in progress."""
         return self.call("stop")[0]
 
-    def dark(self, *, averages=None, exposure_us=None, gain_db=None, timeout=None):
-        """Measures the dark frame; returns {"dark_mean_dn": ...}."""
-        args = acquisition_args(dict(averages=averages, exposure_us=exposure_us, gain_db=gain_db),
-                                ("averages", "exposure_us", "gain_db"))
+    def dark(self, *, averages: Optional[int] = None, exposure_us: Optional[float] = None,
+             gain_db: Optional[float] = None, timeout: Optional[float] = None) -> JsonObject:
+        """Measures the dark frame (illuminator off); returns {"dark_mean_dn": ...}. Later sets
+        with a dark frame subtract it."""
+        args = given(averages=averages, exposure_us=exposure_us, gain_db=gain_db)
         return self._acquiring_call("dark", timeout=timeout, **args)[0]
 
-    def set_camera(self, *, exposure_us=None, gain_db=None, roi=None, timeout=None):
+    def set_camera(self, *, exposure_us: Optional[float] = None, gain_db: Optional[float] = None,
+                   roi: Optional[Roi] = None, timeout: Optional[float] = None) -> JsonObject:
         """Changes the open camera's exposure (µs), gain (dB) or region (x, y, width, height) between
         two sets (docs/protocol.md, `set`); later captures without their own exposure and gain
         use them. A value outside the camera's range raises descatter.BadArgument naming it and
         the range. Returns the camera's settings as applied: {"exposure_us", "gain_db", "roi":
         {"x", "y", "width", "height"}}."""
-        return self.call("set", timeout=timeout, **camera_args(exposure_us, gain_db, roi))[0]["camera"]
+        camera: Any = self.call("set", timeout=timeout, **camera_args(exposure_us, gain_db, roi))[0]["camera"]
+        return dict(camera)
 
-    def release(self, timeout=None):
+    def release(self, timeout: Optional[float] = None) -> JsonObject:
         """Closes the daemon's devices so that another program (arv-viewer) can take the
         camera; captures fail with descatter.DeviceError until acquire(). Returns {"state",
         "message"}."""
         return self.call("release", timeout=timeout)[0]
 
-    def acquire(self, timeout=None):
+    def acquire(self, timeout: Optional[float] = None) -> JsonObject:
         """Opens the devices again after release(); returns {"state", "message"}."""
         return self.call("acquire", timeout=timeout)[0]
 
-    def calibrate(self, *, timeout=None, **settings):
+    def calibrate(self, *, phases: Optional[int] = None, averages: Optional[int] = None,
+                  exposure_us: Optional[float] = None, gain_db: Optional[float] = None,
+                  dark_frame: Optional[bool] = None, period_px: Optional[float] = None,
+                  pixel_aperture: Optional[float] = None, timeout: Optional[float] = None) -> JsonObject:
         """One phase set of a reference with little scattering in front of the rig, measured by
-        the daemon (descatterctl calibrate): phases, averages, exposure_us, gain_db, dark_frame,
-        period_px (known: not measured), pixel_aperture. Returns a dict: period_px,
-        phase_offset_cycles, duty, black_level, harmonic_gain, edge_blur_px, ..., set_id and
-        `config`, the descatterd.conf lines that use them (docs/protocol.md)."""
-        args = acquisition_args(settings, _CALIBRATE_KEYS)
+        the daemon (descatterctl calibrate); period_px given: known, not measured. Returns a
+        dict: period_px, phase_offset_cycles, duty, black_level, harmonic_gain, edge_blur_px,
+        ..., set_id and `config`, the descatterd.conf lines that use them (docs/protocol.md).
+        Nothing is written to the configuration."""
+        args = given(phases=phases, averages=averages, exposure_us=exposure_us, gain_db=gain_db,
+                     dark_frame=dark_frame, period_px=period_px, pixel_aperture=pixel_aperture)
         return self._acquiring_call("calibrate", timeout=timeout, **args)[0]
 
-    def cancel(self, timeout=None):
+    def cancel(self, timeout: Optional[float] = None) -> JsonObject:
         """Stops what the daemon acquires, whoever asked for it (docs/protocol.md, `cancel`): the
         set in progress ends at its next frame, every capture, calibrate and dark waiting raises
         descatter.Cancelled, continuous acquisition stops. Returns {"cancelled": how many
@@ -290,11 +361,13 @@ class Client:
         client of its own."""
         return self.call("cancel", timeout=timeout)[0]
 
-    def _acquiring_call(self, cmd, **kw):
+    def _acquiring_call(self, cmd: str, timeout: Optional[float] = None,
+                        on_progress: Optional[ProgressCallback] = None,
+                        **args: Any) -> tuple[JsonObject, dict[str, Image]]:
         """call() for a request that makes the daemon acquire: on a Timeout the daemon is told to
         cancel (on a second connection: this one is still waiting) before the Timeout is raised."""
         try:
-            return self.call(cmd, **kw)
+            return self.call(cmd, timeout=timeout, on_progress=on_progress, **args)
         except Timeout as exc:
             try:
                 with Client(self.address, self.token, timeout=self.timeout) as other:
@@ -305,7 +378,7 @@ class Client:
 
     # -- subscription ------------------------------------------------------------------------
 
-    def subscribe(self):
+    def subscribe(self) -> "Subscription":
         """Subscribes; returns a Subscription (a context manager that unsubscribes on exit,
         and an iterator of events)."""
         result, _ = self.call("subscribe")
@@ -314,7 +387,8 @@ class Client:
         self._last_seq = nxt - 1 if isinstance(nxt, int) else None
         return Subscription(self)
 
-    def unsubscribe(self):
+    def unsubscribe(self) -> JsonObject:
+        """Ends the subscription; events not yet read are dropped."""
         self._subscribed = False
         result = self.call("unsubscribe")[0]
         self._events.clear()
@@ -326,13 +400,14 @@ class Subscription:
     Event for kinds a newer daemon adds). Each carries `seq` and `lost` (events this client
     missed before it); `lost_total` sums them."""
 
-    def __init__(self, client):
+    def __init__(self, client: Client) -> None:
         self.client = client
         self.lost_total = 0
 
-    def next(self, timeout=None):
+    def next(self, timeout: Optional[float] = None) -> Event:
         """The next event; waits at most timeout seconds (None: for ever), then raises
-        descatter.Timeout with the connection still usable."""
+        descatter.Timeout with the connection still usable (unless the silence fell in the
+        middle of a message: see descatter.Timeout)."""
         c = self.client
         while not c._events:
             if not c._subscribed:
@@ -344,22 +419,24 @@ class Subscription:
         self.lost_total += ev.lost
         return ev
 
-    def __iter__(self):
+    def __iter__(self) -> Iterator[Event]:
         while True:
             yield self.next()
 
-    def results(self):
+    def results(self) -> Iterator[ResultEvent]:
         """Only the results (failed and device events are skipped: use next() to see them)."""
         for ev in self:
-            if ev.kind == "result":
+            if isinstance(ev, ResultEvent):
                 yield ev
 
-    def close(self):
+    def close(self) -> None:
+        """Unsubscribes (when the connection is still open)."""
         if self.client._sock is not None and self.client._subscribed:
             self.client.unsubscribe()
 
-    def __enter__(self):
+    def __enter__(self) -> "Subscription":
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, exc_type: Optional[type[BaseException]], exc: Optional[BaseException],
+                 tb: Optional[TracebackType]) -> None:
         self.close()

@@ -10,12 +10,15 @@ Every class derives from DescatterError; `code` is the wire name, `message` the 
 """
 
 
+from typing import Any, Optional
+
+
 class DescatterError(Exception):
     """A reply with ok=false (or a client-side failure with a protocol code)."""
 
-    code = "failed"
+    code: str = "failed"
 
-    def __init__(self, message, code=None):
+    def __init__(self, message: str, code: Optional[str] = None) -> None:
         if code is not None:
             self.code = code
         super().__init__(f"{self.code}: {message}")
@@ -77,25 +80,33 @@ class BadReply(DescatterError):
 
 
 class Timeout(DescatterError, TimeoutError):
-    """No message from the daemon within the timeout (client side). A timeout before a message
-    started leaves the connection usable (the late reply is skipped by its id); one in the middle
-    of a message closes it (the stream would be out of sync).
+    """Nothing arrived from the daemon for `timeout` seconds (client side).
 
-    A capture, calibrate or dark that times out has sent `cancel` on a second connection before
-    this was raised, so that the daemon stops acquiring for nobody (docs/python.md, "Timeouts"):
-    `cancel_reply` is the cancel's reply ({"cancelled", "stream_stopped", "state"}), or None
-    with `cancel_error` saying why it could not be sent. None on other requests."""
+    What happens to the connection: it stays open and usable. The reply that comes late is
+    recognised by its request id and dropped; events that come meanwhile still reach the
+    subscription. Only the blocking client, when the silence falls in the middle of a message
+    (a header line or a payload half read), closes its connection: the next bytes could not be
+    told apart from a new message. The asyncio client's reader never stops on a timeout.
+
+    What happens in the daemon: a `capture`, `calibrate` or `dark` that times out has sent
+    `cancel` on a second connection and waited for its reply before this was raised, so the
+    daemon does not go on acquiring for nobody (docs/python.md, "Timeouts"); that `cancel`
+    stops all acquisition, other clients' captures and continuous mode included.
+    `cancel_reply` is its reply ({"cancelled", "stream_stopped", "state"}), or None with
+    `cancel_error` saying why it could not be sent. Both are None for other requests (their
+    request may still run to its end in the daemon)."""
 
     code = "timeout"
-    cancel_reply = None
-    cancel_error = None
+    cancel_reply: Optional[dict[str, Any]] = None
+    cancel_error: Optional[BaseException] = None
 
 
-ERRORS = {cls.code: cls for cls in (LineTooLong, BadJson, TooDeep, BadRequest, UnknownCommand, BadArgument,
-                                     Busy, DeviceError, Unauthorized, Limit, Failed, Cancelled, BadReply)}
+ERRORS: dict[str, type[DescatterError]] = {
+    cls.code: cls for cls in (LineTooLong, BadJson, TooDeep, BadRequest, UnknownCommand, BadArgument, Busy,
+                              DeviceError, Unauthorized, Limit, Failed, Cancelled, BadReply)}
 
 
-def error_from_reply(error):
+def error_from_reply(error: Any) -> DescatterError:
     """The exception for a reply's "error" object; an unknown code (a newer daemon) is a
     DescatterError carrying that code."""
     code = error.get("code", "failed") if isinstance(error, dict) else "failed"

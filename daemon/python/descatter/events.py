@@ -1,40 +1,50 @@
 """What the daemon sends besides replies, and the result of a capture, as plain objects."""
-from typing import NamedTuple
+from typing import Any, NamedTuple, Optional
+
+from .wire import Image, JsonObject
 
 
 class Result(NamedTuple):
     """A phase set's result: `meta` is the metadata of docs/protocol.md ("Result metadata"),
     `images` maps payload names ("transmissive", "scattered", "mask", ...) to writable numpy
-    arrays of shape (height, width). Unpacks as `meta, images = client.capture()`."""
+    arrays of shape (height, width). Unpacks as `meta, images = client.capture()`. Its repr is
+    one short line (set id, estimator, N, the payloads with shape and dtype), not the arrays."""
 
-    meta: dict
-    images: dict
+    meta: JsonObject
+    images: dict[str, Image]
+
+    def __repr__(self) -> str:
+        sep = self.meta.get("separation") or {}
+        how = f" {sep['estimator']} N={sep.get('phases')}" if isinstance(sep, dict) and "estimator" in sep else ""
+        payloads = ", ".join(f"{name} {'x'.join(map(str, a.shape))} {a.dtype}" for name, a in self.images.items())
+        return f"<Result set {self.set_id}{how}: {payloads or 'no payloads'}>"
 
     @property
-    def set_id(self):
-        return self.meta.get("set_id")
+    def set_id(self) -> Optional[int]:
+        set_id = self.meta.get("set_id")
+        return set_id if isinstance(set_id, int) else None
 
     @property
-    def transmissive(self):
+    def transmissive(self) -> Optional[Image]:
         return self.images.get("transmissive")
 
     @property
-    def scattered(self):
+    def scattered(self) -> Optional[Image]:
         return self.images.get("scattered")
 
     @property
-    def mask(self):
+    def mask(self) -> Optional[Image]:
         return self.images.get("mask")
 
     @property
-    def raw_frames(self):
+    def raw_frames(self) -> list[tuple[int, Optional[int], Image]]:
         """With save_phases: [(phase, frame_id, array)] in acquisition order (meta["raw_frames"]);
         [] otherwise."""
         frames = (self.meta.get("raw_frames") or {}).get("frames") or []
         return [(f["phase"], f.get("frame_id"), self.images[f["payload"]]) for f in frames]
 
     @property
-    def black(self):
+    def black(self) -> Optional[Image]:
         """With save_phases and a dark frame: the dark frame the daemon subtracted, else None."""
         return self.images.get("black") if self.meta.get("raw_frames") else None
 
@@ -42,14 +52,15 @@ class Result(NamedTuple):
 class Event:
     """A message from a subscription. `seq` counts every event the daemon publishes; `lost` is
     how many this client missed just before this one (it read too slowly: the daemon dropped
-    them, docs/protocol.md)."""
+    them, docs/protocol.md). `kind` is the wire name ("result", "failed", "device", or a
+    newer daemon's kind on a plain Event)."""
 
-    kind = "event"
+    kind: str = "event"
 
-    def __init__(self, seq, lost, body):
+    def __init__(self, seq: Optional[int], lost: int, body: JsonObject) -> None:
         self.seq, self.lost, self.body = seq, lost, body
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return f"<{type(self).__name__} seq={self.seq} lost={self.lost}>"
 
 
@@ -58,16 +69,19 @@ class ResultEvent(Event):
 
     kind = "result"
 
-    def __init__(self, seq, lost, body, images):
+    def __init__(self, seq: Optional[int], lost: int, body: JsonObject, images: dict[str, Image]) -> None:
         super().__init__(seq, lost, body)
         self.result = Result(body, images)
 
+    def __repr__(self) -> str:
+        return f"<ResultEvent seq={self.seq} lost={self.lost} {self.result!r}>"
+
     @property
-    def meta(self):
+    def meta(self) -> JsonObject:
         return self.result.meta
 
     @property
-    def images(self):
+    def images(self) -> dict[str, Image]:
         return self.result.images
 
 
@@ -77,8 +91,8 @@ class FailedEvent(Event):
     kind = "failed"
 
     @property
-    def reason(self):
-        return self.body.get("reason", "")
+    def reason(self) -> str:
+        return str(self.body.get("reason", ""))
 
 
 class DeviceEvent(Event):
@@ -87,8 +101,8 @@ class DeviceEvent(Event):
     kind = "device"
 
     @property
-    def message(self):
-        return self.body.get("message", "")
+    def message(self) -> str:
+        return str(self.body.get("message", ""))
 
 
 class StreamStoppedEvent(Event):
@@ -98,8 +112,8 @@ class StreamStoppedEvent(Event):
     kind = "stream_stopped"
 
     @property
-    def reason(self):
-        return self.body.get("reason", "")
+    def reason(self) -> str:
+        return str(self.body.get("reason", ""))
 
 
 class ProgressEvent(Event):
@@ -108,21 +122,23 @@ class ProgressEvent(Event):
     kind = "progress"
 
     @property
-    def phase(self):
-        return self.body.get("phase")
+    def phase(self) -> Optional[int]:
+        phase: Any = self.body.get("phase")
+        return phase if isinstance(phase, int) else None
 
     @property
-    def phases(self):
-        return self.body.get("phases")
+    def phases(self) -> Optional[int]:
+        phases: Any = self.body.get("phases")
+        return phases if isinstance(phases, int) else None
 
 
-_KINDS = {"failed": FailedEvent, "device": DeviceEvent, "stream_stopped": StreamStoppedEvent,
-          "progress": ProgressEvent}
+_KINDS: dict[str, type[Event]] = {"failed": FailedEvent, "device": DeviceEvent, "stream_stopped": StreamStoppedEvent,
+                                  "progress": ProgressEvent}
 
 
-def make_event(header, images, last_seq):
+def make_event(header: JsonObject, images: dict[str, Image], last_seq: Optional[int]) -> tuple[Event, Optional[int]]:
     """(event, new last_seq) for an event message; the gap in seq is the events lost."""
-    kind = header.get("event")
+    kind = str(header.get("event"))
     body = header.get("body") or {}
     if kind == "progress":  # per request, not counted in seq
         return ProgressEvent(None, 0, body), last_seq

@@ -2,23 +2,31 @@
 per message, then the binary payloads its "payloads" array announces, back to back.
 Nothing here does I/O."""
 import json
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from .errors import BadReply
 
-DTYPES = {"u8": np.dtype("u1"), "u16": np.dtype("<u2"), "f32": np.dtype("<f4")}
+# A JSON object as the protocol sends it (a header, a result, an event's body).
+JsonObject = dict[str, Any]
+# A payload as decoded: a writable array of shape (height, width).
+Image = npt.NDArray[Any]
+PayloadSpec = tuple[str, "np.dtype[Any]", tuple[int, int], int]
+
+DTYPES: dict[str, "np.dtype[Any]"] = {"u8": np.dtype("u1"), "u16": np.dtype("<u2"), "f32": np.dtype("<f4")}
 MAX_LINE = 64 * 1024
 
 
-def encode_request(request_id, cmd, args):
-    request = {"id": request_id, "cmd": cmd}
+def encode_request(request_id: int, cmd: str, args: JsonObject) -> bytes:
+    request: JsonObject = {"id": request_id, "cmd": cmd}
     if args:
         request["args"] = args
     return json.dumps(request, allow_nan=False).encode() + b"\n"
 
 
-def decode_header(line):
+def decode_header(line: bytes) -> JsonObject:
     """The header dict of one line; BadReply when it is not a protocol message."""
     try:
         header = json.loads(line)
@@ -29,10 +37,10 @@ def decode_header(line):
     return header
 
 
-def payload_specs(header):
+def payload_specs(header: JsonObject) -> list[PayloadSpec]:
     """[(name, dtype, shape, nbytes)] checked against each other: a wrong byte count would
     desynchronize the stream, so it is refused before anything is read."""
-    specs = []
+    specs: list[PayloadSpec] = []
     for p in header.get("payloads", []):
         try:
             dtype = DTYPES[p["dtype"]]
@@ -43,11 +51,12 @@ def payload_specs(header):
         if nbytes != shape[0] * shape[1] * dtype.itemsize or min(shape) < 0:
             raise BadReply(f"payload {p.get('name')}: {nbytes} bytes, its shape {shape} needs "
                            f"{shape[0] * shape[1] * dtype.itemsize}")
-        specs.append((p.get("name", f"payload{len(specs)}"), dtype, shape, nbytes))
+        specs.append((str(p.get("name", f"payload{len(specs)}")), dtype, shape, nbytes))
     return specs
 
 
-def new_array(dtype, shape):
+def new_array(dtype: "np.dtype[Any]", shape: tuple[int, int]) -> tuple[Image, memoryview]:
     """A writable array for a payload and the byte view to read it into."""
-    array = np.empty(shape, dtype=dtype)
-    return array, memoryview(array).cast("B")
+    array: Image = np.empty(shape, dtype=dtype)
+    # numpy arrays export the buffer protocol; typeshed's memoryview() does not list them.
+    return array, memoryview(array).cast("B")  # type: ignore[arg-type]
