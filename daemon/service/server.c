@@ -16,6 +16,8 @@ typedef struct {
   gboolean subscribed;
   gboolean authenticated;
   gboolean is_tcp;
+  gboolean bridge;      /* the live view's, for a browser's controls: no socket place (the live
+                           view has its own limit, so that pages never lock socket clients out) */
   gboolean leaving;     /* being closed by the server (timeout, eviction): its place is free */
   gint64 accepted_us;
   gint64 active_us;     /* last complete request, or last moment it was busy being answered */
@@ -270,7 +272,7 @@ ds_server_add_own_commands (GPtrArray *names)
 static gboolean
 holds_place (DsConnection *conn, const ClientState *st)
 {
-  return st && !st->leaving && !ds_connection_is_closed (conn);
+  return st && !st->bridge && !st->leaving && !ds_connection_is_closed (conn);
 }
 
 static void
@@ -464,19 +466,20 @@ add_client (DsServer *s, GIOStream *stream, gboolean is_tcp, gboolean trusted)
   /* UNIX clients were let in by the socket's file permissions; TCP ones need the token when
    * one is configured. */
   st->authenticated = trusted || !(is_tcp && s->limits.token);
+  st->bridge = trusted;
   DsConnectionLimits cl = { .max_line = s->limits.max_line, .max_queued_bytes = s->limits.max_queued_bytes };
   DsConnection *conn = ds_connection_new (stream, &cl, on_line, on_closed, st);
   ds_connection_set_data (conn, st, g_free);
   s->stats.accepted++;
   guint all, tcp;
   count_places (s, &all, &tcp);
-  if (all >= s->limits.max_clients || (is_tcp && tcp >= s->limits.max_tcp_clients)) {
+  if (!trusted && (all >= s->limits.max_clients || (is_tcp && tcp >= s->limits.max_tcp_clients))) {
     /* A peer that already went away holds its place only until its EOF is read; under load
      * the accept may come first: close those now. */
     if (close_departed (s))
       count_places (s, &all, &tcp);
   }
-  if (all >= s->limits.max_clients || (is_tcp && tcp >= s->limits.max_tcp_clients)) {
+  if (!trusted && (all >= s->limits.max_clients || (is_tcp && tcp >= s->limits.max_tcp_clients))) {
     DsConnection *victim = find_room (s, is_tcp);
     if (!victim) {
       s->stats.refused++;
