@@ -1,11 +1,14 @@
 #include "daemon/service/http_input.h"
 
+#include <string.h>
+
 struct _DsHttpInput {
   GInputStream parent;
   GSocketConnection *conn;
   GInputStream *base;
   guint64 bytes, limit;
   char *limit_what;
+  gboolean cut;         /* the limit was reached: answered and shut down */
   gint64 last_read_us;
   DsHttpInputClosedFunc closed;
   gpointer closed_data;
@@ -16,11 +19,29 @@ static void ds_http_input_pollable_init (GPollableInputStreamInterface *iface);
 G_DEFINE_TYPE_WITH_CODE (DsHttpInput, ds_http_input, G_TYPE_INPUT_STREAM,
                          G_IMPLEMENT_INTERFACE (G_TYPE_POLLABLE_INPUT_STREAM, ds_http_input_pollable_init))
 
+/* At the limit the peer is told, and the socket shut down both ways: libsoup, after the read
+ * error, would otherwise answer 500 and wait for a next request on the same connection. */
+static void
+cut (DsHttpInput *in)
+{
+  if (in->cut)
+    return;
+  in->cut = TRUE;
+  GSocket *sock = g_socket_connection_get_socket (in->conn);
+  const char *what = in->limit_what ? in->limit_what : "over the limit";
+  g_autofree char *resp = g_strdup_printf ("HTTP/1.1 431 Request Header Fields Too Large\r\nContent-Type: text/plain; "
+                                           "charset=utf-8\r\nContent-Length: %zu\r\nConnection: close\r\n\r\n431 %s\n",
+                                           strlen (what) + 5, what);
+  g_socket_send_with_blocking (sock, resp, strlen (resp), FALSE, NULL, NULL);
+  g_socket_shutdown (sock, TRUE, TRUE, NULL);
+}
+
 /* The bytes a read may take now; FALSE (with the error) at the limit. */
 static gboolean
 allowance (DsHttpInput *in, gsize *count, GError **error)
 {
   if (in->bytes >= in->limit) {
+    cut (in);
     g_set_error (error, G_IO_ERROR, G_IO_ERROR_MESSAGE_TOO_LARGE, "%s", in->limit_what ? in->limit_what : "over the limit");
     return FALSE;
   }

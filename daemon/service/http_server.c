@@ -230,12 +230,12 @@ ds_http_server_free (DsHttpServer *s)
 {
   if (!s)
     return;
-  /* The listener first: the connections libsoup closes below no longer report to it. */
-  ds_http_listener_free (s->listener);
-  if (s->soup) {
+  /* libsoup ends its requests first, while the listener that follows them is there; the
+   * listener then forgets the connections that outlive it (the live view's WebSockets). */
+  if (s->soup)
     soup_server_disconnect (s->soup);
-    g_object_unref (s->soup);
-  }
+  ds_http_listener_free (s->listener);
+  g_clear_object (&s->soup);
   g_free (s->token);
   g_strfreev (s->hosts);
   g_free (s->url);
