@@ -349,16 +349,34 @@ class Suite:
         log_before = open(self.d.log_path, errors="replace").read().count("\n")
         resource.prlimit(self.pid, resource.RLIMIT_NOFILE, (fd_count(self.pid) + 4, NOFILE))
         conns = [socket.create_connection(("127.0.0.1", self.port), timeout=2) for _ in range(40)]
+        # Socket clients arriving meanwhile wait in the backlog, and are served once descriptors
+        # are back.
+        waiting = []
+        for _ in range(3):
+            u = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+            u.settimeout(10)
+            u.connect(self.d.sock)
+            u.sendall(b'{"id": 1, "cmd": "status"}\n')
+            waiting.append(u)
         time.sleep(2)
         resource.prlimit(self.pid, resource.RLIMIT_NOFILE, (NOFILE, NOFILE))
         for c in conns:
             c.close()
+        late = 0
+        for u in waiting:
+            try:
+                late += json.loads(u.makefile("rb").readline()).get("ok") is True
+            except (OSError, ValueError):
+                pass
+            u.close()
         time.sleep(1)
         lines = open(self.d.log_path, errors="replace").read().count("\n") - log_before
         code = self.get_status()
-        print(f"     out of descriptors for 2 s: {lines} log lines; HTTP afterwards: {code}")
+        print(f"     out of descriptors for 2 s: {lines} log lines; HTTP afterwards: {code}; socket clients "
+              f"that waited served: {late} of 3")
         assert lines < 20, f"{lines} log lines in 2 s out of descriptors (a busy loop)"
         assert code == 200, f"HTTP does not accept after descriptors came back ({code})"
+        assert late == 3, f"{late} of 3 socket clients that waited were served"
 
     def check_malformed(self):
         ws = self.ws()
