@@ -84,6 +84,28 @@ static const KeySpec keys[] = {
     "file holding the token HTTP clients must present (?token= or Authorization: Bearer)" },
   { "http", "live-fps", K_DOUBLE, RESTART, F (http_live_fps), "10", 0.1, 100, NULL,
     "most raw frames per second copied for the live view" },
+  { "http", "server-names", K_STRING, RESTART, F (http_server_names), NULL, 0, 0, NULL,
+    "further names the page may be opened by (comma-separated, \"name\" or \"name:port\"); a request "
+    "whose Host is neither these nor the listen address (or localhost on loopback) is refused" },
+  { "http", "max-connections", K_UINT, RESTART, F (http_max_connections), "64", 1, 4096, NULL,
+    "HTTP connections at once, WebSockets included; beyond, refused with 503 (kept below the "
+    "descriptor limit with room for max-clients)" },
+  { "http", "max-connections-per-peer", K_UINT, RESTART, F (http_max_per_peer), "32", 1, 4096, NULL,
+    "HTTP connections at once from one address" },
+  { "http", "max-header-bytes", K_UINT, RESTART, F (http_max_header_bytes), "16384", 1024, 1048576, NULL,
+    "a request's headers; beyond, nothing more is read and the connection is closed" },
+  { "http", "max-body-bytes", K_UINT, RESTART, F (http_max_body_bytes), "0", 0, 1048576, NULL,
+    "a request's body (the server takes none); a longer Content-Length, or a chunked body, is "
+    "refused with 413 before any of it is read" },
+  { "http", "header-timeout-ms", K_UINT, RESTART, F (http_header_timeout_ms), "10000", 100, 600000, NULL,
+    "a request's headers and body must arrive within this time of its first byte" },
+  { "http", "idle-timeout-ms", K_UINT, RESTART, F (http_idle_timeout_ms), "30000", 100, 3600000, NULL,
+    "a connection with no request started for this long is closed (WebSockets excepted)" },
+  { "http", "max-live-clients", K_UINT, RESTART, F (http_max_live_clients), "8", 1, 256, NULL,
+    "live-view pages at once; their controls take no place of [daemon] max-clients" },
+  { "http", "live-send-budget-bytes", K_UINT, RESTART, F (http_live_send_budget), "1048576", 65536, 67108864, NULL,
+    "unsent bytes per live-view page beyond which it gets no update until it reads (newer "
+    "updates replace the waiting ones)" },
 
   { "camera", "backend", K_CHOICE, RESTART, F (camera_backend), NULL, 0, 0, "aravis|sim",
     "camera driver: aravis (GigE Vision) or sim (the simulated lab); no default, so that a file "

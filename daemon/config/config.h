@@ -39,6 +39,15 @@ typedef struct {
   char *http_listen;      /* "host:port" or NULL (off) */
   char *http_token_file;
   double http_live_fps;
+  char *http_server_names;     /* comma-separated, or NULL */
+  guint http_max_connections;
+  guint http_max_per_peer;
+  guint http_max_header_bytes;
+  guint http_max_body_bytes;
+  guint http_header_timeout_ms;
+  guint http_idle_timeout_ms;
+  guint http_max_live_clients;
+  guint http_live_send_budget;
   /* [camera] */
   char *camera_backend;   /* "sim" | "aravis" */
   char *camera_address;

@@ -102,6 +102,18 @@ ds_config_check_consistency (const DsConfig *c, const char *name, GError **error
   if (c->tcp_listen && !ds_config_parse_host_port (c->tcp_listen, NULL, NULL))
     INCONSISTENT ("[daemon] tcp-listen = \"%s\" must be IP:PORT (a numeric address, port 0..65535)",
                   c->tcp_listen);
+  if (c->http_max_live_clients >= c->http_max_connections)
+    INCONSISTENT ("[http] max-live-clients = %u must be below max-connections = %u (a page's WebSocket is one "
+                  "of them, its page and /metrics need others)", c->http_max_live_clients, c->http_max_connections);
+  if (c->http_server_names) {
+    g_auto (GStrv) names = g_strsplit (c->http_server_names, ",", -1);
+    for (guint i = 0; names[i]; i++) {
+      g_strstrip (names[i]);
+      if (!*names[i] || strpbrk (names[i], " \t/@?#") != NULL)
+        INCONSISTENT ("[http] server-names: \"%s\" is not a host name (name or name:port, comma-separated)",
+                      names[i]);
+    }
+  }
 #undef INCONSISTENT
   return TRUE;
 }

@@ -9,6 +9,7 @@
 
 int ds_ctl_hello (const DsCtlTarget *target, int argc, char **argv);
 int ds_ctl_status (const DsCtlTarget *target, int argc, char **argv);
+int ds_ctl_live_url (const DsCtlTarget *target, int argc, char **argv);
 int ds_ctl_capture (const DsCtlTarget *target, int argc, char **argv);
 int ds_ctl_stream (const DsCtlTarget *target, int argc, char **argv);
 int ds_ctl_start (const DsCtlTarget *target, int argc, char **argv);

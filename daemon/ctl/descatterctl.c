@@ -15,6 +15,7 @@ static const struct {
 } commands[] = {
   { "hello", ds_ctl_hello, NULL, "protocol version and daemon identity" },
   { "status", ds_ctl_status, NULL, "state, devices, counters, timings, clients" },
+  { "live-url", ds_ctl_live_url, NULL, "the live view's address with its token, for a browser" },
   { "capture", ds_ctl_capture, NULL, "acquire one phase set; write TIFF + PNG previews" },
   { "stream", ds_ctl_stream, NULL, "subscribe and write/print results as they come" },
   { "start", ds_ctl_start, NULL, "start continuous acquisition" },

@@ -10,6 +10,9 @@ G_BEGIN_DECLS
 
 #define DS_PROTOCOL_VERSION 1
 #define DS_PROTOCOL_MAX_LINE (64 * 1024) /* bytes, newline excluded */
+/* The live view's token, when descatterd made it, is in the file named by the socket's path with
+ * this appended (readable by whom may use the socket; descatterctl live-url). */
+#define DS_HTTP_TOKEN_SUFFIX ".http-token"
 #define DS_PROTOCOL_MAX_DEPTH 8          /* nesting of objects and arrays */
 
 #define DS_PROTOCOL_ERROR (ds_protocol_error_quark ())

@@ -19,6 +19,7 @@ struct DsLiveBridge {
   GQueue lines;        /* char *, waiting to be written */
   gsize skip_left;     /* payload bytes of the last reply still to skip */
   gboolean writing;
+  guint unanswered;    /* request lines written and not replied to yet */
   gboolean closed;     /* the daemon's side went away */
   DsLiveBridgeLineFunc on_line;
   gpointer user_data;
@@ -88,9 +89,14 @@ on_line (GObject *src, GAsyncResult *res, gpointer data)
   gsize payload = 0;
   for (guint i = 0; reply && i < reply->n_payloads; i++)
     payload += reply->payloads[i].bytes;
-  /* Replies to the page's requests carry their id; a line without one is the daemon speaking to
-   * the connection itself (closing it for idleness, say): not the page's business. */
-  gboolean for_page = reply && (reply->event || (reply->id && !JSON_NODE_HOLDS_NULL (reply->id)));
+  /* Every reply answers one request, in order, and the daemon says nothing else unasked but
+   * events and, on a connection with no request waiting, why it closes it (idleness): a reply
+   * while requests wait is the page's even without an id (a line refused before its id was
+   * read). */
+  gboolean is_reply = reply && !reply->event;
+  gboolean for_page = reply && (reply->event || b->unanswered > 0);
+  if (is_reply && b->unanswered > 0)
+    b->unanswered--;
   if (for_page)
     b->on_line (line, b->user_data);
   b->skip_left = payload;
@@ -194,6 +200,7 @@ ds_live_bridge_is_open (const DsLiveBridge *b)
 void
 ds_live_bridge_send (DsLiveBridge *b, const char *line)
 {
+  b->unanswered++;
   g_queue_push_tail (&b->lines, g_strconcat (line, "\n", NULL));
   write_next (b);
 }

@@ -1,6 +1,10 @@
 #include "daemon/service/live_view.h"
 
+#include <malloc.h>
+#include <poll.h>
 #include <string.h>
+#include <sys/ioctl.h>
+#include <linux/sockios.h>
 
 #include "daemon/service/live_bridge.h"
 #include "daemon/service/json_build.h"
@@ -21,6 +25,7 @@ typedef struct {
   gboolean busy;            /* an update sent and not acknowledged yet */
   gboolean dirty[N_KINDS];  /* a newer update of this kind waits */
   DsLiveBridge *bridge;     /* made at the first command */
+  GSocket *socket;          /* under the WebSocket: how much it has not sent yet (NULL: unknown) */
 } Client;
 
 struct DsLiveView {
@@ -29,6 +34,8 @@ struct DsLiveView {
   DsLiveStatusFunc status_func;
   gpointer status_data;
   gint64 frame_interval_us;
+  guint max_clients;
+  gsize send_budget;
   gint wanting;             /* atomic: clients able to take an update now (not waiting for an
                                ack): the frame hook copies, and the encoder works, only for them */
 
@@ -61,10 +68,33 @@ set_busy (Client *c, gboolean busy)
   c->busy = busy;
 }
 
+/* Whether the client's socket has taken what was sent before: an ack says the page drew an
+ * update, not that it read the next, so a client acknowledging without reading would otherwise
+ * pile updates up in libsoup's queue. libsoup writes what the kernel takes at once, so its own
+ * queue is empty while the socket is writable and has less than the budget unsent. */
+static gboolean
+within_budget (Client *c)
+{
+  if (!c->socket)
+    return TRUE;
+  int fd = g_socket_get_fd (c->socket);
+  struct pollfd p = { .fd = fd, .events = POLLOUT };
+  if (poll (&p, 1, 0) != 1 || !(p.revents & POLLOUT))
+    return FALSE;
+  int unsent = 0;
+  if (ioctl (fd, SIOCOUTQ, &unsent) != 0)
+    return TRUE;
+  return (gsize) unsent < c->live->send_budget;
+}
+
 static void
 try_send (Client *c)
 {
   if (c->busy || soup_websocket_connection_get_state (c->ws) != SOUP_WEBSOCKET_STATE_OPEN)
+    return;
+  /* Over its budget the client keeps its dirty flags: newer updates replace these meanwhile,
+   * and the next status tick or ack tries again. */
+  if (!within_budget (c))
     return;
   for (guint k = 0; k < N_KINDS; k++) {
     if (!c->dirty[k] || !c->live->latest[k])
@@ -148,11 +178,26 @@ on_message (SoupWebsocketConnection *ws, gint type, GBytes *message, gpointer da
     try_send (c);
     return;
   }
-  const char *cmd = json_object_get_string_member_with_default (o, "cmd", NULL);
   JsonNode *id = json_object_get_member (o, "id");
-  if (!cmd || !g_strv_contains (page_commands, cmd)) {
+  if (id && !JSON_NODE_HOLDS_NULL (id) &&
+      !(JSON_NODE_HOLDS_VALUE (id) && (json_node_get_value_type (id) == G_TYPE_INT64 ||
+                                       json_node_get_value_type (id) == G_TYPE_DOUBLE ||
+                                       json_node_get_value_type (id) == G_TYPE_STRING))) {
+    reply_error (c, NULL, "\"id\" must be a number or a string");
+    return;
+  }
+  /* Any JSON may come: "cmd" is read only once it is known to be a string. */
+  JsonNode *cmd_node = json_object_get_member (o, "cmd");
+  const char *cmd = cmd_node && JSON_NODE_HOLDS_VALUE (cmd_node) && json_node_get_value_type (cmd_node) == G_TYPE_STRING
+                        ? json_node_get_string (cmd_node)
+                        : NULL;
+  if (!cmd_node || !cmd) {
+    reply_error (c, id, "missing string member \"cmd\" (or {\"ack\": true})");
+    return;
+  }
+  if (!g_strv_contains (page_commands, cmd)) {
     g_autofree char *msg = g_strdup_printf ("\"%s\" is not a command of the live view (capture, start, stop, "
-                                            "cancel, status, dark, release, acquire, preview, set)", cmd ? cmd : "");
+                                            "cancel, status, dark, release, acquire, preview, set)", cmd);
     reply_error (c, id, msg);
     return;
   }
@@ -178,6 +223,7 @@ client_free (Client *c)
   g_signal_handlers_disconnect_by_data (c->ws, c);
   ds_live_bridge_free (c->bridge);
   g_object_unref (c->ws);
+  g_clear_object (&c->socket);
   g_free (c);
 }
 
@@ -190,14 +236,29 @@ on_closed (SoupWebsocketConnection *ws, gpointer data)
   set_busy (c, TRUE); /* it takes nothing any more */
   g_ptr_array_remove_fast (lv->clients, c);
   client_free (c);
+  /* What libsoup and the encoder buffered for it is freed; give the heap's unused top back so
+   * that the daemon's size returns after a page leaves. */
+  malloc_trim (0);
+}
+
+gboolean
+ds_live_view_is_full (const DsLiveView *lv)
+{
+  return lv->clients->len >= lv->max_clients;
 }
 
 void
-ds_live_view_add_client (DsLiveView *lv, SoupWebsocketConnection *ws)
+ds_live_view_add_client (DsLiveView *lv, SoupWebsocketConnection *ws, GSocket *socket)
 {
+  if (ds_live_view_is_full (lv)) {
+    /* The HTTP server refused the upgrade already; a race of two at once ends here. */
+    soup_websocket_connection_close (ws, SOUP_WEBSOCKET_CLOSE_POLICY_VIOLATION, "max-live-clients");
+    return;
+  }
   Client *c = g_new0 (Client, 1);
   c->live = lv;
   c->ws = g_object_ref (ws);
+  c->socket = socket ? g_object_ref (socket) : NULL;
   /* Pages send acks and short commands only. */
   soup_websocket_connection_set_max_incoming_payload_size (ws, 64 * 1024);
   soup_websocket_connection_set_keepalive_interval (ws, 15);
@@ -352,9 +413,13 @@ ds_live_view_on_result (DsLiveView *lv, DsResult *result)
 }
 
 DsLiveView *
-ds_live_view_new (GMainContext *context, DsServer *server, double max_fps, DsLiveStatusFunc status, gpointer status_data)
+ds_live_view_new (GMainContext *context, DsServer *server, const DsLiveViewLimits *limits, DsLiveStatusFunc status,
+                  gpointer status_data)
 {
   DsLiveView *lv = g_new0 (DsLiveView, 1);
+  double max_fps = limits->max_fps;
+  lv->max_clients = MAX (1, limits->max_clients);
+  lv->send_budget = MAX (65536, limits->send_budget_bytes);
   lv->context = g_main_context_ref (context);
   lv->server = server;
   lv->status_func = status;

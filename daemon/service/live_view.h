@@ -33,8 +33,16 @@ typedef struct DsLiveView DsLiveView;
 /* The status document (main thread): a new reference. */
 typedef JsonNode *(*DsLiveStatusFunc) (gpointer user_data);
 
-DsLiveView *ds_live_view_new (GMainContext *context, DsServer *server, double max_fps, DsLiveStatusFunc status,
-                              gpointer status_data);
+typedef struct {
+  double max_fps;           /* raw frames copied a second at most */
+  guint max_clients;        /* browsers at once ([http] max-live-clients); their controls' bridges
+                               are not counted in the socket's max-clients */
+  gsize send_budget_bytes;  /* per client: unsent bytes in its socket beyond which it gets no
+                               update (newer ones replace the waiting ones) */
+} DsLiveViewLimits;
+
+DsLiveView *ds_live_view_new (GMainContext *context, DsServer *server, const DsLiveViewLimits *limits,
+                              DsLiveStatusFunc status, gpointer status_data);
 /* Closes every client, stops the encoder thread. Remove the frame hook first. */
 void ds_live_view_free (DsLiveView *live);
 G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsLiveView, ds_live_view_free)
@@ -44,8 +52,11 @@ void ds_live_view_on_frame (const DsFrame *frame, guint phase, const DsCaptureSe
                             gpointer user_data);
 /* A published result. */
 void ds_live_view_on_result (DsLiveView *live, DsResult *result);
-/* A browser's WebSocket (the live view takes a reference). */
-void ds_live_view_add_client (DsLiveView *live, SoupWebsocketConnection *ws);
+/* TRUE when max_clients browsers are connected: the HTTP server refuses the next upgrade. */
+gboolean ds_live_view_is_full (const DsLiveView *live);
+/* A browser's WebSocket and the socket under it (NULL: no send budget); the live view takes
+ * references. */
+void ds_live_view_add_client (DsLiveView *live, SoupWebsocketConnection *ws, GSocket *socket);
 
 /* Clients, updates sent and superseded (the http_* fields are the HTTP server's). */
 void ds_live_view_get_stats (DsLiveView *live, DsLiveStats *stats);

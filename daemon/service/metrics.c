@@ -202,6 +202,14 @@ ds_metrics_render (DsMetrics *m, const DsMetricsSources *src)
     counter (out, "descatter_http_unauthorized_total", "HTTP requests refused for a missing or wrong token.",
              src->live->http_unauthorized);
     counter (out, "descatter_live_updates_sent_total", "Live-view updates sent to browsers.", src->live->sent);
+    gauge (out, "descatter_http_connections", "HTTP connections open now, WebSockets included.",
+           src->live->http_connections);
+    counter (out, "descatter_http_connections_refused_total",
+             "HTTP connections refused over max-connections or max-connections-per-peer.", src->live->http_refused);
+    counter (out, "descatter_http_connections_timed_out_total",
+             "HTTP connections closed for header-timeout-ms or idle-timeout-ms.", src->live->http_timed_out);
+    counter (out, "descatter_http_accept_paused_total", "Times accepting HTTP paused for want of descriptors.",
+             src->live->http_accept_paused);
   }
   if (src->spool) {
     const DsSpoolStats *sp = src->spool;

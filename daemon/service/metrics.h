@@ -26,6 +26,10 @@ typedef struct {
   guint64 superseded;        /* live updates replaced by a newer one before a client took them */
   guint64 http_requests;
   guint64 http_unauthorized;
+  guint http_connections;           /* HTTP connections open now, WebSockets included */
+  guint64 http_refused;             /* over max-connections or max-connections-per-peer */
+  guint64 http_timed_out;           /* closed for header-timeout-ms or idle-timeout-ms */
+  guint64 http_accept_paused;       /* times accepting paused for want of descriptors */
 } DsLiveStats;
 
 typedef struct {

@@ -1,4 +1,5 @@
 #include "daemon/service/server.h"
+#include "daemon/service/accept_loop.h"
 #include "daemon/service/json_build.h"
 #include "daemon/service/token.h"
 
@@ -16,6 +17,8 @@ typedef struct {
   gboolean subscribed;
   gboolean authenticated;
   gboolean is_tcp;
+  gboolean bridge;      /* the live view's, for a browser's controls: no socket place (the live
+                           view has its own limit, so that pages never lock socket clients out) */
   gboolean leaving;     /* being closed by the server (timeout, eviction): its place is free */
   gint64 accepted_us;
   gint64 active_us;     /* last complete request, or last moment it was busy being answered */
@@ -31,7 +34,8 @@ struct DsServer {
   DsServerLimits limits;
   DsServerRequestFunc on_request;
   gpointer user_data;
-  GSocketService *service;
+  GSocketListener *listener;
+  DsAcceptLoop *accepting; /* not GSocketService: it spins when out of descriptors */
   GMainContext *context; /* where the server was created: connections, sweep, drain */
   GSource *sweep;
   GHashTable *clients; /* DsConnection* -> NULL (set); holds a reference */
@@ -43,6 +47,7 @@ struct DsServer {
 };
 
 static gboolean sweep_connections (gpointer data);
+static void on_accepted (GSocketConnection *sc, gpointer user_data);
 
 DsServer *
 ds_server_new (const DsServerLimits *limits, DsServerRequestFunc on_request, gpointer user_data)
@@ -54,10 +59,11 @@ ds_server_new (const DsServerLimits *limits, DsServerRequestFunc on_request, gpo
     s->limits.max_line = DS_PROTOCOL_MAX_LINE;
   s->on_request = on_request;
   s->user_data = user_data;
-  s->service = g_socket_service_new ();
+  s->listener = g_socket_listener_new ();
+  s->accepting = ds_accept_loop_new (s->listener, on_accepted, s);
   /* GLib's default backlog (10) refuses bursts of clients connecting at once; the client
    * limit is enforced after accept, with a clear `limit` error instead. */
-  g_socket_listener_set_backlog (G_SOCKET_LISTENER (s->service), 256);
+  g_socket_listener_set_backlog (s->listener, 256);
   s->clients = g_hash_table_new_full (g_direct_hash, g_direct_equal,
                                       (GDestroyNotify) ds_connection_unref, NULL);
   if (s->limits.max_tcp_clients == 0 || s->limits.max_tcp_clients > s->limits.max_clients)
@@ -80,10 +86,8 @@ ds_server_new (const DsServerLimits *limits, DsServerRequestFunc on_request, gpo
 static void
 stop_listening (DsServer *server)
 {
-  if (server->service) {
-    g_socket_service_stop (server->service);
-    g_socket_listener_close (G_SOCKET_LISTENER (server->service));
-  }
+  ds_accept_loop_stop (server->accepting);
+  g_socket_listener_close (server->listener);
 }
 
 void
@@ -111,7 +115,8 @@ ds_server_free (DsServer *server)
   }
   g_list_free (conns);
   g_hash_table_destroy (server->clients);
-  g_clear_object (&server->service);
+  ds_accept_loop_free (server->accepting);
+  g_clear_object (&server->listener);
   g_source_destroy (server->sweep);
   g_source_unref (server->sweep);
   g_main_context_unref (server->context);
@@ -296,7 +301,7 @@ ds_server_add_own_commands (GPtrArray *names)
 static gboolean
 holds_place (DsConnection *conn, const ClientState *st)
 {
-  return st && !st->leaving && !ds_connection_is_closed (conn);
+  return st && !st->bridge && !st->leaving && !ds_connection_is_closed (conn);
 }
 
 static void
@@ -490,19 +495,20 @@ add_client (DsServer *s, GIOStream *stream, gboolean is_tcp, gboolean trusted)
   /* UNIX clients were let in by the socket's file permissions; TCP ones need the token when
    * one is configured. */
   st->authenticated = trusted || !(is_tcp && s->limits.token);
+  st->bridge = trusted;
   DsConnectionLimits cl = { .max_line = s->limits.max_line, .max_queued_bytes = s->limits.max_queued_bytes };
   DsConnection *conn = ds_connection_new (stream, &cl, on_line, on_closed, st);
   ds_connection_set_data (conn, st, g_free);
   s->stats.accepted++;
   guint all, tcp;
   count_places (s, &all, &tcp);
-  if (all >= s->limits.max_clients || (is_tcp && tcp >= s->limits.max_tcp_clients)) {
+  if (!trusted && (all >= s->limits.max_clients || (is_tcp && tcp >= s->limits.max_tcp_clients))) {
     /* A peer that already went away holds its place only until its EOF is read; under load
      * the accept may come first: close those now. */
     if (close_departed (s))
       count_places (s, &all, &tcp);
   }
-  if (all >= s->limits.max_clients || (is_tcp && tcp >= s->limits.max_tcp_clients)) {
+  if (!trusted && (all >= s->limits.max_clients || (is_tcp && tcp >= s->limits.max_tcp_clients))) {
     DsConnection *victim = find_room (s, is_tcp);
     if (!victim) {
       s->stats.refused++;
@@ -527,17 +533,14 @@ add_client (DsServer *s, GIOStream *stream, gboolean is_tcp, gboolean trusted)
   ds_connection_start (conn);
 }
 
-static gboolean
-on_incoming (GSocketService *service, GSocketConnection *sc, GObject *source, gpointer user_data)
+static void
+on_accepted (GSocketConnection *sc, gpointer user_data)
 {
-  (void) service;
-  (void) source;
   DsServer *s = user_data;
   GSocketAddress *remote = g_socket_connection_get_remote_address (sc, NULL);
   gboolean is_tcp = remote && G_IS_INET_SOCKET_ADDRESS (remote);
   g_clear_object (&remote);
   add_client (s, G_IO_STREAM (sc), is_tcp, FALSE);
-  return TRUE;
 }
 
 void
@@ -598,9 +601,7 @@ ds_server_drain (DsServer *server, guint timeout_ms)
 static gboolean
 ensure_started (DsServer *s)
 {
-  if (!g_signal_handler_find (s->service, G_SIGNAL_MATCH_FUNC, 0, 0, NULL, on_incoming, s))
-    g_signal_connect (s->service, "incoming", G_CALLBACK (on_incoming), s);
-  g_socket_service_start (s->service);
+  ds_accept_loop_start (s->accepting);
   return TRUE;
 }
 
@@ -627,7 +628,7 @@ ds_server_listen_unix (DsServer *server, const char *path, guint mode, GError **
     g_unlink (path);
   }
   g_autoptr (GSocketAddress) addr = g_unix_socket_address_new (path);
-  if (!g_socket_listener_add_address (G_SOCKET_LISTENER (server->service), addr, G_SOCKET_TYPE_STREAM,
+  if (!g_socket_listener_add_address (server->listener, addr, G_SOCKET_TYPE_STREAM,
                                       G_SOCKET_PROTOCOL_DEFAULT, NULL, NULL, error)) {
     g_prefix_error (error, "%s: ", path);
     return FALSE;
@@ -658,7 +659,7 @@ ds_server_listen_tcp (DsServer *server, const char *address, guint16 port, GErro
   }
   g_autoptr (GSocketAddress) sa = g_inet_socket_address_new (ia, port);
   g_autoptr (GSocketAddress) effective = NULL;
-  if (!g_socket_listener_add_address (G_SOCKET_LISTENER (server->service), sa, G_SOCKET_TYPE_STREAM,
+  if (!g_socket_listener_add_address (server->listener, sa, G_SOCKET_TYPE_STREAM,
                                       G_SOCKET_PROTOCOL_TCP, NULL, &effective, error)) {
     g_prefix_error (error, "%s:%u: ", address, port);
     return FALSE;
@@ -683,7 +684,7 @@ ds_server_adopt_systemd_sockets (DsServer *server, GError **error)
   }
   for (int i = 0; i < n; i++) {
     g_autoptr (GSocket) sock = g_socket_new_from_fd (SD_LISTEN_FDS_START + i, error);
-    if (!sock || !g_socket_listener_add_socket (G_SOCKET_LISTENER (server->service), sock, NULL, error))
+    if (!sock || !g_socket_listener_add_socket (server->listener, sock, NULL, error))
       return 0;
   }
   if (n > 0)

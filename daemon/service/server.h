@@ -49,8 +49,9 @@ gboolean ds_server_listen_tcp (DsServer *server, const char *address, guint16 po
 /* Adopts sockets passed by systemd (sd_listen_fds); returns how many. */
 guint ds_server_adopt_systemd_sockets (DsServer *server, GError **error);
 /* A client that is already authenticated, on a stream of the daemon's own (the live view's
- * bridge for the browser's controls, which checked the HTTP token). Limits apply as to any
- * client. */
+ * bridge for the browser's controls, which checked the HTTP token). It takes no place of
+ * max-clients and is never closed to make room (the live view limits browsers itself, so that no
+ * number of pages locks a socket client out); the other limits apply as to any client. */
 void ds_server_add_stream (DsServer *server, GIOStream *stream);
 /* The port actually bound by the last TCP listen (useful with port 0 in tests). */
 guint16 ds_server_tcp_port (const DsServer *server);

@@ -4,13 +4,16 @@
  * service_events.c and service_status.c (the shared state: service_private.h). */
 #include "daemon/service/service_private.h"
 
+#include <glib/gstdio.h>
 #include <string.h>
+#include <sys/resource.h>
 #include <systemd/sd-daemon.h>
 
 #include "daemon/acquire/devices.h"
 #include "daemon/output/result_meta.h"
 #include "daemon/protocol/protocol.h"
 #include "daemon/service/preflight.h"
+#include "daemon/service/token.h"
 
 /* ---- devices are opened on the acquisition thread from a copy of the configuration ---- */
 
@@ -52,19 +55,74 @@ render_metrics (gpointer data)
   return ds_service_metrics_text (data);
 }
 
+/* The HTTP token when [http] token-file names none: made at each start and written next to
+ * the socket, readable by whom may use the socket, so that the live view lets in no one the
+ * socket would not (`descatterctl live-url` reads it). */
+static char *
+loopback_token (DsService *svc, GError **error)
+{
+  g_autofree char *token = ds_token_generate (error);
+  if (!token)
+    return NULL;
+  g_autofree char *path = g_strconcat (svc->config->socket_path, DS_HTTP_TOKEN_SUFFIX, NULL);
+  if (!ds_token_write_for_socket (path, token, svc->config->socket_path, error))
+    return NULL;
+  svc->http_token_path = g_steal_pointer (&path);
+  return g_steal_pointer (&token);
+}
+
+/* HTTP connections stay below the descriptor limit with room for the socket's clients, the
+ * live view's bridges (two descriptors each) and the daemon's own files and devices. */
+static guint
+http_connection_budget (const DsConfig *c)
+{
+  struct rlimit rl;
+  guint want = c->http_max_connections;
+  if (getrlimit (RLIMIT_NOFILE, &rl) != 0 || rl.rlim_cur == RLIM_INFINITY)
+    return want;
+  guint64 reserve = (guint64) c->max_clients + 2 * (guint64) c->http_max_live_clients + DS_FD_RESERVE;
+  guint64 room = rl.rlim_cur > reserve + 8 ? rl.rlim_cur - reserve : 8;
+  if (want <= room)
+    return want;
+  g_warning ("[http] max-connections = %u lowered to %" G_GUINT64_FORMAT ": the descriptor limit is %" G_GUINT64_FORMAT
+             " and max-clients, the live view's bridges and the daemon's own files need %" G_GUINT64_FORMAT
+             " (raise LimitNOFILE)", want, room, (guint64) rl.rlim_cur, reserve);
+  return (guint) room;
+}
+
 /* The live view and /metrics, when [http] listen (or --http) asks for them (checked by preflight). */
 static gboolean
 start_http (DsService *svc, const DsPreflight *pf, GError **error)
 {
   if (!pf->http_host)
     return TRUE;
-  svc->live = ds_live_view_new (g_main_loop_get_context (svc->loop), svc->server, svc->config->http_live_fps,
-                                live_status, svc);
-  svc->http = ds_http_server_new (pf->http_host, pf->http_port, pf->http_token, svc->live, render_metrics, svc, error);
+  const DsConfig *c = svc->config;
+  g_autofree char *own_token = pf->http_token ? NULL : loopback_token (svc, error);
+  if (!pf->http_token && !own_token)
+    return FALSE;
+  DsLiveViewLimits live = { .max_fps = c->http_live_fps, .max_clients = c->http_max_live_clients,
+                            .send_budget_bytes = c->http_live_send_budget };
+  svc->live = ds_live_view_new (g_main_loop_get_context (svc->loop), svc->server, &live, live_status, svc);
+  g_auto (GStrv) names = c->http_server_names ? g_strsplit (c->http_server_names, ",", -1) : NULL;
+  for (guint i = 0; names && names[i]; i++)
+    g_strstrip (names[i]);
+  guint max_connections = http_connection_budget (c);
+  DsHttpOptions o = { .host = pf->http_host,
+                      .port = pf->http_port,
+                      .token = pf->http_token ? pf->http_token : own_token,
+                      .server_names = (const char *const *) names,
+                      .limits = { .max_connections = max_connections,
+                                  .max_per_peer = MIN (c->http_max_per_peer, max_connections),
+                                  .max_header_bytes = c->http_max_header_bytes,
+                                  .header_timeout_ms = c->http_header_timeout_ms,
+                                  .idle_timeout_ms = c->http_idle_timeout_ms },
+                      .max_body_bytes = c->http_max_body_bytes };
+  svc->http = ds_http_server_new (&o, svc->live, render_metrics, svc, error);
   if (!svc->http)
     return FALSE;
   ds_sequencer_set_frame_hook (svc->sequencer, ds_live_view_on_frame, svc->live);
-  g_message ("live view and /metrics at %s", ds_http_server_url (svc->http));
+  g_message ("live view and /metrics at %s%s", ds_http_server_url (svc->http),
+             svc->http_token_path ? " (its token: `descatterctl live-url`)" : "");
   return TRUE;
 }
 
@@ -259,6 +317,9 @@ ds_service_free (DsService *svc)
   g_clear_pointer (&svc->sequencer, ds_sequencer_free);
   g_clear_pointer (&svc->http, ds_http_server_free);
   g_clear_pointer (&svc->live, ds_live_view_free);
+  if (svc->http_token_path)
+    g_unlink (svc->http_token_path);
+  g_clear_pointer (&svc->http_token_path, g_free);
   g_clear_pointer (&svc->metrics, ds_metrics_free);
   g_clear_pointer (&svc->model, ds_operating_model_free);
   g_free (svc->model_error);

@@ -76,6 +76,7 @@ struct DsService {
   DsMetrics *metrics;
   DsLiveView *live;          /* with http: NULL when [http] listen is off */
   DsHttpServer *http;
+  char *http_token_path;   /* the token file we wrote (loopback, no token-file): removed at exit */
   gboolean in_run;           /* continuous acquisition started and not stopped */
   guint64 cancels;           /* `cancel` requests taken */
   DsOperatingModel *model;  /* NULL when no model file could be read (automatic captures fail) */
@@ -85,6 +86,9 @@ struct DsService {
 
 /* The result's payloads a capture may ask for, in the order of PendingCapture.outputs' bits. */
 #define DS_SERVICE_N_OUTPUTS 6
+/* Descriptors kept for the daemon's own use (logs, devices, GigE streams, the spool, the
+ * listeners) when sizing [http] max-connections against the descriptor limit. */
+#define DS_FD_RESERVE 64
 extern const char *const ds_service_output_names[DS_SERVICE_N_OUTPUTS];
 
 /* service_requests.c: every command the server does not answer itself. */

@@ -125,6 +125,12 @@ add_http (JsonBuilder *b, const DsService *svc)
   ds_json_add_uint (b, "live_clients", ls.clients);
   ds_json_add_uint (b, "live_updates_sent", ls.sent);
   ds_json_add_uint (b, "live_updates_superseded", ls.superseded);
+  DsHttpListenerStats hs;
+  ds_http_server_get_listener_stats (svc->http, &hs);
+  ds_json_add_uint (b, "connections", hs.connections);
+  ds_json_add_uint (b, "connections_refused", hs.refused);
+  ds_json_add_uint (b, "connections_timed_out", hs.timed_out);
+  ds_json_add_uint (b, "accept_paused", hs.accept_paused);
   json_builder_end_object (b);
 }
 
@@ -202,6 +208,12 @@ ds_service_metrics_text (DsService *svc)
   ds_live_view_get_stats (svc->live, &ls);
   ds_http_server_get_stats (svc->http, &ls.http_requests, &ls.http_unauthorized);
   g_autofree char *not_ready = not_ready_reason (svc, &st);
+  DsHttpListenerStats hs;
+  ds_http_server_get_listener_stats (svc->http, &hs);
+  ls.http_connections = hs.connections;
+  ls.http_refused = hs.refused;
+  ls.http_timed_out = hs.timed_out;
+  ls.http_accept_paused = hs.accept_paused;
   DsMetricsSources src = { .sequencer = &st, .server = &ss, .spool = svc->spool ? &sp : NULL, .live = &ls,
                            .results_published = svc->results_published,
                            .ready = not_ready == NULL,

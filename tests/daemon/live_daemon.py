@@ -8,7 +8,7 @@ import time
 
 
 class LiveDaemon:
-    def __init__(self, daemon, ctl, tmp, extra_conf="", args=(), wait=True):
+    def __init__(self, daemon, ctl, tmp, extra_conf="", args=(), wait=True, env=None, preexec_fn=None):
         self.ctl_path, self.tmp = ctl, tmp
         self.sock = os.path.join(tmp, "d.sock")
         self.conf = os.path.join(tmp, "d.conf")
@@ -17,7 +17,7 @@ class LiveDaemon:
         self.log_path = os.path.join(tmp, "d.log")
         self.log = open(self.log_path, "a")
         self.proc = subprocess.Popen([daemon, "--config", self.conf, "--socket", self.sock, "--no-socket-activation",
-                                      *args], stdout=self.log, stderr=self.log)
+                                      *args], stdout=self.log, stderr=self.log, env=env, preexec_fn=preexec_fn)
         self.url = None
         if wait:
             self.wait_ready()

@@ -108,6 +108,13 @@ def main():
           f"{one(sock, 'Socket', 'DirectoryMode')}, RuntimeDirectoryMode {one(service, 'Service', 'RuntimeDirectoryMode')}")
     check(one(sock, "Socket", "SocketGroup") == one(service, "Service", "Group"),
           "the socket's group is the service's")
+    # 5b. Descriptors: the limit is set on purpose, above what the largest socket and HTTP limits
+    #     take (max-clients 1024, max-connections 4096, 256 live pages with two each for their
+    #     bridges), so that the daemon does not lower [http] max-connections at start.
+    for name, unit in (("descatterd.service", service), ("descatterd@.service", template)):
+        nofile = one(unit, "Service", "LimitNOFILE")
+        check(nofile is not None and nofile.isdigit() and int(nofile) >= 1024 + 4096 + 2 * 256 + 64,
+              f"{name}: LimitNOFILE={nofile} above max-clients + max-connections + bridges + the daemon's own")
 
     # 6. systemd's own check of the configured units (the program is not installed here: that
     #    one line is expected).
