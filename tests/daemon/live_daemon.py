@@ -41,6 +41,10 @@ class LiveDaemon:
         return subprocess.run([self.ctl_path, "--address", self.sock, *args], capture_output=True, text=True,
                               check=check, timeout=timeout)
 
+    def page_url(self):
+        """The page's address with its token, as a user gets it (`descatterctl live-url`)."""
+        return self.ctl("live-url").stdout.strip()
+
     def status(self):
         return json.loads(self.ctl("status", "--json").stdout)
 

@@ -185,7 +185,7 @@ def main():
         b = Browser()
         try:
             b.capture_websocket()
-            b.open(d.url)
+            b.open(d.page_url())
             b.wait(f"{BODY}.connected === '1' && {BODY}.state === 'idle'", "the page connected, the daemon idle")
             b.js("document.getElementById('phases').value = 6")
             text = click_and_wait(b, "#capture", "the capture's reply")

@@ -35,7 +35,7 @@ def main():
                                          "[sim]\nfaults=incomplete=1\n")
         b = Browser(height=760)
         try:
-            b.open(d.url)
+            b.open(d.page_url())
             b.wait(f"{BODY}.connected === '1' && {BODY}.state === 'idle'", "the page connected, the daemon idle")
             assert not banner(b)["shown"], banner(b)
             b.js("document.getElementById('phases').value = 6")

@@ -60,7 +60,7 @@ def main():
         b = Browser()
         try:
             b.capture_websocket(keep=8)
-            b.open(d.url)
+            b.open(d.page_url())
             b.wait(f"{BODY}.connected === '1' && {BODY}.state === 'idle'", "the page connected, the daemon idle")
             done = d.status()["sets_done"]
             b.js("document.getElementById('light').value = 'all'")

@@ -62,7 +62,7 @@ def main():
         b = Browser()
         try:
             b.capture_websocket(keep=64)
-            b.open(d.url)
+            b.open(d.page_url())
             b.wait(f"{BODY}.connected === '1' && {BODY}.state === 'idle'", "the page connected, the daemon idle")
             b.js("document.getElementById('phases').value = 8")
             by_exposure = {}
