@@ -263,8 +263,9 @@ ill_status (gpointer b, DsIlluminatorStatus *s, GError **e)
 static gboolean ill_reconnect (gpointer b, GError **e) { (void) e; ((Lab *) b)->ill_reconnects++; return TRUE; }
 static void ill_close (gpointer b) { (void) b; }
 
+/* No all_on: a device that cannot light every stripe at once (ds_illuminator_all_on refuses). */
 static const DsIlluminatorOps ill_ops = { "scripted", ill_pattern, ill_phase, ill_off, ill_status,
-                                          ill_reconnect, ill_close };
+                                          ill_reconnect, ill_close, NULL };
 
 static DsDevices *
 open_scripted (gpointer data, GError **error)
