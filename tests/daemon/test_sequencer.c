@@ -1319,7 +1319,7 @@ static void
 test_state_names (void)
 {
   static const char *const wire[] = { "opening", "idle", "acquiring", "continuous",
-                                      "reconnecting", "released", "failed", "cancelling" };
+                                      "reconnecting", "released", "failed", "cancelling", "preview" };
   G_STATIC_ASSERT (G_N_ELEMENTS (wire) == DS_SEQUENCER_STATE_N);
   for (guint i = 0; i < DS_SEQUENCER_STATE_N; i++)
     g_assert_cmpstr (ds_sequencer_state_name ((DsSequencerState) i), ==, wire[i]);
