@@ -43,6 +43,7 @@ typedef struct {
   gboolean cancel;        /* a `cancel` request: answered once the thread took the cancel ... */
   guint cancelled;        /* ... with how many requests it answered `cancelled` ... */
   gboolean stream_stopped;/* ... and whether continuous acquisition was running */
+  gboolean preview;       /* a `preview` request: answered with the preview's state */
 } PendingCapture;
 
 typedef struct {
@@ -74,6 +75,7 @@ struct DsService {
   DsHttpServer *http;
   gboolean in_run;           /* continuous acquisition started and not stopped */
   guint64 cancels;           /* `cancel` requests taken */
+  gint preview_frame_in_flight; /* atomic: a preview frame copied and not yet published */
   DsOperatingModel *model;  /* NULL when no model file could be read (automatic captures fail) */
   char *model_error;
   char *model_path;         /* the file the model was (or failed to be) read from */
@@ -90,8 +92,18 @@ void ds_service_reply_ok (DsService *svc, DsConnection *conn, JsonNode *id, Json
 /* The reply to a `cancel` request. */
 void ds_service_reply_cancel (DsService *svc, DsConnection *conn, JsonNode *id, guint cancelled,
                               gboolean stream_stopped);
+/* A request answered later, by its tag: held until then. */
+PendingCapture *ds_service_pending_add (DsService *svc, DsConnection *conn, DsRequest *req, guint64 tag);
 /* A PendingCapture's destructor (the pending table's value). */
 void ds_service_pending_free (gpointer pending);
+
+/* service_preview.c: the `preview` command, its reply and status, and preview frames as
+ * `frame` events (the sequencer's preview hook, on the acquisition thread). */
+void ds_service_handle_preview (DsService *svc, DsConnection *conn, DsRequest *req);
+void ds_service_reply_preview (DsService *svc, DsConnection *conn, JsonNode *id, const char *message);
+JsonNode *ds_service_preview_status_json (const DsSequencerStatus *st);
+void ds_service_on_preview_frame (const DsFrame *frame, DsPreviewLight light, guint phase, guint n_phases,
+                                  gpointer user_data);
 
 /* service_events.c: events of the acquisition thread, delivered on the main loop. */
 void ds_service_on_sequencer_event (const DsSequencerEvent *ev, gpointer user_data);

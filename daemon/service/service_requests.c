@@ -156,6 +156,12 @@ pending_add (DsService *svc, DsConnection *conn, DsRequest *req, guint64 tag)
   return p;
 }
 
+PendingCapture *
+ds_service_pending_add (DsService *svc, DsConnection *conn, DsRequest *req, guint64 tag)
+{
+  return pending_add (svc, conn, req, tag);
+}
+
 /* A request the sequencer did not take: its queue is full, or the devices are not open yet. */
 static void
 reply_not_queued (DsService *svc, DsConnection *conn, DsRequest *req)
@@ -437,7 +443,7 @@ static const struct {
   { "status", handle_status },   { "capture", handle_capture }, { "dark", handle_dark },
   { "start", handle_start },     { "stop", handle_stop },       { "config", handle_config },
   { "release", handle_release }, { "acquire", handle_acquire }, { "calibrate", handle_calibrate },
-  { "cancel", handle_cancel },
+  { "cancel", handle_cancel },   { "preview", ds_service_handle_preview },
 };
 
 /* "hello, subscribe, unsubscribe, status, capture, ...": what the daemon answers. */
