@@ -17,7 +17,7 @@ from . import wire
 from ._version import __version__
 from .client import _ACQ_KEYS, _CALIBRATE_KEYS, DEFAULT_TIMEOUT, acquisition_args, resolve, split_address
 from .errors import BadReply, DescatterError, Timeout, error_from_reply
-from .events import ProgressEvent, Result, make_event
+from .events import ProgressEvent, Result, make_event, make_frame_event
 
 
 async def connect(address=None, token=None, timeout=DEFAULT_TIMEOUT):
@@ -49,6 +49,7 @@ class AsyncClient:
         self._events = asyncio.Queue()
         self._subscribed = False
         self._last_seq = None
+        self._last_frame_seq = None
         self._error = None
         self._last_activity = asyncio.get_running_loop().time()
         self._task = asyncio.get_running_loop().create_task(self._read_loop())
@@ -90,7 +91,10 @@ class AsyncClient:
                 header, images = await self._read_message()
                 self._last_activity = asyncio.get_running_loop().time()
                 if "event" in header:
-                    ev, self._last_seq = make_event(header, images, self._last_seq)
+                    if header.get("event") == "frame":
+                        ev, self._last_frame_seq = make_frame_event(header, images, self._last_frame_seq)
+                    else:
+                        ev, self._last_seq = make_event(header, images, self._last_seq)
                     if isinstance(ev, ProgressEvent):
                         waiter = self._waiting.get(ev.body.get("id"))
                         if waiter and waiter[1]:
@@ -197,10 +201,19 @@ class AsyncClient:
                 exc.cancel_error = e
             raise
 
-    async def subscribe(self):
+    async def preview(self, on, light="all", phase=None, timeout=None):
+        """As Client.preview."""
+        if not on:
+            return (await self.call("preview", timeout=timeout, state="off"))[0]
+        args = {"state": "on", "light": light}
+        if phase is not None:
+            args["phase"] = phase
+        return (await self.call("preview", timeout=timeout, **args))[0]
+
+    async def subscribe(self, frames=False):
         self._subscribed = True  # before the reply: events may follow it at once
         try:
-            result, _ = await self.call("subscribe")
+            result, _ = await self.call("subscribe", **({"frames": True} if frames else {}))
         except BaseException:
             self._subscribed = False
             raise

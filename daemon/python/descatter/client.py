@@ -22,7 +22,7 @@ import socket
 from . import wire
 from ._version import __version__
 from .errors import BadReply, DescatterError, Timeout, error_from_reply
-from .events import ProgressEvent, Result, make_event
+from .events import ProgressEvent, Result, make_event, make_frame_event
 
 DEFAULT_ADDRESS = "/run/descatterd/descatterd.sock"
 DEFAULT_TIMEOUT = 60.0
@@ -84,6 +84,7 @@ class Client:
         self._events = collections.deque()  # events read while waiting for a reply
         self._subscribed = False
         self._last_seq = None
+        self._last_frame_seq = None
         self._broken = None
         if self.token:
             try:
@@ -171,7 +172,10 @@ class Client:
     # -- requests ----------------------------------------------------------------------------
 
     def _queue_event(self, header, images, on_progress):
-        ev, self._last_seq = make_event(header, images, self._last_seq)
+        if header.get("event") == "frame":
+            ev, self._last_frame_seq = make_frame_event(header, images, self._last_frame_seq)
+        else:
+            ev, self._last_seq = make_event(header, images, self._last_seq)
         if isinstance(ev, ProgressEvent):
             if on_progress:
                 on_progress(ev)
@@ -282,10 +286,25 @@ class Client:
 
     # -- subscription ------------------------------------------------------------------------
 
-    def subscribe(self):
+    def preview(self, on, light="all", phase=None, timeout=None):
+        """Free-running frames for aligning the rig (docs/protocol.md, `preview`): on=True starts
+        it with light "all" (every stripe lit), "off" (illuminator dark) or "phase" (phase
+        `phase` of the configured phases lit); on=False ends it. No phase set is taken and nothing
+        is recorded; the frames go to the live view and, with subscribe(frames=True), to this
+        client as FrameEvent. Raises descatter.Busy while a capture or continuous acquisition
+        runs; a capture, start or dark sent during preview ends it. Returns {"state", "light",
+        "phase", "message"}."""
+        if not on:
+            return self.call("preview", timeout=timeout, state="off")[0]
+        args = {"state": "on", "light": light}
+        if phase is not None:
+            args["phase"] = phase
+        return self.call("preview", timeout=timeout, **args)[0]
+
+    def subscribe(self, frames=False):
         """Subscribes; returns a Subscription (a context manager that unsubscribes on exit,
-        and an iterator of events)."""
-        result, _ = self.call("subscribe")
+        and an iterator of events). frames=True adds preview frames (FrameEvent)."""
+        result, _ = self.call("subscribe", **({"frames": True} if frames else {}))
         self._subscribed = True
         nxt = result.get("next_seq")
         self._last_seq = nxt - 1 if isinstance(nxt, int) else None

@@ -105,7 +105,43 @@ class ProgressEvent(Event):
         return self.body.get("phases")
 
 
+class FrameEvent(Event):
+    """A preview frame (subscribe(frames=True) while preview runs): `frame` is the camera's
+    image as a numpy array (uint8 or uint16, shape (height, width)); `light` is "all", "off" or
+    "phase", `phase` the phase lit (None unless light is "phase"). Frames have their own `seq`,
+    so `lost` counts frames this client missed, not results."""
+
+    kind = "frame"
+
+    def __init__(self, seq, lost, body, images):
+        super().__init__(seq, lost, body)
+        self.frame = images.get("frame")
+
+    @property
+    def light(self):
+        return self.body.get("light")
+
+    @property
+    def phase(self):
+        return self.body.get("phase")
+
+    @property
+    def frame_id(self):
+        return self.body.get("frame_id")
+
+
 _KINDS = {"failed": FailedEvent, "device": DeviceEvent, "progress": ProgressEvent}
+
+
+def _lost(seq, last_seq):
+    return seq - last_seq - 1 if isinstance(seq, int) and last_seq is not None and seq > last_seq + 1 else 0
+
+
+def make_frame_event(header, images, last_frame_seq):
+    """(FrameEvent, new last frame seq) for a `frame` event: frames count their own seq."""
+    seq = header.get("seq")
+    ev = FrameEvent(seq, _lost(seq, last_frame_seq), header.get("body") or {}, images)
+    return ev, seq if isinstance(seq, int) else last_frame_seq
 
 
 def make_event(header, images, last_seq):
