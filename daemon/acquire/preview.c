@@ -1,6 +1,6 @@
 /* Preview mode: free-running frames for aligning and focusing (sequencer.h,
- * ds_sequencer_preview). One frame at a time, triggered as soon as the previous one was
- * grabbed and handed on, so the rate is the camera's (exposure plus transfer); nothing is
+ * ds_sequencer_preview). Each frame is triggered as soon as the previous one was grabbed, before
+ * that one goes to the hooks, so the rate is the camera's (exposure plus transfer); nothing is
  * verified, folded or published, and a queued command is noticed between two frames.
  *
  * The light stays put for the whole preview: only the camera's settings follow the defaults
@@ -195,6 +195,22 @@ hand_on (DsAcquisition *acq, DsFrame *frame, const DsCaptureSettings *s, gint64 
   g_mutex_unlock (&acq->shared->lock);
 }
 
+/* The frame triggered ahead when preview stops or the camera is reconfigured: grabbed (within
+ * the grab timeout) and counted as a preview frame, so that no buffer of it is left to pass for
+ * the next work's frame. */
+static void
+drop_ahead (DsAcquisition *acq)
+{
+  DsFrameCounters c = { 0 };
+  g_autoptr (GError) error = NULL;
+  DsFrame *frame = ds_seq_grab (acq, &c, &error);
+  if (frame) {
+    ds_frame_counters_drop (&c, DS_DROP_PREVIEW, 1);
+    ds_frame_free (frame);
+  }
+  ds_seq_account_frames (acq->shared, &c);
+}
+
 void
 ds_seq_run_preview (DsAcquisition *acq)
 {
@@ -213,22 +229,38 @@ ds_seq_run_preview (DsAcquisition *acq)
   ds_seq_account_frames (acq->shared, &c);
   gint64 window_start = g_get_monotonic_time ();
   guint window_frames = 0, failures = 0;
-  gboolean stop = FALSE;
+  gboolean stop = FALSE, ahead = FALSE;
   while (!stop && !preview_interrupted (acq)) {
     memset (&c, 0, sizeof c);
     g_clear_error (&error);
-    /* Exposure and gain as they are now; the camera is reconfigured only when they changed. */
+    /* Exposure and gain as they are now; the camera is reconfigured only when they changed,
+     * after the frame triggered with the old ones. */
     DsCaptureSettings now;
     preview_settings (acq, &now);
-    if ((now.exposure_us != s.exposure_us || now.gain_db != s.gain_db) && !ds_seq_ensure_camera (acq, &now, &error)) {
-      g_prefix_error (&error, "camera: ");
-      stop = !ds_seq_fatal_device_error (acq, error) || !acq->need_reconnect;
-      break;
+    if (now.exposure_us != s.exposure_us || now.gain_db != s.gain_db) {
+      if (ahead)
+        drop_ahead (acq);
+      ahead = FALSE;
+      if (!ds_seq_ensure_camera (acq, &now, &error)) {
+        g_prefix_error (&error, "camera: ");
+        stop = !ds_seq_fatal_device_error (acq, error) || !acq->need_reconnect;
+        break;
+      }
     }
     s = now;
-    DsFrame *frame = ds_seq_trigger_and_grab (acq, &c, &error);
+    gboolean triggered = ahead || ds_seq_trigger (acq, &c, &error);
+    ahead = FALSE;
+    DsFrame *frame = triggered ? ds_seq_grab (acq, &c, &error) : NULL;
     if (frame) {
       failures = 0;
+      /* The next frame is exposed while this one goes to the hooks (a copy for the live view,
+       * one for the socket), so the rate is the camera's, not the camera's plus the hooks'. Not
+       * when a command waits: this frame is the last. A trigger that fails is tried again,
+       * and handled, at the next frame. */
+      if (!preview_interrupted (acq)) {
+        g_autoptr (GError) trigger_error = NULL;
+        ahead = ds_seq_trigger (acq, &c, &trigger_error);
+      }
       hand_on (acq, frame, &s, &window_start, &window_frames);
       ds_frame_counters_drop (&c, DS_DROP_PREVIEW, 1);
       ds_frame_free (frame);
@@ -244,6 +276,8 @@ ds_seq_run_preview (DsAcquisition *acq)
     ds_seq_account_frames (acq->shared, &c);
     ds_seq_heartbeat (acq->shared);
   }
+  if (ahead)
+    drop_ahead (acq);
   if (stop) {
     ds_seq_record_error (acq->shared, error);
     g_autofree char *why = g_strdup_printf ("preview stopped: %s", error->message);
