@@ -95,9 +95,10 @@ void ds_sequencer_set_operating_model (DsSequencer *seq, const struct DsOperatin
                                        double settle_ms, double link_mbit);
 /* Called for every frame that was verified and folded (phase of the set taken with settings), on
  * the fold worker thread while the next frame is acquired (the last frame of a set: on the
- * acquisition thread, in the time between that frame and the result), before the frame is
- * released (its pixels may be the camera's buffer): copy what is needed, quickly, and keep no
- * pointer. For the live view (daemon/service/live_view.h). Main thread; NULL removes it. */
+ * acquisition thread, in the time between that frame and the result), and for every preview
+ * frame on the acquisition thread (phase: the phase lit, else 0), before the frame is released
+ * (its pixels may be the camera's buffer): copy what is needed, quickly, and keep no pointer.
+ * For the live view (daemon/service/live_view.h). Main thread; NULL removes it. */
 typedef void (*DsSequencerFrameFunc) (const DsFrame *frame, guint phase, const DsCaptureSettings *settings,
                                       gpointer user_data);
 void ds_sequencer_set_frame_hook (DsSequencer *seq, DsSequencerFrameFunc func, gpointer user_data);
