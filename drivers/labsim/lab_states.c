@@ -176,13 +176,13 @@ want_set_locked (DsLabStates *s, const DsLabLight *light)
   s->set_phases = light->n_phases;
   s->set_period_px = light->period_px;
   DsLabLight dark = { 0 };
-  /* Every phase, every stripe lit (preview's light), and dark. */
+  /* Every phase, dark, then every stripe lit (preview's light, last: a set needs the others). */
   for (guint k = 0; k <= light->n_phases + 1; k++) {
     DsLabLight l = k < light->n_phases ? (DsLabLight) { .on = TRUE, .phase = k, .n_phases = light->n_phases,
                                                         .period_px = light->period_px }
-                   : k == light->n_phases ? (DsLabLight) { .on = TRUE, .all_on = TRUE, .n_phases = light->n_phases,
-                                                           .period_px = light->period_px }
-                                          : dark;
+                   : k == light->n_phases ? dark
+                                          : (DsLabLight) { .on = TRUE, .all_on = TRUE, .n_phases = light->n_phases,
+                                                           .period_px = light->period_px };
     if (!g_hash_table_contains (s->states, &l) && !is_wanted (s, &l))
       g_queue_push_tail (&s->wanted, g_memdup2 (&l, sizeof l));
   }
