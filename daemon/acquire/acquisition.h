@@ -17,6 +17,7 @@
  *   auto_point.c   the automatic operating point (preview frames)
  *   camera_live.c  the `set` command: exposure, gain and region on the open camera
  *   stream_stop.c  continuous mode that stops by itself when its sets keep failing
+ *   preview.c      preview mode: free-running frames with a chosen light, no sets
  * Beside the thread, each with its own header: frame_counters.c (frame accounting),
  * result.c and result_planes.c (the published result and its planes), capture_settings.c,
  * devices.c and devices_common.c (the devices from the configuration), status_dark.c.
@@ -73,6 +74,7 @@ typedef enum {
   DS_RUN_STREAM,           /* continuous mode: sets back to back with DsRun.settings */
   DS_RUN_STREAM_DEFAULTS,  /* continuous mode: sets back to back with the defaults as they are
                             * when each set starts (a reload changes the stream) */
+  DS_RUN_PREVIEW,          /* preview: free-running frames, no sets (preview.c) */
 } DsRunMode;
 
 typedef struct {
@@ -81,6 +83,8 @@ typedef struct {
                                * the stream's set in progress */
   DsCaptureSettings settings; /* the stream's next set (the defaults copied in before each set
                                * with DS_RUN_STREAM_DEFAULTS); unused with DS_RUN_ON_REQUEST */
+  DsPreviewLight preview_light; /* DS_RUN_PREVIEW: the light, and the phase lit */
+  guint preview_phase;
 } DsRun;
 
 /* Whom a set is for. A stream's set may trigger the next set's first frame ahead (carry.c)
@@ -142,7 +146,14 @@ typedef struct {
 static inline gboolean
 ds_acquisition_streaming (const DsAcquisition *acq)
 {
-  return acq->run.mode != DS_RUN_ON_REQUEST;
+  return acq->run.mode == DS_RUN_STREAM || acq->run.mode == DS_RUN_STREAM_DEFAULTS;
+}
+
+/* Whether the thread runs preview frames between commands. */
+static inline gboolean
+ds_acquisition_previewing (const DsAcquisition *acq)
+{
+  return acq->run.mode == DS_RUN_PREVIEW;
 }
 
 /* ---- report.c ---- */
@@ -275,6 +286,20 @@ void ds_seq_note_dark (DsAcquisition *acq, const DsCaptureSettings *s, double me
 /* The dark command: a dark frame with settings s, stored for later sets; answered by a DARK
  * event (with the error when it failed). */
 void ds_seq_run_dark (DsAcquisition *acq, const DsCaptureSettings *s, guint64 tag);
+
+/* ---- preview.c: blocks on the devices, one frame at a time ---- */
+
+/* The preview command: on lights (light, phase) and enters DS_RUN_PREVIEW, or fails with the
+ * devices' reason (preview off then); off leaves it with the illuminator dark. Answered by a
+ * CONTROL event with tag. */
+void ds_seq_preview_command (DsAcquisition *acq, gboolean on, DsPreviewLight light, guint phase, guint64 tag);
+/* Preview frames until a command is queued, the work is cancelled or the daemon stops: reacts
+ * within one frame (plus the device calls' own bounds). Lights again on entry (a command
+ * between two calls may have moved the illuminator). A device failure that retrying cannot
+ * mend ends preview (a device event says why). */
+void ds_seq_run_preview (DsAcquisition *acq);
+/* Leaves preview (no device call) and says why in a device event; no-op when not in it. */
+void ds_seq_preview_end (DsAcquisition *acq, const char *why);
 
 /* ---- auto_point.c ---- */
 

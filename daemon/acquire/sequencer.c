@@ -23,6 +23,7 @@ typedef enum {
   CMD_CANCEL,
   CMD_SET_CAMERA,
   CMD_QUIT,
+  CMD_PREVIEW,
 } CommandKind;
 
 typedef struct {
@@ -37,6 +38,9 @@ typedef struct {
   const DsOperatingModel *model; /* CMD_OPERATING_MODEL, with the rig's timing */
   DsRigTiming timing;
   DsCameraChange camera;       /* CMD_SET_CAMERA */
+  gboolean preview_on;         /* CMD_PREVIEW: on or off, the light and the phase lit */
+  DsPreviewLight preview_light;
+  guint preview_phase;
 } Command;
 
 struct DsSequencer {
@@ -59,6 +63,7 @@ ds_sequencer_state_name (DsSequencerState state)
     [DS_SEQUENCER_STATE_RELEASED] = "released",
     [DS_SEQUENCER_STATE_FAILED] = "failed",
     [DS_SEQUENCER_STATE_CANCELLING] = "cancelling",
+    [DS_SEQUENCER_STATE_PREVIEW] = "preview",
   };
   return (guint) state < DS_SEQUENCER_STATE_N ? names[state] : "unknown";
 }
@@ -189,6 +194,7 @@ static void
 finish_cancel (DsAcquisition *acq, const Command *cmd)
 {
   gboolean was_streaming = ds_acquisition_streaming (acq);
+  ds_seq_preview_end (acq, "preview stopped: cancelled");
   acq->run.mode = DS_RUN_ON_REQUEST;
   ds_seq_carry_discard (acq);
   g_mutex_lock (&acq->shared->lock);
@@ -217,7 +223,7 @@ run_without_devices (DsAcquisition *acq)
     /* Every counted command is answered and uncounted here as in run_command: a request left
      * unanswered would hang its client, and its place in MAX_PENDING would never come back. */
     if (cmd && (cmd->kind == CMD_CAPTURE || cmd->kind == CMD_DARK || cmd->kind == CMD_RELEASE ||
-                cmd->kind == CMD_ACQUIRE || cmd->kind == CMD_SET_CAMERA)) {
+                cmd->kind == CMD_ACQUIRE || cmd->kind == CMD_SET_CAMERA || cmd->kind == CMD_PREVIEW)) {
       g_atomic_int_dec_and_test (&acq->shared->pending);
       g_mutex_lock (&acq->shared->lock);
       g_autofree char *why = g_strdup (acq->shared->status.last_error);
@@ -285,7 +291,19 @@ run_command (DsAcquisition *acq, const Command *cmd)
   /* A start queued before a cancel: the cancel stops continuous mode, so it never starts. */
   if (kind == CMD_START && command_cancelled (acq, cmd))
     return;
+  /* Nor does a preview; its requester hears why. */
+  if (kind == CMD_PREVIEW && cmd->preview_on && command_cancelled (acq, cmd)) {
+    ds_seq_emit (acq->shared, DS_SEQUENCER_EVENT_CONTROL, cmd->tag, NULL,
+                 g_error_new (DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_CANCELLED, "preview: cancelled by a cancel request"),
+                 NULL);
+    g_atomic_int_add (&acq->shared->pending, -1);
+    return;
+  }
   acq->work_gen = cmd->gen;
+  /* Preview gives the camera up to the work asked for (docs/protocol.md, `preview`). */
+  if (kind == CMD_CAPTURE || kind == CMD_DARK || kind == CMD_START || kind == CMD_STOP || kind == CMD_RELEASE)
+    ds_seq_preview_end (acq, kind == CMD_STOP || kind == CMD_RELEASE ? "preview stopped"
+                                                                     : "preview stopped: a set takes the camera");
   if (!acq->dev && (kind == CMD_CAPTURE || kind == CMD_DARK)) {
     refuse_released (acq, cmd);
     g_atomic_int_add (&acq->shared->pending, -1);
@@ -338,6 +356,10 @@ run_command (DsAcquisition *acq, const Command *cmd)
     ds_seq_emit (acq->shared, DS_SEQUENCER_EVENT_CONTROL, cmd->tag, NULL, error, ok ? "camera settings applied" : NULL);
     break;
   }
+  case CMD_PREVIEW:
+    ds_seq_preview_command (acq, cmd->preview_on, cmd->preview_light, cmd->preview_phase, cmd->tag);
+    g_atomic_int_add (&acq->shared->pending, -1);
+    break;
   case CMD_OPERATING_MODEL:
   case CMD_CANCEL:
   case CMD_QUIT:
@@ -350,6 +372,7 @@ run_command (DsAcquisition *acq, const Command *cmd)
   ds_seq_set_state (acq->shared, !acq->dev ? DS_SEQUENCER_STATE_RELEASED
                                  : acq->need_reconnect ? DS_SEQUENCER_STATE_RECONNECTING
                                  : ds_acquisition_streaming (acq) ? DS_SEQUENCER_STATE_CONTINUOUS
+                                 : ds_acquisition_previewing (acq) ? DS_SEQUENCER_STATE_PREVIEW
                                  : DS_SEQUENCER_STATE_IDLE);
 }
 
@@ -365,8 +388,9 @@ run_commands (DsAcquisition *acq)
       ds_seq_reconnect (acq);
     }
     gboolean streaming = ds_acquisition_streaming (acq);
-    Command *cmd = streaming ? g_async_queue_try_pop (acq->shared->queue)
-                             : g_async_queue_timeout_pop (acq->shared->queue, G_USEC_PER_SEC / 2);
+    gboolean previewing = ds_acquisition_previewing (acq);
+    Command *cmd = streaming || previewing ? g_async_queue_try_pop (acq->shared->queue)
+                                           : g_async_queue_timeout_pop (acq->shared->queue, G_USEC_PER_SEC / 2);
     ds_seq_heartbeat (acq->shared);
     if (cmd && cmd->kind == CMD_OPERATING_MODEL) {
       /* Configuration read only by the next automatic capture: the stream (and a frame it
@@ -385,6 +409,8 @@ run_commands (DsAcquisition *acq)
         return;
       if (streaming)
         run_stream_set (acq, &consecutive_failures);
+      else if (previewing)
+        ds_seq_run_preview (acq);
       continue;
     }
     if (cmd->kind == CMD_CANCEL) {
@@ -612,6 +638,30 @@ ds_sequencer_set_frame_hook (DsSequencer *seq, DsSequencerFrameFunc func, gpoint
   g_mutex_unlock (&seq->shared.lock);
 }
 
+gboolean
+ds_sequencer_preview (DsSequencer *seq, gboolean on, DsPreviewLight light, guint phase, guint64 tag)
+{
+  if (g_atomic_int_add (&seq->shared.pending, 1) >= MAX_PENDING) {
+    g_atomic_int_add (&seq->shared.pending, -1);
+    return FALSE;
+  }
+  Command *cmd = command_new (seq, CMD_PREVIEW, NULL, tag);
+  cmd->preview_on = on;
+  cmd->preview_light = light;
+  cmd->preview_phase = phase;
+  g_async_queue_push (seq->shared.queue, cmd);
+  return TRUE;
+}
+
+void
+ds_sequencer_set_preview_hook (DsSequencer *seq, DsSequencerPreviewFunc func, gpointer user_data)
+{
+  g_mutex_lock (&seq->shared.lock);
+  seq->shared.preview_hook = func;
+  seq->shared.preview_hook_data = user_data;
+  g_mutex_unlock (&seq->shared.lock);
+}
+
 void
 ds_sequencer_get_status (DsSequencer *seq, DsSequencerStatus *status)
 {
@@ -621,7 +671,7 @@ ds_sequencer_get_status (DsSequencer *seq, DsSequencerStatus *status)
   /* At once, before the thread notices: a cancel not yet taken, over the states of work (opening,
    * reconnecting, released and failed say more about the devices, and cancel nothing). */
   gboolean working = status->state == DS_SEQUENCER_STATE_IDLE || status->state == DS_SEQUENCER_STATE_ACQUIRING ||
-                     status->state == DS_SEQUENCER_STATE_CONTINUOUS;
+                     status->state == DS_SEQUENCER_STATE_CONTINUOUS || status->state == DS_SEQUENCER_STATE_PREVIEW;
   if (working && g_atomic_int_get (&seq->shared.cancel_gen) != g_atomic_int_get (&seq->shared.cancel_acked))
     status->state = DS_SEQUENCER_STATE_CANCELLING;
   g_mutex_unlock (&seq->shared.lock);

@@ -98,9 +98,10 @@ void ds_sequencer_set_operating_model (DsSequencer *seq, const struct DsOperatin
                                        double settle_ms, double link_mbit);
 /* Called for every frame that was verified and folded (phase of the set taken with settings), on
  * the fold worker thread while the next frame is acquired (the last frame of a set: on the
- * acquisition thread, in the time between that frame and the result), before the frame is
- * released (its pixels may be the camera's buffer): copy what is needed, quickly, and keep no
- * pointer. For the live view (daemon/service/live_view.h). Main thread; NULL removes it. */
+ * acquisition thread, in the time between that frame and the result), and for every preview
+ * frame on the acquisition thread (phase: the phase lit, else 0), before the frame is released
+ * (its pixels may be the camera's buffer): copy what is needed, quickly, and keep no pointer.
+ * For the live view (daemon/service/live_view.h). Main thread; NULL removes it. */
 typedef void (*DsSequencerFrameFunc) (const DsFrame *frame, guint phase, const DsCaptureSettings *settings,
                                       gpointer user_data);
 void ds_sequencer_set_frame_hook (DsSequencer *seq, DsSequencerFrameFunc func, gpointer user_data);
@@ -110,6 +111,31 @@ void ds_sequencer_set_frame_hook (DsSequencer *seq, DsSequencerFrameFunc func, g
  * value out of the camera's range, naming it and the range), or status.camera_live as applied.
  * FALSE (busy) like ds_sequencer_capture. Main thread. */
 gboolean ds_sequencer_set_camera (DsSequencer *seq, const DsCameraChange *change, guint64 tag);
+/* Preview (docs/protocol.md, `preview`): free-running frames for aligning and focusing, one
+ * after the other at the camera's rate, with the illuminator all on, off, or showing one phase;
+ * no phase set, no verification, nothing folded or published; each frame goes to the frame
+ * hook (phase: the phase lit, else 0) and the preview hook, and counts as dropped `preview`.
+ * The camera takes the defaults as they are at each frame (a reload or a live setting shows
+ * at the next frame). It runs until preview off, stop, cancel, release, or a capture, dark or
+ * start, which end it first (the command then runs; preview does not resume). Answered by a
+ * CONTROL event with `tag` once the thread took it: for on, once the light is applied (error
+ * set when the devices are released or refuse the light; preview is then off). Counted like a
+ * capture (FALSE: busy). Main thread. */
+typedef enum {
+  DS_PREVIEW_LIGHT_ALL = 0, /* every stripe lit (ds_illuminator_all_on) */
+  DS_PREVIEW_LIGHT_OFF,     /* illuminator dark */
+  DS_PREVIEW_LIGHT_PHASE,   /* phase k of the configured phases */
+  DS_PREVIEW_LIGHT_N
+} DsPreviewLight;
+/* The wire names: "all", "off", "phase"; "unknown" out of range. Any thread. */
+const char *ds_preview_light_name (DsPreviewLight light);
+gboolean ds_sequencer_preview (DsSequencer *seq, gboolean on, DsPreviewLight light, guint phase, guint64 tag);
+/* Called for every preview frame on the acquisition thread, after the frame hook, before the
+ * frame is released: copy what is needed, quickly. For the socket's `frame` events. Main thread;
+ * NULL removes it. */
+typedef void (*DsSequencerPreviewFunc) (const DsFrame *frame, DsPreviewLight light, guint phase, guint n_phases,
+                                        gpointer user_data);
+void ds_sequencer_set_preview_hook (DsSequencer *seq, DsSequencerPreviewFunc func, gpointer user_data);
 /* New defaults (SIGHUP); continuous mode picks them up at its next set. */
 void ds_sequencer_set_defaults (DsSequencer *seq, const DsCaptureSettings *defaults);
 
@@ -146,6 +172,7 @@ typedef enum {
   DS_SEQUENCER_STATE_FAILED,      /* the devices failed to open: the thread waits for quit */
   DS_SEQUENCER_STATE_CANCELLING,  /* a cancel is queued: the thread has not taken it yet (the
                                    * set running stops at its next frame) */
+  DS_SEQUENCER_STATE_PREVIEW,     /* preview: free-running frames, no sets (ds_sequencer_preview) */
   DS_SEQUENCER_STATE_N
 } DsSequencerState;
 
@@ -162,9 +189,19 @@ typedef struct {
   double exposure_us, gain_db;
 } DsDarkFrameInfo;
 
+/* Preview as status reports it (meaningful while `on`; the last values stay after). */
+typedef struct {
+  gboolean on;
+  DsPreviewLight light;
+  guint phase, n_phases;        /* the phase lit (light phase) of n_phases */
+  guint64 frames;               /* frames since preview began */
+  double fps;                   /* frames per second, over the last second or so */
+} DsPreviewStatus;
+
 typedef struct {
   DsSequencerState state;
   gboolean continuous;
+  DsPreviewStatus preview;
   gboolean has_dark;            /* a stored dark frame (the dark command's): stored_dark.taken */
   /* Whether the next set takes its own dark frame: the running stream's settings in continuous
    * mode, else the configured default (a capture may ask otherwise). */

@@ -41,6 +41,9 @@ typedef struct {
   DsCaptureSettings defaults;     /* written by the acquisition thread (CMD_DEFAULTS) */
   DsSequencerFrameFunc frame_hook; /* written by the main thread, read by the fold worker */
   gpointer frame_hook_data;
+  DsSequencerPreviewFunc preview_hook; /* written by the main thread, read by the acquisition
+                                        * thread (preview.c) */
+  gpointer preview_hook_data;
 } DsSequencerShared;
 
 /* ---- report.c: events and status, from the acquisition thread (and the fold worker's

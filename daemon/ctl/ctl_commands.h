@@ -15,6 +15,7 @@ int ds_ctl_stream (const DsCtlTarget *target, int argc, char **argv);
 int ds_ctl_start (const DsCtlTarget *target, int argc, char **argv);
 int ds_ctl_stop (const DsCtlTarget *target, int argc, char **argv);
 int ds_ctl_cancel (const DsCtlTarget *target, int argc, char **argv);
+int ds_ctl_preview (const DsCtlTarget *target, int argc, char **argv);
 int ds_ctl_release (const DsCtlTarget *target, int argc, char **argv);
 int ds_ctl_acquire (const DsCtlTarget *target, int argc, char **argv);
 int ds_ctl_dark (const DsCtlTarget *target, int argc, char **argv);

@@ -138,6 +138,15 @@ print_summary (JsonObject *st)
   const char *why = str_of (st, "not_ready_reason");
   if (why && *why)
     printf ("              %s\n", why);
+  JsonObject *pv = member_object (st, "preview");
+  if (pv && bool_of (pv, "on")) {
+    const char *light = str_of (pv, "light");
+    printf ("preview:      light %s", light ? light : "?");
+    if (has_number (pv, "phase"))
+      printf (" (phase %" G_GINT64_FORMAT " of %" G_GINT64_FORMAT ")", int_of (pv, "phase"), int_of (pv, "phases"));
+    printf (", %" G_GINT64_FORMAT " frames, %.1f fps\n", int_of (pv, "frames"),
+            has_number (pv, "fps") ? json_object_get_double_member (pv, "fps") : 0.0);
+  }
   printf ("sets:         %" G_GINT64_FORMAT " done, %" G_GINT64_FORMAT " failed, %" G_GINT64_FORMAT
           " cancelled, %" G_GINT64_FORMAT " waiting\n",
           int_of (st, "sets_done"), int_of (st, "sets_failed"), int_of (st, "sets_cancelled"), int_of (st, "pending"));

@@ -21,6 +21,7 @@ static const struct {
   { "start", ds_ctl_start, NULL, "start continuous acquisition" },
   { "stop", ds_ctl_stop, NULL, "stop continuous acquisition" },
   { "cancel", ds_ctl_cancel, NULL, "stop the running capture, calibrate or stream now, and what waits" },
+  { "preview", ds_ctl_preview, NULL, "free-running frames for aligning (on/off), no sets" },
   { "release", ds_ctl_release, NULL, "close the devices so that arv-viewer can take the camera" },
   { "acquire", ds_ctl_acquire, NULL, "open the devices again after release" },
   { "dark", ds_ctl_dark, NULL, "calibrate the dark frame (illuminator off)" },

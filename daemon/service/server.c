@@ -15,6 +15,7 @@
 typedef struct {
   DsServer *server;
   gboolean subscribed;
+  gboolean frames;      /* subscribed with "frames": preview frames as `frame` events */
   gboolean authenticated;
   gboolean is_tcp;
   gboolean bridge;      /* the live view's, for a browser's controls: no socket place (the live
@@ -42,12 +43,26 @@ struct DsServer {
   guint16 tcp_port;
   char *unix_path;     /* removed on free when we created it */
   guint64 seq;
+  guint64 frame_seq;   /* `frame` events: their own count, so that `result` seq gaps still mean
+                        * results lost */
+  gint frame_subscribers; /* atomic: connections with frames on (read by any thread) */
   gboolean draining;
   DsServerStats stats;
 };
 
 static gboolean sweep_connections (gpointer data);
 static void on_accepted (GSocketConnection *sc, gpointer user_data);
+
+/* Subscribed or not, frames or not, with the count of frame subscribers kept. */
+static void
+set_subscription (DsServer *s, ClientState *st, gboolean subscribed, gboolean frames)
+{
+  frames = subscribed && frames;
+  if (frames != st->frames)
+    g_atomic_int_add (&s->frame_subscribers, frames ? 1 : -1);
+  st->subscribed = subscribed;
+  st->frames = frames;
+}
 
 DsServer *
 ds_server_new (const DsServerLimits *limits, DsServerRequestFunc on_request, gpointer user_data)
@@ -209,6 +224,35 @@ ds_server_publish (DsServer *server, const char *event, JsonNode *body, const Ds
   return delivered;
 }
 
+guint
+ds_server_publish_frame (DsServer *server, JsonNode *body, const DsPayloadInfo *info, GBytes *payload)
+{
+  gsize len = 0;
+  g_autofree char *text = ds_event_build ("frame", ++server->frame_seq, body, info, 1, &len);
+  g_autoptr (GBytes) line = g_bytes_new (text, len);
+  guint delivered = 0;
+  GHashTableIter it;
+  gpointer key;
+  g_hash_table_iter_init (&it, server->clients);
+  while (g_hash_table_iter_next (&it, &key, NULL)) {
+    DsConnection *c = key;
+    ClientState *st = ds_connection_get_data (c);
+    if (!st || !st->frames || ds_connection_is_closed (c))
+      continue;
+    /* Droppable, as results are: a client reading slower than the camera loses frames (a gap in
+     * the frames' seq), never the daemon's time. */
+    if (ds_connection_send (c, line, &payload, 1, TRUE))
+      delivered++;
+  }
+  return delivered;
+}
+
+guint
+ds_server_frame_subscribers (DsServer *server)
+{
+  return (guint) g_atomic_int_get (&server->frame_subscribers);
+}
+
 static void
 handle_hello (DsServer *s, DsConnection *conn, ClientState *st, DsRequest *req)
 {
@@ -252,14 +296,18 @@ static void
 handle_subscription (DsServer *s, DsConnection *conn, ClientState *st, DsRequest *req, gboolean on)
 {
   g_autoptr (GError) error = NULL;
-  const char *const allowed[] = { NULL };
-  if (!ds_request_check_keys (req, allowed, &error)) {
+  const char *const allowed_on[] = { "frames", NULL };
+  const char *const allowed_off[] = { NULL };
+  gboolean frames = FALSE;
+  if (!ds_request_check_keys (req, on ? allowed_on : allowed_off, &error) ||
+      !ds_request_get_bool (req, "frames", FALSE, &frames, &error)) {
     ds_server_reply_error (s, conn, req->id, error);
     return;
   }
-  st->subscribed = on;
+  set_subscription (s, st, on, frames);
   g_autoptr (JsonBuilder) b = ds_json_object_begin ();
   ds_json_add_bool (b, "subscribed", on);
+  ds_json_add_bool (b, "frames", st->frames);
   ds_json_add_uint (b, "next_seq", s->seq + 1);
   g_autoptr (JsonNode) result = ds_json_object_end (b);
   ds_server_reply_ok (s, conn, req->id, result, NULL, NULL, 0);
@@ -332,7 +380,7 @@ dismiss (DsConnection *conn, ClientState *st, DsProtocolError code, const char *
   ds_connection_send (conn, b, NULL, 0, FALSE);
   st->leaving = TRUE;
   st->leaving_us = g_get_monotonic_time ();
-  st->subscribed = FALSE;
+  set_subscription (st->server, st, FALSE, FALSE);
   ds_connection_close_after_flush (conn);
 }
 
@@ -479,7 +527,7 @@ on_closed (DsConnection *conn, gpointer user_data)
   DsServer *s = st->server;
   if (!s)
     return;
-  st->subscribed = FALSE;
+  set_subscription (s, st, FALSE, FALSE);
   g_hash_table_remove (s->clients, conn);
 }
 

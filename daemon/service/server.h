@@ -65,6 +65,13 @@ void ds_server_reply_error (DsServer *server, DsConnection *conn, JsonNode *id, 
 guint ds_server_publish (DsServer *server, const char *event, JsonNode *body,
                          const DsPayloadInfo *infos, GBytes *const *payloads, guint n_payloads);
 
+/* Sends a preview frame as a `frame` event (one payload) to the connections subscribed with
+ * frames; a slow one loses it. Frames have their own seq. Returns how many received it. */
+guint ds_server_publish_frame (DsServer *server, JsonNode *body, const DsPayloadInfo *info, GBytes *payload);
+/* Connections subscribed with frames. Any thread (atomic): the acquisition thread copies a
+ * frame only when someone wants it. */
+guint ds_server_frame_subscribers (DsServer *server);
+
 typedef struct {
   guint clients;
   guint subscribers;

@@ -249,6 +249,7 @@ ds_service_new (DsConfig *config, const DsServiceOptions *options, GMainLoop *lo
   }
   svc->sequencer = ds_sequencer_new (open_devices, &svc->open_data, &defaults,
                                      g_main_loop_get_context (loop), ds_service_on_sequencer_event, svc);
+  ds_sequencer_set_preview_hook (svc->sequencer, ds_service_on_preview_frame, svc);
   if (svc->model)
     ds_sequencer_set_operating_model (svc->sequencer, svc->model, svc->config->timing_settle_ms,
                                       svc->config->timing_link_mbit);

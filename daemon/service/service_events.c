@@ -267,6 +267,10 @@ on_control (DsService *svc, PendingCapture *p, const DsSequencerEvent *ev)
     ds_service_reply_camera_set (svc, p->conn, p->id);
     return;
   }
+  if (p->preview) {
+    ds_service_reply_preview (svc, p->conn, p->id, ev->message);
+    return;
+  }
   DsSequencerStatus st;
   ds_sequencer_get_status (svc->sequencer, &st);
   g_autoptr (JsonBuilder) b = ds_json_object_begin ();

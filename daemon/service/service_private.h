@@ -45,6 +45,7 @@ typedef struct {
   guint cancelled;        /* ... with how many requests it answered `cancelled` ... */
   gboolean stream_stopped;/* ... and whether continuous acquisition was running */
   gboolean camera_set;    /* a `set` request: answered with the camera's settings */
+  gboolean preview;       /* a `preview` request: answered with the preview's state */
 } PendingCapture;
 
 typedef struct {
@@ -79,6 +80,7 @@ struct DsService {
   char *http_token_path;   /* the token file we wrote (loopback, no token-file): removed at exit */
   gboolean in_run;           /* continuous acquisition started and not stopped */
   guint64 cancels;           /* `cancel` requests taken */
+  gint preview_frame_in_flight; /* atomic: a preview frame copied and not yet published */
   DsOperatingModel *model;  /* NULL when no model file could be read (automatic captures fail) */
   char *model_error;
   char *model_path;         /* the file the model was (or failed to be) read from */
@@ -110,6 +112,14 @@ void ds_service_handle_set (DsService *svc, DsConnection *conn, DsRequest *req);
 void ds_service_reply_camera_set (DsService *svc, DsConnection *conn, JsonNode *id);
 void ds_service_status_add_camera_live (JsonBuilder *b, const DsSequencerStatus *st);
 void ds_service_camera_defaults (DsService *svc, DsCaptureSettings *s);
+
+/* service_preview.c: the `preview` command, its reply and status, and preview frames as
+ * `frame` events (the sequencer's preview hook, on the acquisition thread). */
+void ds_service_handle_preview (DsService *svc, DsConnection *conn, DsRequest *req);
+void ds_service_reply_preview (DsService *svc, DsConnection *conn, JsonNode *id, const char *message);
+JsonNode *ds_service_preview_status_json (const DsSequencerStatus *st);
+void ds_service_on_preview_frame (const DsFrame *frame, DsPreviewLight light, guint phase, guint n_phases,
+                                  gpointer user_data);
 
 /* service_events.c: events of the acquisition thread, delivered on the main loop. */
 void ds_service_on_sequencer_event (const DsSequencerEvent *ev, gpointer user_data);

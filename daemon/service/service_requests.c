@@ -450,7 +450,7 @@ static const struct {
   { "status", handle_status },   { "capture", handle_capture }, { "dark", handle_dark },
   { "start", handle_start },     { "stop", handle_stop },       { "config", handle_config },
   { "release", handle_release }, { "acquire", handle_acquire }, { "calibrate", handle_calibrate },
-  { "cancel", handle_cancel },    { "set", ds_service_handle_set },
+  { "cancel", handle_cancel },    { "set", ds_service_handle_set }, { "preview", ds_service_handle_preview },
 };
 
 /* "hello, subscribe, unsubscribe, status, capture, ...": what the daemon answers. */

@@ -165,6 +165,7 @@ ds_service_status_to_json (DsService *svc)
   ds_json_add_bool (b, "ready", not_ready == NULL);
   ds_json_add_string (b, "not_ready_reason", not_ready);
   ds_json_add_bool (b, "continuous", st.continuous);
+  ds_json_add_node (b, "preview", ds_service_preview_status_json (&st));
   ds_json_add_uint (b, "pending", st.pending);
   ds_json_add_uint (b, "sets_done", st.sets_done);
   ds_json_add_uint (b, "sets_failed", st.sets_failed);

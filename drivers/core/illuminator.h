@@ -76,9 +76,17 @@ struct DsIlluminatorOps {
   gboolean (*reconnect) (gpointer backend, GError **error);
   /* Turns off (best effort) and frees everything. */
   void (*close) (gpointer backend);
+  /* Lights every stripe at once: the whole field at the pattern's lit level, no stripes (the
+   * `preview` light "all", for focusing and exposure: a phase's brightest pixels reach this
+   * level, so an exposure that does not clip here does not clip in a set). Acquisition thread;
+   * same blocking and errors as set_phase. NULL: the device cannot (its map has no such state);
+   * call it through ds_illuminator_all_on, which fails UNSUPPORTED then. */
+  gboolean (*all_on) (gpointer backend, guint timeout_ms, GError **error);
 };
 
 void ds_illuminator_close (DsIlluminator *illuminator); /* NULL-safe; frees the struct too */
+/* ops->all_on, or UNSUPPORTED naming the backend when it has none. Acquisition thread. */
+gboolean ds_illuminator_all_on (DsIlluminator *illuminator, guint timeout_ms, GError **error);
 G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsIlluminator, ds_illuminator_close)
 
 G_END_DECLS

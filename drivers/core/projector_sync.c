@@ -1,6 +1,6 @@
 #include "drivers/core/projector_sync.h"
 
-typedef enum { NOTHING, PHASE, OFF } Pending;
+typedef enum { NOTHING, PHASE, OFF, ALL_ON } Pending;
 
 typedef struct {
   DsIlluminator *inner;
@@ -38,6 +38,18 @@ sync_off (gpointer b, guint timeout_ms, GError **error)
   return TRUE;
 }
 
+/* Deferred like the others to the fire; a device without all_on refuses at once. */
+static gboolean
+sync_all_on (gpointer b, guint timeout_ms, GError **error)
+{
+  Sync *s = b;
+  if (!s->inner->ops->all_on)
+    return ds_illuminator_all_on (s->inner, timeout_ms, error); /* fails now, not at the fire */
+  s->what = ALL_ON;
+  s->timeout_ms = timeout_ms;
+  return TRUE;
+}
+
 static gboolean
 sync_get_status (gpointer b, DsIlluminatorStatus *status, GError **error)
 {
@@ -68,6 +80,7 @@ static const DsIlluminatorOps sync_illuminator_ops = {
   .get_status = sync_get_status,
   .reconnect = sync_reconnect,
   .close = sync_close,
+  .all_on = sync_all_on,
 };
 
 /* The apply whose sync pulse exposes the frame. */
@@ -82,6 +95,9 @@ sync_fire (gpointer b, GError **error)
     break;
   case OFF:
     ok = s->inner->ops->off (s->inner->backend, s->timeout_ms, error);
+    break;
+  case ALL_ON:
+    ok = ds_illuminator_all_on (s->inner, s->timeout_ms, error);
     break;
   default:
     g_set_error (error, DS_TRIGGER_ERROR, DS_DEVICE_ERROR_INVALID,

@@ -158,6 +158,29 @@ gpio_off (gpointer backend, guint timeout_ms, GError **error)
   return TRUE;
 }
 
+/* Every stripe line high: every stripe group lit at once. Acquisition thread; blocks for the
+ * line writes and their read-back; fails as set_phase (FAULT when a line reads back wrong). */
+static gboolean
+gpio_all_on (gpointer backend, guint timeout_ms, GError **error)
+{
+  GpioIlluminator *g = backend;
+  (void) timeout_ms;
+  int ones[DS_GPIO_MAX_LINES];
+  for (guint i = 0; i < G_N_ELEMENTS (ones); i++)
+    ones[i] = 1;
+  if (!write_lines (g, g->stripes, ones, error) || !read_back (g->stripes, ones, "stripe lines", error))
+    return FALSE;
+  if (g->enable && !g->lit) {
+    const int on = 1;
+    if (!write_lines (g, g->enable, &on, error) || !read_back (g->enable, &on, "enable line", error))
+      return FALSE;
+  }
+  g->lit = TRUE;
+  g->applied_phase = -1; /* no one phase */
+  g->apply_count++;
+  return TRUE;
+}
+
 static gboolean
 gpio_get_status (gpointer backend, DsIlluminatorStatus *st, GError **error)
 {
@@ -200,6 +223,7 @@ static const DsIlluminatorOps gpio_ops = {
   .set_pattern = gpio_set_pattern,
   .set_phase = gpio_set_phase,
   .off = gpio_off,
+  .all_on = gpio_all_on,
   .get_status = gpio_get_status,
   .reconnect = gpio_reconnect,
   .close = gpio_close,

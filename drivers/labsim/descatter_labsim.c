@@ -51,8 +51,9 @@ gpio_illumination (Lab *lab, DsRenderRequest *req)
   guint phase = 0, n_phases = 1;
   DsGpioLight light = ds_gpio_light_read (levels, (guint) lab->gpio_stripe_lines, &phase, &n_phases);
   if (light == DS_GPIO_LIGHT_GARBLED && g_atomic_int_compare_and_exchange (&lab->garbled_warned, 0, 1))
-    g_warning ("GPIO stripe lines lit in no single run (or all lit): the camera sees them dark");
-  req->illuminator_on = enabled && light == DS_GPIO_LIGHT_STRIPE;
+    g_warning ("GPIO stripe lines lit in no single run: the camera sees them dark");
+  req->illuminator_on = enabled && (light == DS_GPIO_LIGHT_STRIPE || light == DS_GPIO_LIGHT_ALL);
+  req->all_on = light == DS_GPIO_LIGHT_ALL;
   req->phase = phase;
   req->n_phases = n_phases;
   req->period_px = 0; /* the optics': the scene's */
@@ -71,6 +72,7 @@ illumination (gpointer data, DsRenderRequest *req)
     DsModbusServerState st;
     ds_modbus_server_get_state (lab->modbus, &st);
     req->illuminator_on = st.enabled;
+    req->all_on = st.all_on;
     req->phase = st.phase;
     req->n_phases = st.n_phases;
     req->period_px = st.period_centipx / 100.0;

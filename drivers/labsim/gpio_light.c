@@ -15,7 +15,12 @@ ds_gpio_light_read (const int *levels, guint n, guint *phase, guint *n_phases)
   }
   if (lit == 0)
     return DS_GPIO_LIGHT_DARK;
-  if (lit == n || starts != 1)
+  if (lit == n) {
+    *n_phases = 2 * n;
+    *phase = 0;
+    return DS_GPIO_LIGHT_ALL;
+  }
+  if (starts != 1)
     return DS_GPIO_LIGHT_GARBLED;
   /* Centre of [start/n, (start + lit)/n) in units of 1/(2n). */
   *n_phases = 2 * n;

@@ -15,7 +15,8 @@ G_BEGIN_DECLS
 typedef enum {
   DS_GPIO_LIGHT_DARK,      /* no group lit (or the enable line low) */
   DS_GPIO_LIGHT_STRIPE,    /* one run of lit groups: *phase / *n_phases is its centre */
-  DS_GPIO_LIGHT_GARBLED,   /* every group lit, or lit groups in more than one run */
+  DS_GPIO_LIGHT_GARBLED,   /* lit groups in more than one run */
+  DS_GPIO_LIGHT_ALL,       /* every group lit: the whole field (the illuminator's all_on) */
 } DsGpioLight;
 
 /* levels[j] for group j (0 or 1), n_groups 2..64. For a stripe, *n_phases is 2 n_groups (the

@@ -68,7 +68,7 @@ static guint
 key_hash (gconstpointer p)
 {
   const ExposedKey *k = p;
-  return (guint) (k->light.on * 7919u + k->light.phase * 131u + k->light.n_phases * 31u) ^
+  return (guint) (k->light.on * 7919u + k->light.all_on * 104729u + k->light.phase * 131u + k->light.n_phases * 31u) ^
          (guint) (k->exposure_us * 16) ^ (guint) (k->gain_db * 1000) << 7 ^ (guint) (k->light.period_px * 100) << 13;
 }
 
@@ -76,7 +76,8 @@ static gboolean
 key_equal (gconstpointer a, gconstpointer b)
 {
   const ExposedKey *x = a, *y = b;
-  return x->light.on == y->light.on && x->light.phase == y->light.phase && x->light.n_phases == y->light.n_phases &&
+  return x->light.on == y->light.on && x->light.all_on == y->light.all_on && x->light.phase == y->light.phase &&
+         x->light.n_phases == y->light.n_phases &&
          x->light.period_px == y->light.period_px && x->exposure_us == y->exposure_us && x->gain_db == y->gain_db;
 }
 
@@ -168,7 +169,8 @@ ds_lab_fill_take_ready (DsLabFill *f, gboolean take, guint *waiting)
     /* Never a frame of another light: the trigger is dropped, as a camera drops one it cannot
      * take, and the client's grab times out. */
     g_warning ("labsim camera: a trigger dropped: %s %u of %u (period %g px) not rendered %.1f s after it",
-               o->light.on ? "phase" : "dark", o->light.phase, o->light.n_phases, o->light.period_px,
+               !o->light.on ? "dark" : o->light.all_on ? "all on, phase" : "phase", o->light.phase, o->light.n_phases,
+               o->light.period_px,
                (double) (now - o->at) / 1e6);
     f->dropped++;
     GList *next = l->next;

@@ -36,21 +36,26 @@ normalised (const DsLabLight *l)
 {
   if (!l->on)
     return (DsLabLight) { 0 };
-  return *l;
+  DsLabLight n = *l;
+  if (n.all_on)
+    n.phase = 0;
+  return n;
 }
 
 static guint
 light_hash (gconstpointer p)
 {
   const DsLabLight *l = p;
-  return (guint) l->on * 7919u ^ l->phase * 131u ^ l->n_phases * 31u ^ (guint) (l->period_px * 100) << 11;
+  return (guint) l->on * 7919u ^ (guint) l->all_on * 104729u ^ l->phase * 131u ^ l->n_phases * 31u ^
+         (guint) (l->period_px * 100) << 11;
 }
 
 static gboolean
 light_equal (gconstpointer a, gconstpointer b)
 {
   const DsLabLight *x = a, *y = b;
-  return x->on == y->on && x->phase == y->phase && x->n_phases == y->n_phases && x->period_px == y->period_px;
+  return x->on == y->on && x->all_on == y->all_on && x->phase == y->phase && x->n_phases == y->n_phases &&
+         x->period_px == y->period_px;
 }
 
 static void
@@ -100,7 +105,8 @@ ds_lab_states_sample (DsLabStates *s, DsLabLight *light)
   s->illumination (s->user_data, &req);
   g_mutex_unlock (&s->illum_lock);
   /* The set is known even while dark: the phase count and period the controller holds. */
-  *light = (DsLabLight) { .on = req.illuminator_on, .phase = req.phase, .n_phases = MAX (req.n_phases, 1u),
+  *light = (DsLabLight) { .on = req.illuminator_on, .all_on = req.illuminator_on && req.all_on, .phase = req.phase,
+                          .n_phases = MAX (req.n_phases, 1u),
                           .period_px = req.period_px };
 }
 
@@ -108,7 +114,8 @@ static DsLabState *
 render (DsLabStates *s, const DsLabLight *light, GError **error)
 {
   DsRenderRequest req = { .phase = light->phase, .n_phases = light->on ? light->n_phases : 1,
-                          .illuminator_on = light->on, .exposure_us = s->reference_exposure_us, .gain_db = 0,
+                          .illuminator_on = light->on, .all_on = light->all_on,
+                          .exposure_us = s->reference_exposure_us, .gain_db = 0,
                           .period_px = light->period_px };
   gint64 t0 = g_get_monotonic_time ();
   g_autoptr (DsImage) img = ds_renderer_render_photons (s->renderer, &req, error);
@@ -169,8 +176,13 @@ want_set_locked (DsLabStates *s, const DsLabLight *light)
   s->set_phases = light->n_phases;
   s->set_period_px = light->period_px;
   DsLabLight dark = { 0 };
-  for (guint k = 0; k <= light->n_phases; k++) {
-    DsLabLight l = k < light->n_phases ? (DsLabLight) { TRUE, k, light->n_phases, light->period_px } : dark;
+  /* Every phase, dark, then every stripe lit (preview's light, last: a set needs the others). */
+  for (guint k = 0; k <= light->n_phases + 1; k++) {
+    DsLabLight l = k < light->n_phases ? (DsLabLight) { .on = TRUE, .phase = k, .n_phases = light->n_phases,
+                                                        .period_px = light->period_px }
+                   : k == light->n_phases ? dark
+                                          : (DsLabLight) { .on = TRUE, .all_on = TRUE, .n_phases = light->n_phases,
+                                                           .period_px = light->period_px };
     if (!g_hash_table_contains (s->states, &l) && !is_wanted (s, &l))
       g_queue_push_tail (&s->wanted, g_memdup2 (&l, sizeof l));
   }

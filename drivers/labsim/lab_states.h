@@ -1,8 +1,8 @@
 /* The lighting states labsim's camera serves, rendered off the GigE Vision thread.
  *
  * A lighting state is the light reaching the sensor (f32 photons per pixel,
- * ds_renderer_render_photons) for one thing the illuminator can show: dark, or phase k of N at
- * a stripe period. It is rendered once, at the scene's default exposure, and serves every
+ * ds_renderer_render_photons) for one thing the illuminator can show: dark, every stripe lit,
+ * or phase k of N at a stripe period. It is rendered once, at the scene's default exposure, and serves every
  * exposure and gain: the expected DN is linear in both (docs/drivers.md, "descatter-labsim").
  * A generated scene with a wide kernel and several object planes takes seconds per state; the
  * camera thread also answers GVCP, so it must never wait for one (a few seconds there and the
@@ -28,6 +28,7 @@ G_BEGIN_DECLS
 /* What the illuminator shows, as far as the light is concerned. */
 typedef struct {
   gboolean on;
+  gboolean all_on;       /* on, every stripe lit (phase then 0) */
   guint phase, n_phases; /* 0, 0 when dark */
   double period_px;      /* 0: the scene's; 0 when dark */
 } DsLabLight;

@@ -44,7 +44,7 @@ advance (DsModbusServer *s, gint64 now)
       s->cfg.over_temperature)
     return;
   memcpy (s->applied, s->hold, sizeof s->applied);
-  if (s->cfg.wrong_phase && s->applied[DS_MB_HOLD_ENABLE] && s->applied[DS_MB_HOLD_NUM_PHASES] > 0)
+  if (s->cfg.wrong_phase && s->applied[DS_MB_HOLD_ENABLE] == 1 && s->applied[DS_MB_HOLD_NUM_PHASES] > 0)
     s->applied[DS_MB_HOLD_PHASE] = (guint16) ((s->applied[DS_MB_HOLD_PHASE] + 1) %
                                               s->applied[DS_MB_HOLD_NUM_PHASES]);
   s->apply_count++;
@@ -75,7 +75,9 @@ inputs (const DsModbusServer *s, guint16 *in)
   in[DS_MB_INPUT_MAGIC] = DS_MB_MAGIC;
   in[DS_MB_INPUT_FIRMWARE_VERSION] = 0x0102;
   in[DS_MB_INPUT_STATUS] = status;
-  in[DS_MB_INPUT_APPLIED_PHASE] = lit (s) ? s->applied[DS_MB_HOLD_PHASE] : DS_MB_PHASE_OFF;
+  in[DS_MB_INPUT_APPLIED_PHASE] = !lit (s)                            ? DS_MB_PHASE_OFF
+                                  : s->applied[DS_MB_HOLD_ENABLE] == 2 ? DS_MB_PHASE_ALL
+                                                                       : s->applied[DS_MB_HOLD_PHASE];
   in[DS_MB_INPUT_APPLY_COUNT] = s->apply_count;
   in[DS_MB_INPUT_TEMPERATURE] = (guint16) (s->cfg.over_temperature ? 850 : 352);
   in[DS_MB_INPUT_CAPABILITIES] = s->capabilities;
@@ -98,7 +100,8 @@ valid (const DsModbusServer *s, const guint16 *h)
   guint n = h[DS_MB_HOLD_NUM_PHASES];
   guint period_min = s->rev1 ? DS_MB_CENTIPX_MIN : s->period_min;
   guint period_max = s->rev1 ? DS_MB_CENTIPX_MAX : s->period_max;
-  return n >= 2 && n <= DS_MB_MAX_PHASES && h[DS_MB_HOLD_PHASE] < n && h[DS_MB_HOLD_ENABLE] <= 1 &&
+  guint enable_max = s->capabilities & DS_MB_CAP_ALL_ON ? 2 : 1;
+  return n >= 2 && n <= DS_MB_MAX_PHASES && h[DS_MB_HOLD_PHASE] < n && h[DS_MB_HOLD_ENABLE] <= enable_max &&
          h[DS_MB_HOLD_PATTERN_KIND] <= 1 && h[DS_MB_HOLD_PERIOD_CENTIPX] >= period_min &&
          h[DS_MB_HOLD_PERIOD_CENTIPX] <= period_max &&
          h[DS_MB_HOLD_DUTY_PERMILLE] >= 1 && h[DS_MB_HOLD_DUTY_PERMILLE] <= 999 &&
@@ -255,10 +258,10 @@ ds_modbus_server_new (const char *address, guint port, const DsModbusServerConfi
   s->rev1 = s->cfg.map_revision_1;
   s->period_power_up = (guint16) CLAMP (s->cfg.period_centipx, DS_MB_CENTIPX_MIN, DS_MB_CENTIPX_MAX);
   if (s->cfg.period_fixed) {
-    s->capabilities = 0;
+    s->capabilities = s->rev1 ? 0 : DS_MB_CAP_ALL_ON;
     s->period_min = s->period_max = s->period_power_up;
   } else {
-    s->capabilities = DS_MB_CAP_PERIOD_ADJUSTABLE;
+    s->capabilities = DS_MB_CAP_PERIOD_ADJUSTABLE | (s->rev1 ? 0 : DS_MB_CAP_ALL_ON);
     s->period_min = (guint16) CLAMP (s->cfg.period_min_centipx, DS_MB_CENTIPX_MIN, s->period_power_up);
     s->period_max = (guint16) CLAMP (s->cfg.period_max_centipx, s->period_power_up, DS_MB_CENTIPX_MAX);
   }
@@ -321,6 +324,7 @@ static void
 state_locked (DsModbusServer *s, DsModbusServerState *st)
 {
   st->enabled = lit (s);
+  st->all_on = lit (s) && s->applied[DS_MB_HOLD_ENABLE] == 2;
   st->phase = s->applied[DS_MB_HOLD_PHASE];
   st->n_phases = s->applied[DS_MB_HOLD_NUM_PHASES];
   st->pattern_kind = s->applied[DS_MB_HOLD_PATTERN_KIND];

@@ -46,6 +46,7 @@ void ds_modbus_server_config_init (DsModbusServerConfig *config);
 /* What is lit now (the settle time is taken into account at the moment of the call). */
 typedef struct {
   gboolean enabled;         /* a pattern is lit */
+  gboolean all_on;          /* ... every stripe at once (ENABLE = 2) */
   guint phase, n_phases;    /* the lit phase; n_phases as applied */
   guint pattern_kind;
   guint period_centipx;     /* the period projected (revision 1: the power-up one) */

@@ -560,6 +560,26 @@ modbus_off (gpointer backend, guint timeout_ms, GError **error)
   return TRUE;
 }
 
+/* ENABLE = 2: every stripe lit, confirmed as a phase is (APPLIED_PHASE reads DS_MB_PHASE_ALL).
+ * Acquisition thread; blocks like set_phase, fails like it; UNSUPPORTED, before anything is
+ * written, on a controller without CAPABILITIES bit ALL_ON (docs/registers.md). */
+static gboolean
+modbus_all_on (gpointer backend, guint timeout_ms, GError **error)
+{
+  ModbusIlluminator *m = backend;
+  if (!(m->capabilities & DS_MB_CAP_ALL_ON)) {
+    g_set_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_UNSUPPORTED,
+                 "Modbus %s unit %u: register ENABLE: the controller cannot light every stripe at once "
+                 "(CAPABILITIES 0x%04x without ALL_ON)", m->uri_text, m->unit_id, m->capabilities);
+    return FALSE;
+  }
+  guint16 v = 2;
+  if (!apply_and_wait (m, DS_MB_HOLD_ENABLE, 1, &v, DS_MB_PHASE_ALL, timeout_ms, error))
+    return FALSE;
+  m->lit = TRUE;
+  return TRUE;
+}
+
 static gboolean
 modbus_get_status (gpointer backend, DsIlluminatorStatus *st, GError **error)
 {
@@ -572,7 +592,8 @@ modbus_get_status (gpointer backend, DsIlluminatorStatus *st, GError **error)
   st->enabled = (s & DS_MB_STATUS_ENABLED) != 0;
   st->fault = (s & DS_MB_STATUS_FAULT) != 0;
   st->over_temperature = (s & DS_MB_STATUS_OVER_TEMPERATURE) != 0;
-  st->applied_phase = in[DS_MB_INPUT_APPLIED_PHASE] == DS_MB_PHASE_OFF ? -1 : in[DS_MB_INPUT_APPLIED_PHASE];
+  /* Dark, or every stripe lit: no one phase. */
+  st->applied_phase = in[DS_MB_INPUT_APPLIED_PHASE] >= DS_MB_PHASE_ALL ? -1 : in[DS_MB_INPUT_APPLIED_PHASE];
   st->apply_count = in[DS_MB_INPUT_APPLY_COUNT];
   st->temperature_c = (gint16) in[DS_MB_INPUT_TEMPERATURE] / 10.0;
   st->firmware_version = in[DS_MB_INPUT_FIRMWARE_VERSION];
@@ -633,6 +654,7 @@ static const DsIlluminatorOps modbus_ops = {
   .set_pattern = modbus_set_pattern,
   .set_phase = modbus_set_phase,
   .off = modbus_off,
+  .all_on = modbus_all_on,
   .get_status = modbus_get_status,
   .reconnect = modbus_reconnect,
   .close = modbus_close_backend,

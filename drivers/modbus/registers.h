@@ -15,7 +15,8 @@
 /* Holding registers (function codes 03, 06, 16). PHASE and ENABLE are adjacent so that one
  * write-multiple request lights a phase. */
 #define DS_MB_HOLD_PHASE 0x0000              /* 0 .. NUM_PHASES-1 */
-#define DS_MB_HOLD_ENABLE 0x0001             /* 0 = off (dark), 1 = lit */
+#define DS_MB_HOLD_ENABLE 0x0001             /* 0 = off (dark), 1 = PHASE lit, 2 = every stripe lit
+                                              * (DS_MB_CAP_ALL_ON) */
 #define DS_MB_HOLD_NUM_PHASES 0x0002         /* 2 .. 64 */
 #define DS_MB_HOLD_PATTERN_KIND 0x0003       /* 0 = square, 1 = sine */
 #define DS_MB_HOLD_PERIOD_CENTIPX 0x0004     /* stripe period on the sensor, 1/100 px: PERIOD_MIN .. MAX */
@@ -40,6 +41,7 @@
 
 #define DS_MB_MAGIC 0x4453                   /* "DS" */
 #define DS_MB_PHASE_OFF 0xFFFF
+#define DS_MB_PHASE_ALL 0xFFFE               /* APPLIED_PHASE with ENABLE = 2 */
 
 #define DS_MB_STATUS_READY 0x0001            /* idle: the last write is applied */
 #define DS_MB_STATUS_FAULT 0x0002            /* driver fault: the LEDs are off */
@@ -49,6 +51,7 @@
 
 /* CAPABILITIES bits. */
 #define DS_MB_CAP_PERIOD_ADJUSTABLE 0x0001   /* PERIOD_CENTIPX sets the projected period */
+#define DS_MB_CAP_ALL_ON 0x0002              /* ENABLE = 2 lights every stripe at once */
 
 #define DS_MB_MAX_PHASES 64
 #define DS_MB_CENTIPX_MIN 200                /* PERIOD_CENTIPX can hold 2.00 .. 655.35 px */

@@ -296,7 +296,7 @@ render (const DsRenderer *r, const DsRenderRequest *req, gboolean expected, doub
   if (!check_request (req, error))
     return NULL;
   DsStageArgs a = { .phase = req->phase, .n_phases = req->n_phases, .illuminator_on = req->illuminator_on,
-                    .expected = expected, .exposure_us = req->exposure_us, .gain_db = req->gain_db,
+                    .full = req->all_on, .expected = expected, .exposure_us = req->exposure_us, .gain_db = req->gain_db,
                     .seed = req->seed, .period_px = req->period_px };
   DsLight l = { 0 };
   DsImage *out = NULL;
@@ -330,7 +330,7 @@ ds_renderer_render_photons (const DsRenderer *r, const DsRenderRequest *req, GEr
   if (!check_request (req, error))
     return NULL;
   DsStageArgs a = { .phase = req->phase, .n_phases = req->n_phases, .illuminator_on = req->illuminator_on,
-                    .exposure_us = req->exposure_us, .gain_db = req->gain_db, .seed = req->seed,
+                    .full = req->all_on, .exposure_us = req->exposure_us, .gain_db = req->gain_db, .seed = req->seed,
                     .period_px = req->period_px };
   DsLight l = { 0 };
   DsImage *out = NULL;

@@ -47,6 +47,9 @@ G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsRenderer, ds_renderer_free)
 typedef struct {
   guint phase, n_phases;
   gboolean illuminator_on;
+  /* With illuminator_on: every stripe lit at once (the illuminator's "all on"), the pattern's
+   * lit level everywhere; phase is then unused. */
+  gboolean all_on;
   double exposure_us;
   double gain_db;
   guint64 seed;

@@ -19,6 +19,7 @@ struct DsSimLab {
   DsRng rng;               /* fault dice */
   /* illuminator state */
   gboolean on;
+  gboolean all_on;         /* on, with every stripe lit (ill_all_on): no phase shown */
   guint phase, n_phases, shown_phase, previous_phase;
   double period_px;        /* the period it projects (0: the scene's) */
   gboolean period_fixed;   /* it projects the scene's period only */
@@ -312,6 +313,7 @@ cam_trigger (gpointer b, GError **error)
   }
   guint shown = stale ? lab->previous_phase : lab->shown_phase;
   DsRenderRequest req = { .phase = shown, .n_phases = lab->n_phases, .illuminator_on = lab->on,
+                          .all_on = lab->on && lab->all_on,
                           .exposure_us = lab->exposure_us, .gain_db = lab->gain_db,
                           .seed = lab->seed * 1000003u + lab->renders++, .period_px = lab->period_px };
   DsImage *img = ds_renderer_render (lab->renderer, &req, error);
@@ -492,6 +494,7 @@ ill_set_phase (gpointer b, guint phase, guint timeout_ms, GError **error)
    * frame itself can reveal. */
   lab->shown_phase = wrong ? (phase + 1) % lab->n_phases : phase;
   lab->on = TRUE;
+  lab->all_on = FALSE;
   lab->apply_count++;
   return TRUE;
 }
@@ -503,6 +506,21 @@ ill_off (gpointer b, guint timeout_ms, GError **error)
   (void) error;
   DsSimLab *lab = b;
   lab->on = FALSE;
+  lab->all_on = FALSE;
+  lab->apply_count++;
+  return TRUE;
+}
+
+/* Every stripe lit: the renderer's pattern at its lit level everywhere. Never blocks, never
+ * fails (the simulated device has no faults for it). */
+static gboolean
+ill_all_on (gpointer b, guint timeout_ms, GError **error)
+{
+  (void) timeout_ms;
+  (void) error;
+  DsSimLab *lab = b;
+  lab->on = TRUE;
+  lab->all_on = TRUE;
   lab->apply_count++;
   return TRUE;
 }
@@ -515,7 +533,7 @@ ill_get_status (gpointer b, DsIlluminatorStatus *st, GError **error)
   memset (st, 0, sizeof *st);
   st->ready = TRUE;
   st->enabled = lab->on;
-  st->applied_phase = lab->on ? (int) lab->phase : -1;
+  st->applied_phase = lab->on && !lab->all_on ? (int) lab->phase : -1;
   st->apply_count = lab->apply_count;
   st->temperature_c = 35.0;
   st->firmware_version = 1;
@@ -542,7 +560,7 @@ ill_close (gpointer b)
 
 static const DsIlluminatorOps sim_illuminator_ops = {
   .name = "sim", .set_pattern = ill_set_pattern, .set_phase = ill_set_phase, .off = ill_off,
-  .get_status = ill_get_status, .reconnect = ill_reconnect, .close = ill_close,
+  .get_status = ill_get_status, .reconnect = ill_reconnect, .close = ill_close, .all_on = ill_all_on,
 };
 
 DsIlluminator *

@@ -188,6 +188,26 @@ def human_and_json_replies(d):
           f"dark --json: the reply: {r.stdout.strip()}")
 
 
+def preview_on_off(d):
+    # preview on/off: a sentence by default, the reply with --json, the preview in status, and
+    # the daemon's own refusal of a light it does not know (exit 1, its code on stderr).
+    before = d.status()["sets_done"]
+    r = d.ctl("preview", "on", "--light", "phase", "-p", "1")
+    check(r.returncode == 0 and not is_json(r.stdout) and "phase 1" in r.stdout and "state preview" in r.stdout,
+          f"preview on prints the light lit and the state: {r.stdout.strip()}")
+    r = d.ctl("status")
+    check(r.returncode == 0 and "preview:" in r.stdout and "phase 1" in r.stdout,
+          f"status prints the preview line: {r.stdout.strip()}")
+    r = d.ctl("preview", "on", "-l", "half")
+    check(r.returncode == 1 and "bad_argument" in r.stderr, f"an unknown light is the daemon's bad_argument: {r.stderr}")
+    r = d.ctl("preview", "off", "-j")
+    reply = json.loads(r.stdout) if r.returncode == 0 and is_json(r.stdout) else {}
+    check(reply.get("state") == "idle" and reply.get("light") is None, f"preview off -j: the reply: {reply}")
+    r = d.ctl("preview")
+    check(r.returncode == 2 and "on or off" in r.stderr, f"preview without on/off is a usage error: {r.stderr}")
+    check(d.status()["sets_done"] == before, "preview took no set")
+
+
 def status_and_config(d):
     r = d.ctl("status")
     check(r.returncode == 0 and "state:" in r.stdout and not r.stdout.lstrip().startswith("{"),
@@ -389,6 +409,7 @@ def main():
             stream_and_start(d)
             capture_interrupted(d, tmp)
             human_and_json_replies(d)
+            preview_on_off(d)
         finally:
             check(d.stop() == 0, "descatterd exits cleanly")
         stream_counts_failed_sets(tmp)

@@ -171,7 +171,7 @@ test_bad_requests (void)
     /* The list comes from the server's and the service's dispatch tables: every command. */
     { "selfdestruct", "{}", DS_PROTOCOL_ERROR_UNKNOWN_COMMAND,
       "(commands: hello, subscribe, unsubscribe, status, capture, dark, start, stop, config, release, acquire, "
-      "calibrate, cancel, set)" },
+      "calibrate, cancel, set, preview)" },
   };
   for (guint i = 0; i < G_N_ELEMENTS (cases); i++) {
     g_autoptr (JsonNode) node = json_from_string (cases[i].json_args, NULL);

@@ -263,8 +263,9 @@ ill_status (gpointer b, DsIlluminatorStatus *s, GError **e)
 static gboolean ill_reconnect (gpointer b, GError **e) { (void) e; ((Lab *) b)->ill_reconnects++; return TRUE; }
 static void ill_close (gpointer b) { (void) b; }
 
+/* No all_on: a device that cannot light every stripe at once (ds_illuminator_all_on refuses). */
 static const DsIlluminatorOps ill_ops = { "scripted", ill_pattern, ill_phase, ill_off, ill_status,
-                                          ill_reconnect, ill_close };
+                                          ill_reconnect, ill_close, NULL };
 
 static DsDevices *
 open_scripted (gpointer data, GError **error)
@@ -1319,7 +1320,7 @@ static void
 test_state_names (void)
 {
   static const char *const wire[] = { "opening", "idle", "acquiring", "continuous",
-                                      "reconnecting", "released", "failed", "cancelling" };
+                                      "reconnecting", "released", "failed", "cancelling", "preview" };
   G_STATIC_ASSERT (G_N_ELEMENTS (wire) == DS_SEQUENCER_STATE_N);
   for (guint i = 0; i < DS_SEQUENCER_STATE_N; i++)
     g_assert_cmpstr (ds_sequencer_state_name ((DsSequencerState) i), ==, wire[i]);

@@ -45,8 +45,9 @@ mb() { mbpoll -m tcp -p "$port" -0 -1 -o 1 "$@"; } # host, then values to write
 mb -t 3 -r 0 -c 9 127.0.0.1 >"$tmp/in" || fail "mbpoll read: $(cat "$tmp/in")"
 grep -q '^\[0\]:[[:space:]]*17491$' "$tmp/in" || fail "MAGIC is not 0x4453 (17491): $(cat "$tmp/in")"
 grep -q '^\[3\]:[[:space:]]*65535' "$tmp/in" || fail "APPLIED_PHASE is not off after power-up"
-# The projector can change its period: CAPABILITIES has PERIOD_ADJUSTABLE, 2.00 .. 655.35 px.
-grep -q '^\[6\]:[[:space:]]*1$' "$tmp/in" || fail "CAPABILITIES is not PERIOD_ADJUSTABLE (1): $(cat "$tmp/in")"
+# The projector can change its period and light every stripe at once: CAPABILITIES has
+# PERIOD_ADJUSTABLE (1) and ALL_ON (2), 2.00 .. 655.35 px.
+grep -q '^\[6\]:[[:space:]]*3$' "$tmp/in" || fail "CAPABILITIES is not PERIOD_ADJUSTABLE|ALL_ON (3): $(cat "$tmp/in")"
 grep -q '^\[7\]:[[:space:]]*200$' "$tmp/in" || fail "PERIOD_MIN_CENTIPX is not 200: $(cat "$tmp/in")"
 grep -q '^\[8\]:[[:space:]]*65535' "$tmp/in" || fail "PERIOD_MAX_CENTIPX is not 65535: $(cat "$tmp/in")"
 mb -t 4 -r 0 127.0.0.1 2 1 >"$tmp/w" || fail "mbpoll write: $(cat "$tmp/w")"

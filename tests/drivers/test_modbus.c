@@ -688,6 +688,64 @@ test_period_revision_1 (void)
   ds_modbus_server_free (server);
 }
 
+/* all_on (docs/registers.md): a controller with CAPABILITIES bit ALL_ON lights every stripe on
+ * ENABLE = 2 and reads APPLIED_PHASE 0xFFFE with STATUS ENABLED; a phase or off afterwards read as
+ * before. A revision-1 controller (no CAPABILITIES) is refused UNSUPPORTED naming ENABLE and
+ * CAPABILITIES, with nothing written (APPLY_COUNT unchanged). */
+static void
+test_all_on (void)
+{
+  for (guint rev1 = 0; rev1 < 2; rev1++) {
+    DsModbusServerConfig cfg;
+    ds_modbus_server_config_init (&cfg);
+    cfg.map_revision_1 = rev1;
+    DsModbusServer *server = NULL;
+    DsIlluminator *ill = open_on (&cfg, &server);
+    g_autoptr (GError) error = NULL;
+    DsStripePattern p = modbus_fixture_four_phases;
+    g_assert_true (ill->ops->set_pattern (ill->backend, &p, &error));
+    g_assert_true (ill->ops->set_phase (ill->backend, 2, DEADLINE_MS, &error));
+    g_assert_no_error (error);
+    modbus_t *raw = raw_client (server);
+    guint16 in[3];
+    g_assert_cmpint (modbus_read_input_registers (raw, DS_MB_INPUT_STATUS, 3, in), ==, 3);
+    guint16 count_before = in[2];
+    if (rev1) {
+      g_assert_false (ds_illuminator_all_on (ill, DEADLINE_MS, &error));
+      g_assert_error (error, DS_ILLUMINATOR_ERROR, DS_DEVICE_ERROR_UNSUPPORTED);
+      g_assert_nonnull (strstr (error->message, "ENABLE"));
+      g_assert_nonnull (strstr (error->message, "CAPABILITIES"));
+      g_assert_cmpint (modbus_read_input_registers (raw, DS_MB_INPUT_STATUS, 3, in), ==, 3);
+      g_assert_cmpuint (in[2], ==, count_before);
+      g_assert_cmpuint (in[1], ==, 2);
+    } else {
+      guint16 caps;
+      g_assert_cmpint (modbus_read_input_registers (raw, DS_MB_INPUT_CAPABILITIES, 1, &caps), ==, 1);
+      g_assert_cmpuint (caps & 0x0002, ==, 0x0002);
+      g_assert_true (ds_illuminator_all_on (ill, DEADLINE_MS, &error));
+      g_assert_no_error (error);
+      g_assert_cmpint (modbus_read_input_registers (raw, DS_MB_INPUT_STATUS, 3, in), ==, 3);
+      g_assert_cmpuint (in[1], ==, 0xFFFE);
+      g_assert_cmpuint (in[0] & 0x0010, ==, 0x0010); /* ENABLED */
+      g_assert_cmpuint ((guint16) (in[2] - count_before), ==, 1);
+      DsModbusServerState st;
+      ds_modbus_server_get_state (server, &st);
+      g_assert_true (st.enabled && st.all_on);
+      g_assert_true (ill->ops->set_phase (ill->backend, 1, DEADLINE_MS, &error));
+      g_assert_cmpint (modbus_read_input_registers (raw, DS_MB_INPUT_APPLIED_PHASE, 1, in), ==, 1);
+      g_assert_cmpuint (in[0], ==, 1);
+      g_assert_true (ill->ops->off (ill->backend, DEADLINE_MS, &error));
+      g_assert_no_error (error);
+      g_assert_cmpint (modbus_read_input_registers (raw, DS_MB_INPUT_APPLIED_PHASE, 1, in), ==, 1);
+      g_assert_cmpuint (in[0], ==, 0xFFFF);
+    }
+    modbus_close (raw);
+    modbus_free (raw);
+    ds_illuminator_close (ill);
+    ds_modbus_server_free (server);
+  }
+}
+
 /* Open refuses what is not our controller or not there. */
 static void
 test_open_errors (void)
@@ -868,6 +926,7 @@ main (int argc, char **argv)
   g_test_add_func ("/modbus/period/adjustable", test_period_adjustable);
   g_test_add_func ("/modbus/period/fixed", test_period_fixed);
   g_test_add_func ("/modbus/period/revision-1", test_period_revision_1);
+  g_test_add_func ("/modbus/all-on", test_all_on);
 #define ADD(path, fn) g_test_add ("/modbus/" path, Fixture, NULL, fixture_setup, fn, fixture_teardown)
   ADD ("sequence", test_sequence);
   ADD ("settle", test_settle);

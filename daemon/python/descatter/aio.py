@@ -19,10 +19,10 @@ from typing import Any, Optional, Union
 
 from . import wire
 from ._version import __version__
-from .client import (DEFAULT_TIMEOUT, Estimator, Format, ProgressCallback, Roi, acquisition_args, camera_args,
-                     given, resolve, split_address)
+from .client import (DEFAULT_TIMEOUT, Estimator, Format, PreviewLight, ProgressCallback, Roi, acquisition_args,
+                     camera_args, given, preview_args, resolve, split_address)
 from .errors import BadReply, DescatterError, Timeout, error_from_reply
-from .events import Event, ProgressEvent, Result, make_event
+from .events import Event, ProgressEvent, Result, make_event, make_frame_event
 from .wire import Image, JsonObject
 
 Reply = tuple[JsonObject, dict[str, Image]]
@@ -91,6 +91,7 @@ class AsyncClient:
         self._events: asyncio.Queue[Union[Event, BaseException]] = asyncio.Queue()
         self._subscribed = False
         self._last_seq: Optional[int] = None
+        self._last_frame_seq: Optional[int] = None
         self._error: Optional[BaseException] = None
         self._last_activity = asyncio.get_running_loop().time()
         self._task = asyncio.get_running_loop().create_task(self._read_loop())
@@ -137,7 +138,11 @@ class AsyncClient:
                 header, images = await self._read_message()
                 self._last_activity = asyncio.get_running_loop().time()
                 if "event" in header:
-                    ev, self._last_seq = make_event(header, images, self._last_seq)
+                    ev: Event
+                    if header.get("event") == "frame":
+                        ev, self._last_frame_seq = make_frame_event(header, images, self._last_frame_seq)
+                    else:
+                        ev, self._last_seq = make_event(header, images, self._last_seq)
                     if isinstance(ev, ProgressEvent):
                         waiter = self._waiting.get(ev.body.get("id", -1))
                         if waiter and waiter[1]:
@@ -282,11 +287,18 @@ class AsyncClient:
                 exc.cancel_error = e
             raise
 
-    async def subscribe(self) -> "AsyncSubscription":
-        """Subscribes; returns an AsyncSubscription (`async for`, `async with`)."""
+    async def preview(self, on: bool, light: PreviewLight = "all", phase: Optional[int] = None,
+                      timeout: Optional[float] = None) -> JsonObject:
+        """As descatter.Client.preview."""
+        return (await self.call("preview", timeout=timeout, **preview_args(on, light, phase)))[0]
+
+    async def subscribe(self, frames: bool = False) -> "AsyncSubscription":
+        """Subscribes; returns an AsyncSubscription (`async for`, `async with`). frames=True adds
+        preview frames (FrameEvent)."""
         self._subscribed = True  # before the reply: events may follow it at once
         try:
-            result, _ = await self.call("subscribe")
+            args: JsonObject = {"frames": True} if frames else {}
+            result, _ = await self.call("subscribe", **args)
         except BaseException:
             self._subscribed = False
             raise

@@ -28,7 +28,7 @@ from typing import Any, Literal, Optional, Union
 from . import wire
 from ._version import __version__
 from .errors import BadReply, DescatterError, Timeout, error_from_reply
-from .events import Event, ProgressEvent, Result, ResultEvent, make_event
+from .events import Event, ProgressEvent, Result, ResultEvent, make_event, make_frame_event
 from .wire import Image, JsonObject
 
 DEFAULT_ADDRESS = "/run/descatterd/descatterd.sock"
@@ -76,6 +76,17 @@ def acquisition_args(*, phases: Optional[int], averages: Optional[int], exposure
 
 
 Roi = Union[tuple[int, int, int, int], dict[str, int]]
+PreviewLight = Literal["all", "off", "phase"]
+
+
+def preview_args(on: bool, light: PreviewLight, phase: Optional[int]) -> JsonObject:
+    """The arguments of `preview`: state, and the light and phase when on."""
+    if not on:
+        return {"state": "off"}
+    args: JsonObject = {"state": "on", "light": light}
+    if phase is not None:
+        args["phase"] = phase
+    return args
 
 
 def camera_args(exposure_us: Optional[float] = None, gain_db: Optional[float] = None,
@@ -127,6 +138,7 @@ class Client:
         self._events: collections.deque[Event] = collections.deque()  # read while waiting for a reply
         self._subscribed = False
         self._last_seq: Optional[int] = None
+        self._last_frame_seq: Optional[int] = None
         self._broken: Optional[str] = None
         if self.token:
             try:
@@ -226,7 +238,11 @@ class Client:
 
     def _queue_event(self, header: JsonObject, images: dict[str, Image],
                      on_progress: Optional[ProgressCallback]) -> None:
-        ev, self._last_seq = make_event(header, images, self._last_seq)
+        ev: Event
+        if header.get("event") == "frame":
+            ev, self._last_frame_seq = make_frame_event(header, images, self._last_frame_seq)
+        else:
+            ev, self._last_seq = make_event(header, images, self._last_seq)
         if isinstance(ev, ProgressEvent):
             if on_progress:
                 on_progress(ev)
@@ -378,10 +394,22 @@ class Client:
 
     # -- subscription ------------------------------------------------------------------------
 
-    def subscribe(self) -> "Subscription":
+    def preview(self, on: bool, light: PreviewLight = "all", phase: Optional[int] = None,
+                timeout: Optional[float] = None) -> JsonObject:
+        """Free-running frames for aligning the rig (docs/protocol.md, `preview`): on=True starts
+        it with light "all" (every stripe lit), "off" (illuminator dark) or "phase" (phase
+        `phase` of the configured phases lit); on=False ends it. No phase set is taken and nothing
+        is recorded; the frames go to the live view and, with subscribe(frames=True), to this
+        client as FrameEvent. Raises descatter.Busy while a capture or continuous acquisition
+        runs; a capture, start or dark sent during preview ends it. Returns {"state", "light",
+        "phase", "message"}."""
+        return self.call("preview", timeout=timeout, **preview_args(on, light, phase))[0]
+
+    def subscribe(self, frames: bool = False) -> "Subscription":
         """Subscribes; returns a Subscription (a context manager that unsubscribes on exit,
-        and an iterator of events)."""
-        result, _ = self.call("subscribe")
+        and an iterator of events). frames=True adds preview frames (FrameEvent)."""
+        args: JsonObject = {"frames": True} if frames else {}
+        result, _ = self.call("subscribe", **args)
         self._subscribed = True
         nxt = result.get("next_seq")
         self._last_seq = nxt - 1 if isinstance(nxt, int) else None

@@ -132,8 +132,49 @@ class ProgressEvent(Event):
         return phases if isinstance(phases, int) else None
 
 
+class FrameEvent(Event):
+    """A preview frame (subscribe(frames=True) while preview runs): `frame` is the camera's
+    image as a numpy array (uint8 or uint16, shape (height, width)); `light` is "all", "off" or
+    "phase", `phase` the phase lit (None unless light is "phase"). Frames have their own `seq`,
+    so `lost` counts frames this client missed, not results."""
+
+    kind = "frame"
+
+    def __init__(self, seq: Optional[int], lost: int, body: JsonObject, images: dict[str, Image]) -> None:
+        super().__init__(seq, lost, body)
+        self.frame: Optional[Image] = images.get("frame")
+
+    @property
+    def light(self) -> Optional[str]:
+        light: Any = self.body.get("light")
+        return light if isinstance(light, str) else None
+
+    @property
+    def phase(self) -> Optional[int]:
+        phase: Any = self.body.get("phase")
+        return phase if isinstance(phase, int) else None
+
+    @property
+    def frame_id(self) -> Optional[int]:
+        frame_id: Any = self.body.get("frame_id")
+        return frame_id if isinstance(frame_id, int) else None
+
+
 _KINDS: dict[str, type[Event]] = {"failed": FailedEvent, "device": DeviceEvent, "stream_stopped": StreamStoppedEvent,
                                   "progress": ProgressEvent}
+
+
+def _lost(seq: Any, last_seq: Optional[int]) -> int:
+    return seq - last_seq - 1 if isinstance(seq, int) and last_seq is not None and seq > last_seq + 1 else 0
+
+
+def make_frame_event(header: JsonObject, images: dict[str, Image],
+                     last_frame_seq: Optional[int]) -> tuple[FrameEvent, Optional[int]]:
+    """(FrameEvent, new last frame seq) for a `frame` event: frames count their own seq."""
+    seq: Any = header.get("seq")
+    body: Any = header.get("body") or {}
+    ev = FrameEvent(seq if isinstance(seq, int) else None, _lost(seq, last_frame_seq), body, images)
+    return ev, seq if isinstance(seq, int) else last_frame_seq
 
 
 def make_event(header: JsonObject, images: dict[str, Image], last_seq: Optional[int]) -> tuple[Event, Optional[int]]:
