@@ -147,7 +147,8 @@ write_tiff_plane (Written *w, const DsOutputResult *r, const char *stem, const c
   g_autoptr (JsonNode) desc = ds_json_deep_copy (r->meta);
   json_object_set_string_member (json_node_get_object (desc), "plane", plane);
   g_autofree char *text = json_to_string (desc, FALSE);
-  DsTiffTags tags = { .description = text, .time = when, .document_name = plane };
+  DsTiffTags tags = { .description = text, .time = when, .document_name = plane,
+                      .pixel_size_um = ds_output_pixel_size_um (r->meta) };
   if (!ds_tiff_write (img, path, &tags, error))
     return FALSE;
   record (w, name, "tiff", plane, NAN);
