@@ -1,8 +1,8 @@
 /* NXdata groups of images for the NeXus writers (hdf5_set.c, hdf5_run.c): x and y axis
  * datasets in micrometres on the object plane when the pixel size is known (the result
- * metadata's pixel_size_um, ds_output_pixel_size_um), pixel indices otherwise, and the NXdata attributes that tie them to the signal (axes,
- * AXISNAME_indices) so that silx, h5web and NeXpy plot the image with its scale.
- * Private to daemon/output. Any thread. */
+ * metadata's pixel_size_um, ds_output_pixel_size_um), pixel indices otherwise, and the NXdata
+ * attributes that tie them to the signal (axes, AXISNAME_indices), so that silx, h5web and
+ * NeXpy plot the image with its scale. Private to daemon/output. Any thread. */
 #pragma once
 #include <glib.h>
 #include <hdf5.h>
