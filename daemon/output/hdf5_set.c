@@ -75,22 +75,27 @@ string_field (hid_t g, JsonNode *meta, const char *path, const char *name)
   return !v || ds_h5_string_dataset (g, name, v);
 }
 
-/* Integers stay integers: NeXus' NX_INT fields (bit depths) are not floats. */
+/* Integers stay integers: NeXus' NX_INT fields (bit depth, saturation value) are not floats. A
+ * whole number the JSON holds as a double (4095.0) is written as the integer it is; a fraction
+ * (a configured clip level of 3900.5) stays a float rather than be rounded. */
 static gboolean
-int_field (hid_t g, JsonNode *meta, const char *path, const char *name)
+int_field (hid_t g, JsonNode *meta, const char *path, const char *name, const char *units)
 {
-  JsonNode *n = ds_json_path (meta, path);
-  if (!n || !JSON_NODE_HOLDS_VALUE (n) || json_node_get_value_type (n) != G_TYPE_INT64)
+  double x = ds_json_path_double (meta, path, NAN);
+  if (!isfinite (x))
     return TRUE;
-  gint64 v = json_node_get_int (n);
+  if (fabs (x) > 9e15 || x != floor (x))
+    return ds_h5_double_dataset (g, name, x, units);
+  gint64 v = (gint64) x;
   hid_t s = H5Screate (H5S_SCALAR);
   hid_t d = H5Dcreate2 (g, name, H5T_STD_I64LE, s, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
   H5Sclose (s);
   if (d < 0)
     return FALSE;
-  herr_t r = H5Dwrite (d, H5T_NATIVE_INT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, &v);
+  gboolean ok = H5Dwrite (d, H5T_NATIVE_INT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, &v) >= 0 &&
+                (!units || ds_h5_attr_string (d, "units", units));
   H5Dclose (d);
-  return r >= 0;
+  return ok;
 }
 
 static gboolean
@@ -113,8 +118,8 @@ ds_hdf5_write_instrument (hid_t entry, JsonNode *meta)
                 string_field (cam, meta, "camera.serial", "serial_number") &&
                 string_field (cam, meta, "camera.backend", "backend") &&
                 string_field (cam, meta, "camera.pixel_format", "pixel_format") &&
-                int_field (cam, meta, "camera.bit_depth", "bit_depth_readout") &&
-                number_field (cam, meta, "separation.saturation_level", "saturation_value", "counts") &&
+                int_field (cam, meta, "camera.bit_depth", "bit_depth_readout", NULL) &&
+                int_field (cam, meta, "separation.saturation_level", "saturation_value", "counts") &&
                 number_field (cam, meta, "settings.exposure_us", "count_time", "us") &&
                 number_field (cam, meta, "settings.gain_db", "gain", "dB") &&
                 number_field (cam, meta, "optics.sensor_pixel_pitch_um", "x_pixel_size", "um") &&

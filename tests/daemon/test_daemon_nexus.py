@@ -95,6 +95,8 @@ def check_nexus(path, pixel_um, stack):
         assert d.is_image and d.interpretation == "image", (d.interpretation, d.signal.shape)
         cam = f["entry/instrument/camera"]
         assert cam["bit_depth_readout"].dtype.kind in "iu" and cam["bit_depth_readout"][()] == 12
+        # NXdetector's saturation_value is NX_INT: the 12-bit sensor clips at 2^12 - 1.
+        assert cam["saturation_value"].dtype.kind in "iu" and cam["saturation_value"][()] == 4095
         return d
 
 
