@@ -22,9 +22,9 @@ packages=(
   python3-numpy python3-matplotlib
   python3-venv python3-setuptools python3-wheel python3-mypy   # pip install daemon/python, mypy
   clang libclang-rt-14-dev valgrind
-  libtiff-dev libhdf5-dev libsoup-3.0-dev
+  libtiff-dev libhdf5-dev libpng-dev libsoup-3.0-dev
   prometheus                         # a real server scraping /metrics in the tests (and promtool)
-  chromium python3-h5py python3-prometheus-client python3-websocket python3-tifffile
+  chromium python3-h5py python3-prometheus-client python3-websocket python3-tifffile python3-silx
   scdoc groff-base systemd           # man pages, their check, systemd-analyze verify
   debhelper dh-python lintian        # the Debian packages (tools/lab.sh package)
 )

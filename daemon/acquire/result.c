@@ -186,6 +186,41 @@ add_camera (JsonBuilder *b, const DsResult *r)
   json_builder_end_object (b);
 }
 
+/* The physical scale: optics.{sensor_pixel_pitch_um, pitch_source, magnification} and the
+ * object-plane pixel_size_um = pitch / magnification, or null with pixel_size_note saying which
+ * of the two is missing (docs/protocol.md, "Result metadata"). */
+static void
+add_pixel_size (JsonBuilder *b, const DsResult *r)
+{
+  const DsResultProvenance *p = &r->provenance;
+  double pitch = r->have_provenance ? p->pixel_pitch_um : NAN;
+  double m = r->have_provenance ? p->magnification : NAN;
+  gboolean known = isfinite (pitch) && pitch > 0 && isfinite (m) && m > 0;
+  json_builder_set_member_name (b, "optics");
+  json_builder_begin_object (b);
+  ds_json_add_double_or_null (b, "sensor_pixel_pitch_um", pitch);
+  json_builder_set_member_name (b, "pitch_source");
+  if (isfinite (pitch))
+    json_builder_add_string_value (b, p->pixel_pitch_source);
+  else
+    json_builder_add_null_value (b);
+  ds_json_add_double_or_null (b, "magnification", m);
+  json_builder_end_object (b);
+  ds_json_add_double_or_null (b, "pixel_size_um", known ? pitch / m : NAN);
+  g_autofree char *note = NULL;
+  if (known)
+    note = g_strdup_printf ("object-plane pixel size = sensor pixel pitch %.6g um (%s) / magnification %.6g", pitch,
+                            strcmp (p->pixel_pitch_source, "camera") == 0 ? "the camera's SensorPixelWidth"
+                                                                          : "[camera] pixel-pitch-um",
+                            m);
+  else
+    note = g_strdup_printf ("unknown: %s%s%s", isfinite (pitch) ? "" : "no pixel pitch ([camera] pixel-pitch-um unset, "
+                                                                        "the camera has no SensorPixelWidth)",
+                            !isfinite (pitch) && !isfinite (m) ? " and " : "",
+                            isfinite (m) ? "" : "no magnification ([optics] magnification unset)");
+  add_string (b, "pixel_size_note", note);
+}
+
 static void
 add_pattern (JsonBuilder *b, const DsResult *r)
 {
@@ -255,6 +290,7 @@ build_meta (DsResult *r)
   json_builder_add_value (b, g_steal_pointer (&producer));
   if (r->have_provenance)
     add_camera (b, r);
+  add_pixel_size (b, r);
   add_pattern (b, r);
   json_builder_set_member_name (b, "settings");
   json_builder_add_value (b, ds_capture_settings_to_json (&r->settings));

@@ -44,6 +44,10 @@ typedef struct {
   guint roi_x, roi_y, roi_width, roi_height; /* roi_width 0: the full sensor */
   double illuminator_temperature_c;          /* NAN: unknown */
   double phase_offset_cycles;                /* NAN: not learned */
+  /* The object-plane pixel size is pixel_pitch_um / magnification (metadata pixel_size_um). */
+  double pixel_pitch_um;                     /* NAN: unknown */
+  char pixel_pitch_source[16];               /* "config", "camera" or "" (unknown) */
+  double magnification;                      /* NAN: unknown */
 } DsResultProvenance;
 
 void ds_result_set_provenance (DsResult *result, const DsResultProvenance *provenance);

@@ -120,6 +120,9 @@ static const KeySpec keys[] = {
     "level (DN) at which the sensor clips, for a full well below the pixel format's top; clipped "
     "samples are flagged and the automatic operating point keeps exposures below it; empty = the "
     "pixel format's top" },
+  { "camera", "pixel-pitch-um", K_DOUBLE, RESTART, F (pixel_pitch_um), "", 0.01, 1000, NULL,
+    "the sensor's pixel pitch (µm); empty = the camera's SensorPixelWidth when it has that feature; "
+    "with [optics] magnification it gives the result files' physical scale" },
   { "camera", "roi", K_STRING, RESTART, F (roi), NULL, 0, 0, NULL, "x,y,width,height; empty = full sensor" },
   { "camera", "trigger", K_CHOICE, RESTART, F (camera_trigger), "software", 0, 0, "software|line0|line1|line2|line3",
     "trigger source of the camera" },
@@ -135,6 +138,10 @@ static const KeySpec keys[] = {
     "the camera begins sending a frame only once the whole frame's exposure is over (global shutter, "
     "or a rolling shutter that reads out before sending): the illuminator then moves to the next phase "
     "during the transfer; false = only after the frame arrived" },
+
+  { "optics", "magnification", K_DOUBLE, RESTART, F (magnification), "", 1e-6, 1e6, NULL,
+    "the lens' magnification (image size over object size); the object-plane pixel size is the "
+    "pixel pitch over it; empty = unknown: result files then give pixel indices, no physical scale" },
 
   { "illuminator", "backend", K_CHOICE, RESTART, F (illuminator_backend), NULL, 0, 0, "modbus|gpio|sim",
     "illuminator driver: modbus, gpio, or sim (the simulated lab); no default" },
@@ -468,8 +475,8 @@ load_keyfile (GKeyFile *kf, const char *data, const char *name, GError **error)
   for (gsize g = 0; g < n_groups; g++) {
     if (!group_known (groups[g])) {
       GError *local = g_error_new (DS_CONFIG_ERROR, DS_CONFIG_ERROR_UNKNOWN_GROUP,
-                                   "%s: unknown group [%s] (known: daemon, http, camera, illuminator, "
-                                   "trigger, acquisition, sim)", name, groups[g]);
+                                   "%s: unknown group [%s] (known: daemon, http, camera, optics, "
+                                   "illuminator, trigger, acquisition, sim)", name, groups[g]);
       add_line (local, data, groups[g], NULL);
       g_propagate_error (error, local);
       return NULL;

@@ -55,12 +55,15 @@ typedef struct {
   double exposure_us;
   double gain_db;
   double saturation_dn;   /* NAN: the pixel format's top */
+  double pixel_pitch_um;  /* NAN: the camera's, if it says */
   char *roi;              /* "x,y,w,h" or NULL (full sensor) */
   char *camera_trigger;   /* "software" | "line0".."line3" */
   guint grab_timeout_ms;
   guint receive_buffer_frames; /* aravis, GigE Vision */
   guint frame_retention_ms;    /* aravis, GigE Vision */
   gboolean sends_after_exposure;
+  /* [optics] */
+  double magnification;   /* NAN: unknown */
   /* [illuminator] */
   char *illuminator_backend; /* "sim" | "modbus" | "gpio" */
   char *modbus_uri;

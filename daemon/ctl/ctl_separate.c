@@ -142,6 +142,11 @@ build_sidecar (const DsPhaseFolder *folder, const DsSeparationParams *params, co
   json_builder_add_int_value (b, sep->transmissive->width);
   json_builder_set_member_name (b, "height");
   json_builder_add_int_value (b, sep->transmissive->height);
+  /* A phase folder holds no optics: the files get index axes and no resolution tags. */
+  json_builder_set_member_name (b, "pixel_size_um");
+  json_builder_add_null_value (b);
+  json_builder_set_member_name (b, "pixel_size_note");
+  json_builder_add_string_value (b, "unknown: descatterctl separate reads no pixel pitch or magnification");
 
   json_builder_set_member_name (b, "inputs");
   json_builder_begin_object (b);

@@ -7,6 +7,7 @@
 #include "daemon/output/disk_room.h"
 #include "daemon/output/hdf5_set.h"
 #include "daemon/output/hdf5_util.h"
+#include "daemon/output/nxdata_image.h"
 #include "daemon/output/output_error.h"
 #include "daemon/output/result_meta.h"
 
@@ -81,6 +82,9 @@ fixed_string_type (gsize chars)
   return t;
 }
 
+/* An NXdata group whose signal "data" grows by one image per set (or frame): along the lead
+ * axis, the image's y and x. The sets have no axis dataset of their own ("."): entry/sets/set_id
+ * is written last and may be shorter than the planes while a set is being appended. */
 static hid_t
 time_type (void)
 {
@@ -88,16 +92,16 @@ time_type (void)
 }
 
 static hid_t
-image_block (hid_t parent, const char *group, const char *plane, hid_t type, guint h, guint w)
+image_block (hid_t parent, const char *group, const char *plane, hid_t type, guint h, guint w, double pixel_size_um,
+             const char *lead_axis)
 {
   hid_t g = ds_h5_group (parent, group, "NXdata");
   if (g < 0)
     return -1;
-  static const char *const axes[] = { "set", ".", "." };
-  hid_t d = ds_h5_attr_string (g, "signal", "data") && ds_h5_attr_strings (g, "axes", axes, 3)
+  hid_t d = ds_h5_attr_string (g, "signal", "data") && ds_nxdata_image_axes (g, w, h, pixel_size_um, lead_axis)
                 ? extendible (g, "data", type, 3, h, w)
                 : -1;
-  if (d >= 0 && (!ds_h5_attr_string (d, "units", ds_output_plane_units (plane)) ||
+  if (d >= 0 && (!ds_nxdata_mark_image (d) || !ds_h5_attr_string (d, "units", ds_output_plane_units (plane)) ||
                  !ds_h5_attr_string (d, "long_name", ds_output_plane_long_name (plane)) ||
                  (strcmp (plane, "mask") == 0 && !ds_h5_mask_legend (d)))) {
     H5Dclose (d);
@@ -120,14 +124,17 @@ create_layout (DsHdf5Run *run, const DsOutputResult *first)
                                             ds_json_path_int (first->meta, "set_id", 0));
   gboolean ok = ds_hdf5_write_entry_fields (entry, first->meta, title, FALSE) && ds_hdf5_write_instrument (entry, first->meta);
   guint h = run->height, w = run->width;
+  /* The first set's pixel size holds for the run: the optics are configured at start. */
+  double px = ds_output_pixel_size_um (first->meta);
   if (ok) {
-    run->d[D_TRANS] = image_block (entry, "transmissive", "transmissive", H5T_IEEE_F32LE, h, w);
-    run->d[D_SCAT] = image_block (entry, "scattered", "scattered", H5T_IEEE_F32LE, h, w);
-    run->d[D_MASK] = image_block (entry, "mask", "mask", H5T_STD_U8LE, h, w);
+    run->d[D_TRANS] = image_block (entry, "transmissive", "transmissive", H5T_IEEE_F32LE, h, w, px, ".");
+    run->d[D_SCAT] = image_block (entry, "scattered", "scattered", H5T_IEEE_F32LE, h, w, px, ".");
+    run->d[D_MASK] = image_block (entry, "mask", "mask", H5T_STD_U8LE, h, w, px, ".");
     ok = run->d[D_TRANS] >= 0 && run->d[D_SCAT] >= 0 && run->d[D_MASK] >= 0;
   }
   if (ok && run->phases) {
-    run->d[D_PHASES] = image_block (entry, "phases", "phases", H5T_STD_U16LE, h, w);
+    /* The frames along the camera's frame ids, appended with each frame. */
+    run->d[D_PHASES] = image_block (entry, "phases", "phases", H5T_STD_U16LE, h, w, px, "frame_id");
     hid_t g = H5Gopen2 (entry, "phases", H5P_DEFAULT);
     ok = run->d[D_PHASES] >= 0 && g >= 0;
     if (ok) {
@@ -138,6 +145,12 @@ create_layout (DsHdf5Run *run, const DsOutputResult *first)
       run->d[D_HAS_BLACK] = extendible (g, "has_black", H5T_STD_U8LE, 1, 0, 0);
       for (guint i = D_PHASE; i <= D_HAS_BLACK; i++)
         ok = ok && run->d[i] >= 0;
+      ok = ok && ds_h5_attr_string (run->d[D_PHASE], "long_name", "stripe phase index of the frame") &&
+           ds_h5_attr_string (run->d[D_FRAME_ID], "long_name", "camera frame id") &&
+           ds_h5_attr_string (run->d[D_SET_INDEX], "long_name", "index of the frame's set in entry/sets") &&
+           ds_h5_attr_string (run->d[D_BLACK], "units", ds_output_plane_units ("black")) &&
+           ds_h5_attr_string (run->d[D_BLACK], "long_name", ds_output_plane_long_name ("black")) &&
+           ds_h5_attr_string (run->d[D_HAS_BLACK], "long_name", "1 when the set had a dark frame");
     }
     if (g >= 0)
       H5Gclose (g);

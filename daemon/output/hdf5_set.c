@@ -7,6 +7,7 @@
 #include "build_info.h"
 #include "daemon/output/atomic_file.h"
 #include "daemon/output/hdf5_util.h"
+#include "daemon/output/nxdata_image.h"
 #include "daemon/output/output_error.h"
 #include "daemon/output/result_meta.h"
 
@@ -74,6 +75,29 @@ string_field (hid_t g, JsonNode *meta, const char *path, const char *name)
   return !v || ds_h5_string_dataset (g, name, v);
 }
 
+/* Integers stay integers: NeXus' NX_INT fields (bit depth, saturation value) are not floats. A
+ * whole number the JSON holds as a double (4095.0) is written as the integer it is; a fraction
+ * (a configured clip level of 3900.5) stays a float rather than be rounded. */
+static gboolean
+int_field (hid_t g, JsonNode *meta, const char *path, const char *name, const char *units)
+{
+  double x = ds_json_path_double (meta, path, NAN);
+  if (!isfinite (x))
+    return TRUE;
+  if (fabs (x) > 9e15 || x != floor (x))
+    return ds_h5_double_dataset (g, name, x, units);
+  gint64 v = (gint64) x;
+  hid_t s = H5Screate (H5S_SCALAR);
+  hid_t d = H5Dcreate2 (g, name, H5T_STD_I64LE, s, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+  H5Sclose (s);
+  if (d < 0)
+    return FALSE;
+  gboolean ok = H5Dwrite (d, H5T_NATIVE_INT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, &v) >= 0 &&
+                (!units || ds_h5_attr_string (d, "units", units));
+  H5Dclose (d);
+  return ok;
+}
+
 static gboolean
 number_field (hid_t g, JsonNode *meta, const char *path, const char *name, const char *units)
 {
@@ -94,10 +118,12 @@ ds_hdf5_write_instrument (hid_t entry, JsonNode *meta)
                 string_field (cam, meta, "camera.serial", "serial_number") &&
                 string_field (cam, meta, "camera.backend", "backend") &&
                 string_field (cam, meta, "camera.pixel_format", "pixel_format") &&
-                number_field (cam, meta, "camera.bit_depth", "bit_depth_readout", NULL) &&
-                number_field (cam, meta, "separation.saturation_level", "saturation_value", "counts") &&
+                int_field (cam, meta, "camera.bit_depth", "bit_depth_readout", NULL) &&
+                int_field (cam, meta, "separation.saturation_level", "saturation_value", "counts") &&
                 number_field (cam, meta, "settings.exposure_us", "count_time", "us") &&
-                number_field (cam, meta, "settings.gain_db", "gain", "dB");
+                number_field (cam, meta, "settings.gain_db", "gain", "dB") &&
+                number_field (cam, meta, "optics.sensor_pixel_pitch_um", "x_pixel_size", "um") &&
+                number_field (cam, meta, "optics.sensor_pixel_pitch_um", "y_pixel_size", "um");
   if (cam >= 0)
     H5Gclose (cam);
   hid_t ill = ok ? ds_h5_group (inst, "illuminator", "NXcollection") : -1;
@@ -115,29 +141,32 @@ ds_hdf5_write_instrument (hid_t entry, JsonNode *meta)
 }
 
 static gboolean
-write_array_1d (hid_t g, const char *name, hid_t file_type, hid_t mem_type, const void *data, guint n)
+write_array_1d (hid_t g, const char *name, hid_t file_type, hid_t mem_type, const void *data, guint n,
+                const char *units, const char *long_name)
 {
   hsize_t dims[1] = { n };
   hid_t s = H5Screate_simple (1, dims, NULL);
   hid_t d = H5Dcreate2 (g, name, file_type, s, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
   herr_t r = d >= 0 && n > 0 ? H5Dwrite (d, mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data) : d >= 0 ? 0 : -1;
+  gboolean ok = r >= 0 && (!units || ds_h5_attr_string (d, "units", units)) &&
+                ds_h5_attr_string (d, "long_name", long_name);
   if (d >= 0)
     H5Dclose (d);
   H5Sclose (s);
-  return r >= 0;
+  return ok;
 }
 
 /* The raw frames as one [frames, height, width] uint16 dataset (u8 frames widened). */
 static gboolean
-write_phases (hid_t entry, const DsRawFrames *raw)
+write_phases (hid_t entry, const DsRawFrames *raw, double pixel_size_um)
 {
   const DsImage *first = ((const DsRawFrame *) raw->frames->pdata[0])->image;
   guint n = raw->frames->len, w = first->width, h = first->height;
   hid_t g = ds_h5_group (entry, "phases", "NXdata");
   if (g < 0)
     return FALSE;
-  static const char *const axes[] = { "frame", ".", "." };
-  gboolean ok = ds_h5_attr_string (g, "signal", "data") && ds_h5_attr_strings (g, "axes", axes, 3) &&
+  /* The frames in the order taken, along the camera's frame ids. */
+  gboolean ok = ds_h5_attr_string (g, "signal", "data") && ds_nxdata_image_axes (g, w, h, pixel_size_um, "frame_id") &&
                 ds_h5_attr_int (g, "n_phases", raw->n_phases);
   hsize_t dims[3] = { n, h, w };
   hid_t fs = H5Screate_simple (3, dims, NULL);
@@ -172,12 +201,12 @@ write_phases (hid_t entry, const DsRawFrames *raw)
   if (d >= 0) {
     ok = ok && ds_h5_attr_string (d, "units", ds_output_plane_units ("phases")) &&
          ds_h5_attr_string (d, "long_name", ds_output_plane_long_name ("phases")) &&
-         ds_h5_attr_int (d, "bit_depth", first->bit_depth);
+         ds_h5_attr_int (d, "bit_depth", first->bit_depth) && ds_nxdata_mark_image (d);
     H5Dclose (d);
   }
-  ok = ok && write_array_1d (g, "phase", H5T_STD_I32LE, H5T_NATIVE_INT32, phase, n) &&
-       write_array_1d (g, "frame_id", H5T_STD_U64LE, H5T_NATIVE_UINT64, ids, n) &&
-       write_array_1d (g, "timestamp_ns", H5T_STD_U64LE, H5T_NATIVE_UINT64, stamps, n);
+  ok = ok && write_array_1d (g, "phase", H5T_STD_I32LE, H5T_NATIVE_INT32, phase, n, NULL, "stripe phase index of the frame") &&
+       write_array_1d (g, "frame_id", H5T_STD_U64LE, H5T_NATIVE_UINT64, ids, n, NULL, "camera frame id") &&
+       write_array_1d (g, "timestamp_ns", H5T_STD_U64LE, H5T_NATIVE_UINT64, stamps, n, "ns", "camera timestamp");
   if (ok && raw->black) {
     hid_t b = ds_h5_image_dataset (g, "black", raw->black, ds_output_plane_units ("black"),
                                    ds_output_plane_long_name ("black"));
@@ -185,7 +214,7 @@ write_phases (hid_t entry, const DsRawFrames *raw)
     if (b >= 0)
       H5Dclose (b);
     ok = ok && write_array_1d (g, "black_frame_ids", H5T_STD_U64LE, H5T_NATIVE_UINT64, raw->black_ids->data,
-                               raw->black_ids->len);
+                               raw->black_ids->len, NULL, "camera frame ids of the dark frames");
   }
   H5Gclose (g);
   return ok;
@@ -201,17 +230,18 @@ fill_file (hid_t file, const DsOutputResult *r, const char *path)
   if (entry < 0)
     return FALSE;
   g_autofree char *title = g_strdup_printf ("descatter set %" G_GINT64_FORMAT, ds_json_path_int (r->meta, "set_id", 0));
+  double px = ds_output_pixel_size_um (r->meta);
   const char *names[5];
   const DsImage *images[5];
   guint n = ds_output_result_optional (r, names, images);
   gboolean ok = ds_hdf5_write_entry_fields (entry, r->meta, title, TRUE) && ds_hdf5_write_instrument (entry, r->meta) &&
-                ds_h5_nxdata_image (entry, "transmissive", r->transmissive, "transmissive") &&
-                ds_h5_nxdata_image (entry, "scattered", r->scattered, "scattered") &&
-                ds_h5_nxdata_image (entry, "mask", r->mask, "mask");
+                ds_nxdata_image (entry, "transmissive", r->transmissive, "transmissive", px) &&
+                ds_nxdata_image (entry, "scattered", r->scattered, "scattered", px) &&
+                ds_nxdata_image (entry, "mask", r->mask, "mask", px);
   for (guint i = 0; ok && i < n; i++)
-    ok = ds_h5_nxdata_image (entry, names[i], images[i], names[i]);
+    ok = ds_nxdata_image (entry, names[i], images[i], names[i], px);
   if (ok && r->raw && r->raw->frames->len > 0)
-    ok = write_phases (entry, r->raw);
+    ok = write_phases (entry, r->raw, px);
   H5Gclose (entry);
   return ok;
 }

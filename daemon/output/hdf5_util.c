@@ -227,21 +227,3 @@ ds_h5_mask_legend (hid_t dataset)
   return ds_h5_attr_ints (dataset, "flag_masks", masks, DS_MASK_N_BITS) &&
          ds_h5_attr_string (dataset, "flag_meanings", meanings);
 }
-
-gboolean
-ds_h5_nxdata_image (hid_t parent, const char *name, const DsImage *img, const char *plane)
-{
-  hid_t g = ds_h5_group (parent, name, "NXdata");
-  if (g < 0)
-    return FALSE;
-  static const char *const no_axes[] = { ".", "." };
-  gboolean ok = ds_h5_attr_string (g, "signal", "data") && ds_h5_attr_strings (g, "axes", no_axes, 2);
-  hid_t d = ok ? ds_h5_image_dataset (g, "data", img, ds_output_plane_units (plane), ds_output_plane_long_name (plane))
-               : -1;
-  if (d >= 0 && strcmp (plane, "mask") == 0)
-    ok = ds_h5_mask_legend (d);
-  if (d >= 0)
-    H5Dclose (d);
-  H5Gclose (g);
-  return ok && d >= 0;
-}

@@ -32,8 +32,6 @@ hid_t ds_h5_mem_type (DsSampleType type);
 /* A contiguous 2-D dataset holding img (stride honoured), with units and long_name. */
 hid_t ds_h5_image_dataset (hid_t parent, const char *name, const DsImage *img, const char *units,
                            const char *long_name);
-/* An NXdata group `name` whose signal "data" is img: the layout NeXus viewers plot. */
-gboolean ds_h5_nxdata_image (hid_t parent, const char *name, const DsImage *img, const char *plane);
 /* The mask's legend as CF attributes flag_masks / flag_meanings on a dataset. */
 gboolean ds_h5_mask_legend (hid_t dataset);
 

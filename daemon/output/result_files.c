@@ -9,8 +9,10 @@
 #include "daemon/output/hdf5_set.h"
 #include "daemon/output/output_error.h"
 #include "daemon/output/phase_folder_write.h"
+#include "daemon/output/png_file.h"
 #include "daemon/output/result_meta.h"
 #include "daemon/output/tiff_file.h"
+#include "build_info.h"
 #include "proc/preview.h"
 
 static const struct {
@@ -147,7 +149,8 @@ write_tiff_plane (Written *w, const DsOutputResult *r, const char *stem, const c
   g_autoptr (JsonNode) desc = ds_json_deep_copy (r->meta);
   json_object_set_string_member (json_node_get_object (desc), "plane", plane);
   g_autofree char *text = json_to_string (desc, FALSE);
-  DsTiffTags tags = { .description = text, .time = when, .document_name = plane };
+  DsTiffTags tags = { .description = text, .time = when, .document_name = plane,
+                      .pixel_size_um = ds_output_pixel_size_um (r->meta) };
   if (!ds_tiff_write (img, path, &tags, error))
     return FALSE;
   record (w, name, "tiff", plane, NAN);
@@ -163,6 +166,34 @@ write_png (Written *w, const char *stem, const char *part, const char *kind, con
   if (!ds_image_write (img, path, error))
     return FALSE;
   record (w, name, kind, plane, scale);
+  return TRUE;
+}
+
+/* A scaled plane (ds_png16_scaled, scale = 2^k) says in the file what its values are: the scale
+ * and units as text, and sBIT = 16 - k significant bits, the bits at and above one count, so
+ * that a reader shifting right by 16 - sBIT gets whole counts (the bits below are fractions of
+ * a count, not noise of the file). */
+static gboolean
+write_png16 (Written *w, const char *stem, const char *part, const char *plane, const DsImage *img, double scale,
+             GError **error)
+{
+  g_autofree char *name = ds_result_file_name (stem, part, "png");
+  g_autofree char *path = g_build_filename (w->dir, name, NULL);
+  int k = (int) lround (log2 (scale));
+  guint sbit = (guint) CLAMP (16 - MAX (k, 0), 1, 16);
+  char scale_text[32];
+  g_ascii_formatd (scale_text, sizeof scale_text, "%.17g", scale);
+  const DsPngText texts[] = {
+    { "Software", "descatter " DS_VERSION " (" DS_GIT_DESCRIBE ")" },
+    { "Title", plane },
+    { "Description", ds_output_plane_long_name (plane) },
+    { "descatter:scale", scale_text },
+    { "descatter:units", ds_output_plane_units (plane) },
+    { "descatter:meaning", "value in counts = file value / descatter:scale" },
+  };
+  if (!ds_png16_write (img, path, sbit, texts, G_N_ELEMENTS (texts), error))
+    return FALSE;
+  record (w, name, "png16", plane, scale);
   return TRUE;
 }
 
@@ -189,7 +220,7 @@ write_all (Written *w, const DsOutputResult *r, const char *stem, guint kinds, G
     for (guint i = 0; i < 2; i++) {
       double scale;
       g_autoptr (DsImage) img = ds_png16_scaled (planes[i], &scale, error);
-      if (!img || !write_png (w, stem, parts[i], "png16", i ? "scattered" : "transmissive", img, scale, error))
+      if (!img || !write_png16 (w, stem, parts[i], i ? "scattered" : "transmissive", img, scale, error))
         return FALSE;
     }
   }

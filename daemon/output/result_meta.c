@@ -231,3 +231,10 @@ ds_json_path_int (JsonNode *root, const char *dotted, gint64 fallback)
   GType t = json_node_get_value_type (n);
   return t == G_TYPE_INT64 ? json_node_get_int (n) : t == G_TYPE_DOUBLE ? (gint64) json_node_get_double (n) : fallback;
 }
+
+double
+ds_output_pixel_size_um (JsonNode *meta)
+{
+  double v = ds_json_path_double (meta, "pixel_size_um", NAN);
+  return isfinite (v) && v > 0 ? v : NAN;
+}

@@ -55,6 +55,10 @@ const char *ds_json_path_string (JsonNode *root, const char *dotted, const char 
 double ds_json_path_double (JsonNode *root, const char *dotted, double fallback);
 gint64 ds_json_path_int (JsonNode *root, const char *dotted, gint64 fallback);
 
+/* The object-plane pixel size of a result in µm (pixel_size_um: the sensor's pixel pitch over the
+ * optics' magnification), or NAN when the metadata says it is unknown (null or absent). */
+double ds_output_pixel_size_um (JsonNode *meta);
+
 /* For writing metadata: the member `key` with the value v, or null where v is not finite (JSON has
  * no NaN or infinity, and json-glib's generator writes them as text no parser reads). */
 void ds_json_add_double_or_null (JsonBuilder *b, const char *key, double v);

@@ -1,6 +1,7 @@
 #include "daemon/output/tiff_file.h"
 
 #include <glib/gstdio.h>
+#include <math.h>
 #include <stdio.h>
 #include <tiffio.h>
 
@@ -76,6 +77,12 @@ write_tiff_file (const DsImage *img, const char *tmp, const char *path, const Ds
                 TIFFSetField (tif, TIFFTAG_DATETIME, stamp) &&
                 (!tags || !tags->description || TIFFSetField (tif, TIFFTAG_IMAGEDESCRIPTION, tags->description)) &&
                 (!tags || !tags->document_name || TIFFSetField (tif, TIFFTAG_DOCUMENTNAME, tags->document_name));
+  /* The physical scale, as ImageJ, napari (tifffile) and GIMP read it: pixels per centimetre. */
+  if (ok && tags && isfinite (tags->pixel_size_um) && tags->pixel_size_um > 0) {
+    float per_cm = (float) (1e4 / tags->pixel_size_um);
+    ok = TIFFSetField (tif, TIFFTAG_RESOLUTIONUNIT, RESUNIT_CENTIMETER) &&
+         TIFFSetField (tif, TIFFTAG_XRESOLUTION, per_cm) && TIFFSetField (tif, TIFFTAG_YRESOLUTION, per_cm);
+  }
   /* Integer images that use fewer bits say so (a 12-bit frame in 16-bit samples). */
   if (ok && img->type != DS_SAMPLE_F32 && img->bit_depth < bits)
     ok = TIFFSetField (tif, TIFFTAG_MAXSAMPLEVALUE, (guint16) ((1u << img->bit_depth) - 1));

@@ -16,6 +16,7 @@ typedef struct {
   const char *software;      /* Software; NULL: "descatter VERSION (GIT)" */
   GDateTime *time;           /* DateTime; NULL: now */
   const char *document_name; /* DocumentName (e.g. "transmissive"); NULL: none */
+  double pixel_size_um;      /* XResolution = YResolution in pixels per cm; 0 or NAN: unknown, no tags */
 } DsTiffTags;
 
 /* Writes u8, u16 or f32 (row stride honoured) atomically (daemon/output/atomic_file.h). */

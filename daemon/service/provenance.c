@@ -28,4 +28,15 @@ ds_provenance_fill (DsResultProvenance *p, const DsConfig *config, const char *c
   }
   p->illuminator_temperature_c = st->illuminator.temperature_c;
   p->phase_offset_cycles = st->phase_offset_cycles;
+  /* The configured pitch wins: it is what the user measured or read in the sensor's data sheet,
+   * and binning the camera does not report changes it. */
+  p->pixel_pitch_um = NAN;
+  if (isfinite (config->pixel_pitch_um)) {
+    p->pixel_pitch_um = config->pixel_pitch_um;
+    g_strlcpy (p->pixel_pitch_source, "config", sizeof p->pixel_pitch_source);
+  } else if (st->camera_info.pixel_pitch_um > 0) {
+    p->pixel_pitch_um = st->camera_info.pixel_pitch_um;
+    g_strlcpy (p->pixel_pitch_source, "camera", sizeof p->pixel_pitch_source);
+  }
+  p->magnification = config->magnification;
 }

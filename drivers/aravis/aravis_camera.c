@@ -182,6 +182,12 @@ read_limits (ArvCamera *cam, DsCameraInfo *info)
   }
   arv_camera_get_exposure_time_bounds (cam, &info->exposure_min_us, &info->exposure_max_us, &e);
   g_clear_error (&e);
+  /* SFNC's SensorPixelWidth is the physical pitch in µm; optional, and many cameras lack it. */
+  if (arv_camera_is_feature_available (cam, "SensorPixelWidth", NULL)) {
+    double pitch = arv_camera_get_float (cam, "SensorPixelWidth", &e);
+    info->pixel_pitch_um = e == NULL && pitch > 0 && pitch < 1000 ? pitch : 0;
+    g_clear_error (&e);
+  }
 }
 
 static gboolean

@@ -47,6 +47,7 @@ typedef struct {
   gboolean has_gain;                       /* FALSE: the camera has no Gain feature */
   double gain_min_db, gain_max_db;
   double exposure_min_us, exposure_max_us; /* 0, 0: unknown */
+  double pixel_pitch_um;                   /* the sensor's pixel pitch (SensorPixelWidth); 0: unknown */
 } DsCameraInfo;
 
 typedef struct DsCameraOps DsCameraOps;

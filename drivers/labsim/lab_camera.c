@@ -13,6 +13,7 @@
 #define REG_TRIGGER_SOURCE 0x8000
 #define REG_TRIGGER_ACTIVATION 0x8004
 #define REG_TRIGGER_SOFTWARE 0x8008
+#define REG_SENSOR_PIXEL_WIDTH_NM 0x800c
 #define SOURCE_SOFTWARE 16
 
 typedef struct {
@@ -25,6 +26,7 @@ struct DsLabCamera {
   char *address, *serial;
   DsLabFill *fill;
   guint sensor_width, sensor_height;
+  double pixel_pitch_um;   /* the scene's sensor pitch, served as SensorPixelWidth */
   double default_exposure_us;
 
   GMutex gv_lock;          /* gv: swapped on the main thread, used by the trigger router */
@@ -238,6 +240,7 @@ appear (DsLabCamera *c, GError **error)
   arv_fake_camera_write_register (fake, ARV_FAKE_CAMERA_REGISTER_SENSOR_HEIGHT, c->sensor_height);
   arv_fake_camera_write_register (fake, ARV_FAKE_CAMERA_REGISTER_WIDTH, c->sensor_width);
   arv_fake_camera_write_register (fake, ARV_FAKE_CAMERA_REGISTER_HEIGHT, c->sensor_height);
+  arv_fake_camera_write_register (fake, REG_SENSOR_PIXEL_WIDTH_NM, (guint32) (c->pixel_pitch_um * 1000 + 0.5));
   arv_fake_camera_write_register (fake, ARV_FAKE_CAMERA_REGISTER_PIXEL_FORMAT, ARV_PIXEL_FORMAT_MONO_16);
   arv_fake_camera_write_register (fake, ARV_FAKE_CAMERA_REGISTER_EXPOSURE_TIME_US,
                                   (guint32) c->default_exposure_us);
@@ -313,6 +316,7 @@ ds_lab_camera_new (const DsLabCameraConfig *config, const DsRenderer *renderer,
   const DsScene *scene = ds_renderer_scene (renderer);
   c->sensor_width = ds_scene_width (scene);
   c->sensor_height = ds_scene_height (scene);
+  c->pixel_pitch_um = ds_scene_spec (scene)->pixel_pitch_um;
   c->default_exposure_us = ds_scene_default_exposure_us (scene);
   c->fill = ds_lab_fill_new (renderer, illumination, user_data, config->seed, config->noiseless);
   /* Before the camera appears: a client that sees it can take frames at once. */

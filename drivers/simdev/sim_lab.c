@@ -411,6 +411,7 @@ cam_get_info (gpointer b, DsCameraInfo *i)
   g_strlcpy (i->address, "in-process", sizeof i->address);
   i->sensor_width = s->width;
   i->sensor_height = s->height;
+  i->pixel_pitch_um = s->pixel_pitch_um;
   i->connected = lab->connected;
   /* Any pixel format: frames are rendered as floats. */
   i->has_gain = TRUE;

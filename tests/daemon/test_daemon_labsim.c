@@ -55,6 +55,11 @@ test_capture_over_the_wire (void)
   g_assert_cmpstr (json_object_get_string_member (cam, "model"), ==, json_object_get_string_member (dev, "model"));
   g_assert_cmpstr (json_object_get_string_member (cam, "vendor"), !=, "descatter");
   g_assert_cmpstr (json_object_get_string_member (cam, "pixel_format"), !=, "simulated");
+  /* The pixel pitch came from the camera's SensorPixelWidth feature: the scene's sensor's. */
+  JsonObject *optics = json_object_get_object_member (json_node_get_object (m->reply->body), "optics");
+  g_assert_cmpstr (json_object_get_string_member (optics, "pitch_source"), ==, "camera");
+  g_assert_cmpfloat_with_epsilon (json_object_get_double_member (optics, "sensor_pixel_pitch_um"),
+                                  ds_scene_spec (the_scene)->pixel_pitch_um, 1e-3);
   test_daemon_stop_clean (d);
   test_labsim_stop (l);
 }
