@@ -29,7 +29,8 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from live_daemon import LiveDaemon  # noqa: E402
 
 TOKEN = "prometheus-token-0123456789"
-STATES = ["opening", "idle", "acquiring", "continuous", "reconnecting", "released", "failed", "cancelling"]
+STATES = ["opening", "idle", "acquiring", "continuous", "reconnecting", "released", "failed", "cancelling",
+          "preview"]
 
 
 def scrape(url):

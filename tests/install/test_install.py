@@ -26,8 +26,10 @@ def check(cond, what):
 
 
 # Where one rig's daemon differs from another's: its configuration, socket and directories.
+# ReadWritePaths: a rig writes its token file into the shared /run/descatterd, which the main
+# unit owns as its RuntimeDirectory and a rig does not (stopping one rig must not remove it).
 PER_INSTANCE = {"ExecStart", "RuntimeDirectory", "RuntimeDirectoryMode", "RuntimeDirectoryPreserve",
-                "StateDirectory", "CacheDirectory", "Environment"}
+                "StateDirectory", "CacheDirectory", "Environment", "ReadWritePaths"}
 
 
 def service_lines(path):
