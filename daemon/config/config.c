@@ -507,10 +507,10 @@ load_keyfile (GKeyFile *kf, const char *data, const char *name, GError **error)
 }
 
 /* What GKeyFile passes over in silence: a NUL byte ends its text (the keys after it, even
- * invalid ones, would be ignored), a key given twice keeps its last value (also when the
- * copies are in two groups of one name, which GKeyFile merges), a locale key (backend[fr]=)
- * is kept beside the key and never read, and a key without a name (=value) is stored under
- * "". Each is refused with its line. */
+ * invalid ones, would be ignored), a key given twice keeps its last value, a group given twice
+ * is merged into one (so a reader of the file who finds the first copy misses the keys of the
+ * second), a locale key (backend[fr]=) is kept beside the key and never read, and a key
+ * without a name (=value) is stored under "". Each is refused with its line. */
 static gboolean
 check_line (const char *l, guint line, const char *name, char **group, GHashTable *seen, GError **error)
 {
@@ -518,6 +518,16 @@ check_line (const char *l, guint line, const char *name, char **group, GHashTabl
     char *close = strchr (l, ']');
     g_free (*group);
     *group = close ? g_strndup (l + 1, (gsize) (close - l - 1)) : g_strdup (l);
+    /* Groups and keys share the table: "[camera]" cannot be a key's "[group] key". */
+    g_autofree char *header = g_strdup_printf ("[%s]", *group);
+    guint first = GPOINTER_TO_UINT (g_hash_table_lookup (seen, header));
+    if (first) {
+      g_set_error (error, DS_CONFIG_ERROR, DS_CONFIG_ERROR_SYNTAX,
+                   "%s: line %u: group %s appears twice (first at line %u): write its keys in one group", name,
+                   line, header, first);
+      return FALSE;
+    }
+    g_hash_table_insert (seen, g_steal_pointer (&header), GUINT_TO_POINTER (line));
     return TRUE;
   }
   char *eq = strchr (l, '=');

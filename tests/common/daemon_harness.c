@@ -1,4 +1,5 @@
 #include "tests/common/daemon_harness.h"
+#include "tests/common/config_groups.h"
 
 #include <glib/gstdio.h>
 #include <signal.h>
@@ -56,7 +57,8 @@ daemon_spawn (const char *config_text, const char *const *extra_args, const char
   g_assert_no_error (error);
   d->socket_path = g_build_filename (d->dir, "descatterd.sock", NULL);
   d->config_path = g_build_filename (d->dir, "descatterd.conf", NULL);
-  g_file_set_contents (d->config_path, config_text, -1, &error);
+  g_autofree char *grouped = test_config_groups_merge (config_text);
+  g_file_set_contents (d->config_path, grouped, -1, &error);
   g_assert_no_error (error);
   g_autoptr (GPtrArray) argv = g_ptr_array_new ();
   g_ptr_array_add (argv, (gpointer) DESCATTERD_PATH);
@@ -228,7 +230,8 @@ test_daemon_check (const char *config_text, gboolean probe, char **out, char **e
   g_assert_no_error (error);
   g_autofree char *conf = g_build_filename (dir, "descatterd.conf", NULL);
   g_autofree char *sock = g_build_filename (dir, "descatterd.sock", NULL);
-  g_autofree char *text = g_strdup_printf ("[daemon]\nsocket=%s\n%s", sock, config_text);
+  g_autofree char *joined = g_strdup_printf ("[daemon]\nsocket=%s\n%s", sock, config_text);
+  g_autofree char *text = test_config_groups_merge (joined);
   g_file_set_contents (conf, text, -1, &error);
   g_assert_no_error (error);
   const char *argv[] = { DESCATTERD_PATH, "--check", "--config", conf, probe ? "--probe" : NULL, NULL };

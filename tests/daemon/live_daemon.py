@@ -7,13 +7,32 @@ import subprocess
 import time
 
 
+def merge_groups(text):
+    """The configuration with a group given twice merged into its first copy (descatterd
+    refuses a repeated group): the base's [camera] and a test's own [camera] lines together,
+    every line kept verbatim, groups in order of first appearance."""
+    head, order, bodies, current = [], [], {}, None
+    for line in text.splitlines():
+        stripped = line.strip()
+        if stripped.startswith("[") and "]" in stripped:
+            name = stripped[1:stripped.index("]")]
+            if name not in bodies:
+                bodies[name] = []
+                order.append(name)
+            current = bodies[name]
+            continue
+        (head if current is None else current).append(line)
+    out = head + [line for name in order for line in [f"[{name}]"] + bodies[name]]
+    return "\n".join(out) + "\n"
+
+
 class LiveDaemon:
     def __init__(self, daemon, ctl, tmp, extra_conf="", args=(), wait=True, env=None, preexec_fn=None):
         self.ctl_path, self.tmp = ctl, tmp
         self.sock = os.path.join(tmp, "d.sock")
         self.conf = os.path.join(tmp, "d.conf")
         with open(self.conf, "w") as f:
-            f.write("[camera]\nbackend=sim\n[illuminator]\nbackend=sim\n" + extra_conf)
+            f.write(merge_groups("[camera]\nbackend=sim\n[illuminator]\nbackend=sim\n" + extra_conf))
         self.log_path = os.path.join(tmp, "d.log")
         self.log = open(self.log_path, "a")
         self.proc = subprocess.Popen([daemon, "--config", self.conf, "--socket", self.sock, "--no-socket-activation",

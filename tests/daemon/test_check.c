@@ -3,6 +3,7 @@
  * and leaves nothing behind (no socket file); a configuration the check accepts starts.
  * Each case is one the issue found passing --check and then failing (or misbehaving) at start.
  * The programs are run as processes, as an administrator would. */
+#include "tests/common/config_groups.h"
 #include <gio/gio.h>
 #include <glib/gstdio.h>
 #include <signal.h>
@@ -216,10 +217,11 @@ test_check_equals_start (void)
         extra_value = g_strdup (v->str);
       }
     }
-    /* The section given again by a case ([daemon], [camera]...) is a second group of the same
-     * name, which GKeyFile merges; a key given twice is refused, and no case does that but the
-     * one that means to. */
-    g_autofree char *conf = write_file ("case.conf", body, -1);
+    /* The section given again by a case ([daemon], [camera]...) goes into the base's group of
+     * that name (descatterd refuses a group given twice); a key given twice is refused, and no
+     * case does that but the one that means to. */
+    g_autofree char *grouped = test_config_groups_merge (body);
+    g_autofree char *conf = write_file ("case.conf", grouped, -1);
     const char *check_args[] = { "--check", "--config", conf, cases[i].extra_arg, extra_value, NULL };
     const char *start_args[] = { "--config", conf, "--no-socket-activation", cases[i].extra_arg, extra_value, NULL };
     if (!cases[i].extra_arg) {

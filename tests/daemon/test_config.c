@@ -3,6 +3,7 @@
 #include "daemon/acquire/capture_settings.h"
 #include "daemon/config/config.h"
 #include "proc/calibration_json.h"
+#include "tests/common/config_groups.h"
 
 #include <math.h>
 #include <glib/gstdio.h>
@@ -11,6 +12,15 @@
 static const char *example_path;
 
 #define SIM "[camera]\nbackend=sim\n[illuminator]\nbackend=sim\n"
+
+/* A configuration composed of SIM and a case's groups, with a group given twice merged into one
+ * (ds_config_load_data refuses the repetition itself: /config/groups-given-twice). */
+static DsConfig *
+load_data (const char *text, const char *name, GError **error)
+{
+  g_autofree char *grouped = test_config_groups_merge (text);
+  return ds_config_load_data (grouped, name, error);
+}
 
 static void
 test_defaults_are_the_simulated_lab (void)
@@ -33,7 +43,7 @@ static void
 test_values_override_defaults (void)
 {
   g_autoptr (GError) error = NULL;
-  g_autoptr (DsConfig) c = ds_config_load_data ("[acquisition]\nphases = 12\nestimator=sine\n"
+  g_autoptr (DsConfig) c = load_data ("[acquisition]\nphases = 12\nestimator=sine\n"
                                                 "[camera]\nbackend=aravis\naddress=10.0.0.2\n"
                                                 "[illuminator]\nbackend=modbus\nmodbus-uri=tcp://127.0.0.1:1502\n"
                                                 "duty=0.25\n[daemon]\nsocket-mode=0600\n",
@@ -51,7 +61,7 @@ static void
 expect_error (const char *text, int code, const char *const *must_contain)
 {
   g_autoptr (GError) error = NULL;
-  g_autoptr (DsConfig) c = ds_config_load_data (text, "bad.conf", &error);
+  g_autoptr (DsConfig) c = load_data (text, "bad.conf", &error);
   g_assert_null (c);
   g_assert_error (error, DS_CONFIG_ERROR, code);
   g_assert_nonnull (strstr (error->message, "bad.conf"));
@@ -93,13 +103,13 @@ static void
 test_round_trip (void)
 {
   g_autoptr (GError) error = NULL;
-  g_autoptr (DsConfig) a = ds_config_load_data ("[camera]\nbackend=sim\nexposure-us=1234.5\nroi=0,0,64,32\n"
+  g_autoptr (DsConfig) a = load_data ("[camera]\nbackend=sim\nexposure-us=1234.5\nroi=0,0,64,32\n"
                                                 "[illuminator]\nbackend=sim\n[sim]\nseed=99\n"
                                                 "[acquisition]\nphase-tolerance-deg=10\n",
                                                 "a.conf", &error);
   g_assert_no_error (error);
   g_autofree char *text = ds_config_to_data (a);
-  g_autoptr (DsConfig) b = ds_config_load_data (text, "printed", &error);
+  g_autoptr (DsConfig) b = load_data (text, "printed", &error);
   g_assert_no_error (error);
   g_autofree char *text2 = ds_config_to_data (b);
   g_assert_cmpstr (text, ==, text2);
@@ -119,9 +129,9 @@ static void
 test_reload_rule (void)
 {
   g_autoptr (GError) error = NULL;
-  g_autoptr (DsConfig) running = ds_config_load_data (SIM, "running.conf", &error);
+  g_autoptr (DsConfig) running = load_data (SIM, "running.conf", &error);
   g_assert_no_error (error);
-  g_autoptr (DsConfig) live = ds_config_load_data (SIM "[acquisition]\nphases=10\nestimator=sine\n"
+  g_autoptr (DsConfig) live = load_data (SIM "[acquisition]\nphases=10\nestimator=sine\n"
                                                    "phase-tolerance-deg=20\n[camera]\nexposure-us=700\n",
                                                    "live.conf", &error);
   g_assert_no_error (error);
@@ -139,12 +149,12 @@ test_reload_rule (void)
   };
   for (guint i = 0; i < G_N_ELEMENTS (restart); i++) {
     g_autofree char *text = g_strconcat (SIM, restart[i][0], "[acquisition]\nphases=6\n", NULL);
-    g_autoptr (DsConfig) fresh = ds_config_load_data (text, "fresh.conf", &error);
+    g_autoptr (DsConfig) fresh = load_data (text, "fresh.conf", &error);
     g_assert_no_error (error);
     g_autofree char *changed = ds_config_restart_keys_changed (running, fresh);
     g_assert_cmpstr (changed, ==, restart[i][1]);
   }
-  g_autoptr (DsConfig) two = ds_config_load_data (SIM "[camera]\ngain-db=3\nroi=0,0,8,8\n"
+  g_autoptr (DsConfig) two = load_data (SIM "[camera]\ngain-db=3\nroi=0,0,8,8\n"
                                                   "[acquisition]\nsettle-ms=7\nlink-mbit=100\n",
                                                   "two.conf", &error);
   g_assert_no_error (error);
@@ -162,11 +172,11 @@ test_example_documents_every_key (void)
   g_assert_true (g_file_get_contents (example_path, &data, NULL, NULL));
   g_autoptr (GError) error = NULL;
   /* As shipped it names no device (a lab must choose): refused, saying so. */
-  g_assert_null (ds_config_load_data (data, example_path, &error));
+  g_assert_null (load_data (data, example_path, &error));
   g_assert_nonnull (strstr (error->message, "backend is not set"));
   g_clear_error (&error);
   g_autofree char *chosen = g_strconcat (data, "\n" SIM, NULL);
-  g_autoptr (DsConfig) c = ds_config_load_data (chosen, example_path, &error);
+  g_autoptr (DsConfig) c = load_data (chosen, example_path, &error);
   g_assert_no_error (error);
   /* Every key of the table appears in the example, set or commented out. */
   g_autofree char *defaults = ds_config_to_data (c);
@@ -230,13 +240,13 @@ test_refusals (void)
     { SIM "[acquisition]\nphases=8\nphases=4\n", DS_CONFIG_ERROR_SYNTAX, { "[acquisition] phases", "lines 6 and 7" } },
     { SIM "[acquisition]\nphases=8\n[acquisition]\nphases = 4\n", DS_CONFIG_ERROR_SYNTAX, { "set twice" } },
     /* a locale key was kept beside the key and never read; a key without a name stored as "" */
-    { SIM "[camera]\nbackend[fr]=aravis\n", DS_CONFIG_ERROR_SYNTAX, { "line 6", "backend[fr]", "localized" } },
+    { SIM "[camera]\nbackend[fr]=aravis\n", DS_CONFIG_ERROR_SYNTAX, { "line 3", "backend[fr]", "localized" } },
     { SIM "[acquisition]\n =8\n", DS_CONFIG_ERROR_SYNTAX, { "line 6", "without a key name" } },
     { SIM "[acquisition]\nphases=\xff\n", DS_CONFIG_ERROR_SYNTAX, { "line 6", "UTF-8" } },
   };
   for (guint i = 0; i < G_N_ELEMENTS (cases); i++) {
     g_autoptr (GError) error = NULL;
-    g_autoptr (DsConfig) c = ds_config_load_data (cases[i].text, "lab.conf", &error);
+    g_autoptr (DsConfig) c = load_data (cases[i].text, "lab.conf", &error);
     if (c)
       g_error ("case %u accepted:\n%s", i, cases[i].text);
     if (!g_error_matches (error, DS_CONFIG_ERROR, cases[i].code))
@@ -289,7 +299,7 @@ test_calibration_lines_and_clip_level (void)
   g_autofree char *text = g_strconcat (lines, "backend=sim\n[camera]\nbackend=sim\npixel-format=Mono12\n"
                                        "saturation-dn=2118\n", NULL);
   g_autoptr (GError) error = NULL;
-  g_autoptr (DsConfig) c = ds_config_load_data (text, "calibrated.conf", &error);
+  g_autoptr (DsConfig) c = load_data (text, "calibrated.conf", &error);
   g_assert_no_error (error);
   g_assert_cmpfloat (c->harmonic_gain, ==, 0.4123);
   g_assert_cmpfloat (c->edge_blur_px, ==, 1.07);
@@ -306,7 +316,7 @@ test_calibration_lines_and_clip_level (void)
   g_assert_true (p.geometry.edge_blur_known);
   g_assert_cmpfloat (p.geometry.edge_blur_px, ==, 1.07);
   /* Unset: the separation's own defaults (theory's h, the frames' top), blur not known. */
-  g_autoptr (DsConfig) d = ds_config_load_data (SIM, "plain.conf", &error);
+  g_autoptr (DsConfig) d = load_data (SIM, "plain.conf", &error);
   g_assert_no_error (error);
   g_assert_true (isnan (d->harmonic_gain) && isnan (d->edge_blur_px) && isnan (d->saturation_dn));
   ds_capture_settings_from_config (&s, d);
@@ -329,10 +339,23 @@ test_calibration_lines_and_clip_level (void)
   expect_error (SIM "[camera]\npixel-format=Mono12p\nsaturation-dn=5000\n", DS_CONFIG_ERROR_INCONSISTENT,
                 (const char *const[]) { "saturation-dn", "Mono12p", "4095", NULL });
   /* At the format's top exactly: accepted (a full well that reaches it). */
-  g_autoptr (DsConfig) top = ds_config_load_data (SIM "[camera]\npixel-format=Mono8\nsaturation-dn=255\n", "top.conf",
+  g_autoptr (DsConfig) top = load_data (SIM "[camera]\npixel-format=Mono8\nsaturation-dn=255\n", "top.conf",
                                                   &error);
   g_assert_no_error (error);
   g_assert_cmpfloat (top->saturation_dn, ==, 255);
+}
+
+/* GKeyFile merges a group given twice; descatterd refuses it with both lines, so that what a
+ * reader finds in the file's first copy of a group is all of it. */
+static void
+test_groups_given_twice (void)
+{
+  g_autoptr (GError) error = NULL;
+  g_autoptr (DsConfig) c = ds_config_load_data (SIM "[acquisition]\nphases=8\n[camera]\nexposure-us=700\n",
+                                                "lab.conf", &error);
+  g_assert_null (c);
+  g_assert_error (error, DS_CONFIG_ERROR, DS_CONFIG_ERROR_SYNTAX);
+  g_assert_nonnull (strstr (error->message, "lab.conf: line 7: group [camera] appears twice (first at line 1)"));
 }
 
 int
@@ -349,5 +372,6 @@ main (int argc, char **argv)
   g_test_add_func ("/config/refusals", test_refusals);
   g_test_add_func ("/config/calibration-lines-and-clip-level", test_calibration_lines_and_clip_level);
   g_test_add_func ("/config/file-limits", test_file_limits);
+  g_test_add_func ("/config/groups-given-twice", test_groups_given_twice);
   return g_test_run ();
 }

@@ -1,5 +1,6 @@
 /* descatterd end to end on the in-process simulated lab: a real daemon process, real sockets,
  * the simulator's ground truth as the independent expectation. */
+#include "tests/common/config_groups.h"
 #include <fcntl.h>
 #include <glib/gstdio.h>
 #include <math.h>
@@ -12,12 +13,15 @@
 #include "drivers/sim/renderer.h"
 #include "drivers/sim/scene.h"
 
+/* The base configuration with a case's groups merged into it (descatterd refuses a group
+ * given twice, and a reload rewrites the whole file). */
 static char *
 config_text (const char *extra)
 {
-  return g_strdup_printf ("[camera]\nbackend=sim\n[illuminator]\nbackend=sim\n"
-                          "[sim]\nscene=%s\nseed=7\n%s",
-                          SCENE_FILE, extra ? extra : "");
+  g_autofree char *joined = g_strdup_printf ("[camera]\nbackend=sim\n[illuminator]\nbackend=sim\n"
+                                             "[sim]\nscene=%s\nseed=7\n%s",
+                                             SCENE_FILE, extra ? extra : "");
+  return test_config_groups_merge (joined);
 }
 
 static void
