@@ -79,9 +79,11 @@ ds_service_handle_preview (DsService *svc, DsConnection *conn, DsRequest *req)
     return;
   }
   guint64 tag = ++svc->next_tag;
-  if (!svc->ready || !ds_sequencer_preview (svc->sequencer, on, l, (guint) phase, tag)) {
-    g_set_error (&error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BUSY, "preview: %s",
-                 svc->ready ? "too many requests queued; try again later" : "the devices are not open yet");
+  /* While the devices open, preview waits in the queue like every request: the thread takes it
+   * once they are open, or answers device_error when they fail to open. busy is the full queue. */
+  if (!ds_sequencer_preview (svc->sequencer, on, l, (guint) phase, tag)) {
+    g_set_error (&error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BUSY, "preview: too many requests queued; try again "
+                 "later");
     ds_server_reply_error (svc->server, conn, req->id, error);
     return;
   }

@@ -55,6 +55,35 @@ test_capture_waits_for_devices (void)
   test_daemon_stop_clean (d);
 }
 
+/* Preview asked for while the devices open waits like a capture: answered `preview` once they
+ * are open, and status then says so. */
+static void
+test_preview_waits_for_devices (void)
+{
+  g_autofree char *conf = config_text ();
+  TestDaemon *d = test_daemon_start_unready (conf);
+  g_autoptr (DsClient) a = test_daemon_connect (d);
+  g_assert_cmpstr (status_state (a), ==, "opening");
+
+  g_autoptr (JsonObject) on = json_object_new ();
+  json_object_set_string_member (on, "state", "on");
+  json_object_set_string_member (on, "light", "all");
+  g_autoptr (GError) error = NULL;
+  g_autoptr (DsMessage) m = ds_client_call (a, "preview", on, NULL, NULL, &error);
+  g_assert_no_error (error);
+  if (!m->reply->ok)
+    g_error ("preview while opening: %s: %s", ds_protocol_error_name (m->reply->error_code),
+             m->reply->error_message);
+  g_assert_cmpstr (json_object_get_string_member (json_node_get_object (m->reply->body), "state"), ==, "preview");
+  g_assert_cmpstr (status_state (a), ==, "preview");
+  g_autoptr (JsonObject) off = json_object_new ();
+  json_object_set_string_member (off, "state", "off");
+  g_autoptr (DsMessage) o = ds_client_call (a, "preview", off, NULL, NULL, &error);
+  g_assert_no_error (error);
+  g_assert_true (o->reply->ok);
+  test_daemon_stop_clean (d);
+}
+
 /* Devices that cannot open: the simulated lab's scene file, there when the daemon checked its
  * configuration, is gone by the time the devices open. A capture sent while they open is
  * answered `device_error` naming the lab and why, and the daemon exits failed; a start sent
@@ -104,5 +133,6 @@ main (int argc, char **argv)
   g_test_init (&argc, &argv, NULL);
   g_test_add_func ("/devices-opening/capture-waits", test_capture_waits_for_devices);
   g_test_add_func ("/devices-opening/devices-fail", test_capture_answered_when_devices_fail);
+  g_test_add_func ("/devices-opening/preview-waits", test_preview_waits_for_devices);
   return g_test_run ();
 }
