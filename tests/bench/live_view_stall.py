@@ -41,8 +41,13 @@ def measure(d, seconds):
     return (st1["sets_done"] - st0["sets_done"]) / (time.monotonic() - t0)
 
 
+def ws_url(d):
+    """The live view's WebSocket with the page's token (descatterctl live-url)."""
+    return d.page_url().replace("http://", "ws://").replace("/?token=", "/ws?token=")
+
+
 def active_client(url, stop, seen):
-    ws = websocket.create_connection(url.replace("http://", "ws://") + "ws", timeout=10)
+    ws = websocket.create_connection(url, timeout=10)
     while not stop.is_set():
         try:
             m = ws.recv()
@@ -66,8 +71,7 @@ def main():
             rss0 = rss_kib(d.proc.pid)
             rates = {"A": measure(d, seconds)}
 
-            stalled = [websocket.create_connection(d.url.replace("http://", "ws://") + "ws", timeout=10)
-                       for _ in range(4)]
+            stalled = [websocket.create_connection(ws_url(d), timeout=10) for _ in range(4)]
             sub = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
             sub.connect(d.sock)
             sub.sendall(b'{"id": 1, "cmd": "subscribe"}\n')
@@ -95,7 +99,7 @@ def main():
 
             rates["A'"] = measure(d, seconds)
             stop, seen = threading.Event(), {"frame": 0, "result": 0}
-            t = threading.Thread(target=active_client, args=(d.url, stop, seen))
+            t = threading.Thread(target=active_client, args=(ws_url(d), stop, seen))
             t.start()
             rates["C"] = measure(d, seconds)
             stop.set()
