@@ -198,15 +198,14 @@ ds_server_reply_error (DsServer *server, DsConnection *conn, JsonNode *id, const
   send_line (conn, line, len, NULL, 0, FALSE, NULL);
 }
 
-guint
-ds_server_publish (DsServer *server, const char *event, JsonNode *body, const DsPayloadInfo *infos,
-                   GBytes *const *payloads, guint n_payloads)
+/* Sends one line (shared by every receiver, like the payloads) to the subscribed connections
+ * that asked for this kind of event: results and events, or preview frames. Droppable: a client
+ * reading slower than the daemon produces loses events (a gap in their seq), never the daemon's
+ * time. Returns how many received it; *dropped counts the others. */
+static guint
+broadcast (DsServer *server, GBytes *line, GBytes *const *payloads, guint n_payloads, gboolean frames,
+           guint64 *dropped)
 {
-  gsize len = 0;
-  g_autofree char *text = ds_event_build (event, ++server->seq, body, infos, n_payloads, &len);
-  /* One line shared by all subscribers, like the payloads. */
-  g_autoptr (GBytes) line = g_bytes_new (text, len);
-  server->stats.published++;
   guint delivered = 0;
   GHashTableIter it;
   gpointer key;
@@ -214,14 +213,25 @@ ds_server_publish (DsServer *server, const char *event, JsonNode *body, const Ds
   while (g_hash_table_iter_next (&it, &key, NULL)) {
     DsConnection *c = key;
     ClientState *st = ds_connection_get_data (c);
-    if (!st || !st->subscribed || ds_connection_is_closed (c))
+    if (!st || !(frames ? st->frames : st->subscribed) || ds_connection_is_closed (c))
       continue;
     if (ds_connection_send (c, line, payloads, n_payloads, TRUE))
       delivered++;
     else
-      server->stats.dropped++;
+      (*dropped)++;
   }
   return delivered;
+}
+
+guint
+ds_server_publish (DsServer *server, const char *event, JsonNode *body, const DsPayloadInfo *infos,
+                   GBytes *const *payloads, guint n_payloads)
+{
+  gsize len = 0;
+  g_autofree char *text = ds_event_build (event, ++server->seq, body, infos, n_payloads, &len);
+  g_autoptr (GBytes) line = g_bytes_new (text, len);
+  server->stats.published++;
+  return broadcast (server, line, payloads, n_payloads, FALSE, &server->stats.dropped);
 }
 
 guint
@@ -230,21 +240,9 @@ ds_server_publish_frame (DsServer *server, JsonNode *body, const DsPayloadInfo *
   gsize len = 0;
   g_autofree char *text = ds_event_build ("frame", ++server->frame_seq, body, info, 1, &len);
   g_autoptr (GBytes) line = g_bytes_new (text, len);
-  guint delivered = 0;
-  GHashTableIter it;
-  gpointer key;
-  g_hash_table_iter_init (&it, server->clients);
-  while (g_hash_table_iter_next (&it, &key, NULL)) {
-    DsConnection *c = key;
-    ClientState *st = ds_connection_get_data (c);
-    if (!st || !st->frames || ds_connection_is_closed (c))
-      continue;
-    /* Droppable, as results are: a client reading slower than the camera loses frames (a gap in
-     * the frames' seq), never the daemon's time. */
-    if (ds_connection_send (c, line, &payload, 1, TRUE))
-      delivered++;
-  }
-  return delivered;
+  /* Frames lost to slow readers are not results lost: they count apart from stats.dropped. */
+  guint64 frames_dropped = 0;
+  return broadcast (server, line, &payload, 1, TRUE, &frames_dropped);
 }
 
 guint

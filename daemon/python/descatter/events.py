@@ -184,7 +184,7 @@ def make_event(header: JsonObject, images: dict[str, Image], last_seq: Optional[
     if kind == "progress":  # per request, not counted in seq
         return ProgressEvent(None, 0, body), last_seq
     seq = header.get("seq")
-    lost = seq - last_seq - 1 if isinstance(seq, int) and last_seq is not None and seq > last_seq + 1 else 0
+    lost = _lost(seq, last_seq)
     new_last = seq if isinstance(seq, int) else last_seq
     if kind == "result":
         return ResultEvent(seq, lost, body, images), new_last
