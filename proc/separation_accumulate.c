@@ -35,6 +35,8 @@ free_state (DsPhaseSet *set)
   g_clear_pointer (&set->nonfinite, free);
   g_clear_pointer (&set->cos_sum, free);
   g_clear_pointer (&set->sin_sum, free);
+  g_clear_pointer (&set->cos64, free);
+  g_clear_pointer (&set->sin64, free);
   g_clear_pointer (&set->planes16, free);
   g_clear_pointer (&set->planesf, free);
 }
@@ -94,7 +96,12 @@ alloc_state (DsPhaseSet *set, GError **error)
   }
   if (is_float)
     set->nonfinite = alloc_plane (set, n, 1, &ok, error);
-  if (p->estimator == DS_ESTIMATOR_SINE) {
+  if (p->estimator == DS_ESTIMATOR_SINE && !is_float && !set->averaging) {
+    /* integer samples: exact fixed-point sums (their value does not depend on the frames'
+     * order, so a sliding window can retire a frame and still match a fresh set) */
+    set->cos64 = alloc_plane (set, n, sizeof (gint64), &ok, error);
+    set->sin64 = alloc_plane (set, n, sizeof (gint64), &ok, error);
+  } else if (p->estimator == DS_ESTIMATOR_SINE) {
     set->cos_sum = alloc_plane (set, n, sizeof (double), &ok, error);
     set->sin_sum = alloc_plane (set, n, sizeof (double), &ok, error);
   }
@@ -292,6 +299,14 @@ phase_angle (const DsPhaseSet *set, guint phase, double *c, double *s)
   *s = sin (t);
 }
 
+void
+ds_harmonic_fix_weights (guint n, guint phase, gint32 *c, gint32 *s)
+{
+  double t = 2.0 * G_PI * (double) phase / (double) n, one = (double) (1u << DS_HARMONIC_FIX_BITS);
+  *c = (gint32) lround (cos (t) * one);
+  *s = (gint32) lround (sin (t) * one);
+}
+
 /* Folds one row of values for phase `phase` (float path: float input or phase means). */
 static void
 fold_values_row (DsPhaseSet *set, guint phase, const float *v, gsize off, gboolean first)
@@ -450,8 +465,8 @@ check_frame (DsPhaseSet *set, guint phase, const DsImage *frame, GError **error)
       ds_fold_extrema_sum_##NAME (in, set->max16 + off, set->min16 + off, sum, w);                \
     else                                                                                          \
       ds_fold_extrema_##NAME (in, set->max16 + off, set->min16 + off, w);                         \
-    if (set->cos_sum)                                                                             \
-      ds_fold_harmonic_##NAME (in, c, s, set->cos_sum + off, set->sin_sum + off, j->first, w);    \
+    if (set->cos64)                                                                               \
+      ds_fold_harmonic_fix_##NAME (in, cf, sf, set->cos64 + off, set->sin64 + off, j->first, w);  \
   } while (0)
 
 static void
@@ -461,9 +476,9 @@ fold_frame_rows (gpointer data, guint y0, guint y1, guint thread)
   DsPhaseSet *set = j->set;
   const DsImage *frame = j->frame;
   gsize w = set->width;
-  double c = 0, s = 0;
-  if (set->cos_sum)
-    phase_angle (set, j->phase, &c, &s);
+  gint32 cf = 0, sf = 0;
+  if (set->cos64)
+    ds_harmonic_fix_weights (set->params.n_phases, j->phase, &cf, &sf);
   float *row = (float *) ds_phase_set_scratch (set, thread);
   for (guint y = y0; y < y1; y++) {
     gsize off = (gsize) y * w;
@@ -504,6 +519,13 @@ locate_columns (DsPhaseSet *set, guint phase, const DsImage *frame)
   }
 }
 
+void
+ds_phase_set_locate_columns (DsPhaseSet *set, guint phase, const DsImage *frame)
+{
+  if (set->flags_need_offset)
+    locate_columns (set, phase, frame);
+}
+
 gboolean
 ds_phase_set_fold_begin (DsPhaseSet *set, guint phase, const DsImage *frame, GError **error)
 {
@@ -527,8 +549,7 @@ ds_phase_set_fold_begin (DsPhaseSet *set, guint phase, const DsImage *frame, GEr
     if (!switch_to_averaging (set, error))
       return FALSE;
   }
-  if (set->flags_need_offset)
-    locate_columns (set, phase, frame);
+  ds_phase_set_locate_columns (set, phase, frame);
 
   gboolean new_phase = (int) phase != set->current;
   if (new_phase && set->averaging)

@@ -73,7 +73,12 @@ finalize_rows (gpointer data, guint y0, guint y1, guint thread)
                          set->nonfinite ? set->nonfinite + off : NULL, c->n, dark, &rb, w);
     switch (c->estimator) {
     case DS_ESTIMATOR_SINE:
-      ds_row_sine (c, set->cos_sum + off, set->sin_sum + off, dark, &rb, w);
+      if (set->cos64) {
+        ds_row_harmonic_from_fix (set->cos64 + off, set->sin64 + off, DS_HARMONIC_FIX_BITS, &rb, w);
+        ds_row_sine (c, rb.cs, rb.sn, dark, &rb, w);
+      } else {
+        ds_row_sine (c, set->cos_sum + off, set->sin_sum + off, dark, &rb, w);
+      }
       break;
     case DS_ESTIMATOR_ROBUST:
       ds_row_robust (c, &j->tables, set->planes16 ? set->planes16 + off : NULL,

@@ -38,7 +38,10 @@ struct DsPhaseSet {
   float *rawmax;           /* averaging only: largest raw sample (saturation) */
   double *psum;            /* averaging only: running sum of the current phase */
   guint8 *nonfinite;       /* float input only: some sample was NaN or Inf */
-  double *cos_sum, *sin_sum; /* sine: first harmonic of the phase means */
+  double *cos_sum, *sin_sum; /* sine: first harmonic of the phase means (float input, averaging) */
+  gint64 *cos64, *sin64;   /* sine, integer fast path: the first harmonic in fixed point, sum of
+                              ds_harmonic_fix_weights x sample; exact, so independent of the
+                              order the frames came in (a sliding window adds and retires) */
   guint16 *planes16;       /* robust, integer fast path: N planes of raw frames */
   float *planesf;          /* robust otherwise: N planes of phase means */
   guint robust_hi, robust_lo; /* robust's window lengths (ds_robust_windows) */
@@ -81,6 +84,18 @@ gboolean ds_phase_set_fold_begin (DsPhaseSet *set, guint phase, const DsImage *f
 void ds_phase_set_fold_frame (DsPhaseSet *set, guint phase, const DsImage *frame);
 void ds_phase_set_fold_end (DsPhaseSet *set, guint phase);
 
+/* The sampling check's column flags wait for a frame with clear stripes: measures them on
+ * `frame` (lit with `phase`) when they are still waiting; what ds_phase_set_fold_begin does for
+ * every frame, for a caller that updates the state itself (proc/phase_window.c). */
+void ds_phase_set_locate_columns (DsPhaseSet *set, guint phase, const DsImage *frame);
+
+/* The integer sine's first-harmonic weights of `phase`: cos and sin of 2 pi phase / n times
+ * 2^DS_HARMONIC_FIX_BITS, rounded. With samples below 2^16 and at most DS_MAX_PHASES frames
+ * the 64-bit sums never overflow: |sum| < 2^16 * 2^16 * 2^30 = 2^62. The weights' rounding
+ * moves the harmonic by at most 2^-31 of a sample per frame, far below one DN. */
+#define DS_HARMONIC_FIX_BITS 30
+void ds_harmonic_fix_weights (guint n, guint phase, gint32 *c, gint32 *s);
+
 /* Averaging: folds the last phase's mean (finalize calls it once; idempotent). */
 void ds_phase_set_fold_pending (DsPhaseSet *set);
 
@@ -117,8 +132,8 @@ guint64 ds_sampling_column_flags (const DsSeparationParams *p, double offset_cyc
   void ds_fold_first_##NAME (const T *in, guint16 *mx, guint16 *mn, guint32 *sum, gsize w);      \
   void ds_fold_extrema_##NAME (const T *in, guint16 *mx, guint16 *mn, gsize w);                  \
   void ds_fold_extrema_sum_##NAME (const T *in, guint16 *mx, guint16 *mn, guint32 *sum, gsize w);\
-  void ds_fold_harmonic_##NAME (const T *in, double c, double s, double *cs, double *sn,         \
-                                gboolean first, gsize w);                                        \
+  void ds_fold_harmonic_fix_##NAME (const T *in, gint32 c, gint32 s, gint64 *cs, gint64 *sn,    \
+                                    gboolean first, gsize w);                                    \
   void ds_copy_plane_##NAME (const T *in, float *out, gsize w);                                   \
   void ds_widen_##NAME (const T *in, guint16 *out, gsize w);
 DS_DECLARE_INT_KERNELS (guint8, u8)

@@ -37,19 +37,20 @@
       sum[x] += v;                                                                                \
     }                                                                                             \
   }                                                                                               \
-  DS_CLONES_WIDE void ds_fold_harmonic_##NAME (const T *restrict in, double c, double s,           \
-                                               double *restrict cs, double *restrict sn,          \
-                                               gboolean first, gsize w)                           \
+  DS_CLONES_WIDE void ds_fold_harmonic_fix_##NAME (const T *restrict in, gint32 c, gint32 s,     \
+                                                   gint64 *restrict cs, gint64 *restrict sn,      \
+                                                   gboolean first, gsize w)                       \
   {                                                                                               \
+    /* 32 x 32 -> 64-bit products: one widening multiply per lane */                             \
     if (first)                                                                                    \
       for (gsize x = 0; x < w; x++) {                                                             \
-        cs[x] = c * in[x];                                                                        \
-        sn[x] = s * in[x];                                                                        \
+        cs[x] = (gint64) c * (gint32) in[x];                                                      \
+        sn[x] = (gint64) s * (gint32) in[x];                                                      \
       }                                                                                           \
     else                                                                                          \
       for (gsize x = 0; x < w; x++) {                                                             \
-        cs[x] += c * in[x];                                                                       \
-        sn[x] += s * in[x];                                                                       \
+        cs[x] += (gint64) c * (gint32) in[x];                                                     \
+        sn[x] += (gint64) s * (gint32) in[x];                                                     \
       }                                                                                           \
   }                                                                                               \
   DS_CLONES void ds_copy_plane_##NAME (const T *restrict in, float *restrict out, gsize w)        \

@@ -125,6 +125,22 @@ ds_row_maxmin (const DsRowConsts *c, const float *dark, DsRowBuffers *rb, gsize 
 }
 
 DS_KERNEL void
+from_fix (const gint64 *restrict c64, const gint64 *restrict s64, double scale, double *restrict cs,
+          double *restrict sn, gsize w)
+{
+  for (gsize x = 0; x < w; x++) {
+    cs[x] = (double) c64[x] * scale;
+    sn[x] = (double) s64[x] * scale;
+  }
+}
+
+DS_CLONES_WIDE void
+ds_row_harmonic_from_fix (const gint64 *c64, const gint64 *s64, guint bits, DsRowBuffers *rb, gsize w)
+{
+  from_fix (c64, s64, ldexp (1.0, -(int) bits), rb->cs, rb->sn, w);
+}
+
+DS_KERNEL void
 sine_row (double k, double h, double m, const double *restrict cs, const double *restrict sn,
           const double *restrict mr, const float *restrict d, double *restrict ld,
           double *restrict lg, double *restrict lh, double *restrict ll, double *restrict me,

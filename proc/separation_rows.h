@@ -59,6 +59,11 @@ void ds_row_load_float (const float *mx, const float *mn, const double *sum, con
                         const guint8 *nonfinite, guint n, const float *dark, DsRowBuffers *rb,
                         gsize w);
 
+/* The integer sine's fixed-point harmonic (separation_internal.h, cos64/sin64) as doubles
+ * into rb->cs and rb->sn: sum / 2^bits, one rounding per pixel. */
+void ds_row_harmonic_from_fix (const gint64 *c64, const gint64 *s64, guint bits, DsRowBuffers *rb,
+                               gsize w);
+
 /* Estimators. */
 void ds_row_maxmin (const DsRowConsts *c, const float *dark, DsRowBuffers *rb, gsize w);
 void ds_row_sine (const DsRowConsts *c, const double *cs, const double *sn, const float *dark,
