@@ -1,25 +1,53 @@
 /* The sliding phase window (proc/phase_window.h).
  *
- * This version keeps a copy of the newest frame of each phase and refolds the N frames into
- * one DsPhaseSet for every result, in arrival order. That is the definition of the window's
- * result (a fresh set over the same frames), so equality holds by construction; it costs N
- * folds per result. */
+ * The window keeps the newest frame of each phase (a ring of N planes in the frames' own
+ * sample type): a push must know the sample it retires. Its result is, by definition, that of
+ * a fresh DsPhaseSet over those frames in arrival order. The first result after a break is
+ * made exactly so: the frames are refolded into the window's own set. From then on, for
+ * integer frames, each push updates that set's state in place instead, so that a result costs
+ * one push and one finalize, not N folds:
+ *
+ * - sums (the mean's u32 sum, sine's fixed-point harmonic) add the new sample and subtract the
+ *   retired one: integer arithmetic, exact, so the same as a fold in any order;
+ * - max and min take the new sample when it is a new extreme; where the retired sample was the
+ *   extreme and the new one is not, that pixel's extreme is rebuilt from its N kept samples
+ *   (a max is the same whatever the order it is taken in);
+ * - robust keeps its N phase planes already: the push writes the new frame into its plane;
+ * - the data-derived noise comes from the set's first frame, the oldest: each slot keeps its
+ *   frame's estimate, and the oldest slot's is the set's;
+ * - the sampling check's column offset, while no frame has shown clear stripes, is tried on
+ *   each frame as it comes (as the set tries each frame it folds).
+ *
+ * Float frames keep the refold for every result: a float sum depends on the order it is taken
+ * in, and the daemon's per-frame mode gets u8 and u16 frames. */
 #include "proc/phase_window.h"
 
+#include <stdlib.h>
 #include <string.h>
 
+#include "proc/phase_window_rows.h"
 #include "proc/proc_error.h"
+#include "proc/separation_internal.h"
 
 struct DsPhaseWindow {
   guint n;
   guint width, height;
+  gsize npix;
   DsPhaseSet *set;
-  DsImage **slot;      /* newest frame of each phase since the last break; NULL: none */
+  guint8 *ring;        /* N planes of npix samples of ring_type: plane k the newest frame of
+                          phase k since the last break (when live); NULL until the first push */
+  DsSampleType ring_type;
+  guint ring_depth;    /* bit depth of the live frames */
+  DsImage *views;      /* N views over the planes, for refolds */
+  double *noise;       /* per slot: its frame's data-derived noise (ds_separation_frame_noise) */
   guint64 *arrival;    /* push number of each slot's frame */
   guint64 pushes;      /* pushes since the window was made */
   guint64 since_break; /* pushes since the last break */
   guint fill;
   guint *order;        /* scratch: phases by arrival */
+  gboolean state_current; /* the set's state is the fold of exactly the live frames (integer
+                             frames after a refold); pushes keep it so */
+  guint64 rescans;     /* pixels whose extremes were rebuilt from the kept frames */
 };
 
 DsPhaseWindow *
@@ -32,8 +60,10 @@ ds_phase_window_new (const DsSeparationParams *params, guint width, guint height
   w->n = params->n_phases;
   w->width = width;
   w->height = height;
+  w->npix = (gsize) width * height;
   w->set = g_steal_pointer (&set);
-  w->slot = g_new0 (DsImage *, w->n);
+  w->views = g_new0 (DsImage, w->n);
+  w->noise = g_new0 (double, w->n);
   w->arrival = g_new0 (guint64, w->n);
   w->order = g_new0 (guint, w->n);
   return w;
@@ -44,9 +74,9 @@ ds_phase_window_free (DsPhaseWindow *window)
 {
   if (!window)
     return;
-  for (guint k = 0; k < window->n; k++)
-    ds_image_free (window->slot[k]);
-  g_free (window->slot);
+  free (window->ring);
+  g_free (window->views);
+  g_free (window->noise);
   g_free (window->arrival);
   g_free (window->order);
   ds_phase_set_free (window->set);
@@ -63,18 +93,116 @@ static gboolean
 slot_is_live (const DsPhaseWindow *window, guint k)
 {
   /* A slot filled before the last break is stale: its memory is kept for reuse only. */
-  return window->slot[k] && window->arrival[k] + window->since_break > window->pushes;
+  return window->ring && window->arrival[k] > 0 &&
+         window->arrival[k] + window->since_break > window->pushes;
+}
+
+static gsize
+plane_bytes (const DsPhaseWindow *window)
+{
+  return window->npix * ds_sample_size (window->ring_type);
+}
+
+static guint8 *
+slot_row (const DsPhaseWindow *window, guint k, guint y)
+{
+  return window->ring + k * plane_bytes (window) + (gsize) y * window->width * ds_sample_size (window->ring_type);
+}
+
+/* The ring for frames of `type` (the old planes are stale: only called with no live slot of
+ * another type). */
+static gboolean
+ensure_ring (DsPhaseWindow *window, DsSampleType type, GError **error)
+{
+  if (window->ring && window->ring_type == type)
+    return TRUE;
+  gsize bytes = 0;
+  void *p = NULL;
+  if (!g_size_checked_mul (&bytes, window->npix * ds_sample_size (type), window->n) ||
+      posix_memalign (&p, 64, MAX (bytes, 1)) != 0) {
+    g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_TOO_LARGE,
+                 "cannot allocate %u kept frames of %ux%u %s for the sliding window", window->n,
+                 window->width, window->height, ds_sample_type_name (type));
+    return FALSE;
+  }
+  free (window->ring);
+  window->ring = p;
+  window->ring_type = type;
+  memset (window->arrival, 0, sizeof (guint64) * window->n);
+  window->state_current = FALSE;
+  return TRUE;
+}
+
+typedef struct {
+  DsPhaseWindow *window;
+  const DsImage *frame;
+  guint phase;
+  gint32 c, s;                  /* sine's fixed-point weights of the phase */
+  guint64 rescans[DS_MAX_THREADS];
+} PushJob;
+
+#define PUSH_INT_ROW(T, NAME)                                                                     \
+  do {                                                                                            \
+    const T *in = ds_image_row (frame, y);                                                        \
+    T *ring = (T *) slot_row (window, j->phase, y);                                               \
+    guint count = ds_window_push_row_##NAME (                                                     \
+        in, ring, set->max16 + off, set->min16 + off, set->sum32 ? set->sum32 + off : NULL, j->c, \
+        j->s, set->cos64 ? set->cos64 + off : NULL, set->sin64 ? set->sin64 + off : NULL, need, w); \
+    if (count > 0)                                                                                \
+      ds_window_rescan_row_##NAME ((const T *) slot_row (window, 0, y), window->npix, window->n,  \
+                                   set->max16 + off, set->min16 + off, need, count, w);           \
+    j->rescans[thread] += count;                                                                  \
+  } while (0)
+
+static void
+push_rows (gpointer data, guint y0, guint y1, guint thread)
+{
+  PushJob *j = data;
+  DsPhaseWindow *window = j->window;
+  DsPhaseSet *set = window->set;
+  const DsImage *frame = j->frame;
+  gsize w = window->width;
+  guint8 *need = (guint8 *) ds_phase_set_scratch (set, thread);
+  for (guint y = y0; y < y1; y++) {
+    gsize off = (gsize) y * w;
+    if (set->planes16) {
+      /* robust: its phase planes are the state; the ring keeps the frame for refolds */
+      guint16 *plane = set->planes16 + (gsize) j->phase * window->npix + off;
+      if (frame->type == DS_SAMPLE_U16)
+        ds_widen_u16 (ds_image_row (frame, y), plane, w);
+      else
+        ds_widen_u8 (ds_image_row (frame, y), plane, w);
+      memcpy (slot_row (window, j->phase, y), ds_image_row (frame, y), w * ds_sample_size (frame->type));
+    } else if (frame->type == DS_SAMPLE_U16) {
+      PUSH_INT_ROW (guint16, u16);
+    } else {
+      PUSH_INT_ROW (guint8, u8);
+    }
+  }
+}
+
+static void
+copy_rows (gpointer data, guint y0, guint y1, guint thread)
+{
+  (void) thread;
+  PushJob *j = data;
+  gsize row = (gsize) j->window->width * ds_sample_size (j->frame->type);
+  for (guint y = y0; y < y1; y++)
+    memcpy (slot_row (j->window, j->phase, y), ds_image_row (j->frame, y), row);
 }
 
 /* The frames kept since the last break share one sample type and depth: a set refuses a mix,
  * and the window refuses it at the push so that the error names the frame that broke it. */
-static const DsImage *
-any_live_slot (const DsPhaseWindow *window)
+static gboolean
+live_slot_type (const DsPhaseWindow *window, DsSampleType *type, guint *depth)
 {
   for (guint k = 0; k < window->n; k++)
-    if (slot_is_live (window, k))
-      return window->slot[k];
-  return NULL;
+    if (slot_is_live (window, k)) {
+      *type = window->ring_type;
+      *depth = window->ring_depth;
+      return TRUE;
+    }
+  return FALSE;
 }
 
 gboolean
@@ -93,27 +221,36 @@ ds_phase_window_push (DsPhaseWindow *window, guint phase, const DsImage *frame,
                  window->height);
     return FALSE;
   }
-  const DsImage *other = any_live_slot (window);
-  if (other && (other->type != frame->type || other->bit_depth != frame->bit_depth)) {
+  DsSampleType live_type;
+  guint live_depth;
+  if (live_slot_type (window, &live_type, &live_depth) &&
+      (live_type != frame->type || live_depth != frame->bit_depth)) {
     g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_SIZE_MISMATCH,
                  "phase %u: frame is %s with %u bits, the window's frames are %s with %u bits",
                  phase, ds_sample_type_name (frame->type), frame->bit_depth,
-                 ds_sample_type_name (other->type), other->bit_depth);
+                 ds_sample_type_name (live_type), live_depth);
     return FALSE;
   }
-  DsImage *dst = window->slot[phase];
-  if (!dst || dst->type != frame->type) {
-    g_autoptr (DsImage) fresh = ds_image_new (frame->type, frame->width, frame->height, error);
-    if (!fresh)
-      return FALSE;
-    ds_image_free (window->slot[phase]);
-    window->slot[phase] = dst = g_steal_pointer (&fresh);
-  }
+  if (!ensure_ring (window, frame->type, error))
+    return FALSE;
   gboolean was_live = slot_is_live (window, phase);
-  dst->bit_depth = frame->bit_depth;
-  gsize row = (gsize) frame->width * ds_sample_size (frame->type);
-  for (guint y = 0; y < frame->height; y++)
-    memcpy (ds_image_row (dst, y), ds_image_row (frame, y), row);
+  DsPhaseSet *set = window->set;
+  PushJob j = { .window = window, .frame = frame, .phase = phase };
+  if (window->state_current) {
+    /* complete since the refold (a break clears state_current): the slot is live */
+    g_assert (was_live);
+    if (set->cos64)
+      ds_harmonic_fix_weights (window->n, phase, &j.c, &j.s);
+    ds_phase_set_reserve_scratch (set, (window->width + 7) / 8);
+    ds_phase_set_run_rows_on (set, set->fold_threads, push_rows, &j);
+    for (guint t = 0; t < DS_MAX_THREADS; t++)
+      window->rescans += j.rescans[t];
+    ds_phase_set_locate_columns (set, phase, frame);
+  } else {
+    ds_phase_set_run_rows_on (set, set->fold_threads, copy_rows, &j);
+  }
+  window->noise[phase] = ds_separation_frame_noise (frame);
+  window->ring_depth = frame->bit_depth;
   window->pushes++;
   window->since_break++;
   window->arrival[phase] = window->pushes;
@@ -129,6 +266,7 @@ ds_phase_window_break (DsPhaseWindow *window)
 {
   window->since_break = 0;
   window->fill = 0;
+  window->state_current = FALSE;
 }
 
 guint
@@ -143,15 +281,49 @@ ds_phase_window_frames_since_break (const DsPhaseWindow *window)
   return window->since_break;
 }
 
+static guint
+oldest_slot (const DsPhaseWindow *window)
+{
+  guint oldest = 0;
+  for (guint k = 1; k < window->n; k++)
+    if (window->arrival[k] < window->arrival[oldest])
+      oldest = k;
+  return oldest;
+}
+
 guint64
 ds_phase_window_span (const DsPhaseWindow *window)
 {
   if (window->fill < window->n)
     return 0;
-  guint64 oldest = G_MAXUINT64;
+  return window->pushes - window->arrival[oldest_slot (window)] + 1;
+}
+
+/* The definition: a fresh set (the window's own, reset) fed the kept frames in arrival order. */
+static gboolean
+refold (DsPhaseWindow *window, GError **error)
+{
   for (guint k = 0; k < window->n; k++)
-    oldest = MIN (oldest, window->arrival[k]);
-  return window->pushes - oldest + 1;
+    window->order[k] = k;
+  /* Insertion sort by arrival: N is small and the order is nearly cyclic. */
+  for (guint i = 1; i < window->n; i++) {
+    guint k = window->order[i], j = i;
+    for (; j > 0 && window->arrival[window->order[j - 1]] > window->arrival[k]; j--)
+      window->order[j] = window->order[j - 1];
+    window->order[j] = k;
+  }
+  ds_phase_set_reset (window->set);
+  gsize row = (gsize) window->width * ds_sample_size (window->ring_type);
+  for (guint i = 0; i < window->n; i++) {
+    guint k = window->order[i];
+    DsImage *view = &window->views[k];
+    if (!ds_image_view_init (view, window->ring_type, window->ring_depth, window->width,
+                             window->height, row, slot_row (window, k, 0), plane_bytes (window),
+                             error) ||
+        !ds_phase_set_accumulate (window->set, k, view, error))
+      return FALSE;
+  }
+  return TRUE;
 }
 
 gboolean
@@ -163,20 +335,44 @@ ds_phase_window_finalize_into (DsPhaseWindow *window, DsSeparation *sep, GError 
                  window->fill, window->n);
     return FALSE;
   }
-  for (guint k = 0; k < window->n; k++)
-    window->order[k] = k;
-  /* Insertion sort by arrival: N is small and the order is nearly cyclic. */
-  for (guint i = 1; i < window->n; i++) {
-    guint k = window->order[i], j = i;
-    for (; j > 0 && window->arrival[window->order[j - 1]] > window->arrival[k]; j--)
-      window->order[j] = window->order[j - 1];
-    window->order[j] = k;
-  }
-  ds_phase_set_reset (window->set);
-  for (guint i = 0; i < window->n; i++) {
-    guint k = window->order[i];
-    if (!ds_phase_set_accumulate (window->set, k, window->slot[k], error))
+  if (!window->state_current) {
+    if (!refold (window, error))
       return FALSE;
+    DsPhaseSet *set = window->set;
+    /* integer frames, one per phase: the state the pushes know how to update */
+    window->state_current = window->ring_type != DS_SAMPLE_F32 && !set->averaging &&
+                            (set->max16 || set->planes16);
   }
+  /* the set's noise estimate is its first frame's: the oldest kept one */
+  window->set->data_noise_dn = window->noise[oldest_slot (window)];
   return ds_phase_set_finalize_into (window->set, sep, error);
+}
+
+static gsize
+set_state_bytes (const DsPhaseSet *set)
+{
+  gsize n = set->npix, per_pixel = 0;
+  per_pixel += (set->max16 ? 2 : 0) + (set->min16 ? 2 : 0) + (set->sum32 ? 4 : 0);
+  per_pixel += (set->maxf ? 4 : 0) + (set->minf ? 4 : 0) + (set->sumd ? 8 : 0);
+  per_pixel += (set->rawmax ? 4 : 0) + (set->psum ? 8 : 0) + (set->nonfinite ? 1 : 0);
+  per_pixel += (set->cos_sum ? 16 : 0) + (set->cos64 ? 16 : 0) + (set->dark ? 4 : 0);
+  per_pixel += (set->planes16 ? 2 * set->params.n_phases : 0);
+  per_pixel += (set->planesf ? 4 * set->params.n_phases : 0);
+  return n * per_pixel;
+}
+
+void
+ds_phase_window_memory (const DsPhaseWindow *window, gsize *window_bytes, gsize *set_bytes)
+{
+  gsize set_state = set_state_bytes (window->set);
+  if (set_bytes)
+    *set_bytes = set_state;
+  if (window_bytes)
+    *window_bytes = set_state + (window->ring ? window->n * plane_bytes (window) : 0);
+}
+
+guint64
+ds_phase_window_rescans (const DsPhaseWindow *window)
+{
+  return window->rescans;
 }

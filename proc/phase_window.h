@@ -59,4 +59,14 @@ guint64 ds_phase_window_span (const DsPhaseWindow *window);
  * where their shape fits). NOT_ENOUGH_PHASES when the window is not complete. */
 gboolean ds_phase_window_finalize_into (DsPhaseWindow *window, DsSeparation *sep, GError **error);
 
+/* Memory for the benchmark's ratio, in bytes: *window_bytes what the window holds per pixel
+ * (its set's state and the kept frames), *set_bytes what one DsPhaseSet of the same
+ * parameters holds for the frames pushed so far (0 before the first result). Either may be
+ * NULL. */
+void ds_phase_window_memory (const DsPhaseWindow *window, gsize *window_bytes, gsize *set_bytes);
+
+/* Pixels whose max and min were rebuilt from the kept frames since the window was made (a
+ * push retired a pixel's extreme and brought no new one); for the benchmark. */
+guint64 ds_phase_window_rescans (const DsPhaseWindow *window);
+
 G_END_DECLS

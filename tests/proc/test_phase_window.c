@@ -11,18 +11,20 @@
 
 /* Frame t of a stripe sequence: phase t mod N over a scene whose transmission varies in x and
  * y, with pseudo-random noise, so that max, min and sums differ at every pixel. */
+/* gain 1: no sample reaches full scale; above, the brightest saturate (extremes tie there). */
 static DsImage *
-make_frame (DsSampleType type, guint bits, guint n, guint64 t, GRand *r)
+make_frame_sized (DsSampleType type, guint bits, guint n, guint64 t, GRand *r, guint width,
+                  guint height, double gain)
 {
-  DsImage *img = ds_image_new (type, W, H, NULL);
+  DsImage *img = ds_image_new (type, width, height, NULL);
   img->bit_depth = bits;
   double full = (double) ((1u << bits) - 1);
   guint k = (guint) (t % n);
-  for (guint y = 0; y < H; y++)
-    for (guint x = 0; x < W; x++) {
+  for (guint y = 0; y < height; y++)
+    for (guint x = 0; x < width; x++) {
       double ld = 0.5 + 0.4 * sin (0.3 * x + 0.7 * y);
       double lit = fmod (x / 8.0 + (double) k / n, 1.0) < 0.5 ? 1.0 : 0.05;
-      double v = (0.2 + 0.5 * ld * lit) * full * 0.8 + g_rand_double_range (r, -3, 3);
+      double v = (0.2 + 0.5 * ld * lit) * full * 0.8 * gain + g_rand_double_range (r, -3, 3);
       v = CLAMP (v, 0, full);
       void *row = ds_image_row (img, y);
       if (type == DS_SAMPLE_U8)
@@ -33,6 +35,12 @@ make_frame (DsSampleType type, guint bits, guint n, guint64 t, GRand *r)
         ((float *) row)[x] = (float) v;
     }
   return img;
+}
+
+static DsImage *
+make_frame (DsSampleType type, guint bits, guint n, guint64 t, GRand *r)
+{
+  return make_frame_sized (type, bits, n, t, r, W, H, 1.0);
 }
 
 static void
@@ -68,72 +76,106 @@ typedef struct {
   guint bits;
   guint n;
   gboolean dark;
+  /* 0 or FALSE: the defaults (W x H, one thread, extrema kept, no noise model, gain 1) */
+  guint width, height, threads;
+  gboolean no_extrema, model;
+  double gain;
+  guint64 repeat_at; /* > 0: the frame at this push repeats the phase before it, out of turn */
 } Case;
 
-/* Frames 0..T-1 in cyclic order, a lost frame (a break) at `lost`: each window result must
- * equal a fresh set over frames t-N+1..t, and no result may come before N frames follow the
- * break. */
+static DsImage *
+make_dark (const Case *c, guint width, guint height)
+{
+  DsImage *dark = ds_image_new (c->type, width, height, NULL);
+  dark->bit_depth = c->bits;
+  for (guint y = 0; y < height; y++)
+    for (guint x = 0; x < width; x++) {
+      void *row = ds_image_row (dark, y);
+      if (c->type == DS_SAMPLE_U8)
+        ((guint8 *) row)[x] = (guint8) (x % 5);
+      else if (c->type == DS_SAMPLE_U16)
+        ((guint16 *) row)[x] = (guint16) (x % 5);
+      else
+        ((float *) row)[x] = (float) (x % 5);
+    }
+  return dark;
+}
+
+/* Frames 0..T-1 in cyclic order (but for one repeated phase when asked), a lost frame (a
+ * break) at `lost`: each window result must equal a fresh set over the newest frame of each
+ * phase since the break, in arrival order (frames t-N+1..t in cyclic order), and no result
+ * may come before every phase has a frame after the break. */
 static void
 run_case (const Case *c)
 {
+  guint width = c->width ? c->width : W, height = c->height ? c->height : H;
   DsSeparationParams p;
   ds_separation_params_init (&p, c->n);
   p.estimator = c->estimator;
   p.pattern = DS_PATTERN_SQUARE;
-  p.keep_extrema = TRUE;
-  p.threads = 1;
+  p.keep_extrema = !c->no_extrema;
+  p.threads = c->threads ? c->threads : 1;
+  if (c->model) {
+    p.system_gain = 0.5;
+    p.read_noise_dn = 2.0;
+  }
   g_autoptr (GError) error = NULL;
-  g_autoptr (DsPhaseWindow) win = ds_phase_window_new (&p, W, H, &error);
+  g_autoptr (DsPhaseWindow) win = ds_phase_window_new (&p, width, height, &error);
   g_assert_no_error (error);
   g_autoptr (GRand) r = g_rand_new_with_seed (7 + c->n + c->estimator);
-  g_autoptr (DsImage) dark = NULL;
-  if (c->dark) {
-    dark = ds_image_new (c->type, W, H, NULL);
-    dark->bit_depth = c->bits;
-    for (guint y = 0; y < H; y++)
-      for (guint x = 0; x < W; x++) {
-        void *row = ds_image_row (dark, y);
-        if (c->type == DS_SAMPLE_U8)
-          ((guint8 *) row)[x] = (guint8) (x % 5);
-        else if (c->type == DS_SAMPLE_U16)
-          ((guint16 *) row)[x] = (guint16) (x % 5);
-        else
-          ((float *) row)[x] = (float) (x % 5);
-      }
+  g_autoptr (DsImage) dark = c->dark ? make_dark (c, width, height) : NULL;
+  if (dark)
     g_assert_true (ds_phase_window_set_dark (win, dark, &error));
-  }
   const guint64 total = 4 * c->n + 3, lost = 2 * c->n + 1;
   GPtrArray *frames = g_ptr_array_new_with_free_func ((GDestroyNotify) ds_image_free);
+  g_autofree gint64 *newest = g_new (gint64, c->n); /* frame of each phase since the break */
+  for (guint k = 0; k < c->n; k++)
+    newest[k] = -1;
   guint64 good_since_break = 0;
   g_autoptr (DsSeparation) got = ds_separation_new ();
   for (guint64 t = 0; t < total; t++) {
-    g_ptr_array_add (frames, make_frame (c->type, c->bits, c->n, t, r));
+    guint phase = (guint) ((c->repeat_at && t == c->repeat_at ? t - 1 : t) % c->n);
+    g_ptr_array_add (frames, make_frame_sized (c->type, c->bits, c->n, phase, r, width, height,
+                                               c->gain > 0 ? c->gain : 1.0));
     if (t == lost) {
       ds_phase_window_break (win);
       good_since_break = 0;
+      for (guint k = 0; k < c->n; k++)
+        newest[k] = -1;
       continue;
     }
     gboolean complete = FALSE;
-    g_assert_true (ds_phase_window_push (win, (guint) (t % c->n), frames->pdata[t], &complete,
-                                         &error));
+    g_assert_true (ds_phase_window_push (win, phase, frames->pdata[t], &complete, &error));
     g_assert_no_error (error);
     good_since_break++;
-    g_assert_cmpint (complete, ==, good_since_break >= c->n);
-    g_assert_cmpuint (ds_phase_window_fill (win), ==, MIN (good_since_break, c->n));
+    newest[phase] = (gint64) t;
+    guint have = 0;
+    gint64 oldest = G_MAXINT64;
+    for (guint k = 0; k < c->n; k++)
+      if (newest[k] >= 0) {
+        have++;
+        oldest = MIN (oldest, newest[k]);
+      }
+    g_assert_cmpint (complete, ==, have == c->n);
+    g_assert_cmpuint (ds_phase_window_fill (win), ==, have);
+    g_assert_cmpuint (ds_phase_window_frames_since_break (win), ==, good_since_break);
     if (!complete) {
       g_assert_false (ds_phase_window_finalize_into (win, got, &error));
       g_assert_error (error, DS_PROC_ERROR, DS_PROC_ERROR_NOT_ENOUGH_PHASES);
       g_clear_error (&error);
       continue;
     }
-    g_assert_cmpuint (ds_phase_window_span (win), ==, c->n);
+    g_assert_cmpuint (ds_phase_window_span (win), ==, (guint64) ((gint64) t - oldest + 1));
     g_assert_true (ds_phase_window_finalize_into (win, got, &error));
     g_assert_no_error (error);
-    g_autoptr (DsPhaseSet) fresh = ds_phase_set_new (&p, W, H, &error);
+    g_autoptr (DsPhaseSet) fresh = ds_phase_set_new (&p, width, height, &error);
     if (dark)
       g_assert_true (ds_phase_set_set_dark (fresh, dark, &error));
-    for (guint64 u = t + 1 - c->n; u <= t; u++)
-      g_assert_true (ds_phase_set_accumulate (fresh, (guint) (u % c->n), frames->pdata[u], &error));
+    for (guint64 u = (guint64) oldest; u <= t; u++) {
+      guint ku = (guint) ((c->repeat_at && u == c->repeat_at ? u - 1 : u) % c->n);
+      if (newest[ku] == (gint64) u)
+        g_assert_true (ds_phase_set_accumulate (fresh, ku, frames->pdata[u], &error));
+    }
     g_autoptr (DsSeparation) want = ds_phase_set_finalize (fresh, &error);
     g_assert_no_error (error);
     assert_same_result (got, want);
@@ -145,16 +187,59 @@ static void
 test_fresh_set_equality (void)
 {
   const Case cases[] = {
-    { DS_ESTIMATOR_MAXMIN, DS_SAMPLE_U16, 12, 4, FALSE },
-    { DS_ESTIMATOR_MAXMIN, DS_SAMPLE_U8, 8, 8, TRUE },
-    { DS_ESTIMATOR_SINE, DS_SAMPLE_U16, 16, 8, FALSE },
-    { DS_ESTIMATOR_SINE, DS_SAMPLE_U16, 12, 5, TRUE },
-    { DS_ESTIMATOR_SINE, DS_SAMPLE_F32, 32, 6, FALSE },
-    { DS_ESTIMATOR_ROBUST, DS_SAMPLE_U16, 12, 16, FALSE },
-    { DS_ESTIMATOR_ROBUST, DS_SAMPLE_U8, 8, 8, TRUE },
+    { .estimator = DS_ESTIMATOR_MAXMIN, .type = DS_SAMPLE_U16, .bits = 12, .n = 4, .dark = FALSE },
+    { .estimator = DS_ESTIMATOR_MAXMIN, .type = DS_SAMPLE_U8, .bits = 8, .n = 8, .dark = TRUE },
+    { .estimator = DS_ESTIMATOR_SINE, .type = DS_SAMPLE_U16, .bits = 16, .n = 8, .dark = FALSE },
+    { .estimator = DS_ESTIMATOR_SINE, .type = DS_SAMPLE_U16, .bits = 12, .n = 5, .dark = TRUE },
+    { .estimator = DS_ESTIMATOR_SINE, .type = DS_SAMPLE_F32, .bits = 32, .n = 6, .dark = FALSE },
+    { .estimator = DS_ESTIMATOR_ROBUST, .type = DS_SAMPLE_U16, .bits = 12, .n = 16, .dark = FALSE },
+    { .estimator = DS_ESTIMATOR_ROBUST, .type = DS_SAMPLE_U8, .bits = 8, .n = 8, .dark = TRUE },
+    /* the finalize's integer maxmin path (no extrema, no model), saturated pixels whose
+     * extremes tie, a noise model, and a phase repeated out of turn while the window slides */
+    { .estimator = DS_ESTIMATOR_MAXMIN, .type = DS_SAMPLE_U8, .bits = 8, .n = 6, .dark = TRUE, .no_extrema = TRUE, .gain = 2.5 },
+    { .estimator = DS_ESTIMATOR_MAXMIN, .type = DS_SAMPLE_U16, .bits = 10, .n = 3, .dark = FALSE, .model = TRUE, .repeat_at = 5 },
+    { .estimator = DS_ESTIMATOR_SINE, .type = DS_SAMPLE_U8, .bits = 8, .n = 4, .dark = FALSE, .gain = 1.6, .repeat_at = 6 },
+    { .estimator = DS_ESTIMATOR_SINE, .type = DS_SAMPLE_U16, .bits = 12, .n = 3, .dark = TRUE, .model = TRUE, .no_extrema = TRUE },
+    { .estimator = DS_ESTIMATOR_ROBUST, .type = DS_SAMPLE_U16, .bits = 12, .n = 6, .dark = FALSE, .repeat_at = 8 },
   };
   for (guint i = 0; i < G_N_ELEMENTS (cases); i++)
     run_case (&cases[i]);
+}
+
+/* Frames large enough that the set splits rows over worker threads: the pushes' rows too. */
+static void
+test_threaded (void)
+{
+  const Case cases[] = {
+    { .estimator = DS_ESTIMATOR_MAXMIN, .type = DS_SAMPLE_U16, .bits = 12, .n = 4, .dark = TRUE, .width = 512, .height = 320, .threads = 2,
+      .no_extrema = TRUE },
+    { .estimator = DS_ESTIMATOR_SINE, .type = DS_SAMPLE_U8, .bits = 8, .n = 3, .dark = FALSE, .width = 512, .height = 320, .threads = 2 },
+  };
+  for (guint i = 0; i < G_N_ELEMENTS (cases); i++)
+    run_case (&cases[i]);
+}
+
+/* The window holds one set's state and its N kept frames, nothing per pixel besides: maxmin
+ * with extrema on u16 keeps max and min (2 + 2 bytes) and a 32-bit sum; four u16 frames add
+ * 4 x 2 bytes. */
+static void
+test_memory (void)
+{
+  DsSeparationParams p;
+  ds_separation_params_init (&p, 4);
+  p.keep_extrema = TRUE;
+  g_autoptr (DsPhaseWindow) win = ds_phase_window_new (&p, W, H, NULL);
+  g_autoptr (GRand) r = g_rand_new_with_seed (11);
+  g_autoptr (DsSeparation) sep = ds_separation_new ();
+  for (guint k = 0; k < 4; k++) {
+    g_autoptr (DsImage) f = make_frame (DS_SAMPLE_U16, 12, 4, k, r);
+    g_assert_true (ds_phase_window_push (win, k, f, NULL, NULL));
+  }
+  g_assert_true (ds_phase_window_finalize_into (win, sep, NULL));
+  gsize window_bytes = 0, set_bytes = 0;
+  ds_phase_window_memory (win, &window_bytes, &set_bytes);
+  g_assert_cmpuint (set_bytes, ==, (gsize) W * H * (2 + 2 + 4));
+  g_assert_cmpuint (window_bytes, ==, (gsize) W * H * (2 + 2 + 4 + 4 * 2));
 }
 
 /* A phase repeated out of turn replaces that phase's frame: the window then spans more pushes
@@ -224,6 +309,8 @@ main (int argc, char **argv)
 {
   g_test_init (&argc, &argv, NULL);
   g_test_add_func ("/phase-window/fresh-set-equality", test_fresh_set_equality);
+  g_test_add_func ("/phase-window/threaded", test_threaded);
+  g_test_add_func ("/phase-window/memory", test_memory);
   g_test_add_func ("/phase-window/repeated-phase", test_repeated_phase);
   g_test_add_func ("/phase-window/bad-frames", test_bad_frames);
   return g_test_run ();

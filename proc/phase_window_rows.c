@@ -1,0 +1,94 @@
+/* The sliding window's row kernels (proc/phase_window_rows.h). Contiguous rows, restrict
+ * pointers, selects instead of branches, so that the auto-vectoriser (proc/CMakeLists.txt)
+ * turns each loop into vector code. */
+#include "proc/phase_window_rows.h"
+
+#include "proc/simd.h"
+
+#define DEFINE_WINDOW_KERNELS(T, NAME)                                                            \
+  DS_KERNEL void window_sum_##NAME (const T *restrict in, const T *restrict old,                  \
+                                    guint32 *restrict sum, gsize w)                               \
+  {                                                                                               \
+    /* modulo 2^32, and the true sum is in range: exact */                                        \
+    for (gsize x = 0; x < w; x++)                                                                 \
+      sum[x] += (guint32) in[x] - (guint32) old[x];                                               \
+  }                                                                                               \
+  DS_KERNEL void window_harmonic_##NAME (const T *restrict in, const T *restrict old, gint32 c,   \
+                                         gint32 s, gint64 *restrict cs, gint64 *restrict sn,      \
+                                         gsize w)                                                 \
+  {                                                                                               \
+    for (gsize x = 0; x < w; x++) {                                                               \
+      gint32 d = (gint32) in[x] - (gint32) old[x];                                                \
+      cs[x] += (gint64) c * d;                                                                    \
+      sn[x] += (gint64) s * d;                                                                    \
+    }                                                                                             \
+  }                                                                                               \
+  DS_KERNEL guint window_extrema_##NAME (const T *restrict in, T *restrict ring,                  \
+                                         guint16 *restrict mx, guint16 *restrict mn,              \
+                                         guint8 *restrict need, gsize w)                          \
+  {                                                                                               \
+    guint32 count = 0;                                                                            \
+    for (gsize x = 0; x < w; x++) {                                                               \
+      guint16 v = in[x], r = ring[x], hi = mx[x], lo = mn[x];                                     \
+      /* a new extreme replaces the old one whatever leaves; otherwise the old one stays unless  \
+       * it is the sample leaving (then only the other kept samples can tell the new one) */     \
+      guint8 lost = (guint8) (((v < hi) & (r == hi)) | ((v > lo) & (r == lo)));                   \
+      mx[x] = v > hi ? v : hi;                                                                    \
+      mn[x] = v < lo ? v : lo;                                                                    \
+      ring[x] = in[x];                                                                            \
+      need[x] = lost;                                                                             \
+      count += lost;                                                                              \
+    }                                                                                             \
+    return count;                                                                                 \
+  }                                                                                               \
+  DS_CLONES guint ds_window_push_row_##NAME (const T *in, T *ring, guint16 *mx, guint16 *mn,      \
+                                             guint32 *sum, gint32 c, gint32 s, gint64 *cs,        \
+                                             gint64 *sn, guint8 *need, gsize w)                   \
+  {                                                                                               \
+    if (sum)                                                                                      \
+      window_sum_##NAME (in, ring, sum, w);                                                       \
+    if (cs)                                                                                       \
+      window_harmonic_##NAME (in, ring, c, s, cs, sn, w);                                         \
+    return window_extrema_##NAME (in, ring, mx, mn, need, w);                                     \
+  }                                                                                               \
+  DS_KERNEL void window_extrema_all_##NAME (const T *restrict p, guint16 *restrict mx,            \
+                                            guint16 *restrict mn, gboolean first, gsize w)        \
+  {                                                                                               \
+    if (first)                                                                                    \
+      for (gsize x = 0; x < w; x++)                                                               \
+        mx[x] = mn[x] = p[x];                                                                     \
+    else                                                                                          \
+      for (gsize x = 0; x < w; x++) {                                                             \
+        guint16 v = p[x];                                                                         \
+        mx[x] = v > mx[x] ? v : mx[x];                                                            \
+        mn[x] = v < mn[x] ? v : mn[x];                                                            \
+      }                                                                                           \
+  }                                                                                               \
+  DS_CLONES void ds_window_rescan_row_##NAME (const T *plane0, gsize plane_stride, guint n,       \
+                                              guint16 *mx, guint16 *mn, const guint8 *need,       \
+                                              guint count, gsize w)                               \
+  {                                                                                               \
+    /* Few pixels: each reads its n samples. Many: the whole row from the n planes, vector      \
+     * loads over contiguous rows cost less than scattered reads touching the same lines. */    \
+    if (count > w / 16) {                                                                         \
+      for (guint k = 0; k < n; k++)                                                               \
+        window_extrema_all_##NAME (plane0 + k * plane_stride, mx, mn, k == 0, w);                 \
+      return;                                                                                     \
+    }                                                                                             \
+    for (gsize x = 0; x < w && count > 0; x++) {                                                  \
+      if (!need[x])                                                                               \
+        continue;                                                                                 \
+      count--;                                                                                    \
+      guint16 hi = plane0[x], lo = plane0[x];                                                     \
+      for (guint k = 1; k < n; k++) {                                                             \
+        guint16 v = plane0[x + k * plane_stride];                                                 \
+        hi = v > hi ? v : hi;                                                                     \
+        lo = v < lo ? v : lo;                                                                     \
+      }                                                                                           \
+      mx[x] = hi;                                                                                 \
+      mn[x] = lo;                                                                                 \
+    }                                                                                             \
+  }
+
+DEFINE_WINDOW_KERNELS (guint8, u8)
+DEFINE_WINDOW_KERNELS (guint16, u16)

@@ -1,0 +1,25 @@
+/* Private to proc/phase_window.c: the sliding window's row kernels. A push retires the slot's
+ * old frame and adds the new one to the phase set's integer state (separation_internal.h):
+ * exact integer arithmetic, so the state stays what folding the window's frames gives in any
+ * order. */
+#pragma once
+#include <glib.h>
+
+G_BEGIN_DECLS
+
+/* One row of a push into a slot of u8 or u16 samples. `ring` is the slot's row: it holds the
+ * retired samples and receives the new ones (`in`). sum (NULL: none) gets new - old; cs and sn
+ * (NULL: none) get the fixed-point weights times new - old. mx and mn take the new sample when
+ * it is a new extreme; where the retired sample was the extreme and the new one is not,
+ * need[x] is set (else cleared): that pixel's extreme must be rebuilt from the kept frames
+ * (ds_window_rescan_row_*). Returns how many pixels need it. */
+#define DS_DECLARE_WINDOW_KERNELS(T, NAME)                                                        \
+  guint ds_window_push_row_##NAME (const T *in, T *ring, guint16 *mx, guint16 *mn, guint32 *sum,  \
+                                   gint32 c, gint32 s, gint64 *cs, gint64 *sn, guint8 *need,      \
+                                   gsize w);                                                      \
+  void ds_window_rescan_row_##NAME (const T *plane0, gsize plane_stride, guint n, guint16 *mx,    \
+                                    guint16 *mn, const guint8 *need, guint count, gsize w);
+DS_DECLARE_WINDOW_KERNELS (guint8, u8)
+DS_DECLARE_WINDOW_KERNELS (guint16, u16)
+
+G_END_DECLS
