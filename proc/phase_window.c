@@ -48,7 +48,13 @@ struct DsPhaseWindow {
   gboolean state_current; /* the set's state is the fold of exactly the live frames (integer
                              frames after a refold); pushes keep it so */
   guint64 rescans;     /* pixels whose extremes were rebuilt from the kept frames */
+  guint8 *row_dense;   /* per row, in a push: so many extremes left that the row is rebuilt
+                          plane by plane (rebuild_rows) */
 };
+
+/* A row whose extremes left at more than 1/DENSE_SHARE of its pixels is rebuilt whole: its
+ * pixels' scattered reads would touch every cache line of the N planes anyway. */
+#define DENSE_SHARE 16
 
 DsPhaseWindow *
 ds_phase_window_new (const DsSeparationParams *params, guint width, guint height, GError **error)
@@ -66,6 +72,7 @@ ds_phase_window_new (const DsSeparationParams *params, guint width, guint height
   w->noise = g_new0 (double, w->n);
   w->arrival = g_new0 (guint64, w->n);
   w->order = g_new0 (guint, w->n);
+  w->row_dense = g_new0 (guint8, height);
   return w;
 }
 
@@ -79,6 +86,7 @@ ds_phase_window_free (DsPhaseWindow *window)
   g_free (window->noise);
   g_free (window->arrival);
   g_free (window->order);
+  g_free (window->row_dense);
   ds_phase_set_free (window->set);
   g_free (window);
 }
@@ -103,10 +111,21 @@ plane_bytes (const DsPhaseWindow *window)
   return window->npix * ds_sample_size (window->ring_type);
 }
 
+/* Bytes from one kept plane to the next: the plane rounded to whole pages plus five cache
+ * lines. Planes a power of two apart (a megapixel of u16 is 2 MiB) would put the same pixel of
+ * every plane in one cache set and make loads alias the stores of the extremes, which slows a
+ * rebuild reading the N planes several-fold. */
+static gsize
+plane_stride_bytes (gsize plane)
+{
+  return ((plane + 4095) & ~(gsize) 4095) + 5 * 64;
+}
+
 static guint8 *
 slot_row (const DsPhaseWindow *window, guint k, guint y)
 {
-  return window->ring + k * plane_bytes (window) + (gsize) y * window->width * ds_sample_size (window->ring_type);
+  gsize size = ds_sample_size (window->ring_type);
+  return window->ring + k * plane_stride_bytes (window->npix * size) + (gsize) y * window->width * size;
 }
 
 /* The ring for frames of `type` (the old planes are stale: only called with no live slot of
@@ -118,7 +137,7 @@ ensure_ring (DsPhaseWindow *window, DsSampleType type, GError **error)
     return TRUE;
   gsize bytes = 0;
   void *p = NULL;
-  if (!g_size_checked_mul (&bytes, window->npix * ds_sample_size (type), window->n) ||
+  if (!g_size_checked_mul (&bytes, plane_stride_bytes (window->npix * ds_sample_size (type)), window->n) ||
       posix_memalign (&p, 64, MAX (bytes, 1)) != 0) {
     g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_TOO_LARGE,
                  "cannot allocate %u kept frames of %ux%u %s for the sliding window", window->n,
@@ -138,6 +157,7 @@ typedef struct {
   const DsImage *frame;
   guint phase;
   gint32 c, s;                  /* sine's fixed-point weights of the phase */
+  gsize plane_stride;           /* samples from one kept plane to the next */
   guint64 rescans[DS_MAX_THREADS];
 } PushJob;
 
@@ -148,8 +168,9 @@ typedef struct {
     guint count = ds_window_push_row_##NAME (                                                     \
         in, ring, set->max16 + off, set->min16 + off, set->sum32 ? set->sum32 + off : NULL, j->c, \
         j->s, set->cos64 ? set->cos64 + off : NULL, set->sin64 ? set->sin64 + off : NULL, need, w); \
-    if (count > 0)                                                                                \
-      ds_window_rescan_row_##NAME ((const T *) slot_row (window, 0, y), window->npix, window->n,  \
+    window->row_dense[y] = count > w / DENSE_SHARE;                                               \
+    if (count > 0 && !window->row_dense[y])                                                       \
+      ds_window_rescan_row_##NAME ((const T *) slot_row (window, 0, y), j->plane_stride, window->n, \
                                    set->max16 + off, set->min16 + off, need, count, w);           \
     j->rescans[thread] += count;                                                                  \
   } while (0)
@@ -179,6 +200,31 @@ push_rows (gpointer data, guint y0, guint y1, guint thread)
       PUSH_INT_ROW (guint8, u8);
     }
   }
+}
+
+/* Rows where many extremes left: rebuilt from the kept planes one plane at a time over all of
+ * the rows (each plane read as one stream while the extremes stay in cache), which costs less
+ * than reading the N planes side by side row by row. */
+static void
+rebuild_rows (gpointer data, guint y0, guint y1, guint thread)
+{
+  (void) thread;
+  PushJob *j = data;
+  DsPhaseWindow *window = j->window;
+  DsPhaseSet *set = window->set;
+  gsize w = window->width;
+  for (guint k = 0; k < window->n; k++)
+    for (guint y = y0; y < y1; y++) {
+      if (!window->row_dense[y])
+        continue;
+      gsize off = (gsize) y * w;
+      if (window->ring_type == DS_SAMPLE_U16)
+        ds_window_extrema_row_u16 ((const guint16 *) slot_row (window, k, y), set->max16 + off,
+                                   set->min16 + off, k == 0, w);
+      else
+        ds_window_extrema_row_u8 (slot_row (window, k, y), set->max16 + off, set->min16 + off,
+                                  k == 0, w);
+    }
 }
 
 static void
@@ -235,7 +281,8 @@ ds_phase_window_push (DsPhaseWindow *window, guint phase, const DsImage *frame,
     return FALSE;
   gboolean was_live = slot_is_live (window, phase);
   DsPhaseSet *set = window->set;
-  PushJob j = { .window = window, .frame = frame, .phase = phase };
+  PushJob j = { .window = window, .frame = frame, .phase = phase,
+                .plane_stride = plane_stride_bytes (plane_bytes (window)) / ds_sample_size (frame->type) };
   if (window->state_current) {
     /* complete since the refold (a break clears state_current): the slot is live */
     g_assert (was_live);
@@ -245,6 +292,8 @@ ds_phase_window_push (DsPhaseWindow *window, guint phase, const DsImage *frame,
     ds_phase_set_run_rows_on (set, set->fold_threads, push_rows, &j);
     for (guint t = 0; t < DS_MAX_THREADS; t++)
       window->rescans += j.rescans[t];
+    if (!set->planes16)
+      ds_phase_set_run_rows_on (set, set->fold_threads, rebuild_rows, &j);
     ds_phase_set_locate_columns (set, phase, frame);
   } else {
     ds_phase_set_run_rows_on (set, set->fold_threads, copy_rows, &j);
@@ -368,7 +417,7 @@ ds_phase_window_memory (const DsPhaseWindow *window, gsize *window_bytes, gsize 
   if (set_bytes)
     *set_bytes = set_state;
   if (window_bytes)
-    *window_bytes = set_state + (window->ring ? window->n * plane_bytes (window) : 0);
+    *window_bytes = set_state + (window->ring ? window->n * plane_stride_bytes (plane_bytes (window)) : 0);
 }
 
 guint64

@@ -68,13 +68,7 @@
                                               guint16 *mx, guint16 *mn, const guint8 *need,       \
                                               guint count, gsize w)                               \
   {                                                                                               \
-    /* Few pixels: each reads its n samples. Many: the whole row from the n planes, vector      \
-     * loads over contiguous rows cost less than scattered reads touching the same lines. */    \
-    if (count > w / 16) {                                                                         \
-      for (guint k = 0; k < n; k++)                                                               \
-        window_extrema_all_##NAME (plane0 + k * plane_stride, mx, mn, k == 0, w);                 \
-      return;                                                                                     \
-    }                                                                                             \
+    /* the few flagged pixels, each from its n samples (a dense row goes plane by plane) */      \
     for (gsize x = 0; x < w && count > 0; x++) {                                                  \
       if (!need[x])                                                                               \
         continue;                                                                                 \
@@ -88,6 +82,11 @@
       mx[x] = hi;                                                                                 \
       mn[x] = lo;                                                                                 \
     }                                                                                             \
+  }                                                                                               \
+  DS_CLONES void ds_window_extrema_row_##NAME (const T *plane, guint16 *mx, guint16 *mn,          \
+                                               gboolean first, gsize w)                           \
+  {                                                                                               \
+    window_extrema_all_##NAME (plane, mx, mn, first, w);                                          \
   }
 
 DEFINE_WINDOW_KERNELS (guint8, u8)

@@ -7,18 +7,23 @@
 
 G_BEGIN_DECLS
 
-/* One row of a push into a slot of u8 or u16 samples. `ring` is the slot's row: it holds the
+/* ds_window_extrema_row: mx, mn = the row of one kept plane (first) or their max and min with
+ * it; a whole row's extremes rebuilt plane by plane.
+ * One row of a push into a slot of u8 or u16 samples. `ring` is the slot's row: it holds the
  * retired samples and receives the new ones (`in`). sum (NULL: none) gets new - old; cs and sn
  * (NULL: none) get the fixed-point weights times new - old. mx and mn take the new sample when
  * it is a new extreme; where the retired sample was the extreme and the new one is not,
  * need[x] is set (else cleared): that pixel's extreme must be rebuilt from the kept frames
- * (ds_window_rescan_row_*). Returns how many pixels need it. */
+ * (ds_window_rescan_row_* for a few pixels of a row, ds_window_extrema_row_* plane by plane for
+ * a whole row). Returns how many pixels need it. */
 #define DS_DECLARE_WINDOW_KERNELS(T, NAME)                                                        \
   guint ds_window_push_row_##NAME (const T *in, T *ring, guint16 *mx, guint16 *mn, guint32 *sum,  \
                                    gint32 c, gint32 s, gint64 *cs, gint64 *sn, guint8 *need,      \
                                    gsize w);                                                      \
   void ds_window_rescan_row_##NAME (const T *plane0, gsize plane_stride, guint n, guint16 *mx,    \
-                                    guint16 *mn, const guint8 *need, guint count, gsize w);
+                                    guint16 *mn, const guint8 *need, guint count, gsize w);       \
+  void ds_window_extrema_row_##NAME (const T *plane, guint16 *mx, guint16 *mn, gboolean first,    \
+                                     gsize w);
 DS_DECLARE_WINDOW_KERNELS (guint8, u8)
 DS_DECLARE_WINDOW_KERNELS (guint16, u16)
 

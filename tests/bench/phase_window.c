@@ -1,0 +1,243 @@
+/* Benchmark: the sliding phase window (proc/phase_window.h, issue 37's per-frame results)
+ * against baselines measured in the same run, on N phases of WxH u16 and u8 frames, one frame
+ * per phase in cyclic order, for each estimator:
+ *   window   ds_phase_window_push of the newest frame, then ds_phase_window_finalize_into a
+ *            pooled result: what a per-frame result costs once the window is full (median and
+ *            worst over the pushes, per megapixel, and its two halves);
+ *   fold     ds_phase_set_accumulate of one frame (what a per-set result costs per frame);
+ *   refold   a fresh set over the window's N frames and its finalize (the window's
+ *            definition, and what a window without incremental state would cost).
+ * It also prints the share of pixels whose extremes a push rebuilt from the kept frames, and
+ * the memory the window holds against one set's state (the kept frames counted). Times are
+ * the process's CPU time (below); runs and baselines take turns within each repetition, so that on a shared machine they see the same
+ * load. It asserts no timing; it checks its results (exit status 1 on a mismatch): the
+ * window's last result equals the fresh set's bit for bit.
+ *
+ *   bench_phase_window [--quick] [--case NxWxH]... [--reps R] [--threads T] [--estimator E]
+ * Full run (docs/benchmarks.md): build/tests/bench/bench_phase_window */
+#include <glib.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "proc/phase_window.h"
+#include "proc/separation.h"
+
+typedef struct {
+  guint n, w, h;
+} Case;
+
+/* CPU seconds of the process (every thread): on a machine shared with other work a wall
+ * clock counts the time the scheduler gave to others; CPU time does not. With one thread it is
+ * the latency on an idle machine; with more, the CPU a result costs. */
+static double
+now (void)
+{
+  struct timespec ts;
+  clock_gettime (CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return ts.tv_sec + ts.tv_nsec / 1e9;
+}
+
+/* Frame `t` of a stripe sequence: period 16 px, half lit, over a scene whose transmission
+ * varies, with noise of a few DN (a 12-bit camera, or an 8-bit one), so that every pixel's
+ * extremes are decided by noise as a camera's are. */
+static DsImage *
+make_frame (DsSampleType type, const Case *c, guint64 t)
+{
+  DsImage *img = ds_image_new (type, c->w, c->h, NULL);
+  img->bit_depth = type == DS_SAMPLE_U8 ? 8 : 12;
+  double full = type == DS_SAMPLE_U8 ? 255.0 : 4095.0, noise = type == DS_SAMPLE_U8 ? 1.5 : 6.0;
+  guint32 state = 2463534242u + (guint32) t * 7919u;
+  guint k = (guint) (t % c->n);
+  for (guint y = 0; y < c->h; y++) {
+    void *row = ds_image_row (img, y);
+    for (guint x = 0; x < c->w; x++) {
+      state ^= state << 13;
+      state ^= state >> 17;
+      state ^= state << 5;
+      double u = (state & 0xffff) / 65536.0 + ((state >> 16) & 0xffff) / 65536.0 - 1.0;
+      double ld = 0.5 + 0.4 * sin (0.01 * x + 0.013 * y);
+      double lit = fmod (x / 16.0 + (double) k / c->n, 1.0) < 0.5 ? 1.0 : 0.1;
+      double v = CLAMP ((0.15 + 0.6 * ld * lit) * full + noise * 2.45 * u, 0, full);
+      if (type == DS_SAMPLE_U8)
+        ((guint8 *) row)[x] = (guint8) v;
+      else
+        ((guint16 *) row)[x] = (guint16) v;
+    }
+  }
+  return img;
+}
+
+static int
+cmp_double (const void *a, const void *b)
+{
+  double x = *(const double *) a, y = *(const double *) b;
+  return (x > y) - (x < y);
+}
+
+/* The median: on a shared machine a preempted push would drag a mean. Reorders v. */
+static double
+median (double *v, guint64 n)
+{
+  qsort (v, n, sizeof *v, cmp_double);
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+static gboolean
+same_plane (const DsImage *a, const DsImage *b)
+{
+  if (!a || !b)
+    return a == b;
+  gsize row = (gsize) a->width * ds_sample_size (a->type);
+  for (guint y = 0; y < a->height; y++)
+    if (memcmp (ds_image_row (a, y), ds_image_row (b, y), row) != 0)
+      return FALSE;
+  return TRUE;
+}
+
+static gboolean
+bench_one (const Case *c, DsSampleType type, DsEstimator estimator, guint reps, guint threads,
+           DsImage **frames)
+{
+  DsSeparationParams p;
+  ds_separation_params_init (&p, c->n);
+  p.estimator = estimator;
+  p.threads = threads;
+  g_autoptr (GError) error = NULL;
+  g_autoptr (DsPhaseWindow) win = ds_phase_window_new (&p, c->w, c->h, &error);
+  g_autoptr (DsPhaseSet) set = ds_phase_set_new (&p, c->w, c->h, &error);
+  g_autoptr (DsSeparation) got = ds_separation_new (), want = ds_separation_new ();
+  if (!win || !set) {
+    fprintf (stderr, "%s\n", error->message);
+    return FALSE;
+  }
+  /* fill the window and fault every plane in (untimed, as the daemon's first results) */
+  guint64 t = 0;
+  for (; t < c->n; t++)
+    if (!ds_phase_window_push (win, (guint) (t % c->n), frames[t % (2 * c->n)], NULL, &error))
+      break;
+  if (error || !ds_phase_window_finalize_into (win, got, &error)) {
+    fprintf (stderr, "%s\n", error->message);
+    return FALSE;
+  }
+  g_autofree double *total = g_new (double, (gsize) reps * c->n), *push = g_new (double, (gsize) reps * c->n),
+                    *fin = g_new (double, (gsize) reps * c->n);
+  double worst = 0, best_fold = INFINITY, best_refold = INFINITY;
+  guint64 rescans0 = ds_phase_window_rescans (win);
+  guint timed = 0;
+  for (guint r = 0; r < reps; r++) {
+    for (guint i = 0; i < c->n; i++, t++) {
+      const DsImage *f = frames[t % (2 * c->n)];
+      double t0 = now ();
+      gboolean ok = ds_phase_window_push (win, (guint) (t % c->n), f, NULL, &error);
+      double t1 = now ();
+      ok = ok && ds_phase_window_finalize_into (win, got, &error);
+      double t2 = now ();
+      if (!ok) {
+        fprintf (stderr, "%s\n", error->message);
+        return FALSE;
+      }
+      total[timed] = t2 - t0;
+      push[timed] = t1 - t0;
+      fin[timed] = t2 - t1;
+      worst = MAX (worst, t2 - t0);
+      timed++;
+    }
+    /* the baselines over the window's current frames */
+    ds_phase_set_reset (set);
+    double t0 = now ();
+    for (guint64 u = t - c->n; u < t; u++)
+      if (!ds_phase_set_accumulate (set, (guint) (u % c->n), frames[u % (2 * c->n)], &error))
+        return FALSE;
+    double t1 = now ();
+    if (!ds_phase_set_finalize_into (set, want, &error))
+      return FALSE;
+    double t2 = now ();
+    best_fold = MIN (best_fold, (t1 - t0) / c->n);
+    best_refold = MIN (best_refold, t2 - t0);
+  }
+  gboolean same = same_plane (got->transmissive, want->transmissive) &&
+                  same_plane (got->scattered, want->scattered) && same_plane (got->mask, want->mask);
+  double mp = (double) c->w * c->h / 1e6, mean = median (total, timed);
+  gsize window_bytes = 0, set_bytes = 0;
+  ds_phase_window_memory (win, &window_bytes, &set_bytes);
+  double rescanned = (double) (ds_phase_window_rescans (win) - rescans0) / ((double) timed * c->w * c->h);
+  printf ("  %-3s %-6s push+finalize %7.2f ms (worst %7.2f) = %6.2f ms/MP  [push %6.2f, finalize %7.2f]"
+          "  %5.2fx one fold  %5.2fx the refold  rescanned %4.1f%%  memory %4.1f B/px = %4.2fx one set%s\n",
+          type == DS_SAMPLE_U8 ? "u8" : "u16", ds_estimator_name (estimator), mean * 1e3, worst * 1e3,
+          mean * 1e3 / mp, median (push, timed) * 1e3, median (fin, timed) * 1e3, mean / best_fold,
+          mean / best_refold, 100 * rescanned, (double) window_bytes / (c->w * (double) c->h),
+          (double) window_bytes / set_bytes, same ? "" : "  WRONG: differs from a fresh set");
+  return same;
+}
+
+static gboolean
+bench_case (const Case *c, guint reps, guint threads, const char *only)
+{
+  printf ("\nN = %u, %ux%u (%.1f MP), %u thread%s, median of %u pushes per estimator\n", c->n, c->w, c->h,
+          c->w * (double) c->h / 1e6, threads, threads == 1 ? "" : "s", reps * c->n);
+  gboolean ok = TRUE;
+  const DsSampleType types[] = { DS_SAMPLE_U16, DS_SAMPLE_U8 };
+  for (guint ti = 0; ti < G_N_ELEMENTS (types); ti++) {
+    /* two cycles of frames with different noise: every push changes every sample */
+    DsImage **frames = g_new0 (DsImage *, 2 * c->n);
+    for (guint i = 0; i < 2 * c->n; i++)
+      frames[i] = make_frame (types[ti], c, i);
+    const DsEstimator est[] = { DS_ESTIMATOR_MAXMIN, DS_ESTIMATOR_SINE, DS_ESTIMATOR_ROBUST };
+    for (guint e = 0; e < G_N_ELEMENTS (est); e++)
+      if (!only || strcmp (only, ds_estimator_name (est[e])) == 0)
+        ok = bench_one (c, types[ti], est[e], reps, threads, frames) && ok;
+    for (guint i = 0; i < 2 * c->n; i++)
+      ds_image_free (frames[i]);
+    g_free (frames);
+  }
+  return ok;
+}
+
+int
+main (int argc, char **argv)
+{
+  GArray *cases = g_array_new (FALSE, FALSE, sizeof (Case));
+  guint reps = 5, threads = 1;
+  gboolean quick = FALSE;
+  const char *only = NULL;
+  for (int i = 1; i < argc; i++) {
+    Case c;
+    if (strcmp (argv[i], "--quick") == 0) {
+      quick = TRUE;
+    } else if (strcmp (argv[i], "--case") == 0 && i + 1 < argc &&
+               sscanf (argv[++i], "%ux%ux%u", &c.n, &c.w, &c.h) == 3 && c.n >= 3 && c.w && c.h) {
+      g_array_append_val (cases, c);
+    } else if (strcmp (argv[i], "--reps") == 0 && i + 1 < argc) {
+      reps = (guint) atoi (argv[++i]);
+    } else if (strcmp (argv[i], "--threads") == 0 && i + 1 < argc) {
+      threads = (guint) atoi (argv[++i]);
+    } else if (strcmp (argv[i], "--estimator") == 0 && i + 1 < argc) {
+      only = argv[++i];
+    } else {
+      fprintf (stderr, "usage: %s [--quick] [--case NxWxH]... [--reps R] [--threads T] [--estimator E]\n", argv[0]);
+      return 2;
+    }
+  }
+  if (reps < 1 || threads < 1)
+    return 2;
+  if (cases->len == 0) {
+    /* quick: small, but one case above the size where a set shares its rows with workers */
+    const Case full[] = { { 8, 1024, 1024 }, { 8, 2048, 2048 } };
+    const Case small[] = { { 4, 256, 256 }, { 8, 515, 301 } };
+    g_array_append_vals (cases, quick ? small : full, quick ? G_N_ELEMENTS (small) : G_N_ELEMENTS (full));
+  }
+  if (quick) {
+    reps = MIN (reps, 2u);
+    threads = MAX (threads, 2u);
+  }
+  printf ("sliding window benchmark: %u repetitions of N pushes, %u threads\n", reps, threads);
+  gboolean ok = TRUE;
+  for (guint i = 0; i < cases->len; i++)
+    ok = bench_case (&g_array_index (cases, Case, i), reps, threads, only) && ok;
+  g_array_free (cases, TRUE);
+  printf ("\nresults %s\n", ok ? "checked: all equal to a fresh set" : "WRONG (see above)");
+  return ok ? 0 : 1;
+}
