@@ -48,6 +48,7 @@ struct DsPhaseWindow {
   gboolean state_current; /* the set's state is the fold of exactly the live frames (integer
                              frames after a refold); pushes keep it so */
   guint64 rescans;     /* pixels whose extremes were rebuilt from the kept frames */
+  guint rebuild_all_for; /* pushes that will rebuild every row's extremes without tracking */
   guint8 *row_dense;   /* per row, in a push: so many extremes left that the row is rebuilt
                           plane by plane (rebuild_rows) */
 };
@@ -158,7 +159,9 @@ typedef struct {
   guint phase;
   gint32 c, s;                  /* sine's fixed-point weights of the phase */
   gsize plane_stride;           /* samples from one kept plane to the next */
-  guint64 rescans[DS_MAX_THREADS];
+  gboolean rebuild_all;         /* every row's extremes are rebuilt: the push skips its own */
+  guint64 rebuilt[DS_MAX_THREADS]; /* per thread: pixels whose extremes were rebuilt */
+  guint64 dense[DS_MAX_THREADS];   /* per thread: rows rebuilt whole */
 } PushJob;
 
 #define PUSH_INT_ROW(T, NAME)                                                                     \
@@ -172,8 +175,15 @@ typedef struct {
     if (count > 0 && !window->row_dense[y])                                                       \
       ds_window_rescan_row_##NAME ((const T *) slot_row (window, 0, y), j->plane_stride, window->n, \
                                    set->max16 + off, set->min16 + off, need, count, w);           \
-    j->rescans[thread] += count;                                                                  \
+    j->rebuilt[thread] += window->row_dense[y] ? w : count;                                       \
+    j->dense[thread] += window->row_dense[y];                                                     \
   } while (0)
+
+#define RETIRE_INT_ROW(T, NAME)                                                                   \
+  ds_window_retire_row_##NAME (ds_image_row (frame, y), (T *) slot_row (window, j->phase, y),    \
+                               set->sum32 ? set->sum32 + off : NULL, j->c, j->s,                 \
+                               set->cos64 ? set->cos64 + off : NULL,                              \
+                               set->sin64 ? set->sin64 + off : NULL, w)
 
 static void
 push_rows (gpointer data, guint y0, guint y1, guint thread)
@@ -194,6 +204,14 @@ push_rows (gpointer data, guint y0, guint y1, guint thread)
       else
         ds_widen_u8 (ds_image_row (frame, y), plane, w);
       memcpy (slot_row (window, j->phase, y), ds_image_row (frame, y), w * ds_sample_size (frame->type));
+    } else if (j->rebuild_all) {
+      if (frame->type == DS_SAMPLE_U16)
+        RETIRE_INT_ROW (guint16, u16);
+      else
+        RETIRE_INT_ROW (guint8, u8);
+      window->row_dense[y] = 1;
+      j->rebuilt[thread] += w;
+      j->dense[thread]++;
     } else if (frame->type == DS_SAMPLE_U16) {
       PUSH_INT_ROW (guint16, u16);
     } else {
@@ -288,12 +306,23 @@ ds_phase_window_push (DsPhaseWindow *window, guint phase, const DsImage *frame,
     g_assert (was_live);
     if (set->cos64)
       ds_harmonic_fix_weights (window->n, phase, &j.c, &j.s);
+    j.rebuild_all = window->rebuild_all_for > 0;
     ds_phase_set_reserve_scratch (set, (window->width + 7) / 8);
     ds_phase_set_run_rows_on (set, set->fold_threads, push_rows, &j);
-    for (guint t = 0; t < DS_MAX_THREADS; t++)
-      window->rescans += j.rescans[t];
+    guint64 dense = 0;
+    for (guint t = 0; t < DS_MAX_THREADS; t++) {
+      window->rescans += j.rebuilt[t];
+      dense += j.dense[t];
+    }
     if (!set->planes16)
       ds_phase_set_run_rows_on (set, set->fold_threads, rebuild_rows, &j);
+    /* Whether a push loses extremes at many pixels depends on the scene and its noise, which
+     * change slowly: when nearly every row was rebuilt whole, the next N - 1 pushes rebuild
+     * every row without tracking the extremes first, then one tracks them again. */
+    if (j.rebuild_all)
+      window->rebuild_all_for--;
+    else if (dense * 4 > (guint64) window->height * 3)
+      window->rebuild_all_for = window->n - 1;
     ds_phase_set_locate_columns (set, phase, frame);
   } else {
     ds_phase_set_run_rows_on (set, set->fold_threads, copy_rows, &j);
@@ -316,6 +345,7 @@ ds_phase_window_break (DsPhaseWindow *window)
   window->since_break = 0;
   window->fill = 0;
   window->state_current = FALSE;
+  window->rebuild_all_for = 0;
 }
 
 guint

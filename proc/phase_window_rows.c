@@ -3,6 +3,8 @@
  * turns each loop into vector code. */
 #include "proc/phase_window_rows.h"
 
+#include <string.h>
+
 #include "proc/simd.h"
 
 #define DEFINE_WINDOW_KERNELS(T, NAME)                                                            \
@@ -82,6 +84,15 @@
       mx[x] = hi;                                                                                 \
       mn[x] = lo;                                                                                 \
     }                                                                                             \
+  }                                                                                               \
+  DS_CLONES void ds_window_retire_row_##NAME (const T *in, T *ring, guint32 *sum, gint32 c,       \
+                                              gint32 s, gint64 *cs, gint64 *sn, gsize w)          \
+  {                                                                                               \
+    if (sum)                                                                                      \
+      window_sum_##NAME (in, ring, sum, w);                                                       \
+    if (cs)                                                                                       \
+      window_harmonic_##NAME (in, ring, c, s, cs, sn, w);                                         \
+    memcpy (ring, in, w * sizeof (T));                                                            \
   }                                                                                               \
   DS_CLONES void ds_window_extrema_row_##NAME (const T *plane, guint16 *mx, guint16 *mn,          \
                                                gboolean first, gsize w)                           \

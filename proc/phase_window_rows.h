@@ -7,6 +7,8 @@
 
 G_BEGIN_DECLS
 
+/* ds_window_retire_row: the sums of ds_window_push_row and the slot's row, not the extremes
+ * (for a push that rebuilds every row's extremes). */
 /* ds_window_extrema_row: mx, mn = the row of one kept plane (first) or their max and min with
  * it; a whole row's extremes rebuilt plane by plane.
  * One row of a push into a slot of u8 or u16 samples. `ring` is the slot's row: it holds the
@@ -23,7 +25,9 @@ G_BEGIN_DECLS
   void ds_window_rescan_row_##NAME (const T *plane0, gsize plane_stride, guint n, guint16 *mx,    \
                                     guint16 *mn, const guint8 *need, guint count, gsize w);       \
   void ds_window_extrema_row_##NAME (const T *plane, guint16 *mx, guint16 *mn, gboolean first,    \
-                                     gsize w);
+                                     gsize w);                                                    \
+  void ds_window_retire_row_##NAME (const T *in, T *ring, guint32 *sum, gint32 c, gint32 s,       \
+                                    gint64 *cs, gint64 *sn, gsize w);
 DS_DECLARE_WINDOW_KERNELS (guint8, u8)
 DS_DECLARE_WINDOW_KERNELS (guint16, u16)
 

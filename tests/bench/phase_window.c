@@ -9,8 +9,8 @@
  *            definition, and what a window without incremental state would cost).
  * It also prints the share of pixels whose extremes a push rebuilt from the kept frames, and
  * the memory the window holds against one set's state (the kept frames counted). Times are
- * the process's CPU time (below); runs and baselines take turns within each repetition, so that on a shared machine they see the same
- * load. It asserts no timing; it checks its results (exit status 1 on a mismatch): the
+ * the process's CPU time (below); runs and baselines take turns within each repetition. It
+ * asserts no timing; it checks its results (exit status 1 on a mismatch): the
  * window's last result equals the fresh set's bit for bit.
  *
  *   bench_phase_window [--quick] [--case NxWxH]... [--reps R] [--threads T] [--estimator E]
@@ -122,8 +122,9 @@ bench_one (const Case *c, DsSampleType type, DsEstimator estimator, guint reps, 
     fprintf (stderr, "%s\n", error->message);
     return FALSE;
   }
-  g_autofree double *total = g_new (double, (gsize) reps * c->n), *push = g_new (double, (gsize) reps * c->n),
-                    *fin = g_new (double, (gsize) reps * c->n);
+  gsize pushes = (gsize) reps * c->n;
+  g_autofree double *total = g_new (double, pushes), *push = g_new (double, pushes),
+                    *fin = g_new (double, pushes);
   double worst = 0, best_fold = INFINITY, best_refold = INFINITY;
   guint64 rescans0 = ds_phase_window_rescans (win);
   guint timed = 0;
@@ -163,12 +164,12 @@ bench_one (const Case *c, DsSampleType type, DsEstimator estimator, guint reps, 
   double mp = (double) c->w * c->h / 1e6, mean = median (total, timed);
   gsize window_bytes = 0, set_bytes = 0;
   ds_phase_window_memory (win, &window_bytes, &set_bytes);
-  double rescanned = (double) (ds_phase_window_rescans (win) - rescans0) / ((double) timed * c->w * c->h);
+  double rebuilt = (double) (ds_phase_window_rescans (win) - rescans0) / ((double) timed * c->w * c->h);
   printf ("  %-3s %-6s push+finalize %7.2f ms (worst %7.2f) = %6.2f ms/MP  [push %6.2f, finalize %7.2f]"
-          "  %5.2fx one fold  %5.2fx the refold  rescanned %4.1f%%  memory %4.1f B/px = %4.2fx one set%s\n",
+          "  %5.2fx one fold  %5.2fx the refold  rebuilt %5.1f%%  memory %4.1f B/px = %4.2fx one set%s\n",
           type == DS_SAMPLE_U8 ? "u8" : "u16", ds_estimator_name (estimator), mean * 1e3, worst * 1e3,
           mean * 1e3 / mp, median (push, timed) * 1e3, median (fin, timed) * 1e3, mean / best_fold,
-          mean / best_refold, 100 * rescanned, (double) window_bytes / (c->w * (double) c->h),
+          mean / best_refold, 100 * rebuilt, (double) window_bytes / (c->w * (double) c->h),
           (double) window_bytes / set_bytes, same ? "" : "  WRONG: differs from a fresh set");
   return same;
 }

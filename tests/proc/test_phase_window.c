@@ -76,7 +76,7 @@ typedef struct {
   guint bits;
   guint n;
   gboolean dark;
-  /* 0 or FALSE: the defaults (W x H, one thread, extrema kept, no noise model, gain 1) */
+  /* 0 or FALSE: the defaults (W x H, one thread, extrema kept, no model, gain 1) */
   guint width, height, threads;
   gboolean no_extrema, model;
   double gain;
@@ -199,13 +199,20 @@ test_fresh_set_equality (void)
     { .estimator = DS_ESTIMATOR_ROBUST, .type = DS_SAMPLE_U8, .bits = 8, .n = 8, .dark = TRUE },
     /* the finalize's integer maxmin path (no extrema, no model), saturated pixels whose
      * extremes tie, a noise model, and a phase repeated out of turn while the window slides */
-    { .estimator = DS_ESTIMATOR_MAXMIN, .type = DS_SAMPLE_U8, .bits = 8, .n = 6, .dark = TRUE, .no_extrema = TRUE, .gain = 2.5 },
-    { .estimator = DS_ESTIMATOR_MAXMIN, .type = DS_SAMPLE_U16, .bits = 10, .n = 3, .dark = FALSE, .model = TRUE, .repeat_at = 5 },
-    { .estimator = DS_ESTIMATOR_SINE, .type = DS_SAMPLE_U8, .bits = 8, .n = 4, .dark = FALSE, .gain = 1.6, .repeat_at = 6 },
-    { .estimator = DS_ESTIMATOR_SINE, .type = DS_SAMPLE_U16, .bits = 12, .n = 3, .dark = TRUE, .model = TRUE, .no_extrema = TRUE },
-    { .estimator = DS_ESTIMATOR_ROBUST, .type = DS_SAMPLE_U16, .bits = 12, .n = 6, .dark = FALSE, .repeat_at = 8 },
-    { .estimator = DS_ESTIMATOR_MAXMIN, .type = DS_SAMPLE_U16, .bits = 12, .n = 5, .dark = FALSE, .noise = 0.1 },
-    { .estimator = DS_ESTIMATOR_SINE, .type = DS_SAMPLE_U8, .bits = 8, .n = 4, .dark = TRUE, .noise = 0.1 },
+    { .estimator = DS_ESTIMATOR_MAXMIN, .type = DS_SAMPLE_U8, .bits = 8, .n = 6, .dark = TRUE,
+      .no_extrema = TRUE, .gain = 2.5 },
+    { .estimator = DS_ESTIMATOR_MAXMIN, .type = DS_SAMPLE_U16, .bits = 10, .n = 3, .dark = FALSE,
+      .model = TRUE, .repeat_at = 5 },
+    { .estimator = DS_ESTIMATOR_SINE, .type = DS_SAMPLE_U8, .bits = 8, .n = 4, .dark = FALSE,
+      .gain = 1.6, .repeat_at = 6 },
+    { .estimator = DS_ESTIMATOR_SINE, .type = DS_SAMPLE_U16, .bits = 12, .n = 3, .dark = TRUE,
+      .model = TRUE, .no_extrema = TRUE },
+    { .estimator = DS_ESTIMATOR_ROBUST, .type = DS_SAMPLE_U16, .bits = 12, .n = 6, .dark = FALSE,
+      .repeat_at = 8 },
+    { .estimator = DS_ESTIMATOR_MAXMIN, .type = DS_SAMPLE_U16, .bits = 12, .n = 5, .dark = FALSE,
+      .noise = 0.1 },
+    { .estimator = DS_ESTIMATOR_SINE, .type = DS_SAMPLE_U8, .bits = 8, .n = 4, .dark = TRUE,
+      .noise = 0.1 },
   };
   for (guint i = 0; i < G_N_ELEMENTS (cases); i++)
     run_case (&cases[i]);
@@ -216,9 +223,10 @@ static void
 test_threaded (void)
 {
   const Case cases[] = {
-    { .estimator = DS_ESTIMATOR_MAXMIN, .type = DS_SAMPLE_U16, .bits = 12, .n = 4, .dark = TRUE, .width = 512, .height = 320, .threads = 2,
-      .no_extrema = TRUE },
-    { .estimator = DS_ESTIMATOR_SINE, .type = DS_SAMPLE_U8, .bits = 8, .n = 3, .dark = FALSE, .width = 512, .height = 320, .threads = 2 },
+    { .estimator = DS_ESTIMATOR_MAXMIN, .type = DS_SAMPLE_U16, .bits = 12, .n = 4, .dark = TRUE,
+      .width = 512, .height = 320, .threads = 2, .no_extrema = TRUE },
+    { .estimator = DS_ESTIMATOR_SINE, .type = DS_SAMPLE_U8, .bits = 8, .n = 3, .dark = FALSE,
+      .width = 512, .height = 320, .threads = 2 },
   };
   for (guint i = 0; i < G_N_ELEMENTS (cases); i++)
     run_case (&cases[i]);
