@@ -18,7 +18,8 @@ make_frame_sized (DsSampleType type, guint bits, guint n, guint64 t, GRand *r, g
 {
   DsImage *img = ds_image_new (type, width, height, NULL);
   img->bit_depth = bits;
-  double full = (double) ((1u << bits) - 1);
+  /* float frames: the range of a 12-bit camera (a shift by 32 bits is undefined) */
+  double full = type == DS_SAMPLE_F32 ? 4095.0 : (double) ((1u << bits) - 1);
   guint k = (guint) (t % n);
   for (guint y = 0; y < height; y++)
     for (guint x = 0; x < width; x++) {
