@@ -11,7 +11,10 @@
  *   retired one: integer arithmetic, exact, so the same as a fold in any order;
  * - max and min take the new sample when it is a new extreme; where the retired sample was the
  *   extreme and the new one is not, that pixel's extreme is rebuilt from its N kept samples
- *   (a max is the same whatever the order it is taken in);
+ *   (a max is the same whatever the order it is taken in). Under sensor noise that happens at
+ *   about 1/N of the pixels per push, which touches every cache line of the kept frames: such
+ *   rows are rebuilt whole, plane by plane, so a push reads the N kept frames as a refold
+ *   would, but retires the sums instead of refolding them;
  * - robust keeps its N phase planes already: the push writes the new frame into its plane;
  * - the data-derived noise comes from the set's first frame, the oldest: each slot keeps its
  *   frame's estimate, and the oldest slot's is the set's;
@@ -47,7 +50,7 @@ struct DsPhaseWindow {
   guint *order;        /* scratch: phases by arrival */
   gboolean state_current; /* the set's state is the fold of exactly the live frames (integer
                              frames after a refold); pushes keep it so */
-  guint64 rescans;     /* pixels whose extremes were rebuilt from the kept frames */
+  guint64 rebuilt;     /* pixels whose extremes were rebuilt from the kept frames */
   guint rebuild_all_for; /* pushes that will rebuild every row's extremes without tracking */
   guint8 *row_dense;   /* per row, in a push: so many extremes left that the row is rebuilt
                           plane by plane (rebuild_rows) */
@@ -311,7 +314,7 @@ ds_phase_window_push (DsPhaseWindow *window, guint phase, const DsImage *frame,
     ds_phase_set_run_rows_on (set, set->fold_threads, push_rows, &j);
     guint64 dense = 0;
     for (guint t = 0; t < DS_MAX_THREADS; t++) {
-      window->rescans += j.rebuilt[t];
+      window->rebuilt += j.rebuilt[t];
       dense += j.dense[t];
     }
     if (!set->planes16)
@@ -451,7 +454,7 @@ ds_phase_window_memory (const DsPhaseWindow *window, gsize *window_bytes, gsize 
 }
 
 guint64
-ds_phase_window_rescans (const DsPhaseWindow *window)
+ds_phase_window_rebuilt_pixels (const DsPhaseWindow *window)
 {
-  return window->rescans;
+  return window->rebuilt;
 }

@@ -68,6 +68,6 @@ void ds_phase_window_memory (const DsPhaseWindow *window, gsize *window_bytes, g
 /* Pixels whose max and min were rebuilt from the kept frames since the window was made (a
  * push retired a pixel's extreme and brought no new one, at that pixel or at enough pixels of
  * its row that the whole row was rebuilt); for the benchmark. */
-guint64 ds_phase_window_rescans (const DsPhaseWindow *window);
+guint64 ds_phase_window_rebuilt_pixels (const DsPhaseWindow *window);
 
 G_END_DECLS

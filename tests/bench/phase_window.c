@@ -126,7 +126,7 @@ bench_one (const Case *c, DsSampleType type, DsEstimator estimator, guint reps, 
   g_autofree double *total = g_new (double, pushes), *push = g_new (double, pushes),
                     *fin = g_new (double, pushes);
   double worst = 0, best_fold = INFINITY, best_refold = INFINITY;
-  guint64 rescans0 = ds_phase_window_rescans (win);
+  guint64 rebuilt0 = ds_phase_window_rebuilt_pixels (win);
   guint timed = 0;
   for (guint r = 0; r < reps; r++) {
     for (guint i = 0; i < c->n; i++, t++) {
@@ -164,7 +164,7 @@ bench_one (const Case *c, DsSampleType type, DsEstimator estimator, guint reps, 
   double mp = (double) c->w * c->h / 1e6, mean = median (total, timed);
   gsize window_bytes = 0, set_bytes = 0;
   ds_phase_window_memory (win, &window_bytes, &set_bytes);
-  double rebuilt = (double) (ds_phase_window_rescans (win) - rescans0) / ((double) timed * c->w * c->h);
+  double rebuilt = (double) (ds_phase_window_rebuilt_pixels (win) - rebuilt0) / ((double) timed * c->w * c->h);
   printf ("  %-3s %-6s push+finalize %7.2f ms (worst %7.2f) = %6.2f ms/MP  [push %6.2f, finalize %7.2f]"
           "  %5.2fx one fold  %5.2fx the refold  rebuilt %5.1f%%  memory %4.1f B/px = %4.2fx one set%s\n",
           type == DS_SAMPLE_U8 ? "u8" : "u16", ds_estimator_name (estimator), mean * 1e3, worst * 1e3,
