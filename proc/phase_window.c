@@ -101,6 +101,19 @@ ds_phase_window_set_dark (DsPhaseWindow *window, const DsImage *dark, GError **e
   return ds_phase_set_set_dark (window->set, dark, error);
 }
 
+void
+ds_phase_window_set_push_threads (DsPhaseWindow *window, guint threads)
+{
+  /* pushes run on the set's fold threads: refolds and pushes share the setting */
+  ds_phase_set_set_fold_threads (window->set, threads);
+}
+
+void
+ds_phase_window_set_finalize_threads (DsPhaseWindow *window, guint threads)
+{
+  ds_phase_set_set_finalize_threads (window->set, threads);
+}
+
 static gboolean
 slot_is_live (const DsPhaseWindow *window, guint k)
 {

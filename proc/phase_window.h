@@ -59,6 +59,13 @@ guint64 ds_phase_window_span (const DsPhaseWindow *window);
  * where their shape fits). NOT_ENOUGH_PHASES when the window is not complete. */
 gboolean ds_phase_window_finalize_into (DsPhaseWindow *window, DsSeparation *sep, GError **error);
 
+/* Threads for the pushes and for the finalize, as ds_phase_set_set_fold_threads and
+ * ds_phase_set_set_finalize_threads for a set (0, the default: all of params.threads); the
+ * results are the same bit for bit with any number. A caller receiving the next frame on the
+ * same cores meanwhile may leave them some. */
+void ds_phase_window_set_push_threads (DsPhaseWindow *window, guint threads);
+void ds_phase_window_set_finalize_threads (DsPhaseWindow *window, guint threads);
+
 /* Memory for the benchmark's ratio, in bytes: *window_bytes what the window holds per pixel
  * (its set's state and the kept frames), *set_bytes what one DsPhaseSet of the same
  * parameters holds for the frames pushed so far (0 before the first result). Either may be

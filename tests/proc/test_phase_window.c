@@ -84,6 +84,7 @@ typedef struct {
   double noise;      /* DN either side; 0: 3. Below one DN few samples change, so few extremes
                         leave and a push rebuilds them pixel by pixel, not row by row */
   guint64 repeat_at; /* > 0: the frame at this push repeats the phase before it, out of turn */
+  gboolean one_thread_calls; /* pushes and finalizes on one of the window's threads */
 } Case;
 
 static DsImage *
@@ -125,6 +126,10 @@ run_case (const Case *c)
   g_autoptr (GError) error = NULL;
   g_autoptr (DsPhaseWindow) win = ds_phase_window_new (&p, width, height, &error);
   g_assert_no_error (error);
+  if (c->one_thread_calls) {
+    ds_phase_window_set_push_threads (win, 1);
+    ds_phase_window_set_finalize_threads (win, 1);
+  }
   g_autoptr (GRand) r = g_rand_new_with_seed (7 + c->n + c->estimator);
   g_autoptr (DsImage) dark = c->dark ? make_dark (c, width, height) : NULL;
   if (dark)
@@ -219,7 +224,8 @@ test_fresh_set_equality (void)
     run_case (&cases[i]);
 }
 
-/* Frames large enough that the set splits rows over worker threads: the pushes' rows too. */
+/* Frames large enough that the set splits rows over worker threads: the pushes' rows too, and
+ * the same bits when the window is told to push and finalize on one of them. */
 static void
 test_threaded (void)
 {
@@ -228,6 +234,8 @@ test_threaded (void)
       .width = 512, .height = 320, .threads = 2, .no_extrema = TRUE },
     { .estimator = DS_ESTIMATOR_SINE, .type = DS_SAMPLE_U8, .bits = 8, .n = 3, .dark = FALSE,
       .width = 512, .height = 320, .threads = 2 },
+    { .estimator = DS_ESTIMATOR_MAXMIN, .type = DS_SAMPLE_U8, .bits = 8, .n = 3, .dark = FALSE,
+      .width = 512, .height = 320, .threads = 2, .one_thread_calls = TRUE },
   };
   for (guint i = 0; i < G_N_ELEMENTS (cases); i++)
     run_case (&cases[i]);
