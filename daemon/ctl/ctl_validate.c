@@ -400,7 +400,7 @@ parse_configs (const char *configs, Config **list, guint *n_configs)
  * (written to scene_dir); *n_given counts the first two. FALSE with the message printed. */
 static gboolean
 collect_scenes (GPtrArray *runs, char **scene_files, gboolean shipped, gint generate, gint64 seed,
-                const char *scene_dir, guint *n_given)
+                guint generator, const char *scene_dir, guint *n_given)
 {
   g_autoptr (GError) error = NULL;
   for (guint i = 0; scene_files && scene_files[i]; i++) {
@@ -431,7 +431,7 @@ collect_scenes (GPtrArray *runs, char **scene_files, gboolean shipped, gint gene
   }
   *n_given = runs->len;
   for (gint i = 0; i < generate; i++) {
-    g_autofree char *text = ds_scene_generate ((guint64) seed, (guint) i, &error);
+    g_autofree char *text = ds_scene_generate ((guint64) seed, (guint) i, generator, &error);
     SceneRun *s = g_new0 (SceneRun, 1);
     s->generated = TRUE;
     s->name = g_strdup_printf ("gen-%" G_GINT64_FORMAT "-%02d.scene", seed, i);
@@ -508,13 +508,14 @@ ds_ctl_validate (int argc, char **argv)
   g_autofree char *out = NULL, *targets = NULL, *budgets = NULL, *model_path = NULL, *configs = NULL;
   gboolean uncalibrated = FALSE, fixed_period = FALSE, shipped = FALSE, fit = FALSE, quiet = FALSE,
            saturation_known = FALSE;
-  gint generate = 0;
+  gint generate = 0, generator = DS_SCENE_GENERATOR_LATEST;
   gint64 seed = 1;
   GOptionEntry entries[] = {
     { "scene", 's', 0, G_OPTION_ARG_FILENAME_ARRAY, &scene_files, "Scene file (repeat)", "FILE" },
     { "shipped", 0, 0, G_OPTION_ARG_NONE, &shipped, "The example scenes (etc/scenes)", NULL },
     { "generate", 0, 0, G_OPTION_ARG_INT, &generate, "Also K generated scenes (never fitted to)", "K" },
     { "seed", 0, 0, G_OPTION_ARG_INT64, &seed, "Generator and noise seed (default 1)", "S" },
+    { "generator", 0, 0, G_OPTION_ARG_INT, &generator, "Version of the scene generator (default 2; 1: the draw of the records' seeds 1 to 24)", "V" },
     { "targets", 0, 0, G_OPTION_ARG_STRING, &targets, "Target errors requested (default 0.03,0.1,0.3; none)", "LIST" },
     { "budgets", 0, 0, G_OPTION_ARG_STRING, &budgets, "Time budgets requested alone, ms (default 60; none)", "LIST" },
     { "configs", 0, 0, G_OPTION_ARG_STRING, &configs, "Also these fixed configurations, ESTIMATOR:N:M:EXPOSURE-FACTOR,...", "LIST" },
@@ -548,6 +549,11 @@ ds_ctl_validate (int argc, char **argv)
     fprintf (stderr, "descatterctl validate: --targets/--budgets take comma-separated positive numbers\n");
     return 2;
   }
+  if (generator < DS_SCENE_GENERATOR_OLDEST || generator > DS_SCENE_GENERATOR_LATEST) {
+    fprintf (stderr, "descatterctl validate: --generator %d: there are versions %d to %d\n", generator,
+             DS_SCENE_GENERATOR_OLDEST, DS_SCENE_GENERATOR_LATEST);
+    return 2;
+  }
   plan.targets = t_list;
   plan.budgets = b_list;
   g_autofree Config *c_list = NULL;
@@ -573,7 +579,7 @@ ds_ctl_validate (int argc, char **argv)
   }
   g_autoptr (GPtrArray) runs = g_ptr_array_new_with_free_func ((GDestroyNotify) scene_run_free);
   guint n_given = 0;
-  if (!collect_scenes (runs, scene_files, shipped, generate, seed, scene_dir, &n_given))
+  if (!collect_scenes (runs, scene_files, shipped, generate, seed, (guint) generator, scene_dir, &n_given))
     return 1;
   if (runs->len == 0) {
     fprintf (stderr, "descatterctl validate: no scenes (--scene, --shipped, --generate)\n");
@@ -607,23 +613,30 @@ int
 ds_ctl_generate_scenes (int argc, char **argv)
 {
   g_autofree char *out = NULL;
-  gint count = 1;
+  gint count = 1, generator = DS_SCENE_GENERATOR_LATEST;
   gint64 seed = 1;
   GOptionEntry entries[] = {
     { "count", 0, 0, G_OPTION_ARG_INT, &count, "How many (default 1)", "K" },
     { "seed", 0, 0, G_OPTION_ARG_INT64, &seed, "Seed (default 1)", "S" },
+    { "generator", 0, 0, G_OPTION_ARG_INT, &generator, "Version of the draw (default 2; 1: the draw of the records' seeds 1 to 24)", "V" },
     { "out", 'o', 0, G_OPTION_ARG_FILENAME, &out, "Output folder (default .)", "DIR" },
     { NULL },
   };
   g_autoptr (GOptionContext) ctx = g_option_context_new (NULL);
   g_option_context_set_summary (ctx, "Random scene files (docs/scene-format.md) for validation: medium, g, "
                                      "thickness, pattern, duty, black level, period, blur, objects, ambient "
-                                     "light and sensor drawn from wide ranges; the same seed gives the same scenes.");
+                                     "light and sensor drawn from wide ranges; the same generator version and "
+                                     "seed give the same scenes.");
   g_option_context_add_main_entries (ctx, entries, NULL);
   ds_ctl_describe_globals (ctx);
   g_autoptr (GError) error = NULL;
   if (!g_option_context_parse (ctx, &argc, &argv, &error) || count < 1) {
     fprintf (stderr, "descatterctl generate-scenes: %s\n", error ? error->message : "--count must be >= 1");
+    return 2;
+  }
+  if (generator < DS_SCENE_GENERATOR_OLDEST || generator > DS_SCENE_GENERATOR_LATEST) {
+    fprintf (stderr, "descatterctl generate-scenes: --generator %d: there are versions %d to %d\n", generator,
+             DS_SCENE_GENERATOR_OLDEST, DS_SCENE_GENERATOR_LATEST);
     return 2;
   }
   const char *dir = out ? out : ".";
@@ -632,7 +645,7 @@ ds_ctl_generate_scenes (int argc, char **argv)
     return 1;
   }
   for (gint i = 0; i < count; i++) {
-    g_autofree char *text = ds_scene_generate ((guint64) seed, (guint) i, &error);
+    g_autofree char *text = ds_scene_generate ((guint64) seed, (guint) i, (guint) generator, &error);
     g_autofree char *path = g_strdup_printf ("%s/gen-%" G_GINT64_FORMAT "-%02d.scene", dir, seed, i);
     if (!text || !g_file_set_contents (path, text, -1, &error)) {
       fprintf (stderr, "descatterctl generate-scenes: %s\n", error->message);
