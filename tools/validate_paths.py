@@ -180,7 +180,10 @@ def capture(d, scene, args):
     import h5py
     out = os.path.join(d.t.work, "set")
     shutil.rmtree(out, ignore_errors=True)
-    r = d.ctl("capture", "--quiet", "--files", "hdf5", "--out", out, *args, check=False)
+    try:
+        r = d.ctl("capture", "--quiet", "--files", "hdf5", "--out", out, *args, check=False)
+    except subprocess.TimeoutExpired:
+        return None, "the capture did not finish within 30 minutes"
     if r.returncode != 0:
         return None, (r.stderr.strip().split(": ", 1)[-1] or f"exit {r.returncode}")
     h5 = [f for f in os.listdir(out) if f.endswith(".h5")][0]
@@ -309,7 +312,12 @@ def run_path(tools, path, scene, name, requests, rows, phase):
             print(f"validate_paths: {name} {path} {row['request']}: {row['outcome']} {row.get('estimator', '')} "
                   f"predicted {row.get('predicted', '')} achieved {row.get('achieved', row.get('best_achieved', ''))}"
                   f" {row['verdict']} {row['reason']}", file=sys.stderr, flush=True)
-        acquired, dropped = d.dropped()
+        try:
+            acquired, dropped = d.dropped()
+        except (subprocess.SubprocessError, KeyError, ValueError) as e:
+            # The daemon is gone: its requests already say so; its frames cannot be counted.
+            print(f"validate_paths: {name} {path}: no frame counts: {e}", file=sys.stderr)
+            acquired, dropped = 0, 0
         phase[path][0] += acquired
         phase[path][1] += dropped
     finally:
