@@ -17,6 +17,8 @@
 #include "daemon/ctl/scene_gen.h"
 #include "daemon/ctl/validate.h"
 #include "daemon/operating/data_dir.h"
+#include "daemon/operating/operating_error.h"
+#include "proc/proc_error.h"
 
 typedef struct {
   char *name;           /* file name */
@@ -79,6 +81,19 @@ parse_list (const char *text, double **out, guint *n)
   return TRUE;
 }
 
+/* Whether a fixed configuration failed because its estimator refuses the scene's sampling (its
+ * precondition fails everywhere, too few phases, an ill-conditioned inversion) rather than
+ * because something broke. */
+static gboolean
+estimator_refuses (const GError *e)
+{
+  if (e->domain == DS_OPERATING_ERROR)
+    return e->code == DS_OPERATING_ERROR_CONFIGURATION; /* the error model's words for the same */
+  return e->domain == DS_PROC_ERROR &&
+         (e->code == DS_PROC_ERROR_PRECONDITION || e->code == DS_PROC_ERROR_NOT_ENOUGH_PHASES ||
+          e->code == DS_PROC_ERROR_ILL_CONDITIONED || e->code == DS_PROC_ERROR_INVALID_ARGUMENT);
+}
+
 /* Probes the scene and runs every request with `model`. */
 static gboolean
 run_scene (SceneRun *s, const Plan *plan, const DsOperatingModel *model, GError **error)
@@ -134,10 +149,28 @@ run_scene (SceneRun *s, const Plan *plan, const DsOperatingModel *model, GError 
   for (guint i = 0; i < plan->n_configs; i++) {
     const Config *c = &plan->configs[i];
     DsValidateOutcome o;
+    g_autoptr (GError) local = NULL;
     if (!ds_validate_config (rig, &s->probe, errors, model, &plan->timing, c->estimator, c->phases, c->averages,
-                             c->factor, plan->options.seed * 7919 + (n_req + i) * 101 + 17, &o, error)) {
-      g_prefix_error (error, "%s: ", s->name);
-      return FALSE;
+                             c->factor, plan->options.seed * 7919 + (n_req + i) * 101 + 17, &o, &local)) {
+      if (!estimator_refuses (local)) {
+        g_propagate_prefixed_error (error, g_steal_pointer (&local), "%s: ", s->name);
+        return FALSE;
+      }
+      /* A configuration the estimator refuses on this scene (fine periods defeat max/min and
+       * robust) is a result: the row says so, the other configurations still run. */
+      memset (&o, 0, sizeof o);
+      o.refused = TRUE;
+      o.refusal = g_strdup (local->message);
+      o.verdict = DS_VERDICT_NONE;
+      o.point.estimator = c->estimator;
+      o.point.phases = c->phases;
+      o.point.averages = c->averages;
+      o.point.predicted_error = INFINITY;
+      if (!plan->quiet)
+        fprintf (stderr, "validate: %s: %s N=%u M=%u x%g: refused: %s\n", s->name, ds_estimator_name (c->estimator),
+                 c->phases, c->averages, c->factor, local->message);
+      g_array_append_val (s->outcomes, o);
+      continue;
     }
     if (!plan->quiet)
       fprintf (stderr, "validate: %s: %s N=%u M=%u x%g: predicted %.4f (noise %.4f, sampling %.4f, stripes %+.4f) "
@@ -237,6 +270,8 @@ summarise (const SceneRun *s, Summary *sum)
   }
   for (guint j = 0; j < s->outcomes->len; j++) {
     const DsValidateOutcome *o = &g_array_index (s->outcomes, DsValidateOutcome, j);
+    if (o->refused && o->target_error <= 0 && o->time_budget_ms <= 0)
+      continue; /* a fixed configuration its estimator refuses: no prediction was tested */
     sum->total++;
     if (o->point.lower_bound && o->verdict != DS_VERDICT_NONE) {
       sum->lower++;
@@ -311,6 +346,11 @@ write_md (GString *md, const char *title, GPtrArray *scenes, gboolean generated)
         g_string_append_printf (md, " budget %g ms |", o->time_budget_ms);
       else
         g_string_append (md, " fixed |");
+      if (o->verdict == DS_VERDICT_NONE && o->target_error <= 0 && o->time_budget_ms <= 0) {
+        g_string_append_printf (md, " %s N=%u M=%u | – | – | the estimator refuses it |\n",
+                                ds_estimator_name (o->point.estimator), o->point.phases, o->point.averages);
+        continue;
+      }
       if (o->verdict == DS_VERDICT_NONE) {
         g_string_append (md, " nothing fits | – | – | nothing fits |\n");
         continue;
