@@ -22,7 +22,7 @@ A request is OK when:
 Any set that fails after the choice (a frame the phase check refused, a device error) is a miss
 with its reason. Every frame of the simulated lab is right, so each frame the phase check drops
 (`frames.dropped_by_reason` wrong_phase, unverifiable) is a false refusal: they are counted per
-path.
+path, the rig path's calibration frames included.
 
 Usage:
   validate_paths.py --bin DIR --generator 2 --seeds 100,101 --count 5 --out OUT
@@ -264,9 +264,10 @@ def run_request(d, scene, req, row):
 
 
 # ----- the two paths -----------------------------------------------------------------------------
-def calibrate_lines(tools, scene_text):
+def calibrate_lines(tools, scene_text, counts=None):
     """`descatterctl calibrate` against the daemon on the clear reference, at an exposure that keeps
-    the open field at 0.6 of the clip level; the [illuminator] lines it prints."""
+    the open field at 0.6 of the clip level; the [illuminator] lines it prints. counts (a list
+    [frames, dropped], may be None) gets the reference's frames and those the phase check dropped."""
     ref = os.path.join(tools.work, "reference.scene")
     with open(ref, "w") as f:
         f.write(reference_scene(scene_text))
@@ -276,6 +277,10 @@ def calibrate_lines(tools, scene_text):
     d = Daemon(tools, ref)
     try:
         r = d.ctl("calibrate", "-n", "16", "-e", f"{exposure:.0f}", "--quiet", check=False)
+        if counts is not None:
+            acquired, dropped = d.dropped()
+            counts[0] += acquired
+            counts[1] += dropped
     finally:
         d.stop()
     if r.returncode != 0:
@@ -297,7 +302,7 @@ def run_path(tools, path, scene, name, requests, rows, phase):
     try:
         conf = None
         if path == "rig":
-            lines = calibrate_lines(tools, text)
+            lines = calibrate_lines(tools, text, phase[path])
             conf = "[camera]\nbackend=sim\n[illuminator]\nbackend=sim\n" + "\n".join(lines) + "\n"
         d = Daemon(tools, scene, conf)
     except (RuntimeError, subprocess.SubprocessError) as e:
