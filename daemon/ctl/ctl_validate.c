@@ -17,6 +17,8 @@
 #include "daemon/ctl/scene_gen.h"
 #include "daemon/ctl/validate.h"
 #include "daemon/operating/data_dir.h"
+#include "daemon/operating/operating_error.h"
+#include "proc/proc_error.h"
 
 typedef struct {
   char *name;           /* file name */
@@ -79,6 +81,19 @@ parse_list (const char *text, double **out, guint *n)
   return TRUE;
 }
 
+/* Whether a fixed configuration failed because its estimator refuses the scene's sampling (its
+ * precondition fails everywhere, too few phases, an ill-conditioned inversion) rather than
+ * because something broke. */
+static gboolean
+estimator_refuses (const GError *e)
+{
+  if (e->domain == DS_OPERATING_ERROR)
+    return e->code == DS_OPERATING_ERROR_CONFIGURATION; /* the error model's words for the same */
+  return e->domain == DS_PROC_ERROR &&
+         (e->code == DS_PROC_ERROR_PRECONDITION || e->code == DS_PROC_ERROR_NOT_ENOUGH_PHASES ||
+          e->code == DS_PROC_ERROR_ILL_CONDITIONED || e->code == DS_PROC_ERROR_INVALID_ARGUMENT);
+}
+
 /* Probes the scene and runs every request with `model`. */
 static gboolean
 run_scene (SceneRun *s, const Plan *plan, const DsOperatingModel *model, GError **error)
@@ -134,10 +149,28 @@ run_scene (SceneRun *s, const Plan *plan, const DsOperatingModel *model, GError 
   for (guint i = 0; i < plan->n_configs; i++) {
     const Config *c = &plan->configs[i];
     DsValidateOutcome o;
+    g_autoptr (GError) local = NULL;
     if (!ds_validate_config (rig, &s->probe, errors, model, &plan->timing, c->estimator, c->phases, c->averages,
-                             c->factor, plan->options.seed * 7919 + (n_req + i) * 101 + 17, &o, error)) {
-      g_prefix_error (error, "%s: ", s->name);
-      return FALSE;
+                             c->factor, plan->options.seed * 7919 + (n_req + i) * 101 + 17, &o, &local)) {
+      if (!estimator_refuses (local)) {
+        g_propagate_prefixed_error (error, g_steal_pointer (&local), "%s: ", s->name);
+        return FALSE;
+      }
+      /* A configuration the estimator refuses on this scene (fine periods defeat max/min and
+       * robust) is a result: the row says so, the other configurations still run. */
+      memset (&o, 0, sizeof o);
+      o.refused = TRUE;
+      o.refusal = g_strdup (local->message);
+      o.verdict = DS_VERDICT_NONE;
+      o.point.estimator = c->estimator;
+      o.point.phases = c->phases;
+      o.point.averages = c->averages;
+      o.point.predicted_error = INFINITY;
+      if (!plan->quiet)
+        fprintf (stderr, "validate: %s: %s N=%u M=%u x%g: refused: %s\n", s->name, ds_estimator_name (c->estimator),
+                 c->phases, c->averages, c->factor, local->message);
+      g_array_append_val (s->outcomes, o);
+      continue;
     }
     if (!plan->quiet)
       fprintf (stderr, "validate: %s: %s N=%u M=%u x%g: predicted %.4f (noise %.4f, sampling %.4f, stripes %+.4f) "
@@ -237,6 +270,8 @@ summarise (const SceneRun *s, Summary *sum)
   }
   for (guint j = 0; j < s->outcomes->len; j++) {
     const DsValidateOutcome *o = &g_array_index (s->outcomes, DsValidateOutcome, j);
+    if (o->refused && o->target_error <= 0 && o->time_budget_ms <= 0)
+      continue; /* a fixed configuration its estimator refuses: no prediction was tested */
     sum->total++;
     if (o->point.lower_bound && o->verdict != DS_VERDICT_NONE) {
       sum->lower++;
@@ -311,6 +346,11 @@ write_md (GString *md, const char *title, GPtrArray *scenes, gboolean generated)
         g_string_append_printf (md, " budget %g ms |", o->time_budget_ms);
       else
         g_string_append (md, " fixed |");
+      if (o->verdict == DS_VERDICT_NONE && o->target_error <= 0 && o->time_budget_ms <= 0) {
+        g_string_append_printf (md, " %s N=%u M=%u | – | – | the estimator refuses it |\n",
+                                ds_estimator_name (o->point.estimator), o->point.phases, o->point.averages);
+        continue;
+      }
       if (o->verdict == DS_VERDICT_NONE) {
         g_string_append (md, " nothing fits | – | – | nothing fits |\n");
         continue;
@@ -400,7 +440,7 @@ parse_configs (const char *configs, Config **list, guint *n_configs)
  * (written to scene_dir); *n_given counts the first two. FALSE with the message printed. */
 static gboolean
 collect_scenes (GPtrArray *runs, char **scene_files, gboolean shipped, gint generate, gint64 seed,
-                const char *scene_dir, guint *n_given)
+                guint generator, const char *scene_dir, guint *n_given)
 {
   g_autoptr (GError) error = NULL;
   for (guint i = 0; scene_files && scene_files[i]; i++) {
@@ -431,7 +471,7 @@ collect_scenes (GPtrArray *runs, char **scene_files, gboolean shipped, gint gene
   }
   *n_given = runs->len;
   for (gint i = 0; i < generate; i++) {
-    g_autofree char *text = ds_scene_generate ((guint64) seed, (guint) i, &error);
+    g_autofree char *text = ds_scene_generate ((guint64) seed, (guint) i, generator, &error);
     SceneRun *s = g_new0 (SceneRun, 1);
     s->generated = TRUE;
     s->name = g_strdup_printf ("gen-%" G_GINT64_FORMAT "-%02d.scene", seed, i);
@@ -508,13 +548,14 @@ ds_ctl_validate (int argc, char **argv)
   g_autofree char *out = NULL, *targets = NULL, *budgets = NULL, *model_path = NULL, *configs = NULL;
   gboolean uncalibrated = FALSE, fixed_period = FALSE, shipped = FALSE, fit = FALSE, quiet = FALSE,
            saturation_known = FALSE;
-  gint generate = 0;
+  gint generate = 0, generator = DS_SCENE_GENERATOR_LATEST;
   gint64 seed = 1;
   GOptionEntry entries[] = {
     { "scene", 's', 0, G_OPTION_ARG_FILENAME_ARRAY, &scene_files, "Scene file (repeat)", "FILE" },
     { "shipped", 0, 0, G_OPTION_ARG_NONE, &shipped, "The example scenes (etc/scenes)", NULL },
     { "generate", 0, 0, G_OPTION_ARG_INT, &generate, "Also K generated scenes (never fitted to)", "K" },
     { "seed", 0, 0, G_OPTION_ARG_INT64, &seed, "Generator and noise seed (default 1)", "S" },
+    { "generator", 0, 0, G_OPTION_ARG_INT, &generator, "Version of the scene generator (default 2; 1: the draw of the records' seeds 1 to 24)", "V" },
     { "targets", 0, 0, G_OPTION_ARG_STRING, &targets, "Target errors requested (default 0.03,0.1,0.3; none)", "LIST" },
     { "budgets", 0, 0, G_OPTION_ARG_STRING, &budgets, "Time budgets requested alone, ms (default 60; none)", "LIST" },
     { "configs", 0, 0, G_OPTION_ARG_STRING, &configs, "Also these fixed configurations, ESTIMATOR:N:M:EXPOSURE-FACTOR,...", "LIST" },
@@ -548,6 +589,11 @@ ds_ctl_validate (int argc, char **argv)
     fprintf (stderr, "descatterctl validate: --targets/--budgets take comma-separated positive numbers\n");
     return 2;
   }
+  if (generator < DS_SCENE_GENERATOR_OLDEST || generator > DS_SCENE_GENERATOR_LATEST) {
+    fprintf (stderr, "descatterctl validate: --generator %d: there are versions %d to %d\n", generator,
+             DS_SCENE_GENERATOR_OLDEST, DS_SCENE_GENERATOR_LATEST);
+    return 2;
+  }
   plan.targets = t_list;
   plan.budgets = b_list;
   g_autofree Config *c_list = NULL;
@@ -573,7 +619,7 @@ ds_ctl_validate (int argc, char **argv)
   }
   g_autoptr (GPtrArray) runs = g_ptr_array_new_with_free_func ((GDestroyNotify) scene_run_free);
   guint n_given = 0;
-  if (!collect_scenes (runs, scene_files, shipped, generate, seed, scene_dir, &n_given))
+  if (!collect_scenes (runs, scene_files, shipped, generate, seed, (guint) generator, scene_dir, &n_given))
     return 1;
   if (runs->len == 0) {
     fprintf (stderr, "descatterctl validate: no scenes (--scene, --shipped, --generate)\n");
@@ -607,23 +653,30 @@ int
 ds_ctl_generate_scenes (int argc, char **argv)
 {
   g_autofree char *out = NULL;
-  gint count = 1;
+  gint count = 1, generator = DS_SCENE_GENERATOR_LATEST;
   gint64 seed = 1;
   GOptionEntry entries[] = {
     { "count", 0, 0, G_OPTION_ARG_INT, &count, "How many (default 1)", "K" },
     { "seed", 0, 0, G_OPTION_ARG_INT64, &seed, "Seed (default 1)", "S" },
+    { "generator", 0, 0, G_OPTION_ARG_INT, &generator, "Version of the draw (default 2; 1: the draw of the records' seeds 1 to 24)", "V" },
     { "out", 'o', 0, G_OPTION_ARG_FILENAME, &out, "Output folder (default .)", "DIR" },
     { NULL },
   };
   g_autoptr (GOptionContext) ctx = g_option_context_new (NULL);
   g_option_context_set_summary (ctx, "Random scene files (docs/scene-format.md) for validation: medium, g, "
                                      "thickness, pattern, duty, black level, period, blur, objects, ambient "
-                                     "light and sensor drawn from wide ranges; the same seed gives the same scenes.");
+                                     "light and sensor drawn from wide ranges; the same generator version and "
+                                     "seed give the same scenes.");
   g_option_context_add_main_entries (ctx, entries, NULL);
   ds_ctl_describe_globals (ctx);
   g_autoptr (GError) error = NULL;
   if (!g_option_context_parse (ctx, &argc, &argv, &error) || count < 1) {
     fprintf (stderr, "descatterctl generate-scenes: %s\n", error ? error->message : "--count must be >= 1");
+    return 2;
+  }
+  if (generator < DS_SCENE_GENERATOR_OLDEST || generator > DS_SCENE_GENERATOR_LATEST) {
+    fprintf (stderr, "descatterctl generate-scenes: --generator %d: there are versions %d to %d\n", generator,
+             DS_SCENE_GENERATOR_OLDEST, DS_SCENE_GENERATOR_LATEST);
     return 2;
   }
   const char *dir = out ? out : ".";
@@ -632,7 +685,7 @@ ds_ctl_generate_scenes (int argc, char **argv)
     return 1;
   }
   for (gint i = 0; i < count; i++) {
-    g_autofree char *text = ds_scene_generate ((guint64) seed, (guint) i, &error);
+    g_autofree char *text = ds_scene_generate ((guint64) seed, (guint) i, (guint) generator, &error);
     g_autofree char *path = g_strdup_printf ("%s/gen-%" G_GINT64_FORMAT "-%02d.scene", dir, seed, i);
     if (!text || !g_file_set_contents (path, text, -1, &error)) {
       fprintf (stderr, "descatterctl generate-scenes: %s\n", error->message);
