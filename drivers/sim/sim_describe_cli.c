@@ -86,8 +86,9 @@ ds_sim_describe_main (int argc, char **argv)
     printf ("  %-22s %s\n", ds_renderer_stage_name (r, i), ds_renderer_stage_reason (r, i));
   printf ("not built (not declared by the scene):");
   guint n_skipped = 0;
+  /* Motion is a property of objects, not a part of the lab: a still scene does not mention it. */
   for (guint s = 0; s < DS_RENDER_N_STAGES; s++)
-    if (!ds_renderer_has_stage (r, (DsRenderStage) s)) {
+    if (!ds_renderer_has_stage (r, (DsRenderStage) s) && s != DS_RENDER_STAGE_MOTION) {
       printf (" %s", ds_render_stage_name ((DsRenderStage) s));
       n_skipped++;
     }
