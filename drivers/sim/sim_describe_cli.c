@@ -56,9 +56,11 @@ describe_cost (const DsRenderer *r, const DsScene *scene)
   guint top = 0;
   for (guint s = 1; s < DS_RENDER_N_STAGES; s++)
     top = secs[s] > secs[top] ? s : top;
-  printf ("render cost: one frame in %.3g s here and now (%.0f %% of it %s); descatter-labsim renders each "
-          "phase and dark once per phase count and period, before serving and then in the background\n", total,
-          total > 0 ? 100 * secs[top] / total : 0.0, ds_render_stage_name ((DsRenderStage) top));
+  printf ("render cost: one frame in %.3g s here and now (%.0f %% of it %s); %s\n", total,
+          total > 0 ? 100 * secs[top] / total : 0.0, ds_render_stage_name ((DsRenderStage) top),
+          ds_scene_has_motion (scene) ? "objects move: descatter-labsim renders every frame at its own time"
+                                      : "descatter-labsim renders each phase and dark once per phase count and "
+                                        "period, before serving and then in the background");
   DsRenderCost est;
   ds_render_cost_estimate (ds_scene_spec (scene), &est);
   printf ("estimated before rendering: a frame %.3g s, the kernels %.3g s when not cached (%.3g interactions per "
