@@ -4,6 +4,7 @@
 #include <string.h>
 
 #include "daemon/ctl/sim_rig.h"
+#include "daemon/operating/motion_term.h"
 #include "drivers/sim/renderer.h"
 #include "drivers/sim/scene.h"
 #include "proc/metrics.h"
@@ -142,24 +143,6 @@ systematic_parts (PointContext *c, guint m, GError **error)
   return ok;
 }
 
-/* When frame j of phase k exposes in the rig's timing model (ds_rig_timing_set_ms): each
- * phase settles, then its M frames follow, each a trigger, an exposure and a readout; a frame's
- * time is its exposure's midpoint from the set's start. The model's frame and settle times are
- * read off it as differences, so the two stay one model. */
-static double *
-frame_times (const DsStudyPlan *plan, guint w, guint h, guint n, guint m, double exposure_us)
-{
-  double one = ds_rig_timing_set_ms (&plan->timing, w, h, 1, 1, exposure_us, FALSE);
-  double frame_ms = ds_rig_timing_set_ms (&plan->timing, w, h, 1, 2, exposure_us, FALSE) - one;
-  double settle_ms = one - frame_ms;
-  double *t = g_new (double, (gsize) n * m);
-  for (guint k = 0; k < n; k++)
-    for (guint j = 0; j < m; j++)
-      t[k * m + j] = (k * (settle_ms + m * frame_ms) + settle_ms + j * frame_ms) / 1e3 +
-                     (plan->timing.trigger_overhead_us + exposure_us / 2) / 1e6;
-  return t;
-}
-
 /* Every seed of one (N, M). A moving scene's frames are timed, its truth is taken at the set's
  * middle (halfway between the first and the last frame) and its systematic part is made with
  * the same times. */
@@ -172,7 +155,8 @@ run_averages (const PointContext *cn, guint n, guint m, DsStudyPointFunc emit, g
   g_autoptr (DsImage) truth_g = NULL;
   if (c.moving) {
     const DsScene *scene = ds_sim_rig_scene (c.rig);
-    times = frame_times (c.plan, ds_scene_width (scene), ds_scene_height (scene), n, m, c.exposure);
+    times = g_new (double, (gsize) n * m);
+    ds_motion_frame_times (&c.plan->timing, ds_scene_width (scene), ds_scene_height (scene), n, m, c.exposure, times);
     double mid = (times[0] + times[(gsize) n * m - 1]) / 2;
     DsImage *tt = NULL, *tg = NULL;
     if (!ds_renderer_truth_at (ds_sim_rig_renderer (c.rig), c.exposure, 0.0, mid, &tt, &tg, error))
