@@ -15,9 +15,14 @@ per scene, each as PNG and SVG:
                            and systematic parts: which period the medium needs;
   error-vs-n-<scene>       transmissive error against N at M = 1, base exposure, the first
                            period of --periods, with its systematic part dotted;
+  error-vs-n-speed-<scene> with --speeds: transmissive error against N at each speed (M = 1,
+                           base exposure, first period), the lowest error of each curve
+                           starred: how the best N falls as objects move faster;
   examples-<scene>         the example previews of OUT_DIR/examples (when there are any), each
                            titled with estimator, N and component, axes in pixels.
-Errors are relative RMSEs against the simulator's truth, drawn in percent."""
+The first three figures draw the scene's lowest speed (still, unless every speed moves).
+Errors are relative RMSEs against the simulator's truth (a moving scene's at each set's
+middle), drawn in percent."""
 import collections
 import csv
 import glob
@@ -33,7 +38,7 @@ matplotlib.rcParams["svg.fonttype"] = "none"  # text stays text in the SVG (sear
 matplotlib.rcParams["svg.hashsalt"] = "descatter"  # the same CSV gives the same SVG
 import matplotlib.pyplot as plt  # noqa: E402
 
-Key = collections.namedtuple("Key", "scene estimator phases averages exposure period")
+Key = collections.namedtuple("Key", "scene estimator phases averages exposure period speed")
 TIME_LABEL = "acquisition time per set (ms, rig timing model)"
 ERROR_LABEL = "relative RMSE against the truth (%)"
 
@@ -52,8 +57,9 @@ def load(csv_path):
     with open(csv_path, newline="") as f:
         for row in csv.DictReader(f):
             first_period.setdefault(row["scene"], float(row["period_px"]))
+            # speed_px_s: absent from a CSV written before the speed axis (still scenes).
             k = Key(row["scene"], row["estimator"], int(row["phases"]), int(row["averages"]),
-                    float(row["exposure_factor"]), float(row["period_px"]))
+                    float(row["exposure_factor"]), float(row["period_px"]), float(row.get("speed_px_s") or 0))
             seeds[k].append(row)
     data = {}
     for k, rows in seeds.items():
@@ -166,6 +172,33 @@ def error_vs_n(scene, rows, own, out_dir, stem):
     save(fig, out_dir, f"error-vs-n-{stem}")
 
 
+def error_vs_n_speed(scene, rows, own, out_dir, stem):
+    speeds = sorted({k.speed for k in rows})
+    ests = sorted({k.estimator for k in rows})
+    styles = ("-", "--", ":", "-.")
+    fig, ax = plt.subplots(figsize=(7.5, 4.8))
+    for i, v in enumerate(speeds):
+        for j, est in enumerate(ests):
+            pts = sorted((k.phases, 100 * val["rel_rmse_transmissive"]) for k, val in rows.items()
+                         if k.speed == v and k.estimator == est and k.averages == 1 and k.exposure == 1.0
+                         and k.period == own and math.isfinite(val["rel_rmse_transmissive"]))
+            if not pts:
+                continue
+            ax.plot([p[0] for p in pts], [p[1] for p in pts], styles[j % len(styles)], marker="o", ms=3,
+                    color=f"C{i}", label=f"{est}, {v:g} px/s")
+            best = min(pts, key=lambda p: p[1])
+            ax.plot([best[0]], [best[1]], "*", ms=11, color=f"C{i}", mec="black", mew=0.6,
+                    gid=f"best_{est}_v{v:g}_N{best[0]}")
+    ax.set_xscale("log", base=2)
+    ax.set_yscale("log")
+    ax.set_xlabel(f"phases N (count; M = 1, base exposure, period {own:g} px)")
+    ax.set_ylabel("transmissive " + ERROR_LABEL)
+    ax.set_title(f"{scene}: error against N at each object speed (* lowest)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    save(fig, out_dir, f"error-vs-n-speed-{stem}")
+
+
 def examples(out_dir, stem):
     """The 8-bit previews the study wrote (examples/<scene>-<estimator>-N<n>-<component>.png) in
     one labelled figure."""
@@ -207,10 +240,14 @@ def main():
         sys.exit(f"{csv_path}: no points")
     for scene in sorted({k.scene for k in data}):
         stem = scene.split(".", 1)[0]  # as descatterctl names the examples: up to the first dot
-        rows = {k: v for k, v in data.items() if k.scene == scene}
+        every = {k: v for k, v in data.items() if k.scene == scene}
+        slowest = min(k.speed for k in every)
+        rows = {k: v for k, v in every.items() if k.speed == slowest}
         error_vs_time(scene, rows, out_dir, stem)
         error_vs_period(scene, rows, out_dir, stem)
         error_vs_n(scene, rows, first_period[scene], out_dir, stem)
+        if len({k.speed for k in every}) > 1:
+            error_vs_n_speed(scene, every, first_period[scene], out_dir, stem)
         examples(out_dir, stem)
 
 

@@ -11,7 +11,7 @@ import csv
 import math
 import os
 
-Key = collections.namedtuple("Key", "scene estimator phases averages exposure period")
+Key = collections.namedtuple("Key", "scene estimator phases averages exposure period speed")
 
 # Columns averaged over seeds; "nan" (a component the scene does not have) stays nan.
 MEAN_COLUMNS = ("rel_rmse_transmissive", "rel_rmse_scattered", "systematic_transmissive",
@@ -26,8 +26,9 @@ def number(text):
 
 
 def key(row):
+    # speed_px_s: absent from a CSV written before the speed axis (still scenes).
     return Key(row["scene"], row["estimator"], int(row["phases"]), int(row["averages"]),
-               float(row["exposure_factor"]), float(row["period_px"]))
+               float(row["exposure_factor"]), float(row["period_px"]), float(row.get("speed_px_s") or 0))
 
 
 def load(study_dir):

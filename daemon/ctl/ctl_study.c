@@ -75,14 +75,14 @@ on_point (const DsStudyPoint *p, gpointer data)
   g_string_append_c (row, ',');
   ds_csv_append_field (row, ds_estimator_name (p->estimator));
 #define F(v) (isfinite (v) ? (v) : NAN)
-  g_string_append_printf (row, ",%u,%u,%g,%g,%.1f,%" G_GUINT64_FORMAT ",%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%" G_GUINT64_FORMAT ",%" G_GUINT64_FORMAT ",%" G_GUINT64_FORMAT ",%.3f,%.3f,%.2f,%.5f,%d\n",
+  g_string_append_printf (row, ",%u,%u,%g,%g,%.1f,%" G_GUINT64_FORMAT ",%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%" G_GUINT64_FORMAT ",%" G_GUINT64_FORMAT ",%" G_GUINT64_FORMAT ",%.3f,%.3f,%.2f,%.5f,%d,%g\n",
                           p->phases, p->averages, p->period_px, p->exposure_factor,
                           p->exposure_us, p->seed, F (p->rel_rmse_transmissive), F (p->rel_rmse_scattered),
                           F (p->systematic_transmissive), F (p->systematic_scattered),
                           F (noise_part (p->rel_rmse_transmissive, p->systematic_transmissive)),
                           F (noise_part (p->rel_rmse_scattered, p->systematic_scattered)), p->stripe_residue, p->valid,
                           p->masked, p->saturated, p->acquisition_ms, p->compute_ms, p->signal_dn, p->direct_fraction,
-                          p->edge_blur_known ? 1 : 0);
+                          p->edge_blur_known ? 1 : 0, p->speed_px_s);
 #undef F
   fputs (row->str, o->csv);
   fflush (o->csv);
@@ -90,7 +90,8 @@ on_point (const DsStudyPoint *p, gpointer data)
   /* A set's points (one per estimator) come together once the set is done: the first of them
    * marks the set's end. Its cost is its frame count. */
   if (copy.scene != o->last_scene || p->phases != o->last.phases || p->averages != o->last.averages ||
-      p->exposure_factor != o->last.exposure_factor || p->seed != o->last.seed || p->period_px != o->last.period_px) {
+      p->exposure_factor != o->last.exposure_factor || p->seed != o->last.seed || p->period_px != o->last.period_px ||
+      p->speed_px_s != o->last.speed_px_s) {
     g_autofree char *extra = g_strdup_printf ("%u points", o->done);
     ds_ctl_progress_advance (o->progress, (double) p->phases * p->averages, extra);
   }
@@ -102,7 +103,7 @@ typedef struct {
   const char *scene;
   DsEstimator estimator;
   guint phases, averages;
-  double period, exposure_factor;
+  double period, exposure_factor, speed;
   double err_t, err_g, sys_t, sys_g, residue, time_ms;
   guint64 saturated, pixels;
   gboolean blur_unknown; /* some seed's sets ran without the edge blur (the precondition refused it) */
@@ -118,14 +119,14 @@ compare_time (const void *a, const void *b)
   return x->err_t < y->err_t ? -1 : x->err_t > y->err_t;
 }
 
-/* The scene's points, seeds averaged, one aggregate per configuration. */
+/* The scene's points at one speed, seeds averaged, one aggregate per configuration. */
 static GArray *
-aggregate (const StudyOut *o, const char *scene)
+aggregate (const StudyOut *o, const char *scene, double speed)
 {
   GArray *agg = g_array_new (FALSE, TRUE, sizeof (Aggregate));
   for (guint i = 0; i < o->points->len; i++) {
     const DsStudyPoint *p = &g_array_index (o->points, DsStudyPoint, i);
-    if (p->scene != scene)
+    if (p->scene != scene || p->speed_px_s != speed)
       continue;
     guint j = 0;
     for (; j < agg->len; j++) {
@@ -136,7 +137,8 @@ aggregate (const StudyOut *o, const char *scene)
     }
     if (j == agg->len) {
       Aggregate a = { .scene = scene, .estimator = p->estimator, .phases = p->phases, .averages = p->averages,
-                      .period = p->period_px, .exposure_factor = p->exposure_factor, .time_ms = p->acquisition_ms,
+                      .period = p->period_px, .exposure_factor = p->exposure_factor, .speed = p->speed_px_s,
+                      .time_ms = p->acquisition_ms,
                       .sys_t = p->systematic_transmissive, .sys_g = p->systematic_scattered,
                       .pixels = p->valid + p->masked };
       g_array_append_val (agg, a);
@@ -199,12 +201,28 @@ write_pareto (StudyOut *o, const char *path, GError **error)
                               "known (no pixel fully lit in one phase and fully dark in another), run with the "
                               "period alone (the blur unknown), as descatterd runs it without edge-blur-px: its "
                               "error includes the pixels the precondition would refuse.\n");
-  for (guint s = 0; s < o->names->len; s++) {
-    const char *scene = g_ptr_array_index (o->names, s);
-    GArray *agg = aggregate (o, scene);
-    g_string_append_printf (md, "\n## %s\n\n| estimator | N | M | period (px) | exposure | time (ms) | transmissive "
+  /* One section per scene and speed: a moving scene's front is its own (its error is against
+   * the truth at each set's middle). */
+  g_autoptr (GArray) sections = g_array_new (FALSE, FALSE, sizeof (DsStudyPoint));
+  for (guint i = 0; i < o->points->len; i++) {
+    const DsStudyPoint *p = &g_array_index (o->points, DsStudyPoint, i);
+    gboolean seen = FALSE;
+    for (guint k = 0; k < sections->len && !seen; k++) {
+      const DsStudyPoint *q = &g_array_index (sections, DsStudyPoint, k);
+      seen = q->scene == p->scene && q->speed_px_s == p->speed_px_s;
+    }
+    if (!seen)
+      g_array_append_val (sections, *p);
+  }
+  for (guint s = 0; s < sections->len; s++) {
+    const DsStudyPoint *sec = &g_array_index (sections, DsStudyPoint, s);
+    const char *scene = sec->scene;
+    GArray *agg = aggregate (o, scene, sec->speed_px_s);
+    g_autofree char *moving = sec->speed_px_s > 0 ? g_strdup_printf (", objects moving at %g px/s", sec->speed_px_s)
+                                                  : g_strdup ("");
+    g_string_append_printf (md, "\n## %s%s\n\n| estimator | N | M | period (px) | exposure | time (ms) | transmissive "
                                 "(noise + systematic) | scattered (noise + systematic) | stripe residue | |\n"
-                                "|---|---|---|---|---|---|---|---|---|---|\n", scene);
+                                "|---|---|---|---|---|---|---|---|---|---|\n", scene, moving);
     double best = INFINITY;
     for (guint j = 0; j < agg->len; j++) {
       Aggregate *a = &g_array_index (agg, Aggregate, j);
@@ -291,6 +309,15 @@ point_from_csv (GStrv header, GStrv cells, DsStudyPoint *p, const char **bad_col
     case 17: p->edge_blur_known = d != 0; break;
     }
   }
+  /* Optional: a study.csv written before the speed axis is of still scenes. */
+  for (guint i = 0; header[i]; i++)
+    if (strcmp (header[i], "speed_px_s") == 0 && i < g_strv_length (cells)) {
+      char *end = NULL;
+      p->speed_px_s = g_ascii_strtod (cells[i], &end);
+      *bad_column = "speed_px_s";
+      if (!end || *end || !(p->speed_px_s >= 0))
+        return FALSE;
+    }
   return TRUE;
 }
 
@@ -379,6 +406,53 @@ parse_double_list (const char *text, double **out, guint *n)
   return *n > 0;
 }
 
+/* Speeds in px/s: 0 (still) up to the scene format's limit. */
+static gboolean
+parse_speed_list (const char *text, double **out, guint *n)
+{
+  g_auto (GStrv) parts = g_strsplit (text, ",", -1);
+  *n = g_strv_length (parts);
+  *out = g_new0 (double, MAX (*n, 1u));
+  for (guint i = 0; i < *n; i++) {
+    char *end = NULL;
+    (*out)[i] = g_ascii_strtod (parts[i], &end);
+    if (!end || end == parts[i] || *end || !((*out)[i] >= 0 && (*out)[i] <= 1e6))
+      return FALSE;
+  }
+  return *n > 0;
+}
+
+/* The stripe periods and object speeds of the plan (their lists stay owned by the caller). */
+static gboolean
+plan_axes (DsStudyPlan *plan, const char *periods, const char *speeds, const char *moving_object, double **p_out,
+           double **v_out)
+{
+  g_auto (GStrv) period_items = g_strsplit (periods, ",", -1);
+  double *p_list = *p_out = g_new0 (double, g_strv_length (period_items) + 1);
+  for (guint i = 0; period_items[i]; i++) {
+    const char *t = period_items[i];
+    char *end = NULL;
+    double v = strcmp (t, "scene") == 0 ? 0 : t[0] == 'x' ? -g_ascii_strtod (t + 1, &end) : g_ascii_strtod (t, &end);
+    if (strcmp (t, "scene") != 0 && (!end || *end || !(fabs (v) > 0) || (v > 0 && v < 2))) {
+      fprintf (stderr, "descatterctl study: --periods: \"%s\" is not a period >= 2 px, xF or scene\n", t);
+      return FALSE;
+    }
+    p_list[plan->n_periods++] = v;
+  }
+  plan->periods = p_list;
+  if (speeds && !parse_speed_list (speeds, v_out, &plan->n_speeds)) {
+    fprintf (stderr, "descatterctl study: --speeds takes comma-separated speeds in px/s, each in [0, 1e6]\n");
+    return FALSE;
+  }
+  if (moving_object && !speeds) {
+    fprintf (stderr, "descatterctl study: --moving names the object --speeds moves: give --speeds\n");
+    return FALSE;
+  }
+  plan->speeds = *v_out;
+  plan->moving_object = moving_object;
+  return TRUE;
+}
+
 /* g_ptr_array_sort hands the comparison pointers to the elements, not the elements. */
 static gint
 compare_paths (gconstpointer a, gconstpointer b)
@@ -390,7 +464,7 @@ int
 ds_ctl_study (int argc, char **argv)
 {
   g_autofree char *out = NULL, *fronts_csv = NULL, *phases = NULL, *averages = NULL, *exposures = NULL,
-                  *estimators = NULL, *periods = NULL;
+                  *estimators = NULL, *periods = NULL, *speeds = NULL, *moving_object = NULL;
   g_auto (GStrv) scenes = NULL;
   int seeds = 0;
   gboolean quick = FALSE, quiet = FALSE, no_figures = FALSE;
@@ -405,6 +479,8 @@ ds_ctl_study (int argc, char **argv)
     { "periods", 0, 0, G_OPTION_ARG_STRING, &periods, "stripe periods: px, xF (F times the scene's) or scene (default scene,4,6,8,12,16,24)", "LIST" },
     { "estimators", 0, 0, G_OPTION_ARG_STRING, &estimators, "default maxmin,sine,robust", "LIST" },
     { "seeds", 0, 0, G_OPTION_ARG_INT, &seeds, "noise seeds per point (default 3)", "K" },
+    { "speeds", 0, 0, G_OPTION_ARG_STRING, &speeds, "object speeds in px/s across the stripes, e.g. 0,50,200 (default: as the scene declares)", "LIST" },
+    { "moving", 0, 0, G_OPTION_ARG_STRING, &moving_object, "the [object.NAME] --speeds moves (default: every object but masks)", "NAME" },
     { "quick", 0, 0, G_OPTION_ARG_NONE, &quick, "Reduced sweep (CI): N 4,8; M 1,2; exposure 1; periods scene,x2; 1 seed", NULL },
     { "settle-ms", 0, 0, G_OPTION_ARG_DOUBLE, &plan.timing.settle_ms, "illuminator settle time (default 3)", "MS" },
     { "trigger-us", 0, 0, G_OPTION_ARG_DOUBLE, &plan.timing.trigger_overhead_us, "trigger overhead (default 200)", "US" },
@@ -441,19 +517,11 @@ ds_ctl_study (int argc, char **argv)
   plan.phases = n_list;
   plan.averages = m_list;
   plan.exposure_factors = e_list;
-  g_auto (GStrv) period_items = g_strsplit (periods ? periods : quick ? "scene,x2" : "scene,4,6,8,12,16,24", ",", -1);
-  g_autofree double *p_list = g_new0 (double, g_strv_length (period_items) + 1);
-  for (guint i = 0; period_items[i]; i++) {
-    const char *t = period_items[i];
-    char *end = NULL;
-    double v = strcmp (t, "scene") == 0 ? 0 : t[0] == 'x' ? -g_ascii_strtod (t + 1, &end) : g_ascii_strtod (t, &end);
-    if (strcmp (t, "scene") != 0 && (!end || *end || !(fabs (v) > 0) || (v > 0 && v < 2))) {
-      fprintf (stderr, "descatterctl study: --periods: \"%s\" is not a period >= 2 px, xF or scene\n", t);
-      return 2;
-    }
-    p_list[plan.n_periods++] = v;
-  }
-  plan.periods = p_list;
+  g_autofree double *p_list = NULL;
+  g_autofree double *v_list = NULL;
+  if (!plan_axes (&plan, periods ? periods : quick ? "scene,x2" : "scene,4,6,8,12,16,24", speeds, moving_object,
+                  &p_list, &v_list))
+    return 2;
   plan.n_seeds = seeds > 0 ? (guint) seeds : quick ? 1 : 3;
   plan.dark_frame = TRUE;
   g_auto (GStrv) est_names = g_strsplit (estimators ? estimators : "maxmin,sine,robust", ",", -1);
@@ -494,8 +562,10 @@ ds_ctl_study (int argc, char **argv)
     sum_n += plan.phases[i];
   for (guint i = 0; i < plan.n_averages; i++)
     sum_m += plan.averages[i];
-  guint n_sets = files->len * plan.n_periods * plan.n_exposures * plan.n_phases * plan.n_averages * plan.n_seeds;
-  double frames = (double) files->len * plan.n_periods * plan.n_exposures * plan.n_seeds * sum_n * sum_m;
+  guint n_speeds = MAX (plan.n_speeds, 1u);
+  guint n_sets = files->len * n_speeds * plan.n_periods * plan.n_exposures * plan.n_phases * plan.n_averages *
+                 plan.n_seeds;
+  double frames = (double) files->len * n_speeds * plan.n_periods * plan.n_exposures * plan.n_seeds * sum_n * sum_m;
   g_autoptr (DsCtlProgress) progress = ds_ctl_progress_new ("study", "sets", n_sets, frames, quiet);
   StudyOut o = { .csv = fopen (tmp_path, "w"), .points = g_array_new (FALSE, FALSE, sizeof (DsStudyPoint)),
                  .names = g_ptr_array_new_with_free_func (g_free), .progress = progress };
@@ -505,7 +575,8 @@ ds_ctl_study (int argc, char **argv)
   }
   fprintf (o.csv, "scene,estimator,phases,averages,period_px,exposure_factor,exposure_us,seed,rel_rmse_transmissive,"
                   "rel_rmse_scattered,systematic_transmissive,systematic_scattered,noise_transmissive,noise_scattered,"
-                  "stripe_residue,valid,masked,saturated,acquisition_ms,compute_ms,signal_dn,direct_fraction,edge_blur_known\n");
+                  "stripe_residue,valid,masked,saturated,acquisition_ms,compute_ms,signal_dn,direct_fraction,edge_blur_known,"
+                  "speed_px_s\n");
   int status = 0;
   for (guint i = 0; i < files->len && status == 0; i++)
     if (!ds_study_run_scene (g_ptr_array_index (files, i), &plan, on_point, &o, &error))

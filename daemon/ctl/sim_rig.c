@@ -47,11 +47,22 @@ ds_sim_rig_free (DsSimRig *rig)
   g_free (rig);
 }
 
+static GKeyFile *
+key_file_of (const DsSimRig *rig, GError **error)
+{
+  GKeyFile *kf = g_key_file_new ();
+  if (!g_key_file_load_from_data (kf, rig->text, (gsize) -1, G_KEY_FILE_KEEP_COMMENTS, error)) {
+    g_key_file_free (kf);
+    return NULL;
+  }
+  return kf;
+}
+
 static DsSimRig *
 variant (const DsSimRig *rig, double period_px, gboolean reference, GError **error)
 {
-  g_autoptr (GKeyFile) kf = g_key_file_new ();
-  if (!g_key_file_load_from_data (kf, rig->text, (gsize) -1, G_KEY_FILE_KEEP_COMMENTS, error))
+  g_autoptr (GKeyFile) kf = key_file_of (rig, error);
+  if (!kf)
     return NULL;
   if (period_px > 0)
     g_key_file_set_double (kf, "illuminator", "period-px", period_px);
@@ -70,6 +81,35 @@ DsSimRig *
 ds_sim_rig_with_period (const DsSimRig *rig, double period_px, GError **error)
 {
   return variant (rig, period_px, FALSE, error);
+}
+
+DsSimRig *
+ds_sim_rig_with_speed (const DsSimRig *rig, double speed_px_s, const char *object, GError **error)
+{
+  g_autoptr (GKeyFile) kf = key_file_of (rig, error);
+  if (!kf)
+    return NULL;
+  g_autofree char *velocity = g_strdup_printf ("%.17g, 0", speed_px_s);
+  g_auto (GStrv) groups = g_key_file_get_groups (kf, NULL);
+  gboolean found = FALSE;
+  for (guint i = 0; groups[i]; i++) {
+    if (!g_str_has_prefix (groups[i], "object."))
+      continue;
+    const char *name = groups[i] + strlen ("object.");
+    g_autofree char *shape = g_key_file_get_value (kf, groups[i], "shape", NULL);
+    gboolean mask = shape && strcmp (g_strstrip (shape), "mask") == 0;
+    if (object ? strcmp (name, object) != 0 : mask)
+      continue;
+    g_key_file_set_value (kf, groups[i], "velocity", velocity);
+    found = TRUE;
+  }
+  if (object && !found) {
+    g_set_error (error, G_KEY_FILE_ERROR, G_KEY_FILE_ERROR_GROUP_NOT_FOUND, "%s: no [object.%s] to move",
+                 rig->name, object);
+    return NULL;
+  }
+  g_autofree char *text = g_key_file_to_data (kf, NULL, NULL);
+  return ds_sim_rig_new_from_data (text, rig->name, error);
 }
 
 DsSimRig *
@@ -109,19 +149,27 @@ ds_sim_rig_clip_dn (const DsSimRig *rig)
 }
 
 DsImage *
-ds_sim_rig_frame (const DsSimRig *rig, guint phase, guint n, gboolean on, double exposure_us,
-                  guint64 seed, GError **error)
+ds_sim_rig_frame_at (const DsSimRig *rig, guint phase, guint n, gboolean on, double exposure_us,
+                     guint64 seed, double time_s, GError **error)
 {
   DsRenderRequest req = { .phase = phase, .n_phases = n, .illuminator_on = on,
-                          .exposure_us = exposure_us, .gain_db = 0, .seed = seed };
+                          .exposure_us = exposure_us, .gain_db = 0, .seed = seed, .time_s = time_s };
   return ds_renderer_render (rig->renderer, &req, error);
 }
 
+DsImage *
+ds_sim_rig_frame (const DsSimRig *rig, guint phase, guint n, gboolean on, double exposure_us,
+                  guint64 seed, GError **error)
+{
+  return ds_sim_rig_frame_at (rig, phase, n, on, exposure_us, seed, 0.0, error);
+}
+
 static DsImage *
-expected_frame (const DsSimRig *rig, guint phase, guint n, gboolean on, double exposure_us, GError **error)
+expected_frame (const DsSimRig *rig, guint phase, guint n, gboolean on, double exposure_us, double time_s,
+                GError **error)
 {
   DsRenderRequest req = { .phase = phase, .n_phases = n, .illuminator_on = on,
-                          .exposure_us = exposure_us, .gain_db = 0, .seed = 0 };
+                          .exposure_us = exposure_us, .gain_db = 0, .seed = 0, .time_s = time_s };
   DsImage *f = ds_renderer_render_expected (rig->renderer, &req, error);
   if (!f)
     return NULL;
@@ -138,6 +186,15 @@ gboolean
 ds_sim_rig_separate (const DsSimRig *rig, const DsSeparationParams *params, guint n_params,
                      guint m, double exposure_us, guint64 seed, gboolean noise_free,
                      DsSeparation **seps, double *compute_us, GError **error)
+{
+  return ds_sim_rig_separate_at (rig, params, n_params, m, exposure_us, seed, noise_free, NULL, seps, compute_us,
+                                 error);
+}
+
+gboolean
+ds_sim_rig_separate_at (const DsSimRig *rig, const DsSeparationParams *params, guint n_params,
+                        guint m, double exposure_us, guint64 seed, gboolean noise_free,
+                        const double *frame_time_s, DsSeparation **seps, double *compute_us, GError **error)
 {
   guint w = ds_scene_width (rig->scene), h = ds_scene_height (rig->scene);
   guint n = params[0].n_phases;
@@ -158,7 +215,7 @@ ds_sim_rig_separate (const DsSimRig *rig, const DsSeparationParams *params, guin
    * from like, so integer frames get the average as rounded u16. */
   g_autoptr (DsImage) dark = NULL;
   if (noise_free) {
-    dark = expected_frame (rig, 0, n, FALSE, exposure_us, error);
+    dark = expected_frame (rig, 0, n, FALSE, exposure_us, 0.0, error);
   } else {
     g_autoptr (DsImage) acc = ds_image_new (DS_SAMPLE_F32, w, h, error);
     if (!acc)
@@ -185,10 +242,13 @@ ds_sim_rig_separate (const DsSimRig *rig, const DsSeparationParams *params, guin
     if (!ds_phase_set_set_dark (g_ptr_array_index (sets, i), dark, error))
       return FALSE;
   guint64 frame_seed = seed + m;
+  /* Without motion one expected frame per phase is all M of them; with it each is its own. */
+  guint m_expected = frame_time_s ? m : 1;
   for (guint k = 0; k < n; k++)
-    for (guint j = 0; j < (noise_free ? 1 : m); j++) {
-      g_autoptr (DsImage) f = noise_free ? expected_frame (rig, k, n, TRUE, exposure_us, error)
-                                         : ds_sim_rig_frame (rig, k, n, TRUE, exposure_us, frame_seed++, error);
+    for (guint j = 0; j < (noise_free ? m_expected : m); j++) {
+      double t = frame_time_s ? frame_time_s[k * m + j] : 0.0;
+      g_autoptr (DsImage) f = noise_free ? expected_frame (rig, k, n, TRUE, exposure_us, t, error)
+                                         : ds_sim_rig_frame_at (rig, k, n, TRUE, exposure_us, frame_seed++, t, error);
       if (!f)
         return FALSE;
       for (guint i = 0; i < n_params; i++) {

@@ -28,6 +28,10 @@ G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsSimRig, ds_sim_rig_free)
 
 /* The same scene with the stripe period changed (the illuminator's PERIOD register). */
 DsSimRig *ds_sim_rig_with_period (const DsSimRig *rig, double period_px, GError **error);
+/* The same scene with its objects moving at speed_px_s along +x, across the stripes (velocity =
+ * speed, 0 on every object but masks, which cannot move; or on the object named `object` only,
+ * failing when there is none). speed 0 makes every object still. */
+DsSimRig *ds_sim_rig_with_speed (const DsSimRig *rig, double speed_px_s, const char *object, GError **error);
 /* The clear reference of a calibration: the same illuminator, camera and sensor, no medium,
  * no objects, no ambient light. */
 DsSimRig *ds_sim_rig_reference (const DsSimRig *rig, GError **error);
@@ -43,6 +47,9 @@ double ds_sim_rig_clip_dn (const DsSimRig *rig);
 /* One frame (u16, the sensor's bit depth): phase k of n, or the illuminator off. */
 DsImage *ds_sim_rig_frame (const DsSimRig *rig, guint phase, guint n_phases, gboolean on,
                            double exposure_us, guint64 seed, GError **error);
+/* The same at time_s (s, its exposure's midpoint): where moving objects are. */
+DsImage *ds_sim_rig_frame_at (const DsSimRig *rig, guint phase, guint n_phases, gboolean on,
+                              double exposure_us, guint64 seed, double time_s, GError **error);
 
 /* Renders one set (M dark frames averaged, then M frames per phase) and folds it into one phase
  * set per parameter block (one render for all of them); seps[i] receives each result.
@@ -51,5 +58,12 @@ DsImage *ds_sim_rig_frame (const DsSimRig *rig, guint phase, guint n_phases, gbo
 gboolean ds_sim_rig_separate (const DsSimRig *rig, const DsSeparationParams *params, guint n_params,
                               guint averages, double exposure_us, guint64 seed, gboolean noise_free,
                               DsSeparation **seps, double *compute_us, GError **error);
+/* As ds_sim_rig_separate with frame j of phase k taken at frame_time_s[k * averages + j] (s):
+ * a scene with moving objects meets them where they are at each frame. The noise-free set then
+ * averages the M expected frames of each phase as the noisy set does. NULL: every frame at 0. */
+gboolean ds_sim_rig_separate_at (const DsSimRig *rig, const DsSeparationParams *params, guint n_params,
+                                 guint averages, double exposure_us, guint64 seed, gboolean noise_free,
+                                 const double *frame_time_s, DsSeparation **seps, double *compute_us,
+                                 GError **error);
 
 G_END_DECLS

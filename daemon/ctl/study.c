@@ -4,6 +4,7 @@
 #include <string.h>
 
 #include "daemon/ctl/sim_rig.h"
+#include "daemon/operating/motion_term.h"
 #include "drivers/sim/renderer.h"
 #include "drivers/sim/scene.h"
 #include "proc/metrics.h"
@@ -34,6 +35,10 @@ typedef struct {
   DsSeparationParams params[MAX_EST];
   guint n_params;
   double sys_t[MAX_EST], sys_g[MAX_EST];
+  double speed_px_s;
+  gboolean moving;           /* frames at their times, truth at the set's middle */
+  gboolean examples;         /* this pass may write the example previews */
+  const double *frame_time_s;/* moving: frame j of phase k at [k M + j] */
 } PointContext;
 
 /* Saturated and non-finite pixels carry no usable number; every other pixel is scored as it is.
@@ -87,7 +92,8 @@ run_point (const PointContext *c, guint n, guint m, guint64 seed, DsStudyPointFu
     params[i].n_phases = n;
   }
   guint64 frame_seed = seed * 1000003u + (guint64) n * 101u + m * 7u;
-  if (!ds_sim_rig_separate (c->rig, params, c->n_params, m, c->exposure, frame_seed, FALSE, seps, compute_us, error))
+  if (!ds_sim_rig_separate_at (c->rig, params, c->n_params, m, c->exposure, frame_seed, FALSE, c->frame_time_s,
+                               seps, compute_us, error))
     return FALSE;
   gboolean ok = TRUE;
   const DsScene *scene = ds_sim_rig_scene (c->rig);
@@ -99,11 +105,11 @@ run_point (const PointContext *c, guint n, guint m, guint64 seed, DsStudyPointFu
                         .exposure_us = c->exposure, .seed = seed,
                         .systematic_transmissive = c->sys_t[r], .systematic_scattered = c->sys_g[r],
                         .signal_dn = c->signal_dn, .direct_fraction = c->direct_fraction,
-                        .edge_blur_known = params[r].geometry.edge_blur_known };
+                        .edge_blur_known = params[r].geometry.edge_blur_known, .speed_px_s = c->speed_px_s };
     DsErrorStats et;
     ok = errors_of (c, sep, &pt.rel_rmse_transmissive, &pt.rel_rmse_scattered, &et, error) &&
          ds_metrics_stripe_residue (sep->transmissive, ds_scene_period_px (scene), &pt.stripe_residue, error);
-    if (ok && c->plan->examples_dir && c->own_period && seed == 1 && m == 1 && c->exposure_factor == 1.0 &&
+    if (ok && c->plan->examples_dir && c->examples && c->own_period && seed == 1 && m == 1 && c->exposure_factor == 1.0 &&
         (n == c->plan->phases[0] || n == c->plan->phases[c->plan->n_phases - 1]))
       ok = write_examples (c, sep, params[r].estimator, n, error);
     if (!ok)
@@ -120,12 +126,73 @@ run_point (const PointContext *c, guint n, guint m, guint64 seed, DsStudyPointFu
   return ok;
 }
 
+/* The systematic part of each estimator's error: the same set on noise-free frames (M of them
+ * per phase when the scene moves, each at its time; one stands for all M of a still scene). */
 static gboolean
-run_period (const DsSimRig *rig, const char *scene_name, gboolean own_period, const DsStudyPlan *plan,
-            DsStudyPointFunc emit, gpointer user_data, GError **error)
+systematic_parts (PointContext *c, guint m, GError **error)
+{
+  DsSeparation *seps[MAX_EST] = { NULL };
+  if (!ds_sim_rig_separate_at (c->rig, c->params, c->n_params, m, c->exposure, 0, TRUE, c->frame_time_s, seps, NULL,
+                               error))
+    return FALSE;
+  gboolean ok = TRUE;
+  for (guint r = 0; r < c->n_params; r++) {
+    ok = ok && errors_of (c, seps[r], &c->sys_t[r], &c->sys_g[r], NULL, error);
+    ds_separation_free (seps[r]);
+  }
+  return ok;
+}
+
+/* Every seed of one (N, M). A moving scene's frames are timed, its truth is taken at the set's
+ * middle (halfway between the first and the last frame) and its systematic part is made with
+ * the same times. */
+static gboolean
+run_averages (const PointContext *cn, guint n, guint m, DsStudyPointFunc emit, gpointer user_data, GError **error)
+{
+  PointContext c = *cn;
+  g_autofree double *times = NULL;
+  g_autoptr (DsImage) truth_t = NULL;
+  g_autoptr (DsImage) truth_g = NULL;
+  if (c.moving) {
+    const DsScene *scene = ds_sim_rig_scene (c.rig);
+    times = g_new (double, (gsize) n * m);
+    ds_motion_frame_times (&c.plan->timing, ds_scene_width (scene), ds_scene_height (scene), n, m, c.exposure, times);
+    double mid = (times[0] + times[(gsize) n * m - 1]) / 2;
+    DsImage *tt = NULL, *tg = NULL;
+    if (!ds_renderer_truth_at (ds_sim_rig_renderer (c.rig), c.exposure, 0.0, mid, &tt, &tg, error))
+      return FALSE;
+    truth_t = tt;
+    truth_g = tg;
+    c.truth_t = truth_t;
+    c.truth_g = truth_g;
+    c.frame_time_s = times;
+    if (!systematic_parts (&c, m, error))
+      return FALSE;
+  }
+  for (guint seed = 1; seed <= c.plan->n_seeds; seed++)
+    if (!run_point (&c, n, m, seed, emit, user_data, error))
+      return FALSE;
+  return TRUE;
+}
+
+/* The fastest object of a scene (px/s). */
+static double
+scene_speed (const DsScene *scene)
+{
+  const DsSceneSpec *s = ds_scene_spec (scene);
+  double v = 0;
+  for (guint i = 0; i < s->n_objects; i++)
+    v = MAX (v, hypot (s->objects[i].vx, s->objects[i].vy));
+  return v;
+}
+
+static gboolean
+run_period (const DsSimRig *rig, const char *scene_name, gboolean own_period, gboolean examples,
+            const DsStudyPlan *plan, DsStudyPointFunc emit, gpointer user_data, GError **error)
 {
   const DsScene *scene = ds_sim_rig_scene (rig);
-  PointContext c = { .plan = plan, .rig = rig, .scene_name = scene_name, .own_period = own_period };
+  PointContext c = { .plan = plan, .rig = rig, .scene_name = scene_name, .own_period = own_period,
+                     .examples = examples, .moving = ds_scene_has_motion (scene), .speed_px_s = scene_speed (scene) };
   for (guint k = 0; k < plan->n_estimators && c.n_params < MAX_EST; k++) {
     DsSeparationParams *p = &c.params[c.n_params];
     ds_separation_params_init (p, 4);
@@ -182,21 +249,37 @@ run_period (const DsSimRig *rig, const char *scene_name, gboolean own_period, co
       }
       if (cn.n_params == 0)
         continue;
-      DsSeparation *seps[MAX_EST] = { NULL };
-      if (!ds_sim_rig_separate (rig, cn.params, cn.n_params, 1, c.exposure, 0, TRUE, seps, NULL, error))
-        return FALSE;
-      gboolean ok = TRUE;
-      for (guint r = 0; r < cn.n_params; r++) {
-        ok = ok && errors_of (&cn, seps[r], &cn.sys_t[r], &cn.sys_g[r], NULL, error);
-        ds_separation_free (seps[r]);
-      }
-      if (!ok)
+      if (!c.moving && !systematic_parts (&cn, 1, error))
         return FALSE;
       for (guint im = 0; im < plan->n_averages; im++)
-        for (guint seed = 1; seed <= plan->n_seeds; seed++)
-          if (!run_point (&cn, n, plan->averages[im], seed, emit, user_data, error))
-            return FALSE;
+        if (!run_averages (&cn, n, plan->averages[im], emit, user_data, error))
+          return FALSE;
     }
+  }
+  return TRUE;
+}
+
+/* One speed: every period of the plan on the rig (the scene's own period run once). */
+static gboolean
+run_periods (const DsSimRig *rig, const char *scene_name, gboolean examples, const DsStudyPlan *plan,
+             DsStudyPointFunc emit, gpointer user_data, GError **error)
+{
+  double own = ds_scene_period_px (ds_sim_rig_scene (rig));
+  g_autoptr (GArray) done = g_array_new (FALSE, FALSE, sizeof (double));
+  for (guint ip = 0; ip < MAX (plan->n_periods, 1u); ip++) {
+    double period = plan->n_periods ? plan->periods[ip] : 0;
+    period = period > 0 ? period : period < 0 ? -period * own : own;
+    gboolean seen = FALSE;
+    for (guint k = 0; k < done->len && !seen; k++)
+      seen = fabs (g_array_index (done, double, k) - period) < 1e-9;
+    if (seen)
+      continue;
+    g_array_append_val (done, period);
+    gboolean is_own = fabs (period - own) < 1e-9;
+    g_autoptr (DsSimRig) variant = is_own ? NULL : ds_sim_rig_with_period (rig, period, error);
+    if ((!is_own && !variant) ||
+        !run_period (is_own ? rig : variant, scene_name, is_own, examples, plan, emit, user_data, error))
+      return FALSE;
   }
   return TRUE;
 }
@@ -209,25 +292,16 @@ ds_study_run_scene (const char *scene_path, const DsStudyPlan *plan, DsStudyPoin
   if (!rig)
     return FALSE;
   g_autofree char *scene_name = g_path_get_basename (scene_path);
-  double own = ds_scene_period_px (ds_sim_rig_scene (rig));
-  GArray *done = g_array_new (FALSE, FALSE, sizeof (double));
-  for (guint ip = 0; ip < MAX (plan->n_periods, 1u); ip++) {
-    double period = plan->n_periods ? plan->periods[ip] : 0;
-    period = period > 0 ? period : period < 0 ? -period * own : own;
-    gboolean seen = FALSE;
-    for (guint k = 0; k < done->len && !seen; k++)
-      seen = fabs (g_array_index (done, double, k) - period) < 1e-9;
-    if (seen)
-      continue;
-    g_array_append_val (done, period);
-    gboolean is_own = fabs (period - own) < 1e-9;
-    g_autoptr (DsSimRig) variant = is_own ? NULL : ds_sim_rig_with_period (rig, period, error);
-    if ((!is_own && !variant) || !run_period (is_own ? rig : variant, scene_name, is_own, plan, emit, user_data, error)) {
+  for (guint is = 0; is < MAX (plan->n_speeds, 1u); is++) {
+    g_autoptr (DsSimRig) moved = NULL;
+    if (plan->n_speeds && !(moved = ds_sim_rig_with_speed (rig, plan->speeds[is], plan->moving_object, error))) {
+      g_prefix_error (error, "%s: speed %g px/s: ", scene_name, plan->speeds[is]);
+      return FALSE;
+    }
+    if (!run_periods (moved ? moved : rig, scene_name, is == 0, plan, emit, user_data, error)) {
       g_prefix_error (error, "%s: ", scene_name);
-      g_array_unref (done);
       return FALSE;
     }
   }
-  g_array_unref (done);
   return TRUE;
 }

@@ -34,6 +34,10 @@ typedef struct {
    * without edge-blur-px (the period alone, the blur taken as sharp, robust's one-phase
    * margin). */
   gboolean edge_blur_known;
+  /* How fast the scene's objects move (px/s; 0: a still scene). A moving scene's frames are
+   * taken at their times in the rig's timing model and its error is against the truth at the
+   * set's middle, so motion during the set counts against longer sets. */
+  double speed_px_s;
 } DsStudyPoint;
 
 typedef struct {
@@ -49,14 +53,18 @@ typedef struct {
   gboolean dark_frame;
   const char *examples_dir;  /* NULL: none; else 8-bit previews of both components for the
                                 smallest and largest N at M = 1, base exposure, first seed, the
-                                scene's own period */
+                                scene's own period, first speed */
+  double *speeds; guint n_speeds; /* px/s along +x (across the stripes) given to the scene's
+                                     objects (ds_sim_rig_with_speed); none: as the scene declares */
+  const char *moving_object;      /* NULL: every object but masks; else this [object.NAME] only */
 } DsStudyPlan;
 
 typedef void (*DsStudyPointFunc) (const DsStudyPoint *point, gpointer user_data);
 
 /* Runs the plan on one scene file; every point goes to `emit` as it is measured. Frames are
- * rendered once per (period, N, M, exposure, seed) and folded into one phase set per estimator;
- * the noise-free frames once per (period, N, exposure). */
+ * rendered once per (speed, period, N, M, exposure, seed) and folded into one phase set per
+ * estimator; the noise-free frames once per (speed, period, N, exposure), and per M as well
+ * when the scene moves (each frame then has its own time). */
 gboolean ds_study_run_scene (const char *scene_path, const DsStudyPlan *plan,
                              DsStudyPointFunc emit, gpointer user_data, GError **error);
 

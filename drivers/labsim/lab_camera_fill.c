@@ -62,6 +62,8 @@ struct DsLabFill {
   guint64 frames;
   GQueue orders;           /* Order*, oldest first */
   guint64 dropped;
+  gboolean moves;          /* an object declares a velocity: each frame is rendered at its time */
+  gint64 origin_us;        /* monotonic µs of the scene's time 0 (the fill's creation) */
 };
 
 static guint
@@ -115,6 +117,8 @@ ds_lab_fill_new (const DsRenderer *renderer, DsLabIlluminationFunc illumination,
   f->sensor = (DsSensorModel) { .bit_depth = s->bit_depth, .quantum_efficiency = s->quantum_efficiency,
                                 .system_gain = s->system_gain, .read_noise_e = s->read_noise_e,
                                 .dark_current_e_s = s->dark_current_e_s, .full_well_e = s->full_well_e };
+  f->moves = ds_scene_has_motion (scene);
+  f->origin_us = g_get_monotonic_time ();
   g_mutex_init (&f->lock);
   g_queue_init (&f->orders);
   f->cache = g_hash_table_new_full (key_hash, key_equal, g_free, expected_free);
@@ -204,6 +208,49 @@ ds_lab_fill_dropped (DsLabFill *f)
   return n;
 }
 
+/* e's mean and sigma from photons at scale x their exposure. */
+static void
+fill_expected (const DsLabFill *f, const float *photons, double scale, double exposure_us, double gain_db, Expected *e)
+{
+  gsize n = (gsize) f->width * f->height;
+  e->mean = g_new (float, n);
+  e->sigma = g_new (float, n);
+  /* Variance in DN^2 = K^2 (mean electrons + read^2) with mean electrons = mean DN / K. */
+  double k = ds_sensor_gain_dn_per_e (&f->sensor, gain_db);
+  double read2 = k * k * f->sensor.read_noise_e * f->sensor.read_noise_e;
+  for (gsize i = 0; i < n; i++) {
+    double p = photons[i];
+    double m = (float) ds_sensor_mean_dn (&f->sensor, scale == 1.0 ? p : p * scale, exposure_us, gain_db);
+    e->mean[i] = (float) m;
+    e->sigma[i] = (float) sqrt (k * MAX (m, 0.0) + read2);
+  }
+}
+
+/* The noise-free frame of a scene with moving objects: the light of `light` rendered at the
+ * frame's own time, on the camera thread (a moving scene costs one render per frame: describe
+ * prints it), never cached. NULL when the render fails. */
+static Expected *
+expected_moving (DsLabFill *f, const DsLabLight *light, double exposure_us, double gain_db, gint64 trigger_us)
+{
+  /* The exposure starts at the trigger: its midpoint is where the objects are. */
+  double t = (double) (trigger_us - f->origin_us) / 1e6 + exposure_us / 2e6;
+  DsRenderRequest req = { .phase = light->phase, .n_phases = light->on ? light->n_phases : 1,
+                          .illuminator_on = light->on, .all_on = light->all_on, .exposure_us = exposure_us,
+                          .period_px = light->period_px, .time_s = t };
+  g_autoptr (GError) error = NULL;
+  g_autoptr (DsImage) photons = ds_renderer_render_photons (f->renderer, &req, &error);
+  if (!photons) {
+    g_warning ("labsim camera: a moving scene's frame at %.3f s: %s", t, error->message);
+    return NULL;
+  }
+  g_autofree float *flat = g_new (float, (gsize) f->width * f->height);
+  for (guint y = 0; y < f->height; y++)
+    memcpy (flat + (gsize) y * f->width, ds_image_row (photons, y), f->width * sizeof (float));
+  Expected *e = g_new0 (Expected, 1);
+  fill_expected (f, flat, 1.0, exposure_us, gain_db, e);
+  return e;
+}
+
 /* The noise-free frame of a lighting state at an exposure and gain, derived on first use from
  * the state's photons (linear in both; at the reference exposure and 0 dB the very numbers of
  * ds_renderer_render_expected). */
@@ -220,18 +267,7 @@ expected_for (DsLabFill *f, const DsLabState *st, double exposure_us, double gai
     f->cache_bytes = 0;
   }
   e = g_new0 (Expected, 1);
-  e->mean = g_new (float, n);
-  e->sigma = g_new (float, n);
-  double scale = exposure_us / st->reference_exposure_us;
-  /* Variance in DN^2 = K^2 (mean electrons + read^2) with mean electrons = mean DN / K. */
-  double k = ds_sensor_gain_dn_per_e (&f->sensor, gain_db);
-  double read2 = k * k * f->sensor.read_noise_e * f->sensor.read_noise_e;
-  for (gsize i = 0; i < n; i++) {
-    double p = st->photons[i];
-    double m = (float) ds_sensor_mean_dn (&f->sensor, scale == 1.0 ? p : p * scale, exposure_us, gain_db);
-    e->mean[i] = (float) m;
-    e->sigma[i] = (float) sqrt (k * MAX (m, 0.0) + read2);
-  }
+  fill_expected (f, st->photons, exposure_us / st->reference_exposure_us, exposure_us, gain_db, e);
   g_hash_table_insert (f->cache, g_memdup2 (&key, sizeof key), e);
   f->cache_bytes += 2 * n * sizeof (float);
   return e;
@@ -392,6 +428,7 @@ ds_lab_fill_buffer (DsLabFill *f, ArvBuffer *buffer, double exposure_us, double 
   g_mutex_lock (&f->lock);
   Order *o = f->orders.head && ((Order *) f->orders.head->data)->handed ? g_queue_pop_head (&f->orders) : NULL;
   g_mutex_unlock (&f->lock);
+  gint64 trigger_us = o ? o->at : g_get_monotonic_time ();
   g_autoptr (DsLabState) st = o ? g_steal_pointer (&o->state) : NULL;
   g_clear_pointer (&o, order_free);
   if (!st) {
@@ -406,8 +443,15 @@ ds_lab_fill_buffer (DsLabFill *f, ArvBuffer *buffer, double exposure_us, double 
       return n;
     }
   }
-  const Expected *e = expected_for (f, st, exposure_us, gain_db);
+  Expected *moving = f->moves ? expected_moving (f, &st->light, exposure_us, gain_db, trigger_us) : NULL;
+  if (f->moves && !moving) {
+    memset (out, 0, (gsize) w * h * bits / 8);
+    return n;
+  }
+  const Expected *e = moving ? moving : expected_for (f, st, exposure_us, gain_db);
   expose (f, e, gain_db, n);
+  if (moving)
+    expected_free (moving);
   ds_lab_pack (pf, f->frame + (gsize) y0 * f->width + x0, f->width, f->depth, (guint) w, (guint) h, out,
                (gsize) w * h * bits / 8);
   return n;

@@ -36,7 +36,7 @@ const char *
 ds_render_stage_name (DsRenderStage s)
 {
   static const char *const names[DS_RENDER_N_STAGES] = { "stripe-pattern", "boundary-fresnel",
-                                                         "ballistic-attenuation", "object-transmittance",
+                                                         "ballistic-attenuation", "motion", "object-transmittance",
                                                          "scattering", "ambient", "sensor" };
   return (guint) s < DS_RENDER_N_STAGES ? names[s] : "unknown";
 }
@@ -122,6 +122,15 @@ build (const DsScene *scene, const char *cache_dir, const DsSlabKernels *given, 
     objects = ds_stage_objects_new (s, map_margin, error);
     if (!objects)
       return NULL;
+    /* Motion runs first: it places the moving objects for the objects stage to shade with. */
+    if (ds_scene_has_motion (r->scene)) {
+      DsStage *motion = ds_stage_motion_new (s, objects, error);
+      if (!motion) {
+        ds_stage_free (objects);
+        return NULL;
+      }
+      add_stage (r, motion);
+    }
     add_stage (r, objects);
   }
   if (scatters) {
@@ -233,6 +242,7 @@ light_clear (DsLight *l)
   ds_image_free (l->direct);
   ds_image_free (l->scattered);
   ds_image_free (l->frame);
+  ds_moved_objects_free (l->moved);
   memset (l, 0, sizeof *l);
 }
 
@@ -274,6 +284,19 @@ check_exposure (double exposure_us, double gain_db, GError **error)
   return TRUE;
 }
 
+/* A frame's time: finite and within a year of the origin; anything else is a clock mistaken
+ * for seconds (microseconds, an epoch), never an experiment. */
+static gboolean
+check_time (double time_s, GError **error)
+{
+  if (!(fabs (time_s) <= 3.2e7)) {
+    g_set_error (error, DS_SIM_ERROR, DS_SIM_ERROR_INVALID, "render: time %g s must be finite and within 3.2e7 s",
+                 time_s);
+    return FALSE;
+  }
+  return TRUE;
+}
+
 static gboolean
 check_request (const DsRenderRequest *req, GError **error)
 {
@@ -287,6 +310,8 @@ check_request (const DsRenderRequest *req, GError **error)
                  req->period_px);
     return FALSE;
   }
+  if (!check_time (req->time_s, error))
+    return FALSE;
   return check_exposure (req->exposure_us, req->gain_db, error);
 }
 
@@ -297,7 +322,7 @@ render (const DsRenderer *r, const DsRenderRequest *req, gboolean expected, doub
     return NULL;
   DsStageArgs a = { .phase = req->phase, .n_phases = req->n_phases, .illuminator_on = req->illuminator_on,
                     .full = req->all_on, .expected = expected, .exposure_us = req->exposure_us, .gain_db = req->gain_db,
-                    .seed = req->seed, .period_px = req->period_px };
+                    .seed = req->seed, .period_px = req->period_px, .time_s = req->time_s };
   DsLight l = { 0 };
   DsImage *out = NULL;
   if (run_stages (r, &l, &a, TRUE, TRUE, secs, error))
@@ -331,7 +356,7 @@ ds_renderer_render_photons (const DsRenderer *r, const DsRenderRequest *req, GEr
     return NULL;
   DsStageArgs a = { .phase = req->phase, .n_phases = req->n_phases, .illuminator_on = req->illuminator_on,
                     .full = req->all_on, .exposure_us = req->exposure_us, .gain_db = req->gain_db, .seed = req->seed,
-                    .period_px = req->period_px };
+                    .period_px = req->period_px, .time_s = req->time_s };
   DsLight l = { 0 };
   DsImage *out = NULL;
   if (run_stages (r, &l, &a, TRUE, FALSE, NULL, error)) {
@@ -370,12 +395,19 @@ gboolean
 ds_renderer_truth (const DsRenderer *r, double exposure_us, double gain_db, DsImage **transmissive,
                    DsImage **scattered, GError **error)
 {
+  return ds_renderer_truth_at (r, exposure_us, gain_db, 0.0, transmissive, scattered, error);
+}
+
+gboolean
+ds_renderer_truth_at (const DsRenderer *r, double exposure_us, double gain_db, double time_s,
+                      DsImage **transmissive, DsImage **scattered, GError **error)
+{
   DsRenderRequest req = { .phase = 0, .n_phases = 1, .illuminator_on = TRUE, .exposure_us = exposure_us,
-                          .gain_db = gain_db };
+                          .gain_db = gain_db, .time_s = time_s };
   if (!check_request (&req, error))
     return FALSE;
   DsStageArgs a = { .n_phases = 1, .illuminator_on = TRUE, .full = TRUE, .exposure_us = exposure_us,
-                    .gain_db = gain_db };
+                    .gain_db = gain_db, .time_s = time_s };
   DsLight l = { 0 };
   if (!run_stages (r, &l, &a, FALSE, FALSE, NULL, error)) {
     light_clear (&l);

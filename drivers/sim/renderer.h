@@ -21,6 +21,7 @@ typedef enum {
   DS_RENDER_STAGE_PATTERN = 0, /* stripe pattern: always */
   DS_RENDER_STAGE_BOUNDARY,    /* Fresnel transmittance: medium index != outside index */
   DS_RENDER_STAGE_BALLISTIC,   /* Beer-Lambert attenuation: a medium with sigma_t > 0 */
+  DS_RENDER_STAGE_MOTION,      /* moving objects at the frame's time: an object with a velocity */
   DS_RENDER_STAGE_OBJECTS,     /* object transmittance: objects declared */
   DS_RENDER_STAGE_SCATTERING,  /* PSF convolution: a medium with sigma_s > 0 */
   DS_RENDER_STAGE_AMBIENT,     /* pattern-independent light: [ambient] declared */
@@ -56,6 +57,10 @@ typedef struct {
   /* The stripe period on the sensor (px): 0 = the scene's. An illuminator that can change its
    * period (the PERIOD register) projects the scene's pattern at another period. */
   double period_px;
+  /* The frame's time (s): the midpoint of its exposure, from the scene's time origin (0, where
+   * moving objects stand at their declared position). Moves the objects that declare a velocity;
+   * a scene without one renders the same bits at every time. */
+  double time_s;
 } DsRenderRequest;
 
 /* u16 frame with the sensor's bit depth. */
@@ -85,6 +90,9 @@ double ds_renderer_saturation_dn (const DsRenderer *r, double gain_db);
  * uniform illumination (the pattern's "on" level everywhere). */
 gboolean ds_renderer_truth (const DsRenderer *r, double exposure_us, double gain_db,
                             DsImage **transmissive, DsImage **scattered, GError **error);
+/* The truth at time_s (s): moving objects where they are then (ds_renderer_truth is time 0). */
+gboolean ds_renderer_truth_at (const DsRenderer *r, double exposure_us, double gain_db, double time_s,
+                               DsImage **transmissive, DsImage **scattered, GError **error);
 
 /* The stages built for this scene, in order, with the reason each is there. */
 guint ds_renderer_n_stages (const DsRenderer *r);

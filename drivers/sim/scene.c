@@ -58,7 +58,7 @@ static const KeySpec keys[] = {
 #undef F
 
 static const char *const object_keys[] = { "shape", "position", "size", "radius", "pitch", "line-width",
-                                            "amplitude", "mask", "depth-mm", "transmittance", NULL };
+                                            "amplitude", "mask", "depth-mm", "transmittance", "velocity", NULL };
 static const char *const groups[] = { "scene", "sensor", "illuminator", "medium", "camera", "ambient", NULL };
 
 /* The line of `key` in `group` (1-based), found by scanning the text, or 0. GKeyFile does not
@@ -226,6 +226,29 @@ parse_pair (const char *v, double *a, double *b)
   return n == 2;
 }
 
+/* The fastest an object may move: a million pixels per second crosses the largest sensor in
+ * 16 ms, faster than any frame; larger values are typing errors. */
+#define DS_SCENE_MAX_SPEED_PX_S 1e6
+
+/* velocity = VX, VY in px/s on the sensor (GKeyFile's ';' also accepted). */
+static gboolean
+parse_velocity (GKeyFile *kf, const char *group, const char *file, const char *text, DsSceneObject *o,
+                GError **error)
+{
+  g_autofree char *v = g_key_file_get_value (kf, group, "velocity", NULL);
+  if (!v)
+    return TRUE;
+  double a, b;
+  if (!parse_pair (v, &a, &b) || fabs (a) > DS_SCENE_MAX_SPEED_PX_S || fabs (b) > DS_SCENE_MAX_SPEED_PX_S) {
+    fail_at (error, DS_SIM_ERROR_INVALID, file, text, group, "velocity",
+             "\"%s\" is not two numbers VX, VY in px/s with |value| <= %g", g_strstrip (v), DS_SCENE_MAX_SPEED_PX_S);
+    return FALSE;
+  }
+  o->vx = a;
+  o->vy = b;
+  return TRUE;
+}
+
 static gboolean
 parse_object (DsSceneSpec *spec, GKeyFile *kf, const char *group, const char *file, const char *text,
               DsSceneObject *o, GError **error)
@@ -234,7 +257,7 @@ parse_object (DsSceneSpec *spec, GKeyFile *kf, const char *group, const char *fi
   for (guint i = 0; ks && ks[i]; i++)
     if (!g_strv_contains (object_keys, ks[i])) {
       fail_at (error, DS_SIM_ERROR_PARSE, file, text, group, ks[i], "unknown key (keys: shape, position, "
-               "size, radius, pitch, line-width, amplitude, mask, depth-mm, transmittance)");
+               "size, radius, pitch, line-width, amplitude, mask, depth-mm, transmittance, velocity)");
       return FALSE;
     }
   o->name = g_strdup (group + strlen ("object."));
@@ -270,6 +293,8 @@ parse_object (DsSceneSpec *spec, GKeyFile *kf, const char *group, const char *fi
     { "line-width", 0, 1u << DS_SHAPE_GRID | 1u << DS_SHAPE_LINES },
     { "amplitude", 0, 1u << DS_SHAPE_LINES },
     { "mask", 1u << DS_SHAPE_MASK, 1u << DS_SHAPE_MASK },
+    /* A mask is an image of the sensor's size: moving it would need the scene beyond it. */
+    { "velocity", 0, ~(1u << DS_SHAPE_MASK) },
   };
   for (guint i = 0; i < G_N_ELEMENTS (use); i++) {
     gboolean has = g_key_file_has_key (kf, group, use[i].key, NULL);
@@ -285,7 +310,7 @@ parse_object (DsSceneSpec *spec, GKeyFile *kf, const char *group, const char *fi
   }
   const char *pair_keys[] = { "position", "size" };
   double *pair_fields[][2] = { { &o->x, &o->y }, { &o->width, &o->height } };
-  for (guint i = 0; i < 2; i++) {
+  for (guint i = 0; i < G_N_ELEMENTS (pair_keys); i++) {
     g_autofree char *v = g_key_file_get_value (kf, group, pair_keys[i], NULL);
     if (!v)
       continue;
@@ -298,6 +323,8 @@ parse_object (DsSceneSpec *spec, GKeyFile *kf, const char *group, const char *fi
     *pair_fields[i][0] = a;
     *pair_fields[i][1] = b;
   }
+  if (!parse_velocity (kf, group, file, text, o, error))
+    return FALSE;
   struct {
     const char *key;
     double *field;
@@ -534,6 +561,16 @@ gboolean ds_scene_pattern_is_sine (const DsScene *s) { return s->spec.sine; }
 double ds_scene_system_gain (const DsScene *s) { return s->spec.system_gain; }
 double ds_scene_read_noise_dn (const DsScene *s) { return s->spec.read_noise_e * s->spec.system_gain; }
 double ds_scene_default_exposure_us (const DsScene *s) { return s->spec.exposure_us; }
+gboolean ds_scene_object_moves (const DsSceneObject *o) { return o->vx != 0 || o->vy != 0; }
+
+gboolean
+ds_scene_has_motion (const DsScene *scene)
+{
+  for (guint i = 0; i < scene->spec.n_objects; i++)
+    if (ds_scene_object_moves (&scene->spec.objects[i]))
+      return TRUE;
+  return FALSE;
+}
 
 gboolean
 ds_scene_check_files (const DsScene *scene, GError **error)
@@ -588,6 +625,8 @@ ds_scene_copy_resized (const DsScene *scene, guint width, guint height)
     o->width *= fx;
     o->height *= fy;
     o->radius *= MIN (fx, fy);
+    o->vx *= fx;
+    o->vy *= fy;
   }
   return c;
 }

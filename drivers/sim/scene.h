@@ -26,6 +26,9 @@ typedef struct {
   char *mask_path;            /* mask: absolute path (resolved against the scene file) */
   double depth_mm;            /* inside the medium, 0..thickness */
   double transmittance;       /* 0 opaque .. 1 clear */
+  double vx, vy;              /* velocity on the sensor (px/s); 0, 0: the object stands still */
+  double dx, dy;              /* displacement rendered (px): 0 as loaded; v t in the copy the motion
+                               * stage makes for a frame at time t */
 } DsSceneObject;
 
 typedef struct {
@@ -84,6 +87,10 @@ gboolean ds_scene_pattern_is_sine (const DsScene *scene);
 double ds_scene_system_gain (const DsScene *scene);   /* DN per electron */
 double ds_scene_read_noise_dn (const DsScene *scene);
 double ds_scene_default_exposure_us (const DsScene *scene);
+/* Whether an object declares a velocity other than 0, 0: only then is anything rendered per
+ * frame time (docs/scene-format.md, "Motion"). */
+gboolean ds_scene_object_moves (const DsSceneObject *object);
+gboolean ds_scene_has_motion (const DsScene *scene);
 /* Side of one pixel projected into the object (mm): sensor pitch / magnification. */
 double ds_scene_object_pitch_mm (const DsScene *scene);
 

@@ -56,9 +56,11 @@ describe_cost (const DsRenderer *r, const DsScene *scene)
   guint top = 0;
   for (guint s = 1; s < DS_RENDER_N_STAGES; s++)
     top = secs[s] > secs[top] ? s : top;
-  printf ("render cost: one frame in %.3g s here and now (%.0f %% of it %s); descatter-labsim renders each "
-          "phase and dark once per phase count and period, before serving and then in the background\n", total,
-          total > 0 ? 100 * secs[top] / total : 0.0, ds_render_stage_name ((DsRenderStage) top));
+  printf ("render cost: one frame in %.3g s here and now (%.0f %% of it %s); %s\n", total,
+          total > 0 ? 100 * secs[top] / total : 0.0, ds_render_stage_name ((DsRenderStage) top),
+          ds_scene_has_motion (scene) ? "objects move: descatter-labsim renders every frame at its own time"
+                                      : "descatter-labsim renders each phase and dark once per phase count and "
+                                        "period, before serving and then in the background");
   DsRenderCost est;
   ds_render_cost_estimate (ds_scene_spec (scene), &est);
   printf ("estimated before rendering: a frame %.3g s, the kernels %.3g s when not cached (%.3g interactions per "
@@ -86,8 +88,9 @@ ds_sim_describe_main (int argc, char **argv)
     printf ("  %-22s %s\n", ds_renderer_stage_name (r, i), ds_renderer_stage_reason (r, i));
   printf ("not built (not declared by the scene):");
   guint n_skipped = 0;
+  /* Motion is a property of objects, not a part of the lab: a still scene does not mention it. */
   for (guint s = 0; s < DS_RENDER_N_STAGES; s++)
-    if (!ds_renderer_has_stage (r, (DsRenderStage) s)) {
+    if (!ds_renderer_has_stage (r, (DsRenderStage) s) && s != DS_RENDER_STAGE_MOTION) {
       printf (" %s", ds_render_stage_name ((DsRenderStage) s));
       n_skipped++;
     }

@@ -24,10 +24,26 @@ pixel_format_name (guint bits)
   }
 }
 
+/* Frame k's time (s): the midpoint of its exposure, frames one interval apart from time 0. */
+static double
+frame_time_s (int k, double interval_us, double exposure_us)
+{
+  return (k * interval_us + exposure_us / 2) * 1e-6;
+}
+
+/* The truth of a set of moving objects is taken at the set's middle: halfway between its first
+ * and last frames' times. */
+static double
+truth_time_s (int phases, double interval_us, double exposure_us)
+{
+  return ((phases - 1) * interval_us / 2 + exposure_us / 2) * 1e-6;
+}
+
 static gboolean
 write_sidecar (const char *dir, const char *scene_path, const DsRenderer *r, int phases, double exposure,
-               double gain, gint64 seed, gboolean has_black, GError **error)
+               double interval, double gain, gint64 seed, gboolean has_black, GError **error)
 {
+  gboolean moves = ds_scene_has_motion (ds_renderer_scene (r));
   const DsScene *scene = ds_renderer_scene (r);
   g_autoptr (JsonBuilder) b = json_builder_new ();
   json_builder_begin_object (b);
@@ -93,6 +109,11 @@ write_sidecar (const char *dir, const char *scene_path, const DsRenderer *r, int
     json_builder_add_string_value (b, name);
     json_builder_set_member_name (b, "phase");
     json_builder_add_int_value (b, k);
+    if (moves) {
+      /* Optional: where the moving objects were (docs/scene-format.md, "Motion"). */
+      json_builder_set_member_name (b, "time_s");
+      json_builder_add_double_value (b, frame_time_s (k, interval, exposure));
+    }
     json_builder_end_object (b);
   }
   json_builder_end_array (b);
@@ -117,6 +138,10 @@ write_sidecar (const char *dir, const char *scene_path, const DsRenderer *r, int
   json_builder_add_string_value (b, "truth_transmissive.tiff");
   json_builder_set_member_name (b, "scattered");
   json_builder_add_string_value (b, "truth_scattered.tiff");
+  if (moves) {
+    json_builder_set_member_name (b, "time_s");
+    json_builder_add_double_value (b, truth_time_s (phases, interval, exposure));
+  }
   json_builder_end_object (b);
   json_builder_end_object (b);
   g_autoptr (JsonGenerator) gen = json_generator_new ();
@@ -141,7 +166,7 @@ int
 ds_sim_render_main (int argc, char **argv)
 {
   int phases = 0;
-  double exposure = 0, gain = 0;
+  double exposure = 0, gain = 0, interval = 0;
   gint64 seed = 1;
   g_autofree char *out = NULL;
   GOptionEntry entries[] = {
@@ -149,6 +174,8 @@ ds_sim_render_main (int argc, char **argv)
     { "out", 'o', 0, G_OPTION_ARG_FILENAME, &out, "output folder", "DIR" },
     { "exposure-us", 'e', 0, G_OPTION_ARG_DOUBLE, &exposure, "exposure (default: the scene's)", "E" },
     { "gain-db", 'g', 0, G_OPTION_ARG_DOUBLE, &gain, "gain (dB)", "G" },
+    { "frame-interval-us", 0, 0, G_OPTION_ARG_DOUBLE, &interval,
+      "time between frame starts, for moving objects (default: the exposure, frames back to back)", "T" },
     { "seed", 0, 0, G_OPTION_ARG_INT64, &seed, "noise seed", "X" },
     { NULL },
   };
@@ -165,6 +192,13 @@ ds_sim_render_main (int argc, char **argv)
     return fail (error);
   if (exposure <= 0)
     exposure = ds_scene_default_exposure_us (scene);
+  if (interval == 0)
+    interval = exposure;
+  if (!(interval >= exposure && interval <= 1e7)) {
+    fprintf (stderr, "descatter-sim render: --frame-interval-us %g must be in [exposure %g, 1e7]\n", interval,
+             exposure);
+    return 2;
+  }
   if (g_mkdir_with_parents (out, 0755) != 0) {
     fprintf (stderr, "descatter-sim: %s: %s\n", out, g_strerror (errno));
     return 1;
@@ -177,7 +211,8 @@ ds_sim_render_main (int argc, char **argv)
   }
   for (int k = 0; k < phases; k++) {
     DsRenderRequest req = { .phase = (guint) k, .n_phases = (guint) phases, .illuminator_on = TRUE,
-                            .exposure_us = exposure, .gain_db = gain, .seed = (guint64) seed * 1000 + (guint64) k };
+                            .exposure_us = exposure, .gain_db = gain, .seed = (guint64) seed * 1000 + (guint64) k,
+                            .time_s = frame_time_s (k, interval, exposure) };
     g_autoptr (DsImage) f = ds_renderer_render (r, &req, &error);
     g_autofree char *path = g_strdup_printf ("%s/phase-%02d.png", out, k);
     if (!f || !ds_image_write (f, path, &error))
@@ -188,14 +223,14 @@ ds_sim_render_main (int argc, char **argv)
   gboolean has_black = ds_scene_spec (scene)->has_ambient;
   if (has_black) {
     DsRenderRequest req = { .illuminator_on = FALSE, .exposure_us = exposure, .gain_db = gain,
-                            .seed = (guint64) seed * 1000 + 999 };
+                            .seed = (guint64) seed * 1000 + 999, .time_s = frame_time_s (phases, interval, exposure) };
     g_autoptr (DsImage) f = ds_renderer_render (r, &req, &error);
     g_autofree char *path = g_strdup_printf ("%s/black.png", out);
     if (!f || !ds_image_write (f, path, &error))
       return fail (error);
   }
   DsImage *t = NULL, *s = NULL;
-  if (!ds_renderer_truth (r, exposure, gain, &t, &s, &error))
+  if (!ds_renderer_truth_at (r, exposure, gain, truth_time_s (phases, interval, exposure), &t, &s, &error))
     return fail (error);
   g_autoptr (DsImage) tt = t;
   g_autoptr (DsImage) ts = s;
@@ -203,7 +238,7 @@ ds_sim_render_main (int argc, char **argv)
   g_autofree char *p2 = g_strdup_printf ("%s/truth_scattered.tiff", out);
   if (!ds_image_write (tt, p1, &error) || !ds_image_write (ts, p2, &error))
     return fail (error);
-  if (!write_sidecar (out, argv[1], r, phases, exposure, gain, seed, has_black, &error))
+  if (!write_sidecar (out, argv[1], r, phases, exposure, interval, gain, seed, has_black, &error))
     return fail (error);
   printf ("descatter-sim: %d phases of %s written to %s\n", phases, argv[1], out);
   return 0;

@@ -11,6 +11,20 @@
 
 G_BEGIN_DECLS
 
+/* The object planes at one frame's time, made by the motion stage (stage_motion.c) for the
+ * objects and scattering stages: only planes holding a moving object are new. */
+typedef struct {
+  double time_s;
+  DsSceneSpec spec;             /* the scene's, with `objects` displaced to time_s (for the shapes
+                                 * beyond the maps' margin) */
+  DsSceneObject *objects;       /* owned array; names and paths borrowed from the scene */
+  DsImage *map[DS_SCENE_MAX_DEPTHS + 2]; /* per objects-stage plane, frame + margin; NULL: that
+                                          * plane is still, the objects stage's own map holds */
+  DsImage *direct;              /* frame: the product of every plane's map at time_s */
+} DsMovedObjects;
+
+void ds_moved_objects_free (DsMovedObjects *moved);
+
 /* Photons per pixel in one exposure, split by how they reach the lens. The scene goes on beyond
  * the field of view: `incident` covers the frame plus `margin` pixels on either side (what the
  * scattering kernels reach), so light scattered in from outside the frame is there. */
@@ -22,6 +36,7 @@ typedef struct {
   DsImage *scattered; /* scattered light reaching the lens inside its acceptance cone, f32 */
   double ambient;     /* pattern-independent photons per pixel, uniform */
   DsImage *frame;     /* the sensor's output (sensor stage) */
+  DsMovedObjects *moved; /* the motion stage's planes at args->time_s, or NULL (no motion) */
 } DsLight;
 
 typedef struct {
@@ -32,6 +47,7 @@ typedef struct {
   double exposure_us, gain_db;
   guint64 seed;
   double period_px;   /* 0: the scene's */
+  double time_s;      /* the frame's time (its exposure's midpoint): where moving objects are */
 } DsStageArgs;
 
 typedef struct DsStage DsStage;
@@ -53,6 +69,12 @@ double *ds_stage_pattern_profile (const DsSceneSpec *s, guint phase, guint n_pha
 DsStage *ds_stage_boundary_new (double n_outside, double n_medium);
 double ds_stage_boundary_normal_reflectance (double n1, double n2);
 DsStage *ds_stage_ballistic_new (double sigma_t, double thickness_mm);
+typedef enum { DS_OBJECTS_ALL, DS_OBJECTS_STILL, DS_OBJECTS_MOVING } DsObjectSelect;
+/* The transmittance map of the selected objects at one depth (frame + margin on every side),
+ * each shape displaced by its (dx, dy), area-sampled 4 x 4 per pixel; masks are clear beyond
+ * their image. */
+DsImage *ds_stage_objects_map_at_depth (const DsSceneSpec *s, double depth, guint margin, DsObjectSelect select,
+                                        GError **error);
 /* One plane per distinct object depth, shallowest first. margin: each plane's map covers the
  * frame plus margin pixels on every side (shapes go on; masks are clear outside their image). */
 DsStage *ds_stage_objects_new (const DsSceneSpec *s, guint margin, GError **error);
@@ -66,6 +88,13 @@ const DsImage *ds_stage_objects_plane_map (const DsStage *objects, guint plane);
  * around it: from the map where it reaches, from the shapes at pixel centres beyond. */
 DsImage *ds_stage_objects_coarse_map (const DsSceneSpec *s, const DsStage *objects, guint plane, guint f,
                                       guint block_margin, GError **error);
+/* As ds_stage_objects_coarse_map from a given fine map (frame + margin) of the objects at depth. */
+DsImage *ds_stage_objects_coarse_map_of (const DsSceneSpec *s, const DsImage *fine, double depth, guint f,
+                                         guint block_margin, GError **error);
+/* Built when an object declares a velocity: renders the planes holding moving objects at each
+ * frame's time into DsLight.moved, reusing the still objects' maps made here once. Runs before
+ * the objects stage; objects: that stage (borrowed, outlives this one). */
+DsStage *ds_stage_motion_new (const DsSceneSpec *s, const DsStage *objects, GError **error);
 /* objects: the objects stage or NULL; kernels: copied from, their planes the interior planes
  * of the objects stage (docs/scene-format.md, "Objects inside the medium"). */
 DsStage *ds_stage_scattering_new (const DsSceneSpec *s, const DsStage *objects, const DsSlabKernels *kernels,

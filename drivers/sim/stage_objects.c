@@ -21,6 +21,9 @@ wrap (double u, double p)
 static double
 row_aux (const DsSceneObject *o, double y)
 {
+  /* A moving object's shape is sampled where it stood at time 0: subtracting 0 for a still one
+   * leaves every sample's bits as they were. */
+  y -= o->dy;
   switch (o->shape) {
   case DS_SHAPE_GRID:
     return wrap (y, o->pitch) < o->line_width;
@@ -35,6 +38,8 @@ row_aux (const DsSceneObject *o, double y)
 static inline gboolean
 inside (const DsSceneObject *o, double x, double y, double aux)
 {
+  x -= o->dx;
+  y -= o->dy;
   switch (o->shape) {
   case DS_SHAPE_RECT:
     return x >= o->x && x < o->x + o->width && y >= o->y && y < o->y + o->height;
@@ -95,9 +100,12 @@ objects_apply (const DsStage *st, DsLight *l, const DsStageArgs *a, GError **err
   (void) a;
   (void) error;
   const ObjectPlanes *op = st->data;
+  /* The motion stage, when built, has rendered this frame's time: its product replaces the one
+   * made at time 0. */
+  const DsImage *direct = l->moved ? l->moved->direct : op->direct;
   for (guint y = 0; y < l->direct->height; y++) {
     float *dr = ds_image_row (l->direct, y);
-    const float *o = ds_image_row (op->direct, y);
+    const float *o = ds_image_row (direct, y);
     for (guint x = 0; x < l->direct->width; x++)
       dr[x] *= o[x];
   }
@@ -162,9 +170,16 @@ ds_stage_objects_interior_depths (const DsSceneSpec *s, DsSlabPlanes *planes)
     }
 }
 
-/* The map of the objects at one depth, over the frame and the margin. */
-static DsImage *
-plane_map (const DsSceneSpec *s, double depth, guint margin, GError **error)
+/* Whether object o is one `select` asks for. */
+static gboolean
+selected (const DsSceneObject *o, DsObjectSelect select)
+{
+  return select == DS_OBJECTS_ALL || (select == DS_OBJECTS_MOVING) == ds_scene_object_moves (o);
+}
+
+DsImage *
+ds_stage_objects_map_at_depth (const DsSceneSpec *s, double depth, guint margin, DsObjectSelect select,
+                               GError **error)
 {
   g_autoptr (DsImage) map = ds_image_new (DS_SAMPLE_F32, s->width + 2 * margin, s->height + 2 * margin, error);
   if (!map)
@@ -173,7 +188,7 @@ plane_map (const DsSceneSpec *s, double depth, guint margin, GError **error)
   guint n = 0;
   gboolean masks = FALSE;
   for (guint i = 0; i < s->n_objects; i++)
-    if (object_depth (s, i, depth)) {
+    if (object_depth (s, i, depth) && selected (&s->objects[i], select)) {
       masks |= s->objects[i].shape == DS_SHAPE_MASK;
       if (s->objects[i].shape != DS_SHAPE_MASK)
         here[n++] = &s->objects[i];
@@ -200,7 +215,7 @@ plane_map (const DsSceneSpec *s, double depth, guint margin, GError **error)
     }
   }
   for (guint i = 0; masks && i < s->n_objects; i++)
-    if (s->objects[i].shape == DS_SHAPE_MASK && object_depth (s, i, depth) &&
+    if (s->objects[i].shape == DS_SHAPE_MASK && object_depth (s, i, depth) && selected (&s->objects[i], select) &&
         !apply_mask (&s->objects[i], map, margin, error))
       return NULL;
   return g_steal_pointer (&map);
@@ -211,13 +226,18 @@ ds_stage_objects_coarse_map (const DsSceneSpec *s, const DsStage *st, guint plan
                              GError **error)
 {
   const ObjectPlanes *op = st->data;
-  const DsImage *fine = op->map[plane];
+  return ds_stage_objects_coarse_map_of (s, op->map[plane], op->depth_mm[plane], f, block_margin, error);
+}
+
+DsImage *
+ds_stage_objects_coarse_map_of (const DsSceneSpec *s, const DsImage *fine, double depth, guint f,
+                                guint block_margin, GError **error)
+{
   guint fm = (fine->width - s->width) / 2;
   guint bw = (s->width + f - 1) / f + 2 * block_margin, bh = (s->height + f - 1) / f + 2 * block_margin;
   g_autoptr (DsImage) c = ds_image_new (DS_SAMPLE_F32, bw, bh, error);
   if (!c)
     return NULL;
-  double depth = op->depth_mm[plane];
   g_autofree const DsSceneObject **here = g_new0 (const DsSceneObject *, s->n_objects + 1);
   guint n = 0;
   for (guint i = 0; i < s->n_objects; i++)
@@ -284,7 +304,7 @@ ds_stage_objects_new (const DsSceneSpec *s, guint margin, GError **error)
   GError *local = NULL;
   op->direct = ds_image_new (DS_SAMPLE_F32, s->width, s->height, &local);
   for (guint j = 0; !local && j < op->n_planes; j++) {
-    op->map[j] = plane_map (s, op->depth_mm[j], margin, &local);
+    op->map[j] = ds_stage_objects_map_at_depth (s, op->depth_mm[j], margin, DS_OBJECTS_ALL, &local);
     if (!op->map[j])
       break;
   }

@@ -47,6 +47,10 @@ typedef struct {
   DsScaleMap entry, plane[DS_SLAB_MAX_PLANES + 1]; /* planes 1..n */
   gboolean has_entry;
   const DsImage *exit;      /* frame + map margin, or NULL */
+  /* The objects stage's plane behind each map (entry, planes 1..n, exit), so that a frame's
+   * moved maps (DsLight.moved) replace the ones made here. */
+  guint entry_plane, plane_of[DS_SLAB_MAX_PLANES + 1], exit_plane;
+  double depth_of[DS_SCENE_MAX_DEPTHS + 2]; /* of each objects-stage plane */
   guint map_margin;
   guint radius_px;
   double held, scattered_in_cone, se_scattered_in_cone, mtf, mtf_noise;
@@ -85,8 +89,8 @@ static const double identity[2] = { 0.0, 1.0 };
  * with objects keeps, the object-free one stands for it (two_scale.h). d1_row: segment 0's
  * light at plane 1 (no entry objects), d1_x0 its first frame column. */
 static gboolean
-chain (const ScatterData *d, const DsLight *l, const float *d1_row, int d1_x0, DsField **with, DsField **clear,
-       GError **error)
+chain (const ScatterData *d, const DsLight *l, const DsScaleMap *entry, const DsScaleMap *planes,
+       const float *d1_row, int d1_x0, DsField **with, DsField **clear, GError **error)
 {
   const DsScale *sc = &d->sc;
   const float *in = ds_image_row (l->incident, 0);
@@ -98,7 +102,7 @@ chain (const ScatterData *d, const DsLight *l, const float *d1_row, int d1_x0, D
   g_autoptr (DsField) s1 = NULL;
   if (d->has_entry) {
     g_autoptr (DsField) inc = ds_field_from_row (sc, L + 1, in, in_x0, 1.0, error);
-    g_autoptr (DsField) lit = inc ? ds_field_weigh (sc, inc, &d->entry, identity, 2, L + 1, error) : NULL;
+    g_autoptr (DsField) lit = inc ? ds_field_weigh (sc, inc, entry, identity, 2, L + 1, error) : NULL;
     if (!lit)
       return FALSE;
     const DsField *src1[1] = { inc }, *src[1] = { lit };
@@ -116,7 +120,7 @@ chain (const ScatterData *d, const DsLight *l, const float *d1_row, int d1_x0, D
       return FALSE;
   }
   for (guint j = 1; j <= d->n; j++, L -= 2) {
-    const DsScaleMap *map = &d->plane[j];
+    const DsScaleMap *map = &planes[j];
     /* Without objects. */
     g_autoptr (DsField) xb1 = ds_field_crop (sc, b1, L, 1, error);
     g_autoptr (DsField) xd1 = xb1 ? ds_field_crop (sc, s1, L, 1, error) : NULL;
@@ -155,11 +159,18 @@ chain (const ScatterData *d, const DsLight *l, const float *d1_row, int d1_x0, D
   return TRUE;
 }
 
+/* The frame's maps: the ones made at construction, with those of planes a moving object is on
+ * made again from the motion stage's maps (coarse blocks from the displaced shapes). */
+struct FrameMaps {
+  DsScaleMap entry, plane[DS_SLAB_MAX_PLANES + 1];
+  const DsImage *exit;
+  DsImage *owned[DS_SLAB_MAX_PLANES + 2];
+};
+typedef struct FrameMaps FrameMaps;
+
 static gboolean
-scattering_apply (const DsStage *st, DsLight *l, const DsStageArgs *a, GError **error)
+scatter_frame (const ScatterData *d, DsLight *l, const FrameMaps *fm, GError **error)
 {
-  (void) a;
-  const ScatterData *d = st->data;
   guint W = l->direct->width, H = l->direct->height, M = d->in_margin;
   const float *in = ds_image_row (l->incident, 0);
   g_autofree float *full = g_new (float, W);
@@ -169,7 +180,7 @@ scattering_apply (const DsStage *st, DsLight *l, const DsStageArgs *a, GError **
       memcpy (ds_image_row (l->scattered, y), full, W * sizeof (float));
   } else if (d->n == 0) {
     g_autoptr (DsField) inc = ds_field_from_row (&d->sc, 1, in, -(int) M, 1.0, error);
-    g_autoptr (DsField) lit = inc ? ds_field_weigh (&d->sc, inc, &d->entry, identity, 2, 1, error) : NULL;
+    g_autoptr (DsField) lit = inc ? ds_field_weigh (&d->sc, inc, &fm->entry, identity, 2, 1, error) : NULL;
     const DsField *src[1] = { lit };
     g_autoptr (DsField) out = lit ? ds_scale_step_apply (d->step_entry, src, NULL, error) : NULL;
     if (!out)
@@ -188,7 +199,7 @@ scattering_apply (const DsStage *st, DsLight *l, const DsStageArgs *a, GError **
     }
     g_autoptr (DsField) with = NULL;
     g_autoptr (DsField) clear = NULL;
-    if (!chain (d, l, d1, d1_x0, &with, &clear, error))
+    if (!chain (d, l, &fm->entry, fm->plane, d1, d1_x0, &with, &clear, error))
       return FALSE;
     const float *c1 = ds_image_row (clear->fine, 0);
     for (guint y = 0; y < H; y++) {
@@ -200,14 +211,66 @@ scattering_apply (const DsStage *st, DsLight *l, const DsStageArgs *a, GError **
       }
     }
   }
-  if (d->exit)
+  if (fm->exit)
     for (guint y = 0; y < H; y++) {
       float *o = ds_image_row (l->scattered, y);
-      const float *e = (const float *) ds_image_row (d->exit, y + d->map_margin) + d->map_margin;
+      const float *e = (const float *) ds_image_row (fm->exit, y + d->map_margin) + d->map_margin;
       for (guint x = 0; x < W; x++)
         o[x] *= e[x];
     }
   return TRUE;
+}
+
+static void
+frame_maps_clear (FrameMaps *fm)
+{
+  for (guint i = 0; i < G_N_ELEMENTS (fm->owned); i++)
+    ds_image_free (fm->owned[i]);
+}
+
+static gboolean
+moved_map (const ScatterData *d, const DsMovedObjects *m, guint plane, DsScaleMap *map, DsImage **owned,
+           GError **error)
+{
+  if (!m || !m->map[plane])
+    return TRUE;
+  map->fine = m->map[plane];
+  if (d->sc.f > 1) {
+    double depth = d->depth_of[plane];
+    *owned = ds_stage_objects_coarse_map_of (&m->spec, map->fine, depth, d->sc.f, map->block_margin, error);
+    map->coarse = *owned;
+    return *owned != NULL;
+  }
+  return TRUE;
+}
+
+static gboolean
+frame_maps (const ScatterData *d, const DsMovedObjects *m, FrameMaps *fm, GError **error)
+{
+  fm->entry = d->entry;
+  memcpy (fm->plane, d->plane, sizeof fm->plane);
+  fm->exit = d->exit;
+  if (!m)
+    return TRUE;
+  if (d->has_entry && !moved_map (d, m, d->entry_plane, &fm->entry, &fm->owned[0], error))
+    return FALSE;
+  for (guint j = 1; j <= d->n; j++)
+    if (!moved_map (d, m, d->plane_of[j], &fm->plane[j], &fm->owned[j], error))
+      return FALSE;
+  if (d->exit && m->map[d->exit_plane])
+    fm->exit = m->map[d->exit_plane];
+  return TRUE;
+}
+
+static gboolean
+scattering_apply (const DsStage *st, DsLight *l, const DsStageArgs *a, GError **error)
+{
+  (void) a;
+  const ScatterData *d = st->data;
+  FrameMaps fm = { 0 };
+  gboolean ok = frame_maps (d, l->moved, &fm, error) && scatter_frame (d, l, &fm, error);
+  frame_maps_clear (&fm);
+  return ok;
 }
 
 static gboolean
@@ -349,16 +412,21 @@ ds_stage_scattering_new (const DsSceneSpec *s, const DsStage *objects, const DsS
   guint found = 0;
   for (guint i = 0; ok && objects && i < ds_stage_objects_n_planes (objects); i++) {
     double z = ds_stage_objects_plane_depth (objects, i);
+    d->depth_of[i] = z;
     if (ds_stage_objects_plane_map (objects, i)->width != s->width + 2 * d->map_margin) {
       g_set_error (error, DS_SIM_ERROR, DS_SIM_ERROR_INVALID, "scattering: object maps need a margin of %u px",
                    d->map_margin);
       ok = FALSE;
-    } else if (z <= 0)
+    } else if (z <= 0) {
+      d->entry_plane = i;
       ok = make_map (d, s, objects, i, MAX (d->top, 1u), &d->entry, error);
-    else if (z >= s->thickness_mm)
+    } else if (z >= s->thickness_mm) {
+      d->exit_plane = i;
       d->exit = ds_stage_objects_plane_map (objects, i);
-    else if (found < d->n && fabs (z - k->planes.depth_mm[found]) <= DS_SCENE_DEPTH_TOLERANCE_MM)
+    } else if (found < d->n && fabs (z - k->planes.depth_mm[found]) <= DS_SCENE_DEPTH_TOLERANCE_MM) {
+      d->plane_of[found + 1] = i;
       ok = make_map (d, s, objects, i, d->top, &d->plane[++found], error);
+    }
   }
   if (ok && found != d->n) {
     g_set_error (error, DS_SIM_ERROR, DS_SIM_ERROR_INVALID,

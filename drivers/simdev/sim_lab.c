@@ -35,6 +35,8 @@ struct DsSimLab {
   DsFrameIdTracker ids;
   GQueue pending;          /* rendered frames waiting for grab (DsFrame*, or NULL = incomplete) */
   DsCameraStats stats;
+  gint64 opened_us;        /* monotonic clock at creation: the scene's time origin, where moving
+                              objects stand at their declared position */
 };
 
 gboolean
@@ -126,6 +128,7 @@ ds_sim_lab_new (DsRenderer *renderer, guint64 seed)
   const DsSceneSpec *s = ds_scene_spec (ds_renderer_scene (renderer));
   lab->exposure_us = s->exposure_us;
   g_queue_init (&lab->pending);
+  lab->opened_us = g_get_monotonic_time ();
   return lab;
 }
 
@@ -315,7 +318,10 @@ cam_trigger (gpointer b, GError **error)
   DsRenderRequest req = { .phase = shown, .n_phases = lab->n_phases, .illuminator_on = lab->on,
                           .all_on = lab->on && lab->all_on,
                           .exposure_us = lab->exposure_us, .gain_db = lab->gain_db,
-                          .seed = lab->seed * 1000003u + lab->renders++, .period_px = lab->period_px };
+                          .seed = lab->seed * 1000003u + lab->renders++, .period_px = lab->period_px,
+                          /* The exposure starts at the trigger: its midpoint is where moving objects are. */
+                          .time_s = (double) (g_get_monotonic_time () - lab->opened_us) / 1e6 +
+                                    lab->exposure_us / 2e6 };
   DsImage *img = ds_renderer_render (lab->renderer, &req, error);
   if (!img) {
     g_prefix_error (error, "simulated camera: ");
