@@ -432,6 +432,28 @@ setup (WindowStream *ws, GError **error)
   return TRUE;
 }
 
+/* The window a run before this one filled is gone (a command ran in between); a break is told
+ * when the settings or the sensor region changed, which is what the frames after it differ
+ * by. */
+static void
+note_settings (DsAcquisition *acq, const DsCaptureSettings *s)
+{
+  const DsCaptureSettings *was = &acq->window_settings;
+  gboolean region_same = was->roi_x == s->roi_x && was->roi_y == s->roi_y && was->roi_width == s->roi_width &&
+                         was->roi_height == s->roi_height;
+  if (acq->window_ran && (!ds_capture_settings_equal (was, s) || !region_same)) {
+    g_mutex_lock (&acq->shared->lock);
+    acq->shared->status.window_breaks++;
+    g_strlcpy (acq->shared->status.last_window_break, "settings", sizeof acq->shared->status.last_window_break);
+    g_mutex_unlock (&acq->shared->lock);
+    ds_seq_emit (acq->shared, DS_SEQUENCER_EVENT_WINDOW_BROKEN, 0, NULL, NULL,
+                 region_same ? "settings: the stream's settings changed (a reload, `set`, or a new start)"
+                             : "settings: the camera's region changed (`set`)");
+  }
+  acq->window_ran = TRUE;
+  acq->window_settings = *s;
+}
+
 void
 ds_seq_run_window_stream (DsAcquisition *acq, const DsCaptureSettings *requested)
 {
@@ -454,20 +476,11 @@ ds_seq_run_window_stream (DsAcquisition *acq, const DsCaptureSettings *requested
     ws.kept_ts = g_new0 (guint64, ws.n);
     ws.kept_push = g_new0 (guint64, ws.n);
   }
-  /* The window a run before this one filled is gone (a command ran in between); say so when
-   * the settings changed, which is what the frames after it differ by. */
-  if (acq->window_ran && !ds_capture_settings_equal (&acq->window_settings, requested)) {
-    g_mutex_lock (&acq->shared->lock);
-    acq->shared->status.window_breaks++;
-    g_strlcpy (acq->shared->status.last_window_break, "settings", sizeof acq->shared->status.last_window_break);
-    g_mutex_unlock (&acq->shared->lock);
-    ds_seq_emit (acq->shared, DS_SEQUENCER_EVENT_WINDOW_BROKEN, 0, NULL, NULL,
-                 "settings: the stream's settings changed (a reload, `set`, or a new start)");
-  }
-  acq->window_ran = TRUE;
-  acq->window_settings = *requested;
   g_autoptr (GError) error = NULL;
-  gboolean ok = setup (&ws, &error) && run_frames (&ws, &error);
+  gboolean ok = setup (&ws, &error);
+  if (ok)
+    note_settings (acq, &ws.settings);
+  ok = ok && run_frames (&ws, &error);
   if (ws.in_flight) {
     /* The worker must be idle before the window is touched again; its frame is counted. */
     g_autoptr (GError) ignored = NULL;

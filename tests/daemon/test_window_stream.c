@@ -11,6 +11,8 @@
  *   result comes only N good frames after the bad one, says so (window.since_break = N, the
  *   reason in window.last_break), and a window_broken event names the reason. The frame
  *   accounting stays exact (acquired = folded + dropped).
+ * - set-breaks: `set` exposure breaks the window (reason settings); the next result has the new
+ *   exposure and comes N frames later.
  * - averages-refused: per-frame results with M > 1 are refused as bad_argument. */
 #include <string.h>
 
@@ -240,6 +242,36 @@ test_break (gconstpointer data)
   test_daemon_stop_clean (d);
 }
 
+/* `set` changes the exposure between two frames: the window breaks ("settings"), and the next
+ * result, N frames after it, has the new exposure. */
+static void
+test_set_breaks (void)
+{
+  TestDaemon *d = start_daemon (NULL);
+  g_autoptr (DsClient) sub = test_daemon_connect (d);
+  g_autoptr (DsClient) c = test_daemon_connect (d);
+  g_autoptr (DsMessage) s = test_daemon_call_ok (sub, "subscribe", NULL);
+  start_per_frame (c, FALSE, FALSE);
+  g_autoptr (DsMessage) first = next_event (sub, "result");
+  double exposure = json_object_get_double_member (
+      json_object_get_object_member (json_node_get_object (first->reply->body), "settings"), "exposure_us");
+  g_autoptr (JsonObject) args = json_object_new ();
+  json_object_set_double_member (args, "exposure_us", exposure / 2);
+  g_autoptr (DsMessage) set = test_daemon_call_ok (c, "set", args);
+  g_autoptr (DsMessage) broken = next_event (sub, "window_broken");
+  g_assert_cmpstr (json_object_get_string_member (json_node_get_object (broken->reply->body), "reason"), ==,
+                   "settings");
+  g_autoptr (DsMessage) after = next_event (sub, "result");
+  JsonObject *settings = json_object_get_object_member (json_node_get_object (after->reply->body), "settings");
+  g_assert_cmpfloat (json_object_get_double_member (settings, "exposure_us"), ==, exposure / 2);
+  g_assert_cmpint (test_json_int (after->reply->body, "window.since_break"), ==, N_PHASES);
+  g_assert_cmpstr (json_object_get_string_member (json_object_get_object_member (
+                       json_node_get_object (after->reply->body), "window"), "last_break"), ==, "settings");
+  g_autoptr (DsMessage) stop = test_daemon_call_ok (c, "stop", NULL);
+  test_daemon_frames (c);
+  test_daemon_stop_clean (d);
+}
+
 static void
 test_averages_refused (void)
 {
@@ -269,6 +301,7 @@ main (int argc, char **argv)
   g_test_add_func ("/window-stream/equals-fresh-set", test_equals_fresh_set);
   g_test_add_data_func ("/window-stream/lost-frame", lost, test_break);
   g_test_add_data_func ("/window-stream/refused-frame", refused, test_break);
+  g_test_add_func ("/window-stream/set-breaks", test_set_breaks);
   g_test_add_func ("/window-stream/averages-refused", test_averages_refused);
   return g_test_run ();
 }
