@@ -9,7 +9,8 @@ lab (continuous mode `results = per-frame`, docs/protocol.md "Per-frame results"
     newest_frame_id, read by a socket subscriber: an independent route);
   - how many camera frames the page showed a result of, against the frames the camera took
     meanwhile, is printed (the page's refresh rate decides it: no assertion on speed).
-Usage: test_live_per_frame.py DESCATTERD DESCATTERCTL PYTHON_PACKAGE_DIR"""
+Optionally saves a screenshot of the page showing per-frame results (docs/live-view-per-frame.png).
+Usage: test_live_per_frame.py DESCATTERD DESCATTERCTL PYTHON_PACKAGE_DIR [SCREENSHOT.png]"""
 import os
 import sys
 import tempfile
@@ -25,6 +26,7 @@ BODY = "document.body.dataset"
 
 def main():
     daemon, ctl, package = sys.argv[1:4]
+    shot = sys.argv[4] if len(sys.argv) > 4 else None
     sys.path.insert(0, package)
     import descatter
     with tempfile.TemporaryDirectory() as tmp:
@@ -58,6 +60,8 @@ def main():
                     d.wait_for(lambda s: s["frames"]["acquired"] >= a0 + 24, "24 more camera frames")
                     a1 = d.status()["frames"]["acquired"]
                     shown1 = int(b.js(f"{BODY}.results"))
+                    if shot:
+                        b.screenshot(shot)
                     assert d.ctl("stop", check=False).returncode == 0
                     d.wait_for(lambda s: s["state"] == "idle", "idle after stop")
                 finally:
