@@ -1,6 +1,7 @@
 #!/usr/bin/python3
 """Per-frame results in the live view, in headless Chromium against descatterd on the simulated
 lab (continuous mode `results = per-frame`, docs/protocol.md "Per-frame results"):
+  - continuous mode started from the page with results "per frame" (its results selector);
   - the page shows per-frame results ("frame N (newest of 4)") and their window;
   - the results it is sent come newest first, never an older one after a newer (no backlog
     replayed: the live view keeps only the newest update per client, sent once the page has
@@ -52,8 +53,11 @@ def main():
                 t = threading.Thread(target=listen)
                 t.start()
                 try:
-                    r = d.ctl("start", "--results", "per-frame", check=False)
-                    assert r.returncode == 0, r.stderr
+                    # Started from the page's own controls: N = 4, results per frame.
+                    b.js("(() => { const p = document.getElementById('phases'); p.value = '4';"
+                         " document.getElementById('results').value = 'per-frame'; })()")
+                    b.click("#start")
+                    d.wait_for(lambda s: s["state"] == "continuous", "continuous mode")
                     b.wait(f"Number({BODY}.results || 0) >= 3", "three per-frame results on the page", timeout=60)
                     a0 = d.status()["frames"]["acquired"]
                     shown0 = int(b.js(f"{BODY}.results"))
