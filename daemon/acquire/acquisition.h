@@ -17,6 +17,8 @@
  *   auto_point.c   the automatic operating point (preview frames)
  *   camera_live.c  the `set` command: exposure, gain and region on the open camera
  *   stream_stop.c  continuous mode that stops by itself when its sets keep failing
+ *   window_stream.c continuous mode with per-frame results: a sliding window over the newest
+ *                  frame of each phase, verified and broken like a set's frames
  *   preview.c      preview mode: free-running frames with a chosen light, no sets
  * Beside the thread, each with its own header: frame_counters.c (frame accounting),
  * result.c and result_planes.c (the published result and its planes), capture_settings.c,
@@ -39,6 +41,7 @@
 #include "daemon/operating/rig_timing.h"
 #include "daemon/output/raw_frames.h"
 #include "proc/phase_check.h"
+#include "proc/phase_window.h"
 
 G_BEGIN_DECLS
 
@@ -127,6 +130,13 @@ typedef struct {
   DsRawFrames *raw;
   gboolean raw_incomplete;        /* a copy failed (a job's raw_copy_failed, or reserving):
                                    * the set's raw frames are not published */
+  /* Per-frame results (window_stream.c): the sliding window, lent to the fold worker during a
+   * job like the phase set, and the settings of the stream that filled it last. */
+  DsPhaseWindow *window;
+  DsSeparationParams window_params;
+  guint window_width, window_height;
+  gboolean window_ran;
+  DsCaptureSettings window_settings;
   gint64 last_frame_us;           /* arrival of the last folded frame */
   DsLastFrameTimes last_frame_times; /* ... and its job's stamps */
   guint64 next_set_id;
@@ -230,6 +240,17 @@ gboolean ds_seq_stream_gives_up (DsAcquisition *acq, guint consecutive_failures)
  * in the totals either way. Blocks for the whole set; fails only through the event. */
 void ds_seq_run_set (DsAcquisition *acq, const DsCaptureSettings *requested, guint64 tag,
                      DsSetOrigin origin);
+
+/* ---- window_stream.c: blocks for the stream's frames (device calls, waits for fold jobs) ---- */
+
+/* Continuous mode with `requested->per_frame`: frames of phases 0, 1, ..., N-1, 0, ... back to
+ * back, each verified like a set's (stale, frame gap, stripe phase) and pushed into the
+ * sliding window, which publishes a RESULT (tag 0) for every good frame once it holds a
+ * confirmed frame of every phase. A lost or refused frame, or settings other than the last
+ * run's, break the window (a WINDOW_BROKEN event). Runs until a command is queued, the work is
+ * cancelled or the daemon stops (the window's frames not yet in a result are aborted), or the
+ * frames keep failing: a FAILED event then, counted as a failed set. */
+void ds_seq_run_window_stream (DsAcquisition *acq, const DsCaptureSettings *requested);
 
 /* ---- pipeline.c: blocks for the set's frames (device calls, and waits for fold jobs) ---- */
 

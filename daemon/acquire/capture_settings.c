@@ -30,6 +30,7 @@ ds_capture_settings_from_config (DsCaptureSettings *s, const DsConfig *c)
   s->verify_phase = c->verify_phase;
   /* A spool that records raw frames needs every set to keep them. */
   s->save_phases = c->spool_dir && c->spool_save_phases;
+  s->per_frame = c->results && strcmp (c->results, "per-frame") == 0;
   /* A quarter of the phase step: a frame lit one phase off is then always refused. */
   s->phase_tolerance_deg = isnan (c->phase_tolerance_deg) ? ds_phase_check_default_tolerance_deg (c->phases)
                                                       : c->phase_tolerance_deg;
@@ -85,6 +86,9 @@ ds_capture_settings_to_json (const DsCaptureSettings *s)
   INT ("phase_retries", s->phase_retries);
   BOOL ("verify_phase", s->verify_phase);
   BOOL ("save_phases", s->save_phases);
+  /* Only in per-frame mode, so that a set's settings read as they always did. */
+  if (s->per_frame)
+    STR ("results", "per-frame");
   if (s->automatic) {
     json_builder_set_member_name (b, "operating_point");
     json_builder_begin_object (b);
@@ -120,5 +124,5 @@ ds_capture_settings_equal (const DsCaptureSettings *a, const DsCaptureSettings *
          a->saturation_dn == b->saturation_dn &&
          a->dark_frame == b->dark_frame && a->phase_retries == b->phase_retries &&
          a->verify_phase == b->verify_phase && a->phase_tolerance_deg == b->phase_tolerance_deg &&
-         a->save_phases == b->save_phases;
+         a->save_phases == b->save_phases && a->per_frame == b->per_frame;
 }

@@ -36,6 +36,8 @@ typedef struct {
   double phase_tolerance_deg; /* resolved: never NAN here */
   gboolean keep_extrema;      /* also compute max, min and mean (asked for by a client) */
   gboolean save_phases;       /* keep the raw phase and dark frames in the result */
+  gboolean per_frame;         /* continuous mode: a result for every frame from the newest frame of
+                               * each phase (window_stream.c) instead of one per set; M = 1 */
   /* Automatic operating point (docs/accuracy.md): when either is > 0, a preview frame and the
    * model choose estimator, phases, averages and exposure; the choice is recorded below. */
   double target_error;        /* relative RMSE of transmissive; 0 = none */

@@ -45,9 +45,13 @@ run_job (DsSequencerShared *shared, DsFoldJob *job, gboolean overlapped)
    * meanwhile (continuous mode), since a finalize spread over every core delays that frame's
    * transfer and with it the next set. Nothing overlaps with the last frame of a set
    * otherwise: it takes every core. */
-  ds_phase_set_set_fold_threads (job->set, overlapped ? 1 : 0);
-  ds_phase_set_set_finalize_threads (job->set, overlapped ? 1 : 0);
-  if (job->finalize_into) {
+  if (!job->window_step) {
+    ds_phase_set_set_fold_threads (job->set, overlapped ? 1 : 0);
+    ds_phase_set_set_finalize_threads (job->set, overlapped ? 1 : 0);
+  }
+  if (job->window_step) {
+    job->folded = job->window_step (job, job->window_data);
+  } else if (job->finalize_into) {
     /* The set's last frame: the result's planes now, in the same job (on the fold thread in
      * continuous mode, while the next set's first frame exposes, on this thread alone;
      * docs/design.md), the frame folded on the finalize's pass over the pixels. The fold
@@ -131,7 +135,8 @@ ds_fold_worker_submit (DsFoldWorker *w, const DsFoldJob *job, gboolean here)
   w->job = (DsFoldJob) { .settings = job->settings, .phase = job->phase, .frame = job->frame,
                          .applied_at_us = job->applied_at_us, .set = job->set,
                          .phase_check = job->phase_check, .raw = job->raw,
-                         .finalize_into = job->finalize_into };
+                         .finalize_into = job->finalize_into, .window_step = job->window_step,
+                         .window_data = job->window_data };
   if (here) {
     /* Nothing to overlap with (the last frame of a set): no hand-over, no wake-up latency.
      * The worker is idle (no job), so the phase set is this thread's. */

@@ -39,7 +39,7 @@ void ds_frame_verdict_clear (DsFrameVerdict *verdict);
 
 typedef struct DsFoldWorker DsFoldWorker;
 
-typedef struct {
+typedef struct DsFoldJobS {
   /* In: borrowed by the worker from submit to collect; the acquisition thread leaves them
    * alone meanwhile. */
   const DsCaptureSettings *settings;
@@ -51,6 +51,11 @@ typedef struct {
   DsRawFrames *raw;                  /* the frame is copied in once folded; NULL: no copy */
   DsSeparation *finalize_into;       /* the set's last frame: once folded, the set is finalized
                                       * into these planes */
+  /* Per-frame results (window_stream.c): once verified, the frame goes to window_step instead
+   * of into `set` (NULL then); it returns whether the frame was taken (else fold_error), and
+   * sets finalized when it finalized a result into finalize_into. window_data is lent too. */
+  gboolean (*window_step) (struct DsFoldJobS *job, gpointer window_data);
+  gpointer window_data;
   /* Out: the worker's findings, read by the acquisition thread after collect. */
   DsFrameVerdict verdict;
   gboolean folded;                   /* verified and folded */

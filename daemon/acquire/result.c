@@ -30,6 +30,8 @@ struct DsResult {
   gboolean have_provenance;
   DsResultProvenance provenance;
   DsRawFrames *raw;
+  gboolean have_window;
+  DsResultWindow window;
   JsonNode *meta;            /* built once, on the main thread */
   PayloadSet payloads[2][2]; /* [format][extrema] */
   /* The raw frames as payloads, built on demand. */
@@ -120,6 +122,19 @@ void
 ds_result_set_last_frame_times (DsResult *result, const DsLastFrameTimes *times)
 {
   result->last_frame = *times;
+}
+
+void
+ds_result_set_window (DsResult *result, const DsResultWindow *window)
+{
+  result->window = *window;
+  result->have_window = TRUE;
+}
+
+gboolean
+ds_result_per_frame (const DsResult *result)
+{
+  return result->have_window;
 }
 
 const DsRawFrames *
@@ -341,6 +356,17 @@ build_meta (DsResult *r)
   json_builder_end_object (b);
   if (r->raw)
     add_raw_frames (b, r->raw);
+  if (r->have_window) {
+    json_builder_set_member_name (b, "window");
+    json_builder_begin_object (b);
+    add_int (b, "frames", r->window.frames);
+    add_int (b, "span", (gint64) r->window.span);
+    add_int (b, "newest_frame_id", (gint64) r->window.newest_frame_id);
+    add_int (b, "since_break", (gint64) r->window.since_break);
+    add_int (b, "breaks", (gint64) r->window.breaks);
+    add_string (b, "last_break", r->window.last_break);
+    json_builder_end_object (b);
+  }
   json_builder_end_object (b);
   return json_builder_get_root (b);
 }

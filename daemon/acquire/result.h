@@ -62,6 +62,21 @@ typedef struct {
 } DsLastFrameTimes;
 void ds_result_set_last_frame_times (DsResult *result, const DsLastFrameTimes *times);
 
+/* A per-frame result's sliding window (continuous mode `results = per-frame`): the metadata's
+ * `window` object (docs/protocol.md, "Per-frame results"). Acquisition thread, before the
+ * result is emitted; a set's result has none. */
+typedef struct {
+  guint frames;             /* N: one frame per phase */
+  guint64 span;             /* frames pushed from the window's oldest to its newest, inclusive */
+  guint64 newest_frame_id;  /* the camera's id of the frame that completed this result */
+  guint64 since_break;      /* good frames since the window was last broken */
+  guint64 breaks;           /* breaks since continuous mode started */
+  char last_break[48];      /* the last break's reason ("" none) */
+} DsResultWindow;
+void ds_result_set_window (DsResult *result, const DsResultWindow *window);
+/* Whether the result is a per-frame one (it has a window). Any thread. */
+gboolean ds_result_per_frame (const DsResult *result);
+
 /* The raw frames of the set (capture with save_phases); takes ownership. Acquisition thread,
  * before the result is emitted. */
 void ds_result_set_raw_frames (DsResult *result, DsRawFrames *raw);

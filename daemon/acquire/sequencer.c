@@ -257,7 +257,10 @@ run_stream_set (DsAcquisition *acq, guint *consecutive_failures)
   guint64 failed_before = acq->shared->status.sets_failed;
   g_mutex_unlock (&acq->shared->lock);
   acq->work_gen = acq->run.gen;
-  ds_seq_run_set (acq, &acq->run.settings, 0, DS_SET_FOR_STREAM);
+  if (acq->run.settings.per_frame)
+    ds_seq_run_window_stream (acq, &acq->run.settings);
+  else
+    ds_seq_run_set (acq, &acq->run.settings, 0, DS_SET_FOR_STREAM);
   g_mutex_lock (&acq->shared->lock);
   gboolean failed = acq->shared->status.sets_failed != failed_before;
   g_mutex_unlock (&acq->shared->lock);
@@ -521,6 +524,7 @@ acquisition_clear (DsAcquisition *acq)
   if (acq->dev)
     ds_devices_close (acq->dev);
   g_clear_pointer (&acq->set, ds_phase_set_free);
+  g_clear_pointer (&acq->window, ds_phase_window_free);
   g_clear_pointer (&acq->dark, ds_image_free);
   g_clear_pointer (&acq->planes, ds_plane_pool_unref);
   g_clear_pointer (&acq->raw, ds_raw_frames_free);

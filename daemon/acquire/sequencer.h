@@ -37,6 +37,8 @@ typedef enum {
   DS_SEQUENCER_EVENT_CONTROL,     /* devices released or acquired for `tag` (error set if not) */
   DS_SEQUENCER_EVENT_STREAM_STOPPED, /* continuous mode stopped by itself: message says when and
                                       * why (its sets kept failing) */
+  DS_SEQUENCER_EVENT_WINDOW_BROKEN,  /* per-frame results: the sliding window was broken;
+                                      * message is "REASON: detail" (window_stream.c) */
 } DsSequencerEventKind;
 
 typedef struct {
@@ -213,6 +215,9 @@ typedef struct {
   guint pending;
   guint64 sets_done, sets_failed;
   guint64 sets_cancelled;       /* sets and dark frames ended by a cancel or the daemon stopping */
+  guint64 frame_results;        /* per-frame results published (continuous `results = per-frame`) */
+  guint64 window_breaks;        /* ... sliding windows broken (lost, refused frame, new settings) */
+  char last_window_break[48];   /* the last break's reason ("" none) */
   DsFrameCounters frames;
   DsStageTime stages[DS_STAGE_N];
   DsCameraStats camera_stats;

@@ -189,6 +189,8 @@ static const KeySpec keys[] = {
     "retries of one phase before the set fails" },
   { "acquisition", "max-failed-sets", K_UINT, LIVE, F (max_failed_sets), "10", 0, 1000000, NULL,
     "continuous acquisition stops after this many sets in a row failed, saying why; 0 = never" },
+  { "acquisition", "results", K_CHOICE, LIVE, F (results), "per-set", 0, 0, "per-set|per-frame",
+    "continuous mode: a result per phase set, or one per frame from the latest N phases (needs averages = 1)" },
   { "acquisition", "verify-phase", K_BOOL, LIVE, F (verify_phase), "true", 0, 0, NULL,
     "measure the stripe phase in each frame and refuse frames lit with the wrong phase" },
   { "acquisition", "operating-model", K_STRING, RESTART, F (operating_model), NULL, 0, 0, NULL,

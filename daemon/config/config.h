@@ -92,6 +92,7 @@ typedef struct {
   gboolean dark_frame;
   guint phase_retries;
   guint max_failed_sets;  /* continuous mode stops after this many failed sets in a row; 0 = never */
+  char *results;          /* continuous mode: "per-set" or "per-frame" (sliding window) */
   gboolean verify_phase;
   double phase_tolerance_deg;
   char *operating_model;  /* NULL: built-in */

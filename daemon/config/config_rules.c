@@ -95,6 +95,9 @@ ds_config_check_consistency (const DsConfig *c, const char *name, GError **error
                   "reach it", c->saturation_dn, c->pixel_format, pixel_format_top (c->pixel_format));
   if (strcmp (c->estimator, "sine") == 0 && c->phases < 3)
     INCONSISTENT ("[acquisition] estimator = sine needs phases >= 3 (got %u)", c->phases);
+  if (strcmp (c->results, "per-frame") == 0 && c->averages > 1)
+    INCONSISTENT ("[acquisition] results = per-frame needs averages = 1 (got %u): the sliding window holds one "
+                  "frame per phase and does not average", c->averages);
   if (c->spool_dir && (!c->spool_formats || !*c->spool_formats))
     INCONSISTENT ("[daemon] spool-formats is empty: name at least one of tiff, png16, preview, hdf5, hdf5-run");
   if (c->http_listen && !ds_config_parse_host_port (c->http_listen, NULL, NULL))

@@ -385,7 +385,12 @@ ds_ctl_start (const DsCtlTarget *target, int argc, char **argv)
 {
   g_auto (AcqOptions) o = { 0 };
   gboolean json = FALSE;
-  GOptionEntry entries[] = { ACQ_ENTRIES (o), DS_CTL_JSON_ENTRY (json), { NULL } };
+  g_autofree char *results = NULL;
+  GOptionEntry entries[] = { ACQ_ENTRIES (o),
+                             { "results", 0, 0, G_OPTION_ARG_STRING, &results,
+                               "per-set (a result per phase set) or per-frame (a result per frame from the "
+                               "latest N phases; needs averages 1)", "MODE" },
+                             DS_CTL_JSON_ENTRY (json), { NULL } };
   if (!ds_ctl_parse_options (&argc, &argv, entries,
                              "Starts continuous acquisition (results go to subscribers: "
                              "descatterctl stream). Without options the configuration's settings "
@@ -394,6 +399,8 @@ ds_ctl_start (const DsCtlTarget *target, int argc, char **argv)
   g_autoptr (JsonObject) args = acq_args (&o, "start");
   if (!args)
     return 2;
+  if (results)
+    json_object_set_string_member (args, "results", results);
   g_autoptr (DsClient) c = ds_ctl_connect (target, "start");
   if (!c)
     return 1;

@@ -136,6 +136,11 @@ ds_metrics_render (DsMetrics *m, const DsMetricsSources *src)
   sample (out, "descatter_sets_total", "outcome=\"done\"", (double) st->sets_done);
   sample (out, "descatter_sets_total", "outcome=\"failed\"", (double) st->sets_failed);
   sample (out, "descatter_sets_total", "outcome=\"cancelled\"", (double) st->sets_cancelled);
+  family (out, "descatter_results_total", "counter", "Results made, per mode: per-set (one per phase set) or per-frame (sliding window).");
+  sample (out, "descatter_results_total", "mode=\"per-set\"", (double) st->sets_done);
+  sample (out, "descatter_results_total", "mode=\"per-frame\"", (double) st->frame_results);
+  counter (out, "descatter_window_breaks_total", "Sliding windows broken by a lost or refused frame or new settings.",
+           st->window_breaks);
   counter (out, "descatter_frames_acquired_total", "Frames that came out of the camera.", f->acquired);
   counter (out, "descatter_frames_folded_total", "Frames folded into published results.", f->folded);
   family (out, "descatter_frames_dropped_total", "counter", "Frames not folded, by reason (docs/protocol.md, \"Frame accounting\").");

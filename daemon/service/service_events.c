@@ -135,7 +135,25 @@ publish_result (DsService *svc, DsResult *result)
   GBytes *const *bytes;
   guint n = ds_result_payloads (result, DS_OUTPUT_F32, FALSE, &infos, &bytes);
   g_autoptr (JsonNode) meta = ds_result_to_json (result);
-  ds_server_publish (svc->server, "result", meta, infos, bytes, n);
+  const DsPayloadInfo *raw_infos;
+  GBytes *const *raw_bytes;
+  guint r = ds_result_per_frame (result) ? ds_result_raw_payloads (result, &raw_infos, &raw_bytes) : 0;
+  if (r == 0) {
+    ds_server_publish (svc->server, "result", meta, infos, bytes, n);
+  } else {
+    /* A per-frame result with save_phases carries its window's frames: no capture reply
+     * brings them, and they are what a client checks the result against. */
+    g_autoptr (GArray) all_infos = g_array_new (FALSE, FALSE, sizeof (DsPayloadInfo));
+    g_autoptr (GPtrArray) all_bytes = g_ptr_array_new ();
+    g_array_append_vals (all_infos, infos, n);
+    g_array_append_vals (all_infos, raw_infos, r);
+    for (guint i = 0; i < n; i++)
+      g_ptr_array_add (all_bytes, bytes[i]);
+    for (guint i = 0; i < r; i++)
+      g_ptr_array_add (all_bytes, raw_bytes[i]);
+    ds_server_publish (svc->server, "result", meta, (const DsPayloadInfo *) all_infos->data,
+                       (GBytes *const *) all_bytes->pdata, all_infos->len);
+  }
   svc->results_published++;
   svc->last_result_unix_us = g_get_real_time ();
   gint64 last_frame = ds_json_path_int (meta, "monotonic_us.last_frame", 0);
@@ -307,6 +325,21 @@ on_stream_stopped (DsService *svc, const DsSequencerEvent *ev)
   ds_server_publish (svc->server, "stream_stopped", body, NULL, NULL, 0);
 }
 
+/* Per-frame results: the sliding window was broken; no result until N good frames follow.
+ * Told to subscribers, so that a gap in the results' frame ids has its reason. */
+static void
+on_window_broken (DsService *svc, const DsSequencerEvent *ev)
+{
+  const char *colon = strstr (ev->message, ": ");
+  g_autofree char *reason = colon ? g_strndup (ev->message, (gsize) (colon - ev->message)) : g_strdup (ev->message);
+  g_debug ("sliding window broken: %s", ev->message);
+  g_autoptr (JsonBuilder) b = ds_json_object_begin ();
+  ds_json_add_string (b, "reason", reason);
+  ds_json_add_string (b, "message", ev->message);
+  g_autoptr (JsonNode) body = ds_json_object_end (b);
+  ds_server_publish (svc->server, "window_broken", body, NULL, NULL, 0);
+}
+
 void
 ds_service_on_sequencer_event (const DsSequencerEvent *ev, gpointer user_data)
 {
@@ -339,6 +372,9 @@ ds_service_on_sequencer_event (const DsSequencerEvent *ev, gpointer user_data)
     break;
   case DS_SEQUENCER_EVENT_DEVICE:
     on_device (svc, ev);
+    break;
+  case DS_SEQUENCER_EVENT_WINDOW_BROKEN:
+    on_window_broken (svc, ev);
     break;
   case DS_SEQUENCER_EVENT_STREAM_STOPPED:
     on_stream_stopped (svc, ev);

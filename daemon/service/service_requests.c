@@ -34,6 +34,8 @@ settings_from_request (DsService *svc, const DsRequest *req, DsCaptureSettings *
 {
   ds_capture_settings_from_config (s, svc->config);
   ds_service_camera_defaults (svc, s);
+  /* A capture is one set; continuous mode's `results` is start's own argument. */
+  s->per_frame = FALSE;
   guint64 u;
   double d;
   gboolean bval;
@@ -318,18 +320,37 @@ handle_calibrate (DsService *svc, DsConnection *conn, DsRequest *req)
   p->calibrate_settings = s;
 }
 
+/* Per-frame results keep one frame per phase in their sliding window: averaging M frames per
+ * phase would need M frames of every phase in it, which is a set again. */
+static gboolean
+results_mode_fits (const DsCaptureSettings *s, gboolean per_frame, GError **error)
+{
+  if (per_frame && s->averages > 1) {
+    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT,
+                 "\"results\": per-frame needs averages = 1 (got %u): the sliding window holds one frame per "
+                 "phase and does not average", s->averages);
+    return FALSE;
+  }
+  return TRUE;
+}
+
 static void
 handle_start (DsService *svc, DsConnection *conn, DsRequest *req)
 {
   static const char *const keys[] = { "phases", "averages", "exposure_us", "gain_db", "estimator",
                                       "dark_frame", "verify_phase", "target_error", "time_budget_ms",
-                                      "save_phases", NULL };
+                                      "save_phases", "results", NULL };
+  static const char *const modes[] = { "per-set", "per-frame", NULL };
   g_autoptr (GError) error = NULL;
   DsCaptureSettings s;
-  if (!ds_request_check_keys (req, keys, &error) || !settings_from_request (svc, req, &s, &error)) {
+  const char *results = NULL;
+  if (!ds_request_check_keys (req, keys, &error) || !settings_from_request (svc, req, &s, &error) ||
+      !ds_request_get_choice (req, "results", modes, svc->config->results, &results, &error) ||
+      !results_mode_fits (&s, strcmp (results, "per-frame") == 0, &error)) {
     ds_server_reply_error (svc->server, conn, req->id, error);
     return;
   }
+  s.per_frame = strcmp (results, "per-frame") == 0;
   /* Without arguments continuous mode follows the configuration (and its reloads). */
   ds_sequencer_start (svc->sequencer, json_object_get_size (req->args) ? &s : NULL);
   svc->in_run = TRUE;

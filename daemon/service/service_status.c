@@ -170,6 +170,11 @@ ds_service_status_to_json (DsService *svc)
   ds_json_add_uint (b, "sets_done", st.sets_done);
   ds_json_add_uint (b, "sets_failed", st.sets_failed);
   ds_json_add_uint (b, "sets_cancelled", st.sets_cancelled);
+  ds_json_add_uint (b, "frame_results", st.frame_results);
+  ds_json_begin_member_object (b, "window");
+  ds_json_add_uint (b, "breaks", st.window_breaks);
+  ds_json_add_string (b, "last_break", st.last_window_break);
+  json_builder_end_object (b);
   ds_json_add_string (b, "last_error", st.last_error);
   ds_json_add_bool (b, "has_dark", st.has_dark);
   ds_json_add_node (b, "dark", ds_status_dark_to_json (&st, g_get_real_time ()));

@@ -9,6 +9,9 @@
  *            camera to the ceiling between its slices) and divides the daemon's mean by the
  *            ceilings' mean, so that a drift of the machine over the round cancels; the
  *            fastest / slowest ceiling slice shows how much the machine moved meanwhile;
+ *   per-frame  results per second with `results: per-frame` (a result for every frame from the
+ *            latest N phases), a slice after each daemon slice: over the same ceilings, and
+ *            over the per-set daemon's frames folded per second of the same round;
  *   latency  last frame -> result ready (the daemon's own monotonic stamps) per megapixel, and
  *            against the library alone finalizing the same set in this process;
  *   memory   peak RSS above idle over one 8-phase capture / the planes that must exist.
@@ -80,7 +83,7 @@ typedef struct {
   gboolean at_least;   /* the goal is a minimum (ratios of rates), else a maximum */
 } SummaryRow;
 
-static SummaryRow summary[16];
+static SummaryRow summary[32];
 static guint n_summary;
 
 static void
@@ -335,6 +338,41 @@ daemon_rate (DsClient *c, GPid pid, double seconds, gboolean print_stages)
   return r;
 }
 
+/* Per-frame results per second in continuous mode with `results: per-frame` (a result for
+ * every frame from the latest N phases), from the daemon's own counters, over `seconds` after
+ * the window filled. Checked: results came, every frame is accounted for, and no frame was
+ * refused for its phase (a clean rig). */
+static double
+per_frame_rate (DsClient *c, double seconds)
+{
+  g_autoptr (JsonObject) args = json_object_new ();
+  json_object_set_string_member (args, "results", "per-frame");
+  g_autoptr (DsMessage) started = test_daemon_call_ok (c, "start", args);
+  g_usleep (300000);
+  g_autoptr (DsMessage) s0 = test_daemon_call_ok (c, "status", NULL);
+  gint64 t0 = g_get_monotonic_time ();
+  g_usleep ((gulong) (seconds * 1e6));
+  g_autoptr (DsMessage) s1 = test_daemon_call_ok (c, "status", NULL);
+  gint64 t1 = g_get_monotonic_time ();
+  g_autoptr (DsMessage) stopped = test_daemon_call_ok (c, "stop", NULL);
+  gint64 r0 = test_json_int (s0->reply->body, "frame_results"), r1 = test_json_int (s1->reply->body, "frame_results");
+  gint64 acquired = test_json_int (s1->reply->body, "frames.acquired");
+  gint64 folded = test_json_int (s1->reply->body, "frames.folded");
+  gint64 dropped = test_json_int (s1->reply->body, "frames.dropped");
+  CHECK (r1 > r0, "per-frame mode: no result in %.1f s", seconds);
+  /* The frames of the window not yet in a result (at most N) are acquired, not yet folded. */
+  CHECK (acquired - dropped - folded >= 0 && acquired - dropped - folded <= N_PHASES,
+         "per-frame accounting: acquired %" G_GINT64_FORMAT ", dropped %" G_GINT64_FORMAT ", folded %" G_GINT64_FORMAT,
+         acquired, dropped, folded);
+  CHECK (test_json_int (s1->reply->body, "frames.dropped_by_reason.wrong_phase") == 0,
+         "per-frame mode: wrong_phase drops on a clean rig");
+  gint64 breaks = test_json_int (s1->reply->body, "window.breaks") - test_json_int (s0->reply->body, "window.breaks");
+  if (breaks)
+    printf ("    (per-frame: %" G_GINT64_FORMAT " window(s) broken, the last: %s)\n", breaks,
+            json_object_get_string_member (obj (s1->reply->body, "window"), "last_break"));
+  return (r1 - r0) / ((t1 - t0) / 1e6);
+}
+
 /* ---- rounds: ceilings and daemon interleaved, C D C D ... C ---- */
 
 /* The ceilings a daemon rate is divided by: the camera alone (trigger and grab: the issue's
@@ -378,6 +416,9 @@ typedef struct {
   double goal[N_CEILINGS]; /* 0: no goal */
   CeilingRounds c[N_CEILINGS];
   double daemon_fps[MAX_ROUNDS];
+  /* Per-frame results per second (a slice after each daemon slice), over the camera-alone
+   * ceiling and over the per-set daemon's frames folded per second of the same round. */
+  double per_frame_fps[MAX_ROUNDS], per_frame_ratio[MAX_ROUNDS], per_frame_vs_set[MAX_ROUNDS];
   guint n;
   SideCpu cpu[N_CEILINGS], daemon_cpu;
   SideCycles cycles[N_CEILINGS], daemon_cycles;
@@ -466,9 +507,13 @@ has_loss (const RateSample *s)
  * machine that is linear over the round cancels in the ratio of the means (both are centred on
  * the round's middle); each daemon slice is also printed against the two ceilings around it. */
 static void
-rounds_add (Rounds *rs, RateSample c[N_CEILINGS][MAX_SLICES + 1], const RateSample *d, guint n)
+rounds_add (Rounds *rs, RateSample c[N_CEILINGS][MAX_SLICES + 1], const RateSample *d, const double *pf, guint n)
 {
   guint i = rs->n++;
+  double pf_sum = 0;
+  for (guint j = 0; j < n; j++)
+    pf_sum += pf[j];
+  rs->per_frame_fps[i] = pf_sum / n;
   double dsum = 0;
   gboolean dloss = FALSE;
   for (guint j = 0; j < n; j++) {
@@ -510,7 +555,12 @@ rounds_add (Rounds *rs, RateSample c[N_CEILINGS][MAX_SLICES + 1], const RateSamp
       cr->clean[cr->n_clean++] = cr->ratio[i];
     printf (" -> round %u: daemon %.1f / ceiling %.1f = ratio %.3f, drift %.3f%s\n", i + 1,
             rs->daemon_fps[i], cr->fps[i], cr->ratio[i], cr->drift[i], clean ? "" : " (transport loss)");
-  }
+  }  /* Over the first ceiling this round measured (the camera alone, where it is). */
+  CeilingKind base = rs->want[CEILING_CAMERA] ? CEILING_CAMERA : CEILING_RIG;
+  rs->per_frame_ratio[i] = rs->per_frame_fps[i] / rs->c[base].fps[i];
+  rs->per_frame_vs_set[i] = rs->per_frame_fps[i] / rs->daemon_fps[i];
+  printf ("      per-frame results: %.1f/s -> round %u: / ceiling (%s) %.3f, / per-set frames folded %.3f\n",
+          rs->per_frame_fps[i], i + 1, ceiling_name[base], rs->per_frame_ratio[i], rs->per_frame_vs_set[i]);
 }
 
 static void
@@ -634,6 +684,7 @@ measure_round (FakeRig *rig, guint w, guint h, double seconds, guint slices, Rou
   g_autofree char *conf = rig_config (fake_rig_modbus_port (rig));
   RateSample c[N_CEILINGS][MAX_SLICES + 1];
   RateSample d[MAX_SLICES];
+  double pf[MAX_SLICES] = { 0 };
   memset (c, 0, sizeof c);
   memset (d, 0, sizeof d);
   double slice_s = seconds / slices;
@@ -678,6 +729,7 @@ measure_round (FakeRig *rig, guint w, guint h, double seconds, guint slices, Rou
       break;
     control (cl, "acquire");
     d[j] = daemon_rate (cl, (GPid) atoi (g_subprocess_get_identifier (td->proc)), slice_s, j + 1 == slices);
+    pf[j] = per_frame_rate (cl, slice_s);
   }
   g_clear_pointer (&cl, ds_client_free);
   test_daemon_stop (td);
@@ -694,7 +746,7 @@ measure_round (FakeRig *rig, guint w, guint h, double seconds, guint slices, Rou
     if (j < slices)
       side_cycles_add (&rs->daemon_cycles, rig, &d[j], "daemon");
   }
-  rounds_add (rs, c, d, slices);
+  rounds_add (rs, c, d, pf, slices);
   return TRUE;
 }
 
@@ -796,6 +848,10 @@ main (int argc, char **argv)
        * trigger), printed beside the goal's row. */
       summary_add (median (rs.c[CEILING_RIG].ratio, rs.n), NAN, TRUE,
                    "  the same / ceiling (camera + set_phase), %ux%u", w, h);
+      summary_add (median (rs.per_frame_ratio, rs.n), rs.goal[CEILING_CAMERA], TRUE,
+                   "per-frame results / ceiling (camera alone), %ux%u", w, h);
+      summary_add (median (rs.per_frame_vs_set, rs.n), NAN, TRUE, "  per-frame results / per-set frames folded, %ux%u",
+                   w, h);
     }
     double lib_ms = library_finalize_ms (w, h, quick ? 3 : 9);
     double lat_ms = x.n_lat ? median (lat, x.n_lat) : NAN;
@@ -831,6 +887,8 @@ main (int argc, char **argv)
         summary_add (median (rp.c[CEILING_RIG].ratio, rp.n), rp.goal[CEILING_RIG], TRUE,
                      "3 ms settle: frames folded / ceiling (camera + set_phase), %ux%u", w, h);
         summary_add (lowest, rp.goal[CEILING_RIG], TRUE, "  the same, lowest of %u rounds", rp.n);
+        summary_add (median (rp.per_frame_ratio, rp.n), NAN, TRUE,
+                     "3 ms settle: per-frame results / ceiling (camera + set_phase), %ux%u", w, h);
       }
     }
     /* What the camera's thread cost the machine: fill, send and the waits between trigger

@@ -94,6 +94,8 @@ test_errors_name_the_place (void)
                 DS_CONFIG_ERROR_INCONSISTENT, (const char *const[]) { "address", NULL });
   expect_error (SIM "[acquisition]\nestimator=sine\nphases=2\n", DS_CONFIG_ERROR_INCONSISTENT,
                 (const char *const[]) { "sine", "phases >= 3", NULL });
+  expect_error (SIM "[acquisition]\nresults=per-frame\naverages=2\n", DS_CONFIG_ERROR_INCONSISTENT,
+                (const char *const[]) { "results = per-frame", "averages = 1", NULL });
   expect_error (SIM "[daemon]\ntcp-listen=127.0.0.1\n", DS_CONFIG_ERROR_INCONSISTENT,
                 (const char *const[]) { "tcp-listen", "IP:PORT", NULL });
   expect_error ("[daemon\nsocket=x\n", DS_CONFIG_ERROR_SYNTAX, (const char *const[]) { NULL });
@@ -162,7 +164,7 @@ test_reload_rule (void)
   g_assert_cmpstr (changed, ==, "[camera] roi; [acquisition] settle-ms, link-mbit");
   g_autofree char *live_keys = ds_config_live_keys ();
   g_assert_cmpstr (live_keys, ==, "[camera] exposure-us, gain-db; [acquisition] phases, averages, estimator, "
-                                  "dark-frame, phase-retries, max-failed-sets, verify-phase, phase-tolerance-deg");
+                                  "dark-frame, phase-retries, max-failed-sets, results, verify-phase, phase-tolerance-deg");
 }
 
 static void

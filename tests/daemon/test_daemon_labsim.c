@@ -181,6 +181,57 @@ test_release_for_another_program (void)
   test_labsim_stop (l);
 }
 
+/* Per-frame results over GigE Vision and Modbus (docs/protocol.md, "Per-frame results"): 2N
+ * results in a row whose newest frames are consecutive camera frames (a result per frame, none
+ * skipped), each a window of N frames, and the last one equal to the scene's truth within the
+ * noise model, as a set is. A frame lost on the wire breaks the window and restarts the
+ * count; more than 20N results without 2N in a row fail. */
+static void
+test_per_frame_over_the_wire (void)
+{
+  TestLabsim *l = test_labsim_start (labsim_path, scene_path, NULL);
+  g_autofree char *conf = daemon_config (l, NULL);
+  TestDaemon *d = test_daemon_start (conf, NULL);
+  g_autoptr (DsClient) sub = test_daemon_connect (d);
+  g_autoptr (DsClient) c = test_daemon_connect (d);
+  g_autoptr (DsMessage) s = test_daemon_call_ok (sub, "subscribe", NULL);
+  g_autoptr (JsonObject) args = json_object_new ();
+  json_object_set_string_member (args, "results", "per-frame");
+  g_autoptr (DsMessage) started = test_daemon_call_ok (c, "start", args);
+  gint64 n = test_json_int (started->reply->body, "phases");
+  gint64 last = -1;
+  guint in_a_row = 0, results = 0;
+  DsMessage *m = NULL;
+  while (in_a_row < 2 * n) {
+    g_autoptr (GError) error = NULL;
+    g_autoptr (DsMessage) ev = ds_client_read (sub, 0, &error);
+    g_assert_no_error (error);
+    if (g_strcmp0 (ev->reply->event, "result") != 0) {
+      g_test_message ("event %s", ev->reply->event);
+      continue;
+    }
+    g_assert_cmpuint (++results, <=, 20 * n);
+    g_assert_cmpint (test_json_int (ev->reply->body, "window.frames"), ==, n);
+    gint64 id = test_json_int (ev->reply->body, "window.newest_frame_id");
+    /* GigE Vision block ids wrap at 65535 (0 is not used). */
+    in_a_row = last >= 0 && ((id - last) % 65535 + 65535) % 65535 == 1 ? in_a_row + 1 : 1;
+    last = id;
+    g_clear_pointer (&m, ds_message_free);
+    m = g_steal_pointer (&ev);
+  }
+  g_autoptr (DsMessage) result = m;
+  g_autoptr (DsMessage) stop = test_daemon_call_ok (c, "stop", NULL);
+  g_test_message ("%u results, the last %u in a row; newest frame %" G_GINT64_FORMAT, results, in_a_row, last);
+  TruthCheck tc;
+  truth_check (result, the_scene, truth_t, truth_g, &tc);
+  g_test_message ("per-frame result: rms %.2f/%.2f DN (allowed %.2f/%.2f)", tc.rms_transmissive, tc.rms_scattered,
+                  tc.allowed_transmissive, tc.allowed_scattered);
+  g_assert_true (truth_check_passed (&tc));
+  test_daemon_frames (c);
+  test_daemon_stop_clean (d);
+  test_labsim_stop (l);
+}
+
 int
 main (int argc, char **argv)
 {
@@ -196,6 +247,7 @@ main (int argc, char **argv)
   g_test_add_func ("/daemon-labsim/release-for-another-program", test_release_for_another_program);
   g_test_add_func ("/daemon-labsim/faults", test_faults_over_the_wire);
   g_test_add_func ("/daemon-labsim/faults-automatic", test_faults_automatic_over_the_wire);
+  g_test_add_func ("/daemon-labsim/per-frame", test_per_frame_over_the_wire);
   int status = g_test_run ();
   truth_scene_free (the_scene, truth_t, truth_g);
   return status;

@@ -328,6 +328,7 @@ on_event (const DsSequencerEvent *ev, gpointer data)
     break;
   case DS_SEQUENCER_EVENT_DEVICE:
   case DS_SEQUENCER_EVENT_STREAM_STOPPED:
+  case DS_SEQUENCER_EVENT_WINDOW_BROKEN:
     o->device_events++;
     break;
   case DS_SEQUENCER_EVENT_CONTROL:

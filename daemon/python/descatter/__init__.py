@@ -13,12 +13,13 @@ from ._version import __version__
 from .client import DEFAULT_ADDRESS, DEFAULT_TIMEOUT, Client, Subscription
 from .errors import (ERRORS, BadArgument, BadJson, BadReply, BadRequest, Busy, Cancelled, DescatterError,
                      DeviceError, Failed, LineTooLong, Limit, Timeout, TooDeep, Unauthorized, UnknownCommand)
-from .events import DeviceEvent, Event, FailedEvent, FrameEvent, ProgressEvent, Result, ResultEvent, StreamStoppedEvent
+from .events import (DeviceEvent, Event, FailedEvent, FrameEvent, ProgressEvent, Result, ResultEvent, StreamStoppedEvent,
+                     WindowBrokenEvent)
 
 __all__ = [
     "__version__", "Client", "Subscription", "DEFAULT_ADDRESS", "DEFAULT_TIMEOUT",
     "Result", "Event", "ResultEvent", "FailedEvent", "DeviceEvent", "ProgressEvent", "FrameEvent",
-    "StreamStoppedEvent",
+    "StreamStoppedEvent", "WindowBrokenEvent",
     "DescatterError", "ERRORS", "LineTooLong", "BadJson", "TooDeep", "BadRequest", "UnknownCommand",
     "BadArgument", "Busy", "DeviceError", "Unauthorized", "Limit", "Failed", "Cancelled", "BadReply", "Timeout",
 ]

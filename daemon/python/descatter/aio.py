@@ -19,7 +19,7 @@ from typing import Any, Optional, Union
 
 from . import wire
 from ._version import __version__
-from .client import (DEFAULT_TIMEOUT, Estimator, Format, PreviewLight, ProgressCallback, Roi, acquisition_args,
+from .client import (DEFAULT_TIMEOUT, Estimator, Format, PreviewLight, ProgressCallback, Results, Roi, acquisition_args,
                      camera_args, given, preview_args, resolve, split_address)
 from .errors import BadReply, DescatterError, Timeout, error_from_reply
 from .events import Event, ProgressEvent, Result, make_event, make_frame_event
@@ -226,11 +226,13 @@ class AsyncClient:
                     estimator: Optional[Estimator] = None, dark_frame: Optional[bool] = None,
                     verify_phase: Optional[bool] = None, target_error: Optional[float] = None,
                     time_budget_ms: Optional[float] = None, save_phases: Optional[bool] = None,
-                    timeout: Optional[float] = None) -> JsonObject:
+                    results: Optional[Results] = None, timeout: Optional[float] = None) -> JsonObject:
         """As descatter.Client.start."""
         args = acquisition_args(phases=phases, averages=averages, exposure_us=exposure_us, gain_db=gain_db,
                                 estimator=estimator, dark_frame=dark_frame, verify_phase=verify_phase,
                                 target_error=target_error, time_budget_ms=time_budget_ms, save_phases=save_phases)
+        if results is not None:
+            args["results"] = results
         return (await self.call("start", timeout=timeout, **args))[0]
 
     async def stop(self) -> JsonObject:

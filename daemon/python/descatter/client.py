@@ -38,6 +38,7 @@ DEFAULT_TIMEOUT = 60.0
 Estimator = Union[Literal["maxmin", "sine", "robust"], str]
 # The payload format of a capture.
 Format = Literal["f32", "u16"]
+Results = Literal["per-set", "per-frame"]
 ProgressCallback = Callable[[ProgressEvent], None]
 
 
@@ -315,13 +316,17 @@ class Client:
               estimator: Optional[Estimator] = None, dark_frame: Optional[bool] = None,
               verify_phase: Optional[bool] = None, target_error: Optional[float] = None,
               time_budget_ms: Optional[float] = None, save_phases: Optional[bool] = None,
-              timeout: Optional[float] = None) -> JsonObject:
+              results: Optional[Results] = None, timeout: Optional[float] = None) -> JsonObject:
         """Starts continuous acquisition and returns the settings used; results go to
         subscribers (subscribe()). No settings: the configuration's, following its reloads.
-        Busy when the daemon already acquires."""
+        results="per-frame": a result for every frame from the latest N phases (a sliding
+        window; averages must be 1), "per-set": one per phase set. Busy when the daemon
+        already acquires."""
         args = acquisition_args(phases=phases, averages=averages, exposure_us=exposure_us, gain_db=gain_db,
                                 estimator=estimator, dark_frame=dark_frame, verify_phase=verify_phase,
                                 target_error=target_error, time_budget_ms=time_budget_ms, save_phases=save_phases)
+        if results is not None:
+            args["results"] = results
         return self.call("start", timeout=timeout, **args)[0]
 
     def stop(self) -> JsonObject:

@@ -116,6 +116,22 @@ class StreamStoppedEvent(Event):
         return str(self.body.get("reason", ""))
 
 
+class WindowBrokenEvent(Event):
+    """Per-frame results: the sliding window was broken (a lost or refused frame, new
+    settings); no result until a good frame of every phase follows. `reason` is the cause's
+    name (frame_gap, wrong_phase, lost, ...), `message` says more."""
+
+    kind = "window_broken"
+
+    @property
+    def reason(self) -> str:
+        return str(self.body.get("reason", ""))
+
+    @property
+    def message(self) -> str:
+        return str(self.body.get("message", ""))
+
+
 class ProgressEvent(Event):
     """A phase of a capture was acquired (captures ask for these to keep the line alive)."""
 
@@ -161,7 +177,7 @@ class FrameEvent(Event):
 
 
 _KINDS: dict[str, type[Event]] = {"failed": FailedEvent, "device": DeviceEvent, "stream_stopped": StreamStoppedEvent,
-                                  "progress": ProgressEvent}
+                                  "progress": ProgressEvent, "window_broken": WindowBrokenEvent}
 
 
 def _lost(seq: Any, last_seq: Optional[int]) -> int:
