@@ -166,8 +166,8 @@ ds_single_frame_new (const DsSeparationParams *params, guint width, guint height
   guint t = params->threads ? params->threads : (guint) g_get_num_processors ();
   sf->threads = (gsize) width * height >= DS_SINGLE_FRAME_THREADED_PIXELS ? CLAMP (t, 1u, DS_MAX_THREADS) : 1;
   sf->tile = MAX (512u, 4 * sf->window);
-  /* Rows padded to 16 floats so that each starts on a 64-byte line; the sine's levels and
-   * sums use a tile's worth of each. */
+  /* Rows a multiple of 16 floats apart, so that two rows never share a cache line; the
+   * sine's levels and sums use a tile's worth of each. */
   gsize row = ((gsize) width + 1 + 15) & ~(gsize) 15;
   sf->scratch_floats = row * (ROWS_PER_THREAD + 2);
   sf->scratch = g_malloc ((gsize) sf->threads * sf->scratch_floats * sizeof (float));
