@@ -36,6 +36,8 @@ typedef struct {
   double phase_tolerance_deg; /* resolved: never NAN here */
   gboolean keep_extrema;      /* also compute max, min and mean (asked for by a client) */
   gboolean save_phases;       /* keep the raw phase and dark frames in the result */
+  gboolean single_frame;      /* one frame lit with phase 0, separated alone (proc/single_frame.h):
+                                 the estimator is maxmin or sine, no raw frames are kept */
   /* Automatic operating point (docs/accuracy.md): when either is > 0, a preview frame and the
    * model choose estimator, phases, averages and exposure; the choice is recorded below. */
   double target_error;        /* relative RMSE of transmissive; 0 = none */

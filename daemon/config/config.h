@@ -94,6 +94,7 @@ typedef struct {
   guint max_failed_sets;  /* continuous mode stops after this many failed sets in a row; 0 = never */
   gboolean verify_phase;
   double phase_tolerance_deg;
+  gboolean single_frame;   /* one frame per result, separated from one stripe period around each pixel */
   char *operating_model;  /* NULL: built-in */
   double timing_settle_ms;
   double timing_link_mbit;

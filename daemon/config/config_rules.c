@@ -23,6 +23,9 @@ ds_config_check_consistency (const DsConfig *c, const char *name, GError **error
     g_set_error (error, DS_CONFIG_ERROR, DS_CONFIG_ERROR_INCONSISTENT, "%s: %s", name, msg_);      \
     return FALSE;                                                                                  \
   } while (0)
+  if (c->single_frame && strcmp (c->estimator, "robust") == 0)
+    INCONSISTENT ("[acquisition] single-frame = true with estimator = robust: one frame holds one stripe period "
+                  "per pixel, too few samples for robust; use maxmin or sine");
   if (!c->camera_backend)
     INCONSISTENT ("[camera] backend is not set: aravis for a GigE Vision camera, or sim for the "
                   "simulated lab (descatterd --sim runs that without a file)");
