@@ -98,6 +98,7 @@ test_settings_documented (void)
   full.saturation_dn = 4000;
   full.roi_width = 64; /* a result's region, as the set runner fills it in */
   full.roi_height = 48;
+  full.single_frame = TRUE; /* settings.single_frame and its window */
   full.automatic = TRUE;
   full.target_error = 0.05;
   full.operating.target_error = 0.05;
