@@ -242,7 +242,7 @@ void ds_seq_run_set (DsAcquisition *acq, const DsCaptureSettings *requested, gui
 /* A single-frame set (s->single_frame) once the camera, the pattern and the dark frame are
  * ready: phase 0 lit, one frame, separated from its own stripes into planes from acq->planes
  * (given back on failure). NULL with error when the set fails; the frame and its retries are
- * counted in c. *last_frame_us: the frame's arrival. */
+ * counted in c. *last_frame_us: the frame's arrival. No raw frames are kept (acq->raw cleared). */
 DsSeparation *ds_seq_acquire_single_frame (DsAcquisition *acq, const DsCaptureSettings *s, const DsImage *dark,
                                            guint width, guint height, DsFrameCounters *c, gint64 *last_frame_us,
                                            GError **error);

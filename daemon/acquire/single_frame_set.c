@@ -69,6 +69,9 @@ DsSeparation *
 ds_seq_acquire_single_frame (DsAcquisition *acq, const DsCaptureSettings *s, const DsImage *dark, guint width,
                              guint height, DsFrameCounters *c, gint64 *last_frame_us, GError **error)
 {
+  /* No raw frames are kept: none left from an earlier set may go out with this result. */
+  g_clear_pointer (&acq->raw, ds_raw_frames_free);
+  acq->raw_incomplete = FALSE;
   if (!prepare_plan (acq, s, width, height, error))
     return NULL;
   /* The planes before the frame, as for a phase set: no page fault after it. */
