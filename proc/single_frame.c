@@ -234,6 +234,19 @@ pair_sums3 (const float *restrict a0, const float *restrict a1, const float *res
   }
 }
 
+/* Two doubling steps in one pass: o[x] = (a[x] + a[x + shift]) + (a[x + 2 shift] + a[x + 3 shift]),
+ * the same sums in the same order, x < n. */
+DS_KERNEL void
+quad_sums3 (const float *restrict a0, const float *restrict a1, const float *restrict a2, float *restrict o0,
+            float *restrict o1, float *restrict o2, gsize n, gsize shift)
+{
+  for (gsize x = 0; x < n; x++) {
+    o0[x] = (a0[x] + a0[x + shift]) + (a0[x + 2 * shift] + a0[x + 3 * shift]);
+    o1[x] = (a1[x] + a1[x + shift]) + (a1[x + 2 * shift] + a1[x + 3 * shift]);
+    o2[x] = (a2[x] + a2[x + shift]) + (a2[x + 2 * shift] + a2[x + 3 * shift]);
+  }
+}
+
 DS_KERNEL void
 add3 (const float *restrict a0, const float *restrict a1, const float *restrict a2, float *restrict t0,
       float *restrict t1, float *restrict t2, gsize n)
@@ -423,12 +436,16 @@ read_row (const Job *job, guint y, Rows *r)
 
 /* Window sums of v, v cos, v sin for every window start s < w - l + 1 into r->t. */
 /* Window sums of v, v cos, v sin (c, sn: cos and sin at the same columns) for the window
- * starts s < starts, over columns [0, starts + l - 1), into r->t. */
+ * starts s < starts, over columns [0, starts + l - 1): sums[i][s], in r->t, or in a level
+ * buffer when the window is one level (a power of two). */
 DS_KERNEL void
-window_sums (const DsSingleFrame *sf, const float *v, const float *c, const float *sn, gsize starts, Rows *r)
+window_sums (const DsSingleFrame *sf, const float *v, const float *c, const float *sn, gsize starts, Rows *r,
+             const float *sums[3])
 {
   gsize l = sf->window, w = starts + l - 1, off = 0;
   float **t = r->t;
+  for (guint i = 0; i < 3; i++)
+    sums[i] = t[i];
   /* the window's first columns: its length's two lowest binary digits, from the samples */
   if (l & 1) {
     direct_sums (v, c, sn, t[0], t[1], t[2], starts, 1, FALSE);
@@ -446,10 +463,14 @@ window_sums (const DsSingleFrame *sf, const float *v, const float *c, const floa
   /* then levels of 4, 8, ... columns, each from two of the level below */
   float **level = r->la, **spare = r->lb;
   direct_sums (v, c, sn, level[0], level[1], level[2], w - 3, 4, FALSE);
-  for (gsize len = 4;; len <<= 1) {
+  for (gsize len = 4;;) {
     if (l & len) {
       if (off) {
         add3 (level[0] + off, level[1] + off, level[2] + off, t[0], t[1], t[2], starts);
+      } else if (len * 2 > l) {
+        /* the window is this level alone: its sums as they stand */
+        for (guint i = 0; i < 3; i++)
+          sums[i] = level[i];
       } else {
         for (guint i = 0; i < 3; i++)
           memcpy (t[i], level[i] + off, starts * sizeof (float));
@@ -458,11 +479,17 @@ window_sums (const DsSingleFrame *sf, const float *v, const float *c, const floa
     }
     if (len * 2 > l)
       break;
-    /* level 2 len from level len: valid for x + 2 len <= w */
-    pair_sums3 (level[0], level[1], level[2], spare[0], spare[1], spare[2], w - 2 * len + 1, len);
+    /* the next level the window needs, from this one: valid for x + next <= w; a level the
+     * window does not use is skipped (four of this level in one pass) */
+    gsize next = len * 4 <= l && !(l & (len * 2)) ? len * 4 : len * 2;
+    if (next == len * 4)
+      quad_sums3 (level[0], level[1], level[2], spare[0], spare[1], spare[2], w - next + 1, len);
+    else
+      pair_sums3 (level[0], level[1], level[2], spare[0], spare[1], spare[2], w - next + 1, len);
     float **tmp = level;
     level = spare;
     spare = tmp;
+    len = next;
   }
 }
 
@@ -474,11 +501,11 @@ sine_row (const DsSingleFrame *sf, Rows *r, float *ld, float *lg, guint8 *mk)
   gsize w = sf->width, l = sf->window, half = sf->half, starts = w - l + 1;
   SineConsts k = { .inv_h = (float) (1 / sf->h), .inv_m = (float) (1 / sf->m) };
   memcpy (k.g, sf->g, sizeof k.g);
-  const float *t0 = r->t[0], *tc = r->t[1], *ts = r->t[2];
   for (gsize x0 = 0; x0 < starts; x0 += sf->tile) {
     gsize n = MIN (sf->tile, starts - x0);
-    const float *c = sf->cos_x + x0, *s = sf->sin_x + x0;
-    window_sums (sf, r->v + x0, c, s, n, r);
+    const float *c = sf->cos_x + x0, *s = sf->sin_x + x0, *sums[3];
+    window_sums (sf, r->v + x0, c, s, n, r, sums);
+    const float *t0 = sums[0], *tc = sums[1], *ts = sums[2];
     /* pixel x's window starts at x - half, clamped to [0, starts - 1] */
     fit_sine (t0, tc, ts, c, s, ld + half + x0, lg + half + x0, mk + half + x0, n, k);
     for (gsize x = 0; x0 == 0 && x < half; x++)
