@@ -105,7 +105,7 @@ check_params (const DsSeparationParams *params, guint width, GError **error)
                  params->black_level);
     return FALSE;
   }
-  guint window = (guint) ceil (period - 1e-9);
+  guint window = ds_single_frame_window_px (period);
   if (width < window) {
     g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT,
                  "single-frame: the frame is %u px wide, narrower than the window of one period (%u px)", width,
@@ -113,6 +113,12 @@ check_params (const DsSeparationParams *params, guint width, GError **error)
     return FALSE;
   }
   return TRUE;
+}
+
+guint
+ds_single_frame_window_px (double period_px)
+{
+  return (guint) ceil (period_px - 1e-9);
 }
 
 void
@@ -147,7 +153,7 @@ ds_single_frame_new (const DsSeparationParams *params, guint width, guint height
   sf->duty = params->duty;
   sf->width = width;
   sf->height = height;
-  sf->window = (guint) ceil (sf->period - 1e-9);
+  sf->window = ds_single_frame_window_px (sf->period);
   sf->half = sf->window / 2;
   sf->b = params->black_level;
   sf->m = ds_pattern_mean (params->pattern, params->duty, sf->b);

@@ -35,6 +35,10 @@ typedef struct {
   guint window_px;   /* columns each output pixel is computed from: ceil(P) */
 } DsSingleFrameInfo;
 
+/* The window for stripe period P: ceil(P) columns, a whole period (a period a hair above an
+ * integer from rounding in its computation counts as that integer). */
+guint ds_single_frame_window_px (double period_px);
+
 /* The plan for frames of one geometry: the pattern's constants, the basis tables, the threads
  * and their row scratch. Made once per capture; one thread at a time uses it. */
 typedef struct DsSingleFrame DsSingleFrame;

@@ -2,6 +2,7 @@
  * separation's parameters, to JSON for a result's metadata. Plain data, CPU only: any thread. */
 #include "daemon/acquire/capture_settings.h"
 #include "proc/phase_check.h"
+#include "proc/single_frame.h"
 
 #include <math.h>
 #include <string.h>
@@ -93,7 +94,7 @@ ds_capture_settings_to_json (const DsCaptureSettings *s)
     json_builder_begin_object (b);
     STR ("estimator", ds_estimator_name (s->estimator));
     DBL ("period_px", s->period_px);
-    INT ("window_px", (gint64) ceil (s->period_px - 1e-9));
+    INT ("window_px", ds_single_frame_window_px (s->period_px));
     STR ("window_axis", "x");
     json_builder_end_object (b);
   }
