@@ -1,31 +1,31 @@
 #include "proc/single_frame.h"
 
 #include <math.h>
+#include <string.h>
 
 #include "proc/harmonic_gain.h"
 #include "proc/proc_error.h"
 #include "proc/separation_internal.h" /* ds_count_mask_row */
+#include "proc/simd.h"
+#include "proc/worker_pool.h"
 
-/* The pattern's constants and the window, checked once per call. */
-typedef struct {
+struct DsSingleFrame {
   DsEstimator estimator;
-  double b, m, h;
-  double saturation;
-  guint width, window;
-  /* sine: cos and sin of 2 pi x/P per column, and per window start s the inverse of the
-   * window's normal matrix [1 c s]^T [1 c s] (symmetric: 6 entries) */
-  double *cos_x, *sin_x;
-  double *ginv;      /* 6 planes of (width - window + 1): entry i of start s at i * starts + s */
-  gsize starts;
-} Plan;
-
-static void
-plan_clear (Plan *p)
-{
-  g_free (p->cos_x);
-  g_free (p->sin_x);
-  g_free (p->ginv);
-}
+  double period, duty, b, m, h;
+  double saturation_param; /* params->saturation_level: 0 means the frame's full scale */
+  guint width, height, window, half;
+  /* sine: cos and sin of 2 pi x/P per absolute column x. The window starting at column s sees
+   * the basis of the window starting at 0 rotated by 2 pi s/P, so its normal matrix is that
+   * window's rotated: one inverse (g, 6 entries of a symmetric 3x3) serves every window once
+   * the window's sums are rotated back by the table's angle at s. */
+  float *cos_x, *sin_x;
+  float g[6];
+  guint threads;
+  DsWorkerPool *pool;     /* made on first use when threads > 1 */
+  gsize tile;             /* sine: window starts per tile of a row */
+  float *scratch;         /* threads x scratch_floats */
+  gsize scratch_floats;
+};
 
 /* Inverse of the symmetric 3x3 matrix (a00 a01 a02; a11 a12; a22) into out[6] (same order).
  * FALSE when it is singular against its own scale. */
@@ -49,48 +49,42 @@ invert_sym3 (const double a[6], double out[6])
 }
 
 static gboolean
-plan_sine (Plan *p, double period, GError **error)
+plan_sine (DsSingleFrame *sf, GError **error)
 {
-  guint w = p->width, l = p->window, starts = w - l + 1;
-  p->cos_x = g_new (double, w);
-  p->sin_x = g_new (double, w);
-  p->ginv = g_new (double, (gsize) starts * 6);
-  p->starts = starts;
+  guint w = sf->width, l = sf->window;
+  double period = sf->period;
+  sf->cos_x = g_new (float, w);
+  sf->sin_x = g_new (float, w);
   for (guint x = 0; x < w; x++) {
     /* The phase reduced to one period first: cos of a large argument loses digits. */
     double u = fmod ((double) x, period) / period;
-    p->cos_x[x] = cos (2 * G_PI * u);
-    p->sin_x[x] = sin (2 * G_PI * u);
+    sf->cos_x[x] = (float) cos (2 * G_PI * u);
+    sf->sin_x[x] = (float) sin (2 * G_PI * u);
   }
-  for (guint s = 0; s < starts; s++) {
-    double g[6] = { 0 };
-    for (guint j = s; j < s + l; j++) {
-      double c = p->cos_x[j], sn = p->sin_x[j];
-      g[0] += 1;
-      g[1] += c;
-      g[2] += sn;
-      g[3] += c * c;
-      g[4] += c * sn;
-      g[5] += sn * sn;
-    }
-    double inv[6];
-    gboolean ok = invert_sym3 (g, inv);
-    for (guint i = 0; i < 6; i++)
-      p->ginv[i * (gsize) starts + s] = inv[i];
-    if (!ok) {
-      g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_ILL_CONDITIONED,
-                   "single-frame sine: a window of %u columns cannot resolve period %g px", l, period);
-      return FALSE;
-    }
+  double g[6] = { 0 }, inv[6];
+  for (guint k = 0; k < l; k++) {
+    double c = cos (2 * G_PI * k / period), sn = sin (2 * G_PI * k / period);
+    g[0] += 1;
+    g[1] += c;
+    g[2] += sn;
+    g[3] += c * c;
+    g[4] += c * sn;
+    g[5] += sn * sn;
   }
+  if (!invert_sym3 (g, inv)) {
+    g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_ILL_CONDITIONED,
+                 "single-frame sine: a window of %u columns cannot resolve period %g px", l, period);
+    return FALSE;
+  }
+  for (guint i = 0; i < 6; i++)
+    sf->g[i] = (float) inv[i];
   return TRUE;
 }
 
 static gboolean
-plan_init (Plan *p, const DsImage *frame, const DsImage *dark, const DsSeparationParams *params, GError **error)
+check_params (const DsSeparationParams *params, guint width, GError **error)
 {
   double period = params->geometry.period_px;
-  p->estimator = params->estimator;
   if (params->estimator != DS_ESTIMATOR_MAXMIN && params->estimator != DS_ESTIMATOR_SINE) {
     g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT,
                  "single-frame estimator: %s needs more samples per level than one period offers (use maxmin or sine)",
@@ -111,23 +105,570 @@ plan_init (Plan *p, const DsImage *frame, const DsImage *dark, const DsSeparatio
                  params->black_level);
     return FALSE;
   }
-  p->b = params->black_level;
-  p->m = ds_pattern_mean (params->pattern, params->duty, p->b);
-  p->h = params->harmonic_gain > 0 ? params->harmonic_gain
-                                   : ds_harmonic_gain_theory (params->pattern, params->duty, p->b);
-  double cond = p->estimator == DS_ESTIMATOR_SINE ? fmax (1 / p->m, 1 / p->h) : fmax (1 / (1 - p->b), 1 / p->m);
+  guint window = ds_single_frame_window_px (period);
+  if (width < window) {
+    g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT,
+                 "single-frame: the frame is %u px wide, narrower than the window of one period (%u px)", width,
+                 window);
+    return FALSE;
+  }
+  return TRUE;
+}
+
+guint
+ds_single_frame_window_px (double period_px)
+{
+  return (guint) ceil (period_px - 1e-9);
+}
+
+void
+ds_single_frame_free (DsSingleFrame *sf)
+{
+  if (!sf)
+    return;
+  g_clear_pointer (&sf->pool, ds_worker_pool_free);
+  g_free (sf->cos_x);
+  g_free (sf->sin_x);
+  g_free (sf->scratch);
+  g_free (sf);
+}
+
+/* Per-thread scratch, in floats: the row, two levels of three series and the three window
+ * sums (sine; maxmin uses five rows of it), then two rows of counts. */
+#define ROWS_PER_THREAD 10u
+
+DsSingleFrame *
+ds_single_frame_new (const DsSeparationParams *params, guint width, guint height, GError **error)
+{
+  g_return_val_if_fail (params, NULL);
+  if (!check_params (params, width, error))
+    return NULL;
+  if (height == 0) {
+    g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT, "single-frame: the frame has no rows");
+    return NULL;
+  }
+  g_autoptr (DsSingleFrame) sf = g_new0 (DsSingleFrame, 1);
+  sf->estimator = params->estimator;
+  sf->period = params->geometry.period_px;
+  sf->duty = params->duty;
+  sf->width = width;
+  sf->height = height;
+  sf->window = ds_single_frame_window_px (sf->period);
+  sf->half = sf->window / 2;
+  sf->b = params->black_level;
+  sf->m = ds_pattern_mean (params->pattern, params->duty, sf->b);
+  sf->h = params->harmonic_gain > 0 ? params->harmonic_gain
+                                    : ds_harmonic_gain_theory (params->pattern, params->duty, sf->b);
+  sf->saturation_param = params->saturation_level;
+  double cond = sf->estimator == DS_ESTIMATOR_SINE ? fmax (1 / sf->m, 1 / sf->h) : fmax (1 / (1 - sf->b), 1 / sf->m);
   if (!(cond <= DS_MAX_CONDITION)) {
     g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_ILL_CONDITIONED,
                  "single-frame %s: the pattern (black level %g, duty %g) amplifies noise %.3g times, above %g",
-                 ds_estimator_name (p->estimator), p->b, params->duty, cond, DS_MAX_CONDITION);
-    return FALSE;
+                 ds_estimator_name (sf->estimator), sf->b, params->duty, cond, DS_MAX_CONDITION);
+    return NULL;
   }
-  p->width = frame->width;
-  p->window = (guint) ceil (period - 1e-9);
-  if (frame->width < p->window) {
+  if (sf->estimator == DS_ESTIMATOR_SINE && !plan_sine (sf, error))
+    return NULL;
+  guint t = params->threads ? params->threads : (guint) g_get_num_processors ();
+  sf->threads = (gsize) width * height >= DS_SINGLE_FRAME_THREADED_PIXELS ? CLAMP (t, 1u, DS_MAX_THREADS) : 1;
+  sf->tile = MAX (512u, 4 * sf->window);
+  /* Rows a multiple of 16 floats apart, so that two rows never share a cache line; the
+   * sine's levels and sums use a tile's worth of each. */
+  gsize row = ((gsize) width + 1 + 15) & ~(gsize) 15;
+  sf->scratch_floats = row * (ROWS_PER_THREAD + 2);
+  sf->scratch = g_malloc ((gsize) sf->threads * sf->scratch_floats * sizeof (float));
+  return g_steal_pointer (&sf);
+}
+
+DsSingleFrameInfo
+ds_single_frame_info (const DsSingleFrame *sf)
+{
+  return (DsSingleFrameInfo) { .period_px = sf->period, .window_px = sf->window };
+}
+
+/* ---- Row kernels: restrict parameters, inlined into each clone (proc/simd.h). ---- */
+
+#define DECLARE_READ_INT(T, NAME)                                                                    \
+  DS_KERNEL guint read_##NAME (const T *restrict in, float *restrict v, gsize w, guint threshold)  \
+  {                                                                                                  \
+    guint n = 0;                                                                                     \
+    for (gsize x = 0; x < w; x++) {                                                                  \
+      v[x] = in[x];                                                                                  \
+      n += in[x] >= threshold;                                                                       \
+    }                                                                                                \
+    return n;                                                                                        \
+  }
+DECLARE_READ_INT (guint16, u16)
+DECLARE_READ_INT (guint8, u8)
+
+/* Sums of 1, 2 or 4 consecutive samples of v, v cos, v sin from each x < n, pairwise, into o
+ * (onto o when add: a call site passes a constant, so each loop is compiled without it). */
+DS_KERNEL void
+direct_sums (const float *restrict v, const float *restrict c, const float *restrict s, float *restrict o0,
+             float *restrict o1, float *restrict o2, gsize n, guint len, gboolean add)
+{
+  for (gsize x = 0; x < n; x++) {
+    float a0, a1, a2;
+    if (len == 1) {
+      a0 = v[x];
+      a1 = v[x] * c[x];
+      a2 = v[x] * s[x];
+    } else if (len == 2) {
+      a0 = v[x] + v[x + 1];
+      a1 = v[x] * c[x] + v[x + 1] * c[x + 1];
+      a2 = v[x] * s[x] + v[x + 1] * s[x + 1];
+    } else {
+      a0 = (v[x] + v[x + 1]) + (v[x + 2] + v[x + 3]);
+      a1 = (v[x] * c[x] + v[x + 1] * c[x + 1]) + (v[x + 2] * c[x + 2] + v[x + 3] * c[x + 3]);
+      a2 = (v[x] * s[x] + v[x + 1] * s[x + 1]) + (v[x + 2] * s[x + 2] + v[x + 3] * s[x + 3]);
+    }
+    o0[x] = add ? o0[x] + a0 : a0;
+    o1[x] = add ? o1[x] + a1 : a1;
+    o2[x] = add ? o2[x] + a2 : a2;
+  }
+}
+
+/* One doubling step of three series: o[x] = a[x] + a[x + shift], x < n. */
+DS_KERNEL void
+pair_sums3 (const float *restrict a0, const float *restrict a1, const float *restrict a2, float *restrict o0,
+            float *restrict o1, float *restrict o2, gsize n, gsize shift)
+{
+  for (gsize x = 0; x < n; x++) {
+    o0[x] = a0[x] + a0[x + shift];
+    o1[x] = a1[x] + a1[x + shift];
+    o2[x] = a2[x] + a2[x + shift];
+  }
+}
+
+/* Two doubling steps in one pass: o[x] = (a[x] + a[x + shift]) + (a[x + 2 shift] + a[x + 3 shift]),
+ * the same sums in the same order, x < n. */
+DS_KERNEL void
+quad_sums3 (const float *restrict a0, const float *restrict a1, const float *restrict a2, float *restrict o0,
+            float *restrict o1, float *restrict o2, gsize n, gsize shift)
+{
+  for (gsize x = 0; x < n; x++) {
+    o0[x] = (a0[x] + a0[x + shift]) + (a0[x + 2 * shift] + a0[x + 3 * shift]);
+    o1[x] = (a1[x] + a1[x + shift]) + (a1[x + 2 * shift] + a1[x + 3 * shift]);
+    o2[x] = (a2[x] + a2[x + shift]) + (a2[x + 2 * shift] + a2[x + 3 * shift]);
+  }
+}
+
+DS_KERNEL void
+add3 (const float *restrict a0, const float *restrict a1, const float *restrict a2, float *restrict t0,
+      float *restrict t1, float *restrict t2, gsize n)
+{
+  for (gsize x = 0; x < n; x++) {
+    t0[x] += a0[x];
+    t1[x] += a1[x];
+    t2[x] += a2[x];
+  }
+}
+
+/* One doubling step of the extremes: o[x] = max/min (a[x], a[x + shift]), x < n. */
+DS_KERNEL void
+pair_extremes (const float *restrict amax, const float *restrict amin, float *restrict omax, float *restrict omin,
+               gsize n, gsize shift)
+{
+  for (gsize x = 0; x < n; x++) {
+    float p = amax[x], q = amax[x + shift], r = amin[x], s = amin[x + shift];
+    omax[x] = p > q ? p : q;
+    omin[x] = r < s ? r : s;
+  }
+}
+
+typedef struct {
+  float g[6];
+  float inv_h, inv_m;
+} SineConsts;
+
+/* The fit of n consecutive windows from their sums (t*) and the basis angle at their starts
+ * (c, s): the sums rotated into the first window's basis, then its inverse normal matrix. */
+DS_KERNEL void
+fit_sine (const float *restrict t0, const float *restrict tc, const float *restrict ts, const float *restrict c,
+          const float *restrict s, float *restrict ld, float *restrict lg, guint8 *restrict mk, gsize n,
+          SineConsts k)
+{
+  for (gsize x = 0; x < n; x++) {
+    float u = c[x] * tc[x] + s[x] * ts[x];
+    float v = c[x] * ts[x] - s[x] * tc[x];
+    float mean = k.g[0] * t0[x] + k.g[1] * u + k.g[2] * v;
+    float a = k.g[1] * t0[x] + k.g[3] * u + k.g[4] * v;
+    float b = k.g[2] * t0[x] + k.g[4] * u + k.g[5] * v;
+    float d = sqrtf (a * a + b * b) * k.inv_h;
+    float g = mean * k.inv_m - d;
+    ld[x] = d;
+    lg[x] = g;
+    mk[x] = g < 0 ? DS_MASK_NEGATIVE : 0;
+  }
+}
+
+/* n consecutive windows' max and min from two overlapping power-of-two extremes. */
+DS_KERNEL void
+fit_maxmin (const float *restrict mx0, const float *restrict mx1, const float *restrict mn0,
+            const float *restrict mn1, float *restrict ld, float *restrict lg, guint8 *restrict mk, gsize n,
+            float inv_contrast, float inv_m, float b)
+{
+  for (gsize x = 0; x < n; x++) {
+    float mx = mx0[x] > mx1[x] ? mx0[x] : mx1[x];
+    float mn = mn0[x] < mn1[x] ? mn0[x] : mn1[x];
+    float d = (mx - mn) * inv_contrast;
+    float g = (mn - b * d) * inv_m;
+    ld[x] = d;
+    lg[x] = g;
+    mk[x] = g < 0 ? DS_MASK_NEGATIVE : 0;
+  }
+}
+
+/* u16 frames without a dark frame: the extremes in the samples' own type, twice the lanes
+ * of float and no conversion pass; exact as the float path is. */
+DS_KERNEL guint
+count_at_least_u16 (const guint16 *restrict in, gsize w, guint threshold)
+{
+  guint n = 0;
+  for (gsize x = 0; x < w; x++)
+    n += in[x] >= threshold;
+  return n;
+}
+
+DS_KERNEL void
+pair_extremes_u16 (const guint16 *restrict amax, const guint16 *restrict amin, guint16 *restrict omax,
+                   guint16 *restrict omin, gsize n, gsize shift)
+{
+  for (gsize x = 0; x < n; x++) {
+    guint16 p = amax[x], q = amax[x + shift], r = amin[x], s = amin[x + shift];
+    omax[x] = p > q ? p : q;
+    omin[x] = r < s ? r : s;
+  }
+}
+
+DS_KERNEL void
+fit_maxmin_u16 (const guint16 *restrict mx0, const guint16 *restrict mx1, const guint16 *restrict mn0,
+                const guint16 *restrict mn1, float *restrict ld, float *restrict lg, guint8 *restrict mk, gsize n,
+                float inv_contrast, float inv_m, float b)
+{
+  for (gsize x = 0; x < n; x++) {
+    float mx = mx0[x] > mx1[x] ? mx0[x] : mx1[x];
+    float mn = mn0[x] < mn1[x] ? mn0[x] : mn1[x];
+    float d = (mx - mn) * inv_contrast;
+    float g = (mn - b * d) * inv_m;
+    ld[x] = d;
+    lg[x] = g;
+    mk[x] = g < 0 ? DS_MASK_NEGATIVE : 0;
+  }
+}
+
+/* ---- One row ---- */
+
+typedef struct {
+  float *v;
+  float *la[3], *lb[3]; /* two levels of three series (maxmin: max and min in la, lb) */
+  float *t[3];          /* sine: the window sums, per window start */
+  guint *sat, *bad;     /* prefix counts: saturated, non-finite columns before x */
+} Rows;
+
+static Rows
+rows_of (const DsSingleFrame *sf, guint thread)
+{
+  gsize row = sf->scratch_floats / (ROWS_PER_THREAD + 2);
+  float *f = sf->scratch + (gsize) thread * sf->scratch_floats;
+  Rows r = { .v = f };
+  for (guint i = 0; i < 3; i++) {
+    r.la[i] = f + (1 + i) * row;
+    r.lb[i] = f + (4 + i) * row;
+    r.t[i] = f + (7 + i) * row;
+  }
+  r.sat = (guint *) (f + ROWS_PER_THREAD * row);
+  r.bad = (guint *) (f + (ROWS_PER_THREAD + 1) * row);
+  return r;
+}
+
+/* One thread's mask counts, padded so that no two threads write one cache line. */
+typedef struct {
+  guint64 c[DS_MASK_N_BITS + 1];
+  guint64 pad[8];
+} Counts;
+
+typedef struct {
+  const DsSingleFrame *sf;
+  const DsImage *frame, *dark;
+  DsSeparation *sep;
+  double saturation;
+  guint threshold; /* integer frames: samples at or above it are saturated */
+  Counts *counted; /* per thread */
+} Job;
+
+/* The row as floats (dark subtracted); FALSE when no column is saturated or non-finite, else
+ * the prefix counts are made and non-finite values replaced by 0. */
+DS_KERNEL gboolean
+read_row (const Job *job, guint y, Rows *r)
+{
+  const DsImage *frame = job->frame;
+  gsize w = frame->width;
+  const void *row = ds_image_row (frame, y);
+  guint n_sat = 0, n_bad = 0;
+  if (frame->type == DS_SAMPLE_U16) {
+    n_sat = read_u16 (row, r->v, w, job->threshold);
+  } else if (frame->type == DS_SAMPLE_U8) {
+    n_sat = read_u8 (row, r->v, w, job->threshold);
+  } else {
+    const float *in = row;
+    float sat_level = (float) fmin (job->saturation, G_MAXFLOAT);
+    for (gsize x = 0; x < w; x++) {
+      r->v[x] = in[x];
+      n_sat += in[x] >= sat_level;
+      n_bad += !isfinite (in[x]);
+    }
+  }
+  if (job->dark) {
+    const void *drow = ds_image_row (job->dark, y);
+    for (gsize x = 0; x < w; x++)
+      r->v[x] -= (float) ds_image_sample (job->dark, drow, x);
+    for (gsize x = 0; x < w; x++)
+      n_bad += !isfinite (r->v[x]);
+  }
+  if (n_sat == 0 && n_bad == 0)
+    return FALSE;
+  r->sat[0] = r->bad[0] = 0;
+  for (gsize x = 0; x < w; x++) {
+    double raw = ds_image_sample (frame, row, x);
+    gboolean finite = isfinite (r->v[x]);
+    r->sat[x + 1] = r->sat[x] + (finite && raw >= job->saturation);
+    r->bad[x + 1] = r->bad[x] + !finite;
+    if (!finite)
+      r->v[x] = 0;
+  }
+  return TRUE;
+}
+
+/* Window sums of v, v cos, v sin for every window start s < w - l + 1 into r->t. */
+/* Window sums of v, v cos, v sin (c, sn: cos and sin at the same columns) for the window
+ * starts s < starts, over columns [0, starts + l - 1): sums[i][s], in r->t, or in a level
+ * buffer when the window is one level (a power of two). */
+DS_KERNEL void
+window_sums (const DsSingleFrame *sf, const float *v, const float *c, const float *sn, gsize starts, Rows *r,
+             const float *sums[3])
+{
+  gsize l = sf->window, w = starts + l - 1, off = 0;
+  float **t = r->t;
+  for (guint i = 0; i < 3; i++)
+    sums[i] = t[i];
+  /* the window's first columns: its length's two lowest binary digits, from the samples */
+  if (l & 1) {
+    direct_sums (v, c, sn, t[0], t[1], t[2], starts, 1, FALSE);
+    off = 1;
+  }
+  if (l & 2) {
+    if (off)
+      direct_sums (v + off, c + off, sn + off, t[0], t[1], t[2], starts, 2, TRUE);
+    else
+      direct_sums (v, c, sn, t[0], t[1], t[2], starts, 2, FALSE);
+    off += 2;
+  }
+  if (l < 4)
+    return;
+  /* then levels of 4, 8, ... columns, each from two of the level below */
+  float **level = r->la, **spare = r->lb;
+  direct_sums (v, c, sn, level[0], level[1], level[2], w - 3, 4, FALSE);
+  for (gsize len = 4;;) {
+    if (l & len) {
+      if (off) {
+        add3 (level[0] + off, level[1] + off, level[2] + off, t[0], t[1], t[2], starts);
+      } else if (len * 2 > l) {
+        /* the window is this level alone: its sums as they stand */
+        for (guint i = 0; i < 3; i++)
+          sums[i] = level[i];
+      } else {
+        for (guint i = 0; i < 3; i++)
+          memcpy (t[i], level[i] + off, starts * sizeof (float));
+      }
+      off += len;
+    }
+    if (len * 2 > l)
+      break;
+    /* the next level the window needs, from this one: valid for x + next <= w; a level the
+     * window does not use is skipped (four of this level in one pass) */
+    gsize next = len * 4 <= l && !(l & (len * 2)) ? len * 4 : len * 2;
+    if (next == len * 4)
+      quad_sums3 (level[0], level[1], level[2], spare[0], spare[1], spare[2], w - next + 1, len);
+    else
+      pair_sums3 (level[0], level[1], level[2], spare[0], spare[1], spare[2], w - next + 1, len);
+    float **tmp = level;
+    level = spare;
+    spare = tmp;
+    len = next;
+  }
+}
+
+/* The row in tiles of sf->tile window starts, so that the levels stay in the first-level
+ * cache; a tile reads the l - 1 columns after it again. */
+DS_KERNEL void
+sine_row (const DsSingleFrame *sf, Rows *r, float *ld, float *lg, guint8 *mk)
+{
+  gsize w = sf->width, l = sf->window, half = sf->half, starts = w - l + 1;
+  SineConsts k = { .inv_h = (float) (1 / sf->h), .inv_m = (float) (1 / sf->m) };
+  memcpy (k.g, sf->g, sizeof k.g);
+  for (gsize x0 = 0; x0 < starts; x0 += sf->tile) {
+    gsize n = MIN (sf->tile, starts - x0);
+    const float *c = sf->cos_x + x0, *s = sf->sin_x + x0, *sums[3];
+    window_sums (sf, r->v + x0, c, s, n, r, sums);
+    const float *t0 = sums[0], *tc = sums[1], *ts = sums[2];
+    /* pixel x's window starts at x - half, clamped to [0, starts - 1] */
+    fit_sine (t0, tc, ts, c, s, ld + half + x0, lg + half + x0, mk + half + x0, n, k);
+    for (gsize x = 0; x0 == 0 && x < half; x++)
+      fit_sine (t0, tc, ts, c, s, ld + x, lg + x, mk + x, 1, k);
+    for (gsize x = starts + half; x0 + n == starts && x < w; x++) {
+      gsize e = n - 1;
+      fit_sine (t0 + e, tc + e, ts + e, c + e, s + e, ld + x, lg + x, mk + x, 1, k);
+    }
+  }
+}
+
+DS_KERNEL void
+maxmin_row (const DsSingleFrame *sf, Rows *r, float *ld, float *lg, guint8 *mk)
+{
+  gsize w = sf->width, l = sf->window, half = sf->half, starts = w - l + 1, len = 1;
+  const float *mx = r->v, *mn = r->v;
+  float *next[2] = { r->la[0], r->la[1] }, *spare[2] = { r->lb[0], r->lb[1] };
+  for (; len * 2 <= l; len <<= 1) {
+    pair_extremes (mx, mn, next[0], next[1], w - 2 * len + 1, len);
+    mx = next[0];
+    mn = next[1];
+    float *t0 = next[0], *t1 = next[1];
+    next[0] = spare[0];
+    next[1] = spare[1];
+    spare[0] = t0;
+    spare[1] = t1;
+  }
+  /* extremes over [s, s + len) and [s + l - len, s + l): together the window, len <= l < 2 len */
+  gsize o = l - len;
+  float ic = (float) (1 / (1 - sf->b)), im = (float) (1 / sf->m), b = (float) sf->b;
+  fit_maxmin (mx, mx + o, mn, mn + o, ld + half, lg + half, mk + half, starts, ic, im, b);
+  for (gsize x = 0; x < half; x++)
+    fit_maxmin (mx, mx + o, mn, mn + o, ld + x, lg + x, mk + x, 1, ic, im, b);
+  for (gsize x = starts + half; x < w; x++) {
+    gsize e = starts - 1;
+    fit_maxmin (mx + e, mx + e + o, mn + e, mn + e + o, ld + x, lg + x, mk + x, 1, ic, im, b);
+  }
+}
+
+/* maxmin_row on the u16 samples themselves (rows with nothing saturated). */
+DS_KERNEL void
+maxmin_row_u16 (const DsSingleFrame *sf, const guint16 *in, Rows *r, float *ld, float *lg, guint8 *mk)
+{
+  gsize w = sf->width, l = sf->window, half = sf->half, starts = w - l + 1, len = 1;
+  const guint16 *mx = in, *mn = in;
+  guint16 *next[2] = { (guint16 *) r->la[0], (guint16 *) r->la[1] };
+  guint16 *spare[2] = { (guint16 *) r->lb[0], (guint16 *) r->lb[1] };
+  for (; len * 2 <= l; len <<= 1) {
+    pair_extremes_u16 (mx, mn, next[0], next[1], w - 2 * len + 1, len);
+    mx = next[0];
+    mn = next[1];
+    guint16 *t0 = next[0], *t1 = next[1];
+    next[0] = spare[0];
+    next[1] = spare[1];
+    spare[0] = t0;
+    spare[1] = t1;
+  }
+  gsize o = l - len;
+  float ic = (float) (1 / (1 - sf->b)), im = (float) (1 / sf->m), b = (float) sf->b;
+  fit_maxmin_u16 (mx, mx + o, mn, mn + o, ld + half, lg + half, mk + half, starts, ic, im, b);
+  for (gsize x = 0; x < half; x++)
+    fit_maxmin_u16 (mx, mx + o, mn, mn + o, ld + x, lg + x, mk + x, 1, ic, im, b);
+  for (gsize x = starts + half; x < w; x++) {
+    gsize e = starts - 1;
+    fit_maxmin_u16 (mx + e, mx + e + o, mn + e, mn + e + o, ld + x, lg + x, mk + x, 1, ic, im, b);
+  }
+}
+
+/* Each pixel's window start: centred, clamped so that the window stays inside the row. */
+static inline guint
+window_start (const DsSingleFrame *sf, guint x)
+{
+  guint l = sf->window, s = x >= l / 2 ? x - l / 2 : 0;
+  return MIN (s, sf->width - l);
+}
+
+/* Rows [y0, y1): read, separate, flag the windows that hold a saturated or non-finite
+ * sample, count. */
+DS_KERNEL void
+rows (const Job *job, guint y0, guint y1, guint thread, gboolean sine)
+{
+  const DsSingleFrame *sf = job->sf;
+  Rows r = rows_of (sf, thread);
+  gboolean raw16 = !sine && job->frame->type == DS_SAMPLE_U16 && !job->dark;
+  for (guint y = y0; y < y1; y++) {
+    float *ld = ds_image_row (job->sep->transmissive, y), *lg = ds_image_row (job->sep->scattered, y);
+    guint8 *mk = ds_image_row (job->sep->mask, y);
+    const guint16 *in16 = ds_image_row (job->frame, y);
+    if (raw16 && count_at_least_u16 (in16, sf->width, job->threshold) == 0) {
+      maxmin_row_u16 (sf, in16, &r, ld, lg, mk);
+      ds_count_mask_row (mk, sf->width, job->counted[thread].c);
+      continue;
+    }
+    gboolean flagged = read_row (job, y, &r);
+    if (sine)
+      sine_row (sf, &r, ld, lg, mk);
+    else
+      maxmin_row (sf, &r, ld, lg, mk);
+    for (guint x = 0; flagged && x < sf->width; x++) {
+      guint s = window_start (sf, x), e = s + sf->window;
+      if (r.sat[e] > r.sat[s])
+        mk[x] |= DS_MASK_SATURATED;
+      if (r.bad[e] > r.bad[s])
+        mk[x] |= DS_MASK_NONFINITE;
+    }
+    ds_count_mask_row (mk, sf->width, job->counted[thread].c);
+  }
+}
+
+/* Float arithmetic throughout: the wide clone pays for sine, the memory-bound maxmin keeps
+ * AVX2 (proc/simd.h). */
+DS_CLONES_WIDE static void
+sine_rows (gpointer data, guint y0, guint y1, guint thread)
+{
+  rows (data, y0, y1, thread, TRUE);
+}
+
+DS_CLONES static void
+maxmin_rows (gpointer data, guint y0, guint y1, guint thread)
+{
+  rows (data, y0, y1, thread, FALSE);
+}
+
+/* The caller's planes checked, the missing allocated, those this estimator does not make freed. */
+static gboolean
+prepare_planes (DsSeparation *sep, guint w, guint h, GError **error)
+{
+  DsImage **made[] = { &sep->transmissive, &sep->scattered, &sep->mask };
+  const char *names[] = { "transmissive", "scattered", "mask" };
+  for (guint i = 0; i < G_N_ELEMENTS (made); i++) {
+    DsImage *p = *made[i];
+    DsSampleType type = i == 2 ? DS_SAMPLE_U8 : DS_SAMPLE_F32;
+    if (p && (p->type != type || p->width != w || p->height != h)) {
+      g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT,
+                   "result plane %s is %ux%u %s, the single-frame estimator makes %ux%u %s", names[i], p->width,
+                   p->height, ds_sample_type_name (p->type), w, h, ds_sample_type_name (type));
+      return FALSE;
+    }
+  }
+  DsImage **unmade[] = { &sep->max, &sep->min, &sep->mean, &sep->sigma_transmissive, &sep->sigma_scattered };
+  for (guint i = 0; i < G_N_ELEMENTS (unmade); i++)
+    g_clear_pointer (unmade[i], ds_image_free);
+  for (guint i = 0; i < G_N_ELEMENTS (made); i++)
+    if (!*made[i] && !(*made[i] = ds_image_new (i == 2 ? DS_SAMPLE_U8 : DS_SAMPLE_F32, w, h, error)))
+      return FALSE;
+  return TRUE;
+}
+
+gboolean
+ds_single_frame_separate_into (DsSingleFrame *sf, const DsImage *frame, const DsImage *dark, DsSeparation *sep,
+                               GError **error)
+{
+  g_return_val_if_fail (sf && frame && sep, FALSE);
+  if (frame->width != sf->width || frame->height != sf->height) {
     g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT,
-                 "single-frame: the frame is %u px wide, narrower than the window of one period (%u px)",
-                 frame->width, p->window);
+                 "single-frame: the frame is %ux%u, the plan is for %ux%u", frame->width, frame->height, sf->width,
+                 sf->height);
     return FALSE;
   }
   if (dark && !ds_image_same_shape (frame, dark)) {
@@ -136,168 +677,42 @@ plan_init (Plan *p, const DsImage *frame, const DsImage *dark, const DsSeparatio
                  ds_sample_type_name (dark->type), frame->width, frame->height, ds_sample_type_name (frame->type));
     return FALSE;
   }
-  if (params->saturation_level > 0)
-    p->saturation = params->saturation_level;
+  if (!prepare_planes (sep, sf->width, sf->height, error))
+    return FALSE;
+  Job job = { .sf = sf, .frame = frame, .dark = dark, .sep = sep };
+  if (sf->saturation_param > 0)
+    job.saturation = sf->saturation_param;
   else if (frame->type == DS_SAMPLE_F32)
-    p->saturation = INFINITY;
+    job.saturation = INFINITY;
   else
-    p->saturation = ldexp (1, (int) frame->bit_depth) - 1;
-  return p->estimator == DS_ESTIMATOR_SINE ? plan_sine (p, period, error) : TRUE;
-}
+    job.saturation = ldexp (1, (int) frame->bit_depth) - 1;
+  /* integer samples: x >= level exactly when x >= ceil (level); above 65535 none is */
+  job.threshold = (guint) fmin (ceil (job.saturation), 65536);
+  g_autofree Counts *counted = g_malloc0_n (sf->threads, sizeof (Counts));
+  job.counted = counted;
+  if (sf->threads > 1 && !sf->pool)
+    sf->pool = ds_worker_pool_new (sf->threads);
+  ds_worker_pool_run (sf->pool, sf->height, sf->estimator == DS_ESTIMATOR_SINE ? sine_rows : maxmin_rows, &job);
 
-/* Per-row scratch: the row's values, its flag prefix counts, and the estimator's own. */
-typedef struct {
-  float *v;
-  guint *sat, *bad;          /* prefix counts: saturated, non-finite columns before x */
-  gboolean any_sat, any_bad; /* the row has some: else the counts are not kept */
-  double *s0, *sc, *ss;      /* sine: prefix sums of v, v cos, v sin */
-  float *pre_max, *suf_max, *pre_min, *suf_min; /* maxmin: van Herk / Gil-Werman blocks */
-} Rows;
-
-/* The row as floats (dark subtracted), non-finite values as 0, and whether any column is
- * saturated or non-finite; the prefix counts only then. Written per sample type so that the
- * common loop has no branch per sample. */
-static void
-read_row (const Plan *p, const DsImage *frame, const DsImage *dark, guint y, Rows *r)
-{
-  guint w = p->width;
-  const void *row = ds_image_row (frame, y);
-  float sat_level = (float) fmin (p->saturation, G_MAXFLOAT);
-  guint n_sat = 0, n_bad = 0;
-  if (frame->type == DS_SAMPLE_U16) {
-    const guint16 *in = row;
-    for (guint x = 0; x < w; x++) {
-      r->v[x] = in[x];
-      n_sat += in[x] >= sat_level;
-    }
-  } else if (frame->type == DS_SAMPLE_U8) {
-    const guint8 *in = row;
-    for (guint x = 0; x < w; x++) {
-      r->v[x] = in[x];
-      n_sat += in[x] >= sat_level;
-    }
-  } else {
-    const float *in = row;
-    for (guint x = 0; x < w; x++) {
-      r->v[x] = in[x];
-      n_sat += in[x] >= sat_level;
-      n_bad += !isfinite (in[x]);
-    }
+  DsSeparationMeta *meta = &sep->meta;
+  *meta = (DsSeparationMeta) { 0 };
+  for (guint t = 0; t < sf->threads; t++) {
+    meta->valid_pixels += counted[t].c[0];
+    for (guint bit = 0; bit < DS_MASK_N_BITS; bit++)
+      meta->flagged[bit] += counted[t].c[1 + bit];
   }
-  if (dark) {
-    const void *drow = ds_image_row (dark, y);
-    for (guint x = 0; x < w; x++)
-      r->v[x] -= (float) ds_image_sample (dark, drow, x);
-    for (guint x = 0; x < w; x++)
-      n_bad += !isfinite (r->v[x]);
-  }
-  r->any_sat = n_sat > 0;
-  r->any_bad = n_bad > 0;
-  if (!r->any_sat && !r->any_bad)
-    return;
-  r->sat[0] = r->bad[0] = 0;
-  for (guint x = 0; x < w; x++) {
-    double raw = ds_image_sample (frame, row, x);
-    gboolean finite = isfinite (r->v[x]);
-    r->sat[x + 1] = r->sat[x] + (finite && raw >= p->saturation);
-    r->bad[x + 1] = r->bad[x] + !finite;
-    if (!finite)
-      r->v[x] = 0;
-  }
-}
-
-/* max and min over each window [s, s + L): blocks of L columns, a prefix extreme from each
- * block's start and a suffix extreme to its end; a window spans at most two blocks, so its
- * extreme is the suffix's at s and the prefix's at s + L - 1 (O(1) per pixel for any L). */
-static void
-extremes_row (const Plan *p, Rows *r)
-{
-  guint w = p->width, l = p->window;
-  const float *v = r->v;
-  for (guint b = 0; b < w; b += l) {
-    guint e = MIN (b + l, w);
-    float mx = v[b], mn = v[b];
-    for (guint x = b; x < e; x++) {
-      mx = v[x] > mx ? v[x] : mx;
-      mn = v[x] < mn ? v[x] : mn;
-      r->pre_max[x] = mx;
-      r->pre_min[x] = mn;
-    }
-    mx = mn = v[e - 1];
-    for (guint x = e; x-- > b;) {
-      mx = v[x] > mx ? v[x] : mx;
-      mn = v[x] < mn ? v[x] : mn;
-      r->suf_max[x] = mx;
-      r->suf_min[x] = mn;
-    }
-  }
-}
-
-static void
-sums_row (const Plan *p, Rows *r)
-{
-  double a = 0, c = 0, sn = 0;
-  r->s0[0] = r->sc[0] = r->ss[0] = 0;
-  for (guint x = 0; x < p->width; x++) {
-    a += r->v[x];
-    c += r->v[x] * p->cos_x[x];
-    sn += r->v[x] * p->sin_x[x];
-    r->s0[x + 1] = a;
-    r->sc[x + 1] = c;
-    r->ss[x + 1] = sn;
-  }
-}
-
-/* Each pixel's window start: centred, clamped so that the window stays inside the row. */
-static inline guint
-window_start (const Plan *p, guint x)
-{
-  guint l = p->window, s = x >= l / 2 ? x - l / 2 : 0;
-  return MIN (s, p->width - l);
-}
-
-static void
-separate_row (const Plan *p, const Rows *r, float *ld_row, float *lg_row, guint8 *mask_row)
-{
-  guint w = p->width, l = p->window;
-  if (p->estimator == DS_ESTIMATOR_SINE) {
-    const double *g0 = p->ginv, *g1 = g0 + p->starts, *g2 = g1 + p->starts, *g3 = g2 + p->starts,
-                 *g4 = g3 + p->starts, *g5 = g4 + p->starts;
-    double inv_h = 1 / p->h, inv_m = 1 / p->m;
-    for (guint x = 0; x < w; x++) {
-      guint s = window_start (p, x), e = s + l;
-      double t0 = r->s0[e] - r->s0[s], tc = r->sc[e] - r->sc[s], ts = r->ss[e] - r->ss[s];
-      double mean = g0[s] * t0 + g1[s] * tc + g2[s] * ts;
-      double a = g1[s] * t0 + g3[s] * tc + g4[s] * ts;
-      double b = g2[s] * t0 + g4[s] * tc + g5[s] * ts;
-      double ld = sqrt (a * a + b * b) * inv_h;
-      double lg = mean * inv_m - ld;
-      ld_row[x] = (float) ld;
-      lg_row[x] = (float) lg;
-      mask_row[x] = lg < 0 ? DS_MASK_NEGATIVE : 0;
-    }
-  } else {
-    float inv_contrast = (float) (1 / (1 - p->b)), inv_m = (float) (1 / p->m), b = (float) p->b;
-    for (guint x = 0; x < w; x++) {
-      guint s = window_start (p, x), e = s + l;
-      float mx = r->suf_max[s] > r->pre_max[e - 1] ? r->suf_max[s] : r->pre_max[e - 1];
-      float mn = r->suf_min[s] < r->pre_min[e - 1] ? r->suf_min[s] : r->pre_min[e - 1];
-      float ld = (mx - mn) * inv_contrast;
-      float lg = (mn - b * ld) * inv_m;
-      ld_row[x] = ld;
-      lg_row[x] = lg;
-      mask_row[x] = lg < 0 ? DS_MASK_NEGATIVE : 0;
-    }
-  }
-  if (!r->any_sat && !r->any_bad)
-    return;
-  for (guint x = 0; x < w; x++) {
-    guint s = window_start (p, x), e = s + l;
-    if (r->sat[e] > r->sat[s])
-      mask_row[x] |= DS_MASK_SATURATED;
-    if (r->bad[e] > r->bad[s])
-      mask_row[x] |= DS_MASK_NONFINITE;
-  }
+  meta->n_phases = sf->window;
+  meta->frames_per_phase = 1;
+  meta->estimator = sf->estimator;
+  meta->duty = sf->duty;
+  meta->black_level = sf->b;
+  meta->pattern_mean = sf->m;
+  meta->harmonic_gain = sf->h;
+  meta->dark_subtracted = dark != NULL;
+  meta->noise_dn = NAN;
+  meta->saturation_level = isfinite (job.saturation) ? job.saturation : NAN;
+  meta->phase_offset_cycles = NAN;
+  return TRUE;
 }
 
 gboolean
@@ -305,62 +720,14 @@ ds_single_frame_separate (const DsImage *frame, const DsImage *dark, const DsSep
                           DsSeparation **out, DsSingleFrameInfo *info, GError **error)
 {
   g_return_val_if_fail (frame && params && out, FALSE);
-  Plan plan = { 0 };
-  if (!plan_init (&plan, frame, dark, params, error)) {
-    plan_clear (&plan);
+  g_autoptr (DsSingleFrame) sf = ds_single_frame_new (params, frame->width, frame->height, error);
+  if (!sf)
     return FALSE;
-  }
   g_autoptr (DsSeparation) sep = ds_separation_new ();
-  sep->transmissive = ds_image_new (DS_SAMPLE_F32, frame->width, frame->height, error);
-  sep->scattered = sep->transmissive ? ds_image_new (DS_SAMPLE_F32, frame->width, frame->height, error) : NULL;
-  sep->mask = sep->scattered ? ds_image_new (DS_SAMPLE_U8, frame->width, frame->height, error) : NULL;
-  if (!sep->mask) {
-    plan_clear (&plan);
+  if (!ds_single_frame_separate_into (sf, frame, dark, sep, error))
     return FALSE;
-  }
-  guint w = frame->width;
-  g_autofree float *values = g_new (float, (gsize) 5 * (w + 1));
-  g_autofree double *sums = plan.estimator == DS_ESTIMATOR_SINE ? g_new (double, (gsize) 3 * (w + 1)) : NULL;
-  g_autofree guint *counts = g_new (guint, (gsize) 2 * (w + 1));
-  Rows r = { .v = values, .sat = counts, .bad = counts + w + 1 };
-  r.pre_max = values + (w + 1);
-  r.suf_max = values + 2 * (gsize) (w + 1);
-  r.pre_min = values + 3 * (gsize) (w + 1);
-  r.suf_min = values + 4 * (gsize) (w + 1);
-  if (sums) {
-    r.s0 = sums;
-    r.sc = sums + (w + 1);
-    r.ss = sums + 2 * (gsize) (w + 1);
-  }
-  guint64 counted[DS_MASK_N_BITS + 1] = { 0 };
-  DsSeparationMeta *meta = &sep->meta;
-  for (guint y = 0; y < frame->height; y++) {
-    read_row (&plan, frame, dark, y, &r);
-    if (plan.estimator == DS_ESTIMATOR_SINE)
-      sums_row (&plan, &r);
-    else
-      extremes_row (&plan, &r);
-    guint8 *mk = ds_image_row (sep->mask, y);
-    separate_row (&plan, &r, ds_image_row (sep->transmissive, y), ds_image_row (sep->scattered, y), mk);
-    ds_count_mask_row (mk, w, counted);
-  }
-  meta->valid_pixels = counted[0];
-  for (guint bit = 0; bit < DS_MASK_N_BITS; bit++)
-    meta->flagged[bit] = counted[1 + bit];
-  meta->n_phases = plan.window;
-  meta->frames_per_phase = 1;
-  meta->estimator = plan.estimator;
-  meta->duty = params->duty;
-  meta->black_level = plan.b;
-  meta->pattern_mean = plan.m;
-  meta->harmonic_gain = plan.h;
-  meta->dark_subtracted = dark != NULL;
-  meta->noise_dn = NAN;
-  meta->saturation_level = isfinite (plan.saturation) ? plan.saturation : NAN;
-  meta->phase_offset_cycles = NAN;
   if (info)
-    *info = (DsSingleFrameInfo) { .period_px = params->geometry.period_px, .window_px = plan.window };
-  plan_clear (&plan);
+    *info = ds_single_frame_info (sf);
   *out = g_steal_pointer (&sep);
   return TRUE;
 }

@@ -17,7 +17,11 @@
  *   pixel), Ld = (max - min)/(1 - b), Lg = (min - b Ld)/m.
  * robust needs more samples per level than one period offers and is refused.
  *
- * Pure functions, any thread, CPU and memory only (two rows of scratch per call). */
+ * Arithmetic: the window sums and extremes are taken in single precision by doubling (windows
+ * of 1, 2, 4 ... columns, each the sum or extreme of two of the level below, the window the
+ * levels its length's binary digits name), so every sum is a pairwise sum of at most ceil(P)
+ * samples: its rounding error is at most 2 log2(ceil(P)) float epsilons of the sum of the
+ * samples' magnitudes, with no drift along the row. Extremes are exact. */
 #pragma once
 #include <glib.h>
 
@@ -31,15 +35,45 @@ typedef struct {
   guint window_px;   /* columns each output pixel is computed from: ceil(P) */
 } DsSingleFrameInfo;
 
-/* Separates `frame` (u8, u16 or f32; `dark`, optional, of the same shape, subtracted first)
- * with params->estimator (maxmin or sine), pattern, duty, black_level, harmonic_gain
- * (0: the theoretical h) and saturation_level (0: 2^bit_depth - 1 for integer frames) at
- * period params->geometry.period_px. params->n_phases is not used. *out gets transmissive,
- * scattered and mask (SATURATED, NONFINITE, NEGATIVE as for sets; meta.n_phases is the
- * window). Fails INVALID_ARGUMENT (robust, a period out of range, a frame narrower than the
- * window, a dark frame of another shape) or ILL_CONDITIONED (1/(1-b), 1/m or 1/h above
- * DS_MAX_CONDITION), naming the parameter; nothing is returned then. */
+/* The window for stripe period P: ceil(P) columns, a whole period (a period a hair above an
+ * integer from rounding in its computation counts as that integer). */
+guint ds_single_frame_window_px (double period_px);
+
+/* The plan for frames of one geometry: the pattern's constants, the basis tables, the threads
+ * and their row scratch. Made once per capture; one thread at a time uses it. */
+typedef struct DsSingleFrame DsSingleFrame;
+
+/* For width x height frames with params->estimator (maxmin or sine), pattern, duty,
+ * black_level, harmonic_gain (0: the theoretical h), saturation_level (0: 2^bit_depth - 1 for
+ * integer frames), threads (0: one per processor; frames under DS_SINGLE_FRAME_THREADED_PIXELS
+ * use the caller's thread alone) at period params->geometry.period_px. params->n_phases is
+ * not used. Fails INVALID_ARGUMENT (robust, a period out of range, a frame narrower than the
+ * window) or ILL_CONDITIONED (1/(1-b), 1/m or 1/h above DS_MAX_CONDITION), naming the
+ * parameter. */
+DsSingleFrame *ds_single_frame_new (const DsSeparationParams *params, guint width, guint height, GError **error);
+void ds_single_frame_free (DsSingleFrame *sf);
+G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsSingleFrame, ds_single_frame_free)
+
+DsSingleFrameInfo ds_single_frame_info (const DsSingleFrame *sf);
+
+/* Separates `frame` (u8, u16 or f32 of the plan's size; `dark`, optional, of the same shape,
+ * subtracted first) into `sep`, which the caller owns and may reuse from frame to frame:
+ * transmissive, scattered (f32) and mask (u8) it already has are written in place and must
+ * have the frame's size and their type, missing ones are allocated, other planes freed.
+ * Mask: SATURATED, NONFINITE (any sample of the pixel's window), NEGATIVE, counted in meta;
+ * meta.n_phases is the window, meta.frames_per_phase 1. The result is the same bit for bit
+ * with any number of threads. Fails INVALID_ARGUMENT (a frame or plane of another size) or
+ * SIZE_MISMATCH (a dark frame of another shape); the planes' contents are then unspecified. */
+gboolean ds_single_frame_separate_into (DsSingleFrame *sf, const DsImage *frame, const DsImage *dark,
+                                        DsSeparation *sep, GError **error);
+
+/* One frame, one call: ds_single_frame_new, ds_single_frame_separate_into a new result. *out
+ * is set only on success. info (may be NULL) gets the window. */
 gboolean ds_single_frame_separate (const DsImage *frame, const DsImage *dark, const DsSeparationParams *params,
                                    DsSeparation **out, DsSingleFrameInfo *info, GError **error);
+
+/* Frames with fewer pixels are separated on the caller's thread alone: waking workers would
+ * cost more than the rows. */
+#define DS_SINGLE_FRAME_THREADED_PIXELS (128u * 1024u)
 
 G_END_DECLS

@@ -14,6 +14,7 @@
  *   verify.c       frame verification (stale, frame gap, stripe phase)
  *   retry.c        the retry rule of every frame acquired (phase sets, dark, pilot)
  *   dark.c         dark-frame acquisition
+ *   single_frame_set.c  a set of one frame separated alone (settings.single_frame)
  *   auto_point.c   the automatic operating point (preview frames)
  *   camera_live.c  the `set` command: exposure, gain and region on the open camera
  *   stream_stop.c  continuous mode that stops by itself when its sets keep failing
@@ -42,6 +43,7 @@
 #include "daemon/output/raw_frames.h"
 #include "proc/phase_check.h"
 #include "proc/phase_window.h"
+#include "proc/single_frame.h"
 
 G_BEGIN_DECLS
 
@@ -137,6 +139,10 @@ typedef struct {
   guint window_width, window_height;
   gboolean window_ran;
   DsCaptureSettings window_settings;
+  /* The single-frame plan (single_frame_set.c), kept while settings and frame size stay. */
+  DsSingleFrame *single;
+  DsSeparationParams single_params;
+  guint single_width, single_height;
   gint64 last_frame_us;           /* arrival of the last folded frame */
   DsLastFrameTimes last_frame_times; /* ... and its job's stamps */
   guint64 next_set_id;
@@ -251,6 +257,15 @@ void ds_seq_run_set (DsAcquisition *acq, const DsCaptureSettings *requested, gui
  * cancelled or the daemon stops (the window's frames not yet in a result are aborted), or the
  * frames keep failing: a FAILED event then, counted as a failed set. */
 void ds_seq_run_window_stream (DsAcquisition *acq, const DsCaptureSettings *requested);
+/* ---- single_frame_set.c: blocks on the devices for the frame ---- */
+
+/* A single-frame set (s->single_frame) once the camera, the pattern and the dark frame are
+ * ready: phase 0 lit, one frame, separated from its own stripes into planes from acq->planes
+ * (given back on failure). NULL with error when the set fails; the frame and its retries are
+ * counted in c. *last_frame_us: the frame's arrival. No raw frames are kept (acq->raw cleared). */
+DsSeparation *ds_seq_acquire_single_frame (DsAcquisition *acq, const DsCaptureSettings *s, const DsImage *dark,
+                                           guint width, guint height, DsFrameCounters *c, gint64 *last_frame_us,
+                                           GError **error);
 
 /* ---- pipeline.c: blocks for the set's frames (device calls, and waits for fold jobs) ---- */
 

@@ -2,6 +2,7 @@
  * separation's parameters, to JSON for a result's metadata. Plain data, CPU only: any thread. */
 #include "daemon/acquire/capture_settings.h"
 #include "proc/phase_check.h"
+#include "proc/single_frame.h"
 
 #include <math.h>
 #include <string.h>
@@ -28,6 +29,7 @@ ds_capture_settings_from_config (DsCaptureSettings *s, const DsConfig *c)
   s->phase_retries = c->phase_retries;
   s->max_failed_sets = c->max_failed_sets;
   s->verify_phase = c->verify_phase;
+  s->single_frame = c->single_frame;
   /* A spool that records raw frames needs every set to keep them. */
   s->save_phases = c->spool_dir && c->spool_save_phases;
   s->per_frame = c->results && strcmp (c->results, "per-frame") == 0;
@@ -85,10 +87,21 @@ ds_capture_settings_to_json (const DsCaptureSettings *s)
   BOOL ("dark_frame", s->dark_frame);
   INT ("phase_retries", s->phase_retries);
   BOOL ("verify_phase", s->verify_phase);
-  BOOL ("save_phases", s->save_phases);
+  BOOL ("save_phases", s->save_phases && !s->single_frame);
   /* Only in per-frame mode, so that a set's settings read as they always did. */
   if (s->per_frame)
     STR ("results", "per-frame");
+  if (s->single_frame) {
+    /* The resolution it costs: each pixel is computed from the window of ceil(P) columns
+     * around it (proc/single_frame.h). */
+    json_builder_set_member_name (b, "single_frame");
+    json_builder_begin_object (b);
+    STR ("estimator", ds_estimator_name (s->estimator));
+    DBL ("period_px", s->period_px);
+    INT ("window_px", ds_single_frame_window_px (s->period_px));
+    STR ("window_axis", "x");
+    json_builder_end_object (b);
+  }
   if (s->automatic) {
     json_builder_set_member_name (b, "operating_point");
     json_builder_begin_object (b);
@@ -124,5 +137,6 @@ ds_capture_settings_equal (const DsCaptureSettings *a, const DsCaptureSettings *
          a->saturation_dn == b->saturation_dn &&
          a->dark_frame == b->dark_frame && a->phase_retries == b->phase_retries &&
          a->verify_phase == b->verify_phase && a->phase_tolerance_deg == b->phase_tolerance_deg &&
-         a->save_phases == b->save_phases && a->per_frame == b->per_frame;
+         a->save_phases == b->save_phases && a->per_frame == b->per_frame &&
+         a->single_frame == b->single_frame;
 }

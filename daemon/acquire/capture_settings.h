@@ -38,6 +38,8 @@ typedef struct {
   gboolean save_phases;       /* keep the raw phase and dark frames in the result */
   gboolean per_frame;         /* continuous mode: a result for every frame from the newest frame of
                                * each phase (window_stream.c) instead of one per set; M = 1 */
+  gboolean single_frame;      /* one frame lit with phase 0, separated alone (proc/single_frame.h):
+                                 the estimator is maxmin or sine, no raw frames are kept */
   /* Automatic operating point (docs/accuracy.md): when either is > 0, a preview frame and the
    * model choose estimator, phases, averages and exposure; the choice is recorded below. */
   double target_error;        /* relative RMSE of transmissive; 0 = none */

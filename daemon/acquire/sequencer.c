@@ -525,6 +525,7 @@ acquisition_clear (DsAcquisition *acq)
     ds_devices_close (acq->dev);
   g_clear_pointer (&acq->set, ds_phase_set_free);
   g_clear_pointer (&acq->window, ds_phase_window_free);
+  g_clear_pointer (&acq->single, ds_single_frame_free);
   g_clear_pointer (&acq->dark, ds_image_free);
   g_clear_pointer (&acq->planes, ds_plane_pool_unref);
   g_clear_pointer (&acq->raw, ds_raw_frames_free);

@@ -76,6 +76,8 @@ acquire_set (DsAcquisition *acq, const DsCaptureSettings *s, guint64 tag, DsSetO
   acq->dev->camera->ops->get_info (acq->dev->camera->backend, &info);
   guint w = cs->roi_width ? cs->roi_width : info.sensor_width;
   guint h = cs->roi_width ? cs->roi_height : info.sensor_height;
+  if (s->single_frame)
+    return ds_seq_acquire_single_frame (acq, s, use_dark, w, h, c, last_frame_us, error);
   if (!prepare_phase_set (acq, s, w, h, error))
     return NULL;
   /* The phase set is reused between sets: forget an earlier dark frame when this set has

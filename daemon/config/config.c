@@ -202,6 +202,9 @@ static const KeySpec keys[] = {
     "camera link bandwidth, for the acquisition-time model of automatic captures" },
   { "acquisition", "phase-tolerance-deg", K_DOUBLE, LIVE, F (phase_tolerance_deg), "", 1, 180, NULL,
     "largest accepted stripe-phase error; empty = half the phase step (180/N)" },
+  { "acquisition", "single-frame", K_BOOL, LIVE, F (single_frame), "false", 0, 0, NULL,
+    "separate each frame alone (phase 0 lit) from one stripe period around each pixel, with the estimator "
+    "maxmin or sine: a result per frame for moving scenes, at a resolution of one period along x" },
 
   { "sim", "scene", K_STRING, RESTART, F (sim_scene), NULL, 0, 0, NULL,
     "scene file for the simulated devices; empty = the built-in demo scene" },

@@ -95,6 +95,7 @@ typedef struct {
   char *results;          /* continuous mode: "per-set" or "per-frame" (sliding window) */
   gboolean verify_phase;
   double phase_tolerance_deg;
+  gboolean single_frame;   /* one frame per result, separated from one stripe period around each pixel */
   char *operating_model;  /* NULL: built-in */
   double timing_settle_ms;
   double timing_link_mbit;

@@ -23,6 +23,9 @@ ds_config_check_consistency (const DsConfig *c, const char *name, GError **error
     g_set_error (error, DS_CONFIG_ERROR, DS_CONFIG_ERROR_INCONSISTENT, "%s: %s", name, msg_);      \
     return FALSE;                                                                                  \
   } while (0)
+  if (c->single_frame && strcmp (c->estimator, "robust") == 0)
+    INCONSISTENT ("[acquisition] single-frame = true with estimator = robust: one frame holds one stripe period "
+                  "per pixel, too few samples for robust; use maxmin or sine");
   if (!c->camera_backend)
     INCONSISTENT ("[camera] backend is not set: aravis for a GigE Vision camera, or sim for the "
                   "simulated lab (descatterd --sim runs that without a file)");
@@ -98,6 +101,9 @@ ds_config_check_consistency (const DsConfig *c, const char *name, GError **error
   if (strcmp (c->results, "per-frame") == 0 && c->averages > 1)
     INCONSISTENT ("[acquisition] results = per-frame needs averages = 1 (got %u): the sliding window holds one "
                   "frame per phase and does not average", c->averages);
+  if (strcmp (c->results, "per-frame") == 0 && c->single_frame)
+    INCONSISTENT ("[acquisition] results = per-frame with single-frame = true: a single-frame result is "
+                  "already one per frame");
   if (c->spool_dir && (!c->spool_formats || !*c->spool_formats))
     INCONSISTENT ("[daemon] spool-formats is empty: name at least one of tiff, png16, preview, hdf5, hdf5-run");
   if (c->http_listen && !ds_config_parse_host_port (c->http_listen, NULL, NULL))

@@ -134,7 +134,7 @@ ds_ctl_config (const DsCtlTarget *target, int argc, char **argv)
  * (ds_ctl_args_int): NULL is "not given", every typed value goes to the daemon. */
 typedef struct {
   char *phases, *averages, *exposure_us, *gain_db, *target_error, *time_budget_ms, *estimator;
-  gboolean dark_frame, no_dark_frame, no_verify;
+  gboolean dark_frame, no_dark_frame, no_verify, single_frame;
 } AcqOptions;
 
 static void
@@ -172,6 +172,8 @@ acq_args (const AcqOptions *o, const char *cmd)
     json_object_set_boolean_member (args, "dark_frame", o->dark_frame);
   if (o->no_verify)
     json_object_set_boolean_member (args, "verify_phase", FALSE);
+  if (o->single_frame)
+    json_object_set_boolean_member (args, "single_frame", TRUE);
   return g_steal_pointer (&args);
 }
 
@@ -184,6 +186,9 @@ acq_args (const AcqOptions *o, const char *cmd)
   { "dark-frame", 0, 0, G_OPTION_ARG_NONE, &(o).dark_frame, "Take a dark frame with each set", NULL },     \
   { "no-dark-frame", 0, 0, G_OPTION_ARG_NONE, &(o).no_dark_frame, "Take no dark frame (overrides the configuration)", NULL }, \
   { "no-verify", 0, 0, G_OPTION_ARG_NONE, &(o).no_verify, "Do not verify the stripe phase of each frame", NULL }, \
+  { "single-frame", 0, 0, G_OPTION_ARG_NONE, &(o).single_frame,                                             \
+    "One frame per result, separated from one stripe period around each pixel (maxmin or sine; for moving "  \
+    "scenes, at one period's resolution along x)", NULL },                                                   \
   { "target-error", 0, 0, G_OPTION_ARG_STRING, &(o).target_error,                                           \
     "Automatic operating point: the relative error to reach (0..1; docs/accuracy.md)", "ERR" },              \
   { "time-budget-ms", 0, 0, G_OPTION_ARG_STRING, &(o).time_budget_ms,                                       \

@@ -66,6 +66,9 @@ settings_from_request (DsService *svc, const DsRequest *req, DsCaptureSettings *
   if (!ds_request_get_bool (req, "save_phases", s->save_phases, &bval, error))
     return FALSE;
   s->save_phases = bval;
+  if (!ds_request_get_bool (req, "single_frame", s->single_frame, &bval, error))
+    return FALSE;
+  s->single_frame = bval;
   /* Every raw frame is a payload and a line of metadata: keep a reply within bounds. */
   if (s->save_phases && s->phases * s->averages > DS_SAVE_PHASES_MAX_FRAMES) {
     g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT,
@@ -76,6 +79,20 @@ settings_from_request (DsService *svc, const DsRequest *req, DsCaptureSettings *
   if (!ds_request_get_double (req, "target_error", 0.0, 1.0, 0.0, &s->target_error, error) ||
       !ds_request_get_double (req, "time_budget_ms", 0.0, 3.6e6, 0.0, &s->time_budget_ms, error))
     return FALSE;
+  /* One frame per result: the window of one period holds too few samples for robust, and the
+   * automatic operating point chooses among phase sets. */
+  if (s->single_frame && s->estimator == DS_ESTIMATOR_ROBUST) {
+    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT,
+                 "\"single_frame\": the estimator is robust; one frame holds one stripe period per pixel, "
+                 "too few samples for it: use maxmin or sine");
+    return FALSE;
+  }
+  if (s->single_frame && (s->target_error > 0 || s->time_budget_ms > 0)) {
+    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT,
+                 "\"single_frame\" with target_error or time_budget_ms: the automatic operating point chooses "
+                 "among phase sets; ask for one or the other");
+    return FALSE;
+  }
   if ((s->target_error > 0 || s->time_budget_ms > 0) && !svc->model) {
     g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_FAILED,
                  "automatic operating point unavailable: %s", svc->model_error);
@@ -193,7 +210,8 @@ handle_capture (DsService *svc, DsConnection *conn, DsRequest *req)
 {
   static const char *const keys[] = { "phases", "averages", "exposure_us", "gain_db", "estimator",
                                       "dark_frame", "verify_phase", "format", "outputs",
-                                      "progress", "target_error", "time_budget_ms", "save_phases", NULL };
+                                      "progress", "target_error", "time_budget_ms", "save_phases", "single_frame",
+                                      NULL };
   g_autoptr (GError) error = NULL;
   DsCaptureSettings s;
   const char *format;
@@ -307,6 +325,7 @@ handle_calibrate (DsService *svc, DsConnection *conn, DsRequest *req)
   s.estimator = DS_ESTIMATOR_SINE;
   s.target_error = 0;
   s.time_budget_ms = 0;
+  s.single_frame = FALSE; /* calibration reads the pattern from a phase set's raw frames */
   guint64 tag = ++svc->next_tag;
   if (!ds_sequencer_capture (svc->sequencer, &s, tag)) {
     reply_not_queued (svc, conn, req);
@@ -331,6 +350,14 @@ results_mode_fits (const DsCaptureSettings *s, gboolean per_frame, GError **erro
                  "phase and does not average", s->averages);
     return FALSE;
   }
+  if (per_frame && s->single_frame) {
+    /* A single-frame result already comes from every frame; a window of phases has nothing to
+     * add to it and the two would disagree on which frames a result holds. */
+    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT,
+                 "\"results\": per-frame and \"single_frame\" exclude each other: a single-frame "
+                 "result is already one per frame");
+    return FALSE;
+  }
   return TRUE;
 }
 
@@ -339,7 +366,7 @@ handle_start (DsService *svc, DsConnection *conn, DsRequest *req)
 {
   static const char *const keys[] = { "phases", "averages", "exposure_us", "gain_db", "estimator",
                                       "dark_frame", "verify_phase", "target_error", "time_budget_ms",
-                                      "save_phases", "results", NULL };
+                                      "save_phases", "results", "single_frame", NULL };
   static const char *const modes[] = { "per-set", "per-frame", NULL };
   g_autoptr (GError) error = NULL;
   DsCaptureSettings s;

@@ -99,6 +99,7 @@ test_settings_documented (void)
   full.roi_width = 64; /* a result's region, as the set runner fills it in */
   full.roi_height = 48;
   full.per_frame = TRUE; /* continuous mode's per-frame results */
+  full.single_frame = TRUE; /* settings.single_frame and its window */
   full.automatic = TRUE;
   full.target_error = 0.05;
   full.operating.target_error = 0.05;

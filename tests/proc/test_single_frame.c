@@ -4,6 +4,7 @@
  * of N = P phases shows at one pixel of a uniform scene), and at the edges of its model: a
  * step in Ld (the resolution cost is the window), a saturated column (flagged in exactly the
  * windows that hold it), and the refusals. */
+#include <float.h>
 #include <math.h>
 #include <string.h>
 
@@ -241,6 +242,206 @@ test_refusals (void)
   g_assert_error (error, DS_PROC_ERROR, DS_PROC_ERROR_SIZE_MISMATCH);
 }
 
+/* ---- The fast paths against a direct per-pixel reference ----
+ * The reference fits each pixel's window on its own, in double: the absolute basis
+ * cos/sin(2 pi x/P) of the window's columns, its 3x3 normal equations solved by Cramer's
+ * rule, and max/min by scanning. No rotation, no doubling, no tiles: a different route to
+ * the same numbers. */
+
+static guint
+ref_start (guint x, guint w, guint l)
+{
+  guint s = x >= l / 2 ? x - l / 2 : 0;
+  return MIN (s, w - l);
+}
+
+static double
+det3 (const double a[3][3])
+{
+  return a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0]) +
+         a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]);
+}
+
+/* The window's fit (M, a, b) by Cramer's rule; also the largest row sum of |G^-1| (by solving
+ * for the unit vectors), the factor from an error in the sums to one in (M, a, b). */
+static void
+ref_fit (const double *v, guint s, guint l, double period, double out[3], double *ginv_norm)
+{
+  double g[3][3] = { { 0 } }, t[3] = { 0 };
+  for (guint j = s; j < s + l; j++) {
+    double u = fmod ((double) j, period) / period;
+    double basis[3] = { 1, cos (2 * G_PI * u), sin (2 * G_PI * u) };
+    for (guint i = 0; i < 3; i++) {
+      t[i] += v[j] * basis[i];
+      for (guint k = 0; k < 3; k++)
+        g[i][k] += basis[i] * basis[k];
+    }
+  }
+  double d = det3 (g), norm = 0;
+  for (guint col = 0; col < 3; col++) {
+    double a[3][3];
+    memcpy (a, g, sizeof a);
+    for (guint i = 0; i < 3; i++)
+      a[i][col] = t[i];
+    out[col] = det3 (a) / d;
+  }
+  for (guint i = 0; i < 3; i++) {
+    double row = 0;
+    for (guint col = 0; col < 3; col++) {
+      double a[3][3];
+      memcpy (a, g, sizeof a);
+      for (guint k = 0; k < 3; k++)
+        a[k][col] = k == i;
+      row += fabs (det3 (a) / d);
+    }
+    norm = fmax (norm, row);
+  }
+  *ginv_norm = norm;
+}
+
+/* Random u16 over the whole range (the largest sums, so the largest rounding), an optional
+ * dark frame, several widths against the tile and periods whose windows take every route
+ * through the doubling (odd, two low bits, powers of two, one above). */
+static void
+test_fast_paths_match_reference (void)
+{
+  const double periods[] = { 3.0, 5.0, 7.3, 8.0, 13.7, 16.0, 16.2, 33.5 };
+  const guint widths[] = { 40, 517, 1500 };
+  guint64 state = 0x243F6A8885A308D3ull;
+  for (guint wi = 0; wi < G_N_ELEMENTS (widths); wi++) {
+    guint w = widths[wi], h = 3;
+    g_autoptr (DsImage) frame = ds_image_new (DS_SAMPLE_U16, w, h, NULL);
+    g_autoptr (DsImage) dark = ds_image_new (DS_SAMPLE_U16, w, h, NULL);
+    for (guint y = 0; y < h; y++) {
+      guint16 *row = ds_image_row (frame, y), *drow = ds_image_row (dark, y);
+      for (guint x = 0; x < w; x++) {
+        state = state * 6364136223846793005ull + 1442695040888963407ull;
+        row[x] = (guint16) (state >> 48);
+        drow[x] = (guint16) ((state >> 20) & 255);
+      }
+    }
+    for (guint pi = 0; pi < G_N_ELEMENTS (periods); pi++) {
+      for (guint with_dark = 0; with_dark < 2; with_dark++) {
+        for (DsEstimator e = DS_ESTIMATOR_MAXMIN; e <= DS_ESTIMATOR_SINE; e++) {
+          double period = periods[pi];
+          if (e == DS_ESTIMATOR_MAXMIN && period < 2.5)
+            continue;
+          guint l = (guint) ceil (period - 1e-9);
+          if (w < l)
+            continue;
+          DsSeparationParams p;
+          ds_separation_params_init (&p, 8);
+          p.estimator = e;
+          p.pattern = e == DS_ESTIMATOR_SINE ? DS_PATTERN_SINE : DS_PATTERN_SQUARE;
+          p.black_level = 0.1;
+          p.geometry.period_px = period;
+          p.saturation_level = 65536; /* random data reaches 65535: count nothing saturated */
+          g_autoptr (DsSeparation) sep = NULL;
+          g_autoptr (GError) error = NULL;
+          g_assert_true (ds_single_frame_separate (frame, with_dark ? dark : NULL, &p, &sep, NULL, &error));
+          g_assert_no_error (error);
+          double m = p.pattern == DS_PATTERN_SINE ? 0.1 + 0.9 / 2 : 0.5 + 0.1 * 0.5;
+          double hg = 0.9 / 2; /* sine stripes: h = (1 - b)/2 */
+          g_assert_cmpfloat_with_epsilon (sep->meta.pattern_mean, m, 1e-12);
+          for (guint y = 0; y < h; y++) {
+            const guint16 *in = ds_image_row (frame, y), *din = ds_image_row (dark, y);
+            double v[1500];
+            for (guint x = 0; x < w; x++)
+              v[x] = (double) in[x] - (with_dark ? din[x] : 0);
+            const float *t = ds_image_row (sep->transmissive, y), *g = ds_image_row (sep->scattered, y);
+            for (guint x = 0; x < w; x++) {
+              guint s = ref_start (x, w, l);
+              double ld, lg, tol_ld, tol_lg;
+              if (e == DS_ESTIMATOR_SINE) {
+                double fit[3], norm;
+                ref_fit (v, s, l, period, fit, &norm);
+                ld = hypot (fit[1], fit[2]) / hg;
+                lg = fit[0] / m - ld;
+                /* the header's bound on the sums, 2 log2(l) float epsilons of the sum of
+                 * the magnitudes, plus a few for the basis tables, the rotation and the
+                 * fit; through G^-1 into (M, a, b) and on into Ld and Lg */
+                double abs_sum = 0;
+                for (guint j = s; j < s + l; j++)
+                  abs_sum += fabs (v[j]);
+                double dt = (2 * ceil (log2 (l)) + 8) * FLT_EPSILON * abs_sum;
+                tol_ld = sqrt (2) * norm * dt / hg + 1e-6 * fabs (ld);
+                tol_lg = norm * dt / m + tol_ld + 1e-6 * fabs (lg);
+              } else {
+                double mx = v[s], mn = v[s];
+                for (guint j = s; j < s + l; j++) {
+                  mx = fmax (mx, v[j]);
+                  mn = fmin (mn, v[j]);
+                }
+                ld = (mx - mn) / (1 - 0.1);
+                lg = (mn - 0.1 * ld) / m;
+                /* the extremes are exact; two float operations each */
+                tol_ld = 4 * FLT_EPSILON * (fabs (ld) + 1);
+                tol_lg = 8 * FLT_EPSILON * (fabs (lg) + fabs (ld) + fabs (mn) + 1);
+              }
+              if (fabs (t[x] - ld) > tol_ld || fabs (g[x] - lg) > tol_lg)
+                g_error ("%s P %g width %u dark %u pixel (%u, %u): Ld %.9g want %.9g (+-%.3g), Lg %.9g want %.9g "
+                         "(+-%.3g)",
+                         ds_estimator_name (e), period, w, with_dark, x, y, t[x], ld, tol_ld, g[x], lg, tol_lg);
+            }
+          }
+        }
+      }
+    }
+  }
+}
+
+/* Rows shared by several threads give the bits one thread gives (every row is computed
+ * alone), and a plan reused for a second frame into the same planes gives the bits of a
+ * fresh call. */
+static void
+test_threads_and_reuse (void)
+{
+  const guint w = 640, h = 300; /* above DS_SINGLE_FRAME_THREADED_PIXELS */
+  g_assert_cmpuint (w * h, >=, DS_SINGLE_FRAME_THREADED_PIXELS);
+  g_autoptr (DsImage) a = ds_image_new (DS_SAMPLE_U16, w, h, NULL);
+  g_autoptr (DsImage) b = ds_image_new (DS_SAMPLE_U16, w, h, NULL);
+  guint64 state = 7;
+  for (guint y = 0; y < h; y++) {
+    guint16 *ra = ds_image_row (a, y), *rb = ds_image_row (b, y);
+    for (guint x = 0; x < w; x++) {
+      state = state * 6364136223846793005ull + 1442695040888963407ull;
+      ra[x] = (guint16) (state >> 52);
+      rb[x] = (guint16) (state >> 40);
+    }
+  }
+  for (DsEstimator e = DS_ESTIMATOR_MAXMIN; e <= DS_ESTIMATOR_SINE; e++) {
+    DsSeparationParams p;
+    ds_separation_params_init (&p, 8);
+    p.estimator = e;
+    p.geometry.period_px = 11.5;
+    p.saturation_level = 4095; /* 12-bit data touches it: some windows are flagged */
+    p.threads = 1;
+    g_autoptr (DsSeparation) one = NULL;
+    g_assert_true (ds_single_frame_separate (b, NULL, &p, &one, NULL, NULL));
+    g_assert_cmpuint (one->meta.flagged[0], >, 0);
+    p.threads = 3;
+    g_autoptr (GError) error = NULL;
+    g_autoptr (DsSingleFrame) sf = ds_single_frame_new (&p, w, h, &error);
+    g_assert_no_error (error);
+    g_autoptr (DsSeparation) pooled = ds_separation_new ();
+    g_assert_true (ds_single_frame_separate_into (sf, a, NULL, pooled, NULL));
+    const guint8 *planes[2] = { pooled->transmissive->data, pooled->scattered->data };
+    g_assert_true (ds_single_frame_separate_into (sf, b, NULL, pooled, NULL));
+    g_assert_true (pooled->transmissive->data == planes[0]); /* written in place */
+    g_assert_true (pooled->scattered->data == planes[1]);
+    for (guint y = 0; y < h; y++) {
+      g_assert_cmpmem (ds_image_row (pooled->transmissive, y), w * 4, ds_image_row (one->transmissive, y), w * 4);
+      g_assert_cmpmem (ds_image_row (pooled->scattered, y), w * 4, ds_image_row (one->scattered, y), w * 4);
+      g_assert_cmpmem (ds_image_row (pooled->mask, y), w, ds_image_row (one->mask, y), w);
+    }
+    g_assert_cmpmem (&pooled->meta, sizeof pooled->meta, &one->meta, sizeof one->meta);
+    /* a frame of another size is refused by the plan */
+    g_autoptr (DsImage) other = ds_image_new (DS_SAMPLE_U16, w - 1, h, NULL);
+    g_assert_false (ds_single_frame_separate_into (sf, other, NULL, pooled, &error));
+    g_assert_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT);
+  }
+}
+
 int
 main (int argc, char **argv)
 {
@@ -251,5 +452,7 @@ main (int argc, char **argv)
   g_test_add_func ("/single-frame/resolution-cost", test_resolution_cost);
   g_test_add_func ("/single-frame/saturation-flags-windows", test_saturation_flags_windows);
   g_test_add_func ("/single-frame/refusals", test_refusals);
+  g_test_add_func ("/single-frame/fast-paths-match-reference", test_fast_paths_match_reference);
+  g_test_add_func ("/single-frame/threads-and-reuse", test_threads_and_reuse);
   return g_test_run ();
 }

@@ -69,11 +69,12 @@ def given(**kwargs: Any) -> JsonObject:
 def acquisition_args(*, phases: Optional[int], averages: Optional[int], exposure_us: Optional[float],
                      gain_db: Optional[float], estimator: Optional[str], dark_frame: Optional[bool],
                      verify_phase: Optional[bool], target_error: Optional[float],
-                     time_budget_ms: Optional[float], save_phases: Optional[bool]) -> JsonObject:
+                     time_budget_ms: Optional[float], save_phases: Optional[bool],
+                     single_frame: Optional[bool] = None) -> JsonObject:
     """The settings of capture and start (docs/protocol.md, `capture`), as sent."""
     return given(phases=phases, averages=averages, exposure_us=exposure_us, gain_db=gain_db, estimator=estimator,
                  dark_frame=dark_frame, verify_phase=verify_phase, target_error=target_error,
-                 time_budget_ms=time_budget_ms, save_phases=save_phases)
+                 time_budget_ms=time_budget_ms, save_phases=save_phases, single_frame=single_frame)
 
 
 Roi = Union[tuple[int, int, int, int], dict[str, int]]
@@ -291,6 +292,7 @@ class Client:
                 estimator: Optional[Estimator] = None, dark_frame: Optional[bool] = None,
                 verify_phase: Optional[bool] = None, target_error: Optional[float] = None,
                 time_budget_ms: Optional[float] = None, save_phases: Optional[bool] = None,
+                single_frame: Optional[bool] = None,
                 format: Optional[Format] = None, outputs: Optional[Iterable[str]] = None,
                 on_progress: Optional[ProgressCallback] = None, timeout: Optional[float] = None) -> Result:
         """Acquires and separates one phase set and returns its Result once it is done. The
@@ -302,7 +304,8 @@ class Client:
         DeviceError, Failed, Cancelled), or Timeout after the daemon was told to cancel."""
         args = acquisition_args(phases=phases, averages=averages, exposure_us=exposure_us, gain_db=gain_db,
                                 estimator=estimator, dark_frame=dark_frame, verify_phase=verify_phase,
-                                target_error=target_error, time_budget_ms=time_budget_ms, save_phases=save_phases)
+                                target_error=target_error, time_budget_ms=time_budget_ms, save_phases=save_phases,
+                                single_frame=single_frame)
         if format is not None:
             args["format"] = format
         if outputs is not None:
@@ -316,7 +319,8 @@ class Client:
               estimator: Optional[Estimator] = None, dark_frame: Optional[bool] = None,
               verify_phase: Optional[bool] = None, target_error: Optional[float] = None,
               time_budget_ms: Optional[float] = None, save_phases: Optional[bool] = None,
-              results: Optional[Results] = None, timeout: Optional[float] = None) -> JsonObject:
+              single_frame: Optional[bool] = None, results: Optional[Results] = None,
+              timeout: Optional[float] = None) -> JsonObject:
         """Starts continuous acquisition and returns the settings used; results go to
         subscribers (subscribe()). No settings: the configuration's, following its reloads.
         results="per-frame": a result for every frame from the latest N phases (a sliding
@@ -324,7 +328,8 @@ class Client:
         already acquires."""
         args = acquisition_args(phases=phases, averages=averages, exposure_us=exposure_us, gain_db=gain_db,
                                 estimator=estimator, dark_frame=dark_frame, verify_phase=verify_phase,
-                                target_error=target_error, time_budget_ms=time_budget_ms, save_phases=save_phases)
+                                target_error=target_error, time_budget_ms=time_budget_ms, save_phases=save_phases,
+                                single_frame=single_frame)
         if results is not None:
             args["results"] = results
         return self.call("start", timeout=timeout, **args)[0]
