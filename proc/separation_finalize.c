@@ -85,9 +85,17 @@ finalize_rows (gpointer data, guint y0, guint y1, guint thread)
       ds_row_maxmin (c, dark, &rb, w);
       break;
     }
+    const guint8 *flags = column_flags;
+    if (c->motion) {
+      /* robust judged its row from its planes; the others kept the sums */
+      if (c->estimator != DS_ESTIMATOR_ROBUST)
+        ds_row_motion (c, set->sumsq + off, rb.mean_raw, 1.0, set->cos_sum + off, set->sin_sum + off,
+                       dark, &rb, w);
+      flags = ds_row_motion_flags (&rb, column_flags, w);
+    }
     j->row_mean_sum[y] = 0;
     j->row_mean_count[y] = 0;
-    ds_row_tail (c, &rb, dark, column_flags, &o, w, &j->row_mean_sum[y], &j->row_mean_count[y], counts);
+    ds_row_tail (c, &rb, dark, flags, &o, w, &j->row_mean_sum[y], &j->row_mean_count[y], counts);
   }
 }
 
@@ -253,8 +261,13 @@ finalize_run (DsPhaseSet *set, DsSeparation *sep, guint m_frames, const DsImage 
   c->sigmas = model;
   c->len_hi = p->estimator == DS_ESTIMATOR_ROBUST ? set->robust_hi : 1;
   c->len_lo = p->estimator == DS_ESTIMATOR_ROBUST ? set->robust_lo : 1;
+  /* MOTION needs a noise level: the model's per pixel, or the data's for the frame */
+  c->data_var_phase = c->data_sigma * c->data_sigma / m_frames;
+  c->motion = set->motion && (model || !isnan (c->data_var_phase));
+  c->motion_kappa = set->motion_kappa;
+  c->motion_chi2 = set->motion_chi2;
 
-  j.use_fast = set->max16 && p->estimator == DS_ESTIMATOR_MAXMIN && !model && !extrema;
+  j.use_fast = set->max16 && p->estimator == DS_ESTIMATOR_MAXMIN && !model && !extrema && !set->motion;
   if (j.use_fast) {
     DsMaxminFast *k = &j.fast;
     k->inv1b = (float) c->inv1b;
@@ -320,6 +333,7 @@ finalize_run (DsPhaseSet *set, DsSeparation *sep, guint m_frames, const DsImage 
   meta->dark_subtracted = set->dark != NULL;
   meta->saturation_level = c->sat;
   meta->phase_offset_cycles = set->column_flags && !set->flags_need_offset ? set->offset_used : NAN;
+  meta->motion_checked = c->motion;
   if (model) {
     double s = mean_count ? mean_total / mean_count : 0;
     meta->noise_dn = sqrt (c->read_var + c->gain * (s > 0 ? s : 0));

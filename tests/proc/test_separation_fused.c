@@ -213,6 +213,7 @@ check_reference (const Case *c, const DsSeparationParams *p, DsImage **frames, c
         [4] = { ld < 0 || lg < 0, MIN (ld, lg) },
         [5] = { d - lo > exceed, d - lo - exceed },
         [6] = { columns[x] != 0, G_MAXDOUBLE },
+        [7] = { FALSE, G_MAXDOUBLE }, /* motion: detect_motion is off */
       };
       guint8 want = 0;
       for (guint i = 0; i < DS_MASK_N_BITS; i++) {
