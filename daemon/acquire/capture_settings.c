@@ -28,6 +28,7 @@ ds_capture_settings_from_config (DsCaptureSettings *s, const DsConfig *c)
   s->phase_retries = c->phase_retries;
   s->max_failed_sets = c->max_failed_sets;
   s->verify_phase = c->verify_phase;
+  s->detect_motion = c->detect_motion;
   /* A spool that records raw frames needs every set to keep them. */
   s->save_phases = c->spool_dir && c->spool_save_phases;
   /* A quarter of the phase step: a frame lit one phase off is then always refused. */
@@ -47,6 +48,7 @@ ds_capture_settings_separation_params (const DsCaptureSettings *s, DsSeparationP
   p->harmonic_gain = s->harmonic_gain;
   p->saturation_level = s->saturation_dn;
   p->keep_extrema = s->keep_extrema;
+  p->detect_motion = s->detect_motion;
   /* The period is known (the illuminator's): maxmin and robust then flag the pixels a phase
    * never fully lights or darkens instead of being refused, and robust's windows fit it. */
   p->geometry.period_px = s->period_px;
@@ -84,6 +86,7 @@ ds_capture_settings_to_json (const DsCaptureSettings *s)
   BOOL ("dark_frame", s->dark_frame);
   INT ("phase_retries", s->phase_retries);
   BOOL ("verify_phase", s->verify_phase);
+  BOOL ("detect_motion", s->detect_motion);
   BOOL ("save_phases", s->save_phases);
   if (s->automatic) {
     json_builder_set_member_name (b, "operating_point");

@@ -93,6 +93,7 @@ typedef struct {
   guint phase_retries;
   guint max_failed_sets;  /* continuous mode stops after this many failed sets in a row; 0 = never */
   gboolean verify_phase;
+  gboolean detect_motion;  /* the mask's motion bit (N >= 4) */
   double phase_tolerance_deg;
   char *operating_model;  /* NULL: built-in */
   double timing_settle_ms;

@@ -162,7 +162,7 @@ test_reload_rule (void)
   g_assert_cmpstr (changed, ==, "[camera] roi; [acquisition] settle-ms, link-mbit");
   g_autofree char *live_keys = ds_config_live_keys ();
   g_assert_cmpstr (live_keys, ==, "[camera] exposure-us, gain-db; [acquisition] phases, averages, estimator, "
-                                  "dark-frame, phase-retries, max-failed-sets, verify-phase, phase-tolerance-deg");
+                                  "dark-frame, phase-retries, max-failed-sets, verify-phase, detect-motion, phase-tolerance-deg");
 }
 
 static void
