@@ -62,6 +62,12 @@ finalize_rows (gpointer data, guint y0, guint y1, guint thread)
                             .flags = column_flags,
                             .t = o.t, .g = o.g, .mk = o.mk };
       ds_maxmin_fast_row (&r, w, &j->fast, counts);
+      if (c->motion) {
+        /* the extrema as the fast row left them (no frame is folded on this pass with motion) */
+        ds_row_load_fast (set->max16 + off, set->min16 + off, set->sum32 + off, c->n, &rb, w);
+        ds_row_motion (c, set->sumsq + off, rb.mean_raw, 1.0, set->cos_sum + off, set->sin_sum + off, dark, &rb, w);
+        ds_row_or_motion (rb.motion, o.mk, w, counts);
+      }
       continue;
     }
     if (set->max16)
@@ -267,7 +273,7 @@ finalize_run (DsPhaseSet *set, DsSeparation *sep, guint m_frames, const DsImage 
   c->motion_kappa = set->motion_kappa;
   c->motion_chi2 = set->motion_chi2;
 
-  j.use_fast = set->max16 && p->estimator == DS_ESTIMATOR_MAXMIN && !model && !extrema && !set->motion;
+  j.use_fast = set->max16 && p->estimator == DS_ESTIMATOR_MAXMIN && !model && !extrema;
   if (j.use_fast) {
     DsMaxminFast *k = &j.fast;
     k->inv1b = (float) c->inv1b;

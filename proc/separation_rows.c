@@ -181,6 +181,20 @@ ds_row_motion (const DsRowConsts *c, const double *sumsq, const double *sum_or_m
               rb->motion, w);
 }
 
+DS_CLONES void
+ds_row_or_motion (const guint8 *restrict motion, guint8 *restrict mk, gsize w, guint64 counts[DS_MASK_N_BITS + 1])
+{
+  guint32 lost = 0, moved = 0;
+  for (gsize x = 0; x < w; x++) {
+    guint8 m = (mk[x] & (DS_MASK_SATURATED | DS_MASK_DARK)) ? 0 : motion[x];
+    lost += (guint32) ((mk[x] == 0) & (m != 0));
+    moved += (guint32) (m != 0);
+    mk[x] |= m;
+  }
+  counts[0] -= lost;
+  counts[1 + 7] += moved;
+}
+
 const guint8 *
 ds_row_motion_flags (DsRowBuffers *rb, const guint8 *column_flags, gsize w)
 {

@@ -74,6 +74,9 @@ void ds_row_sine (const DsRowConsts *c, const double *cs, const double *sn, cons
 void ds_row_motion (const DsRowConsts *c, const double *sumsq, const double *sum_or_mean,
                     double mean_scale, const double *cs, const double *sn, const float *dark,
                     DsRowBuffers *rb, gsize w);
+/* The fast maxmin row's mask: motion (rb->motion) or-ed in where the pixel is neither SATURATED
+ * nor DARK, the counts corrected. */
+void ds_row_or_motion (const guint8 *motion, guint8 *mk, gsize w, guint64 counts[DS_MASK_N_BITS + 1]);
 /* rb->flags = column_flags | rb->motion; returns rb->flags. */
 const guint8 *ds_row_motion_flags (DsRowBuffers *rb, const guint8 *column_flags, gsize w);
 

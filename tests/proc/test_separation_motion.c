@@ -154,7 +154,7 @@ typedef struct {
 /* Renders the set, separates it, counts MOTION over judged pixels (neither saturated nor dark
  * nor nonfinite) by whether an edge crossed them. */
 static Rates
-run_case (const Case *c, const Bars *bars, guint32 seed)
+run_case_full (const Case *c, const Bars *bars, guint32 seed, gboolean extrema, guint8 *motion_out)
 {
   g_autoptr (GRand) r = g_rand_new_with_seed (seed);
   /* direct and global light per column (constant down a column: the data noise estimate, from
@@ -170,6 +170,7 @@ run_case (const Case *c, const Bars *bars, guint32 seed)
   p.pattern = c->stripes.kind;
   p.duty = c->stripes.kind == DS_PATTERN_SQUARE ? c->stripes.duty : 0.5;
   p.detect_motion = TRUE;
+  p.keep_extrema = extrema;
   p.threads = 2;
   p.geometry.period_px = PERIOD;
   p.geometry.pixel_aperture = c->stripes.aperture;
@@ -211,6 +212,8 @@ run_case (const Case *c, const Bars *bars, guint32 seed)
     const guint8 *mk = ds_image_row (sep->mask, y);
     for (guint x = 0; x < W; x++) {
       flagged += (mk[x] & DS_MASK_MOTION) != 0;
+      if (motion_out)
+        motion_out[(gsize) y * W + x] = mk[x] & DS_MASK_MOTION;
       if (mk[x] & (DS_MASK_SATURATED | DS_MASK_DARK | DS_MASK_NONFINITE))
         continue;
       gboolean m = (mk[x] & DS_MASK_MOTION) != 0;
@@ -225,6 +228,12 @@ run_case (const Case *c, const Bars *bars, guint32 seed)
   }
   g_assert_cmpuint (flagged, ==, sep->meta.flagged[7]);
   return out;
+}
+
+static Rates
+run_case (const Case *c, const Bars *bars, guint32 seed)
+{
+  return run_case_full (c, bars, seed, FALSE, NULL);
 }
 
 static const char *
@@ -293,6 +302,21 @@ test_moving (void)
         g_assert_cmpfloat (det, >=, c->detect_floor);
     }
   }
+}
+
+/* maxmin without a noise model takes its integer fast path, which or-s the motion bits into
+ * its own mask; keeping the extrema takes the general path: the same pixels either way. */
+static void
+test_fast_path_same (void)
+{
+  const Case c = { DS_ESTIMATOR_MAXMIN, { DS_PATTERN_SQUARE, 0.5, 1 }, 8, FALSE, 0 };
+  Bars bars = { 2 };
+  g_autofree guint8 *fast = g_new (guint8, W * H), *general = g_new (guint8, W * H);
+  Rates a = run_case_full (&c, &bars, 7, FALSE, fast);
+  Rates b = run_case_full (&c, &bars, 7, TRUE, general);
+  g_assert_cmpuint (a.moved_flagged, >, 0);
+  g_assert_cmpuint (a.moved_flagged, ==, b.moved_flagged);
+  g_assert_cmpmem (fast, W * H, general, W * H);
 }
 
 /* Published upper 0.999 quantiles of chi-square (e.g. NIST/SEMATECH e-Handbook, table 1.3.6.7.4),
@@ -385,6 +409,7 @@ main (int argc, char **argv)
   g_test_add_func ("/motion/pattern-ratio", test_pattern_ratio);
   g_test_add_func ("/motion/off-and-small-n", test_off_and_small_n);
   g_test_add_func ("/motion/still", test_still);
+  g_test_add_func ("/motion/fast-path-same", test_fast_path_same);
   g_test_add_func ("/motion/moving-bars", test_moving);
   return g_test_run ();
 }
