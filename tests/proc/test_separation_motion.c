@@ -144,6 +144,8 @@ typedef struct {
   gboolean model;  /* the noise model is given; else shot noise off and read noise only */
   double detect_floor; /* detection rate held at >= 1 px per phase (docs/estimators.md less
                           about 0.05 for the sampling spread) */
+  gboolean float_input; /* f32 frames (else u16) */
+  guint averages;       /* frames per phase, M (0: 1) */
 } Case;
 
 typedef struct {
@@ -184,8 +186,9 @@ run_case_full (const Case *c, const Bars *bars, guint32 seed, gboolean extrema, 
   g_autoptr (GError) error = NULL;
   g_autoptr (DsPhaseSet) set = ds_phase_set_new (&p, W, H, &error);
   g_assert_no_error (error);
-  for (guint k = 0; k < c->n; k++) {
-    g_autoptr (DsImage) frame = ds_image_new (DS_SAMPLE_U16, W, H, &error);
+  for (guint fk = 0; fk < c->n * MAX (c->averages, 1u); fk++) {
+    guint k = fk / MAX (c->averages, 1u);
+    g_autoptr (DsImage) frame = ds_image_new (c->float_input ? DS_SAMPLE_F32 : DS_SAMPLE_U16, W, H, &error);
     g_assert_no_error (error);
     for (guint x = 0; x < W; x++) {
       double sig = pixel_signal (&c->stripes, bars, k, c->n, x, global[x], direct[x]);
@@ -197,7 +200,10 @@ run_case_full (const Case *c, const Bars *bars, guint32 seed, gboolean extrema, 
         } else {
           v += 5.0 * test_normal (r);
         }
-        ((guint16 *) ds_image_row (frame, y))[x] = (guint16) CLAMP (lround (v), 0, 65535);
+        if (c->float_input)
+          ((float *) ds_image_row (frame, y))[x] = (float) v;
+        else
+          ((guint16 *) ds_image_row (frame, y))[x] = (guint16) CLAMP (lround (v), 0, 65535);
       }
     }
     g_assert_true (ds_phase_set_accumulate (set, k, frame, &error));
@@ -239,21 +245,26 @@ run_case (const Case *c, const Bars *bars, guint32 seed)
 static const char *
 case_name (const Case *c, char *buf, gsize len)
 {
-  g_snprintf (buf, len, "%s %s%s N=%u aperture %g %s", ds_estimator_name (c->estimator),
+  g_snprintf (buf, len, "%s %s%s N=%u%s%s aperture %g %s", ds_estimator_name (c->estimator),
               c->stripes.kind == DS_PATTERN_SINE ? "sine" : "square",
               c->stripes.kind == DS_PATTERN_SINE ? "" : (c->stripes.duty == 0.5 ? " a=0.5" : " a=0.25"), c->n,
-              c->stripes.aperture, c->model ? "noise model" : "data noise");
+              c->averages > 1 ? " M=2" : "", c->float_input ? " f32" : "", c->stripes.aperture, c->model ? "noise model" : "data noise");
   return buf;
 }
 
 static const Case cases[] = {
-  { DS_ESTIMATOR_MAXMIN, { DS_PATTERN_SQUARE, 0.5, 1 }, 8, TRUE, 0.58 },
-  { DS_ESTIMATOR_MAXMIN, { DS_PATTERN_SQUARE, 0.5, 0 }, 8, TRUE, 0.63 },
-  { DS_ESTIMATOR_ROBUST, { DS_PATTERN_SQUARE, 0.25, 1 }, 8, TRUE, 0.23 },
-  { DS_ESTIMATOR_SINE, { DS_PATTERN_SINE, 0.5, 1 }, 8, TRUE, 0.95 },
-  { DS_ESTIMATOR_SINE, { DS_PATTERN_SINE, 0.5, 1 }, 4, TRUE, 0.85 },
-  { DS_ESTIMATOR_SINE, { DS_PATTERN_SINE, 0.5, 1 }, 8, FALSE, 0.95 },
-  { DS_ESTIMATOR_MAXMIN, { DS_PATTERN_SQUARE, 0.5, 1 }, 16, FALSE, 0.76 },
+  { DS_ESTIMATOR_MAXMIN, { DS_PATTERN_SQUARE, 0.5, 1 }, 8, TRUE, 0.58, FALSE, 1 },
+  { DS_ESTIMATOR_MAXMIN, { DS_PATTERN_SQUARE, 0.5, 0 }, 8, TRUE, 0.63, FALSE, 1 },
+  { DS_ESTIMATOR_ROBUST, { DS_PATTERN_SQUARE, 0.25, 1 }, 8, TRUE, 0.23, FALSE, 1 },
+  { DS_ESTIMATOR_SINE, { DS_PATTERN_SINE, 0.5, 1 }, 8, TRUE, 0.95, FALSE, 1 },
+  { DS_ESTIMATOR_SINE, { DS_PATTERN_SINE, 0.5, 1 }, 4, TRUE, 0.85, FALSE, 1 },
+  { DS_ESTIMATOR_SINE, { DS_PATTERN_SINE, 0.5, 1 }, 8, FALSE, 0.95, FALSE, 1 },
+  { DS_ESTIMATOR_MAXMIN, { DS_PATTERN_SQUARE, 0.5, 1 }, 16, FALSE, 0.76, FALSE, 1 },
+  /* the float and averaging layouts of the accumulator */
+  { DS_ESTIMATOR_SINE, { DS_PATTERN_SINE, 0.5, 1 }, 6, TRUE, 0.95, TRUE, 1 },
+  { DS_ESTIMATOR_ROBUST, { DS_PATTERN_SINE, 0.5, 1 }, 6, TRUE, 0.95, TRUE, 1 },
+  { DS_ESTIMATOR_MAXMIN, { DS_PATTERN_SQUARE, 0.5, 1 }, 6, TRUE, 0.5, FALSE, 2 },
+  { DS_ESTIMATOR_ROBUST, { DS_PATTERN_SQUARE, 0.5, 1 }, 6, TRUE, 0.5, FALSE, 2 },
 };
 
 /* The design's rate is at most 1e-3 per pixel; 3e-3 leaves room for the binomial spread. */
@@ -309,7 +320,7 @@ test_moving (void)
 static void
 test_fast_path_same (void)
 {
-  const Case c = { DS_ESTIMATOR_MAXMIN, { DS_PATTERN_SQUARE, 0.5, 1 }, 8, FALSE, 0 };
+  const Case c = { DS_ESTIMATOR_MAXMIN, { DS_PATTERN_SQUARE, 0.5, 1 }, 8, FALSE, 0, FALSE, 1 };
   Bars bars = { 2 };
   g_autofree guint8 *fast = g_new (guint8, W * H), *general = g_new (guint8, W * H);
   Rates a = run_case_full (&c, &bars, 7, FALSE, fast);
