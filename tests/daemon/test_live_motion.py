@@ -5,8 +5,9 @@
     and a mask of another size tints nothing (a synthetic picture drawn with the page's own
     function, read back from the canvas);
   - the mask legend lists `motion`, and after a capture (detect-motion is on by default, N = 6)
-    the transmissive caption reads the result's own count, `motion: N pixels`, and the canvas
-    was tinted at as many pictured pixels as the result's mask picture marks.
+    the transmissive caption reads the result's own count, `motion: N pixels` (at most 3e-3 of
+    the pixels: the simulated scene is still and the design's false-alarm rate is 1e-3), and
+    the canvas was tinted at as many pictured pixels as the result's mask picture marks.
 Usage: test_live_motion.py DESCATTERD DESCATTERCTL"""
 import os
 import sys
@@ -69,6 +70,9 @@ def main():
             sep = b.js("lastResultMeta.separation")
             assert sep["motion_checked"] is True, sep
             n = sep["flagged"]["motion"]
+            # the simulated scene is still: at most the design's 1e-3 false alarms (3e-3 with room)
+            meta = b.js("lastResultMeta")
+            assert n <= 3e-3 * meta["width"] * meta["height"], (n, meta["width"], meta["height"])
             note = b.js("document.getElementById('motion-note').textContent")
             assert note == f"motion: {n} pixel{'' if n == 1 else 's'}", (note, n)
             assert int(b.js(f"{BODY}.motionPixels")) == n
