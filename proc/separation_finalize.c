@@ -27,6 +27,7 @@ typedef struct {
   guint64 *counts;         /* per thread: DS_MASK_N_BITS + 1 */
   const guint8 *column_flags; /* undersampled columns, NULL if none */
   const DsImage *last_frame; /* fast path: the set's last frame, folded on the way; or NULL */
+  double last_c, last_s;     /* its phase's angle, for the motion sums */
 } FinalizeJob;
 
 static void
@@ -55,6 +56,22 @@ finalize_rows (gpointer data, guint y0, guint y1, guint thread)
     };
     if (j->use_fast) {
       const DsImage *f = j->last_frame;
+      if (f && set->sumsq) {
+        /* the motion sums take the frame as the fold does (the same kernels, so the same bits);
+         * the fast row then reads the extrema from the state */
+        if (f->type == DS_SAMPLE_U16) {
+          const guint16 *in = ds_image_row (f, y);
+          ds_fold_extrema_sum_u16 (in, set->max16 + off, set->min16 + off, set->sum32 + off, w);
+          ds_fold_harmonic_u16 (in, j->last_c, j->last_s, set->cos_sum + off, set->sin_sum + off, FALSE, w);
+          ds_fold_sumsq_u16 (in, set->sumsq + off, FALSE, w);
+        } else {
+          const guint8 *in = ds_image_row (f, y);
+          ds_fold_extrema_sum_u8 (in, set->max16 + off, set->min16 + off, set->sum32 + off, w);
+          ds_fold_harmonic_u8 (in, j->last_c, j->last_s, set->cos_sum + off, set->sin_sum + off, FALSE, w);
+          ds_fold_sumsq_u8 (in, set->sumsq + off, FALSE, w);
+        }
+        f = NULL;
+      }
       DsMaxminFastRow r = { .hi = set->max16 + off, .lo = set->min16 + off,
                             .in16 = f && f->type == DS_SAMPLE_U16 ? ds_image_row (f, y) : NULL,
                             .in8 = f && f->type == DS_SAMPLE_U8 ? ds_image_row (f, y) : NULL,
@@ -63,7 +80,7 @@ finalize_rows (gpointer data, guint y0, guint y1, guint thread)
                             .t = o.t, .g = o.g, .mk = o.mk };
       ds_maxmin_fast_row (&r, w, &j->fast, counts);
       if (c->motion) {
-        /* the extrema as the fast row left them (no frame is folded on this pass with motion) */
+        /* the extrema as the fast row left them */
         ds_row_load_fast (set->max16 + off, set->min16 + off, set->sum32 + off, c->n, &rb, w);
         ds_row_motion (c, set->sumsq + off, rb.mean_raw, 1.0, set->cos_sum + off, set->sin_sum + off, dark, &rb, w);
         ds_row_or_motion (rb.motion, o.mk, w, counts);
@@ -227,12 +244,16 @@ finalize_prepare (DsPhaseSet *set, DsSeparation *sep, int pending, guint *m_fram
 
 /* The pixels and meta; cannot fail. last_frame: see FinalizeJob. */
 static void
-finalize_run (DsPhaseSet *set, DsSeparation *sep, guint m_frames, const DsImage *last_frame)
+finalize_run (DsPhaseSet *set, DsSeparation *sep, guint m_frames, const DsImage *last_frame, guint last_phase)
 {
   const DsSeparationParams *p = &set->params;
   guint n = p->n_phases;
   gboolean model = p->system_gain > 0, extrema = p->keep_extrema;
   FinalizeJob j = { .set = set, .sep = sep, .last_frame = last_frame };
+  /* as the fold computes a phase's angle (separation_accumulate.c), for the same bits */
+  double angle = 2.0 * G_PI * (double) last_phase / (double) p->n_phases;
+  j.last_c = cos (angle);
+  j.last_s = sin (angle);
   DsRowConsts *c = &j.c;
   gboolean integer = set->type != DS_SAMPLE_F32;
   c->n = n;
@@ -355,18 +376,19 @@ ds_phase_set_finalize_into (DsPhaseSet *set, DsSeparation *sep, GError **error)
   if (!finalize_prepare (set, sep, -1, &m_frames, error))
     return FALSE;
   ds_phase_set_fold_pending (set);
-  finalize_run (set, sep, m_frames, NULL);
+  finalize_run (set, sep, m_frames, NULL, 0);
   return TRUE;
 }
 
 /* The last frame can be folded on the finalize's way through the pixels when the finalize
- * reads nothing but the extrema (the integer maxmin path) and the frame completes the set:
- * one frame per phase, this phase's the last one missing. */
+ * reads nothing but the extrema and the motion sums (the integer maxmin path) and the frame
+ * completes the set: one frame per phase, this phase's the last one missing. */
 static gboolean
 fusable (const DsPhaseSet *set, guint phase)
 {
   const DsSeparationParams *p = &set->params;
-  if (!set->max16 || set->sum32 || set->cos_sum || set->averaging || p->estimator != DS_ESTIMATOR_MAXMIN ||
+  gboolean other_sums = (set->sum32 || set->cos_sum) && !set->sumsq;
+  if (!set->max16 || other_sums || set->averaging || p->estimator != DS_ESTIMATOR_MAXMIN ||
       p->system_gain > 0 || p->keep_extrema || set->count[phase] != 0)
     return FALSE;
   for (guint k = 0; k < p->n_phases; k++)
@@ -391,7 +413,7 @@ ds_phase_set_accumulate_finalize_into (DsPhaseSet *set, guint phase, const DsIma
   /* When the result cannot be made (planes that do not fit), the frame is still folded and
    * the finalize below says why, as the two calls would. */
   if (fusable (set, phase) && finalize_prepare (set, sep, (int) phase, &m_frames, NULL)) {
-    finalize_run (set, sep, m_frames, frame);
+    finalize_run (set, sep, m_frames, frame, phase);
     ds_phase_set_fold_end (set, phase);
     ds_phase_set_fold_pending (set); /* nothing pending: the set is left as finalize leaves it */
     if (folded)
