@@ -289,7 +289,8 @@ finalize_run (DsPhaseSet *set, DsSeparation *sep, guint m_frames, const DsImage 
   c->len_hi = p->estimator == DS_ESTIMATOR_ROBUST ? set->robust_hi : 1;
   c->len_lo = p->estimator == DS_ESTIMATOR_ROBUST ? set->robust_lo : 1;
   /* MOTION needs a noise level: the model's per pixel, or the data's for the frame */
-  c->data_var_phase = c->data_sigma * c->data_sigma / m_frames;
+  /* integer samples carry at least their quantisation, 1/12 DN^2, whatever the frame showed */
+  c->data_var_phase = (c->data_sigma * c->data_sigma + (integer ? 1.0 / 12.0 : 0.0)) / m_frames;
   c->motion = set->motion && (model || !isnan (c->data_var_phase));
   c->motion_kappa = set->motion_kappa;
   c->motion_chi2 = set->motion_chi2;

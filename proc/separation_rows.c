@@ -167,7 +167,9 @@ motion_row (double n, double mean_scale, double kappa, double chi2, int model, d
     /* the largest sample's variance bounds every sample's (noise grows with the signal) */
     double var = model ? (read_var + gain * (sig > 0 ? sig : 0)) * inv_mf : data_var;
     double bound = sqrt (kappa * h1) + sqrt (chi2 * var);
-    out[x] = (guint8) ((e > bound * bound) << 7);
+    /* E is a difference of sums of squares: its rounding, ~1e-16 of them, must not count as
+     * departure when there is no noise at all (noise-free or synthetic frames) */
+    out[x] = (guint8) ((e > bound * bound + 1e-12 * sq[x]) << 7);
   }
 }
 

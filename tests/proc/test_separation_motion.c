@@ -330,6 +330,52 @@ test_fast_path_same (void)
   g_assert_cmpmem (fast, W * H, general, W * H);
 }
 
+/* Noise-free still frames (synthetic, or a scene far above its noise): the pattern's own
+ * harmonics reach the allowance exactly at some positions, and nothing may be flagged for the
+ * rounding of the sums; integer frames carry their quantisation, within the stated rate. */
+static void
+test_noise_free (void)
+{
+  static const Stripes stripes[] = { { DS_PATTERN_SQUARE, 0.5, 0 }, { DS_PATTERN_SQUARE, 0.5, 1 },
+                                     { DS_PATTERN_SINE, 0.5, 1 } };
+  const Bars still = { 0 };
+  for (guint i = 0; i < G_N_ELEMENTS (stripes); i++)
+    for (int is_float = 0; is_float < 2; is_float++) {
+      const guint n = 8;
+      DsSeparationParams p;
+      ds_separation_params_init (&p, n);
+      p.estimator = stripes[i].kind == DS_PATTERN_SINE ? DS_ESTIMATOR_SINE : DS_ESTIMATOR_MAXMIN;
+      p.pattern = stripes[i].kind;
+      p.detect_motion = TRUE;
+      p.geometry.period_px = PERIOD;
+      p.geometry.pixel_aperture = stripes[i].aperture;
+      p.geometry.edge_blur_known = TRUE;
+      g_autoptr (GError) error = NULL;
+      g_autoptr (DsPhaseSet) set = ds_phase_set_new (&p, W, 64, &error);
+      g_assert_no_error (error);
+      for (guint k = 0; k < n; k++) {
+        g_autoptr (DsImage) f = ds_image_new (is_float ? DS_SAMPLE_F32 : DS_SAMPLE_U16, W, 64, &error);
+        for (guint x = 0; x < W; x++) {
+          double v = pixel_signal (&stripes[i], &still, k, n, x, 300 + 3 * x, 2000 + 50 * (x % 7));
+          for (guint y = 0; y < 64; y++) {
+            if (is_float)
+              ((float *) ds_image_row (f, y))[x] = (float) v;
+            else
+              ((guint16 *) ds_image_row (f, y))[x] = (guint16) lround (v);
+          }
+        }
+        g_assert_true (ds_phase_set_accumulate (set, k, f, &error));
+      }
+      g_autoptr (DsSeparation) sep = ds_phase_set_finalize (set, &error);
+      g_assert_no_error (error);
+      g_assert_true (sep->meta.motion_checked);
+      if (is_float)
+        g_assert_cmpuint (sep->meta.flagged[7], ==, 0);
+      else
+        g_assert_cmpfloat ((double) sep->meta.flagged[7] / (W * 64), <=, STILL_BOUND);
+    }
+}
+
 /* Published upper 0.999 quantiles of chi-square (e.g. NIST/SEMATECH e-Handbook, table 1.3.6.7.4),
  * and Wilson-Hilferty's approximation for a large nu. */
 static void
@@ -421,6 +467,7 @@ main (int argc, char **argv)
   g_test_add_func ("/motion/off-and-small-n", test_off_and_small_n);
   g_test_add_func ("/motion/still", test_still);
   g_test_add_func ("/motion/fast-path-same", test_fast_path_same);
+  g_test_add_func ("/motion/noise-free", test_noise_free);
   g_test_add_func ("/motion/moving-bars", test_moving);
   return g_test_run ();
 }
