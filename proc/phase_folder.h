@@ -52,6 +52,8 @@ typedef struct {
   gboolean has_phase_offset;
   double phase_offset_cycles;
   char *estimator;        /* settings.estimator */
+  gboolean has_detect_motion;
+  gboolean detect_motion; /* settings.detect_motion: the acquisition judged the motion bit */
 } DsPhaseFolderSidecar;
 
 typedef struct {

@@ -237,5 +237,13 @@ ds_phase_folder_read_sidecar (DsPhaseFolder *f, const char *path, DsSidecarReade
     return fail (&c, "saturation_dn", "%g is not a positive level", sc->saturation_dn);
   sc->pixel_format = g_strdup (get_string (root, "pixel_format"));
   sc->estimator = g_strdup (get_string (get_object (root, "settings"), "estimator"));
+  JsonObject *settings = get_object (root, "settings");
+  JsonNode *motion = settings ? json_object_get_member (settings, "detect_motion") : NULL;
+  if (motion && !JSON_NODE_HOLDS_NULL (motion)) {
+    if (!JSON_NODE_HOLDS_VALUE (motion) || json_node_get_value_type (motion) != G_TYPE_BOOLEAN)
+      return fail (&c, "settings.detect_motion", "not true or false");
+    sc->has_detect_motion = TRUE;
+    sc->detect_motion = json_node_get_boolean (motion);
+  }
   return read_pattern (&c, sc, root) && read_frames (&c, f, root);
 }

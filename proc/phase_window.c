@@ -434,9 +434,11 @@ ds_phase_window_finalize_into (DsPhaseWindow *window, DsSeparation *sep, GError 
     if (!refold (window, error))
       return FALSE;
     DsPhaseSet *set = window->set;
-    /* integer frames, one per phase: the state the pushes know how to update */
+    /* integer frames, one per phase: the state the pushes know how to update. The motion
+     * test's double sums (sum of squares, maxmin's harmonic) depend on the order they were
+     * taken in, so with them every result is a refold, which is the definition. */
     window->state_current = window->ring_type != DS_SAMPLE_F32 && !set->averaging &&
-                            (set->max16 || set->planes16);
+                            (set->max16 || set->planes16) && !set->sumsq && !set->cos_sum;
   }
   /* the set's noise estimate is its first frame's: the oldest kept one */
   window->set->data_noise_dn = window->noise[oldest_slot (window)];

@@ -43,10 +43,13 @@ typedef enum {
   DS_MASK_UNDERSAMPLED = 1 << 6,   /* no phase lit this pixel fully, or none left it fully dark
                                       (maxmin, robust: aN or (1-a)N too small for the pixel's
                                       aperture and the edge blur); the value is biased */
+  DS_MASK_MOTION = 1 << 7,         /* the N phase samples depart from a still scene under the
+                                      pattern by more than the noise allows (1e-3 false-alarm
+                                      rate): the scene moved or changed during the set */
 } DsMaskBit;
-#define DS_MASK_N_BITS 7
+#define DS_MASK_N_BITS 8
 
-/* Stable lower-case name of mask bit `bit` (0 = "saturated" ... 6 = "undersampled"), as used
+/* Stable lower-case name of mask bit `bit` (0 = "saturated" ... 7 = "motion"), as used
  * in JSON metadata, and a one-line meaning for legends; NULL outside 0..DS_MASK_N_BITS-1. The
  * one list: clients and files use these names. */
 const char *ds_mask_bit_name (guint bit);
@@ -85,6 +88,9 @@ typedef struct {
   guint threads;           /* threads for the per-pixel work, the caller's included; 0 = one per
                               processor, at most DS_MAX_THREADS. Small frames use one. */
   DsStripeGeometry geometry; /* for the sampling precondition and robust's windows */
+  gboolean detect_motion;  /* flag DS_MASK_MOTION (N >= 4; docs/estimators.md, "MOTION"). Costs
+                              maxmin and sine a plane of sums of squares (maxmin also the first
+                              harmonic and the sum), robust nothing kept; off by default */
 } DsSeparationParams;
 
 #define DS_MAX_THREADS 16u
@@ -151,6 +157,8 @@ typedef struct {
                                otherwise from the data; NAN if neither is possible */
   double saturation_level;  /* the level applied (DN); NAN when none applies (float input) */
   double phase_offset_cycles; /* offset used to flag undersampled pixels; NAN if none was needed */
+  gboolean motion_checked;  /* DS_MASK_MOTION was computed (detect_motion, N >= 4, a noise
+                               estimate): a 0 count then means no motion seen */
 } DsSeparationMeta;
 
 typedef struct {

@@ -16,9 +16,9 @@
 #include "proc/stripe_phase.h"
 
 static gboolean
-needs_mean (const DsSeparationParams *p)
+needs_mean (const DsPhaseSet *set)
 {
-  return p->estimator != DS_ESTIMATOR_MAXMIN || p->keep_extrema;
+  return set->params.estimator != DS_ESTIMATOR_MAXMIN || set->params.keep_extrema || set->motion;
 }
 
 static void
@@ -37,6 +37,7 @@ free_state (DsPhaseSet *set)
   g_clear_pointer (&set->sin_sum, free);
   g_clear_pointer (&set->cos64, free);
   g_clear_pointer (&set->sin64, free);
+  g_clear_pointer (&set->sumsq, free);
   g_clear_pointer (&set->planes16, free);
   g_clear_pointer (&set->planesf, free);
 }
@@ -80,7 +81,7 @@ alloc_state (DsPhaseSet *set, GError **error)
     } else {
       set->max16 = alloc_plane (set, n, sizeof (guint16), &ok, error);
       set->min16 = alloc_plane (set, n, sizeof (guint16), &ok, error);
-      if (needs_mean (p))
+      if (needs_mean (set))
         set->sum32 = alloc_plane (set, n, sizeof (guint32), &ok, error);
     }
   } else {
@@ -96,15 +97,21 @@ alloc_state (DsPhaseSet *set, GError **error)
   }
   if (is_float)
     set->nonfinite = alloc_plane (set, n, 1, &ok, error);
+  /* robust keeps every phase plane: its motion sums are made at finalize */
+  gboolean motion_sums = set->motion && !robust;
   if (p->estimator == DS_ESTIMATOR_SINE && !is_float && !set->averaging) {
     /* integer samples: exact fixed-point sums (their value does not depend on the frames'
      * order, so a sliding window can retire a frame and still match a fresh set) */
     set->cos64 = alloc_plane (set, n, sizeof (gint64), &ok, error);
     set->sin64 = alloc_plane (set, n, sizeof (gint64), &ok, error);
-  } else if (p->estimator == DS_ESTIMATOR_SINE) {
+  }
+  /* the motion test reads the harmonic as doubles: with sine's fixed-point sums it keeps both */
+  if ((p->estimator == DS_ESTIMATOR_SINE && !set->cos64) || motion_sums) {
     set->cos_sum = alloc_plane (set, n, sizeof (double), &ok, error);
     set->sin_sum = alloc_plane (set, n, sizeof (double), &ok, error);
   }
+  if (motion_sums)
+    set->sumsq = alloc_plane (set, n, sizeof (double), &ok, error);
   if (!ok)
     free_state (set);
   return ok;
@@ -143,6 +150,12 @@ ds_phase_set_new (const DsSeparationParams *params, guint width, guint height, G
   set->range_quantile = ds_separation_range_quantile (params->n_phases, 0.999);
   set->threads = set->npix >= DS_THREADED_MIN_PIXELS ? resolve_threads (params->threads) : 1;
   ds_robust_windows (params, &set->robust_hi, &set->robust_lo);
+  /* N - 3 dimensions beyond the mean and the first harmonic: none at N = 3 */
+  set->motion = params->detect_motion && params->n_phases >= 4;
+  if (set->motion) {
+    set->motion_kappa = ds_motion_pattern_ratio (params);
+    set->motion_chi2 = ds_chi2_upper_quantile (params->n_phases - 3, DS_MOTION_FALSE_ALARM);
+  }
   set->offset_used = NAN;
   /* validate ran the check already and it passed; here its numbers are kept */
   ds_separation_check_sampling (params, &set->sampling, NULL);
@@ -318,6 +331,8 @@ fold_values_row (DsPhaseSet *set, guint phase, const float *v, gsize off, gboole
     phase_angle (set, phase, &c, &s);
     ds_fold_harmonic_f32 (v, c, s, set->cos_sum + off, set->sin_sum + off, first, w);
   }
+  if (set->sumsq)
+    ds_fold_sumsq_f32 (v, set->sumsq + off, first, w);
   if (set->planesf)
     memcpy (set->planesf + (gsize) phase * set->npix + off, v, w * sizeof (float));
 }
@@ -467,6 +482,10 @@ check_frame (DsPhaseSet *set, guint phase, const DsImage *frame, GError **error)
       ds_fold_extrema_##NAME (in, set->max16 + off, set->min16 + off, w);                         \
     if (set->cos64)                                                                               \
       ds_fold_harmonic_fix_##NAME (in, cf, sf, set->cos64 + off, set->sin64 + off, j->first, w);  \
+    if (set->cos_sum)                                                                             \
+      ds_fold_harmonic_##NAME (in, c, s, set->cos_sum + off, set->sin_sum + off, j->first, w);    \
+    if (set->sumsq)                                                                               \
+      ds_fold_sumsq_##NAME (in, set->sumsq + off, j->first, w);                                   \
   } while (0)
 
 static void
@@ -479,6 +498,9 @@ fold_frame_rows (gpointer data, guint y0, guint y1, guint thread)
   gint32 cf = 0, sf = 0;
   if (set->cos64)
     ds_harmonic_fix_weights (set->params.n_phases, j->phase, &cf, &sf);
+  double c = 0, s = 0;
+  if (set->cos_sum)
+    phase_angle (set, j->phase, &c, &s);
   float *row = (float *) ds_phase_set_scratch (set, thread);
   for (guint y = y0; y < y1; y++) {
     gsize off = (gsize) y * w;

@@ -27,6 +27,7 @@ typedef struct {
   guint64 *counts;         /* per thread: DS_MASK_N_BITS + 1 */
   const guint8 *column_flags; /* undersampled columns, NULL if none */
   const DsImage *last_frame; /* fast path: the set's last frame, folded on the way; or NULL */
+  double last_c, last_s;     /* its phase's angle, for the motion sums */
 } FinalizeJob;
 
 static void
@@ -55,6 +56,22 @@ finalize_rows (gpointer data, guint y0, guint y1, guint thread)
     };
     if (j->use_fast) {
       const DsImage *f = j->last_frame;
+      if (f && set->sumsq) {
+        /* the motion sums take the frame as the fold does (the same kernels, so the same bits);
+         * the fast row then reads the extrema from the state */
+        if (f->type == DS_SAMPLE_U16) {
+          const guint16 *in = ds_image_row (f, y);
+          ds_fold_extrema_sum_u16 (in, set->max16 + off, set->min16 + off, set->sum32 + off, w);
+          ds_fold_harmonic_u16 (in, j->last_c, j->last_s, set->cos_sum + off, set->sin_sum + off, FALSE, w);
+          ds_fold_sumsq_u16 (in, set->sumsq + off, FALSE, w);
+        } else {
+          const guint8 *in = ds_image_row (f, y);
+          ds_fold_extrema_sum_u8 (in, set->max16 + off, set->min16 + off, set->sum32 + off, w);
+          ds_fold_harmonic_u8 (in, j->last_c, j->last_s, set->cos_sum + off, set->sin_sum + off, FALSE, w);
+          ds_fold_sumsq_u8 (in, set->sumsq + off, FALSE, w);
+        }
+        f = NULL;
+      }
       DsMaxminFastRow r = { .hi = set->max16 + off, .lo = set->min16 + off,
                             .in16 = f && f->type == DS_SAMPLE_U16 ? ds_image_row (f, y) : NULL,
                             .in8 = f && f->type == DS_SAMPLE_U8 ? ds_image_row (f, y) : NULL,
@@ -62,6 +79,12 @@ finalize_rows (gpointer data, guint y0, guint y1, guint thread)
                             .flags = column_flags,
                             .t = o.t, .g = o.g, .mk = o.mk };
       ds_maxmin_fast_row (&r, w, &j->fast, counts);
+      if (c->motion) {
+        /* the extrema as the fast row left them */
+        ds_row_load_fast (set->max16 + off, set->min16 + off, set->sum32 + off, c->n, &rb, w);
+        ds_row_motion (c, set->sumsq + off, rb.mean_raw, 1.0, set->cos_sum + off, set->sin_sum + off, dark, &rb, w);
+        ds_row_or_motion (rb.motion, o.mk, w, counts);
+      }
       continue;
     }
     if (set->max16)
@@ -90,9 +113,17 @@ finalize_rows (gpointer data, guint y0, guint y1, guint thread)
       ds_row_maxmin (c, dark, &rb, w);
       break;
     }
+    const guint8 *flags = column_flags;
+    if (c->motion) {
+      /* robust judged its row from its planes; the others kept the sums */
+      if (c->estimator != DS_ESTIMATOR_ROBUST)
+        ds_row_motion (c, set->sumsq + off, rb.mean_raw, 1.0, set->cos_sum + off, set->sin_sum + off,
+                       dark, &rb, w);
+      flags = ds_row_motion_flags (&rb, column_flags, w);
+    }
     j->row_mean_sum[y] = 0;
     j->row_mean_count[y] = 0;
-    ds_row_tail (c, &rb, dark, column_flags, &o, w, &j->row_mean_sum[y], &j->row_mean_count[y], counts);
+    ds_row_tail (c, &rb, dark, flags, &o, w, &j->row_mean_sum[y], &j->row_mean_count[y], counts);
   }
 }
 
@@ -218,12 +249,16 @@ finalize_prepare (DsPhaseSet *set, DsSeparation *sep, int pending, guint *m_fram
 
 /* The pixels and meta; cannot fail. last_frame: see FinalizeJob. */
 static void
-finalize_run (DsPhaseSet *set, DsSeparation *sep, guint m_frames, const DsImage *last_frame)
+finalize_run (DsPhaseSet *set, DsSeparation *sep, guint m_frames, const DsImage *last_frame, guint last_phase)
 {
   const DsSeparationParams *p = &set->params;
   guint n = p->n_phases;
   gboolean model = p->system_gain > 0, extrema = p->keep_extrema;
   FinalizeJob j = { .set = set, .sep = sep, .last_frame = last_frame };
+  /* as the fold computes a phase's angle (separation_accumulate.c), for the same bits */
+  double angle = 2.0 * G_PI * (double) last_phase / (double) p->n_phases;
+  j.last_c = cos (angle);
+  j.last_s = sin (angle);
   DsRowConsts *c = &j.c;
   gboolean integer = set->type != DS_SAMPLE_F32;
   c->n = n;
@@ -258,6 +293,12 @@ finalize_run (DsPhaseSet *set, DsSeparation *sep, guint m_frames, const DsImage 
   c->sigmas = model;
   c->len_hi = p->estimator == DS_ESTIMATOR_ROBUST ? set->robust_hi : 1;
   c->len_lo = p->estimator == DS_ESTIMATOR_ROBUST ? set->robust_lo : 1;
+  /* MOTION needs a noise level: the model's per pixel, or the data's for the frame */
+  /* integer samples carry at least their quantisation, 1/12 DN^2, whatever the frame showed */
+  c->data_var_phase = (c->data_sigma * c->data_sigma + (integer ? 1.0 / 12.0 : 0.0)) / m_frames;
+  c->motion = set->motion && (model || !isnan (c->data_var_phase));
+  c->motion_kappa = set->motion_kappa;
+  c->motion_chi2 = set->motion_chi2;
 
   j.use_fast = set->max16 && p->estimator == DS_ESTIMATOR_MAXMIN && !model && !extrema;
   if (j.use_fast) {
@@ -325,6 +366,7 @@ finalize_run (DsPhaseSet *set, DsSeparation *sep, guint m_frames, const DsImage 
   meta->dark_subtracted = set->dark != NULL;
   meta->saturation_level = c->sat;
   meta->phase_offset_cycles = set->column_flags && !set->flags_need_offset ? set->offset_used : NAN;
+  meta->motion_checked = c->motion;
   if (model) {
     double s = mean_count ? mean_total / mean_count : 0;
     meta->noise_dn = sqrt (c->read_var + c->gain * (s > 0 ? s : 0));
@@ -340,18 +382,19 @@ ds_phase_set_finalize_into (DsPhaseSet *set, DsSeparation *sep, GError **error)
   if (!finalize_prepare (set, sep, -1, &m_frames, error))
     return FALSE;
   ds_phase_set_fold_pending (set);
-  finalize_run (set, sep, m_frames, NULL);
+  finalize_run (set, sep, m_frames, NULL, 0);
   return TRUE;
 }
 
 /* The last frame can be folded on the finalize's way through the pixels when the finalize
- * reads nothing but the extrema (the integer maxmin path) and the frame completes the set:
- * one frame per phase, this phase's the last one missing. */
+ * reads nothing but the extrema and the motion sums (the integer maxmin path) and the frame
+ * completes the set: one frame per phase, this phase's the last one missing. */
 static gboolean
 fusable (const DsPhaseSet *set, guint phase)
 {
   const DsSeparationParams *p = &set->params;
-  if (!set->max16 || set->sum32 || set->cos_sum || set->averaging || p->estimator != DS_ESTIMATOR_MAXMIN ||
+  gboolean other_sums = (set->sum32 || set->cos_sum) && !set->sumsq;
+  if (!set->max16 || other_sums || set->averaging || p->estimator != DS_ESTIMATOR_MAXMIN ||
       p->system_gain > 0 || p->keep_extrema || set->count[phase] != 0)
     return FALSE;
   for (guint k = 0; k < p->n_phases; k++)
@@ -376,7 +419,7 @@ ds_phase_set_accumulate_finalize_into (DsPhaseSet *set, guint phase, const DsIma
   /* When the result cannot be made (planes that do not fit), the frame is still folded and
    * the finalize below says why, as the two calls would. */
   if (fusable (set, phase) && finalize_prepare (set, sep, (int) phase, &m_frames, NULL)) {
-    finalize_run (set, sep, m_frames, frame);
+    finalize_run (set, sep, m_frames, frame, phase);
     ds_phase_set_fold_end (set, phase);
     ds_phase_set_fold_pending (set); /* nothing pending: the set is left as finalize leaves it */
     if (folded)

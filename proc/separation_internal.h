@@ -42,6 +42,9 @@ struct DsPhaseSet {
   gint64 *cos64, *sin64;   /* sine, integer fast path: the first harmonic in fixed point, sum of
                               ds_harmonic_fix_weights x sample; exact, so independent of the
                               order the frames came in (a sliding window adds and retires) */
+  double *cos_sum, *sin_sum; /* sine, and maxmin with motion: first harmonic of the phase means */
+  double *sumsq;           /* motion (maxmin, sine): sum of squares of the phase values; exact for
+                              integer samples (below 2^53 up to DS_MAX_PHASES frames of 16 bits) */
   guint16 *planes16;       /* robust, integer fast path: N planes of raw frames */
   float *planesf;          /* robust otherwise: N planes of phase means */
   guint robust_hi, robust_lo; /* robust's window lengths (ds_robust_windows) */
@@ -52,6 +55,11 @@ struct DsPhaseSet {
 
   double data_noise_dn;    /* noise of one raw frame estimated from the first frame; NAN */
   double range_quantile;   /* 0.999 quantile of the range of N unit normals */
+
+  /* Motion (separation_motion.c): checked when params.detect_motion and N >= 4. */
+  gboolean motion;
+  double motion_kappa;     /* largest pattern residual energy / first-harmonic energy */
+  double motion_chi2;      /* chi-square quantile of N - 3 degrees of freedom at the false-alarm rate */
 
   /* Threads: the pool is made on the first frame large enough to share. */
   guint threads;           /* resolved from params.threads */
@@ -112,6 +120,14 @@ double ds_separation_normal_upper_quantile (double p);
 /* Per-pixel false-alarm rate of DS_MASK_DARK_EXCEEDS (as LOW_MODULATION's). */
 #define DS_DARK_EXCEEDS_FALSE_ALARM 1e-3
 
+/* Motion (separation_motion.c). */
+#define DS_MOTION_FALSE_ALARM 1e-3
+/* x with P(chi-square of nu degrees of freedom > x) = p; nu >= 1, 0 < p < 1. */
+double ds_chi2_upper_quantile (guint nu, double p);
+/* The still pattern's own energy beyond the first harmonic, as a fraction of its first
+ * harmonic's energy, the largest over pixel positions (docs/estimators.md, "MOTION"). */
+double ds_motion_pattern_ratio (const DsSeparationParams *p);
+
 /* Sampling model (separation_sampling.c). */
 /* Lit fraction (0..1) seen by a pixel centred d pixels from a lit stripe's centre. */
 double ds_sampling_profile (const DsSeparationParams *p, double d);
@@ -134,6 +150,9 @@ guint64 ds_sampling_column_flags (const DsSeparationParams *p, double offset_cyc
   void ds_fold_extrema_sum_##NAME (const T *in, guint16 *mx, guint16 *mn, guint32 *sum, gsize w);\
   void ds_fold_harmonic_fix_##NAME (const T *in, gint32 c, gint32 s, gint64 *cs, gint64 *sn,    \
                                     gboolean first, gsize w);                                    \
+  void ds_fold_harmonic_##NAME (const T *in, double c, double s, double *cs, double *sn,         \
+                                gboolean first, gsize w);                                        \
+  void ds_fold_sumsq_##NAME (const T *in, double *sq, gboolean first, gsize w);                  \
   void ds_copy_plane_##NAME (const T *in, float *out, gsize w);                                   \
   void ds_widen_##NAME (const T *in, guint16 *out, gsize w);
 DS_DECLARE_INT_KERNELS (guint8, u8)
@@ -144,6 +163,7 @@ void ds_clean_row_f32 (const float *in, float *out, guint8 *nf, gboolean first, 
 void ds_fold_float_row (const float *v, float *mx, float *mn, double *sum, gboolean first, gsize w);
 void ds_fold_harmonic_f32 (const float *v, double c, double s, double *cs, double *sn,
                            gboolean first, gsize w);
+void ds_fold_sumsq_f32 (const float *v, double *sq, gboolean first, gsize w);
 /* Averaging: ps (+)= v, rm = max (rm, v). */
 void ds_fold_average_row (const float *v, double *ps, float *rm, gboolean first_of_phase,
                           gboolean first_of_set, gsize w);

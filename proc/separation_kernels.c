@@ -53,6 +53,31 @@
         sn[x] += (gint64) s * (gint32) in[x];                                                     \
       }                                                                                           \
   }                                                                                               \
+  DS_CLONES_WIDE void ds_fold_harmonic_##NAME (const T *restrict in, double c, double s,           \
+                                               double *restrict cs, double *restrict sn,          \
+                                               gboolean first, gsize w)                           \
+  {                                                                                               \
+    if (first)                                                                                    \
+      for (gsize x = 0; x < w; x++) {                                                             \
+        cs[x] = c * in[x];                                                                        \
+        sn[x] = s * in[x];                                                                        \
+      }                                                                                           \
+    else                                                                                          \
+      for (gsize x = 0; x < w; x++) {                                                             \
+        cs[x] += c * in[x];                                                                       \
+        sn[x] += s * in[x];                                                                       \
+      }                                                                                           \
+  }                                                                                               \
+  DS_CLONES void ds_fold_sumsq_##NAME (const T *restrict in, double *restrict sq, gboolean first, \
+                                       gsize w)                                                   \
+  {                                                                                               \
+    if (first)                                                                                    \
+      for (gsize x = 0; x < w; x++)                                                               \
+        sq[x] = (double) in[x] * in[x];                                                           \
+    else                                                                                          \
+      for (gsize x = 0; x < w; x++)                                                               \
+        sq[x] += (double) in[x] * in[x];                                                          \
+  }                                                                                               \
   DS_CLONES void ds_copy_plane_##NAME (const T *restrict in, float *restrict out, gsize w)        \
   {                                                                                               \
     for (gsize x = 0; x < w; x++)                                                                 \
@@ -113,6 +138,17 @@ ds_fold_harmonic_f32 (const float *restrict v, double c, double s, double *restr
       cs[x] += c * v[x];
       sn[x] += s * v[x];
     }
+}
+
+DS_CLONES void
+ds_fold_sumsq_f32 (const float *restrict v, double *restrict sq, gboolean first, gsize w)
+{
+  if (first)
+    for (gsize x = 0; x < w; x++)
+      sq[x] = (double) v[x] * v[x];
+  else
+    for (gsize x = 0; x < w; x++)
+      sq[x] += (double) v[x] * v[x];
 }
 
 DS_CLONES void
@@ -201,7 +237,8 @@ DS_CLONES_WIDE void
 ds_maxmin_fast_row (const DsMaxminFastRow *r, gsize w, const DsMaxminFast *k,
                     guint64 counts[DS_MASK_N_BITS + 1])
 {
-  G_STATIC_ASSERT (DS_MASK_N_BITS == 7);
+  /* counts[8]: MOTION, never judged on this path (detect_motion takes the general one) */
+  G_STATIC_ASSERT (DS_MASK_N_BITS == 8);
   int src = r->in16 ? FAST_FROM_U16 : r->in8 ? FAST_FROM_U8 : FAST_FROM_STATE;
   const void *in = r->in16 ? (const void *) r->in16 : (const void *) r->in8;
 #define FAST_CALL(SRC, DARK)                                                                        \

@@ -18,6 +18,7 @@ static const struct {
   { "negative", "a component came out below zero (noise); left unclipped" },
   { "dark_exceeds", "the dark frame is brighter than some phase at this pixel" },
   { "undersampled", "no phase lit the pixel fully or none left it fully dark (sampling precondition); the value is biased" },
+  { "motion", "the phase samples depart from a still scene under the pattern by more than noise: the scene moved during the set" },
 };
 
 const char *

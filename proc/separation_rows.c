@@ -21,8 +21,11 @@ ds_row_buffers_init (DsRowBuffers *rb, double *s, gsize w)
   for (guint k = 0; k < G_N_ELEMENTS (rb->sink); k++)
     rb->sink[k] = (float *) (s + i * w) + k * w; /* 5 float rows in 2.5 double rows */
   i += 3;
-  rb->bad = (guint8 *) (s + i++ * w);
+  rb->bad = (guint8 *) (s + i++ * w); /* four u8 rows in one double row */
   rb->flags_zero = rb->bad + w;
+  rb->motion = rb->bad + 2 * w;
+  rb->flags = rb->bad + 3 * w;
+  rb->sumsq = s + i++ * w;
   g_assert (i == DS_ROW_DOUBLES);
   memset (rb->dark_zero, 0, w * sizeof (float));
   memset (rb->flags_zero, 0, w);
@@ -165,6 +168,70 @@ ds_row_sine (const DsRowConsts *c, const double *cs, const double *sn, const flo
             rb->lev_lo, rb->mean, rb->amp, w);
 }
 
+DS_KERNEL void
+motion_row (double n, double mean_scale, double kappa, double chi2, int model, double read_var,
+            double gain, double inv_mf, double data_var, const double *restrict sq,
+            const double *restrict sm, const double *restrict cs, const double *restrict sn,
+            const double *restrict hr, const float *restrict d, guint8 *restrict out, gsize w)
+{
+  const double two_n = 2.0 / n;
+  for (gsize x = 0; x < w; x++) {
+    double mean = sm[x] * mean_scale;
+    double h1 = two_n * (cs[x] * cs[x] + sn[x] * sn[x]);
+    double e = sq[x] - n * mean * mean - h1;
+    double sig = hr[x] - d[x];
+    /* the largest sample's variance bounds every sample's (noise grows with the signal) */
+    double var = model ? (read_var + gain * (sig > 0 ? sig : 0)) * inv_mf : data_var;
+    double bound = sqrt (kappa * h1) + sqrt (chi2 * var);
+    /* E is a difference of sums of squares: its rounding, ~1e-16 of them, must not count as
+     * departure when there is no noise at all (noise-free or synthetic frames) */
+    out[x] = (guint8) ((e > bound * bound + 1e-12 * sq[x]) << 7);
+  }
+}
+
+DS_CLONES_WIDE void
+ds_row_motion (const DsRowConsts *c, const double *sumsq, const double *sum_or_mean, double mean_scale,
+               const double *cs, const double *sn, const float *dark, DsRowBuffers *rb, gsize w)
+{
+  G_STATIC_ASSERT (DS_MASK_MOTION == 1 << 7);
+  motion_row (c->n, mean_scale, c->motion_kappa, c->motion_chi2, c->model, c->read_var, c->gain,
+              1.0 / c->m_frames, c->data_var_phase, sumsq, sum_or_mean, cs, sn, rb->hi_raw, dark,
+              rb->motion, w);
+}
+
+DS_CLONES void
+ds_row_or_motion (const guint8 *restrict motion, guint8 *restrict mk, gsize w, guint64 counts[DS_MASK_N_BITS + 1])
+{
+  guint32 lost = 0, moved = 0;
+  for (gsize x = 0; x < w; x++) {
+    guint8 m = (mk[x] & (DS_MASK_SATURATED | DS_MASK_DARK)) ? 0 : motion[x];
+    lost += (guint32) ((mk[x] == 0) & (m != 0));
+    moved += (guint32) (m != 0);
+    mk[x] |= m;
+  }
+  counts[0] -= lost;
+  counts[1 + 7] += moved;
+}
+
+const guint8 *
+ds_row_motion_flags (DsRowBuffers *rb, const guint8 *column_flags, gsize w)
+{
+  const guint8 *cf = column_flags ? column_flags : rb->flags_zero;
+  for (gsize x = 0; x < w; x++)
+    rb->flags[x] = cf[x] | rb->motion[x];
+  return rb->flags;
+}
+
+/* robust with motion: the phase values' sum of squares. */
+#define DEFINE_ROBUST_SUMSQ(T, NAME)                                                              \
+  DS_KERNEL void robust_sumsq_##NAME (const T *restrict v, double *restrict sq, gsize w)          \
+  {                                                                                               \
+    for (gsize x = 0; x < w; x++)                                                                 \
+      sq[x] += (double) v[x] * v[x];                                                              \
+  }
+DEFINE_ROBUST_SUMSQ (guint16, u16)
+DEFINE_ROBUST_SUMSQ (float, f32)
+
 /* robust, step 1: one phase plane's row into the harmonic, sum and extrema. */
 #define DEFINE_ROBUST_ACCUMULATE(T, NAME)                                                         \
   DS_KERNEL void robust_accumulate_##NAME (const T *restrict v, double ck, double sk,             \
@@ -276,6 +343,17 @@ ds_row_robust (const DsRowConsts *c, const DsRobustTables *t, const guint16 *pla
       robust_accumulate_f32 (planesf + k * plane_stride, t->cos_k[k], t->sin_k[k], rb->cs, rb->sn,
                              rb->mean_raw, rb->hi_raw, rb->lo_raw, w);
   }
+  if (c->motion) {
+    /* the harmonic and the sum are at hand here, before the window sums replace them */
+    memset (rb->sumsq, 0, w * sizeof (double));
+    for (guint32 k = 0; k < n; k++) {
+      if (planes16)
+        robust_sumsq_u16 (planes16 + k * plane_stride, rb->sumsq, w);
+      else
+        robust_sumsq_f32 (planesf + k * plane_stride, rb->sumsq, w);
+    }
+    ds_row_motion (c, rb->sumsq, rb->mean_raw, 1.0 / n, rb->cs, rb->sn, dark, rb, w);
+  }
   robust_argmax_reset (rb->best_hi, rb->best_lo, rb->start_hi, rb->start_lo, w);
   for (guint32 j = 0; j < n; j++)
     robust_argmax (j, t->c_hi[j], t->s_hi[j], t->c_lo[j], t->s_lo[j], rb->cs, rb->sn, rb->best_hi,
@@ -346,7 +424,8 @@ tail_row (const DsRowConsts *c, const double *restrict hr, const double *restric
              ((!want_x) | (fits_float (hi) & fits_float (lo) & fits_float (mv))) &
              ((!want_s) | (fits_float (s_ld) & fits_float (s_lg)));
     guint32 keep = 0u - (guint32) ok; /* all ones when ok */
-    guint32 all_bits = bits | flags[x];
+    guint32 judged = 0u - (guint32) ((bits & (DS_MASK_SATURATED | DS_MASK_DARK)) == 0);
+    guint32 all_bits = bits | (flags[x] & (judged | ~(guint32) DS_MASK_MOTION));
     mk[x] = (guint8) ((all_bits & keep) | (DS_MASK_NONFINITE & ~keep));
     t[x] = ok ? (float) ld[x] : 0.0f;
     g[x] = ok ? (float) lg[x] : 0.0f;

@@ -33,6 +33,9 @@ typedef struct {
   gboolean dark;           /* a dark frame is subtracted (its read noise enters Lg) */
   gboolean extrema, sigmas; /* outputs wanted (else written to sink rows) */
   DsEstimator estimator;
+  gboolean motion;          /* MOTION is judged (separation_motion.c) */
+  double motion_kappa, motion_chi2;
+  double data_var_phase;    /* without a model: one phase value's noise variance (NAN: unknown) */
 } DsRowConsts;
 
 /* One row's buffers, w elements each. The load step fills hi_raw, lo_raw, mean_raw (NAN when
@@ -42,14 +45,16 @@ typedef struct {
   double *hi_raw, *lo_raw, *mean_raw, *rmax;
   double *ld, *lg, *lev_hi, *lev_lo, *amp, *mean;
   double *cs, *sn;              /* robust: harmonic, then window sums */
+  double *sumsq;                /* robust with motion: sum of squares of the phase values */
   double *best_hi, *best_lo;    /* robust: window scores */
   guint32 *start_hi, *start_lo; /* robust: window starts */
   float *dark_zero;             /* zeros: the dark row when there is none */
   float *sink[5];               /* outputs nobody wants */
   guint8 *bad, *flags_zero;     /* zeros: column flags when there are none */
+  guint8 *motion, *flags;       /* MOTION per pixel; it or-ed with the column flags */
 } DsRowBuffers;
 /* doubles per pixel DsRowBuffers needs */
-#define DS_ROW_DOUBLES 20
+#define DS_ROW_DOUBLES 21
 void ds_row_buffers_init (DsRowBuffers *rb, double *scratch, gsize w);
 
 /* Load steps: state of one row into hi_raw, lo_raw, mean_raw, rmax and bad. */
@@ -68,6 +73,18 @@ void ds_row_harmonic_from_fix (const gint64 *c64, const gint64 *s64, guint bits,
 void ds_row_maxmin (const DsRowConsts *c, const float *dark, DsRowBuffers *rb, gsize w);
 void ds_row_sine (const DsRowConsts *c, const double *cs, const double *sn, const float *dark,
                   DsRowBuffers *rb, gsize w);
+/* MOTION into rb->motion (DS_MASK_MOTION or 0) from the phase values' sum of squares, their
+ * sum (sum_or_mean x mean_scale is the raw mean), first harmonic (cs, sn) and largest value
+ * (rb->hi_raw, for the noise model's variance). */
+void ds_row_motion (const DsRowConsts *c, const double *sumsq, const double *sum_or_mean,
+                    double mean_scale, const double *cs, const double *sn, const float *dark,
+                    DsRowBuffers *rb, gsize w);
+/* The fast maxmin row's mask: motion (rb->motion) or-ed in where the pixel is neither SATURATED
+ * nor DARK, the counts corrected. */
+void ds_row_or_motion (const guint8 *motion, guint8 *mk, gsize w, guint64 counts[DS_MASK_N_BITS + 1]);
+/* rb->flags = column_flags | rb->motion; returns rb->flags. */
+const guint8 *ds_row_motion_flags (DsRowBuffers *rb, const guint8 *column_flags, gsize w);
+
 /* robust from N phase planes (plane k's row at planes16/planesf + k * plane_stride; one of the
  * two is NULL); also fills hi_raw, lo_raw and mean_raw from the planes (rmax is the caller's).
  * The tables come from ds_robust_tables, cos_k/sin_k are the phase angles. */
@@ -81,7 +98,8 @@ void ds_row_robust (const DsRowConsts *c, const DsRobustTables *t, const guint16
 
 /* The common tail: mask bits, sigmas, outputs; a pixel whose inputs are not finite, or whose
  * outputs do not fit float32, is NONFINITE with all outputs 0. column_flags are or-ed into
- * the mask. Adds the mean signal of measured pixels to *mean_sum / *mean_count and the mask's
+ * the mask, their MOTION bit only where the pixel is neither SATURATED nor DARK (a clipped or
+ * noise-floor sample says nothing about the pattern). Adds the mean signal of measured pixels to *mean_sum / *mean_count and the mask's
  * bits to counts. */
 typedef struct {
   float *t, *g, *mx, *mn, *me, *st, *sg;

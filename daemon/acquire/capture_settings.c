@@ -30,6 +30,7 @@ ds_capture_settings_from_config (DsCaptureSettings *s, const DsConfig *c)
   s->max_failed_sets = c->max_failed_sets;
   s->verify_phase = c->verify_phase;
   s->single_frame = c->single_frame;
+  s->detect_motion = c->detect_motion;
   /* A spool that records raw frames needs every set to keep them. */
   s->save_phases = c->spool_dir && c->spool_save_phases;
   s->per_frame = c->results && strcmp (c->results, "per-frame") == 0;
@@ -50,6 +51,7 @@ ds_capture_settings_separation_params (const DsCaptureSettings *s, DsSeparationP
   p->harmonic_gain = s->harmonic_gain;
   p->saturation_level = s->saturation_dn;
   p->keep_extrema = s->keep_extrema;
+  p->detect_motion = s->detect_motion;
   /* The period is known (the illuminator's): maxmin and robust then flag the pixels a phase
    * never fully lights or darkens instead of being refused, and robust's windows fit it. */
   p->geometry.period_px = s->period_px;
@@ -87,6 +89,7 @@ ds_capture_settings_to_json (const DsCaptureSettings *s)
   BOOL ("dark_frame", s->dark_frame);
   INT ("phase_retries", s->phase_retries);
   BOOL ("verify_phase", s->verify_phase);
+  BOOL ("detect_motion", s->detect_motion);
   BOOL ("save_phases", s->save_phases && !s->single_frame);
   /* Only in per-frame mode, so that a set's settings read as they always did. */
   if (s->per_frame)
@@ -138,5 +141,5 @@ ds_capture_settings_equal (const DsCaptureSettings *a, const DsCaptureSettings *
          a->dark_frame == b->dark_frame && a->phase_retries == b->phase_retries &&
          a->verify_phase == b->verify_phase && a->phase_tolerance_deg == b->phase_tolerance_deg &&
          a->save_phases == b->save_phases && a->per_frame == b->per_frame &&
-         a->single_frame == b->single_frame;
+         a->single_frame == b->single_frame && a->detect_motion == b->detect_motion;
 }

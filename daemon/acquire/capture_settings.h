@@ -33,6 +33,7 @@ typedef struct {
   guint phase_retries;
   guint max_failed_sets;      /* continuous mode: stop after this many failed sets in a row; 0 = never */
   gboolean verify_phase;
+  gboolean detect_motion;     /* the mask's motion bit */
   double phase_tolerance_deg; /* resolved: never NAN here */
   gboolean keep_extrema;      /* also compute max, min and mean (asked for by a client) */
   gboolean save_phases;       /* keep the raw phase and dark frames in the result */

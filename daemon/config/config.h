@@ -94,6 +94,7 @@ typedef struct {
   guint max_failed_sets;  /* continuous mode stops after this many failed sets in a row; 0 = never */
   char *results;          /* continuous mode: "per-set" or "per-frame" (sliding window) */
   gboolean verify_phase;
+  gboolean detect_motion;  /* the mask's motion bit (N >= 4) */
   double phase_tolerance_deg;
   gboolean single_frame;   /* one frame per result, separated from one stripe period around each pixel */
   char *operating_model;  /* NULL: built-in */

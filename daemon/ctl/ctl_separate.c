@@ -46,6 +46,7 @@ typedef struct {
   gboolean quiet;
   gboolean no_preview;
   gboolean no_phase_check, strict_phases;
+  gboolean detect_motion, no_detect_motion;
   gint64 max_side, max_pixels, max_memory_mib;
 } Options;
 
@@ -227,6 +228,11 @@ make_params (const DsPhaseFolder *folder, const Options *o, DsSeparationParams *
 {
   const DsPhaseFolderSidecar *sc = &folder->sidecar;
   ds_separation_params_init (params, ds_phase_folder_n_phases (folder));
+  if (o->detect_motion && o->no_detect_motion) {
+    g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT,
+                 "--detect-motion and --no-detect-motion: give one of them");
+    return FALSE;
+  }
   const char *estimator = o->estimator ? o->estimator : sc->estimator;
   if (estimator && !ds_estimator_from_name (estimator, &params->estimator)) {
     g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT, "%s %s: unknown (maxmin, sine or robust)",
@@ -262,6 +268,8 @@ make_params (const DsPhaseFolder *folder, const Options *o, DsSeparationParams *
     params->geometry.edge_blur_known = TRUE;
   }
   params->keep_extrema = o->extrema;
+  /* as the acquisition did (frames.json), so that a daemon's folder separates to its result */
+  params->detect_motion = o->detect_motion || (!o->no_detect_motion && sc->has_detect_motion && sc->detect_motion);
   return TRUE;
 }
 
@@ -457,6 +465,8 @@ ds_ctl_separate (int argc, char **argv)
     { "edge-blur", 0, 0, G_OPTION_ARG_DOUBLE, &o.edge_blur, "Gaussian sigma of the stripe edges in pixels (descatterctl calibrate), for the sampling check and robust's windows (default unknown: sharp for the check, one phase of margin for robust)", "PX" },
     { "no-phase-check", 0, 0, G_OPTION_ARG_NONE, &o.no_phase_check, "do not measure which phase each frame shows", NULL },
     { "strict-phases", 0, 0, G_OPTION_ARG_NONE, &o.strict_phases, "refuse frames that show other phases than given instead of folding them as they show", NULL },
+    { "detect-motion", 0, 0, G_OPTION_ARG_NONE, &o.detect_motion, "flag pixels whose phase samples show the scene moved (mask bit motion; default: frames.json's settings.detect_motion, else off)", NULL },
+    { "no-detect-motion", 0, 0, G_OPTION_ARG_NONE, &o.no_detect_motion, "do not judge the motion bit", NULL },
     { "out", 'o', 0, G_OPTION_ARG_FILENAME, &o.out, "output folder (default: DIR)", "OUT" },
     { "extrema", 0, 0, G_OPTION_ARG_NONE, &o.extrema, "also write max, min and mean (float32 TIFF)", NULL },
     { "no-preview", 0, 0, G_OPTION_ARG_NONE, &o.no_preview, "do not write the 8-bit preview pictures", NULL },

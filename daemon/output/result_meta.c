@@ -77,6 +77,9 @@ ds_output_separation_json (const DsSeparationMeta *m)
     json_builder_add_int_value (b, (gint64) m->flagged[i]);
   }
   json_builder_end_object (b);
+  /* whether flagged.motion was judged at all: 0 then means no motion seen */
+  json_builder_set_member_name (b, "motion_checked");
+  json_builder_add_boolean_value (b, m->motion_checked);
   json_builder_end_object (b);
   return json_builder_get_root (b);
 }

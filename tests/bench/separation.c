@@ -8,9 +8,10 @@
  *            (tests/bench/separation_numpy.py, run with /usr/bin/python3);
  *   OpenCV   cv::max/cv::min per frame, subtract, scale (ds_cv_separate_maxmin_u16);
  *   memcpy   the same input bytes copied into distinct, pre-faulted buffers.
- * It also times sine and robust against maxmin, the per-set noise estimate against folding one
- * frame, the single-frame estimator (one frame into pooled planes, P = 16) against folding one
- * frame on as many threads (1, and the set's threads), and unpacking packed pixel formats into a pooled image against a memcpy of the
+ * It also times sine and robust against maxmin, each estimator with the motion mask bit against
+ * itself without it, the per-set noise estimate against folding one frame, the single-frame
+ * estimator (one frame into pooled planes, P = 16) against folding one frame on as many threads
+ * (1, and the set's threads), and unpacking packed pixel formats into a pooled image against a memcpy of the
  * unpacked frame. Best of R repetitions each; ours, OpenCV and memcpy take turns within each
  * repetition, so that on a shared machine they see the same load. It prints times and ratios
  * and asserts no timing.
@@ -111,11 +112,13 @@ runner_once (Runner *rn, DsImage **frames, guint n, gboolean timed)
 
 /* A runner for estimator e at `threads`; a first set, not timed, faults its pooled planes in. */
 static gboolean
-runner_init (Runner *rn, DsEstimator e, guint threads, gboolean two_calls, DsImage **frames, const Case *c)
+runner_init_motion (Runner *rn, DsEstimator e, guint threads, gboolean two_calls, gboolean motion, DsImage **frames,
+                    const Case *c)
 {
   DsSeparationParams p;
   ds_separation_params_init (&p, c->n);
   p.estimator = e;
+  p.detect_motion = motion;
   p.threads = threads;
   p.saturation_level = 65536.0; /* random data touches 65535: do not count it saturated */
   g_autoptr (GError) error = NULL;
@@ -127,6 +130,12 @@ runner_init (Runner *rn, DsEstimator e, guint threads, gboolean two_calls, DsIma
   }
   rn->sep = ds_separation_new ();
   return runner_once (rn, frames, c->n, FALSE);
+}
+
+static gboolean
+runner_init (Runner *rn, DsEstimator e, guint threads, gboolean two_calls, DsImage **frames, const Case *c)
+{
+  return runner_init_motion (rn, e, threads, two_calls, FALSE, frames, c);
 }
 
 static void
@@ -247,6 +256,7 @@ bench_case (const Case *c, guint reps, guint threads, gboolean estimators)
           best_copy * 1e3, one.total / best_copy, many.total / best_copy, threads);
 
   if (estimators) {
+    Timing base[3] = { one };
     for (DsEstimator e = DS_ESTIMATOR_SINE; e <= DS_ESTIMATOR_ROBUST; e++) {
       Runner a, b;
       gboolean ran = runner_init (&a, e, 1, FALSE, frames, c) && runner_init (&b, e, threads, FALSE, frames, c);
@@ -265,6 +275,28 @@ bench_case (const Case *c, guint reps, guint threads, gboolean estimators)
               "%8.2f ms (%u threads)\n",
               ds_estimator_name (e), te1.total * 1e3, te1.total / one.total, te1.accumulate / one.accumulate,
               te1.finalize / one.finalize, tet.total * 1e3, threads);
+      base[e] = te1;
+    }
+    /* the motion mask bit (detect_motion) against the same estimator without it */
+    for (DsEstimator e = DS_ESTIMATOR_MAXMIN; e <= DS_ESTIMATOR_ROBUST; e++) {
+      Runner a, b;
+      gboolean ran = runner_init_motion (&a, e, 1, FALSE, TRUE, frames, c) &&
+                     runner_init_motion (&b, e, threads, FALSE, TRUE, frames, c);
+      for (guint r = 0; ran && r < reps; r++)
+        ran = runner_once (&a, frames, c->n, TRUE) && runner_once (&b, frames, c->n, TRUE);
+      gboolean same = ran && same_result (a.sep, b.sep);
+      Timing tm1 = a.t, tmt = b.t;
+      runner_clear (&a);
+      runner_clear (&b);
+      if (!same) {
+        fprintf (stderr, "%s with motion: %u threads differ from one thread\n", ds_estimator_name (e), threads);
+        ok = FALSE;
+        continue;
+      }
+      printf ("  %-6s +motion total %8.2f ms (1 thread, %5.2fx without: accumulate %5.2fx, finalize %5.2fx)  "
+              "%8.2f ms (%u threads)\n",
+              ds_estimator_name (e), tm1.total * 1e3, tm1.total / base[e].total,
+              tm1.accumulate / base[e].accumulate, tm1.finalize / base[e].finalize, tmt.total * 1e3, threads);
     }
     /* the noise estimate of a set's first frame, against folding one frame */
     double best_noise = INFINITY;

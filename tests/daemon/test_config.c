@@ -164,8 +164,8 @@ test_reload_rule (void)
   g_assert_cmpstr (changed, ==, "[camera] roi; [acquisition] settle-ms, link-mbit");
   g_autofree char *live_keys = ds_config_live_keys ();
   g_assert_cmpstr (live_keys, ==, "[camera] exposure-us, gain-db; [acquisition] phases, averages, estimator, "
-                                  "dark-frame, phase-retries, max-failed-sets, results, verify-phase, phase-tolerance-deg, "
-                                  "single-frame");
+                                  "dark-frame, phase-retries, max-failed-sets, results, verify-phase, detect-motion, "
+                                  "phase-tolerance-deg, single-frame");
 }
 
 static void

@@ -80,8 +80,9 @@ def check_files(tool, tmp):
                 np.testing.assert_array_equal(d[()], want)
                 assert d.attrs["long_name"], name
                 assert d.attrs["units"] == ("" if name == "mask" else "counts"), name
-            assert list(e["mask/data"].attrs["flag_masks"]) == [1, 2, 4, 8, 16, 32, 64]
+            assert list(e["mask/data"].attrs["flag_masks"]) == [1, 2, 4, 8, 16, 32, 64, 128]
             assert e["mask/data"].attrs["flag_meanings"].split()[0] == "saturated"
+            assert e["mask/data"].attrs["flag_meanings"].split()[-1] == "motion"
             ph = e["phases"]
             np.testing.assert_array_equal(ph["data"][()], np.stack(phases))
             assert list(ph["phase"][()]) == list(range(PHASES))

@@ -279,12 +279,13 @@ static void
 test_mask_bit_names (void)
 {
   const char *expect[] = { "saturated", "dark", "low_modulation", "nonfinite", "negative",
-                           "dark_exceeds", "undersampled" };
+                           "dark_exceeds", "undersampled", "motion" };
   G_STATIC_ASSERT (G_N_ELEMENTS (expect) == DS_MASK_N_BITS);
   for (guint i = 0; i < DS_MASK_N_BITS; i++)
     g_assert_cmpstr (ds_mask_bit_name (i), ==, expect[i]);
   g_assert_null (ds_mask_bit_name (DS_MASK_N_BITS));
   g_assert_cmpint (DS_MASK_UNDERSAMPLED, ==, 64);
+  g_assert_cmpint (DS_MASK_MOTION, ==, 128);
 }
 
 int

@@ -32,6 +32,8 @@ typedef struct {
   gboolean dark;
   gboolean undersampled; /* a period and an edge blur that leave some columns undersampled */
   double saturation_level; /* 0: the default */
+  gboolean motion;       /* detect_motion: its sums folded on the pass too (the bit itself is
+                            /motion/...'s; here the fused and the two calls agree on it) */
 } Case;
 
 static guint64
@@ -69,6 +71,9 @@ frame_value (const Case *c, guint k, guint x, guint y, guint full, GRand *r)
     break;
   case 3: /* flat: no modulation */
     v = lo;
+    break;
+  case 4: /* motion cases: brighter after the first phase, as when an edge passed */
+    v += c->motion && k > 0 ? 0.2 * full : 0;
     break;
   default:
     break;
@@ -122,6 +127,7 @@ init_params (const Case *c, guint threads, DsSeparationParams *p)
   p->duty = c->duty;
   p->threads = threads;
   p->saturation_level = c->saturation_level;
+  p->detect_motion = c->motion;
   if (c->undersampled) {
     p->geometry.period_px = 8;
     p->geometry.edge_blur_px = 0.6; /* a third of the columns undersampled at N = 6 */
@@ -213,6 +219,7 @@ check_reference (const Case *c, const DsSeparationParams *p, DsImage **frames, c
         [4] = { ld < 0 || lg < 0, MIN (ld, lg) },
         [5] = { d - lo > exceed, d - lo - exceed },
         [6] = { columns[x] != 0, G_MAXDOUBLE },
+        [7] = { c->motion && ((mk[x] >> 7) & 1), G_MAXDOUBLE }, /* motion: not judged here */
       };
       guint8 want = 0;
       for (guint i = 0; i < DS_MASK_N_BITS; i++) {
@@ -301,6 +308,8 @@ run_case (const Case *c, guint threads)
     g_assert_no_error (error);
     assert_same_result (a, f);
     g_assert_cmpuint (ds_phase_set_frames_folded (one), ==, c->n);
+    /* the hard pixels (a sample at 0 or full scale in one phase) depart from any stripes */
+    g_assert_true (!c->motion || f->meta.flagged[7] > 0);
   }
   /* the state holds the last frame too: a second finalize gives the same result */
   g_autoptr (DsSeparation) again = ds_phase_set_finalize (one, &error);
@@ -318,13 +327,15 @@ run_case (const Case *c, guint threads)
 }
 
 static const Case cases[] = {
-  { "u16 16-bit N=4", DS_SAMPLE_U16, 16, 4, 517, 263, 0.0, 0.5, FALSE, FALSE, 0 },
-  { "u16 12-bit N=8 dark b=0.1 a=0.4", DS_SAMPLE_U16, 12, 8, 517, 263, 0.1, 0.4, TRUE, FALSE, 0 },
-  { "u16 N=6 undersampled columns, dark", DS_SAMPLE_U16, 16, 6, 301, 449, 0.0, 0.5, TRUE, TRUE, 0 },
-  { "u16 N=5 saturation level 60000 b=0.05", DS_SAMPLE_U16, 16, 5, 611, 233, 0.05, 0.6, FALSE, FALSE, 60000 },
-  { "u8 N=4 dark", DS_SAMPLE_U8, 8, 4, 523, 271, 0.0, 0.5, TRUE, FALSE, 0 },
-  { "u8 7-bit N=3 b=0.2", DS_SAMPLE_U8, 7, 3, 13, 11, 0.2, 0.5, FALSE, FALSE, 0 },
-  { "u16 N=4 63x7", DS_SAMPLE_U16, 16, 4, 63, 7, 0.0, 0.5, TRUE, FALSE, 0 },
+  { "u16 16-bit N=4", DS_SAMPLE_U16, 16, 4, 517, 263, 0.0, 0.5, FALSE, FALSE, 0, FALSE },
+  { "u16 12-bit N=8 dark b=0.1 a=0.4", DS_SAMPLE_U16, 12, 8, 517, 263, 0.1, 0.4, TRUE, FALSE, 0, FALSE },
+  { "u16 N=6 undersampled columns, dark", DS_SAMPLE_U16, 16, 6, 301, 449, 0.0, 0.5, TRUE, TRUE, 0, FALSE },
+  { "u16 N=5 saturation level 60000 b=0.05", DS_SAMPLE_U16, 16, 5, 611, 233, 0.05, 0.6, FALSE, FALSE, 60000, FALSE },
+  { "u8 N=4 dark", DS_SAMPLE_U8, 8, 4, 523, 271, 0.0, 0.5, TRUE, FALSE, 0, FALSE },
+  { "u8 7-bit N=3 b=0.2", DS_SAMPLE_U8, 7, 3, 13, 11, 0.2, 0.5, FALSE, FALSE, 0, FALSE },
+  { "u16 N=4 63x7", DS_SAMPLE_U16, 16, 4, 63, 7, 0.0, 0.5, TRUE, FALSE, 0, FALSE },
+  { "u16 12-bit N=8 dark b=0.1 motion", DS_SAMPLE_U16, 12, 8, 517, 263, 0.1, 0.4, TRUE, FALSE, 0, TRUE },
+  { "u8 N=6 undersampled columns motion", DS_SAMPLE_U8, 8, 6, 301, 449, 0.0, 0.5, FALSE, TRUE, 0, TRUE },
 };
 
 static void
@@ -344,8 +355,8 @@ static void
 test_tiny (void)
 {
   const Case tiny[] = {
-    { "1x1", DS_SAMPLE_U16, 16, 2, 1, 1, 0.0, 0.5, FALSE, FALSE, 0 },
-    { "17x2 dark", DS_SAMPLE_U16, 16, 3, 17, 2, 0.0, 0.5, TRUE, FALSE, 0 },
+    { "1x1", DS_SAMPLE_U16, 16, 2, 1, 1, 0.0, 0.5, FALSE, FALSE, 0, FALSE },
+    { "17x2 dark", DS_SAMPLE_U16, 16, 3, 17, 2, 0.0, 0.5, TRUE, FALSE, 0, FALSE },
   };
   for (guint i = 0; i < G_N_ELEMENTS (tiny); i++) {
     const Case *c = &tiny[i];
@@ -389,7 +400,7 @@ test_tiny (void)
 static void
 test_errors_and_other_paths (void)
 {
-  const Case c = { "errors", DS_SAMPLE_U16, 16, 4, 40, 30, 0.0, 0.5, FALSE, FALSE, 0 };
+  const Case c = { "errors", DS_SAMPLE_U16, 16, 4, 40, 30, 0.0, 0.5, FALSE, FALSE, 0, FALSE };
   DsSeparationParams p;
   init_params (&c, 1, &p);
   GRand *r = g_rand_new_with_seed (5);
