@@ -38,11 +38,11 @@ struct DsPhaseSet {
   float *rawmax;           /* averaging only: largest raw sample (saturation) */
   double *psum;            /* averaging only: running sum of the current phase */
   guint8 *nonfinite;       /* float input only: some sample was NaN or Inf */
-  double *cos_sum, *sin_sum; /* sine: first harmonic of the phase means (float input, averaging) */
   gint64 *cos64, *sin64;   /* sine, integer fast path: the first harmonic in fixed point, sum of
                               ds_harmonic_fix_weights x sample; exact, so independent of the
                               order the frames came in (a sliding window adds and retires) */
-  double *cos_sum, *sin_sum; /* sine, and maxmin with motion: first harmonic of the phase means */
+  double *cos_sum, *sin_sum; /* first harmonic of the phase means: sine on float input or with
+                                averaging, and any estimator's motion test (maxmin, sine) */
   double *sumsq;           /* motion (maxmin, sine): sum of squares of the phase values; exact for
                               integer samples (below 2^53 up to DS_MAX_PHASES frames of 16 bits) */
   guint16 *planes16;       /* robust, integer fast path: N planes of raw frames */
