@@ -101,6 +101,7 @@ params_of (JsonNode *meta, DsSeparationParams *p)
   p->black_level = json_object_get_double_member (s, "black_level");
   p->geometry.period_px = json_object_get_double_member (s, "period_px");
   p->geometry.pixel_aperture = 1;
+  p->detect_motion = json_object_get_boolean_member_with_default (s, "detect_motion", FALSE);
 }
 
 /* A fresh phase set over the result's frames; its planes must equal the result's bit for bit. */
