@@ -230,13 +230,13 @@ run_scene (guint64 seed, guint index, Tally *t)
 }
 
 static guint64 test_seed = 36036;
-static guint test_scenes = 40;
+static guint test_scenes = 40, test_first = 0;
 
 static void
 test_generated (void)
 {
   Tally t = { 0 };
-  for (guint i = 0; i < test_scenes; i++)
+  for (guint i = test_first; i < test_first + test_scenes; i++)
     run_scene (test_seed, i, &t);
   guint verifiable = t.trials - t.cannot_verify;
   g_test_message ("%u scenes, %u sets, %u correct frames: %u false refusals, %u frames and %u sets unverified; "
@@ -251,11 +251,14 @@ int
 main (int argc, char **argv)
 {
   g_test_init (&argc, &argv, NULL);
-  /* test_phase_check_scenes [SEED [SCENES]]: another draw of the same test. */
+  /* test_phase_check_scenes [SEED [SCENES [FIRST]]]: another draw, or a part of one (the
+   * generator's indices FIRST to FIRST + SCENES - 1). */
   if (argc > 1)
     test_seed = g_ascii_strtoull (argv[1], NULL, 10);
   if (argc > 2)
     test_scenes = (guint) g_ascii_strtoull (argv[2], NULL, 10);
+  if (argc > 3)
+    test_first = (guint) g_ascii_strtoull (argv[3], NULL, 10);
   g_test_add_func ("/phase-check/generated-scenes", test_generated);
   return g_test_run ();
 }
