@@ -449,26 +449,30 @@ ds_phase_check_frame (DsPhaseCheck *check, const DsImage *frame, guint k, guint 
 }
 
 /* The complete set's adjacent phases: a pair whose first harmonics are equal within the noise is
- * a repeat when the set's other adjacent pairs lie REPEAT_MARGIN_SET noise margins apart (FALSE
+ * a repeat when the set's other adjacent pairs lie REPEAT_MARGIN_SET noise sigmas apart (FALSE
  * with a message), else the set cannot tell its phases apart (*undecided). */
 static gboolean
 set_has_no_repeat (const DsPhaseCheck *check, guint n, double noise, gboolean *undecided, char **why)
 {
-  guint suspect = n;
+  guint suspect = n, pairs = n == 2 ? 1 : n, suspects = 0;
   double closest_other = INFINITY;
-  for (guint g = 0; g < (n == 2 ? 1 : n); g++) {
+  for (guint g = 0; g < pairs; g++) {
     double a[2], b[2];
     set_mean (check, g, a);
     set_mean (check, (g + 1) % n, b);
     double d = hypot (a[0] - b[0], a[1] - b[1]);
-    if (d <= PHASE_CHECK_SIGMAS * noise && suspect == n)
-      suspect = g;
-    else
+    if (d <= PHASE_CHECK_SIGMAS * noise) {
+      suspects++;
+      if (suspect == n)
+        suspect = g;
+    } else
       closest_other = MIN (closest_other, d);
   }
   if (suspect == n)
     return TRUE;
-  if (isfinite (closest_other) && closest_other >= REPEAT_MARGIN_SET * noise) {
+  /* Judged against the pairs that do differ, while they are the most: more repeats than
+   * differing pairs is a scene whose phases do not move its first harmonic. */
+  if (2 * suspects <= pairs && isfinite (closest_other) && closest_other >= REPEAT_MARGIN_SET * noise) {
     *why = g_strdup_printf ("phase check of the whole set: its frame of phase %u repeats its frame of phase %u "
                             "(equal within the noise, where the other adjacent phases are %.0f noise sigmas "
                             "apart: a duplicated or stale frame)",
