@@ -51,6 +51,8 @@ def load(csv_path):
     seeds, first_period = collections.defaultdict(list), {}
     with open(csv_path, newline="") as f:
         for row in csv.DictReader(f):
+            if row.get("status", "ok") != "ok":
+                continue  # a configuration that could not separate the scene: no error to plot
             first_period.setdefault(row["scene"], float(row["period_px"]))
             k = Key(row["scene"], row["estimator"], int(row["phases"]), int(row["averages"]),
                     float(row["exposure_factor"]), float(row["period_px"]))

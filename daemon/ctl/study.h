@@ -34,6 +34,12 @@ typedef struct {
    * without edge-blur-px (the period alone, the blur taken as sharp, robust's one-phase
    * margin). */
   gboolean edge_blur_known;
+  /* "ok"; "cannot-separate": the set left no pixel to score (every one clipped, not finite or
+   * undersampled), its errors NAN; "refused": proc refuses the configuration on this scene (the
+   * sampling precondition at this period, an estimator's N), nothing run. reason says why
+   * ("" when ok); it lives until emit returns. */
+  const char *status;
+  const char *reason;
 } DsStudyPoint;
 
 typedef struct {
@@ -54,7 +60,9 @@ typedef struct {
 
 typedef void (*DsStudyPointFunc) (const DsStudyPoint *point, gpointer user_data);
 
-/* Runs the plan on one scene file; every point goes to `emit` as it is measured. Frames are
+/* Runs the plan on one scene file; every point goes to `emit` as it is measured, and each
+ * configuration that cannot separate the scene as a point with its status and reason (the sweep
+ * goes on). Frames are
  * rendered once per (period, N, M, exposure, seed) and folded into one phase set per estimator;
  * the noise-free frames once per (period, N, exposure). */
 gboolean ds_study_run_scene (const char *scene_path, const DsStudyPlan *plan,
