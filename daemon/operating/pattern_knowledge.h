@@ -2,7 +2,7 @@
  * the lines `descatterctl calibrate` prints, or a simulated illuminator whose geometry is exact
  * (descatterd --sim --scene). Every source enters through one record, the calibration's
  * (proc/calibration.h), and reaches the probe and the phase sets through the quantities its
- * lines carry (docs/accuracy.md, "What the model knows"):
+ * lines carry (docs/accuracy.md, "What is measured, what is assumed"):
  *   [illuminator] black-level, harmonic-gain, and edge-blur-px for square stripes
  * (a sine's blur and its pixel's aperture are both in its harmonic gain: they only scale the
  * first harmonic, which is all a sine has, and the probe splits that gain again,
