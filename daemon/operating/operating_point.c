@@ -57,6 +57,10 @@ predict (const DsOperatingModel *m, const Models *em, const DsSceneProbe *probe,
    * that measure nothing. */
   p->upper_bounded = !p->lower_bound || (em->upper && !em->unbounded && probe->leak.measured &&
                                          !probe->transfer.inconsistent && isfinite (p->predicted_error_upper));
+  /* A lower bound with nothing above it measured has no upper end: it never meets a target (it
+   * is undetermined at best, ds_operating_point_choose ()). */
+  if (!p->upper_bounded)
+    p->predicted_error_upper = INFINITY;
   p->uncertainty = ds_operating_point_uncertainty (m, probe, &p->parts);
   return TRUE;
 }
@@ -149,6 +153,7 @@ usable_factors (const DsOperatingModel *m, const DsSceneProbe *probe, double *ou
 }
 
 typedef struct {
+  gboolean on_lower_end;    /* a point meets the target with its lower end (the undetermined choice) */
   Best in_budget_meeting;   /* the choice */
   Best least_in_budget;     /* the most accurate within the budget */
   Best meeting_any_time;    /* the fastest meeting the target, whatever the budget */
@@ -198,7 +203,7 @@ search (const DsOperatingModel *m, const Models *errors, const DsSceneProbe *pro
     DsOperatingPoint p;
     if (!predict (m, errors, probe, t, w, h, c->estimator, c->phases, c->averages, c->factor, period, &p))
       continue;
-    gboolean meets = meets_target (&p, target);
+    gboolean meets = s->on_lower_end ? target <= 0 || p.predicted_error <= target : meets_target (&p, target);
     if (in_budget)
       consider (&s->least_in_budget, &p, 0);
     if (meets && target > 0) {
@@ -405,6 +410,17 @@ ds_operating_point_choose (const DsOperatingModel *m, DsErrorModel *errors, cons
   if (target > 0 && probe->transfer.inconsistent)
     g_string_append_printf (msg, " (%s)", probe->transfer.note);
   if (margin) {
+    /* Run the fastest point whose lower end meets the target, where one fits the budget: the
+     * interval says no more of the most accurate point, and a lower bound with no upper end would
+     * otherwise always run the longest set. */
+    Search lower = { .on_lower_end = TRUE };
+    search (m, &em, probe, t, w, h, m->phases, m->n_phases, m->averages, m->n_averages, factors, n_factors, 0,
+            target, budget, &lower);
+    if (lower.in_budget_meeting.found) {
+      *out = lower.in_budget_meeting.p;
+      g_string_append (msg, ". Run: the fastest point whose lower end meets the target, ");
+      append_point (msg, out);
+    }
     out->target_may_be_missed = TRUE;
     out->undetermined = TRUE;
     g_strlcpy (out->target_note, msg->str, sizeof out->target_note);

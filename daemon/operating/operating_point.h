@@ -94,8 +94,9 @@ double ds_scene_probe_max_exposure (const DsSceneProbe *probe);
  * cannot measure, error_model.h), a candidate meets a target only with the upper end of its
  * prediction, and "most accurate" is by the upper end first.
  * No candidate within the budget meets the target, but the most accurate one's lower end divided
- * by exp (its uncertainty) does: whether the target is met is undetermined; that one is chosen,
- * target_may_be_missed and undetermined set and target_note says why, with the interval.
+ * by exp (its uncertainty) does: whether the target is met is undetermined; the fastest candidate
+ * whose lower end meets the target (else that most accurate one) is chosen, target_may_be_missed
+ * and undetermined set and target_note says why, with the intervals.
  * Neither possible (even the lower end is above the target): UNREACHABLE with the best reachable error and what would reach the
  * target (a larger budget, a finer stripe period, a longer exposure), each with its prediction;
  * *out is then the best reachable point (predicted_error INFINITY when none fits the budget). */
