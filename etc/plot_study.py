@@ -56,6 +56,8 @@ def load(csv_path):
     seeds, first_period = collections.defaultdict(list), {}
     with open(csv_path, newline="") as f:
         for row in csv.DictReader(f):
+            if row.get("status", "ok") != "ok":
+                continue  # a configuration that could not separate the scene: no error to plot
             first_period.setdefault(row["scene"], float(row["period_px"]))
             # speed_px_s: absent from a CSV written before the speed axis (still scenes).
             k = Key(row["scene"], row["estimator"], int(row["phases"]), int(row["averages"]),

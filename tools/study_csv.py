@@ -39,6 +39,8 @@ def load(study_dir):
     first_period = {}
     with open(os.path.join(study_dir, "study.csv"), newline="") as f:
         for row in csv.DictReader(f):
+            if row.get("status", "ok") != "ok":
+                continue  # a configuration that could not separate the scene: no error to plot
             first_period.setdefault(row["scene"], float(row["period_px"]))
             seeds[key(row)].append(row)
     configurations = {}

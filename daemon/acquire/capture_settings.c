@@ -8,6 +8,15 @@
 #include <string.h>
 
 void
+ds_capture_settings_take_knowledge (DsCaptureSettings *s, const DsPatternKnowledge *k)
+{
+  s->black_level = k->black_level;
+  s->harmonic_gain = k->harmonic_gain;
+  s->edge_blur_known = k->edge_blur_known;
+  s->edge_blur_px = k->edge_blur_known ? k->edge_blur_px : 0;
+}
+
+void
 ds_capture_settings_from_config (DsCaptureSettings *s, const DsConfig *c)
 {
   memset (s, 0, sizeof *s);
@@ -20,10 +29,11 @@ ds_capture_settings_from_config (DsCaptureSettings *s, const DsConfig *c)
   s->pattern = strcmp (c->pattern, "sine") == 0 ? DS_PATTERN_SINE : DS_PATTERN_SQUARE;
   s->period_px = c->period_px;
   s->duty = c->duty;
-  s->black_level = c->black_level;
-  s->harmonic_gain = isnan (c->harmonic_gain) ? 0 : c->harmonic_gain;
-  s->edge_blur_known = !isnan (c->edge_blur_px);
-  s->edge_blur_px = s->edge_blur_known ? c->edge_blur_px : 0;
+  DsPatternKnowledge known = { .black_level = c->black_level,
+                               .harmonic_gain = isnan (c->harmonic_gain) ? 0 : c->harmonic_gain,
+                               .edge_blur_known = !isnan (c->edge_blur_px),
+                               .edge_blur_px = isnan (c->edge_blur_px) ? 0 : c->edge_blur_px };
+  ds_capture_settings_take_knowledge (s, &known);
   s->saturation_dn = isnan (c->saturation_dn) ? 0 : c->saturation_dn;
   s->dark_frame = c->dark_frame;
   s->phase_retries = c->phase_retries;

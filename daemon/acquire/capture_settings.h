@@ -6,6 +6,7 @@
 #include <json-glib/json-glib.h>
 
 #include "daemon/operating/operating_point.h"
+#include "daemon/operating/pattern_knowledge.h"
 #include "daemon/config/config.h"
 #include "proc/separation.h"
 
@@ -56,6 +57,10 @@ typedef struct {
  * the automatic operating point's predictions take them from, so that what is predicted is what
  * is computed. */
 void ds_capture_settings_separation_params (const DsCaptureSettings *settings, DsSeparationParams *params);
+/* What is known of the pattern (daemon/operating/pattern_knowledge.h) into the settings: the black
+ * level, harmonic gain and edge blur, the one way every source reaches the probe and the sets
+ * (the configuration's keys, a calibration's lines, a simulated illuminator's geometry). */
+void ds_capture_settings_take_knowledge (DsCaptureSettings *settings, const DsPatternKnowledge *known);
 /* The configuration's acquisition defaults. */
 void ds_capture_settings_from_config (DsCaptureSettings *settings, const DsConfig *config);
 /* As a JSON object for result metadata and `status`. */

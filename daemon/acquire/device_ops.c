@@ -201,6 +201,8 @@ ds_seq_apply_defaults (DsAcquisition *acq)
   s.period_px = acq->dev->pattern.period_px;
   s.duty = acq->dev->pattern.duty;
   s.black_level = acq->dev->pattern.black_level;
+  if (acq->dev->pattern_known)
+    ds_capture_settings_take_knowledge (&s, &acq->dev->known);
   g_autoptr (GError) error = NULL;
   gboolean ok = ds_seq_ensure_camera (acq, &s, &error);
   if (!ok)

@@ -30,18 +30,27 @@ parse_roi (const char *roi, DsCameraSettings *cs, GError **error)
 }
 
 /* The simulated illuminator can only project what the scene declares: its geometry replaces
- * the configuration's [illuminator] pattern keys. */
+ * the configuration's [illuminator] pattern keys. Its blur and how its pixels see it are exact
+ * too: they reach the probe and the sets as a calibration's lines would, through the record a
+ * noise-free `descatterctl calibrate` on a clear reference would give
+ * (daemon/operating/pattern_knowledge.h), so that --sim is never less informed than a rig. */
 static void
-pattern_from_scene (const DsScene *scene, DsStripePattern *p)
+pattern_from_scene (const DsScene *scene, DsStripePattern *p, DsPatternKnowledge *known)
 {
   p->kind = ds_scene_pattern_is_sine (scene) ? DS_STRIPES_SINE : DS_STRIPES_SQUARE;
   p->period_px = ds_scene_period_px (scene);
   p->duty = ds_scene_duty (scene);
   p->black_level = ds_scene_black_level (scene);
+  double w = ds_scene_pattern_aperture_px (scene);
+  DsStripeModel g = { .kind = ds_scene_pattern_is_sine (scene) ? DS_PATTERN_SINE : DS_PATTERN_SQUARE,
+                      .period_px = p->period_px, .duty = p->duty, .black_level = p->black_level,
+                      .blur_px = ds_scene_edge_blur_px (scene),
+                      .pixel_aperture = w > 0 ? w : DS_STRIPE_POINT_APERTURE };
+  ds_pattern_knowledge_from_geometry (&g, known);
 }
 
 static DsSimLab *
-open_sim_lab (const DsConfig *config, DsStripePattern *pattern, GError **error)
+open_sim_lab (const DsConfig *config, DsStripePattern *pattern, DsPatternKnowledge *known, GError **error)
 {
   /* Faults first: an opening stretched by open-delay-ms comes before whatever fails it. */
   DsSimFaults faults;
@@ -59,7 +68,7 @@ open_sim_lab (const DsConfig *config, DsStripePattern *pattern, GError **error)
                                 "built-in scene (" DS_DEFAULT_SCENE_NAME ")", error);
   if (!scene)
     return NULL;
-  pattern_from_scene (scene, pattern);
+  pattern_from_scene (scene, pattern, known);
   /* The unit sets DESCATTER_CACHE_DIR (systemd CacheDirectory=): scattering kernels survive
    * restarts there. */
   DsRenderer *renderer = ds_renderer_new (scene, g_getenv ("DESCATTER_CACHE_DIR"), error);
@@ -77,10 +86,11 @@ ds_devices_open (const DsConfig *config, GError **error)
   g_autoptr (DsDevices) dev = g_new0 (DsDevices, 1);
   DsSimLab *lab = NULL;
   DsStripePattern scene_pattern = { 0 };
+  DsPatternKnowledge scene_known = { 0 };
   gboolean want_lab = strcmp (config->camera_backend, "sim") == 0 ||
                       strcmp (config->illuminator_backend, "sim") == 0;
   if (want_lab) {
-    lab = open_sim_lab (config, &scene_pattern, error);
+    lab = open_sim_lab (config, &scene_pattern, &scene_known, error);
     if (!lab) {
       g_prefix_error (error, "simulated lab: ");
       return NULL;
@@ -151,6 +161,8 @@ ds_devices_open (const DsConfig *config, GError **error)
     dev->pattern.period_px = scene_pattern.period_px;
     dev->pattern.duty = scene_pattern.duty;
     dev->pattern.black_level = scene_pattern.black_level;
+    dev->pattern_known = TRUE;
+    dev->known = scene_known;
   }
   dev->grab_timeout_ms = config->grab_timeout_ms;
   dev->settle_timeout_ms = config->settle_timeout_ms;

@@ -7,6 +7,7 @@
 #include <glib.h>
 
 #include "daemon/config/config.h"
+#include "daemon/operating/pattern_knowledge.h"
 #include "drivers/core/camera.h"
 #include "drivers/core/illuminator.h"
 #include "drivers/core/trigger.h"
@@ -19,6 +20,11 @@ typedef struct {
   DsTrigger *trigger;
   DsCameraSettings camera_settings; /* from [camera]; exposure/gain overridden per set */
   DsStripePattern pattern;          /* from [illuminator]; n_phases set per set */
+  /* The simulated illuminator's pattern as a calibration would measure it (devices.c): it
+   * replaces [illuminator] black-level, harmonic-gain and edge-blur-px as `pattern` replaces the
+   * pattern keys. FALSE: the configuration's (ds_capture_settings_take_illuminator) */
+  gboolean pattern_known;
+  DsPatternKnowledge known;
   guint grab_timeout_ms;
   guint settle_timeout_ms;
   gboolean sends_after_exposure;    /* [camera]: the next phase may be applied once a frame's

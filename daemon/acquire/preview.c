@@ -32,6 +32,8 @@ preview_settings (DsAcquisition *acq, DsCaptureSettings *s)
   s->period_px = acq->dev->pattern.period_px;
   s->duty = acq->dev->pattern.duty;
   s->black_level = acq->dev->pattern.black_level;
+  if (acq->dev->pattern_known)
+    ds_capture_settings_take_knowledge (s, &acq->dev->known);
 }
 
 static void

@@ -139,6 +139,8 @@ ds_seq_run_set (DsAcquisition *acq, const DsCaptureSettings *requested, guint64 
                                                         : acq->dev->pattern.period_px;
   settings.duty = acq->dev->pattern.duty;
   settings.black_level = acq->dev->pattern.black_level;
+  if (acq->dev->pattern_known)
+    ds_capture_settings_take_knowledge (&settings, &acq->dev->known);
   DsFrameCounters c = { 0 };
   g_autoptr (GError) error = NULL;
   if (!ds_seq_carry_fits (acq, origin, s))

@@ -84,8 +84,19 @@ on_point (const DsStudyPoint *p, gpointer data)
                           p->masked, p->saturated, p->acquisition_ms, p->compute_ms, p->signal_dn, p->direct_fraction,
                           p->edge_blur_known ? 1 : 0, p->speed_px_s);
 #undef F
+  /* status and reason: a configuration that cannot separate the scene says so and why. */
+  g_string_truncate (row, row->len - 1);
+  g_string_append_c (row, ',');
+  ds_csv_append_field (row, p->status ? p->status : "ok");
+  g_string_append_c (row, ',');
+  ds_csv_append_field (row, p->reason ? p->reason : "");
+  g_string_append_c (row, '\n');
   fputs (row->str, o->csv);
   fflush (o->csv);
+  if (p->status && strcmp (p->status, "ok") != 0) {
+    o->done++; /* no error to rank: not among the fronts */
+    return;
+  }
   DsStudyPoint copy = remember_point (o, p);
   /* A set's points (one per estimator) come together once the set is done: the first of them
    * marks the set's end. Its cost is its frame count. */
@@ -333,6 +344,12 @@ load_csv (StudyOut *o, const char *path, GError **error)
   GStrv header = records->len ? g_array_index (records, DsCsvRecord, 0).fields : NULL;
   for (guint i = 1; i < records->len; i++) {
     const DsCsvRecord *r = &g_array_index (records, DsCsvRecord, i);
+    /* Rows of configurations that could not separate the scene have no error to rank. */
+    guint status_col = 0;
+    while (header[status_col] && strcmp (header[status_col], "status") != 0)
+      status_col++;
+    if (header[status_col] && status_col < g_strv_length (r->fields) && strcmp (r->fields[status_col], "ok") != 0)
+      continue;
     DsStudyPoint p;
     const char *bad = NULL;
     if (!point_from_csv (header, r->fields, &p, &bad)) {
@@ -576,7 +593,7 @@ ds_ctl_study (int argc, char **argv)
   fprintf (o.csv, "scene,estimator,phases,averages,period_px,exposure_factor,exposure_us,seed,rel_rmse_transmissive,"
                   "rel_rmse_scattered,systematic_transmissive,systematic_scattered,noise_transmissive,noise_scattered,"
                   "stripe_residue,valid,masked,saturated,acquisition_ms,compute_ms,signal_dn,direct_fraction,edge_blur_known,"
-                  "speed_px_s\n");
+                  "speed_px_s,status,reason\n");
   int status = 0;
   for (guint i = 0; i < files->len && status == 0; i++)
     if (!ds_study_run_scene (g_ptr_array_index (files, i), &plan, on_point, &o, &error))

@@ -526,7 +526,9 @@ write_reports (GPtrArray *runs, guint n_given, gint generate, const Plan *plan, 
     write_csv (csv, g_ptr_array_index (runs, i));
   GString *md = g_string_new ("# Validation of the automatic operating point\n\nMade by `descatterctl validate`");
   g_string_append_printf (md, " (rig: %s, %s, %s; seed %" G_GINT64_FORMAT "; scale %.3f, spread %.3f, fitted on %s).\n",
-                          plan->options.calibrated ? "calibrated harmonic gain" : "uncalibrated",
+                          plan->options.calibrated  ? "calibrated harmonic gain"
+                          : plan->options.simulated ? "simulated illuminator known"
+                                                    : "uncalibrated",
                           plan->options.fixed_period ? "fixed stripe period" : "stripe period can change",
                           plan->options.saturation_known ? "clip level configured"
                                                          : "clip level unknown below the format's top",
@@ -546,7 +548,7 @@ ds_ctl_validate (int argc, char **argv)
 {
   g_auto (GStrv) scene_files = NULL;
   g_autofree char *out = NULL, *targets = NULL, *budgets = NULL, *model_path = NULL, *configs = NULL;
-  gboolean uncalibrated = FALSE, fixed_period = FALSE, shipped = FALSE, fit = FALSE, quiet = FALSE,
+  gboolean uncalibrated = FALSE, simulated = FALSE, fixed_period = FALSE, shipped = FALSE, fit = FALSE, quiet = FALSE,
            saturation_known = FALSE;
   gint generate = 0, generator = DS_SCENE_GENERATOR_LATEST;
   gint64 seed = 1;
@@ -562,6 +564,7 @@ ds_ctl_validate (int argc, char **argv)
     { "fit", 0, 0, G_OPTION_ARG_NONE, &fit, "Fit the prediction's scale leave-one-scene-out on the given (not generated) scenes; write OUT/operating-model.conf", NULL },
     { "model", 0, 0, G_OPTION_ARG_FILENAME, &model_path, "Operating model (default: the installed one)", "FILE" },
     { "uncalibrated", 0, 0, G_OPTION_ARG_NONE, &uncalibrated, "The rig has no calibrated harmonic gain", NULL },
+    { "simulated", 0, 0, G_OPTION_ARG_NONE, &simulated, "The rig knows the simulated illuminator as descatterd --sim does (its exact geometry, not a calibration)", NULL },
     { "fixed-period", 0, 0, G_OPTION_ARG_NONE, &fixed_period, "The illuminator cannot change its period", NULL },
     { "saturation-known", 0, 0, G_OPTION_ARG_NONE, &saturation_known, "The rig is configured with the sensor's clip level ([camera] saturation-dn)", NULL },
     { "out", 'o', 0, G_OPTION_ARG_FILENAME, &out, "Output folder (default validation/)", "DIR" },
@@ -579,7 +582,7 @@ ds_ctl_validate (int argc, char **argv)
     fprintf (stderr, "descatterctl validate: %s\n", error->message);
     return 2;
   }
-  Plan plan = { .options = { .calibrated = !uncalibrated, .fixed_period = fixed_period,
+  Plan plan = { .options = { .calibrated = !uncalibrated && !simulated, .simulated = simulated, .fixed_period = fixed_period,
                              .saturation_known = saturation_known, .seed = (guint64) seed },
                 .quiet = quiet };
   ds_rig_timing_init (&plan.timing);

@@ -9,6 +9,7 @@
 #include "drivers/sim/scene.h"
 #include "proc/metrics.h"
 #include "proc/preview.h"
+#include "proc/proc_error.h"
 
 #define MAX_EST 4
 
@@ -49,13 +50,56 @@ typedef struct {
  * minimum down, and so understated its noise error. */
 static const guint8 ignore_bits = DS_MASK_SATURATED | DS_MASK_NONFINITE;
 
-static gboolean
-errors_of (const PointContext *c, const DsSeparation *sep, double *t, double *g, DsErrorStats *st, GError **error)
+/* Why a separation left no pixel to score: what its mask says of the pixels, and the sampling
+ * precondition's verdict on the configuration (proc/separation.h). */
+static char *
+no_pixel_reason (const DsSeparationParams *p, const DsImage *mask)
 {
-  DsErrorStats et, eg;
-  if (!ds_metrics_error (sep->transmissive, c->truth_t, sep->mask, ignore_bits, &et, error) ||
-      !ds_metrics_error (sep->scattered, c->truth_g, sep->mask, ignore_bits, &eg, error))
-    return FALSE;
+  guint64 n = 0, clipped = 0, nonfinite = 0, under = 0;
+  for (guint y = 0; y < mask->height; y++) {
+    const guint8 *m = ds_image_row (mask, y);
+    for (guint x = 0; x < mask->width; x++, n++) {
+      clipped += (m[x] & DS_MASK_SATURATED) != 0;
+      nonfinite += (m[x] & DS_MASK_NONFINITE) != 0;
+      under += (m[x] & DS_MASK_UNDERSAMPLED) != 0;
+    }
+  }
+  DsSamplingCheck check;
+  gboolean accepted = ds_separation_check_sampling (p, &check, NULL);
+  GString *r = g_string_new (NULL);
+  g_string_append_printf (r, "no pixel left to score: %.0f %% clipped, %.0f %% not finite, %.0f %% undersampled",
+                          100.0 * clipped / MAX (n, 1), 100.0 * nonfinite / MAX (n, 1), 100.0 * under / MAX (n, 1));
+  if (!accepted && check.refusal[0])
+    g_string_append_printf (r, "; %s", check.refusal);
+  else if (check.applies && isfinite (check.affected_fraction))
+    g_string_append_printf (r, "; the sampling precondition: %.0f %% of positions undersampled, lit phases %.2f, "
+                               "unlit %.2f", 100 * check.affected_fraction, check.lit_phases, check.unlit_phases);
+  return g_string_free (r, FALSE);
+}
+
+/* The errors against the truth; a set that left no pixel to score gives NAN and *reason (the
+ * configuration cannot separate the scene), any other failure fails. */
+static gboolean
+errors_of (const PointContext *c, const DsSeparationParams *p, const DsSeparation *sep, double *t, double *g,
+           DsErrorStats *st, char **reason, GError **error)
+{
+  DsErrorStats et = { 0 }, eg = { 0 };
+  g_autoptr (GError) local = NULL;
+  if (!ds_metrics_error (sep->transmissive, c->truth_t, sep->mask, ignore_bits, &et, &local) ||
+      !ds_metrics_error (sep->scattered, c->truth_g, sep->mask, ignore_bits, &eg, &local)) {
+    if (!g_error_matches (local, DS_PROC_ERROR, DS_PROC_ERROR_EMPTY)) {
+      g_propagate_error (error, g_steal_pointer (&local));
+      return FALSE;
+    }
+    *t = *g = NAN;
+    if (st) {
+      memset (st, 0, sizeof *st);
+      st->masked = (guint64) sep->mask->width * sep->mask->height;
+    }
+    if (reason)
+      *reason = no_pixel_reason (p, sep->mask);
+    return TRUE;
+  }
   *t = et.relative_rmse;
   *g = eg.relative_rmse;
   if (st)
@@ -105,10 +149,17 @@ run_point (const PointContext *c, guint n, guint m, guint64 seed, DsStudyPointFu
                         .exposure_us = c->exposure, .seed = seed,
                         .systematic_transmissive = c->sys_t[r], .systematic_scattered = c->sys_g[r],
                         .signal_dn = c->signal_dn, .direct_fraction = c->direct_fraction,
-                        .edge_blur_known = params[r].geometry.edge_blur_known, .speed_px_s = c->speed_px_s };
+                        .edge_blur_known = params[r].geometry.edge_blur_known, .speed_px_s = c->speed_px_s,
+                        .status = "ok", .reason = "" };
     DsErrorStats et;
-    ok = errors_of (c, sep, &pt.rel_rmse_transmissive, &pt.rel_rmse_scattered, &et, error) &&
-         ds_metrics_stripe_residue (sep->transmissive, ds_scene_period_px (scene), &pt.stripe_residue, error);
+    g_autofree char *reason = NULL;
+    ok = errors_of (c, &params[r], sep, &pt.rel_rmse_transmissive, &pt.rel_rmse_scattered, &et, &reason, error);
+    if (ok && reason) {
+      pt.status = "cannot-separate";
+      pt.reason = reason;
+      pt.stripe_residue = NAN;
+    } else
+      ok = ok && ds_metrics_stripe_residue (sep->transmissive, ds_scene_period_px (scene), &pt.stripe_residue, error);
     if (ok && c->plan->examples_dir && c->examples && c->own_period && seed == 1 && m == 1 && c->exposure_factor == 1.0 &&
         (n == c->plan->phases[0] || n == c->plan->phases[c->plan->n_phases - 1]))
       ok = write_examples (c, sep, params[r].estimator, n, error);
@@ -126,6 +177,30 @@ run_point (const PointContext *c, guint n, guint m, guint64 seed, DsStudyPointFu
   return ok;
 }
 
+/* A configuration proc refuses on this scene: one point per M and seed, nothing run, the
+ * refusal as its reason, so that the sweep says which configurations cannot separate the scene
+ * and why instead of leaving them out. */
+static void
+emit_refused (const PointContext *c, const DsSeparationParams *p, const char *why, DsStudyPointFunc emit,
+              gpointer user_data)
+{
+  const DsScene *scene = ds_sim_rig_scene (c->rig);
+  for (guint im = 0; im < c->plan->n_averages; im++)
+    for (guint seed = 1; seed <= c->plan->n_seeds; seed++) {
+      DsStudyPoint pt = { .scene = c->scene_name, .estimator = p->estimator, .phases = p->n_phases,
+                          .averages = c->plan->averages[im], .period_px = ds_scene_period_px (scene),
+                          .exposure_factor = c->exposure_factor, .exposure_us = c->exposure, .seed = seed,
+                          .rel_rmse_transmissive = NAN, .rel_rmse_scattered = NAN,
+                          .systematic_transmissive = NAN, .systematic_scattered = NAN, .stripe_residue = NAN,
+                          .signal_dn = c->signal_dn, .direct_fraction = c->direct_fraction,
+                          .edge_blur_known = p->geometry.edge_blur_known, .speed_px_s = c->speed_px_s,
+                          .status = "refused", .reason = why };
+      pt.masked = (guint64) ds_scene_width (scene) * ds_scene_height (scene);
+      emit (&pt, user_data);
+    }
+}
+
+
 /* The systematic part of each estimator's error: the same set on noise-free frames (M of them
  * per phase when the scene moves, each at its time; one stands for all M of a still scene). */
 static gboolean
@@ -137,7 +212,7 @@ systematic_parts (PointContext *c, guint m, GError **error)
     return FALSE;
   gboolean ok = TRUE;
   for (guint r = 0; r < c->n_params; r++) {
-    ok = ok && errors_of (c, seps[r], &c->sys_t[r], &c->sys_g[r], NULL, error);
+    ok = ok && errors_of (c, &c->params[r], seps[r], &c->sys_t[r], &c->sys_g[r], NULL, NULL, error);
     ds_separation_free (seps[r]);
   }
   return ok;
@@ -244,8 +319,12 @@ run_period (const DsSimRig *rig, const char *scene_name, gboolean own_period, gb
           p.geometry.edge_blur_px = 0;
           p.geometry.edge_blur_known = FALSE;
         }
-        if (ds_separation_params_validate (&p, NULL))
+        g_autoptr (GError) refused = NULL;
+        if (ds_separation_params_validate (&p, &refused))
           cn.params[cn.n_params++] = p;
+        else if (g_error_matches (refused, DS_PROC_ERROR, DS_PROC_ERROR_PRECONDITION))
+          emit_refused (&c, &p, refused->message, emit, user_data); /* this scene's period; an N no
+                                                                       scene takes stays out */
       }
       if (cn.n_params == 0)
         continue;

@@ -38,6 +38,12 @@ typedef struct {
    * taken at their times in the rig's timing model and its error is against the truth at the
    * set's middle, so motion during the set counts against longer sets. */
   double speed_px_s;
+  /* "ok"; "cannot-separate": the set left no pixel to score (every one clipped, not finite or
+   * undersampled), its errors NAN; "refused": proc refuses the configuration on this scene (the
+   * sampling precondition at this period, an estimator's N), nothing run. reason says why
+   * ("" when ok); it lives until emit returns. */
+  const char *status;
+  const char *reason;
 } DsStudyPoint;
 
 typedef struct {
@@ -61,10 +67,11 @@ typedef struct {
 
 typedef void (*DsStudyPointFunc) (const DsStudyPoint *point, gpointer user_data);
 
-/* Runs the plan on one scene file; every point goes to `emit` as it is measured. Frames are
- * rendered once per (speed, period, N, M, exposure, seed) and folded into one phase set per
- * estimator; the noise-free frames once per (speed, period, N, exposure), and per M as well
- * when the scene moves (each frame then has its own time). */
+/* Runs the plan on one scene file; every point goes to `emit` as it is measured, and each
+ * configuration that cannot separate the scene as a point with its status and reason (the sweep
+ * goes on). Frames are rendered once per (speed, period, N, M, exposure, seed) and folded into
+ * one phase set per estimator; the noise-free frames once per (speed, period, N, exposure), and
+ * per M as well when the scene moves (each frame then has its own time). */
 gboolean ds_study_run_scene (const char *scene_path, const DsStudyPlan *plan,
                              DsStudyPointFunc emit, gpointer user_data, GError **error);
 

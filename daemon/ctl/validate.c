@@ -3,6 +3,7 @@
 #include <math.h>
 #include <string.h>
 
+#include "daemon/operating/calibration_knowledge.h"
 #include "proc/calibration.h"
 #include "proc/image_stats.h"
 #include "proc/metrics.h"
@@ -115,17 +116,24 @@ ds_validate_probe (const DsSimRig *rig, const DsValidateOptions *o, DsValidateSc
       return FALSE;
     }
     out->calibrated = TRUE;
-    /* What descatterd.conf then holds, calibrate's lines pasted (ds_calibration_config_lines):
-     * [illuminator] black-level and harmonic-gain, and edge-blur-px for square stripes; a sine's
-     * blur is in its harmonic gain, from which the probe takes it (with the black level). */
-    const DsCalibration *cal = &out->calibration;
-    out->harmonic_gain = cal->harmonic_gain;
-    if (cal->pattern == DS_PATTERN_SINE) {
-      out->black_level = cal->black_level;
-    } else {
-      out->edge_blur_known = TRUE;
-      out->edge_blur_px = cal->edge_blur_px;
-    }
+  } else if (o->simulated) {
+    /* descatterd --sim: the record a noise-free calibration of the scene's illuminator gives. */
+    double w = ds_scene_pattern_aperture_px (scene);
+    DsStripeModel g = { .kind = s->sine ? DS_PATTERN_SINE : DS_PATTERN_SQUARE, .period_px = s->period_px,
+                        .duty = s->duty, .black_level = s->black_level, .blur_px = s->edge_blur_px,
+                        .pixel_aperture = w > 0 ? w : DS_STRIPE_POINT_APERTURE };
+    ds_calibration_from_geometry (&g, &out->calibration);
+    out->calibrated = TRUE;
+  }
+  if (out->calibrated) {
+    /* What descatterd.conf then holds, the record's lines pasted (ds_calibration_config_lines):
+     * the path every source of knowledge takes (daemon/operating/pattern_knowledge.h). */
+    DsPatternKnowledge known;
+    ds_pattern_knowledge_from_calibration (&out->calibration, &known);
+    out->black_level = known.black_level;
+    out->harmonic_gain = known.harmonic_gain;
+    out->edge_blur_known = known.edge_blur_known;
+    out->edge_blur_px = known.edge_blur_px;
   }
   g_autoptr (DsImage) dark = ds_sim_rig_frame (rig, 0, 2, FALSE, e0, seed + 1, error);
   g_autoptr (DsImage) l0 = dark ? ds_sim_rig_frame (rig, 0, 2, TRUE, e0, seed + 2, error) : NULL;
@@ -302,7 +310,8 @@ ds_validate_config (const DsSimRig *rig, const DsValidateScene *vs, DsErrorModel
   p->exposure_us = vs->probe.exposure_us * factor;
   p->period_px = vs->probe.geometry.period_px;
   p->predicted_error = model->scale * p->parts.total;
-  p->predicted_error_upper = p->predicted_error; /* a fixed configuration: the probe's own scene only */
+  /* a fixed configuration: the probe's own scene only, with the error model's own interval */
+  p->predicted_error_upper = model->scale * p->parts.total_upper;
   p->predicted_time_ms = ds_rig_timing_set_ms (timing, vs->probe.width, vs->probe.height, phases, averages,
                                                p->exposure_us, TRUE);
   p->lower_bound = !vs->probe.leak.measured || vs->probe.narrow.unresolved || vs->probe.transfer.inconsistent ||

@@ -17,6 +17,9 @@ G_BEGIN_DECLS
 
 typedef struct {
   gboolean calibrated;     /* the rig was calibrated on the clear reference: h known */
+  gboolean simulated;      /* (calibrated FALSE) the rig knows its pattern as descatterd --sim
+                              does: the noise-free calibration of the scene's illuminator
+                              (daemon/operating/pattern_knowledge.h) */
   gboolean fixed_period;   /* the illuminator cannot change its period: no second period */
   gboolean saturation_known; /* the rig is configured with the sensor's clip level ([camera]
                                 saturation-dn); otherwise it knows the pixel format's top only */
@@ -25,7 +28,8 @@ typedef struct {
 
 typedef struct {
   DsSceneProbe probe;
-  gboolean calibrated;     /* calibration holds what `descatterctl calibrate` measured */
+  gboolean calibrated;     /* calibration holds what `descatterctl calibrate` measured, or the
+                              simulated illuminator's record (options' simulated) */
   DsCalibration calibration;
   char second_period_note[320]; /* a sine's black level assumed: why no second period told it */
   double black_level;      /* configured: the scene's, or the calibration's measured at two periods */

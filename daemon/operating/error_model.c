@@ -326,6 +326,8 @@ ds_error_model_predict (DsErrorModel *m, DsEstimator estimator, guint phases, gu
   out->scattered_stripes = d >= 0 ? sqrt (d) : -sqrt (-d);
   out->noise = sqrt (MAX (0.0, out->total * out->total - out->systematic * out->systematic));
   out->cancellation = 0;
+  out->total_upper = out->total;
+  out->blur_assumed = FALSE;
   if (out->systematic < out->sampling) {
     /* The scattered stripes cancel part of the sampling error. The remainder is only as good as
      * the leak, which the two-period probe knows to within its own size (scene_probe.h: read at
@@ -337,11 +339,14 @@ ds_error_model_predict (DsErrorModel *m, DsEstimator estimator, guint phases, gu
     const SetResult *twice = run_sets (m, phases, 1, exposure_factor, period, FALSE, 2);
     double worst = MAX (out->sampling, twice->valid[e] ? twice->error[e] : 0.0);
     out->cancellation = worst - out->systematic;
-    out->total = sqrt (out->noise * out->noise + worst * worst);
+    out->total_upper = MAX (out->total, sqrt (out->noise * out->noise + worst * worst));
   }
+  /* The blur unknown: the sharp pattern's parts are the prediction, the blurred one's worse end
+   * the interval's upper end. */
   DsErrorParts alt;
-  if (m->blurred && ds_error_model_predict (m->blurred, estimator, phases, averages, exposure_factor, period_px, &alt, NULL) &&
-      alt.total > out->total)
-    *out = alt;
+  if (m->blurred && ds_error_model_predict (m->blurred, estimator, phases, averages, exposure_factor, period_px, &alt, NULL)) {
+    out->total_upper = MAX (out->total_upper, MAX (alt.total, alt.total_upper));
+    out->blur_assumed = TRUE;
+  }
   return TRUE;
 }

@@ -16,14 +16,20 @@
  *              clipping at the exposure;
  *   systematic noise-free with scattered stripes;
  *   noise      sqrt(total^2 - systematic^2): shot and read noise, and max/min's bias from them.
- * total is the noisy set's error, except where the scattered stripes cancel part of the sampling
- * error (systematic < sampling): the leak is not known well enough to rely on that, so total is
- * then sqrt (noise^2 + worst^2), worst the larger noise-free error of no leak and twice the
- * probe's leak (`cancellation` says how much that adds to systematic).
+ * total is the noisy set's error. Where the scattered stripes cancel part of the sampling error
+ * (systematic < sampling) the leak is not known well enough to rely on that: total_upper is then
+ * sqrt (noise^2 + worst^2), worst the larger noise-free error of no leak and twice the probe's
+ * leak (`cancellation` says how much that adds to systematic).
  *
- * When the probe could not find the stripes' blur (DS_BLUR_ASSUMED_SHARP), every prediction is
- * the worse of the sharp pattern and one blurred by DS_ERROR_MODEL_UNKNOWN_BLUR_PX (at most P/8):
- * a configuration that only works on sharp stripes (maxmin at N = 2) is then not chosen blind.
+ * A term the pilot cannot measure makes the prediction an interval, [total, total_upper]: total
+ * is what the measured terms give, total_upper the worst the unmeasured one allows. Two terms:
+ * the leak's cancellation above (total_upper takes the worst of no leak and twice the probe's),
+ * and the stripes' blur when the probe could not find it (DS_BLUR_ASSUMED_SHARP): total is the
+ * sharp pattern's, total_upper the worse of it and one blurred by DS_ERROR_MODEL_UNKNOWN_BLUR_PX
+ * (at most P/8). A configuration that only works on sharp stripes (maxmin at N = 2) is then not
+ * accepted blind (targets are met on the upper end), and one that works whatever the blur is
+ * not refused for a blur nobody measured (refusals are decided on the lower end,
+ * operating_point.h).
  *
  * Threads: one model per thread (it caches its synthetic sets). */
 #pragma once
@@ -37,14 +43,18 @@ G_BEGIN_DECLS
 #define DS_ERROR_MODEL_UNKNOWN_BLUR_PX 0.75
 
 typedef struct {
-  double total;         /* relative RMSE of Ld */
+  double total;         /* relative RMSE of Ld, from the terms measured: the interval's lower end */
+  double total_upper;   /* the interval's upper end over the terms not measured (the leak's
+                           cancellation, an unknown blur); == total when every term is measured */
   double noise;
   double systematic;    /* sampling and scattered stripes together */
   double sampling;
   double scattered_stripes; /* sqrt(|systematic^2 - sampling^2|), signed: < 0 when it cancels sampling */
   double cancellation;  /* > 0 when the scattered stripes cancel part of the sampling error: how
                            much more systematic error total holds than `systematic`, the worst of
-                           no leak and twice the probe's (a cancellation is not trusted as exact) */
+                           no leak and twice the probe's (a cancellation is not trusted as exact):
+                           it is in total_upper, not in total */
+  gboolean blur_assumed; /* the blur was not measured: total_upper holds the blurred pattern's */
 } DsErrorParts;
 
 typedef struct DsErrorModel DsErrorModel;

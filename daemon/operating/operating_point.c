@@ -41,10 +41,10 @@ predict (const DsOperatingModel *m, const Models *em, const DsSceneProbe *probe,
     p->predicted_error_upper = INFINITY;
   else if (em->upper)
     p->predicted_error_upper = ds_error_model_predict (em->upper, e, n, mm, factor, period, &worst, NULL)
-                                 ? MAX (m->scale * worst.total, m->scale * p->parts.total)
+                                 ? MAX (m->scale * worst.total_upper, m->scale * p->parts.total_upper)
                                  : INFINITY;
   else
-    p->predicted_error_upper = m->scale * p->parts.total;
+    p->predicted_error_upper = m->scale * p->parts.total_upper;
   p->estimator = e;
   p->phases = n;
   p->averages = mm;
@@ -57,6 +57,10 @@ predict (const DsOperatingModel *m, const Models *em, const DsSceneProbe *probe,
    * that measure nothing. */
   p->upper_bounded = !p->lower_bound || (em->upper && !em->unbounded && probe->leak.measured &&
                                          !probe->transfer.inconsistent && isfinite (p->predicted_error_upper));
+  /* A lower bound with nothing above it measured has no upper end: it never meets a target (it
+   * is undetermined at best, ds_operating_point_choose ()). */
+  if (!p->upper_bounded)
+    p->predicted_error_upper = INFINITY;
   p->uncertainty = ds_operating_point_uncertainty (m, probe, &p->parts);
   return TRUE;
 }
@@ -83,12 +87,12 @@ ds_operating_point_uncertainty (const DsOperatingModel *m, const DsSceneProbe *p
   return sqrt (spread * spread + u_ld * u_ld + u_noise * u_noise);
 }
 
-/* Where the target is decided: the upper end of the prediction (meets_target ()) over the
- * prediction's uncertainty, one standard uncertainty towards the better. */
+/* Where a refusal is decided: the lower end of the prediction over its uncertainty, one standard
+ * uncertainty towards the better. Above the target, no value the interval allows meets it. */
 static double
 optimistic_end (const DsOperatingPoint *p)
 {
-  return p->predicted_error_upper * exp (-p->uncertainty);
+  return p->predicted_error * exp (-p->uncertainty);
 }
 
 typedef struct {
@@ -149,6 +153,7 @@ usable_factors (const DsOperatingModel *m, const DsSceneProbe *probe, double *ou
 }
 
 typedef struct {
+  gboolean on_lower_end;    /* a point meets the target with its lower end (the undetermined choice) */
   Best in_budget_meeting;   /* the choice */
   Best least_in_budget;     /* the most accurate within the budget */
   Best meeting_any_time;    /* the fastest meeting the target, whatever the budget */
@@ -198,7 +203,7 @@ search (const DsOperatingModel *m, const Models *errors, const DsSceneProbe *pro
     DsOperatingPoint p;
     if (!predict (m, errors, probe, t, w, h, c->estimator, c->phases, c->averages, c->factor, period, &p))
       continue;
-    gboolean meets = meets_target (&p, target);
+    gboolean meets = s->on_lower_end ? target <= 0 || p.predicted_error <= target : meets_target (&p, target);
     if (in_budget)
       consider (&s->least_in_budget, &p, 0);
     if (meets && target > 0) {
@@ -356,12 +361,12 @@ ds_operating_point_choose (const DsOperatingModel *m, DsErrorModel *errors, cons
   *out = s.least_in_budget.p;
   if (!s.least_in_budget.found)
     out->predicted_error = INFINITY;
-  /* On the margin: no point is predicted to meet the target, but the most accurate one may, within
-   * its prediction's uncertainty. Refusing would leave the user without a set whose error may well be
-   * within the target (and whose best guess is within a few % of it); it is run, and says so. */
+  /* Undetermined: no point's upper end meets the target, but the most accurate one's interval (its
+   * lower end, over its uncertainty) reaches it. A target is accepted only on the upper end and
+   * refused only on the lower end: between them the frames cannot tell, and refusing would leave
+   * the user without a set whose error may well be within the target. It is run, and says so. */
   const DsOperatingPoint *best = &s.least_in_budget.p;
-  gboolean margin = target > 0 && s.least_in_budget.found && isfinite (best->predicted_error_upper) &&
-                    optimistic_end (best) <= target;
+  gboolean margin = target > 0 && s.least_in_budget.found && optimistic_end (best) <= target;
   GString *msg = g_string_new (NULL);
   if (target > 0)
     g_string_append_printf (msg, "no operating point %s a relative error of %.4f",
@@ -377,11 +382,16 @@ ds_operating_point_choose (const DsOperatingModel *m, DsErrorModel *errors, cons
       g_string_append (msg, ", a lower bound whose upper end the pilot cannot bound");
     else if (best->lower_bound)
       g_string_append (msg, ", a lower bound");
-    if (target > 0 && isfinite (best->predicted_error_upper) && best->uncertainty > 0)
-      g_string_append_printf (msg, margin ? ", uncertain by %.0f %%: its optimistic end %.4f reaches the target, so "
-                                            "it is run and the target may be missed"
-                                          : ", uncertain by %.0f %%: even its optimistic end %.4f is above the target",
+    if (target > 0)
+      g_string_append_printf (msg, margin ? ", uncertain by %.0f %%: its lower end's optimistic end %.4f reaches the "
+                                            "target, so whether it is met is undetermined; it is run and the target "
+                                            "may be missed"
+                                          : ", uncertain by %.0f %%: even its lower end's optimistic end %.4f is above "
+                                            "the target",
                               100 * expm1 (best->uncertainty), optimistic_end (best));
+    if (best->parts.blur_assumed)
+      g_string_append (msg, " (the stripes' blur is not known: its upper end assumes a blurred pattern; calibrate "
+                            "to measure it)");
   } else if (budget > 0)
     g_string_append_printf (msg, "; the fastest candidate does not fit a budget of %.0f ms", budget);
   else
@@ -400,7 +410,19 @@ ds_operating_point_choose (const DsOperatingModel *m, DsErrorModel *errors, cons
   if (target > 0 && probe->transfer.inconsistent)
     g_string_append_printf (msg, " (%s)", probe->transfer.note);
   if (margin) {
+    /* Run the fastest point whose lower end meets the target, where one fits the budget: the
+     * interval says no more of the most accurate point, and a lower bound with no upper end would
+     * otherwise always run the longest set. */
+    Search lower = { .on_lower_end = TRUE };
+    search (m, &em, probe, t, w, h, m->phases, m->n_phases, m->averages, m->n_averages, factors, n_factors, 0,
+            target, budget, &lower);
+    if (lower.in_budget_meeting.found) {
+      *out = lower.in_budget_meeting.p;
+      g_string_append (msg, ". Run: the fastest point whose lower end meets the target, ");
+      append_point (msg, out);
+    }
     out->target_may_be_missed = TRUE;
+    out->undetermined = TRUE;
     g_strlcpy (out->target_note, msg->str, sizeof out->target_note);
     g_string_free (msg, TRUE);
     return TRUE;

@@ -68,6 +68,10 @@ typedef struct {
   /* Chosen on the margin: no candidate is predicted to meet the target, but it lies within the
    * uncertainty of the most accurate one's prediction, which is run; target_note says so */
   gboolean target_may_be_missed;
+  /* No point's upper end meets the target and this one's lower end does (within its uncertainty):
+   * whether the target is met is undetermined (docs/accuracy.md, "What is measured, what is
+   * assumed"); the point is run with target_may_be_missed and the interval in target_note */
+  gboolean undetermined;
   char target_note[2048];
 } DsOperatingPoint;
 
@@ -86,12 +90,14 @@ double ds_scene_probe_max_exposure (const DsSceneProbe *probe);
 
 /* target_error <= 0: no target; time_budget_ms <= 0: no budget. With a target: the fastest
  * candidate meeting it within the budget; with only a budget: the most accurate within it. Where
- * the probe's direct light has an interval (scene_probe.h), a candidate meets a target only with
- * the upper end of its prediction, and "most accurate" is by the upper end first.
- * No candidate within the budget meets the target, but the most accurate one's prediction (its
- * upper end) divided by exp (its uncertainty) does: that one is chosen, target_may_be_missed set
- * and target_note says why (the target lies within the prediction's own uncertainty).
- * Neither possible: BAD_ARGUMENT with the best reachable error and what would reach the
+ * the prediction is an interval (the probe's direct light, scene_probe.h; a term the error model
+ * cannot measure, error_model.h), a candidate meets a target only with the upper end of its
+ * prediction, and "most accurate" is by the upper end first.
+ * No candidate within the budget meets the target, but the most accurate one's lower end divided
+ * by exp (its uncertainty) does: whether the target is met is undetermined; the fastest candidate
+ * whose lower end meets the target (else that most accurate one) is chosen, target_may_be_missed
+ * and undetermined set and target_note says why, with the intervals.
+ * Neither possible (even the lower end is above the target): UNREACHABLE with the best reachable error and what would reach the
  * target (a larger budget, a finer stripe period, a longer exposure), each with its prediction;
  * *out is then the best reachable point (predicted_error INFINITY when none fits the budget). */
 gboolean ds_operating_point_choose (const DsOperatingModel *model, DsErrorModel *errors,

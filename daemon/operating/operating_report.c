@@ -25,6 +25,8 @@ ds_operating_report_to_json (const DsOperatingReport *r, JsonBuilder *b)
     json_builder_add_null_value (b);
   DBL ("predicted_error_uncertainty", p->uncertainty);
   BOOL ("target_may_be_missed", p->target_may_be_missed);
+  /* accepted: the upper end meets the target (or no target); undetermined: only the lower end does */
+  STR ("decision", p->undetermined ? "undetermined" : "accepted");
   STR ("target_note", p->target_note);
   DBL ("predicted_time_ms", p->predicted_time_ms);
   DBL ("scale", r->scale);
@@ -49,6 +51,31 @@ ds_operating_report_to_json (const DsOperatingReport *r, JsonBuilder *b)
     json_builder_add_string_value (b, "scattered_stripes");
   json_builder_add_string_value (b, "saturation");
   json_builder_end_array (b);
+  /* Which terms of the prediction rest on measurements (the pilot's or a calibration's) and which
+   * on an assumption that widens its interval (docs/accuracy.md, "What is measured, what is
+   * assumed"). */
+  json_builder_set_member_name (b, "measured");
+  json_builder_begin_array (b);
+  json_builder_add_string_value (b, "noise");
+  json_builder_add_string_value (b, "direct_light");
+  if (pr->blur.source != DS_BLUR_ASSUMED_SHARP)
+    json_builder_add_string_value (b, pr->blur.source == DS_BLUR_CALIBRATED ? "blur_calibrated" : "blur_fitted");
+  if (pr->leak.measured)
+    json_builder_add_string_value (b, "scattered_stripes");
+  json_builder_end_array (b);
+  json_builder_set_member_name (b, "assumed");
+  json_builder_begin_array (b);
+  if (p->parts.blur_assumed || pr->blur.source == DS_BLUR_ASSUMED_SHARP)
+    json_builder_add_string_value (b, "blur");
+  if (p->parts.cancellation > 0)
+    json_builder_add_string_value (b, "scattered_stripes_cancellation");
+  if (!pr->leak.measured)
+    json_builder_add_string_value (b, "scattered_stripes");
+  if (pr->narrow.unresolved)
+    json_builder_add_string_value (b, "narrow_kernel");
+  if (pr->transfer.inconsistent)
+    json_builder_add_string_value (b, "transfer");
+  json_builder_end_array (b);
   BOOL ("lower_bound", p->lower_bound);
   json_builder_set_member_name (b, "lower_bound_reasons");
   json_builder_begin_array (b);
@@ -64,7 +91,7 @@ ds_operating_report_to_json (const DsOperatingReport *r, JsonBuilder *b)
   if (pr->blur.source == DS_BLUR_ASSUMED_SHARP) {
     g_autofree char *note = g_strdup_printf (
       "stripe blur neither calibrated (descatterctl calibrate) nor measurable from the pilot frames at %g px: "
-      "the worse of sharp stripes and a blur of %g px",
+      "sharp stripes for the prediction, a blur of %g px for its upper end",
       pr->geometry.period_px, MIN (DS_ERROR_MODEL_UNKNOWN_BLUR_PX, pr->geometry.period_px / 8));
     json_builder_add_string_value (b, note);
   }

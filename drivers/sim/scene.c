@@ -558,6 +558,8 @@ double ds_scene_period_px (const DsScene *s) { return s->spec.period_px; }
 double ds_scene_duty (const DsScene *s) { return s->spec.duty; }
 double ds_scene_black_level (const DsScene *s) { return s->spec.black_level; }
 gboolean ds_scene_pattern_is_sine (const DsScene *s) { return s->spec.sine; }
+double ds_scene_edge_blur_px (const DsScene *s) { return s->spec.edge_blur_px; }
+double ds_scene_pattern_aperture_px (const DsScene *s) { return s->spec.sine ? 0.0 : 1.0; }
 double ds_scene_system_gain (const DsScene *s) { return s->spec.system_gain; }
 double ds_scene_read_noise_dn (const DsScene *s) { return s->spec.read_noise_e * s->spec.system_gain; }
 double ds_scene_default_exposure_us (const DsScene *s) { return s->spec.exposure_us; }

@@ -84,6 +84,10 @@ double ds_scene_period_px (const DsScene *scene);
 double ds_scene_duty (const DsScene *scene);
 double ds_scene_black_level (const DsScene *scene);
 gboolean ds_scene_pattern_is_sine (const DsScene *scene);
+double ds_scene_edge_blur_px (const DsScene *scene);   /* the projector's Gaussian sigma on the sensor */
+/* The width of a pixel that sees the pattern, px, as the renderer draws it (stage_pattern.c): sine
+ * stripes are taken at the pixel's centre (0), square stripes integrated over the whole pixel (1). */
+double ds_scene_pattern_aperture_px (const DsScene *scene);
 double ds_scene_system_gain (const DsScene *scene);   /* DN per electron */
 double ds_scene_read_noise_dn (const DsScene *scene);
 double ds_scene_default_exposure_us (const DsScene *scene);

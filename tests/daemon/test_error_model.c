@@ -605,9 +605,9 @@ test_error_model_clipping (void)
 
 /* A leak that cancels part of the sampling error: sine on a pixel-integrating sensor reads
  * (1 + L) sinc(1/P) - 1 (test_error_model_leak), below the sampling error 1 - sinc(1/P) for
- * 0 < L < 2 (1/sinc - 1). The prediction takes the worse end of leaks from none to 2L,
- * max(1 - sinc, (1 + 2L) sinc - 1): with L at the exact cancellation, the sampling error; with
- * L at 3/4 of the way to the overshoot, the doubled leak's. */
+ * 0 < L < 2 (1/sinc - 1). The prediction is the measured leak's, its upper end the worse end of
+ * leaks from none to 2L, max(1 - sinc, (1 + 2L) sinc - 1): with L at the exact cancellation, the
+ * sampling error; with L at 3/4 of the way to the overshoot, the doubled leak's. */
 static void
 test_error_model_cancellation (void)
 {
@@ -624,14 +624,40 @@ test_error_model_cancellation (void)
     g_assert_true (ds_error_model_predict (m, DS_ESTIMATOR_SINE, 32, 1, 1, 0, &parts, &error));
     double sys = fabs ((1 + L) * s - 1), worst = MAX (1 - s, (1 + 2 * L) * s - 1);
     g_test_message ("leak %.4f: systematic %.5f (closed form %.5f), total %.5f (worst end %.5f)", L,
-                    parts.systematic, sys, parts.total, worst);
+                    parts.systematic, sys, parts.total_upper, worst);
     /* Within the per-pixel ripple the closed form leaves out (higher harmonics aliased at N = 32). */
     g_assert_cmpfloat_with_epsilon (parts.systematic, sys, 0.15 * (1 - s));
     g_assert_cmpfloat_with_epsilon (parts.sampling, 1 - s, 0.05 * (1 - s));
     g_assert_cmpfloat (parts.scattered_stripes, <, 0);
-    g_assert_cmpfloat_with_epsilon (parts.total, worst, 0.05 * worst);
-    g_assert_cmpfloat_with_epsilon (parts.cancellation, parts.total - parts.systematic, 0.05 * worst);
+    g_assert_cmpfloat_with_epsilon (parts.total_upper, worst, 0.05 * worst);
+    g_assert_cmpfloat_with_epsilon (parts.total, parts.systematic, 0.05 * worst); /* noise-free probe */
+    g_assert_cmpfloat_with_epsilon (parts.cancellation, parts.total_upper - parts.systematic, 0.05 * worst);
   }
+}
+
+/* The blur unknown: sine stripes on a pixel-integrating sensor (the estimator's theory gain,
+ * sinc (1/P) lost to the pixel) read Ld low by 1 - sinc (1/P) when sharp, and by
+ * 1 - sinc (1/P) exp (-2 pi^2 s^2 / P^2) under the assumed blur s = min (0.75, P/8). The
+ * prediction is the sharp pattern's, the upper end the blurred one's: an interval, not the worse
+ * of the two as the prediction (at P = 5: 0.065 and 0.313). */
+static void
+test_error_model_blur_unknown (void)
+{
+  const double P = 5, s = sin (G_PI / P) / (G_PI / P), sigma = MIN (DS_ERROR_MODEL_UNKNOWN_BLUR_PX, P / 8);
+  DsSceneProbe p = hand_probe (P, 0.5, 1000, 0, 0, 0);
+  p.geometry.kind = DS_PATTERN_SINE;
+  p.blur.source = DS_BLUR_ASSUMED_SHARP;
+  DsSeparationParams sp = params_of (&p);
+  g_autoptr (DsErrorModel) m = ds_error_model_new (&p, &sp);
+  DsErrorParts parts;
+  g_autoptr (GError) error = NULL;
+  g_assert_true (ds_error_model_predict (m, DS_ESTIMATOR_SINE, 8, 1, 1, 0, &parts, &error));
+  double sharp = 1 - s, blurred = 1 - s * exp (-2 * G_PI * G_PI * sigma * sigma / (P * P));
+  g_test_message ("sine at %g px, blur unknown: %.4f to %.4f (closed form %.4f to %.4f)", P, parts.total,
+                  parts.total_upper, sharp, blurred);
+  g_assert_true (parts.blur_assumed);
+  g_assert_cmpfloat_with_epsilon (parts.total, sharp, 0.05 * sharp);
+  g_assert_cmpfloat_with_epsilon (parts.total_upper, blurred, 0.05 * blurred);
 }
 
 /* The scattered stripes: sine sees the first harmonic raised by the leak L and lowered by the
@@ -678,6 +704,7 @@ main (int argc, char **argv)
   g_test_add_func ("/error-model/clipping", test_error_model_clipping);
   g_test_add_func ("/error-model/leak", test_error_model_leak);
   g_test_add_func ("/error-model/cancellation", test_error_model_cancellation);
+  g_test_add_func ("/error-model/blur-unknown", test_error_model_blur_unknown);
   g_test_add_func ("/error-model/probe-clipped-places", test_probe_clipped_places);
   g_test_add_func ("/error-model/probe-spread", test_probe_spread);
   return g_test_run ();

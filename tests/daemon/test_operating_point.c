@@ -165,10 +165,11 @@ test_margin (void)
   g_assert_cmpfloat (op.uncertainty, >=, 0.2);
   g_assert_nonnull (strstr (op.target_note, "is predicted to reach"));
   g_assert_nonnull (strstr (op.target_note, "the target may be missed"));
+  g_assert_true (op.undetermined);
   g_test_message ("%s", op.target_note);
   /* 25 % under it: beyond one standard uncertainty, refused with the optimistic end named. */
   g_assert_false (ds_operating_point_choose (&m, em, &p, &t, 256, 192, 0.75 * best, 0, &op, &error));
-  g_assert_nonnull (strstr (error->message, "even its optimistic end"));
+  g_assert_nonnull (strstr (error->message, "even its lower end's optimistic end"));
   g_clear_error (&error);
   /* Without a spread the same 10 % is refused: the probe's own uncertainty here is well under it. */
   m.scale_spread = 0;
@@ -336,6 +337,51 @@ test_model_file (void)
   g_rmdir (dir);
 }
 
+/* An interval from a term nobody measured (the blur of sine stripes at 5 px, neither calibrated
+ * nor fitted: error_model.h): a target between the interval's ends is neither accepted nor
+ * refused but run as undetermined, with the interval named; a target below every point's lower end
+ * (over its uncertainty) is refused; one above the upper end is accepted. The ends in closed form:
+ * the sine estimator on a pixel-integrating sensor reads Ld low by 1 - sinc (1/P) sharp, by
+ * 1 - sinc (1/P) exp (-2 pi^2 s^2 / P^2) at the assumed blur s = P/8 (0.065 and 0.313 at 5 px). */
+static void
+test_interval_decision (void)
+{
+  DsOperatingModel m;
+  ds_operating_model_init (&m);
+  DsRigTiming t;
+  ds_rig_timing_init (&t);
+  DsSceneProbe p = probe_of (2000, 0, 3, 0);
+  p.geometry = (DsStripeModel){ DS_PATTERN_SINE, 5, 0.5, 0, 0, 0 };
+  p.blur.source = DS_BLUR_ASSUMED_SHARP;
+  DsSeparationParams sine = params;
+  sine.pattern = DS_PATTERN_SINE;
+  g_autoptr (DsErrorModel) em = ds_error_model_new (&p, &sine);
+  const double P = 5, sinc = sin (G_PI / P) / (G_PI / P), s = P / 8;
+  double lower = 1 - sinc, upper = 1 - sinc * exp (-2 * G_PI * G_PI * s * s / (P * P));
+  g_autoptr (GError) error = NULL;
+  DsOperatingPoint op;
+  /* Between the ends: run, undetermined, the interval in the note. */
+  g_assert_true (ds_operating_point_choose (&m, em, &p, &t, 256, 192, 0.25, 0, &op, &error));
+  g_assert_no_error (error);
+  g_test_message ("%s", op.target_note);
+  g_assert_true (op.undetermined);
+  g_assert_true (op.target_may_be_missed);
+  g_assert_cmpfloat (m.scale * op.predicted_error, <=, 1.1 * lower);
+  g_assert_cmpfloat (op.predicted_error_upper, >, 0.25);
+  g_assert_cmpfloat (op.predicted_error_upper, <=, 1.1 * m.scale * upper);
+  g_assert_nonnull (strstr (op.target_note, "undetermined"));
+  g_assert_nonnull (strstr (op.target_note, "blur is not known"));
+  /* Below every lower end: refused. */
+  g_assert_false (ds_operating_point_choose (&m, em, &p, &t, 256, 192, 0.5 * lower, 0, &op, &error));
+  g_assert_nonnull (strstr (error->message, "even its lower end"));
+  g_clear_error (&error);
+  /* Above the upper end: accepted, not flagged. */
+  g_assert_true (ds_operating_point_choose (&m, em, &p, &t, 256, 192, 1.2 * upper, 0, &op, &error));
+  g_assert_false (op.undetermined);
+  g_assert_false (op.target_may_be_missed);
+  g_assert_cmpfloat (op.predicted_error_upper, <=, 1.2 * upper);
+}
+
 int
 main (int argc, char **argv)
 {
@@ -344,6 +390,7 @@ main (int argc, char **argv)
   g_test_add_func ("/operating-point/choice", test_choice);
   g_test_add_func ("/operating-point/refusal", test_refusal);
   g_test_add_func ("/operating-point/margin", test_margin);
+  g_test_add_func ("/operating-point/interval-decision", test_interval_decision);
   g_test_add_func ("/operating-point/uncertainty-ld", test_uncertainty_ld);
   g_test_add_func ("/operating-point/report-json", test_report_json);
   g_test_add_func ("/operating-point/model-file", test_model_file);
