@@ -30,7 +30,7 @@ static char *
 reduced_scene (guint index)
 {
   g_autoptr (GError) error = NULL;
-  g_autofree char *text = ds_scene_generate (KNOWLEDGE_SEED, index, &error);
+  g_autofree char *text = ds_scene_generate (KNOWLEDGE_SEED, index, 1, &error);
   g_assert_no_error (error);
   g_autoptr (GKeyFile) kf = g_key_file_new ();
   g_assert_true (g_key_file_load_from_data (kf, text, (gsize) -1, G_KEY_FILE_NONE, &error));
