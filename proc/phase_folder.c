@@ -83,7 +83,7 @@ ds_phase_folder_open (const char *dir, DsSidecarReader read_sidecar, GError **er
   f->black_files = g_ptr_array_new_with_free_func (g_free);
   f->frames = g_array_new (FALSE, TRUE, sizeof (DsPhaseFolderFrame));
   f->skipped = g_ptr_array_new_with_free_func (g_free);
-  f->sidecar.saturation_dn = f->sidecar.period_px = f->sidecar.duty = f->sidecar.black_level = NAN;
+  f->sidecar.saturation_dn = f->sidecar.period_px = f->sidecar.duty = f->sidecar.black_level = f->sidecar.edge_blur_px = f->sidecar.harmonic_gain = NAN;
   guint others = 0;
   const char *name;
   while ((name = g_dir_read_name (d))) {

@@ -49,6 +49,8 @@ typedef struct {
   gboolean has_pattern_kind;
   DsPatternKind pattern_kind;
   double period_px, duty, black_level;
+  double edge_blur_px;    /* pattern.edge_blur_px: the stripe edges' blur the acquisition knew */
+  double harmonic_gain;   /* pattern.harmonic_gain: sine's h the acquisition knew (calibrated) */
   gboolean has_phase_offset;
   double phase_offset_cycles;
   char *estimator;        /* settings.estimator */

@@ -114,8 +114,14 @@ read_pattern (Ctx *c, DsPhaseFolderSidecar *sc, JsonObject *root)
   }
   if (!get_number (c, pat, "period_px", "pattern.period_px", FALSE, NAN, &sc->period_px) ||
       !get_number (c, pat, "duty", "pattern.duty", FALSE, NAN, &sc->duty) ||
-      !get_number (c, pat, "black_level", "pattern.black_level", FALSE, NAN, &sc->black_level))
+      !get_number (c, pat, "black_level", "pattern.black_level", FALSE, NAN, &sc->black_level) ||
+      !get_number (c, pat, "edge_blur_px", "pattern.edge_blur_px", FALSE, NAN, &sc->edge_blur_px) ||
+      !get_number (c, pat, "harmonic_gain", "pattern.harmonic_gain", FALSE, NAN, &sc->harmonic_gain))
     return FALSE;
+  if (!isnan (sc->harmonic_gain) && !(sc->harmonic_gain > 0 && sc->harmonic_gain <= 1))
+    return fail (c, "pattern.harmonic_gain", "%g is outside (0, 1]", sc->harmonic_gain);
+  if (!isnan (sc->edge_blur_px) && !(sc->edge_blur_px >= 0 && sc->edge_blur_px < 1e3))
+    return fail (c, "pattern.edge_blur_px", "%g is outside [0, 1000) pixels", sc->edge_blur_px);
   if (!isnan (sc->period_px) && !(sc->period_px > 2))
     return fail (c, "pattern.period_px", "%g: a period must exceed 2 pixels", sc->period_px);
   if (!isnan (sc->duty) && !(sc->duty > 0 && sc->duty < 1))

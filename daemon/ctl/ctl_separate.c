@@ -259,12 +259,15 @@ make_params (const DsPhaseFolder *folder, const Options *o, DsSeparationParams *
   params->saturation_level = !isnan (o->saturation) ? o->saturation : !isnan (sc->saturation_dn) ? sc->saturation_dn : 0;
   if (!isnan (o->harmonic_gain))
     params->harmonic_gain = o->harmonic_gain;
+  else if (!isnan (sc->harmonic_gain))
+    params->harmonic_gain = sc->harmonic_gain;
   if (!isnan (o->system_gain))
     params->system_gain = o->system_gain;
   if (!isnan (o->read_noise))
     params->read_noise_dn = o->read_noise;
-  if (!isnan (o->edge_blur)) {
-    params->geometry.edge_blur_px = o->edge_blur;
+  double blur = !isnan (o->edge_blur) ? o->edge_blur : sc->edge_blur_px;
+  if (!isnan (blur)) {
+    params->geometry.edge_blur_px = blur;
     params->geometry.edge_blur_known = TRUE;
   }
   params->keep_extrema = o->extrema;

@@ -86,6 +86,10 @@ ds_phase_folder_sidecar (const DsRawFrames *raw, JsonNode *meta)
   ds_json_add_double_or_null (b, "black_level", ds_json_path_double (meta, "pattern.black_level",
                                                                     ds_json_path_double (meta, "separation.black_level", 0.0)));
   copy_member (b, meta, "pattern.phase_offset_cycles", "phase_offset_cycles");
+  /* The blur the acquisition knew enters the sampling check and the motion bit's pattern
+   * allowance: a reprocessing without it flags other pixels. */
+  copy_member (b, meta, "settings.edge_blur_px", "edge_blur_px");
+  copy_member (b, meta, "settings.harmonic_gain", "harmonic_gain");
   json_builder_end_object (b);
 
   json_builder_set_member_name (b, "n_phases");
