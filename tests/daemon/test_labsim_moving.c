@@ -9,12 +9,14 @@
  *     velocity, H its height, t each frame's camera timestamp. The one unknown, y0 (labsim's
  *     time origin is its own), is fitted over the whole run from the raw frames' shadows (each
  *     row's covered share, from the camera's frames, not from the separation); the shadows must
- *     follow the line within a fraction of a pixel. A pixel an edge crossed during a window
- *     (fully inside the band the edge swept) saw a step in its samples: most are flagged
- *     (docs/estimators.md, "MOTION": with sine stripes a step is seen almost always);
+ *     follow the line within one frame's travel (the timestamp's own uncertainty). A pixel an
+ *     edge crossed during a window (fully inside the band it swept) saw a step in its samples:
+ *     most are flagged (docs/estimators.md, "MOTION": with sine stripes a step is seen almost
+ *     always);
  *   - pixels a few px from the path saw a still scene, as does every pixel of a still copy of
- *     the scene: their share flagged is within the documented false-alarm rate of the data
- *     noise estimate at N = 8 (docs/estimators.md, "MOTION", 1.1e-3).
+ *     the scene: their motion bit is the documented test recomputed from the raw frames, and
+ *     their share flagged is within the documented false-alarm rate of the data noise
+ *     estimate at N = 8 (docs/estimators.md, "MOTION", 1.1e-3; see check_still_pixels).
  * The scene's noise is read noise (5 DN) with little shot noise: the condition that rate is
  * stated for (descatterd has no noise model; with shot noise the frame's median noise
  * understates a lit pixel's, which the documentation says raises the rate).
@@ -405,8 +407,10 @@ test_moving_bar (void)
                   st.px_per_frame, st.results, st.fit_rms, st.fit_max, st.swept,
                   (double) st.swept_flagged / MAX (st.swept, 1), FAR_PX, st.far,
                   (double) st.far_flagged / MAX (st.far, 1));
-  /* The shadows follow the scene's velocity: labsim rendered each frame at its time. */
-  g_assert_cmpfloat (st.fit_max, <, 0.5);
+  /* The shadows follow the scene's velocity: labsim rendered each frame at its trigger, and
+   * the camera's timestamp is taken within the same frame interval, so a shadow lies off the
+   * line by at most one frame's travel, plus its centroid's noise (0.3 px). */
+  g_assert_cmpfloat (st.fit_max, <, st.px_per_frame + 0.3);
   g_assert_cmpuint (st.swept, >, 0);
   g_assert_cmpuint (st.far, >, 0);
   g_assert_cmpfloat ((double) st.swept_flagged / st.swept, >, 0.5);
@@ -420,7 +424,7 @@ test_still_bar (void)
   judge (0.0, &st);
   g_test_message ("still: %" G_GUINT64_FORMAT " judged px over %u results, flagged %.2e", st.judged, st.results,
                   (double) st.judged_flagged / MAX (st.judged, 1));
-  g_assert_cmpfloat (st.fit_max, <, 0.5);
+  g_assert_cmpfloat (st.fit_max, <, 0.3); /* a still shadow stays put */
   g_assert_cmpuint (st.judged, >, 0);
   check_still_pixels ("still", &st);
 }
