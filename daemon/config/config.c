@@ -193,7 +193,7 @@ static const KeySpec keys[] = {
     "continuous mode: a result per phase set, or one per frame from the latest N phases (needs averages = 1)" },
   { "acquisition", "verify-phase", K_BOOL, LIVE, F (verify_phase), "true", 0, 0, NULL,
     "measure the stripe phase in each frame and refuse frames lit with the wrong phase" },
-  { "acquisition", "detect-motion", K_BOOL, LIVE, F (detect_motion), "true", 0, 0, NULL,
+  { "acquisition", "detect-motion", K_BOOL, LIVE, F (detect_motion), "false", 0, 0, NULL,
     "flag pixels whose phase samples depart from a still scene beyond noise (mask bit motion; N >= 4)" },
   { "acquisition", "operating-model", K_STRING, RESTART, F (operating_model), NULL, 0, 0, NULL,
     "operating model for captures with target_error/time_budget_ms (descatterctl validate --fit); empty = the "

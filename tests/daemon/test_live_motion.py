@@ -4,7 +4,7 @@
     way to magenta (217, 70, 239) on the transmissive view, every other pixel keeps its grey,
     and a mask of another size tints nothing (a synthetic picture drawn with the page's own
     function, read back from the canvas);
-  - the mask legend lists `motion`, and after a capture (detect-motion is on by default, N = 6)
+  - the mask legend lists `motion`, and after a capture (detect-motion=true, N = 6)
     the transmissive caption reads the result's own count, `motion: N pixels` (at most 3e-3 of
     the pixels: the simulated scene is still and the design's false-alarm rate is 1e-3), and
     the canvas was tinted at as many pictured pixels as the result's mask picture marks.
@@ -52,7 +52,7 @@ def main():
         with open(token_file, "w") as f:
             f.write(TOKEN)
         d = LiveDaemon(daemon, ctl, tmp, f"[http]\nlisten=127.0.0.1:0\ntoken-file={token_file}\n"
-                                         "[acquisition]\nphases=6\n")
+                                         "[acquisition]\nphases=6\ndetect-motion=true\n")
         b = Browser(height=1000)
         try:
             b.open(d.url + "?token=" + TOKEN)
