@@ -177,6 +177,10 @@ ds_acquisition_previewing (const DsAcquisition *acq)
 /* Reads the devices' statistics, identity and illuminator status into the shared status. */
 void ds_seq_refresh_device_status (DsAcquisition *acq);
 
+/* The size of the frames the camera delivers: its ROI, or the whole sensor, with the camera's
+ * info in *info (device_ops.c). */
+void ds_seq_frame_size (DsAcquisition *acq, DsCameraInfo *info, guint *width, guint *height);
+
 /* ---- device_ops.c ----
  * Each call blocks on its device within a bound it first declares to the watchdog
  * (ds_seq_blocking): the control bound, the settle timeout or the grab timeout. A failure is
@@ -319,6 +323,11 @@ DsImage *ds_seq_acquire_dark (DsAcquisition *acq, const DsCaptureSettings *s, Ds
 /* Records a dark frame taken with settings s (mean of what is subtracted) for status: a set's
  * own (by_set), or the dark command's, which is also the stored one. Acquisition thread. */
 void ds_seq_note_dark (DsAcquisition *acq, const DsCaptureSettings *s, double mean_dn, gboolean by_set);
+/* The dark frame a set or a per-frame run with settings s subtracts: with s->dark_frame its own,
+ * taken now (*own, the caller's to free); otherwise the stored one when it was taken at s's
+ * exposure and gain; otherwise none (*use NULL). FALSE with error when taking it failed. */
+gboolean ds_seq_dark_for (DsAcquisition *acq, const DsCaptureSettings *s, DsFrameCounters *c, DsImage **own,
+                          const DsImage **use, GError **error);
 /* The dark command: a dark frame with settings s, stored for later sets; answered by a DARK
  * event (with the error when it failed). */
 void ds_seq_run_dark (DsAcquisition *acq, const DsCaptureSettings *s, guint64 tag);

@@ -185,3 +185,23 @@ ds_seq_run_dark (DsAcquisition *acq, const DsCaptureSettings *s, guint64 tag)
   acq->dark_gain_db = s->gain_db;
   ds_seq_emit_dark (acq->shared, tag, mean);
 }
+
+gboolean
+ds_seq_dark_for (DsAcquisition *acq, const DsCaptureSettings *s, DsFrameCounters *c, DsImage **own,
+                 const DsImage **use, GError **error)
+{
+  *own = NULL;
+  *use = NULL;
+  if (s->dark_frame) {
+    double mean_dn = NAN;
+    *own = ds_seq_acquire_dark (acq, s, c, &mean_dn, error);
+    if (!*own)
+      return FALSE;
+    ds_seq_note_dark (acq, s, mean_dn, TRUE);
+    *use = *own;
+  } else if (acq->dark && acq->dark_exposure_us == s->exposure_us && acq->dark_gain_db == s->gain_db) {
+    /* the stored dark fits only the exposure and gain it was taken at */
+    *use = acq->dark;
+  }
+  return TRUE;
+}

@@ -261,3 +261,13 @@ ds_seq_reconnect (DsAcquisition *acq)
     delay_ms = MIN (delay_ms * 2, 2000);
   }
 }
+
+void
+ds_seq_frame_size (DsAcquisition *acq, DsCameraInfo *info, guint *width, guint *height)
+{
+  DsCameraSettings *cs = &acq->dev->camera_settings;
+  *info = (DsCameraInfo){ 0 };
+  acq->dev->camera->ops->get_info (acq->dev->camera->backend, info);
+  *width = cs->roi_width ? cs->roi_width : info->sensor_width;
+  *height = cs->roi_width ? cs->roi_height : info->sensor_height;
+}

@@ -59,23 +59,12 @@ acquire_set (DsAcquisition *acq, const DsCaptureSettings *s, guint64 tag, DsSetO
     return NULL;
   }
   g_autoptr (DsImage) dark = NULL;
-  if (s->dark_frame) {
-    double mean_dn = NAN;
-    dark = ds_seq_acquire_dark (acq, s, c, &mean_dn, error);
-    if (!dark)
-      return NULL;
-    ds_seq_note_dark (acq, s, mean_dn, TRUE);
-  }
-  const DsImage *use_dark = dark;
-  if (!use_dark && acq->dark && acq->dark_exposure_us == s->exposure_us && acq->dark_gain_db == s->gain_db)
-    use_dark = acq->dark;
-
-  /* The frame size the camera delivers: its ROI, or the whole sensor. */
-  DsCameraSettings *cs = &acq->dev->camera_settings;
-  DsCameraInfo info = { 0 };
-  acq->dev->camera->ops->get_info (acq->dev->camera->backend, &info);
-  guint w = cs->roi_width ? cs->roi_width : info.sensor_width;
-  guint h = cs->roi_width ? cs->roi_height : info.sensor_height;
+  const DsImage *use_dark = NULL;
+  if (!ds_seq_dark_for (acq, s, c, &dark, &use_dark, error))
+    return NULL;
+  DsCameraInfo info;
+  guint w, h;
+  ds_seq_frame_size (acq, &info, &w, &h);
   if (s->single_frame)
     return ds_seq_acquire_single_frame (acq, s, use_dark, w, h, c, last_frame_us, error);
   if (!prepare_phase_set (acq, s, w, h, error))
@@ -99,7 +88,7 @@ acquire_set (DsAcquisition *acq, const DsCaptureSettings *s, guint64 tag, DsSetO
      * (carry.c), and writing a set's worth of fresh memory here would hold up its
      * grab; each copy is made on the fold thread instead, overlapped with the next frame. */
     DsPixelFormat fmt = DS_PIXFMT_MONO16;
-    ds_pixfmt_from_name (cs->pixel_format, &fmt); /* none configured: the camera's, most likely 16 bits */
+    ds_pixfmt_from_name (acq->dev->camera_settings.pixel_format, &fmt); /* none configured: the camera's, most likely 16 bits */
     DsSampleType type = ds_pixfmt_sample_type (fmt);
     if (origin == DS_SET_FOR_REQUEST && !ds_raw_frames_reserve (acq->raw, s->phases * s->averages, type, w, h, NULL))
       acq->raw_incomplete = TRUE;

@@ -386,21 +386,11 @@ setup (WindowStream *ws, GError **error)
     return FALSE;
   }
   g_autoptr (DsImage) dark = NULL;
-  if (s->dark_frame) {
-    double mean_dn = NAN;
-    dark = ds_seq_acquire_dark (acq, s, &ws->c, &mean_dn, error);
-    if (!dark)
-      return FALSE;
-    ds_seq_note_dark (acq, s, mean_dn, TRUE);
-  }
-  const DsImage *use_dark = dark;
-  if (!use_dark && acq->dark && acq->dark_exposure_us == s->exposure_us && acq->dark_gain_db == s->gain_db)
-    use_dark = acq->dark;
-  DsCameraSettings *cs = &acq->dev->camera_settings;
-  DsCameraInfo info = { 0 };
-  acq->dev->camera->ops->get_info (acq->dev->camera->backend, &info);
-  ws->width = cs->roi_width ? cs->roi_width : info.sensor_width;
-  ws->height = cs->roi_width ? cs->roi_height : info.sensor_height;
+  const DsImage *use_dark = NULL;
+  if (!ds_seq_dark_for (acq, s, &ws->c, &dark, &use_dark, error))
+    return FALSE;
+  DsCameraInfo info;
+  ds_seq_frame_size (acq, &info, &ws->width, &ws->height);
   DsSeparationParams p;
   ds_capture_settings_separation_params (s, &p);
   if (!acq->window || ws->width != acq->window_width || ws->height != acq->window_height ||
