@@ -13,7 +13,8 @@
  *     still; a frame it can judge only with its whole cycle (the first one, or a scene that
  *     changed) enters the window unconfirmed, and no result is made while the window holds an
  *     unconfirmed frame: the cycle is checked as a whole at its phase N-1, when the window is
- *     exactly that cycle's N frames. A moving scene therefore gives a result per cycle;
+ *     exactly that cycle's N frames. A scene whose stripe phases stop matching the templates
+ *     therefore gives a result per cycle;
  *   - a lost frame, a refused frame, a cycle refused as a whole, or settings other than the last
  *     run's break the window: no result mixes frames from both sides of a gap, and the next one
  *     needs a good frame of every phase again. Each break is told (WINDOW_BROKEN) and counted.
