@@ -7,8 +7,8 @@ line that does not parse.
 Checked, each against an independent count:
   - the slow subscriber's results come with increasing frame ids and set ids;
   - `skipped` on each result is the set ids it jumped over (the acquisition thread numbers every
-    result; the connection counts what it did not send), and the seq gap between two events;
-    received plus skipped is status `frame_results` once the stream has stopped;
+    result; the connection counts what it did not send); the seq numbers it never got are the
+    results skipped; received plus skipped is status `frame_results` once the stream stopped;
   - after a pause of 40 results, the newest result it gets within the few that were already on
     their way (the one being written, what the socket buffer holds) is one the daemon had
     published when the pause ended (status `frame_results`), not a backlog;
@@ -84,19 +84,22 @@ def result_bytes(h):
 
 
 def check_accounting(sub, what):
-    """Seq gaps and set-id gaps against `skipped`, event by event; returns received + skipped."""
-    prev_seq = sub.next_seq - 1
+    """Set-id gaps against `skipped`, result by result, and the seq numbers never received against
+    the results skipped (every other event is sent: the queue stays far below max-queued-bytes);
+    returns received + skipped."""
     prev_set = 0  # a fresh daemon: the first result ever is set 1
-    for h in sub.events:
-        skipped = h.get("skipped", 0) if h.get("event") == "result" else 0
-        assert h["seq"] - prev_seq - 1 == skipped, f"{what}: seq {prev_seq} -> {h['seq']} with skipped {skipped}"
-        prev_seq = h["seq"]
-        if h.get("event") == "result":
-            assert set_id(h) - prev_set - 1 == skipped, \
-                f"{what}: set {prev_set} -> {set_id(h)} with skipped {skipped}"
-            prev_set = set_id(h)
+    for h in sub.results():
+        assert set_id(h) - prev_set - 1 == h["skipped"], \
+            f"{what}: set {prev_set} -> {set_id(h)} with skipped {h['skipped']}"
+        prev_set = set_id(h)
+    seqs = [h["seq"] for h in sub.events]
+    assert all(b > a for a, b in zip(seqs, seqs[1:])), f"{what}: seq out of order"
     res = sub.results()
-    return len(res) + sum(h["skipped"] for h in res)
+    last = sub.events.index(res[-1])  # results skipped after the last result count in none
+    missing = seqs[last] - (sub.next_seq - 1) - (last + 1)
+    skipped = sum(h["skipped"] for h in res)
+    assert missing == skipped, f"{what}: {missing} seq numbers never received, {skipped} results skipped"
+    return len(res) + skipped
 
 
 def main():
