@@ -79,6 +79,11 @@ def frame_id(h):
     return h["body"]["window"]["newest_frame_id"]
 
 
+def rss_kib(pid):
+    with open(f"/proc/{pid}/status") as f:
+        return next(int(line.split()[1]) for line in f if line.startswith("VmRSS:"))
+
+
 def result_bytes(h):
     return sum(p["bytes"] for p in h["payloads"])
 
@@ -109,8 +114,8 @@ def main():
     with open("/proc/sys/net/core/wmem_default") as f:
         socket_buffer = int(f.read())
     with tempfile.TemporaryDirectory() as tmp:
-        # 20 ms frames: the Python client keeps up with them on a loaded machine.
-        d = LiveDaemon(daemon, ctl, tmp, "[camera]\nexposure-us=20000\n[acquisition]\nphases=4\ndark-frame=false\n")
+        # 40 ms frames: the Python client keeps up with them on a loaded machine.
+        d = LiveDaemon(daemon, ctl, tmp, "[camera]\nexposure-us=40000\n[acquisition]\nphases=4\ndark-frame=false\n")
         try:
             slow = RawSubscriber(d.sock)
             fast_events = []
@@ -142,6 +147,7 @@ def main():
 
                     # The pause: no read while 40 more results are published.
                     f0 = d.status()["frame_results"]
+                    rss0 = rss_kib(d.proc.pid)
                     queued_max = 0
                     while True:
                         st = d.status()
@@ -150,6 +156,8 @@ def main():
                             break
                         time.sleep(0.05)
                     published = st["frame_results"]
+                    # Printed only: the heap's size also follows the allocator (and a sanitizer's).
+                    print(f"daemon RSS {rss0} KiB before the pause, {rss_kib(d.proc.pid)} KiB after it")
 
                     # Two subscribers, each at most one result being written and the newest.
                     bound = 2 * 2 * size + 65536
