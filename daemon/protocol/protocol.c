@@ -357,9 +357,10 @@ ds_reply_build_error (JsonNode *id, const GError *error, gsize *len)
   return finish_line (b, len);
 }
 
-char *
-ds_event_build (const char *event, guint64 seq, JsonNode *body, const DsPayloadInfo *payloads,
-                guint n_payloads, gsize *len)
+/* skipped < 0: no such member (events other than `result`). */
+static char *
+event_build (const char *event, guint64 seq, gint64 skipped, JsonNode *body, const DsPayloadInfo *payloads,
+             guint n_payloads, gsize *len)
 {
   g_autoptr (JsonBuilder) b = json_builder_new ();
   json_builder_begin_object (b);
@@ -367,6 +368,10 @@ ds_event_build (const char *event, guint64 seq, JsonNode *body, const DsPayloadI
   json_builder_add_string_value (b, event);
   json_builder_set_member_name (b, "seq");
   json_builder_add_int_value (b, (gint64) seq);
+  if (skipped >= 0) {
+    json_builder_set_member_name (b, "skipped");
+    json_builder_add_int_value (b, skipped);
+  }
   json_builder_set_member_name (b, "ok");
   json_builder_add_boolean_value (b, TRUE);
   json_builder_set_member_name (b, "body");
@@ -379,6 +384,20 @@ ds_event_build (const char *event, guint64 seq, JsonNode *body, const DsPayloadI
   add_payloads (b, payloads, n_payloads);
   json_builder_end_object (b);
   return finish_line (b, len);
+}
+
+char *
+ds_event_build (const char *event, guint64 seq, JsonNode *body, const DsPayloadInfo *payloads,
+                guint n_payloads, gsize *len)
+{
+  return event_build (event, seq, -1, body, payloads, n_payloads, len);
+}
+
+char *
+ds_result_event_build (guint64 seq, guint64 skipped, JsonNode *body, const DsPayloadInfo *payloads,
+                       guint n_payloads, gsize *len)
+{
+  return event_build ("result", seq, (gint64) MIN (skipped, (guint64) G_MAXINT64), body, payloads, n_payloads, len);
 }
 
 void
@@ -461,8 +480,10 @@ ds_reply_parse (const char *line, gsize len, GError **error)
   reply->ok = json_node_get_boolean (okn);
   const char *event = json_object_get_string_member_with_default (obj, "event", NULL);
   reply->event = g_strdup (event);
-  if (event)
+  if (event) {
     reply->seq = (guint64) MAX (0, json_object_get_int_member_with_default (obj, "seq", 0));
+    reply->skipped = (guint64) MAX (0, json_object_get_int_member_with_default (obj, "skipped", 0));
+  }
   JsonNode *id = json_object_get_member (obj, "id");
   if (id)
     reply->id = json_node_copy (id);

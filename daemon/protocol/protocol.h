@@ -84,6 +84,10 @@ char *ds_reply_build_error (JsonNode *id, const GError *error, gsize *len);
 /* An unsolicited message on a subscribed connection. */
 char *ds_event_build (const char *event, guint64 seq, JsonNode *body, const DsPayloadInfo *payloads,
                       guint n_payloads, gsize *len);
+/* A `result` event: `skipped` follows `seq`, the results published since the previous result
+ * this connection was sent that it was not sent (docs/protocol.md, "Events"). */
+char *ds_result_event_build (guint64 seq, guint64 skipped, JsonNode *body, const DsPayloadInfo *payloads,
+                             guint n_payloads, gsize *len);
 
 /* A reply or event as the client sees it. */
 typedef struct {
@@ -91,6 +95,7 @@ typedef struct {
   char *event;            /* NULL for replies */
   JsonNode *id;           /* replies */
   guint64 seq;            /* events */
+  guint64 skipped;        /* `result` events: results not sent to this client just before it */
   JsonNode *body;         /* "result" of a reply or "body" of an event; NULL if absent */
   DsProtocolError error_code; /* when !ok */
   char *error_message;

@@ -25,6 +25,11 @@ struct DsConnection {
 
   GQueue out_queue;        /* GBytes, in order */
   gsize queued;            /* bytes in out_queue */
+  /* The message queued with ds_connection_send_newest whose writing has not begun (its first
+   * chunk's link, its chunks and bytes), or NULL: the one a newer such message replaces. */
+  GList *newest;
+  guint newest_chunks;
+  gsize newest_bytes;
   gint64 progress_us;      /* last write completed, or output queued into an empty queue */
   gboolean writing;
   gboolean close_after_flush;
@@ -165,6 +170,7 @@ ds_connection_close (DsConnection *conn)
   g_cancellable_cancel (conn->cancel);
   g_queue_clear_full (&conn->out_queue, (GDestroyNotify) g_bytes_unref);
   conn->queued = 0;
+  conn->newest = NULL;
   /* Closing the stream while an async op runs is refused by GIO; the cancelled ops finish
    * first, so the close itself is left to the last unref. The peer sees EOF through shutdown. */
   if (G_IS_SOCKET_CONNECTION (conn->stream))
@@ -231,15 +237,48 @@ write_next (DsConnection *c)
 {
   if (c->closed || c->writing)
     return;
-  GBytes *head = g_queue_peek_head (&c->out_queue);
-  if (!head) {
+  GList *link = g_queue_peek_head_link (&c->out_queue);
+  if (!link) {
     if (c->close_after_flush)
       ds_connection_close (c);
     return;
   }
+  GBytes *head = link->data;
+  /* Its writing begins: from now on it is written whole, whatever comes after it. */
+  if (link == c->newest)
+    c->newest = NULL;
   c->writing = TRUE;
   g_output_stream_write_bytes_async (c->out, head, G_PRIORITY_DEFAULT, c->cancel, write_done,
                                      ds_connection_ref (c));
+}
+
+static gsize
+message_bytes (GBytes *line, GBytes *const *payloads, guint n_payloads)
+{
+  gsize total = g_bytes_get_size (line);
+  for (guint i = 0; i < n_payloads; i++)
+    total += g_bytes_get_size (payloads[i]);
+  return total;
+}
+
+/* Appends a message's chunks (empty payloads have none) and returns its first chunk's link. The
+ * caller starts the writing (write_next). */
+static GList *
+push_message (DsConnection *conn, GBytes *line, GBytes *const *payloads, guint n_payloads, gsize total,
+              guint *chunks)
+{
+  if (conn->queued == 0)
+    conn->progress_us = g_get_monotonic_time ();
+  g_queue_push_tail (&conn->out_queue, g_bytes_ref (line));
+  GList *first = g_queue_peek_tail_link (&conn->out_queue);
+  *chunks = 1;
+  for (guint i = 0; i < n_payloads; i++)
+    if (g_bytes_get_size (payloads[i]) > 0) {
+      g_queue_push_tail (&conn->out_queue, g_bytes_ref (payloads[i]));
+      (*chunks)++;
+    }
+  conn->queued += total;
+  return first;
 }
 
 gboolean
@@ -248,9 +287,7 @@ ds_connection_send (DsConnection *conn, GBytes *line, GBytes *const *payloads, g
 {
   if (conn->closed)
     return FALSE;
-  gsize total = g_bytes_get_size (line);
-  for (guint i = 0; i < n_payloads; i++)
-    total += g_bytes_get_size (payloads[i]);
+  gsize total = message_bytes (line, payloads, n_payloads);
   if (droppable && conn->queued + total > conn->limits.max_queued_bytes) {
     conn->dropped++;
     return FALSE;
@@ -260,14 +297,54 @@ ds_connection_send (DsConnection *conn, GBytes *line, GBytes *const *payloads, g
     ds_connection_close (conn);
     return FALSE;
   }
-  if (conn->queued == 0)
-    conn->progress_us = g_get_monotonic_time ();
-  g_queue_push_tail (&conn->out_queue, g_bytes_ref (line));
-  for (guint i = 0; i < n_payloads; i++)
-    if (g_bytes_get_size (payloads[i]) > 0)
-      g_queue_push_tail (&conn->out_queue, g_bytes_ref (payloads[i]));
-  conn->queued += total;
+  guint chunks;
+  push_message (conn, line, payloads, n_payloads, total, &chunks);
   write_next (conn);
+  return TRUE;
+}
+
+gboolean
+ds_connection_has_newest_waiting (const DsConnection *conn)
+{
+  return conn->newest != NULL;
+}
+
+/* Removes the waiting newest message, whole: none of its chunks has been handed to the stream
+ * (write_next forgets it as soon as its first chunk is). */
+static void
+remove_newest (DsConnection *conn)
+{
+  GList *l = conn->newest;
+  for (guint i = 0; i < conn->newest_chunks; i++) {
+    GList *next = l->next;
+    g_bytes_unref (l->data);
+    g_queue_delete_link (&conn->out_queue, l);
+    l = next;
+  }
+  conn->queued -= conn->newest_bytes;
+  conn->newest = NULL;
+  conn->dropped++;
+}
+
+gboolean
+ds_connection_send_newest (DsConnection *conn, GBytes *line, GBytes *const *payloads, guint n_payloads)
+{
+  if (conn->closed)
+    return FALSE;
+  gsize total = message_bytes (line, payloads, n_payloads);
+  gsize replaced = conn->newest ? conn->newest_bytes : 0;
+  if (conn->queued - replaced + total > conn->limits.max_queued_bytes) {
+    /* Even in the waiting one's place it would not fit: the waiting one stays. */
+    conn->dropped++;
+    return FALSE;
+  }
+  if (conn->newest)
+    remove_newest (conn);
+  guint chunks;
+  conn->newest = push_message (conn, line, payloads, n_payloads, total, &chunks);
+  conn->newest_chunks = chunks;
+  conn->newest_bytes = total;
+  write_next (conn); /* begins it at once when nothing was queued before it */
   return TRUE;
 }
 

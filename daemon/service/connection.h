@@ -38,6 +38,19 @@ void ds_connection_start (DsConnection *conn);
 gboolean ds_connection_send (DsConnection *conn, GBytes *line, GBytes *const *payloads,
                              guint n_payloads, gboolean droppable);
 
+/* Queues a message of which only the newest need reach the peer (a per-frame result): the one
+ * queued before it this way is removed if its writing has not begun, so that at most two wait,
+ * the one being written and the newest. Messages are removed whole and only before their first
+ * byte goes out, so the peer never gets a torn one; messages queued with ds_connection_send keep
+ * their place and order. Refused (FALSE, the waiting one kept) when it would push the queue past
+ * max_queued_bytes even in the waiting one's place. A removed or refused message counts in
+ * dropped. */
+gboolean ds_connection_send_newest (DsConnection *conn, GBytes *line, GBytes *const *payloads,
+                                    guint n_payloads);
+/* TRUE while a message queued with ds_connection_send_newest waits, its writing not begun: the
+ * next such message replaces it. */
+gboolean ds_connection_has_newest_waiting (const DsConnection *conn);
+
 /* Closes now; queued data is discarded. on_closed runs (once) from an idle callback of the
  * connection's context (at default priority, so a freed place is seen before the next accept
  * is processed). */
@@ -63,6 +76,7 @@ gint64 ds_connection_stalled_us (const DsConnection *conn);
 gboolean ds_connection_peer_gone (const DsConnection *conn);
 /* TRUE when the peer has sent bytes not read yet (a request the server has not seen). */
 gboolean ds_connection_has_unread_input (const DsConnection *conn);
+/* Messages refused or removed (ds_connection_send_newest) for a slow peer. */
 guint64 ds_connection_dropped (const DsConnection *conn);
 gboolean ds_connection_is_closed (const DsConnection *conn);
 

@@ -26,6 +26,9 @@ typedef struct {
   gboolean dirty[N_KINDS];  /* a newer update of this kind waits */
   DsLiveBridge *bridge;     /* made at the first command */
   GSocket *socket;          /* under the WebSocket: how much it has not sent yet (NULL: unknown) */
+  guint next_kind;          /* the kind tried first at the next send: kinds take turns */
+  guint64 results_skipped;  /* results published since the last one sent to it that it was not
+                               sent (a newer one came first); told with the next one */
 } Client;
 
 struct DsLiveView {
@@ -96,13 +99,24 @@ try_send (Client *c)
    * and the next status tick or ack tries again. */
   if (!within_budget (c))
     return;
-  for (guint k = 0; k < N_KINDS; k++) {
+  /* Kinds take turns: a page acknowledging slower than the status ticks (twice a second) would
+   * otherwise be sent status alone, never a result or a frame. */
+  for (guint i = 0; i < N_KINDS; i++) {
+    guint k = (c->next_kind + i) % N_KINDS;
     if (!c->dirty[k] || !c->live->latest[k])
       continue;
+    c->next_kind = k + 1;
     c->dirty[k] = FALSE;
     set_busy (c, TRUE);
     c->live->stats.sent++;
     GBytes *msg = c->live->latest[k];
+    if (k == KIND_RESULT && c->results_skipped > 0) {
+      /* Before the result it precedes: the page counts what it never drew. */
+      g_autofree char *note = g_strdup_printf ("{\"type\":\"skipped\",\"results\":%" G_GUINT64_FORMAT "}",
+                                               c->results_skipped);
+      soup_websocket_connection_send_text (c->ws, note);
+      c->results_skipped = 0;
+    }
     if (k == KIND_STATUS)
       soup_websocket_connection_send_text (c->ws, g_bytes_get_data (msg, NULL));
     else
@@ -119,8 +133,11 @@ publish (DsLiveView *lv, Kind kind, GBytes *msg)
   lv->latest[kind] = msg;
   for (guint i = 0; i < lv->clients->len; i++) {
     Client *c = lv->clients->pdata[i];
-    if (c->dirty[kind])
+    if (c->dirty[kind]) {
       lv->stats.superseded++;
+      if (kind == KIND_RESULT)
+        c->results_skipped++;
+    }
     c->dirty[kind] = TRUE;
     try_send (c);
   }
@@ -404,6 +421,8 @@ ds_live_view_on_result (DsLiveView *lv, DsResult *result)
   if (lv->result) {
     lv->stats.superseded++; /* the encoder had not taken the previous one yet */
     ds_result_unref (lv->result);
+    for (guint i = 0; i < lv->clients->len; i++)
+      ((Client *) lv->clients->pdata[i])->results_skipped++;
   }
   lv->result = ds_result_ref (result);
   g_free (lv->result_meta);

@@ -12,7 +12,9 @@
  * Each client gets one update at a time and acknowledges it (the page sends {"ack": true} when
  * it has drawn it); meanwhile newer updates replace older ones of the same kind (counted as
  * superseded). A browser that stops reading therefore holds at most one update in its socket
- * and costs nothing else; nothing waits for it. The page's controls go through a protocol
+ * and costs nothing else; nothing waits for it. A result update follows a text message
+ * {"type": "skipped", "results": N} when N results published since the last one sent to that
+ * page were not sent to it, so that shown plus skipped is what was published. The page's controls go through a protocol
  * connection of its own (live_bridge.h).
  *
  * Threads: ds_live_view_on_frame on the fold worker; ds_live_view_new/free and everything else

@@ -24,6 +24,12 @@ typedef struct {
   gint64 accepted_us;
   gint64 active_us;     /* last complete request, or last moment it was busy being answered */
   gint64 leaving_us;
+  /* Result accounting (docs/protocol.md, "Events"): results published and not sent to this
+   * client since the last result queued for it, which the next result queued reports; and the
+   * count the waiting per-frame result (ds_connection_has_newest_waiting) reports, which a newer
+   * one that replaces it takes over, plus one for it. */
+  guint64 skipped;
+  guint64 waiting_skipped;
 } ClientState;
 
 /* How long a connection the server is closing may take to read its last error line. */
@@ -58,6 +64,8 @@ static void
 set_subscription (DsServer *s, ClientState *st, gboolean subscribed, gboolean frames)
 {
   frames = subscribed && frames;
+  if (subscribed && !st->subscribed)
+    st->skipped = 0; /* results before the subscription are none of its skipped */
   if (frames != st->frames)
     g_atomic_int_add (&s->frame_subscribers, frames ? 1 : -1);
   st->subscribed = subscribed;
@@ -219,6 +227,51 @@ broadcast (DsServer *server, GBytes *line, GBytes *const *payloads, guint n_payl
       delivered++;
     else
       (*dropped)++;
+  }
+  return delivered;
+}
+
+guint
+ds_server_publish_result (DsServer *server, JsonNode *body, const DsPayloadInfo *infos, GBytes *const *payloads,
+                          guint n_payloads, gboolean newest_only)
+{
+  guint64 seq = ++server->seq;
+  server->stats.published++;
+  gsize len = 0;
+  g_autofree char *text = ds_result_event_build (seq, 0, body, infos, n_payloads, &len);
+  g_autoptr (GBytes) shared = g_bytes_new (text, len);
+  guint delivered = 0;
+  GHashTableIter it;
+  gpointer key;
+  g_hash_table_iter_init (&it, server->clients);
+  while (g_hash_table_iter_next (&it, &key, NULL)) {
+    DsConnection *c = key;
+    ClientState *st = ds_connection_get_data (c);
+    if (!st || !st->subscribed || ds_connection_is_closed (c))
+      continue;
+    gboolean replaces = newest_only && ds_connection_has_newest_waiting (c);
+    guint64 skipped = st->skipped + (replaces ? st->waiting_skipped + 1 : 0);
+    g_autoptr (GBytes) own = NULL;
+    if (skipped > 0) {
+      /* Only a client that fell behind gets a line of its own. */
+      gsize own_len = 0;
+      char *own_text = ds_result_event_build (seq, skipped, body, infos, n_payloads, &own_len);
+      own = g_bytes_new_take (own_text, own_len);
+    }
+    GBytes *line = own ? own : shared;
+    gboolean sent = newest_only ? ds_connection_send_newest (c, line, payloads, n_payloads)
+                                : ds_connection_send (c, line, payloads, n_payloads, TRUE);
+    if (!sent) {
+      st->skipped++;
+      server->stats.dropped++;
+      continue;
+    }
+    if (replaces)
+      server->stats.dropped++; /* the one it replaced, never sent */
+    st->skipped = 0;
+    if (newest_only)
+      st->waiting_skipped = skipped;
+    delivered++;
   }
   return delivered;
 }

@@ -60,6 +60,14 @@ void ds_server_reply_ok (DsServer *server, DsConnection *conn, JsonNode *id, Jso
                          const DsPayloadInfo *infos, GBytes *const *payloads, guint n_payloads);
 void ds_server_reply_error (DsServer *server, DsConnection *conn, JsonNode *id, const GError *error);
 
+/* Sends a `result` event to every subscribed connection, with `skipped`: how many results it
+ * was not sent since the last one it was (docs/protocol.md, "Events"). newest_only (per-frame
+ * results): a client still writing an earlier result gets only the newest, which replaces one
+ * that waits unbegun; otherwise a slow client loses it only over max_queued_bytes. Returns how
+ * many got it queued. */
+guint ds_server_publish_result (DsServer *server, JsonNode *body, const DsPayloadInfo *infos,
+                                GBytes *const *payloads, guint n_payloads, gboolean newest_only);
+
 /* Sends an event to every subscribed connection; slow ones lose it (counted). Returns how
  * many received it. */
 guint ds_server_publish (DsServer *server, const char *event, JsonNode *body,

@@ -138,8 +138,11 @@ publish_result (DsService *svc, DsResult *result)
   const DsPayloadInfo *raw_infos;
   GBytes *const *raw_bytes;
   guint r = ds_result_per_frame (result) ? ds_result_raw_payloads (result, &raw_infos, &raw_bytes) : 0;
+  /* Per-frame results come at the camera's rate: a client reading slower gets the newest,
+   * never a backlog (docs/protocol.md, "Events"). */
+  gboolean newest_only = ds_result_per_frame (result);
   if (r == 0) {
-    ds_server_publish (svc->server, "result", meta, infos, bytes, n);
+    ds_server_publish_result (svc->server, meta, infos, bytes, n, newest_only);
   } else {
     /* A per-frame result with save_phases carries its window's frames: no capture reply
      * brings them, and they are what a client checks the result against. */
@@ -151,8 +154,8 @@ publish_result (DsService *svc, DsResult *result)
       g_ptr_array_add (all_bytes, bytes[i]);
     for (guint i = 0; i < r; i++)
       g_ptr_array_add (all_bytes, raw_bytes[i]);
-    ds_server_publish (svc->server, "result", meta, (const DsPayloadInfo *) all_infos->data,
-                       (GBytes *const *) all_bytes->pdata, all_infos->len);
+    ds_server_publish_result (svc->server, meta, (const DsPayloadInfo *) all_infos->data,
+                              (GBytes *const *) all_bytes->pdata, all_infos->len, newest_only);
   }
   svc->results_published++;
   svc->last_result_unix_us = g_get_real_time ();

@@ -8,6 +8,8 @@ lab (continuous mode `results = per-frame`, docs/protocol.md "Per-frame results"
     drawn the one before);
   - once continuous mode stops, the page shows the last result the daemon published (its
     newest_frame_id, read by a socket subscriber: an independent route);
+  - a page slowed down (its acknowledgements a second late) is told of results it skipped, and
+    the results it drew plus those are status `frame_results`;
   - how many camera frames the page showed a result of, against the frames the camera took
     meanwhile, is printed (the page's refresh rate decides it: no assertion on speed).
 Optionally saves a screenshot of the page showing per-frame results (docs/live-view-per-frame.png).
@@ -66,6 +68,11 @@ def main():
                     shown1 = int(b.js(f"{BODY}.results"))
                     if shot:
                         b.screenshot(shot)
+                    # A page slower than the camera: each update acknowledged a second late, so results
+                    # come faster than it takes them and newer ones replace the unsent.
+                    b.js("window.ack = ((drawn) => () => setTimeout(drawn, 1000))(ack)")
+                    a2 = d.status()["frames"]["acquired"]
+                    d.wait_for(lambda s: s["frames"]["acquired"] >= a2 + 24, "24 frames with a slow page")
                     assert d.ctl("stop", check=False).returncode == 0
                     d.wait_for(lambda s: s["state"] == "idle", "idle after stop")
                 finally:
@@ -77,6 +84,13 @@ def main():
                    timeout=30)
             title = b.js("document.getElementById('result-title').textContent")
             assert title.startswith(f"frame {last} (newest of 4)"), title
+            # Every result published reached the page or was counted as skipped before a newer one
+            # (the page's own counts against the acquisition thread's).
+            published = d.status()["frame_results"]
+            drawn, skipped = int(b.js(f"{BODY}.results")), int(b.js(f"{BODY}.resultsSkipped || 0"))
+            print(f"the page drew {drawn} results and was told of {skipped} skipped; {published} published")
+            assert drawn + skipped == published, (drawn, skipped, published)
+            assert skipped > 0, "a page acknowledging a second late was told of no skipped result"
             ids = [LiveMessage(m).header.get("meta", {}).get("window", {}).get("newest_frame_id")
                    for m in b.received_messages() if LiveMessage(m).type == "result"]
             ids = [i for i in ids if i is not None]

@@ -301,6 +301,15 @@ test_error_reply_and_event (void)
   g_assert_no_error (error);
   g_assert_cmpstr (re->event, ==, "result");
   g_assert_cmpuint (re->seq, ==, 42);
+  g_assert_cmpuint (re->skipped, ==, 0);
+
+  /* A result event as docs/protocol.md, "Events", writes it: skipped right after seq. */
+  g_autofree char *rev = ds_result_event_build (43, 7, NULL, NULL, 0, &len);
+  g_assert_cmpstr (rev, ==, "{\"event\":\"result\",\"seq\":43,\"skipped\":7,\"ok\":true,\"body\":{},\"payloads\":[]}\n");
+  g_autoptr (DsReply) rr = ds_reply_parse (rev, len - 1, &error);
+  g_assert_no_error (error);
+  g_assert_cmpuint (rr->seq, ==, 43);
+  g_assert_cmpuint (rr->skipped, ==, 7);
 }
 
 static void

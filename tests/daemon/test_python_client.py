@@ -10,7 +10,8 @@ Independent checks:
   unauthorized, a failed set), and a failed set reaches subscribers as a FailedEvent with the
   same reason; a camera that vanishes shows as DeviceEvents;
 - seq gaps: a subscriber that reads too slowly sees `lost` on the events after a gap, and the
-  sum of its gaps is the daemon's own count of results dropped for it;
+  sum of its gaps is the daemon's own count of results dropped for it, each result's `skipped`
+  its gap;
 - leaving a subscription's `with` unsubscribes (the daemon's subscriber count), a silent peer
   times out (descatter.Timeout) within the timeout and a timed-out subscription stays usable;
 - save_phases: the raw frames come back as arrays whose per-pixel max, min and mean after the
@@ -175,6 +176,9 @@ def seq_gaps(tmp):
             check(lost > 0 and lost == sub.lost_total, f"a slow subscriber sees gaps: {lost} lost of {len(events) + lost}")
             check(lost == st["clients"]["results_dropped"], "its gaps are the daemon's count of dropped results")
             check(all(b.seq - a.seq == 1 + b.lost for a, b in zip(events, events[1:])), "seq steps are 1 + lost")
+            # Only results are published here, so the results a result says were skipped are its gap.
+            check(all(e.skipped == e.lost for e in events if isinstance(e, descatter.ResultEvent)),
+                  "a result's skipped is its seq gap")
             sub.close()
     finally:
         check(d.stop() == 0, "descatterd exits cleanly")

@@ -368,6 +368,123 @@ test_slow_subscriber_loses_results_not_memory (void)
   harness_stop (h);
 }
 
+typedef struct {
+  Harness *h;
+  gsize bytes;
+  guint8 fill;
+  gboolean result; /* a per-frame result (newest only), else a `device` event */
+} PublishNewest;
+
+static gboolean
+do_publish_newest (gpointer data)
+{
+  PublishNewest *p = data;
+  if (!p->result)
+    return (gboolean) ds_server_publish (p->h->server, "device", NULL, NULL, NULL, 0);
+  guint8 *buf = g_malloc (p->bytes);
+  memset (buf, p->fill, p->bytes);
+  g_autoptr (GBytes) payload = g_bytes_new_take (buf, p->bytes);
+  DsPayloadInfo info = { "transmissive", "u8", 1024, (guint) (p->bytes / 1024), p->bytes };
+  GBytes *pl[] = { payload };
+  g_autoptr (JsonBuilder) b = json_builder_new ();
+  json_builder_begin_object (b);
+  json_builder_set_member_name (b, "n");
+  json_builder_add_int_value (b, p->fill);
+  json_builder_end_object (b);
+  g_autoptr (JsonNode) body = json_builder_get_root (b);
+  return (gboolean) ds_server_publish_result (p->h->server, body, &info, pl, 1, TRUE);
+}
+
+/* Per-frame results to a client that does not read: it is sent the result being written when it
+ * stopped reading and the newest, whole, with `skipped` the results in between; an event
+ * published meanwhile keeps its place; the memory held for it stays at two results whatever the
+ * number published. A client that reads each one gets every one, skipped 0. */
+static void
+test_newest_result (void)
+{
+  /* Larger than the socket's buffer many times over: a result stays in the middle of being
+   * written while the client does not read. */
+  gsize size = 512 * 1024;
+  g_autofree char *wmem = NULL;
+  if (g_file_get_contents ("/proc/sys/net/core/wmem_default", &wmem, NULL, NULL))
+    size = MAX (size, (g_ascii_strtoull (wmem, NULL, 10) * 4 + 1023) / 1024 * 1024);
+  const gsize cap = 64 << 20;
+  Harness *h = harness_start (FALSE, NULL, 8, cap);
+  Client *fast = client_connect (h), *slow = client_connect (h);
+  client_send (fast, "{\"id\":1,\"cmd\":\"subscribe\"}\n");
+  client_send (slow, "{\"id\":1,\"cmd\":\"subscribe\"}\n");
+  g_autoptr (DsReply) a = client_read (fast, NULL);
+  g_autoptr (DsReply) b = client_read (slow, NULL);
+  g_assert_true (a->ok && b->ok);
+  const guint n_results = 40, event_after = 10;
+  guint64 seq = 0;
+  for (guint i = 0; i < n_results; i++) {
+    PublishNewest p = { .h = h, .bytes = size, .fill = (guint8) i, .result = TRUE };
+    g_assert_cmpuint (harness_call (h, do_publish_newest, &p), ==, 2);
+    GBytes *payload = NULL;
+    g_autoptr (DsReply) ev = client_read (fast, &payload);
+    g_assert_cmpstr (ev->event, ==, "result");
+    g_assert_cmpuint (ev->seq, ==, ++seq);
+    g_assert_cmpuint (ev->skipped, ==, 0);
+    gsize n;
+    const guint8 *d = g_bytes_get_data (payload, &n);
+    g_assert_cmpuint (n, ==, size);
+    g_assert_cmpuint (d[0], ==, i);
+    g_assert_cmpuint (d[n - 1], ==, i);
+    g_bytes_unref (payload);
+    if (i == event_after) {
+      PublishNewest e = { .h = h };
+      g_assert_cmpuint (harness_call (h, do_publish_newest, &e), ==, 2);
+      g_autoptr (DsReply) dev = client_read (fast, NULL);
+      g_assert_cmpstr (dev->event, ==, "device");
+      g_assert_cmpuint (dev->seq, ==, ++seq);
+    }
+    StatsCall sc = { .h = h };
+    harness_call (h, do_stats, &sc);
+    /* The slow client: the result being written and the newest, line and all. */
+    g_assert_cmpuint (sc.stats.max_client_queued_bytes, <=, 2 * (size + 1024));
+  }
+  /* seq: results 0..10 are 1..11, the event 12, results 11..39 are 13..41. Result 0 went out at
+   * once; the event stays behind the result waiting then (10), which a newer one replaced; the
+   * last one waits. */
+  struct {
+    const char *event;
+    guint64 seq, skipped;
+    gint fill;
+  } want[] = { { "result", 1, 0, 0 }, { "device", 12, 0, -1 }, { "result", 41, n_results - 2, n_results - 1 } };
+  for (guint k = 0; k < G_N_ELEMENTS (want); k++) {
+    GBytes *payload = NULL;
+    g_autoptr (DsReply) ev = client_read (slow, &payload);
+    g_assert_nonnull (ev);
+    g_assert_cmpstr (ev->event, ==, want[k].event);
+    g_assert_cmpuint (ev->seq, ==, want[k].seq);
+    g_assert_cmpuint (ev->skipped, ==, want[k].skipped);
+    gsize n;
+    const guint8 *d = g_bytes_get_data (payload, &n);
+    if (want[k].fill >= 0) {
+      g_assert_cmpuint (n, ==, size);
+      g_assert_cmpint (json_object_get_int_member (json_node_get_object (ev->body), "n"), ==, want[k].fill);
+      for (gsize j = 0; j < n; j += 4096)
+        g_assert_cmpuint (d[j], ==, (guint8) want[k].fill);
+      g_assert_cmpuint (d[n - 1], ==, (guint8) want[k].fill);
+    } else {
+      g_assert_cmpuint (n, ==, 0);
+    }
+    g_bytes_unref (payload);
+  }
+  StatsCall sc = { .h = h };
+  harness_call (h, do_stats, &sc);
+  g_assert_cmpuint (sc.stats.dropped, ==, n_results - 2);
+  g_assert_cmpuint (sc.stats.queued_bytes, ==, 0);
+  /* Nothing else was queued for it. */
+  GSocket *sock = g_socket_connection_get_socket (slow->conn);
+  g_assert_cmpuint (g_buffered_input_stream_get_available (G_BUFFERED_INPUT_STREAM (slow->in)), ==, 0);
+  g_assert_false (g_socket_condition_timed_wait (sock, G_IO_IN, 200000, NULL, NULL));
+  client_free (fast);
+  client_free (slow);
+  harness_stop (h);
+}
+
 static void
 test_client_limit (void)
 {
@@ -462,6 +579,7 @@ main (int argc, char **argv)
   g_test_add_func ("/server/hello-and-errors-keep-sync", test_hello_and_errors_keep_sync);
   g_test_add_func ("/server/half-close", test_half_close_still_answered);
   g_test_add_func ("/server/slow-subscriber", test_slow_subscriber_loses_results_not_memory);
+  g_test_add_func ("/server/newest-result", test_newest_result);
   g_test_add_func ("/server/client-limit", test_client_limit);
   g_test_add_func ("/server/tcp-token", test_tcp_token);
   g_test_add_func ("/server/listen-refusals", test_listen_refusals);

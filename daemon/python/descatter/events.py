@@ -65,13 +65,17 @@ class Event:
 
 
 class ResultEvent(Event):
-    """A published result (continuous acquisition, or another client's capture)."""
+    """A published result (continuous acquisition, or another client's capture). `skipped`: the
+    results published since the previous one this client got that it was not sent (it read too
+    slowly; per-frame results then come newest first, docs/protocol.md "Events")."""
 
     kind = "result"
 
-    def __init__(self, seq: Optional[int], lost: int, body: JsonObject, images: dict[str, Image]) -> None:
+    def __init__(self, seq: Optional[int], lost: int, body: JsonObject, images: dict[str, Image],
+                 skipped: int = 0) -> None:
         super().__init__(seq, lost, body)
         self.result = Result(body, images)
+        self.skipped = skipped
 
     def __repr__(self) -> str:
         return f"<ResultEvent seq={self.seq} lost={self.lost} {self.result!r}>"
@@ -203,7 +207,8 @@ def make_event(header: JsonObject, images: dict[str, Image], last_seq: Optional[
     lost = _lost(seq, last_seq)
     new_last = seq if isinstance(seq, int) else last_seq
     if kind == "result":
-        return ResultEvent(seq, lost, body, images), new_last
+        skipped: Any = header.get("skipped")
+        return ResultEvent(seq, lost, body, images, skipped if isinstance(skipped, int) else 0), new_last
     cls = _KINDS.get(kind)
     if cls is None:  # a newer daemon's event: still surfaced, as a plain Event
         ev = Event(seq, lost, body)
