@@ -319,43 +319,88 @@ fit_maxmin (const float *restrict mx0, const float *restrict mx1, const float *r
   }
 }
 
-/* u16 frames without a dark frame: the extremes in the samples' own type, twice the lanes
- * of float and no conversion pass; exact as the float path is. */
-DS_KERNEL guint
-count_at_least_u16 (const guint16 *restrict in, gsize w, guint threshold)
-{
-  guint n = 0;
-  for (gsize x = 0; x < w; x++)
-    n += in[x] >= threshold;
-  return n;
-}
-
-DS_KERNEL void
-pair_extremes_u16 (const guint16 *restrict amax, const guint16 *restrict amin, guint16 *restrict omax,
-                   guint16 *restrict omin, gsize n, gsize shift)
-{
-  for (gsize x = 0; x < n; x++) {
-    guint16 p = amax[x], q = amax[x + shift], r = amin[x], s = amin[x + shift];
-    omax[x] = p > q ? p : q;
-    omin[x] = r < s ? r : s;
+/* Integer frames without a dark frame: the extremes in the samples' own type (two or four
+ * times the lanes of float, no conversion pass), exact as the float path is. Levels go up
+ * by four where the window allows (one pass of three compares instead of two passes). */
+#define DECLARE_EXTREMES_INT(T, NAME)                                                                     \
+  DS_KERNEL guint count_at_least_##NAME (const T *restrict in, gsize w, guint threshold)                \
+  {                                                                                                       \
+    guint n = 0;                                                                                          \
+    for (gsize x = 0; x < w; x++)                                                                         \
+      n += in[x] >= threshold;                                                                            \
+    return n;                                                                                             \
+  }                                                                                                       \
+  DS_KERNEL void pair_extremes_##NAME (const T *restrict amax, const T *restrict amin, T *restrict omax, \
+                                       T *restrict omin, gsize n, gsize shift)                            \
+  {                                                                                                       \
+    for (gsize x = 0; x < n; x++) {                                                                       \
+      T p = amax[x], q = amax[x + shift], r = amin[x], s = amin[x + shift];                               \
+      omax[x] = p > q ? p : q;                                                                            \
+      omin[x] = r < s ? r : s;                                                                            \
+    }                                                                                                     \
+  }                                                                                                       \
+  DS_KERNEL void quad_extremes_##NAME (const T *restrict amax, const T *restrict amin, T *restrict omax, \
+                                       T *restrict omin, gsize n, gsize shift)                            \
+  {                                                                                                       \
+    for (gsize x = 0; x < n; x++) {                                                                       \
+      T p = amax[x], q = amax[x + shift], u = amax[x + 2 * shift], v = amax[x + 3 * shift];               \
+      p = p > q ? p : q;                                                                                  \
+      u = u > v ? u : v;                                                                                  \
+      omax[x] = p > u ? p : u;                                                                            \
+      T r = amin[x], s = amin[x + shift], e = amin[x + 2 * shift], f = amin[x + 3 * shift];               \
+      r = r < s ? r : s;                                                                                  \
+      e = e < f ? e : f;                                                                                  \
+      omin[x] = r < e ? r : e;                                                                            \
+    }                                                                                                     \
+  }                                                                                                       \
+  DS_KERNEL void fit_maxmin_##NAME (const T *restrict mx0, const T *restrict mx1, const T *restrict mn0,  \
+                                    const T *restrict mn1, float *restrict ld, float *restrict lg,        \
+                                    guint8 *restrict mk, gsize n, float inv_contrast, float inv_m, float b) \
+  {                                                                                                       \
+    for (gsize x = 0; x < n; x++) {                                                                       \
+      T imx = mx0[x] > mx1[x] ? mx0[x] : mx1[x];                                                          \
+      T imn = mn0[x] < mn1[x] ? mn0[x] : mn1[x];                                                          \
+      float mn = imn;                                                                                     \
+      float d = (float) (T) (imx - imn) * inv_contrast;                                                   \
+      float g = (mn - b * d) * inv_m;                                                                     \
+      ld[x] = d;                                                                                          \
+      lg[x] = g;                                                                                          \
+      mk[x] = g < 0 ? DS_MASK_NEGATIVE : 0;                                                               \
+    }                                                                                                     \
+  }                                                                                                       \
+  DS_KERNEL void maxmin_row_##NAME (const DsSingleFrame *sf, const T *in, T *scratch[4], float *ld,        \
+                                    float *lg, guint8 *mk)                                                \
+  {                                                                                                       \
+    gsize w = sf->width, l = sf->window, half = sf->half, starts = w - l + 1, len = 1;                   \
+    const T *mx = in, *mn = in;                                                                           \
+    T *next[2] = { scratch[0], scratch[1] }, *spare[2] = { scratch[2], scratch[3] };                      \
+    while (len * 2 <= l) {                                                                                \
+      gsize step = len * 4 <= l ? 4 : 2;                                                                  \
+      if (step == 4)                                                                                      \
+        quad_extremes_##NAME (mx, mn, next[0], next[1], w - 4 * len + 1, len);                            \
+      else                                                                                                \
+        pair_extremes_##NAME (mx, mn, next[0], next[1], w - 2 * len + 1, len);                            \
+      len *= step;                                                                                        \
+      mx = next[0];                                                                                       \
+      mn = next[1];                                                                                       \
+      T *t0 = next[0], *t1 = next[1];                                                                     \
+      next[0] = spare[0];                                                                                 \
+      next[1] = spare[1];                                                                                 \
+      spare[0] = t0;                                                                                      \
+      spare[1] = t1;                                                                                      \
+    }                                                                                                     \
+    gsize o = l - len;                                                                                    \
+    float ic = (float) (1 / (1 - sf->b)), im = (float) (1 / sf->m), b = (float) sf->b;                    \
+    fit_maxmin_##NAME (mx, mx + o, mn, mn + o, ld + half, lg + half, mk + half, starts, ic, im, b);       \
+    for (gsize x = 0; x < half; x++)                                                                      \
+      fit_maxmin_##NAME (mx, mx + o, mn, mn + o, ld + x, lg + x, mk + x, 1, ic, im, b);                   \
+    for (gsize x = starts + half; x < w; x++) {                                                           \
+      gsize e = starts - 1;                                                                               \
+      fit_maxmin_##NAME (mx + e, mx + e + o, mn + e, mn + e + o, ld + x, lg + x, mk + x, 1, ic, im, b);   \
+    }                                                                                                     \
   }
-}
-
-DS_KERNEL void
-fit_maxmin_u16 (const guint16 *restrict mx0, const guint16 *restrict mx1, const guint16 *restrict mn0,
-                const guint16 *restrict mn1, float *restrict ld, float *restrict lg, guint8 *restrict mk, gsize n,
-                float inv_contrast, float inv_m, float b)
-{
-  for (gsize x = 0; x < n; x++) {
-    float mx = mx0[x] > mx1[x] ? mx0[x] : mx1[x];
-    float mn = mn0[x] < mn1[x] ? mn0[x] : mn1[x];
-    float d = (mx - mn) * inv_contrast;
-    float g = (mn - b * d) * inv_m;
-    ld[x] = d;
-    lg[x] = g;
-    mk[x] = g < 0 ? DS_MASK_NEGATIVE : 0;
-  }
-}
+DECLARE_EXTREMES_INT (guint16, u16)
+DECLARE_EXTREMES_INT (guint8, u8)
 
 /* ---- One row ---- */
 
@@ -551,35 +596,6 @@ maxmin_row (const DsSingleFrame *sf, Rows *r, float *ld, float *lg, guint8 *mk)
   }
 }
 
-/* maxmin_row on the u16 samples themselves (rows with nothing saturated). */
-DS_KERNEL void
-maxmin_row_u16 (const DsSingleFrame *sf, const guint16 *in, Rows *r, float *ld, float *lg, guint8 *mk)
-{
-  gsize w = sf->width, l = sf->window, half = sf->half, starts = w - l + 1, len = 1;
-  const guint16 *mx = in, *mn = in;
-  guint16 *next[2] = { (guint16 *) r->la[0], (guint16 *) r->la[1] };
-  guint16 *spare[2] = { (guint16 *) r->lb[0], (guint16 *) r->lb[1] };
-  for (; len * 2 <= l; len <<= 1) {
-    pair_extremes_u16 (mx, mn, next[0], next[1], w - 2 * len + 1, len);
-    mx = next[0];
-    mn = next[1];
-    guint16 *t0 = next[0], *t1 = next[1];
-    next[0] = spare[0];
-    next[1] = spare[1];
-    spare[0] = t0;
-    spare[1] = t1;
-  }
-  gsize o = l - len;
-  float ic = (float) (1 / (1 - sf->b)), im = (float) (1 / sf->m), b = (float) sf->b;
-  fit_maxmin_u16 (mx, mx + o, mn, mn + o, ld + half, lg + half, mk + half, starts, ic, im, b);
-  for (gsize x = 0; x < half; x++)
-    fit_maxmin_u16 (mx, mx + o, mn, mn + o, ld + x, lg + x, mk + x, 1, ic, im, b);
-  for (gsize x = starts + half; x < w; x++) {
-    gsize e = starts - 1;
-    fit_maxmin_u16 (mx + e, mx + e + o, mn + e, mn + e + o, ld + x, lg + x, mk + x, 1, ic, im, b);
-  }
-}
-
 /* Each pixel's window start: centred, clamped so that the window stays inside the row. */
 static inline guint
 window_start (const DsSingleFrame *sf, guint x)
@@ -595,13 +611,21 @@ rows (const Job *job, guint y0, guint y1, guint thread, gboolean sine)
 {
   const DsSingleFrame *sf = job->sf;
   Rows r = rows_of (sf, thread);
-  gboolean raw16 = !sine && job->frame->type == DS_SAMPLE_U16 && !job->dark;
+  DsSampleType type = job->frame->type;
+  gboolean raw = !sine && !job->dark && (type == DS_SAMPLE_U16 || type == DS_SAMPLE_U8);
   for (guint y = y0; y < y1; y++) {
     float *ld = ds_image_row (job->sep->transmissive, y), *lg = ds_image_row (job->sep->scattered, y);
     guint8 *mk = ds_image_row (job->sep->mask, y);
-    const guint16 *in16 = ds_image_row (job->frame, y);
-    if (raw16 && count_at_least_u16 (in16, sf->width, job->threshold) == 0) {
-      maxmin_row_u16 (sf, in16, &r, ld, lg, mk);
+    const void *in = ds_image_row (job->frame, y);
+    if (raw && type == DS_SAMPLE_U16 && count_at_least_u16 (in, sf->width, job->threshold) == 0) {
+      guint16 *scratch[4] = { (guint16 *) r.la[0], (guint16 *) r.la[1], (guint16 *) r.lb[0], (guint16 *) r.lb[1] };
+      maxmin_row_u16 (sf, in, scratch, ld, lg, mk);
+      ds_count_mask_row (mk, sf->width, job->counted[thread].c);
+      continue;
+    }
+    if (raw && type == DS_SAMPLE_U8 && count_at_least_u8 (in, sf->width, job->threshold) == 0) {
+      guint8 *scratch[4] = { (guint8 *) r.la[0], (guint8 *) r.la[1], (guint8 *) r.lb[0], (guint8 *) r.lb[1] };
+      maxmin_row_u8 (sf, in, scratch, ld, lg, mk);
       ds_count_mask_row (mk, sf->width, job->counted[thread].c);
       continue;
     }

@@ -10,7 +10,7 @@
  * sampled rows of each result equal a direct per-pixel reference (max and min scanned over
  * the pixel's window; the sine fit by solving the window's normal equations in double).
  *
- *   bench_single_frame [--quick] [--reps R] [--period P]
+ *   bench_single_frame [--quick] [--reps R] [--period P] [--size WxH]
  * Full run (docs/benchmarks.md): build/tests/bench/bench_single_frame */
 #include <glib.h>
 #include <math.h>
@@ -227,10 +227,12 @@ main (int argc, char **argv)
   gboolean quick = FALSE;
   gint reps = 7;
   double period = 16;
+  g_autofree char *size = NULL;
   GOptionEntry entries[] = {
     { "quick", 0, 0, G_OPTION_ARG_NONE, &quick, "one small frame per type, 2 repetitions (ctest)", NULL },
     { "reps", 0, 0, G_OPTION_ARG_INT, &reps, "repetitions (best of)", "R" },
     { "period", 0, 0, G_OPTION_ARG_DOUBLE, &period, "stripe period in pixels", "P" },
+    { "size", 0, 0, G_OPTION_ARG_STRING, &size, "one frame size instead of 1 MP and 4 MP", "WxH" },
     { NULL },
   };
   g_autoptr (GOptionContext) ctx = g_option_context_new ("- single-frame estimator against one fold");
@@ -242,9 +244,16 @@ main (int argc, char **argv)
   }
   if (quick)
     reps = 2;
-  const guint sizes[][2] = { { 1024, 1024 }, { 2048, 2048 } }, quick_size[2] = { 640, 400 };
+  guint sizes[][2] = { { 1024, 1024 }, { 2048, 2048 } }, quick_size[2] = { 640, 400 }, n_sizes = 2;
+  if (size) {
+    if (sscanf (size, "%ux%u", &sizes[0][0], &sizes[0][1]) != 2 || sizes[0][0] < 256 || sizes[0][1] < 4) {
+      fprintf (stderr, "--size WxH, W >= 256, H >= 4\n");
+      return 2;
+    }
+    n_sizes = 1;
+  }
   gboolean ok = TRUE;
-  for (guint s = 0; s < (quick ? 1u : G_N_ELEMENTS (sizes)); s++)
+  for (guint s = 0; s < (quick ? 1u : n_sizes); s++)
     for (guint t = 0; t < 2; t++) {
       const guint *sz = quick ? quick_size : sizes[s];
       ok = run_case (t == 0 ? DS_SAMPLE_U8 : DS_SAMPLE_U16, sz[0], sz[1], (guint) reps, period) && ok;
