@@ -133,9 +133,10 @@ ds_single_frame_free (DsSingleFrame *sf)
   g_free (sf);
 }
 
-/* Per-thread scratch, in floats: the row, two levels of three series and the three window
- * sums (sine; maxmin uses five rows of it), then two rows of counts. */
-#define ROWS_PER_THREAD 10u
+/* Per-thread scratch, in floats: the row, its products with the basis, two levels of three
+ * series and the three window sums (sine; maxmin uses five rows of it), then two rows of
+ * counts. */
+#define ROWS_PER_THREAD 12u
 
 DsSingleFrame *
 ds_single_frame_new (const DsSeparationParams *params, guint width, guint height, GError **error)
@@ -172,9 +173,11 @@ ds_single_frame_new (const DsSeparationParams *params, guint width, guint height
   guint t = params->threads ? params->threads : (guint) g_get_num_processors ();
   sf->threads = (gsize) width * height >= DS_SINGLE_FRAME_THREADED_PIXELS ? CLAMP (t, 1u, DS_MAX_THREADS) : 1;
   sf->tile = MAX (512u, 4 * sf->window);
-  /* Rows a multiple of 16 floats apart, so that two rows never share a cache line; the
-   * sine's levels and sums use a tile's worth of each. */
-  gsize row = ((gsize) width + 1 + 15) & ~(gsize) 15;
+  /* Rows a multiple of 16 floats apart, so that two rows never share a cache line, plus about
+   * half a page: at widths of a power of two the rows would otherwise start one line apart
+   * modulo 4096 bytes, and a pass's loads from one row would wait on its stores to the next
+   * (a false dependency on x86). The sine's levels and sums use a tile's worth of each. */
+  gsize row = (((gsize) width + 1 + 15) & ~(gsize) 15) + 528;
   sf->scratch_floats = row * (ROWS_PER_THREAD + 2);
   sf->scratch = g_malloc ((gsize) sf->threads * sf->scratch_floats * sizeof (float));
   return g_steal_pointer (&sf);
@@ -201,66 +204,55 @@ ds_single_frame_info (const DsSingleFrame *sf)
 DECLARE_READ_INT (guint16, u16)
 DECLARE_READ_INT (guint8, u8)
 
-/* Sums of 1, 2 or 4 consecutive samples of v, v cos, v sin from each x < n, pairwise, into o
- * (onto o when add: a call site passes a constant, so each loop is compiled without it). */
+/* The sine's three series (v, v cos, v sin) are summed one at a time: each pass then keeps
+ * two pointers (which the row loops hold in registers, where three series' six spilled), and
+ * the products v cos and v sin are made once per column instead of once per window level.
+ * The products and the pairwise order of the sums are those of summing the products in
+ * place, so the result is the same. */
+
+/* o[x] = a[x], x < n. */
 DS_KERNEL void
-direct_sums (const float *restrict v, const float *restrict c, const float *restrict s, float *restrict o0,
-             float *restrict o1, float *restrict o2, gsize n, guint len, gboolean add)
+copy1 (const float *restrict a, float *restrict o, gsize n)
 {
-  for (gsize x = 0; x < n; x++) {
-    float a0, a1, a2;
-    if (len == 1) {
-      a0 = v[x];
-      a1 = v[x] * c[x];
-      a2 = v[x] * s[x];
-    } else if (len == 2) {
-      a0 = v[x] + v[x + 1];
-      a1 = v[x] * c[x] + v[x + 1] * c[x + 1];
-      a2 = v[x] * s[x] + v[x + 1] * s[x + 1];
-    } else {
-      a0 = (v[x] + v[x + 1]) + (v[x + 2] + v[x + 3]);
-      a1 = (v[x] * c[x] + v[x + 1] * c[x + 1]) + (v[x + 2] * c[x + 2] + v[x + 3] * c[x + 3]);
-      a2 = (v[x] * s[x] + v[x + 1] * s[x + 1]) + (v[x + 2] * s[x + 2] + v[x + 3] * s[x + 3]);
-    }
-    o0[x] = add ? o0[x] + a0 : a0;
-    o1[x] = add ? o1[x] + a1 : a1;
-    o2[x] = add ? o2[x] + a2 : a2;
-  }
+  memcpy (o, a, n * sizeof (float));
 }
 
-/* One doubling step of three series: o[x] = a[x] + a[x + shift], x < n. */
+/* One doubling step: o[x] = a[x] + a[x + shift], x < n (onto o when add: a call site passes a
+ * constant, so each loop is compiled without the other). */
 DS_KERNEL void
-pair_sums3 (const float *restrict a0, const float *restrict a1, const float *restrict a2, float *restrict o0,
-            float *restrict o1, float *restrict o2, gsize n, gsize shift)
+pair_sums1 (const float *restrict a, float *restrict o, gsize n, gsize shift, gboolean add)
 {
   for (gsize x = 0; x < n; x++) {
-    o0[x] = a0[x] + a0[x + shift];
-    o1[x] = a1[x] + a1[x + shift];
-    o2[x] = a2[x] + a2[x + shift];
+    float v = a[x] + a[x + shift];
+    o[x] = add ? o[x] + v : v;
   }
 }
 
 /* Two doubling steps in one pass: o[x] = (a[x] + a[x + shift]) + (a[x + 2 shift] + a[x + 3 shift]),
  * the same sums in the same order, x < n. */
 DS_KERNEL void
-quad_sums3 (const float *restrict a0, const float *restrict a1, const float *restrict a2, float *restrict o0,
-            float *restrict o1, float *restrict o2, gsize n, gsize shift)
+quad_sums1 (const float *restrict a, float *restrict o, gsize n, gsize shift)
 {
-  for (gsize x = 0; x < n; x++) {
-    o0[x] = (a0[x] + a0[x + shift]) + (a0[x + 2 * shift] + a0[x + 3 * shift]);
-    o1[x] = (a1[x] + a1[x + shift]) + (a1[x + 2 * shift] + a1[x + 3 * shift]);
-    o2[x] = (a2[x] + a2[x + shift]) + (a2[x + 2 * shift] + a2[x + 3 * shift]);
-  }
+  for (gsize x = 0; x < n; x++)
+    o[x] = (a[x] + a[x + shift]) + (a[x + 2 * shift] + a[x + 3 * shift]);
 }
 
+/* t[x] += a[x], x < n. */
 DS_KERNEL void
-add3 (const float *restrict a0, const float *restrict a1, const float *restrict a2, float *restrict t0,
-      float *restrict t1, float *restrict t2, gsize n)
+add1 (const float *restrict a, float *restrict t, gsize n)
+{
+  for (gsize x = 0; x < n; x++)
+    t[x] += a[x];
+}
+
+/* The products of the row with the basis: pc[x] = v[x] cos, ps[x] = v[x] sin, x < n. */
+DS_KERNEL void
+basis_products (const float *restrict v, const float *restrict c, const float *restrict sn, float *restrict pc,
+                float *restrict ps, gsize n)
 {
   for (gsize x = 0; x < n; x++) {
-    t0[x] += a0[x];
-    t1[x] += a1[x];
-    t2[x] += a2[x];
+    pc[x] = v[x] * c[x];
+    ps[x] = v[x] * sn[x];
   }
 }
 
@@ -405,7 +397,7 @@ DECLARE_EXTREMES_INT (guint8, u8)
 /* ---- One row ---- */
 
 typedef struct {
-  float *v;
+  float *v, *pc, *ps;   /* the row; sine: its products with cos and sin */
   float *la[3], *lb[3]; /* two levels of three series (maxmin: max and min in la, lb) */
   float *t[3];          /* sine: the window sums, per window start */
   guint *sat, *bad;     /* prefix counts: saturated, non-finite columns before x */
@@ -416,11 +408,11 @@ rows_of (const DsSingleFrame *sf, guint thread)
 {
   gsize row = sf->scratch_floats / (ROWS_PER_THREAD + 2);
   float *f = sf->scratch + (gsize) thread * sf->scratch_floats;
-  Rows r = { .v = f };
+  Rows r = { .v = f, .pc = f + row, .ps = f + 2 * row };
   for (guint i = 0; i < 3; i++) {
-    r.la[i] = f + (1 + i) * row;
-    r.lb[i] = f + (4 + i) * row;
-    r.t[i] = f + (7 + i) * row;
+    r.la[i] = f + (3 + i) * row;
+    r.lb[i] = f + (6 + i) * row;
+    r.t[i] = f + (9 + i) * row;
   }
   r.sat = (guint *) (f + ROWS_PER_THREAD * row);
   r.bad = (guint *) (f + (ROWS_PER_THREAD + 1) * row);
@@ -485,59 +477,51 @@ read_row (const Job *job, guint y, Rows *r)
   return TRUE;
 }
 
-/* Window sums of v, v cos, v sin for every window start s < w - l + 1 into r->t. */
-/* Window sums of v, v cos, v sin (c, sn: cos and sin at the same columns) for the window
- * starts s < starts, over columns [0, starts + l - 1): sums[i][s], in r->t, or in a level
- * buffer when the window is one level (a power of two). */
-DS_KERNEL void
-window_sums (const DsSingleFrame *sf, const float *v, const float *c, const float *sn, gsize starts, Rows *r,
-             const float *sums[3])
+/* One series' window sums, a[s] + ... + a[s + l - 1] for the window starts s < starts (a holds
+ * columns [0, starts + l - 1)): into t, or left in a level buffer (la, lb) when the window is
+ * one level (a power of two); returns where they are. The window is its length's binary
+ * digits, low first: one and two columns from a, then levels of 4, 8, ... columns, each from
+ * two of the level below, so every sum is pairwise. */
+DS_KERNEL const float *
+series_sums (const float *a, gsize starts, gsize l, float *t, float *la, float *lb)
 {
-  gsize l = sf->window, w = starts + l - 1, off = 0;
-  float **t = r->t;
-  for (guint i = 0; i < 3; i++)
-    sums[i] = t[i];
-  /* the window's first columns: its length's two lowest binary digits, from the samples */
+  gsize w = starts + l - 1, off = 0;
   if (l & 1) {
-    direct_sums (v, c, sn, t[0], t[1], t[2], starts, 1, FALSE);
+    copy1 (a, t, starts);
     off = 1;
   }
   if (l & 2) {
     if (off)
-      direct_sums (v + off, c + off, sn + off, t[0], t[1], t[2], starts, 2, TRUE);
+      pair_sums1 (a + off, t, starts, 1, TRUE);
     else
-      direct_sums (v, c, sn, t[0], t[1], t[2], starts, 2, FALSE);
+      pair_sums1 (a, t, starts, 1, FALSE);
     off += 2;
   }
   if (l < 4)
-    return;
-  /* then levels of 4, 8, ... columns, each from two of the level below */
-  float **level = r->la, **spare = r->lb;
-  direct_sums (v, c, sn, level[0], level[1], level[2], w - 3, 4, FALSE);
+    return t;
+  float *level = la, *spare = lb;
+  quad_sums1 (a, level, w - 3, 1);
   for (gsize len = 4;;) {
     if (l & len) {
       if (off) {
-        add3 (level[0] + off, level[1] + off, level[2] + off, t[0], t[1], t[2], starts);
+        add1 (level + off, t, starts);
       } else if (len * 2 > l) {
-        /* the window is this level alone: its sums as they stand */
-        for (guint i = 0; i < 3; i++)
-          sums[i] = level[i];
+        return level; /* the window is this level alone: its sums as they stand */
       } else {
-        for (guint i = 0; i < 3; i++)
-          memcpy (t[i], level[i] + off, starts * sizeof (float));
+        memcpy (t, level, starts * sizeof (float));
       }
       off += len;
     }
     if (len * 2 > l)
-      break;
+      return t;
     /* the next level the window needs, from this one: valid for x + next <= w; a level the
      * window does not use is skipped (four of this level in one pass) */
     gsize next = len * 4 <= l && !(l & (len * 2)) ? len * 4 : len * 2;
     if (next == len * 4)
-      quad_sums3 (level[0], level[1], level[2], spare[0], spare[1], spare[2], w - next + 1, len);
+      quad_sums1 (level, spare, w - next + 1, len);
     else
-      pair_sums3 (level[0], level[1], level[2], spare[0], spare[1], spare[2], w - next + 1, len);
-    float **tmp = level;
+      pair_sums1 (level, spare, w - next + 1, len, FALSE);
+    float *tmp = level;
     level = spare;
     spare = tmp;
     len = next;
@@ -552,10 +536,13 @@ sine_row (const DsSingleFrame *sf, Rows *r, float *ld, float *lg, guint8 *mk)
   gsize w = sf->width, l = sf->window, half = sf->half, starts = w - l + 1;
   SineConsts k = { .inv_h = (float) (1 / sf->h), .inv_m = (float) (1 / sf->m) };
   memcpy (k.g, sf->g, sizeof k.g);
+  basis_products (r->v, sf->cos_x, sf->sin_x, r->pc, r->ps, w);
+  const float *series[3] = { r->v, r->pc, r->ps };
   for (gsize x0 = 0; x0 < starts; x0 += sf->tile) {
     gsize n = MIN (sf->tile, starts - x0);
     const float *c = sf->cos_x + x0, *s = sf->sin_x + x0, *sums[3];
-    window_sums (sf, r->v + x0, c, s, n, r, sums);
+    for (guint i = 0; i < 3; i++)
+      sums[i] = series_sums (series[i] + x0, n, l, r->t[i], r->la[i], r->lb[i]);
     const float *t0 = sums[0], *tc = sums[1], *ts = sums[2];
     /* pixel x's window starts at x - half, clamped to [0, starts - 1] */
     fit_sine (t0, tc, ts, c, s, ld + half + x0, lg + half + x0, mk + half + x0, n, k);
