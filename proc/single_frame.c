@@ -20,6 +20,10 @@ struct DsSingleFrame {
    * the window's sums are rotated back by the table's angle at s. */
   float *cos_x, *sin_x;
   float g[6];
+  /* The window's normal matrix is isotropic (diag(l, l/2, l/2): the window is a whole number of
+   * periods, as at an integer P), so its inverse commutes with the rotation: the fit needs no
+   * rotation and the amplitude is g[3] |(sum v cos, sum v sin)|. */
+  gboolean isotropic;
   guint threads;
   DsWorkerPool *pool;     /* made on first use when threads > 1 */
   gsize tile;             /* sine: window starts per tile of a row */
@@ -78,6 +82,10 @@ plan_sine (DsSingleFrame *sf, GError **error)
   }
   for (guint i = 0; i < 6; i++)
     sf->g[i] = (float) inv[i];
+  /* isotropic when the terms the rotation would mix are zero to well below float rounding */
+  double scale = fmax (fabs (inv[0]), fabs (inv[3]));
+  sf->isotropic = fabs (inv[1]) <= 1e-9 * scale && fabs (inv[2]) <= 1e-9 * scale && fabs (inv[4]) <= 1e-9 * scale &&
+                  fabs (inv[3] - inv[5]) <= 1e-9 * scale;
   return TRUE;
 }
 
@@ -288,6 +296,20 @@ fit_sine (const float *restrict t0, const float *restrict tc, const float *restr
     float b = k.g[2] * t0[x] + k.g[4] * u + k.g[5] * v;
     float d = sqrtf (a * a + b * b) * k.inv_h;
     float g = mean * k.inv_m - d;
+    ld[x] = d;
+    lg[x] = g;
+    mk[x] = g < 0 ? DS_MASK_NEGATIVE : 0;
+  }
+}
+
+/* fit_sine for an isotropic window: M = g0 t0 and |(a, b)| = g3 |(tc, ts)| in any basis. */
+DS_KERNEL void
+fit_sine_isotropic (const float *restrict t0, const float *restrict tc, const float *restrict ts, float *restrict ld,
+                    float *restrict lg, guint8 *restrict mk, gsize n, float g0, float amp, float inv_m)
+{
+  for (gsize x = 0; x < n; x++) {
+    float d = sqrtf (tc[x] * tc[x] + ts[x] * ts[x]) * amp;
+    float g = g0 * t0[x] * inv_m - d;
     ld[x] = d;
     lg[x] = g;
     mk[x] = g < 0 ? DS_MASK_NEGATIVE : 0;
@@ -544,6 +566,17 @@ sine_row (const DsSingleFrame *sf, Rows *r, float *ld, float *lg, guint8 *mk)
     for (guint i = 0; i < 3; i++)
       sums[i] = series_sums (series[i] + x0, n, l, r->t[i], r->la[i], r->lb[i]);
     const float *t0 = sums[0], *tc = sums[1], *ts = sums[2];
+    if (sf->isotropic) {
+      float g0 = k.g[0], amp = k.g[3] * k.inv_h;
+      fit_sine_isotropic (t0, tc, ts, ld + half + x0, lg + half + x0, mk + half + x0, n, g0, amp, k.inv_m);
+      for (gsize x = 0; x0 == 0 && x < half; x++)
+        fit_sine_isotropic (t0, tc, ts, ld + x, lg + x, mk + x, 1, g0, amp, k.inv_m);
+      for (gsize x = starts + half; x0 + n == starts && x < w; x++) {
+        gsize e = n - 1;
+        fit_sine_isotropic (t0 + e, tc + e, ts + e, ld + x, lg + x, mk + x, 1, g0, amp, k.inv_m);
+      }
+      continue;
+    }
     /* pixel x's window starts at x - half, clamped to [0, starts - 1] */
     fit_sine (t0, tc, ts, c, s, ld + half + x0, lg + half + x0, mk + half + x0, n, k);
     for (gsize x = 0; x0 == 0 && x < half; x++)
