@@ -367,10 +367,11 @@ fit_maxmin (const float *restrict mx0, const float *restrict mx1, const float *r
       omin[x] = r < e ? r : e;                                                                            \
     }                                                                                                     \
   }                                                                                                       \
-  DS_KERNEL void fit_maxmin_##NAME (const T *restrict mx0, const T *restrict mx1, const T *restrict mn0,  \
-                                    const T *restrict mn1, float *restrict ld, float *restrict lg,        \
-                                    guint8 *restrict mk, gsize n, float inv_contrast, float inv_m, float b) \
+  DS_KERNEL guint fit_maxmin_##NAME (const T *restrict mx0, const T *restrict mx1, const T *restrict mn0, \
+                                     const T *restrict mn1, float *restrict ld, float *restrict lg,       \
+                                     guint8 *restrict mk, gsize n, float inv_contrast, float inv_m, float b) \
   {                                                                                                       \
+    guint negative = 0;                                                                                   \
     for (gsize x = 0; x < n; x++) {                                                                       \
       T imx = mx0[x] > mx1[x] ? mx0[x] : mx1[x];                                                          \
       T imn = mn0[x] < mn1[x] ? mn0[x] : mn1[x];                                                          \
@@ -380,9 +381,12 @@ fit_maxmin (const float *restrict mx0, const float *restrict mx1, const float *r
       ld[x] = d;                                                                                          \
       lg[x] = g;                                                                                          \
       mk[x] = g < 0 ? DS_MASK_NEGATIVE : 0;                                                               \
+      negative += g < 0;                                                                                  \
     }                                                                                                     \
+    return negative;                                                                                      \
   }                                                                                                       \
-  DS_KERNEL void maxmin_row_##NAME (const DsSingleFrame *sf, const T *in, T *scratch[4], float *ld,        \
+  /* Returns the pixels flagged negative, the only bit this path sets. */                                 \
+  DS_KERNEL guint maxmin_row_##NAME (const DsSingleFrame *sf, const T *in, T *scratch[4], float *ld,        \
                                     float *lg, guint8 *mk)                                                \
   {                                                                                                       \
     gsize w = sf->width, l = sf->window, half = sf->half, starts = w - l + 1, len = 1;                   \
@@ -405,13 +409,16 @@ fit_maxmin (const float *restrict mx0, const float *restrict mx1, const float *r
     }                                                                                                     \
     gsize o = l - len;                                                                                    \
     float ic = (float) (1 / (1 - sf->b)), im = (float) (1 / sf->m), b = (float) sf->b;                    \
-    fit_maxmin_##NAME (mx, mx + o, mn, mn + o, ld + half, lg + half, mk + half, starts, ic, im, b);       \
+    guint negative = fit_maxmin_##NAME (mx, mx + o, mn, mn + o, ld + half, lg + half, mk + half, starts, ic, \
+                                        im, b);                                                           \
     for (gsize x = 0; x < half; x++)                                                                      \
-      fit_maxmin_##NAME (mx, mx + o, mn, mn + o, ld + x, lg + x, mk + x, 1, ic, im, b);                   \
+      negative += fit_maxmin_##NAME (mx, mx + o, mn, mn + o, ld + x, lg + x, mk + x, 1, ic, im, b);       \
     for (gsize x = starts + half; x < w; x++) {                                                           \
       gsize e = starts - 1;                                                                               \
-      fit_maxmin_##NAME (mx + e, mx + e + o, mn + e, mn + e + o, ld + x, lg + x, mk + x, 1, ic, im, b);   \
+      negative += fit_maxmin_##NAME (mx + e, mx + e + o, mn + e, mn + e + o, ld + x, lg + x, mk + x, 1, ic, \
+                                     im, b);                                                              \
     }                                                                                                     \
+    return negative;                                                                                      \
   }
 DECLARE_EXTREMES_INT (guint16, u16)
 DECLARE_EXTREMES_INT (guint8, u8)
@@ -624,6 +631,16 @@ window_start (const DsSingleFrame *sf, guint x)
   return MIN (s, sf->width - l);
 }
 
+/* A row's mask counts (as ds_count_mask_row) when `negative` pixels carry DS_MASK_NEGATIVE and
+ * the others no bit. */
+static inline void
+count_negative (guint64 counts[DS_MASK_N_BITS + 1], gsize w, guint negative)
+{
+  G_STATIC_ASSERT (DS_MASK_NEGATIVE == 1 << 4);
+  counts[0] += w - negative;
+  counts[1 + 4] += negative;
+}
+
 /* Rows [y0, y1): read, separate, flag the windows that hold a saturated or non-finite
  * sample, count. */
 DS_KERNEL void
@@ -639,14 +656,12 @@ rows (const Job *job, guint y0, guint y1, guint thread, gboolean sine)
     const void *in = ds_image_row (job->frame, y);
     if (raw && type == DS_SAMPLE_U16 && count_at_least_u16 (in, sf->width, job->threshold) == 0) {
       guint16 *scratch[4] = { (guint16 *) r.la[0], (guint16 *) r.la[1], (guint16 *) r.lb[0], (guint16 *) r.lb[1] };
-      maxmin_row_u16 (sf, in, scratch, ld, lg, mk);
-      ds_count_mask_row (mk, sf->width, job->counted[thread].c);
+      count_negative (job->counted[thread].c, sf->width, maxmin_row_u16 (sf, in, scratch, ld, lg, mk));
       continue;
     }
     if (raw && type == DS_SAMPLE_U8 && count_at_least_u8 (in, sf->width, job->threshold) == 0) {
       guint8 *scratch[4] = { (guint8 *) r.la[0], (guint8 *) r.la[1], (guint8 *) r.lb[0], (guint8 *) r.lb[1] };
-      maxmin_row_u8 (sf, in, scratch, ld, lg, mk);
-      ds_count_mask_row (mk, sf->width, job->counted[thread].c);
+      count_negative (job->counted[thread].c, sf->width, maxmin_row_u8 (sf, in, scratch, ld, lg, mk));
       continue;
     }
     gboolean flagged = read_row (job, y, &r);

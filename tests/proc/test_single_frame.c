@@ -352,13 +352,19 @@ fast_paths_match_reference (DsSampleType type)
           double m = p.pattern == DS_PATTERN_SINE ? 0.1 + 0.9 / 2 : 0.5 + 0.1 * 0.5;
           double hg = 0.9 / 2; /* sine stripes: h = (1 - b)/2 */
           g_assert_cmpfloat_with_epsilon (sep->meta.pattern_mean, m, 1e-12);
+          guint64 unflagged = 0, negative = 0;
           for (guint y = 0; y < h; y++) {
             const void *in = ds_image_row (frame, y), *din = ds_image_row (dark, y);
             double v[1500];
             for (guint x = 0; x < w; x++)
               v[x] = ds_image_sample (frame, in, x) - (with_dark ? ds_image_sample (dark, din, x) : 0);
             const float *t = ds_image_row (sep->transmissive, y), *g = ds_image_row (sep->scattered, y);
+            const guint8 *mk = ds_image_row (sep->mask, y);
             for (guint x = 0; x < w; x++) {
+              /* nothing saturated, every sample finite: the one bit is the sign of Lg */
+              g_assert_cmpuint (mk[x], ==, g[x] < 0 ? DS_MASK_NEGATIVE : 0);
+              unflagged += mk[x] == 0;
+              negative += mk[x] != 0;
               guint s = ref_start (x, w, l);
               double ld, lg, tol_ld, tol_lg;
               if (e == DS_ESTIMATOR_SINE) {
@@ -394,6 +400,10 @@ fast_paths_match_reference (DsSampleType type)
                          tol_ld, g[x], lg, tol_lg);
             }
           }
+          /* the counts in meta are the mask's */
+          g_assert_cmpuint (sep->meta.valid_pixels, ==, unflagged);
+          g_assert_cmpuint (sep->meta.flagged[4], ==, negative);
+          g_assert_cmpuint (DS_MASK_NEGATIVE, ==, 1u << 4);
         }
       }
     }
