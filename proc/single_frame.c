@@ -283,11 +283,12 @@ typedef struct {
 
 /* The fit of n consecutive windows from their sums (t*) and the basis angle at their starts
  * (c, s): the sums rotated into the first window's basis, then its inverse normal matrix. */
-DS_KERNEL void
+DS_KERNEL guint
 fit_sine (const float *restrict t0, const float *restrict tc, const float *restrict ts, const float *restrict c,
           const float *restrict s, float *restrict ld, float *restrict lg, guint8 *restrict mk, gsize n,
           SineConsts k)
 {
+  guint negative = 0;
   for (gsize x = 0; x < n; x++) {
     float u = c[x] * tc[x] + s[x] * ts[x];
     float v = c[x] * ts[x] - s[x] * tc[x];
@@ -299,29 +300,35 @@ fit_sine (const float *restrict t0, const float *restrict tc, const float *restr
     ld[x] = d;
     lg[x] = g;
     mk[x] = g < 0 ? DS_MASK_NEGATIVE : 0;
+    negative += g < 0;
   }
+  return negative;
 }
 
 /* fit_sine for an isotropic window: M = g0 t0 and |(a, b)| = g3 |(tc, ts)| in any basis. */
-DS_KERNEL void
+DS_KERNEL guint
 fit_sine_isotropic (const float *restrict t0, const float *restrict tc, const float *restrict ts, float *restrict ld,
                     float *restrict lg, guint8 *restrict mk, gsize n, float g0, float amp, float inv_m)
 {
+  guint negative = 0;
   for (gsize x = 0; x < n; x++) {
     float d = sqrtf (tc[x] * tc[x] + ts[x] * ts[x]) * amp;
     float g = g0 * t0[x] * inv_m - d;
     ld[x] = d;
     lg[x] = g;
     mk[x] = g < 0 ? DS_MASK_NEGATIVE : 0;
+    negative += g < 0;
   }
+  return negative;
 }
 
 /* n consecutive windows' max and min from two overlapping power-of-two extremes. */
-DS_KERNEL void
+DS_KERNEL guint
 fit_maxmin (const float *restrict mx0, const float *restrict mx1, const float *restrict mn0,
             const float *restrict mn1, float *restrict ld, float *restrict lg, guint8 *restrict mk, gsize n,
             float inv_contrast, float inv_m, float b)
 {
+  guint negative = 0;
   for (gsize x = 0; x < n; x++) {
     float mx = mx0[x] > mx1[x] ? mx0[x] : mx1[x];
     float mn = mn0[x] < mn1[x] ? mn0[x] : mn1[x];
@@ -330,7 +337,9 @@ fit_maxmin (const float *restrict mx0, const float *restrict mx1, const float *r
     ld[x] = d;
     lg[x] = g;
     mk[x] = g < 0 ? DS_MASK_NEGATIVE : 0;
+    negative += g < 0;
   }
+  return negative;
 }
 
 /* Integer frames without a dark frame: the extremes in the samples' own type (two or four
@@ -559,9 +568,11 @@ series_sums (const float *a, gsize starts, gsize l, float *t, float *la, float *
 
 /* The row in tiles of sf->tile window starts, so that the levels stay in the first-level
  * cache; a tile reads the l - 1 columns after it again. */
-DS_KERNEL void
+/* Returns the pixels flagged negative. */
+DS_KERNEL guint
 sine_row (const DsSingleFrame *sf, Rows *r, float *ld, float *lg, guint8 *mk)
 {
+  guint negative = 0;
   gsize w = sf->width, l = sf->window, half = sf->half, starts = w - l + 1;
   SineConsts k = { .inv_h = (float) (1 / sf->h), .inv_m = (float) (1 / sf->m) };
   memcpy (k.g, sf->g, sizeof k.g);
@@ -575,29 +586,32 @@ sine_row (const DsSingleFrame *sf, Rows *r, float *ld, float *lg, guint8 *mk)
     const float *t0 = sums[0], *tc = sums[1], *ts = sums[2];
     if (sf->isotropic) {
       float g0 = k.g[0], amp = k.g[3] * k.inv_h;
-      fit_sine_isotropic (t0, tc, ts, ld + half + x0, lg + half + x0, mk + half + x0, n, g0, amp, k.inv_m);
+      negative += fit_sine_isotropic (t0, tc, ts, ld + half + x0, lg + half + x0, mk + half + x0, n, g0, amp, k.inv_m);
       for (gsize x = 0; x0 == 0 && x < half; x++)
-        fit_sine_isotropic (t0, tc, ts, ld + x, lg + x, mk + x, 1, g0, amp, k.inv_m);
+        negative += fit_sine_isotropic (t0, tc, ts, ld + x, lg + x, mk + x, 1, g0, amp, k.inv_m);
       for (gsize x = starts + half; x0 + n == starts && x < w; x++) {
         gsize e = n - 1;
-        fit_sine_isotropic (t0 + e, tc + e, ts + e, ld + x, lg + x, mk + x, 1, g0, amp, k.inv_m);
+        negative += fit_sine_isotropic (t0 + e, tc + e, ts + e, ld + x, lg + x, mk + x, 1, g0, amp, k.inv_m);
       }
       continue;
     }
     /* pixel x's window starts at x - half, clamped to [0, starts - 1] */
-    fit_sine (t0, tc, ts, c, s, ld + half + x0, lg + half + x0, mk + half + x0, n, k);
+    negative += fit_sine (t0, tc, ts, c, s, ld + half + x0, lg + half + x0, mk + half + x0, n, k);
     for (gsize x = 0; x0 == 0 && x < half; x++)
-      fit_sine (t0, tc, ts, c, s, ld + x, lg + x, mk + x, 1, k);
+      negative += fit_sine (t0, tc, ts, c, s, ld + x, lg + x, mk + x, 1, k);
     for (gsize x = starts + half; x0 + n == starts && x < w; x++) {
       gsize e = n - 1;
-      fit_sine (t0 + e, tc + e, ts + e, c + e, s + e, ld + x, lg + x, mk + x, 1, k);
+      negative += fit_sine (t0 + e, tc + e, ts + e, c + e, s + e, ld + x, lg + x, mk + x, 1, k);
     }
   }
+  return negative;
 }
 
-DS_KERNEL void
+/* Returns the pixels flagged negative. */
+DS_KERNEL guint
 maxmin_row (const DsSingleFrame *sf, Rows *r, float *ld, float *lg, guint8 *mk)
 {
+  guint negative = 0;
   gsize w = sf->width, l = sf->window, half = sf->half, starts = w - l + 1, len = 1;
   const float *mx = r->v, *mn = r->v;
   float *next[2] = { r->la[0], r->la[1] }, *spare[2] = { r->lb[0], r->lb[1] };
@@ -614,13 +628,14 @@ maxmin_row (const DsSingleFrame *sf, Rows *r, float *ld, float *lg, guint8 *mk)
   /* extremes over [s, s + len) and [s + l - len, s + l): together the window, len <= l < 2 len */
   gsize o = l - len;
   float ic = (float) (1 / (1 - sf->b)), im = (float) (1 / sf->m), b = (float) sf->b;
-  fit_maxmin (mx, mx + o, mn, mn + o, ld + half, lg + half, mk + half, starts, ic, im, b);
+  negative += fit_maxmin (mx, mx + o, mn, mn + o, ld + half, lg + half, mk + half, starts, ic, im, b);
   for (gsize x = 0; x < half; x++)
-    fit_maxmin (mx, mx + o, mn, mn + o, ld + x, lg + x, mk + x, 1, ic, im, b);
+    negative += fit_maxmin (mx, mx + o, mn, mn + o, ld + x, lg + x, mk + x, 1, ic, im, b);
   for (gsize x = starts + half; x < w; x++) {
     gsize e = starts - 1;
-    fit_maxmin (mx + e, mx + e + o, mn + e, mn + e + o, ld + x, lg + x, mk + x, 1, ic, im, b);
+    negative += fit_maxmin (mx + e, mx + e + o, mn + e, mn + e + o, ld + x, lg + x, mk + x, 1, ic, im, b);
   }
+  return negative;
 }
 
 /* Each pixel's window start: centred, clamped so that the window stays inside the row. */
@@ -665,11 +680,12 @@ rows (const Job *job, guint y0, guint y1, guint thread, gboolean sine)
       continue;
     }
     gboolean flagged = read_row (job, y, &r);
-    if (sine)
-      sine_row (sf, &r, ld, lg, mk);
-    else
-      maxmin_row (sf, &r, ld, lg, mk);
-    for (guint x = 0; flagged && x < sf->width; x++) {
+    guint negative = sine ? sine_row (sf, &r, ld, lg, mk) : maxmin_row (sf, &r, ld, lg, mk);
+    if (!flagged) {
+      count_negative (job->counted[thread].c, sf->width, negative);
+      continue;
+    }
+    for (guint x = 0; x < sf->width; x++) {
       guint s = window_start (sf, x), e = s + sf->window;
       if (r.sat[e] > r.sat[s])
         mk[x] |= DS_MASK_SATURATED;
