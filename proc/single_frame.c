@@ -651,7 +651,7 @@ window_start (const DsSingleFrame *sf, guint x)
 static inline void
 count_negative (guint64 counts[DS_MASK_N_BITS + 1], gsize w, guint negative)
 {
-  G_STATIC_ASSERT (DS_MASK_NEGATIVE == 1 << 4);
+  G_STATIC_ASSERT (DS_MASK_NEGATIVE == 1 << 4); /* counts[1 + bit] */
   counts[0] += w - negative;
   counts[1 + 4] += negative;
 }
