@@ -20,6 +20,10 @@ struct DsSingleFrame {
    * the window's sums are rotated back by the table's angle at s. */
   float *cos_x, *sin_x;
   float g[6];
+  /* The window's normal matrix is isotropic (diag(l, l/2, l/2): the window is a whole number of
+   * periods, as at an integer P), so its inverse commutes with the rotation: the fit needs no
+   * rotation and the amplitude is g[3] |(sum v cos, sum v sin)|. */
+  gboolean isotropic;
   guint threads;
   DsWorkerPool *pool;     /* made on first use when threads > 1 */
   gsize tile;             /* sine: window starts per tile of a row */
@@ -78,6 +82,10 @@ plan_sine (DsSingleFrame *sf, GError **error)
   }
   for (guint i = 0; i < 6; i++)
     sf->g[i] = (float) inv[i];
+  /* isotropic when the terms the rotation would mix are zero to well below float rounding */
+  double scale = fmax (fabs (inv[0]), fabs (inv[3]));
+  sf->isotropic = fabs (inv[1]) <= 1e-9 * scale && fabs (inv[2]) <= 1e-9 * scale && fabs (inv[4]) <= 1e-9 * scale &&
+                  fabs (inv[3] - inv[5]) <= 1e-9 * scale;
   return TRUE;
 }
 
@@ -133,9 +141,10 @@ ds_single_frame_free (DsSingleFrame *sf)
   g_free (sf);
 }
 
-/* Per-thread scratch, in floats: the row, two levels of three series and the three window
- * sums (sine; maxmin uses five rows of it), then two rows of counts. */
-#define ROWS_PER_THREAD 10u
+/* Per-thread scratch, in floats: the row, its products with the basis, two levels of three
+ * series and the three window sums (sine; maxmin uses five rows of it), then two rows of
+ * counts. */
+#define ROWS_PER_THREAD 12u
 
 DsSingleFrame *
 ds_single_frame_new (const DsSeparationParams *params, guint width, guint height, GError **error)
@@ -172,9 +181,11 @@ ds_single_frame_new (const DsSeparationParams *params, guint width, guint height
   guint t = params->threads ? params->threads : (guint) g_get_num_processors ();
   sf->threads = (gsize) width * height >= DS_SINGLE_FRAME_THREADED_PIXELS ? CLAMP (t, 1u, DS_MAX_THREADS) : 1;
   sf->tile = MAX (512u, 4 * sf->window);
-  /* Rows a multiple of 16 floats apart, so that two rows never share a cache line; the
-   * sine's levels and sums use a tile's worth of each. */
-  gsize row = ((gsize) width + 1 + 15) & ~(gsize) 15;
+  /* Rows a multiple of 16 floats apart, so that two rows never share a cache line, plus about
+   * half a page: at widths of a power of two the rows would otherwise start one line apart
+   * modulo 4096 bytes, and a pass's loads from one row would wait on its stores to the next
+   * (a false dependency on x86). The sine's levels and sums use a tile's worth of each. */
+  gsize row = (((gsize) width + 1 + 15) & ~(gsize) 15) + 528;
   sf->scratch_floats = row * (ROWS_PER_THREAD + 2);
   sf->scratch = g_malloc ((gsize) sf->threads * sf->scratch_floats * sizeof (float));
   return g_steal_pointer (&sf);
@@ -201,66 +212,55 @@ ds_single_frame_info (const DsSingleFrame *sf)
 DECLARE_READ_INT (guint16, u16)
 DECLARE_READ_INT (guint8, u8)
 
-/* Sums of 1, 2 or 4 consecutive samples of v, v cos, v sin from each x < n, pairwise, into o
- * (onto o when add: a call site passes a constant, so each loop is compiled without it). */
+/* The sine's three series (v, v cos, v sin) are summed one at a time: each pass then keeps
+ * two pointers (which the row loops hold in registers, where three series' six spilled), and
+ * the products v cos and v sin are made once per column instead of once per window level.
+ * The products and the pairwise order of the sums are those of summing the products in
+ * place, so the result is the same. */
+
+/* o[x] = a[x], x < n. */
 DS_KERNEL void
-direct_sums (const float *restrict v, const float *restrict c, const float *restrict s, float *restrict o0,
-             float *restrict o1, float *restrict o2, gsize n, guint len, gboolean add)
+copy1 (const float *restrict a, float *restrict o, gsize n)
 {
-  for (gsize x = 0; x < n; x++) {
-    float a0, a1, a2;
-    if (len == 1) {
-      a0 = v[x];
-      a1 = v[x] * c[x];
-      a2 = v[x] * s[x];
-    } else if (len == 2) {
-      a0 = v[x] + v[x + 1];
-      a1 = v[x] * c[x] + v[x + 1] * c[x + 1];
-      a2 = v[x] * s[x] + v[x + 1] * s[x + 1];
-    } else {
-      a0 = (v[x] + v[x + 1]) + (v[x + 2] + v[x + 3]);
-      a1 = (v[x] * c[x] + v[x + 1] * c[x + 1]) + (v[x + 2] * c[x + 2] + v[x + 3] * c[x + 3]);
-      a2 = (v[x] * s[x] + v[x + 1] * s[x + 1]) + (v[x + 2] * s[x + 2] + v[x + 3] * s[x + 3]);
-    }
-    o0[x] = add ? o0[x] + a0 : a0;
-    o1[x] = add ? o1[x] + a1 : a1;
-    o2[x] = add ? o2[x] + a2 : a2;
-  }
+  memcpy (o, a, n * sizeof (float));
 }
 
-/* One doubling step of three series: o[x] = a[x] + a[x + shift], x < n. */
+/* One doubling step: o[x] = a[x] + a[x + shift], x < n (onto o when add: a call site passes a
+ * constant, so each loop is compiled without the other). */
 DS_KERNEL void
-pair_sums3 (const float *restrict a0, const float *restrict a1, const float *restrict a2, float *restrict o0,
-            float *restrict o1, float *restrict o2, gsize n, gsize shift)
+pair_sums1 (const float *restrict a, float *restrict o, gsize n, gsize shift, gboolean add)
 {
   for (gsize x = 0; x < n; x++) {
-    o0[x] = a0[x] + a0[x + shift];
-    o1[x] = a1[x] + a1[x + shift];
-    o2[x] = a2[x] + a2[x + shift];
+    float v = a[x] + a[x + shift];
+    o[x] = add ? o[x] + v : v;
   }
 }
 
 /* Two doubling steps in one pass: o[x] = (a[x] + a[x + shift]) + (a[x + 2 shift] + a[x + 3 shift]),
  * the same sums in the same order, x < n. */
 DS_KERNEL void
-quad_sums3 (const float *restrict a0, const float *restrict a1, const float *restrict a2, float *restrict o0,
-            float *restrict o1, float *restrict o2, gsize n, gsize shift)
+quad_sums1 (const float *restrict a, float *restrict o, gsize n, gsize shift)
 {
-  for (gsize x = 0; x < n; x++) {
-    o0[x] = (a0[x] + a0[x + shift]) + (a0[x + 2 * shift] + a0[x + 3 * shift]);
-    o1[x] = (a1[x] + a1[x + shift]) + (a1[x + 2 * shift] + a1[x + 3 * shift]);
-    o2[x] = (a2[x] + a2[x + shift]) + (a2[x + 2 * shift] + a2[x + 3 * shift]);
-  }
+  for (gsize x = 0; x < n; x++)
+    o[x] = (a[x] + a[x + shift]) + (a[x + 2 * shift] + a[x + 3 * shift]);
 }
 
+/* t[x] += a[x], x < n. */
 DS_KERNEL void
-add3 (const float *restrict a0, const float *restrict a1, const float *restrict a2, float *restrict t0,
-      float *restrict t1, float *restrict t2, gsize n)
+add1 (const float *restrict a, float *restrict t, gsize n)
+{
+  for (gsize x = 0; x < n; x++)
+    t[x] += a[x];
+}
+
+/* The products of the row with the basis: pc[x] = v[x] cos, ps[x] = v[x] sin, x < n. */
+DS_KERNEL void
+basis_products (const float *restrict v, const float *restrict c, const float *restrict sn, float *restrict pc,
+                float *restrict ps, gsize n)
 {
   for (gsize x = 0; x < n; x++) {
-    t0[x] += a0[x];
-    t1[x] += a1[x];
-    t2[x] += a2[x];
+    pc[x] = v[x] * c[x];
+    ps[x] = v[x] * sn[x];
   }
 }
 
@@ -283,11 +283,12 @@ typedef struct {
 
 /* The fit of n consecutive windows from their sums (t*) and the basis angle at their starts
  * (c, s): the sums rotated into the first window's basis, then its inverse normal matrix. */
-DS_KERNEL void
+DS_KERNEL guint
 fit_sine (const float *restrict t0, const float *restrict tc, const float *restrict ts, const float *restrict c,
           const float *restrict s, float *restrict ld, float *restrict lg, guint8 *restrict mk, gsize n,
           SineConsts k)
 {
+  guint negative = 0;
   for (gsize x = 0; x < n; x++) {
     float u = c[x] * tc[x] + s[x] * ts[x];
     float v = c[x] * ts[x] - s[x] * tc[x];
@@ -299,15 +300,35 @@ fit_sine (const float *restrict t0, const float *restrict tc, const float *restr
     ld[x] = d;
     lg[x] = g;
     mk[x] = g < 0 ? DS_MASK_NEGATIVE : 0;
+    negative += g < 0;
   }
+  return negative;
+}
+
+/* fit_sine for an isotropic window: M = g0 t0 and |(a, b)| = g3 |(tc, ts)| in any basis. */
+DS_KERNEL guint
+fit_sine_isotropic (const float *restrict t0, const float *restrict tc, const float *restrict ts, float *restrict ld,
+                    float *restrict lg, guint8 *restrict mk, gsize n, float g0, float amp, float inv_m)
+{
+  guint negative = 0;
+  for (gsize x = 0; x < n; x++) {
+    float d = sqrtf (tc[x] * tc[x] + ts[x] * ts[x]) * amp;
+    float g = g0 * t0[x] * inv_m - d;
+    ld[x] = d;
+    lg[x] = g;
+    mk[x] = g < 0 ? DS_MASK_NEGATIVE : 0;
+    negative += g < 0;
+  }
+  return negative;
 }
 
 /* n consecutive windows' max and min from two overlapping power-of-two extremes. */
-DS_KERNEL void
+DS_KERNEL guint
 fit_maxmin (const float *restrict mx0, const float *restrict mx1, const float *restrict mn0,
             const float *restrict mn1, float *restrict ld, float *restrict lg, guint8 *restrict mk, gsize n,
             float inv_contrast, float inv_m, float b)
 {
+  guint negative = 0;
   for (gsize x = 0; x < n; x++) {
     float mx = mx0[x] > mx1[x] ? mx0[x] : mx1[x];
     float mn = mn0[x] < mn1[x] ? mn0[x] : mn1[x];
@@ -316,51 +337,105 @@ fit_maxmin (const float *restrict mx0, const float *restrict mx1, const float *r
     ld[x] = d;
     lg[x] = g;
     mk[x] = g < 0 ? DS_MASK_NEGATIVE : 0;
+    negative += g < 0;
   }
+  return negative;
 }
 
-/* u16 frames without a dark frame: the extremes in the samples' own type, twice the lanes
- * of float and no conversion pass; exact as the float path is. */
-DS_KERNEL guint
-count_at_least_u16 (const guint16 *restrict in, gsize w, guint threshold)
-{
-  guint n = 0;
-  for (gsize x = 0; x < w; x++)
-    n += in[x] >= threshold;
-  return n;
-}
-
-DS_KERNEL void
-pair_extremes_u16 (const guint16 *restrict amax, const guint16 *restrict amin, guint16 *restrict omax,
-                   guint16 *restrict omin, gsize n, gsize shift)
-{
-  for (gsize x = 0; x < n; x++) {
-    guint16 p = amax[x], q = amax[x + shift], r = amin[x], s = amin[x + shift];
-    omax[x] = p > q ? p : q;
-    omin[x] = r < s ? r : s;
+/* Integer frames without a dark frame: the extremes in the samples' own type (two or four
+ * times the lanes of float, no conversion pass), exact as the float path is. Levels go up
+ * by four where the window allows (one pass of three compares instead of two passes). */
+#define DECLARE_EXTREMES_INT(T, NAME)                                                                     \
+  DS_KERNEL guint count_at_least_##NAME (const T *restrict in, gsize w, guint threshold)                \
+  {                                                                                                       \
+    guint n = 0;                                                                                          \
+    for (gsize x = 0; x < w; x++)                                                                         \
+      n += in[x] >= threshold;                                                                            \
+    return n;                                                                                             \
+  }                                                                                                       \
+  DS_KERNEL void pair_extremes_##NAME (const T *restrict amax, const T *restrict amin, T *restrict omax, \
+                                       T *restrict omin, gsize n, gsize shift)                            \
+  {                                                                                                       \
+    for (gsize x = 0; x < n; x++) {                                                                       \
+      T p = amax[x], q = amax[x + shift], r = amin[x], s = amin[x + shift];                               \
+      omax[x] = p > q ? p : q;                                                                            \
+      omin[x] = r < s ? r : s;                                                                            \
+    }                                                                                                     \
+  }                                                                                                       \
+  DS_KERNEL void quad_extremes_##NAME (const T *restrict amax, const T *restrict amin, T *restrict omax, \
+                                       T *restrict omin, gsize n, gsize shift)                            \
+  {                                                                                                       \
+    for (gsize x = 0; x < n; x++) {                                                                       \
+      T p = amax[x], q = amax[x + shift], u = amax[x + 2 * shift], v = amax[x + 3 * shift];               \
+      p = p > q ? p : q;                                                                                  \
+      u = u > v ? u : v;                                                                                  \
+      omax[x] = p > u ? p : u;                                                                            \
+      T r = amin[x], s = amin[x + shift], e = amin[x + 2 * shift], f = amin[x + 3 * shift];               \
+      r = r < s ? r : s;                                                                                  \
+      e = e < f ? e : f;                                                                                  \
+      omin[x] = r < e ? r : e;                                                                            \
+    }                                                                                                     \
+  }                                                                                                       \
+  DS_KERNEL guint fit_maxmin_##NAME (const T *restrict mx0, const T *restrict mx1, const T *restrict mn0, \
+                                     const T *restrict mn1, float *restrict ld, float *restrict lg,       \
+                                     guint8 *restrict mk, gsize n, float inv_contrast, float inv_m, float b) \
+  {                                                                                                       \
+    guint negative = 0;                                                                                   \
+    for (gsize x = 0; x < n; x++) {                                                                       \
+      T imx = mx0[x] > mx1[x] ? mx0[x] : mx1[x];                                                          \
+      T imn = mn0[x] < mn1[x] ? mn0[x] : mn1[x];                                                          \
+      float mn = imn;                                                                                     \
+      float d = (float) (T) (imx - imn) * inv_contrast;                                                   \
+      float g = (mn - b * d) * inv_m;                                                                     \
+      ld[x] = d;                                                                                          \
+      lg[x] = g;                                                                                          \
+      mk[x] = g < 0 ? DS_MASK_NEGATIVE : 0;                                                               \
+      negative += g < 0;                                                                                  \
+    }                                                                                                     \
+    return negative;                                                                                      \
+  }                                                                                                       \
+  /* Returns the pixels flagged negative, the only bit this path sets. */                                 \
+  DS_KERNEL guint maxmin_row_##NAME (const DsSingleFrame *sf, const T *in, T *scratch[4], float *ld,        \
+                                    float *lg, guint8 *mk)                                                \
+  {                                                                                                       \
+    gsize w = sf->width, l = sf->window, half = sf->half, starts = w - l + 1, len = 1;                   \
+    const T *mx = in, *mn = in;                                                                           \
+    T *next[2] = { scratch[0], scratch[1] }, *spare[2] = { scratch[2], scratch[3] };                      \
+    while (len * 2 <= l) {                                                                                \
+      gsize step = len * 4 <= l ? 4 : 2;                                                                  \
+      if (step == 4)                                                                                      \
+        quad_extremes_##NAME (mx, mn, next[0], next[1], w - 4 * len + 1, len);                            \
+      else                                                                                                \
+        pair_extremes_##NAME (mx, mn, next[0], next[1], w - 2 * len + 1, len);                            \
+      len *= step;                                                                                        \
+      mx = next[0];                                                                                       \
+      mn = next[1];                                                                                       \
+      T *t0 = next[0], *t1 = next[1];                                                                     \
+      next[0] = spare[0];                                                                                 \
+      next[1] = spare[1];                                                                                 \
+      spare[0] = t0;                                                                                      \
+      spare[1] = t1;                                                                                      \
+    }                                                                                                     \
+    gsize o = l - len;                                                                                    \
+    float ic = (float) (1 / (1 - sf->b)), im = (float) (1 / sf->m), b = (float) sf->b;                    \
+    guint negative = fit_maxmin_##NAME (mx, mx + o, mn, mn + o, ld + half, lg + half, mk + half, starts, ic, \
+                                        im, b);                                                           \
+    for (gsize x = 0; x < half; x++)                                                                      \
+      negative += fit_maxmin_##NAME (mx, mx + o, mn, mn + o, ld + x, lg + x, mk + x, 1, ic, im, b);       \
+    for (gsize x = starts + half; x < w; x++) {                                                           \
+      gsize e = starts - 1;                                                                               \
+      negative += fit_maxmin_##NAME (mx + e, mx + e + o, mn + e, mn + e + o, ld + x, lg + x, mk + x, 1, ic, \
+                                     im, b);                                                              \
+    }                                                                                                     \
+    return negative;                                                                                      \
   }
-}
-
-DS_KERNEL void
-fit_maxmin_u16 (const guint16 *restrict mx0, const guint16 *restrict mx1, const guint16 *restrict mn0,
-                const guint16 *restrict mn1, float *restrict ld, float *restrict lg, guint8 *restrict mk, gsize n,
-                float inv_contrast, float inv_m, float b)
-{
-  for (gsize x = 0; x < n; x++) {
-    float mx = mx0[x] > mx1[x] ? mx0[x] : mx1[x];
-    float mn = mn0[x] < mn1[x] ? mn0[x] : mn1[x];
-    float d = (mx - mn) * inv_contrast;
-    float g = (mn - b * d) * inv_m;
-    ld[x] = d;
-    lg[x] = g;
-    mk[x] = g < 0 ? DS_MASK_NEGATIVE : 0;
-  }
-}
+DECLARE_EXTREMES_INT (guint16, u16)
+DECLARE_EXTREMES_INT (guint8, u8)
 
 /* ---- One row ---- */
 
 typedef struct {
-  float *v;
+  float *v, *pc, *ps;   /* the row; sine: its products with cos and sin */
   float *la[3], *lb[3]; /* two levels of three series (maxmin: max and min in la, lb) */
   float *t[3];          /* sine: the window sums, per window start */
   guint *sat, *bad;     /* prefix counts: saturated, non-finite columns before x */
@@ -371,11 +446,11 @@ rows_of (const DsSingleFrame *sf, guint thread)
 {
   gsize row = sf->scratch_floats / (ROWS_PER_THREAD + 2);
   float *f = sf->scratch + (gsize) thread * sf->scratch_floats;
-  Rows r = { .v = f };
+  Rows r = { .v = f, .pc = f + row, .ps = f + 2 * row };
   for (guint i = 0; i < 3; i++) {
-    r.la[i] = f + (1 + i) * row;
-    r.lb[i] = f + (4 + i) * row;
-    r.t[i] = f + (7 + i) * row;
+    r.la[i] = f + (3 + i) * row;
+    r.lb[i] = f + (6 + i) * row;
+    r.t[i] = f + (9 + i) * row;
   }
   r.sat = (guint *) (f + ROWS_PER_THREAD * row);
   r.bad = (guint *) (f + (ROWS_PER_THREAD + 1) * row);
@@ -440,59 +515,51 @@ read_row (const Job *job, guint y, Rows *r)
   return TRUE;
 }
 
-/* Window sums of v, v cos, v sin for every window start s < w - l + 1 into r->t. */
-/* Window sums of v, v cos, v sin (c, sn: cos and sin at the same columns) for the window
- * starts s < starts, over columns [0, starts + l - 1): sums[i][s], in r->t, or in a level
- * buffer when the window is one level (a power of two). */
-DS_KERNEL void
-window_sums (const DsSingleFrame *sf, const float *v, const float *c, const float *sn, gsize starts, Rows *r,
-             const float *sums[3])
+/* One series' window sums, a[s] + ... + a[s + l - 1] for the window starts s < starts (a holds
+ * columns [0, starts + l - 1)): into t, or left in a level buffer (la, lb) when the window is
+ * one level (a power of two); returns where they are. The window is its length's binary
+ * digits, low first: one and two columns from a, then levels of 4, 8, ... columns, each from
+ * two of the level below, so every sum is pairwise. */
+DS_KERNEL const float *
+series_sums (const float *a, gsize starts, gsize l, float *t, float *la, float *lb)
 {
-  gsize l = sf->window, w = starts + l - 1, off = 0;
-  float **t = r->t;
-  for (guint i = 0; i < 3; i++)
-    sums[i] = t[i];
-  /* the window's first columns: its length's two lowest binary digits, from the samples */
+  gsize w = starts + l - 1, off = 0;
   if (l & 1) {
-    direct_sums (v, c, sn, t[0], t[1], t[2], starts, 1, FALSE);
+    copy1 (a, t, starts);
     off = 1;
   }
   if (l & 2) {
     if (off)
-      direct_sums (v + off, c + off, sn + off, t[0], t[1], t[2], starts, 2, TRUE);
+      pair_sums1 (a + off, t, starts, 1, TRUE);
     else
-      direct_sums (v, c, sn, t[0], t[1], t[2], starts, 2, FALSE);
+      pair_sums1 (a, t, starts, 1, FALSE);
     off += 2;
   }
   if (l < 4)
-    return;
-  /* then levels of 4, 8, ... columns, each from two of the level below */
-  float **level = r->la, **spare = r->lb;
-  direct_sums (v, c, sn, level[0], level[1], level[2], w - 3, 4, FALSE);
+    return t;
+  float *level = la, *spare = lb;
+  quad_sums1 (a, level, w - 3, 1);
   for (gsize len = 4;;) {
     if (l & len) {
       if (off) {
-        add3 (level[0] + off, level[1] + off, level[2] + off, t[0], t[1], t[2], starts);
+        add1 (level + off, t, starts);
       } else if (len * 2 > l) {
-        /* the window is this level alone: its sums as they stand */
-        for (guint i = 0; i < 3; i++)
-          sums[i] = level[i];
+        return level; /* the window is this level alone: its sums as they stand */
       } else {
-        for (guint i = 0; i < 3; i++)
-          memcpy (t[i], level[i] + off, starts * sizeof (float));
+        memcpy (t, level, starts * sizeof (float));
       }
       off += len;
     }
     if (len * 2 > l)
-      break;
+      return t;
     /* the next level the window needs, from this one: valid for x + next <= w; a level the
      * window does not use is skipped (four of this level in one pass) */
     gsize next = len * 4 <= l && !(l & (len * 2)) ? len * 4 : len * 2;
     if (next == len * 4)
-      quad_sums3 (level[0], level[1], level[2], spare[0], spare[1], spare[2], w - next + 1, len);
+      quad_sums1 (level, spare, w - next + 1, len);
     else
-      pair_sums3 (level[0], level[1], level[2], spare[0], spare[1], spare[2], w - next + 1, len);
-    float **tmp = level;
+      pair_sums1 (level, spare, w - next + 1, len, FALSE);
+    float *tmp = level;
     level = spare;
     spare = tmp;
     len = next;
@@ -501,31 +568,50 @@ window_sums (const DsSingleFrame *sf, const float *v, const float *c, const floa
 
 /* The row in tiles of sf->tile window starts, so that the levels stay in the first-level
  * cache; a tile reads the l - 1 columns after it again. */
-DS_KERNEL void
+/* Returns the pixels flagged negative. */
+DS_KERNEL guint
 sine_row (const DsSingleFrame *sf, Rows *r, float *ld, float *lg, guint8 *mk)
 {
+  guint negative = 0;
   gsize w = sf->width, l = sf->window, half = sf->half, starts = w - l + 1;
   SineConsts k = { .inv_h = (float) (1 / sf->h), .inv_m = (float) (1 / sf->m) };
   memcpy (k.g, sf->g, sizeof k.g);
+  basis_products (r->v, sf->cos_x, sf->sin_x, r->pc, r->ps, w);
+  const float *series[3] = { r->v, r->pc, r->ps };
   for (gsize x0 = 0; x0 < starts; x0 += sf->tile) {
     gsize n = MIN (sf->tile, starts - x0);
     const float *c = sf->cos_x + x0, *s = sf->sin_x + x0, *sums[3];
-    window_sums (sf, r->v + x0, c, s, n, r, sums);
+    for (guint i = 0; i < 3; i++)
+      sums[i] = series_sums (series[i] + x0, n, l, r->t[i], r->la[i], r->lb[i]);
     const float *t0 = sums[0], *tc = sums[1], *ts = sums[2];
+    if (sf->isotropic) {
+      float g0 = k.g[0], amp = k.g[3] * k.inv_h;
+      negative += fit_sine_isotropic (t0, tc, ts, ld + half + x0, lg + half + x0, mk + half + x0, n, g0, amp, k.inv_m);
+      for (gsize x = 0; x0 == 0 && x < half; x++)
+        negative += fit_sine_isotropic (t0, tc, ts, ld + x, lg + x, mk + x, 1, g0, amp, k.inv_m);
+      for (gsize x = starts + half; x0 + n == starts && x < w; x++) {
+        gsize e = n - 1;
+        negative += fit_sine_isotropic (t0 + e, tc + e, ts + e, ld + x, lg + x, mk + x, 1, g0, amp, k.inv_m);
+      }
+      continue;
+    }
     /* pixel x's window starts at x - half, clamped to [0, starts - 1] */
-    fit_sine (t0, tc, ts, c, s, ld + half + x0, lg + half + x0, mk + half + x0, n, k);
+    negative += fit_sine (t0, tc, ts, c, s, ld + half + x0, lg + half + x0, mk + half + x0, n, k);
     for (gsize x = 0; x0 == 0 && x < half; x++)
-      fit_sine (t0, tc, ts, c, s, ld + x, lg + x, mk + x, 1, k);
+      negative += fit_sine (t0, tc, ts, c, s, ld + x, lg + x, mk + x, 1, k);
     for (gsize x = starts + half; x0 + n == starts && x < w; x++) {
       gsize e = n - 1;
-      fit_sine (t0 + e, tc + e, ts + e, c + e, s + e, ld + x, lg + x, mk + x, 1, k);
+      negative += fit_sine (t0 + e, tc + e, ts + e, c + e, s + e, ld + x, lg + x, mk + x, 1, k);
     }
   }
+  return negative;
 }
 
-DS_KERNEL void
+/* Returns the pixels flagged negative. */
+DS_KERNEL guint
 maxmin_row (const DsSingleFrame *sf, Rows *r, float *ld, float *lg, guint8 *mk)
 {
+  guint negative = 0;
   gsize w = sf->width, l = sf->window, half = sf->half, starts = w - l + 1, len = 1;
   const float *mx = r->v, *mn = r->v;
   float *next[2] = { r->la[0], r->la[1] }, *spare[2] = { r->lb[0], r->lb[1] };
@@ -542,42 +628,14 @@ maxmin_row (const DsSingleFrame *sf, Rows *r, float *ld, float *lg, guint8 *mk)
   /* extremes over [s, s + len) and [s + l - len, s + l): together the window, len <= l < 2 len */
   gsize o = l - len;
   float ic = (float) (1 / (1 - sf->b)), im = (float) (1 / sf->m), b = (float) sf->b;
-  fit_maxmin (mx, mx + o, mn, mn + o, ld + half, lg + half, mk + half, starts, ic, im, b);
+  negative += fit_maxmin (mx, mx + o, mn, mn + o, ld + half, lg + half, mk + half, starts, ic, im, b);
   for (gsize x = 0; x < half; x++)
-    fit_maxmin (mx, mx + o, mn, mn + o, ld + x, lg + x, mk + x, 1, ic, im, b);
+    negative += fit_maxmin (mx, mx + o, mn, mn + o, ld + x, lg + x, mk + x, 1, ic, im, b);
   for (gsize x = starts + half; x < w; x++) {
     gsize e = starts - 1;
-    fit_maxmin (mx + e, mx + e + o, mn + e, mn + e + o, ld + x, lg + x, mk + x, 1, ic, im, b);
+    negative += fit_maxmin (mx + e, mx + e + o, mn + e, mn + e + o, ld + x, lg + x, mk + x, 1, ic, im, b);
   }
-}
-
-/* maxmin_row on the u16 samples themselves (rows with nothing saturated). */
-DS_KERNEL void
-maxmin_row_u16 (const DsSingleFrame *sf, const guint16 *in, Rows *r, float *ld, float *lg, guint8 *mk)
-{
-  gsize w = sf->width, l = sf->window, half = sf->half, starts = w - l + 1, len = 1;
-  const guint16 *mx = in, *mn = in;
-  guint16 *next[2] = { (guint16 *) r->la[0], (guint16 *) r->la[1] };
-  guint16 *spare[2] = { (guint16 *) r->lb[0], (guint16 *) r->lb[1] };
-  for (; len * 2 <= l; len <<= 1) {
-    pair_extremes_u16 (mx, mn, next[0], next[1], w - 2 * len + 1, len);
-    mx = next[0];
-    mn = next[1];
-    guint16 *t0 = next[0], *t1 = next[1];
-    next[0] = spare[0];
-    next[1] = spare[1];
-    spare[0] = t0;
-    spare[1] = t1;
-  }
-  gsize o = l - len;
-  float ic = (float) (1 / (1 - sf->b)), im = (float) (1 / sf->m), b = (float) sf->b;
-  fit_maxmin_u16 (mx, mx + o, mn, mn + o, ld + half, lg + half, mk + half, starts, ic, im, b);
-  for (gsize x = 0; x < half; x++)
-    fit_maxmin_u16 (mx, mx + o, mn, mn + o, ld + x, lg + x, mk + x, 1, ic, im, b);
-  for (gsize x = starts + half; x < w; x++) {
-    gsize e = starts - 1;
-    fit_maxmin_u16 (mx + e, mx + e + o, mn + e, mn + e + o, ld + x, lg + x, mk + x, 1, ic, im, b);
-  }
+  return negative;
 }
 
 /* Each pixel's window start: centred, clamped so that the window stays inside the row. */
@@ -588,6 +646,16 @@ window_start (const DsSingleFrame *sf, guint x)
   return MIN (s, sf->width - l);
 }
 
+/* A row's mask counts (as ds_count_mask_row) when `negative` pixels carry DS_MASK_NEGATIVE and
+ * the others no bit. */
+static inline void
+count_negative (guint64 counts[DS_MASK_N_BITS + 1], gsize w, guint negative)
+{
+  G_STATIC_ASSERT (DS_MASK_NEGATIVE == 1 << 4); /* counts[1 + bit] */
+  counts[0] += w - negative;
+  counts[1 + 4] += negative;
+}
+
 /* Rows [y0, y1): read, separate, flag the windows that hold a saturated or non-finite
  * sample, count. */
 DS_KERNEL void
@@ -595,22 +663,29 @@ rows (const Job *job, guint y0, guint y1, guint thread, gboolean sine)
 {
   const DsSingleFrame *sf = job->sf;
   Rows r = rows_of (sf, thread);
-  gboolean raw16 = !sine && job->frame->type == DS_SAMPLE_U16 && !job->dark;
+  DsSampleType type = job->frame->type;
+  gboolean raw = !sine && !job->dark && (type == DS_SAMPLE_U16 || type == DS_SAMPLE_U8);
   for (guint y = y0; y < y1; y++) {
     float *ld = ds_image_row (job->sep->transmissive, y), *lg = ds_image_row (job->sep->scattered, y);
     guint8 *mk = ds_image_row (job->sep->mask, y);
-    const guint16 *in16 = ds_image_row (job->frame, y);
-    if (raw16 && count_at_least_u16 (in16, sf->width, job->threshold) == 0) {
-      maxmin_row_u16 (sf, in16, &r, ld, lg, mk);
-      ds_count_mask_row (mk, sf->width, job->counted[thread].c);
+    const void *in = ds_image_row (job->frame, y);
+    if (raw && type == DS_SAMPLE_U16 && count_at_least_u16 (in, sf->width, job->threshold) == 0) {
+      guint16 *scratch[4] = { (guint16 *) r.la[0], (guint16 *) r.la[1], (guint16 *) r.lb[0], (guint16 *) r.lb[1] };
+      count_negative (job->counted[thread].c, sf->width, maxmin_row_u16 (sf, in, scratch, ld, lg, mk));
+      continue;
+    }
+    if (raw && type == DS_SAMPLE_U8 && count_at_least_u8 (in, sf->width, job->threshold) == 0) {
+      guint8 *scratch[4] = { (guint8 *) r.la[0], (guint8 *) r.la[1], (guint8 *) r.lb[0], (guint8 *) r.lb[1] };
+      count_negative (job->counted[thread].c, sf->width, maxmin_row_u8 (sf, in, scratch, ld, lg, mk));
       continue;
     }
     gboolean flagged = read_row (job, y, &r);
-    if (sine)
-      sine_row (sf, &r, ld, lg, mk);
-    else
-      maxmin_row (sf, &r, ld, lg, mk);
-    for (guint x = 0; flagged && x < sf->width; x++) {
+    guint negative = sine ? sine_row (sf, &r, ld, lg, mk) : maxmin_row (sf, &r, ld, lg, mk);
+    if (!flagged) {
+      count_negative (job->counted[thread].c, sf->width, negative);
+      continue;
+    }
+    for (guint x = 0; x < sf->width; x++) {
       guint s = window_start (sf, x), e = s + sf->window;
       if (r.sat[e] > r.sat[s])
         mk[x] |= DS_MASK_SATURATED;

@@ -21,7 +21,10 @@
  * of 1, 2, 4 ... columns, each the sum or extreme of two of the level below, the window the
  * levels its length's binary digits name), so every sum is a pairwise sum of at most ceil(P)
  * samples: its rounding error is at most 2 log2(ceil(P)) float epsilons of the sum of the
- * samples' magnitudes, with no drift along the row. Extremes are exact. */
+ * samples' magnitudes, with no drift along the row. Extremes are exact (on u8 and u16 frames
+ * without a dark frame, taken in the samples' own type). When the window is a whole number of
+ * periods its normal matrix is isotropic and the fit skips the rotation to the first
+ * window's basis, which changes nothing but float rounding. */
 #pragma once
 #include <glib.h>
 

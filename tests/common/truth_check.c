@@ -3,8 +3,8 @@
 #include <math.h>
 #include <string.h>
 
-static const void *
-payload (const DsMessage *m, const char *name, const char *dtype, guint w, guint h)
+const void *
+truth_payload (const DsMessage *m, const char *name, const char *dtype, guint w, guint h)
 {
   for (guint i = 0; i < m->reply->n_payloads; i++)
     if (strcmp (m->reply->payloads[i].name, name) == 0) {
@@ -29,9 +29,9 @@ truth_check (const DsMessage *m, const DsScene *scene, const DsImage *truth_t,
              const DsImage *truth_g, TruthCheck *out)
 {
   guint w = truth_t->width, h = truth_t->height;
-  const float *t = payload (m, "transmissive", "f32", w, h);
-  const float *g = payload (m, "scattered", "f32", w, h);
-  const guint8 *mask = payload (m, "mask", "u8", w, h);
+  const float *t = truth_payload (m, "transmissive", "f32", w, h);
+  const float *g = truth_payload (m, "scattered", "f32", w, h);
+  const guint8 *mask = truth_payload (m, "mask", "u8", w, h);
   double K = ds_scene_system_gain (scene), sr = ds_scene_read_noise_dn (scene);
   double se_t = 0, se_g = 0, al_t = 0, al_g = 0;
   memset (out, 0, sizeof *out);

@@ -11,6 +11,10 @@ typedef struct {
   guint64 valid, pixels;
 } TruthCheck;
 
+/* The data of the result's payload `name`, asserting its dtype ("f32", "u8") and size; the
+ * test aborts when the result has no such payload. */
+const void *truth_payload (const DsMessage *m, const char *name, const char *dtype, guint w, guint h);
+
 /* The truth for this exposure/gain must have the result's size. */
 void truth_check (const DsMessage *m, const DsScene *scene, const DsImage *truth_t,
                   const DsImage *truth_g, TruthCheck *out);

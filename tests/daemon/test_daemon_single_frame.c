@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "tests/common/daemon_harness.h"
+#include "tests/common/truth_check.h"
 #include "drivers/sim/renderer.h"
 #include "drivers/sim/scene.h"
 
@@ -18,20 +19,6 @@ config_text (const char *extra)
                                              "[sim]\nscene=%s\nseed=7\n%s",
                                              SCENE_FILE, extra ? extra : "");
   return test_config_groups_merge (joined);
-}
-
-static const void *
-payload (const DsMessage *m, const char *name, const char *dtype, guint w, guint h)
-{
-  for (guint i = 0; i < m->reply->n_payloads; i++)
-    if (strcmp (m->reply->payloads[i].name, name) == 0) {
-      g_assert_cmpstr (m->reply->payloads[i].dtype, ==, dtype);
-      g_assert_cmpuint (m->reply->payloads[i].width, ==, w);
-      g_assert_cmpuint (m->reply->payloads[i].height, ==, h);
-      return g_bytes_get_data (m->payloads[i], NULL);
-    }
-  g_error ("result has no %s payload", name);
-  return NULL;
 }
 
 static const char *
@@ -75,9 +62,9 @@ check_against_truth (const DsMessage *m, const DsScene *scene, const DsImage *tr
                      guint window)
 {
   guint w = truth_t->width, h = truth_t->height;
-  const float *t = payload (m, "transmissive", "f32", w, h);
-  const float *g = payload (m, "scattered", "f32", w, h);
-  const guint8 *mask = payload (m, "mask", "u8", w, h);
+  const float *t = truth_payload (m, "transmissive", "f32", w, h);
+  const float *g = truth_payload (m, "scattered", "f32", w, h);
+  const guint8 *mask = truth_payload (m, "mask", "u8", w, h);
   double K = ds_scene_system_gain (scene), sr = ds_scene_read_noise_dn (scene);
   double se_t = 0, se_g = 0, al_t = 0, al_g = 0, se_uniform = 0, al_uniform = 0;
   guint64 valid = 0, uniform = 0;

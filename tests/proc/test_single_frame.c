@@ -299,25 +299,33 @@ ref_fit (const double *v, guint s, guint l, double period, double out[3], double
   *ginv_norm = norm;
 }
 
-/* Random u16 over the whole range (the largest sums, so the largest rounding), an optional
- * dark frame, several widths against the tile and periods whose windows take every route
- * through the doubling (odd, two low bits, powers of two, one above). */
+/* Random u8 and u16 over the whole range (the largest sums, so the largest rounding), an
+ * optional dark frame (without one, integer frames take the kernels on their own samples),
+ * several widths against the tile and periods whose windows take every route through the
+ * doubling (odd, two low bits, powers of two, one above) and both fits of the sine (integer
+ * periods: an isotropic window). Every column is checked, the clamped windows at the sides
+ * included. */
 static void
-test_fast_paths_match_reference (void)
+fast_paths_match_reference (DsSampleType type)
 {
   const double periods[] = { 3.0, 5.0, 7.3, 8.0, 13.7, 16.0, 16.2, 33.5 };
   const guint widths[] = { 40, 517, 1500 };
   guint64 state = 0x243F6A8885A308D3ull;
   for (guint wi = 0; wi < G_N_ELEMENTS (widths); wi++) {
     guint w = widths[wi], h = 3;
-    g_autoptr (DsImage) frame = ds_image_new (DS_SAMPLE_U16, w, h, NULL);
-    g_autoptr (DsImage) dark = ds_image_new (DS_SAMPLE_U16, w, h, NULL);
+    g_autoptr (DsImage) frame = ds_image_new (type, w, h, NULL);
+    g_autoptr (DsImage) dark = ds_image_new (type, w, h, NULL);
     for (guint y = 0; y < h; y++) {
-      guint16 *row = ds_image_row (frame, y), *drow = ds_image_row (dark, y);
+      void *row = ds_image_row (frame, y), *drow = ds_image_row (dark, y);
       for (guint x = 0; x < w; x++) {
         state = state * 6364136223846793005ull + 1442695040888963407ull;
-        row[x] = (guint16) (state >> 48);
-        drow[x] = (guint16) ((state >> 20) & 255);
+        if (type == DS_SAMPLE_U16) {
+          ((guint16 *) row)[x] = (guint16) (state >> 48);
+          ((guint16 *) drow)[x] = (guint16) ((state >> 20) & 255);
+        } else {
+          ((guint8 *) row)[x] = (guint8) (state >> 56);
+          ((guint8 *) drow)[x] = (guint8) ((state >> 20) & 31);
+        }
       }
     }
     for (guint pi = 0; pi < G_N_ELEMENTS (periods); pi++) {
@@ -335,7 +343,8 @@ test_fast_paths_match_reference (void)
           p.pattern = e == DS_ESTIMATOR_SINE ? DS_PATTERN_SINE : DS_PATTERN_SQUARE;
           p.black_level = 0.1;
           p.geometry.period_px = period;
-          p.saturation_level = 65536; /* random data reaches 65535: count nothing saturated */
+          /* random data reaches full scale: count nothing saturated */
+          p.saturation_level = type == DS_SAMPLE_U16 ? 65536 : 256;
           g_autoptr (DsSeparation) sep = NULL;
           g_autoptr (GError) error = NULL;
           g_assert_true (ds_single_frame_separate (frame, with_dark ? dark : NULL, &p, &sep, NULL, &error));
@@ -343,13 +352,19 @@ test_fast_paths_match_reference (void)
           double m = p.pattern == DS_PATTERN_SINE ? 0.1 + 0.9 / 2 : 0.5 + 0.1 * 0.5;
           double hg = 0.9 / 2; /* sine stripes: h = (1 - b)/2 */
           g_assert_cmpfloat_with_epsilon (sep->meta.pattern_mean, m, 1e-12);
+          guint64 unflagged = 0, negative = 0;
           for (guint y = 0; y < h; y++) {
-            const guint16 *in = ds_image_row (frame, y), *din = ds_image_row (dark, y);
+            const void *in = ds_image_row (frame, y), *din = ds_image_row (dark, y);
             double v[1500];
             for (guint x = 0; x < w; x++)
-              v[x] = (double) in[x] - (with_dark ? din[x] : 0);
+              v[x] = ds_image_sample (frame, in, x) - (with_dark ? ds_image_sample (dark, din, x) : 0);
             const float *t = ds_image_row (sep->transmissive, y), *g = ds_image_row (sep->scattered, y);
+            const guint8 *mk = ds_image_row (sep->mask, y);
             for (guint x = 0; x < w; x++) {
+              /* nothing saturated, every sample finite: the one bit is the sign of Lg */
+              g_assert_cmpuint (mk[x], ==, g[x] < 0 ? DS_MASK_NEGATIVE : 0);
+              unflagged += mk[x] == 0;
+              negative += mk[x] != 0;
               guint s = ref_start (x, w, l);
               double ld, lg, tol_ld, tol_lg;
               if (e == DS_ESTIMATOR_SINE) {
@@ -379,15 +394,31 @@ test_fast_paths_match_reference (void)
                 tol_lg = 8 * FLT_EPSILON * (fabs (lg) + fabs (ld) + fabs (mn) + 1);
               }
               if (fabs (t[x] - ld) > tol_ld || fabs (g[x] - lg) > tol_lg)
-                g_error ("%s P %g width %u dark %u pixel (%u, %u): Ld %.9g want %.9g (+-%.3g), Lg %.9g want %.9g "
+                g_error ("%s %s P %g width %u dark %u pixel (%u, %u): Ld %.9g want %.9g (+-%.3g), Lg %.9g want %.9g "
                          "(+-%.3g)",
-                         ds_estimator_name (e), period, w, with_dark, x, y, t[x], ld, tol_ld, g[x], lg, tol_lg);
+                         ds_sample_type_name (type), ds_estimator_name (e), period, w, with_dark, x, y, t[x], ld,
+                         tol_ld, g[x], lg, tol_lg);
             }
           }
+          /* the counts in meta are the mask's */
+          g_assert_cmpuint (sep->meta.valid_pixels, ==, unflagged);
+          g_assert_cmpuint (sep->meta.flagged[g_bit_nth_lsf (DS_MASK_NEGATIVE, -1)], ==, negative);
         }
       }
     }
   }
+}
+
+static void
+test_fast_paths_match_reference_u16 (void)
+{
+  fast_paths_match_reference (DS_SAMPLE_U16);
+}
+
+static void
+test_fast_paths_match_reference_u8 (void)
+{
+  fast_paths_match_reference (DS_SAMPLE_U8);
 }
 
 /* Rows shared by several threads give the bits one thread gives (every row is computed
@@ -452,7 +483,8 @@ main (int argc, char **argv)
   g_test_add_func ("/single-frame/resolution-cost", test_resolution_cost);
   g_test_add_func ("/single-frame/saturation-flags-windows", test_saturation_flags_windows);
   g_test_add_func ("/single-frame/refusals", test_refusals);
-  g_test_add_func ("/single-frame/fast-paths-match-reference", test_fast_paths_match_reference);
+  g_test_add_func ("/single-frame/fast-paths-match-reference/u16", test_fast_paths_match_reference_u16);
+  g_test_add_func ("/single-frame/fast-paths-match-reference/u8", test_fast_paths_match_reference_u8);
   g_test_add_func ("/single-frame/threads-and-reuse", test_threads_and_reuse);
   return g_test_run ();
 }
