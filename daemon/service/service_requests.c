@@ -79,6 +79,18 @@ settings_from_request (DsService *svc, const DsRequest *req, DsCaptureSettings *
   if (!ds_request_get_double (req, "target_error", 0.0, 1.0, 0.0, &s->target_error, error) ||
       !ds_request_get_double (req, "time_budget_ms", 0.0, 3.6e6, 0.0, &s->time_budget_ms, error))
     return FALSE;
+  /* A declared speed is the automatic operating point's: refused where nothing would use it. */
+  double speed = NAN;
+  if (!ds_request_get_double (req, "speed_px_s", 0.0, 1e6, NAN, &speed, error))
+    return FALSE;
+  if (!isnan (speed) && s->target_error <= 0 && s->time_budget_ms <= 0) {
+    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT,
+                 "\"speed_px_s\" without target_error or time_budget_ms: only the automatic operating point "
+                 "predicts with it");
+    return FALSE;
+  }
+  if (!isnan (speed))
+    s->speed_px_s = speed;
   /* One frame per result: the window of one period holds too few samples for robust, and the
    * automatic operating point chooses among phase sets. */
   if (s->single_frame && s->estimator == DS_ESTIMATOR_ROBUST) {
