@@ -53,6 +53,10 @@ predict (const DsOperatingModel *m, const Models *em, const DsSceneProbe *probe,
          DsOperatingPoint *p)
 {
   memset (p, 0, sizeof *p);
+  /* With a speed declared, an estimator whose motion error has no model is no candidate: its
+   * prediction would be a lower bound below every modelled one's (ds_motion_kappa). */
+  if (em->motion && isnan (ds_motion_kappa (e)))
+    return FALSE;
   if (!ds_error_model_predict (em->lower, e, n, mm, factor, period, &p->parts, NULL))
     return FALSE;
   DsErrorParts worst;

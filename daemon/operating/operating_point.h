@@ -122,7 +122,8 @@ typedef struct {
   DsMotionTable *table;     /* the scene's direct image as the pilot saw it (ds_motion_table_new) */
 } DsOperatingMotion;
 
-/* ds_operating_point_choose with a declared speed (motion NULL, or its speed NAN: the same). */
+/* ds_operating_point_choose with a declared speed (motion NULL, or its speed NAN: the same). With
+ * a speed, the candidates are the estimators whose motion error has a model (maxmin, sine). */
 gboolean ds_operating_point_choose_moving (const DsOperatingModel *model, DsErrorModel *errors,
                                            const DsSceneProbe *probe, const DsRigTiming *timing,
                                            guint width, guint height, double target_error,

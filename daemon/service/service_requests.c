@@ -222,8 +222,8 @@ handle_capture (DsService *svc, DsConnection *conn, DsRequest *req)
 {
   static const char *const keys[] = { "phases", "averages", "exposure_us", "gain_db", "estimator",
                                       "dark_frame", "verify_phase", "format", "outputs",
-                                      "progress", "target_error", "time_budget_ms", "save_phases", "single_frame",
-                                      NULL };
+                                      "progress", "target_error", "time_budget_ms", "speed_px_s", "save_phases",
+                                      "single_frame", NULL };
   g_autoptr (GError) error = NULL;
   DsCaptureSettings s;
   const char *format;
@@ -377,7 +377,7 @@ static void
 handle_start (DsService *svc, DsConnection *conn, DsRequest *req)
 {
   static const char *const keys[] = { "phases", "averages", "exposure_us", "gain_db", "estimator",
-                                      "dark_frame", "verify_phase", "target_error", "time_budget_ms",
+                                      "dark_frame", "verify_phase", "target_error", "time_budget_ms", "speed_px_s",
                                       "save_phases", "results", "single_frame", NULL };
   static const char *const modes[] = { "per-set", "per-frame", NULL };
   g_autoptr (GError) error = NULL;
