@@ -105,6 +105,7 @@ def speed_checks(tmp):
         with descatter.Client(d.sock) as c:
             still = c.capture(time_budget_ms=3000).meta["settings"]
             op = still["operating_point"]
+            print(f"     no speed: {still['estimator']} N={still['phases']}, predicted {op['predicted_error']:.4f}")
             check(op["motion"]["speed_px_s"] is None and op["motion"]["term"] is None,
                   "no speed declared: none stated, no term")
             check("still_scene" in op["assumed"] and "motion" not in op["contains"],
