@@ -300,9 +300,9 @@ ds_seq_choose_operating_point (DsAcquisition *acq, DsCaptureSettings *s, DsFrame
   DsSeparationParams params;
   ds_capture_settings_separation_params (s, &params);
   g_autoptr (DsErrorModel) errors = ds_error_model_new (&r->probe, &params);
-  DsOperatingMotion motion = { .speed_px_s = s->speed_px_s };
+  DsOperatingMotion motion = { .speed_px_s = s->speed_declared ? s->speed_px_s : NAN };
   g_autoptr (DsMotionTable) table = NULL;
-  if (!isnan (s->speed_px_s)) {
+  if (s->speed_declared) {
     DsImage *direct = NULL, *var = NULL;
     if (!pilot_direct (&pf, &r->probe, &direct, &var, error))
       return FALSE;
@@ -318,6 +318,7 @@ ds_seq_choose_operating_point (DsAcquisition *acq, DsCaptureSettings *s, DsFrame
   if (!ds_operating_point_choose_moving (acq->model, errors, &r->probe, &acq->timing, lit0->width, lit0->height,
                                          s->target_error, s->time_budget_ms, &motion, &op, error))
     return FALSE;
+  r->speed_declared = s->speed_declared;
   r->speed_px_s = s->speed_px_s;
   r->target_error = s->target_error;
   r->time_budget_ms = s->time_budget_ms;

@@ -38,7 +38,8 @@ ds_capture_settings_from_config (DsCaptureSettings *s, const DsConfig *c)
   s->saturation_dn = isnan (c->saturation_dn) ? 0 : c->saturation_dn;
   s->system_gain = isnan (c->gain_dn_per_e) ? 0 : c->gain_dn_per_e;
   s->read_noise_dn = isnan (c->read_noise_dn) || s->system_gain <= 0 ? 0 : c->read_noise_dn;
-  s->speed_px_s = c->speed_px_s;
+  s->speed_declared = !isnan (c->speed_px_s);
+  s->speed_px_s = s->speed_declared ? c->speed_px_s : 0;
   s->dark_frame = c->dark_frame;
   s->phase_retries = c->phase_retries;
   s->max_failed_sets = c->max_failed_sets;
@@ -177,6 +178,6 @@ ds_capture_settings_note_motion (DsCaptureSettings *s, const DsSeparationMeta *m
   G_STATIC_ASSERT (DS_MASK_MOTION == 1 << 7);
   r->motion_pixels = meta->motion_checked ? meta->flagged[7] : 0;
   /* A declared speed's term is in the prediction already (or its absence marked). */
-  if (isnan (r->speed_px_s) && r->motion_pixels > 0)
+  if (!r->speed_declared && r->motion_pixels > 0)
     ds_motion_apply (&r->point, NAN, NAN, r->motion_pixels, &r->point.motion_why);
 }

@@ -50,7 +50,10 @@ typedef struct {
    * model choose estimator, phases, averages and exposure; the choice is recorded below. */
   double target_error;        /* relative RMSE of transmissive; 0 = none */
   double time_budget_ms;      /* 0 = none */
-  double speed_px_s;          /* declared speed of moving objects (px/s along x); NAN = none: a still scene */
+  /* A declared speed of moving objects (px/s along x) for the automatic operating point; not
+   * declared (as zeroed settings are): a still scene */
+  gboolean speed_declared;
+  double speed_px_s;
   gboolean automatic;         /* `operating` is valid */
   DsOperatingReport operating;
   /* The region the set's frames came from (x, y, width, height), filled in by the set runner

@@ -134,7 +134,8 @@ gboolean ds_operating_point_choose_moving (const DsOperatingModel *model, DsErro
  * `settings.operating_point`, docs/protocol.md). */
 typedef struct {
   double target_error, time_budget_ms;
-  double speed_px_s;           /* declared (NAN: none) */
+  gboolean speed_declared;     /* FALSE: a still scene was assumed */
+  double speed_px_s;           /* the declared speed, px/s along x */
   /* What the set's motion bit said (ds_capture_settings_note_motion): whether it was judged and
    * on how many pixels */
   gboolean motion_checked;

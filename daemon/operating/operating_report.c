@@ -77,7 +77,7 @@ ds_operating_report_to_json (const DsOperatingReport *r, JsonBuilder *b)
     json_builder_add_string_value (b, "narrow_kernel");
   if (pr->transfer.inconsistent)
     json_builder_add_string_value (b, "transfer");
-  if (isnan (r->speed_px_s))
+  if (!r->speed_declared)
     json_builder_add_string_value (b, "still_scene");
   json_builder_end_array (b);
   BOOL ("lower_bound", p->lower_bound);
@@ -97,7 +97,7 @@ ds_operating_report_to_json (const DsOperatingReport *r, JsonBuilder *b)
   json_builder_set_member_name (b, "motion");
   json_builder_begin_object (b);
   json_builder_set_member_name (b, "speed_px_s");
-  if (isnan (r->speed_px_s))
+  if (!r->speed_declared)
     json_builder_add_null_value (b);
   else
     json_builder_add_double_value (b, r->speed_px_s);

@@ -89,8 +89,10 @@ settings_from_request (DsService *svc, const DsRequest *req, DsCaptureSettings *
                  "predicts with it");
     return FALSE;
   }
-  if (!isnan (speed))
+  if (!isnan (speed)) {
+    s->speed_declared = TRUE;
     s->speed_px_s = speed;
+  }
   /* One frame per result: the window of one period holds too few samples for robust, and the
    * automatic operating point chooses among phase sets. */
   if (s->single_frame && s->estimator == DS_ESTIMATOR_ROBUST) {
