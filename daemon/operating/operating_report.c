@@ -50,7 +50,9 @@ ds_operating_report_to_json (const DsOperatingReport *r, JsonBuilder *b)
   if (pr->leak.measured)
     json_builder_add_string_value (b, "scattered_stripes");
   json_builder_add_string_value (b, "saturation");
-  if (isfinite (p->motion_term))
+  /* The term exists only where a speed was declared (a point made otherwise has none). */
+  gboolean motion_term = r->speed_declared && isfinite (p->motion_term);
+  if (motion_term)
     json_builder_add_string_value (b, "motion");
   json_builder_end_array (b);
   /* Which terms of the prediction rest on measurements (the pilot's or a calibration's) and which
@@ -102,7 +104,7 @@ ds_operating_report_to_json (const DsOperatingReport *r, JsonBuilder *b)
   else
     json_builder_add_double_value (b, r->speed_px_s);
   json_builder_set_member_name (b, "term");
-  if (isfinite (p->motion_term))
+  if (motion_term)
     json_builder_add_double_value (b, p->motion_term);
   else
     json_builder_add_null_value (b);
