@@ -2,10 +2,12 @@
 #include <math.h>
 
 #include "daemon/operating/error_model.h"
+#include "daemon/operating/motion_term.h"
 #include "daemon/operating/pattern_check.h"
 #include "daemon/operating/pilot_stripes.h"
 #include "daemon/protocol/protocol.h"
 #include "daemon/acquire/acquisition.h"
+#include "proc/harmonic_gain.h"
 #include "proc/stripe_phase.h"
 
 /* A pair of pilot frames (phases 0 and 1/2 of one period) as it is acquired: the phase check
@@ -168,6 +170,41 @@ pattern_matches (const DsProbeFrames *pf, DsOperatingReport *report, GError **er
   return FALSE;
 }
 
+/* The scene's direct light as the pilot frames show it, for a declared speed's motion term
+ * (daemon/operating/motion_term.h): two opposite phases sum to the pattern's mean twice, so
+ * (lit0 + lit1 - 2 dark) / (2 m) is Ld + Lg at full illumination, and the probe's mean scattered
+ * light Lg is taken out (scattered light is smooth: what moves sharply is the direct light). Its
+ * noise variance per pixel, from the probe's noise model (var0 + gain x signal per frame), is
+ * *var, so that the term does not count the pilot's noise as motion. */
+static gboolean
+pilot_direct (const DsProbeFrames *pf, const DsSceneProbe *probe, DsImage **direct, DsImage **var, GError **error)
+{
+  const DsImage *l0 = pf->lit[0], *l1 = pf->lit[1], *dk = pf->dark;
+  double m = ds_pattern_mean (pf->geometry.kind, pf->geometry.duty, pf->geometry.black_level);
+  if (!(m > 0)) {
+    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_FAILED, "motion term: the pattern has no mean light");
+    return FALSE;
+  }
+  g_autoptr (DsImage) t = ds_image_new (DS_SAMPLE_F32, l0->width, l0->height, error);
+  g_autoptr (DsImage) v = t ? ds_image_new (DS_SAMPLE_F32, l0->width, l0->height, error) : NULL;
+  if (!v)
+    return FALSE;
+  double scale = 1 / (2 * m), var0 = probe->noise.var0, gain = probe->noise.gain, dark_dn = probe->noise.dark_dn;
+  for (guint y = 0; y < l0->height; y++) {
+    float *to = ds_image_row (t, y), *vo = ds_image_row (v, y);
+    const void *r0 = ds_image_row (l0, y), *r1 = ds_image_row (l1, y), *rd = ds_image_row (dk, y);
+    for (guint x = 0; x < l0->width; x++) {
+      double a = ds_image_sample (l0, r0, x), b = ds_image_sample (l1, r1, x), d = ds_image_sample (dk, rd, x);
+      to[x] = (float) ((a + b - 2 * d) * scale - probe->light.lg_mean);
+      double va = var0 + gain * MAX (0.0, a - dark_dn), vb = var0 + gain * MAX (0.0, b - dark_dn);
+      vo[x] = (float) ((va + vb + 4 * var0) * scale * scale);
+    }
+  }
+  *direct = g_steal_pointer (&t);
+  *var = g_steal_pointer (&v);
+  return TRUE;
+}
+
 /* Pilot frames (docs/accuracy.md, "Automatic operating point"): a dark frame, the phases 0 and
  * 1/2 at the configured period and, where the illuminator can change it, at twice the period and
  * at P/2 and P/4 while resolvable, all at the requested exposure. The probe measures the scene from them and the error model
@@ -263,10 +300,26 @@ ds_seq_choose_operating_point (DsAcquisition *acq, DsCaptureSettings *s, DsFrame
   DsSeparationParams params;
   ds_capture_settings_separation_params (s, &params);
   g_autoptr (DsErrorModel) errors = ds_error_model_new (&r->probe, &params);
+  DsOperatingMotion motion = { .speed_px_s = s->speed_declared ? s->speed_px_s : NAN };
+  g_autoptr (DsMotionTable) table = NULL;
+  if (s->speed_declared) {
+    DsImage *direct = NULL, *var = NULL;
+    if (!pilot_direct (&pf, &r->probe, &direct, &var, error))
+      return FALSE;
+    g_autoptr (DsImage) direct_owned = direct;
+    g_autoptr (DsImage) var_owned = var;
+    if (!(table = ds_motion_table_new (direct, var, error))) {
+      g_prefix_error (error, "automatic operating point: ");
+      return FALSE;
+    }
+    motion.table = table;
+  }
   DsOperatingPoint op;
-  if (!ds_operating_point_choose (acq->model, errors, &r->probe, &acq->timing, lit0->width, lit0->height,
-                                  s->target_error, s->time_budget_ms, &op, error))
+  if (!ds_operating_point_choose_moving (acq->model, errors, &r->probe, &acq->timing, lit0->width, lit0->height,
+                                         s->target_error, s->time_budget_ms, &motion, &op, error))
     return FALSE;
+  r->speed_declared = s->speed_declared;
+  r->speed_px_s = s->speed_px_s;
   r->target_error = s->target_error;
   r->time_budget_ms = s->time_budget_ms;
   r->point = op;

@@ -1,6 +1,7 @@
 /* The settings a phase set is taken with: from the configuration's defaults, to the
  * separation's parameters, to JSON for a result's metadata. Plain data, CPU only: any thread. */
 #include "daemon/acquire/capture_settings.h"
+#include "daemon/operating/motion_term.h"
 #include "proc/phase_check.h"
 #include "proc/single_frame.h"
 
@@ -35,6 +36,10 @@ ds_capture_settings_from_config (DsCaptureSettings *s, const DsConfig *c)
                                .edge_blur_px = isnan (c->edge_blur_px) ? 0 : c->edge_blur_px };
   ds_capture_settings_take_knowledge (s, &known);
   s->saturation_dn = isnan (c->saturation_dn) ? 0 : c->saturation_dn;
+  s->system_gain = isnan (c->gain_dn_per_e) ? 0 : c->gain_dn_per_e;
+  s->read_noise_dn = isnan (c->read_noise_dn) || s->system_gain <= 0 ? 0 : c->read_noise_dn;
+  s->speed_declared = !isnan (c->speed_px_s);
+  s->speed_px_s = s->speed_declared ? c->speed_px_s : 0;
   s->dark_frame = c->dark_frame;
   s->phase_retries = c->phase_retries;
   s->max_failed_sets = c->max_failed_sets;
@@ -62,6 +67,10 @@ ds_capture_settings_separation_params (const DsCaptureSettings *s, DsSeparationP
   p->saturation_level = s->saturation_dn;
   p->keep_extrema = s->keep_extrema;
   p->detect_motion = s->detect_motion;
+  /* With a system gain the separation's noise is per pixel, read^2 + K x signal (its sigma
+   * planes, the motion bit's threshold); without, one frame's median noise. */
+  p->system_gain = s->system_gain;
+  p->read_noise_dn = s->read_noise_dn;
   /* The period is known (the illuminator's): maxmin and robust then flag the pixels a phase
    * never fully lights or darkens instead of being refused, and robust's windows fit it. */
   p->geometry.period_px = s->period_px;
@@ -96,6 +105,10 @@ ds_capture_settings_to_json (const DsCaptureSettings *s)
     DBL ("edge_blur_px", s->edge_blur_px);
   if (s->saturation_dn > 0)
     DBL ("saturation_dn", s->saturation_dn);
+  if (s->system_gain > 0) {
+    DBL ("gain_dn_per_e", s->system_gain);
+    DBL ("read_noise_dn", s->read_noise_dn);
+  }
   BOOL ("dark_frame", s->dark_frame);
   INT ("phase_retries", s->phase_retries);
   BOOL ("verify_phase", s->verify_phase);
@@ -147,9 +160,24 @@ ds_capture_settings_equal (const DsCaptureSettings *a, const DsCaptureSettings *
          a->period_px == b->period_px && a->duty == b->duty && a->black_level == b->black_level &&
          a->harmonic_gain == b->harmonic_gain && a->edge_blur_known == b->edge_blur_known &&
          a->edge_blur_px == b->edge_blur_px &&
-         a->saturation_dn == b->saturation_dn &&
+         a->saturation_dn == b->saturation_dn && a->system_gain == b->system_gain &&
+         a->read_noise_dn == b->read_noise_dn &&
          a->dark_frame == b->dark_frame && a->phase_retries == b->phase_retries &&
          a->verify_phase == b->verify_phase && a->phase_tolerance_deg == b->phase_tolerance_deg &&
          a->save_phases == b->save_phases && a->per_frame == b->per_frame &&
          a->single_frame == b->single_frame && a->detect_motion == b->detect_motion;
+}
+
+void
+ds_capture_settings_note_motion (DsCaptureSettings *s, const DsSeparationMeta *meta)
+{
+  if (!s->automatic)
+    return;
+  DsOperatingReport *r = &s->operating;
+  r->motion_checked = meta->motion_checked;
+  G_STATIC_ASSERT (DS_MASK_MOTION == 1 << 7);
+  r->motion_pixels = meta->motion_checked ? meta->flagged[7] : 0;
+  /* A declared speed's term is in the prediction already (or its absence marked). */
+  if (!r->speed_declared && r->motion_pixels > 0)
+    ds_motion_apply (&r->point, NAN, NAN, r->motion_pixels, &r->point.motion_why);
 }

@@ -30,6 +30,10 @@ typedef struct {
   gboolean edge_blur_known;
   double edge_blur_px;
   double saturation_dn;
+  /* The camera's noise model ([camera] gain-dn-per-e, read-noise-dn): 0 = none (the separation
+   * reads the noise off the frames). */
+  double system_gain;
+  double read_noise_dn;
   gboolean dark_frame;
   guint phase_retries;
   guint max_failed_sets;      /* continuous mode: stop after this many failed sets in a row; 0 = never */
@@ -46,6 +50,10 @@ typedef struct {
    * model choose estimator, phases, averages and exposure; the choice is recorded below. */
   double target_error;        /* relative RMSE of transmissive; 0 = none */
   double time_budget_ms;      /* 0 = none */
+  /* A declared speed of moving objects (px/s along x) for the automatic operating point; not
+   * declared (as zeroed settings are): a still scene */
+  gboolean speed_declared;
+  double speed_px_s;
   gboolean automatic;         /* `operating` is valid */
   DsOperatingReport operating;
   /* The region the set's frames came from (x, y, width, height), filled in by the set runner
@@ -66,5 +74,9 @@ void ds_capture_settings_from_config (DsCaptureSettings *settings, const DsConfi
 /* As a JSON object for result metadata and `status`. */
 JsonNode *ds_capture_settings_to_json (const DsCaptureSettings *settings);
 gboolean ds_capture_settings_equal (const DsCaptureSettings *a, const DsCaptureSettings *b);
+/* What the set's motion bit says about an automatic capture's prediction: with no speed
+ * declared and motion seen (mask bit 7 on any pixel), the prediction assumed a still scene and is
+ * marked a lower bound (ds_motion_apply). Recorded in the operating point's `motion` block. */
+void ds_capture_settings_note_motion (DsCaptureSettings *settings, const DsSeparationMeta *meta);
 
 G_END_DECLS

@@ -49,6 +49,7 @@ ds_result_new (guint64 set_id, DsSeparation *sep, DsPlanePool *pool, const DsCap
   r->planes = ds_result_planes_new (sep, pool);
   r->sep = sep;
   r->settings = *settings;
+  ds_capture_settings_note_motion (&r->settings, &sep->meta);
   r->counters = *counters;
   r->started_us = started_us;
   r->acquired_us = acquired_us;

@@ -120,6 +120,13 @@ static const KeySpec keys[] = {
     "level (DN) at which the sensor clips, for a full well below the pixel format's top; clipped "
     "samples are flagged and the automatic operating point keeps exposures below it; empty = the "
     "pixel format's top" },
+  { "camera", "gain-dn-per-e", K_DOUBLE, LIVE, F (gain_dn_per_e), "", 1e-6, 1000, NULL,
+    "the camera's system gain K (DN per electron, EMVA 1288) at the configured gain-db, with read-noise-dn "
+    "the separation's per-pixel noise model (noise sigma, the motion bit's false alarms); empty = the noise "
+    "read off each frame" },
+  { "camera", "read-noise-dn", K_DOUBLE, LIVE, F (read_noise_dn), "", 0, 65535, NULL,
+    "the camera's temporal dark noise sigma (DN) at the configured gain-db, for the noise model with "
+    "gain-dn-per-e; empty = 0 when gain-dn-per-e is set" },
   { "camera", "pixel-pitch-um", K_DOUBLE, RESTART, F (pixel_pitch_um), "", 0.01, 1000, NULL,
     "the sensor's pixel pitch (µm); empty = the camera's SensorPixelWidth when it has that feature; "
     "with [optics] magnification it gives the result files' physical scale" },
@@ -195,6 +202,9 @@ static const KeySpec keys[] = {
     "measure the stripe phase in each frame and refuse frames lit with the wrong phase" },
   { "acquisition", "detect-motion", K_BOOL, LIVE, F (detect_motion), "false", 0, 0, NULL,
     "flag pixels whose phase samples depart from a still scene beyond noise (mask bit motion; N >= 4)" },
+  { "acquisition", "speed-px-s", K_DOUBLE, LIVE, F (speed_px_s), "", 0, 1e6, NULL,
+    "declared speed of the scene's moving objects (px/s on the sensor, across the stripes, along x) for "
+    "automatic captures: every prediction gets its motion term; empty = a still scene" },
   { "acquisition", "operating-model", K_STRING, RESTART, F (operating_model), NULL, 0, 0, NULL,
     "operating model for captures with target_error/time_budget_ms (descatterctl validate --fit); empty = the "
     "installed one" },

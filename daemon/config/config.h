@@ -55,6 +55,8 @@ typedef struct {
   double exposure_us;
   double gain_db;
   double saturation_dn;   /* NAN: the pixel format's top */
+  double gain_dn_per_e;   /* system gain K (DN/e-) for the noise model; NAN: none */
+  double read_noise_dn;   /* read noise sigma (DN) for the noise model; NAN: 0 */
   double pixel_pitch_um;  /* NAN: the camera's, if it says */
   char *roi;              /* "x,y,w,h" or NULL (full sensor) */
   char *camera_trigger;   /* "software" | "line0".."line3" */
@@ -95,6 +97,7 @@ typedef struct {
   char *results;          /* continuous mode: "per-set" or "per-frame" (sliding window) */
   gboolean verify_phase;
   gboolean detect_motion;  /* the mask's motion bit (N >= 4) */
+  double speed_px_s;       /* declared speed for automatic captures (px/s along x); NAN: none */
   double phase_tolerance_deg;
   gboolean single_frame;   /* one frame per result, separated from one stripe period around each pixel */
   char *operating_model;  /* NULL: built-in */

@@ -96,6 +96,9 @@ ds_config_check_consistency (const DsConfig *c, const char *name, GError **error
   if (!isnan (c->saturation_dn) && c->saturation_dn > pixel_format_top (c->pixel_format))
     INCONSISTENT ("[camera] saturation-dn = %g is above the top of pixel-format = %s (%.0f DN): samples never "
                   "reach it", c->saturation_dn, c->pixel_format, pixel_format_top (c->pixel_format));
+  if (!isnan (c->read_noise_dn) && isnan (c->gain_dn_per_e))
+    INCONSISTENT ("[camera] read-noise-dn = %g without gain-dn-per-e: the noise model needs the system gain "
+                  "(DN per electron) for the shot noise; set both or neither", c->read_noise_dn);
   if (strcmp (c->estimator, "sine") == 0 && c->phases < 3)
     INCONSISTENT ("[acquisition] estimator = sine needs phases >= 3 (got %u)", c->phases);
   if (strcmp (c->results, "per-frame") == 0 && c->averages > 1)

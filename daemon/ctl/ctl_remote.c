@@ -133,7 +133,7 @@ ds_ctl_config (const DsCtlTarget *target, int argc, char **argv)
 /* Acquisition options shared by capture and start. Numbers stay text until sent
  * (ds_ctl_args_int): NULL is "not given", every typed value goes to the daemon. */
 typedef struct {
-  char *phases, *averages, *exposure_us, *gain_db, *target_error, *time_budget_ms, *estimator;
+  char *phases, *averages, *exposure_us, *gain_db, *target_error, *time_budget_ms, *speed_px_s, *estimator;
   gboolean dark_frame, no_dark_frame, no_verify, single_frame;
 } AcqOptions;
 
@@ -146,6 +146,7 @@ acq_options_clear (AcqOptions *o)
   g_free (o->gain_db);
   g_free (o->target_error);
   g_free (o->time_budget_ms);
+  g_free (o->speed_px_s);
   g_free (o->estimator);
 }
 G_DEFINE_AUTO_CLEANUP_CLEAR_FUNC (AcqOptions, acq_options_clear)
@@ -160,7 +161,8 @@ acq_args (const AcqOptions *o, const char *cmd)
       !ds_ctl_args_double (args, cmd, "exposure-us", "exposure_us", o->exposure_us) ||
       !ds_ctl_args_double (args, cmd, "gain-db", "gain_db", o->gain_db) ||
       !ds_ctl_args_double (args, cmd, "target-error", "target_error", o->target_error) ||
-      !ds_ctl_args_double (args, cmd, "time-budget-ms", "time_budget_ms", o->time_budget_ms))
+      !ds_ctl_args_double (args, cmd, "time-budget-ms", "time_budget_ms", o->time_budget_ms) ||
+      !ds_ctl_args_double (args, cmd, "speed-px-s", "speed_px_s", o->speed_px_s))
     return NULL;
   if (o->dark_frame && o->no_dark_frame) {
     fprintf (stderr, "descatterctl %s: --dark-frame and --no-dark-frame exclude each other\n", cmd);
@@ -192,7 +194,10 @@ acq_args (const AcqOptions *o, const char *cmd)
   { "target-error", 0, 0, G_OPTION_ARG_STRING, &(o).target_error,                                           \
     "Automatic operating point: the relative error to reach (0..1; docs/accuracy.md)", "ERR" },              \
   { "time-budget-ms", 0, 0, G_OPTION_ARG_STRING, &(o).time_budget_ms,                                       \
-    "Automatic operating point: the acquisition time allowed per set (ms)", "MS" }
+    "Automatic operating point: the acquisition time allowed per set (ms)", "MS" },                         \
+  { "speed-px-s", 0, 0, G_OPTION_ARG_STRING, &(o).speed_px_s,                                               \
+    "Automatic operating point: the moving objects' speed across the stripes (px/s along x); predictions "  \
+    "then include the motion error (docs/accuracy.md, \"Moving objects\")", "V" }
 
 static void
 on_progress (const DsMessage *ev, gpointer data)

@@ -54,9 +54,32 @@ gboolean ds_motion_term (const DsImage *transmissive, double speed_px_s, const d
 /* Adds a declared speed's motion term to a point in quadrature (both ends of its prediction),
  * and marks the point a lower bound when the term is unknown (NAN). With no speed declared
  * (speed_px_s NAN) and motion seen (motion_pixels > 0, the result's motion bit), the point is
- * marked a lower bound: the prediction assumed a still scene. Returns TRUE when it marked the
+ * marked a lower bound: the prediction assumed a still scene. An unknown term leaves the point no
+ * upper end (predicted_error_upper INFINITY, upper_bounded FALSE). Returns TRUE when it marked the
  * point; *why (may be NULL) then gets the reason, a static string. */
 gboolean ds_motion_apply (DsOperatingPoint *point, double speed_px_s, double term, guint64 motion_pixels,
                           const char **why);
+
+/* The departure of ds_motion_term for many frame times over one image: sum_px (T(x - s) - T(x))^2
+ * at whole-pixel shifts s, each computed once (on first use) and kept; between two of them the
+ * linear interpolation's departure is exact,
+ *     D(i + f) = (1 - f) D(i) + f D(i + 1) - f (1 - f) E(i),
+ * E(i) the squared differences of neighbouring pixels over the columns the shift keeps (the
+ * image's border clamps as ds_motion_term's does). So a term costs one pass over the image per
+ * whole pixel the set moves, once for every candidate of the operating point.
+ * A noisy image departs by its noise at any shift: with noise_var (DN^2, each pixel's variance,
+ * independent between pixels; 0: none) its expectation is taken out of D, E and the light.
+ * Rows are independent (motion along x): images taller than DS_MOTION_TABLE_ROWS keep that many,
+ * evenly spaced. */
+#define DS_MOTION_TABLE_ROWS 256
+typedef struct DsMotionTable DsMotionTable;
+/* Fails as ds_motion_term on an image that is not f32 or holds no light beyond its noise. */
+DsMotionTable *ds_motion_table_new (const DsImage *transmissive, const DsImage *noise_var, GError **error);
+void ds_motion_table_free (DsMotionTable *table);
+G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsMotionTable, ds_motion_table_free)
+/* ds_motion_term's value from the table (NAN for an estimator without a kappa). Not thread-safe:
+ * the table grows. */
+double ds_motion_table_term (DsMotionTable *table, double speed_px_s, const double *times_s, guint n_times,
+                             DsEstimator estimator);
 
 G_END_DECLS

@@ -4,6 +4,7 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "daemon/operating/motion_term.h"
 #include "daemon/operating/operating_error.h"
 
 static const DsEstimator all_estimators[] = { DS_ESTIMATOR_MAXMIN, DS_ESTIMATOR_SINE, DS_ESTIMATOR_ROBUST };
@@ -26,7 +27,25 @@ ds_scene_probe_max_exposure (const DsSceneProbe *p)
 typedef struct {
   DsErrorModel *lower, *upper;
   gboolean unbounded;
+  const DsOperatingMotion *motion;   /* NULL: a still scene */
 } Models;
+
+/* A declared speed's motion term, in quadrature to both ends: the set's frames at their times in
+ * the rig's timing model. Not scaled by the model's scale, which is fitted on still scenes. */
+static void
+add_motion (const Models *em, const DsRigTiming *t, guint w, guint h, DsOperatingPoint *p)
+{
+  p->motion_term = NAN;
+  p->predicted_error_still = p->predicted_error;
+  guint nt = p->phases * p->averages;
+  g_autofree double *times = g_new (double, nt);
+  ds_motion_frame_times (t, w, h, p->phases, p->averages, p->exposure_us, times);
+  p->motion_span_ms = (times[nt - 1] - times[0]) * 1e3;
+  if (!em->motion)
+    return;
+  p->motion_term = ds_motion_table_term (em->motion->table, em->motion->speed_px_s, times, nt, p->estimator);
+  ds_motion_apply (p, em->motion->speed_px_s, p->motion_term, 0, &p->motion_why);
+}
 
 static gboolean
 predict (const DsOperatingModel *m, const Models *em, const DsSceneProbe *probe, const DsRigTiming *t,
@@ -34,6 +53,10 @@ predict (const DsOperatingModel *m, const Models *em, const DsSceneProbe *probe,
          DsOperatingPoint *p)
 {
   memset (p, 0, sizeof *p);
+  /* With a speed declared, an estimator whose motion error has no model is no candidate: its
+   * prediction would be a lower bound below every modelled one's (ds_motion_kappa). */
+  if (em->motion && isnan (ds_motion_kappa (e)))
+    return FALSE;
   if (!ds_error_model_predict (em->lower, e, n, mm, factor, period, &p->parts, NULL))
     return FALSE;
   DsErrorParts worst;
@@ -62,6 +85,7 @@ predict (const DsOperatingModel *m, const Models *em, const DsSceneProbe *probe,
   if (!p->upper_bounded)
     p->predicted_error_upper = INFINITY;
   p->uncertainty = ds_operating_point_uncertainty (m, probe, &p->parts);
+  add_motion (em, t, w, h, p);
   return TRUE;
 }
 
@@ -226,9 +250,14 @@ append_point (GString *s, const DsOperatingPoint *p)
     g_string_append_printf (s, " to %.4f", p->predicted_error_upper);
   g_string_append_printf (s, " (%s, N=%u, M=%u, %.0f µs", ds_estimator_name (p->estimator), p->phases, p->averages,
                           p->exposure_us);
-  g_string_append_printf (s, ", period %g px: %.0f ms; noise %.4f, sampling %.4f, scattered stripes %+.4f)",
+  g_string_append_printf (s, ", period %g px: %.0f ms; noise %.4f, sampling %.4f, scattered stripes %+.4f",
                           p->period_px, p->predicted_time_ms, p->parts.noise, p->parts.sampling,
                           p->parts.scattered_stripes);
+  if (isfinite (p->motion_term))
+    g_string_append_printf (s, ", motion %.4f", p->motion_term);
+  else if (p->motion_why)
+    g_string_append (s, ", motion not modelled");
+  g_string_append (s, ")");
 }
 
 /* The most accurate point of each estimator and N: the most frames and the longest exposure
@@ -327,6 +356,14 @@ ds_operating_point_choose (const DsOperatingModel *m, DsErrorModel *errors, cons
                            const DsRigTiming *t, guint w, guint h, double target, double budget,
                            DsOperatingPoint *out, GError **error)
 {
+  return ds_operating_point_choose_moving (m, errors, probe, t, w, h, target, budget, NULL, out, error);
+}
+
+gboolean
+ds_operating_point_choose_moving (const DsOperatingModel *m, DsErrorModel *errors, const DsSceneProbe *probe,
+                                  const DsRigTiming *t, guint w, guint h, double target, double budget,
+                                  const DsOperatingMotion *motion, DsOperatingPoint *out, GError **error)
+{
   double factors[DS_OPERATING_MAX_CANDIDATES];
   guint n_factors = usable_factors (m, probe, factors);
   if (n_factors == 0) {
@@ -337,7 +374,8 @@ ds_operating_point_choose (const DsOperatingModel *m, DsErrorModel *errors, cons
   }
   DsSceneProbe worst;
   g_autoptr (DsErrorModel) upper = ds_scene_probe_worst_case (probe, &worst) ? ds_error_model_new_like (errors, &worst) : NULL;
-  const Models em = { errors, upper, probe->narrow.unresolved && probe->interval.set && probe->interval.unbounded };
+  const Models em = { errors, upper, probe->narrow.unresolved && probe->interval.set && probe->interval.unbounded,
+                      motion && motion->table && !isnan (motion->speed_px_s) ? motion : NULL };
   double longest = 0;
   for (guint i = 0; i < n_factors; i++)
     longest = MAX (longest, factors[i]);

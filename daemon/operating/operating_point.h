@@ -73,6 +73,15 @@ typedef struct {
    * assumed"); the point is run with target_may_be_missed and the interval in target_note */
   gboolean undetermined;
   char target_note[2048];
+  /* A declared speed's motion term (daemon/operating/motion_term.h), in quadrature in
+   * predicted_error and predicted_error_upper: NAN when no speed was declared or the estimator's
+   * motion error has no model. predicted_error_still is the prediction without it, motion_span_ms
+   * the time from the first frame's exposure to the last's, over which the object moves. */
+  double motion_term;
+  double predicted_error_still;
+  double motion_span_ms;
+  /* Why motion made the point a lower bound (a static string), NULL when it did not */
+  const char *motion_why;
 } DsOperatingPoint;
 
 /* The relative standard uncertainty of a prediction with these parts on this probe's scene: the
@@ -105,10 +114,32 @@ gboolean ds_operating_point_choose (const DsOperatingModel *model, DsErrorModel 
                                     guint width, guint height, double target_error,
                                     double time_budget_ms, DsOperatingPoint *out, GError **error);
 
+/* A speed declared for the choice (docs/accuracy.md, "Moving objects"): every candidate's
+ * prediction gets its motion term (ds_motion_apply). */
+typedef struct DsMotionTable DsMotionTable;
+typedef struct {
+  double speed_px_s;        /* px/s along x (the stripes' normal); NAN: none declared, a still scene */
+  DsMotionTable *table;     /* the scene's direct image as the pilot saw it (ds_motion_table_new) */
+} DsOperatingMotion;
+
+/* ds_operating_point_choose with a declared speed (motion NULL, or its speed NAN: the same). With
+ * a speed, the candidates are the estimators whose motion error has a model (maxmin, sine). */
+gboolean ds_operating_point_choose_moving (const DsOperatingModel *model, DsErrorModel *errors,
+                                           const DsSceneProbe *probe, const DsRigTiming *timing,
+                                           guint width, guint height, double target_error,
+                                           double time_budget_ms, const DsOperatingMotion *motion,
+                                           DsOperatingPoint *out, GError **error);
+
 /* What an automatic capture records about its choice (result metadata,
  * `settings.operating_point`, docs/protocol.md). */
 typedef struct {
   double target_error, time_budget_ms;
+  gboolean speed_declared;     /* FALSE: a still scene was assumed */
+  double speed_px_s;           /* the declared speed, px/s along x */
+  /* What the set's motion bit said (ds_capture_settings_note_motion): whether it was judged and
+   * on how many pixels */
+  gboolean motion_checked;
+  guint64 motion_pixels;
   DsOperatingPoint point;
   double scale;
   DsSceneProbe probe;

@@ -50,6 +50,10 @@ ds_operating_report_to_json (const DsOperatingReport *r, JsonBuilder *b)
   if (pr->leak.measured)
     json_builder_add_string_value (b, "scattered_stripes");
   json_builder_add_string_value (b, "saturation");
+  /* The term exists only where a speed was declared (a point made otherwise has none). */
+  gboolean motion_term = r->speed_declared && isfinite (p->motion_term);
+  if (motion_term)
+    json_builder_add_string_value (b, "motion");
   json_builder_end_array (b);
   /* Which terms of the prediction rest on measurements (the pilot's or a calibration's) and which
    * on an assumption that widens its interval (docs/accuracy.md, "What is measured, what is
@@ -75,6 +79,8 @@ ds_operating_report_to_json (const DsOperatingReport *r, JsonBuilder *b)
     json_builder_add_string_value (b, "narrow_kernel");
   if (pr->transfer.inconsistent)
     json_builder_add_string_value (b, "transfer");
+  if (!r->speed_declared)
+    json_builder_add_string_value (b, "still_scene");
   json_builder_end_array (b);
   BOOL ("lower_bound", p->lower_bound);
   json_builder_set_member_name (b, "lower_bound_reasons");
@@ -85,7 +91,29 @@ ds_operating_report_to_json (const DsOperatingReport *r, JsonBuilder *b)
     json_builder_add_string_value (b, pr->narrow.note);
   if (pr->transfer.inconsistent)
     json_builder_add_string_value (b, pr->transfer.note);
+  if (p->motion_why)
+    json_builder_add_string_value (b, p->motion_why);
   json_builder_end_array (b);
+  /* The declared speed and what it adds (docs/accuracy.md, "Moving objects"); null where none was
+   * declared or the estimator's motion error has no model. */
+  json_builder_set_member_name (b, "motion");
+  json_builder_begin_object (b);
+  json_builder_set_member_name (b, "speed_px_s");
+  if (!r->speed_declared)
+    json_builder_add_null_value (b);
+  else
+    json_builder_add_double_value (b, r->speed_px_s);
+  json_builder_set_member_name (b, "term");
+  if (motion_term)
+    json_builder_add_double_value (b, p->motion_term);
+  else
+    json_builder_add_null_value (b);
+  DBL ("predicted_error_still", p->predicted_error_still);
+  DBL ("set_span_ms", p->motion_span_ms);
+  BOOL ("checked", r->motion_checked);
+  json_builder_set_member_name (b, "pixels");
+  json_builder_add_int_value (b, (gint64) r->motion_pixels);
+  json_builder_end_object (b);
   json_builder_set_member_name (b, "assumptions");
   json_builder_begin_array (b);
   if (pr->blur.source == DS_BLUR_ASSUMED_SHARP) {

@@ -79,6 +79,20 @@ settings_from_request (DsService *svc, const DsRequest *req, DsCaptureSettings *
   if (!ds_request_get_double (req, "target_error", 0.0, 1.0, 0.0, &s->target_error, error) ||
       !ds_request_get_double (req, "time_budget_ms", 0.0, 3.6e6, 0.0, &s->time_budget_ms, error))
     return FALSE;
+  /* A declared speed is the automatic operating point's: refused where nothing would use it. */
+  double speed = NAN;
+  if (!ds_request_get_double (req, "speed_px_s", 0.0, 1e6, NAN, &speed, error))
+    return FALSE;
+  if (!isnan (speed) && s->target_error <= 0 && s->time_budget_ms <= 0) {
+    g_set_error (error, DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_BAD_ARGUMENT,
+                 "\"speed_px_s\" without target_error or time_budget_ms: only the automatic operating point "
+                 "predicts with it");
+    return FALSE;
+  }
+  if (!isnan (speed)) {
+    s->speed_declared = TRUE;
+    s->speed_px_s = speed;
+  }
   /* One frame per result: the window of one period holds too few samples for robust, and the
    * automatic operating point chooses among phase sets. */
   if (s->single_frame && s->estimator == DS_ESTIMATOR_ROBUST) {
@@ -210,8 +224,8 @@ handle_capture (DsService *svc, DsConnection *conn, DsRequest *req)
 {
   static const char *const keys[] = { "phases", "averages", "exposure_us", "gain_db", "estimator",
                                       "dark_frame", "verify_phase", "format", "outputs",
-                                      "progress", "target_error", "time_budget_ms", "save_phases", "single_frame",
-                                      NULL };
+                                      "progress", "target_error", "time_budget_ms", "speed_px_s", "save_phases",
+                                      "single_frame", NULL };
   g_autoptr (GError) error = NULL;
   DsCaptureSettings s;
   const char *format;
@@ -365,7 +379,7 @@ static void
 handle_start (DsService *svc, DsConnection *conn, DsRequest *req)
 {
   static const char *const keys[] = { "phases", "averages", "exposure_us", "gain_db", "estimator",
-                                      "dark_frame", "verify_phase", "target_error", "time_budget_ms",
+                                      "dark_frame", "verify_phase", "target_error", "time_budget_ms", "speed_px_s",
                                       "save_phases", "results", "single_frame", NULL };
   static const char *const modes[] = { "per-set", "per-frame", NULL };
   g_autoptr (GError) error = NULL;

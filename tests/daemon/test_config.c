@@ -163,9 +163,9 @@ test_reload_rule (void)
   g_autofree char *changed = ds_config_restart_keys_changed (running, two);
   g_assert_cmpstr (changed, ==, "[camera] roi; [acquisition] settle-ms, link-mbit");
   g_autofree char *live_keys = ds_config_live_keys ();
-  g_assert_cmpstr (live_keys, ==, "[camera] exposure-us, gain-db; [acquisition] phases, averages, estimator, "
-                                  "dark-frame, phase-retries, max-failed-sets, results, verify-phase, detect-motion, "
-                                  "phase-tolerance-deg, single-frame");
+  g_assert_cmpstr (live_keys, ==, "[camera] exposure-us, gain-db, gain-dn-per-e, read-noise-dn; [acquisition] "
+                                  "phases, averages, estimator, dark-frame, phase-retries, max-failed-sets, results, "
+                                  "verify-phase, detect-motion, speed-px-s, phase-tolerance-deg, single-frame");
 }
 
 static void
@@ -348,6 +348,45 @@ test_calibration_lines_and_clip_level (void)
   g_assert_cmpfloat (top->saturation_dn, ==, 255);
 }
 
+/* The camera's noise model reaches the separation's per-pixel noise (system_gain > 0 turns it
+ * on), and a declared speed the automatic operating point's settings; unset, neither is there. */
+static void
+test_noise_model_and_speed (void)
+{
+  g_autoptr (GError) error = NULL;
+  g_autoptr (DsConfig) c = load_data (SIM "[camera]\ngain-dn-per-e=0.35\nread-noise-dn=2.5\n"
+                                          "[acquisition]\nspeed-px-s=120\n", "noise.conf", &error);
+  g_assert_no_error (error);
+  DsCaptureSettings s;
+  ds_capture_settings_from_config (&s, c);
+  DsSeparationParams p;
+  ds_capture_settings_separation_params (&s, &p);
+  g_assert_cmpfloat (p.system_gain, ==, 0.35);
+  g_assert_cmpfloat (p.read_noise_dn, ==, 2.5);
+  g_assert_true (s.speed_declared);
+  g_assert_cmpfloat (s.speed_px_s, ==, 120);
+  /* The gain alone: read noise 0 (a camera whose shot noise dominates). */
+  g_autoptr (DsConfig) g = load_data (SIM "[camera]\ngain-dn-per-e=2\n", "gain.conf", &error);
+  g_assert_no_error (error);
+  ds_capture_settings_from_config (&s, g);
+  ds_capture_settings_separation_params (&s, &p);
+  g_assert_cmpfloat (p.system_gain, ==, 2);
+  g_assert_cmpfloat (p.read_noise_dn, ==, 0);
+  g_autoptr (DsConfig) d = load_data (SIM, "plain.conf", &error);
+  g_assert_no_error (error);
+  ds_capture_settings_from_config (&s, d);
+  ds_capture_settings_separation_params (&s, &p);
+  g_assert_cmpfloat (p.system_gain, ==, 0);
+  g_assert_cmpfloat (p.read_noise_dn, ==, 0);
+  g_assert_false (s.speed_declared);
+  expect_error (SIM "[camera]\nread-noise-dn=3\n", DS_CONFIG_ERROR_INCONSISTENT,
+                (const char *const[]) { "read-noise-dn", "gain-dn-per-e", NULL });
+  expect_error ("[camera]\ngain-dn-per-e=0\n", DS_CONFIG_ERROR_BAD_VALUE,
+                (const char *const[]) { "gain-dn-per-e", NULL });
+  expect_error ("[acquisition]\nspeed-px-s=-5\n", DS_CONFIG_ERROR_BAD_VALUE,
+                (const char *const[]) { "speed-px-s", "0..1e+06", NULL });
+}
+
 /* GKeyFile merges a group given twice; descatterd refuses it with both lines, so that what a
  * reader finds in the file's first copy of a group is all of it. */
 static void
@@ -375,6 +414,7 @@ main (int argc, char **argv)
   g_test_add_func ("/config/refusals", test_refusals);
   g_test_add_func ("/config/calibration-lines-and-clip-level", test_calibration_lines_and_clip_level);
   g_test_add_func ("/config/file-limits", test_file_limits);
+  g_test_add_func ("/config/noise-model-and-speed", test_noise_model_and_speed);
   g_test_add_func ("/config/groups-given-twice", test_groups_given_twice);
   return g_test_run ();
 }

@@ -146,6 +146,75 @@ test_against_the_simulator (void)
   }
 }
 
+/* The table (whole-pixel shifts kept, the interpolation's departure in closed form between them)
+ * against ds_motion_term's pixel-by-pixel sums: the same numbers, at fractional, negative and
+ * border-crossing shifts, on an image with edges, ramps and texture. With noise and its variance,
+ * the noise's expectation is taken out: the term of a noisy image lands on the clean image's. */
+static void
+test_table (void)
+{
+  const guint w = 97, h = 300; /* more rows than the table keeps: it samples them */
+  g_autoptr (GError) error = NULL;
+  g_autoptr (DsImage) t = ds_image_new (DS_SAMPLE_F32, w, h, &error);
+  g_autoptr (DsImage) noisy = ds_image_new (DS_SAMPLE_F32, w, h, &error);
+  g_autoptr (DsImage) var = ds_image_new (DS_SAMPLE_F32, w, h, &error);
+  g_autoptr (GRand) rng = g_rand_new_with_seed (7);
+  const double sigma = 0.2;
+  for (guint y = 0; y < h; y++) {
+    float *row = ds_image_row (t, y), *nr = ds_image_row (noisy, y), *vr = ds_image_row (var, y);
+    for (guint x = 0; x < w; x++) {
+      /* The same along y (so that sampled rows stand for all), a bar, a ramp and a sine along x. */
+      double v = 1.0 + 0.3 * sin (x * 0.7);
+      if (x >= 20 && x < 35)
+        v = 0.1;
+      if (x >= 60 && x < 80)
+        v *= (x - 60) / 20.0;
+      row[x] = (float) v;
+      /* Box-Muller */
+      double u1 = g_rand_double_range (rng, 1e-12, 1), u2 = g_rand_double (rng);
+      nr[x] = (float) (v + sigma * sqrt (-2 * log (u1)) * cos (2 * G_PI * u2));
+      vr[x] = (float) (sigma * sigma);
+    }
+  }
+  g_autoptr (DsMotionTable) table = ds_motion_table_new (t, NULL, &error);
+  g_assert_no_error (error);
+  const double speeds[] = { 3.7, 41.3, 250, 1e4 }; /* the last crosses the whole width */
+  const guint ns[] = { 2, 5, 16 };
+  for (guint i = 0; i < G_N_ELEMENTS (speeds); i++)
+    for (guint j = 0; j < G_N_ELEMENTS (ns); j++) {
+      double times[16];
+      for (guint k = 0; k < ns[j]; k++)
+        times[k] = 0.013 + 0.0071 * k + 0.002 * (k % 3); /* uneven, as M frames per phase are */
+      for (DsEstimator est = DS_ESTIMATOR_MAXMIN; est <= DS_ESTIMATOR_SINE; est++) {
+        double direct = 0;
+        g_assert_true (ds_motion_term (t, speeds[i], times, ns[j], est, &direct, &error));
+        double tabled = ds_motion_table_term (table, speeds[i], times, ns[j], est);
+        g_assert_cmpfloat (fabs (tabled - direct), <=, 1e-9 + 1e-6 * direct);
+      }
+      g_assert_true (isnan (ds_motion_table_term (table, speeds[i], times, ns[j], DS_ESTIMATOR_ROBUST)));
+    }
+  g_autoptr (DsMotionTable) with_noise = ds_motion_table_new (noisy, var, &error);
+  g_assert_no_error (error);
+  g_autoptr (DsMotionTable) ignoring = ds_motion_table_new (noisy, NULL, &error);
+  const double times[] = { 0, 0.01, 0.02, 0.03, 0.04, 0.05 };
+  double clean = 0;
+  g_assert_true (ds_motion_term (t, 100, times, 6, DS_ESTIMATOR_SINE, &clean, &error));
+  double taken_out = ds_motion_table_term (with_noise, 100, times, 6, DS_ESTIMATOR_SINE);
+  double left_in = ds_motion_table_term (ignoring, 100, times, 6, DS_ESTIMATOR_SINE);
+  g_test_message ("clean %.4f, noise taken out %.4f, noise left in %.4f", clean, taken_out, left_in);
+  /* 256 rows of 97 px: the noise's own scatter is a few % of the departure. */
+  g_assert_cmpfloat (fabs (taken_out / clean - 1), <, 0.05);
+  g_assert_cmpfloat (left_in / clean - 1, >, 0.2);
+  /* Refusals: no light, a noise variance of another size. */
+  g_autoptr (DsImage) dark = ds_image_new (DS_SAMPLE_F32, w, 4, &error);
+  memset (dark->data, 0, dark->stride * 4);
+  g_assert_null (ds_motion_table_new (dark, NULL, &error));
+  g_assert_error (error, G_IO_ERROR, G_IO_ERROR_INVALID_ARGUMENT);
+  g_clear_error (&error);
+  g_assert_null (ds_motion_table_new (t, dark, &error));
+  g_assert_error (error, G_IO_ERROR, G_IO_ERROR_INVALID_ARGUMENT);
+}
+
 static void
 test_apply (void)
 {
@@ -162,6 +231,8 @@ test_apply (void)
   g_assert_true (ds_motion_apply (&q, NAN, NAN, 12, &why)); /* motion seen, no speed declared */
   g_assert_true (q.lower_bound);
   g_assert_nonnull (strstr (why, "no speed declared"));
+  /* A lower bound for motion has nothing above it. */
+  g_assert_true (isinf (q.predicted_error_upper) && !q.upper_bounded);
   g_assert_cmpfloat (q.predicted_error, ==, 0.03);
   DsOperatingPoint r = { .predicted_error = 0.03, .predicted_error_upper = 0.04 };
   g_assert_true (ds_motion_apply (&r, 50, NAN, 0, &why)); /* robust: no model */
@@ -175,6 +246,7 @@ main (int argc, char **argv)
   g_test_init (&argc, &argv, NULL);
   g_test_add_func ("/motion-term/bar-closed-form", test_bar_closed_form);
   g_test_add_func ("/motion-term/against-the-simulator", test_against_the_simulator);
+  g_test_add_func ("/motion-term/table", test_table);
   g_test_add_func ("/motion-term/apply", test_apply);
   return g_test_run ();
 }

@@ -96,6 +96,8 @@ test_settings_documented (void)
   full.edge_blur_known = TRUE;
   full.edge_blur_px = 0.5;
   full.saturation_dn = 4000;
+  full.system_gain = 0.5; /* the camera's noise model */
+  full.read_noise_dn = 2;
   full.roi_width = 64; /* a result's region, as the set runner fills it in */
   full.roi_height = 48;
   full.per_frame = TRUE; /* continuous mode's per-frame results */

@@ -206,14 +206,16 @@ class AsyncClient:
                       exposure_us: Optional[float] = None, gain_db: Optional[float] = None,
                       estimator: Optional[Estimator] = None, dark_frame: Optional[bool] = None,
                       verify_phase: Optional[bool] = None, target_error: Optional[float] = None,
-                      time_budget_ms: Optional[float] = None, save_phases: Optional[bool] = None,
+                      time_budget_ms: Optional[float] = None, speed_px_s: Optional[float] = None,
+                      save_phases: Optional[bool] = None,
                       single_frame: Optional[bool] = None,
                       format: Optional[Format] = None, outputs: Optional[Iterable[str]] = None,
                       on_progress: Optional[ProgressCallback] = None, timeout: Optional[float] = None) -> Result:
         """As descatter.Client.capture."""
         args = acquisition_args(phases=phases, averages=averages, exposure_us=exposure_us, gain_db=gain_db,
                                 estimator=estimator, dark_frame=dark_frame, verify_phase=verify_phase,
-                                target_error=target_error, time_budget_ms=time_budget_ms, save_phases=save_phases,
+                                target_error=target_error, time_budget_ms=time_budget_ms, speed_px_s=speed_px_s,
+                                save_phases=save_phases,
                                 single_frame=single_frame)
         if format is not None:
             args["format"] = format
@@ -227,13 +229,15 @@ class AsyncClient:
                     exposure_us: Optional[float] = None, gain_db: Optional[float] = None,
                     estimator: Optional[Estimator] = None, dark_frame: Optional[bool] = None,
                     verify_phase: Optional[bool] = None, target_error: Optional[float] = None,
-                    time_budget_ms: Optional[float] = None, save_phases: Optional[bool] = None,
+                    time_budget_ms: Optional[float] = None, speed_px_s: Optional[float] = None,
+                    save_phases: Optional[bool] = None,
                     single_frame: Optional[bool] = None, results: Optional[Results] = None,
                     timeout: Optional[float] = None) -> JsonObject:
         """As descatter.Client.start."""
         args = acquisition_args(phases=phases, averages=averages, exposure_us=exposure_us, gain_db=gain_db,
                                 estimator=estimator, dark_frame=dark_frame, verify_phase=verify_phase,
-                                target_error=target_error, time_budget_ms=time_budget_ms, save_phases=save_phases,
+                                target_error=target_error, time_budget_ms=time_budget_ms, speed_px_s=speed_px_s,
+                                save_phases=save_phases,
                                 single_frame=single_frame)
         if results is not None:
             args["results"] = results

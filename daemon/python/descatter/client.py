@@ -70,11 +70,12 @@ def acquisition_args(*, phases: Optional[int], averages: Optional[int], exposure
                      gain_db: Optional[float], estimator: Optional[str], dark_frame: Optional[bool],
                      verify_phase: Optional[bool], target_error: Optional[float],
                      time_budget_ms: Optional[float], save_phases: Optional[bool],
-                     single_frame: Optional[bool] = None) -> JsonObject:
+                     single_frame: Optional[bool] = None, speed_px_s: Optional[float] = None) -> JsonObject:
     """The settings of capture and start (docs/protocol.md, `capture`), as sent."""
     return given(phases=phases, averages=averages, exposure_us=exposure_us, gain_db=gain_db, estimator=estimator,
                  dark_frame=dark_frame, verify_phase=verify_phase, target_error=target_error,
-                 time_budget_ms=time_budget_ms, save_phases=save_phases, single_frame=single_frame)
+                 time_budget_ms=time_budget_ms, speed_px_s=speed_px_s, save_phases=save_phases,
+                 single_frame=single_frame)
 
 
 Roi = Union[tuple[int, int, int, int], dict[str, int]]
@@ -291,20 +292,23 @@ class Client:
                 exposure_us: Optional[float] = None, gain_db: Optional[float] = None,
                 estimator: Optional[Estimator] = None, dark_frame: Optional[bool] = None,
                 verify_phase: Optional[bool] = None, target_error: Optional[float] = None,
-                time_budget_ms: Optional[float] = None, save_phases: Optional[bool] = None,
+                time_budget_ms: Optional[float] = None, speed_px_s: Optional[float] = None,
+                save_phases: Optional[bool] = None,
                 single_frame: Optional[bool] = None,
                 format: Optional[Format] = None, outputs: Optional[Iterable[str]] = None,
                 on_progress: Optional[ProgressCallback] = None, timeout: Optional[float] = None) -> Result:
         """Acquires and separates one phase set and returns its Result once it is done. The
         settings are docs/protocol.md's (None: the daemon's configuration); target_error and/or
-        time_budget_ms let the daemon choose the rest; format "f32" or "u16"; outputs, e.g.
-        ["transmissive", "scattered", "mask", "max"]; save_phases=True: the raw frames too
+        time_budget_ms let the daemon choose the rest, and speed_px_s (px/s across the stripes)
+        adds to its predictions the motion error of objects moving at it; format "f32" or "u16";
+        outputs, e.g. ["transmissive", "scattered", "mask", "max"]; save_phases=True: the raw frames too
         (Result.raw_frames, Result.black). on_progress is called with each phase's
         ProgressEvent. Raises the class of the daemon's error code (BadArgument, Busy,
         DeviceError, Failed, Cancelled), or Timeout after the daemon was told to cancel."""
         args = acquisition_args(phases=phases, averages=averages, exposure_us=exposure_us, gain_db=gain_db,
                                 estimator=estimator, dark_frame=dark_frame, verify_phase=verify_phase,
-                                target_error=target_error, time_budget_ms=time_budget_ms, save_phases=save_phases,
+                                target_error=target_error, time_budget_ms=time_budget_ms, speed_px_s=speed_px_s,
+                                save_phases=save_phases,
                                 single_frame=single_frame)
         if format is not None:
             args["format"] = format
@@ -318,7 +322,8 @@ class Client:
               exposure_us: Optional[float] = None, gain_db: Optional[float] = None,
               estimator: Optional[Estimator] = None, dark_frame: Optional[bool] = None,
               verify_phase: Optional[bool] = None, target_error: Optional[float] = None,
-              time_budget_ms: Optional[float] = None, save_phases: Optional[bool] = None,
+              time_budget_ms: Optional[float] = None, speed_px_s: Optional[float] = None,
+              save_phases: Optional[bool] = None,
               single_frame: Optional[bool] = None, results: Optional[Results] = None,
               timeout: Optional[float] = None) -> JsonObject:
         """Starts continuous acquisition and returns the settings used; results go to
@@ -328,7 +333,8 @@ class Client:
         already acquires."""
         args = acquisition_args(phases=phases, averages=averages, exposure_us=exposure_us, gain_db=gain_db,
                                 estimator=estimator, dark_frame=dark_frame, verify_phase=verify_phase,
-                                target_error=target_error, time_budget_ms=time_budget_ms, save_phases=save_phases,
+                                target_error=target_error, time_budget_ms=time_budget_ms, speed_px_s=speed_px_s,
+                                save_phases=save_phases,
                                 single_frame=single_frame)
         if results is not None:
             args["results"] = results
