@@ -1,7 +1,10 @@
 /* Finalize: the estimators (maxmin, sine, robust), the quality mask, the noise model and the
  * result. Formulas and choices: docs/estimators.md. Per pixel in double precision (the row
  * kernels of separation_rows.c); integer state is widened there, and the dark frame is
- * subtracted there in signed arithmetic. Rows are split over the set's worker threads; every
+ * subtracted there in signed arithmetic. Integer maxmin and sine without a noise model, kept
+ * extrema or the motion test take float rows instead (separation_kernels.c): the same mask
+ * rules, Ld and Lg within float rounding of the double rows (/separation-fused/...,
+ * /separation-sine-fast/...). Rows are split over the set's worker threads; every
  * per-set sum is made per row and added in row order, so any split gives the same bits. */
 #include <math.h>
 #include <string.h>
@@ -21,6 +24,8 @@ typedef struct {
   DsRowConsts c;
   DsMaxminFast fast;       /* the integer maxmin path without model or extrema */
   gboolean use_fast;
+  DsSineFast sine_fast;    /* the integer sine path without model, extrema or motion */
+  gboolean use_sine_fast;
   DsRobustTables tables;
   double *row_mean_sum;    /* per row */
   guint64 *row_mean_count; /* per row */
@@ -85,6 +90,14 @@ finalize_rows (gpointer data, guint y0, guint y1, guint thread)
         ds_row_motion (c, set->sumsq + off, rb.mean_raw, 1.0, set->cos_sum + off, set->sin_sum + off, dark, &rb, w);
         ds_row_or_motion (rb.motion, o.mk, w, counts);
       }
+      continue;
+    }
+    if (j->use_sine_fast) {
+      DsSineFastRow r = { .c64 = set->cos64 + off, .s64 = set->sin64 + off, .hi = set->max16 + off,
+                          .lo = set->min16 + off, .sum = set->sum32 + off,
+                          .dark = set->dark ? set->dark + off : NULL, .flags = column_flags,
+                          .t = o.t, .g = o.g, .mk = o.mk };
+      ds_sine_fast_row (&r, w, &j->sine_fast, counts);
       continue;
     }
     if (set->max16)
@@ -311,6 +324,27 @@ finalize_run (DsPhaseSet *set, DsSeparation *sep, guint m_frames, const DsImage 
     k->floor = isnan (c->floor) ? -INFINITY : (float) c->floor;
     double lowmod = c->range_q * c->data_sigma / sqrt ((double) m_frames);
     k->lowmod = isnan (lowmod) ? -INFINITY : (float) lowmod;
+    k->exceed = (float) (c->exceed_q * sqrt (c->data_exceed_var));
+  }
+  /* The general row works in double and makes the sigmas and extrema even when nobody asks
+   * for them; without them (and without the motion test) integer sine takes a float row. The
+   * sum is converted as a signed 32-bit integer: N samples of the type's full scale must stay
+   * below 2^31 (whatever bit depth the frames claim). */
+  j.use_sine_fast = set->cos64 && set->max16 && set->sum32 && p->estimator == DS_ESTIMATOR_SINE &&
+                    !model && !extrema && !c->motion &&
+                    (guint64) n * (set->type == DS_SAMPLE_U8 ? 255u : 65535u) < (1ull << 31);
+  if (j.use_sine_fast) {
+    DsSineFast *k = &j.sine_fast;
+    k->two_n = (float) (2.0 / n);
+    k->inv_n = (float) (1.0 / n);
+    k->inv_h = (float) (1.0 / c->h);
+    k->inv_m = (float) (1.0 / c->m);
+    /* the maximum is an integer: max >= sat exactly when max >= ceil (sat), which float holds
+     * exactly, so SATURATED is the general path's bit for bit */
+    k->sat = isnan (c->sat) ? INFINITY : (float) ceil (c->sat);
+    k->floor = isnan (c->floor) ? -INFINITY : (float) c->floor;
+    double lowamp = c->rayleigh * c->data_sigma / sqrt ((double) m_frames);
+    k->lowamp = isnan (lowamp) ? -INFINITY : (float) lowamp;
     k->exceed = (float) (c->exceed_q * sqrt (c->data_exceed_var));
   }
   g_autofree double *tab = NULL;
