@@ -33,6 +33,9 @@ typedef struct {
   const guint8 *column_flags; /* undersampled columns, NULL if none */
   const DsImage *last_frame; /* fast path: the set's last frame, folded on the way; or NULL */
   double last_c, last_s;     /* its phase's angle, for the motion sums */
+  DsRowJob prepare;          /* or NULL: run over each block of rows before they are read */
+  gpointer prepare_data;
+  guint prepare_block;
 } FinalizeJob;
 
 static void
@@ -48,6 +51,8 @@ finalize_rows (gpointer data, guint y0, guint y1, guint thread)
   DsRowBuffers rb;
   ds_row_buffers_init (&rb, ds_phase_set_scratch (set, thread), w);
   for (guint y = y0; y < y1; y++) {
+    if (j->prepare && (y - y0) % j->prepare_block == 0)
+      j->prepare (j->prepare_data, y, MIN (y + j->prepare_block, y1), thread);
     gsize off = (gsize) y * w;
     const float *dark = set->dark ? set->dark + off : rb.dark_zero;
     DsRowOutputs o = {
@@ -260,14 +265,17 @@ finalize_prepare (DsPhaseSet *set, DsSeparation *sep, int pending, guint *m_fram
   return TRUE;
 }
 
-/* The pixels and meta; cannot fail. last_frame: see FinalizeJob. */
+/* The pixels and meta; cannot fail. last_frame: see FinalizeJob; prepare, block, data: see
+ * ds_phase_set_finalize_prepared_into (prepare NULL: none). */
 static void
-finalize_run (DsPhaseSet *set, DsSeparation *sep, guint m_frames, const DsImage *last_frame, guint last_phase)
+finalize_run (DsPhaseSet *set, DsSeparation *sep, guint m_frames, const DsImage *last_frame, guint last_phase,
+              DsRowJob prepare, guint block, gpointer data)
 {
   const DsSeparationParams *p = &set->params;
   guint n = p->n_phases;
   gboolean model = p->system_gain > 0, extrema = p->keep_extrema;
-  FinalizeJob j = { .set = set, .sep = sep, .last_frame = last_frame };
+  FinalizeJob j = { .set = set, .sep = sep, .last_frame = last_frame, .prepare = prepare,
+                    .prepare_data = data, .prepare_block = MAX (block, 1) };
   /* as the fold computes a phase's angle (separation_accumulate.c), for the same bits */
   double angle = 2.0 * G_PI * (double) last_phase / (double) p->n_phases;
   j.last_c = cos (angle);
@@ -416,7 +424,19 @@ ds_phase_set_finalize_into (DsPhaseSet *set, DsSeparation *sep, GError **error)
   if (!finalize_prepare (set, sep, -1, &m_frames, error))
     return FALSE;
   ds_phase_set_fold_pending (set);
-  finalize_run (set, sep, m_frames, NULL, 0);
+  finalize_run (set, sep, m_frames, NULL, 0, NULL, 0, NULL);
+  return TRUE;
+}
+
+gboolean
+ds_phase_set_finalize_prepared_into (DsPhaseSet *set, DsSeparation *sep, DsRowJob prepare, guint block,
+                                     gpointer data, GError **error)
+{
+  guint m_frames;
+  if (!finalize_prepare (set, sep, -1, &m_frames, error))
+    return FALSE;
+  ds_phase_set_fold_pending (set);
+  finalize_run (set, sep, m_frames, NULL, 0, prepare, block, data);
   return TRUE;
 }
 
@@ -453,7 +473,7 @@ ds_phase_set_accumulate_finalize_into (DsPhaseSet *set, guint phase, const DsIma
   /* When the result cannot be made (planes that do not fit), the frame is still folded and
    * the finalize below says why, as the two calls would. */
   if (fusable (set, phase) && finalize_prepare (set, sep, (int) phase, &m_frames, NULL)) {
-    finalize_run (set, sep, m_frames, frame, phase);
+    finalize_run (set, sep, m_frames, frame, phase, NULL, 0, NULL);
     ds_phase_set_fold_end (set, phase);
     ds_phase_set_fold_pending (set); /* nothing pending: the set is left as finalize leaves it */
     if (folded)

@@ -104,6 +104,15 @@ void ds_phase_set_locate_columns (DsPhaseSet *set, guint phase, const DsImage *f
 #define DS_HARMONIC_FIX_BITS 30
 void ds_harmonic_fix_weights (guint n, guint phase, gint32 *c, gint32 *s);
 
+/* ds_phase_set_finalize_into, with prepare (data, y0, y1, thread) run on the finalize's thread
+ * over each block of at most `block` rows just before the finalize reads them: a caller that
+ * updates the state in place (proc/phase_window.c) does so while the rows are in cache. Every
+ * set-wide input of the finalize (noise estimate, column flags, dark frame) must be final
+ * before the call, and prepare may change only the state of its own rows. Fails as
+ * ds_phase_set_finalize_into does, before prepare has run on any row. */
+gboolean ds_phase_set_finalize_prepared_into (DsPhaseSet *set, DsSeparation *sep, DsRowJob prepare,
+                                              guint block, gpointer data, GError **error);
+
 /* Averaging: folds the last phase's mean (finalize calls it once; idempotent). */
 void ds_phase_set_fold_pending (DsPhaseSet *set);
 
