@@ -263,6 +263,12 @@ test_threaded (void)
       .width = 512, .height = 320, .threads = 2, .one_thread_calls = TRUE },
     { .estimator = DS_ESTIMATOR_SINE, .type = DS_SAMPLE_U16, .bits = 12, .n = 8, .dark = TRUE,
       .width = 509, .height = 331, .threads = 3, .no_extrema = TRUE },
+    /* rows wide enough that a fused push and finalize takes each band in several blocks (of
+     * 256 KiB of a kept plane: 63 rows here) and a last short one */
+    { .estimator = DS_ESTIMATOR_MAXMIN, .type = DS_SAMPLE_U16, .bits = 12, .n = 3, .dark = TRUE,
+      .width = 2050, .height = 203, .threads = 1, .no_extrema = TRUE },
+    { .estimator = DS_ESTIMATOR_SINE, .type = DS_SAMPLE_U8, .bits = 8, .n = 4, .dark = FALSE,
+      .width = 4100, .height = 150, .threads = 2, .no_extrema = TRUE, .gain = 1.6 },
   };
   for (guint i = 0; i < G_N_ELEMENTS (cases); i++)
     run_case (&cases[i]);
