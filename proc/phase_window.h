@@ -41,6 +41,17 @@ gboolean ds_phase_window_set_dark (DsPhaseWindow *window, const DsImage *dark, G
 gboolean ds_phase_window_push (DsPhaseWindow *window, guint phase, const DsImage *frame,
                                gboolean *complete, GError **error);
 
+/* ds_phase_window_push, then, when the window is complete, ds_phase_window_finalize_into
+ * `sep`: the same state and result bit for bit, but once the window's state is current
+ * (after its first result since a break) each block of rows is pushed and finalized while
+ * it is in cache, on the finalize's threads. *pushed (may be NULL) says whether the frame went
+ * in: on an error with *pushed TRUE the window took the frame, as after a successful push
+ * and a failed finalize (planes of the wrong shape). *complete as for the push; no result
+ * when FALSE. */
+gboolean ds_phase_window_push_finalize_into (DsPhaseWindow *window, guint phase,
+                                             const DsImage *frame, DsSeparation *sep,
+                                             gboolean *complete, gboolean *pushed, GError **error);
+
 /* Forgets every frame (keeps the dark): the next result needs a frame of every phase. For a
  * lost frame, a frame the phase check refused, or a changed setting. */
 void ds_phase_window_break (DsPhaseWindow *window);
@@ -61,7 +72,8 @@ gboolean ds_phase_window_finalize_into (DsPhaseWindow *window, DsSeparation *sep
 
 /* Threads for the pushes and for the finalize, as ds_phase_set_set_fold_threads and
  * ds_phase_set_set_finalize_threads for a set (0, the default: all of params.threads); the
- * results are the same bit for bit with any number. A caller receiving the next frame on the
+ * results are the same bit for bit with any number. A fused push and finalize
+ * (ds_phase_window_push_finalize_into) runs on the finalize's threads. A caller receiving the next frame on the
  * same cores meanwhile may leave them some. */
 void ds_phase_window_set_push_threads (DsPhaseWindow *window, guint threads);
 void ds_phase_window_set_finalize_threads (DsPhaseWindow *window, guint threads);

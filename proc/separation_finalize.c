@@ -1,7 +1,10 @@
 /* Finalize: the estimators (maxmin, sine, robust), the quality mask, the noise model and the
  * result. Formulas and choices: docs/estimators.md. Per pixel in double precision (the row
  * kernels of separation_rows.c); integer state is widened there, and the dark frame is
- * subtracted there in signed arithmetic. Rows are split over the set's worker threads; every
+ * subtracted there in signed arithmetic. Integer maxmin and sine without a noise model, kept
+ * extrema or the motion test take float rows instead (separation_kernels.c): the same mask
+ * rules, Ld and Lg within float rounding of the double rows (/separation-fused/...,
+ * /separation-sine-fast/...). Rows are split over the set's worker threads; every
  * per-set sum is made per row and added in row order, so any split gives the same bits. */
 #include <math.h>
 #include <string.h>
@@ -21,6 +24,8 @@ typedef struct {
   DsRowConsts c;
   DsMaxminFast fast;       /* the integer maxmin path without model or extrema */
   gboolean use_fast;
+  DsSineFast sine_fast;    /* the integer sine path without model, extrema or motion */
+  gboolean use_sine_fast;
   DsRobustTables tables;
   double *row_mean_sum;    /* per row */
   guint64 *row_mean_count; /* per row */
@@ -28,6 +33,9 @@ typedef struct {
   const guint8 *column_flags; /* undersampled columns, NULL if none */
   const DsImage *last_frame; /* fast path: the set's last frame, folded on the way; or NULL */
   double last_c, last_s;     /* its phase's angle, for the motion sums */
+  DsRowJob prepare;          /* or NULL: run over each block of rows before they are read */
+  gpointer prepare_data;
+  guint prepare_block;
 } FinalizeJob;
 
 static void
@@ -43,6 +51,8 @@ finalize_rows (gpointer data, guint y0, guint y1, guint thread)
   DsRowBuffers rb;
   ds_row_buffers_init (&rb, ds_phase_set_scratch (set, thread), w);
   for (guint y = y0; y < y1; y++) {
+    if (j->prepare && (y - y0) % j->prepare_block == 0)
+      j->prepare (j->prepare_data, y, MIN (y + j->prepare_block, y1), thread);
     gsize off = (gsize) y * w;
     const float *dark = set->dark ? set->dark + off : rb.dark_zero;
     DsRowOutputs o = {
@@ -85,6 +95,14 @@ finalize_rows (gpointer data, guint y0, guint y1, guint thread)
         ds_row_motion (c, set->sumsq + off, rb.mean_raw, 1.0, set->cos_sum + off, set->sin_sum + off, dark, &rb, w);
         ds_row_or_motion (rb.motion, o.mk, w, counts);
       }
+      continue;
+    }
+    if (j->use_sine_fast) {
+      DsSineFastRow r = { .c64 = set->cos64 + off, .s64 = set->sin64 + off, .hi = set->max16 + off,
+                          .lo = set->min16 + off, .sum = set->sum32 + off,
+                          .dark = set->dark ? set->dark + off : NULL, .flags = column_flags,
+                          .t = o.t, .g = o.g, .mk = o.mk };
+      ds_sine_fast_row (&r, w, &j->sine_fast, counts);
       continue;
     }
     if (set->max16)
@@ -247,14 +265,17 @@ finalize_prepare (DsPhaseSet *set, DsSeparation *sep, int pending, guint *m_fram
   return TRUE;
 }
 
-/* The pixels and meta; cannot fail. last_frame: see FinalizeJob. */
+/* The pixels and meta; cannot fail. last_frame: see FinalizeJob; prepare, block, data: see
+ * ds_phase_set_finalize_prepared_into (prepare NULL: none). */
 static void
-finalize_run (DsPhaseSet *set, DsSeparation *sep, guint m_frames, const DsImage *last_frame, guint last_phase)
+finalize_run (DsPhaseSet *set, DsSeparation *sep, guint m_frames, const DsImage *last_frame, guint last_phase,
+              DsRowJob prepare, guint block, gpointer data)
 {
   const DsSeparationParams *p = &set->params;
   guint n = p->n_phases;
   gboolean model = p->system_gain > 0, extrema = p->keep_extrema;
-  FinalizeJob j = { .set = set, .sep = sep, .last_frame = last_frame };
+  FinalizeJob j = { .set = set, .sep = sep, .last_frame = last_frame, .prepare = prepare,
+                    .prepare_data = data, .prepare_block = MAX (block, 1) };
   /* as the fold computes a phase's angle (separation_accumulate.c), for the same bits */
   double angle = 2.0 * G_PI * (double) last_phase / (double) p->n_phases;
   j.last_c = cos (angle);
@@ -311,6 +332,27 @@ finalize_run (DsPhaseSet *set, DsSeparation *sep, guint m_frames, const DsImage 
     k->floor = isnan (c->floor) ? -INFINITY : (float) c->floor;
     double lowmod = c->range_q * c->data_sigma / sqrt ((double) m_frames);
     k->lowmod = isnan (lowmod) ? -INFINITY : (float) lowmod;
+    k->exceed = (float) (c->exceed_q * sqrt (c->data_exceed_var));
+  }
+  /* The general row works in double and makes the sigmas and extrema even when nobody asks
+   * for them; without them (and without the motion test) integer sine takes a float row. The
+   * sum is converted as a signed 32-bit integer: N samples of the type's full scale must stay
+   * below 2^31 (whatever bit depth the frames claim). */
+  j.use_sine_fast = set->cos64 && set->max16 && set->sum32 && p->estimator == DS_ESTIMATOR_SINE &&
+                    !model && !extrema && !c->motion &&
+                    (guint64) n * (set->type == DS_SAMPLE_U8 ? 255u : 65535u) < (1ull << 31);
+  if (j.use_sine_fast) {
+    DsSineFast *k = &j.sine_fast;
+    k->two_n = (float) (2.0 / n);
+    k->inv_n = (float) (1.0 / n);
+    k->inv_h = (float) (1.0 / c->h);
+    k->inv_m = (float) (1.0 / c->m);
+    /* the maximum is an integer: max >= sat exactly when max >= ceil (sat), which float holds
+     * exactly, so SATURATED is the general path's bit for bit */
+    k->sat = isnan (c->sat) ? INFINITY : (float) ceil (c->sat);
+    k->floor = isnan (c->floor) ? -INFINITY : (float) c->floor;
+    double lowamp = c->rayleigh * c->data_sigma / sqrt ((double) m_frames);
+    k->lowamp = isnan (lowamp) ? -INFINITY : (float) lowamp;
     k->exceed = (float) (c->exceed_q * sqrt (c->data_exceed_var));
   }
   g_autofree double *tab = NULL;
@@ -382,7 +424,19 @@ ds_phase_set_finalize_into (DsPhaseSet *set, DsSeparation *sep, GError **error)
   if (!finalize_prepare (set, sep, -1, &m_frames, error))
     return FALSE;
   ds_phase_set_fold_pending (set);
-  finalize_run (set, sep, m_frames, NULL, 0);
+  finalize_run (set, sep, m_frames, NULL, 0, NULL, 0, NULL);
+  return TRUE;
+}
+
+gboolean
+ds_phase_set_finalize_prepared_into (DsPhaseSet *set, DsSeparation *sep, DsRowJob prepare, guint block,
+                                     gpointer data, GError **error)
+{
+  guint m_frames;
+  if (!finalize_prepare (set, sep, -1, &m_frames, error))
+    return FALSE;
+  ds_phase_set_fold_pending (set);
+  finalize_run (set, sep, m_frames, NULL, 0, prepare, block, data);
   return TRUE;
 }
 
@@ -419,7 +473,7 @@ ds_phase_set_accumulate_finalize_into (DsPhaseSet *set, guint phase, const DsIma
   /* When the result cannot be made (planes that do not fit), the frame is still folded and
    * the finalize below says why, as the two calls would. */
   if (fusable (set, phase) && finalize_prepare (set, sep, (int) phase, &m_frames, NULL)) {
-    finalize_run (set, sep, m_frames, frame, phase);
+    finalize_run (set, sep, m_frames, frame, phase, NULL, 0, NULL);
     ds_phase_set_fold_end (set, phase);
     ds_phase_set_fold_pending (set); /* nothing pending: the set is left as finalize leaves it */
     if (folded)

@@ -104,6 +104,15 @@ void ds_phase_set_locate_columns (DsPhaseSet *set, guint phase, const DsImage *f
 #define DS_HARMONIC_FIX_BITS 30
 void ds_harmonic_fix_weights (guint n, guint phase, gint32 *c, gint32 *s);
 
+/* ds_phase_set_finalize_into, with prepare (data, y0, y1, thread) run on the finalize's thread
+ * over each block of at most `block` rows just before the finalize reads them: a caller that
+ * updates the state in place (proc/phase_window.c) does so while the rows are in cache. Every
+ * set-wide input of the finalize (noise estimate, column flags, dark frame) must be final
+ * before the call, and prepare may change only the state of its own rows. Fails as
+ * ds_phase_set_finalize_into does, before prepare has run on any row. */
+gboolean ds_phase_set_finalize_prepared_into (DsPhaseSet *set, DsSeparation *sep, DsRowJob prepare,
+                                              guint block, gpointer data, GError **error);
+
 /* Averaging: folds the last phase's mean (finalize calls it once; idempotent). */
 void ds_phase_set_fold_pending (DsPhaseSet *set);
 
@@ -192,6 +201,32 @@ typedef struct {
 /* Writes t, g and mk and adds the mask's counts (as ds_count_mask_row) to counts. */
 void ds_maxmin_fast_row (const DsMaxminFastRow *r, gsize w, const DsMaxminFast *k,
                          guint64 counts[DS_MASK_N_BITS + 1]);
+/* sine on the integer fast path (fixed-point harmonic cos64/sin64, one frame per phase), no
+ * noise model, no extrema kept, no motion test: the general row's quantities in float
+ * (docs/estimators.md): A = (2/N) |harmonic|, mean = sum / N - dark, Ld = A / h,
+ * Lg = mean / m - A / h, and the same mask bits. Thresholds prepared once per set; a disabled
+ * test carries +-INFINITY so that its comparison is always false. Needs N x full scale below
+ * 2^31 (the sum is converted as a signed 32-bit integer). */
+typedef struct {
+  float two_n, inv_n, inv_h, inv_m;
+  float sat;     /* SATURATED when max >= sat */
+  float floor;   /* DARK when the mean <= floor */
+  float lowamp;  /* LOW_MODULATION when A < lowamp (the Rayleigh rule) */
+  float exceed;  /* DARK_EXCEEDS when dark - min > exceed */
+} DsSineFast;
+typedef struct {
+  const gint64 *c64, *s64;
+  const guint16 *hi, *lo;
+  const guint32 *sum;
+  const float *dark;   /* NULL: none */
+  const guint8 *flags; /* column flags (DS_MASK_UNDERSAMPLED or 0); NULL: none */
+  float *t, *g;
+  guint8 *mk;
+} DsSineFastRow;
+/* Writes t, g and mk and adds the mask's counts (as ds_count_mask_row) to counts. A pixel
+ * whose Ld or Lg is beyond float32 is NONFINITE with 0 outputs, as in the general tail. */
+void ds_sine_fast_row (const DsSineFastRow *r, gsize w, const DsSineFast *k,
+                       guint64 counts[DS_MASK_N_BITS + 1]);
 /* counts[0] += pixels with no bit; counts[1 + bit] += pixels with that bit. */
 void ds_count_mask_row (const guint8 *mk, gsize w, guint64 counts[DS_MASK_N_BITS + 1]);
 

@@ -1,6 +1,7 @@
 /* The separation's hot fold loops, kept apart so they can be built for the auto-vectoriser
  * (proc/CMakeLists.txt) and, on x86-64, also for AVX2, picked at load time: frames fold at
  * memory speed. Contiguous arrays, restrict pointers, selects instead of branches. */
+#include <float.h>
 #include <math.h>
 #include <string.h>
 
@@ -261,6 +262,91 @@ ds_maxmin_fast_row (const DsMaxminFastRow *r, gsize w, const DsMaxminFast *k,
 #undef FAST_CALL
   if (r->flags)
     or_flags_kernel (r->mk, r->flags, w, counts);
+}
+
+/* A fixed-point harmonic sum as a float, from its two 32-bit halves (x86-64 before AVX-512 has
+ * no vector conversion from 64-bit integers): v = hi 2^32 + lo, lo unsigned, converted as the
+ * signed lo - 2^31. Within a few units of 2^-24 |v| plus 2^8 (2^-22 DN after the 2^-30 scale). */
+DS_KERNEL float
+fix_to_float (gint64 v)
+{
+  gint32 hi = (gint32) ((guint64) v >> 32);
+  gint32 lo = (gint32) ((guint32) v ^ 0x80000000u);
+  return (float) hi * 4294967296.0f + ((float) lo + 2147483648.0f);
+}
+
+DS_KERNEL void
+sine_fast_kernel (int has_dark, const gint64 *restrict c64, const gint64 *restrict s64,
+                  const guint16 *restrict hi, const guint16 *restrict lo, const guint32 *restrict sum,
+                  const float *restrict dark, float *restrict t, float *restrict g, guint8 *restrict mk,
+                  gsize w, const DsSineFast *k, guint64 counts[DS_MASK_N_BITS + 1])
+{
+  const float two_n = k->two_n, inv_n = k->inv_n, inv_h = k->inv_h, inv_m = k->inv_m;
+  const float sat = k->sat, floor_ = k->floor, lowamp = k->lowamp, exceed = k->exceed;
+  const float scale = 1.0f / (float) (1u << DS_HARMONIC_FIX_BITS);
+  guint32 c_ok = 0, c_sat = 0, c_dark = 0, c_low = 0, c_nf = 0, c_neg = 0, c_exc = 0;
+  for (gsize x = 0; x < w; x++) {
+    float cs = fix_to_float (c64[x]) * scale, sn = fix_to_float (s64[x]) * scale;
+    float a = two_n * sqrtf (cs * cs + sn * sn);
+    float d = has_dark ? dark[x] : 0.0f;
+    float mean = (float) (gint32) sum[x] * inv_n - d;
+    float ld = a * inv_h;
+    float lg = mean * inv_m - ld;
+    float h = hi[x], l = lo[x];
+    /* the general tail's tests (separation_rows.c), each a compare turned into a bit */
+    guint32 is_sat = h >= sat, is_dark = mean <= floor_, is_low = a < lowamp;
+    guint32 is_neg = (ld < 0) | (lg < 0), is_exc = d - l > exceed;
+    guint32 ok = (fabsf (ld) <= FLT_MAX) & (fabsf (lg) <= FLT_MAX);
+    guint32 bits = is_sat | (is_dark << 1) | (is_low << 2) | (is_neg << 4) | (is_exc << 5);
+    guint32 keep = 0u - ok;
+    mk[x] = (guint8) ((bits & keep) | (DS_MASK_NONFINITE & ~keep));
+    t[x] = ok ? ld : 0.0f;
+    g[x] = ok ? lg : 0.0f;
+    c_ok += (bits == 0) & ok;
+    c_sat += is_sat & ok;
+    c_dark += is_dark & ok;
+    c_low += is_low & ok;
+    c_nf += ok ^ 1u;
+    c_neg += is_neg & ok;
+    c_exc += is_exc & ok;
+  }
+  counts[0] += c_ok;
+  counts[1] += c_sat;
+  counts[2] += c_dark;
+  counts[3] += c_low;
+  counts[4] += c_nf;
+  counts[5] += c_neg;
+  counts[6] += c_exc;
+}
+
+/* Column flags into a counted mask row, but not where the pixel is NONFINITE (the general
+ * tail gives such a pixel that bit alone). */
+DS_KERNEL void
+or_flags_finite_kernel (guint8 *restrict mk, const guint8 *restrict flags, gsize w,
+                        guint64 counts[DS_MASK_N_BITS + 1])
+{
+  guint32 lost = 0, under = 0;
+  for (gsize x = 0; x < w; x++) {
+    guint32 f = (guint32) (flags[x] >> 6) & (guint32) (mk[x] != DS_MASK_NONFINITE);
+    lost += (guint32) (mk[x] == 0) & f;
+    under += f;
+    mk[x] |= (guint8) (f << 6);
+  }
+  counts[0] -= lost;
+  counts[7] += under;
+}
+
+DS_CLONES_WIDE void
+ds_sine_fast_row (const DsSineFastRow *r, gsize w, const DsSineFast *k,
+                  guint64 counts[DS_MASK_N_BITS + 1])
+{
+  G_STATIC_ASSERT (DS_MASK_UNDERSAMPLED == 1 << 6 && DS_MASK_NONFINITE == 1 << 3);
+  if (r->dark)
+    sine_fast_kernel (1, r->c64, r->s64, r->hi, r->lo, r->sum, r->dark, r->t, r->g, r->mk, w, k, counts);
+  else
+    sine_fast_kernel (0, r->c64, r->s64, r->hi, r->lo, r->sum, NULL, r->t, r->g, r->mk, w, k, counts);
+  if (r->flags)
+    or_flags_finite_kernel (r->mk, r->flags, w, counts);
 }
 
 /* Eight mask bytes at a time: most pixels of a usable image carry no flag, and a word of eight

@@ -56,7 +56,10 @@ typedef struct {
 } WindowStream;
 
 /* Fold thread, between submit and collect: the verified frame into the window, the cycle
- * confirmed at its last phase, and the result finalized when every frame is confirmed. */
+ * confirmed at its last phase, and the result finalized when every frame is confirmed. A
+ * result that will be wanted is made with the push (ds_phase_window_push_finalize_into, one
+ * pass over the rows): whether it is wanted is known before the push, as the confirmations
+ * depend on the phase check alone; a confirmation that then fails discards it. */
 static gboolean
 window_step (DsFoldJob *job, gpointer data)
 {
@@ -64,8 +67,27 @@ window_step (DsFoldJob *job, gpointer data)
   DsPhaseWindow *window = ws->acq->window;
   guint k = job->phase;
   gboolean complete = FALSE;
-  if (!ds_phase_window_push (window, k, job->frame->image, &complete, &job->fold_error))
+  gboolean checked = job->settings->verify_phase;
+  gboolean confirmed_k = !checked || job->phase_check->set_by_template;
+  gboolean cycle_end = checked && ws->cycle_whole && k + 1 == ws->n;
+  /* at the cycle's end a successful confirmation confirms every phase */
+  gboolean wanted = confirmed_k || cycle_end;
+  for (guint h = 0; h < ws->n && wanted && !cycle_end; h++)
+    if (h != k && !ws->confirmed[h])
+      wanted = FALSE;
+  gboolean finalized = FALSE;
+  if (wanted) {
+    gboolean pushed = FALSE;
+    finalized = ds_phase_window_push_finalize_into (window, k, job->frame->image, job->finalize_into,
+                                                    &complete, &pushed, &job->fold_error);
+    if (!pushed)
+      return FALSE;
+    /* a push without a result (planes that did not fit) keeps fold_error, as the finalize
+     * would: the frame is in the window either way */
+    finalized = finalized && complete;
+  } else if (!ds_phase_window_push (window, k, job->frame->image, &complete, &job->fold_error)) {
     return FALSE;
+  }
   ws->pushes++;
   if (ws->kept) {
     /* A copy failed: the results go without their raw frames (kept_push 0 never matches). */
@@ -75,12 +97,12 @@ window_step (DsFoldJob *job, gpointer data)
     ws->kept_ts[k] = job->frame->timestamp_ns;
     ws->kept_push[k] = ws->kept[k] ? ws->pushes : 0;
   }
-  gboolean checked = job->settings->verify_phase;
-  ws->confirmed[k] = !checked || job->phase_check->set_by_template;
-  if (checked && ws->cycle_whole && k + 1 == ws->n) {
+  ws->confirmed[k] = confirmed_k;
+  if (cycle_end) {
     g_autofree char *why = NULL;
     if (!ds_phase_check_confirm (job->phase_check, &why)) {
       ws->confirm_error = g_steal_pointer (&why);
+      g_clear_error (&job->fold_error);
       return TRUE;
     }
     /* No break since phase 0 and one frame per phase in turn: the window is this cycle. */
@@ -92,7 +114,7 @@ window_step (DsFoldJob *job, gpointer data)
   for (guint h = 0; h < ws->n; h++)
     if (!ws->confirmed[h])
       return TRUE;
-  job->finalized = ds_phase_window_finalize_into (window, job->finalize_into, &job->fold_error);
+  job->finalized = finalized;
   return TRUE;
 }
 

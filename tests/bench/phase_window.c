@@ -4,14 +4,18 @@
  *   window   ds_phase_window_push of the newest frame, then ds_phase_window_finalize_into a
  *            pooled result: what a per-frame result costs once the window is full (median and
  *            worst over the pushes, per megapixel, and its two halves);
+ *   fused    ds_phase_window_push_finalize_into, the same on a second window fed the same
+ *            frames (what descatterd calls): each block of rows pushed and finalized at once;
  *   fold     ds_phase_set_accumulate of one frame (what a per-set result costs per frame);
  *   refold   a fresh set over the window's N frames and its finalize (the window's
  *            definition, and what a window without incremental state would cost).
  * It also prints the share of pixels whose extremes a push rebuilt from the kept frames, and
  * the memory the window holds against one set's state (the kept frames counted). Times are
- * the process's CPU time (below); runs and baselines take turns within each repetition. It
- * asserts no timing; it checks its results (exit status 1 on a mismatch): the
- * window's last result equals the fresh set's bit for bit.
+ * the process's CPU time (below); the fused line also gives the wall-clock median (the
+ * latency, shorter than the CPU time with 2 threads); runs and baselines take turns within
+ * each repetition. It
+ * asserts no timing; it checks its results (exit status 1 on a mismatch): both windows' last
+ * results equal the fresh set's bit for bit. Without --threads it runs on 1 and on 2 threads.
  *
  *   bench_phase_window [--quick] [--case NxWxH]... [--reps R] [--threads T] [--estimator E]
  * Full run (docs/benchmarks.md): build/tests/bench/bench_phase_window */
@@ -70,6 +74,16 @@ make_frame (DsSampleType type, const Case *c, guint64 t)
   return img;
 }
 
+/* Wall-clock seconds: the latency of a result, which with several threads is less than its
+ * CPU time; on a loaded machine it also counts the time the scheduler gave to others. */
+static double
+wall (void)
+{
+  struct timespec ts;
+  clock_gettime (CLOCK_MONOTONIC, &ts);
+  return ts.tv_sec + ts.tv_nsec / 1e9;
+}
+
 static int
 cmp_double (const void *a, const void *b)
 {
@@ -107,28 +121,37 @@ bench_one (const Case *c, DsSampleType type, DsEstimator estimator, guint reps, 
   p.threads = threads;
   g_autoptr (GError) error = NULL;
   g_autoptr (DsPhaseWindow) win = ds_phase_window_new (&p, c->w, c->h, &error);
-  g_autoptr (DsPhaseSet) set = ds_phase_set_new (&p, c->w, c->h, &error);
+  g_autoptr (DsPhaseWindow) fwin = win ? ds_phase_window_new (&p, c->w, c->h, &error) : NULL;
+  g_autoptr (DsPhaseSet) set = fwin ? ds_phase_set_new (&p, c->w, c->h, &error) : NULL;
   g_autoptr (DsSeparation) got = ds_separation_new (), want = ds_separation_new ();
-  if (!win || !set) {
+  g_autoptr (DsSeparation) fgot = ds_separation_new ();
+  if (!win || !fwin || !set) {
     fprintf (stderr, "%s\n", error->message);
     return FALSE;
   }
   /* fill the window and fault every plane in (untimed, as the daemon's first results) */
   guint64 t = 0;
   for (; t < c->n; t++)
-    if (!ds_phase_window_push (win, (guint) (t % c->n), frames[t % (2 * c->n)], NULL, &error))
+    if (!ds_phase_window_push (win, (guint) (t % c->n), frames[t % (2 * c->n)], NULL, &error) ||
+        !ds_phase_window_push (fwin, (guint) (t % c->n), frames[t % (2 * c->n)], NULL, &error))
       break;
-  if (error || !ds_phase_window_finalize_into (win, got, &error)) {
+  if (error || !ds_phase_window_finalize_into (win, got, &error) ||
+      !ds_phase_window_finalize_into (fwin, fgot, &error)) {
     fprintf (stderr, "%s\n", error->message);
     return FALSE;
   }
   gsize pushes = (gsize) reps * c->n;
   g_autofree double *total = g_new (double, pushes), *push = g_new (double, pushes),
-                    *fin = g_new (double, pushes);
+                    *fin = g_new (double, pushes), *fused = g_new (double, pushes),
+                    *fwall = g_new (double, pushes);
+  double fworst = 0;
   double worst = 0, best_fold = INFINITY, best_refold = INFINITY;
   guint64 rebuilt0 = ds_phase_window_rebuilt_pixels (win);
   guint timed = 0;
   for (guint r = 0; r < reps; r++) {
+    /* the two windows take turns by cycles of N pushes, not push by push, so that each finds
+     * its kept frames in cache as it would alone */
+    guint64 t_cycle = t;
     for (guint i = 0; i < c->n; i++, t++) {
       const DsImage *f = frames[t % (2 * c->n)];
       double t0 = now ();
@@ -140,12 +163,27 @@ bench_one (const Case *c, DsSampleType type, DsEstimator estimator, guint reps, 
         fprintf (stderr, "%s\n", error->message);
         return FALSE;
       }
-      total[timed] = t2 - t0;
-      push[timed] = t1 - t0;
-      fin[timed] = t2 - t1;
+      total[timed + i] = t2 - t0;
+      push[timed + i] = t1 - t0;
+      fin[timed + i] = t2 - t1;
       worst = MAX (worst, t2 - t0);
-      timed++;
     }
+    for (guint i = 0; i < c->n; i++) {
+      guint64 u = t_cycle + i;
+      gboolean complete = FALSE;
+      double w3 = wall (), t3 = now ();
+      gboolean ok = ds_phase_window_push_finalize_into (fwin, (guint) (u % c->n), frames[u % (2 * c->n)], fgot,
+                                                        &complete, NULL, &error);
+      double t4 = now (), w4 = wall ();
+      if (!ok || !complete) {
+        fprintf (stderr, "fused: %s\n", error ? error->message : "no result");
+        return FALSE;
+      }
+      fused[timed + i] = t4 - t3;
+      fwall[timed + i] = w4 - w3;
+      fworst = MAX (fworst, t4 - t3);
+    }
+    timed += c->n;
     /* the baselines over the window's current frames */
     ds_phase_set_reset (set);
     double t0 = now ();
@@ -160,7 +198,11 @@ bench_one (const Case *c, DsSampleType type, DsEstimator estimator, guint reps, 
     best_refold = MIN (best_refold, t2 - t0);
   }
   gboolean same = same_plane (got->transmissive, want->transmissive) &&
-                  same_plane (got->scattered, want->scattered) && same_plane (got->mask, want->mask);
+                  same_plane (got->scattered, want->scattered) && same_plane (got->mask, want->mask) &&
+                  same_plane (fgot->transmissive, want->transmissive) &&
+                  same_plane (fgot->scattered, want->scattered) && same_plane (fgot->mask, want->mask) &&
+                  memcmp (&fgot->meta, &want->meta, sizeof want->meta) == 0 &&
+                  memcmp (&got->meta, &want->meta, sizeof want->meta) == 0;
   double mp = (double) c->w * c->h / 1e6, mean = median (total, timed);
   gsize window_bytes = 0, set_bytes = 0;
   ds_phase_window_memory (win, &window_bytes, &set_bytes);
@@ -171,6 +213,11 @@ bench_one (const Case *c, DsSampleType type, DsEstimator estimator, guint reps, 
           mean * 1e3 / mp, median (push, timed) * 1e3, median (fin, timed) * 1e3, mean / best_fold,
           mean / best_refold, 100 * rebuilt, (double) window_bytes / (c->w * (double) c->h),
           (double) window_bytes / set_bytes, same ? "" : "  WRONG: differs from a fresh set");
+  double fmed = median (fused, timed), fw = median (fwall, timed);
+  printf ("  %-3s %-6s fused         %7.2f ms (worst %7.2f) = %6.2f ms/MP  %5.2fx push+finalize"
+          "  wall %6.2f ms/MP\n",
+          type == DS_SAMPLE_U8 ? "u8" : "u16", ds_estimator_name (estimator), fmed * 1e3, fworst * 1e3,
+          fmed * 1e3 / mp, fmed / mean, fw * 1e3 / mp);
   return same;
 }
 
@@ -201,7 +248,7 @@ int
 main (int argc, char **argv)
 {
   GArray *cases = g_array_new (FALSE, FALSE, sizeof (Case));
-  guint reps = 5, threads = 1;
+  guint reps = 5, threads = 0;
   gboolean quick = FALSE;
   const char *only = NULL;
   for (int i = 1; i < argc; i++) {
@@ -222,7 +269,7 @@ main (int argc, char **argv)
       return 2;
     }
   }
-  if (reps < 1 || threads < 1)
+  if (reps < 1)
     return 2;
   if (cases->len == 0) {
     /* quick: small, but one case above the size where a set shares its rows with workers */
@@ -230,14 +277,22 @@ main (int argc, char **argv)
     const Case small[] = { { 4, 256, 256 }, { 8, 515, 301 } };
     g_array_append_vals (cases, quick ? small : full, quick ? G_N_ELEMENTS (small) : G_N_ELEMENTS (full));
   }
+  /* 1 thread: the latency on an idle core; 2: what the daemon's finalize may share */
+  guint thread_list[2] = { 1, 2 }, n_threads = 2;
+  if (threads > 0) {
+    thread_list[0] = threads;
+    n_threads = 1;
+  }
   if (quick) {
     reps = MIN (reps, 2u);
-    threads = MAX (threads, 2u);
+    thread_list[0] = MAX (thread_list[0], 2u);
+    n_threads = 1;
   }
-  printf ("sliding window benchmark: %u repetitions of N pushes, %u threads\n", reps, threads);
+  printf ("sliding window benchmark: %u repetitions of N pushes\n", reps);
   gboolean ok = TRUE;
-  for (guint i = 0; i < cases->len; i++)
-    ok = bench_case (&g_array_index (cases, Case, i), reps, threads, only) && ok;
+  for (guint ti = 0; ti < n_threads; ti++)
+    for (guint i = 0; i < cases->len; i++)
+      ok = bench_case (&g_array_index (cases, Case, i), reps, thread_list[ti], only) && ok;
   g_array_free (cases, TRUE);
   printf ("\nresults %s\n", ok ? "checked: all equal to a fresh set" : "WRONG (see above)");
   return ok ? 0 : 1;

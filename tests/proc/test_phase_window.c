@@ -1,5 +1,7 @@
 /* The sliding phase window against its definition: a fresh DsPhaseSet over the window's frames
- * in arrival order, compared bit for bit, for every estimator and sample type, across breaks. */
+ * in arrival order, compared bit for bit, for every estimator and sample type, across breaks;
+ * each case also feeds a second window through ds_phase_window_push_finalize_into (push and
+ * finalize fused row block by row block), which must give the same. */
 #include <math.h>
 #include <string.h>
 
@@ -126,14 +128,20 @@ run_case (const Case *c)
   g_autoptr (GError) error = NULL;
   g_autoptr (DsPhaseWindow) win = ds_phase_window_new (&p, width, height, &error);
   g_assert_no_error (error);
+  g_autoptr (DsPhaseWindow) fwin = ds_phase_window_new (&p, width, height, &error);
+  g_assert_no_error (error);
   if (c->one_thread_calls) {
     ds_phase_window_set_push_threads (win, 1);
     ds_phase_window_set_finalize_threads (win, 1);
+    ds_phase_window_set_push_threads (fwin, 1);
+    ds_phase_window_set_finalize_threads (fwin, 1);
   }
   g_autoptr (GRand) r = g_rand_new_with_seed (7 + c->n + c->estimator);
   g_autoptr (DsImage) dark = c->dark ? make_dark (c, width, height) : NULL;
-  if (dark)
+  if (dark) {
     g_assert_true (ds_phase_window_set_dark (win, dark, &error));
+    g_assert_true (ds_phase_window_set_dark (fwin, dark, &error));
+  }
   const guint64 total = 4 * c->n + 3, lost = 2 * c->n + 1;
   GPtrArray *frames = g_ptr_array_new_with_free_func ((GDestroyNotify) ds_image_free);
   g_autofree gint64 *newest = g_new (gint64, c->n); /* frame of each phase since the break */
@@ -141,6 +149,7 @@ run_case (const Case *c)
     newest[k] = -1;
   guint64 good_since_break = 0;
   g_autoptr (DsSeparation) got = ds_separation_new ();
+  g_autoptr (DsSeparation) fgot = ds_separation_new ();
   for (guint64 t = 0; t < total; t++) {
     guint phase = (guint) ((c->repeat_at && t == c->repeat_at ? t - 1 : t) % c->n);
     g_ptr_array_add (frames, make_frame_sized (c->type, c->bits, c->n, phase, r, width, height,
@@ -148,6 +157,7 @@ run_case (const Case *c)
                                                c->noise > 0 ? c->noise : 3.0));
     if (t == lost) {
       ds_phase_window_break (win);
+      ds_phase_window_break (fwin);
       good_since_break = 0;
       for (guint k = 0; k < c->n; k++)
         newest[k] = -1;
@@ -156,6 +166,13 @@ run_case (const Case *c)
     gboolean complete = FALSE;
     g_assert_true (ds_phase_window_push (win, phase, frames->pdata[t], &complete, &error));
     g_assert_no_error (error);
+    gboolean fcomplete = FALSE, pushed = FALSE;
+    g_assert_true (ds_phase_window_push_finalize_into (fwin, phase, frames->pdata[t], fgot, &fcomplete,
+                                                       &pushed, &error));
+    g_assert_no_error (error);
+    g_assert_true (pushed);
+    g_assert_cmpint (fcomplete, ==, complete);
+    g_assert_cmpuint (ds_phase_window_fill (fwin), ==, ds_phase_window_fill (win));
     good_since_break++;
     newest[phase] = (gint64) t;
     guint have = 0;
@@ -188,6 +205,9 @@ run_case (const Case *c)
     g_autoptr (DsSeparation) want = ds_phase_set_finalize (fresh, &error);
     g_assert_no_error (error);
     assert_same_result (got, want);
+    assert_same_result (fgot, want);
+    g_assert_cmpmem (&fgot->meta, sizeof fgot->meta, &want->meta, sizeof want->meta);
+    g_assert_cmpuint (ds_phase_window_rebuilt_pixels (fwin), ==, ds_phase_window_rebuilt_pixels (win));
   }
   g_ptr_array_unref (frames);
 }
@@ -219,6 +239,11 @@ test_fresh_set_equality (void)
       .noise = 0.1 },
     { .estimator = DS_ESTIMATOR_SINE, .type = DS_SAMPLE_U8, .bits = 8, .n = 4, .dark = TRUE,
       .noise = 0.1 },
+    /* the finalize's integer sine path (no extrema, no model), with saturated pixels */
+    { .estimator = DS_ESTIMATOR_SINE, .type = DS_SAMPLE_U16, .bits = 12, .n = 8, .dark = TRUE,
+      .no_extrema = TRUE, .gain = 1.6 },
+    { .estimator = DS_ESTIMATOR_SINE, .type = DS_SAMPLE_U8, .bits = 8, .n = 5, .dark = FALSE,
+      .no_extrema = TRUE, .repeat_at = 7 },
   };
   for (guint i = 0; i < G_N_ELEMENTS (cases); i++)
     run_case (&cases[i]);
@@ -236,6 +261,14 @@ test_threaded (void)
       .width = 512, .height = 320, .threads = 2 },
     { .estimator = DS_ESTIMATOR_MAXMIN, .type = DS_SAMPLE_U8, .bits = 8, .n = 3, .dark = FALSE,
       .width = 512, .height = 320, .threads = 2, .one_thread_calls = TRUE },
+    { .estimator = DS_ESTIMATOR_SINE, .type = DS_SAMPLE_U16, .bits = 12, .n = 8, .dark = TRUE,
+      .width = 509, .height = 331, .threads = 3, .no_extrema = TRUE },
+    /* rows wide enough that a fused push and finalize takes each band in several blocks (of
+     * 256 KiB of a kept plane: 63 rows here) and a last short one */
+    { .estimator = DS_ESTIMATOR_MAXMIN, .type = DS_SAMPLE_U16, .bits = 12, .n = 3, .dark = TRUE,
+      .width = 2050, .height = 203, .threads = 1, .no_extrema = TRUE },
+    { .estimator = DS_ESTIMATOR_SINE, .type = DS_SAMPLE_U8, .bits = 8, .n = 4, .dark = FALSE,
+      .width = 4100, .height = 150, .threads = 2, .no_extrema = TRUE, .gain = 1.6 },
   };
   for (guint i = 0; i < G_N_ELEMENTS (cases); i++)
     run_case (&cases[i]);
@@ -328,6 +361,57 @@ test_bad_frames (void)
   g_assert_cmpuint (ds_phase_window_fill (win), ==, 1);
 }
 
+/* The fused call when no result can be made (a plane of the wrong shape): it fails as the
+ * finalize would, but the frame went in, as after the push of the two calls; the next result
+ * is the fresh set's. */
+static void
+test_fused_errors (void)
+{
+  DsSeparationParams p;
+  ds_separation_params_init (&p, 4);
+  p.threads = 1;
+  p.estimator = DS_ESTIMATOR_SINE;
+  g_autoptr (DsPhaseWindow) win = ds_phase_window_new (&p, W, H, NULL);
+  g_autoptr (GRand) r = g_rand_new_with_seed (9);
+  DsImage *f[6];
+  g_autoptr (DsSeparation) sep = ds_separation_new ();
+  g_autoptr (GError) error = NULL;
+  for (guint t = 0; t < 6; t++) {
+    f[t] = make_frame (DS_SAMPLE_U16, 12, 4, t, r);
+    gboolean complete = FALSE, pushed = FALSE;
+    if (t == 5) {
+      /* a transmissive plane of another size */
+      g_clear_pointer (&sep->transmissive, ds_image_free);
+      sep->transmissive = ds_image_new (DS_SAMPLE_F32, W + 1, H, NULL);
+      g_assert_false (ds_phase_window_push_finalize_into (win, t % 4, f[t], sep, &complete, &pushed, &error));
+      g_assert_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT);
+      g_clear_error (&error);
+      g_assert_true (pushed);
+      g_assert_true (complete);
+      continue;
+    }
+    g_assert_true (ds_phase_window_push_finalize_into (win, t % 4, f[t], sep, &complete, &pushed, &error));
+    g_assert_no_error (error);
+    g_assert_true (pushed);
+    g_assert_cmpint (complete, ==, t >= 3);
+  }
+  /* a bad frame: nothing pushed, nothing changed */
+  g_autoptr (DsImage) small = ds_image_new (DS_SAMPLE_U16, W - 1, H, NULL);
+  gboolean pushed = TRUE;
+  g_assert_false (ds_phase_window_push_finalize_into (win, 0, small, sep, NULL, &pushed, &error));
+  g_assert_error (error, DS_PROC_ERROR, DS_PROC_ERROR_SIZE_MISMATCH);
+  g_assert_false (pushed);
+  g_autoptr (DsSeparation) got = ds_separation_new ();
+  g_assert_true (ds_phase_window_finalize_into (win, got, NULL));
+  g_autoptr (DsPhaseSet) fresh = ds_phase_set_new (&p, W, H, NULL);
+  for (guint t = 2; t < 6; t++)
+    g_assert_true (ds_phase_set_accumulate (fresh, t % 4, f[t], NULL));
+  g_autoptr (DsSeparation) want = ds_phase_set_finalize (fresh, NULL);
+  assert_same_result (got, want);
+  for (guint t = 0; t < 6; t++)
+    ds_image_free (f[t]);
+}
+
 int
 main (int argc, char **argv)
 {
@@ -337,5 +421,6 @@ main (int argc, char **argv)
   g_test_add_func ("/phase-window/memory", test_memory);
   g_test_add_func ("/phase-window/repeated-phase", test_repeated_phase);
   g_test_add_func ("/phase-window/bad-frames", test_bad_frames);
+  g_test_add_func ("/phase-window/fused-errors", test_fused_errors);
   return g_test_run ();
 }
