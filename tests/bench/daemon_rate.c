@@ -848,7 +848,8 @@ main (int argc, char **argv)
        * trigger), printed beside the goal's row. */
       summary_add (median (rs.c[CEILING_RIG].ratio, rs.n), NAN, TRUE,
                    "  the same / ceiling (camera + set_phase), %ux%u", w, h);
-      summary_add (median (rs.per_frame_ratio, rs.n), rs.goal[CEILING_CAMERA], TRUE,
+      /* issue 37: a result for >= 0.95 of the camera's frames at every size */
+      summary_add (median (rs.per_frame_ratio, rs.n), 0.95, TRUE,
                    "per-frame results / ceiling (camera alone), %ux%u", w, h);
       summary_add (median (rs.per_frame_vs_set, rs.n), NAN, TRUE, "  per-frame results / per-set frames folded, %ux%u",
                    w, h);
