@@ -4,6 +4,36 @@
 
 #include <math.h>
 
+/* The declared speed and what it adds (docs/accuracy.md, "Moving objects"); null where none was
+ * declared or the estimator's motion error has no model. */
+static void
+motion_to_json (const DsOperatingReport *r, JsonBuilder *b)
+{
+  const DsOperatingPoint *p = &r->point;
+  gboolean motion_term = r->speed_declared && isfinite (p->motion_term);
+  json_builder_set_member_name (b, "motion");
+  json_builder_begin_object (b);
+  json_builder_set_member_name (b, "speed_px_s");
+  if (!r->speed_declared)
+    json_builder_add_null_value (b);
+  else
+    json_builder_add_double_value (b, r->speed_px_s);
+  json_builder_set_member_name (b, "term");
+  if (motion_term)
+    json_builder_add_double_value (b, p->motion_term);
+  else
+    json_builder_add_null_value (b);
+  json_builder_set_member_name (b, "predicted_error_still");
+  json_builder_add_double_value (b, p->predicted_error_still);
+  json_builder_set_member_name (b, "set_span_ms");
+  json_builder_add_double_value (b, p->motion_span_ms);
+  json_builder_set_member_name (b, "checked");
+  json_builder_add_boolean_value (b, r->motion_checked);
+  json_builder_set_member_name (b, "pixels");
+  json_builder_add_int_value (b, (gint64) r->motion_pixels);
+  json_builder_end_object (b);
+}
+
 void
 ds_operating_report_to_json (const DsOperatingReport *r, JsonBuilder *b)
 {
@@ -94,26 +124,7 @@ ds_operating_report_to_json (const DsOperatingReport *r, JsonBuilder *b)
   if (p->motion_why)
     json_builder_add_string_value (b, p->motion_why);
   json_builder_end_array (b);
-  /* The declared speed and what it adds (docs/accuracy.md, "Moving objects"); null where none was
-   * declared or the estimator's motion error has no model. */
-  json_builder_set_member_name (b, "motion");
-  json_builder_begin_object (b);
-  json_builder_set_member_name (b, "speed_px_s");
-  if (!r->speed_declared)
-    json_builder_add_null_value (b);
-  else
-    json_builder_add_double_value (b, r->speed_px_s);
-  json_builder_set_member_name (b, "term");
-  if (motion_term)
-    json_builder_add_double_value (b, p->motion_term);
-  else
-    json_builder_add_null_value (b);
-  DBL ("predicted_error_still", p->predicted_error_still);
-  DBL ("set_span_ms", p->motion_span_ms);
-  BOOL ("checked", r->motion_checked);
-  json_builder_set_member_name (b, "pixels");
-  json_builder_add_int_value (b, (gint64) r->motion_pixels);
-  json_builder_end_object (b);
+  motion_to_json (r, b);
   json_builder_set_member_name (b, "assumptions");
   json_builder_begin_array (b);
   if (pr->blur.source == DS_BLUR_ASSUMED_SHARP) {

@@ -1,4 +1,4 @@
-#include "daemon/service/server.h"
+#include "daemon/service/server_private.h"
 #include "daemon/service/accept_loop.h"
 #include "daemon/service/json_build.h"
 #include "daemon/service/token.h"
@@ -12,49 +12,6 @@
 #include <sys/stat.h>
 #include <systemd/sd-daemon.h>
 
-typedef struct {
-  DsServer *server;
-  gboolean subscribed;
-  gboolean frames;      /* subscribed with "frames": preview frames as `frame` events */
-  gboolean authenticated;
-  gboolean is_tcp;
-  gboolean bridge;      /* the live view's, for a browser's controls: no socket place (the live
-                           view has its own limit, so that pages never lock socket clients out) */
-  gboolean leaving;     /* being closed by the server (timeout, eviction): its place is free */
-  gint64 accepted_us;
-  gint64 active_us;     /* last complete request, or last moment it was busy being answered */
-  gint64 leaving_us;
-  /* Result accounting (docs/protocol.md, "Events"): results published and not sent to this
-   * client since the last result queued for it, which the next result queued reports; and the
-   * count the waiting per-frame result (ds_connection_has_newest_waiting) reports, which a newer
-   * one that replaces it takes over, plus one for it. */
-  guint64 skipped;
-  guint64 waiting_skipped;
-} ClientState;
-
-/* How long a connection the server is closing may take to read its last error line. */
-#define LEAVING_GRACE_US (2 * G_USEC_PER_SEC)
-/* How long, at stop, output may wait without a byte going out before its peer is given up. */
-#define DRAIN_STALL_US (500 * 1000)
-
-struct DsServer {
-  DsServerLimits limits;
-  DsServerRequestFunc on_request;
-  gpointer user_data;
-  GSocketListener *listener;
-  DsAcceptLoop *accepting; /* not GSocketService: it spins when out of descriptors */
-  GMainContext *context; /* where the server was created: connections, sweep, drain */
-  GSource *sweep;
-  GHashTable *clients; /* DsConnection* -> NULL (set); holds a reference */
-  guint16 tcp_port;
-  char *unix_path;     /* removed on free when we created it */
-  guint64 seq;
-  guint64 frame_seq;   /* `frame` events: their own count, so that `result` seq gaps still mean
-                        * results lost */
-  gint frame_subscribers; /* atomic: connections with frames on (read by any thread) */
-  gboolean draining;
-  DsServerStats stats;
-};
 
 static gboolean sweep_connections (gpointer data);
 static void on_accepted (GSocketConnection *sc, gpointer user_data);
@@ -148,62 +105,6 @@ ds_server_free (DsServer *server)
   g_free (server->unix_path);
   g_free (server->limits.token);
   g_free (server);
-}
-
-static void
-send_line (DsConnection *conn, char *line, gsize len, GBytes *const *payloads, guint n, gboolean droppable,
-           gboolean *sent)
-{
-  g_autoptr (GBytes) b = g_bytes_new_take (line, len);
-  gboolean ok = ds_connection_send (conn, b, payloads, n, droppable);
-  if (sent)
-    *sent = ok;
-}
-
-void
-ds_server_reply_ok (DsServer *server, DsConnection *conn, JsonNode *id, JsonNode *result,
-                    const DsPayloadInfo *infos, GBytes *const *payloads, guint n_payloads)
-{
-  (void) server;
-  gsize len = 0;
-  char *line = ds_reply_build_ok (id, result, infos, n_payloads, &len);
-  send_line (conn, line, len, payloads, n_payloads, FALSE, NULL);
-}
-
-/* The client's fault: what it sent cannot be taken whatever the rig's state. */
-static gboolean
-is_bad_request (DsProtocolError code)
-{
-  switch (code) {
-  case DS_PROTOCOL_ERROR_LINE_TOO_LONG:
-  case DS_PROTOCOL_ERROR_BAD_JSON:
-  case DS_PROTOCOL_ERROR_TOO_DEEP:
-  case DS_PROTOCOL_ERROR_BAD_REQUEST:
-  case DS_PROTOCOL_ERROR_UNKNOWN_COMMAND:
-  case DS_PROTOCOL_ERROR_BAD_ARGUMENT:
-  case DS_PROTOCOL_ERROR_UNAUTHORIZED:
-    return TRUE;
-  default:
-    return FALSE;
-  }
-}
-
-void
-ds_server_reply_error (DsServer *server, DsConnection *conn, JsonNode *id, const GError *error)
-{
-  if (server) {
-    /* The same code the reply carries (ds_reply_build_error). */
-    DsProtocolError code = error && error->domain == DS_PROTOCOL_ERROR ? (DsProtocolError) error->code
-                                                                       : DS_PROTOCOL_ERROR_FAILED;
-    if ((guint) code >= G_N_ELEMENTS (server->stats.error_replies))
-      code = DS_PROTOCOL_ERROR_FAILED;
-    server->stats.error_replies[code]++;
-    if (is_bad_request (code))
-      server->stats.bad_requests++;
-  }
-  gsize len = 0;
-  char *line = ds_reply_build_error (id, error, &len);
-  send_line (conn, line, len, NULL, 0, FALSE, NULL);
 }
 
 /* Sends one line (shared by every receiver, like the payloads) to the subscribed connections
