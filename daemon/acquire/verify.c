@@ -1,6 +1,7 @@
 /* Frame verification (docs/design.md, "The sequencer contract"): a frame is folded into phase
  * k only if it arrived after k was applied, no frame id is missing before it, and the stripe
- * phase measured in it is k's. Checked in that order; the first failure is the reason. */
+ * phase measured in it is not another phase's (a frame whose stripes cannot tell is folded
+ * unverified). Checked in that order; the first failure is the reason. */
 #include <math.h>
 
 #include "daemon/acquire/fold_worker.h"
@@ -12,6 +13,7 @@ ds_seq_verify_frame (DsPhaseCheck *check, const DsCaptureSettings *s, guint k, c
   v->reason = DS_DROP_N_REASONS;
   v->detail = NULL;
   v->reapply_phase = FALSE;
+  v->unverified = FALSE;
   if (frame->host_time_us != 0 && (gint64) frame->host_time_us < applied_at_us) {
     v->reason = DS_DROP_STALE;
     v->detail = g_strdup ("frame arrived before the phase was applied");
@@ -27,7 +29,10 @@ ds_seq_verify_frame (DsPhaseCheck *check, const DsCaptureSettings *s, guint k, c
       v->reason = DS_DROP_WRONG_PHASE;
       v->reapply_phase = TRUE; /* the illuminator may have applied another phase */
     } else if (pv == DS_PHASE_VERDICT_UNVERIFIABLE)
-      v->reason = DS_DROP_UNVERIFIABLE;
+      /* Frames that cannot tell the phases apart are not refused for it: a correct frame of a
+       * scene with too little modulation would never pass. It is folded and counted; the set's
+       * check as a whole still judges it (ds_phase_check_confirm). */
+      v->unverified = TRUE;
     else
       g_clear_pointer (&v->detail, g_free);
   }
