@@ -31,6 +31,7 @@ ds_phase_check_begin_set (DsPhaseCheck *check)
   check->set_frames = 0;
   check->set_by_template = FALSE;
   check->set_unverified = 0;
+  memset (check->set_refused_as, 0, sizeof check->set_refused_as);
   check->provisional = TRUE;
 }
 
@@ -174,7 +175,10 @@ ds_phase_check_pixel_noise (const DsImage *frame)
   return sigma;
 }
 
-static void
+/* The message for a frame without stripes at the configured period; returns the period the
+ * frame does show (stripes of another period: a wrong period-px, or another pattern lit), NAN
+ * when none stands out. */
+static double
 no_stripes (const DsPhaseCheck *check, const DsImage *rows, const DsStripePhase *sp, guint k, char **why)
 {
   /* Say what to check: a wrong period-px shows as stripes at another period. */
@@ -191,6 +195,7 @@ no_stripes (const DsPhaseCheck *check, const DsImage *rows, const DsStripePhase 
                             "lights the camera's field of view, and the exposure (too much scattering or "
                             "too little light leaves no measurable stripes)",
                             k, sp->snr, check->min_confidence, check->period_px);
+  return found;
 }
 
 static double
@@ -224,14 +229,17 @@ set_mean (const DsPhaseCheck *check, guint k, double m[2])
  * h, in units of the noise margin it needs: >= 1 means a frame as close to h's as the noise is
  * not a correct frame of k. From the templates, scaled to the frame's exposure (|c| / |T_k|);
  * else from the closest pair of adjacent phases the set holds, scaled to the distance between
- * k and h as a first harmonic moves (2 |a| sin(pi dk / N)); 0 when neither is known. */
+ * k and h as a first harmonic moves (2 |a| sin(pi dk / N)). When neither is known (the set's
+ * second phase, or N = 2, in a first set), INFINITY: the illuminator moves its stripes with the
+ * phase, so a correct frame differs from another phase's unless the scene is known to hide
+ * that (check->still: 0). */
 static double
 separation_margin (const DsPhaseCheck *check, const double c[2], guint k, guint h, guint n, double noise)
 {
   if (check->prior_n == n) {
     double tk = hypot (check->prior[k][0], check->prior[k][1]);
     if (!(tk > 0))
-      return 0;
+      return 0; /* the template shows no stripes at k: known not to move */
     double sep = hypot (c[0], c[1]) / tk * hypot (check->prior[k][0] - check->prior[h][0], check->prior[k][1] - check->prior[h][1]);
     return sep / (REPEAT_MARGIN_TEMPLATES * noise);
   }
@@ -246,7 +254,7 @@ separation_margin (const DsPhaseCheck *check, const double c[2], guint k, guint 
     closest = MIN (closest, hypot (a[0] - b[0], a[1] - b[1]));
   }
   if (!isfinite (closest))
-    return 0;
+    return check->still ? 0 : INFINITY;
   guint dk = (k + n - h) % n;
   dk = MIN (dk, n - dk);
   return closest * sin (G_PI * dk / n) / sin (G_PI / n) / (REPEAT_MARGIN_SET * noise);
@@ -262,11 +270,14 @@ separation_margin (const DsPhaseCheck *check, const double c[2], guint k, guint 
 typedef enum { REPEAT_NONE, REPEAT_UNDECIDED, REPEAT_DECIDED } RepeatKind;
 
 /* A frame equal, within its noise, to the frames already accepted for another phase h: a
- * duplicated or stale frame when correct frames of k and h are known to lie further apart
- * (separation_margin), else the frames cannot tell k from h. Returns the kind and *h. */
+ * duplicated or stale frame unless correct frames of k and h are known to lie closer than the
+ * noise can tell (separation_margin), in which case the frames cannot tell k from h. Returns
+ * the kind and *h. */
 static RepeatKind
-repeat_of (const DsPhaseCheck *check, const double c[2], double sigma, guint k, guint n, guint *h_out)
+repeat_of (const DsPhaseCheck *check, const double c[2], double sigma, guint k, guint n, guint *h_out,
+           gboolean *by_prior)
 {
+  *by_prior = FALSE;
   if (check->set_n != n)
     return REPEAT_NONE;
   RepeatKind kind = REPEAT_NONE;
@@ -280,14 +291,15 @@ repeat_of (const DsPhaseCheck *check, const double c[2], double sigma, guint k, 
     double d = hypot (c[0] - m[0], c[1] - m[1]);
     if (d > PHASE_CHECK_SIGMAS * noise)
       continue;
-    RepeatKind this = separation_margin (check, c, k, h, n, noise) >= 1.0 || d <= IDENTICAL_FRACTION * noise
-                          ? REPEAT_DECIDED
-                          : REPEAT_UNDECIDED;
+    double margin = separation_margin (check, c, k, h, n, noise);
+    gboolean identical = d <= IDENTICAL_FRACTION * noise;
+    RepeatKind this = margin >= 1.0 || identical ? REPEAT_DECIDED : REPEAT_UNDECIDED;
     /* A decided repeat outranks an undecided one; among equals, the nearest. */
     if (this > kind || (this == kind && d < best)) {
       kind = this;
       best = d;
       *h_out = h;
+      *by_prior = isinf (margin) && !identical;
     }
   }
   return kind;
@@ -343,6 +355,55 @@ template_verdict (const DsPhaseCheck *check, const double c[2], double sigma, gu
   return *err <= *tol_k ? DS_PHASE_VERDICT_OK : DS_PHASE_VERDICT_WRONG;
 }
 
+/* How strong the first harmonic of a correct frame of phase k is expected to be at least, from
+ * what is known of the scene, in the DN of the frames; INFINITY when nothing is known yet.
+ *
+ * The physics: a frame's first harmonic at the stripe period is c_k = b + a e^{i 2 pi k / N}
+ * + the smaller bins: a moves with the illuminator (the projected stripes on the object's mean),
+ * b does not (the object's own texture at the stripe period under the stripes' mean). A correct
+ * frame shows no stripes only where b cancels a e^{i 2 pi k / N}, or where the scene lets no
+ * stripes through at all; the illuminator projects stripes at every phase, so without evidence
+ * of either, stripes are expected (INFINITY). The evidence:
+ * - templates (the last verified set's frames): |T_k|, phase k's own, which carries b;
+ * - else the set's frames of at least two phases: b and a fitted to them by least squares,
+ *   |b + a e^{i 2 pi k / N}| less |a| / 2 for the bins the fit leaves out (the texture at twice
+ *   the stripe frequency, bin -1, reaches a third of |a| for a transmittance in [0, 1]; the
+ *   square stripes' aliased harmonics less) and for its own error. */
+static double
+expected_stripes (const DsPhaseCheck *check, guint k, guint n)
+{
+  if (check->prior_n == n)
+    return hypot (check->prior[k][0], check->prior[k][1]);
+  if (check->set_n != n)
+    return INFINITY;
+  /* Normal equations of min sum_h |m_h - b - a z_h|^2 over the phases the set holds, z_h on the
+   * unit circle: b K + a S = M, b conj(S) + a K = Z, with S = sum z_h, M = sum m_h,
+   * Z = sum conj(z_h) m_h. */
+  double K = 0, S[2] = { 0, 0 }, M[2] = { 0, 0 }, Z[2] = { 0, 0 };
+  for (guint h = 0; h < n; h++) {
+    if (check->set_count[h] == 0)
+      continue;
+    double m[2], w = 2.0 * G_PI * (double) h / n;
+    set_mean (check, h, m);
+    K += 1;
+    S[0] += cos (w);
+    S[1] += sin (w);
+    M[0] += m[0];
+    M[1] += m[1];
+    Z[0] += cos (w) * m[0] + sin (w) * m[1];
+    Z[1] += cos (w) * m[1] - sin (w) * m[0];
+  }
+  double det = K * K - (S[0] * S[0] + S[1] * S[1]);
+  if (K < 2 || !(det > 1e-9 * K * K))
+    return INFINITY;
+  /* a = (K Z - conj(S) M) / det, b = (M - a S) / K */
+  double a[2] = { (K * Z[0] - (S[0] * M[0] + S[1] * M[1])) / det, (K * Z[1] - (S[0] * M[1] - S[1] * M[0])) / det };
+  double b[2] = { (M[0] - (a[0] * S[0] - a[1] * S[1])) / K, (M[1] - (a[0] * S[1] + a[1] * S[0])) / K };
+  double w = 2.0 * G_PI * (double) k / n;
+  double pred[2] = { b[0] + a[0] * cos (w) - a[1] * sin (w), b[1] + a[0] * sin (w) + a[1] * cos (w) };
+  return MAX (0.0, hypot (pred[0], pred[1]) - 0.5 * hypot (a[0], a[1]));
+}
+
 DsPhaseVerdict
 ds_phase_check_frame (DsPhaseCheck *check, const DsImage *frame, guint k, guint n,
                       double *measured_cycles, char **why)
@@ -364,9 +425,9 @@ ds_phase_check_frame (DsPhaseCheck *check, const DsImage *frame, guint k, guint 
     return DS_PHASE_VERDICT_UNVERIFIABLE;
   }
   if (!ds_stripe_phase_measure (&rows, check->period_px, NULL, &sp, &error)) {
+    /* Nothing measured is nothing known: refused like a frame without stripes. */
     *why = g_strdup_printf ("stripe phase not measurable: %s", error->message);
-    check->unverified++;
-    return DS_PHASE_VERDICT_UNVERIFIABLE;
+    return DS_PHASE_VERDICT_NO_STRIPES;
   }
   *measured_cycles = sp.phase;
   if (check->set_frames > 0 && check->set_n != n) /* a caller that changed N within a set */
@@ -382,17 +443,41 @@ ds_phase_check_frame (DsPhaseCheck *check, const DsImage *frame, guint k, guint 
    * a wrong period-px leaves a harmonic of snr 0.1 that the pixel noise alone would pass; the
    * object's texture on heavily scattered square stripes brings a right one down to 0.7,
    * tests/daemon/test_phase_check.c). */
-  if (sp.amplitude > 0 && sigma > 0 && sp.snr >= 0.3) {
-    sp.snr = sp.amplitude / sigma;
+  /* Below that fit snr, the harmonic still counts when it stands out of the pixel noise and no
+   * other period stands out of the frame (dominant_period: the structure the fit met is the
+   * object's, not another pattern's): fine stripes on a textured object (periods near 2.5 px
+   * under a black level leave a fit snr of 0.05 with the stripes at 10 noise sigmas). */
+  double noise_snr = sigma > 0 ? sp.amplitude / sigma : 0;
+  double other_snr = 0;
+  if (sp.amplitude > 0 && sigma > 0 &&
+      (sp.snr >= 0.3 || (noise_snr >= DS_STRIPE_PHASE_MIN_SNR && !isfinite (dominant_period (&rows, &other_snr))))) {
+    sp.snr = noise_snr;
     sp.reliable = sp.snr >= DS_STRIPE_PHASE_MIN_SNR;
   }
   double c[2] = { sp.amplitude * cos (2.0 * G_PI * sp.phase), sp.amplitude * sin (2.0 * G_PI * sp.phase) };
-  /* A frame that cannot tell its phase passes unverified: it joins the set, whose check as a
-   * whole may still tell (ds_phase_check_confirm), and a correct frame of a scene with too
-   * little modulation is not refused for it. */
+  /* A frame without stripes at the configured period. Stripes of another period are never a
+   * correct frame's (a wrong period-px, another pattern): refused. Otherwise it is refused
+   * where the scene is expected to show stripes at phase k at 2 x PHASE_CHECK_SIGMAS of the
+   * frame's noise (a correct frame then falls below the PHASE_CHECK_SIGMAS that make stripes
+   * with probability 3e-7): an illuminator switched off, a frame of the dark, a surplus frame.
+   * It passes unverified (joins the set, checked as a whole) only where the scene is known to
+   * show no stripes there (expected_stripes). */
   if (!sp.reliable || sp.snr < check->min_confidence || !(sigma > 0)) {
-    no_stripes (check, &rows, &sp, k, why);
-    set_add (check, c, isfinite (sigma) && sigma > 0 ? sigma : sp.amplitude, k, FALSE);
+    double noise = isfinite (sigma) && sigma > 0 ? sigma : sp.amplitude;
+    if (isfinite (no_stripes (check, &rows, &sp, k, why)))
+      return DS_PHASE_VERDICT_NO_STRIPES;
+    double expected = expected_stripes (check, k, n);
+    if (!(expected < 2.0 * PHASE_CHECK_SIGMAS * noise)) {
+      char *said = *why;
+      *why = isfinite (expected)
+                 ? g_strdup_printf ("%s; the scene shows stripes there (%s: %.0f noise sigmas expected at phase %u)", said,
+                                    check->prior_n == n ? "the last set's frame of that phase" : "the set's other frames",
+                                    expected / noise, k)
+                 : g_strdup_printf ("%s; nothing shows yet that the scene hides the projected stripes", said);
+      g_free (said);
+      return DS_PHASE_VERDICT_NO_STRIPES;
+    }
+    set_add (check, c, noise, k, FALSE);
     return DS_PHASE_VERDICT_UNVERIFIABLE;
   }
   double sigma_cycles = sigma / sp.amplitude / (2.0 * G_PI);
@@ -406,7 +491,21 @@ ds_phase_check_frame (DsPhaseCheck *check, const DsImage *frame, guint k, guint 
     return DS_PHASE_VERDICT_UNVERIFIABLE;
   }
   guint rep = n;
-  RepeatKind repeat = repeat_of (check, c, sigma, k, n, &rep);
+  gboolean by_prior = FALSE;
+  RepeatKind repeat = repeat_of (check, c, sigma, k, n, &rep, &by_prior);
+  if (repeat == REPEAT_DECIDED && by_prior) {
+    /* Decided by the prior alone (the projected stripes move). A stale frame shows the light
+     * lit before the last move; once phase k was applied again for the retry, that light is k
+     * itself. So a frame of k that repeats h again after it was refused for it shows that the
+     * scene moves its first harmonic less than the noise between these phases (stripes the
+     * scattering or the blur took, beside texture at the stripe period): from then on such
+     * frames pass unverified and the set is checked as a whole. */
+    if (check->set_refused_as[k] == rep + 1) {
+      check->still = TRUE;
+      repeat = REPEAT_UNDECIDED;
+    } else
+      check->set_refused_as[k] = (guint8) (rep + 1);
+  }
   if (repeat == REPEAT_DECIDED) {
     *why = g_strdup_printf ("frame for phase %u repeats the set's frame of phase %u (looks like phase %u: "
                             "a duplicated or stale frame)",
@@ -608,4 +707,5 @@ ds_phase_check_abandon (DsPhaseCheck *check)
 {
   check->provisional = FALSE;
   check->prior_n = 0;
+  check->still = FALSE;
 }

@@ -13,10 +13,21 @@
  * between "phase k" and "phase k +- 1, or a repeat of a frame of the set", each decision taken
  * halfway between the hypotheses and only where the noise of the first harmonic leaves 5 sigmas
  * on the way; where it does not, the frame is UNVERIFIABLE: it passes (the caller folds it and
- * counts it), joins the set and the set is checked as a whole. Then:
+ * counts it), joins the set and the set is checked as a whole. What is known of the scene
+ * decides which way a frame that cannot show its phase goes. The illuminator projects stripes
+ * that move with the phase, so a correct frame shows them, and shows them move, unless the
+ * scene is known not to (its own texture or its scattering hides them there):
+ * - a frame without stripes at the configured period is NO_STRIPES (refused) when it shows
+ *   another period, or when the scene is expected to show stripes at phase k: the template of
+ *   phase k is strong, or, without templates, the set's frames predict them (a first harmonic
+ *   b + a e^{i 2 pi k / N} fitted to them), or nothing is known yet (the projected pattern).
+ *   It passes unverified only where the scene is known to show none at k (the template of k,
+ *   or the set's fit, is too weak to show 10 noise sigmas);
  * - a frame equal within its noise to the set's frame of another phase is a repeat when correct
  *   frames of the two phases are known to lie far enough apart (templates, or the set's other
- *   adjacent phases), or when it is the same exposure (equal far inside the noise);
+ *   adjacent phases), when nothing is known yet (the projected stripes move), or when it is the
+ *   same exposure (equal far inside the noise); it passes unverified only where the scene is
+ *   known to move its first harmonic too little between the two phases;
  * - with templates (the last fully verified set's first harmonic per phase) and a scene that
  *   holds still, a frame of phase k is compared with the template of phase k, which carries the
  *   same bias: beyond halfway to the nearest other template (or the tolerance) it is wrong. The
@@ -39,8 +50,11 @@ G_BEGIN_DECLS
 typedef enum {
   DS_PHASE_VERDICT_OK = 0,
   DS_PHASE_VERDICT_WRONG,        /* measured phase is another phase than k */
-  DS_PHASE_VERDICT_UNVERIFIABLE, /* no measurable modulation, or too little to tell the phases apart:
-                                  * the frame passes unverified (it joined the set) */
+  DS_PHASE_VERDICT_UNVERIFIABLE, /* too little modulation to tell the phases apart where the scene is
+                                  * known to show so little: the frame passes unverified (it joined
+                                  * the set) */
+  DS_PHASE_VERDICT_NO_STRIPES,   /* refused: no stripes at the configured period where the scene is
+                                  * expected to show them, or stripes of another period */
 } DsPhaseVerdict;
 
 /* Templates and repeat detection are kept for up to this many phases (the configuration's
@@ -67,6 +81,11 @@ typedef struct {
   guint prior_n;
   double prior[DS_PHASE_CHECK_MAX_PHASES][2];
   guint set_unverified;       /* frames of the set in progress that passed unverified */
+  /* Per phase of the set in progress: 1 + the phase whose frame a frame of it was refused as
+   * repeating while nothing was known of how far the stripes move (0: none). */
+  guint8 set_refused_as[DS_PHASE_CHECK_MAX_PHASES];
+  gboolean still;             /* the scene is known to move its first harmonic less than the noise
+                               * tells between phases (until abandoned) */
   guint64 unverified;         /* frames that passed unverified (DS_PHASE_VERDICT_UNVERIFIABLE) since init */
   guint64 sets_unverified;    /* complete sets whose phases could not be told apart, since init */
 } DsPhaseCheck;
@@ -88,7 +107,8 @@ void ds_phase_check_init (DsPhaseCheck *check, double period_px, double toleranc
 /* A new set begins. */
 void ds_phase_check_begin_set (DsPhaseCheck *check);
 /* Checks frame (lit with phase k of n), measuring on at least 256 of its rows evenly spread
- * (all rows of a frame with fewer than 512). An OK or UNVERIFIABLE frame joins the set.
+ * (all rows of a frame with fewer than 512). An OK or UNVERIFIABLE frame joins the set; a
+ * WRONG or NO_STRIPES one does not (the caller refuses it).
  * *measured_cycles receives the measured phase. `why` receives a message when the verdict is not OK. */
 DsPhaseVerdict ds_phase_check_frame (DsPhaseCheck *check, const DsImage *frame, guint k, guint n,
                                      double *measured_cycles, char **why);

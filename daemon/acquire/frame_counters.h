@@ -14,7 +14,8 @@ typedef enum {
   DS_DROP_FRAME_GAP,      /* frame ids not continuous: a frame in between was lost */
   DS_DROP_WRONG_PHASE,    /* stripe phase measured in the frame disagrees with the applied one */
   DS_DROP_STALE,          /* exposed before the phase was applied (flushed or too early) */
-  DS_DROP_UNVERIFIABLE,   /* kept for the name's sake: unverifiable frames are folded, counted in `unverified` */
+  DS_DROP_UNVERIFIABLE,   /* no stripes at the configured period where the scene shows them, or
+                           * another period (frames that only cannot tell are folded: `unverified`) */
   DS_DROP_ABORTED,        /* folded into a set that then failed or was abandoned */
   DS_DROP_PREVIEW,        /* a preview for the automatic operating point, never folded */
   DS_DROP_N_REASONS

@@ -1,7 +1,8 @@
 /* Frame verification (docs/design.md, "The sequencer contract"): a frame is folded into phase
- * k only if it arrived after k was applied, no frame id is missing before it, and the stripe
- * phase measured in it is not another phase's (a frame whose stripes cannot tell is folded
- * unverified). Checked in that order; the first failure is the reason. */
+ * k only if it arrived after k was applied, no frame id is missing before it, it shows the
+ * stripes the scene is expected to show, and the stripe phase measured in it is not another
+ * phase's (a frame whose stripes cannot tell, where the scene is known to show so little, is
+ * folded unverified). Checked in that order; the first failure is the reason. */
 #include <math.h>
 
 #include "daemon/acquire/fold_worker.h"
@@ -28,10 +29,13 @@ ds_seq_verify_frame (DsPhaseCheck *check, const DsCaptureSettings *s, guint k, c
     if (pv == DS_PHASE_VERDICT_WRONG) {
       v->reason = DS_DROP_WRONG_PHASE;
       v->reapply_phase = TRUE; /* the illuminator may have applied another phase */
+    } else if (pv == DS_PHASE_VERDICT_NO_STRIPES) {
+      v->reason = DS_DROP_UNVERIFIABLE;
+      v->reapply_phase = TRUE; /* the illuminator may be off, or show another pattern */
     } else if (pv == DS_PHASE_VERDICT_UNVERIFIABLE)
-      /* Frames that cannot tell the phases apart are not refused for it: a correct frame of a
-       * scene with too little modulation would never pass. It is folded and counted; the set's
-       * check as a whole still judges it (ds_phase_check_confirm). */
+      /* Frames that cannot tell the phases apart where the scene is known to show too little
+       * are not refused for it: a correct frame of such a scene would never pass. It is folded
+       * and counted; the set's check as a whole still judges it (ds_phase_check_confirm). */
       v->unverified = TRUE;
     else
       g_clear_pointer (&v->detail, g_free);
