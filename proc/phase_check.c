@@ -21,6 +21,17 @@ ds_phase_check_init (DsPhaseCheck *check, double period_px, double tolerance_deg
 }
 
 void
+ds_phase_check_set_pattern (DsPhaseCheck *check, gboolean square, double duty)
+{
+  if (check->pattern_known && check->pattern_square == square && check->pattern_duty == duty)
+    return;
+  check->pattern_known = TRUE;
+  check->pattern_square = square;
+  check->pattern_duty = duty;
+  check->bend_n = 0; /* computed again when needed */
+}
+
+void
 ds_phase_check_begin_set (DsPhaseCheck *check)
 {
   check->set_n = 0;
@@ -411,6 +422,7 @@ ds_phase_check_frame (DsPhaseCheck *check, const DsImage *frame, guint k, guint 
   DsStripePhase sp;
   g_autoptr (GError) error = NULL;
   *measured_cycles = NAN;
+  check->frame_width = frame->width;
   DsImage rows = *frame;
   guint step = frame->height / PHASE_CHECK_MIN_ROWS;
   if (step > 1) {
@@ -589,11 +601,27 @@ set_has_no_repeat (const DsPhaseCheck *check, guint n, double noise, gboolean *u
  * period: tests/daemon/test_phase_check.c). Only where the noise of a step is PHASE_CHECK_SIGMAS
  * inside the quarter step left (*undecided otherwise). */
 static gboolean
-set_steps_by_one (const DsPhaseCheck *check, guint n, const double b0[2], double amp, double noise, double tol,
+set_steps_by_one (DsPhaseCheck *check, guint n, const double b0[2], double amp, double noise, double tol,
                   gboolean *undecided, char **why)
 {
-  double step_tol = 0.75 / n;
-  if (!(PHASE_CHECK_SIGMAS * noise / amp / (2.0 * G_PI) <= 0.25 / n)) {
+  /* The projected pattern's own bend of a step (square stripes at short periods) widens what a
+   * correct step may show. A wrong frame that is not a repeat (the test before this one) puts a
+   * step two or more off somewhere: neighbours swapped give +1, -2, +1; a frame of phase h + j
+   * in place of h gives +j, -j. That must still stand out, less the bend, beyond the widened
+   * tolerance; where the bend leaves no such margin the set cannot tell its steps apart
+   * (*undecided). */
+  double bend = 0;
+  if (check->pattern_known && check->frame_width > 0) {
+    if (check->bend_n != n || check->bend_width != check->frame_width) {
+      check->bend_cycles = ds_phase_check_pattern_bend (check->pattern_square, check->pattern_duty,
+                                                        check->period_px, check->frame_width, n);
+      check->bend_n = n;
+      check->bend_width = check->frame_width;
+    }
+    bend = check->bend_cycles;
+  }
+  double step_tol = 0.75 / n + bend;
+  if (!(2.0 / n - bend > step_tol) || !(PHASE_CHECK_SIGMAS * noise / amp / (2.0 * G_PI) <= 0.25 / n)) {
     *undecided = TRUE;
     return TRUE;
   }

@@ -88,6 +88,14 @@ typedef struct {
                                * tells between phases (until abandoned) */
   guint64 unverified;         /* frames that passed unverified (DS_PHASE_VERDICT_UNVERIFIABLE) since init */
   guint64 sets_unverified;    /* complete sets whose phases could not be told apart, since init */
+  /* The projected pattern, when known (ds_phase_check_set_pattern): its own harmonics bend the
+   * measured step between phases, which the whole-set step test allows for. */
+  gboolean pattern_known;
+  gboolean pattern_square;
+  double pattern_duty;
+  guint frame_width;          /* the last checked frame's width (the measurement's length) */
+  double bend_cycles;         /* ds_phase_check_pattern_bend for bend_n phases and frame_width */
+  guint bend_n, bend_width;
 } DsPhaseCheck;
 
 /* The tolerance when none is configured: half a phase step, in degrees (k is then the nearest
@@ -104,6 +112,18 @@ ds_phase_check_default_tolerance_deg (guint n)
 double ds_phase_check_pixel_noise (const DsImage *frame);
 
 void ds_phase_check_init (DsPhaseCheck *check, double period_px, double tolerance_deg);
+/* The projected pattern (square with a duty, the lit fraction, or sine), for the whole-set step
+ * test; without it the test assumes steps unbent by the pattern (sine stripes). Kept until the
+ * next ds_phase_check_init. */
+void ds_phase_check_set_pattern (DsPhaseCheck *check, gboolean square, double duty);
+
+/* The largest deviation from 1/n (cycles) of the first-harmonic phase measured as the pattern
+ * moves from one phase to the next, on a noise-free row `width` pixels wide with sharp edges,
+ * point-sampled or pixel-wide (the larger): what the pattern's harmonics above the first, folded
+ * back at short periods, bend a step by; blur and wider apertures lower it. 0 for sine stripes.
+ * Pure function, any thread; CPU only (2 x 8 x (n + 1) measurements of one row). */
+double ds_phase_check_pattern_bend (gboolean square, double duty, double period_px, guint width, guint n);
+
 /* A new set begins. */
 void ds_phase_check_begin_set (DsPhaseCheck *check);
 /* Checks frame (lit with phase k of n), measuring on at least 256 of its rows evenly spread

@@ -452,6 +452,57 @@ test_pixel_noise_integer (void)
   g_rand_free (rng);
 }
 
+/* The pattern's bend (ds_phase_check_pattern_bend) against a reference written differently: a
+ * direct DFT at the period over whole periods of point samples of the square pattern, where the
+ * fit the check uses reduces to that DFT (an integer period, a width of whole periods). The
+ * function takes the larger of point samples and pixel-wide ones, so it is at least the
+ * reference; sine stripes have no harmonic to fold and no bend; a long period folds nothing
+ * onto the first harmonic either. */
+static double
+reference_bend_point (double duty, guint period, guint width, guint n)
+{
+  double worst = 0;
+  for (guint o = 0; o < 8; o++) {
+    double prev = NAN;
+    for (guint h = 0; h <= n; h++) {
+      double phi = (double) o / (8.0 * n) + (double) (h % n) / n, re = 0, im = 0;
+      for (guint x = 0; x < width; x++) {
+        double u = (double) x / period - phi;
+        u -= floor (u + 0.5);
+        double v = fabs (u) < duty / 2 ? 1.0 : 0.0;
+        re += v * cos (2.0 * G_PI * x / period);
+        im += v * sin (2.0 * G_PI * x / period);
+      }
+      double ph = atan2 (im, re) / (2.0 * G_PI);
+      if (h > 0) {
+        double d = ph - prev - 1.0 / n;
+        d -= floor (d + 0.5);
+        worst = MAX (worst, fabs (d));
+      }
+      prev = ph;
+    }
+  }
+  return worst;
+}
+
+static void
+test_pattern_bend (void)
+{
+  double sine = ds_phase_check_pattern_bend (FALSE, 0.5, 16.0, 512, 8);
+  g_assert_cmpfloat (sine, <, 1e-6);
+  double at3 = ds_phase_check_pattern_bend (TRUE, 0.65, 3.0, 96, 12);
+  double ref3 = reference_bend_point (0.65, 3, 96, 12);
+  g_test_message ("square P 3 duty 0.65 N 12: bend %.3f steps (point-sampled reference %.3f)", at3 * 12, ref3 * 12);
+  /* point samples of sharp edges change only when an edge crosses a pixel's centre, a third
+   * of a period apart at P = 3: the measured phase jumps by several steps of N = 12 at once */
+  g_assert_cmpfloat (ref3 * 12, >, 0.5);
+  g_assert_cmpfloat (at3, >=, ref3 - 1e-9);
+  double at64 = ds_phase_check_pattern_bend (TRUE, 0.5, 64.0, 1024, 8);
+  double ref64 = reference_bend_point (0.5, 64, 1024, 8);
+  g_assert_cmpfloat (at64, >=, ref64 - 1e-9);
+  g_assert_cmpfloat (at64 * 8, <, 0.05);
+}
+
 int
 main (int argc, char **argv)
 {
@@ -460,6 +511,7 @@ main (int argc, char **argv)
   g_test_add_data_func ("/phase-check/sweep/templates", GINT_TO_POINTER (FALSE), test_sweep);
   g_test_add_data_func ("/phase-check/sweep/whole-set", GINT_TO_POINTER (TRUE), test_sweep);
   g_test_add_func ("/phase-check/too-noisy", test_too_noisy);
+  g_test_add_func ("/phase-check/pattern-bend", test_pattern_bend);
   g_test_add_func ("/phase-check/repeat-in-first-set", test_repeat_in_first_set);
   g_test_add_func ("/phase-check/pixel-noise-integer", test_pixel_noise_integer);
   g_test_add_func ("/phase-check/pixel-noise-shot", test_pixel_noise_shot);

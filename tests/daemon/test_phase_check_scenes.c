@@ -236,8 +236,10 @@ run_scene (guint64 seed, Tally *t)
       req.phase = k;
       g_autoptr (DsImage) expected = ds_renderer_render_expected (renderer, &req, &error);
       g_assert_no_error (error);
-      /* clipped as the sensor clips: saturated stripes are no stripes */
-      double clip = (double) ((1u << ds_scene_bit_depth (scene)) - 1);
+      /* clipped as the sensor clips, at its full well or its top code, whichever comes first:
+       * saturated stripes are no stripes */
+      double clip = MIN (floor (ds_scene_system_gain (scene) * ds_scene_spec (scene)->full_well_e + 0.5),
+                         (double) ((1u << ds_scene_bit_depth (scene)) - 1));
       for (guint y = 0; y < expected->height; y++) {
         float *row = ds_image_row (expected, y);
         for (guint x = 0; x < expected->width; x++)
@@ -260,6 +262,7 @@ run_scene (guint64 seed, Tally *t)
   Tally before = *t;
   DsPhaseCheck c;
   ds_phase_check_init (&c, ds_scene_period_px (scene), ds_phase_check_default_tolerance_deg (n));
+  ds_phase_check_set_pattern (&c, !ds_scene_pattern_is_sine (scene), ds_scene_duty (scene));
   for (guint i = 0; i < 3; i++)
     correct_set (&c, &s, t);
   /* Later sets (against the last set's frames), then first sets (checked as a whole). */
