@@ -21,6 +21,17 @@ ds_phase_check_init (DsPhaseCheck *check, double period_px, double tolerance_deg
 }
 
 void
+ds_phase_check_set_pattern (DsPhaseCheck *check, gboolean square, double duty)
+{
+  if (check->pattern_known && check->pattern_square == square && check->pattern_duty == duty)
+    return;
+  check->pattern_known = TRUE;
+  check->pattern_square = square;
+  check->pattern_duty = duty;
+  check->bend_n = 0; /* computed again when needed */
+}
+
+void
 ds_phase_check_begin_set (DsPhaseCheck *check)
 {
   check->set_n = 0;
@@ -30,6 +41,8 @@ ds_phase_check_begin_set (DsPhaseCheck *check)
   check->set_noise2 = 0;
   check->set_frames = 0;
   check->set_by_template = FALSE;
+  check->set_unverified = 0;
+  memset (check->set_refused_as, 0, sizeof check->set_refused_as);
   check->provisional = TRUE;
 }
 
@@ -83,29 +96,6 @@ dominant_period (const DsImage *rows, double *best_snr)
 #define NOISE_ROW_PAIRS 32
 #define NOISE_COLUMNS 256
 
-/* The k-th smallest (0-based) of n values below 65536: a byte histogram of the high bytes,
- * then of the low bytes of the values in the high byte's bin. Exact, in two passes over n
- * values (the selection below takes several on doubles: about a sixth of the verify stage at
- * 1 MP, bench-daemon-rate's fold thread). */
-static guint
-kth_smallest_u16 (const guint16 *v, gsize n, gsize k)
-{
-  gsize hist[256] = { 0 };
-  for (gsize i = 0; i < n; i++)
-    hist[v[i] >> 8]++;
-  guint hi = 0;
-  while (k >= hist[hi])
-    k -= hist[hi++];
-  memset (hist, 0, sizeof hist);
-  for (gsize i = 0; i < n; i++)
-    if ((guint) (v[i] >> 8) == hi)
-      hist[v[i] & 0xff]++;
-  guint lo = 0;
-  while (k >= hist[lo])
-    k -= hist[lo++];
-  return hi << 8 | lo;
-}
-
 /* The k-th smallest (0-based) of n doubles, by selection (Wirth's): O(n); reorders d. */
 static double
 kth_smallest (double *d, gsize n, gsize k)
@@ -135,6 +125,14 @@ kth_smallest (double *d, gsize n, gsize k)
   return d[mid];
 }
 
+/* Shot noise makes a pixel's noise grow with its light, and the first harmonic's noise is the
+ * mean of the pixels' variances, not the variance of a typical pixel: under square stripes of
+ * duty 0.64 over a dark gap the median row difference comes from the gaps' read noise and the
+ * harmonic's noise is twice what it says. So the differences are split into classes by the
+ * pair's level (its quantiles: equal counts), each class's median gives its variance, and the
+ * variances are averaged over the pixels. */
+#define NOISE_LEVEL_CLASSES 4
+
 double
 ds_phase_check_pixel_noise (const DsImage *frame)
 {
@@ -143,46 +141,55 @@ ds_phase_check_pixel_noise (const DsImage *frame)
   guint pairs = MIN (NOISE_ROW_PAIRS, frame->height / 2);
   guint xstep = MAX (1u, frame->width / NOISE_COLUMNS);
   guint cols = (frame->width + xstep - 1) / xstep;
-  gsize n = 0;
-  double median;
-  if (frame->type == DS_SAMPLE_U16 || frame->type == DS_SAMPLE_U8) {
-    /* Integer samples: their differences are integers below 65536, every one finite. */
-    g_autofree guint16 *d = g_new (guint16, (gsize) pairs * cols);
-    for (guint i = 0; i < pairs; i++) {
-      guint y = (guint) (((guint64) i * (frame->height - 1)) / pairs);
-      const void *r0 = ds_image_row (frame, y), *r1 = ds_image_row (frame, y + 1);
-      if (frame->type == DS_SAMPLE_U16)
-        for (guint x = 0; x < frame->width; x += xstep)
-          d[n++] = (guint16) ABS ((int) ((const guint16 *) r1)[x] - (int) ((const guint16 *) r0)[x]);
-      else
-        for (guint x = 0; x < frame->width; x += xstep)
-          d[n++] = (guint16) ABS ((int) ((const guint8 *) r1)[x] - (int) ((const guint8 *) r0)[x]);
-    }
-    median = kth_smallest_u16 (d, n, n / 2);
-  } else {
-    g_autofree double *d = g_new (double, (gsize) pairs * cols);
-    for (guint i = 0; i < pairs; i++) {
-      guint y = (guint) (((guint64) i * (frame->height - 1)) / pairs);
-      const void *r0 = ds_image_row (frame, y), *r1 = ds_image_row (frame, y + 1);
-      for (guint x = 0; x < frame->width; x += xstep) {
-        double v = fabs (ds_image_sample (frame, r1, x) - ds_image_sample (frame, r0, x));
-        if (isfinite (v))
-          d[n++] = v;
+  gsize cap = (gsize) pairs * cols, n = 0;
+  g_autofree double *d = g_new (double, 3 * cap);
+  double *level = d + cap, *work = d + 2 * cap;
+  for (guint i = 0; i < pairs; i++) {
+    guint y = (guint) (((guint64) i * (frame->height - 1)) / pairs);
+    const void *r0 = ds_image_row (frame, y), *r1 = ds_image_row (frame, y + 1);
+    for (guint x = 0; x < frame->width; x += xstep) {
+      double a = ds_image_sample (frame, r0, x), b = ds_image_sample (frame, r1, x);
+      if (isfinite (a) && isfinite (b)) {
+        d[n] = fabs (b - a);
+        level[n++] = a + b;
       }
     }
-    if (n == 0)
-      return INFINITY;
-    median = kth_smallest (d, n, n / 2);
   }
-  /* |N(0, 2 s^2)| has median 0.6745 sqrt(2) s. Integer samples are no finer than their
-   * quantisation (1/sqrt(12) DN). */
-  double sigma = median / (0.6745 * G_SQRT2);
+  if (n == 0)
+    return INFINITY;
+  /* The class bounds: levels at the quantiles j / NOISE_LEVEL_CLASSES; a pair is in the class
+   * of the bounds at or below its level. */
+  double bound[NOISE_LEVEL_CLASSES];
+  memcpy (work, level, n * sizeof *work);
+  for (guint j = 1; j < NOISE_LEVEL_CLASSES; j++)
+    bound[j] = kth_smallest (work, n, j * n / NOISE_LEVEL_CLASSES);
+  double sum_var = 0;
+  for (guint cls = 0; cls < NOISE_LEVEL_CLASSES; cls++) {
+    gsize m = 0;
+    for (gsize i = 0; i < n; i++) {
+      guint of = 0;
+      for (guint j = 1; j < NOISE_LEVEL_CLASSES; j++)
+        of += level[i] >= bound[j];
+      if (of == cls)
+        work[m++] = d[i];
+    }
+    if (m == 0)
+      continue;
+    /* |N(0, 2 s^2)| has median 0.6745 sqrt(2) s. */
+    double s = kth_smallest (work, m, m / 2) / (0.6745 * G_SQRT2);
+    sum_var += s * s * (double) m;
+  }
+  double sigma = sqrt (sum_var / (double) n);
+  /* Integer samples are no finer than their quantisation (1/sqrt(12) DN). */
   if (frame->type != DS_SAMPLE_F32)
     sigma = MAX (sigma, 1.0 / sqrt (12.0));
   return sigma;
 }
 
-static DsPhaseVerdict
+/* The message for a frame without stripes at the configured period; returns the period the
+ * frame does show (stripes of another period: a wrong period-px, or another pattern lit), NAN
+ * when none stands out. */
+static double
 no_stripes (const DsPhaseCheck *check, const DsImage *rows, const DsStripePhase *sp, guint k, char **why)
 {
   /* Say what to check: a wrong period-px shows as stripes at another period. */
@@ -197,9 +204,9 @@ no_stripes (const DsPhaseCheck *check, const DsImage *rows, const DsStripePhase 
     *why = g_strdup_printf ("no stripes in the frame to verify phase %u (snr %.1f < %.1f at the configured "
                             "period of %.1f px, and no other period stands out): check that the illuminator "
                             "lights the camera's field of view, and the exposure (too much scattering or "
-                            "too little light leaves no measurable stripes; verify-phase=false skips the check)",
+                            "too little light leaves no measurable stripes)",
                             k, sp->snr, check->min_confidence, check->period_px);
-  return DS_PHASE_VERDICT_UNVERIFIABLE;
+  return found;
 }
 
 static double
@@ -209,68 +216,108 @@ cycles_of (const double c[2])
   return p - floor (p);
 }
 
-/* |a|, the size of the part of the first harmonic that moves with the phase: from two phases
- * of the set (their difference is a (e^{i 2 pi h/N} - e^{i 2 pi r/N}): the fixed part cancels),
- * else from the templates, else unknown (0). */
-static double
-moving_amplitude (const DsPhaseCheck *check, guint n)
+static void
+set_mean (const DsPhaseCheck *check, guint k, double m[2])
 {
-  guint r = n, l = n;
-  for (guint h = 0; h < n; h++)
-    if (check->set_count[h] > 0) {
-      if (r == n)
-        r = h;
-      l = h;
-    }
-  if (r < l) {
-    double mr[2] = { check->set_sum[r][0] / check->set_count[r], check->set_sum[r][1] / check->set_count[r] };
-    double ml[2] = { check->set_sum[l][0] / check->set_count[l], check->set_sum[l][1] / check->set_count[l] };
-    return hypot (ml[0] - mr[0], ml[1] - mr[1]) / (2.0 * fabs (sin (G_PI * (double) (l - r) / n)));
-  }
-  if (check->prior_n == n) {
-    double b1[2] = { 0, 0 };
-    for (guint h = 0; h < n; h++) {
-      double w = -2.0 * G_PI * (double) h / n;
-      b1[0] += (check->prior[h][0] * cos (w) - check->prior[h][1] * sin (w)) / n;
-      b1[1] += (check->prior[h][0] * sin (w) + check->prior[h][1] * cos (w)) / n;
-    }
-    return hypot (b1[0], b1[1]);
-  }
-  return 0;
+  m[0] = check->set_sum[k][0] / check->set_count[k];
+  m[1] = check->set_sum[k][1] / check->set_count[k];
 }
 
-/* A frame equal, within its noise, to the frames already accepted for another phase h is a
- * repeat of them (a duplicated or stale frame), however the scene biases phases: any two
- * different phases differ by at least |a| |e^{i 2 pi / N} - 1| = 2 |a| sin(pi / N); a quarter
- * of that is the radius (|a| is estimated, and may have changed with the exposure since the
- * templates; unknown, the noise decides). Returns h, or n when there is none. */
-static guint
-repeat_of (const DsPhaseCheck *check, const double c[2], double sigma, guint k, guint n)
+/* The margin a separation must have over the noise for a frame equal (within the noise) to
+ * another phase's to be called a repeat of it: the decision threshold is halfway between the
+ * two hypotheses ("repeat": distance 0; "correct": the expected separation), and a correct
+ * frame must not cross it by noise, so the separation must be 2 x PHASE_CHECK_SIGMAS noise.
+ * Known from the templates (the same scene's frames of each phase), that is the margin. Known
+ * only from the pairs of adjacent phases the set has shown so far, it is doubled: the object's
+ * texture at twice the stripe frequency moves the other way (DFT bin -1 over the phases) and
+ * makes the separation of adjacent phases vary as |b1| +- |b-1| along the set, a ratio of 2
+ * for |b-1| = |b1| / 3 (the texture of a transmittance in [0, 1] that dims a third of the
+ * light at that frequency). */
+#define REPEAT_MARGIN_TEMPLATES (2.0 * PHASE_CHECK_SIGMAS)
+#define REPEAT_MARGIN_SET (4.0 * PHASE_CHECK_SIGMAS)
+
+/* The least separation expected between the first harmonics of correct frames of phases k and
+ * h, in units of the noise margin it needs: >= 1 means a frame as close to h's as the noise is
+ * not a correct frame of k. From the templates, scaled to the frame's exposure (|c| / |T_k|);
+ * else from the closest pair of adjacent phases the set holds, scaled to the distance between
+ * k and h as a first harmonic moves (2 |a| sin(pi dk / N)). When neither is known (the set's
+ * second phase, or N = 2, in a first set), INFINITY: the illuminator moves its stripes with the
+ * phase, so a correct frame differs from another phase's unless the scene is known to hide
+ * that (check->still: 0). */
+static double
+separation_margin (const DsPhaseCheck *check, const double c[2], guint k, guint h, guint n, double noise)
 {
+  if (check->prior_n == n) {
+    double tk = hypot (check->prior[k][0], check->prior[k][1]);
+    if (!(tk > 0))
+      return 0; /* the template shows no stripes at k: known not to move */
+    double sep = hypot (c[0], c[1]) / tk * hypot (check->prior[k][0] - check->prior[h][0], check->prior[k][1] - check->prior[h][1]);
+    return sep / (REPEAT_MARGIN_TEMPLATES * noise);
+  }
+  double closest = INFINITY;
+  for (guint g = 0; g < n && n > 2; g++) {
+    guint g1 = (g + 1) % n;
+    if (check->set_count[g] == 0 || check->set_count[g1] == 0)
+      continue;
+    double a[2], b[2];
+    set_mean (check, g, a);
+    set_mean (check, g1, b);
+    closest = MIN (closest, hypot (a[0] - b[0], a[1] - b[1]));
+  }
+  if (!isfinite (closest))
+    return check->still ? 0 : INFINITY;
+  guint dk = (k + n - h) % n;
+  dk = MIN (dk, n - dk);
+  return closest * sin (G_PI * dk / n) / sin (G_PI / n) / (REPEAT_MARGIN_SET * noise);
+}
+
+/* Two exposures differ by their noise, a duplicated buffer (the same exposure delivered twice)
+ * not at all: first harmonics closer than this fraction of the noise of their difference are
+ * the same exposure whatever the stripes, and a repeat. Two independent exposures come that
+ * close with probability 1 - exp (-f^2 / 2) = 5e-5 (Rayleigh), and the re-acquired frame is
+ * a new exposure: no correct frame is refused twice for it. */
+#define IDENTICAL_FRACTION 0.01
+
+typedef enum { REPEAT_NONE, REPEAT_UNDECIDED, REPEAT_DECIDED } RepeatKind;
+
+/* A frame equal, within its noise, to the frames already accepted for another phase h: a
+ * duplicated or stale frame unless correct frames of k and h are known to lie closer than the
+ * noise can tell (separation_margin), in which case the frames cannot tell k from h. Returns
+ * the kind and *h. */
+static RepeatKind
+repeat_of (const DsPhaseCheck *check, const double c[2], double sigma, guint k, guint n, guint *h_out,
+           gboolean *by_prior)
+{
+  *by_prior = FALSE;
   if (check->set_n != n)
-    return n;
-  double radius = 0.5 * moving_amplitude (check, n) * sin (G_PI / n);
-  guint nearest = n;
+    return REPEAT_NONE;
+  RepeatKind kind = REPEAT_NONE;
   double best = INFINITY;
   for (guint h = 0; h < n; h++) {
     if (h == k || check->set_count[h] == 0)
       continue;
-    double m[2] = { check->set_sum[h][0] / check->set_count[h], check->set_sum[h][1] / check->set_count[h] };
+    double m[2];
+    set_mean (check, h, m);
     double noise = sigma * sqrt (1.0 + 1.0 / check->set_count[h]);
     double d = hypot (c[0] - m[0], c[1] - m[1]);
-    /* |a| unknown (the first set's second phase): equal within the noise is a repeat (a
-     * correct frame that close to another phase's would have no stripes to verify). */
-    double r = radius > 0 ? radius : PHASE_CHECK_SIGMAS * noise;
-    if (r >= PHASE_CHECK_SIGMAS * noise && d < r && d < best) {
+    if (d > PHASE_CHECK_SIGMAS * noise)
+      continue;
+    double margin = separation_margin (check, c, k, h, n, noise);
+    gboolean identical = d <= IDENTICAL_FRACTION * noise;
+    RepeatKind this = margin >= 1.0 || identical ? REPEAT_DECIDED : REPEAT_UNDECIDED;
+    /* A decided repeat outranks an undecided one; among equals, the nearest. */
+    if (this > kind || (this == kind && d < best)) {
+      kind = this;
       best = d;
-      nearest = h;
+      *h_out = h;
+      *by_prior = isinf (margin) && !identical;
     }
   }
-  return nearest;
+  return kind;
 }
 
 static void
-set_add (DsPhaseCheck *check, const double c[2], double sigma, guint k)
+set_add (DsPhaseCheck *check, const double c[2], double sigma, guint k, gboolean verified)
 {
   check->set_frames++;
   check->set_noise2 = MAX (check->set_noise2, sigma * sigma);
@@ -278,13 +325,94 @@ set_add (DsPhaseCheck *check, const double c[2], double sigma, guint k)
   check->set_sum[k][1] += c[1];
   check->set_sumsq[k] += c[0] * c[0] + c[1] * c[1];
   check->set_count[k]++;
+  if (!verified) {
+    check->set_unverified++;
+    check->unverified++;
+  }
 }
 
-static void
-set_mean (const DsPhaseCheck *check, guint k, double m[2])
+/* The frame against the last set's frames (the templates), as a classifier between "phase k"
+ * and the other phases: each phase's template carries the scene's bias, so the frame's phase is
+ * compared with theirs, and the boundary of k is halfway to the nearest other template (half a
+ * step for a pure first harmonic; less where the fixed part crowds them), or the configured
+ * tolerance if narrower. The angle is scale-free: a set at another exposure keeps it. The noise
+ * is the frame's and the template's. Returns OK (k fits), WRONG (k does not, the templates can
+ * tell), or UNVERIFIABLE (they cannot: the boundary is within PHASE_CHECK_SIGMAS of the noise);
+ * *best_h the nearest template, *err the distance to k's, *tol_k the boundary (cycles). */
+static DsPhaseVerdict
+template_verdict (const DsPhaseCheck *check, const double c[2], double sigma, guint k, guint n, guint *best_h,
+                  double *err, double *tol_k)
 {
-  m[0] = check->set_sum[k][0] / check->set_count[k];
-  m[1] = check->set_sum[k][1] / check->set_count[k];
+  double phase = cycles_of (c), amp = hypot (c[0], c[1]);
+  double tk = hypot (check->prior[k][0], check->prior[k][1]);
+  double gap = INFINITY, best = INFINITY;
+  *best_h = k;
+  for (guint h = 0; h < n; h++) {
+    double e = fabs (ds_stripe_phase_diff (phase, cycles_of (check->prior[h])));
+    if (e < best) {
+      best = e;
+      *best_h = h;
+    }
+    if (h != k)
+      gap = MIN (gap, fabs (ds_stripe_phase_diff (cycles_of (check->prior[k]), cycles_of (check->prior[h]))));
+  }
+  *err = fabs (ds_stripe_phase_diff (phase, cycles_of (check->prior[k])));
+  *tol_k = MIN (check->tolerance_cycles, 0.5 * gap);
+  /* The template is the mean of the last set's frames of phase k: its noise is at most one
+   * frame's (at the templates' own exposure, sigma scaled by |c| / |T_k|). */
+  double noise_cycles = sigma / amp * G_SQRT2 / (2.0 * G_PI);
+  if (!(tk > 0) || !(PHASE_CHECK_SIGMAS * noise_cycles <= *tol_k))
+    return DS_PHASE_VERDICT_UNVERIFIABLE;
+  return *err <= *tol_k ? DS_PHASE_VERDICT_OK : DS_PHASE_VERDICT_WRONG;
+}
+
+/* How strong the first harmonic of a correct frame of phase k is expected to be at least, from
+ * what is known of the scene, in the DN of the frames; INFINITY when nothing is known yet.
+ *
+ * The physics: a frame's first harmonic at the stripe period is c_k = b + a e^{i 2 pi k / N}
+ * + the smaller bins: a moves with the illuminator (the projected stripes on the object's mean),
+ * b does not (the object's own texture at the stripe period under the stripes' mean). A correct
+ * frame shows no stripes only where b cancels a e^{i 2 pi k / N}, or where the scene lets no
+ * stripes through at all; the illuminator projects stripes at every phase, so without evidence
+ * of either, stripes are expected (INFINITY). The evidence:
+ * - templates (the last verified set's frames): |T_k|, phase k's own, which carries b;
+ * - else the set's frames of at least two phases: b and a fitted to them by least squares,
+ *   |b + a e^{i 2 pi k / N}| less |a| / 2 for the bins the fit leaves out (the texture at twice
+ *   the stripe frequency, bin -1, reaches a third of |a| for a transmittance in [0, 1]; the
+ *   square stripes' aliased harmonics less) and for its own error. */
+static double
+expected_stripes (const DsPhaseCheck *check, guint k, guint n)
+{
+  if (check->prior_n == n)
+    return hypot (check->prior[k][0], check->prior[k][1]);
+  if (check->set_n != n)
+    return INFINITY;
+  /* Normal equations of min sum_h |m_h - b - a z_h|^2 over the phases the set holds, z_h on the
+   * unit circle: b K + a S = M, b conj(S) + a K = Z, with S = sum z_h, M = sum m_h,
+   * Z = sum conj(z_h) m_h. */
+  double K = 0, S[2] = { 0, 0 }, M[2] = { 0, 0 }, Z[2] = { 0, 0 };
+  for (guint h = 0; h < n; h++) {
+    if (check->set_count[h] == 0)
+      continue;
+    double m[2], w = 2.0 * G_PI * (double) h / n;
+    set_mean (check, h, m);
+    K += 1;
+    S[0] += cos (w);
+    S[1] += sin (w);
+    M[0] += m[0];
+    M[1] += m[1];
+    Z[0] += cos (w) * m[0] + sin (w) * m[1];
+    Z[1] += cos (w) * m[1] - sin (w) * m[0];
+  }
+  double det = K * K - (S[0] * S[0] + S[1] * S[1]);
+  if (K < 2 || !(det > 1e-9 * K * K))
+    return INFINITY;
+  /* a = (K Z - conj(S) M) / det, b = (M - a S) / K */
+  double a[2] = { (K * Z[0] - (S[0] * M[0] + S[1] * M[1])) / det, (K * Z[1] - (S[0] * M[1] - S[1] * M[0])) / det };
+  double b[2] = { (M[0] - (a[0] * S[0] - a[1] * S[1])) / K, (M[1] - (a[0] * S[1] + a[1] * S[0])) / K };
+  double w = 2.0 * G_PI * (double) k / n;
+  double pred[2] = { b[0] + a[0] * cos (w) - a[1] * sin (w), b[1] + a[0] * sin (w) + a[1] * cos (w) };
+  return MAX (0.0, hypot (pred[0], pred[1]) - 0.5 * hypot (a[0], a[1]));
 }
 
 DsPhaseVerdict
@@ -294,6 +422,7 @@ ds_phase_check_frame (DsPhaseCheck *check, const DsImage *frame, guint k, guint 
   DsStripePhase sp;
   g_autoptr (GError) error = NULL;
   *measured_cycles = NAN;
+  check->frame_width = frame->width;
   DsImage rows = *frame;
   guint step = frame->height / PHASE_CHECK_MIN_ROWS;
   if (step > 1) {
@@ -304,13 +433,18 @@ ds_phase_check_frame (DsPhaseCheck *check, const DsImage *frame, guint k, guint 
   if (n > DS_PHASE_CHECK_MAX_PHASES || k >= n) {
     *why = g_strdup_printf ("phase %u of %u: the phase check handles up to %u phases", k, n,
                             DS_PHASE_CHECK_MAX_PHASES);
+    check->unverified++;
     return DS_PHASE_VERDICT_UNVERIFIABLE;
   }
   if (!ds_stripe_phase_measure (&rows, check->period_px, NULL, &sp, &error)) {
+    /* Nothing measured is nothing known: refused like a frame without stripes. */
     *why = g_strdup_printf ("stripe phase not measurable: %s", error->message);
-    return DS_PHASE_VERDICT_UNVERIFIABLE;
+    return DS_PHASE_VERDICT_NO_STRIPES;
   }
   *measured_cycles = sp.phase;
+  if (check->set_frames > 0 && check->set_n != n) /* a caller that changed N within a set */
+    ds_phase_check_begin_set (check);
+  check->set_n = n;
   /* The noise of c per component: a profile of R rows fitted over C columns has
    * var = 2 sigma_pixel^2 / (R C); the fit's own residual, which counts the object's texture
    * and the square stripes' harmonics as noise, is the upper bound. */
@@ -321,16 +455,43 @@ ds_phase_check_frame (DsPhaseCheck *check, const DsImage *frame, guint k, guint 
    * a wrong period-px leaves a harmonic of snr 0.1 that the pixel noise alone would pass; the
    * object's texture on heavily scattered square stripes brings a right one down to 0.7,
    * tests/daemon/test_phase_check.c). */
-  if (sp.amplitude > 0 && sigma > 0 && sp.snr >= 0.3) {
-    sp.snr = sp.amplitude / sigma;
+  /* Below that fit snr, the harmonic still counts when it stands out of the pixel noise and no
+   * other period stands out of the frame (dominant_period: the structure the fit met is the
+   * object's, not another pattern's): fine stripes on a textured object (periods near 2.5 px
+   * under a black level leave a fit snr of 0.05 with the stripes at 10 noise sigmas). */
+  double noise_snr = sigma > 0 ? sp.amplitude / sigma : 0;
+  double other_snr = 0;
+  if (sp.amplitude > 0 && sigma > 0 &&
+      (sp.snr >= 0.3 || (noise_snr >= DS_STRIPE_PHASE_MIN_SNR && !isfinite (dominant_period (&rows, &other_snr))))) {
+    sp.snr = noise_snr;
     sp.reliable = sp.snr >= DS_STRIPE_PHASE_MIN_SNR;
   }
-  if (!sp.reliable || sp.snr < check->min_confidence)
-    return no_stripes (check, &rows, &sp, k, why);
-  if (check->set_frames > 0 && check->set_n != n) /* a caller that changed N within a set */
-    ds_phase_check_begin_set (check);
-  check->set_n = n;
   double c[2] = { sp.amplitude * cos (2.0 * G_PI * sp.phase), sp.amplitude * sin (2.0 * G_PI * sp.phase) };
+  /* A frame without stripes at the configured period. Stripes of another period are never a
+   * correct frame's (a wrong period-px, another pattern): refused. Otherwise it is refused
+   * where the scene is expected to show stripes at phase k at 2 x PHASE_CHECK_SIGMAS of the
+   * frame's noise (a correct frame then falls below the PHASE_CHECK_SIGMAS that make stripes
+   * with probability 3e-7): an illuminator switched off, a frame of the dark, a surplus frame.
+   * It passes unverified (joins the set, checked as a whole) only where the scene is known to
+   * show no stripes there (expected_stripes). */
+  if (!sp.reliable || sp.snr < check->min_confidence || !(sigma > 0)) {
+    double noise = isfinite (sigma) && sigma > 0 ? sigma : sp.amplitude;
+    if (isfinite (no_stripes (check, &rows, &sp, k, why)))
+      return DS_PHASE_VERDICT_NO_STRIPES;
+    double expected = expected_stripes (check, k, n);
+    if (!(expected < 2.0 * PHASE_CHECK_SIGMAS * noise)) {
+      char *said = *why;
+      *why = isfinite (expected)
+                 ? g_strdup_printf ("%s; the scene shows stripes there (%s: %.0f noise sigmas expected at phase %u)", said,
+                                    check->prior_n == n ? "the last set's frame of that phase" : "the set's other frames",
+                                    expected / noise, k)
+                 : g_strdup_printf ("%s; nothing shows yet that the scene hides the projected stripes", said);
+      g_free (said);
+      return DS_PHASE_VERDICT_NO_STRIPES;
+    }
+    set_add (check, c, noise, k, FALSE);
+    return DS_PHASE_VERDICT_UNVERIFIABLE;
+  }
   double sigma_cycles = sigma / sp.amplitude / (2.0 * G_PI);
   double tol = check->tolerance_cycles;
   if (!(PHASE_CHECK_SIGMAS * sigma_cycles <= tol)) {
@@ -338,47 +499,155 @@ ds_phase_check_frame (DsPhaseCheck *check, const DsImage *frame, guint k, guint 
                             "times %.0f exceeds the tolerance of %.1f deg (snr %.0f; more light or "
                             "averaging, or fewer phases)",
                             k, n, sigma_cycles * 360.0, PHASE_CHECK_SIGMAS, tol * 360.0, sp.amplitude / sigma);
+    set_add (check, c, sigma, k, FALSE);
     return DS_PHASE_VERDICT_UNVERIFIABLE;
   }
-  guint rep = repeat_of (check, c, sigma, k, n);
-  if (rep < n) {
+  guint rep = n;
+  gboolean by_prior = FALSE;
+  RepeatKind repeat = repeat_of (check, c, sigma, k, n, &rep, &by_prior);
+  if (repeat == REPEAT_DECIDED && by_prior) {
+    /* Decided by the prior alone (the projected stripes move). A stale frame shows the light
+     * lit before the last move; once phase k was applied again for the retry, that light is k
+     * itself. So a frame of k that repeats h again after it was refused for it shows that the
+     * scene moves its first harmonic less than the noise between these phases (stripes the
+     * scattering or the blur took, beside texture at the stripe period): from then on such
+     * frames pass unverified and the set is checked as a whole. */
+    if (check->set_refused_as[k] == rep + 1) {
+      check->still = TRUE;
+      repeat = REPEAT_UNDECIDED;
+    } else
+      check->set_refused_as[k] = (guint8) (rep + 1);
+  }
+  if (repeat == REPEAT_DECIDED) {
     *why = g_strdup_printf ("frame for phase %u repeats the set's frame of phase %u (looks like phase %u: "
                             "a duplicated or stale frame)",
                             k, rep, rep);
     return DS_PHASE_VERDICT_WRONG;
   }
+  if (repeat == REPEAT_UNDECIDED) {
+    *why = g_strdup_printf ("frame for phase %u equals the set's frame of phase %u within the noise, and the "
+                            "stripes that move with the phase are too weak so far to tell a repeat from a "
+                            "correct frame: the set is checked as a whole",
+                            k, rep);
+    set_add (check, c, sigma, k, FALSE);
+    return DS_PHASE_VERDICT_UNVERIFIABLE;
+  }
   gboolean templates = check->prior_n == n;
   if (check->set_frames == 0)
     check->set_by_template = FALSE;
   if (templates && (check->set_frames == 0 || check->set_by_template)) {
-    double err = ds_stripe_phase_diff (sp.phase, cycles_of (check->prior[k]));
-    if (fabs (err) <= tol) {
-      if (check->set_frames == 0)
-        check->set_by_template = TRUE;
-    } else {
-      /* The phase whose template the frame matches best. */
-      guint best_h = k;
-      double best = INFINITY;
-      for (guint h = 0; h < n; h++) {
-        double e = fabs (ds_stripe_phase_diff (sp.phase, cycles_of (check->prior[h])));
-        if (e < best) {
-          best = e;
-          best_h = h;
-        }
-      }
-      /* The set's first frame: wrong only if it is another phase's template within a quarter
-       * of the tolerance (a stale or early frame of an unchanged scene); otherwise the scene
-       * changed under the templates and the set is checked as a whole. */
-      if (check->set_by_template || (best_h != k && best <= tol / 4)) {
+    guint best_h = k;
+    double err = 0, tol_k = tol;
+    DsPhaseVerdict tv = template_verdict (check, c, sigma, k, n, &best_h, &err, &tol_k);
+    if (tv == DS_PHASE_VERDICT_OK && check->set_frames == 0)
+      check->set_by_template = TRUE;
+    else if (tv == DS_PHASE_VERDICT_WRONG) {
+      /* The set's first frame: wrong only if it fits another phase's template as well as a
+       * correct frame fits its own (a stale or early frame of an unchanged scene); otherwise
+       * the scene changed under the templates and the set is checked as a whole. */
+      double best = fabs (ds_stripe_phase_diff (cycles_of (c), cycles_of (check->prior[best_h])));
+      if (check->set_by_template || (best_h != k && best <= tol_k / 4)) {
         *why = g_strdup_printf ("frame for phase %u looks like phase %u of %u: off by %.1f deg from the last set's "
-                                "frame of phase %u, %.1f deg from its frame of phase %u (tolerance %.1f deg)",
-                                k, best_h, n, err * 360.0, k, best * 360.0, best_h, tol * 360.0);
+                                "frame of phase %u, %.1f deg from its frame of phase %u (tolerance %.1f deg, "
+                                "halfway to the nearest other phase's frame)",
+                                k, best_h, n, err * 360.0, k, best * 360.0, best_h, tol_k * 360.0);
         return DS_PHASE_VERDICT_WRONG;
       }
     }
   }
-  set_add (check, c, sigma, k);
+  set_add (check, c, sigma, k, TRUE);
   return DS_PHASE_VERDICT_OK;
+}
+
+/* The complete set's adjacent phases: a pair whose first harmonics are equal within the noise is
+ * a repeat when the set's other adjacent pairs lie REPEAT_MARGIN_SET noise sigmas apart (FALSE
+ * with a message), else the set cannot tell its phases apart (*undecided). */
+static gboolean
+set_has_no_repeat (const DsPhaseCheck *check, guint n, double noise, gboolean *undecided, char **why)
+{
+  guint suspect = n, pairs = n == 2 ? 1 : n, suspects = 0;
+  double closest_other = INFINITY;
+  for (guint g = 0; g < pairs; g++) {
+    double a[2], b[2];
+    set_mean (check, g, a);
+    set_mean (check, (g + 1) % n, b);
+    double d = hypot (a[0] - b[0], a[1] - b[1]);
+    if (d <= PHASE_CHECK_SIGMAS * noise) {
+      suspects++;
+      if (suspect == n)
+        suspect = g;
+    } else
+      closest_other = MIN (closest_other, d);
+  }
+  if (suspect == n)
+    return TRUE;
+  /* Judged against the pairs that do differ, while they are the most: more repeats than
+   * differing pairs is a scene whose phases do not move its first harmonic. */
+  if (2 * suspects <= pairs && isfinite (closest_other) && closest_other >= REPEAT_MARGIN_SET * noise) {
+    *why = g_strdup_printf ("phase check of the whole set: its frame of phase %u repeats its frame of phase %u "
+                            "(equal within the noise, where the other adjacent phases are %.0f noise sigmas "
+                            "apart: a duplicated or stale frame)",
+                            (suspect + 1) % n, suspect, closest_other / noise);
+    return FALSE;
+  }
+  *undecided = TRUE;
+  return TRUE;
+}
+
+/* Each phase's moving part (less bin 0) must be one step on from the previous phase's, within
+ * 3/4 of a step: the errors a complete set without repeats can still hold are swapped frames
+ * (steps of +2, -1, +2: off by a whole step or more), and the bias the scene's other bins leave
+ * on a step reaches half a step (1-px stripes of period 4 at N = 16 on a grid at twice the
+ * period: tests/daemon/test_phase_check.c). Only where the noise of a step is PHASE_CHECK_SIGMAS
+ * inside the quarter step left (*undecided otherwise). */
+static gboolean
+set_steps_by_one (DsPhaseCheck *check, guint n, const double b0[2], double amp, double noise, double tol,
+                  gboolean *undecided, char **why)
+{
+  /* The projected pattern's own bend of a step (square stripes at short periods) widens what a
+   * correct step may show. A wrong frame that is not a repeat (the test before this one) puts a
+   * step two or more off somewhere: neighbours swapped give +1, -2, +1; a frame of phase h + j
+   * in place of h gives +j, -j. That must still stand out, less the bend, beyond the widened
+   * tolerance; where the bend leaves no such margin the set cannot tell its steps apart
+   * (*undecided). */
+  double bend = 0;
+  if (check->pattern_known && check->frame_width > 0) {
+    if (check->bend_n != n || check->bend_width != check->frame_width) {
+      check->bend_cycles = ds_phase_check_pattern_bend (check->pattern_square, check->pattern_duty,
+                                                        check->period_px, check->frame_width, n);
+      check->bend_n = n;
+      check->bend_width = check->frame_width;
+    }
+    bend = check->bend_cycles;
+  }
+  double step_tol = 0.75 / n + bend;
+  if (!(2.0 / n - bend > step_tol) || !(PHASE_CHECK_SIGMAS * noise / amp / (2.0 * G_PI) <= 0.25 / n)) {
+    *undecided = TRUE;
+    return TRUE;
+  }
+  for (guint h = 0; h < n; h++) {
+    double m0[2], m1[2];
+    set_mean (check, h, m0);
+    set_mean (check, (h + 1) % n, m1);
+    double a0[2] = { m0[0] - b0[0], m0[1] - b0[1] }, a1[2] = { m1[0] - b0[0], m1[1] - b0[1] };
+    double step = ds_stripe_phase_diff (cycles_of (a1) - cycles_of (a0), 1.0 / n);
+    /* A wrong frame among the phase's averages shows as scatter beyond the noise (of one
+     * frame's first harmonic, whatever the size of the moving part). */
+    double scatter = check->set_count[h] > 1
+                         ? sqrt (MAX (0.0, check->set_sumsq[h] / check->set_count[h] - (m0[0] * m0[0] + m0[1] * m0[1])))
+                         : 0.0;
+    double scatter_cycles = scatter / amp / (2.0 * G_PI);
+    gboolean scattered = scatter_cycles > tol && scatter > PHASE_CHECK_SIGMAS * sqrt (2.0 * check->set_noise2);
+    if (fabs (step) > step_tol || scattered) {
+      *why = g_strdup_printf ("phase check of the whole set: from phase %u to phase %u of %u the stripes move "
+                              "%.2f steps, not 1 (off by %.1f deg, tolerance %.1f deg; spread within the phase %.1f deg, "
+                              "tolerance %.1f deg)",
+                              h, (h + 1) % n, n, 1.0 + step * n, step * 360.0, step_tol * 360.0,
+                              scatter_cycles * 360.0, tol * 360.0);
+      return FALSE;
+    }
+  }
+  return TRUE;
 }
 
 gboolean
@@ -388,12 +657,15 @@ ds_phase_check_confirm (DsPhaseCheck *check, char **why)
   guint n = check->set_n;
   if (n == 0 || check->set_frames == 0)
     return TRUE;
-  for (guint h = 0; h < n; h++)
+  guint fewest = G_MAXUINT;
+  for (guint h = 0; h < n; h++) {
     if (check->set_count[h] == 0) {
       *why = g_strdup_printf ("phase check: the set has no verified frame of phase %u", h);
       check->prior_n = 0;
       return FALSE;
     }
+    fewest = MIN (fewest, check->set_count[h]);
+  }
   /* bin 0 (the fixed part) and bin 1 (the moving part) of the DFT over the phases. */
   double b0[2] = { 0, 0 }, b1[2] = { 0, 0 };
   for (guint h = 0; h < n; h++) {
@@ -407,34 +679,25 @@ ds_phase_check_confirm (DsPhaseCheck *check, char **why)
   }
   double set_offset = cycles_of (b1);
   double tol = check->tolerance_cycles;
-  if (!check->set_by_template) {
-    double amp = hypot (b1[0], b1[1]);
-    /* Each phase's moving part (less bin 0) must be one step on from the previous phase's,
-     * within 3/4 of a step: the errors a complete set without repeats can still hold are
-     * swapped frames (steps of +2, -1, +2: off by a whole step or more), and the bias the
-     * scene's other bins leave on a step reaches half a step (1-px stripes of period 4 at
-     * N = 16 on a grid at twice the period: tests/daemon/test_phase_check.c). */
-    double step_tol = 0.75 / n;
-    for (guint h = 0; h < n; h++) {
-      double m0[2], m1[2];
-      set_mean (check, h, m0);
-      set_mean (check, (h + 1) % n, m1);
-      double a0[2] = { m0[0] - b0[0], m0[1] - b0[1] }, a1[2] = { m1[0] - b0[0], m1[1] - b0[1] };
-      double step = ds_stripe_phase_diff (cycles_of (a1) - cycles_of (a0), 1.0 / n);
-      /* A wrong frame among the phase's averages shows as scatter beyond the noise. */
-      double scatter = check->set_count[h] > 1
-                           ? sqrt (MAX (0.0, check->set_sumsq[h] / check->set_count[h] - (m0[0] * m0[0] + m0[1] * m0[1])))
-                           : 0.0;
-      double scatter_cycles = scatter / amp / (2.0 * G_PI);
-      if (fabs (step) > step_tol || scatter_cycles > tol) {
-        *why = g_strdup_printf ("phase check of the whole set: from phase %u to phase %u of %u the stripes move "
-                                "%.2f steps, not 1 (off by %.1f deg, tolerance %.1f deg; spread within the phase %.1f deg, "
-                                "tolerance %.1f deg)",
-                                h, (h + 1) % n, n, 1.0 + step * n, step * 360.0, step_tol * 360.0,
-                                scatter_cycles * 360.0, tol * 360.0);
-        check->prior_n = 0;
-        return FALSE;
-      }
+  double amp = hypot (b1[0], b1[1]);
+  /* The noise per component of one phase's mean, and of bin 1 (N means averaged). */
+  double noise_mean = sqrt (check->set_noise2 / fewest);
+  double noise_b1 = noise_mean / sqrt ((double) n);
+  /* Stripes that move with the phase must stand out of the noise for anything to be learned or
+   * judged: a set without them cannot be verified (it passes; no offset, no templates). */
+  if (!(amp >= PHASE_CHECK_SIGMAS * noise_b1) || !(PHASE_CHECK_SIGMAS * noise_b1 / amp / (2.0 * G_PI) <= 0.5 / n)) {
+    check->sets_unverified++;
+    check->prior_n = 0;
+    return TRUE;
+  }
+  gboolean undecided = FALSE;
+  /* Checked as a whole: the first set, a set whose scene changed, and a set with frames that
+   * could not be verified one by one. */
+  if (!check->set_by_template || check->set_unverified > 0) {
+    if (!set_has_no_repeat (check, n, noise_mean * G_SQRT2, &undecided, why) ||
+        (!undecided && !set_steps_by_one (check, n, b0, amp, noise_mean * G_SQRT2, tol, &undecided, why))) {
+      check->prior_n = 0;
+      return FALSE;
     }
     if (check->offset_known && fabs (ds_stripe_phase_diff (set_offset, check->offset_cycles)) > tol) {
       double off = ds_stripe_phase_diff (set_offset, check->offset_cycles);
@@ -444,6 +707,18 @@ ds_phase_check_confirm (DsPhaseCheck *check, char **why)
       check->prior_n = 0;
       return FALSE;
     }
+  }
+  if (undecided) {
+    /* Frames the set could not tell apart are no templates for the next set. */
+    check->sets_unverified++;
+    check->prior_n = 0;
+    return TRUE;
+  }
+  if (check->set_unverified > 0) {
+    /* Nor are frames that passed unverified, though the set as a whole holds together: a
+     * wrong frame among them would make every correct frame of the next sets look wrong. */
+    check->prior_n = 0;
+    return TRUE;
   }
   if (!check->offset_known) {
     check->offset_known = TRUE;
@@ -460,4 +735,5 @@ ds_phase_check_abandon (DsPhaseCheck *check)
 {
   check->provisional = FALSE;
   check->prior_n = 0;
+  check->still = FALSE;
 }

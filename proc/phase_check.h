@@ -9,21 +9,37 @@
  * a scene-dependent bias, up to asin(|fixed part| / |moving part|) (17.6 deg on the wire grid,
  * sine stripes of period 16 px, measured against an offset taken from one frame).
  *
- * So no frame is judged by its phase against the offset alone. Every frame must be measurable
- * (5 noise sigmas inside the tolerance, else "unverifiable") and must not repeat a frame the set
- * already accepted for another phase (a duplicated or stale frame: exact, whatever the bias).
- * Then:
- * - with templates (the last complete set's first harmonic per phase) and a scene that holds
- *   still, a frame of phase k is compared with the template of phase k, which carries the same
- *   bias: off by more than the tolerance (default half a phase step: k is the nearest phase) it
- *   is wrong. The set's first frame decides whether the scene held still: near its own template
- *   it did; exactly on another phase's template it is that phase (wrong); near neither, the
- *   scene changed and the set is checked as a whole;
- * - checked as a whole (the first set, a set whose scene changed): when the set is complete,
- *   the fixed part is its mean over the phases (DFT bin 0) and the moving part's phase its bin
- *   1; each phase's frames, less the fixed part, must show their phase within the tolerance,
- *   and bin 1 the illuminator's offset (once learned). A set that fails fails as a whole
- *   (ds_phase_check_confirm). */
+ * So no frame is judged by its phase against the offset alone. The check is a classifier
+ * between "phase k" and "phase k +- 1, or a repeat of a frame of the set", each decision taken
+ * halfway between the hypotheses and only where the noise of the first harmonic leaves 5 sigmas
+ * on the way; where it does not, the frame is UNVERIFIABLE: it passes (the caller folds it and
+ * counts it), joins the set and the set is checked as a whole. What is known of the scene
+ * decides which way a frame that cannot show its phase goes. The illuminator projects stripes
+ * that move with the phase, so a correct frame shows them, and shows them move, unless the
+ * scene is known not to (its own texture or its scattering hides them there):
+ * - a frame without stripes at the configured period is NO_STRIPES (refused) when it shows
+ *   another period, or when the scene is expected to show stripes at phase k: the template of
+ *   phase k is strong, or, without templates, the set's frames predict them (a first harmonic
+ *   b + a e^{i 2 pi k / N} fitted to them), or nothing is known yet (the projected pattern).
+ *   It passes unverified only where the scene is known to show none at k (the template of k,
+ *   or the set's fit, is too weak to show 10 noise sigmas);
+ * - a frame equal within its noise to the set's frame of another phase is a repeat when correct
+ *   frames of the two phases are known to lie far enough apart (templates, or the set's other
+ *   adjacent phases), when nothing is known yet (the projected stripes move), or when it is the
+ *   same exposure (equal far inside the noise); it passes unverified only where the scene is
+ *   known to move its first harmonic too little between the two phases;
+ * - with templates (the last fully verified set's first harmonic per phase) and a scene that
+ *   holds still, a frame of phase k is compared with the template of phase k, which carries the
+ *   same bias: beyond halfway to the nearest other template (or the tolerance) it is wrong. The
+ *   set's first frame decides whether the scene held still: near its own template it did; on
+ *   another phase's template it is that phase (wrong); near neither, the scene changed and the
+ *   set is checked as a whole;
+ * - checked as a whole (the first set, a set whose scene changed, a set with unverified frames):
+ *   when the set is complete, the moving part (DFT bin 1 over the phases) must stand out of the
+ *   noise (else the set passes unverified), adjacent phases must not repeat, each phase's
+ *   frames less the fixed part (bin 0) must move one step on, and bin 1 must show the
+ *   illuminator's offset (once learned). A set that fails fails as a whole
+ *   (ds_phase_check_confirm). docs/design.md, "Phase verification", has the numbers. */
 #pragma once
 #include <glib.h>
 
@@ -34,7 +50,11 @@ G_BEGIN_DECLS
 typedef enum {
   DS_PHASE_VERDICT_OK = 0,
   DS_PHASE_VERDICT_WRONG,        /* measured phase is another phase than k */
-  DS_PHASE_VERDICT_UNVERIFIABLE, /* no measurable modulation, or too little to tell N phases apart */
+  DS_PHASE_VERDICT_UNVERIFIABLE, /* too little modulation to tell the phases apart where the scene is
+                                  * known to show so little: the frame passes unverified (it joined
+                                  * the set) */
+  DS_PHASE_VERDICT_NO_STRIPES,   /* refused: no stripes at the configured period where the scene is
+                                  * expected to show them, or stripes of another period */
 } DsPhaseVerdict;
 
 /* Templates and repeat detection are kept for up to this many phases (the configuration's
@@ -60,6 +80,22 @@ typedef struct {
   /* The last complete set's first harmonic per phase (prior_n 0: none). */
   guint prior_n;
   double prior[DS_PHASE_CHECK_MAX_PHASES][2];
+  guint set_unverified;       /* frames of the set in progress that passed unverified */
+  /* Per phase of the set in progress: 1 + the phase whose frame a frame of it was refused as
+   * repeating while nothing was known of how far the stripes move (0: none). */
+  guint8 set_refused_as[DS_PHASE_CHECK_MAX_PHASES];
+  gboolean still;             /* the scene is known to move its first harmonic less than the noise
+                               * tells between phases (until abandoned) */
+  guint64 unverified;         /* frames that passed unverified (DS_PHASE_VERDICT_UNVERIFIABLE) since init */
+  guint64 sets_unverified;    /* complete sets whose phases could not be told apart, since init */
+  /* The projected pattern, when known (ds_phase_check_set_pattern): its own harmonics bend the
+   * measured step between phases, which the whole-set step test allows for. */
+  gboolean pattern_known;
+  gboolean pattern_square;
+  double pattern_duty;
+  guint frame_width;          /* the last checked frame's width (the measurement's length) */
+  double bend_cycles;         /* ds_phase_check_pattern_bend for bend_n phases and frame_width */
+  guint bend_n, bend_width;
 } DsPhaseCheck;
 
 /* The tolerance when none is configured: half a phase step, in degrees (k is then the nearest
@@ -76,16 +112,30 @@ ds_phase_check_default_tolerance_deg (guint n)
 double ds_phase_check_pixel_noise (const DsImage *frame);
 
 void ds_phase_check_init (DsPhaseCheck *check, double period_px, double tolerance_deg);
+/* The projected pattern (square with a duty, the lit fraction, or sine), for the whole-set step
+ * test; without it the test assumes steps unbent by the pattern (sine stripes). Kept until the
+ * next ds_phase_check_init. */
+void ds_phase_check_set_pattern (DsPhaseCheck *check, gboolean square, double duty);
+
+/* The largest deviation from 1/n (cycles) of the first-harmonic phase measured as the pattern
+ * moves from one phase to the next, on a noise-free row `width` pixels wide with sharp edges,
+ * point-sampled or pixel-wide (the larger): what the pattern's harmonics above the first, folded
+ * back at short periods, bend a step by; blur and wider apertures lower it. 0 for sine stripes.
+ * Pure function, any thread; CPU only (2 x 8 x (n + 1) measurements of one row). */
+double ds_phase_check_pattern_bend (gboolean square, double duty, double period_px, guint width, guint n);
+
 /* A new set begins. */
 void ds_phase_check_begin_set (DsPhaseCheck *check);
 /* Checks frame (lit with phase k of n), measuring on at least 256 of its rows evenly spread
- * (all rows of a frame with fewer than 512). An OK frame joins the set. *measured_cycles
- * receives the measured phase. `why` receives a message when the verdict is not OK. */
+ * (all rows of a frame with fewer than 512). An OK or UNVERIFIABLE frame joins the set; a
+ * WRONG or NO_STRIPES one does not (the caller refuses it).
+ * *measured_cycles receives the measured phase. `why` receives a message when the verdict is not OK. */
 DsPhaseVerdict ds_phase_check_frame (DsPhaseCheck *check, const DsImage *frame, guint k, guint n,
                                      double *measured_cycles, char **why);
 /* The set's frames are all in: a set checked as a whole is checked now (FALSE with a message
- * naming the phase that does not fit; the set must fail). Its frames become the templates, and
- * the offset is learned if unknown. TRUE when no frame was checked (verification off). */
+ * naming the phase that does not fit; the set must fail). A verified set's frames become the
+ * templates, and the offset is learned if unknown; a set that cannot tell its phases apart
+ * passes, counted in sets_unverified. TRUE when no frame was checked (verification off). */
 gboolean ds_phase_check_confirm (DsPhaseCheck *check, char **why);
 /* The set failed: forget the templates too (the scene may have changed under them). */
 void ds_phase_check_abandon (DsPhaseCheck *check);

@@ -24,6 +24,7 @@ typedef struct {
   DsDropReason reason;     /* DS_DROP_N_REASONS: the frame may be folded */
   char *detail;            /* why, when dropped (owned) */
   gboolean reapply_phase;  /* the illuminator may show another phase: apply k again */
+  gboolean unverified;     /* may be folded, but its stripes could not prove its phase (detail: why) */
 } DsFrameVerdict;
 
 /* Verifies a frame lit (as far as the sequencer knows) with phase k, applied at applied_at_us,

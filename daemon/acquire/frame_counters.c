@@ -47,6 +47,7 @@ ds_frame_counters_add (DsFrameCounters *total, const DsFrameCounters *part)
   total->retries += part->retries;
   total->timeouts += part->timeouts;
   total->device_errors += part->device_errors;
+  total->unverified += part->unverified;
 }
 
 JsonNode *
@@ -64,6 +65,8 @@ ds_frame_counters_to_json (const DsFrameCounters *c)
   json_builder_add_int_value (b, (gint64) c->timeouts);
   json_builder_set_member_name (b, "device_errors");
   json_builder_add_int_value (b, (gint64) c->device_errors);
+  json_builder_set_member_name (b, "unverified");
+  json_builder_add_int_value (b, (gint64) c->unverified);
   json_builder_set_member_name (b, "dropped");
   json_builder_add_int_value (b, (gint64) c->dropped);
   json_builder_set_member_name (b, "dropped_by_reason");

@@ -14,7 +14,8 @@ typedef enum {
   DS_DROP_FRAME_GAP,      /* frame ids not continuous: a frame in between was lost */
   DS_DROP_WRONG_PHASE,    /* stripe phase measured in the frame disagrees with the applied one */
   DS_DROP_STALE,          /* exposed before the phase was applied (flushed or too early) */
-  DS_DROP_UNVERIFIABLE,   /* the stripe phase could not be measured (no modulation) */
+  DS_DROP_UNVERIFIABLE,   /* no stripes at the configured period where the scene shows them, or
+                           * another period (frames that only cannot tell are folded: `unverified`) */
   DS_DROP_ABORTED,        /* folded into a set that then failed or was abandoned */
   DS_DROP_PREVIEW,        /* a preview for the automatic operating point, never folded */
   DS_DROP_N_REASONS
@@ -32,6 +33,8 @@ typedef struct {
   guint64 retries;        /* re-acquisitions (a frame or a phase) after a drop or device error */
   guint64 timeouts;       /* grabs that returned no frame in time */
   guint64 device_errors;  /* illuminator/camera/trigger operations that failed */
+  guint64 unverified;     /* frames that passed without a phase proof: their stripes could not tell
+                           * the phases apart (folded, or aborted with their set) */
 } DsFrameCounters;
 
 /* Counts n frames dropped for reason (already counted as acquired). */
@@ -43,7 +46,7 @@ void ds_frame_counters_abort_rest (DsFrameCounters *counters);
 void ds_frame_counters_fold_rest (DsFrameCounters *counters);
 /* Adds part to total, field by field. */
 void ds_frame_counters_add (DsFrameCounters *total, const DsFrameCounters *part);
-/* {acquired, folded, retries, timeouts, device_errors, dropped, dropped_by_reason{...}}: the
+/* {acquired, folded, retries, timeouts, device_errors, unverified, dropped, dropped_by_reason{...}}: the
  * `frames` object of status and of a result's metadata (docs/protocol.md). New node. */
 JsonNode *ds_frame_counters_to_json (const DsFrameCounters *counters);
 

@@ -92,6 +92,13 @@ collect (Pipeline *pl, guint *dropped_phase, gboolean *reapply, GError **error)
     ds_frame_verdict_clear (&job.verdict);
     return retry_or_fail (pl, k, &why, error);
   }
+  if (job.verdict.unverified) {
+    /* Folded without a phase proof: counted (the set's metadata carries the count), the reason
+     * at debug level. */
+    pl->c->unverified++;
+    g_debug ("phase %u: frame folded unverified: %s", k, job.verdict.detail ? job.verdict.detail : "");
+  }
+  ds_frame_verdict_clear (&job.verdict);
   if (!job.folded) {
     ds_frame_counters_drop (pl->c, DS_DROP_ABORTED, 1);
     g_propagate_error (error, job.fold_error);

@@ -44,6 +44,7 @@ acquire_set (DsAcquisition *acq, const DsCaptureSettings *s, guint64 tag, DsSetO
     acq->phase_check_period = s->period_px;
   }
   acq->phase_check.tolerance_cycles = s->phase_tolerance_deg / 360.0;
+  ds_phase_check_set_pattern (&acq->phase_check, s->pattern == DS_PATTERN_SQUARE, s->duty);
   ds_phase_check_begin_set (&acq->phase_check);
 
   if (!ds_seq_ensure_camera (acq, s, error)) {

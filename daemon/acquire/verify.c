@@ -1,6 +1,8 @@
 /* Frame verification (docs/design.md, "The sequencer contract"): a frame is folded into phase
- * k only if it arrived after k was applied, no frame id is missing before it, and the stripe
- * phase measured in it is k's. Checked in that order; the first failure is the reason. */
+ * k only if it arrived after k was applied, no frame id is missing before it, it shows the
+ * stripes the scene is expected to show, and the stripe phase measured in it is not another
+ * phase's (a frame whose stripes cannot tell, where the scene is known to show so little, is
+ * folded unverified). Checked in that order; the first failure is the reason. */
 #include <math.h>
 
 #include "daemon/acquire/fold_worker.h"
@@ -12,6 +14,7 @@ ds_seq_verify_frame (DsPhaseCheck *check, const DsCaptureSettings *s, guint k, c
   v->reason = DS_DROP_N_REASONS;
   v->detail = NULL;
   v->reapply_phase = FALSE;
+  v->unverified = FALSE;
   if (frame->host_time_us != 0 && (gint64) frame->host_time_us < applied_at_us) {
     v->reason = DS_DROP_STALE;
     v->detail = g_strdup ("frame arrived before the phase was applied");
@@ -26,8 +29,14 @@ ds_seq_verify_frame (DsPhaseCheck *check, const DsCaptureSettings *s, guint k, c
     if (pv == DS_PHASE_VERDICT_WRONG) {
       v->reason = DS_DROP_WRONG_PHASE;
       v->reapply_phase = TRUE; /* the illuminator may have applied another phase */
-    } else if (pv == DS_PHASE_VERDICT_UNVERIFIABLE)
+    } else if (pv == DS_PHASE_VERDICT_NO_STRIPES) {
       v->reason = DS_DROP_UNVERIFIABLE;
+      v->reapply_phase = TRUE; /* the illuminator may be off, or show another pattern */
+    } else if (pv == DS_PHASE_VERDICT_UNVERIFIABLE)
+      /* Frames that cannot tell the phases apart where the scene is known to show too little
+       * are not refused for it: a correct frame of such a scene would never pass. It is folded
+       * and counted; the set's check as a whole still judges it (ds_phase_check_confirm). */
+      v->unverified = TRUE;
     else
       g_clear_pointer (&v->detail, g_free);
   }

@@ -397,6 +397,7 @@ setup (WindowStream *ws, GError **error)
     ds_phase_check_init (&acq->phase_check, s->period_px, s->phase_tolerance_deg);
   acq->phase_check_period = s->period_px;
   acq->phase_check.tolerance_cycles = s->phase_tolerance_deg / 360.0;
+  ds_phase_check_set_pattern (&acq->phase_check, s->pattern == DS_PATTERN_SQUARE, s->duty);
   ds_phase_check_begin_set (&acq->phase_check);
   if (!ds_seq_ensure_camera (acq, s, error)) {
     g_prefix_error (error, "camera: ");

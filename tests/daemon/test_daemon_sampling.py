@@ -9,7 +9,7 @@ only when its centre is within 1.5 px of that stripe's centre: 3 of every 4 colu
 quarter of the pixels are never fully lit (flagged); at N = 8 (steps of 2 px) none is. The
 phase check is on: the scene's wire grid has a pitch of twice the stripe period, the texture
 that made a single frame's phase miss by 17.6 deg (sine) and 12.5 deg (duty 0.25), and every
-frame must still verify (no frame dropped)."""
+frame must still verify (none dropped, none passed unverified)."""
 import os
 import subprocess
 import sys
@@ -79,6 +79,7 @@ def main():
                 for n, want in ((4, 0.25), (8, 0.0)):
                     r = c.capture(phases=n, estimator="maxmin", verify_phase=True)
                     check(r.meta["frames"]["dropped"] == 0, f"N = {n}: no frame rejected: {r.meta['frames']}")
+                    check(r.meta["frames"]["unverified"] == 0, f"N = {n}: every frame verified")
                     sep = r.meta["separation"]
                     pixels = r.transmissive.size
                     got = sep["flagged"]["undersampled"] / pixels
@@ -94,6 +95,7 @@ def main():
                 for estimator in ("maxmin", "sine", "sine"):
                     r = c.capture(phases=8, estimator=estimator, verify_phase=True)
                     check(r.meta["frames"]["dropped"] == 0, f"sine stripes, {estimator}: no frame rejected")
+                    check(r.meta["frames"]["unverified"] == 0, f"sine stripes, {estimator}: every frame verified")
         finally:
             check(stop(proc) == 0, "descatterd exits cleanly")
         text = open(log).read()
