@@ -119,9 +119,9 @@ void ds_phase_check_set_pattern (DsPhaseCheck *check, gboolean square, double du
 
 /* The largest deviation from 1/n (cycles) of the first-harmonic phase measured as the pattern
  * moves from one phase to the next, on a noise-free row `width` pixels wide with sharp edges,
- * point-sampled or pixel-wide (the larger): what the pattern's harmonics above the first, folded
- * back at short periods, bend a step by; blur and wider apertures lower it. 0 for sine stripes.
- * Pure function, any thread; CPU only (2 x 8 x (n + 1) measurements of one row). */
+ * each pixel the mean over its width: what the pattern's harmonics above the first, folded back
+ * at short periods, bend a step by; blur lowers it. 0 for sine stripes.
+ * Pure function, any thread; CPU only (8 x (n + 1) measurements of one row). */
 double ds_phase_check_pattern_bend (gboolean square, double duty, double period_px, guint width, guint n);
 
 /* A new set begins. */

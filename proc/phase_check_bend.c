@@ -8,11 +8,13 @@
  * second, fourth, fifth...) it joins the first harmonic while moving j times as fast, or
  * backwards. The measured phase then advances unevenly, by up to about asin (r) either way,
  * r the folded harmonics' amplitude against the first's; near whole-number periods of a few
- * pixels this reaches a step or more. Rather than sum the series, the bend is measured on the
- * pattern itself, rendered noise-free as the camera would see it with sharp edges, through the
- * same measurement the check uses: blur and a wider pixel aperture only lower the harmonics
- * above the first, so sharp edges bound what a real frame shows (point samples and pixel-wide
- * samples are both tried, the larger taken). */
+ * pixels this reaches half a step or more. Rather than sum the series, the bend is measured on
+ * the pattern itself, rendered noise-free as the camera records it, each pixel the mean of the
+ * light over its width, with sharp edges, through the same measurement the check uses: the
+ * projector's blur only lowers the harmonics above the first, so sharp edges bound what a frame
+ * shows. (Point samples would bend far more, a step or several, as the edges jump from one
+ * pixel centre to the next; no sensor records points. A fill factor well below one would bend
+ * more than this bound.) */
 #include "proc/phase_check.h"
 
 #include <math.h>
@@ -21,26 +23,26 @@
 
 /* Offsets tried within one step: where the edges fall against the pixel grid changes the bend. */
 #define BEND_OFFSETS 8
-/* Sub-samples per pixel for the pixel-wide aperture. */
-#define BEND_SUBSAMPLES 8
-
 /* One row of the pattern lit with phase phi (cycles), as the convention of proc/stripe_phase.h
- * puts it: stripes centred at x = j P + phi P, lit where |u| < duty / 2 (square) or
- * (1 + cos (2 pi u)) / 2 (sine). aperture: 0 point samples at the pixel centres, 1 the mean over
- * the pixel's width. */
+ * puts it: stripes centred at x = (j + phi) P; each pixel the mean over its width (x the
+ * centre) of the light: square stripes lit over duty P around each centre, exactly the pixel's
+ * overlap with them; sine stripes (1 + cos (2 pi (x / P - phi))) / 2, whose mean over a pixel
+ * is the cosine times sinc (1 / P). */
 static void
-render_row (float *row, guint width, gboolean square, double duty, double period, double phi, gboolean aperture)
+render_row (float *row, guint width, gboolean square, double duty, double period, double phi)
 {
-  guint subs = aperture ? BEND_SUBSAMPLES : 1;
+  double sinc = sin (G_PI / period) / (G_PI / period);
   for (guint x = 0; x < width; x++) {
-    double sum = 0;
-    for (guint s = 0; s < subs; s++) {
-      double pos = aperture ? x - 0.5 + (s + 0.5) / subs : x;
-      double u = pos / period - phi;
-      u -= floor (u + 0.5);
-      sum += square ? (fabs (u) < duty / 2 ? 1.0 : 0.0) : 0.5 * (1.0 + cos (2.0 * G_PI * u));
+    if (!square) {
+      row[x] = (float) (0.5 + 0.5 * sinc * cos (2.0 * G_PI * (x / period - phi)));
+      continue;
     }
-    row[x] = (float) (sum / subs);
+    double lo = x - 0.5, hi = x + 0.5, lit = 0;
+    for (double j = floor (lo / period - phi) - 1; j <= ceil (hi / period - phi) + 1; j++) {
+      double c = (j + phi) * period;
+      lit += MAX (0.0, MIN (hi, c + duty * period / 2) - MAX (lo, c - duty * period / 2));
+    }
+    row[x] = (float) lit;
   }
 }
 
@@ -54,18 +56,17 @@ ds_phase_check_pattern_bend (gboolean square, double duty, double period_px, gui
     return 0.0;
   float *row = (float *) ds_image_row (img, 0);
   double worst = 0;
-  for (int aperture = 0; aperture <= 1; aperture++)
-    for (guint o = 0; o < BEND_OFFSETS; o++) {
-      double start = (double) o / (BEND_OFFSETS * n), prev = NAN;
-      for (guint h = 0; h <= n; h++) {
-        DsStripePhase sp;
-        render_row (row, width, square, duty, period_px, start + (double) (h % n) / n, aperture);
-        if (!ds_stripe_phase_measure (img, period_px, NULL, &sp, NULL))
-          return 0.5 / n; /* nothing measurable: as large a bend as a step can hold */
-        if (h > 0)
-          worst = MAX (worst, fabs (ds_stripe_phase_diff (sp.phase - prev, 1.0 / n)));
-        prev = sp.phase;
-      }
+  for (guint o = 0; o < BEND_OFFSETS; o++) {
+    double start = (double) o / (BEND_OFFSETS * n), prev = NAN;
+    for (guint h = 0; h <= n; h++) {
+      DsStripePhase sp;
+      render_row (row, width, square, duty, period_px, start + (double) (h % n) / n);
+      if (!ds_stripe_phase_measure (img, period_px, NULL, &sp, NULL))
+        return 0.5 / n; /* nothing measurable: as large a bend as a step can hold */
+      if (h > 0)
+        worst = MAX (worst, fabs (ds_stripe_phase_diff (sp.phase - prev, 1.0 / n)));
+      prev = sp.phase;
     }
+  }
   return worst;
 }

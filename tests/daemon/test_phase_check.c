@@ -453,23 +453,32 @@ test_pixel_noise_integer (void)
 }
 
 /* The pattern's bend (ds_phase_check_pattern_bend) against a reference written differently: a
- * direct DFT at the period over whole periods of point samples of the square pattern, where the
- * fit the check uses reduces to that DFT (an integer period, a width of whole periods). The
- * function takes the larger of point samples and pixel-wide ones, so it is at least the
- * reference; sine stripes have no harmonic to fold and no bend; a long period folds nothing
- * onto the first harmonic either. */
+ * direct DFT at the period over whole periods of the square pattern, each pixel the lit share
+ * of its width in closed form (the overlap of the pixel with the lit intervals), where the fit
+ * the check uses reduces to that DFT (an integer period, over whole periods). Sine stripes
+ * have no harmonic to fold and no bend. */
 static double
-reference_bend_point (double duty, guint period, guint width, guint n)
+lit_share (double duty, double period, double phi, guint x)
+{
+  /* the lit intervals [c - duty P / 2, c + duty P / 2] around the centres c = (j + phi) P */
+  double lo = x - 0.5, hi = x + 0.5, lit = 0;
+  for (int j = (int) floor (lo / period - phi) - 1; j <= (int) ceil (hi / period - phi) + 1; j++) {
+    double c = (j + phi) * period, a = MAX (lo, c - duty * period / 2), b = MIN (hi, c + duty * period / 2);
+    lit += MAX (0.0, b - a);
+  }
+  return lit;
+}
+
+static double
+reference_bend (double duty, guint period, guint width, guint n)
 {
   double worst = 0;
   for (guint o = 0; o < 8; o++) {
     double prev = NAN;
     for (guint h = 0; h <= n; h++) {
       double phi = (double) o / (8.0 * n) + (double) (h % n) / n, re = 0, im = 0;
-      for (guint x = 0; x < width; x++) {
-        double u = (double) x / period - phi;
-        u -= floor (u + 0.5);
-        double v = fabs (u) < duty / 2 ? 1.0 : 0.0;
+      for (guint x = 0; x < width / period * period; x++) { /* whole periods, as the fit takes */
+        double v = lit_share (duty, period, phi, x);
         re += v * cos (2.0 * G_PI * x / period);
         im += v * sin (2.0 * G_PI * x / period);
       }
@@ -488,19 +497,23 @@ reference_bend_point (double duty, guint period, guint width, guint n)
 static void
 test_pattern_bend (void)
 {
-  double sine = ds_phase_check_pattern_bend (FALSE, 0.5, 16.0, 512, 8);
-  g_assert_cmpfloat (sine, <, 1e-6);
-  double at3 = ds_phase_check_pattern_bend (TRUE, 0.65, 3.0, 96, 12);
-  double ref3 = reference_bend_point (0.65, 3, 96, 12);
-  g_test_message ("square P 3 duty 0.65 N 12: bend %.3f steps (point-sampled reference %.3f)", at3 * 12, ref3 * 12);
-  /* point samples of sharp edges change only when an edge crosses a pixel's centre, a third
-   * of a period apart at P = 3: the measured phase jumps by several steps of N = 12 at once */
-  g_assert_cmpfloat (ref3 * 12, >, 0.5);
-  g_assert_cmpfloat (at3, >=, ref3 - 1e-9);
-  double at64 = ds_phase_check_pattern_bend (TRUE, 0.5, 64.0, 1024, 8);
-  double ref64 = reference_bend_point (0.5, 64, 1024, 8);
-  g_assert_cmpfloat (at64, >=, ref64 - 1e-9);
-  g_assert_cmpfloat (at64 * 8, <, 0.05);
+  g_assert_cmpfloat (ds_phase_check_pattern_bend (FALSE, 0.5, 16.0, 512, 8), <, 1e-6);
+  static const struct { double duty; guint period, width, n; } cases[] = {
+    { 0.65, 3, 96, 12 }, { 0.5, 6, 256, 8 }, { 0.25, 4, 128, 16 }, { 0.5, 64, 1024, 8 },
+  };
+  for (guint i = 0; i < G_N_ELEMENTS (cases); i++) {
+    double got = ds_phase_check_pattern_bend (TRUE, cases[i].duty, cases[i].period, cases[i].width, cases[i].n);
+    double ref = reference_bend (cases[i].duty, cases[i].period, cases[i].width, cases[i].n);
+    g_test_message ("square P %u duty %.2f N %u: bend %.3f steps (reference %.3f)", cases[i].period, cases[i].duty,
+                    cases[i].n, got * cases[i].n, ref * cases[i].n);
+    g_assert_cmpfloat (fabs (got - ref) * cases[i].n, <, 1e-3);
+  }
+  /* At 3 px the second harmonic folds back onto the first, moving backwards, at about half its
+   * size for duty 0.65 (|sin (2 pi d)| / (2 |sin (pi d)|) = 0.45 before the pixel's width): a
+   * step bends by about asin of that, half a step or more at N = 12. A long period folds
+   * nothing back. */
+  g_assert_cmpfloat (reference_bend (0.65, 3, 96, 12) * 12, >, 0.4);
+  g_assert_cmpfloat (reference_bend (0.5, 64, 1024, 8) * 8, <, 0.01);
 }
 
 int
