@@ -213,8 +213,11 @@ collect (const char *scene, GPtrArray *results, GHashTable *edges, MovingStats *
     g_assert_cmpint (test_json_int (ev->reply->body, "window.frames"), ==, n);
     g_assert_true (json_object_get_boolean_member (sep, "motion_checked"));
     gint64 id = test_json_int (ev->reply->body, "window.newest_frame_id");
-    /* GigE Vision block ids wrap at 65535 (0 is not used). */
-    in_a_row = last >= 0 && ((id - last) % 65535 + 65535) % 65535 == 1 ? in_a_row + 1 : 1;
+    /* A result for every frame: the ids step by one more than the results this reader was told
+     * it skipped (a subscriber slower than the camera gets the newest). GigE Vision block ids
+     * wrap at 65535 (0 is not used). */
+    gint64 skipped = (gint64) ev->reply->skipped;
+    in_a_row = last >= 0 && ((id - last) % 65535 + 65535) % 65535 == 1 + skipped ? in_a_row + 1 : 1;
     last = id;
     st->noise_dn += json_object_get_double_member (sep, "noise_dn");
     WindowResult *r = g_new0 (WindowResult, 1);
