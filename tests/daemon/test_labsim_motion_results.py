@@ -101,7 +101,10 @@ class Labsim:
 
     def __init__(self, tmp, scene):
         self.log_path = os.path.join(tmp, "labsim.log")
-        self.proc = spawn([LABSIM, "--scene", scene, "--camera-address", "127.0.0.1", "--modbus", "127.0.0.1:0"],
+        # A serial of this process's own: the daemon's camera is then this labsim's.
+        self.serial = f"DSLM{os.getpid() % 100000:05d}"
+        self.proc = spawn([LABSIM, "--scene", scene, "--camera-address", "127.0.0.1", "--camera-serial", self.serial,
+                           "--modbus", "127.0.0.1:0"],
                           stdout=subprocess.PIPE, stderr=open(self.log_path, "w"), text=True)
         self.port = None
         for line in self.proc.stdout:
@@ -135,7 +138,10 @@ class Daemon:
         while True:
             try:
                 with descatter.Client(self.sock) as c:
-                    if c.status()["ready"]:
+                    st = c.status()
+                    if st["ready"]:
+                        serial = st["devices"]["camera"].get("serial")
+                        check(serial == labsim.serial, f"{name}: the daemon's camera is labsim's ({serial})")
                         return
             except (OSError, descatter.DescatterError):
                 pass
