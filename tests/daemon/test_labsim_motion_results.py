@@ -48,6 +48,7 @@ import socket
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 
 BIN, PYDIR, SRC, MODE = sys.argv[1:5]
@@ -112,10 +113,14 @@ class Labsim:
                 self.port = int(line.split(" modbus=127.0.0.1:")[1].split()[0])
                 break
         assert self.port, "descatter-labsim did not get ready: " + open(self.log_path).read()[-2000:]
-        self.proc.stdout.close()
+        # What it prints later is drained, so that a full pipe never blocks it.
+        self.drain = threading.Thread(target=lambda: [None for _ in self.proc.stdout], daemon=True)
+        self.drain.start()
 
     def stop(self):
         stop_process(self.proc, "descatter-labsim")
+        self.drain.join(10)
+        self.proc.stdout.close()
 
 
 class Daemon:
