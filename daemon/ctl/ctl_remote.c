@@ -613,8 +613,11 @@ ds_ctl_stream (const DsCtlTarget *target, int argc, char **argv)
     gint64 set_id = json_object_get_int_member_with_default (body, "set_id", 0);
     guint64 lost = m->reply->seq > last_seq + 1 ? m->reply->seq - last_seq - 1 : 0;
     last_seq = m->reply->seq;
-    printf ("result seq=%" G_GUINT64_FORMAT " set=%" G_GINT64_FORMAT " lost=%" G_GUINT64_FORMAT "\n",
-            m->reply->seq, set_id, lost);
+    /* skipped: the results the daemon did not send this client before this one (a slow reader of
+     * per-frame results gets the newest); their seq numbers are in `lost` too. */
+    printf ("result seq=%" G_GUINT64_FORMAT " set=%" G_GINT64_FORMAT " lost=%" G_GUINT64_FORMAT
+            " skipped=%" G_GUINT64_FORMAT "\n",
+            m->reply->seq, set_id, lost, m->reply->skipped);
     fflush (stdout);
     if (dir && (kinds & ~DS_FILES_HDF5_RUN) && !ds_ctl_write_result (m, dir, kinds, NULL, &error)) {
       fprintf (stderr, "descatterctl stream: writing %s: %s\n", dir, error->message);

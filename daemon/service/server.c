@@ -107,13 +107,13 @@ ds_server_free (DsServer *server)
   g_free (server);
 }
 
-/* Sends one line (shared by every receiver, like the payloads) to the subscribed connections
- * that asked for this kind of event: results and events, or preview frames. Droppable: a client
- * reading slower than the daemon produces loses events (a gap in their seq), never the daemon's
- * time. Returns how many received it; *dropped counts the others. */
+/* What for_each_subscriber does for one connection; returns whether it received the event. */
+typedef gboolean (*SubscriberFunc) (DsServer *server, DsConnection *c, ClientState *st, gpointer data);
+
+/* Calls `func` for every open connection subscribed to this kind of event: results and events,
+ * or preview frames (`frames`). Returns how many received it. */
 static guint
-broadcast (DsServer *server, GBytes *line, GBytes *const *payloads, guint n_payloads, gboolean frames,
-           guint64 *dropped)
+for_each_subscriber (DsServer *server, gboolean frames, SubscriberFunc func, gpointer data)
 {
   guint delivered = 0;
   GHashTableIter it;
@@ -124,12 +124,82 @@ broadcast (DsServer *server, GBytes *line, GBytes *const *payloads, guint n_payl
     ClientState *st = ds_connection_get_data (c);
     if (!st || !(frames ? st->frames : st->subscribed) || ds_connection_is_closed (c))
       continue;
-    if (ds_connection_send (c, line, payloads, n_payloads, TRUE))
+    if (func (server, c, st, data))
       delivered++;
-    else
-      (*dropped)++;
   }
   return delivered;
+}
+
+typedef struct {
+  GBytes *line; /* shared by every receiver, like the payloads */
+  GBytes *const *payloads;
+  guint n_payloads;
+  guint64 *dropped;
+} Broadcast;
+
+/* Droppable: a client reading slower than the daemon produces loses events (a gap in their
+ * seq), never the daemon's time. */
+static gboolean
+send_droppable (DsServer *server, DsConnection *c, ClientState *st, gpointer data)
+{
+  (void) server;
+  (void) st;
+  Broadcast *b = data;
+  if (ds_connection_send (c, b->line, b->payloads, b->n_payloads, TRUE))
+    return TRUE;
+  (*b->dropped)++;
+  return FALSE;
+}
+
+/* Sends one line to the subscribed connections that asked for this kind of event; returns how
+ * many received it, *dropped counts the others. */
+static guint
+broadcast (DsServer *server, GBytes *line, GBytes *const *payloads, guint n_payloads, gboolean frames,
+           guint64 *dropped)
+{
+  Broadcast b = { line, payloads, n_payloads, dropped };
+  return for_each_subscriber (server, frames, send_droppable, &b);
+}
+
+typedef struct {
+  guint64 seq;
+  JsonNode *body;
+  const DsPayloadInfo *infos;
+  GBytes *const *payloads;
+  guint n_payloads;
+  gboolean newest_only;
+  GBytes *shared; /* the line of a client that skipped nothing */
+} ResultEvent;
+
+/* One result to one subscriber, with the results it was not sent counted in `skipped`: those
+ * dropped since its last result, and with newest_only the one this result replaces. */
+static gboolean
+send_result (DsServer *server, DsConnection *c, ClientState *st, gpointer data)
+{
+  ResultEvent *r = data;
+  gboolean replaces = r->newest_only && ds_connection_has_newest_waiting (c);
+  guint64 skipped = st->skipped + (replaces ? st->waiting_skipped + 1 : 0);
+  g_autoptr (GBytes) own = NULL;
+  if (skipped > 0) {
+    /* Only a client that fell behind gets a line of its own. */
+    gsize own_len = 0;
+    char *own_text = ds_result_event_build (r->seq, skipped, r->body, r->infos, r->n_payloads, &own_len);
+    own = g_bytes_new_take (own_text, own_len);
+  }
+  GBytes *line = own ? own : r->shared;
+  gboolean sent = r->newest_only ? ds_connection_send_newest (c, line, r->payloads, r->n_payloads)
+                                 : ds_connection_send (c, line, r->payloads, r->n_payloads, TRUE);
+  if (!sent) {
+    st->skipped++;
+    server->stats.dropped++;
+    return FALSE;
+  }
+  if (replaces)
+    server->stats.dropped++; /* the one it replaced, never sent */
+  st->skipped = 0;
+  if (r->newest_only)
+    st->waiting_skipped = skipped;
+  return TRUE;
 }
 
 guint
@@ -141,40 +211,8 @@ ds_server_publish_result (DsServer *server, JsonNode *body, const DsPayloadInfo 
   gsize len = 0;
   g_autofree char *text = ds_result_event_build (seq, 0, body, infos, n_payloads, &len);
   g_autoptr (GBytes) shared = g_bytes_new (text, len);
-  guint delivered = 0;
-  GHashTableIter it;
-  gpointer key;
-  g_hash_table_iter_init (&it, server->clients);
-  while (g_hash_table_iter_next (&it, &key, NULL)) {
-    DsConnection *c = key;
-    ClientState *st = ds_connection_get_data (c);
-    if (!st || !st->subscribed || ds_connection_is_closed (c))
-      continue;
-    gboolean replaces = newest_only && ds_connection_has_newest_waiting (c);
-    guint64 skipped = st->skipped + (replaces ? st->waiting_skipped + 1 : 0);
-    g_autoptr (GBytes) own = NULL;
-    if (skipped > 0) {
-      /* Only a client that fell behind gets a line of its own. */
-      gsize own_len = 0;
-      char *own_text = ds_result_event_build (seq, skipped, body, infos, n_payloads, &own_len);
-      own = g_bytes_new_take (own_text, own_len);
-    }
-    GBytes *line = own ? own : shared;
-    gboolean sent = newest_only ? ds_connection_send_newest (c, line, payloads, n_payloads)
-                                : ds_connection_send (c, line, payloads, n_payloads, TRUE);
-    if (!sent) {
-      st->skipped++;
-      server->stats.dropped++;
-      continue;
-    }
-    if (replaces)
-      server->stats.dropped++; /* the one it replaced, never sent */
-    st->skipped = 0;
-    if (newest_only)
-      st->waiting_skipped = skipped;
-    delivered++;
-  }
-  return delivered;
+  ResultEvent r = { seq, body, infos, payloads, n_payloads, newest_only, shared };
+  return for_each_subscriber (server, FALSE, send_result, &r);
 }
 
 guint

@@ -21,6 +21,7 @@
 #include "proc/proc_error.h"
 #include "proc/separation.h"
 #include "proc/separation_internal.h"
+#include "tests/common/phase_frames.h"
 
 typedef struct {
   const char *name;
@@ -36,68 +37,31 @@ typedef struct {
                             /motion/...'s; here the fused and the two calls agree on it) */
 } Case;
 
-static guint64
-mix (guint64 v)
+/* Square stripes of the case's duty, their levels varying along x only; one pixel in 16 is a
+ * hard one. */
+static void
+fused_stripes (gconstpointer data, guint k, guint x, guint64 col, guint full, PhaseLevel *out)
 {
-  v ^= v >> 33;
-  v *= 0xff51afd7ed558ccdull;
-  v ^= v >> 33;
-  v *= 0xc4ceb9fe1a85ec53ull;
-  return v ^ (v >> 33);
-}
-
-/* Frame k's value at (x, y): a lit/unlit stripe level with noise, and hard pixels chosen by a
- * hash of the position. full = the largest sample value. */
-static guint
-frame_value (const Case *c, guint k, guint x, guint y, guint full, GRand *r)
-{
-  /* levels vary along x only, as stripes do, so that the noise estimate (second differences
-   * along y) sees the noise; one pixel in 16 is a hard one */
-  guint64 id = mix ((guint64) y * 100003u + x), col = mix (x);
-  guint kind = (guint) (id % 64);
-  gboolean lit = ((x * c->n / 6 + k) % c->n) < (guint) MAX (1.0, c->duty * c->n);
-  double lo = full * (0.05 + 0.2 * (col % 100) / 100.0);
-  double hi = lo + full * 0.4 * ((col >> 16) % 100) / 100.0;
-  double v = (lit ? hi : lo) + 0.01 * full * (g_rand_double (r) - 0.5);
-  switch (kind) {
-  case 0: /* clipped in the lit phases */
-    v = lit ? full : v;
-    break;
-  case 1: /* dark: a few DN */
-    v = (double) ((id >> 24) % 4) + (g_rand_int (r) & 1);
-    break;
-  case 2: /* 0 in one phase, full scale in another */
-    v = k == 0 ? 0 : k == 1 ? full : v;
-    break;
-  case 3: /* flat: no modulation */
-    v = lo;
-    break;
-  case 4: /* motion cases: brighter after the first phase, as when an edge passed */
-    v += c->motion && k > 0 ? 0.2 * full : 0;
-    break;
-  default:
-    break;
-  }
-  return (guint) CLAMP (lround (v), 0, (long) full);
+  const Case *c = data;
+  out->lit = ((x * c->n / 6 + k) % c->n) < (guint) MAX (1.0, c->duty * c->n);
+  out->flat = full * (0.05 + 0.2 * (col % 100) / 100.0);
+  double hi = out->flat + full * 0.4 * ((col >> 16) % 100) / 100.0;
+  out->level = out->lit ? hi : out->flat;
 }
 
 static DsImage *
 make_frame (const Case *c, guint k, GRand *r, gsize pad)
 {
-  guint full = (1u << c->bit_depth) - 1;
+  /* the motion cases: brighter after the first phase, as when an edge passed */
+  const PhasePixelKind kinds[] = { PHASE_PIXEL_CLIPPED_LIT, PHASE_PIXEL_FEW_DN, PHASE_PIXEL_ZERO_THEN_FULL,
+                                   PHASE_PIXEL_FLAT, c->motion ? PHASE_PIXEL_STEP : PHASE_PIXEL_STRIPES };
+  const PhaseFrames f = { c->n, (1u << c->bit_depth) - 1, fused_stripes, c, 64, kinds, G_N_ELEMENTS (kinds) };
   gsize size = c->type == DS_SAMPLE_U8 ? 1 : 2;
   DsImage *img = ds_image_new_with_stride (c->type, c->w, c->h, c->w * size + pad, NULL);
   g_assert_nonnull (img);
   img->bit_depth = c->bit_depth;
   memset (img->data, 0xA5, img->stride * c->h); /* padding that would show if read */
-  for (guint y = 0; y < c->h; y++)
-    for (guint x = 0; x < c->w; x++) {
-      guint v = frame_value (c, k, x, y, full, r);
-      if (c->type == DS_SAMPLE_U8)
-        ((guint8 *) ds_image_row (img, y))[x] = (guint8) v;
-      else
-        ((guint16 *) ds_image_row (img, y))[x] = (guint16) v;
-    }
+  phase_frames_fill (img, &f, k, r);
   return img;
 }
 
@@ -105,18 +69,7 @@ make_frame (const Case *c, guint k, GRand *r, gsize pad)
 static DsImage *
 make_dark (const Case *c)
 {
-  guint full = (1u << c->bit_depth) - 1;
-  DsImage *img = ds_image_new (c->type, c->w, c->h, NULL);
-  img->bit_depth = c->bit_depth;
-  for (guint y = 0; y < c->h; y++)
-    for (guint x = 0; x < c->w; x++) {
-      guint v = x < c->w / 4 && y < c->h / 4 ? full / 2 : (guint) (mix (x * 7 + y) % 3);
-      if (c->type == DS_SAMPLE_U8)
-        ((guint8 *) ds_image_row (img, y))[x] = (guint8) v;
-      else
-        ((guint16 *) ds_image_row (img, y))[x] = (guint16) v;
-    }
-  return img;
+  return phase_frames_dark (c->type, c->bit_depth, c->w, c->h, 3);
 }
 
 static void

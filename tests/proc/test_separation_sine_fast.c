@@ -22,6 +22,7 @@
 #include "proc/harmonic_gain.h"
 #include "proc/separation.h"
 #include "proc/separation_internal.h"
+#include "tests/common/phase_frames.h"
 
 typedef struct {
   const char *name;
@@ -34,69 +35,29 @@ typedef struct {
   double saturation_level; /* 0: the default */
 } Case;
 
-static guint64
-mix (guint64 v)
+/* Sine stripes of period 11 px, their levels varying along x only; one pixel in 12 is an edge
+ * case. */
+static void
+sine_stripes (gconstpointer data, guint k, guint x, guint64 col, guint full, PhaseLevel *out)
 {
-  v ^= v >> 33;
-  v *= 0xff51afd7ed558ccdull;
-  v ^= v >> 33;
-  v *= 0xc4ceb9fe1a85ec53ull;
-  return v ^ (v >> 33);
-}
-
-static guint
-frame_value (const Case *c, guint k, guint x, guint y, guint full, GRand *r)
-{
-  /* levels vary along x only, so that the noise estimate (second differences along y) sees
-   * the noise; one pixel in 12 is an edge case */
-  guint64 id = mix ((guint64) y * 100003u + x), col = mix (x);
-  double lo = full * (0.02 + 0.3 * (col % 100) / 100.0);
+  const Case *c = data;
+  out->flat = full * (0.02 + 0.3 * (col % 100) / 100.0);
   double amp = full * 0.5 * ((col >> 16) % 100) / 100.0;
-  double v = lo + amp * (0.5 + 0.5 * cos (2 * G_PI * ((double) k / c->n + x / 11.0))) +
-             0.01 * full * (g_rand_double (r) - 0.5);
-  switch (id % 96) {
-  case 0: /* clipped in some phases */
-    v = k % 3 == 0 ? full : v;
-    break;
-  case 1: /* 0 in every phase */
-    v = 0;
-    break;
-  case 2: /* 0 in one phase, full scale in another */
-    v = k == 0 ? 0 : k == 1 ? full : v;
-    break;
-  case 3: /* flat */
-    v = lo;
-    break;
-  case 4: /* full scale in every phase */
-    v = full;
-    break;
-  case 5: /* the largest modulation: full scale in half the phases, 0 in the others */
-    v = 2 * k < c->n ? full : 0;
-    break;
-  case 6: /* a few DN */
-    v = (double) ((id >> 24) % 4) + (g_rand_int (r) & 1);
-    break;
-  default:
-    break;
-  }
-  return (guint) CLAMP (lround (v), 0, (long) full);
+  out->level = out->flat + amp * (0.5 + 0.5 * cos (2 * G_PI * ((double) k / c->n + x / 11.0)));
+  out->lit = FALSE;
 }
 
 static DsImage *
 make_frame (const Case *c, guint k, GRand *r)
 {
-  guint full = (1u << c->bit_depth) - 1;
+  static const PhasePixelKind kinds[] = { PHASE_PIXEL_CLIPPED_THIRD, PHASE_PIXEL_ZERO, PHASE_PIXEL_ZERO_THEN_FULL,
+                                          PHASE_PIXEL_FLAT, PHASE_PIXEL_FULL, PHASE_PIXEL_HALF_FULL,
+                                          PHASE_PIXEL_FEW_DN };
+  const PhaseFrames f = { c->n, (1u << c->bit_depth) - 1, sine_stripes, c, 96, kinds, G_N_ELEMENTS (kinds) };
   DsImage *img = ds_image_new (c->type, c->w, c->h, NULL);
   g_assert_nonnull (img);
   img->bit_depth = c->bit_depth;
-  for (guint y = 0; y < c->h; y++)
-    for (guint x = 0; x < c->w; x++) {
-      guint v = frame_value (c, k, x, y, full, r);
-      if (c->type == DS_SAMPLE_U8)
-        ((guint8 *) ds_image_row (img, y))[x] = (guint8) v;
-      else
-        ((guint16 *) ds_image_row (img, y))[x] = (guint16) v;
-    }
+  phase_frames_fill (img, &f, k, r);
   return img;
 }
 
@@ -104,18 +65,7 @@ make_frame (const Case *c, guint k, GRand *r)
 static DsImage *
 make_dark (const Case *c)
 {
-  guint full = (1u << c->bit_depth) - 1;
-  DsImage *img = ds_image_new (c->type, c->w, c->h, NULL);
-  img->bit_depth = c->bit_depth;
-  for (guint y = 0; y < c->h; y++)
-    for (guint x = 0; x < c->w; x++) {
-      guint v = x < c->w / 4 && y < c->h / 4 ? full / 2 : (guint) (mix (x * 7 + y) % 5);
-      if (c->type == DS_SAMPLE_U8)
-        ((guint8 *) ds_image_row (img, y))[x] = (guint8) v;
-      else
-        ((guint16 *) ds_image_row (img, y))[x] = (guint16) v;
-    }
-  return img;
+  return phase_frames_dark (c->type, c->bit_depth, c->w, c->h, 5);
 }
 
 static double
