@@ -145,10 +145,10 @@ layout_of (DsEstimator e, guint s, guint n)
      * under noise touches every line of them (the "rebuilt" share) */
     return (Layout) { s, s + 4, result, (n - 1) * s, "frame; slot + max/min u16; result" };
   case DS_ESTIMATOR_SINE:
-    /* u32 sum, i64 cos and sin, u16 max and min (for SATURATED, DARK_EXCEEDS), rebuilt as
-     * maxmin's */
-    return (Layout) { s, s + 4 + 16 + 4, result, (n - 1) * s,
-                      "frame; slot + sum u32 + harmonic 2 i64 + max/min u16; result" };
+    /* u32 sum, i64 cos and sin, a u8 count of saturated samples (for SATURATED); no minimum
+     * without a dark frame (proc/phase_window.c), so no kept plane but the slot is read */
+    return (Layout) { s, s + 4 + 16 + 1, result, 0,
+                      "frame; slot + sum u32 + harmonic 2 i64 + saturated count u8; result" };
   default:
     /* robust: the finalize reads its N u16 phase planes (the new one among them, written by
      * the push), the kept slot gets the frame, nothing is retired but by overwriting */
