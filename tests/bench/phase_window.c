@@ -19,7 +19,8 @@
  * latency, shorter than the CPU time with 2 threads); runs and baselines take turns within
  * each repetition. It
  * asserts no timing; it checks its results (exit status 1 on a mismatch): both windows' last
- * results equal the fresh set's bit for bit. Without --threads it runs on 1 and on 2 threads.
+ * results equal the fresh set's bit for bit. It prints a hash of that result, the same for
+ * two builds whose outputs are the same bit for bit. Without --threads it runs on 1 and on 2 threads.
  *
  *   bench_phase_window [--quick] [--case NxWxH]... [--reps R] [--threads T] [--estimator E]
  * Full run (docs/benchmarks.md): build/tests/bench/bench_phase_window */
@@ -101,6 +102,28 @@ median (double *v, guint64 n)
 {
   qsort (v, n, sizeof *v, cmp_double);
   return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+/* A hash of a plane's bytes (FNV-1a over 8-byte words, the tail bytewise): printed with the
+ * results, so that two builds' outputs can be compared bit for bit on the same frames. */
+static guint64
+plane_hash (const DsImage *a, guint64 h)
+{
+  if (!a)
+    return h;
+  gsize row = (gsize) a->width * ds_sample_size (a->type);
+  for (guint y = 0; y < a->height; y++) {
+    const guint8 *p = ds_image_row (a, y);
+    gsize x = 0;
+    for (; x + 8 <= row; x += 8) {
+      guint64 v;
+      memcpy (&v, p + x, 8);
+      h = (h ^ v) * 0x100000001b3ull;
+    }
+    for (; x < row; x++)
+      h = (h ^ p[x]) * 0x100000001b3ull;
+  }
+  return h;
 }
 
 static gboolean
@@ -358,6 +381,10 @@ bench_one (const Case *c, DsSampleType type, DsEstimator estimator, guint reps, 
           "  wall %6.2f ms/MP\n",
           type == DS_SAMPLE_U8 ? "u8" : "u16", ds_estimator_name (estimator), fmed * 1e3, fworst * 1e3,
           fmed * 1e3 / mp, fmed / mean, fw * 1e3 / mp);
+  guint64 hash = plane_hash (want->transmissive, 0xcbf29ce484222325ull);
+  hash = plane_hash (want->mask, plane_hash (want->scattered, hash));
+  printf ("  %-3s %-6s result hash   %016" G_GINT64_MODIFIER "x (t, g and mask of the last result)\n",
+          type == DS_SAMPLE_U8 ? "u8" : "u16", ds_estimator_name (estimator), hash);
   double fs = median (t_state, floored), fk = median (t_kept, floored), fr = median (t_result, floored);
   printf ("  %-3s %-6s floor         %6.2f ms/MP (%u B/px: %u read, %u read+written, %u written;"
           " %s)  fused %5.2fx it\n",
