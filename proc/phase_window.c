@@ -15,6 +15,13 @@
  *   about 1/N of the pixels per push, which touches every cache line of the kept frames: such
  *   rows are rebuilt whole, plane by plane, so a push reads the N kept frames as a refold
  *   would, but retires the sums instead of refolding them;
+ * - sine keeps counts (when the finalize takes its fast row, ds_phase_set_sine_fast): that row
+ *   reads the max only for SATURATED (max >= sat) and the min only for DARK_EXCEEDS with a
+ *   dark frame (without one it cannot hold). The max is replaced by a count per pixel of the
+ *   kept samples >= sat (set->sat_count): the push adds the new sample's and retires the old
+ *   one's, exact, and never needs the kept frames. The min is kept as above only while a dark
+ *   frame is set (a change of dark frame refolds); so a push without dark reads the new and
+ *   retired samples, the sums and the counts, and nothing else;
  * - robust keeps its N phase planes already: the push writes the new frame into its plane;
  * - the data-derived noise comes from the set's first frame, the oldest: each slot keeps its
  *   frame's estimate, and the oldest slot's is the set's;
@@ -60,6 +67,11 @@ struct DsPhaseWindow {
   guint8 *row_dense;   /* per row, in a push: so many extremes left that the row is rebuilt
                           plane by plane (update_block) */
   guint8 *need;        /* per thread of the set: a row of flags, the pixels whose extremes left */
+  gboolean counts;     /* sine keeps counts (above): satn is the set's sat_count, max16 is not
+                          kept, min16 only when track_min */
+  gboolean track_min;
+  guint32 sat_from;    /* ds_phase_set_saturated_from of the live frames */
+  guint8 *satn;        /* npix counts, or NULL */
 };
 
 /* A row whose extremes left at more than 1/DENSE_SHARE of its pixels is rebuilt whole: its
@@ -99,14 +111,31 @@ ds_phase_window_free (DsPhaseWindow *window)
   g_free (window->order);
   g_free (window->row_dense);
   g_free (window->need);
+  g_free (window->satn);
   ds_phase_set_free (window->set);
   g_free (window);
+}
+
+/* The state is no longer the pushes' to update: the next result refolds. */
+static void
+state_drop (DsPhaseWindow *window)
+{
+  window->state_current = FALSE;
+  window->rebuild_all_for = 0;
+  window->counts = FALSE;
+  window->set->sat_count = NULL;
 }
 
 gboolean
 ds_phase_window_set_dark (DsPhaseWindow *window, const DsImage *dark, GError **error)
 {
-  return ds_phase_set_set_dark (window->set, dark, error);
+  if (!ds_phase_set_set_dark (window->set, dark, error))
+    return FALSE;
+  /* with counts the min is kept only with a dark frame: a new one refolds (a dark frame
+   * changes with the settings, not per frame) */
+  if (window->counts)
+    state_drop (window);
+  return TRUE;
 }
 
 void
@@ -173,7 +202,7 @@ ensure_ring (DsPhaseWindow *window, DsSampleType type, GError **error)
   window->ring = p;
   window->ring_type = type;
   memset (window->arrival, 0, sizeof (guint64) * window->n);
-  window->state_current = FALSE;
+  state_drop (window);
   return TRUE;
 }
 
@@ -209,6 +238,36 @@ typedef struct {
                                set->cos64 ? set->cos64 + off : NULL,                              \
                                set->sin64 ? set->sin64 + off : NULL, w)
 
+/* One row of a push with counts (sine): the sums and counts, and the min when kept (its lost
+ * pixels rescanned, or the row marked for the plane-by-plane rebuild as PUSH_INT_ROW's). */
+#define PUSH_COUNTS_ROW_T(T, NAME)                                                                \
+  do {                                                                                            \
+    guint16 *mn = window->track_min && !j->rebuild_all ? set->min16 + off : NULL;                 \
+    guint count = ds_window_push_counts_row_##NAME (                                              \
+        ds_image_row (frame, y), (T *) slot_row (window, j->phase, y), window->satn + off,        \
+        window->sat_from, mn, set->sum32 + off, j->c, j->s, set->cos64 + off, set->sin64 + off,   \
+        need, w);                                                                                 \
+    if (window->track_min && j->rebuild_all) {                                                    \
+      window->row_dense[y] = 1;                                                                   \
+      j->rebuilt[thread] += w;                                                                    \
+      j->dense[thread]++;                                                                         \
+      break;                                                                                      \
+    }                                                                                             \
+    window->row_dense[y] = count > w / DENSE_SHARE;                                               \
+    if (count > 0 && !window->row_dense[y])                                                       \
+      ds_window_rescan_min_row_##NAME ((const T *) slot_row (window, 0, y), j->plane_stride,      \
+                                       window->n, set->min16 + off, need, count, w);              \
+    j->rebuilt[thread] += window->row_dense[y] ? w : count;                                       \
+    j->dense[thread] += window->row_dense[y];                                                     \
+  } while (0)
+#define PUSH_COUNTS_ROW()                                                                         \
+  do {                                                                                            \
+    if (frame->type == DS_SAMPLE_U16)                                                             \
+      PUSH_COUNTS_ROW_T (guint16, u16);                                                           \
+    else                                                                                          \
+      PUSH_COUNTS_ROW_T (guint8, u8);                                                             \
+  } while (0)
+
 /* The rows y0..y1 of a push: the sums retired and added, the extremes kept where they
  * can be, then the rows where many extremes left rebuilt from the kept planes one plane at a
  * time over the block (each plane's rows read as one stream, which costs less than reading
@@ -223,6 +282,10 @@ update_block (PushJob *j, guint y0, guint y1, guint thread)
   guint8 *need = window->need + (gsize) thread * w;
   for (guint y = y0; y < y1; y++) {
     gsize off = (gsize) y * w;
+    if (window->counts) {
+      PUSH_COUNTS_ROW ();
+      continue;
+    }
     if (set->planes16) {
       /* robust: its phase planes are the state; the ring keeps the frame for refolds */
       guint16 *plane = set->planes16 + (gsize) j->phase * window->npix + off;
@@ -245,14 +308,18 @@ update_block (PushJob *j, guint y0, guint y1, guint thread)
       PUSH_INT_ROW (guint8, u8);
     }
   }
-  if (set->planes16)
+  if (set->planes16 || (window->counts && !window->track_min))
     return;
   for (guint k = 0; k < window->n; k++)
     for (guint y = y0; y < y1; y++) {
       if (!window->row_dense[y])
         continue;
       gsize off = (gsize) y * w;
-      if (window->ring_type == DS_SAMPLE_U16)
+      if (window->counts && window->ring_type == DS_SAMPLE_U16)
+        ds_window_min_row_u16 ((const guint16 *) slot_row (window, k, y), set->min16 + off, k == 0, w);
+      else if (window->counts)
+        ds_window_min_row_u8 (slot_row (window, k, y), set->min16 + off, k == 0, w);
+      else if (window->ring_type == DS_SAMPLE_U16)
         ds_window_extrema_row_u16 ((const guint16 *) slot_row (window, k, y), set->max16 + off,
                                    set->min16 + off, k == 0, w);
       else
@@ -467,8 +534,7 @@ ds_phase_window_break (DsPhaseWindow *window)
 {
   window->since_break = 0;
   window->fill = 0;
-  window->state_current = FALSE;
-  window->rebuild_all_for = 0;
+  state_drop (window);
 }
 
 guint
@@ -518,6 +584,30 @@ refold (DsPhaseWindow *window, GError **error)
   return TRUE;
 }
 
+/* After a refold into the current state, for sine's fast row: the counts from the kept
+ * frames (satn is made on first use and kept: its size is the window's). */
+static void
+counts_build (DsPhaseWindow *window)
+{
+  DsPhaseSet *set = window->set;
+  if (!window->satn)
+    window->satn = g_malloc (window->npix);
+  window->sat_from = ds_phase_set_saturated_from (set);
+  gsize w = window->width;
+  for (guint k = 0; k < window->n; k++)
+    for (guint y = 0; y < window->height; y++) {
+      guint8 *satn = window->satn + (gsize) y * w;
+      if (window->ring_type == DS_SAMPLE_U16)
+        ds_window_satcount_row_u16 ((const guint16 *) slot_row (window, k, y), satn,
+                                    window->sat_from, k == 0, w);
+      else
+        ds_window_satcount_row_u8 (slot_row (window, k, y), satn, window->sat_from, k == 0, w);
+    }
+  window->counts = TRUE;
+  window->track_min = set->dark != NULL;
+  set->sat_count = window->satn;
+}
+
 gboolean
 ds_phase_window_finalize_into (DsPhaseWindow *window, DsSeparation *sep, GError **error)
 {
@@ -528,6 +618,7 @@ ds_phase_window_finalize_into (DsPhaseWindow *window, DsSeparation *sep, GError 
     return FALSE;
   }
   if (!window->state_current) {
+    state_drop (window);
     if (!refold (window, error))
       return FALSE;
     DsPhaseSet *set = window->set;
@@ -536,6 +627,8 @@ ds_phase_window_finalize_into (DsPhaseWindow *window, DsSeparation *sep, GError 
      * taken in, so with them every result is a refold, which is the definition. */
     window->state_current = window->ring_type != DS_SAMPLE_F32 && !set->averaging &&
                             (set->max16 || set->planes16) && !set->sumsq && !set->cos_sum;
+    if (window->state_current && ds_phase_set_sine_fast (set) && window->n <= G_MAXUINT8)
+      counts_build (window);
   }
   /* the set's noise estimate is its first frame's: the oldest kept one */
   window->set->data_noise_dn = window->noise[oldest_slot (window)];
@@ -562,7 +655,8 @@ ds_phase_window_memory (const DsPhaseWindow *window, gsize *window_bytes, gsize 
   if (set_bytes)
     *set_bytes = set_state;
   if (window_bytes)
-    *window_bytes = set_state + (window->ring ? window->n * plane_stride_bytes (plane_bytes (window)) : 0);
+    *window_bytes = set_state + (window->ring ? window->n * plane_stride_bytes (plane_bytes (window)) : 0) +
+                    (window->satn ? window->npix : 0);
 }
 
 guint64

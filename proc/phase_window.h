@@ -30,7 +30,9 @@ DsPhaseWindow *ds_phase_window_new (const DsSeparationParams *params, guint widt
 void ds_phase_window_free (DsPhaseWindow *window);
 G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsPhaseWindow, ds_phase_window_free)
 
-/* Dark frame, as ds_phase_set_set_dark; kept across breaks. */
+/* Dark frame, as ds_phase_set_set_dark; kept across breaks. When the window keeps sine's
+ * counts (phase_window.c) the minimum is kept only with a dark frame, so setting one (or
+ * another, or none) makes the next result a refold. */
 gboolean ds_phase_window_set_dark (DsPhaseWindow *window, const DsImage *dark, GError **error);
 
 /* Takes the newest frame, lit with `phase` (0 <= phase < N); it replaces the window's frame of
@@ -79,12 +81,13 @@ void ds_phase_window_set_push_threads (DsPhaseWindow *window, guint threads);
 void ds_phase_window_set_finalize_threads (DsPhaseWindow *window, guint threads);
 
 /* Memory for the benchmark's ratio, in bytes: *window_bytes what the window holds per pixel
- * (its set's state and the kept frames), *set_bytes what one DsPhaseSet of the same
+ * (its set's state, the kept frames and sine's counts), *set_bytes what one DsPhaseSet of the same
  * parameters holds for the frames pushed so far (0 before the first result). Either may be
  * NULL. */
 void ds_phase_window_memory (const DsPhaseWindow *window, gsize *window_bytes, gsize *set_bytes);
 
-/* Pixels whose max and min were rebuilt from the kept frames since the window was made (a
+/* Pixels whose max and min (sine with counts: min) were rebuilt from the kept frames since the
+ * window was made (a
  * push retired a pixel's extreme and brought no new one, at that pixel or at enough pixels of
  * its row that the whole row was rebuilt); for the benchmark. */
 guint64 ds_phase_window_rebuilt_pixels (const DsPhaseWindow *window);

@@ -31,4 +31,24 @@ G_BEGIN_DECLS
 DS_DECLARE_WINDOW_KERNELS (guint8, u8)
 DS_DECLARE_WINDOW_KERNELS (guint16, u16)
 
+/* The integer sine's push (proc/phase_window.c, "sine keeps counts"): sum, cs and sn as
+ * ds_window_push_row; satn[x] (the kept samples >= thr) gets (new >= thr) - (old >= thr), exact
+ * since it counts whole samples; the new samples go into `ring`. With mn (NULL: none), the
+ * minimum alone as ds_window_push_row keeps it: need[x] set where the retired sample was the
+ * minimum and the new one is above it; returns how many (0 without mn).
+ * ds_window_satcount_row: satn = (plane >= thr) (first) or satn + (plane >= thr).
+ * ds_window_rescan_min_row and ds_window_min_row: ds_window_rescan_row and
+ * ds_window_extrema_row for the minimum alone. */
+#define DS_DECLARE_WINDOW_COUNT_KERNELS(T, NAME)                                                  \
+  guint ds_window_push_counts_row_##NAME (const T *in, T *ring, guint8 *satn, guint32 thr,        \
+                                          guint16 *mn, guint32 *sum, gint32 c, gint32 s,          \
+                                          gint64 *cs, gint64 *sn, guint8 *need, gsize w);         \
+  void ds_window_satcount_row_##NAME (const T *plane, guint8 *satn, guint32 thr, gboolean first,  \
+                                      gsize w);                                                   \
+  void ds_window_rescan_min_row_##NAME (const T *plane0, gsize plane_stride, guint n,             \
+                                        guint16 *mn, const guint8 *need, guint count, gsize w);   \
+  void ds_window_min_row_##NAME (const T *plane, guint16 *mn, gboolean first, gsize w);
+DS_DECLARE_WINDOW_COUNT_KERNELS (guint8, u8)
+DS_DECLARE_WINDOW_COUNT_KERNELS (guint16, u16)
+
 G_END_DECLS

@@ -100,6 +100,7 @@ finalize_rows (gpointer data, guint y0, guint y1, guint thread)
     if (j->use_sine_fast) {
       DsSineFastRow r = { .c64 = set->cos64 + off, .s64 = set->sin64 + off, .hi = set->max16 + off,
                           .lo = set->min16 + off, .sum = set->sum32 + off,
+                          .satn = set->sat_count ? set->sat_count + off : NULL,
                           .dark = set->dark ? set->dark + off : NULL, .flags = column_flags,
                           .t = o.t, .g = o.g, .mk = o.mk };
       ds_sine_fast_row (&r, w, &j->sine_fast, counts);
@@ -265,6 +266,34 @@ finalize_prepare (DsPhaseSet *set, DsSeparation *sep, int pending, guint *m_fram
   return TRUE;
 }
 
+/* The integer sine's fast row but for the motion test, which needs a noise level besides. The
+ * sum is converted as a signed 32-bit integer: N samples of the type's full scale must stay
+ * below 2^31 (whatever bit depth the frames claim). */
+static gboolean
+sine_fast_state (const DsPhaseSet *set)
+{
+  const DsSeparationParams *p = &set->params;
+  return set->cos64 && set->max16 && set->sum32 && p->estimator == DS_ESTIMATOR_SINE &&
+         !(p->system_gain > 0) && !p->keep_extrema &&
+         (guint64) p->n_phases * (set->type == DS_SAMPLE_U8 ? 255u : 65535u) < (1ull << 31);
+}
+
+gboolean
+ds_phase_set_sine_fast (const DsPhaseSet *set)
+{
+  return sine_fast_state (set) && !set->motion;
+}
+
+guint32
+ds_phase_set_saturated_from (const DsPhaseSet *set)
+{
+  /* as finalize_run's c->sat for integer frames; an integer sample is >= sat exactly when it
+   * is >= ceil (sat) */
+  double sat = set->params.saturation_level > 0 ? set->params.saturation_level
+                                                : (double) ((1u << set->bit_depth) - 1);
+  return (guint32) MIN (ceil (sat), 65536.0);
+}
+
 /* The pixels and meta; cannot fail. last_frame: see FinalizeJob; prepare, block, data: see
  * ds_phase_set_finalize_prepared_into (prepare NULL: none). */
 static void
@@ -335,12 +364,10 @@ finalize_run (DsPhaseSet *set, DsSeparation *sep, guint m_frames, const DsImage 
     k->exceed = (float) (c->exceed_q * sqrt (c->data_exceed_var));
   }
   /* The general row works in double and makes the sigmas and extrema even when nobody asks
-   * for them; without them (and without the motion test) integer sine takes a float row. The
-   * sum is converted as a signed 32-bit integer: N samples of the type's full scale must stay
-   * below 2^31 (whatever bit depth the frames claim). */
-  j.use_sine_fast = set->cos64 && set->max16 && set->sum32 && p->estimator == DS_ESTIMATOR_SINE &&
-                    !model && !extrema && !c->motion &&
-                    (guint64) n * (set->type == DS_SAMPLE_U8 ? 255u : 65535u) < (1ull << 31);
+   * for them; without them (and without the motion test) integer sine takes a float row. */
+  j.use_sine_fast = sine_fast_state (set) && !c->motion;
+  /* a window's counts stand for max16 only on this row */
+  g_assert (!set->sat_count || j.use_sine_fast);
   if (j.use_sine_fast) {
     DsSineFast *k = &j.sine_fast;
     k->two_n = (float) (2.0 / n);
@@ -350,6 +377,7 @@ finalize_run (DsPhaseSet *set, DsSeparation *sep, guint m_frames, const DsImage 
     /* the maximum is an integer: max >= sat exactly when max >= ceil (sat), which float holds
      * exactly, so SATURATED is the general path's bit for bit */
     k->sat = isnan (c->sat) ? INFINITY : (float) ceil (c->sat);
+    g_assert (isnan (c->sat) || (guint32) MIN (ceil (c->sat), 65536.0) == ds_phase_set_saturated_from (set));
     k->floor = isnan (c->floor) ? -INFINITY : (float) c->floor;
     double lowamp = c->rayleigh * c->data_sigma / sqrt ((double) m_frames);
     k->lowamp = isnan (lowamp) ? -INFINITY : (float) lowamp;

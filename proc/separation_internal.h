@@ -45,6 +45,11 @@ struct DsPhaseSet {
                                 averaging, and any estimator's motion test (maxmin, sine) */
   double *sumsq;           /* motion (maxmin, sine): sum of squares of the phase values; exact for
                               integer samples (below 2^53 up to DS_MAX_PHASES frames of 16 bits) */
+  const guint8 *sat_count; /* NULL, or (a sliding window's, proc/phase_window.c) per pixel how
+                              many of the set's samples are >= ds_phase_set_saturated_from: the
+                              integer sine's fast row then takes SATURATED from it, not from
+                              max16, and reads min16 only with a dark frame (the only use of the
+                              minimum there). Only while ds_phase_set_sine_fast holds. */
   guint16 *planes16;       /* robust, integer fast path: N planes of raw frames */
   float *planesf;          /* robust otherwise: N planes of phase means */
   guint robust_hi, robust_lo; /* robust's window lengths (ds_robust_windows) */
@@ -112,6 +117,14 @@ void ds_harmonic_fix_weights (guint n, guint phase, gint32 *c, gint32 *s);
  * ds_phase_set_finalize_into does, before prepare has run on any row. */
 gboolean ds_phase_set_finalize_prepared_into (DsPhaseSet *set, DsSeparation *sep, DsRowJob prepare,
                                               guint block, gpointer data, GError **error);
+
+/* Whether the finalize takes the integer sine's fast row (ds_sine_fast_row) for this set's
+ * state and parameters whatever the frames' noise: integer frames, one per phase, no noise
+ * model, no kept extrema, no motion test. */
+gboolean ds_phase_set_sine_fast (const DsPhaseSet *set);
+/* The integer sample value from which a sample counts as saturated (SATURATED when the
+ * maximum is at least it), for a set of integer frames; above 65535 when none can be. */
+guint32 ds_phase_set_saturated_from (const DsPhaseSet *set);
 
 /* Averaging: folds the last phase's mean (finalize calls it once; idempotent). */
 void ds_phase_set_fold_pending (DsPhaseSet *set);
@@ -216,7 +229,10 @@ typedef struct {
 } DsSineFast;
 typedef struct {
   const gint64 *c64, *s64;
-  const guint16 *hi, *lo;
+  const guint16 *hi, *lo;  /* lo read only with a dark frame (without one no sample is below
+                              the dark level 0, so DARK_EXCEEDS never holds) */
+  const guint8 *satn;      /* NULL, or per pixel the samples >= sat: SATURATED where nonzero,
+                              and hi is not read */
   const guint32 *sum;
   const float *dark;   /* NULL: none */
   const guint8 *flags; /* column flags (DS_MASK_UNDERSAMPLED or 0); NULL: none */

@@ -276,8 +276,9 @@ fix_to_float (gint64 v)
 }
 
 DS_KERNEL void
-sine_fast_kernel (int has_dark, const gint64 *restrict c64, const gint64 *restrict s64,
-                  const guint16 *restrict hi, const guint16 *restrict lo, const guint32 *restrict sum,
+sine_fast_kernel (int has_dark, int has_count, const gint64 *restrict c64, const gint64 *restrict s64,
+                  const guint16 *restrict hi, const guint16 *restrict lo, const guint8 *restrict satn,
+                  const guint32 *restrict sum,
                   const float *restrict dark, float *restrict t, float *restrict g, guint8 *restrict mk,
                   gsize w, const DsSineFast *k, guint64 counts[DS_MASK_N_BITS + 1])
 {
@@ -292,10 +293,14 @@ sine_fast_kernel (int has_dark, const gint64 *restrict c64, const gint64 *restri
     float mean = (float) (gint32) sum[x] * inv_n - d;
     float ld = a * inv_h;
     float lg = mean * inv_m - ld;
-    float h = hi[x], l = lo[x];
-    /* the general tail's tests (separation_rows.c), each a compare turned into a bit */
-    guint32 is_sat = h >= sat, is_dark = mean <= floor_, is_low = a < lowamp;
-    guint32 is_neg = (ld < 0) | (lg < 0), is_exc = d - l > exceed;
+    /* the general tail's tests (separation_rows.c), each a compare turned into a bit. The max
+     * is at least sat exactly when some sample is (counted in satn). Without a dark frame
+     * d - l = -l <= 0 <= exceed (a non-negative quantile times a standard deviation): the
+     * minimum cannot set DARK_EXCEEDS and is not read. */
+    guint32 is_sat = has_count ? (guint32) (satn[x] != 0) : (guint32) ((float) hi[x] >= sat);
+    guint32 is_dark = mean <= floor_, is_low = a < lowamp;
+    guint32 is_neg = (ld < 0) | (lg < 0);
+    guint32 is_exc = has_dark ? (guint32) (d - (float) lo[x] > exceed) : 0u;
     guint32 ok = (fabsf (ld) <= FLT_MAX) & (fabsf (lg) <= FLT_MAX);
     guint32 bits = is_sat | (is_dark << 1) | (is_low << 2) | (is_neg << 4) | (is_exc << 5);
     guint32 keep = 0u - ok;
@@ -341,10 +346,14 @@ ds_sine_fast_row (const DsSineFastRow *r, gsize w, const DsSineFast *k,
                   guint64 counts[DS_MASK_N_BITS + 1])
 {
   G_STATIC_ASSERT (DS_MASK_UNDERSAMPLED == 1 << 6 && DS_MASK_NONFINITE == 1 << 3);
-  if (r->dark)
-    sine_fast_kernel (1, r->c64, r->s64, r->hi, r->lo, r->sum, r->dark, r->t, r->g, r->mk, w, k, counts);
+  if (r->dark && r->satn)
+    sine_fast_kernel (1, 1, r->c64, r->s64, NULL, r->lo, r->satn, r->sum, r->dark, r->t, r->g, r->mk, w, k, counts);
+  else if (r->dark)
+    sine_fast_kernel (1, 0, r->c64, r->s64, r->hi, r->lo, NULL, r->sum, r->dark, r->t, r->g, r->mk, w, k, counts);
+  else if (r->satn)
+    sine_fast_kernel (0, 1, r->c64, r->s64, NULL, NULL, r->satn, r->sum, NULL, r->t, r->g, r->mk, w, k, counts);
   else
-    sine_fast_kernel (0, r->c64, r->s64, r->hi, r->lo, r->sum, NULL, r->t, r->g, r->mk, w, k, counts);
+    sine_fast_kernel (0, 0, r->c64, r->s64, r->hi, NULL, NULL, r->sum, NULL, r->t, r->g, r->mk, w, k, counts);
   if (r->flags)
     or_flags_finite_kernel (r->mk, r->flags, w, counts);
 }

@@ -328,12 +328,61 @@ robust_levels (double inv_hi, double inv_lo, double dn, double inv1b, double b, 
   }
 }
 
+/* ds_row_robust without the motion test, over columns x0 .. x0 + w - 1 (planes and dark
+ * already offset). */
+DS_KERNEL void
+robust_block (guint32 n, const DsRobustTables *t, const guint16 *planes16, const float *planesf,
+              gsize plane_stride, const float *dark, DsRowBuffers *rb, gsize x0, gsize w,
+              const DsRowConsts *c)
+{
+  double *cs = rb->cs + x0, *sn = rb->sn + x0, *mean_raw = rb->mean_raw + x0;
+  double *hi_raw = rb->hi_raw + x0, *lo_raw = rb->lo_raw + x0;
+  double *best_hi = rb->best_hi + x0, *best_lo = rb->best_lo + x0;
+  guint32 *start_hi = rb->start_hi + x0, *start_lo = rb->start_lo + x0;
+  robust_reset (cs, sn, mean_raw, hi_raw, lo_raw, w);
+  for (guint32 k = 0; k < n; k++) {
+    if (planes16)
+      robust_accumulate_u16 (planes16 + k * plane_stride, t->cos_k[k], t->sin_k[k], cs, sn,
+                             mean_raw, hi_raw, lo_raw, w);
+    else
+      robust_accumulate_f32 (planesf + k * plane_stride, t->cos_k[k], t->sin_k[k], cs, sn,
+                             mean_raw, hi_raw, lo_raw, w);
+  }
+  robust_argmax_reset (best_hi, best_lo, start_hi, start_lo, w);
+  for (guint32 j = 0; j < n; j++)
+    robust_argmax (j, t->c_hi[j], t->s_hi[j], t->c_lo[j], t->s_lo[j], cs, sn, best_hi, best_lo,
+                   start_hi, start_lo, w);
+  memset (cs, 0, w * sizeof (double));
+  memset (sn, 0, w * sizeof (double));
+  for (guint32 k = 0; k < n; k++) {
+    if (planes16)
+      robust_windows_u16 (planes16 + k * plane_stride, k, n, t->len_hi, t->len_lo, start_hi,
+                          start_lo, cs, sn, w);
+    else
+      robust_windows_f32 (planesf + k * plane_stride, k, n, t->len_hi, t->len_lo, start_hi,
+                          start_lo, cs, sn, w);
+  }
+  robust_levels (1.0 / t->len_hi, 1.0 / t->len_lo, n, c->inv1b, c->b, c->m, cs, sn, dark, mean_raw,
+                 rb->ld + x0, rb->lg + x0, rb->lev_hi + x0, rb->lev_lo + x0, rb->mean + x0,
+                 rb->amp + x0, w);
+}
+
 DS_CLONES_WIDE void
 ds_row_robust (const DsRowConsts *c, const DsRobustTables *t, const guint16 *planes16,
                const float *planesf, gsize plane_stride, const float *dark, DsRowBuffers *rb,
                gsize w)
 {
   const guint32 n = c->n;
+  if (!c->motion) {
+    /* Every step is per pixel, so the row may go in blocks of columns in any order: blocks small
+     * enough that the step's rows of doubles stay in the core's first-level cache over the N
+     * passes (a 1024-pixel row of them is 8 KiB each, nine of them). The same bits. */
+    const gsize block = 256;
+    for (gsize x0 = 0; x0 < w; x0 += block)
+      robust_block (n, t, planes16 ? planes16 + x0 : NULL, planesf ? planesf + x0 : NULL,
+                    plane_stride, dark + x0, rb, x0, MIN (block, w - x0), c);
+    return;
+  }
   robust_reset (rb->cs, rb->sn, rb->mean_raw, rb->hi_raw, rb->lo_raw, w);
   for (guint32 k = 0; k < n; k++) {
     if (planes16)
@@ -379,8 +428,11 @@ fits_float (double v)
   return fabs (v) <= FLT_MAX;
 }
 
+/* plain: no noise model, no extrema, no sigmas (compile-time 1 in ds_row_tail's copy for that
+ * case, so that what only they need is neither computed nor stored); 0: c says which. The
+ * values both compute are the same expressions, so the same bits. */
 DS_KERNEL guint32
-tail_row (const DsRowConsts *c, const double *restrict hr, const double *restrict lr,
+tail_row (int plain, const DsRowConsts *c, const double *restrict hr, const double *restrict lr,
           const double *restrict rmax, const float *restrict d, const double *restrict ld,
           const double *restrict lg, const double *restrict lh, const double *restrict ll,
           const double *restrict amp, const guint8 *restrict bad, const guint8 *restrict flags,
@@ -395,8 +447,8 @@ tail_row (const DsRowConsts *c, const double *restrict hr, const double *restric
   const double b = c->b, m = c->m, h = c->h, ib = 1.0 - c->b, n = c->n;
   const double vd = c->dark ? c->read_var : 0.0;
   const double inv_nh = 1.0 / c->len_hi, inv_nl = 1.0 / c->len_lo;
-  const gboolean model = c->model, sine = c->estimator == DS_ESTIMATOR_SINE;
-  const gboolean extrema = c->extrema, sigmas = c->sigmas;
+  const gboolean model = plain ? FALSE : c->model, sine = c->estimator == DS_ESTIMATOR_SINE;
+  const gboolean extrema = plain ? FALSE : c->extrema, sigmas = plain ? FALSE : c->sigmas;
   guint32 ok_count = 0;
   /* Selects between booleans and loads under a condition defeat GCC 12's if-conversion: the
    * mask is built with bitwise operations only. */
@@ -429,11 +481,14 @@ tail_row (const DsRowConsts *c, const double *restrict hr, const double *restric
     mk[x] = (guint8) ((all_bits & keep) | (DS_MASK_NONFINITE & ~keep));
     t[x] = ok ? (float) ld[x] : 0.0f;
     g[x] = ok ? (float) lg[x] : 0.0f;
-    mx[x] = ok ? (float) hi : 0.0f;
-    mn[x] = ok ? (float) lo : 0.0f;
-    me[x] = ok ? (float) mv : 0.0f;
-    st[x] = ok ? (float) s_ld : 0.0f;
-    sg[x] = ok ? (float) s_lg : 0.0f;
+    if (!plain) {
+      /* sink rows when not wanted (a plain row has none to write) */
+      mx[x] = ok ? (float) hi : 0.0f;
+      mn[x] = ok ? (float) lo : 0.0f;
+      me[x] = ok ? (float) mv : 0.0f;
+      st[x] = ok ? (float) s_ld : 0.0f;
+      sg[x] = ok ? (float) s_lg : 0.0f;
+    }
     mean[x] = ok ? mv : 0.0;
     ok_count += (guint32) ok;
   }
@@ -459,11 +514,18 @@ ds_row_tail (const DsRowConsts *c, DsRowBuffers *rb, const float *dark, const gu
              const DsRowOutputs *o, gsize w, double *mean_sum, guint64 *mean_count,
              guint64 counts[DS_MASK_N_BITS + 1])
 {
-  guint32 ok = tail_row (c, rb->hi_raw, rb->lo_raw, rb->rmax, dark, rb->ld, rb->lg, rb->lev_hi,
-                         rb->lev_lo, rb->amp, rb->bad, column_flags ? column_flags : rb->flags_zero,
-                         rb->mean, o->t, o->g, o->mk, o->mx ? o->mx : rb->sink[0],
-                         o->mn ? o->mn : rb->sink[1], o->me ? o->me : rb->sink[2],
-                         o->st ? o->st : rb->sink[3], o->sg ? o->sg : rb->sink[4], w);
+  const guint8 *flags = column_flags ? column_flags : rb->flags_zero;
+  guint32 ok;
+  if (!c->model && !c->extrema && !c->sigmas)
+    ok = tail_row (1, c, rb->hi_raw, rb->lo_raw, rb->rmax, dark, rb->ld, rb->lg, rb->lev_hi,
+                   rb->lev_lo, rb->amp, rb->bad, flags, rb->mean, o->t, o->g, o->mk, NULL, NULL,
+                   NULL, NULL, NULL, w);
+  else
+    ok = tail_row (0, c, rb->hi_raw, rb->lo_raw, rb->rmax, dark, rb->ld, rb->lg, rb->lev_hi,
+                   rb->lev_lo, rb->amp, rb->bad, flags, rb->mean, o->t, o->g, o->mk,
+                   o->mx ? o->mx : rb->sink[0], o->mn ? o->mn : rb->sink[1],
+                   o->me ? o->me : rb->sink[2], o->st ? o->st : rb->sink[3],
+                   o->sg ? o->sg : rb->sink[4], w);
   *mean_sum += sum_row (rb->mean, w);
   *mean_count += ok;
   ds_count_mask_row (o->mk, w, counts);

@@ -8,14 +8,19 @@
  *            frames (what descatterd calls): each block of rows pushed and finalized at once;
  *   fold     ds_phase_set_accumulate of one frame (what a per-set result costs per frame);
  *   refold   a fresh set over the window's N frames and its finalize (the window's
- *            definition, and what a window without incremental state would cost).
+ *            definition, and what a window without incremental state would cost);
+ *   floor    a streaming pass over the bytes per pixel the estimator's push + finalize must
+ *            move at least with its present state and result (layout_of below), with the kept
+ *            planes when its push reads them, and any result's floor (the frame read, the
+ *            9 bytes of t, g and mask written): how far each is from memory speed.
  * It also prints the share of pixels whose extremes a push rebuilt from the kept frames, and
  * the memory the window holds against one set's state (the kept frames counted). Times are
  * the process's CPU time (below); the fused line also gives the wall-clock median (the
  * latency, shorter than the CPU time with 2 threads); runs and baselines take turns within
  * each repetition. It
  * asserts no timing; it checks its results (exit status 1 on a mismatch): both windows' last
- * results equal the fresh set's bit for bit. Without --threads it runs on 1 and on 2 threads.
+ * results equal the fresh set's bit for bit. It prints a hash of that result, the same for
+ * two builds whose outputs are the same bit for bit. Without --threads it runs on 1 and on 2 threads.
  *
  *   bench_phase_window [--quick] [--case NxWxH]... [--reps R] [--threads T] [--estimator E]
  * Full run (docs/benchmarks.md): build/tests/bench/bench_phase_window */
@@ -99,6 +104,28 @@ median (double *v, guint64 n)
   return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
+/* A hash of a plane's bytes (FNV-1a over 8-byte words, the tail bytewise): printed with the
+ * results, so that two builds' outputs can be compared bit for bit on the same frames. */
+static guint64
+plane_hash (const DsImage *a, guint64 h)
+{
+  if (!a)
+    return h;
+  gsize row = (gsize) a->width * ds_sample_size (a->type);
+  for (guint y = 0; y < a->height; y++) {
+    const guint8 *p = ds_image_row (a, y);
+    gsize x = 0;
+    for (; x + 8 <= row; x += 8) {
+      guint64 v;
+      memcpy (&v, p + x, 8);
+      h = (h ^ v) * 0x100000001b3ull;
+    }
+    for (; x < row; x++)
+      h = (h ^ p[x]) * 0x100000001b3ull;
+  }
+  return h;
+}
+
 static gboolean
 same_plane (const DsImage *a, const DsImage *b)
 {
@@ -109,6 +136,120 @@ same_plane (const DsImage *a, const DsImage *b)
     if (memcmp (ds_image_row (a, y), ds_image_row (b, y), row) != 0)
       return FALSE;
   return TRUE;
+}
+
+/* The memory-bandwidth floor of a push + finalize: one streaming pass over the bytes per pixel
+ * that an estimator must at least move with its present state and result, on one thread. The
+ * bytes are three kinds, each in its own buffer and each streamed once, block by block side by
+ * side as the window's rows are:
+ *   ro   read only: the new frame, and the kept planes a rebuild or robust's finalize reads;
+ *   rmw  read and written in place: the kept slot (the retired sample out, the new one in) and
+ *        the state the push updates;
+ *   wo   written only: the result planes, t and g as float and the mask (9 bytes), and
+ *        robust's phase plane of the new frame.
+ * A write to memory not in cache first reads the line (as the result's stores do), so wo
+ * costs what the real stores cost. The pass does no arithmetic worth the name: its time is
+ * what moving the bytes costs on this machine, below which no code with this layout goes. */
+typedef struct {
+  guint ro, rmw, wo;    /* bytes per pixel of each kind, without kept planes */
+  guint kept;           /* bytes per pixel more read when the push reads every kept plane */
+  const char *what;
+} Layout;
+
+/* The layout of each estimator with the bench's parameters (no dark, model, extrema or motion),
+ * s bytes per sample, N phases. */
+static Layout
+layout_of (DsEstimator e, guint s, guint n)
+{
+  const guint result = 4 + 4 + 1;
+  switch (e) {
+  case DS_ESTIMATOR_MAXMIN:
+    /* u16 max and min; a push that loses an extreme rebuilds it from the N kept planes, which
+     * under noise touches every line of them (the "rebuilt" share) */
+    return (Layout) { s, s + 4, result, (n - 1) * s, "frame; slot + max/min u16; result" };
+  case DS_ESTIMATOR_SINE:
+    /* u32 sum, i64 cos and sin, a u8 count of saturated samples (for SATURATED); no minimum
+     * without a dark frame (proc/phase_window.c), so no kept plane but the slot is read */
+    return (Layout) { s, s + 4 + 16 + 1, result, 0,
+                      "frame; slot + sum u32 + harmonic 2 i64 + saturated count u8; result" };
+  default:
+    /* robust: the finalize reads its N u16 phase planes (the new one among them, written by
+     * the push), the kept slot gets the frame, nothing is retired but by overwriting */
+    return (Layout) { s + 2 * (n - 1), s, result + 2, 0,
+                      "frame + N-1 u16 planes; slot; result + new u16 plane" };
+  }
+}
+
+typedef guint64 Vec __attribute__ ((vector_size (16)));
+
+/* One pass: ro summed, rmw incremented in place, wo stored; 64 KiB of each per block. */
+static guint64
+stream_pass (const guint8 *ro, gsize ro_bytes, guint8 *rmw, gsize rmw_bytes, guint8 *wo,
+             gsize wo_bytes, guint64 salt)
+{
+  const gsize block = 65536;
+  Vec acc = { 0, 0 }, one = { 1, 1 }, fill = { salt, salt };
+  gsize nb = MAX (MAX (ro_bytes, rmw_bytes), wo_bytes) / block + 1;
+  for (gsize b = 0; b < nb; b++) {
+    gsize r0 = ro_bytes * b / nb, r1 = ro_bytes * (b + 1) / nb;
+    gsize m0 = rmw_bytes * b / nb, m1 = rmw_bytes * (b + 1) / nb;
+    gsize w0 = wo_bytes * b / nb, w1 = wo_bytes * (b + 1) / nb;
+    for (gsize i = r0 & ~(gsize) 15; i + 16 <= r1; i += 16) {
+      Vec v;
+      memcpy (&v, ro + i, 16);
+      acc += v;
+    }
+    for (gsize i = m0 & ~(gsize) 15; i + 16 <= m1; i += 16) {
+      Vec v;
+      memcpy (&v, rmw + i, 16);
+      v += one;
+      memcpy (rmw + i, &v, 16);
+    }
+    for (gsize i = w0 & ~(gsize) 15; i + 16 <= w1; i += 16)
+      memcpy (wo + i, &fill, 16);
+  }
+  return acc[0] ^ acc[1];
+}
+
+typedef struct {
+  guint8 *ro, *rmw, *wo;
+  gsize ro_bytes, rmw_bytes, wo_bytes;
+} Floor;
+
+static void
+floor_init (Floor *f, gsize npix, guint ro, guint rmw, guint wo)
+{
+  f->ro_bytes = npix * ro;
+  f->rmw_bytes = npix * rmw;
+  f->wo_bytes = npix * wo;
+  /* calloc'd and touched once, so that the timed passes find every page mapped */
+  f->ro = g_malloc0 (f->ro_bytes + 16);
+  f->rmw = g_malloc0 (f->rmw_bytes + 16);
+  f->wo = g_malloc0 (f->wo_bytes + 16);
+  memset (f->ro, 1, f->ro_bytes);
+  memset (f->rmw, 1, f->rmw_bytes);
+  memset (f->wo, 1, f->wo_bytes);
+}
+
+static void
+floor_clear (Floor *f)
+{
+  g_clear_pointer (&f->ro, g_free);
+  g_clear_pointer (&f->rmw, g_free);
+  g_clear_pointer (&f->wo, g_free);
+}
+
+G_DEFINE_AUTO_CLEANUP_CLEAR_FUNC (Floor, floor_clear)
+
+static volatile guint64 floor_sink;
+
+/* CPU seconds of one pass. */
+static double
+floor_time (Floor *f, guint64 salt)
+{
+  double t0 = now ();
+  floor_sink ^= stream_pass (f->ro, f->ro_bytes, f->rmw, f->rmw_bytes, f->wo, f->wo_bytes, salt);
+  return now () - t0;
 }
 
 static gboolean
@@ -145,6 +286,22 @@ bench_one (const Case *c, DsSampleType type, DsEstimator estimator, guint reps, 
                     *fin = g_new (double, pushes), *fused = g_new (double, pushes),
                     *fwall = g_new (double, pushes);
   double fworst = 0;
+  /* the floors (above): the estimator's layout, with its kept planes read (when a push reads
+   * them), and any result's (the frame read, the 9 result bytes written) */
+  guint s = (guint) ds_sample_size (type);
+  Layout lay = layout_of (estimator, s, c->n);
+  gsize npix = (gsize) c->w * c->h;
+  g_auto (Floor) fl_state = { 0 };
+  g_auto (Floor) fl_kept = { 0 };
+  g_auto (Floor) fl_result = { 0 };
+  floor_init (&fl_state, npix, lay.ro, lay.rmw, lay.wo);
+  floor_init (&fl_kept, npix, lay.ro + lay.kept, lay.rmw, lay.wo);
+  floor_init (&fl_result, npix, s, 0, 9);
+  const guint passes = 2;
+  gsize n_floor = (gsize) reps * passes;
+  g_autofree double *t_state = g_new (double, n_floor), *t_kept = g_new (double, n_floor),
+                    *t_result = g_new (double, n_floor);
+  guint floored = 0;
   double worst = 0, best_fold = INFINITY, best_refold = INFINITY;
   guint64 rebuilt0 = ds_phase_window_rebuilt_pixels (win);
   guint timed = 0;
@@ -184,6 +341,12 @@ bench_one (const Case *c, DsSampleType type, DsEstimator estimator, guint reps, 
       fworst = MAX (fworst, t4 - t3);
     }
     timed += c->n;
+    /* the floors take their turn after the pushes, as the baselines do */
+    for (guint i = 0; i < passes; i++, floored++) {
+      t_state[floored] = floor_time (&fl_state, t + i);
+      t_kept[floored] = lay.kept ? floor_time (&fl_kept, t + i) : t_state[floored];
+      t_result[floored] = floor_time (&fl_result, t + i);
+    }
     /* the baselines over the window's current frames */
     ds_phase_set_reset (set);
     double t0 = now ();
@@ -218,6 +381,24 @@ bench_one (const Case *c, DsSampleType type, DsEstimator estimator, guint reps, 
           "  wall %6.2f ms/MP\n",
           type == DS_SAMPLE_U8 ? "u8" : "u16", ds_estimator_name (estimator), fmed * 1e3, fworst * 1e3,
           fmed * 1e3 / mp, fmed / mean, fw * 1e3 / mp);
+  guint64 hash = plane_hash (want->transmissive, 0xcbf29ce484222325ull);
+  hash = plane_hash (want->mask, plane_hash (want->scattered, hash));
+  printf ("  %-3s %-6s result hash   %016" G_GINT64_MODIFIER "x (t, g and mask of the last result)\n",
+          type == DS_SAMPLE_U8 ? "u8" : "u16", ds_estimator_name (estimator), hash);
+  double fs = median (t_state, floored), fk = median (t_kept, floored), fr = median (t_result, floored);
+  printf ("  %-3s %-6s floor         %6.2f ms/MP (%u B/px: %u read, %u read+written, %u written;"
+          " %s)  fused %5.2fx it\n",
+          type == DS_SAMPLE_U8 ? "u8" : "u16", ds_estimator_name (estimator), fs * 1e3 / mp,
+          lay.ro + lay.rmw + lay.wo, lay.ro, lay.rmw, lay.wo, lay.what, fmed / fs);
+  if (lay.kept)
+    printf ("  %-3s %-6s floor + kept  %6.2f ms/MP (%u B/px more read: the other N - 1 kept planes,"
+            " as a rebuild of every line)  fused %5.2fx it\n",
+            type == DS_SAMPLE_U8 ? "u8" : "u16", ds_estimator_name (estimator), fk * 1e3 / mp,
+            lay.kept, fmed / fk);
+  printf ("  %-3s %-6s any result    %6.2f ms/MP (%u B/px: the frame read, t, g and mask written)"
+          "  fused %5.2fx it\n",
+          type == DS_SAMPLE_U8 ? "u8" : "u16", ds_estimator_name (estimator), fr * 1e3 / mp, s + 9,
+          fmed / fr);
   return same;
 }
 

@@ -87,7 +87,29 @@ typedef struct {
                         leave and a push rebuilds them pixel by pixel, not row by row */
   guint64 repeat_at; /* > 0: the frame at this push repeats the phase before it, out of turn */
   gboolean one_thread_calls; /* pushes and finalizes on one of the window's threads */
+  /* Samples that come and go as the window slides: every third frame is 2.2x as bright (its
+   * brightest samples saturate), and each frame drops a sparse grid of pixels, moving with t,
+   * to 0 (below the dark frame, which is then dark_level + x mod 5): saturated and dark pixels
+   * enter and leave the window at every push. The run must see SATURATED (and, with a dark
+   * frame, DARK_EXCEEDS) set in some results and at other pixel counts in others. */
+  gboolean come_and_go;
+  guint dark_level;
 } Case;
+
+/* The frame of push t for come_and_go (above), over make_frame_sized's. */
+static void
+come_and_go_frame (DsImage *img, guint64 t)
+{
+  for (guint y = 0; y < img->height; y++)
+    for (guint x = 0; x < img->width; x++)
+      if ((x * 7 + y * 3 + t) % 11 == 0) {
+        void *row = ds_image_row (img, y);
+        if (img->type == DS_SAMPLE_U8)
+          ((guint8 *) row)[x] = 0;
+        else
+          ((guint16 *) row)[x] = 0;
+      }
+}
 
 static DsImage *
 make_dark (const Case *c, guint width, guint height)
@@ -98,9 +120,9 @@ make_dark (const Case *c, guint width, guint height)
     for (guint x = 0; x < width; x++) {
       void *row = ds_image_row (dark, y);
       if (c->type == DS_SAMPLE_U8)
-        ((guint8 *) row)[x] = (guint8) (x % 5);
+        ((guint8 *) row)[x] = (guint8) (c->dark_level + x % 5);
       else if (c->type == DS_SAMPLE_U16)
-        ((guint16 *) row)[x] = (guint16) (x % 5);
+        ((guint16 *) row)[x] = (guint16) (c->dark_level + x % 5);
       else
         ((float *) row)[x] = (float) (x % 5);
     }
@@ -150,11 +172,17 @@ run_case (const Case *c)
   guint64 good_since_break = 0;
   g_autoptr (DsSeparation) got = ds_separation_new ();
   g_autoptr (DsSeparation) fgot = ds_separation_new ();
+  /* come_and_go: the fewest and most pixels flagged SATURATED and DARK_EXCEEDS over results */
+  guint64 sat_lo = G_MAXUINT64, sat_hi = 0, exc_lo = G_MAXUINT64, exc_hi = 0;
   for (guint64 t = 0; t < total; t++) {
     guint phase = (guint) ((c->repeat_at && t == c->repeat_at ? t - 1 : t) % c->n);
+    double gain = c->gain > 0 ? c->gain : 1.0;
+    if (c->come_and_go && t % 3 == 0)
+      gain *= 2.2;
     g_ptr_array_add (frames, make_frame_sized (c->type, c->bits, c->n, phase, r, width, height,
-                                               c->gain > 0 ? c->gain : 1.0,
-                                               c->noise > 0 ? c->noise : 3.0));
+                                               gain, c->noise > 0 ? c->noise : 3.0));
+    if (c->come_and_go)
+      come_and_go_frame (frames->pdata[t], t);
     if (t == lost) {
       ds_phase_window_break (win);
       ds_phase_window_break (fwin);
@@ -206,10 +234,23 @@ run_case (const Case *c)
     g_assert_no_error (error);
     assert_same_result (got, want);
     assert_same_result (fgot, want);
+    sat_lo = MIN (sat_lo, want->meta.flagged[0]);
+    sat_hi = MAX (sat_hi, want->meta.flagged[0]);
+    exc_lo = MIN (exc_lo, want->meta.flagged[5]);
+    exc_hi = MAX (exc_hi, want->meta.flagged[5]);
     g_assert_cmpmem (&fgot->meta, sizeof fgot->meta, &want->meta, sizeof want->meta);
     g_assert_cmpuint (ds_phase_window_rebuilt_pixels (fwin), ==, ds_phase_window_rebuilt_pixels (win));
   }
   g_ptr_array_unref (frames);
+  G_STATIC_ASSERT (DS_MASK_SATURATED == 1 << 0 && DS_MASK_DARK_EXCEEDS == 1 << 5);
+  if (c->come_and_go) {
+    g_assert_cmpuint (sat_hi, >, 0);
+    g_assert_cmpuint (sat_lo, <, sat_hi);
+    if (c->dark) {
+      g_assert_cmpuint (exc_hi, >, 0);
+      g_assert_cmpuint (exc_lo, <, exc_hi);
+    }
+  }
 }
 
 static void
@@ -247,6 +288,86 @@ test_fresh_set_equality (void)
   };
   for (guint i = 0; i < G_N_ELEMENTS (cases); i++)
     run_case (&cases[i]);
+}
+
+/* sine's fast row, where the window keeps a count of saturated samples for SATURATED and the
+ * minimum only with a dark frame (for DARK_EXCEEDS): saturated and dark samples entering and
+ * leaving the window at every push, with and without a dark frame, u8 and u16, a phase
+ * repeated out of turn, and rows split over threads. */
+static void
+test_counts (void)
+{
+  const Case cases[] = {
+    { .estimator = DS_ESTIMATOR_SINE, .type = DS_SAMPLE_U16, .bits = 12, .n = 8, .dark = TRUE,
+      .no_extrema = TRUE, .come_and_go = TRUE, .dark_level = 600 },
+    { .estimator = DS_ESTIMATOR_SINE, .type = DS_SAMPLE_U8, .bits = 8, .n = 5, .dark = TRUE,
+      .no_extrema = TRUE, .come_and_go = TRUE, .dark_level = 33, .repeat_at = 7 },
+    { .estimator = DS_ESTIMATOR_SINE, .type = DS_SAMPLE_U16, .bits = 10, .n = 6, .dark = FALSE,
+      .no_extrema = TRUE, .come_and_go = TRUE },
+    { .estimator = DS_ESTIMATOR_SINE, .type = DS_SAMPLE_U8, .bits = 8, .n = 3, .dark = FALSE,
+      .no_extrema = TRUE, .come_and_go = TRUE, .repeat_at = 4 },
+    /* low noise: few minima leave, each rescanned alone rather than its row rebuilt */
+    { .estimator = DS_ESTIMATOR_SINE, .type = DS_SAMPLE_U16, .bits = 12, .n = 4, .dark = TRUE,
+      .no_extrema = TRUE, .come_and_go = TRUE, .dark_level = 600, .noise = 0.1 },
+    { .estimator = DS_ESTIMATOR_SINE, .type = DS_SAMPLE_U16, .bits = 12, .n = 8, .dark = TRUE,
+      .no_extrema = TRUE, .come_and_go = TRUE, .dark_level = 600, .width = 509, .height = 331,
+      .threads = 2 },
+    { .estimator = DS_ESTIMATOR_SINE, .type = DS_SAMPLE_U8, .bits = 8, .n = 8, .dark = FALSE,
+      .no_extrema = TRUE, .come_and_go = TRUE, .width = 4100, .height = 150, .threads = 2 },
+  };
+  for (guint i = 0; i < G_N_ELEMENTS (cases); i++)
+    run_case (&cases[i]);
+}
+
+/* A dark frame set, changed and taken away while the window slides: each result is still a
+ * fresh set's with the dark frame of the moment (with counts the minimum is kept only while
+ * a dark frame is set). */
+static void
+test_dark_changes (void)
+{
+  const guint n = 4;
+  DsSeparationParams p;
+  ds_separation_params_init (&p, n);
+  p.estimator = DS_ESTIMATOR_SINE;
+  p.pattern = DS_PATTERN_SQUARE;
+  p.keep_extrema = FALSE;
+  p.threads = 1;
+  const Case c = { .estimator = DS_ESTIMATOR_SINE, .type = DS_SAMPLE_U16, .bits = 12, .n = n,
+                   .dark = TRUE, .dark_level = 600 };
+  g_autoptr (GError) error = NULL;
+  g_autoptr (DsPhaseWindow) win = ds_phase_window_new (&p, W, H, &error);
+  g_assert_no_error (error);
+  g_autoptr (DsImage) dark = make_dark (&c, W, H);
+  g_autoptr (GRand) r = g_rand_new_with_seed (5);
+  GPtrArray *frames = g_ptr_array_new_with_free_func ((GDestroyNotify) ds_image_free);
+  g_autoptr (DsSeparation) got = ds_separation_new ();
+  guint64 exceeds = 0;
+  for (guint64 t = 0; t < 6 * n; t++) {
+    DsImage *f = make_frame_sized (DS_SAMPLE_U16, 12, n, t, r, W, H, t % 3 == 0 ? 2.2 : 1.0, 3.0);
+    come_and_go_frame (f, t);
+    g_ptr_array_add (frames, f);
+    /* no dark, then one, then none, then one again, each for some pushes */
+    gboolean use_dark = (t / 5) % 2 == 1;
+    if (t % 5 == 0)
+      g_assert_true (ds_phase_window_set_dark (win, use_dark ? dark : NULL, &error));
+    gboolean complete = FALSE;
+    g_assert_true (ds_phase_window_push_finalize_into (win, (guint) (t % n), f, got, &complete, NULL, &error));
+    g_assert_no_error (error);
+    if (!complete)
+      continue;
+    g_autoptr (DsPhaseSet) fresh = ds_phase_set_new (&p, W, H, &error);
+    if (use_dark)
+      g_assert_true (ds_phase_set_set_dark (fresh, dark, &error));
+    for (guint64 u = t + 1 - n; u <= t; u++)
+      g_assert_true (ds_phase_set_accumulate (fresh, (guint) (u % n), frames->pdata[u], &error));
+    g_autoptr (DsSeparation) want = ds_phase_set_finalize (fresh, &error);
+    g_assert_no_error (error);
+    assert_same_result (got, want);
+    g_assert_cmpmem (&got->meta, sizeof got->meta, &want->meta, sizeof want->meta);
+    exceeds += want->meta.flagged[5];
+  }
+  g_assert_cmpuint (exceeds, >, 0);
+  g_ptr_array_unref (frames);
 }
 
 /* Frames large enough that the set splits rows over worker threads: the pushes' rows too, and
@@ -418,6 +539,8 @@ main (int argc, char **argv)
   g_test_init (&argc, &argv, NULL);
   g_test_add_func ("/phase-window/fresh-set-equality", test_fresh_set_equality);
   g_test_add_func ("/phase-window/threaded", test_threaded);
+  g_test_add_func ("/phase-window/counts", test_counts);
+  g_test_add_func ("/phase-window/dark-changes", test_dark_changes);
   g_test_add_func ("/phase-window/memory", test_memory);
   g_test_add_func ("/phase-window/repeated-phase", test_repeated_phase);
   g_test_add_func ("/phase-window/bad-frames", test_bad_frames);
