@@ -57,6 +57,10 @@ predict (const DsOperatingModel *m, const Models *em, const DsSceneProbe *probe,
    * prediction would be a lower bound below every modelled one's (ds_motion_kappa). */
   if (em->motion && isnan (ds_motion_kappa (e)))
     return FALSE;
+  /* Only points a request can name: the choice runs them, and a refusal names them for the
+   * user to run. */
+  if (!ds_error_model_request_accepts (em->lower, e, n, NULL))
+    return FALSE;
   if (!ds_error_model_predict (em->lower, e, n, mm, factor, period, &p->parts, NULL))
     return FALSE;
   DsErrorParts worst;

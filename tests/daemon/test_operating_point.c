@@ -382,6 +382,80 @@ test_interval_decision (void)
   g_assert_cmpfloat (op.predicted_error_upper, <=, 1.2 * upper);
 }
 
+/* The points the choice compares are those a request can name (error_model.h): on square
+ * stripes, maxmin and robust only with aN >= 1 and (1 - a)N >= 1, sine with N >= 3, the closed
+ * form written here. At duty 0.396 maxmin N = 2 (aN = 0.79) is refused even though its synthetic
+ * set, which knows the period, separates the pixels fully lit in one phase; so it is never chosen
+ * nor named as the best reachable point, whatever the request. */
+static gboolean
+request_rule (DsEstimator e, guint n, double a)
+{
+  if (e == DS_ESTIMATOR_SINE)
+    return n >= 3;
+  return a * n >= 1 - 1e-9 && (1 - a) * n >= 1 - 1e-9;
+}
+
+static void
+test_request_rule (void)
+{
+  const double duties[] = { 0.2, 0.396, 0.5, 0.73 };
+  const DsEstimator est[] = { DS_ESTIMATOR_MAXMIN, DS_ESTIMATOR_SINE, DS_ESTIMATOR_ROBUST };
+  for (guint d = 0; d < G_N_ELEMENTS (duties); d++) {
+    DsSceneProbe p = probe_of (400, 800, 3, 0);
+    p.geometry.duty = duties[d];
+    p.geometry.period_px = 10;
+    DsSeparationParams sp = params;
+    sp.duty = duties[d];
+    sp.geometry.period_px = 10;
+    sp.geometry.pixel_aperture = 1;
+    g_autoptr (DsErrorModel) em = ds_error_model_new (&p, &sp);
+    for (guint e = 0; e < 3; e++)
+      for (guint n = 2; n <= 8; n++) {
+        g_autoptr (GError) error = NULL;
+        gboolean ok = ds_error_model_request_accepts (em, est[e], n, &error);
+        g_assert_cmpint (ok, ==, request_rule (est[e], n, duties[d]));
+        g_assert_true (ok == (error == NULL));
+      }
+  }
+  /* The choice at duty 0.396 over N = 2, 3, 4 (M = 1, the pilot's exposure): what it chooses for a
+   * budget, and the best point a refusal names, both pass the rule. */
+  DsOperatingModel m;
+  ds_operating_model_init (&m);
+  m.n_phases = 3;
+  m.phases[0] = 2, m.phases[1] = 3, m.phases[2] = 4;
+  m.n_averages = 1;
+  m.averages[0] = 1;
+  m.n_exposure_factors = 1;
+  m.exposure_factors[0] = 1;
+  DsRigTiming t;
+  ds_rig_timing_init (&t);
+  DsSceneProbe p = probe_of (400, 800, 3, 0);
+  p.geometry.duty = 0.396;
+  p.geometry.period_px = 10;
+  p.geometry.blur_px = 0.05;
+  DsSeparationParams sp = params;
+  sp.duty = 0.396;
+  sp.geometry.period_px = 10;
+  sp.geometry.pixel_aperture = 1;
+  g_autoptr (DsErrorModel) em = ds_error_model_new (&p, &sp);
+  /* The synthetic set alone would take maxmin N = 2. */
+  DsErrorParts parts;
+  g_assert_true (ds_error_model_predict (em, DS_ESTIMATOR_MAXMIN, 2, 1, 1, 0, &parts, NULL));
+  DsOperatingPoint op;
+  g_autoptr (GError) error = NULL;
+  g_assert_true (ds_operating_point_choose (&m, em, &p, &t, 256, 192, 0, 1e6, &op, &error));
+  g_assert_true (request_rule (op.estimator, op.phases, 0.396));
+  double fastest = ds_rig_timing_set_ms (&t, 256, 192, 2, 1, p.exposure_us, TRUE);
+  /* A budget only N = 2 fits: nothing a request can name fits it. */
+  g_assert_false (ds_operating_point_choose (&m, em, &p, &t, 256, 192, 0, fastest * 1.01, &op, &error));
+  g_test_message ("%s", error->message);
+  g_clear_error (&error);
+  g_assert_false (ds_operating_point_choose (&m, em, &p, &t, 256, 192, 1e-6, 0, &op, &error));
+  g_assert_nonnull (strstr (error->message, "the best reachable is"));
+  g_assert_true (request_rule (op.estimator, op.phases, 0.396));
+  g_assert_null (strstr (error->message, "maxmin, N=2,"));
+}
+
 int
 main (int argc, char **argv)
 {
@@ -394,5 +468,6 @@ main (int argc, char **argv)
   g_test_add_func ("/operating-point/uncertainty-ld", test_uncertainty_ld);
   g_test_add_func ("/operating-point/report-json", test_report_json);
   g_test_add_func ("/operating-point/model-file", test_model_file);
+  g_test_add_func ("/operating-point/request-rule", test_request_rule);
   return g_test_run ();
 }
