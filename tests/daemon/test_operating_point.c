@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "daemon/operating/operating_point.h"
+#include "daemon/operating/stripe_model.h"
 #include "report_json.h"
 
 static DsSeparationParams params; /* square stripes, duty 1/2, no black level */
@@ -231,6 +232,42 @@ test_uncertainty_ld (void)
     /* log (1.1) = 0.953 x 0.1, and Ld^-1/2 at the least (0.48; the synthetic sets' own noise moves it by a few %) */
     g_assert_cmpfloat (moved, <=, 1.02 * term);
     g_assert_cmpfloat (moved, >=, 0.4 * term);
+  }
+  /* Scattered stripes: the pilot measures the modulated light Ld (1 + L), so Ld read higher by u
+   * leaves a leak L' = (1 + L)/(1 + u) - 1. sine on sine stripes, with the harmonic gain the
+   * pixels see, reads the modulated light: its noise-free error is L, and it moves by
+   * ln (L / L') ~ (1 + L)/L u: 0.115 for L = 0.1, u = 0.01, eleven times Ld's own move (noise is
+   * small here). */
+  {
+    const double L = 0.1, u = 0.01, P = 12;
+    DsSceneProbe p = probe_of (3000, 3000, 1, log1p (L) / P);
+    p.geometry.kind = DS_PATTERN_SINE;
+    DsSeparationParams sp;
+    ds_separation_params_init (&sp, 8);
+    sp.pattern = DS_PATTERN_SINE;
+    sp.duty = 0.5;
+    sp.harmonic_gain = ds_stripe_harmonic (&p.geometry, 1);
+    p.light.ld_uncertainty = u;
+    DsSceneProbe q = p;
+    q.light.ld_mean *= 1 + u;
+    q.leak.per_px = log1p ((1 + L) / (1 + u) - 1) / P;
+    g_assert_cmpfloat_with_epsilon (ds_scene_probe_leak (&p, P, 1), L, 1e-12);
+    g_autoptr (DsErrorModel) ep = ds_error_model_new (&p, &sp);
+    g_autoptr (DsErrorModel) eq = ds_error_model_new (&q, &sp);
+    DsErrorParts a, b;
+    g_assert_true (ds_error_model_predict (ep, DS_ESTIMATOR_SINE, 8, 1, 1, 0, &a, NULL));
+    g_assert_true (ds_error_model_predict (eq, DS_ESTIMATOR_SINE, 8, 1, 1, 0, &b, NULL));
+    g_assert_cmpfloat_with_epsilon (a.systematic, L, 0.01 * L);
+    double closed = log (L / ((1 + L) / (1 + u) - 1)), moved = log (a.systematic / b.systematic);
+    double with = ds_operating_point_uncertainty (&m, &p, &a);
+    p.light.ld_uncertainty = 0;
+    double without = ds_operating_point_uncertainty (&m, &p, &a);
+    double term = sqrt (with * with - without * without);
+    g_test_message ("leak %g: prediction %.5f -> %.5f (%.4f, closed form %.4f), Ld term %.4f", L, a.total, b.total,
+                    moved, closed, term);
+    g_assert_cmpfloat (closed, >, 10 * u);
+    g_assert_cmpfloat (fabs (moved / closed - 1), <, 0.1);
+    g_assert_cmpfloat (fabs (term / closed - 1), <, 0.1);
   }
   /* The spread adds in quadrature. */
   DsSceneProbe p = probe_of (400, 800, 3, 0);
