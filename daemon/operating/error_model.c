@@ -350,3 +350,17 @@ ds_error_model_predict (DsErrorModel *m, DsEstimator estimator, guint phases, gu
   }
   return TRUE;
 }
+
+gboolean
+ds_error_model_request_accepts (const DsErrorModel *m, DsEstimator estimator, guint phases, GError **error)
+{
+  /* What a fixed request is checked with before it runs: the parameters without the stripe
+   * geometry, whose sampling check is then the period-free one. */
+  DsSeparationParams p;
+  ds_separation_params_init (&p, phases);
+  p.estimator = estimator;
+  p.pattern = m->params.pattern;
+  p.duty = m->params.duty;
+  p.black_level = m->params.black_level;
+  return ds_separation_params_validate (&p, error);
+}

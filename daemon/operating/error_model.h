@@ -74,4 +74,16 @@ gboolean ds_error_model_predict (DsErrorModel *model, DsEstimator estimator, gui
                                  guint averages, double exposure_factor, double period_px,
                                  DsErrorParts *out, GError **error);
 
+/* Whether a request for this estimator and N, at the rig's pattern (params of
+ * ds_error_model_new: pattern, duty, black level), is accepted as a fixed capture: the check a
+ * `capture` or `start` naming them gets before it runs (the parameters' own ranges and the
+ * sampling precondition without the stripe geometry: maxmin and robust on square stripes need
+ * aN >= 1 and (1 - a)N >= 1, sine N >= 3; proc/separation.h). The automatic choice compares only
+ * such points, so that every point it runs or names in a refusal can be asked for by hand and
+ * runs as predicted; the synthetic sets of ds_error_model_predict () know the period and would
+ * accept more (a pixel position fully lit in one phase suffices there). FALSE with the check's
+ * message. */
+gboolean ds_error_model_request_accepts (const DsErrorModel *model, DsEstimator estimator, guint phases,
+                                         GError **error);
+
 G_END_DECLS

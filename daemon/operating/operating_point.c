@@ -57,6 +57,10 @@ predict (const DsOperatingModel *m, const Models *em, const DsSceneProbe *probe,
    * prediction would be a lower bound below every modelled one's (ds_motion_kappa). */
   if (em->motion && isnan (ds_motion_kappa (e)))
     return FALSE;
+  /* Only points a request can name: the choice runs them, and a refusal names them for the
+   * user to run. */
+  if (!ds_error_model_request_accepts (em->lower, e, n, NULL))
+    return FALSE;
   if (!ds_error_model_predict (em->lower, e, n, mm, factor, period, &p->parts, NULL))
     return FALSE;
   DsErrorParts worst;
@@ -101,9 +105,15 @@ ds_operating_point_uncertainty (const DsOperatingModel *m, const DsSceneProbe *p
   if (!(e2 > 0))
     return spread;
   /* total^2 = noise^2 + systematic^2, so d ln total = sum (part^2 / total^2) d ln part. The noise
-   * (shot and read noise over Ld) and the scattered stripes (the light keeping them over Ld) move by
-   * at most Ld's own relative error; the sampling part is the pattern's and does not. */
-  double ld_share = MIN (1.0, (parts->noise * parts->noise + parts->scattered_stripes * parts->scattered_stripes) / e2);
+   * (shot and read noise over Ld) moves by at most Ld's own relative error d. The scattered
+   * stripes' part grows with the leak L at P, the light keeping the stripes over Ld, and what the
+   * pilot measures is their sum, the modulated light Ld (1 + L): Ld read d too high leaves
+   * (1 + L)/(1 - d) - 1 = L + (1 + L) d, so d ln L = (1 + L)/L d (a leak of 1 % with Ld known to
+   * 1 % is known to 2 %), and the part, near proportional to L, moves as much. The sampling part
+   * is the pattern's and does not move. */
+  double leak = ds_scene_probe_leak (probe, probe->geometry.period_px, 1);
+  double s2 = parts->scattered_stripes * parts->scattered_stripes * (leak > 0 ? (1 + leak) / leak : 1.0);
+  double ld_share = (MIN (parts->noise * parts->noise, e2) + s2) / e2;
   double u_ld = ld_share * MAX (0.0, probe->light.ld_uncertainty);
   /* The frame noise is a robust scale read on about every unclipped pixel. */
   double n = (double) probe->width * probe->height * (1 - CLAMP (probe->clip.saturated_fraction, 0.0, 1.0));

@@ -86,7 +86,8 @@ typedef struct {
 
 /* The relative standard uncertainty of a prediction with these parts on this probe's scene: the
  * model's scale_spread, Ld's uncertainty (probe->light.ld_uncertainty) on the parts relative to Ld (the
- * noise and the scattered stripes), and the sampling error of the frame noise's estimate, added in
+ * noise, and the scattered stripes, whose leak L the pilot measures as part of the modulated light
+ * Ld (1 + L), so that they move by (1 + L)/L times Ld's relative error), and the sampling error of the frame noise's estimate, added in
  * quadrature (docs/accuracy.md, "Decisions on the margin"). */
 double ds_operating_point_uncertainty (const DsOperatingModel *model, const DsSceneProbe *probe,
                                        const DsErrorParts *parts);

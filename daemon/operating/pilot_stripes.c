@@ -5,6 +5,7 @@
 
 #include "daemon/operating/stripe_model.h"
 #include "daemon/operating/operating_error.h"
+#include "daemon/operating/scene_probe_pairs.h"
 #include "proc/column_stats.h"
 #include "proc/image_stats.h"
 
@@ -16,11 +17,19 @@ ds_pilot_stripes_check (const DsProbeFrames *f, DsPilotStripes *out, GError **er
     return FALSE;
   const DsImage *l0 = f->lit[0], *l1 = f->lit[1];
   double period = f->geometry.period_px;
+  /* A pilot that clips is refused by the probe's own rule (scene_probe_pairs.h), before a fit
+   * on the samples left would fail for want of columns, or read the few dim ones as the scene. */
+  guint64 clipped = 0;
+  if (!ds_probe_pair_check_clipping (l0, l1, f->saturation_dn, &clipped, error))
+    return FALSE;
   DsColumnStats stats = { 0 };
   if (!ds_column_stats_compute (l0, l1, f->saturation_dn, &stats, error))
     return FALSE;
   DsStripeHarmonics h;
-  gboolean fitted = ds_stripe_harmonics_fit (stats.mean_diff, stats.count, 0, stats.width, period, 1, &h, error);
+  g_autoptr (GError) local = NULL;
+  gboolean fitted = ds_stripe_harmonics_fit (stats.mean_diff, stats.count, 0, stats.width, period, 1, &h, &local);
+  if (!fitted)
+    ds_probe_pair_refuse_unfitted (&stats, clipped, f->saturation_dn, period, local, error);
   ds_column_stats_clear (&stats);
   if (!fitted)
     return FALSE;

@@ -33,8 +33,10 @@ typedef struct {
 } DsPilotStripes;
 
 /* TRUE when the stripes are there; FALSE with DS_OPERATING_ERROR_NO_STRIPES ("no stripes at the
- * configured period ...", naming what was measured) when not, or with the error of
- * ds_probe_frames_check. */
+ * configured period ...", naming what was measured) when not; with DS_OPERATING_ERROR_CLIPPED
+ * (naming the clip level and the remedy) when the pair clips by the probe's rule
+ * (ds_probe_pair_check_clipping ()) or its clipped samples leave the fit no columns; or with the
+ * error of ds_probe_frames_check. */
 gboolean ds_pilot_stripes_check (const DsProbeFrames *frames, DsPilotStripes *out, GError **error);
 
 G_END_DECLS

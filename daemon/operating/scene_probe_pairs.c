@@ -46,6 +46,22 @@ scene_envelope (const DsColumnStats *st, double dark_dn)
   return e;
 }
 
+gboolean
+ds_probe_pair_check_clipping (const DsImage *a, const DsImage *b, double ceiling, guint64 *clipped_out,
+                              GError **error)
+{
+  guint64 n_px = (guint64) a->width * a->height, clipped = clipped_pixels (a, b, ceiling);
+  if (clipped_out)
+    *clipped_out = clipped;
+  if (clipped * 2 <= n_px)
+    return TRUE;
+  g_set_error (error, DS_OPERATING_ERROR, DS_OPERATING_ERROR_CLIPPED,
+               "%.0f %% of the pixels are at the clip level (%.0f DN) in the pilot frames: lower the exposure "
+               "or the gain",
+               100.0 * (double) clipped / (double) n_px, ceiling);
+  return FALSE;
+}
+
 /* a, b: the pair as taken (for the clip count), stat_a, stat_b: what the statistics read (the
  * pair with the clipped places left out, ds_probe_mask_clipped_places ()). envelope_dn >= 0: the harmonics
  * are fitted on the scene's envelope (scene_envelope ()), with this dark level taken off. */
@@ -53,25 +69,47 @@ gboolean
 ds_probe_pair_fit (const DsImage *a, const DsImage *b, const DsImage *stat_a, const DsImage *stat_b, double ceiling,
                    double period, double envelope_dn, DsProbePairFit *out, GError **error)
 {
-  guint64 n_px = (guint64) a->width * a->height, clipped = clipped_pixels (a, b, ceiling);
-  if (clipped * 2 > n_px) {
-    g_set_error (error, DS_OPERATING_ERROR, DS_OPERATING_ERROR_CLIPPED,
-                 "%.0f %% of the pixels are at the clip level (%.0f DN): lower the exposure or the gain",
-                 100.0 * (double) clipped / (double) n_px, ceiling);
+  guint64 clipped = 0;
+  if (!ds_probe_pair_check_clipping (a, b, ceiling, &clipped, error))
     return FALSE;
-  }
   if (!ds_column_stats_compute (stat_a, stat_b, ceiling, &out->stats, error))
     return FALSE;
   out->clipped = clipped;
   guint32 *weight = out->stats.count;
   g_autofree double *envelope = envelope_dn >= 0 ? scene_envelope (&out->stats, envelope_dn) : NULL;
+  g_autoptr (GError) local = NULL;
   if (!(envelope && ds_stripe_harmonics_fit_envelope (out->stats.mean_diff, weight, envelope, 0, out->stats.width,
                                                       period, DS_STRIPE_MAX_HARMONICS, &out->fit, NULL)) &&
       !ds_stripe_harmonics_fit (out->stats.mean_diff, weight, 0, out->stats.width, period,
-                                DS_STRIPE_MAX_HARMONICS, &out->fit, error))
+                                DS_STRIPE_MAX_HARMONICS, &out->fit, &local)) {
+    ds_probe_pair_refuse_unfitted (&out->stats, clipped, ceiling, period, local, error);
     return FALSE;
+  }
   out->ok = TRUE;
   return TRUE;
+}
+
+void
+ds_probe_pair_refuse_unfitted (const DsColumnStats *stats, guint64 clipped, double ceiling, double period,
+                               const GError *fit_error, GError **error)
+{
+  /* Columns drop out of the fit only where every sample of theirs is left out: at the clip
+   * level, or with the places that clip (ds_probe_mask_clipped_places ()). */
+  guint empty = 0;
+  for (guint x = 0; x < stats->width; x++)
+    empty += stats->count[x] == 0;
+  if (clipped > 0 || stats->excluded > 0) {
+    g_set_error (error, DS_OPERATING_ERROR, DS_OPERATING_ERROR_CLIPPED,
+                 "the places at the clip level (%.0f DN) leave %u of %u columns of the pilot frames with no "
+                 "sample to fit the stripes at %g px on: lower the exposure or the gain",
+                 ceiling, stats->width - empty, stats->width, period);
+    return;
+  }
+  if (fit_error)
+    g_propagate_error (error, g_error_copy (fit_error));
+  else
+    g_set_error (error, DS_OPERATING_ERROR, DS_OPERATING_ERROR_NO_STRIPES, "the stripes at %g px could not be fitted",
+                 period);
 }
 
 /* The pilot frames with every sample within half the coarsest period (along x, the stripes'

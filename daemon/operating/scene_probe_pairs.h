@@ -1,7 +1,7 @@
 /* The scene probe's pilot pairs (scene_probe.h): the column statistics and stripe harmonics of
  * one pair of opposite phases, and the places whose stripes' peaks clip, left out of those
  * statistics and counted back into the probe's Ld, its spread and Lg from their troughs.
- * Internal to the scene probe: scene_probe.c is the only user. Pure functions, any thread;
+ * Used by the scene probe (scene_probe.c) and the pilot's stripe check (pilot_stripes.c). Pure functions, any thread;
  * CPU only (passes over the pilot frames). */
 #pragma once
 #include <glib.h>
@@ -24,6 +24,20 @@ typedef struct {
   double fraction;           /* of the samples */
   double mean_peak_over_trough, mean_sq_peak_over_trough, mean_trough;   /* DN, over those samples */
 } DsProbeClippedPlaces;
+
+/* The pilot's rule for clipping: more than half the pixels at the clip level in either frame of
+ * the pair (a sample at the clip level says only that its light is at least that) leave too few
+ * to measure the scene by, and the request is refused with DS_OPERATING_ERROR_CLIPPED, naming the
+ * remedy. clipped_out (may be NULL): the pixels at the clip level. ceiling <= 0: nothing clips. */
+gboolean ds_probe_pair_check_clipping (const DsImage *a, const DsImage *b, double ceiling, guint64 *clipped_out,
+                                       GError **error);
+
+/* Sets *error for a pair's stripe harmonics that could not be fitted (fit_error, may be NULL): where
+ * samples were left out at the clip level (clipped pixels, or stats->excluded), the columns they
+ * emptied are why, and the error is DS_OPERATING_ERROR_CLIPPED with the remedy (lower the exposure
+ * or the gain); otherwise a copy of fit_error. */
+void ds_probe_pair_refuse_unfitted (const DsColumnStats *stats, guint64 clipped, double ceiling, double period,
+                                    const GError *fit_error, GError **error);
 
 /* Fills out, which the caller zeroes first and clears with ds_column_stats_clear (&out->stats)
  * whether or not this succeeds (the statistics may be allocated before the harmonics' fit fails);

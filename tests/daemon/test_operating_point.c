@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "daemon/operating/operating_point.h"
+#include "daemon/operating/stripe_model.h"
 #include "report_json.h"
 
 static DsSeparationParams params; /* square stripes, duty 1/2, no black level */
@@ -232,6 +233,42 @@ test_uncertainty_ld (void)
     g_assert_cmpfloat (moved, <=, 1.02 * term);
     g_assert_cmpfloat (moved, >=, 0.4 * term);
   }
+  /* Scattered stripes: the pilot measures the modulated light Ld (1 + L), so Ld read higher by u
+   * leaves a leak L' = (1 + L)/(1 + u) - 1. sine on sine stripes, with the harmonic gain the
+   * pixels see, reads the modulated light: its noise-free error is L, and it moves by
+   * ln (L / L') ~ (1 + L)/L u: 0.115 for L = 0.1, u = 0.01, eleven times Ld's own move (noise is
+   * small here). */
+  {
+    const double L = 0.1, u = 0.01, P = 12;
+    DsSceneProbe p = probe_of (3000, 3000, 1, log1p (L) / P);
+    p.geometry.kind = DS_PATTERN_SINE;
+    DsSeparationParams sp;
+    ds_separation_params_init (&sp, 8);
+    sp.pattern = DS_PATTERN_SINE;
+    sp.duty = 0.5;
+    sp.harmonic_gain = ds_stripe_harmonic (&p.geometry, 1);
+    p.light.ld_uncertainty = u;
+    DsSceneProbe q = p;
+    q.light.ld_mean *= 1 + u;
+    q.leak.per_px = log1p ((1 + L) / (1 + u) - 1) / P;
+    g_assert_cmpfloat_with_epsilon (ds_scene_probe_leak (&p, P, 1), L, 1e-12);
+    g_autoptr (DsErrorModel) ep = ds_error_model_new (&p, &sp);
+    g_autoptr (DsErrorModel) eq = ds_error_model_new (&q, &sp);
+    DsErrorParts a, b;
+    g_assert_true (ds_error_model_predict (ep, DS_ESTIMATOR_SINE, 8, 1, 1, 0, &a, NULL));
+    g_assert_true (ds_error_model_predict (eq, DS_ESTIMATOR_SINE, 8, 1, 1, 0, &b, NULL));
+    g_assert_cmpfloat_with_epsilon (a.systematic, L, 0.01 * L);
+    double closed = log (L / ((1 + L) / (1 + u) - 1)), moved = log (a.systematic / b.systematic);
+    double with = ds_operating_point_uncertainty (&m, &p, &a);
+    p.light.ld_uncertainty = 0;
+    double without = ds_operating_point_uncertainty (&m, &p, &a);
+    double term = sqrt (with * with - without * without);
+    g_test_message ("leak %g: prediction %.5f -> %.5f (%.4f, closed form %.4f), Ld term %.4f", L, a.total, b.total,
+                    moved, closed, term);
+    g_assert_cmpfloat (closed, >, 10 * u);
+    g_assert_cmpfloat (fabs (moved / closed - 1), <, 0.1);
+    g_assert_cmpfloat (fabs (term / closed - 1), <, 0.1);
+  }
   /* The spread adds in quadrature. */
   DsSceneProbe p = probe_of (400, 800, 3, 0);
   DsErrorParts noise_free = { .total = 0.05, .sampling = 0.05, .systematic = 0.05 };
@@ -382,6 +419,80 @@ test_interval_decision (void)
   g_assert_cmpfloat (op.predicted_error_upper, <=, 1.2 * upper);
 }
 
+/* The points the choice compares are those a request can name (error_model.h): on square
+ * stripes, maxmin and robust only with aN >= 1 and (1 - a)N >= 1, sine with N >= 3, the closed
+ * form written here. At duty 0.396 maxmin N = 2 (aN = 0.79) is refused even though its synthetic
+ * set, which knows the period, separates the pixels fully lit in one phase; so it is never chosen
+ * nor named as the best reachable point, whatever the request. */
+static gboolean
+request_rule (DsEstimator e, guint n, double a)
+{
+  if (e == DS_ESTIMATOR_SINE)
+    return n >= 3;
+  return a * n >= 1 - 1e-9 && (1 - a) * n >= 1 - 1e-9;
+}
+
+static void
+test_request_rule (void)
+{
+  const double duties[] = { 0.2, 0.396, 0.5, 0.73 };
+  const DsEstimator est[] = { DS_ESTIMATOR_MAXMIN, DS_ESTIMATOR_SINE, DS_ESTIMATOR_ROBUST };
+  for (guint d = 0; d < G_N_ELEMENTS (duties); d++) {
+    DsSceneProbe p = probe_of (400, 800, 3, 0);
+    p.geometry.duty = duties[d];
+    p.geometry.period_px = 10;
+    DsSeparationParams sp = params;
+    sp.duty = duties[d];
+    sp.geometry.period_px = 10;
+    sp.geometry.pixel_aperture = 1;
+    g_autoptr (DsErrorModel) em = ds_error_model_new (&p, &sp);
+    for (guint e = 0; e < 3; e++)
+      for (guint n = 2; n <= 8; n++) {
+        g_autoptr (GError) error = NULL;
+        gboolean ok = ds_error_model_request_accepts (em, est[e], n, &error);
+        g_assert_cmpint (ok, ==, request_rule (est[e], n, duties[d]));
+        g_assert_true (ok == (error == NULL));
+      }
+  }
+  /* The choice at duty 0.396 over N = 2, 3, 4 (M = 1, the pilot's exposure): what it chooses for a
+   * budget, and the best point a refusal names, both pass the rule. */
+  DsOperatingModel m;
+  ds_operating_model_init (&m);
+  m.n_phases = 3;
+  m.phases[0] = 2, m.phases[1] = 3, m.phases[2] = 4;
+  m.n_averages = 1;
+  m.averages[0] = 1;
+  m.n_exposure_factors = 1;
+  m.exposure_factors[0] = 1;
+  DsRigTiming t;
+  ds_rig_timing_init (&t);
+  DsSceneProbe p = probe_of (400, 800, 3, 0);
+  p.geometry.duty = 0.396;
+  p.geometry.period_px = 10;
+  p.geometry.blur_px = 0.05;
+  DsSeparationParams sp = params;
+  sp.duty = 0.396;
+  sp.geometry.period_px = 10;
+  sp.geometry.pixel_aperture = 1;
+  g_autoptr (DsErrorModel) em = ds_error_model_new (&p, &sp);
+  /* The synthetic set alone would take maxmin N = 2. */
+  DsErrorParts parts;
+  g_assert_true (ds_error_model_predict (em, DS_ESTIMATOR_MAXMIN, 2, 1, 1, 0, &parts, NULL));
+  DsOperatingPoint op;
+  g_autoptr (GError) error = NULL;
+  g_assert_true (ds_operating_point_choose (&m, em, &p, &t, 256, 192, 0, 1e6, &op, &error));
+  g_assert_true (request_rule (op.estimator, op.phases, 0.396));
+  double fastest = ds_rig_timing_set_ms (&t, 256, 192, 2, 1, p.exposure_us, TRUE);
+  /* A budget only N = 2 fits: nothing a request can name fits it. */
+  g_assert_false (ds_operating_point_choose (&m, em, &p, &t, 256, 192, 0, fastest * 1.01, &op, &error));
+  g_test_message ("%s", error->message);
+  g_clear_error (&error);
+  g_assert_false (ds_operating_point_choose (&m, em, &p, &t, 256, 192, 1e-6, 0, &op, &error));
+  g_assert_nonnull (strstr (error->message, "the best reachable is"));
+  g_assert_true (request_rule (op.estimator, op.phases, 0.396));
+  g_assert_null (strstr (error->message, "maxmin, N=2,"));
+}
+
 int
 main (int argc, char **argv)
 {
@@ -394,5 +505,6 @@ main (int argc, char **argv)
   g_test_add_func ("/operating-point/uncertainty-ld", test_uncertainty_ld);
   g_test_add_func ("/operating-point/report-json", test_report_json);
   g_test_add_func ("/operating-point/model-file", test_model_file);
+  g_test_add_func ("/operating-point/request-rule", test_request_rule);
   return g_test_run ();
 }

@@ -42,16 +42,22 @@ frame (const Scene *s, double phase, gboolean lit, GRand *r)
 }
 
 static gboolean
-check (const Scene *s, DsPilotStripes *out, GError **error)
+check_clip (const Scene *s, double saturation_dn, DsPilotStripes *out, GError **error)
 {
   GRand *r = g_rand_new_with_seed (5);
   g_autoptr (DsImage) dark = frame (s, 0, FALSE, r);
   g_autoptr (DsImage) l0 = frame (s, 0, TRUE, r);
   g_autoptr (DsImage) l1 = frame (s, 0.5, TRUE, r);
   g_rand_free (r);
-  DsProbeFrames f = { .dark = dark, .lit = { l0, l1 }, .exposure_us = 1000, .saturation_dn = 65535,
+  DsProbeFrames f = { .dark = dark, .lit = { l0, l1 }, .exposure_us = 1000, .saturation_dn = saturation_dn,
                       .geometry = { .kind = DS_PATTERN_SQUARE, .period_px = P, .duty = 0.5 } };
   return ds_pilot_stripes_check (&f, out, error);
+}
+
+static gboolean
+check (const Scene *s, DsPilotStripes *out, GError **error)
+{
+  return check_clip (s, 65535, out, error);
 }
 
 static void
@@ -99,11 +105,32 @@ test_no_stripes_refused (void)
   assert_refused (&ripple, "noise-free ripple");
 }
 
+/* Square stripes of duty 1/2: every pixel is lit in one of the two phases. Lit, it holds
+ * 100 + object (stripes + scattered) DN with the object's 0.6 to 1: 100 + 0.6 x 1500 = 1000 at
+ * the least, at or above a clip level of 1000 DN, so every pixel of the pair clips in one frame
+ * and no column keeps a sample. At 1601 DN nothing clips and the stripes pass. */
+static void
+test_clipped_refused (void)
+{
+  const Scene bright = { P, 1000, 500, 0, 0 };
+  g_autoptr (GError) error = NULL;
+  DsPilotStripes st;
+  g_assert_false (check_clip (&bright, 1000, &st, &error));
+  g_assert_error (error, DS_OPERATING_ERROR, DS_OPERATING_ERROR_CLIPPED);
+  g_test_message ("%s", error->message);
+  g_assert_nonnull (strstr (error->message, "100 % of the pixels are at the clip level (1000 DN)"));
+  g_assert_nonnull (strstr (error->message, "lower the exposure or the gain"));
+  g_autoptr (GError) partial = NULL;
+  g_assert_true (check_clip (&bright, 1601, &st, &partial));
+  g_assert_no_error (partial);
+}
+
 int
 main (int argc, char **argv)
 {
   g_test_init (&argc, &argv, NULL);
   g_test_add_func ("/pilot-stripes/stripes-pass", test_stripes_pass);
   g_test_add_func ("/pilot-stripes/no-stripes-refused", test_no_stripes_refused);
+  g_test_add_func ("/pilot-stripes/clipped-refused", test_clipped_refused);
   return g_test_run ();
 }
