@@ -60,6 +60,9 @@ typedef enum {
 /* Templates and repeat detection are kept for up to this many phases (the configuration's
  * limit); beyond it frames are checked against the offset alone. */
 #define DS_PHASE_CHECK_MAX_PHASES 64
+/* Columns of a frame's profile kept to compare the set's frames with each other (a wider
+ * frame is compared on its first this many columns: hundreds of periods of any stripes). */
+#define DS_PHASE_CHECK_PROFILE_MAX 4096
 
 typedef struct {
   double period_px;
@@ -94,6 +97,19 @@ typedef struct {
   gboolean pattern_square;
   double pattern_duty;
   guint frame_width;          /* the last checked frame's width (the measurement's length) */
+  /* What the set's accepted frames share: the sum of their column profiles (rows averaged, the
+   * first profile_width columns), so that structure at a period other than the stripes' is
+   * judged by whether it moves between the set's frames (another illuminator's stripes do,
+   * the object's texture does not). */
+  guint profile_width;        /* columns summed (0: none yet) */
+  guint profile_frames;       /* frames in profile_sum */
+  double level_sum, level_min, level_max; /* their fitted means (the light's level) */
+  double profile_sum[DS_PHASE_CHECK_PROFILE_MAX];
+  /* The set's frame that showed another period before the set had a frame to compare it with
+   * (pending: its phase pending_k); judged by ds_phase_check_confirm against the set's other frames. */
+  gboolean pending;
+  guint pending_k;
+  float pending_profile[DS_PHASE_CHECK_PROFILE_MAX];
   double bend_cycles;         /* ds_phase_check_pattern_bend for bend_n phases and frame_width */
   guint bend_n, bend_width;
 } DsPhaseCheck;
