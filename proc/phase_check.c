@@ -602,7 +602,7 @@ ds_phase_check_frame (DsPhaseCheck *check, const DsImage *frame, guint k, guint 
   g_autoptr (DsImage) profile = column_profile (&rows);
   if (!profile || !ds_stripe_phase_measure (profile, check->period_px, NULL, &sp, &error)) {
     /* Nothing measured is nothing known: refused like a frame without stripes. */
-    *why = g_strdup_printf ("stripe phase not measurable: %s", error ? error->message : "out of memory");
+    *why = g_strdup_printf ("stripe phase not measurable: %s", error ? error->message : "no column profile of the frame");
     return DS_PHASE_VERDICT_NO_STRIPES;
   }
   *measured_cycles = sp.phase;
@@ -632,8 +632,11 @@ ds_phase_check_frame (DsPhaseCheck *check, const DsImage *frame, guint k, guint 
     sp.reliable = sp.snr >= DS_STRIPE_PHASE_MIN_SNR;
   }
   double c[2] = { sp.amplitude * cos (2.0 * G_PI * sp.phase), sp.amplitude * sin (2.0 * G_PI * sp.phase) };
-  /* A frame without stripes at the configured period. Stripes of another period are never a
-   * correct frame's (a wrong period-px, another pattern): refused. Otherwise it is refused
+  /* A frame without stripes at the configured period. Another pattern's stripes (a wrong
+   * period-px, another pattern lit) are never a correct frame's: refused; but another period
+   * that stays put between the set's frames is the object's texture, and says nothing of the
+   * illuminator (moving_period). A frame whose light fell by what the illuminator adds is
+   * unlit: refused (unlit_margin). Otherwise it is refused
    * where the scene is expected to show stripes at phase k at 2 x PHASE_CHECK_SIGMAS of the
    * frame's noise (a correct frame then falls below the PHASE_CHECK_SIGMAS that make stripes
    * with probability 3e-7): an illuminator switched off, a frame of the dark, a surplus frame.

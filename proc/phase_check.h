@@ -18,11 +18,19 @@
  * that move with the phase, so a correct frame shows them, and shows them move, unless the
  * scene is known not to (its own texture or its scattering hides them there):
  * - a frame without stripes at the configured period is NO_STRIPES (refused) when it shows
- *   another period, or when the scene is expected to show stripes at phase k: the template of
- *   phase k is strong, or, without templates, the set's frames predict them (a first harmonic
- *   b + a e^{i 2 pi k / N} fitted to them), or nothing is known yet (the projected pattern).
- *   It passes unverified only where the scene is known to show none at k (the template of k,
- *   or the set's fit, is too weak to show 10 noise sigmas);
+ *   another pattern's stripes, when its light lies below the set's by what the illuminator
+ *   adds (a quarter of the moving first harmonic: unlit), or when the scene is expected to
+ *   show stripes at phase k: the template of phase k is strong, or, without templates, the
+ *   set's frames predict them (a first harmonic b + a e^{i 2 pi k / N} fitted to them), or
+ *   nothing is known yet (the projected pattern). It passes unverified only where the scene
+ *   is known to show none at k (the template of k, or the set's fit, is too weak to show 10
+ *   noise sigmas). Another period the frame shows is another pattern's only if it moved: the
+ *   frame's column profile less the set's mean profile keeps what changed between the frames
+ *   (the object's texture, lit by the same mean light at every phase, cancels); with the
+ *   stripes' own change fitted out, another period that changed more than the stripes did is
+ *   another pattern's. A set's first frame, with nothing to compare, is judged so by
+ *   ds_phase_check_confirm. A frame too weak to verify whose fit leaves much more than its
+ *   noise is judged against the set the same way;
  * - a frame equal within its noise to the set's frame of another phase is a repeat when correct
  *   frames of the two phases are known to lie far enough apart (templates, or the set's other
  *   adjacent phases), when nothing is known yet (the projected stripes move), or when it is the
