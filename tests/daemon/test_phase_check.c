@@ -627,6 +627,90 @@ test_static_texture (void)
   }
 }
 
+/* A set's first frame that shows another period has nothing in the set yet to compare it
+ * with: it must still be refused, by the frame's check (where the scene is expected to show
+ * stripes there) or by the set's when it is complete. Stripes of 8 noise sigmas at every phase
+ * (no texture at the stripe period), static texture at TEX_PERIOD. After two correct sets, a
+ * set whose frame 0 is lit by an illuminator of another period (no stripes at the configured
+ * one) is not a correct set: refused. The correct set after it passes. */
+static DsImage *
+render_plain_frame (guint k, gboolean wrong, GRand *rng)
+{
+  const double level = 2000, texture = 30, a = 8, wrong_a = 30;
+  double profile[W];
+  for (guint x = 0; x < W; x++) {
+    double v = level + texture * cos (2.0 * G_PI * x / TEX_PERIOD + 0.7);
+    v += wrong ? wrong_a * cos (2.0 * G_PI * (x / TEX_WRONG_PERIOD - (double) k / 4))
+               : a * cos (2.0 * G_PI * (x / TEX_STRIPE_PERIOD - (double) k / 4));
+    profile[x] = v;
+  }
+  DsImage *img = ds_image_new (DS_SAMPLE_U16, W, H, NULL);
+  img->bit_depth = 16;
+  for (guint y = 0; y < H; y++) {
+    guint16 *row = ds_image_row (img, y);
+    for (guint x = 0; x < W; x++) {
+      double u1 = g_rand_double_range (rng, 1e-12, 1.0), u2 = g_rand_double (rng);
+      double v = profile[x] + TEX_SIGMA * sqrt (-2.0 * log (u1)) * cos (2.0 * G_PI * u2);
+      row[x] = (guint16) floor (CLAMP (v, 0.0, 65535.0) + 0.5);
+    }
+  }
+  return img;
+}
+
+/* One set of 4; *at_confirm TRUE when it was refused by ds_phase_check_confirm. */
+static gboolean
+plain_set_passes (DsPhaseCheck *c, gboolean wrong_first, GRand *rng, gboolean *at_confirm, char **why)
+{
+  *at_confirm = FALSE;
+  ds_phase_check_begin_set (c);
+  for (guint k = 0; k < 4; k++) {
+    gboolean passed = FALSE;
+    for (guint i = 0; i <= 3 && !passed; i++) {
+      g_autoptr (DsImage) img = render_plain_frame (k, wrong_first && k == 0, rng);
+      double measured;
+      g_clear_pointer (why, g_free);
+      DsPhaseVerdict v = ds_phase_check_frame (c, img, k, 4, &measured, why);
+      passed = v == DS_PHASE_VERDICT_OK || v == DS_PHASE_VERDICT_UNVERIFIABLE;
+    }
+    if (!passed) {
+      ds_phase_check_abandon (c);
+      return FALSE;
+    }
+  }
+  g_clear_pointer (why, g_free);
+  if (ds_phase_check_confirm (c, why))
+    return TRUE;
+  *at_confirm = TRUE;
+  ds_phase_check_abandon (c);
+  return FALSE;
+}
+
+static void
+test_other_period_first_frame (void)
+{
+  g_autofree char *why = NULL;
+  guint by_confirm = 0;
+  for (guint32 seed = 1; seed <= 20; seed++) {
+    GRand *rng = g_rand_new_with_seed (seed);
+    DsPhaseCheck c;
+    ds_phase_check_init (&c, TEX_STRIPE_PERIOD, ds_phase_check_default_tolerance_deg (4));
+    ds_phase_check_set_pattern (&c, FALSE, 0.5);
+    gboolean at_confirm;
+    for (guint i = 0; i < 2; i++)
+      if (!plain_set_passes (&c, FALSE, rng, &at_confirm, &why))
+        g_error ("seed %u: correct set %u refused: %s", seed, i, why);
+    if (plain_set_passes (&c, TRUE, rng, &at_confirm, &why))
+      g_error ("seed %u: a first frame lit with stripes of %.1f px passed", seed, TEX_WRONG_PERIOD);
+    by_confirm += at_confirm;
+    if (seed == 1)
+      g_test_message ("%s", why);
+    if (!plain_set_passes (&c, FALSE, rng, &at_confirm, &why))
+      g_error ("seed %u: the correct set after it refused: %s", seed, why);
+    g_rand_free (rng);
+  }
+  g_test_message ("%u of 20 refused when the set was complete", by_confirm);
+}
+
 int
 main (int argc, char **argv)
 {
@@ -640,6 +724,7 @@ main (int argc, char **argv)
   g_test_add_func ("/phase-check/pixel-noise-integer", test_pixel_noise_integer);
   g_test_add_func ("/phase-check/pixel-noise-shot", test_pixel_noise_shot);
   g_test_add_func ("/phase-check/static-texture", test_static_texture);
+  g_test_add_func ("/phase-check/other-period-first-frame", test_other_period_first_frame);
   int status = g_test_run ();
   g_free (bank);
   return status;
