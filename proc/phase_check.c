@@ -43,6 +43,9 @@ ds_phase_check_begin_set (DsPhaseCheck *check)
   check->set_by_template = FALSE;
   check->set_unverified = 0;
   memset (check->set_refused_as, 0, sizeof check->set_refused_as);
+  check->profile_width = 0;
+  check->profile_frames = 0;
+  check->pending = FALSE;
   check->provisional = TRUE;
 }
 
@@ -52,30 +55,63 @@ ds_phase_check_begin_set (DsPhaseCheck *check)
  * result. A view of every step-th row: no copy. */
 #define PHASE_CHECK_MIN_ROWS 256
 
-/* The stripe period the frame does show, when the configured one finds nothing: the rows are
- * averaged into one profile, and the first harmonic is fitted at candidate periods 2 % apart,
- * from just above Nyquist to a quarter of the width. The best one, if it is reliable, else NAN.
- * A failure path only (a frame that could not be verified): a few hundred fits of one row. */
+/* The rows' column profile: each column's mean over the rows (its finite samples; NAN where
+ * there are none), one row of floats. The stripes vary along x only, so everything the check
+ * measures at a period (the stripes', or another) is in it; measured once per frame and kept
+ * for the set (profile_sum). Integer columns are summed in 32 bits: exact for the fewer than
+ * 512 rows the check reads (511 x 65535 < 2^32). */
+static DsImage *
+column_profile (const DsImage *rows)
+{
+  DsImage *profile = ds_image_new (DS_SAMPLE_F32, rows->width, 1, NULL);
+  if (!profile)
+    return NULL;
+  float *out = ds_image_row (profile, 0);
+  if (rows->type == DS_SAMPLE_F32) {
+    g_autofree double *sum = g_new0 (double, rows->width);
+    g_autofree guint *count = g_new0 (guint, rows->width);
+    for (guint y = 0; y < rows->height; y++) {
+      const float *row = ds_image_row (rows, y);
+      for (guint x = 0; x < rows->width; x++)
+        if (isfinite (row[x])) {
+          sum[x] += row[x];
+          count[x]++;
+        }
+    }
+    for (guint x = 0; x < rows->width; x++)
+      out[x] = count[x] ? (float) (sum[x] / count[x]) : NAN;
+    return profile;
+  }
+  g_autofree guint32 *acc = g_new0 (guint32, rows->width);
+  for (guint y = 0; y < rows->height; y++) {
+    const void *row = ds_image_row (rows, y);
+    if (rows->type == DS_SAMPLE_U16) {
+      const guint16 *r = row;
+      for (guint x = 0; x < rows->width; x++)
+        acc[x] += r[x];
+    } else {
+      const guint8 *r = row;
+      for (guint x = 0; x < rows->width; x++)
+        acc[x] += r[x];
+    }
+  }
+  for (guint x = 0; x < rows->width; x++)
+    out[x] = (float) ((double) acc[x] / rows->height);
+  return profile;
+}
+
+/* The stripe period a profile does show, when the configured one finds nothing: the first
+ * harmonic is fitted at candidate periods 2 % apart, from just above Nyquist to a quarter of
+ * the width. The best one, if it is reliable, else NAN. A failure path only (a frame that
+ * could not be verified): a few hundred fits of one row. */
 static double
-dominant_period (const DsImage *rows, double *best_snr)
+dominant_period (const DsImage *profile, double *best_snr)
 {
   *best_snr = 0;
-  g_autoptr (DsImage) profile = ds_image_new (DS_SAMPLE_F32, rows->width, 1, NULL);
-  if (!profile || rows->width < 16)
+  if (profile->width < 16)
     return NAN;
-  float *out = ds_image_row (profile, 0);
-  for (guint x = 0; x < rows->width; x++) {
-    double sum = 0;
-    for (guint y = 0; y < rows->height; y++) {
-      const guint8 *row = ds_image_row (rows, y);
-      sum += rows->type == DS_SAMPLE_U8    ? ((const guint8 *) row)[x]
-             : rows->type == DS_SAMPLE_U16 ? ((const guint16 *) row)[x]
-                                           : ((const float *) row)[x];
-    }
-    out[x] = (float) (sum / rows->height);
-  }
   double best = NAN;
-  for (double p = 2.2; p <= rows->width / 4.0; p *= 1.02) {
+  for (double p = 2.2; p <= profile->width / 4.0; p *= 1.02) {
     DsStripePhase sp;
     if (ds_stripe_phase_measure (profile, p, NULL, &sp, NULL) && sp.reliable && sp.snr > *best_snr) {
       *best_snr = sp.snr;
@@ -83,6 +119,50 @@ dominant_period (const DsImage *rows, double *best_snr)
     }
   }
   return best;
+}
+
+/* The harmonics of the configured stripes taken out of a difference of profiles before it is
+ * measured at another period: square stripes' harmonics up to the eighth carry more than
+ * 2 / (pi 8) of the first's amplitude at most, and the projector's blur and the scattering take
+ * the higher ones further down. */
+#define OWN_HARMONICS 8
+
+/* The period of stripes that moved between the set's frames, judged on `d`: one frame's profile
+ * less what the set's other frames share (their mean profile). The object's texture is lit by
+ * the same mean light at every phase, so it is the same in every frame and cancels in d; what
+ * is left is how the frame's light changed against the others': the illuminator's stripes
+ * moving on (their period and its harmonics, as the pixels fold them), the noise, and what
+ * should not be there, another illuminator's stripes (a wrong period-px, another pattern) that
+ * the other frames lack or show elsewhere. The stripes' own change is fitted and taken out of
+ * d, and the strongest other period of what is left (reliable: 5 sigmas out of the rest) is
+ * another pattern's when it changed more than the stripes did (the largest of their harmonics'
+ * changes): the object's texture under the moving stripes also changes, at its own periods
+ * beside the stripes', but at most by the stripes' change times the texture's contrast, never
+ * more than the stripes' change itself. Returns that period, else NAN; d is changed. */
+static double
+moving_period (const DsPhaseCheck *check, DsImage *d, double *moved_snr)
+{
+  *moved_snr = 0;
+  float *v = ds_image_row (d, 0);
+  double own_change = 0;
+  for (guint m = 1; m <= OWN_HARMONICS; m++) {
+    double f = m / check->period_px;
+    f = fabs (f - floor (f + 0.5)); /* as sampled on pixels: folded into [0, 1/2] */
+    if (!(f * d->width >= 2.0) || !(1.0 / f > 2.0))
+      continue; /* fewer than two periods across (the mean's), or Nyquist */
+    DsStripePhase sp;
+    if (!ds_stripe_phase_measure (d, 1.0 / f, NULL, &sp, NULL))
+      continue;
+    own_change = MAX (own_change, sp.amplitude);
+    for (guint x = 0; x < d->width; x++)
+      v[x] -= (float) (sp.amplitude * cos (2.0 * G_PI * (x * f - sp.phase)));
+  }
+  double snr = 0, other = dominant_period (d, &snr);
+  DsStripePhase moved;
+  if (!isfinite (other) || !ds_stripe_phase_measure (d, other, NULL, &moved, NULL) || !(moved.amplitude > own_change))
+    return NAN;
+  *moved_snr = snr;
+  return other;
 }
 
 /* The temporal noise of one pixel, from the differences of adjacent rows: the stripes vary
@@ -190,11 +270,11 @@ ds_phase_check_pixel_noise (const DsImage *frame)
  * frame does show (stripes of another period: a wrong period-px, or another pattern lit), NAN
  * when none stands out. */
 static double
-no_stripes (const DsPhaseCheck *check, const DsImage *rows, const DsStripePhase *sp, guint k, char **why)
+no_stripes (const DsPhaseCheck *check, const DsImage *profile, const DsStripePhase *sp, guint k, char **why)
 {
   /* Say what to check: a wrong period-px shows as stripes at another period. */
   double found_snr = 0;
-  double found = dominant_period (rows, &found_snr);
+  double found = dominant_period (profile, &found_snr);
   if (isfinite (found))
     *why = g_strdup_printf ("no stripes at the configured period of %.1f px to verify phase %u (snr %.1f < %.1f), "
                             "but the frame shows stripes with a period of about %.1f px (snr %.0f): "
@@ -317,8 +397,23 @@ repeat_of (const DsPhaseCheck *check, const double c[2], double sigma, guint k, 
 }
 
 static void
-set_add (DsPhaseCheck *check, const double c[2], double sigma, guint k, gboolean verified)
+set_add (DsPhaseCheck *check, const double c[2], double sigma, guint k, gboolean verified, const DsImage *profile,
+         double level)
 {
+  guint pw = MIN (profile->width, DS_PHASE_CHECK_PROFILE_MAX);
+  if (check->profile_frames > 0 && check->profile_width != pw) {
+    /* frames of another size in one set: what the earlier ones share says nothing of it */
+    check->profile_frames = 0;
+    check->pending = FALSE;
+  }
+  check->level_sum = (check->profile_frames ? check->level_sum : 0.0) + level;
+  check->level_min = check->profile_frames ? MIN (check->level_min, level) : level;
+  check->level_max = check->profile_frames ? MAX (check->level_max, level) : level;
+  const float *v = ds_image_row (profile, 0);
+  for (guint x = 0; x < pw; x++)
+    check->profile_sum[x] = (check->profile_frames ? check->profile_sum[x] : 0.0) + v[x];
+  check->profile_width = pw;
+  check->profile_frames++;
   check->set_frames++;
   check->set_noise2 = MAX (check->set_noise2, sigma * sigma);
   check->set_sum[k][0] += c[0];
@@ -366,27 +461,13 @@ template_verdict (const DsPhaseCheck *check, const double c[2], double sigma, gu
   return *err <= *tol_k ? DS_PHASE_VERDICT_OK : DS_PHASE_VERDICT_WRONG;
 }
 
-/* How strong the first harmonic of a correct frame of phase k is expected to be at least, from
- * what is known of the scene, in the DN of the frames; INFINITY when nothing is known yet.
- *
- * The physics: a frame's first harmonic at the stripe period is c_k = b + a e^{i 2 pi k / N}
- * + the smaller bins: a moves with the illuminator (the projected stripes on the object's mean),
- * b does not (the object's own texture at the stripe period under the stripes' mean). A correct
- * frame shows no stripes only where b cancels a e^{i 2 pi k / N}, or where the scene lets no
- * stripes through at all; the illuminator projects stripes at every phase, so without evidence
- * of either, stripes are expected (INFINITY). The evidence:
- * - templates (the last verified set's frames): |T_k|, phase k's own, which carries b;
- * - else the set's frames of at least two phases: b and a fitted to them by least squares,
- *   |b + a e^{i 2 pi k / N}| less |a| / 2 for the bins the fit leaves out (the texture at twice
- *   the stripe frequency, bin -1, reaches a third of |a| for a transmittance in [0, 1]; the
- *   square stripes' aliased harmonics less) and for its own error. */
-static double
-expected_stripes (const DsPhaseCheck *check, guint k, guint n)
+/* b and a fitted to the set's frames (the phases it holds, at least two): FALSE when they do
+ * not determine them. */
+static gboolean
+set_fit (const DsPhaseCheck *check, guint n, double a[2], double b[2])
 {
-  if (check->prior_n == n)
-    return hypot (check->prior[k][0], check->prior[k][1]);
   if (check->set_n != n)
-    return INFINITY;
+    return FALSE;
   /* Normal equations of min sum_h |m_h - b - a z_h|^2 over the phases the set holds, z_h on the
    * unit circle: b K + a S = M, b conj(S) + a K = Z, with S = sum z_h, M = sum m_h,
    * Z = sum conj(z_h) m_h. */
@@ -406,13 +487,95 @@ expected_stripes (const DsPhaseCheck *check, guint k, guint n)
   }
   double det = K * K - (S[0] * S[0] + S[1] * S[1]);
   if (K < 2 || !(det > 1e-9 * K * K))
-    return INFINITY;
+    return FALSE;
   /* a = (K Z - conj(S) M) / det, b = (M - a S) / K */
-  double a[2] = { (K * Z[0] - (S[0] * M[0] + S[1] * M[1])) / det, (K * Z[1] - (S[0] * M[1] - S[1] * M[0])) / det };
-  double b[2] = { (M[0] - (a[0] * S[0] - a[1] * S[1])) / K, (M[1] - (a[0] * S[1] + a[1] * S[0])) / K };
+  a[0] = (K * Z[0] - (S[0] * M[0] + S[1] * M[1])) / det;
+  a[1] = (K * Z[1] - (S[0] * M[1] - S[1] * M[0])) / det;
+  b[0] = (M[0] - (a[0] * S[0] - a[1] * S[1])) / K;
+  b[1] = (M[1] - (a[0] * S[1] + a[1] * S[0])) / K;
+  return TRUE;
+}
+
+/* How strong the first harmonic of a correct frame of phase k is expected to be at least, from
+ * what is known of the scene, in the DN of the frames; INFINITY when nothing is known yet.
+ *
+ * The physics: a frame's first harmonic at the stripe period is c_k = b + a e^{i 2 pi k / N}
+ * + the smaller bins: a moves with the illuminator (the projected stripes on the object's mean),
+ * b does not (the object's own texture at the stripe period under the stripes' mean). A correct
+ * frame shows no stripes only where b cancels a e^{i 2 pi k / N}, or where the scene lets no
+ * stripes through at all; the illuminator projects stripes at every phase, so without evidence
+ * of either, stripes are expected (INFINITY). The evidence:
+ * - templates (the last verified set's frames): |T_k|, phase k's own, which carries b;
+ * - else the set's frames of at least two phases: b and a fitted to them by least squares,
+ *   |b + a e^{i 2 pi k / N}| less |a| / 2 for the bins the fit leaves out (the texture at twice
+ *   the stripe frequency, bin -1, reaches a third of |a| for a transmittance in [0, 1]; the
+ *   square stripes' aliased harmonics less) and for its own error. */
+static double
+expected_stripes (const DsPhaseCheck *check, guint k, guint n)
+{
+  if (check->prior_n == n)
+    return hypot (check->prior[k][0], check->prior[k][1]);
+  double a[2], b[2];
+  if (!set_fit (check, n, a, b))
+    return INFINITY;
   double w = 2.0 * G_PI * (double) k / n;
   double pred[2] = { b[0] + a[0] * cos (w) - a[1] * sin (w), b[1] + a[0] * sin (w) + a[1] * cos (w) };
   return MAX (0.0, hypot (pred[0], pred[1]) - 0.5 * hypot (a[0], a[1]));
+}
+
+/* The illuminator's light in the profile's mean is at least half the amplitude of the part of
+ * its first harmonic that moves with the phase: light is never negative, and a non-negative
+ * profile's first harmonic is at most twice its mean (a comb of narrow stripes; sine stripes
+ * of full contrast, once). So a frame lit without the illuminator lies at least |a| / 2 below
+ * the set's frames, and a correct one only by its noise and how the light varies between the
+ * set's frames: the decision is taken at |a| / 4, halfway, and never within 5 noise sigmas of
+ * the set's level or twice the spread of the set's own levels. Returns how far below the set
+ * the frame lies beyond that threshold (> 0: unlit), with the figures for the message. */
+static double
+unlit_margin (const DsPhaseCheck *check, guint n, double level, double sigma, double *drop, double *moving)
+{
+  *drop = *moving = 0;
+  if (check->profile_frames == 0 || !(sigma > 0) || !isfinite (level))
+    return -INFINITY;
+  double a[2], b[2];
+  if (set_fit (check, n, a, b))
+    *moving = hypot (a[0], a[1]);
+  else if (check->prior_n == n) {
+    double b1[2] = { 0, 0 };
+    for (guint h = 0; h < n; h++) {
+      double w = -2.0 * G_PI * (double) h / n;
+      b1[0] += (check->prior[h][0] * cos (w) - check->prior[h][1] * sin (w)) / n;
+      b1[1] += (check->prior[h][0] * sin (w) + check->prior[h][1] * cos (w)) / n;
+    }
+    *moving = hypot (b1[0], b1[1]);
+  } else
+    return -INFINITY;
+  *drop = check->level_sum / check->profile_frames - level;
+  double threshold = MAX (0.25 * *moving, MAX (PHASE_CHECK_SIGMAS * sigma * sqrt (1.0 + 1.0 / check->profile_frames),
+                                               2.0 * (check->level_max - check->level_min)));
+  return *drop - threshold;
+}
+
+/* The frame's profile against the set's accepted frames (moving_period): FALSE when the set
+ * holds none of its size to compare with; else *moved the period of another pattern's stripes
+ * that changed, NAN when none did. */
+static gboolean
+against_set (const DsPhaseCheck *check, const DsImage *profile, double *moved, double *moved_snr)
+{
+  *moved = NAN;
+  *moved_snr = 0;
+  guint pw = MIN (profile->width, DS_PHASE_CHECK_PROFILE_MAX);
+  if (check->profile_frames == 0 || check->profile_width != pw)
+    return FALSE;
+  g_autoptr (DsImage) d = ds_image_new (DS_SAMPLE_F32, pw, 1, NULL);
+  if (!d)
+    return FALSE;
+  float *dv = ds_image_row (d, 0);
+  const float *pv = ds_image_row (profile, 0);
+  for (guint x = 0; x < pw; x++)
+    dv[x] = (float) (pv[x] - check->profile_sum[x] / check->profile_frames);
+  *moved = moving_period (check, d, moved_snr);
+  return TRUE;
 }
 
 DsPhaseVerdict
@@ -436,9 +599,10 @@ ds_phase_check_frame (DsPhaseCheck *check, const DsImage *frame, guint k, guint 
     check->unverified++;
     return DS_PHASE_VERDICT_UNVERIFIABLE;
   }
-  if (!ds_stripe_phase_measure (&rows, check->period_px, NULL, &sp, &error)) {
+  g_autoptr (DsImage) profile = column_profile (&rows);
+  if (!profile || !ds_stripe_phase_measure (profile, check->period_px, NULL, &sp, &error)) {
     /* Nothing measured is nothing known: refused like a frame without stripes. */
-    *why = g_strdup_printf ("stripe phase not measurable: %s", error->message);
+    *why = g_strdup_printf ("stripe phase not measurable: %s", error ? error->message : "no column profile of the frame");
     return DS_PHASE_VERDICT_NO_STRIPES;
   }
   *measured_cycles = sp.phase;
@@ -460,15 +624,19 @@ ds_phase_check_frame (DsPhaseCheck *check, const DsImage *frame, guint k, guint 
    * object's, not another pattern's): fine stripes on a textured object (periods near 2.5 px
    * under a black level leave a fit snr of 0.05 with the stripes at 10 noise sigmas). */
   double noise_snr = sigma > 0 ? sp.amplitude / sigma : 0;
+  double fit_snr = sp.snr;
   double other_snr = 0;
   if (sp.amplitude > 0 && sigma > 0 &&
-      (sp.snr >= 0.3 || (noise_snr >= DS_STRIPE_PHASE_MIN_SNR && !isfinite (dominant_period (&rows, &other_snr))))) {
+      (sp.snr >= 0.3 || (noise_snr >= DS_STRIPE_PHASE_MIN_SNR && !isfinite (dominant_period (profile, &other_snr))))) {
     sp.snr = noise_snr;
     sp.reliable = sp.snr >= DS_STRIPE_PHASE_MIN_SNR;
   }
   double c[2] = { sp.amplitude * cos (2.0 * G_PI * sp.phase), sp.amplitude * sin (2.0 * G_PI * sp.phase) };
-  /* A frame without stripes at the configured period. Stripes of another period are never a
-   * correct frame's (a wrong period-px, another pattern): refused. Otherwise it is refused
+  /* A frame without stripes at the configured period. Another pattern's stripes (a wrong
+   * period-px, another pattern lit) are never a correct frame's: refused; but another period
+   * that stays put between the set's frames is the object's texture, and says nothing of the
+   * illuminator (moving_period). A frame whose light fell by what the illuminator adds is
+   * unlit: refused (unlit_margin). Otherwise it is refused
    * where the scene is expected to show stripes at phase k at 2 x PHASE_CHECK_SIGMAS of the
    * frame's noise (a correct frame then falls below the PHASE_CHECK_SIGMAS that make stripes
    * with probability 3e-7): an illuminator switched off, a frame of the dark, a surplus frame.
@@ -476,8 +644,43 @@ ds_phase_check_frame (DsPhaseCheck *check, const DsImage *frame, guint k, guint 
    * show no stripes there (expected_stripes). */
   if (!sp.reliable || sp.snr < check->min_confidence || !(sigma > 0)) {
     double noise = isfinite (sigma) && sigma > 0 ? sigma : sp.amplitude;
-    if (isfinite (no_stripes (check, &rows, &sp, k, why)))
+    double other = no_stripes (check, profile, &sp, k, why);
+    gboolean pend = FALSE;
+    if (isfinite (other)) {
+      /* Another period. Another illuminator's stripes (a wrong period-px, another pattern)
+       * move between the set's frames; the object's texture, lit by the same mean light at
+       * every phase, does not: judged against the frames the set holds, or, when it holds none
+       * yet of this size, by ds_phase_check_confirm against those that follow. */
+      double moved_snr = 0, moved = NAN;
+      if (!against_set (check, profile, &moved, &moved_snr))
+        pend = TRUE;
+      else {
+        if (isfinite (moved)) {
+          char *said = *why;
+          *why = g_strdup_printf ("%s; against the set's other frames, stripes of about %.1f px changed more than "
+                                  "the configured ones (snr %.0f): another pattern's, not the object's texture, "
+                                  "which stays put",
+                                  said, moved, moved_snr);
+          g_free (said);
+          return DS_PHASE_VERDICT_NO_STRIPES;
+        }
+        /* The object's: the frame is one without stripes at the configured period. */
+        g_free (*why);
+        *why = g_strdup_printf ("no stripes at the configured period of %.1f px to verify phase %u (snr %.1f < %.1f); "
+                                "the structure of about %.1f px the frame shows is the same in the set's other "
+                                "frames (the object's)",
+                                check->period_px, k, sp.snr, check->min_confidence, other);
+      }
+    }
+    double drop, moving;
+    if (unlit_margin (check, n, sp.mean, noise, &drop, &moving) > 0) {
+      g_free (*why);
+      *why = g_strdup_printf ("no stripes at the configured period of %.1f px to verify phase %u (snr %.1f < %.1f), "
+                              "and the frame's light lies %.1f DN below the set's other frames, where the "
+                              "illuminator's is at least %.1f DN: a frame without the illuminator's light",
+                              check->period_px, k, sp.snr, check->min_confidence, drop, 0.5 * moving);
       return DS_PHASE_VERDICT_NO_STRIPES;
+    }
     double expected = expected_stripes (check, k, n);
     if (!(expected < 2.0 * PHASE_CHECK_SIGMAS * noise)) {
       char *said = *why;
@@ -489,17 +692,35 @@ ds_phase_check_frame (DsPhaseCheck *check, const DsImage *frame, guint k, guint 
       g_free (said);
       return DS_PHASE_VERDICT_NO_STRIPES;
     }
-    set_add (check, c, noise, k, FALSE);
+    set_add (check, c, noise, k, FALSE, profile, sp.mean);
+    if (pend) {
+      check->pending = TRUE;
+      check->pending_k = k;
+      memcpy (check->pending_profile, ds_image_row (profile, 0), check->profile_width * sizeof (float));
+    }
     return DS_PHASE_VERDICT_UNVERIFIABLE;
   }
   double sigma_cycles = sigma / sp.amplitude / (2.0 * G_PI);
   double tol = check->tolerance_cycles;
   if (!(PHASE_CHECK_SIGMAS * sigma_cycles <= tol)) {
+    /* Stripes too weak to tell the phase: the frame joins the set unverified, so it must at
+     * least be the illuminator's. Where the frame holds much more than its stripes and its
+     * noise (the fit's residual twice the pixel noise), that may be another pattern's stripes
+     * beside a weak first harmonic of the object's texture at the configured period:
+     * judged against the set's frames as a frame without stripes is (moving_period). */
+    double moved, moved_snr;
+    if (fit_snr < 0.5 * noise_snr && against_set (check, profile, &moved, &moved_snr) && isfinite (moved)) {
+      *why = g_strdup_printf ("stripes too weak to verify phase %u of %u (snr %.0f), and against the set's other "
+                              "frames stripes of about %.1f px changed more than the configured ones (snr %.0f): "
+                              "another pattern's: check [illuminator] period-px",
+                              k, n, sp.amplitude / sigma, moved, moved_snr);
+      return DS_PHASE_VERDICT_NO_STRIPES;
+    }
     *why = g_strdup_printf ("stripes too weak to verify phase %u of %u: the measured phase's noise (%.2f deg) "
                             "times %.0f exceeds the tolerance of %.1f deg (snr %.0f; more light or "
                             "averaging, or fewer phases)",
                             k, n, sigma_cycles * 360.0, PHASE_CHECK_SIGMAS, tol * 360.0, sp.amplitude / sigma);
-    set_add (check, c, sigma, k, FALSE);
+    set_add (check, c, sigma, k, FALSE, profile, sp.mean);
     return DS_PHASE_VERDICT_UNVERIFIABLE;
   }
   guint rep = n;
@@ -529,7 +750,7 @@ ds_phase_check_frame (DsPhaseCheck *check, const DsImage *frame, guint k, guint 
                             "stripes that move with the phase are too weak so far to tell a repeat from a "
                             "correct frame: the set is checked as a whole",
                             k, rep);
-    set_add (check, c, sigma, k, FALSE);
+    set_add (check, c, sigma, k, FALSE, profile, sp.mean);
     return DS_PHASE_VERDICT_UNVERIFIABLE;
   }
   gboolean templates = check->prior_n == n;
@@ -555,7 +776,7 @@ ds_phase_check_frame (DsPhaseCheck *check, const DsImage *frame, guint k, guint 
       }
     }
   }
-  set_add (check, c, sigma, k, TRUE);
+  set_add (check, c, sigma, k, TRUE, profile, sp.mean);
   return DS_PHASE_VERDICT_OK;
 }
 
@@ -665,6 +886,28 @@ ds_phase_check_confirm (DsPhaseCheck *check, char **why)
       return FALSE;
     }
     fewest = MIN (fewest, check->set_count[h]);
+  }
+  /* A frame that showed another period before the set held a frame to compare it with: the
+   * set's other frames now tell whether that structure moved (moving_period). */
+  if (check->pending && check->profile_frames > 1) {
+    guint pw = check->profile_width;
+    g_autoptr (DsImage) d = ds_image_new (DS_SAMPLE_F32, pw, 1, NULL);
+    if (d) {
+      float *dv = ds_image_row (d, 0);
+      for (guint x = 0; x < pw; x++)
+        dv[x] = (float) (check->pending_profile[x] -
+                         (check->profile_sum[x] - check->pending_profile[x]) / (check->profile_frames - 1));
+      double moved_snr = 0, moved = moving_period (check, d, &moved_snr);
+      if (isfinite (moved)) {
+        *why = g_strdup_printf ("phase check of the whole set: its frame of phase %u shows no stripes at the "
+                                "configured period of %.1f px, and against the set's other frames stripes of "
+                                "about %.1f px changed more than the configured ones (snr %.0f): check "
+                                "[illuminator] period-px",
+                                check->pending_k, check->period_px, moved, moved_snr);
+        check->prior_n = 0;
+        return FALSE;
+      }
+    }
   }
   /* bin 0 (the fixed part) and bin 1 (the moving part) of the DFT over the phases. */
   double b0[2] = { 0, 0 }, b1[2] = { 0, 0 };

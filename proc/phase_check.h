@@ -18,11 +18,19 @@
  * that move with the phase, so a correct frame shows them, and shows them move, unless the
  * scene is known not to (its own texture or its scattering hides them there):
  * - a frame without stripes at the configured period is NO_STRIPES (refused) when it shows
- *   another period, or when the scene is expected to show stripes at phase k: the template of
- *   phase k is strong, or, without templates, the set's frames predict them (a first harmonic
- *   b + a e^{i 2 pi k / N} fitted to them), or nothing is known yet (the projected pattern).
- *   It passes unverified only where the scene is known to show none at k (the template of k,
- *   or the set's fit, is too weak to show 10 noise sigmas);
+ *   another pattern's stripes, when its light lies below the set's by what the illuminator
+ *   adds (a quarter of the moving first harmonic: unlit), or when the scene is expected to
+ *   show stripes at phase k: the template of phase k is strong, or, without templates, the
+ *   set's frames predict them (a first harmonic b + a e^{i 2 pi k / N} fitted to them), or
+ *   nothing is known yet (the projected pattern). It passes unverified only where the scene
+ *   is known to show none at k (the template of k, or the set's fit, is too weak to show 10
+ *   noise sigmas). Another period the frame shows is another pattern's only if it moved: the
+ *   frame's column profile less the set's mean profile keeps what changed between the frames
+ *   (the object's texture, lit by the same mean light at every phase, cancels); with the
+ *   stripes' own change fitted out, another period that changed more than the stripes did is
+ *   another pattern's. A set's first frame, with nothing to compare, is judged so by
+ *   ds_phase_check_confirm. A frame too weak to verify whose fit leaves much more than its
+ *   noise is judged against the set the same way;
  * - a frame equal within its noise to the set's frame of another phase is a repeat when correct
  *   frames of the two phases are known to lie far enough apart (templates, or the set's other
  *   adjacent phases), when nothing is known yet (the projected stripes move), or when it is the
@@ -60,6 +68,9 @@ typedef enum {
 /* Templates and repeat detection are kept for up to this many phases (the configuration's
  * limit); beyond it frames are checked against the offset alone. */
 #define DS_PHASE_CHECK_MAX_PHASES 64
+/* Columns of a frame's profile kept to compare the set's frames with each other (a wider
+ * frame is compared on its first this many columns: hundreds of periods of any stripes). */
+#define DS_PHASE_CHECK_PROFILE_MAX 4096
 
 typedef struct {
   double period_px;
@@ -94,6 +105,19 @@ typedef struct {
   gboolean pattern_square;
   double pattern_duty;
   guint frame_width;          /* the last checked frame's width (the measurement's length) */
+  /* What the set's accepted frames share: the sum of their column profiles (rows averaged, the
+   * first profile_width columns), so that structure at a period other than the stripes' is
+   * judged by whether it moves between the set's frames (another illuminator's stripes do,
+   * the object's texture does not). */
+  guint profile_width;        /* columns summed (0: none yet) */
+  guint profile_frames;       /* frames in profile_sum */
+  double level_sum, level_min, level_max; /* their fitted means (the light's level) */
+  double profile_sum[DS_PHASE_CHECK_PROFILE_MAX];
+  /* The set's frame that showed another period before the set had a frame to compare it with
+   * (pending: its phase pending_k); judged by ds_phase_check_confirm against the set's other frames. */
+  gboolean pending;
+  guint pending_k;
+  float pending_profile[DS_PHASE_CHECK_PROFILE_MAX];
   double bend_cycles;         /* ds_phase_check_pattern_bend for bend_n phases and frame_width */
   guint bend_n, bend_width;
 } DsPhaseCheck;

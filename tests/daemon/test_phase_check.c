@@ -18,6 +18,7 @@
 #include <stdlib.h>
 
 #include "proc/phase_check.h"
+#include "proc/stripe_phase.h"
 
 #define W 256
 #define H 32
@@ -516,6 +517,200 @@ test_pattern_bend (void)
   g_assert_cmpfloat (reference_bend (0.5, 64, 1024, 8) * 8, <, 0.01);
 }
 
+/* Static texture at another period over weak stripes. The frames are written in closed form as
+ * their column profile plus Gaussian pixel noise: the object's texture under the stripes' mean
+ * light is the same in every frame (a strong component at TEX_PERIOD, and one at the stripe
+ * period that cancels the stripes at phase N / 2 exactly: b = -a e^{i pi}), the stripes move
+ * with the phase (amplitude a, 4 noise sigmas of the first harmonic: too weak to verify a
+ * phase, the set is checked as a whole). The product of the stripes with the texture is left
+ * out: it is not what is tested. Correct frame k shows, at the stripe period,
+ * |b + a e^{i 2 pi k / N}| = 2 a sin (pi |k - N/2| / N): none at N / 2, where only the
+ * texture's period stands out. Physics says every frame of the set is correct: none may be
+ * refused. The same set with frame N / 2 lit by an illuminator of another period, whose stripes
+ * move between phases, or lit by the ambient light alone, is not a correct set: refused. */
+#define TEX_N 8
+#define TEX_PERIOD 25.6
+#define TEX_STRIPE_PERIOD 16.0
+#define TEX_WRONG_PERIOD 21.3
+#define TEX_SIGMA 64.0 /* DN per pixel: the first harmonic's noise is 64 sqrt (2 / (32 256)) = 1 DN */
+
+typedef enum { TEX_CORRECT, TEX_WRONG_PERIOD_AT_HALF, TEX_UNLIT_AT_HALF } TexCase;
+
+static DsImage *
+render_texture_frame (guint k, TexCase what, GRand *rng)
+{
+  const double level = 2000, ambient = 500, texture = 30, a = 4, wrong = 30;
+  gboolean at_half = k == TEX_N / 2;
+  double light = what == TEX_UNLIT_AT_HALF && at_half ? ambient / (level + ambient) : 1.0;
+  double profile[W];
+  for (guint x = 0; x < W; x++) {
+    /* the static part, under the light that reaches the object */
+    double v = light * (level + ambient + texture * cos (2.0 * G_PI * x / TEX_PERIOD + 0.7) -
+                        a * cos (2.0 * G_PI * (x / TEX_STRIPE_PERIOD - 0.5)));
+    if (what == TEX_WRONG_PERIOD_AT_HALF && at_half)
+      v += wrong * cos (2.0 * G_PI * (x / TEX_WRONG_PERIOD - (double) k / TEX_N));
+    else if (light == 1.0)
+      v += a * cos (2.0 * G_PI * (x / TEX_STRIPE_PERIOD - (double) k / TEX_N));
+    profile[x] = v;
+  }
+  DsImage *img = ds_image_new (DS_SAMPLE_U16, W, H, NULL);
+  img->bit_depth = 16;
+  for (guint y = 0; y < H; y++) {
+    guint16 *row = ds_image_row (img, y);
+    for (guint x = 0; x < W; x++) {
+      double u1 = g_rand_double_range (rng, 1e-12, 1.0), u2 = g_rand_double (rng);
+      double v = profile[x] + TEX_SIGMA * sqrt (-2.0 * log (u1)) * cos (2.0 * G_PI * u2);
+      row[x] = (guint16) floor (CLAMP (v, 0.0, 65535.0) + 0.5);
+    }
+  }
+  return img;
+}
+
+/* One set (a first set: nothing known yet), a refused frame taken again up to 3 times as the
+ * sequencer does (phase-retries' default: a correct frame's noise may hide weak stripes once);
+ * TRUE when every frame passed and the set was confirmed. */
+static gboolean
+texture_set_passes (TexCase what, guint32 seed, char **why)
+{
+  GRand *rng = g_rand_new_with_seed (seed);
+  DsPhaseCheck c;
+  ds_phase_check_init (&c, TEX_STRIPE_PERIOD, ds_phase_check_default_tolerance_deg (TEX_N));
+  ds_phase_check_set_pattern (&c, FALSE, 0.5);
+  ds_phase_check_begin_set (&c);
+  gboolean passed = TRUE;
+  for (guint k = 0; k < TEX_N && passed; k++) {
+    passed = FALSE;
+    for (guint i = 0; i <= 3 && !passed; i++) {
+      g_autoptr (DsImage) img = render_texture_frame (k, what, rng);
+      double measured;
+      g_clear_pointer (why, g_free);
+      DsPhaseVerdict v = ds_phase_check_frame (&c, img, k, TEX_N, &measured, why);
+      passed = v == DS_PHASE_VERDICT_OK || v == DS_PHASE_VERDICT_UNVERIFIABLE;
+    }
+  }
+  if (passed) {
+    g_clear_pointer (why, g_free);
+    passed = ds_phase_check_confirm (&c, why);
+  }
+  g_rand_free (rng);
+  return passed;
+}
+
+static void
+test_static_texture (void)
+{
+  /* The premise, from the closed form: at phase N / 2 the frame's first harmonic at the stripe
+   * period is b + a e^{i pi} = 0 while the texture's is 30 DN: only another period shows. */
+  {
+    GRand *rng = g_rand_new_with_seed (1);
+    g_autoptr (DsImage) img = render_texture_frame (TEX_N / 2, TEX_CORRECT, rng);
+    DsStripePhase at_stripes, at_texture;
+    g_assert_true (ds_stripe_phase_measure (img, TEX_STRIPE_PERIOD, NULL, &at_stripes, NULL));
+    g_assert_true (ds_stripe_phase_measure (img, TEX_PERIOD, NULL, &at_texture, NULL));
+    g_assert_cmpfloat (at_stripes.amplitude, <, 1.0 * 5);  /* 5 noise sigmas of 1 DN */
+    g_assert_cmpfloat (fabs (at_texture.amplitude - 30.0), <, 5.0);
+    g_rand_free (rng);
+  }
+  g_autofree char *why = NULL;
+  for (guint32 seed = 1; seed <= 20; seed++) {
+    if (!texture_set_passes (TEX_CORRECT, seed, &why))
+      g_error ("seed %u: a correct set over static texture refused: %s", seed, why);
+    if (texture_set_passes (TEX_WRONG_PERIOD_AT_HALF, seed, &why))
+      g_error ("seed %u: a frame lit with stripes of %.1f px instead of %.1f px passed", seed, TEX_WRONG_PERIOD,
+               TEX_STRIPE_PERIOD);
+    if (seed == 1)
+      g_test_message ("wrong period: %s", why);
+    if (texture_set_passes (TEX_UNLIT_AT_HALF, seed, &why))
+      g_error ("seed %u: a frame without the illuminator's light passed", seed);
+    if (seed == 1)
+      g_test_message ("unlit: %s", why);
+  }
+}
+
+/* A set's first frame that shows another period has nothing in the set yet to compare it
+ * with: it must still be refused, by the frame's check (where the scene is expected to show
+ * stripes there) or by the set's when it is complete. Stripes of 8 noise sigmas at every phase
+ * (no texture at the stripe period), static texture at TEX_PERIOD. After two correct sets, a
+ * set whose frame 0 is lit by an illuminator of another period (no stripes at the configured
+ * one) is not a correct set: refused. The correct set after it passes. */
+static DsImage *
+render_plain_frame (guint k, gboolean wrong, GRand *rng)
+{
+  const double level = 2000, texture = 30, a = 8, wrong_a = 30;
+  double profile[W];
+  for (guint x = 0; x < W; x++) {
+    double v = level + texture * cos (2.0 * G_PI * x / TEX_PERIOD + 0.7);
+    v += wrong ? wrong_a * cos (2.0 * G_PI * (x / TEX_WRONG_PERIOD - (double) k / 4))
+               : a * cos (2.0 * G_PI * (x / TEX_STRIPE_PERIOD - (double) k / 4));
+    profile[x] = v;
+  }
+  DsImage *img = ds_image_new (DS_SAMPLE_U16, W, H, NULL);
+  img->bit_depth = 16;
+  for (guint y = 0; y < H; y++) {
+    guint16 *row = ds_image_row (img, y);
+    for (guint x = 0; x < W; x++) {
+      double u1 = g_rand_double_range (rng, 1e-12, 1.0), u2 = g_rand_double (rng);
+      double v = profile[x] + TEX_SIGMA * sqrt (-2.0 * log (u1)) * cos (2.0 * G_PI * u2);
+      row[x] = (guint16) floor (CLAMP (v, 0.0, 65535.0) + 0.5);
+    }
+  }
+  return img;
+}
+
+/* One set of 4; *at_confirm TRUE when it was refused by ds_phase_check_confirm. */
+static gboolean
+plain_set_passes (DsPhaseCheck *c, gboolean wrong_first, GRand *rng, gboolean *at_confirm, char **why)
+{
+  *at_confirm = FALSE;
+  ds_phase_check_begin_set (c);
+  for (guint k = 0; k < 4; k++) {
+    gboolean passed = FALSE;
+    for (guint i = 0; i <= 3 && !passed; i++) {
+      g_autoptr (DsImage) img = render_plain_frame (k, wrong_first && k == 0, rng);
+      double measured;
+      g_clear_pointer (why, g_free);
+      DsPhaseVerdict v = ds_phase_check_frame (c, img, k, 4, &measured, why);
+      passed = v == DS_PHASE_VERDICT_OK || v == DS_PHASE_VERDICT_UNVERIFIABLE;
+    }
+    if (!passed) {
+      ds_phase_check_abandon (c);
+      return FALSE;
+    }
+  }
+  g_clear_pointer (why, g_free);
+  if (ds_phase_check_confirm (c, why))
+    return TRUE;
+  *at_confirm = TRUE;
+  ds_phase_check_abandon (c);
+  return FALSE;
+}
+
+static void
+test_other_period_first_frame (void)
+{
+  g_autofree char *why = NULL;
+  guint by_confirm = 0;
+  for (guint32 seed = 1; seed <= 20; seed++) {
+    GRand *rng = g_rand_new_with_seed (seed);
+    DsPhaseCheck c;
+    ds_phase_check_init (&c, TEX_STRIPE_PERIOD, ds_phase_check_default_tolerance_deg (4));
+    ds_phase_check_set_pattern (&c, FALSE, 0.5);
+    gboolean at_confirm;
+    for (guint i = 0; i < 2; i++)
+      if (!plain_set_passes (&c, FALSE, rng, &at_confirm, &why))
+        g_error ("seed %u: correct set %u refused: %s", seed, i, why);
+    if (plain_set_passes (&c, TRUE, rng, &at_confirm, &why))
+      g_error ("seed %u: a first frame lit with stripes of %.1f px passed", seed, TEX_WRONG_PERIOD);
+    by_confirm += at_confirm;
+    if (seed == 1)
+      g_test_message ("%s", why);
+    if (!plain_set_passes (&c, FALSE, rng, &at_confirm, &why))
+      g_error ("seed %u: the correct set after it refused: %s", seed, why);
+    g_rand_free (rng);
+  }
+  g_test_message ("%u of 20 refused when the set was complete", by_confirm);
+}
+
 int
 main (int argc, char **argv)
 {
@@ -528,6 +723,8 @@ main (int argc, char **argv)
   g_test_add_func ("/phase-check/repeat-in-first-set", test_repeat_in_first_set);
   g_test_add_func ("/phase-check/pixel-noise-integer", test_pixel_noise_integer);
   g_test_add_func ("/phase-check/pixel-noise-shot", test_pixel_noise_shot);
+  g_test_add_func ("/phase-check/static-texture", test_static_texture);
+  g_test_add_func ("/phase-check/other-period-first-frame", test_other_period_first_frame);
   int status = g_test_run ();
   g_free (bank);
   return status;
