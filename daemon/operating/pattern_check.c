@@ -14,8 +14,23 @@
  * duty to about 0.01 on clear scenes and 0.02 under scattering and blur (tests/daemon/
  * test_pattern_check.c); the estimators' systematic error from a duty 0.05 off is a few %. */
 #define DUTY_TOLERANCE 0.05
-/* The same for the off-stripe level against the black level. */
+/* The same for the off-stripe level against the black level where the stripes reach it. The
+ * level is read from the troughs, whose depth the blur and the pixel scale by the first
+ * harmonic's factor g1 = exp (-2 pi^2 sigma^2 / P^2) sinc (1 / P) (stripe_model.h): the fit
+ * extrapolates the rest, so a misfit of the pattern's shape (a Gaussian for the true edge, a
+ * pixel of the whole pitch) moves the level by its share of the trough divided by g1. The
+ * tolerance at a period is LEVEL_TOLERANCE / g1 there. */
 #define LEVEL_TOLERANCE 0.03
+/* A pair in which more than this share of the pixels has a sample at the clip level shows the
+ * stripes only where the scene is dim and at their edges (the lit centres of the bright parts
+ * are gone): the profile's positions are then unevenly sampled and neither the duty nor the
+ * level can be read from it, so the pair is not measured. */
+#define CLIPPED_SHARE_MAX 0.02
+/* A sensor's clip level below the pixel format's top (a full well reached before the ADC's top)
+ * shows as a pile-up: the highest value held by at least this share of the samples and by more
+ * of them than the value 1 DN below. Light alone never does that: the brightest samples are a
+ * distribution's tail, which thins towards its top. */
+#define PILE_UP_SHARE 0.005
 /* Dim and bright stripe centres (relative to their surroundings) must differ this much in
  * brightness for the off-stripe fraction to tell a black level from scattered light. */
 #define MIN_BRIGHTNESS_RATIO 1.5
@@ -164,6 +179,62 @@ typedef struct {
   double *brightness, *off;
 } Centres;
 
+/* The clip level the pair shows: saturation (0 = none) or a pile-up below it (PILE_UP_SHARE). */
+static double
+clip_level (const DsImage *l0, const DsImage *l1, double saturation)
+{
+  const DsImage *f[2] = { l0, l1 };
+  double top = -INFINITY;
+  for (guint k = 0; k < 2; k++)
+    for (guint y = 0; y < f[k]->height; y++) {
+      const void *row = ds_image_row (f[k], y);
+      for (guint x = 0; x < f[k]->width; x++) {
+        double v = ds_image_sample (f[k], row, x);
+        if (isfinite (v) && (saturation <= 0 || v < saturation))
+          top = MAX (top, v);
+      }
+    }
+  if (!isfinite (top))
+    return saturation;
+  guint64 at = 0, below = 0, n = 0;
+  for (guint k = 0; k < 2; k++)
+    for (guint y = 0; y < f[k]->height; y++) {
+      const void *row = ds_image_row (f[k], y);
+      for (guint x = 0; x < f[k]->width; x++) {
+        double v = ds_image_sample (f[k], row, x);
+        n++;
+        at += v == top;
+        below += v < top && v >= top - 1;
+      }
+    }
+  if ((double) at >= PILE_UP_SHARE * (double) n && at > below)
+    return top;
+  return saturation;
+}
+
+/* The share of the pixels with a sample at or above clip in either frame (clip 0 = none). */
+static double
+clipped_share (const DsImage *l0, const DsImage *l1, double clip)
+{
+  if (!(clip > 0))
+    return 0;
+  guint64 n = 0;
+  for (guint y = 0; y < l0->height; y++) {
+    const void *r0 = ds_image_row (l0, y), *r1 = ds_image_row (l1, y);
+    for (guint x = 0; x < l0->width; x++)
+      n += ds_image_sample (l0, r0, x) >= clip || ds_image_sample (l1, r1, x) >= clip;
+  }
+  return (double) n / ((double) l0->width * l0->height);
+}
+
+/* g1, the first harmonic's factor from the blur sigma and the whole pixel at period P. */
+static double
+trough_gain (double period, double blur)
+{
+  double f = 1 / period;
+  return exp (-2 * G_PI * G_PI * blur * blur * f * f) * sin (G_PI * f) / (G_PI * f);
+}
+
 /* One pair: the binned profile (proc/stripe_profile.h) and its fits; with centres, also the
  * stripe-centre pixels. */
 static void
@@ -174,6 +245,10 @@ check_pair (const DsImage *dark, const DsImage *l0, const DsImage *l1, double pe
   out->period_px = period;
   double offset;
   if (period <= 2 || period > l0->width || !ds_stripe_profile_offset (l0, l1, period, &offset))
+    return;
+  saturation = clip_level (l0, l1, saturation);
+  out->clipped_share = clipped_share (l0, l1, saturation);
+  if (out->clipped_share > CLIPPED_SHARE_MAX)
     return;
   /* The frames' shapes were checked (ds_probe_frames_check): this cannot fail. */
   g_autoptr (DsStripeProfile) prof = ds_stripe_profile_bin (dark, l0, l1, period, offset, saturation, N_BINS, NULL);
@@ -199,6 +274,9 @@ check_pair (const DsImage *dark, const DsImage *l0, const DsImage *l1, double pe
   out->blur_px = free.blur;
   out->fit_rms = free.rms;
   out->configured_rms = configured.rms;
+  /* g1 below 0.1 leaves the troughs too shallow to read a level at all; the floor keeps a
+   * black level far off (a few tenths) refused there */
+  out->level_tolerance = LEVEL_TOLERANCE / MAX (0.1, trough_gain (period, free.blur));
   if (!centres)
     return;
   gsize npix = (gsize) l0->width * l0->height;
@@ -290,7 +368,10 @@ ds_pattern_check (const DsProbeFrames *f, DsPatternCheck *out, GError **error)
               conf->duty, out->duty, at, out->off_level, conf->black_level);
     return TRUE;
   }
-  if (out->off_level < conf->black_level - LEVEL_TOLERANCE) {
+  /* Neither blur nor scattered light lowers the level: a pair reading it below the black level
+   * by more than its own tolerance (LEVEL_TOLERANCE / g1 at its period) is a wrong one. */
+  if (p->off_level < conf->black_level - p->level_tolerance ||
+      (q->measured && q->off_level < conf->black_level - q->level_tolerance)) {
     g_autofree char *low = conf->kind == DS_PATTERN_SINE
                              ? g_strdup (seen)
                              : g_strdup_printf ("the pilot frames show an off-stripe level of only %.2f of the lit level",

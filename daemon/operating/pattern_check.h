@@ -20,6 +20,10 @@
  *   operating_point.assumptions name that assumption.
  * Where the illuminator can change its period, the pair at 2P is checked as well (stripes twice
  * as wide are less blurred, so the duty is read better there).
+ * The level is read from the troughs, which the blur and the pixel keep by g1, the first
+ * harmonic's factor: its tolerance is LEVEL_TOLERANCE / g1 at each pair's period. A pair with
+ * more than a few % of its pixels clipped (the format's top, or a pile-up below it where a full
+ * well is reached first) has lost its bright stripe centres and is not judged.
  *
  * Pure function, any thread; CPU only (one pass over each pair of frames). */
 #pragma once
@@ -41,11 +45,14 @@ typedef enum {
 
 /* What one pair of opposite phases shows. */
 typedef struct {
-  gboolean measured;             /* FALSE: too few lit pixels or no stripes at this period */
+  gboolean measured;             /* FALSE: too few lit pixels, no stripes at this period, or more
+                                    than a few % of the pixels clipped */
   double period_px;
   double duty, off_level, blur_px; /* the fit: a, b', sigma */
   double fit_rms;                /* rms of r about the fit */
   double configured_rms;         /* rms of r about the best fit with the configured a and b' >= b */
+  double level_tolerance;        /* how far b' may fall below b: LEVEL_TOLERANCE / g1 (pattern_check.c) */
+  double clipped_share;          /* pixels with a sample at the clip level (or a pile-up below it) */
   guint64 pixels;
 } DsPatternPair;
 
