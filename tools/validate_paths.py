@@ -2,10 +2,13 @@
 """The automatic operating point validated through both ways a user starts descatterd
 (docs/accuracy.md, "Validation"). For every generated scene S:
 
-- path `sim`: `descatterd --sim --scene S`, the daemon knowing the simulated pattern;
+- path `sim`: `descatterd --sim --scene S`, the daemon knowing the simulated pattern (written as
+  a configuration with the sim backends when S sets an exposure);
 - path `rig`: the documented rig workflow: `descatterctl calibrate` against the daemon on the
   clear reference of S (the same illuminator, camera and sensor; no medium, objects or ambient
   light), its `[illuminator]` lines pasted into descatterd.conf, then the daemon on S.
+Both paths run the camera at S's `[sensor] exposure-us` (`[camera] exposure-us`), as a user sets
+the camera up for the scene in front of it.
 
 Each request (`capture --target-error T`, `capture --time-budget-ms B`) goes to the daemon over
 its socket; the transmissive image it returns is compared with the simulator's truth at the
@@ -300,10 +303,15 @@ def run_path(tools, path, scene, name, requests, rows, phase):
     text = open(scene).read()
     base = [dict(scene=name, path=path, request=f"{k} {a}") for k, a in requests]
     try:
-        conf = None
+        # The camera runs at the scene's own exposure, as a user sets the camera up for what it
+        # looks at; descatterd's built-in 5000 us clips the pilot of many generated scenes, whose
+        # refusals would then say nothing about the model.
+        exposure = value(text, "sensor", "exposure-us")
+        camera = "[camera]\nbackend=sim\n" + (f"exposure-us={float(exposure):g}\n" if exposure else "")
+        conf = camera + "[illuminator]\nbackend=sim\n" if exposure else None
         if path == "rig":
             lines = calibrate_lines(tools, text, phase[path])
-            conf = "[camera]\nbackend=sim\n[illuminator]\nbackend=sim\n" + "\n".join(lines) + "\n"
+            conf = camera + "[illuminator]\nbackend=sim\n" + "\n".join(lines) + "\n"
         d = Daemon(tools, scene, conf)
     except (RuntimeError, subprocess.SubprocessError) as e:
         for row in base:
