@@ -37,19 +37,15 @@ BIN, PYDIR, SRC, MODE = sys.argv[1:5]
 sys.path.insert(0, PYDIR)
 import descatter  # noqa: E402
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from daemon_checks import check, failures, flagged_fraction  # noqa: E402
+
 DAEMON = os.path.join(BIN, "descatterd")
 CTL = os.path.join(BIN, "descatterctl")
 BAR = os.path.join(SRC, "tests", "daemon", "motion-bar.scene")
 # The bar scene's geometry (motion-bar.scene).
 WIDTH, BAR_W, BAR_T = 128, 24, 0.2
 KAPPA = {"sine": 4 * (1 / 12 + 1 / (2 * math.pi ** 2)), "maxmin": 1.5}
-failures = []
-
-
-def check(cond, what):
-    print(("ok   " if cond else "FAIL ") + what, flush=True)
-    if not cond:
-        failures.append(what)
 
 
 class Daemon:
@@ -190,46 +186,16 @@ def speed_checks(tmp):
         d.stop()
 
 
-def flagged_fraction(sock, captures):
-    """Still pixels flagged over `captures` sets, and over as many per-frame results (the
-    sliding window of continuous mode); each with the last result's settings."""
-    flagged = total = 0
-    with descatter.Client(sock) as c:
-        for _ in range(captures):
-            r = c.capture(phases=8, estimator="sine", outputs=["mask"])
-            check(r.meta["separation"]["motion_checked"], "the motion bit was judged")
-            flagged += r.meta["separation"]["flagged"]["motion"]
-            total += r.meta["width"] * r.meta["height"]
-    per_set = (flagged / total, r.meta["settings"])
-    flagged = total = 0
-    with descatter.Client(sock) as sub, descatter.Client(sock) as c:
-        with sub.subscribe() as events:
-            c.start(phases=8, estimator="sine", results="per-frame")
-            try:
-                got = 0
-                for ev in events.results():
-                    meta = ev.result.meta
-                    check(meta["separation"]["motion_checked"], "per-frame: the motion bit was judged")
-                    flagged += meta["separation"]["flagged"]["motion"]
-                    total += meta["width"] * meta["height"]
-                    got += 1
-                    if got == captures:
-                        break
-            finally:
-                c.stop()
-    return per_set, (flagged / total, meta["settings"])
-
-
 def noise_checks(tmp):
     base = f"[sim]\nscene={BAR}\n[acquisition]\ndetect-motion=true\n"
     d = Daemon(tmp, "median", base)
     try:
-        runs_without = flagged_fraction(d.sock, 4)
+        runs_without = flagged_fraction(descatter, d.sock, 4, 4)
     finally:
         d.stop()
     d = Daemon(tmp, "model", base, camera="gain-dn-per-e=0.25\nread-noise-dn=1.5\n")
     try:
-        runs_with = flagged_fraction(d.sock, 4)
+        runs_with = flagged_fraction(descatter, d.sock, 4, 4)
     finally:
         d.stop()
     for mode, (without, s0), (with_model, s1) in zip(("per set", "per frame"), runs_without, runs_with):

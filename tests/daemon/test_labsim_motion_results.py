@@ -38,13 +38,11 @@ slow: per-frame results at labsim's frame rate to two slow subscribers, one read
   within two results per subscriber (the one being written and the newest), and after the pause
   it gets, within what was already on its way, a result as new as the daemon had published when
   the pause ended."""
-import ctypes
 import json
 import math
 import os
 import re
 import signal
-import socket
 import subprocess
 import sys
 import tempfile
@@ -54,6 +52,9 @@ import time
 BIN, PYDIR, SRC, MODE = sys.argv[1:5]
 sys.path.insert(0, PYDIR)
 import descatter  # noqa: E402
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from daemon_checks import RawSubscriber, check, failures, flagged_fraction, set_id, spawn  # noqa: E402
 
 DAEMON = os.path.join(BIN, "descatterd")
 CTL = os.path.join(BIN, "descatterctl")
@@ -65,21 +66,6 @@ WIDTH, BAR_X, BAR_W, BAR_T = 128, 40, 24, 0.2
 # model's derivation in daemon/operating/motion_term.h); the departure itself averages to 1/4.
 EDGE_MSE = {"sine": 1 / 12 + 1 / (2 * math.pi ** 2), "maxmin": 3 / 8}
 PAUSE_RESULTS = 40
-failures = []
-
-
-def check(cond, what):
-    print(("ok   " if cond else "FAIL ") + what, flush=True)
-    if not cond:
-        failures.append(what)
-
-
-def die_with_parent():
-    ctypes.CDLL(None).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG: nothing outlives the test
-
-
-def spawn(argv, **kw):
-    return subprocess.Popen(argv, preexec_fn=die_with_parent, **kw)
 
 
 def stop_process(proc, what):
@@ -271,48 +257,18 @@ def speed_checks(tmp):
         labsim.stop()
 
 
-def flagged_fraction(sock, captures):
-    """Still pixels flagged over `captures` sets, and over as many per-frame results (the sliding
-    window of continuous mode); each with the last result's settings."""
-    flagged = total = 0
-    with descatter.Client(sock) as c:
-        for _ in range(captures):
-            r = c.capture(phases=8, estimator="sine", outputs=["mask"])
-            check(r.meta["separation"]["motion_checked"], "the motion bit was judged")
-            flagged += r.meta["separation"]["flagged"]["motion"]
-            total += r.meta["width"] * r.meta["height"]
-    per_set = (flagged / total, r.meta["settings"])
-    flagged = total = 0
-    with descatter.Client(sock) as sub, descatter.Client(sock) as c:
-        with sub.subscribe() as events:
-            c.start(phases=8, estimator="sine", results="per-frame")
-            try:
-                got = 0
-                for ev in events.results():
-                    meta = ev.result.meta
-                    check(meta["separation"]["motion_checked"], "per-frame: the motion bit was judged")
-                    flagged += meta["separation"]["flagged"]["motion"]
-                    total += meta["width"] * meta["height"]
-                    got += 1
-                    if got == 4 * captures:
-                        break
-            finally:
-                c.stop()
-    return per_set, (flagged / total, meta["settings"])
-
-
 def noise_checks(tmp):
     labsim = Labsim(tmp, BAR)
     try:
         conf = "[acquisition]\ndetect-motion=true\n"
         d = Daemon(tmp, "median", labsim, conf)
         try:
-            runs_without = flagged_fraction(d.sock, 4)
+            runs_without = flagged_fraction(descatter, d.sock, 4, 16)
         finally:
             d.stop()
         d = Daemon(tmp, "model", labsim, conf, camera="gain-dn-per-e=0.25\nread-noise-dn=1.5\n")
         try:
-            runs_with = flagged_fraction(d.sock, 4)
+            runs_with = flagged_fraction(descatter, d.sock, 4, 16)
         finally:
             d.stop()
     finally:
@@ -326,43 +282,6 @@ def noise_checks(tmp):
         check(with_model <= 3e-3, f"{mode}: noise model: at most 3e-3 of still pixels flagged ({with_model:.2e})")
         check(without > 3e-3 and without > with_model,
               f"{mode}: without it, more are flagged ({without:.2e} > {with_model:.2e})")
-
-
-class RawSubscriber:
-    """A subscription read by hand: every event's header, its payloads read and counted."""
-
-    def __init__(self, path):
-        self.sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
-        self.sock.settimeout(120)
-        self.sock.connect(path)
-        self.f = self.sock.makefile("rb")
-        self.sock.sendall(b'{"id": 1, "cmd": "subscribe"}\n')
-        reply = json.loads(self.f.readline())
-        assert reply["ok"] and reply["result"]["subscribed"], reply
-        self.events = []
-
-    def read_result(self):
-        while True:
-            line = self.f.readline()
-            assert line.endswith(b"\n"), f"the connection ended inside a line: {line[:80]!r}"
-            h = json.loads(line)  # a torn message would leave payload bytes here
-            want = sum(p["bytes"] for p in h.get("payloads", []))
-            got = len(self.f.read(want)) if want else 0
-            assert got == want, f"{got} payload bytes of {want}"
-            self.events.append(h)
-            if h.get("event") == "result":
-                return h
-
-    def results(self):
-        return [h for h in self.events if h.get("event") == "result"]
-
-    def close(self):
-        self.f.close()
-        self.sock.close()
-
-
-def set_id(h):
-    return h["body"]["set_id"]
 
 
 def check_steps(what, ids, skipped):

@@ -13,32 +13,18 @@ Usage: test_no_stripes_rig.py BINDIR ARV_FAKE_GV_CAMERA SCENE
 - `descatterctl capture --target-error` is refused with the wire code `failed` (not
   `bad_argument`: the request was fine, the scene is not) and the reason: no stripes at the
   configured period."""
-import ctypes
 import json
 import os
-import signal
 import subprocess
 import sys
 import tempfile
 import time
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from daemon_checks import check, failures, spawn  # noqa: E402
+
 BIN, FAKE, SCENE = sys.argv[1:4]
 CTL = os.path.join(BIN, "descatterctl")
-failures = []
-
-
-def check(cond, what):
-    print(("ok   " if cond else "FAIL ") + what, flush=True)
-    if not cond:
-        failures.append(what)
-
-
-def die_with_parent():
-    ctypes.CDLL(None).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG: nothing outlives the test
-
-
-def spawn(argv, **kw):
-    return subprocess.Popen(argv, preexec_fn=die_with_parent, **kw)
 
 
 def stop(proc):

@@ -18,61 +18,18 @@ Checked, each against an independent count:
   - a fast subscriber (the Python client) gets every result: skipped 0, every set id;
   - per-set mode is unchanged: a subscriber pausing over several sets still gets each of them.
 Usage: test_slow_subscriber.py DESCATTERD DESCATTERCTL PYTHON_PACKAGE_DIR"""
-import json
 import math
 import os
-import socket
 import sys
 import tempfile
 import threading
 import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from daemon_checks import RawSubscriber, set_id  # noqa: E402
 from live_daemon import LiveDaemon  # noqa: E402
 
 PAUSE_RESULTS = 40
-
-
-class RawSubscriber:
-    """A subscription read by hand: every event as (header, payload byte count)."""
-
-    def __init__(self, path):
-        self.sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
-        self.sock.settimeout(120)
-        self.sock.connect(path)
-        self.f = self.sock.makefile("rb")
-        self.sock.sendall(b'{"id": 1, "cmd": "subscribe"}\n')
-        reply = json.loads(self.f.readline())
-        assert reply["ok"] and reply["result"]["subscribed"], reply
-        self.next_seq = reply["result"]["next_seq"]
-        self.events = []
-
-    def read(self):
-        line = self.f.readline()
-        assert line.endswith(b"\n"), f"the connection ended inside a line: {line[:80]!r}"
-        h = json.loads(line)  # a torn message would leave payload bytes here
-        want = sum(p["bytes"] for p in h.get("payloads", []))
-        got = len(self.f.read(want)) if want else 0
-        assert got == want, f"{got} payload bytes of {want}"
-        self.events.append(h)
-        return h
-
-    def read_result(self):
-        while True:
-            h = self.read()
-            if h.get("event") == "result":
-                return h
-
-    def results(self):
-        return [h for h in self.events if h.get("event") == "result"]
-
-    def close(self):
-        self.f.close()
-        self.sock.close()
-
-
-def set_id(h):
-    return h["body"]["set_id"]
 
 
 def frame_id(h):

@@ -1,0 +1,99 @@
+"""What the Python tests of tests/daemon share: a list of failed checks, child processes that
+cannot outlive the test, a subscription read by hand, and the share of still pixels the motion
+bit flags. Import it after putting this folder on sys.path; a test reports `failures` at its
+end, so it sees every check, its own and those made here."""
+import ctypes
+import json
+import signal
+import socket
+import subprocess
+
+failures = []
+
+
+def check(cond, what):
+    print(("ok   " if cond else "FAIL ") + what, flush=True)
+    if not cond:
+        failures.append(what)
+
+
+def die_with_parent():
+    ctypes.CDLL(None).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG: nothing outlives the test
+
+
+def spawn(argv, **kw):
+    return subprocess.Popen(argv, preexec_fn=die_with_parent, **kw)
+
+
+class RawSubscriber:
+    """A subscription read by hand: every event's header kept, its payloads read and counted,
+    so that a torn message shows as a header that does not parse."""
+
+    def __init__(self, path):
+        self.sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        self.sock.settimeout(120)
+        self.sock.connect(path)
+        self.f = self.sock.makefile("rb")
+        self.sock.sendall(b'{"id": 1, "cmd": "subscribe"}\n')
+        reply = json.loads(self.f.readline())
+        assert reply["ok"] and reply["result"]["subscribed"], reply
+        self.next_seq = reply["result"]["next_seq"]
+        self.events = []
+
+    def read(self):
+        line = self.f.readline()
+        assert line.endswith(b"\n"), f"the connection ended inside a line: {line[:80]!r}"
+        h = json.loads(line)  # a torn message would leave payload bytes here
+        want = sum(p["bytes"] for p in h.get("payloads", []))
+        got = len(self.f.read(want)) if want else 0
+        assert got == want, f"{got} payload bytes of {want}"
+        self.events.append(h)
+        return h
+
+    def read_result(self):
+        while True:
+            h = self.read()
+            if h.get("event") == "result":
+                return h
+
+    def results(self):
+        return [h for h in self.events if h.get("event") == "result"]
+
+    def close(self):
+        self.f.close()
+        self.sock.close()
+
+
+def set_id(h):
+    return h["body"]["set_id"]
+
+
+def flagged_fraction(client, sock, captures, frame_results):
+    """The share of pixels the motion bit flags over `captures` sets, then over `frame_results`
+    per-frame results (the sliding window of continuous mode), 8 phases of sine each; with the
+    last result's settings. `client` is the descatter Python package."""
+    flagged = total = 0
+    with client.Client(sock) as c:
+        for _ in range(captures):
+            r = c.capture(phases=8, estimator="sine", outputs=["mask"])
+            check(r.meta["separation"]["motion_checked"], "the motion bit was judged")
+            flagged += r.meta["separation"]["flagged"]["motion"]
+            total += r.meta["width"] * r.meta["height"]
+    per_set = (flagged / total, r.meta["settings"])
+    flagged = total = 0
+    with client.Client(sock) as sub, client.Client(sock) as c:
+        with sub.subscribe() as events:
+            c.start(phases=8, estimator="sine", results="per-frame")
+            try:
+                got = 0
+                for ev in events.results():
+                    meta = ev.result.meta
+                    check(meta["separation"]["motion_checked"], "per-frame: the motion bit was judged")
+                    flagged += meta["separation"]["flagged"]["motion"]
+                    total += meta["width"] * meta["height"]
+                    got += 1
+                    if got == frame_results:
+                        break
+            finally:
+                c.stop()
+    return per_set, (flagged / total, meta["settings"])
