@@ -68,6 +68,18 @@ def set_id(h):
     return h["body"]["set_id"]
 
 
+def check_no_speed(settings):
+    """A capture with no speed declared: the result states no speed and no motion term, and
+    assumes a still scene."""
+    op = settings["operating_point"]
+    print(f"     no speed: {settings['estimator']} N={settings['phases']}, predicted {op['predicted_error']:.4f}")
+    check(op["motion"]["speed_px_s"] is None and op["motion"]["term"] is None,
+          "no speed declared: none stated, no term")
+    check("still_scene" in op["assumed"] and "motion" not in op["contains"],
+          "no speed declared: a still scene assumed")
+    return op
+
+
 def flagged_fraction(client, sock, captures, frame_results):
     """The share of pixels the motion bit flags over `captures` sets, then over `frame_results`
     per-frame results (the sliding window of continuous mode), 8 phases of sine each; with the
