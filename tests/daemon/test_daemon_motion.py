@@ -16,7 +16,7 @@ that a set's frames are evenly spaced, first to last over `set_span_ms`):
 - a faster speed never chooses a larger N with the same estimator, and the fastest chooses a
   smaller N than the still scene; speed_px_s without a target or budget is bad_argument;
   descatterctl --speed-px-s reaches the result's sidecar;
-- with the motion bit on and objects moving (vertical lines at 20 px/s), no speed declared: the
+- with the motion bit on and objects moving (vertical lines at 200 px/s), no speed declared: the
   set flags motion and the prediction is marked a lower bound saying why, with no upper end;
   the same speed declared: it is not marked for motion and holds the term.
 
@@ -156,7 +156,7 @@ def speed_checks(tmp):
         f.write("[scene]\nname = moving lines\n[sensor]\nwidth = 128\nheight = 64\nexposure-us = 2000\n"
                 "[illuminator]\npattern = square\nperiod-px = 8\nduty = 0.5\nirradiance = 0.5\n"
                 "[object.lines]\nshape = lines\npitch = 32\nline-width = 10\ntransmittance = 0.2\n"
-                "velocity = 20, 0\n")
+                "velocity = 200, 0\n")
     model = model_file(tmp, "lines-model.conf", [4, 6, 8, 12, 16])
     d = Daemon(tmp, "lines", f"[sim]\nscene={lines}\n[acquisition]\noperating-model={model}\ndetect-motion=true\n")
     try:
@@ -172,7 +172,7 @@ def speed_checks(tmp):
             check(op["lower_bound"] and any("no speed declared" in x for x in op["lower_bound_reasons"]),
                   "motion seen, no speed declared: a lower bound, saying why")
             check(op["predicted_error_upper"] is None, "motion seen, no speed declared: no upper end")
-            r = c.capture(time_budget_ms=3000, verify_phase=False, speed_px_s=20)
+            r = c.capture(time_budget_ms=3000, verify_phase=False, speed_px_s=200)
             op = r.meta["settings"]["operating_point"]
             check(op["motion"]["term"] is not None and
                   not any("no speed declared" in x for x in op["lower_bound_reasons"]),
