@@ -536,6 +536,24 @@ test_pattern_bend (void)
 
 typedef enum { TEX_CORRECT, TEX_WRONG_PERIOD_AT_HALF, TEX_UNLIT_AT_HALF } TexCase;
 
+/* A 16-bit frame whose every row is `profile` (W values) plus Gaussian noise of TEX_SIGMA DN
+ * per pixel (Box-Muller), rounded to the nearest DN and clipped. */
+static DsImage *
+noisy_frame (const double *profile, GRand *rng)
+{
+  DsImage *img = ds_image_new (DS_SAMPLE_U16, W, H, NULL);
+  img->bit_depth = 16;
+  for (guint y = 0; y < H; y++) {
+    guint16 *row = ds_image_row (img, y);
+    for (guint x = 0; x < W; x++) {
+      double u1 = g_rand_double_range (rng, 1e-12, 1.0), u2 = g_rand_double (rng);
+      double v = profile[x] + TEX_SIGMA * sqrt (-2.0 * log (u1)) * cos (2.0 * G_PI * u2);
+      row[x] = (guint16) floor (CLAMP (v, 0.0, 65535.0) + 0.5);
+    }
+  }
+  return img;
+}
+
 static DsImage *
 render_texture_frame (guint k, TexCase what, GRand *rng)
 {
@@ -553,17 +571,7 @@ render_texture_frame (guint k, TexCase what, GRand *rng)
       v += a * cos (2.0 * G_PI * (x / TEX_STRIPE_PERIOD - (double) k / TEX_N));
     profile[x] = v;
   }
-  DsImage *img = ds_image_new (DS_SAMPLE_U16, W, H, NULL);
-  img->bit_depth = 16;
-  for (guint y = 0; y < H; y++) {
-    guint16 *row = ds_image_row (img, y);
-    for (guint x = 0; x < W; x++) {
-      double u1 = g_rand_double_range (rng, 1e-12, 1.0), u2 = g_rand_double (rng);
-      double v = profile[x] + TEX_SIGMA * sqrt (-2.0 * log (u1)) * cos (2.0 * G_PI * u2);
-      row[x] = (guint16) floor (CLAMP (v, 0.0, 65535.0) + 0.5);
-    }
-  }
-  return img;
+  return noisy_frame (profile, rng);
 }
 
 /* One set (a first set: nothing known yet), a refused frame taken again up to 3 times as the
@@ -644,17 +652,7 @@ render_plain_frame (guint k, gboolean wrong, GRand *rng)
                : a * cos (2.0 * G_PI * (x / TEX_STRIPE_PERIOD - (double) k / 4));
     profile[x] = v;
   }
-  DsImage *img = ds_image_new (DS_SAMPLE_U16, W, H, NULL);
-  img->bit_depth = 16;
-  for (guint y = 0; y < H; y++) {
-    guint16 *row = ds_image_row (img, y);
-    for (guint x = 0; x < W; x++) {
-      double u1 = g_rand_double_range (rng, 1e-12, 1.0), u2 = g_rand_double (rng);
-      double v = profile[x] + TEX_SIGMA * sqrt (-2.0 * log (u1)) * cos (2.0 * G_PI * u2);
-      row[x] = (guint16) floor (CLAMP (v, 0.0, 65535.0) + 0.5);
-    }
-  }
-  return img;
+  return noisy_frame (profile, rng);
 }
 
 /* One set of 4; *at_confirm TRUE when it was refused by ds_phase_check_confirm. */
