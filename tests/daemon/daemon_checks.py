@@ -1,7 +1,7 @@
 """What the Python tests of tests/daemon share: a list of failed checks, child processes that
-cannot outlive the test, a subscription read by hand, and the share of still pixels the motion
-bit flags. Import it after putting this folder on sys.path; a test reports `failures` at its
-end, so it sees every check, its own and those made here."""
+cannot outlive the test, a subscription read by hand, the share of still pixels the motion bit
+flags and the checks of its noise model. Import it after putting this folder on sys.path; a
+test reports `failures` at its end, so it sees every check, its own and those made here."""
 import ctypes
 import json
 import signal
@@ -109,3 +109,20 @@ def flagged_fraction(client, sock, captures, frame_results):
             finally:
                 c.stop()
     return per_set, (flagged / total, meta["settings"])
+
+
+def check_noise_model(runs_without, runs_with):
+    """The motion bit's noise model against one frame's median noise, from `flagged_fraction`'s
+    runs without and with [camera] gain-dn-per-e = 0.25 and read-noise-dn = 1.5: per set and per
+    frame, only the runs with the keys state the model, flag at most 3e-3 of the still pixels
+    (the design's rate is 1e-3), and flag fewer than the runs without, which flag more than that
+    (the median of the differences under-reads the bright pixels' shot noise)."""
+    for mode, (without, s0), (with_model, s1) in zip(("per set", "per frame"), runs_without, runs_with):
+        check("gain_dn_per_e" not in s0, f"{mode}: no noise model stated without the keys")
+        check(s1.get("gain_dn_per_e") == 0.25 and s1.get("read_noise_dn") == 1.5,
+              f"{mode}: the result states the noise model")
+        print(f"     {mode}: still pixels flagged: {without:.2e} with one frame's median noise, {with_model:.2e} "
+              f"with the noise model", flush=True)
+        check(with_model <= 3e-3, f"{mode}: noise model: at most 3e-3 of still pixels flagged ({with_model:.2e})")
+        check(without > 3e-3 and without > with_model,
+              f"{mode}: without it, more are flagged ({without:.2e} > {with_model:.2e})")

@@ -54,8 +54,8 @@ sys.path.insert(0, PYDIR)
 import descatter  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from daemon_checks import (RawSubscriber, check, check_no_speed, failures, flagged_fraction,  # noqa: E402
-                           set_id, spawn)
+from daemon_checks import (RawSubscriber, check, check_no_speed, check_noise_model, failures,  # noqa: E402
+                           flagged_fraction, set_id, spawn)
 
 DAEMON = os.path.join(BIN, "descatterd")
 CTL = os.path.join(BIN, "descatterctl")
@@ -269,15 +269,7 @@ def noise_checks(tmp):
             d.stop()
     finally:
         labsim.stop()
-    for mode, (without, s0), (with_model, s1) in zip(("per set", "per frame"), runs_without, runs_with):
-        check("gain_dn_per_e" not in s0, f"{mode}: no noise model stated without the keys")
-        check(s1.get("gain_dn_per_e") == 0.25 and s1.get("read_noise_dn") == 1.5,
-              f"{mode}: the result states the noise model")
-        print(f"     {mode}: still pixels flagged: {without:.2e} with one frame's median noise, {with_model:.2e} "
-              f"with the noise model", flush=True)
-        check(with_model <= 3e-3, f"{mode}: noise model: at most 3e-3 of still pixels flagged ({with_model:.2e})")
-        check(without > 3e-3 and without > with_model,
-              f"{mode}: without it, more are flagged ({without:.2e} > {with_model:.2e})")
+    check_noise_model(runs_without, runs_with)
 
 
 def check_steps(what, ids, skipped):
