@@ -58,45 +58,20 @@ ds_phase_check_begin_set (DsPhaseCheck *check)
 /* The rows' column profile: each column's mean over the rows (its finite samples; NAN where
  * there are none), one row of floats. The stripes vary along x only, so everything the check
  * measures at a period (the stripes', or another) is in it; measured once per frame and kept
- * for the set (profile_sum). Integer columns are summed in 32 bits: exact for the fewer than
- * 512 rows the check reads (511 x 65535 < 2^32). */
+ * for the set (profile_sum). The sums are the stripe phase's own (vectorised, exact for
+ * integer samples). */
 static DsImage *
 column_profile (const DsImage *rows)
 {
   DsImage *profile = ds_image_new (DS_SAMPLE_F32, rows->width, 1, NULL);
   if (!profile)
     return NULL;
+  g_autofree double *sum = g_new (double, rows->width);
+  g_autofree guint32 *count = g_new (guint32, rows->width);
+  ds_stripe_phase_column_sums (rows, 0, 0, rows->width, rows->height, sum, count);
   float *out = ds_image_row (profile, 0);
-  if (rows->type == DS_SAMPLE_F32) {
-    g_autofree double *sum = g_new0 (double, rows->width);
-    g_autofree guint *count = g_new0 (guint, rows->width);
-    for (guint y = 0; y < rows->height; y++) {
-      const float *row = ds_image_row (rows, y);
-      for (guint x = 0; x < rows->width; x++)
-        if (isfinite (row[x])) {
-          sum[x] += row[x];
-          count[x]++;
-        }
-    }
-    for (guint x = 0; x < rows->width; x++)
-      out[x] = count[x] ? (float) (sum[x] / count[x]) : NAN;
-    return profile;
-  }
-  g_autofree guint32 *acc = g_new0 (guint32, rows->width);
-  for (guint y = 0; y < rows->height; y++) {
-    const void *row = ds_image_row (rows, y);
-    if (rows->type == DS_SAMPLE_U16) {
-      const guint16 *r = row;
-      for (guint x = 0; x < rows->width; x++)
-        acc[x] += r[x];
-    } else {
-      const guint8 *r = row;
-      for (guint x = 0; x < rows->width; x++)
-        acc[x] += r[x];
-    }
-  }
   for (guint x = 0; x < rows->width; x++)
-    out[x] = (float) ((double) acc[x] / rows->height);
+    out[x] = count[x] ? (float) (sum[x] / count[x]) : NAN;
   return profile;
 }
 

@@ -8,9 +8,9 @@
 
 /* Column sums of integer rows in 32 bits, for the vector units (proc/simd.h): exact, so the
  * profile is the same as summed in doubles, at a fraction of the cost. descatterd measures
- * every frame before folding it (proc/phase_check.c), and 256 rows of a 1 MP frame
- * summed in doubles were the largest part of that check. At most ROWS_PER_U32 rows go into one
- * 32-bit sum: 65536 x 65535 < 2^32. */
+ * every frame before folding it (proc/phase_check.c sums its rows here too), and 256 rows of
+ * a 1 MP frame summed in doubles were the largest part of that check. At most ROWS_PER_U32
+ * rows go into one 32-bit sum: 65536 x 65535 < 2^32. */
 #define ROWS_PER_U32 65536u
 
 DS_CLONES static void
@@ -33,6 +33,41 @@ ds_stripe_phase_diff (double a, double b)
   double d = a - b;
   d -= floor (d + 0.5);
   return d;
+}
+
+void
+ds_stripe_phase_column_sums (const DsImage *frame, guint x, guint y, guint cols, guint rows, double *sum,
+                             guint32 *count)
+{
+  memset (sum, 0, sizeof *sum * cols);
+  memset (count, 0, sizeof *count * cols);
+  if (frame->type == DS_SAMPLE_F32) {
+    for (guint j = y; j < y + rows; j++) {
+      const float *p = ds_image_row (frame, j);
+      for (guint i = 0; i < cols; i++)
+        if (isfinite (p[x + i])) {
+          sum[i] += p[x + i];
+          count[i]++;
+        }
+    }
+    return;
+  }
+  guint32 *acc = count; /* integer samples need no count until the end: every one is finite */
+  for (guint y0 = y; y0 < y + rows; y0 += ROWS_PER_U32) {
+    guint y1 = y0 + MIN (ROWS_PER_U32, y + rows - y0);
+    for (guint j = y0; j < y1; j++) {
+      const guint8 *row = ds_image_row (frame, j);
+      if (frame->type == DS_SAMPLE_U16)
+        add_row_u16 ((const guint16 *) row + x, acc, cols);
+      else
+        add_row_u8 (row + x, acc, cols);
+    }
+    for (guint i = 0; i < cols; i++)
+      sum[i] += acc[i];
+    memset (acc, 0, sizeof *acc * cols);
+  }
+  for (guint i = 0; i < cols; i++)
+    count[i] = rows;
 }
 
 /* Solves the symmetric 3x3 system n * p = r and returns the inverse's diagonal in inv_diag.
@@ -98,33 +133,9 @@ ds_stripe_phase_measure (const DsImage *frame, double period_px, const DsRegion 
     return FALSE;
   }
 
-  g_autofree double *sum = g_new0 (double, cols);
-  g_autofree guint32 *count = g_new0 (guint32, cols);
-  if (frame->type == DS_SAMPLE_F32) {
-    for (guint y = r.y; y < r.y + r.height; y++) {
-      const float *p = ds_image_row (frame, y);
-      for (guint i = 0; i < cols; i++)
-        if (isfinite (p[r.x + i])) {
-          sum[i] += p[r.x + i];
-          count[i]++;
-        }
-    }
-  } else {
-    guint32 *acc = count; /* integer samples need no count: every one is finite */
-    for (guint y0 = r.y; y0 < r.y + r.height; y0 += ROWS_PER_U32) {
-      guint y1 = y0 + MIN (ROWS_PER_U32, r.y + r.height - y0);
-      for (guint y = y0; y < y1; y++) {
-        const guint8 *row = ds_image_row (frame, y);
-        if (frame->type == DS_SAMPLE_U16)
-          add_row_u16 ((const guint16 *) row + r.x, acc, cols);
-        else
-          add_row_u8 (row + r.x, acc, cols);
-      }
-      for (guint i = 0; i < cols; i++)
-        sum[i] += acc[i];
-      memset (acc, 0, sizeof *acc * cols);
-    }
-  }
+  g_autofree double *sum = g_new (double, cols);
+  g_autofree guint32 *count = g_new (guint32, cols);
+  ds_stripe_phase_column_sums (frame, r.x, r.y, cols, r.height, sum, count);
   /* The basis at each column, computed once for the fit and its residuals. */
   g_autofree double *cw = g_new (double, 2 * (gsize) cols);
   double *sw = cw + cols;
@@ -134,7 +145,7 @@ ds_stripe_phase_measure (const DsImage *frame, double period_px, const DsRegion 
   guint used = 0;
   const double w = 2.0 * G_PI / period_px;
   for (guint i = 0; i < cols; i++) {
-    guint32 k = frame->type == DS_SAMPLE_F32 ? count[i] : r.height;
+    guint32 k = count[i];
     if (k == 0)
       continue;
     double v = sum[i] / k;
@@ -161,8 +172,7 @@ ds_stripe_phase_measure (const DsImage *frame, double period_px, const DsRegion 
    * (scattered) mean dwarfs the modulation. */
   double rss = 0;
   for (guint i = 0; i < cols; i++) {
-    guint32 k = frame->type == DS_SAMPLE_F32 ? count[i] : r.height;
-    if (k == 0)
+    if (count[i] == 0)
       continue;
     double e = sum[i] - (p[0] + p[1] * cw[i] + p[2] * sw[i]);
     rss += e * e;

@@ -50,6 +50,14 @@ typedef struct {
 gboolean ds_stripe_phase_measure (const DsImage *frame, double period_px, const DsRegion *region,
                                   DsStripePhase *out, GError **error);
 
+/* The column sums the measurement starts from: each of `cols` columns from column x, over
+ * `rows` rows from row y, summed into sum[cols] (in doubles), the samples summed into
+ * count[cols]: the finite ones of an F32 frame, every one of a U8 or U16 frame (summed exactly
+ * in 32 bits on the vector units first, so the sums are those of doubles). The caller keeps
+ * the region inside the frame and the type one of those three. Any thread. */
+void ds_stripe_phase_column_sums (const DsImage *frame, guint x, guint y, guint cols, guint rows, double *sum,
+                                  guint32 *count);
+
 /* Signed difference a - b wrapped to [-1/2, 1/2) cycles. */
 double ds_stripe_phase_diff (double a, double b);
 

@@ -184,6 +184,54 @@ test_region_and_nonfinite (void)
   g_assert_cmpuint (m.columns_used, ==, 143 - 1); /* one column is NaN throughout */
 }
 
+/* The column sums against sums taken one sample at a time in long double, each sample read
+ * by its own type: exact for integer frames (the tallest frame, nearly all at the largest
+ * sample, takes a column's sum past 2^31), the finite samples alone for F32, in a region away
+ * from the frame's origin. */
+static void
+test_column_sums (void)
+{
+  const DsSampleType types[] = { DS_SAMPLE_U8, DS_SAMPLE_U16, DS_SAMPLE_F32 };
+  for (guint t = 0; t < G_N_ELEMENTS (types); t++) {
+    guint w = 37, h = types[t] == DS_SAMPLE_F32 ? 300 : DS_IMAGE_MAX_SIDE;
+    g_autoptr (DsImage) img = ds_image_new (types[t], w, h, NULL);
+    for (guint y = 0; y < h; y++)
+      for (guint x = 0; x < w; x++) {
+        guint v = (x * 7919u + y * 104729u) % 65536u;
+        void *row = ds_image_row (img, y);
+        if (types[t] == DS_SAMPLE_U8)
+          ((guint8 *) row)[x] = (guint8) (y % 50 ? 255 : v);
+        else if (types[t] == DS_SAMPLE_U16)
+          ((guint16 *) row)[x] = (guint16) (y % 50 ? 65535 : v);
+        else
+          ((float *) row)[x] = (x == 20 || (x + y) % 11 == 0) ? NAN : (float) v / 7.0f;
+      }
+    const guint x0 = 3, y0 = 2, cols = 30, rows = h - 5;
+    double sum[30];
+    guint32 count[30];
+    ds_stripe_phase_column_sums (img, x0, y0, cols, rows, sum, count);
+    for (guint i = 0; i < cols; i++) {
+      long double ref = 0;
+      guint32 n = 0;
+      for (guint y = y0; y < y0 + rows; y++) {
+        const void *row = ds_image_row (img, y);
+        long double v = types[t] == DS_SAMPLE_U8    ? ((const guint8 *) row)[x0 + i]
+                        : types[t] == DS_SAMPLE_U16 ? ((const guint16 *) row)[x0 + i]
+                                                    : ((const float *) row)[x0 + i];
+        if (isfinite (v)) {
+          ref += v;
+          n++;
+        }
+      }
+      g_assert_cmpuint (count[i], ==, n);
+      if (types[t] == DS_SAMPLE_F32)
+        g_assert_cmpfloat (fabsl (sum[i] - ref), <=, 1e-12L * fabsl (ref) + 1e-9L);
+      else
+        g_assert_cmpfloat (sum[i], ==, (double) ref);
+    }
+  }
+}
+
 static void
 test_errors (void)
 {
@@ -266,6 +314,7 @@ main (int argc, char **argv)
   g_test_add_func ("/stripe-phase/pure-noise", test_pure_noise);
   g_test_add_func ("/stripe-phase/region-nonfinite", test_region_and_nonfinite);
   g_test_add_func ("/stripe-phase/errors", test_errors);
+  g_test_add_func ("/stripe-phase/column-sums", test_column_sums);
   g_test_add_func ("/phase-order/check", test_phase_order_check);
   return g_test_run ();
 }
