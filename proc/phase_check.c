@@ -43,6 +43,8 @@ ds_phase_check_begin_set (DsPhaseCheck *check)
   check->set_by_template = FALSE;
   check->set_unverified = 0;
   memset (check->set_refused_as, 0, sizeof check->set_refused_as);
+  check->set_refused_bare = check->set_deferred = 0;
+  memset (check->set_level, 0, sizeof check->set_level);
   check->profile_width = 0;
   check->profile_frames = 0;
   check->pending = FALSE;
@@ -394,6 +396,7 @@ set_add (DsPhaseCheck *check, const double c[2], double sigma, guint k, gboolean
   check->set_sum[k][0] += c[0];
   check->set_sum[k][1] += c[1];
   check->set_sumsq[k] += c[0] * c[0] + c[1] * c[1];
+  check->set_level[k] += level;
   check->set_count[k]++;
   if (!verified) {
     check->set_unverified++;
@@ -436,10 +439,10 @@ template_verdict (const DsPhaseCheck *check, const double c[2], double sigma, gu
   return *err <= *tol_k ? DS_PHASE_VERDICT_OK : DS_PHASE_VERDICT_WRONG;
 }
 
-/* b and a fitted to the set's frames (the phases it holds, at least two): FALSE when they do
- * not determine them. */
+/* b and a fitted to the set's frames (the phases it holds but `skip`, at least two; skip >= n:
+ * none left out): FALSE when they do not determine them. */
 static gboolean
-set_fit (const DsPhaseCheck *check, guint n, double a[2], double b[2])
+set_fit (const DsPhaseCheck *check, guint n, guint skip, double a[2], double b[2])
 {
   if (check->set_n != n)
     return FALSE;
@@ -448,7 +451,7 @@ set_fit (const DsPhaseCheck *check, guint n, double a[2], double b[2])
    * Z = sum conj(z_h) m_h. */
   double K = 0, S[2] = { 0, 0 }, M[2] = { 0, 0 }, Z[2] = { 0, 0 };
   for (guint h = 0; h < n; h++) {
-    if (check->set_count[h] == 0)
+    if (check->set_count[h] == 0 || h == skip)
       continue;
     double m[2], w = 2.0 * G_PI * (double) h / n;
     set_mean (check, h, m);
@@ -491,7 +494,7 @@ expected_stripes (const DsPhaseCheck *check, guint k, guint n)
   if (check->prior_n == n)
     return hypot (check->prior[k][0], check->prior[k][1]);
   double a[2], b[2];
-  if (!set_fit (check, n, a, b))
+  if (!set_fit (check, n, n, a, b))
     return INFINITY;
   double w = 2.0 * G_PI * (double) k / n;
   double pred[2] = { b[0] + a[0] * cos (w) - a[1] * sin (w), b[1] + a[0] * sin (w) + a[1] * cos (w) };
@@ -513,7 +516,7 @@ unlit_margin (const DsPhaseCheck *check, guint n, double level, double sigma, do
   if (check->profile_frames == 0 || !(sigma > 0) || !isfinite (level))
     return -INFINITY;
   double a[2], b[2];
-  if (set_fit (check, n, a, b))
+  if (set_fit (check, n, n, a, b))
     *moving = hypot (a[0], a[1]);
   else if (check->prior_n == n) {
     double b1[2] = { 0, 0 };
@@ -657,7 +660,18 @@ ds_phase_check_frame (DsPhaseCheck *check, const DsImage *frame, guint k, guint 
       return DS_PHASE_VERDICT_NO_STRIPES;
     }
     double expected = expected_stripes (check, k, n);
-    if (!(expected < 2.0 * PHASE_CHECK_SIGMAS * noise)) {
+    /* Nothing known yet (the set's first phases, no templates): the projected stripes are
+     * expected, and a frame without them is refused, so that a frame of the dark costs one
+     * retry. But b may cancel a at phase k (the object's texture at the stripe period), and
+     * then every frame of k shows none, however often it is taken: judged only against the
+     * set's other phases, which fit b and a. So the frame taken again that shows none either
+     * joins the set, and ds_phase_check_confirm judges it. */
+    gboolean defer = FALSE;
+    if (!isfinite (expected)) {
+      defer = (check->set_refused_bare >> k & 1) != 0;
+      check->set_refused_bare |= G_GUINT64_CONSTANT (1) << k;
+    }
+    if (!defer && !(expected < 2.0 * PHASE_CHECK_SIGMAS * noise)) {
       char *said = *why;
       *why = isfinite (expected)
                  ? g_strdup_printf ("%s; the scene shows stripes there (%s: %.0f noise sigmas expected at phase %u)", said,
@@ -668,6 +682,8 @@ ds_phase_check_frame (DsPhaseCheck *check, const DsImage *frame, guint k, guint 
       return DS_PHASE_VERDICT_NO_STRIPES;
     }
     set_add (check, c, noise, k, FALSE, profile, sp.mean);
+    if (defer)
+      check->set_deferred |= G_GUINT64_CONSTANT (1) << k;
     if (pend) {
       check->pending = TRUE;
       check->pending_k = k;
@@ -846,6 +862,52 @@ set_steps_by_one (DsPhaseCheck *check, guint n, const double b0[2], double amp, 
   return TRUE;
 }
 
+/* A frame of phase k that showed no stripes while nothing was known (set_deferred), against
+ * the set's other phases: b and a fitted to them predict |b + a e^{i 2 pi k / N}| at k, less
+ * |a| / 2 for the bins the fit leaves out (expected_stripes); at 2 x PHASE_CHECK_SIGMAS of the
+ * noise or more the scene shows stripes there, and the frame was not lit by phase k. And its
+ * light must not lie below the others' by what the illuminator adds (unlit_margin's rule:
+ * |a| / 4, never within PHASE_CHECK_SIGMAS of the noise nor twice the others' spread).
+ * Where the other phases do not fit b and a, nothing tells: the set is judged as a whole. */
+static gboolean
+deferred_frame_fits (const DsPhaseCheck *check, guint n, guint k, char **why)
+{
+  double a[2], b[2];
+  if (check->set_count[k] == 0 || !set_fit (check, n, k, a, b))
+    return TRUE;
+  double noise = sqrt (check->set_noise2), moving = hypot (a[0], a[1]);
+  double w = 2.0 * G_PI * (double) k / n;
+  double pred[2] = { b[0] + a[0] * cos (w) - a[1] * sin (w), b[1] + a[0] * sin (w) + a[1] * cos (w) };
+  double expected = hypot (pred[0], pred[1]) - 0.5 * moving;
+  if (expected >= 2.0 * PHASE_CHECK_SIGMAS * noise) {
+    *why = g_strdup_printf ("phase check of the whole set: its frame of phase %u showed no stripes, where the "
+                            "set's other phases show the scene has them (%.0f noise sigmas expected at phase %u)",
+                            k, expected / noise, k);
+    return FALSE;
+  }
+  double sum = 0, lo = INFINITY, hi = -INFINITY;
+  guint others = 0;
+  for (guint h = 0; h < n; h++) {
+    if (h == k || check->set_count[h] == 0)
+      continue;
+    double level = check->set_level[h] / check->set_count[h];
+    sum += level;
+    lo = MIN (lo, level);
+    hi = MAX (hi, level);
+    others++;
+  }
+  double drop = sum / others - check->set_level[k] / check->set_count[k];
+  double threshold = MAX (0.25 * moving, MAX (PHASE_CHECK_SIGMAS * noise * sqrt (1.0 + 1.0 / others), 2.0 * (hi - lo)));
+  if (drop > threshold) {
+    *why = g_strdup_printf ("phase check of the whole set: its frame of phase %u showed no stripes, and its light "
+                            "lies %.1f DN below the set's other phases', where the illuminator's is at least "
+                            "%.1f DN: a frame without the illuminator's light",
+                            k, drop, 0.5 * moving);
+    return FALSE;
+  }
+  return TRUE;
+}
+
 gboolean
 ds_phase_check_confirm (DsPhaseCheck *check, char **why)
 {
@@ -862,6 +924,11 @@ ds_phase_check_confirm (DsPhaseCheck *check, char **why)
     }
     fewest = MIN (fewest, check->set_count[h]);
   }
+  for (guint k = 0; k < n; k++)
+    if ((check->set_deferred >> k & 1) && !deferred_frame_fits (check, n, k, why)) {
+      check->prior_n = 0;
+      return FALSE;
+    }
   /* A frame that showed another period before the set held a frame to compare it with: the
    * set's other frames now tell whether that structure moved (moving_period). */
   if (check->pending && check->profile_frames > 1) {

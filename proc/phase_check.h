@@ -24,7 +24,9 @@
  *   set's frames predict them (a first harmonic b + a e^{i 2 pi k / N} fitted to them), or
  *   nothing is known yet (the projected pattern). It passes unverified only where the scene
  *   is known to show none at k (the template of k, or the set's fit, is too weak to show 10
- *   noise sigmas). Another period the frame shows is another pattern's only if it moved: the
+ *   noise sigmas), or when, nothing known, it is refused once and taken again shows none
+ *   either (the scene's texture may cancel the stripes at k): ds_phase_check_confirm then
+ *   judges it against the set's other phases (their fit, their light). Another period the frame shows is another pattern's only if it moved: the
  *   frame's column profile less the set's mean profile keeps what changed between the frames
  *   (the object's texture, lit by the same mean light at every phase, cancels); with the
  *   stripes' own change fitted out, another period that changed more than the stripes did is
@@ -118,6 +120,12 @@ typedef struct {
   gboolean pending;
   guint pending_k;
   float pending_profile[DS_PHASE_CHECK_PROFILE_MAX];
+  /* Phases (bit k) of the set in progress whose frame showed no stripes while nothing was
+   * known of the scene (no templates, the set's other phases too few to fit): refused once
+   * (set_refused_bare); the frame taken again that shows none either joins the set
+   * (set_deferred) and ds_phase_check_confirm judges it against the set's other phases. */
+  guint64 set_refused_bare, set_deferred;
+  double set_level[DS_PHASE_CHECK_MAX_PHASES]; /* per phase, the sum of its frames' fitted means */
   double bend_cycles;         /* ds_phase_check_pattern_bend for bend_n phases and frame_width */
   guint bend_n, bend_width;
 } DsPhaseCheck;

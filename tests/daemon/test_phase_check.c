@@ -655,19 +655,25 @@ render_plain_frame (guint k, gboolean wrong, GRand *rng)
   return noisy_frame (profile, rng);
 }
 
-/* One set of 4; *at_confirm TRUE when it was refused by ds_phase_check_confirm. */
+/* One set of n on `c`, frame k rendered by frame (k, data, rng), a refused frame taken again
+ * up to 3 times as the sequencer does (phase-retries' default); TRUE when every frame passed
+ * and the set was confirmed, else the set is abandoned, as the sequencer does; *at_confirm
+ * TRUE when it was refused by ds_phase_check_confirm. */
+typedef DsImage *(*FrameRender) (guint k, gconstpointer data, GRand *rng);
+
 static gboolean
-plain_set_passes (DsPhaseCheck *c, gboolean wrong_first, GRand *rng, gboolean *at_confirm, char **why)
+set_passes (DsPhaseCheck *c, guint n, FrameRender frame, gconstpointer data, GRand *rng, gboolean *at_confirm,
+            char **why)
 {
   *at_confirm = FALSE;
   ds_phase_check_begin_set (c);
-  for (guint k = 0; k < 4; k++) {
+  for (guint k = 0; k < n; k++) {
     gboolean passed = FALSE;
     for (guint i = 0; i <= 3 && !passed; i++) {
-      g_autoptr (DsImage) img = render_plain_frame (k, wrong_first && k == 0, rng);
+      g_autoptr (DsImage) img = frame (k, data, rng);
       double measured;
       g_clear_pointer (why, g_free);
-      DsPhaseVerdict v = ds_phase_check_frame (c, img, k, 4, &measured, why);
+      DsPhaseVerdict v = ds_phase_check_frame (c, img, k, n, &measured, why);
       passed = v == DS_PHASE_VERDICT_OK || v == DS_PHASE_VERDICT_UNVERIFIABLE;
     }
     if (!passed) {
@@ -681,6 +687,19 @@ plain_set_passes (DsPhaseCheck *c, gboolean wrong_first, GRand *rng, gboolean *a
   *at_confirm = TRUE;
   ds_phase_check_abandon (c);
   return FALSE;
+}
+
+static DsImage *
+plain_frame (guint k, gconstpointer wrong_first, GRand *rng)
+{
+  return render_plain_frame (k, *(const gboolean *) wrong_first && k == 0, rng);
+}
+
+/* One set of 4 (set_passes). */
+static gboolean
+plain_set_passes (DsPhaseCheck *c, gboolean wrong_first, GRand *rng, gboolean *at_confirm, char **why)
+{
+  return set_passes (c, 4, plain_frame, &wrong_first, rng, at_confirm, why);
 }
 
 static void
@@ -709,6 +728,93 @@ test_other_period_first_frame (void)
   g_test_message ("%u of 20 refused when the set was complete", by_confirm);
 }
 
+/* Stripes that cancel at phase 0. The object's texture at the stripe period under the stripes'
+ * mean light is b = -a: correct frame k shows b + a e^{i 2 pi k / N}, none at phase 0, the
+ * set's first frame, where nothing is known yet of the scene (no set of it completed, no other
+ * frame of this one), and 2 |a| sin (pi k / N) at the others, with |a| 40 noise sigmas of the
+ * first harmonic. A correct set of this scene is correct, every time: it must pass, set after
+ * set. Not correct sets, refused by the frame's check or the set's: frame 0 lit by the ambient
+ * light alone (a twentieth of the light, the object's texture with it), frame 0 lit with phase
+ * N / 2; and frame 0 lit with phase 1 (a repeat of the next frame), which the set tells where
+ * it can (adjacent phases far enough apart against the noise; the retry of the repeated frame
+ * shows the same light again, which the check takes for a still scene), else the set passes
+ * counted unverified (sets_unverified), never as verified. */
+typedef enum { CANCEL_CORRECT, CANCEL_UNLIT_FIRST, CANCEL_HALF_FIRST, CANCEL_NEXT_FIRST } CancelCase;
+
+static DsImage *
+render_cancel_frame (guint lit_as, gboolean unlit, GRand *rng)
+{
+  const double level = 2000, ambient = 100, texture = 30, a = 40;
+  double light = unlit ? ambient / (level + ambient) : 1.0;
+  double profile[W];
+  for (guint x = 0; x < W; x++) {
+    double v = light * (level + ambient + texture * cos (2.0 * G_PI * x / TEX_PERIOD + 0.7) -
+                        a * cos (2.0 * G_PI * x / TEX_STRIPE_PERIOD));
+    if (!unlit)
+      v += a * cos (2.0 * G_PI * (x / TEX_STRIPE_PERIOD - (double) lit_as / TEX_N));
+    profile[x] = v;
+  }
+  return noisy_frame (profile, rng);
+}
+
+static DsImage *
+cancel_frame (guint k, gconstpointer what, GRand *rng)
+{
+  CancelCase w = *(const CancelCase *) what;
+  guint lit_as = k == 0 && w == CANCEL_HALF_FIRST ? TEX_N / 2 : k == 0 && w == CANCEL_NEXT_FIRST ? 1 : k;
+  return render_cancel_frame (lit_as, k == 0 && w == CANCEL_UNLIT_FIRST, rng);
+}
+
+/* One set of TEX_N (set_passes). */
+static gboolean
+cancel_set_passes (DsPhaseCheck *c, CancelCase what, GRand *rng, char **why)
+{
+  gboolean at_confirm;
+  return set_passes (c, TEX_N, cancel_frame, &what, rng, &at_confirm, why);
+}
+
+static void
+test_cancel_at_first_phase (void)
+{
+  /* The premise, from the closed form: the correct frame 0 shows no stripes at the period. */
+  {
+    GRand *rng = g_rand_new_with_seed (1);
+    g_autoptr (DsImage) img = render_cancel_frame (0, FALSE, rng);
+    DsStripePhase sp;
+    g_assert_true (ds_stripe_phase_measure (img, TEX_STRIPE_PERIOD, NULL, &sp, NULL));
+    g_assert_cmpfloat (sp.amplitude, <, 1.0 * 5); /* 5 noise sigmas of 1 DN */
+    g_rand_free (rng);
+  }
+  const CancelCase wrong[] = { CANCEL_UNLIT_FIRST, CANCEL_HALF_FIRST, CANCEL_NEXT_FIRST };
+  const char *wrong_what[] = { "frame 0 without the illuminator's light", "frame 0 lit with phase N/2",
+                               "frame 0 lit with phase 1" };
+  g_autofree char *why = NULL;
+  guint next_unverified = 0;
+  for (guint32 seed = 1; seed <= 10; seed++) {
+    GRand *rng = g_rand_new_with_seed (seed);
+    DsPhaseCheck c;
+    ds_phase_check_init (&c, TEX_STRIPE_PERIOD, ds_phase_check_default_tolerance_deg (TEX_N));
+    ds_phase_check_set_pattern (&c, FALSE, 0.5);
+    for (guint i = 0; i < 3; i++)
+      if (!cancel_set_passes (&c, CANCEL_CORRECT, rng, &why))
+        g_error ("seed %u: correct set %u of a scene whose stripes cancel at phase 0 refused: %s", seed, i, why);
+    for (guint w = 0; w < G_N_ELEMENTS (wrong); w++) {
+      guint64 sets_unverified = c.sets_unverified;
+      gboolean passed = cancel_set_passes (&c, wrong[w], rng, &why);
+      if (passed && (wrong[w] != CANCEL_NEXT_FIRST || c.sets_unverified == sets_unverified))
+        g_error ("seed %u: a set with %s passed%s", seed, wrong_what[w],
+                 wrong[w] == CANCEL_NEXT_FIRST ? " as verified" : "");
+      next_unverified += passed;
+      if (seed == 1)
+        g_test_message ("%s: %s", wrong_what[w], why ? why : "passed, the set counted unverified");
+      if (!cancel_set_passes (&c, CANCEL_CORRECT, rng, &why))
+        g_error ("seed %u: the correct set after %s refused: %s", seed, wrong_what[w], why);
+    }
+    g_rand_free (rng);
+  }
+  g_test_message ("frame 0 lit with phase 1: %u of 10 passed, the set counted unverified", next_unverified);
+}
+
 int
 main (int argc, char **argv)
 {
@@ -723,6 +829,7 @@ main (int argc, char **argv)
   g_test_add_func ("/phase-check/pixel-noise-shot", test_pixel_noise_shot);
   g_test_add_func ("/phase-check/static-texture", test_static_texture);
   g_test_add_func ("/phase-check/other-period-first-frame", test_other_period_first_frame);
+  g_test_add_func ("/phase-check/cancel-at-first-phase", test_cancel_at_first_phase);
   int status = g_test_run ();
   g_free (bank);
   return status;
