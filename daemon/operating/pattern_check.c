@@ -7,6 +7,7 @@
 
 #include "proc/calibration_scatter.h"
 #include "proc/calibration_sine.h"
+#include "proc/clip_level.h"
 #include "proc/column_stats.h"
 #include "proc/harmonic_gain.h"
 #include "proc/stripe_profile.h"
@@ -38,11 +39,6 @@
  * are gone): the profile's positions are then unevenly sampled and neither the duty nor the
  * level can be read from it, so the pair is not measured. */
 #define CLIPPED_SHARE_MAX 0.02
-/* A sensor's clip level below the pixel format's top (a full well reached before the ADC's top)
- * shows as a pile-up: the highest value held by at least this share of the samples and by more
- * of them than the value 1 DN below. Light alone never does that: the brightest samples are a
- * distribution's tail, which thins towards its top. */
-#define PILE_UP_SHARE 0.005
 /* Dim and bright stripe centres (relative to their surroundings) must differ this much in
  * brightness for the off-stripe fraction to tell a black level from scattered light. */
 #define MIN_BRIGHTNESS_RATIO 1.5
@@ -195,54 +191,6 @@ typedef struct {
   double *brightness, *off;
 } Centres;
 
-/* The clip level the pair shows: saturation (0 = none) or a pile-up below it (PILE_UP_SHARE). */
-static double
-clip_level (const DsImage *l0, const DsImage *l1, double saturation)
-{
-  const DsImage *f[2] = { l0, l1 };
-  double top = -INFINITY;
-  for (guint k = 0; k < 2; k++)
-    for (guint y = 0; y < f[k]->height; y++) {
-      const void *row = ds_image_row (f[k], y);
-      for (guint x = 0; x < f[k]->width; x++) {
-        double v = ds_image_sample (f[k], row, x);
-        if (isfinite (v) && (saturation <= 0 || v < saturation))
-          top = MAX (top, v);
-      }
-    }
-  if (!isfinite (top))
-    return saturation;
-  guint64 at = 0, below = 0, n = 0;
-  for (guint k = 0; k < 2; k++)
-    for (guint y = 0; y < f[k]->height; y++) {
-      const void *row = ds_image_row (f[k], y);
-      for (guint x = 0; x < f[k]->width; x++) {
-        double v = ds_image_sample (f[k], row, x);
-        n++;
-        at += v == top;
-        below += v < top && v >= top - 1;
-      }
-    }
-  if ((double) at >= PILE_UP_SHARE * (double) n && at > below)
-    return top;
-  return saturation;
-}
-
-/* The share of the pixels with a sample at or above clip in either frame (clip 0 = none). */
-static double
-clipped_share (const DsImage *l0, const DsImage *l1, double clip)
-{
-  if (!(clip > 0))
-    return 0;
-  guint64 n = 0;
-  for (guint y = 0; y < l0->height; y++) {
-    const void *r0 = ds_image_row (l0, y), *r1 = ds_image_row (l1, y);
-    for (guint x = 0; x < l0->width; x++)
-      n += ds_image_sample (l0, r0, x) >= clip || ds_image_sample (l1, r1, x) >= clip;
-  }
-  return (double) n / ((double) l0->width * l0->height);
-}
-
 /* g1, the first harmonic's factor from the blur sigma and the whole pixel at period P. */
 static double
 trough_gain (double period, double blur)
@@ -356,8 +304,11 @@ check_pair (const DsImage *dark, const DsImage *l0, const DsImage *l1, double pe
   double offset;
   if (period <= 2 || period > l0->width || !ds_stripe_profile_offset (l0, l1, period, &offset))
     return;
-  saturation = clip_level (l0, l1, saturation);
-  out->clipped_share = clipped_share (l0, l1, saturation);
+  DsClipLevel clip;
+  const DsImage *lit[2] = { l0, l1 };
+  ds_clip_level_find (dark, lit, 2, saturation, &clip);
+  saturation = clip.level;
+  out->clipped_share = (double) ds_clip_count (l0, l1, saturation) / ((double) l0->width * l0->height);
   if (out->clipped_share > CLIPPED_SHARE_MAX)
     return;
   /* The frames' shapes were checked (ds_probe_frames_check): this cannot fail. */

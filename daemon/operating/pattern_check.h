@@ -26,7 +26,7 @@
  * The level is read from the troughs, which the blur and the pixel keep by g1, the first
  * harmonic's factor: its tolerance is LEVEL_TOLERANCE / g1 at each pair's period. A pair with
  * more than a few % of its pixels clipped (the format's top, or a pile-up below it where a full
- * well is reached first) has lost its bright stripe centres and is not judged.
+ * well is reached first: proc/clip_level.h) has lost its bright stripe centres and is not judged.
  *
  * Pure function, any thread; CPU only (one pass over each pair of frames). */
 #pragma once

@@ -16,6 +16,7 @@
 #include "daemon/operating/pattern_check.h"
 #include "daemon/operating/scene_probe.h"
 #include "daemon/operating/operating_error.h"
+#include "proc/clip_level.h"
 #include "tests/daemon/calibrate_lines.h"
 #include "tests/common/test_random.h"
 
@@ -551,6 +552,63 @@ test_narrow_stripes (void)
     }
 }
 
+/* A 16-bit frame of known samples: level + a ramp along x of `slope` DN per column, Gaussian
+ * noise of sigma DN, clamped at `well` (a full well below the format's top; 0 = none). */
+static DsImage *
+clip_frame (double level, double slope, double sigma, double well, guint seed)
+{
+  g_autoptr (GRand) rng = g_rand_new_with_seed (seed);
+  DsImage *img = ds_image_new (DS_SAMPLE_U16, W, H, NULL);
+  img->bit_depth = 16;
+  for (guint y = 0; y < H; y++) {
+    guint16 *row = ds_image_row (img, y);
+    for (guint x = 0; x < W; x++) {
+      double v = level + slope * x + sigma * test_normal (rng);
+      row[x] = (guint16) CLAMP (lround (v), 0, well > 0 ? well : 65535);
+    }
+  }
+  return img;
+}
+
+/* The shared clip rule (proc/clip_level.h) on closed-form frames: a ramp from 100 to 2650 DN with
+ * 8 DN of noise clamped at a full well of 2000 DN piles a quarter of its samples there, far below
+ * the format's top, and those pixels are the clipped ones; the same ramp unclamped, and a
+ * noise-free frame whose flat top holds half its samples (a plateau, not a clip), show none. */
+static void
+test_clip_rule (void)
+{
+  g_autoptr (DsImage) dark = clip_frame (100, 0, 8, 0, 601);
+  g_autoptr (DsImage) piled = clip_frame (100, 10, 8, 2000, 602);
+  g_autoptr (DsImage) open = clip_frame (100, 10, 8, 0, 603);
+  DsClipLevel c;
+  const DsImage *lit[2] = { piled, open };
+  ds_clip_level_find (dark, lit, 2, 65535, &c);
+  /* columns x >= 190 reach 2000 DN (2000 - 100) / 10, less the noise's few columns either way */
+  guint64 clipped = ds_clip_count (piled, NULL, c.level), want = (guint64) (W - 190) * H;
+  char what[200];
+  g_snprintf (what, sizeof what, "a full well at 2000 DN: level %.0f (piled %d), %" G_GUINT64_FORMAT " pixels clipped, "
+              "about %" G_GUINT64_FORMAT " expected", c.level, c.piled, clipped, want);
+  check (c.piled && c.level == 2000 && clipped > want - 3 * H && clipped < want + 3 * H, what);
+  const DsImage *unclipped[2] = { open, open };
+  ds_clip_level_find (dark, unclipped, 2, 65535, &c);
+  g_snprintf (what, sizeof what, "an unclipped ramp: level %.0f (piled %d), %" G_GUINT64_FORMAT " pixels clipped",
+              c.level, c.piled, ds_clip_count (open, open, c.level));
+  check (!c.piled && c.level == 65535 && ds_clip_count (open, open, c.level) == 0, what);
+  g_autoptr (DsImage) quiet_dark = clip_frame (100, 0, 0, 0, 604);
+  g_autoptr (DsImage) plateau = clip_frame (100, 0, 0, 0, 605);
+  for (guint y = 0; y < H; y++) {
+    guint16 *row = ds_image_row (plateau, y);
+    for (guint x = 0; x < W / 2; x++)
+      row[x] = (guint16) (100 + 4 * x);
+    for (guint x = W / 2; x < W; x++)
+      row[x] = 100 + 4 * (W / 2);
+  }
+  const DsImage *flat[2] = { plateau, plateau };
+  ds_clip_level_find (quiet_dark, flat, 2, 65535, &c);
+  g_snprintf (what, sizeof what, "a noise-free flat top: level %.0f (piled %d)", c.level, c.piled);
+  check (!c.piled && c.level == 65535, what);
+}
+
 int
 main (void)
 {
@@ -561,6 +619,7 @@ main (void)
   test_poor_measurements ();
   test_clipped ();
   test_narrow_stripes ();
+  test_clip_rule ();
   printf ("%d failure(s)\n", failures);
   return failures ? 1 : 0;
 }
