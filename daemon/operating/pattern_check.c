@@ -14,15 +14,16 @@
 
 #define N_BINS 40u
 /* The duty is judged against what the configured pattern would show through the same
- * measurement, not against the configured number: the fit's duty trades against its blur and
- * level where the stripes are a few pixels wide (a duty 0.24 at 7 px under a 0.94 px edge blur
- * reads 0.15; a duty 1/2 at 2.75 px reads 0.54), so the configured pattern, blurred, integrated
- * over the pixel and sampled on the pilot's grid and phases, is rendered with the pilot's noise
- * and read by the same fit (expected_duty ()). The tolerance is the spread of those readings
- * (noise and the stripes' sub-pixel phase, DUTY_SPREADS of it) plus DUTY_MODEL, what the model
- * cannot render: the true edge's shape against a Gaussian and scattered light that keeps the
- * stripes blurred differently from the edge (a duty read 0.01-0.02 off on clear scenes and
- * under scattering, tests/daemon/test_pattern_check.c). */
+ * measurement, not against the configured number: where square stripes are a few pixels wide,
+ * the fit's duty trades against its blur and level (with the blur free, a duty 0.24 at 7 px under
+ * a 0.94 px edge blur reads 0.15; a duty 1/2 at 2.75 px reads 0.54). So the configured duty, with
+ * the blur and off-stripe level the frames show, integrated over the pixel and sampled on the
+ * pilot's columns and phases, is rendered with the pilot's noise and read by the same fit
+ * (expected_duty ()). The tolerance is DUTY_SPREADS of the spread of the difference (the frames'
+ * own reading's, duty_spread (), and the rendering's) plus DUTY_MODEL, what the rendering
+ * leaves out: the true edge's shape against a Gaussian, and scattered light that keeps the
+ * stripes blurred wider than the edge (readings 0.01-0.02 off on clear scenes and under
+ * scattering, tests/daemon/test_pattern_check.c). */
 #define DUTY_MODEL 0.03
 #define DUTY_SPREADS 2.0
 #define DUTY_REPLICAS 2
@@ -328,10 +329,12 @@ check_pair (const DsImage *dark, const DsImage *l0, const DsImage *l1, double pe
     configured = fit_profile (prof, conf->kind, period, conf->duty, conf->black_level, known_blur);
   }
   out->expected_duty = conf->kind == DS_PATTERN_SQUARE ? conf->duty : 0.5;
-  if (conf->kind == DS_PATTERN_SQUARE && isfinite (configured.rms)) {
-    /* the pattern as configured, with the level and blur the frames show under it */
-    DsStripeModel m = { .kind = conf->kind, .period_px = period, .duty = conf->duty,
-                        .black_level = configured.level, .blur_px = configured.blur };
+  if (conf->kind == DS_PATTERN_SQUARE && isfinite (free.rms)) {
+    /* the configured duty seen through the blur and off-stripe level the frames show (the free
+     * fit's: the configured fit bends them to the configured duty, and a single blur and level
+     * then render stripes that scattered light keeps, blurred wider, as another pattern) */
+    DsStripeModel m = { .kind = conf->kind, .period_px = period, .duty = conf->duty, .black_level = free.level,
+                        .blur_px = free.blur };
     /* one frame's noise: half the difference's variance, and the dark frame's */
     double noise = ds_column_stats_noise_dn (l0, l1, saturation), noise_dark = ds_column_stats_noise_dn (dark, NULL, 0);
     noise = sqrt ((isfinite (noise) ? noise * noise / 2 : 0) + (isfinite (noise_dark) ? noise_dark * noise_dark : 0));

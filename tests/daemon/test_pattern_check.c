@@ -502,8 +502,8 @@ test_clipped (void)
 /* Square stripes a few pixels wide, the edge blur configured as calibrated: the fit's duty trades
  * against its blur and level there, and the check compares it with what the configured pattern
  * reads through the same measurement. Right configurations at 2.75 px and at 7 px (duty 0.24,
- * blur 0.94 px, black level 0.038; clear and behind a thin film that keeps part of its scattered
- * light's stripes) are not refused; a duty 0.5 on stripes of 0.25 (and the reverse), 0.24 on 0.4,
+ * blur 0.94 px, black level 0.038; clear, behind a thin film that keeps part of its scattered
+ * light's stripes, and behind a medium scattering as much light as it passes) are not refused; a duty 0.5 on stripes of 0.25 (and the reverse), 0.24 on 0.4,
  * and a black level 0.2 on a rig of 0.038 are. */
 static void
 test_narrow_stripes (void)
@@ -515,7 +515,7 @@ test_narrow_stripes (void)
     { 2.75, 0.5, 0.0, 0.5, 0, 0, 20000 },   { 2.75, 0.3, 0.0, 0.5, 0, 0, 20000 },
     { 2.75, 0.5, 0.05, 0.3, 0, 0, 2000 },   { 7, 0.24, 0.038, 0.94, 0, 0, 20000 },
     { 7, 0.24, 0.038, 0.94, 0, 0, 2000 },   { 7, 0.24, 0.038, 0.94, 0.3, 0.5, 5000 },
-    { 7, 0.24, 0.038, 0.94, 0.15, 0.3, 5000 },
+    { 7, 0.24, 0.038, 0.94, 0.15, 0.3, 5000 }, { 7, 0.24, 0.038, 0.94, 1.0, 0.3, 5000 },
   };
   for (guint i = 0; i < G_N_ELEMENTS (right); i++)
     for (int coarse = 0; coarse < 2; coarse++) {
