@@ -7,13 +7,27 @@
 
 #include "proc/calibration_scatter.h"
 #include "proc/calibration_sine.h"
+#include "proc/clip_level.h"
+#include "proc/column_stats.h"
+#include "proc/harmonic_gain.h"
 #include "proc/stripe_profile.h"
 
 #define N_BINS 40u
-/* A duty further than this from the configured one is a wrong configuration: the fit reads the
- * duty to about 0.01 on clear scenes and 0.02 under scattering and blur (tests/daemon/
- * test_pattern_check.c); the estimators' systematic error from a duty 0.05 off is a few %. */
-#define DUTY_TOLERANCE 0.05
+/* The duty is judged against what the configured pattern would show through the same
+ * measurement, not against the configured number: where square stripes are a few pixels wide,
+ * the fit's duty trades against its blur and level (with the blur free, a duty 0.24 at 7 px under
+ * a 0.94 px edge blur reads 0.15; a duty 1/2 at 2.75 px reads 0.54). So the configured duty, with
+ * the blur and off-stripe level the frames show, integrated over the pixel and sampled on the
+ * pilot's columns and phases, is rendered with the pilot's noise and read by the same fit
+ * (expected_duty ()). The tolerance is DUTY_SPREADS of the spread of the difference (the frames'
+ * own reading's, duty_spread (), and the rendering's) plus DUTY_MODEL, what the rendering
+ * leaves out: the true edge's shape against a Gaussian, and scattered light that keeps the
+ * stripes blurred wider than the edge (readings 0.01-0.02 off on clear scenes and under
+ * scattering, tests/daemon/test_pattern_check.c). */
+#define DUTY_MODEL 0.03
+#define DUTY_SPREADS 2.0
+#define DUTY_REPLICAS 2
+#define DUTY_BANDS 4u
 /* The same for the off-stripe level against the black level where the stripes reach it. The
  * level is read from the troughs, whose depth the blur and the pixel scale by the first
  * harmonic's factor g1 = exp (-2 pi^2 sigma^2 / P^2) sinc (1 / P) (stripe_model.h): the fit
@@ -26,11 +40,6 @@
  * are gone): the profile's positions are then unevenly sampled and neither the duty nor the
  * level can be read from it, so the pair is not measured. */
 #define CLIPPED_SHARE_MAX 0.02
-/* A sensor's clip level below the pixel format's top (a full well reached before the ADC's top)
- * shows as a pile-up: the highest value held by at least this share of the samples and by more
- * of them than the value 1 DN below. Light alone never does that: the brightest samples are a
- * distribution's tail, which thins towards its top. */
-#define PILE_UP_SHARE 0.005
 /* Dim and bright stripe centres (relative to their surroundings) must differ this much in
  * brightness for the off-stripe fraction to tell a black level from scattered light. */
 #define MIN_BRIGHTNESS_RATIO 1.5
@@ -103,20 +112,24 @@ best_level (const DsStripeProfile *p, const double *s0, const double *s1, double
   }
 }
 
-/* Least squares over duty (fixed when duty_fixed >= 0), blur and off-stripe level >= level_min:
- * a grid, then a finer grid about its best. */
+/* Least squares over duty (fixed when duty_fixed >= 0), blur >= blur_min and off-stripe level >=
+ * level_min: a grid, then a finer grid about its best. The blur's floor is the calibrated edge
+ * blur where it is known: nothing between the illuminator and the pixel sharpens the stripes,
+ * and a fit free to sharpen them trades the blur against the duty where the stripes are a few
+ * pixels wide. */
 static Fit
-fit_profile (const DsStripeProfile *p, DsPatternKind kind, double period, double duty_fixed, double level_min)
+fit_profile (const DsStripeProfile *p, DsPatternKind kind, double period, double duty_fixed, double level_min,
+             double blur_min)
 {
   Fit best = { .rms = INFINITY };
-  double blur_max = MIN (0.3 * period, 4.0), s0[N_BINS], s1[N_BINS];
+  double blur_max = MAX (blur_min, MIN (0.3 * period, 4.0)), s0[N_BINS], s1[N_BINS];
   gboolean duty_free = kind == DS_PATTERN_SQUARE && duty_fixed < 0;
   double fixed = kind == DS_PATTERN_SQUARE ? duty_fixed : 0.5;
   for (int pass = 0; pass < 2; pass++) {
     double a_lo = duty_free ? (pass ? best.duty - 0.01 : 0.04) : fixed;
     double a_hi = duty_free ? (pass ? best.duty + 0.01 : 0.96) : fixed;
     double a_step = pass ? 0.002 : 0.01;
-    double s_lo = pass ? MAX (0.0, best.blur - 0.15) : 0, s_hi = pass ? MIN (blur_max, best.blur + 0.15) : blur_max;
+    double s_lo = pass ? MAX (blur_min, best.blur - 0.15) : blur_min, s_hi = pass ? MIN (blur_max, best.blur + 0.15) : blur_max;
     double s_step = pass ? 0.03 : 0.15;
     Fit round = best;
     for (double a = a_lo; a <= a_hi + 1e-9; a += a_step) {
@@ -179,54 +192,6 @@ typedef struct {
   double *brightness, *off;
 } Centres;
 
-/* The clip level the pair shows: saturation (0 = none) or a pile-up below it (PILE_UP_SHARE). */
-static double
-clip_level (const DsImage *l0, const DsImage *l1, double saturation)
-{
-  const DsImage *f[2] = { l0, l1 };
-  double top = -INFINITY;
-  for (guint k = 0; k < 2; k++)
-    for (guint y = 0; y < f[k]->height; y++) {
-      const void *row = ds_image_row (f[k], y);
-      for (guint x = 0; x < f[k]->width; x++) {
-        double v = ds_image_sample (f[k], row, x);
-        if (isfinite (v) && (saturation <= 0 || v < saturation))
-          top = MAX (top, v);
-      }
-    }
-  if (!isfinite (top))
-    return saturation;
-  guint64 at = 0, below = 0, n = 0;
-  for (guint k = 0; k < 2; k++)
-    for (guint y = 0; y < f[k]->height; y++) {
-      const void *row = ds_image_row (f[k], y);
-      for (guint x = 0; x < f[k]->width; x++) {
-        double v = ds_image_sample (f[k], row, x);
-        n++;
-        at += v == top;
-        below += v < top && v >= top - 1;
-      }
-    }
-  if ((double) at >= PILE_UP_SHARE * (double) n && at > below)
-    return top;
-  return saturation;
-}
-
-/* The share of the pixels with a sample at or above clip in either frame (clip 0 = none). */
-static double
-clipped_share (const DsImage *l0, const DsImage *l1, double clip)
-{
-  if (!(clip > 0))
-    return 0;
-  guint64 n = 0;
-  for (guint y = 0; y < l0->height; y++) {
-    const void *r0 = ds_image_row (l0, y), *r1 = ds_image_row (l1, y);
-    for (guint x = 0; x < l0->width; x++)
-      n += ds_image_sample (l0, r0, x) >= clip || ds_image_sample (l1, r1, x) >= clip;
-  }
-  return (double) n / ((double) l0->width * l0->height);
-}
-
 /* g1, the first harmonic's factor from the blur sigma and the whole pixel at period P. */
 static double
 trough_gain (double period, double blur)
@@ -235,19 +200,116 @@ trough_gain (double period, double blur)
   return exp (-2 * G_PI * G_PI * blur * blur * f * f) * sin (G_PI * f) / (G_PI * f);
 }
 
+static double
+normal (GRand *rng)
+{
+  double u = g_rand_double_range (rng, 1e-12, 1), v = g_rand_double (rng);
+  return sqrt (-2 * log (u)) * cos (2 * G_PI * v);
+}
+
+/* What the duty fit reads on the configured pattern m (with the off-stripe level and blur the
+ * frames show under it) seen through the pilot's measurement: m on the pilot's columns at its
+ * stripes' offset, phases 0 and 1/2 (ds_stripe_value integrates over the pixel), at the lit
+ * pixels' mean level with the pilot's noise, on as many rows as the pilot had lit pixels; each
+ * replica shifts the stripes by a fraction of a pixel within the offset's half-pixel and draws
+ * new noise. The mean and the standard deviation of the replicas' duties. A fixed seed keeps
+ * the check a function of its frames. */
+static void
+expected_duty (const DsStripeModel *m, const DsStripeProfile *real, double noise_dn, double blur_min, double *mean,
+               double *sd)
+{
+  double level = 0;
+  guint64 n = 0;
+  for (gsize i = 0; i < (gsize) real->width * real->height; i++)
+    if (real->sum[i] > real->threshold) {
+      level += real->sum[i];
+      n++;
+    }
+  /* a phase's level per unit of the pattern's value: the pair's sum over its mean, 2 m */
+  double scale = n ? level / (double) n / (2 * ds_pattern_mean (m->kind, m->duty, m->black_level)) : 1;
+  guint w = real->width, h = (guint) MAX (8, (real->pixels + w - 1) / w);
+  g_autoptr (GRand) rng = g_rand_new_with_seed (0x5eed);
+  g_autoptr (DsImage) dark = ds_image_new (DS_SAMPLE_F32, w, h, NULL);
+  g_autoptr (DsImage) l0 = ds_image_new (DS_SAMPLE_F32, w, h, NULL);
+  g_autoptr (DsImage) l1 = ds_image_new (DS_SAMPLE_F32, w, h, NULL);
+  g_autofree double *v = g_new (double, 2 * (gsize) w);
+  double duty[DUTY_REPLICAS], sum = 0, ss = 0;
+  for (guint k = 0; k < DUTY_REPLICAS; k++) {
+    double offset = real->offset_cycles + ((k + 0.5) / DUTY_REPLICAS - 0.5) * 0.5 / real->period_px;
+    for (guint x = 0; x < w; x++) {
+      v[x] = scale * ds_stripe_value (m, x, offset);
+      v[w + x] = scale * ds_stripe_value (m, x, offset + 0.5);
+    }
+    for (guint y = 0; y < h; y++) {
+      float *rd = ds_image_row (dark, y), *r0 = ds_image_row (l0, y), *r1 = ds_image_row (l1, y);
+      for (guint x = 0; x < w; x++) {
+        rd[x] = (float) (noise_dn * normal (rng));
+        r0[x] = (float) (v[x] + noise_dn * normal (rng));
+        r1[x] = (float) (v[w + x] + noise_dn * normal (rng));
+      }
+    }
+    g_autoptr (DsStripeProfile) p = ds_stripe_profile_bin (dark, l0, l1, real->period_px, offset, 0, N_BINS, NULL);
+    duty[k] = p ? fit_profile (p, m->kind, real->period_px, -1, 0, blur_min).duty : m->duty;
+    sum += duty[k];
+  }
+  *mean = sum / DUTY_REPLICAS;
+  for (guint k = 0; k < DUTY_REPLICAS; k++)
+    ss += (duty[k] - *mean) * (duty[k] - *mean);
+  *sd = sqrt (ss / (DUTY_REPLICAS - 1));
+}
+
+/* The spread of the duty fit's reading on this pair: the pair cut into DUTY_BANDS bands of rows,
+ * each read by the same fit at the same offset; the whole pair's reading spreads by their
+ * standard deviation over sqrt (DUTY_BANDS). It holds everything the reading varies with that
+ * the frames carry: noise, and the scene's own detail, which the fit reads with the stripes. NAN
+ * when fewer than two bands can be read. */
+static double
+duty_spread (const DsImage *dark, const DsImage *l0, const DsImage *l1, double period, double offset,
+             double saturation, DsPatternKind kind, double blur_min)
+{
+  double duty[DUTY_BANDS], sum = 0, ss = 0;
+  guint n = 0, rows = l0->height / DUTY_BANDS;
+  for (guint k = 0; k < DUTY_BANDS && rows >= 4; k++) {
+    const DsImage *f[3] = { dark, l0, l1 };
+    DsImage band[3];
+    gboolean ok = TRUE;
+    for (guint i = 0; i < 3 && ok; i++)
+      ok = ds_image_view_init (&band[i], f[i]->type, f[i]->bit_depth, f[i]->width, rows, f[i]->stride,
+                               ds_image_row (f[i], k * rows), (rows - 1) * f[i]->stride + f[i]->width * ds_sample_size (f[i]->type), NULL);
+    if (!ok)
+      continue;
+    g_autoptr (DsStripeProfile) p = ds_stripe_profile_bin (&band[0], &band[1], &band[2], period, offset, saturation, N_BINS, NULL);
+    if (!p || p->pixels < 64)
+      continue;
+    Fit fit = fit_profile (p, kind, period, -1, 0, blur_min);
+    if (!isfinite (fit.rms))
+      continue;
+    duty[n] = fit.duty;
+    sum += duty[n++];
+  }
+  if (n < 2)
+    return NAN;
+  for (guint k = 0; k < n; k++)
+    ss += (duty[k] - sum / n) * (duty[k] - sum / n);
+  return sqrt (ss / (n - 1));
+}
+
 /* One pair: the binned profile (proc/stripe_profile.h) and its fits; with centres, also the
  * stripe-centre pixels. */
 static void
 check_pair (const DsImage *dark, const DsImage *l0, const DsImage *l1, double period, double saturation,
-            const DsStripeModel *conf, double sine_gain, DsPatternPair *out, Centres *centres)
+            const DsStripeModel *conf, double sine_gain, double known_blur, DsPatternPair *out, Centres *centres)
 {
   memset (out, 0, sizeof *out);
   out->period_px = period;
   double offset;
   if (period <= 2 || period > l0->width || !ds_stripe_profile_offset (l0, l1, period, &offset))
     return;
-  saturation = clip_level (l0, l1, saturation);
-  out->clipped_share = clipped_share (l0, l1, saturation);
+  DsClipLevel clip;
+  const DsImage *lit[2] = { l0, l1 };
+  ds_clip_level_find (dark, lit, 2, saturation, &clip);
+  saturation = clip.level;
+  out->clipped_share = (double) ds_clip_count (l0, l1, saturation) / ((double) l0->width * l0->height);
   if (out->clipped_share > CLIPPED_SHARE_MAX)
     return;
   /* The frames' shapes were checked (ds_probe_frames_check): this cannot fail. */
@@ -263,8 +325,28 @@ check_pair (const DsImage *dark, const DsImage *l0, const DsImage *l1, double pe
     free = fit_sine (prof, ds_sine_gain_at_period (sine_gain, conf->period_px, period));
     configured = free; /* one number: the configured contrast's misfit is the level's */
   } else {
-    free = fit_profile (prof, conf->kind, period, -1, 0);
-    configured = fit_profile (prof, conf->kind, period, conf->duty, conf->black_level);
+    free = fit_profile (prof, conf->kind, period, -1, 0, known_blur);
+    configured = fit_profile (prof, conf->kind, period, conf->duty, conf->black_level, known_blur);
+  }
+  out->expected_duty = conf->kind == DS_PATTERN_SQUARE ? conf->duty : 0.5;
+  if (conf->kind == DS_PATTERN_SQUARE && isfinite (free.rms)) {
+    /* the configured duty seen through the blur and off-stripe level the frames show (the free
+     * fit's: the configured fit bends them to the configured duty, and a single blur and level
+     * then render stripes that scattered light keeps, blurred wider, as another pattern) */
+    DsStripeModel m = { .kind = conf->kind, .period_px = period, .duty = conf->duty, .black_level = free.level,
+                        .blur_px = free.blur };
+    /* one frame's noise: half the difference's variance, and the dark frame's */
+    double noise = ds_column_stats_noise_dn (l0, l1, saturation), noise_dark = ds_column_stats_noise_dn (dark, NULL, 0);
+    noise = sqrt ((isfinite (noise) ? noise * noise / 2 : 0) + (isfinite (noise_dark) ? noise_dark * noise_dark : 0));
+    double sd;
+    expected_duty (&m, prof, noise, known_blur, &out->expected_duty, &sd);
+    /* the difference's spread: the pair's reading's and the replicas' mean's. The bands' fits
+     * only widen the tolerance beyond DUTY_MODEL: a reading within it needs none */
+    double spread = fabs (free.duty - out->expected_duty) > DUTY_MODEL
+                      ? duty_spread (dark, l0, l1, period, offset, saturation, conf->kind, known_blur)
+                      : NAN;
+    double var = (isfinite (spread) ? spread * spread : DUTY_BANDS * sd * sd) + sd * sd / DUTY_REPLICAS;
+    out->duty_tolerance = DUTY_MODEL + DUTY_SPREADS * sqrt (var);
   }
   out->measured = isfinite (free.rms);
   if (!out->measured)
@@ -319,6 +401,12 @@ configured_sine_gain (const DsProbeFrames *f)
   return 1.0;
 }
 
+static gboolean
+duty_differs (const DsPatternPair *pair)
+{
+  return fabs (pair->duty - pair->expected_duty) > pair->duty_tolerance;
+}
+
 gboolean
 ds_pattern_check (const DsProbeFrames *f, DsPatternCheck *out, GError **error)
 {
@@ -329,10 +417,12 @@ ds_pattern_check (const DsProbeFrames *f, DsPatternCheck *out, GError **error)
   const DsStripeModel *conf = &f->geometry;
   double sine_gain = conf->kind == DS_PATTERN_SINE ? configured_sine_gain (f) : 1.0;
   Centres centres = { 0 };
-  check_pair (f->dark, l0, l1, conf->period_px, f->saturation_dn, conf, sine_gain, &out->pair[0], &centres);
+  double known_blur = f->blur_known ? f->calibrated_blur_px : 0;
+  check_pair (f->dark, l0, l1, conf->period_px, f->saturation_dn, conf, sine_gain, known_blur, &out->pair[0],
+              &centres);
   if (f->coarse[0])
     check_pair (f->dark, f->coarse[0], f->coarse[1], 2 * conf->period_px, f->saturation_dn, conf, sine_gain,
-                &out->pair[1], NULL);
+                known_blur, &out->pair[1], NULL);
   DsScatterCheck scatter = { 0 };
   if (centres.off)
     ds_calibration_scatter_check (centres.brightness, centres.off, l0->width, l0->height, conf->period_px, &scatter);
@@ -357,15 +447,18 @@ ds_pattern_check (const DsProbeFrames *f, DsPatternCheck *out, GError **error)
                          sine_gain, out->off_level)
       : g_strdup_printf ("the pilot frames show an off-stripe level of %.2f of the lit level", out->off_level);
 
-  /* The duty: both pairs must disagree with it when both are measured (a duty the blur at P
-   * hides is read at 2P; the configured duty must fit neither). */
-  if (conf->kind == DS_PATTERN_SQUARE && fabs (out->duty - conf->duty) > DUTY_TOLERANCE &&
-      (!q->measured || fabs (p->duty - conf->duty) > DUTY_TOLERANCE)) {
+  /* The duty: each measured pair must read it further from what the configured pattern reads
+   * through the same measurement than that reading's spread (a duty the blur at P hides is read
+   * at 2P; the configured duty must fit neither). */
+  if (conf->kind == DS_PATTERN_SQUARE && duty_differs (p) && (!q->measured || duty_differs (q))) {
+    const DsPatternPair *shown = q->measured ? q : p;
     conclude (out, DS_PATTERN_WRONG_DUTY,
               "the configured stripe pattern does not match the frames: duty %.2f is configured, the pilot frames "
-              "show duty %.2f (%s) and an off-stripe level %.2f of the lit level (black level %.2f is configured); "
+              "show duty %.2f (%s; the configured pattern would read %.2f +- %.2f through the same blur, pixels and "
+              "noise) and an off-stripe level %.2f of the lit level (black level %.2f is configured); "
               "scattering cannot change the duty. Predictions and the separation would rest on the wrong pattern",
-              conf->duty, out->duty, at, out->off_level, conf->black_level);
+              conf->duty, out->duty, at, shown->expected_duty, shown->duty_tolerance, out->off_level,
+              conf->black_level);
     return TRUE;
   }
   /* Neither blur nor scattered light lowers the level: a pair reading it below the black level

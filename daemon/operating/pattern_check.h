@@ -18,12 +18,15 @@
  *   the same off-stripe fraction is a black level; when the scene has too little contrast to
  *   tell, the light is taken as scattered; descatterd's log and the result's
  *   operating_point.assumptions name that assumption.
+ * The duty is compared with what the configured pattern, rendered through the same blur, pixel,
+ * phases and noise, reads by the same fit, within that reading's spread: a few pixels wide, the
+ * fit's duty trades against its blur and level.
  * Where the illuminator can change its period, the pair at 2P is checked as well (stripes twice
  * as wide are less blurred, so the duty is read better there).
  * The level is read from the troughs, which the blur and the pixel keep by g1, the first
  * harmonic's factor: its tolerance is LEVEL_TOLERANCE / g1 at each pair's period. A pair with
  * more than a few % of its pixels clipped (the format's top, or a pile-up below it where a full
- * well is reached first) has lost its bright stripe centres and is not judged.
+ * well is reached first: proc/clip_level.h) has lost its bright stripe centres and is not judged.
  *
  * Pure function, any thread; CPU only (one pass over each pair of frames). */
 #pragma once
@@ -51,6 +54,12 @@ typedef struct {
   double duty, off_level, blur_px; /* the fit: a, b', sigma */
   double fit_rms;                /* rms of r about the fit */
   double configured_rms;         /* rms of r about the best fit with the configured a and b' >= b */
+  double expected_duty;          /* the duty the fit reads on the configured pattern seen through the
+                                    same blur, pixels, phases and noise (square; else configured) */
+  double duty_tolerance;         /* how far duty may be from expected_duty: the readings' spread
+                                    plus what the model leaves out (pattern_check.c); the frames'
+                                    own spread is read only where duty is further than the model's
+                                    part, else the replicas' stands for it */
   double level_tolerance;        /* how far b' may fall below b: LEVEL_TOLERANCE / g1 (pattern_check.c) */
   double clipped_share;          /* pixels with a sample at the clip level (or a pile-up below it) */
   guint64 pixels;

@@ -6,6 +6,7 @@
 #include "daemon/operating/stripe_model.h"
 #include "daemon/operating/operating_error.h"
 #include "daemon/operating/scene_probe_pairs.h"
+#include "proc/clip_level.h"
 #include "proc/column_stats.h"
 #include "proc/image_stats.h"
 
@@ -20,16 +21,18 @@ ds_pilot_stripes_check (const DsProbeFrames *f, DsPilotStripes *out, GError **er
   /* A pilot that clips is refused by the probe's own rule (scene_probe_pairs.h), before a fit
    * on the samples left would fail for want of columns, or read the few dim ones as the scene. */
   guint64 clipped = 0;
-  if (!ds_probe_pair_check_clipping (l0, l1, f->saturation_dn, &clipped, error))
+  DsClipLevel clip; /* the format's top, or a full well's pile-up below it (proc/clip_level.h) */
+  ds_clip_level_find (f->dark, f->lit, 2, f->saturation_dn, &clip);
+  if (!ds_probe_pair_check_clipping (l0, l1, clip.level, &clipped, error))
     return FALSE;
   DsColumnStats stats = { 0 };
-  if (!ds_column_stats_compute (l0, l1, f->saturation_dn, &stats, error))
+  if (!ds_column_stats_compute (l0, l1, clip.level, &stats, error))
     return FALSE;
   DsStripeHarmonics h;
   g_autoptr (GError) local = NULL;
   gboolean fitted = ds_stripe_harmonics_fit (stats.mean_diff, stats.count, 0, stats.width, period, 1, &h, &local);
   if (!fitted)
-    ds_probe_pair_refuse_unfitted (&stats, clipped, f->saturation_dn, period, local, error);
+    ds_probe_pair_refuse_unfitted (&stats, clipped, clip.level, period, local, error);
   ds_column_stats_clear (&stats);
   if (!fitted)
     return FALSE;

@@ -10,6 +10,7 @@
 #include "daemon/operating/scene_probe_transfer.h"
 #include "daemon/operating/scene_probe_wide.h"
 #include "daemon/operating/operating_error.h"
+#include "proc/clip_level.h"
 #include "proc/column_stats.h"
 #include "proc/harmonic_gain.h"
 #include "proc/image_stats.h"
@@ -316,28 +317,15 @@ stage_dark (const DsProbeFrames *fr, DsSceneProbe *out)
 }
 
 /* Clip level: the given one, or a pile-up of samples at one value below it (a sensor's full
- * well reached before the ADC's top). Noise spreads unclipped values over many levels, so a
- * pile of 0.02 % of the pixels at the very top means clipping, but only when there is noise:
- * a noise-free frame's flat top is not a clip. The lit frame's own noise below the top
- * counts: a sensor with under 0.5 DN of read noise still has shot noise where it clips. */
+ * well reached before the ADC's top): proc/clip_level.h. */
 static void
 stage_clip (const DsProbeFrames *fr, DsSceneProbe *out)
 {
-  double clip = fr->saturation_dn > 0 ? fr->saturation_dn : INFINITY;
-  out->clip.known = fr->saturation_known && fr->saturation_dn > 0;
-  for (int i = 0; i < 2; i++) {
-    const DsImage *f = fr->lit[i];
-    if (f->type == DS_SAMPLE_F32)
-      continue;
-    double top = ds_image_percentile (f, 100), near = ds_image_percentile (f, 99.98);
-    double lit_noise = out->noise.var0 >= 0.25 ? INFINITY : ds_column_stats_noise_dn (f, NULL, top);
-    if (top > out->noise.dark_dn && near >= top && top <= clip && lit_noise >= 0.5) {
-      clip = top;
-      out->clip.known = TRUE;
-    }
-  }
-  out->clip.saturation_dn = isfinite (clip) ? clip : 0;
-  out->clip.flagged = fr->saturation_dn > 0 && clip >= fr->saturation_dn;
+  DsClipLevel clip;
+  ds_clip_level_find (fr->dark, fr->lit, 2, fr->saturation_dn, &clip);
+  out->clip.known = (fr->saturation_known && fr->saturation_dn > 0) || clip.piled;
+  out->clip.saturation_dn = clip.level;
+  out->clip.flagged = fr->saturation_dn > 0 && clip.level >= fr->saturation_dn;
   out->clip.bright_dn =
     MAX (ds_image_percentile (fr->lit[0], 99.9), ds_image_percentile (fr->lit[1], 99.9)) - out->noise.dark_dn;
 }

@@ -4,21 +4,7 @@
 #include <string.h>
 
 #include "daemon/operating/operating_error.h"
-
-/* Pixels where either frame of a pair is at or above the ceiling. */
-static guint64
-clipped_pixels (const DsImage *a, const DsImage *b, double ceiling)
-{
-  guint64 n = 0;
-  if (!(ceiling > 0))
-    return 0;
-  for (guint y = 0; y < a->height; y++) {
-    const void *ra = ds_image_row (a, y), *rb = ds_image_row (b, y);
-    for (guint x = 0; x < a->width; x++)
-      n += ds_image_sample (a, ra, x) >= ceiling || ds_image_sample (b, rb, x) >= ceiling;
-  }
-  return n;
-}
+#include "proc/clip_level.h"
 
 /* The scene's level per column relative to its mean, (a + b - 2 dark) over the rows, for stripes
  * whose opposite phases sum to a constant: the columns' Ld + Lg, whatever the stripes. The pair's
@@ -50,7 +36,7 @@ gboolean
 ds_probe_pair_check_clipping (const DsImage *a, const DsImage *b, double ceiling, guint64 *clipped_out,
                               GError **error)
 {
-  guint64 n_px = (guint64) a->width * a->height, clipped = clipped_pixels (a, b, ceiling);
+  guint64 n_px = (guint64) a->width * a->height, clipped = ds_clip_count (a, b, ceiling);
   if (clipped_out)
     *clipped_out = clipped;
   if (clipped * 2 <= n_px)

@@ -16,6 +16,7 @@
 #include "daemon/operating/pattern_check.h"
 #include "daemon/operating/scene_probe.h"
 #include "daemon/operating/operating_error.h"
+#include "proc/clip_level.h"
 #include "tests/daemon/calibrate_lines.h"
 #include "tests/common/test_random.h"
 
@@ -33,6 +34,7 @@ typedef struct {
   gboolean sine;       /* sine stripes: b + (1 - b) (1 + B cos)/2, B the Gaussian's exp (-2 pi^2 s^2 / P^2) */
   double dn_per_e;     /* the sensor's gain (0: 0.5); a small one quantises tiny signals coarsely */
   double ceiling_dn;   /* a clip level below the format's top (a full well), 0 = none */
+  gboolean blur_known; /* the edge blur is configured (descatterctl calibrate's edge-blur-px) */
 } Scene;
 
 static double
@@ -167,7 +169,7 @@ run_configured (const Scene *s, DsPatternKind kind, double conf_duty, double con
   DsProbeFrames f = {
     .dark = dark, .lit = { l0, l1 }, .coarse = { c0, c1 }, .saturation_dn = 65535,
     .geometry = { .kind = kind, .period_px = s->period, .duty = conf_duty, .black_level = conf_black },
-    .calibrated_gain = conf_gain,
+    .calibrated_gain = conf_gain, .blur_known = s->blur_known, .calibrated_blur_px = s->blur_known ? s->blur : 0,
   };
   DsPatternCheck c;
   g_autoptr (GError) error = NULL;
@@ -185,10 +187,11 @@ describe (const Scene *s, const DsPatternCheck *c, char *buf, gsize len, double 
 {
   g_snprintf (buf, len,
               "P %.1f a %.2f b %.2f blur %.1f scatter %.1f keep %.2f photons %.0f%s (configured a %.2f b %.2f): "
-              "%s; duty %.3f/%.3f level %.3f/%.3f dim %.3f bright %.3f x%.2f",
+              "%s; duty %.3f/%.3f (expected %.3f+-%.3f/%.3f+-%.3f) level %.3f/%.3f dim %.3f bright %.3f x%.2f",
               s->period, s->duty, s->black, s->blur, s->scatter, s->keep, s->photons,
               s->featureless ? " featureless" : "", conf_duty, conf_black, ds_pattern_verdict_name (c->verdict),
-              c->pair[0].duty, c->pair[1].duty, c->pair[0].off_level, c->pair[1].off_level, c->off_dim,
+              c->pair[0].duty, c->pair[1].duty, c->pair[0].expected_duty, c->pair[0].duty_tolerance,
+              c->pair[1].expected_duty, c->pair[1].duty_tolerance, c->pair[0].off_level, c->pair[1].off_level, c->off_dim,
               c->off_bright, c->brightness_ratio);
 }
 
@@ -496,6 +499,116 @@ test_clipped (void)
   check (c.verdict == DS_PATTERN_MATCHES && !c.pair[0].measured && c.pair[0].clipped_share > 0.1, what);
 }
 
+/* Square stripes a few pixels wide, the edge blur configured as calibrated: the fit's duty trades
+ * against its blur and level there, and the check compares it with what the configured pattern
+ * reads through the same measurement. Right configurations at 2.75 px and at 7 px (duty 0.24,
+ * blur 0.94 px, black level 0.038; clear, behind a thin film that keeps part of its scattered
+ * light's stripes, and behind a medium scattering as much light as it passes) are not refused; a duty 0.5 on stripes of 0.25 (and the reverse), 0.24 on 0.4,
+ * and a black level 0.2 on a rig of 0.038 are. */
+static void
+test_narrow_stripes (void)
+{
+  char what[400];
+  const struct {
+    double period, duty, black, blur, scatter, keep, photons;
+  } right[] = {
+    { 2.75, 0.5, 0.0, 0.5, 0, 0, 20000 },   { 2.75, 0.3, 0.0, 0.5, 0, 0, 20000 },
+    { 2.75, 0.5, 0.05, 0.3, 0, 0, 2000 },   { 7, 0.24, 0.038, 0.94, 0, 0, 20000 },
+    { 7, 0.24, 0.038, 0.94, 0, 0, 2000 },   { 7, 0.24, 0.038, 0.94, 0.3, 0.5, 5000 },
+    { 7, 0.24, 0.038, 0.94, 0.15, 0.3, 5000 }, { 7, 0.24, 0.038, 0.94, 1.0, 0.3, 5000 },
+  };
+  for (guint i = 0; i < G_N_ELEMENTS (right); i++)
+    for (int coarse = 0; coarse < 2; coarse++) {
+      Scene sc = { .period = right[i].period, .duty = right[i].duty, .black = right[i].black, .blur = right[i].blur,
+                   .scatter = right[i].scatter, .keep = right[i].keep, .photons = right[i].photons, .read_e = 10,
+                   .seed = 500 + 2 * i + (guint) coarse, .blur_known = TRUE };
+      DsPatternCheck c = run (&sc, sc.duty, sc.black, coarse);
+      describe (&sc, &c, what, sizeof what, sc.duty, sc.black);
+      gboolean fine = c.verdict == DS_PATTERN_MATCHES || (sc.scatter > 0 && c.verdict == DS_PATTERN_OFF_LEVEL_ASSUMED);
+      check (fine && c.pair[0].measured, what);
+    }
+  /* without the calibrated blur the fit may trade it against the duty, and the spread of the
+   * frames' own readings says how far: the right duty is still not refused */
+  Scene loose = { .period = 7, .duty = 0.24, .black = 0.038, .blur = 0.94, .photons = 20000, .read_e = 10, .seed = 520 };
+  DsPatternCheck c = run (&loose, loose.duty, loose.black, FALSE);
+  describe (&loose, &c, what, sizeof what, loose.duty, loose.black);
+  check (c.verdict == DS_PATTERN_MATCHES && c.pair[0].measured, what);
+
+  const struct {
+    double period, duty, black, blur, conf_duty, conf_black;
+    DsPatternVerdict want;
+  } wrong[] = {
+    { 7, 0.25, 0.0, 0.94, 0.5, 0.0, DS_PATTERN_WRONG_DUTY },     { 7, 0.5, 0.0, 0.94, 0.25, 0.0, DS_PATTERN_WRONG_DUTY },
+    { 7, 0.4, 0.038, 0.94, 0.24, 0.038, DS_PATTERN_WRONG_DUTY }, { 2.75, 0.25, 0.0, 0.5, 0.5, 0.0, DS_PATTERN_WRONG_DUTY },
+    { 2.75, 0.5, 0.0, 0.5, 0.25, 0.0, DS_PATTERN_WRONG_DUTY },   { 7, 0.24, 0.038, 0.94, 0.24, 0.2, DS_PATTERN_WRONG_BLACK_LEVEL },
+  };
+  for (guint i = 0; i < G_N_ELEMENTS (wrong); i++)
+    for (int coarse = 0; coarse < 2; coarse++) {
+      Scene sc = { .period = wrong[i].period, .duty = wrong[i].duty, .black = wrong[i].black, .blur = wrong[i].blur,
+                   .photons = 20000, .read_e = 10, .seed = 540 + 2 * i + (guint) coarse, .blur_known = TRUE };
+      c = run (&sc, wrong[i].conf_duty, wrong[i].conf_black, coarse);
+      describe (&sc, &c, what, sizeof what, wrong[i].conf_duty, wrong[i].conf_black);
+      check (c.verdict == wrong[i].want, what);
+    }
+}
+
+/* A 16-bit frame of known samples: level + a ramp along x of `slope` DN per column, Gaussian
+ * noise of sigma DN, clamped at `well` (a full well below the format's top; 0 = none). */
+static DsImage *
+clip_frame (double level, double slope, double sigma, double well, guint seed)
+{
+  g_autoptr (GRand) rng = g_rand_new_with_seed (seed);
+  DsImage *img = ds_image_new (DS_SAMPLE_U16, W, H, NULL);
+  img->bit_depth = 16;
+  for (guint y = 0; y < H; y++) {
+    guint16 *row = ds_image_row (img, y);
+    for (guint x = 0; x < W; x++) {
+      double v = level + slope * x + sigma * test_normal (rng);
+      row[x] = (guint16) CLAMP (lround (v), 0, well > 0 ? well : 65535);
+    }
+  }
+  return img;
+}
+
+/* The shared clip rule (proc/clip_level.h) on closed-form frames: a ramp from 100 to 2650 DN with
+ * 8 DN of noise clamped at a full well of 2000 DN piles a quarter of its samples there, far below
+ * the format's top, and those pixels are the clipped ones; the same ramp unclamped, and a
+ * noise-free frame whose flat top holds half its samples (a plateau, not a clip), show none. */
+static void
+test_clip_rule (void)
+{
+  g_autoptr (DsImage) dark = clip_frame (100, 0, 8, 0, 601);
+  g_autoptr (DsImage) piled = clip_frame (100, 10, 8, 2000, 602);
+  g_autoptr (DsImage) open = clip_frame (100, 10, 8, 0, 603);
+  DsClipLevel c;
+  const DsImage *lit[2] = { piled, open };
+  ds_clip_level_find (dark, lit, 2, 65535, &c);
+  /* columns x >= 190 reach 2000 DN (2000 - 100) / 10, less the noise's few columns either way */
+  guint64 clipped = ds_clip_count (piled, NULL, c.level), want = (guint64) (W - 190) * H;
+  char what[200];
+  g_snprintf (what, sizeof what, "a full well at 2000 DN: level %.0f (piled %d), %" G_GUINT64_FORMAT " pixels clipped, "
+              "about %" G_GUINT64_FORMAT " expected", c.level, c.piled, clipped, want);
+  check (c.piled && c.level == 2000 && clipped > want - 3 * H && clipped < want + 3 * H, what);
+  const DsImage *unclipped[2] = { open, open };
+  ds_clip_level_find (dark, unclipped, 2, 65535, &c);
+  g_snprintf (what, sizeof what, "an unclipped ramp: level %.0f (piled %d), %" G_GUINT64_FORMAT " pixels clipped",
+              c.level, c.piled, ds_clip_count (open, open, c.level));
+  check (!c.piled && c.level == 65535 && ds_clip_count (open, open, c.level) == 0, what);
+  g_autoptr (DsImage) quiet_dark = clip_frame (100, 0, 0, 0, 604);
+  g_autoptr (DsImage) plateau = clip_frame (100, 0, 0, 0, 605);
+  for (guint y = 0; y < H; y++) {
+    guint16 *row = ds_image_row (plateau, y);
+    for (guint x = 0; x < W / 2; x++)
+      row[x] = (guint16) (100 + 4 * x);
+    for (guint x = W / 2; x < W; x++)
+      row[x] = 100 + 4 * (W / 2);
+  }
+  const DsImage *flat[2] = { plateau, plateau };
+  ds_clip_level_find (quiet_dark, flat, 2, 65535, &c);
+  g_snprintf (what, sizeof what, "a noise-free flat top: level %.0f (piled %d)", c.level, c.piled);
+  check (!c.piled && c.level == 65535, what);
+}
+
 int
 main (void)
 {
@@ -505,6 +618,8 @@ main (void)
   test_no_false_alarm ();
   test_poor_measurements ();
   test_clipped ();
+  test_narrow_stripes ();
+  test_clip_rule ();
   printf ("%d failure(s)\n", failures);
   return failures ? 1 : 0;
 }
