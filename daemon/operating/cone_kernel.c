@@ -62,6 +62,32 @@ residuals (const double *y, const double *w, const double *shift, const double *
   return chi2;
 }
 
+/* The grid point with the most direct light within DS_CONE_SEEN_CHI2 of the best (the least
+ * objective among equal Ld), refitted for the blur's error: cone_kernel.h, open_above. */
+static void
+take_least_scattered (const double *y, const double *w, const double *shift, const double *x, guint n, double total,
+                      double period_px, const double *objective, const double *ld_at, guint n_r, guint n_s, double best,
+                      DsConeFit *out)
+{
+  gsize pick = G_MAXSIZE;
+  for (gsize k = 0; k < (gsize) n_r * n_s; k++) {
+    if (!(objective[k] <= best + DS_CONE_SEEN_CHI2))
+      continue;
+    if (pick == G_MAXSIZE || ld_at[k] > ld_at[pick] || (ld_at[k] == ld_at[pick] && objective[k] < objective[pick]))
+      pick = k;
+  }
+  if (pick == G_MAXSIZE)
+    return;
+  double R = R_MIN * pow (R_STEP, (double) (pick / n_s)), T[MAX_EQ], t, obj;
+  for (guint i = 0; i < n; i++)
+    T[i] = w[i] > 0 ? ds_cone_kernel_mtf (R, x[i]) : 0;
+  out->ld = ld_at[pick];
+  out->radius_px = R;
+  out->chi2 = residuals (y, w, shift, T, n, out->ld, total, &t, &obj);
+  out->blur_t = t;
+  out->leak = (total - out->ld) / out->ld * ds_cone_kernel_mtf (R, period_px);
+}
+
 gboolean
 ds_cone_kernel_fit (const double *x, const double *y, const double *w, const double *shift, guint n, double total,
                     double period_px, DsConeFit *out)
@@ -83,7 +109,7 @@ ds_cone_kernel_fit (const double *x, const double *y, const double *w, const dou
   g_autofree double *objective = g_new (double, (gsize) n_r * n_s);
   g_autofree double *leak_at = g_new (double, (gsize) n_r * n_s);
   g_autofree double *ld_at = g_new (double, (gsize) n_r * n_s);
-  double best = INFINITY;
+  double best = INFINITY, all_scattered = INFINITY;
   out->objective_narrow = out->objective_wide = INFINITY;
   for (guint ir = 0; ir < n_r; ir++) {
     double R = R_MIN * pow (R_STEP, ir), T[MAX_EQ];
@@ -101,6 +127,8 @@ ds_cone_kernel_fit (const double *x, const double *y, const double *w, const dou
         out->objective_narrow = MIN (out->objective_narrow, obj);
       if (ir == n_r - 1)
         out->objective_wide = MIN (out->objective_wide, obj);
+      if (is == n_s - 1)
+        all_scattered = MIN (all_scattered, obj);
       if (obj < best) {
         best = obj;
         out->ld = ld;
@@ -127,6 +155,9 @@ ds_cone_kernel_fit (const double *x, const double *y, const double *w, const dou
   out->seen = best + DS_CONE_SEEN_CHI2 <= MIN (out->objective_narrow, out->objective_wide);
   out->told = out->seen && out->leak > 0 && out->leak_low * DS_CONE_TOLD_FACTOR >= out->leak &&
               out->leak_high <= DS_CONE_TOLD_FACTOR * out->leak;
+  out->open_above = all_scattered <= best + DS_CONE_SEEN_CHI2;
+  if (out->open_above)
+    take_least_scattered (y, ww, shift, x, n, total, period_px, objective, ld_at, n_r, n_s, best, out);
   out->ok = TRUE;
   return TRUE;
 }

@@ -69,6 +69,15 @@ typedef struct {
   double objective_narrow, objective_wide; /* the least at the smallest and at the largest R */
   gboolean seen;             /* objective DS_CONE_SEEN_CHI2 below both limits */
   gboolean told;             /* seen, and leak_low and leak_high within DS_CONE_TOLD_FACTOR of leak */
+  /* The objective stays within DS_CONE_SEEN_CHI2 of the best up to the grid's end, nearly all the
+   * light scattered (Ld / M = 0.005): the harmonics bound the scattered light from below only. Along
+   * that valley (periods long against R see (M - Ld) R^2 alone) the objective is flat within the
+   * noise while the leak (M - Ld) T (P) / Ld grows without limit as Ld goes to 0, so the best fit's
+   * place on it is the noise's, not the scene's. ld, radius_px, blur_t, chi2 and leak are then the
+   * point with the most direct light within DS_CONE_SEEN_CHI2 of the best (one standard deviation:
+   * the least leak the harmonics allow, the lower end a lower bound needs); objective stays the
+   * best's. */
+  gboolean open_above;
 } DsConeFit;
 
 /* Fits Ld and R (the blur's error t with a unit normal prior) to n equations
