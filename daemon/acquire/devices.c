@@ -48,12 +48,7 @@ pattern_from_scene (const DsScene *scene, DsStripePattern *p, DsPatternKnowledge
                       .blur_px = ds_scene_edge_blur_px (scene),
                       .pixel_aperture = w > 0 ? w : DS_STRIPE_POINT_APERTURE };
   ds_pattern_knowledge_from_geometry (&g, known);
-  /* The open field a calibration on the clear reference measures (no medium, objects or ambient
-   * light: the illuminator, lens and sensor alone): a fully lit pixel's photons per ms, converted
-   * by the sensor at 0 dB gain (docs/scene-format.md). */
-  const DsSceneSpec *spec = ds_scene_spec (scene);
-  double pitch_um = ds_scene_object_pitch_mm (scene) * 1000;
-  known->open_field_dn_per_ms = spec->irradiance * pitch_um * pitch_um * spec->quantum_efficiency * spec->system_gain;
+  known->open_field_dn_per_ms = ds_scene_open_field_dn_per_ms (scene);
 }
 
 static DsSimLab *

@@ -290,7 +290,7 @@ typedef struct {
   double transmittance;           /* level_dn / open_dn */
   double floor;                   /* the least transmittance Fresnel, noise and calibration explain */
   gboolean unexplained;           /* below floor while the stripes keep the light: a lower bound */
-  char note[360];                 /* what was measured, or why not */
+  char note[448];                 /* what was measured, or why not */
 } DsProbeLoss;
 
 /* The probe: each stage of ds_scene_probe_measure () fills its own part. */

@@ -101,10 +101,10 @@ ds_probe_loss_measure (const DsProbeFrames *fr, DsSceneProbe *out)
            "floor %.4f, Lg/Ld %.4f", l->open_dn, l->level_dn, n, sigma_px, l->transmittance, l->floor, seen);
   if (l->unexplained)
     g_snprintf (l->note, sizeof l->note,
-                "the scene passes %.1f %% of the open field's light (two faces of index up to %.1f pass %.1f %%) while "
-                "the stripes keep all but %.1f %% of what arrives: the lost light was scattered or absorbed, and a "
-                "forward-peaked medium also scatters light into the lens within a pixel of its path, which no stripe "
-                "period tells from direct light, so the prediction is a lower bound",
+                "the scene passes %.1f %% of the open field's light (two faces of index up to %.1f pass %.1f %%) and "
+                "the pilot sees scattered light of %.1f %% of the direct light: the rest was absorbed or scattered, and "
+                "a forward-peaked medium also scatters light into the lens within a pixel of its path, which no "
+                "stripe period tells from direct light, so the prediction is a lower bound",
                 100 * l->transmittance, DS_PROBE_LOSS_MAX_INDEX, 100 * fresnel, 100 * seen);
   else
     g_snprintf (l->note, sizeof l->note,
