@@ -15,6 +15,7 @@
 #include "daemon/operating/operating_point.h"
 #include "daemon/operating/scene_probe.h"
 #include "daemon/operating/scene_probe_loss.h"
+#include "pilot_pairs.h"
 #include "report_json.h"
 
 #define W 240
@@ -56,35 +57,19 @@ frame (const Scene *s, double period, double shift, gboolean on, GRand *r)
   return f;
 }
 
+static DsImage *
+pilot_frame (gconstpointer s, double q, double shift, gboolean on, GRand *r)
+{
+  return frame (s, q, shift, on, r);
+}
+
 /* Probes the scene from pairs at P, 2P and the finer periods, the open field given (or 0). */
 static void
 probe (const Scene *s, double open_dn, DsSceneProbe *p)
 {
-  g_autoptr (GRand) r = g_rand_new_with_seed (7);
-  DsImage *owned[9] = { NULL };
-  guint n = 0;
-  owned[n++] = frame (s, PERIOD, 0, FALSE, r);
-  owned[n++] = frame (s, PERIOD, 0.1, TRUE, r);
-  owned[n++] = frame (s, PERIOD, 0.6, TRUE, r);
-  owned[n++] = frame (s, 2 * PERIOD, 0.2, TRUE, r);
-  owned[n++] = frame (s, 2 * PERIOD, 0.7, TRUE, r);
-  DsProbeFrames fr = { .dark = owned[0], .lit = { owned[1], owned[2] }, .coarse = { owned[3], owned[4] },
-                       .exposure_us = 1000, .geometry = { DS_PATTERN_SQUARE, PERIOD, DUTY, 0, 0 },
-                       .blur_known = TRUE, .calibrated_blur_px = BLUR, .open_field_dn = open_dn };
-  double q[DS_PROBE_FINER_MAX];
-  guint nq = ds_scene_probe_finer_periods (PERIOD, BLUR, q);
-  for (guint i = 0; i < nq; i++) {
-    owned[n++] = frame (s, q[i], 0.3, TRUE, r);
-    owned[n++] = frame (s, q[i], 0.8, TRUE, r);
-    fr.finer[i] = (DsProbePair){ .frame = { owned[n - 2], owned[n - 1] }, .period_px = q[i] };
-  }
-  fr.n_finer = nq;
-  g_autoptr (GError) error = NULL;
-  gboolean ok = ds_scene_probe_measure (&fr, p, &error);
-  g_assert_no_error (error);
-  g_assert_true (ok);
-  for (guint i = 0; i < n; i++)
-    ds_image_free (owned[i]);
+  DsProbeFrames base = { .exposure_us = 1000, .geometry = { DS_PATTERN_SQUARE, PERIOD, DUTY, 0, 0 },
+                         .blur_known = TRUE, .calibrated_blur_px = BLUR, .open_field_dn = open_dn };
+  pilot_pairs_probe (pilot_frame, s, &base, BLUR, 7, p);
 }
 
 /* The point the daemon chooses (default model and timing, 4-phase error model) for a target (0:
@@ -114,6 +99,30 @@ choose (const DsSceneProbe *p, double target, DsOperatingPoint *op, char **reaso
   *reasons = g_string_free (all, FALSE);
 }
 
+/* Probes a scene whose stripes keep `t` of the open field, `wide` arriving as scattered light that
+ * keeps no stripes, `rows` rows behind an opaque object, the open field known: the stage must read
+ * the transmittance t + wide within 2 %. */
+static void
+probe_measured (double t, double wide, guint rows, DsSceneProbe *p)
+{
+  Scene s = { .transmittance = t, .wide = wide, .object_rows = rows };
+  probe (&s, OPEN_DN, p);
+  g_assert_true (p->loss.known);
+  g_assert_cmpfloat_with_epsilon (p->loss.transmittance, t + wide, 0.02);
+}
+
+/* probe_measured (t, 0, rows), whose loss must be flagged as asked, and the point chosen without a
+ * target: its lower_bound_reasons, joined. */
+static char *
+chosen_reasons (double t, guint rows, gboolean flagged, DsSceneProbe *p, DsOperatingPoint *op)
+{
+  probe_measured (t, 0, rows, p);
+  g_assert_cmpint (p->loss.unexplained, ==, flagged);
+  char *reasons = NULL;
+  choose (p, 0, op, &reasons);
+  return reasons;
+}
+
 static void
 test_fresnel (void)
 {
@@ -126,15 +135,9 @@ test_fresnel (void)
 static void
 test_clear_with_objects (void)
 {
-  Scene s = { .transmittance = 1, .object_rows = 40 };
   DsSceneProbe p;
-  probe (&s, OPEN_DN, &p);
-  g_assert_true (p.loss.known);
-  g_assert_cmpfloat_with_epsilon (p.loss.transmittance, 1.0, 0.02);
-  g_assert_false (p.loss.unexplained);
   DsOperatingPoint op;
-  g_autofree char *reasons = NULL;
-  choose (&p, 0, &op, &reasons);
+  g_autofree char *reasons = chosen_reasons (1, 40, FALSE, &p, &op);
   g_assert_null (strstr (reasons, "open field"));
 }
 
@@ -142,10 +145,8 @@ test_clear_with_objects (void)
 static void
 test_fresnel_loss (void)
 {
-  Scene s = { .transmittance = ds_probe_fresnel_transmittance (1.6), .object_rows = 20 };
   DsSceneProbe p;
-  probe (&s, OPEN_DN, &p);
-  g_assert_cmpfloat_with_epsilon (p.loss.transmittance, s.transmittance, 0.02);
+  probe_measured (ds_probe_fresnel_transmittance (1.6), 0, 20, &p);
   g_assert_false (p.loss.unexplained);
 }
 
@@ -154,14 +155,9 @@ test_fresnel_loss (void)
 static void
 test_loss_flagged (void)
 {
-  Scene s = { .transmittance = 0.75, .object_rows = 40 };
   DsSceneProbe p;
-  probe (&s, OPEN_DN, &p);
-  g_assert_cmpfloat_with_epsilon (p.loss.transmittance, 0.75, 0.02);
-  g_assert_true (p.loss.unexplained);
   DsOperatingPoint op;
-  g_autofree char *reasons = NULL;
-  choose (&p, 0, &op, &reasons);
+  g_autofree char *reasons = chosen_reasons (0.75, 40, TRUE, &p, &op);
   g_assert_true (op.lower_bound);
   g_assert_true (isinf (op.predicted_error_upper));
   g_assert_nonnull (strstr (reasons, "of the open field's light"));
@@ -177,10 +173,8 @@ test_loss_flagged (void)
 static void
 test_seen_scatter_not_flagged (void)
 {
-  Scene s = { .transmittance = 0.5, .wide = 0.3 };
   DsSceneProbe p;
-  probe (&s, OPEN_DN, &p);
-  g_assert_cmpfloat_with_epsilon (p.loss.transmittance, 0.8, 0.02);
+  probe_measured (0.5, 0.3, 0, &p);
   g_assert_false (p.loss.unexplained);
 }
 
