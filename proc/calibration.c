@@ -405,6 +405,7 @@ ds_calibrator_finish (DsCalibrator *c, const DsCalibrationHints *hints, DsCalibr
     out->edge_blur_px = xq[2] < 1e-3 ? 0 : xq[2];
   }
   out->harmonic_gain = ds_pattern_mean (out->pattern, out->duty, out->black_level) * out->contrast;
+  out->lit_level_dn = sum_m / used / ds_pattern_mean (out->pattern, out->duty, out->black_level);
   out->harmonic_gain_theory = ds_harmonic_gain_theory (out->pattern, out->duty, out->black_level);
   ds_calibration_scatter_check (brightness, off, c->w, c->h, period, &out->scatter);
   /* scattered light that keeps square stripes has tails no blurred edge has; a sine stays a sine */

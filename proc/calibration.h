@@ -59,6 +59,12 @@ typedef struct {
                                  are as sharp as pixels show (sine: from two periods, the pixel's
                                  own aperture taken out; 0 at one period) */
   guint64 pixels_used;        /* lit, unsaturated, finite pixels the numbers come from */
+  double lit_level_dn;        /* a fully lit pixel's level, DN above the dark frame (the mean over
+                                 phases and pixels over the pattern's mean); without a dark frame it
+                                 holds the sensor's offset too */
+  double open_field_dn_per_ms;/* lit_level_dn per ms of exposure at 0 dB gain, where the set's
+                                 exposure and gain are known and it had a dark frame (the daemon's
+                                 calibrate); 0 = not measured */
   DsScatterCheck scatter;     /* does the reference scatter? (calibration_scatter.h): then b and h
                                  hold scattered light and are not to be used */
 } DsCalibration;

@@ -1,4 +1,5 @@
 /* A calibration as JSON (calibration_json.h). */
+#include <math.h>
 #include <string.h>
 
 #include "proc/calibration_json.h"
@@ -154,6 +155,11 @@ ds_calibration_add_json_members (JsonBuilder *b, const DsCalibration *cal)
   json_builder_add_string_value (b, cal->pattern_check.expected == DS_PATTERN_SINE ? "sine" : "square");
   add_members (b, pattern_members, G_N_ELEMENTS (pattern_members), &cal->pattern_check);
   json_builder_end_object (b);
+  /* only where measured (the daemon's calibrate with a dark frame) */
+  if (cal->open_field_dn_per_ms > 0) {
+    json_builder_set_member_name (b, "open_field_dn_per_ms");
+    json_builder_add_double_value (b, cal->open_field_dn_per_ms);
+  }
   g_autofree char *notice = ds_calibration_pattern_notice (cal);
   if (notice) {
     json_builder_set_member_name (b, "pattern_notice");
@@ -187,6 +193,20 @@ ds_calibration_from_json (JsonObject *obj, DsCalibration *cal, GError **error)
   cal->pattern = strcmp (pattern, "sine") == 0 ? DS_PATTERN_SINE : DS_PATTERN_SQUARE;
   if (!read_members (obj, members, G_N_ELEMENTS (members), cal, "", error))
     return FALSE;
+  /* absent (not measured, or an older daemon): 0 */
+  n = json_object_get_member (obj, "open_field_dn_per_ms");
+  if (n) {
+    double v = JSON_NODE_HOLDS_VALUE (n) && (json_node_get_value_type (n) == G_TYPE_DOUBLE ||
+                                             json_node_get_value_type (n) == G_TYPE_INT64)
+                 ? json_node_get_double (n)
+                 : NAN;
+    if (!(v > 0) || !isfinite (v)) {
+      g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT,
+                   "calibration: \"open_field_dn_per_ms\" is not a positive number");
+      return FALSE;
+    }
+    cal->open_field_dn_per_ms = v;
+  }
   /* absent (an older daemon): the pattern was not detected, it is what was expected */
   cal->pattern_check.expected = cal->pattern;
   n = json_object_get_member (obj, "pattern_check");
@@ -223,12 +243,15 @@ ds_calibration_from_json (JsonObject *obj, DsCalibration *cal, GError **error)
 char *
 ds_calibration_config_lines (const DsCalibration *cal)
 {
+  g_autofree char *open = cal->open_field_dn_per_ms > 0
+                             ? g_strdup_printf ("open-field-dn-per-ms=%.6g\n", cal->open_field_dn_per_ms)
+                             : g_strdup ("");
   /* sine stripes have no duty, and their blur is in the harmonic gain */
   if (cal->pattern == DS_PATTERN_SINE)
-    return g_strdup_printf ("[illuminator]\npattern=sine\nperiod-px=%.4f\nblack-level=%.4f\nharmonic-gain=%.4f\n",
-                            cal->period_px, cal->black_level, cal->harmonic_gain);
+    return g_strdup_printf ("[illuminator]\npattern=sine\nperiod-px=%.4f\nblack-level=%.4f\nharmonic-gain=%.4f\n%s",
+                            cal->period_px, cal->black_level, cal->harmonic_gain, open);
   return g_strdup_printf ("[illuminator]\npattern=%s\nperiod-px=%.4f\nduty=%.4f\nblack-level=%.4f\n"
-                          "harmonic-gain=%.4f\nedge-blur-px=%.2f\n",
+                          "harmonic-gain=%.4f\nedge-blur-px=%.2f\n%s",
                           cal->pattern == DS_PATTERN_SINE ? "sine" : "square", cal->period_px, cal->duty,
-                          cal->black_level, cal->harmonic_gain, cal->edge_blur_px);
+                          cal->black_level, cal->harmonic_gain, cal->edge_blur_px, open);
 }

@@ -379,6 +379,15 @@ def report(rows, phase, header):
                 md.append(f"| {r['scene']} | {r['request']} | {choice} | {r.get('predicted', '')} | "
                           f"{r.get('achieved') or r.get('best_achieved', '')} | {r['reason']} |")
             md.append("")
+        # How many misses the daemon said could be missed: a chosen point flagged a lower bound (its
+        # prediction is not an estimate of the error); the optimistic ones are those it matters for.
+        flagged = [r for r in misses if r["outcome"] == "chosen" and str(r.get("lower_bound")) == "1"]
+        optimistic = [r for r in misses if r["outcome"] == "chosen" and r.get("predicted") and r.get("achieved")
+                      and float(r["achieved"]) > FACTOR * float(r["predicted"])]
+        md.append(f"Misses flagged as lower bounds: {len(flagged)} of {len(misses)} misses; "
+                  f"{sum(1 for r in optimistic if str(r.get('lower_bound')) == '1')} of {len(optimistic)} optimistic ones "
+                  f"(achieved above x{FACTOR} the prediction).")
+        md.append("")
         chosen = [r for r in sel if r["outcome"] == "chosen" and r.get("predicted") and r.get("achieved")]
         if chosen:
             def far(r):

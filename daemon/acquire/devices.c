@@ -33,7 +33,8 @@ parse_roi (const char *roi, DsCameraSettings *cs, GError **error)
  * the configuration's [illuminator] pattern keys. Its blur and how its pixels see it are exact
  * too: they reach the probe and the sets as a calibration's lines would, through the record a
  * noise-free `descatterctl calibrate` on a clear reference would give
- * (daemon/operating/pattern_knowledge.h), so that --sim is never less informed than a rig. */
+ * (daemon/operating/pattern_knowledge.h), so that --sim is never less informed than a rig, and
+ * never more: the scene's medium and objects are not read. */
 static void
 pattern_from_scene (const DsScene *scene, DsStripePattern *p, DsPatternKnowledge *known)
 {
@@ -47,6 +48,7 @@ pattern_from_scene (const DsScene *scene, DsStripePattern *p, DsPatternKnowledge
                       .blur_px = ds_scene_edge_blur_px (scene),
                       .pixel_aperture = w > 0 ? w : DS_STRIPE_POINT_APERTURE };
   ds_pattern_knowledge_from_geometry (&g, known);
+  known->open_field_dn_per_ms = ds_scene_open_field_dn_per_ms (scene);
 }
 
 static DsSimLab *

@@ -175,6 +175,10 @@ static const KeySpec keys[] = {
   { "illuminator", "edge-blur-px", K_DOUBLE, RESTART, F (edge_blur_px), "", 0, 2048, NULL,
     "Gaussian sigma of the stripes' edges on the sensor in pixels (descatterctl calibrate), for the "
     "automatic operating point; empty = from harmonic-gain, or measured by the pilot frames" },
+  { "illuminator", "open-field-dn-per-ms", K_DOUBLE, RESTART, F (open_field_dn_per_ms), "", 1e-6, 1e9, NULL,
+    "lit level of a fully lit pixel on a clear path above dark, DN per ms of exposure at 0 dB gain "
+    "(descatterctl calibrate on a clear reference); the automatic operating point compares the scene's "
+    "with it; empty = not measured" },
   { "illuminator", "intensity", K_DOUBLE, RESTART, F (intensity), "1", 0, 1, NULL, "drive level" },
   { "illuminator", "settle-timeout-ms", K_UINT, RESTART, F (settle_timeout_ms), "500", 1, 60000, NULL,
     "deadline for a phase to be applied and read back" },

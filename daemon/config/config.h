@@ -80,6 +80,7 @@ typedef struct {
   double black_level;
   double harmonic_gain;   /* NAN: not calibrated */
   double edge_blur_px;    /* NAN: not calibrated */
+  double open_field_dn_per_ms; /* NAN: not calibrated (descatterctl calibrate's open field) */
   double intensity;
   guint settle_timeout_ms;
   /* [trigger] */

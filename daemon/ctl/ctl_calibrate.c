@@ -72,6 +72,9 @@ print_lines (const char *source, const DsCalibration *cal)
   printf ("  harmonic gain   %.4f (sharp stripes: %.4f)\n", cal->harmonic_gain, cal->harmonic_gain_theory);
   if (cal->pattern == DS_PATTERN_SQUARE || cal->black_level_measured)
     printf ("  edge blur       %.2f px (Gaussian sigma)\n", cal->edge_blur_px);
+  if (cal->open_field_dn_per_ms > 0)
+    printf ("  open field      %.6g DN per ms of exposure at 0 dB gain (a fully lit pixel above dark)\n",
+            cal->open_field_dn_per_ms);
   g_autofree char *lines = ds_calibration_config_lines (cal);
   g_autofree char *level_note = ds_calibration_black_level_note (cal);
   g_autofree char *notice = ds_calibration_pattern_notice (cal);

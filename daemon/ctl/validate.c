@@ -26,7 +26,11 @@ calibrate_set (const DsSimRig *ref, double exposure_us, const DsCalibrationHints
       return FALSE;
   }
   g_autoptr (DsImage) dark = ds_sim_rig_frame (ref, 0, n, FALSE, exposure_us, seed + n, error);
-  return dark && ds_calibrator_set_dark (c, dark, error) && ds_calibrator_finish (c, hints, cal, error);
+  if (!dark || !ds_calibrator_set_dark (c, dark, error) || !ds_calibrator_finish (c, hints, cal, error))
+    return FALSE;
+  /* As the daemon's calibrate: the open field per ms above the dark frame, at the rig's 0 dB. */
+  cal->open_field_dn_per_ms = cal->lit_level_dn / (exposure_us / 1000);
+  return TRUE;
 }
 
 /* The rig's `descatterctl calibrate` on the clear reference (daemon/service/service.c): one set
@@ -123,6 +127,7 @@ ds_validate_probe (const DsSimRig *rig, const DsValidateOptions *o, DsValidateSc
                         .duty = s->duty, .black_level = s->black_level, .blur_px = s->edge_blur_px,
                         .pixel_aperture = w > 0 ? w : DS_STRIPE_POINT_APERTURE };
     ds_calibration_from_geometry (&g, &out->calibration);
+    out->calibration.open_field_dn_per_ms = ds_scene_open_field_dn_per_ms (scene);
     out->calibrated = TRUE;
   }
   if (out->calibrated) {
@@ -134,6 +139,7 @@ ds_validate_probe (const DsSimRig *rig, const DsValidateOptions *o, DsValidateSc
     out->harmonic_gain = known.harmonic_gain;
     out->edge_blur_known = known.edge_blur_known;
     out->edge_blur_px = known.edge_blur_px;
+    out->open_field_dn_per_ms = known.open_field_dn_per_ms;
   }
   g_autoptr (DsImage) dark = ds_sim_rig_frame (rig, 0, 2, FALSE, e0, seed + 1, error);
   g_autoptr (DsImage) l0 = dark ? ds_sim_rig_frame (rig, 0, 2, TRUE, e0, seed + 2, error) : NULL;
@@ -187,6 +193,7 @@ ds_validate_probe (const DsSimRig *rig, const DsValidateOptions *o, DsValidateSc
     .finer_missing = o->fixed_period ? "the illuminator cannot change its period" : NULL,
     .blur_known = out->edge_blur_known,
     .calibrated_blur_px = out->edge_blur_px,
+    .open_field_dn = out->open_field_dn_per_ms * e0 / 1000,
   };
   for (guint i = 0; i < n_finer; i++)
     pf.finer[i] = (DsProbePair){ .frame = { finer_frames[i][0], finer_frames[i][1] }, .period_px = finer_period[i] };

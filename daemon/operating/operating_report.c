@@ -96,6 +96,8 @@ ds_operating_report_to_json (const DsOperatingReport *r, JsonBuilder *b)
     json_builder_add_string_value (b, pr->blur.source == DS_BLUR_CALIBRATED ? "blur_calibrated" : "blur_fitted");
   if (pr->leak.measured)
     json_builder_add_string_value (b, "scattered_stripes");
+  if (pr->loss.known)
+    json_builder_add_string_value (b, "open_field_loss");
   json_builder_end_array (b);
   json_builder_set_member_name (b, "assumed");
   json_builder_begin_array (b);
@@ -109,6 +111,8 @@ ds_operating_report_to_json (const DsOperatingReport *r, JsonBuilder *b)
     json_builder_add_string_value (b, "narrow_kernel");
   if (pr->transfer.inconsistent)
     json_builder_add_string_value (b, "transfer");
+  if (pr->loss.unexplained)
+    json_builder_add_string_value (b, "light_scattered_into_cone");
   if (!r->speed_declared)
     json_builder_add_string_value (b, "still_scene");
   json_builder_end_array (b);
@@ -121,6 +125,8 @@ ds_operating_report_to_json (const DsOperatingReport *r, JsonBuilder *b)
     json_builder_add_string_value (b, pr->narrow.note);
   if (pr->transfer.inconsistent)
     json_builder_add_string_value (b, pr->transfer.note);
+  if (pr->loss.unexplained)
+    json_builder_add_string_value (b, pr->loss.note);
   if (p->motion_why)
     json_builder_add_string_value (b, p->motion_why);
   json_builder_end_array (b);
@@ -157,6 +163,12 @@ ds_operating_report_to_json (const DsOperatingReport *r, JsonBuilder *b)
   else
     json_builder_add_double_value (b, pr->interval.set ? pr->interval.ld_lower : pr->light.ld_mean);
   STR ("direct_interval_note", pr->interval.set ? pr->interval.note : "");
+  json_builder_set_member_name (b, "open_field_transmittance");
+  if (pr->loss.known)
+    json_builder_add_double_value (b, pr->loss.transmittance);
+  else
+    json_builder_add_null_value (b);
+  STR ("open_field_note", pr->loss.note);
   DBL ("clip_dn", pr->clip.saturation_dn);
   BOOL ("clip_known", pr->clip.known);
   DBL ("saturated_fraction", pr->clip.saturated_fraction);

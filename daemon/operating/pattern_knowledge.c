@@ -30,6 +30,7 @@ ds_pattern_knowledge_from_calibration (const DsCalibration *cal, DsPatternKnowle
   /* The lines carry a square pattern's edge blur; a sine's is in its harmonic gain. */
   out->edge_blur_known = cal->pattern != DS_PATTERN_SINE;
   out->edge_blur_px = out->edge_blur_known ? cal->edge_blur_px : 0;
+  out->open_field_dn_per_ms = cal->open_field_dn_per_ms > 0 ? cal->open_field_dn_per_ms : 0;
 }
 
 void

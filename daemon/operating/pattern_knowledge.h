@@ -3,7 +3,8 @@
  * (descatterd --sim --scene). Every source enters through one record, the calibration's
  * (proc/calibration.h), and reaches the probe and the phase sets through the quantities its
  * lines carry (docs/accuracy.md, "What is measured, what is assumed"):
- *   [illuminator] black-level, harmonic-gain, and edge-blur-px for square stripes
+ *   [illuminator] black-level, harmonic-gain, and edge-blur-px for square stripes,
+ *   and open-field-dn-per-ms where the calibration knew its exposure and took a dark frame
  * (a sine's blur and its pixel's aperture are both in its harmonic gain: they only scale the
  * first harmonic, which is all a sine has, and the probe splits that gain again,
  * ds_stripe_match_gain). So a simulated rig is never less informed than a calibrated one: its
@@ -22,6 +23,8 @@ typedef struct {
   double harmonic_gain;     /* h the sine estimator divides by; 0 = not known (its theory) */
   gboolean edge_blur_known; /* edge_blur_px is known (square stripes' edge-blur-px) */
   double edge_blur_px;      /* Gaussian sigma, px */
+  double open_field_dn_per_ms; /* a fully lit pixel's level on a clear path above dark, DN per ms at
+                                  0 dB gain ([illuminator] open-field-dn-per-ms); 0 = not known */
 } DsPatternKnowledge;
 
 /* What a noise-free calibration of a pattern of exactly this geometry measures

@@ -6,6 +6,7 @@
 
 #include "daemon/operating/scene_probe_determined.h"
 #include "daemon/operating/scene_probe_hidden.h"
+#include "daemon/operating/scene_probe_loss.h"
 #include "daemon/operating/scene_probe_pairs.h"
 #include "daemon/operating/scene_probe_transfer.h"
 #include "daemon/operating/scene_probe_wide.h"
@@ -777,6 +778,7 @@ ds_scene_probe_measure (const DsProbeFrames *fr, DsSceneProbe *out, GError **err
   stage_interval (fr, h, &t, out);
   out->leak.at_period = ds_scene_probe_leak (out, fr->geometry.period_px, 1);
   out->noise.at_mean_dn = sqrt (out->noise.var0 + out->noise.gain * (out->light.ld_mean + out->light.lg_mean));
+  ds_probe_loss_measure (fr, out);
   probe_pairs_clear (&pairs);
   return TRUE;
 }

@@ -162,6 +162,8 @@ typedef struct {
   double calibrated_gain;         /* h measured on a reference (descatterctl calibrate); 0 = none */
   gboolean blur_known;            /* calibrated_blur_px holds a calibrated edge blur */
   double calibrated_blur_px;      /* Gaussian sigma (descatterctl calibrate); wins over the gain's */
+  double open_field_dn;           /* the open field's lit level (a fully lit pixel on a clear path, above
+                                     dark) at the pilot's exposure and gain, DN; 0 = not known */
 } DsProbeFrames;
 
 /* The frames' shape, as both the probe and the pattern check need it: a dark frame and the pair
@@ -279,6 +281,18 @@ typedef struct {
   char note[360];                 /* how the lower end was found, or why there is none */
 } DsProbeInterval;
 
+/* Loss (scene_probe_loss.h): the scene's lit level against the open field's. Relies on objects only
+ * darkening pixels and on the open field being the same illuminator and camera on a clear path. */
+typedef struct {
+  gboolean known;                 /* the open field's level was given and the frames had blocks to measure */
+  double level_dn;                /* the scene's lit level (bright quantile over blocks), DN */
+  double open_dn;                 /* the open field's, DN at the pilot's exposure and gain */
+  double transmittance;           /* level_dn / open_dn */
+  double floor;                   /* the least transmittance Fresnel, noise and calibration explain */
+  gboolean unexplained;           /* below floor while the stripes keep the light: a lower bound */
+  char note[448];                 /* what was measured, or why not */
+} DsProbeLoss;
+
 /* The probe: each stage of ds_scene_probe_measure () fills its own part. */
 typedef struct {
   DsStripeModel geometry;      /* with the blur found, and the pixel's aperture where a calibrated
@@ -294,6 +308,7 @@ typedef struct {
   DsProbeLeak leak;
   DsProbeNarrow narrow;
   DsProbeInterval interval;
+  DsProbeLoss loss;
 } DsSceneProbe;
 
 gboolean ds_scene_probe_measure (const DsProbeFrames *frames, DsSceneProbe *out, GError **error);

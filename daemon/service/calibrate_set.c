@@ -43,6 +43,10 @@ ds_calibrate_measure (DsResult *result, const DsCalibrateRequest *request, doubl
   if (!ds_calibrator_finish (cal, &hints, out, error))
     return FALSE;
   out->period_measured = !(request->period_px > 0);
+  /* The open field's lit level (daemon/operating/scene_probe_loss.h), per ms at 0 dB gain: only
+   * above a dark frame, which removes the sensor's offset and any ambient light. */
+  if (raw->black && s->exposure_us > 0 && out->lit_level_dn > 0)
+    out->open_field_dn_per_ms = out->lit_level_dn / (s->exposure_us / 1000 * pow (10, s->gain_db / 20));
   return TRUE;
 }
 

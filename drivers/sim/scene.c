@@ -638,3 +638,10 @@ ds_scene_object_pitch_mm (const DsScene *s)
 {
   return s->spec.pixel_pitch_um * 1e-3 / s->spec.magnification;
 }
+
+double
+ds_scene_open_field_dn_per_ms (const DsScene *s)
+{
+  double pitch_um = ds_scene_object_pitch_mm (s) * 1000;
+  return s->spec.irradiance * pitch_um * pitch_um * s->spec.quantum_efficiency * s->spec.system_gain;
+}

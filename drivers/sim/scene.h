@@ -97,5 +97,10 @@ gboolean ds_scene_object_moves (const DsSceneObject *object);
 gboolean ds_scene_has_motion (const DsScene *scene);
 /* Side of one pixel projected into the object (mm): sensor pitch / magnification. */
 double ds_scene_object_pitch_mm (const DsScene *scene);
+/* The open field a calibration on the scene's clear reference measures (no medium, objects or
+ * ambient light: the illuminator, lens and sensor alone): a fully lit pixel's level above dark, DN
+ * per ms of exposure at 0 dB gain (docs/scene-format.md: photons per pixel per ms, times the
+ * quantum efficiency and the system gain). */
+double ds_scene_open_field_dn_per_ms (const DsScene *scene);
 
 G_END_DECLS

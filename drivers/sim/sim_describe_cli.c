@@ -30,8 +30,9 @@ describe_scattering (const DsScene *scene, const DsRendererScattering *sc)
     return;
   if (sc->modulated > 2 * sc->modulated_noise)
     printf ("warning: the scattered light keeps the stripes (kernel not much wider than the %g px period): the "
-            "estimators count its modulated part, %.0f %% of the direct light, as direct; a longer period or a "
-            "wider-spreading medium fixes it\n", s->period_px, 100 * ratio);
+            "estimators count its modulated part, %.0f %% of the direct light, as direct; a longer period keeps "
+            "more of it, a period below the kernel's width (if the sensor resolves it) or a wider-spreading medium "
+            "would keep less\n", s->period_px, 100 * ratio);
   else
     printf ("warning: the kernel's modulation at the period is Monte Carlo noise, yet %.0f %% of the direct light: "
             "the frames carry it; raise [medium] photons (now %" G_GUINT64_FORMAT ")\n", 100 * ratio, s->photons);

@@ -348,6 +348,55 @@ test_calibration_lines_and_clip_level (void)
   g_assert_cmpfloat (top->saturation_dn, ==, 255);
 }
 
+/* The open field's lit level travels as the other calibration lines do: printed by calibrate where
+ * measured (and in its JSON, read back), loaded by the parser into the capture settings; absent, 0
+ * (not measured); a value that is no positive number is refused naming the key, range and line. */
+static void
+test_open_field_line (void)
+{
+  DsCalibration cal = { .pattern = DS_PATTERN_SINE, .period_px = 12, .black_level = 0.05, .harmonic_gain = 0.45,
+                        .open_field_dn_per_ms = 123.25 };
+  g_autofree char *lines = ds_calibration_config_lines (&cal);
+  g_assert_nonnull (strstr (lines, "\nopen-field-dn-per-ms=123.25\n"));
+  g_autofree char *text = g_strconcat (lines, "backend=sim\n[camera]\nbackend=sim\n", NULL);
+  g_autoptr (GError) error = NULL;
+  g_autoptr (DsConfig) c = load_data (text, "calibrated.conf", &error);
+  g_assert_no_error (error);
+  g_assert_cmpfloat (c->open_field_dn_per_ms, ==, 123.25);
+  DsCaptureSettings s;
+  ds_capture_settings_from_config (&s, c);
+  g_assert_cmpfloat (s.open_field_dn_per_ms, ==, 123.25);
+  /* The calibration's JSON carries it, and refuses a bad one. */
+  g_autoptr (JsonBuilder) b = json_builder_new ();
+  json_builder_begin_object (b);
+  ds_calibration_add_json_members (b, &cal);
+  json_builder_end_object (b);
+  g_autoptr (JsonNode) root = json_builder_get_root (b);
+  DsCalibration back;
+  g_assert_true (ds_calibration_from_json (json_node_get_object (root), &back, &error));
+  g_assert_no_error (error);
+  g_assert_cmpfloat (back.open_field_dn_per_ms, ==, 123.25);
+  json_object_set_double_member (json_node_get_object (root), "open_field_dn_per_ms", -1);
+  g_assert_false (ds_calibration_from_json (json_node_get_object (root), &back, &error));
+  g_assert_nonnull (strstr (error->message, "open_field_dn_per_ms"));
+  g_clear_error (&error);
+  /* Not measured: no line, and a configuration without it knows no open field. */
+  cal.open_field_dn_per_ms = 0;
+  g_autofree char *without = ds_calibration_config_lines (&cal);
+  g_assert_null (strstr (without, "open-field"));
+  g_autoptr (DsConfig) d = load_data (SIM, "plain.conf", &error);
+  g_assert_no_error (error);
+  g_assert_true (isnan (d->open_field_dn_per_ms));
+  ds_capture_settings_from_config (&s, d);
+  g_assert_cmpfloat (s.open_field_dn_per_ms, ==, 0);
+  expect_error ("[camera]\nbackend=sim\n[illuminator]\nopen-field-dn-per-ms=0\n", DS_CONFIG_ERROR_BAD_VALUE,
+                (const char *const[]) { "open-field-dn-per-ms", "1e-06..1e+09", "line 4", NULL });
+  expect_error ("[illuminator]\nopen-field-dn-per-ms=-3\n", DS_CONFIG_ERROR_BAD_VALUE,
+                (const char *const[]) { "open-field-dn-per-ms", "line 2", NULL });
+  expect_error ("[illuminator]\nopen-field-dn-per-ms=bright\n", DS_CONFIG_ERROR_BAD_VALUE,
+                (const char *const[]) { "open-field-dn-per-ms", NULL });
+}
+
 /* The camera's noise model reaches the separation's per-pixel noise (system_gain > 0 turns it
  * on), and a declared speed the automatic operating point's settings; unset, neither is there. */
 static void
@@ -415,6 +464,7 @@ main (int argc, char **argv)
   g_test_add_func ("/config/calibration-lines-and-clip-level", test_calibration_lines_and_clip_level);
   g_test_add_func ("/config/file-limits", test_file_limits);
   g_test_add_func ("/config/noise-model-and-speed", test_noise_model_and_speed);
+  g_test_add_func ("/config/open-field-line", test_open_field_line);
   g_test_add_func ("/config/groups-given-twice", test_groups_given_twice);
   return g_test_run ();
 }

@@ -12,6 +12,7 @@
 
 #include "daemon/operating/scene_probe.h"
 #include "daemon/operating/scene_probe_determined.h"
+#include "pilot_pairs.h"
 
 #define W 256
 #define H 192
@@ -56,37 +57,21 @@ frame (const Scene *s, double q, double shift, gboolean on, GRand *r)
   return f;
 }
 
+static DsImage *
+pilot_frame (gconstpointer s, double q, double shift, gboolean on, GRand *r)
+{
+  return frame (s, q, shift, on, r);
+}
+
 /* Probes the scene from pairs at P, 2P and the finer periods the blur resolves. */
 static void
 probe (const Scene *s, DsSceneProbe *p)
 {
-  g_autoptr (GRand) r = g_rand_new_with_seed (17);
-  DsImage *owned[9] = { NULL };
-  guint n = 0;
-  owned[n++] = frame (s, s->period, 0, FALSE, r);
-  owned[n++] = frame (s, s->period, 0.1, TRUE, r);
-  owned[n++] = frame (s, s->period, 0.6, TRUE, r);
-  owned[n++] = frame (s, 2 * s->period, 0.2, TRUE, r);
-  owned[n++] = frame (s, 2 * s->period, 0.7, TRUE, r);
-  DsProbeFrames fr = { .dark = owned[0], .lit = { owned[1], owned[2] }, .coarse = { owned[3], owned[4] },
-                       .exposure_us = 1000, .finer_missing = "fixed by the test",
-                       .geometry = { DS_PATTERN_SINE, s->period, 0.5, 0, 0 },
-                       .blur_known = TRUE, .calibrated_blur_px = s->blur };
-  double q[DS_PROBE_FINER_MAX];
-  guint nq = ds_scene_probe_finer_periods (s->period, s->blur, q);
+  DsProbeFrames base = { .exposure_us = 1000, .finer_missing = "fixed by the test",
+                         .geometry = { DS_PATTERN_SINE, s->period, 0.5, 0, 0 },
+                         .blur_known = TRUE, .calibrated_blur_px = s->blur };
+  guint nq = pilot_pairs_probe (pilot_frame, s, &base, s->blur, 17, p);
   g_assert_cmpuint (nq, ==, 2); /* the test is about four periods */
-  for (guint i = 0; i < nq; i++) {
-    owned[n++] = frame (s, q[i], 0.3, TRUE, r);
-    owned[n++] = frame (s, q[i], 0.8, TRUE, r);
-    fr.finer[i] = (DsProbePair){ .frame = { owned[n - 2], owned[n - 1] }, .period_px = q[i] };
-  }
-  fr.n_finer = nq;
-  g_autoptr (GError) error = NULL;
-  gboolean ok = ds_scene_probe_measure (&fr, p, &error);
-  g_assert_no_error (error);
-  g_assert_true (ok);
-  for (guint i = 0; i < n; i++)
-    ds_image_free (owned[i]);
 }
 
 /* Probes the scene and says what it read against the truth; the leak at P read, *truth the kernel's. */

@@ -95,6 +95,7 @@ test_settings_documented (void)
   full.harmonic_gain = 0.9;
   full.edge_blur_known = TRUE;
   full.edge_blur_px = 0.5;
+  full.open_field_dn_per_ms = 250;
   full.saturation_dn = 4000;
   full.system_gain = 0.5; /* the camera's noise model */
   full.read_noise_dn = 2;

@@ -1,0 +1,115 @@
+#include "daemon/operating/scene_probe_loss.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "proc/harmonic_gain.h"
+
+double
+ds_probe_fresnel_transmittance (double n)
+{
+  double r = (n - 1) / (n + 1);
+  r *= r;
+  return (1 - r) / (1 + r);
+}
+
+static int
+compare_double (const void *a, const void *b)
+{
+  double x = *(const double *) a, y = *(const double *) b;
+  return (x > y) - (x < y);
+}
+
+/* Each unclipped pixel's lit level: the two opposite phases' sum less twice the dark frame, over
+ * the sum the pattern model gives there (1 where a stripe is fully lit), at columns where that sum
+ * is at least half its mean (square stripes of a duty under 1/2 leave gaps lit by neither).
+ * Returns how many; at most one sample in `step` rows is taken. *model_sum is the model's mean
+ * sum over the columns used. */
+static gsize
+pixel_levels (const DsProbeFrames *fr, const DsSceneProbe *p, guint step, double *levels, double *model_sum)
+{
+  const DsImage *a = fr->lit[0], *b = fr->lit[1], *d = fr->dark;
+  guint w = a->width;
+  g_autofree double *e = g_new (double, w);
+  double mean = 0;
+  for (guint x = 0; x < w; x++) {
+    e[x] = ds_stripe_value (&p->geometry, x, p->phase_offset) + ds_stripe_value (&p->geometry, x, p->phase_offset + 0.5);
+    mean += e[x] / w;
+  }
+  double clip = p->clip.saturation_dn > 0 ? p->clip.saturation_dn : INFINITY;
+  gsize n = 0;
+  double used = 0, cols = 0;
+  for (guint x = 0; x < w; x++)
+    if (e[x] >= 0.5 * mean) {
+      used += e[x];
+      cols++;
+    }
+  *model_sum = cols > 0 ? used / cols : 0;
+  for (guint y = 0; y < a->height; y += step) {
+    const void *ra = ds_image_row (a, y), *rb = ds_image_row (b, y), *rd = ds_image_row (d, y);
+    for (guint x = 0; x < w; x++) {
+      if (!(e[x] >= 0.5 * mean))
+        continue;
+      double va = ds_image_sample (a, ra, x), vb = ds_image_sample (b, rb, x);
+      if (va >= clip || vb >= clip || !isfinite (va) || !isfinite (vb))
+        continue;
+      levels[n++] = (va + vb - 2 * ds_image_sample (d, rd, x)) / e[x];
+    }
+  }
+  return n;
+}
+
+void
+ds_probe_loss_measure (const DsProbeFrames *fr, DsSceneProbe *out)
+{
+  DsProbeLoss *l = &out->loss;
+  memset (l, 0, sizeof *l);
+  l->transmittance = NAN;
+  if (!(fr->open_field_dn > 0)) {
+    g_strlcpy (l->note, "not measured: the open field's lit level is not known (descatterctl calibrate on a clear "
+                        "reference prints it as [illuminator] open-field-dn-per-ms)", sizeof l->note);
+    return;
+  }
+  const DsImage *lit = fr->lit[0];
+  guint step = MAX (1u, (guint) ((gsize) lit->width * lit->height / DS_PROBE_LOSS_MAX_SAMPLES));
+  g_autofree double *levels = g_new (double, (gsize) lit->width * ((lit->height + step - 1) / step));
+  double model_sum = 0;
+  gsize n = pixel_levels (fr, out, step, levels, &model_sum);
+  if (n < DS_PROBE_LOSS_MIN_PIXELS) {
+    g_snprintf (l->note, sizeof l->note, "not measured: %" G_GSIZE_FORMAT " unclipped lit pixels (need %u)", n,
+                DS_PROBE_LOSS_MIN_PIXELS);
+    return;
+  }
+  qsort (levels, n, sizeof *levels, compare_double);
+  double quantile = levels[MIN (n - 1, (gsize) floor (DS_PROBE_LOSS_QUANTILE * n))];
+  /* The quantile of a level spread by the noise sits DS_PROBE_LOSS_QUANTILE_Z of its standard
+   * deviation above it: two lit frames' noise and twice the dark frame's, over the model's sum. */
+  double sigma_px = sqrt (6 * out->noise.var0 + out->noise.gain * MAX (0.0, quantile * model_sum)) / model_sum;
+  l->known = TRUE;
+  l->open_dn = fr->open_field_dn;
+  l->level_dn = quantile - DS_PROBE_LOSS_QUANTILE_Z * sigma_px;
+  l->transmittance = l->level_dn / l->open_dn;
+  double rel_noise = l->level_dn > 0 ? sigma_px / l->level_dn / sqrt ((double) n * (1 - DS_PROBE_LOSS_QUANTILE)) : 0;
+  double sigma = hypot (DS_PROBE_LOSS_CALIBRATION, rel_noise);
+  double fresnel = ds_probe_fresnel_transmittance (DS_PROBE_LOSS_MAX_INDEX);
+  l->floor = fresnel * (1 - DS_PROBE_LOSS_Z * sigma);
+  double seen = out->light.ld_mean > 0 ? out->light.lg_mean / out->light.ld_mean : 0;
+  gboolean lost = l->transmittance < l->floor;
+  l->unexplained = lost && seen < DS_PROBE_LOSS_SEEN_LG;
+  g_debug ("scene probe: open field %.4g DN, scene %.4g DN over %" G_GSIZE_FORMAT " pixels (noise %.3g DN): T %.4f, "
+           "floor %.4f, Lg/Ld %.4f", l->open_dn, l->level_dn, n, sigma_px, l->transmittance, l->floor, seen);
+  if (l->unexplained)
+    g_snprintf (l->note, sizeof l->note,
+                "the scene passes %.1f %% of the open field's light (two faces of index up to %.1f pass %.1f %%) and "
+                "the pilot sees scattered light of %.1f %% of the direct light: the rest was absorbed or scattered, and "
+                "a forward-peaked medium also scatters light into the lens within a pixel of its path, which no "
+                "stripe period tells from direct light, so the prediction is a lower bound",
+                100 * l->transmittance, DS_PROBE_LOSS_MAX_INDEX, 100 * fresnel, 100 * seen);
+  else
+    g_snprintf (l->note, sizeof l->note,
+                "the scene passes %.1f %% of the open field's light (%s %.1f %%, what two faces of index up to %.1f, "
+                "the noise and the calibration explain)%s",
+                100 * l->transmittance, lost ? "below" : "at least", 100 * l->floor, DS_PROBE_LOSS_MAX_INDEX,
+                lost ? "; the probe sees the scattered light itself" : "");
+}
