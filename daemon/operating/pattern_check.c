@@ -407,6 +407,14 @@ duty_differs (const DsPatternPair *pair)
   return fabs (pair->duty - pair->expected_duty) > pair->duty_tolerance;
 }
 
+/* Each measured pair reads the duty away from the configured pattern's reading (a duty the blur
+ * at P hides is read at 2P; the configured duty must fit neither). */
+static gboolean
+duty_refused (const DsPatternPair *p, const DsPatternPair *q)
+{
+  return p->measured && duty_differs (p) && (!q->measured || duty_differs (q));
+}
+
 gboolean
 ds_pattern_check (const DsProbeFrames *f, DsPatternCheck *out, GError **error)
 {
@@ -431,6 +439,22 @@ ds_pattern_check (const DsProbeFrames *f, DsPatternCheck *out, GError **error)
   out->off_dim = scatter.off_dim;
   out->off_bright = scatter.off_bright;
   out->brightness_ratio = scatter.brightness_contrast;
+  /* The calibrated blur floors the fit because nothing sharpens the stripes; a calibration that
+   * read them wider than these frames show (another focus, another period's fit) makes the
+   * floored fit trade the duty for the blur instead. Where the frames alone tell the duty from
+   * the blur (the unfloored reading's tolerance within twice what the model leaves out), the
+   * duty stands when the fit without the floor reads it as configured: a wrong duty is read
+   * wrong at any blur. Where they cannot (stripes of a few pixels), the floor decides. */
+  if (conf->kind == DS_PATTERN_SQUARE && known_blur > 0 && duty_refused (&out->pair[0], &out->pair[1])) {
+    DsPatternPair unfloored[2] = { 0 };
+    check_pair (f->dark, l0, l1, conf->period_px, f->saturation_dn, conf, sine_gain, 0, &unfloored[0], NULL);
+    if (f->coarse[0])
+      check_pair (f->dark, f->coarse[0], f->coarse[1], 2 * conf->period_px, f->saturation_dn, conf, sine_gain, 0,
+                  &unfloored[1], NULL);
+    const DsPatternPair *u = unfloored[1].measured ? &unfloored[1] : &unfloored[0];
+    if (unfloored[0].measured && u->duty_tolerance <= 2 * DUTY_MODEL && !duty_refused (&unfloored[0], &unfloored[1]))
+      memcpy (out->pair, unfloored, sizeof unfloored);
+  }
   const DsPatternPair *p = &out->pair[0], *q = &out->pair[1];
   out->verdict = DS_PATTERN_MATCHES;
   if (!p->measured)
@@ -448,9 +472,8 @@ ds_pattern_check (const DsProbeFrames *f, DsPatternCheck *out, GError **error)
       : g_strdup_printf ("the pilot frames show an off-stripe level of %.2f of the lit level", out->off_level);
 
   /* The duty: each measured pair must read it further from what the configured pattern reads
-   * through the same measurement than that reading's spread (a duty the blur at P hides is read
-   * at 2P; the configured duty must fit neither). */
-  if (conf->kind == DS_PATTERN_SQUARE && duty_differs (p) && (!q->measured || duty_differs (q))) {
+   * through the same measurement than that reading's spread. */
+  if (conf->kind == DS_PATTERN_SQUARE && duty_refused (p, q)) {
     const DsPatternPair *shown = q->measured ? q : p;
     conclude (out, DS_PATTERN_WRONG_DUTY,
               "the configured stripe pattern does not match the frames: duty %.2f is configured, the pilot frames "

@@ -35,6 +35,7 @@ typedef struct {
   double dn_per_e;     /* the sensor's gain (0: 0.5); a small one quantises tiny signals coarsely */
   double ceiling_dn;   /* a clip level below the format's top (a full well), 0 = none */
   gboolean blur_known; /* the edge blur is configured (descatterctl calibrate's edge-blur-px) */
+  double calibrated_blur; /* what calibration configured when blur_known (0: the stripes' own blur) */
 } Scene;
 
 static double
@@ -169,7 +170,7 @@ run_configured (const Scene *s, DsPatternKind kind, double conf_duty, double con
   DsProbeFrames f = {
     .dark = dark, .lit = { l0, l1 }, .coarse = { c0, c1 }, .saturation_dn = 65535,
     .geometry = { .kind = kind, .period_px = s->period, .duty = conf_duty, .black_level = conf_black },
-    .calibrated_gain = conf_gain, .blur_known = s->blur_known, .calibrated_blur_px = s->blur_known ? s->blur : 0,
+    .calibrated_gain = conf_gain, .blur_known = s->blur_known, .calibrated_blur_px = !s->blur_known ? 0 : s->calibrated_blur > 0 ? s->calibrated_blur : s->blur,
   };
   DsPatternCheck c;
   g_autoptr (GError) error = NULL;
@@ -552,6 +553,32 @@ test_narrow_stripes (void)
     }
 }
 
+/* A calibrated blur wider than the frames' own (sharp stripes, 0.6 px configured): at 8 px the
+ * frames alone tell the duty from the blur, so a right duty 0.5 is not refused and a duty 0.5
+ * configured on stripes of 0.25 is; at 2.75 px they cannot, and the floor still refuses that
+ * wrong duty. */
+static void
+test_calibration_wider (void)
+{
+  char what[400];
+  const struct {
+    double period, duty, blur, calibrated, conf_duty;
+    gboolean refused;
+  } cases[] = {
+    { 8, 0.5, 0.0, 0.6, 0.5, FALSE },  { 8, 0.25, 0.0, 0.6, 0.25, FALSE }, { 8, 0.25, 0.0, 0.6, 0.5, TRUE },
+    { 8, 0.5, 0.0, 0.6, 0.25, TRUE },  { 2.75, 0.25, 0.2, 0.5, 0.5, TRUE },
+  };
+  for (guint i = 0; i < G_N_ELEMENTS (cases); i++)
+    for (int coarse = 0; coarse < 2; coarse++) {
+      Scene sc = { .period = cases[i].period, .duty = cases[i].duty, .blur = cases[i].blur, .photons = 20000,
+                   .read_e = 10, .seed = 600 + 2 * i + (guint) coarse, .blur_known = TRUE,
+                   .calibrated_blur = cases[i].calibrated };
+      DsPatternCheck c = run (&sc, cases[i].conf_duty, 0, coarse);
+      describe (&sc, &c, what, sizeof what, cases[i].conf_duty, 0);
+      check (c.pair[0].measured && (c.verdict == DS_PATTERN_WRONG_DUTY) == cases[i].refused, what);
+    }
+}
+
 /* A 16-bit frame of known samples: level + a ramp along x of `slope` DN per column, Gaussian
  * noise of sigma DN, clamped at `well` (a full well below the format's top; 0 = none). */
 static DsImage *
@@ -619,6 +646,7 @@ main (void)
   test_poor_measurements ();
   test_clipped ();
   test_narrow_stripes ();
+  test_calibration_wider ();
   test_clip_rule ();
   printf ("%d failure(s)\n", failures);
   return failures ? 1 : 0;
