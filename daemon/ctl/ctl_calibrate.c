@@ -44,8 +44,9 @@ print_json (const char *key, const char *source, gint64 set_id, const DsCalibrat
   printf ("%s\n", text);
 }
 
+/* open_field_missing: why the open field is not measured, printed where it is absent. */
 static void
-print_lines (const char *source, const DsCalibration *cal)
+print_lines (const char *source, const DsCalibration *cal, const char *open_field_missing)
 {
   const char *kind = cal->pattern == DS_PATTERN_SINE ? "sine" : "square";
   printf ("calibration of %s: %u phases x %u frames, %" G_GUINT64_FORMAT " lit pixels\n", source, cal->n_phases,
@@ -75,6 +76,8 @@ print_lines (const char *source, const DsCalibration *cal)
   if (cal->open_field_dn_per_ms > 0)
     printf ("  open field      %.6g DN per ms of exposure at 0 dB gain (a fully lit pixel above dark)\n",
             cal->open_field_dn_per_ms);
+  else
+    printf ("  open field      not measured: %s\n", open_field_missing);
   g_autofree char *lines = ds_calibration_config_lines (cal);
   g_autofree char *level_note = ds_calibration_black_level_note (cal);
   g_autofree char *notice = ds_calibration_pattern_notice (cal);
@@ -225,7 +228,7 @@ calibrate (const char *dir, const Options *o, gboolean *usage, GError **error)
   if (o->json)
     print_json ("folder", dir, 0, &result);
   else
-    print_lines (dir, &result);
+    print_lines (dir, &result, "a folder's frames do not say how they were lit (calibrate on the rig)");
   warn (&result, o->quiet);
   return TRUE;
 }
@@ -278,7 +281,7 @@ calibrate_on_rig (const DsCtlTarget *target, const Options *o)
     print_json ("set_id", NULL, set_id, &cal);
   } else {
     g_autofree char *source = g_strdup_printf ("set %" G_GINT64_FORMAT " on the rig (%s)", set_id, target->address);
-    print_lines (source, &cal);
+    print_lines (source, &cal, o->no_dark_frame ? "no dark frame (--no-dark-frame)" : "the set had no dark frame");
   }
   warn (&cal, o->quiet);
   return 0;

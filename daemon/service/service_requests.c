@@ -309,7 +309,9 @@ handle_acquire (DsService *svc, DsConnection *conn, DsRequest *req)
 /* A phase set of a reference with little scattering, measured instead of only separated: the
  * raw frames are kept and the phase check is off (the set measures the period and phase the
  * check would test against); sine needs no sampling precondition that a wrong configured
- * period or duty would fail. The set is published as any other. */
+ * period or duty would fail. The set is published as any other. It takes a dark frame unless the
+ * request says otherwise, whatever [acquisition] dark-frame says: the open field's lit level
+ * (calibrate_set.c) is only known above the sensor's offset and the ambient light. */
 static void
 handle_calibrate (DsService *svc, DsConnection *conn, DsRequest *req)
 {
@@ -322,7 +324,8 @@ handle_calibrate (DsService *svc, DsConnection *conn, DsRequest *req)
   if (!ds_request_check_keys (req, keys, &error) || !settings_from_request (svc, req, &s, &error) ||
       !ds_request_get_double (req, "period_px", 2.0, 1e5, 0.0, &cr.period_px, &error) ||
       !ds_request_get_double (req, "pixel_aperture", 0.01, 1.0, 0.0, &cr.pixel_aperture, &error) ||
-      !ds_request_get_bool (req, "progress", FALSE, &progress, &error)) {
+      !ds_request_get_bool (req, "progress", FALSE, &progress, &error) ||
+      !ds_request_get_bool (req, "dark_frame", TRUE, &s.dark_frame, &error)) {
     ds_server_reply_error (svc->server, conn, req->id, error);
     return;
   }

@@ -307,6 +307,48 @@ def calibrate_then_capture():
               f"{achieved:.4f} against the truth, predicted {predicted:.4f} (within x1.5)")
 
 
+def scene_value(text, group, key):
+    kf = configparser.ConfigParser()
+    kf.read_string(text)
+    return float(kf[group][key])
+
+
+def open_field_dark_frame():
+    """calibrate measures the open field ([illuminator] open-field-dn-per-ms) above a dark frame
+    it takes even where [acquisition] dark-frame = false, and says when it could not. The
+    expectation is the scene's radiometry: irradiance (photons per um^2 per ms, object side) x the
+    pixel's footprint on the object (pitch / magnification)^2 x quantum efficiency x system gain.
+    Ambient light (a tenth of the stripes' level) is in every frame: only a dark frame removes it."""
+    with tempfile.TemporaryDirectory(prefix="ds-calibrate-") as tmp:
+        scene = os.path.join(tmp, "reference.scene")
+        reference_scene(scene, "[ambient]\nlevel=0.05\n")
+        # no objects: calibrate's lit level is the mean over the lit pixels, which an object's
+        # shaded edges would pull down
+        kf = configparser.ConfigParser(interpolation=None)
+        kf.optionxform = str
+        kf.read(scene)
+        for group in [g for g in kf.sections() if g.startswith("object.")]:
+            kf.remove_section(group)
+        with open(scene, "w") as f:
+            kf.write(f, space_around_delimiters=False)
+        text = open(scene).read()
+        footprint = scene_value(text, "sensor", "pixel-pitch-um") / scene_value(text, "camera", "magnification")
+        want = (scene_value(text, "illuminator", "irradiance") * footprint ** 2
+                * scene_value(text, "sensor", "quantum-efficiency") * scene_value(text, "sensor", "system-gain"))
+        with daemon_running(tmp, scene, sim="[acquisition]\ndark-frame=false\n") as sock:
+            cal = calibrate_json(sock, "dark-frame=false: calibrate")
+            got = cal.get("open_field_dn_per_ms")
+            check(got is not None and abs(got - want) <= 0.02 * want,
+                  f"dark-frame=false: the open field {got} DN/ms measured above a dark frame (scene: {want:.1f})")
+            r = run(CTL, "-a", sock, "calibrate", "--phases", "8", "--no-dark-frame")
+            check(r.returncode == 0 and "open field      not measured: no dark frame (--no-dark-frame)" in r.stdout
+                  and "open-field-dn-per-ms" not in r.stdout,
+                  "--no-dark-frame: the open field is said not measured, and no line for it is given")
+            with descatter.Client(sock) as c:
+                meta = c.capture(phases=8, estimator="sine").meta
+            check(meta["settings"]["dark_frame"] is False, "a capture still follows [acquisition] dark-frame = false")
+
+
 def main():
     with tempfile.TemporaryDirectory(prefix="ds-calibrate-") as tmp:
         scene = os.path.join(tmp, "reference.scene")
@@ -356,6 +398,7 @@ def main():
                     return await c.calibrate(phases=4)
             cal = asyncio.run(calibrate_async())
             check(cal["n_phases"] == 4 and abs(cal["period_px"] - 9.5) <= 0.01, "asyncio client calibrate")
+    open_field_dark_frame()
     scattering_reference()
     sine_reference()
     calibrate_then_capture()
