@@ -4,6 +4,7 @@
 #include <string.h>
 
 #include "proc/calibration.h"
+#include "proc/clip_level.h"
 #include "proc/calibration_fit.h"
 #include "proc/calibration_period.h"
 #include "proc/calibration_sine.h"
@@ -24,6 +25,7 @@ struct DsCalibrator {
   DsSampleType type;
   guint bit_depth;
   float *dark;
+  double pile_top;    /* the lowest top of a frame whose samples pile up there (clip_level.h) */
 };
 
 void
@@ -66,6 +68,7 @@ ds_calibrator_new (guint n, guint width, guint height, GError **error)
   }
   for (gsize i = 0; i < npix; i++)
     c->rawmax[i] = -INFINITY;
+  c->pile_top = INFINITY;
   return c;
 }
 
@@ -117,6 +120,12 @@ ds_calibrator_add (DsCalibrator *c, guint phase, const DsImage *frame, GError **
   c->typed = TRUE;
   c->type = frame->type;
   c->bit_depth = frame->bit_depth;
+  /* A sensor whose full well fills before its ADC's last code clips below the format's top (a
+   * 12-bit sensor in Mono16 at 4095, say): its frames pile samples at that level. The dark frame,
+   * which would vouch for the sensor's noise, may come later: each frame's own noise does. */
+  double top;
+  if (ds_clip_level_pile_top (frame, TRUE, &top))
+    c->pile_top = MIN (c->pile_top, top);
   double *plane = c->sum + (gsize) phase * c->npix;
   for (guint y = 0; y < c->h; y++)
     for (guint x = 0; x < c->w; x++) {
@@ -283,6 +292,12 @@ ds_calibrator_finish (DsCalibrator *c, const DsCalibrationHints *hints, DsCalibr
   double sat = hints->saturation_level > 0 ? hints->saturation_level
                : c->type != DS_SAMPLE_F32  ? (double) ((1u << c->bit_depth) - 1u)
                                            : INFINITY;
+  /* a pile-up above the dark level (light piles there, the dark frame's offset does not) */
+  double dark_mean = 0;
+  for (gsize i = 0; c->dark && i < c->npix; i++)
+    dark_mean += c->dark[i] / c->npix;
+  if (c->pile_top < sat && c->pile_top > dark_mean)
+    sat = c->pile_top;
   /* Lit pixels: above a quarter of the 90th percentile of the lit level, and never clipped. */
   g_autofree double *lit = g_new (double, c->npix);
   gsize nl = 0;
@@ -294,7 +309,9 @@ ds_calibrator_finish (DsCalibrator *c, const DsCalibrationHints *hints, DsCalibr
         lit[nl++] = v;
     }
   if (nl == 0) {
-    g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_EMPTY, "calibration: every pixel is clipped or not finite");
+    g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_EMPTY,
+                 "calibration: every pixel clips (at %.0f DN) in its lit phase or is not finite: lower the exposure "
+                 "or the gain", sat);
     return FALSE;
   }
   qsort (lit, nl, sizeof (double), compare_doubles);

@@ -9,6 +9,16 @@
 /* Below this a frame's noise does not spread its values over several codes. */
 #define NOISE_MIN_DN 0.5
 
+gboolean
+ds_clip_level_pile_top (const DsImage *f, gboolean need_own_noise, double *top)
+{
+  if (f->type == DS_SAMPLE_F32)
+    return FALSE;
+  *top = ds_image_percentile (f, 100);
+  double near = ds_image_percentile (f, DS_CLIP_PILE_PERCENTILE);
+  return near >= *top && (!need_own_noise || ds_column_stats_noise_dn (f, NULL, *top) >= NOISE_MIN_DN);
+}
+
 void
 ds_clip_level_find (const DsImage *dark, const DsImage *const *lit, guint n_lit, double saturation, DsClipLevel *out)
 {
@@ -17,12 +27,8 @@ ds_clip_level_find (const DsImage *dark, const DsImage *const *lit, guint n_lit,
   gboolean dark_noisy = isfinite (dark_noise) && dark_noise >= NOISE_MIN_DN;
   out->piled = FALSE;
   for (guint i = 0; i < n_lit; i++) {
-    const DsImage *f = lit[i];
-    if (f->type == DS_SAMPLE_F32)
-      continue;
-    double top = ds_image_percentile (f, 100), near = ds_image_percentile (f, DS_CLIP_PILE_PERCENTILE);
-    double noise = dark_noisy ? INFINITY : ds_column_stats_noise_dn (f, NULL, top);
-    if (top > dark_dn && near >= top && top <= clip && noise >= NOISE_MIN_DN) {
+    double top;
+    if (ds_clip_level_pile_top (lit[i], !dark_noisy, &top) && top > dark_dn && top <= clip) {
       clip = top;
       out->piled = TRUE;
     }

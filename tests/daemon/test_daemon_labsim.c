@@ -3,6 +3,8 @@
  * uses its Aravis and Modbus backends exactly as in the lab. Usage:
  *   test_daemon_labsim LABSIM SCENE
  * Binds UDP 3956: ctest runs it under RESOURCE_LOCK gige_port_3956. */
+#include <glib/gstdio.h>
+#include <math.h>
 #include <signal.h>
 #include <stdio.h>
 #include <string.h>
@@ -234,6 +236,62 @@ test_per_frame_over_the_wire (void)
   test_labsim_stop (l);
 }
 
+/* descatterctl calibrate's open field over GigE Vision and Modbus, as a rig measures it: labsim
+ * shows a clear reference (the scene without medium, objects or ambient light), the daemon is
+ * configured without dark frames, and calibrate still measures the open field above a dark frame.
+ * Expected from the scene's radiometry alone: irradiance (photons per um^2 per ms on the object)
+ * times the pixel's footprint on the object, (pitch / magnification)^2, times the quantum
+ * efficiency and the system gain, in DN per ms at 0 dB. */
+static void
+test_calibrate_open_field (void)
+{
+  g_autoptr (GKeyFile) kf = g_key_file_new ();
+  g_autoptr (GError) error = NULL;
+  g_assert_true (g_key_file_load_from_file (kf, scene_path, G_KEY_FILE_KEEP_COMMENTS, &error));
+  g_auto (GStrv) groups = g_key_file_get_groups (kf, NULL);
+  for (guint i = 0; groups[i]; i++)
+    if (g_str_equal (groups[i], "medium") || g_str_equal (groups[i], "ambient") || g_str_has_prefix (groups[i], "object."))
+      g_assert_true (g_key_file_remove_group (kf, groups[i], NULL));
+  g_autofree char *dir = g_dir_make_tmp ("ds-labsim-ref-XXXXXX", &error);
+  g_assert_no_error (error);
+  g_autofree char *ref = g_build_filename (dir, "reference.scene", NULL);
+  g_assert_true (g_key_file_save_to_file (kf, ref, &error));
+  const DsSceneSpec *s = ds_scene_spec (the_scene);
+  double footprint_um = s->pixel_pitch_um / s->magnification;
+  double want = s->irradiance * footprint_um * footprint_um * s->quantum_efficiency * s->system_gain;
+
+  TestLabsim *l = test_labsim_start (labsim_path, ref, NULL);
+  g_autofree char *text = daemon_config (l, NULL);
+  g_autoptr (GString) conf = g_string_new (text);
+  g_assert_cmpuint (g_string_replace (conf, "dark-frame=true", "dark-frame=false", 0), ==, 1);
+  TestDaemon *d = test_daemon_start (conf->str, NULL);
+  g_autoptr (DsClient) c = test_daemon_connect (d);
+  g_autoptr (JsonObject) args = json_object_new ();
+  json_object_set_int_member (args, "phases", 8);
+  /* At the configured exposure the reference, with no medium to dim it, fills the sensor's well:
+   * a 12-bit sensor's frames in Mono16 clip at 4095, not at the format's 65535. */
+  double clip_dn = MIN (s->full_well_e * s->system_gain, (double) ((1u << s->bit_depth) - 1u));
+  double lit_dn = want * ds_scene_default_exposure_us (the_scene) / 1000;
+  g_assert_cmpfloat (lit_dn, >, clip_dn);
+  g_autoptr (DsMessage) clipped = ds_client_call (c, "calibrate", args, NULL, NULL, &error);
+  g_assert_no_error (error);
+  g_assert_false (clipped->reply->ok);
+  g_autofree char *at = g_strdup_printf ("clips (at %.0f DN)", clip_dn);
+  g_assert_nonnull (strstr (clipped->reply->error_message, at));
+  /* ... and at an exposure that keeps the lit stripes at half the clip level it is measured. */
+  json_object_set_double_member (args, "exposure_us", 0.5 * clip_dn / want * 1000);
+  g_autoptr (DsMessage) m = test_daemon_call_ok (c, "calibrate", args);
+  JsonObject *body = json_node_get_object (m->reply->body);
+  g_assert_true (json_object_has_member (body, "open_field_dn_per_ms"));
+  double got = json_object_get_double_member (body, "open_field_dn_per_ms");
+  g_test_message ("labsim open field: %.4g DN/ms (the scene's radiometry: %.4g)", got, want);
+  g_assert_cmpfloat (fabs (got - want), <=, 0.02 * want);
+  test_daemon_stop_clean (d);
+  test_labsim_stop (l);
+  g_assert_cmpint (g_remove (ref), ==, 0);
+  g_assert_cmpint (g_rmdir (dir), ==, 0);
+}
+
 int
 main (int argc, char **argv)
 {
@@ -250,6 +308,7 @@ main (int argc, char **argv)
   g_test_add_func ("/daemon-labsim/faults", test_faults_over_the_wire);
   g_test_add_func ("/daemon-labsim/faults-automatic", test_faults_automatic_over_the_wire);
   g_test_add_func ("/daemon-labsim/per-frame", test_per_frame_over_the_wire);
+  g_test_add_func ("/daemon-labsim/calibrate-open-field", test_calibrate_open_field);
   int status = g_test_run ();
   truth_scene_free (the_scene, truth_t, truth_g);
   return status;

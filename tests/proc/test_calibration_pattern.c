@@ -229,6 +229,61 @@ test_forced (void)
   g_assert_null (notice);
 }
 
+/* One phase set of square stripes (duty 0.5, blur 0.5 px) as a 12-bit sensor delivers it in a
+ * 16-bit format: the left half of the frame lit to left_dn, the right half to right_dn, with 5 DN
+ * of noise, each sample clipped at 4095. */
+static DsCalibrator *
+clipped_set (double left_dn, double right_dn)
+{
+  const Stripes s = { DS_PATTERN_SQUARE, 12.0, 0.5, 0.0, 0.5, 0.0 };
+  g_autoptr (GError) error = NULL;
+  DsCalibrator *cal = ds_calibrator_new (N, W, H, &error);
+  g_assert_no_error (error);
+  GRand *r = g_rand_new_with_seed (11);
+  for (guint k = 0; k < N; k++) {
+    g_autoptr (DsImage) img = ds_image_new (DS_SAMPLE_U16, W, H, NULL);
+    for (guint y = 0; y < H; y++) {
+      guint16 *row = ds_image_row (img, y);
+      for (guint x = 0; x < W; x++) {
+        double v = lit (&s, x - (0.3 + (double) k / N) * s.period) * (x < W / 2 ? left_dn : right_dn);
+        row[x] = (guint16) CLAMP (round (100 + v + 5 * test_normal (r)), 0, 4095);
+      }
+    }
+    g_assert_true (ds_calibrator_add (cal, k, img, &error));
+  }
+  g_rand_free (r);
+  g_autoptr (DsImage) dark = ds_image_new (DS_SAMPLE_U16, W, H, NULL);
+  for (guint y = 0; y < H; y++)
+    for (guint x = 0; x < W; x++)
+      ((guint16 *) ds_image_row (dark, y))[x] = 100;
+  g_assert_true (ds_calibrator_set_dark (cal, dark, &error));
+  return cal;
+}
+
+/* A sensor that clips below its format's top piles samples at its clip level (clip_level.h): the
+ * calibrator leaves those pixels out as it does pixels at the format's top. The lit level is then
+ * the unclipped half's; counting the clipped half would pull it towards 4095 less the dark. With
+ * every pixel clipped the error names the level. */
+static void
+test_clip_below_format_top (void)
+{
+  g_autoptr (DsCalibrator) cal = clipped_set (3000, 6000);
+  DsCalibrationHints hints;
+  ds_calibration_hints_init (&hints);
+  DsCalibration out;
+  g_autoptr (GError) error = NULL;
+  g_assert_true (ds_calibrator_finish (cal, &hints, &out, &error));
+  g_assert_no_error (error);
+  g_test_message ("lit level %.1f DN over %" G_GUINT64_FORMAT " pixels (unclipped half: 3000)", out.lit_level_dn,
+                  out.pixels_used);
+  g_assert_cmpfloat (fabs (out.lit_level_dn - 3000), <=, 0.01 * 3000);
+  g_assert_cmpuint (out.pixels_used, <=, W / 2 * H);
+
+  g_autoptr (DsCalibrator) all = clipped_set (6000, 6000);
+  g_assert_false (ds_calibrator_finish (all, &hints, &out, &error));
+  g_assert_nonnull (strstr (error->message, "clips (at 4095 DN)"));
+}
+
 int
 main (int argc, char **argv)
 {
@@ -238,5 +293,6 @@ main (int argc, char **argv)
   g_test_add_func ("/calibration-pattern/square-is-square", test_square_is_square);
   g_test_add_func ("/calibration-pattern/blurred-square-is-sine", test_blurred_square_is_sine);
   g_test_add_func ("/calibration-pattern/forced", test_forced);
+  g_test_add_func ("/calibration-pattern/clip-below-format-top", test_clip_below_format_top);
   return g_test_run ();
 }
