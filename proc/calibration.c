@@ -175,6 +175,24 @@ compare_doubles (gconstpointer a, gconstpointer b)
 }
 
 /* Mean of the middle 80 % (sorts v). */
+/* The open field's lit level is the same bright quantile of the pixels' levels as the scene's
+ * that the automatic operating point compares it with (DS_CALIBRATION_LIT_QUANTILE): objects or
+ * dust on the reference, and their shaded edges, darken fewer pixels than the quantile leaves
+ * out, and an uneven field lifts both quantiles alike. brightness: NaN where not used. */
+static double
+lit_quantile (const double *brightness, gsize npix)
+{
+  g_autofree double *v = g_new (double, npix);
+  gsize n = 0;
+  for (gsize i = 0; i < npix; i++)
+    if (isfinite (brightness[i]))
+      v[n++] = brightness[i];
+  if (n == 0)
+    return NAN;
+  qsort (v, n, sizeof (double), compare_doubles);
+  return v[(gsize) (DS_CALIBRATION_LIT_QUANTILE * (n - 1))];
+}
+
 static double
 trimmed_mean (double *v, gsize n)
 {
@@ -422,7 +440,7 @@ ds_calibrator_finish (DsCalibrator *c, const DsCalibrationHints *hints, DsCalibr
     out->edge_blur_px = xq[2] < 1e-3 ? 0 : xq[2];
   }
   out->harmonic_gain = ds_pattern_mean (out->pattern, out->duty, out->black_level) * out->contrast;
-  out->lit_level_dn = sum_m / used / ds_pattern_mean (out->pattern, out->duty, out->black_level);
+  out->lit_level_dn = lit_quantile (brightness, c->npix) / ds_pattern_mean (out->pattern, out->duty, out->black_level);
   out->harmonic_gain_theory = ds_harmonic_gain_theory (out->pattern, out->duty, out->black_level);
   ds_calibration_scatter_check (brightness, off, c->w, c->h, period, &out->scatter);
   /* scattered light that keeps square stripes has tails no blurred edge has; a sine stays a sine */
