@@ -133,6 +133,9 @@ static const KeySpec keys[] = {
   { "camera", "roi", K_STRING, RESTART, F (roi), NULL, 0, 0, NULL, "x,y,width,height; empty = full sensor" },
   { "camera", "trigger", K_CHOICE, RESTART, F (camera_trigger), "software", 0, 0, "software|line0|line1|line2|line3",
     "trigger source of the camera" },
+  { "camera", "acceptance-half-angle-deg", K_DOUBLE, RESTART, F (acceptance_half_angle_deg), "", 0.01, 90, NULL,
+    "half-angle of the lens's acceptance cone on the object side (degrees, from its NA); bounds the light a thin "
+    "film scatters into the lens for the automatic operating point; empty = not known" },
   { "camera", "grab-timeout-ms", K_UINT, RESTART, F (grab_timeout_ms), "2000", 10, 600000, NULL,
     "deadline for a frame after its trigger, beyond the exposure" },
   { "camera", "receive-buffer-frames", K_UINT, RESTART, F (receive_buffer_frames), "4", 1, 64, NULL,

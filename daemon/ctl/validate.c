@@ -141,6 +141,8 @@ ds_validate_probe (const DsSimRig *rig, const DsValidateOptions *o, DsValidateSc
     out->edge_blur_px = known.edge_blur_px;
     out->open_field_dn_per_ms = known.open_field_dn_per_ms;
   }
+  /* Every rig knows its lens, as its user writes it ([camera] acceptance-half-angle-deg). */
+  out->acceptance_half_angle_deg = s->acceptance_half_angle_deg;
   g_autoptr (DsImage) dark = ds_sim_rig_frame (rig, 0, 2, FALSE, e0, seed + 1, error);
   g_autoptr (DsImage) l0 = dark ? ds_sim_rig_frame (rig, 0, 2, TRUE, e0, seed + 2, error) : NULL;
   g_autoptr (DsImage) l1 = l0 ? ds_sim_rig_frame (rig, 1, 2, TRUE, e0, seed + 3, error) : NULL;
@@ -194,6 +196,7 @@ ds_validate_probe (const DsSimRig *rig, const DsValidateOptions *o, DsValidateSc
     .blur_known = out->edge_blur_known,
     .calibrated_blur_px = out->edge_blur_px,
     .open_field_dn = out->open_field_dn_per_ms * e0 / 1000,
+    .acceptance_half_angle_deg = out->acceptance_half_angle_deg,
   };
   for (guint i = 0; i < n_finer; i++)
     pf.finer[i] = (DsProbePair){ .frame = { finer_frames[i][0], finer_frames[i][1] }, .period_px = finer_period[i] };
