@@ -324,9 +324,15 @@ ds_validate_config (const DsSimRig *rig, const DsValidateScene *vs, DsErrorModel
   p->predicted_error_upper = model->scale * p->parts.total_upper;
   p->predicted_time_ms = ds_rig_timing_set_ms (timing, vs->probe.width, vs->probe.height, phases, averages,
                                                p->exposure_us, TRUE);
-  p->lower_bound = !vs->probe.leak.measured || vs->probe.narrow.unresolved || vs->probe.transfer.inconsistent ||
-                   vs->probe.blur.source == DS_BLUR_ASSUMED_SHARP;
-  p->upper_bounded = !p->lower_bound;
+  gboolean stripes_lower = !vs->probe.leak.measured || vs->probe.narrow.unresolved ||
+                           vs->probe.transfer.inconsistent || vs->probe.blur.source == DS_BLUR_ASSUMED_SHARP;
+  /* Light lost to a film the stripes do not show: a lower bound, with the film's bias added to
+   * the upper end where the lens's cone bounds it (as ds_operating_point_choose () predicts). */
+  const DsProbeLoss *loss = &vs->probe.loss;
+  p->lower_bound = stripes_lower || loss->unexplained;
+  p->upper_bounded = !stripes_lower && (!loss->unexplained || loss->bounded);
+  if (p->upper_bounded && loss->unexplained)
+    p->predicted_error_upper += loss->bias_upper;
   p->uncertainty = ds_operating_point_uncertainty (model, &vs->probe, &p->parts);
   if (!ds_validate_run (rig, vs, estimator, phases, averages, p->exposure_us, seed, &out->achieved,
                         &out->achieved_systematic, error))
