@@ -467,7 +467,7 @@ ds_operating_point_choose_moving (const DsOperatingModel *m, DsErrorModel *error
   if (target > 0 && probe->transfer.inconsistent)
     g_string_append_printf (msg, " (%s)", probe->transfer.note);
   if (target > 0 && probe->loss.unexplained)
-    g_string_append_printf (msg, " (%s)", probe->loss.note);
+    g_string_append_printf (msg, " (%s; its upper end: %s)", probe->loss.note, probe->loss.bound_note);
   if (margin) {
     /* Run the fastest point whose lower end meets the target, where one fits the budget: the
      * interval says no more of the most accurate point, and a lower bound with no upper end would

@@ -159,9 +159,9 @@ ds_operating_report_to_json (const DsOperatingReport *r, JsonBuilder *b)
     json_builder_add_string_value (b, r->pattern_assumption);
   if (pr->loss.unexplained && pr->loss.bounded) {
     g_autofree char *note = g_strdup_printf (
-      "light a film scatters into the lens: single Henyey-Greenstein scattering with g <= %.2f and faces of "
-      "index >= %.2f: %s; the upper end adds it to the prediction's",
-      DS_FILM_MAX_G, DS_FILM_MIN_INDEX, pr->loss.bound_note);
+      "light a film scatters into the lens, with faces of index >= %.2f (refraction narrows the cone inside): "
+      "%s; the upper end adds it to the prediction's",
+      DS_FILM_MIN_INDEX, pr->loss.bound_note);
     json_builder_add_string_value (b, note);
   } else if (pr->loss.unexplained) {
     json_builder_add_string_value (b, pr->loss.bound_note);
