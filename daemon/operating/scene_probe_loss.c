@@ -78,8 +78,8 @@ film_bound (const DsProbeFrames *fr, DsProbeLoss *l)
   if (l->bounded)
     g_snprintf (l->bound_note, sizeof l->bound_note,
                 "single Henyey-Greenstein scattering with g <= %.2f puts %.0f %% of the scattered light into the "
-                "lens's cone (%.3g deg in air); a transmittance of at least %.3f then bounds the light passing for direct at "
-                "%.3g of the direct light",
+                "lens's cone (%.3g deg in air); a transmittance of at least %.3f then bounds the light passing for "
+                "direct at %.3g of the direct light",
                 DS_FILM_MAX_G, 100 * f, l->acceptance_deg, t_low, l->bias_upper);
   else
     g_snprintf (l->bound_note, sizeof l->bound_note,
