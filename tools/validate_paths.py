@@ -312,7 +312,11 @@ def run_path(tools, path, scene, name, requests, rows, phase):
         conf = camera + "[illuminator]\nbackend=sim\n" if exposure else None
         if path == "rig":
             lines = calibrate_lines(tools, text, phase[path])
-            conf = camera + "[illuminator]\nbackend=sim\n" + "\n".join(lines) + "\n"
+            # A rig's user knows their lens: its acceptance cone (the scene format's default 10
+            # degrees where the scene sets none) bounds a thin film's light (docs/accuracy.md).
+            cone = float(value(text, "camera", "acceptance-half-angle-deg", "10"))
+            conf = (camera + f"acceptance-half-angle-deg={cone:g}\n[illuminator]\nbackend=sim\n"
+                    + "\n".join(lines) + "\n")
         d = Daemon(tools, scene, conf)
     except (RuntimeError, subprocess.SubprocessError) as e:
         for row in base:

@@ -16,6 +16,7 @@ ds_capture_settings_take_knowledge (DsCaptureSettings *s, const DsPatternKnowled
   s->edge_blur_known = k->edge_blur_known;
   s->edge_blur_px = k->edge_blur_known ? k->edge_blur_px : 0;
   s->open_field_dn_per_ms = k->open_field_dn_per_ms;
+  s->acceptance_half_angle_deg = k->acceptance_half_angle_deg;
 }
 
 void
@@ -35,7 +36,9 @@ ds_capture_settings_from_config (DsCaptureSettings *s, const DsConfig *c)
                                .harmonic_gain = isnan (c->harmonic_gain) ? 0 : c->harmonic_gain,
                                .edge_blur_known = !isnan (c->edge_blur_px),
                                .edge_blur_px = isnan (c->edge_blur_px) ? 0 : c->edge_blur_px,
-                               .open_field_dn_per_ms = isnan (c->open_field_dn_per_ms) ? 0 : c->open_field_dn_per_ms };
+                               .open_field_dn_per_ms = isnan (c->open_field_dn_per_ms) ? 0 : c->open_field_dn_per_ms,
+                               .acceptance_half_angle_deg =
+                                 isnan (c->acceptance_half_angle_deg) ? 0 : c->acceptance_half_angle_deg };
   ds_capture_settings_take_knowledge (s, &known);
   s->saturation_dn = isnan (c->saturation_dn) ? 0 : c->saturation_dn;
   s->system_gain = isnan (c->gain_dn_per_e) ? 0 : c->gain_dn_per_e;
@@ -107,6 +110,8 @@ ds_capture_settings_to_json (const DsCaptureSettings *s)
     DBL ("edge_blur_px", s->edge_blur_px);
   if (s->open_field_dn_per_ms > 0)
     DBL ("open_field_dn_per_ms", s->open_field_dn_per_ms);
+  if (s->acceptance_half_angle_deg > 0)
+    DBL ("acceptance_half_angle_deg", s->acceptance_half_angle_deg);
   if (s->saturation_dn > 0)
     DBL ("saturation_dn", s->saturation_dn);
   if (s->system_gain > 0) {
@@ -164,6 +169,7 @@ ds_capture_settings_equal (const DsCaptureSettings *a, const DsCaptureSettings *
          a->period_px == b->period_px && a->duty == b->duty && a->black_level == b->black_level &&
          a->harmonic_gain == b->harmonic_gain && a->edge_blur_known == b->edge_blur_known &&
          a->edge_blur_px == b->edge_blur_px && a->open_field_dn_per_ms == b->open_field_dn_per_ms &&
+         a->acceptance_half_angle_deg == b->acceptance_half_angle_deg &&
          a->saturation_dn == b->saturation_dn && a->system_gain == b->system_gain &&
          a->read_noise_dn == b->read_noise_dn &&
          a->dark_frame == b->dark_frame && a->phase_retries == b->phase_retries &&

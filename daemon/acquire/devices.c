@@ -49,6 +49,8 @@ pattern_from_scene (const DsScene *scene, DsStripePattern *p, DsPatternKnowledge
                       .pixel_aperture = w > 0 ? w : DS_STRIPE_POINT_APERTURE };
   ds_pattern_knowledge_from_geometry (&g, known);
   known->open_field_dn_per_ms = ds_scene_open_field_dn_per_ms (scene);
+  /* The simulated lens's cone, as a rig's user knows theirs ([camera] acceptance-half-angle-deg). */
+  known->acceptance_half_angle_deg = ds_scene_spec (scene)->acceptance_half_angle_deg;
 }
 
 static DsSimLab *

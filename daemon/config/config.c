@@ -133,6 +133,9 @@ static const KeySpec keys[] = {
   { "camera", "roi", K_STRING, RESTART, F (roi), NULL, 0, 0, NULL, "x,y,width,height; empty = full sensor" },
   { "camera", "trigger", K_CHOICE, RESTART, F (camera_trigger), "software", 0, 0, "software|line0|line1|line2|line3",
     "trigger source of the camera" },
+  { "camera", "acceptance-half-angle-deg", K_DOUBLE, RESTART, F (acceptance_half_angle_deg), "", 0.01, 90, NULL,
+    "half-angle of the lens's acceptance cone on the object side (degrees, from its NA); bounds the light a thin "
+    "film scatters into the lens for the automatic operating point; empty = not known" },
   { "camera", "grab-timeout-ms", K_UINT, RESTART, F (grab_timeout_ms), "2000", 10, 600000, NULL,
     "deadline for a frame after its trigger, beyond the exposure" },
   { "camera", "receive-buffer-frames", K_UINT, RESTART, F (receive_buffer_frames), "4", 1, 64, NULL,
@@ -368,23 +371,6 @@ ds_config_new_sim (void)
   return c;
 }
 
-gboolean
-ds_config_parse_roi (const char *roi, guint v[4], GError **error)
-{
-  g_auto (GStrv) parts = roi ? g_strsplit (roi, ",", -1) : NULL;
-  gboolean ok = parts && g_strv_length (parts) == 4;
-  for (guint i = 0; ok && i < 4; i++) {
-    guint64 n = 0;
-    ok = g_ascii_string_to_unsigned (g_strstrip (parts[i]), 10, 0, 65535, &n, NULL) && (i < 2 || n > 0);
-    v[i] = (guint) n;
-  }
-  if (!ok)
-    g_set_error (error, DS_CONFIG_ERROR, DS_CONFIG_ERROR_BAD_VALUE,
-                 "[camera] roi = \"%s\": expected x,y,width,height (four integers 0..65535, width and "
-                 "height above 0), or empty for the full sensor", roi ? roi : "");
-  return ok;
-}
-
 void
 ds_config_free (DsConfig *config)
 {
@@ -424,29 +410,6 @@ group_known (const char *group)
     if (strcmp (keys[i].group, group) == 0)
       return TRUE;
   return FALSE;
-}
-
-gboolean
-ds_config_parse_host_port (const char *text, char **host, guint16 *port)
-{
-  const char *colon = text ? strrchr (text, ':') : NULL;
-  guint64 p = 0;
-  if (!colon || colon == text || !g_ascii_string_to_unsigned (colon + 1, 10, 0, 65535, &p, NULL))
-    return FALSE;
-  g_autofree char *h = g_strndup (text, (gsize) (colon - text));
-  /* [::1]:7420 as well as 127.0.0.1:7420 */
-  if (h[0] == '[' && h[strlen (h) - 1] == ']') {
-    char *inner = g_strndup (h + 1, strlen (h) - 2);
-    g_free (h);
-    h = inner;
-  }
-  if (!g_hostname_is_ip_address (h))
-    return FALSE;
-  if (port)
-    *port = (guint16) p;
-  if (host)
-    *host = g_steal_pointer (&h);
-  return TRUE;
 }
 
 /* GKeyFile keeps no line numbers; a person fixing a file wants one, so find it in the text. */

@@ -58,6 +58,7 @@ typedef struct {
   double gain_dn_per_e;   /* system gain K (DN/e-) for the noise model; NAN: none */
   double read_noise_dn;   /* read noise sigma (DN) for the noise model; NAN: 0 */
   double pixel_pitch_um;  /* NAN: the camera's, if it says */
+  double acceptance_half_angle_deg; /* the lens's acceptance cone, object side; NAN: not known */
   char *roi;              /* "x,y,w,h" or NULL (full sensor) */
   char *camera_trigger;   /* "software" | "line0".."line3" */
   guint grab_timeout_ms;

@@ -1,5 +1,6 @@
 /* descatterctl's commands that talk to the daemon (status: ctl_status.c). */
 #include <errno.h>
+#include <math.h>
 #include <glib/gstdio.h>
 #include <signal.h>
 #include <string.h>
@@ -283,6 +284,24 @@ parse_files (const char *cmd, const char *list, const char *fallback, guint *kin
   return TRUE;
 }
 
+/* An automatic capture's prediction where it is a lower bound (docs/accuracy.md): its upper end,
+ * or that the pilot bounds none, so that the user does not read the prediction as the error. */
+static void
+print_lower_bound (JsonNode *body)
+{
+  JsonNode *lower = ds_json_path (body, "settings.operating_point.lower_bound");
+  if (!lower || !JSON_NODE_HOLDS_VALUE (lower) || json_node_get_value_type (lower) != G_TYPE_BOOLEAN ||
+      !json_node_get_boolean (lower))
+    return;
+  double predicted = ds_json_path_double (body, "settings.operating_point.predicted_error", NAN);
+  double upper = ds_json_path_double (body, "settings.operating_point.predicted_error_upper", NAN);
+  if (isfinite (upper))
+    fprintf (stderr, "descatterctl capture: predicted error %.4g is a lower bound; its upper end is %.4g\n", predicted,
+             upper);
+  else
+    fprintf (stderr, "descatterctl capture: predicted error %.4g is a lower bound with no upper end\n", predicted);
+}
+
 int
 ds_ctl_capture (const DsCtlTarget *target, int argc, char **argv)
 {
@@ -364,6 +383,7 @@ ds_ctl_capture (const DsCtlTarget *target, int argc, char **argv)
       json_node_get_boolean (margin))
     fprintf (stderr, "descatterctl capture: the target may be missed: %s\n",
              ds_json_path_string (m->reply->body, "settings.operating_point.target_note", ""));
+  print_lower_bound (m->reply->body);
   JsonObject *body = json_node_get_object (m->reply->body);
   printf ("set %" G_GINT64_FORMAT " written to %s/%s: %s\n", json_object_get_int_member_with_default (body, "set_id", 0),
           dir, out ? "" : " (a new folder here: no --out given)",

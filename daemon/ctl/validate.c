@@ -141,6 +141,8 @@ ds_validate_probe (const DsSimRig *rig, const DsValidateOptions *o, DsValidateSc
     out->edge_blur_px = known.edge_blur_px;
     out->open_field_dn_per_ms = known.open_field_dn_per_ms;
   }
+  /* Every rig knows its lens, as its user writes it ([camera] acceptance-half-angle-deg). */
+  out->acceptance_half_angle_deg = s->acceptance_half_angle_deg;
   g_autoptr (DsImage) dark = ds_sim_rig_frame (rig, 0, 2, FALSE, e0, seed + 1, error);
   g_autoptr (DsImage) l0 = dark ? ds_sim_rig_frame (rig, 0, 2, TRUE, e0, seed + 2, error) : NULL;
   g_autoptr (DsImage) l1 = l0 ? ds_sim_rig_frame (rig, 1, 2, TRUE, e0, seed + 3, error) : NULL;
@@ -194,6 +196,7 @@ ds_validate_probe (const DsSimRig *rig, const DsValidateOptions *o, DsValidateSc
     .blur_known = out->edge_blur_known,
     .calibrated_blur_px = out->edge_blur_px,
     .open_field_dn = out->open_field_dn_per_ms * e0 / 1000,
+    .acceptance_half_angle_deg = out->acceptance_half_angle_deg,
   };
   for (guint i = 0; i < n_finer; i++)
     pf.finer[i] = (DsProbePair){ .frame = { finer_frames[i][0], finer_frames[i][1] }, .period_px = finer_period[i] };
@@ -321,9 +324,15 @@ ds_validate_config (const DsSimRig *rig, const DsValidateScene *vs, DsErrorModel
   p->predicted_error_upper = model->scale * p->parts.total_upper;
   p->predicted_time_ms = ds_rig_timing_set_ms (timing, vs->probe.width, vs->probe.height, phases, averages,
                                                p->exposure_us, TRUE);
-  p->lower_bound = !vs->probe.leak.measured || vs->probe.narrow.unresolved || vs->probe.transfer.inconsistent ||
-                   vs->probe.blur.source == DS_BLUR_ASSUMED_SHARP;
-  p->upper_bounded = !p->lower_bound;
+  gboolean stripes_lower = !vs->probe.leak.measured || vs->probe.narrow.unresolved ||
+                           vs->probe.transfer.inconsistent || vs->probe.blur.source == DS_BLUR_ASSUMED_SHARP;
+  /* Light lost to a film the stripes do not show: a lower bound, with the film's bias added to
+   * the upper end where the lens's cone bounds it (as ds_operating_point_choose () predicts). */
+  const DsProbeLoss *loss = &vs->probe.loss;
+  p->lower_bound = stripes_lower || loss->unexplained;
+  p->upper_bounded = !stripes_lower && (!loss->unexplained || loss->bounded);
+  if (p->upper_bounded && loss->unexplained)
+    p->predicted_error_upper += loss->bias_upper;
   p->uncertainty = ds_operating_point_uncertainty (model, &vs->probe, &p->parts);
   if (!ds_validate_run (rig, vs, estimator, phases, averages, p->exposure_us, seed, &out->achieved,
                         &out->achieved_systematic, error))

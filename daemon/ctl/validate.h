@@ -35,6 +35,7 @@ typedef struct {
   double black_level;      /* configured: the scene's, or the calibration's measured at two periods */
   double harmonic_gain;    /* calibrated h given to the sine estimator, or 0 (its theory) */
   double open_field_dn_per_ms; /* the open field's lit level known to the rig (pattern_knowledge.h), or 0 */
+  double acceptance_half_angle_deg; /* the lens's acceptance cone ([camera] acceptance-half-angle-deg) */
   gboolean edge_blur_known; /* calibrated: the edge blur is known to the probe and the sets */
   double edge_blur_px;     /* the calibrated edge blur (Gaussian sigma, px) */
   DsSeparationParams params; /* the rig's separation parameters (estimator, N set per run) */

@@ -79,13 +79,20 @@ predict (const DsOperatingModel *m, const Models *em, const DsSceneProbe *probe,
   p->period_px = period > 0 ? period : probe->geometry.period_px;
   p->predicted_error = m->scale * p->parts.total;
   p->predicted_time_ms = ds_rig_timing_set_ms (t, w, h, n, mm, p->exposure_us, TRUE);
-  p->lower_bound = !probe->leak.measured || probe->narrow.unresolved || probe->transfer.inconsistent ||
-                   probe->loss.unexplained;
-  /* The interval bounds the light a narrow kernel hides, not a leak left unmeasured, harmonics
-   * that measure nothing, or light lost to a medium the stripes do not show (scene_probe_loss.h). */
-  p->upper_bounded = !p->lower_bound || (em->upper && !em->unbounded && probe->leak.measured &&
-                                         !probe->transfer.inconsistent && !probe->loss.unexplained &&
-                                         isfinite (p->predicted_error_upper));
+  gboolean stripes_lower = !probe->leak.measured || probe->narrow.unresolved || probe->transfer.inconsistent;
+  p->lower_bound = stripes_lower || probe->loss.unexplained;
+  /* The interval bounds the light a narrow kernel hides, not a leak left unmeasured or harmonics
+   * that measure nothing; light lost to a medium the stripes do not show (scene_probe_loss.h) has
+   * an upper end only where the lens's acceptance angle bounds it (film_bound.h). */
+  p->upper_bounded = (!stripes_lower || (em->upper && !em->unbounded && probe->leak.measured &&
+                                         !probe->transfer.inconsistent && isfinite (p->predicted_error_upper))) &&
+                     (!probe->loss.unexplained || probe->loss.bounded);
+  /* The film's light in the cone is a bias b of the transmissive image, est = truth (1 + b) + e,
+   * e the rest of the error. The relative RMSE is a norm, so ||b truth + e|| <= b ||truth|| +
+   * ||e||: the bias adds linearly. (Quadrature would need e uncorrelated with the truth, and
+   * max/min's noise bias and the sampling error are not.) */
+  if (p->upper_bounded && probe->loss.unexplained)
+    p->predicted_error_upper += probe->loss.bias_upper;
   /* A lower bound with nothing above it measured has no upper end: it never meets a target (it
    * is undetermined at best, ds_operating_point_choose ()). */
   if (!p->upper_bounded)
@@ -460,7 +467,7 @@ ds_operating_point_choose_moving (const DsOperatingModel *m, DsErrorModel *error
   if (target > 0 && probe->transfer.inconsistent)
     g_string_append_printf (msg, " (%s)", probe->transfer.note);
   if (target > 0 && probe->loss.unexplained)
-    g_string_append_printf (msg, " (%s)", probe->loss.note);
+    g_string_append_printf (msg, " (%s; its upper end: %s)", probe->loss.note, probe->loss.bound_note);
   if (margin) {
     /* Run the fastest point whose lower end meets the target, where one fits the budget: the
      * interval says no more of the most accurate point, and a lower bound with no upper end would

@@ -4,6 +4,8 @@
 
 #include <math.h>
 
+#include "daemon/operating/film_bound.h"
+
 /* The declared speed and what it adds (docs/accuracy.md, "Moving objects"); null where none was
  * declared or the estimator's motion error has no model. */
 static void
@@ -32,6 +34,49 @@ motion_to_json (const DsOperatingReport *r, JsonBuilder *b)
   json_builder_set_member_name (b, "pixels");
   json_builder_add_int_value (b, (gint64) r->motion_pixels);
   json_builder_end_object (b);
+}
+
+/* Which terms of the prediction rest on measurements (the pilot's or a calibration's) and which
+ * on an assumption that widens its interval (docs/accuracy.md, "What is measured, what is
+ * assumed"). */
+static void
+terms_to_json (const DsOperatingReport *r, JsonBuilder *b)
+{
+  const DsOperatingPoint *p = &r->point;
+  const DsSceneProbe *pr = &r->probe;
+  json_builder_set_member_name (b, "measured");
+  json_builder_begin_array (b);
+  json_builder_add_string_value (b, "noise");
+  json_builder_add_string_value (b, "direct_light");
+  if (pr->blur.source != DS_BLUR_ASSUMED_SHARP)
+    json_builder_add_string_value (b, pr->blur.source == DS_BLUR_CALIBRATED ? "blur_calibrated" : "blur_fitted");
+  if (pr->leak.measured)
+    json_builder_add_string_value (b, "scattered_stripes");
+  if (pr->loss.known)
+    json_builder_add_string_value (b, "open_field_loss");
+  if (pr->loss.unexplained && pr->loss.acceptance_deg > 0)
+    json_builder_add_string_value (b, "acceptance_angle");
+  json_builder_end_array (b);
+  json_builder_set_member_name (b, "assumed");
+  json_builder_begin_array (b);
+  if (p->parts.blur_assumed || pr->blur.source == DS_BLUR_ASSUMED_SHARP)
+    json_builder_add_string_value (b, "blur");
+  if (p->parts.cancellation > 0)
+    json_builder_add_string_value (b, "scattered_stripes_cancellation");
+  if (!pr->leak.measured)
+    json_builder_add_string_value (b, "scattered_stripes");
+  if (pr->narrow.unresolved)
+    json_builder_add_string_value (b, "narrow_kernel");
+  if (pr->transfer.inconsistent)
+    json_builder_add_string_value (b, "transfer");
+  if (pr->loss.unexplained)
+    json_builder_add_string_value (b, "light_scattered_into_cone");
+  /* Its upper end (film_bound.h) rests on single Henyey-Greenstein scattering with g bounded. */
+  if (pr->loss.bounded)
+    json_builder_add_string_value (b, "film_single_scattering_g_max");
+  if (!r->speed_declared)
+    json_builder_add_string_value (b, "still_scene");
+  json_builder_end_array (b);
 }
 
 void
@@ -85,37 +130,7 @@ ds_operating_report_to_json (const DsOperatingReport *r, JsonBuilder *b)
   if (motion_term)
     json_builder_add_string_value (b, "motion");
   json_builder_end_array (b);
-  /* Which terms of the prediction rest on measurements (the pilot's or a calibration's) and which
-   * on an assumption that widens its interval (docs/accuracy.md, "What is measured, what is
-   * assumed"). */
-  json_builder_set_member_name (b, "measured");
-  json_builder_begin_array (b);
-  json_builder_add_string_value (b, "noise");
-  json_builder_add_string_value (b, "direct_light");
-  if (pr->blur.source != DS_BLUR_ASSUMED_SHARP)
-    json_builder_add_string_value (b, pr->blur.source == DS_BLUR_CALIBRATED ? "blur_calibrated" : "blur_fitted");
-  if (pr->leak.measured)
-    json_builder_add_string_value (b, "scattered_stripes");
-  if (pr->loss.known)
-    json_builder_add_string_value (b, "open_field_loss");
-  json_builder_end_array (b);
-  json_builder_set_member_name (b, "assumed");
-  json_builder_begin_array (b);
-  if (p->parts.blur_assumed || pr->blur.source == DS_BLUR_ASSUMED_SHARP)
-    json_builder_add_string_value (b, "blur");
-  if (p->parts.cancellation > 0)
-    json_builder_add_string_value (b, "scattered_stripes_cancellation");
-  if (!pr->leak.measured)
-    json_builder_add_string_value (b, "scattered_stripes");
-  if (pr->narrow.unresolved)
-    json_builder_add_string_value (b, "narrow_kernel");
-  if (pr->transfer.inconsistent)
-    json_builder_add_string_value (b, "transfer");
-  if (pr->loss.unexplained)
-    json_builder_add_string_value (b, "light_scattered_into_cone");
-  if (!r->speed_declared)
-    json_builder_add_string_value (b, "still_scene");
-  json_builder_end_array (b);
+  terms_to_json (r, b);
   BOOL ("lower_bound", p->lower_bound);
   json_builder_set_member_name (b, "lower_bound_reasons");
   json_builder_begin_array (b);
@@ -142,6 +157,15 @@ ds_operating_report_to_json (const DsOperatingReport *r, JsonBuilder *b)
   }
   if (r->pattern_assumption[0])
     json_builder_add_string_value (b, r->pattern_assumption);
+  if (pr->loss.unexplained && pr->loss.bounded) {
+    g_autofree char *note = g_strdup_printf (
+      "light a film scatters into the lens, with faces of index >= %.2f (refraction narrows the cone inside): "
+      "%s; the upper end adds it to the prediction's",
+      DS_FILM_MIN_INDEX, pr->loss.bound_note);
+    json_builder_add_string_value (b, note);
+  } else if (pr->loss.unexplained) {
+    json_builder_add_string_value (b, pr->loss.bound_note);
+  }
   json_builder_end_array (b);
   json_builder_set_member_name (b, "scene");
   json_builder_begin_object (b);
@@ -169,6 +193,13 @@ ds_operating_report_to_json (const DsOperatingReport *r, JsonBuilder *b)
   else
     json_builder_add_null_value (b);
   STR ("open_field_note", pr->loss.note);
+  /* The upper end of the bias a flagged film adds (film_bound.h); null where none. */
+  json_builder_set_member_name (b, "film_bias_upper");
+  if (pr->loss.unexplained && pr->loss.bounded)
+    json_builder_add_double_value (b, pr->loss.bias_upper);
+  else
+    json_builder_add_null_value (b);
+  STR ("film_bound_note", pr->loss.bound_note);
   DBL ("clip_dn", pr->clip.saturation_dn);
   BOOL ("clip_known", pr->clip.known);
   DBL ("saturated_fraction", pr->clip.saturated_fraction);

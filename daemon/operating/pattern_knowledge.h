@@ -25,6 +25,9 @@ typedef struct {
   double edge_blur_px;      /* Gaussian sigma, px */
   double open_field_dn_per_ms; /* a fully lit pixel's level on a clear path above dark, DN per ms at
                                   0 dB gain ([illuminator] open-field-dn-per-ms); 0 = not known */
+  double acceptance_half_angle_deg; /* the lens's acceptance cone, object side ([camera]
+                                       acceptance-half-angle-deg): not the pattern's, and no calibration
+                                       measures it, but it travels with the open field; 0 = not known */
 } DsPatternKnowledge;
 
 /* What a noise-free calibration of a pattern of exactly this geometry measures

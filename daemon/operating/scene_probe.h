@@ -164,6 +164,8 @@ typedef struct {
   double calibrated_blur_px;      /* Gaussian sigma (descatterctl calibrate); wins over the gain's */
   double open_field_dn;           /* the open field's lit level (a fully lit pixel on a clear path, above
                                      dark) at the pilot's exposure and gain, DN; 0 = not known */
+  double acceptance_half_angle_deg; /* the lens's acceptance cone, object side ([camera]
+                                       acceptance-half-angle-deg); 0 = not known */
 } DsProbeFrames;
 
 /* The frames' shape, as both the probe and the pattern check need it: a dark frame and the pair
@@ -290,7 +292,14 @@ typedef struct {
   double transmittance;           /* level_dn / open_dn */
   double floor;                   /* the least transmittance Fresnel, noise and calibration explain */
   gboolean unexplained;           /* below floor while the stripes keep the light: a lower bound */
+  double sigma;                   /* the transmittance's relative standard uncertainty */
+  /* Where unexplained: the upper end of the bias the film's light in the cone adds (film_bound.h),
+   * from the transmittance DS_PROBE_LOSS_Z sigma low, where the lens's acceptance angle is known. */
+  gboolean bounded;               /* bias_upper is set and finite */
+  double acceptance_deg;          /* the cone's half-angle used; 0 = not known */
+  double bias_upper;              /* relative error of the transmissive image, upper end */
   char note[448];                 /* what was measured, or why not */
+  char bound_note[320];           /* how the upper end was found, or why there is none */
 } DsProbeLoss;
 
 /* The probe: each stage of ds_scene_probe_measure () fills its own part. */

@@ -4,6 +4,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "daemon/operating/film_bound.h"
 #include "proc/harmonic_gain.h"
 
 double
@@ -60,6 +61,33 @@ pixel_levels (const DsProbeFrames *fr, const DsSceneProbe *p, guint step, double
   return n;
 }
 
+/* The upper end of the flagged film's bias (film_bound.h) at the loss's upper confidence. */
+static void
+film_bound (const DsProbeFrames *fr, DsProbeLoss *l)
+{
+  if (!(fr->acceptance_half_angle_deg > 0)) {
+    g_strlcpy (l->bound_note, "not measured: the lens's acceptance angle is not known ([camera] "
+                              "acceptance-half-angle-deg)", sizeof l->bound_note);
+    return;
+  }
+  double t_low = l->transmittance * (1 - DS_PROBE_LOSS_Z * l->sigma);
+  l->acceptance_deg = fr->acceptance_half_angle_deg;
+  l->bias_upper = ds_film_bias_upper (t_low, l->acceptance_deg);
+  l->bounded = isfinite (l->bias_upper);
+  double f = ds_film_cone_fraction (DS_FILM_MAX_G, ds_film_inner_cone (l->acceptance_deg, DS_FILM_MIN_INDEX));
+  if (l->bounded)
+    g_snprintf (l->bound_note, sizeof l->bound_note,
+                "single Henyey-Greenstein scattering with g <= %.2f puts %.0f %% of the scattered light into the "
+                "lens's cone (%.3g deg in air); a transmittance of at least %.3f then bounds the light passing for "
+                "direct at %.3g of the direct light",
+                DS_FILM_MAX_G, 100 * f, l->acceptance_deg, t_low, l->bias_upper);
+  else
+    g_snprintf (l->bound_note, sizeof l->bound_note,
+                "single Henyey-Greenstein scattering with g <= %.2f puts %.0f %% of the scattered light into the "
+                "lens's cone (%.3g deg in air); a transmittance of %.3f allows no direct light at all, so no upper end",
+                DS_FILM_MAX_G, 100 * f, l->acceptance_deg, t_low);
+}
+
 void
 ds_probe_loss_measure (const DsProbeFrames *fr, DsSceneProbe *out)
 {
@@ -92,6 +120,7 @@ ds_probe_loss_measure (const DsProbeFrames *fr, DsSceneProbe *out)
   l->transmittance = l->level_dn / l->open_dn;
   double rel_noise = l->level_dn > 0 ? sigma_px / l->level_dn / sqrt ((double) n * (1 - DS_PROBE_LOSS_QUANTILE)) : 0;
   double sigma = hypot (DS_PROBE_LOSS_CALIBRATION, rel_noise);
+  l->sigma = sigma;
   double fresnel = ds_probe_fresnel_transmittance (DS_PROBE_LOSS_MAX_INDEX);
   l->floor = fresnel * (1 - DS_PROBE_LOSS_Z * sigma);
   double seen = out->light.ld_mean > 0 ? out->light.lg_mean / out->light.ld_mean : 0;
@@ -99,6 +128,8 @@ ds_probe_loss_measure (const DsProbeFrames *fr, DsSceneProbe *out)
   l->unexplained = lost && seen < DS_PROBE_LOSS_SEEN_LG;
   g_debug ("scene probe: open field %.4g DN, scene %.4g DN over %" G_GSIZE_FORMAT " pixels (noise %.3g DN): T %.4f, "
            "floor %.4f, Lg/Ld %.4f", l->open_dn, l->level_dn, n, sigma_px, l->transmittance, l->floor, seen);
+  if (l->unexplained)
+    film_bound (fr, l);
   if (l->unexplained)
     g_snprintf (l->note, sizeof l->note,
                 "the scene passes %.1f %% of the open field's light (two faces of index up to %.1f pass %.1f %%) and "

@@ -14,7 +14,8 @@
  * and the rest into the cone within a pixel of its path, which keeps the stripes at every period a
  * sensor resolves and passes for direct light in every harmonic. Nothing in the frames bounds that
  * light without the cone's angle and the medium's phase function, so the prediction is then a
- * lower bound with no upper end. Absorption alone loses light the same way: the flag says the
+ * lower bound; where the lens's acceptance angle is known, single scattering with a bounded
+ * anisotropy gives it an upper end (film_bound.h), none otherwise. Absorption alone loses light the same way: the flag says the
  * prediction may be optimistic, not that it is.
  *
  * Objects (opaque or partial) and their shadows only darken pixels, so L is a bright quantile

@@ -397,6 +397,39 @@ test_open_field_line (void)
                 (const char *const[]) { "open-field-dn-per-ms", NULL });
 }
 
+/* The lens's acceptance angle: loaded, written back and loaded again to the same value, carried
+ * by the capture settings (and their JSON) to the probe; absent, 0 (not known); a value outside
+ * (0, 90] degrees or no number is refused naming the key, the range and the line. */
+static void
+test_acceptance_angle (void)
+{
+  g_autoptr (GError) error = NULL;
+  g_autoptr (DsConfig) c =
+    load_data ("[camera]\nbackend=sim\nacceptance-half-angle-deg=7.5\n[illuminator]\nbackend=sim\n", "lens.conf", &error);
+  g_assert_no_error (error);
+  g_assert_cmpfloat (c->acceptance_half_angle_deg, ==, 7.5);
+  g_autofree char *text = ds_config_to_data (c);
+  g_autoptr (DsConfig) back = load_data (text, "written.conf", &error);
+  g_assert_no_error (error);
+  g_assert_cmpfloat (back->acceptance_half_angle_deg, ==, 7.5);
+  DsCaptureSettings s;
+  ds_capture_settings_from_config (&s, back);
+  g_assert_cmpfloat (s.acceptance_half_angle_deg, ==, 7.5);
+  g_autoptr (JsonNode) json = ds_capture_settings_to_json (&s);
+  g_assert_cmpfloat (json_object_get_double_member (json_node_get_object (json), "acceptance_half_angle_deg"), ==, 7.5);
+  g_autoptr (DsConfig) d = load_data (SIM, "plain.conf", &error);
+  g_assert_no_error (error);
+  g_assert_true (isnan (d->acceptance_half_angle_deg));
+  ds_capture_settings_from_config (&s, d);
+  g_assert_cmpfloat (s.acceptance_half_angle_deg, ==, 0);
+  expect_error ("[camera]\nbackend=sim\nacceptance-half-angle-deg=0\n", DS_CONFIG_ERROR_BAD_VALUE,
+                (const char *const[]) { "acceptance-half-angle-deg", "0.01..90", "line 3", NULL });
+  expect_error ("[camera]\nacceptance-half-angle-deg=95\n", DS_CONFIG_ERROR_BAD_VALUE,
+                (const char *const[]) { "acceptance-half-angle-deg", "line 2", NULL });
+  expect_error ("[camera]\nacceptance-half-angle-deg=wide\n", DS_CONFIG_ERROR_BAD_VALUE,
+                (const char *const[]) { "acceptance-half-angle-deg", NULL });
+}
+
 /* The camera's noise model reaches the separation's per-pixel noise (system_gain > 0 turns it
  * on), and a declared speed the automatic operating point's settings; unset, neither is there. */
 static void
@@ -465,6 +498,7 @@ main (int argc, char **argv)
   g_test_add_func ("/config/file-limits", test_file_limits);
   g_test_add_func ("/config/noise-model-and-speed", test_noise_model_and_speed);
   g_test_add_func ("/config/open-field-line", test_open_field_line);
+  g_test_add_func ("/config/acceptance-angle", test_acceptance_angle);
   g_test_add_func ("/config/groups-given-twice", test_groups_given_twice);
   return g_test_run ();
 }

@@ -12,7 +12,13 @@
 
 #include "daemon/ctl/sim_rig.h"
 #include "daemon/ctl/validate.h"
+#include "daemon/operating/film_bound.h"
+#include "daemon/operating/scene_probe_loss.h"
 #include "probe_rig.h"
+
+#define FILM_MEDIUM                                                                                         \
+  "[medium]\nthickness-mm=0.778364\nmua=0.00500796\nmus=0.348032\ng=0.927405\nn=1.41235\n"                 \
+  "photons=100000\nseed=286599\n\n"
 
 #define FILM_SCENE(medium)                                                                                    \
   "[scene]\nname=film\n\n"                                                                                    \
@@ -41,8 +47,7 @@ static void
 test_film_flagged (void)
 {
   static const char text[] =
-    FILM_SCENE ("[medium]\nthickness-mm=0.778364\nmua=0.00500796\nmus=0.348032\ng=0.927405\nn=1.41235\n"
-                "photons=100000\nseed=286599\n\n");
+    FILM_SCENE (FILM_MEDIUM);
   DsValidateScene vs;
   double leak_truth;
   probe_rig_probe_scene (text, "film", &vs, &leak_truth, NULL);
@@ -69,11 +74,97 @@ test_clear_not_flagged (void)
   g_assert_false (vs.probe.loss.unexplained);
 }
 
+/* One automatic capture on the calibrated simulated rig (as `descatterctl validate` runs it): the
+ * choice for `target` (0: the most accurate point within a long budget), run, its achieved
+ * error the relative RMSE against the renderer's direct light. */
+static void
+request (const char *text, const char *name, double target, DsValidateScene *vs, DsValidateOutcome *o)
+{
+  g_autoptr (GError) error = NULL;
+  g_autoptr (DsSimRig) rig = ds_sim_rig_new_from_data (text, name, &error);
+  g_assert_no_error (error);
+  DsValidateOptions opt = { .calibrated = TRUE, .seed = 1 };
+  g_assert_true (ds_validate_probe (rig, &opt, vs, &error));
+  g_assert_no_error (error);
+  DsOperatingModel model;
+  ds_operating_model_init (&model);
+  DsRigTiming timing;
+  ds_rig_timing_init (&timing);
+  g_autoptr (DsErrorModel) errors = ds_error_model_new (&vs->probe, &vs->params);
+  g_assert_true (ds_validate_request (rig, vs, errors, &model, &timing, target, target > 0 ? 0 : 1e6, 3, o, &error));
+  g_assert_no_error (error);
+  g_test_message ("%s, target %.4g: %s%s N=%u M=%u, predicted %.4f to %.4f, achieved %.4f%s; %s", name, target,
+                  o->refused ? "refused " : "", ds_estimator_name (o->point.estimator), o->point.phases,
+                  o->point.averages, o->point.predicted_error, o->point.predicted_error_upper, o->achieved,
+                  o->point.target_may_be_missed ? " (may be missed)" : "", vs->probe.loss.bound_note);
+}
+
+/* The film's upper end holds what the film achieves, with the lens's cone the scene declares:
+ * its light in the cone passes for direct light, which the lower end cannot see. The upper end
+ * rests on g <= DS_FILM_MAX_G (the film's 0.93 is below) and the loss's upper confidence, so it is
+ * above the achieved error, but within a few times it: single scattering at g = 0.95 puts at most
+ * 1.3 times the film's share in the cone. */
+static void
+test_film_upper_end (void)
+{
+  static const char text[] = FILM_SCENE (FILM_MEDIUM);
+  DsValidateScene vs;
+  DsValidateOutcome o;
+  request (text, "film", 0, &vs, &o);
+  g_assert_true (vs.probe.loss.unexplained);
+  g_assert_true (vs.probe.loss.bounded);
+  g_assert_false (o.refused);
+  g_assert_true (o.point.lower_bound);
+  g_assert_true (o.point.upper_bounded);
+  g_assert_cmpfloat (o.point.predicted_error, <=, o.achieved);
+  g_assert_cmpfloat (o.achieved, <=, o.point.predicted_error_upper);
+  g_assert_cmpfloat (o.point.predicted_error_upper, <=, 6 * o.achieved);
+  double lower = o.point.predicted_error, upper = o.point.predicted_error_upper;
+  ds_validate_outcome_clear (&o);
+  /* The decision on the interval: a target the upper end meets is accepted without the flag; one
+   * between the ends is run on the margin with it. */
+  DsValidateScene vs2;
+  request (text, "film", 1.05 * upper, &vs2, &o);
+  g_assert_false (o.refused);
+  g_assert_false (o.point.target_may_be_missed);
+  g_assert_cmpfloat (o.point.predicted_error_upper, <=, 1.05 * upper);
+  ds_validate_outcome_clear (&o);
+  request (text, "film", sqrt (lower * upper), &vs2, &o);
+  g_assert_false (o.refused);
+  g_assert_true (o.point.target_may_be_missed);
+  ds_validate_outcome_clear (&o);
+}
+
+/* An absorbing slab that loses the film's light into the lens: flagged the same way (the frames
+ * cannot tell it from a film), and the upper end, a film's, still holds its achieved error. */
+static void
+test_absorber_upper_end (void)
+{
+  static const char film[] = FILM_SCENE (FILM_MEDIUM);
+  double n = 1.41235, d = 0.778364;
+  double mua = -log (truth_transmittance (film) / ds_probe_fresnel_transmittance (n)) / d;
+  g_autofree char *medium = g_strdup_printf ("[medium]\nthickness-mm=%.6f\nmua=%.6f\nmus=0.0001\ng=0.927405\n"
+                                             "n=%.5f\nphotons=100000\nseed=286599\n\n",
+                                             d, mua, n);
+  g_autofree char *text = g_strdup_printf (FILM_SCENE ("%s"), medium);
+  g_assert_cmpfloat_with_epsilon (truth_transmittance (text), truth_transmittance (film), 0.01);
+  DsValidateScene vs;
+  DsValidateOutcome o;
+  request (text, "absorber", 0, &vs, &o);
+  g_assert_true (vs.probe.loss.unexplained);
+  g_assert_false (o.refused);
+  g_assert_true (o.point.upper_bounded);
+  g_assert_cmpfloat (o.achieved, <=, o.point.predicted_error_upper);
+  ds_validate_outcome_clear (&o);
+}
+
 int
 main (int argc, char **argv)
 {
   g_test_init (&argc, &argv, NULL);
   g_test_add_func ("/probe-film/film-flagged", test_film_flagged);
   g_test_add_func ("/probe-film/clear-not-flagged", test_clear_not_flagged);
+  g_test_add_func ("/probe-film/film-upper-end", test_film_upper_end);
+  g_test_add_func ("/probe-film/absorber-upper-end", test_absorber_upper_end);
   return g_test_run ();
 }

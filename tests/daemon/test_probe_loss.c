@@ -12,6 +12,7 @@
 #include <string.h>
 
 #include "daemon/operating/error_model.h"
+#include "daemon/operating/film_bound.h"
 #include "daemon/operating/operating_point.h"
 #include "daemon/operating/scene_probe.h"
 #include "daemon/operating/scene_probe_loss.h"
@@ -63,13 +64,21 @@ pilot_frame (gconstpointer s, double q, double shift, gboolean on, GRand *r)
   return frame (s, q, shift, on, r);
 }
 
-/* Probes the scene from pairs at P, 2P and the finer periods, the open field given (or 0). */
+/* Probes the scene from pairs at P, 2P and the finer periods, the open field given (or 0), the
+ * lens's acceptance half-angle given (or 0). */
+static void
+probe_lens (const Scene *s, double open_dn, double cone_deg, DsSceneProbe *p)
+{
+  DsProbeFrames base = { .exposure_us = 1000, .geometry = { DS_PATTERN_SQUARE, PERIOD, DUTY, 0, 0 },
+                         .blur_known = TRUE, .calibrated_blur_px = BLUR, .open_field_dn = open_dn,
+                         .acceptance_half_angle_deg = cone_deg };
+  pilot_pairs_probe (pilot_frame, s, &base, BLUR, 7, p);
+}
+
 static void
 probe (const Scene *s, double open_dn, DsSceneProbe *p)
 {
-  DsProbeFrames base = { .exposure_us = 1000, .geometry = { DS_PATTERN_SQUARE, PERIOD, DUTY, 0, 0 },
-                         .blur_known = TRUE, .calibrated_blur_px = BLUR, .open_field_dn = open_dn };
-  pilot_pairs_probe (pilot_frame, s, &base, BLUR, 7, p);
+  probe_lens (s, open_dn, 0, p);
 }
 
 /* The point the daemon chooses (default model and timing, 4-phase error model) for a target (0:
@@ -166,6 +175,51 @@ test_loss_flagged (void)
   choose (&p, 0.5, &aimed, &aimed_reasons);
   g_assert_true (aimed.target_may_be_missed);
   g_assert_nonnull (strstr (aimed.target_note, "open field"));
+  g_assert_false (p.loss.bounded);
+  g_assert_nonnull (strstr (aimed.target_note, "acceptance angle is not known"));
+}
+
+/* The single-scattering film bias (film_bound.h) written out: faces of index 1.3, cone narrowed
+ * by refraction, g = 0.95, at a transmittance t. */
+static double
+film_bias (double t, double cone_deg)
+{
+  double r = (0.3 / 2.3) * (0.3 / 2.3), tp = t * (1 + r) / (1 - r);
+  double f = ds_film_cone_fraction (0.95, asin (sin (cone_deg * G_PI / 180) / 1.3));
+  double s_in = f * (1 - tp) / (1 - f);
+  return s_in / (tp - s_in);
+}
+
+/* The same loss with the lens's cone known (5 degrees): an upper end, the film's bias at the
+ * loss's upper confidence (the 3 % calibration allowance twice, and the frames' noise) added; a
+ * target it meets is accepted without the flag, one between the ends runs with it. */
+static void
+test_loss_bounded (void)
+{
+  Scene s = { .transmittance = 0.75, .object_rows = 40 };
+  DsSceneProbe p;
+  probe_lens (&s, OPEN_DN, 5, &p);
+  g_assert_true (p.loss.unexplained);
+  g_assert_true (p.loss.bounded);
+  double t = p.loss.transmittance;
+  g_assert_cmpfloat (p.loss.bias_upper, >=, film_bias (t * (1 - 2 * 0.03), 5));
+  g_assert_cmpfloat (p.loss.bias_upper, <=, film_bias (t * (1 - 2 * 0.035), 5));
+  DsOperatingPoint op;
+  g_autofree char *reasons = NULL;
+  choose (&p, 0, &op, &reasons);
+  g_assert_true (op.lower_bound);
+  g_assert_true (op.upper_bounded);
+  g_assert_cmpfloat (op.predicted_error_upper, >=, op.predicted_error + p.loss.bias_upper - 1e-12);
+  DsOperatingPoint met;
+  g_autofree char *met_reasons = NULL;
+  choose (&p, 1.2 * op.predicted_error_upper, &met, &met_reasons);
+  g_assert_false (met.target_may_be_missed);
+  g_assert_cmpfloat (met.predicted_error_upper, <=, 1.2 * op.predicted_error_upper);
+  DsOperatingPoint between;
+  g_autofree char *between_reasons = NULL;
+  choose (&p, 0.5 * p.loss.bias_upper, &between, &between_reasons);
+  g_assert_true (between.target_may_be_missed);
+  g_assert_nonnull (strstr (between.target_note, "Henyey-Greenstein"));
 }
 
 /* Half the open field keeps the stripes and 30 % arrives as scattered light that keeps none: the
@@ -198,6 +252,7 @@ main (int argc, char **argv)
   g_test_add_func ("/probe-loss/clear-with-objects", test_clear_with_objects);
   g_test_add_func ("/probe-loss/fresnel-loss", test_fresnel_loss);
   g_test_add_func ("/probe-loss/loss-flagged", test_loss_flagged);
+  g_test_add_func ("/probe-loss/loss-bounded", test_loss_bounded);
   g_test_add_func ("/probe-loss/seen-scatter", test_seen_scatter_not_flagged);
   g_test_add_func ("/probe-loss/not-known", test_not_known);
   return g_test_run ();

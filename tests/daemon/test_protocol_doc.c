@@ -96,6 +96,7 @@ test_settings_documented (void)
   full.edge_blur_known = TRUE;
   full.edge_blur_px = 0.5;
   full.open_field_dn_per_ms = 250;
+  full.acceptance_half_angle_deg = 7.5;
   full.saturation_dn = 4000;
   full.system_gain = 0.5; /* the camera's noise model */
   full.read_noise_dn = 2;
