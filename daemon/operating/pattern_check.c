@@ -11,6 +11,7 @@
 #include "proc/column_stats.h"
 #include "proc/harmonic_gain.h"
 #include "proc/stripe_profile.h"
+#include "proc/stripe_replica.h"
 
 #define N_BINS 40u
 /* The duty is judged against what the configured pattern would show through the same
@@ -200,33 +201,21 @@ trough_gain (double period, double blur)
   return exp (-2 * G_PI * G_PI * blur * blur * f * f) * sin (G_PI * f) / (G_PI * f);
 }
 
-static double
-normal (GRand *rng)
-{
-  double u = g_rand_double_range (rng, 1e-12, 1), v = g_rand_double (rng);
-  return sqrt (-2 * log (u)) * cos (2 * G_PI * v);
-}
-
 /* What the duty fit reads on the configured pattern m (with the off-stripe level and blur the
  * frames show under it) seen through the pilot's measurement: m on the pilot's columns at its
  * stripes' offset, phases 0 and 1/2 (ds_stripe_value integrates over the pixel), at the lit
  * pixels' mean level with the pilot's noise, on as many rows as the pilot had lit pixels; each
  * replica shifts the stripes by a fraction of a pixel within the offset's half-pixel and draws
- * new noise. The mean and the standard deviation of the replicas' duties. A fixed seed keeps
- * the check a function of its frames. */
+ * new noise (proc/stripe_replica.h renders the frames). The mean and the standard deviation of
+ * the replicas' duties. A fixed seed keeps the check a function of its frames. */
 static void
 expected_duty (const DsStripeModel *m, const DsStripeProfile *real, double noise_dn, double blur_min, double *mean,
                double *sd)
 {
-  double level = 0;
-  guint64 n = 0;
-  for (gsize i = 0; i < (gsize) real->width * real->height; i++)
-    if (real->sum[i] > real->threshold) {
-      level += real->sum[i];
-      n++;
-    }
+  guint64 n;
+  double level = ds_stripe_profile_lit_mean (real, &n);
   /* a phase's level per unit of the pattern's value: the pair's sum over its mean, 2 m */
-  double scale = n ? level / (double) n / (2 * ds_pattern_mean (m->kind, m->duty, m->black_level)) : 1;
+  double scale = n ? level / (2 * ds_pattern_mean (m->kind, m->duty, m->black_level)) : 1;
   guint w = real->width, h = (guint) MAX (8, (real->pixels + w - 1) / w);
   g_autoptr (GRand) rng = g_rand_new_with_seed (0x5eed);
   g_autoptr (DsImage) dark = ds_image_new (DS_SAMPLE_F32, w, h, NULL);
@@ -240,14 +229,8 @@ expected_duty (const DsStripeModel *m, const DsStripeProfile *real, double noise
       v[x] = scale * ds_stripe_value (m, x, offset);
       v[w + x] = scale * ds_stripe_value (m, x, offset + 0.5);
     }
-    for (guint y = 0; y < h; y++) {
-      float *rd = ds_image_row (dark, y), *r0 = ds_image_row (l0, y), *r1 = ds_image_row (l1, y);
-      for (guint x = 0; x < w; x++) {
-        rd[x] = (float) (noise_dn * normal (rng));
-        r0[x] = (float) (v[x] + noise_dn * normal (rng));
-        r1[x] = (float) (v[w + x] + noise_dn * normal (rng));
-      }
-    }
+    /* the frames are float and of one shape: this cannot fail */
+    ds_stripe_replica_render (v, v + w, noise_dn, rng, dark, l0, l1);
     g_autoptr (DsStripeProfile) p = ds_stripe_profile_bin (dark, l0, l1, real->period_px, offset, 0, N_BINS, NULL);
     duty[k] = p ? fit_profile (p, m->kind, real->period_px, -1, 0, blur_min).duty : m->duty;
     sum += duty[k];
