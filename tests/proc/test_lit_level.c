@@ -9,6 +9,8 @@
 #include "proc/image.h"
 #include "proc/lit_level.h"
 
+#include "pair_frames.h"
+
 #define W 40u
 #define H 23u
 #define CLIP 5000.0
@@ -55,7 +57,7 @@ not_finite (guint x, guint y)
 }
 
 typedef struct {
-  DsImage *l0, *l1, *dark;
+  PairFrames pair;
   double e[W];
 } Frames;
 
@@ -64,13 +66,11 @@ typedef struct {
 static void
 frames_init (Frames *f)
 {
-  f->l0 = ds_image_new (DS_SAMPLE_F32, W, H, NULL);
-  f->l1 = ds_image_new (DS_SAMPLE_F32, W, H, NULL);
-  f->dark = ds_image_new (DS_SAMPLE_F32, W, H, NULL);
+  pair_frames_init (&f->pair, W, H);
   for (guint x = 0; x < W; x++)
     f->e[x] = sum_at (x);
   for (guint y = 0; y < H; y++) {
-    float *r0 = ds_image_row (f->l0, y), *r1 = ds_image_row (f->l1, y), *rd = ds_image_row (f->dark, y);
+    float *r0 = ds_image_row (f->pair.l0, y), *r1 = ds_image_row (f->pair.l1, y), *rd = ds_image_row (f->pair.dark, y);
     for (guint x = 0; x < W; x++) {
       double share = x % 2 ? 1.0 : 0.0, lit = level_at (x, y) * sum_at (x);
       rd[x] = (float) dark_at (x, y);
@@ -82,14 +82,6 @@ frames_init (Frames *f)
         r0[x] = NAN;
     }
   }
-}
-
-static void
-frames_clear (Frames *f)
-{
-  g_clear_pointer (&f->l0, ds_image_free);
-  g_clear_pointer (&f->l1, ds_image_free);
-  g_clear_pointer (&f->dark, ds_image_free);
 }
 
 /* Every row_step-th row, the columns that are not gaps, the pixels that neither clip nor hold a
@@ -107,13 +99,13 @@ check_levels (guint row_step)
       if (!gap_column (x) && !clipped (x, y) && !not_finite (x, y))
         want[n_want++] = level_at (x, y);
   double mean = -1;
-  gsize n = ds_lit_level_samples (f.l0, f.l1, f.dark, f.e, CLIP, row_step, got, &mean);
+  gsize n = ds_lit_level_samples (f.pair.l0, f.pair.l1, f.pair.dark, f.e, CLIP, row_step, got, &mean);
   g_assert_cmpuint (n, ==, n_want);
   for (gsize i = 0; i < n; i++)
     g_assert_cmpfloat_with_epsilon (got[i], want[i], 1e-9 * want[i]);
   /* the kept columns' sums: 1, 1, 0.5, 1 */
   g_assert_cmpfloat_with_epsilon (mean, 3.5 / 4, 1e-12);
-  frames_clear (&f);
+  pair_frames_clear (&f.pair);
 }
 
 static void
@@ -136,7 +128,7 @@ test_no_clip (void)
   Frames f;
   frames_init (&f);
   g_autofree double *got = g_new (double, W * H);
-  gsize n = ds_lit_level_samples (f.l0, f.l1, f.dark, f.e, 0, 1, got, NULL), i = 0;
+  gsize n = ds_lit_level_samples (f.pair.l0, f.pair.l1, f.pair.dark, f.e, 0, 1, got, NULL), i = 0;
   for (guint y = 0; y < H; y++)
     for (guint x = 0; x < W; x++) {
       if (gap_column (x) || not_finite (x, y))
@@ -149,7 +141,7 @@ test_no_clip (void)
       i++;
     }
   g_assert_cmpuint (i, ==, n);
-  frames_clear (&f);
+  pair_frames_clear (&f.pair);
 }
 
 int

@@ -9,6 +9,8 @@
 #include "proc/image.h"
 #include "proc/stripe_replica.h"
 
+#include "pair_frames.h"
+
 #define W 64u
 #define H 200u
 
@@ -20,7 +22,7 @@ value (guint x, guint phase)
 
 typedef struct {
   double v0[W], v1[W];
-  DsImage *dark, *l0, *l1;
+  PairFrames f;
 } Replica;
 
 static void
@@ -30,19 +32,9 @@ replica_render (Replica *r, double noise, guint32 seed)
     r->v0[x] = value (x, 0);
     r->v1[x] = value (x, 1);
   }
-  r->dark = ds_image_new (DS_SAMPLE_F32, W, H, NULL);
-  r->l0 = ds_image_new (DS_SAMPLE_F32, W, H, NULL);
-  r->l1 = ds_image_new (DS_SAMPLE_F32, W, H, NULL);
+  pair_frames_init (&r->f, W, H);
   g_autoptr (GRand) rng = g_rand_new_with_seed (seed);
-  g_assert_true (ds_stripe_replica_render (r->v0, r->v1, noise, rng, r->dark, r->l0, r->l1));
-}
-
-static void
-replica_clear (Replica *r)
-{
-  g_clear_pointer (&r->dark, ds_image_free);
-  g_clear_pointer (&r->l0, ds_image_free);
-  g_clear_pointer (&r->l1, ds_image_free);
+  g_assert_true (ds_stripe_replica_render (r->v0, r->v1, noise, rng, r->f.dark, r->f.l0, r->f.l1));
 }
 
 /* The frame's residual (sample less its column's value) at pixel i. */
@@ -60,7 +52,7 @@ test_noise_statistics (void)
   const double noise = 3.0;
   Replica r;
   replica_render (&r, noise, 7);
-  const DsImage *f[3] = { r.dark, r.l0, r.l1 };
+  const DsImage *f[3] = { r.f.dark, r.f.l0, r.f.l1 };
   const double *v[3] = { NULL, r.v0, r.v1 };
   gsize n = (gsize) W * H;
   /* the mean of n draws spreads by noise / sqrt (n), a variance's relative error by sqrt (2 / n),
@@ -78,7 +70,7 @@ test_noise_statistics (void)
     g_assert_cmpfloat (fabs (ss / n / (noise * noise) - 1), <, tol_var);
     g_assert_cmpfloat (fabs (cross / n / (noise * noise)), <, tol_cov);
   }
-  replica_clear (&r);
+  pair_frames_clear (&r.f);
 }
 
 static void
@@ -87,14 +79,14 @@ test_no_noise (void)
   Replica r;
   replica_render (&r, 0, 7);
   for (guint y = 0; y < H; y++) {
-    const float *rd = ds_image_row (r.dark, y), *r0 = ds_image_row (r.l0, y), *r1 = ds_image_row (r.l1, y);
+    const float *rd = ds_image_row (r.f.dark, y), *r0 = ds_image_row (r.f.l0, y), *r1 = ds_image_row (r.f.l1, y);
     for (guint x = 0; x < W; x++) {
       g_assert_cmpfloat (rd[x], ==, 0);
       g_assert_cmpfloat (r0[x], ==, (float) r.v0[x]);
       g_assert_cmpfloat (r1[x], ==, (float) r.v1[x]);
     }
   }
-  replica_clear (&r);
+  pair_frames_clear (&r.f);
 }
 
 /* Frames that are not float, or not of one shape, are refused. */
