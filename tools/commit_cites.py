@@ -15,6 +15,11 @@ import re
 import subprocess
 import sys
 
+# The shared ending sits beside this script, found from its own folder whatever the working
+# directory or the interpreter's path settings.
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from house_report import report  # noqa: E402
+
 ANNOTATED = "not in main's history"
 CITE = re.compile(r"\b(?=[0-9a-f]*[a-f])(?=[0-9a-f]*[0-9])[0-9a-f]{7,40}\b")
 
@@ -69,10 +74,7 @@ def main():
         if len(found) != 1 and not annotated:
             what = "no commit in the history of HEAD" if not found else "ambiguous in the history of HEAD"
             stale.append(f"{rel}:{no}: cites {cite}, {what}")
-    for s in stale:
-        print(s)
-    print(f"commit_cites: {len(cites)} citations, {len(stale)} stale")
-    return 1 if stale else 0
+    return report(stale, f"commit_cites: {len(cites)} citations, {len(stale)} stale")
 
 
 if __name__ == "__main__":

@@ -10,6 +10,11 @@ import os
 import re
 import sys
 
+# The shared ending sits beside this script, found from its own folder whatever the working
+# directory or the interpreter's path settings.
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from house_report import report  # noqa: E402
+
 MAX_FILE_LINES = 800
 MAX_FUNCTION_LINES = 150
 PRODUCT_DIRS = ("daemon", "proc", "drivers", "tools", "etc", "systemd")
@@ -103,10 +108,7 @@ def main():
                         if m:
                             cited.append(f"{os.path.relpath(path, root)}:{no}: cites {what} ({m.group()})")
     breaches += cited
-    for b in breaches:
-        print(b)
-    print(f"house_check: {len(breaches)} breaches")
-    return 1 if breaches else 0
+    return report(breaches, f"house_check: {len(breaches)} breaches")
 
 
 if __name__ == "__main__":

@@ -11,6 +11,7 @@
 #include "proc/column_stats.h"
 #include "proc/harmonic_gain.h"
 #include "proc/stripe_profile.h"
+#include "proc/stripe_replica.h"
 
 #define N_BINS 40u
 /* The duty is judged against what the configured pattern would show through the same
@@ -62,38 +63,73 @@ ds_pattern_verdict_name (DsPatternVerdict v)
 
 typedef struct {
   double duty, level, blur, rms;
+  double ms; /* rms before the square root: what bounds the scan (best_level ()) */
 } Fit;
 
-/* The pattern without black level (s in [0, 1]) at the bins' positions, for phase 0 and 1/2. */
+/* The bins that hold pixels (in r or in t), in order: the others weigh nothing in a fit, and an
+ * integer period fills only P of them. */
+typedef struct {
+  guint j[N_BINS], n;
+} UsedBins;
+
 static void
-pattern_at_bins (DsPatternKind kind, double period, double duty, double blur, const DsStripeProfile *p, double *s0,
-                 double *s1)
+used_bins (const DsStripeProfile *p, UsedBins *used)
+{
+  used->n = 0;
+  for (guint j = 0; j < N_BINS; j++)
+    if (p->n[j] || p->nt[j])
+      used->j[used->n++] = j;
+}
+
+/* The pattern without black level (s in [0, 1]) at the used bins' positions, for phase 0 and
+ * 1/2 (the rest of s0 and s1 is left as it is). */
+static void
+pattern_at_bins (DsPatternKind kind, double period, double duty, double blur, const DsStripeProfile *p,
+                 const UsedBins *used, double *s0, double *s1)
 {
   DsStripeModel m = { .kind = kind, .period_px = period, .duty = duty, .black_level = 0, .blur_px = blur };
-  for (guint j = 0; j < N_BINS; j++) {
+  for (guint i = 0; i < used->n; i++) {
+    guint j = used->j[i];
     s0[j] = ds_stripe_value (&m, p->u[j] * period, 0);
     s1[j] = ds_stripe_value (&m, p->u[j] * period, 0.5);
   }
+}
+
+/* The mean square misfit of a level from the bins' sums of squares (cost over r, cost_t over t). */
+static double
+misfit (double cost, double total, double cost_t, double total_t)
+{
+  return cost / total + (total_t > 0 ? 0.25 * cost_t / total_t : 0);
 }
 
 /* The best off-stripe level at least level_min for the patterns s0, s1 (a 1-D scan). Two
  * profiles: r, and t, the sum of the phases against its mean over about two periods, since r
  * cannot tell duty a from 1 - a once b > 0 (overlaps and gaps both give r = 1/2), nor see the
  * gaps at b = 0 (no light there); the sum is high where the phases overlap and low in the gaps.
- * t carries the scene's own detail as noise, so it weighs a quarter. */
+ * t carries the scene's own detail as noise, so it weighs a quarter.
+ *
+ * A level whose misfit reaches `beat` (the caller's best so far, before the square root) cannot
+ * be the caller's pick, nor one whose misfit reaches the scan's own best: its sums only grow with
+ * more bins (every term is a square times a count, and rounding is monotonic), so its scan stops
+ * there. What is picked is what the whole scan picks; fit->rms stays infinite when no level
+ * beats `beat`. */
 static void
-best_level (const DsStripeProfile *p, const double *s0, const double *s1, double duty, double level_min, double step,
-            Fit *fit)
+best_level (const DsStripeProfile *p, const UsedBins *used, const double *s0, const double *s1, double duty,
+            double level_min, double step, double beat, Fit *fit)
 {
   double total = 0, total_t = 0;
-  for (guint j = 0; j < N_BINS; j++) {
-    total += (double) p->n[j];
-    total_t += (double) p->nt[j];
+  for (guint i = 0; i < used->n; i++) {
+    total += (double) p->n[used->j[i]];
+    total_t += (double) p->nt[used->j[i]];
   }
-  fit->rms = INFINITY;
+  fit->rms = fit->ms = INFINITY;
   for (double b = level_min; b <= 0.98 + 1e-9; b += step) {
-    double cost = 0, cost_t = 0, mean = 2 * b + (1 - b) * 2 * duty;
-    for (guint j = 0; j < N_BINS; j++) {
+    double cost = 0, cost_t = 0, mean = 2 * b + (1 - b) * 2 * duty, bound = MIN (beat, fit->ms);
+    guint i = 0;
+    for (; i < used->n; i++) {
+      guint j = used->j[i];
+      if (i % 8 == 7 && misfit (cost, total, cost_t, total_t) >= bound)
+        break;
       double a = b + (1 - b) * s0[j], c = b + (1 - b) * s1[j];
       if (p->nt[j]) {
         double d = p->t[j] - (a + c) / mean;
@@ -104,9 +140,12 @@ best_level (const DsStripeProfile *p, const double *s0, const double *s1, double
       double d = p->r[j] - (a + c > 0 ? a / (a + c) : 0.5);
       cost += (double) p->n[j] * d * d;
     }
-    double rms = sqrt (cost / total + (total_t > 0 ? 0.25 * cost_t / total_t : 0));
+    if (i < used->n)
+      continue;
+    double ms = misfit (cost, total, cost_t, total_t), rms = sqrt (ms);
     if (rms < fit->rms) {
       fit->rms = rms;
+      fit->ms = ms;
       fit->level = b;
     }
   }
@@ -121,10 +160,12 @@ static Fit
 fit_profile (const DsStripeProfile *p, DsPatternKind kind, double period, double duty_fixed, double level_min,
              double blur_min)
 {
-  Fit best = { .rms = INFINITY };
+  Fit best = { .rms = INFINITY, .ms = INFINITY };
   double blur_max = MAX (blur_min, MIN (0.3 * period, 4.0)), s0[N_BINS], s1[N_BINS];
   gboolean duty_free = kind == DS_PATTERN_SQUARE && duty_fixed < 0;
   double fixed = kind == DS_PATTERN_SQUARE ? duty_fixed : 0.5;
+  UsedBins used;
+  used_bins (p, &used);
   for (int pass = 0; pass < 2; pass++) {
     double a_lo = duty_free ? (pass ? best.duty - 0.01 : 0.04) : fixed;
     double a_hi = duty_free ? (pass ? best.duty + 0.01 : 0.96) : fixed;
@@ -136,9 +177,10 @@ fit_profile (const DsStripeProfile *p, DsPatternKind kind, double period, double
       if (a <= 0.01 || a >= 0.99)
         continue;
       for (double s = s_lo; s <= s_hi + 1e-9; s += s_step) {
-        pattern_at_bins (kind, period, a, s, p, s0, s1);
+        pattern_at_bins (kind, period, a, s, p, &used, s0, s1);
         Fit f = { .duty = a, .blur = s };
-        best_level (p, s0, s1, a, pass ? MAX (level_min, best.level - 0.02) : level_min, pass ? 0.002 : 0.01, &f);
+        best_level (p, &used, s0, s1, a, pass ? MAX (level_min, best.level - 0.02) : level_min, pass ? 0.002 : 0.01,
+                    round.ms, &f);
         if (f.rms < round.rms)
           round = f;
       }
@@ -200,33 +242,21 @@ trough_gain (double period, double blur)
   return exp (-2 * G_PI * G_PI * blur * blur * f * f) * sin (G_PI * f) / (G_PI * f);
 }
 
-static double
-normal (GRand *rng)
-{
-  double u = g_rand_double_range (rng, 1e-12, 1), v = g_rand_double (rng);
-  return sqrt (-2 * log (u)) * cos (2 * G_PI * v);
-}
-
 /* What the duty fit reads on the configured pattern m (with the off-stripe level and blur the
  * frames show under it) seen through the pilot's measurement: m on the pilot's columns at its
  * stripes' offset, phases 0 and 1/2 (ds_stripe_value integrates over the pixel), at the lit
  * pixels' mean level with the pilot's noise, on as many rows as the pilot had lit pixels; each
  * replica shifts the stripes by a fraction of a pixel within the offset's half-pixel and draws
- * new noise. The mean and the standard deviation of the replicas' duties. A fixed seed keeps
- * the check a function of its frames. */
+ * new noise (proc/stripe_replica.h renders the frames). The mean and the standard deviation of
+ * the replicas' duties. A fixed seed keeps the check a function of its frames. */
 static void
 expected_duty (const DsStripeModel *m, const DsStripeProfile *real, double noise_dn, double blur_min, double *mean,
                double *sd)
 {
-  double level = 0;
-  guint64 n = 0;
-  for (gsize i = 0; i < (gsize) real->width * real->height; i++)
-    if (real->sum[i] > real->threshold) {
-      level += real->sum[i];
-      n++;
-    }
+  guint64 n;
+  double level = ds_stripe_profile_lit_mean (real, &n);
   /* a phase's level per unit of the pattern's value: the pair's sum over its mean, 2 m */
-  double scale = n ? level / (double) n / (2 * ds_pattern_mean (m->kind, m->duty, m->black_level)) : 1;
+  double scale = n ? level / (2 * ds_pattern_mean (m->kind, m->duty, m->black_level)) : 1;
   guint w = real->width, h = (guint) MAX (8, (real->pixels + w - 1) / w);
   g_autoptr (GRand) rng = g_rand_new_with_seed (0x5eed);
   g_autoptr (DsImage) dark = ds_image_new (DS_SAMPLE_F32, w, h, NULL);
@@ -240,14 +270,8 @@ expected_duty (const DsStripeModel *m, const DsStripeProfile *real, double noise
       v[x] = scale * ds_stripe_value (m, x, offset);
       v[w + x] = scale * ds_stripe_value (m, x, offset + 0.5);
     }
-    for (guint y = 0; y < h; y++) {
-      float *rd = ds_image_row (dark, y), *r0 = ds_image_row (l0, y), *r1 = ds_image_row (l1, y);
-      for (guint x = 0; x < w; x++) {
-        rd[x] = (float) (noise_dn * normal (rng));
-        r0[x] = (float) (v[x] + noise_dn * normal (rng));
-        r1[x] = (float) (v[w + x] + noise_dn * normal (rng));
-      }
-    }
+    /* the frames are float and of one shape: this cannot fail */
+    ds_stripe_replica_render (v, v + w, noise_dn, rng, dark, l0, l1);
     g_autoptr (DsStripeProfile) p = ds_stripe_profile_bin (dark, l0, l1, real->period_px, offset, 0, N_BINS, NULL);
     duty[k] = p ? fit_profile (p, m->kind, real->period_px, -1, 0, blur_min).duty : m->duty;
     sum += duty[k];

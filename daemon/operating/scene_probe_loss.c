@@ -6,6 +6,7 @@
 
 #include "daemon/operating/film_bound.h"
 #include "proc/harmonic_gain.h"
+#include "proc/lit_level.h"
 
 double
 ds_probe_fresnel_transmittance (double n)
@@ -22,43 +23,17 @@ compare_double (const void *a, const void *b)
   return (x > y) - (x < y);
 }
 
-/* Each unclipped pixel's lit level: the two opposite phases' sum less twice the dark frame, over
- * the sum the pattern model gives there (1 where a stripe is fully lit), at columns where that sum
- * is at least half its mean (square stripes of a duty under 1/2 leave gaps lit by neither).
- * Returns how many; at most one sample in `step` rows is taken. *model_sum is the model's mean
- * sum over the columns used. */
+/* Each unclipped pixel's lit level (proc/lit_level.h) over the sum the pattern model gives the two
+ * opposite phases there. Returns how many; at most one sample in `step` rows is taken.
+ * *model_sum is the model's mean sum over the columns used. */
 static gsize
 pixel_levels (const DsProbeFrames *fr, const DsSceneProbe *p, guint step, double *levels, double *model_sum)
 {
-  const DsImage *a = fr->lit[0], *b = fr->lit[1], *d = fr->dark;
-  guint w = a->width;
+  guint w = fr->lit[0]->width;
   g_autofree double *e = g_new (double, w);
-  double mean = 0;
-  for (guint x = 0; x < w; x++) {
-    e[x] = ds_stripe_value (&p->geometry, x, p->phase_offset) + ds_stripe_value (&p->geometry, x, p->phase_offset + 0.5);
-    mean += e[x] / w;
-  }
-  double clip = p->clip.saturation_dn > 0 ? p->clip.saturation_dn : INFINITY;
-  gsize n = 0;
-  double used = 0, cols = 0;
   for (guint x = 0; x < w; x++)
-    if (e[x] >= 0.5 * mean) {
-      used += e[x];
-      cols++;
-    }
-  *model_sum = cols > 0 ? used / cols : 0;
-  for (guint y = 0; y < a->height; y += step) {
-    const void *ra = ds_image_row (a, y), *rb = ds_image_row (b, y), *rd = ds_image_row (d, y);
-    for (guint x = 0; x < w; x++) {
-      if (!(e[x] >= 0.5 * mean))
-        continue;
-      double va = ds_image_sample (a, ra, x), vb = ds_image_sample (b, rb, x);
-      if (va >= clip || vb >= clip || !isfinite (va) || !isfinite (vb))
-        continue;
-      levels[n++] = (va + vb - 2 * ds_image_sample (d, rd, x)) / e[x];
-    }
-  }
-  return n;
+    e[x] = ds_stripe_value (&p->geometry, x, p->phase_offset) + ds_stripe_value (&p->geometry, x, p->phase_offset + 0.5);
+  return ds_lit_level_samples (fr->lit[0], fr->lit[1], fr->dark, e, p->clip.saturation_dn, step, levels, model_sum);
 }
 
 /* The upper end of the flagged film's bias (film_bound.h) at the loss's upper confidence. */
