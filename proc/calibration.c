@@ -10,6 +10,7 @@
 #include "proc/calibration_sine.h"
 #include "proc/calibration_steps.h"
 #include "proc/harmonic_gain.h"
+#include "proc/lit_level.h"
 #include "proc/proc_error.h"
 #include "proc/separation_internal.h"
 #include "proc/stripe_period.h"
@@ -175,10 +176,8 @@ compare_doubles (gconstpointer a, gconstpointer b)
 }
 
 /* Mean of the middle 80 % (sorts v). */
-/* The open field's lit level is the same bright quantile of the pixels' levels as the scene's
- * that the automatic operating point compares it with (DS_CALIBRATION_LIT_QUANTILE): objects or
- * dust on the reference, and their shaded edges, darken fewer pixels than the quantile leaves
- * out, and an uneven field lifts both quantiles alike. brightness: NaN where not used. */
+/* The open field's lit level is the bright quantile of the pixels' levels the scene probe takes
+ * of the scene's (DS_LIT_LEVEL_QUANTILE, proc/lit_level.h). brightness: NaN where not used. */
 static double
 lit_quantile (const double *brightness, gsize npix)
 {
@@ -190,7 +189,7 @@ lit_quantile (const double *brightness, gsize npix)
   if (n == 0)
     return NAN;
   qsort (v, n, sizeof (double), compare_doubles);
-  return v[(gsize) (DS_CALIBRATION_LIT_QUANTILE * (n - 1))];
+  return v[(gsize) (DS_LIT_LEVEL_QUANTILE * (n - 1))];
 }
 
 static double

@@ -16,10 +16,6 @@
 
 G_BEGIN_DECLS
 
-/* The quantile of the reference's pixels taken as the open field's lit level: the one the scene
- * probe takes of the scene's (daemon/operating/scene_probe_loss.h), so that the two compare. */
-#define DS_CALIBRATION_LIT_QUANTILE 0.8
-
 typedef struct {
   DsPatternKind pattern;      /* what the illuminator is configured to project (square unless
                                  known to be sine); the profile decides (calibration_pattern.h) */
@@ -65,7 +61,7 @@ typedef struct {
   guint64 pixels_used;        /* lit, unsaturated, finite pixels the numbers come from */
   double lit_level_dn;        /* a fully lit pixel's level, DN above the dark frame (a pixel's
                                  mean over the phases over the pattern's mean, the
-                                 DS_CALIBRATION_LIT_QUANTILE quantile of the pixels); without a
+                                 DS_LIT_LEVEL_QUANTILE quantile of the pixels, proc/lit_level.h); without a
                                  dark frame it holds the sensor's offset too */
   double open_field_dn_per_ms;/* lit_level_dn per ms of exposure at 0 dB gain, where the set's
                                  exposure and gain are known and it had a dark frame (the daemon's

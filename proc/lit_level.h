@@ -16,6 +16,13 @@
 
 G_BEGIN_DECLS
 
+/* The quantile of the pixels' lit levels taken as a clear pixel's, by the calibration's open
+ * field (proc/calibration.h) and by the scene probe's lost light alike, so that the two compare:
+ * objects, dust and their shaded edges only darken pixels, and as long as they cover less than
+ * 1 - DS_LIT_LEVEL_QUANTILE of the frame the quantile is a pixel the light crossed alone; an
+ * uneven field lifts both quantiles alike. */
+#define DS_LIT_LEVEL_QUANTILE 0.8
+
 /* Writes the lit level of the pixels kept (above) in rows 0, row_step, 2 row_step, ... (row_step
  * >= 1) of l0, l1 and dark (one shape) into levels, row by row, and returns how many. expected
  * holds e for each of the frames' columns; clip <= 0 clips nothing. levels must hold

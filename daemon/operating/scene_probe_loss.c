@@ -85,7 +85,7 @@ ds_probe_loss_measure (const DsProbeFrames *fr, DsSceneProbe *out)
     return;
   }
   qsort (levels, n, sizeof *levels, compare_double);
-  double quantile = levels[MIN (n - 1, (gsize) floor (DS_PROBE_LOSS_QUANTILE * n))];
+  double quantile = levels[MIN (n - 1, (gsize) floor (DS_LIT_LEVEL_QUANTILE * n))];
   /* The quantile of a level spread by the noise sits DS_PROBE_LOSS_QUANTILE_Z of its standard
    * deviation above it: two lit frames' noise and twice the dark frame's, over the model's sum. */
   double sigma_px = sqrt (6 * out->noise.var0 + out->noise.gain * MAX (0.0, quantile * model_sum)) / model_sum;
@@ -93,7 +93,7 @@ ds_probe_loss_measure (const DsProbeFrames *fr, DsSceneProbe *out)
   l->open_dn = fr->open_field_dn;
   l->level_dn = quantile - DS_PROBE_LOSS_QUANTILE_Z * sigma_px;
   l->transmittance = l->level_dn / l->open_dn;
-  double rel_noise = l->level_dn > 0 ? sigma_px / l->level_dn / sqrt ((double) n * (1 - DS_PROBE_LOSS_QUANTILE)) : 0;
+  double rel_noise = l->level_dn > 0 ? sigma_px / l->level_dn / sqrt ((double) n * (1 - DS_LIT_LEVEL_QUANTILE)) : 0;
   double sigma = hypot (DS_PROBE_LOSS_CALIBRATION, rel_noise);
   l->sigma = sigma;
   double fresnel = ds_probe_fresnel_transmittance (DS_PROBE_LOSS_MAX_INDEX);

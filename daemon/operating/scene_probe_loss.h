@@ -19,17 +19,19 @@
  * prediction may be optimistic, not that it is.
  *
  * Objects (opaque or partial) and their shadows only darken pixels, so L is a bright quantile
- * (DS_PROBE_LOSS_QUANTILE) of the pixels' lit level, each pixel's two opposite phases over the sum
+ * (DS_LIT_LEVEL_QUANTILE) of the pixels' lit level, each pixel's two opposite phases over the sum
  * the pattern model gives there, less the lift the noise gives a quantile: as long as more than
- * 1 - DS_PROBE_LOSS_QUANTILE of the scene is free of objects, the quantile is a pixel the light
- * crossed alone (a mean would read a grid of opaque lines as loss). An uneven illumination puts
- * the bright pixels above the open field's mean: the loss then reads low, never high.
+ * 1 - DS_LIT_LEVEL_QUANTILE of the scene is free of objects, the quantile is a pixel the light
+ * crossed alone (a mean would read a grid of opaque lines as loss). descatterctl calibrate takes
+ * the open field with the same quantile of the reference's pixels, so that an uneven illumination
+ * lifts both alike.
  *
  * Internal to the scene probe; pure function, any thread. */
 #pragma once
 #include <glib.h>
 
 #include "daemon/operating/scene_probe.h"
+#include "proc/lit_level.h"
 
 /* The highest refractive index the Fresnel loss allows for (most films, plastics and glasses). */
 #define DS_PROBE_LOSS_MAX_INDEX 1.6
@@ -38,11 +40,9 @@
 #define DS_PROBE_LOSS_CALIBRATION 0.03
 /* How many standard uncertainties the loss must stand beyond the Fresnel loss. */
 #define DS_PROBE_LOSS_Z 2.0
-/* The quantile of the blocks' lit level taken as the scene's. */
-#define DS_PROBE_LOSS_QUANTILE 0.8
 /* Below this share of the direct light the probe's scattered light counts as none seen. */
 #define DS_PROBE_LOSS_SEEN_LG 0.05
-/* The standard normal quantile at DS_PROBE_LOSS_QUANTILE: how far the noise lifts it. */
+/* The standard normal quantile at DS_LIT_LEVEL_QUANTILE: how far the noise lifts it. */
 #define DS_PROBE_LOSS_QUANTILE_Z 0.8416
 /* The fewest lit, unclipped pixels measured, and the most (rows are skipped beyond). */
 #define DS_PROBE_LOSS_MIN_PIXELS 256u
