@@ -5,9 +5,14 @@
  * Not a rig of its own: the calibrated simulated rig of `descatterctl validate`
  * (daemon/ctl/sim_rig.h), so that the tests probe exactly the frames the validation probes. */
 #pragma once
+#include "daemon/ctl/sim_rig.h"
 #include "daemon/ctl/validate.h"
 
 G_BEGIN_DECLS
+
+/* The calibrated simulated rig of the scene `text` (named `name` in messages), seed 1, its pilot
+ * probed into *vs; aborts the test on any error. */
+DsSimRig *probe_rig_new_probed (const char *text, const char *name, DsValidateScene *vs);
 
 /* Probes the scene `text` (named `name` in messages) on the calibrated simulated rig, seed 1, into
  * *vs; aborts the test on any error. *leak_truth is the renderer's share of the direct light that

@@ -81,11 +81,7 @@ static void
 request (const char *text, const char *name, double target, DsValidateScene *vs, DsValidateOutcome *o)
 {
   g_autoptr (GError) error = NULL;
-  g_autoptr (DsSimRig) rig = ds_sim_rig_new_from_data (text, name, &error);
-  g_assert_no_error (error);
-  DsValidateOptions opt = { .calibrated = TRUE, .seed = 1 };
-  g_assert_true (ds_validate_probe (rig, &opt, vs, &error));
-  g_assert_no_error (error);
+  g_autoptr (DsSimRig) rig = probe_rig_new_probed (text, name, vs);
   DsOperatingModel model;
   ds_operating_model_init (&model);
   DsRigTiming timing;

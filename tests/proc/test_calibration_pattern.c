@@ -41,30 +41,45 @@ lit (const Stripes *s, double d)
   return v;
 }
 
+/* Adds one phase set of s to cal: each pixel's lit fraction integrated over its width, the left
+ * half of the frame lit to level[0] and the right half to level[1] above offset, Gaussian noise of
+ * noise_dn, samples of an integer type rounded and clipped at clip. */
 static void
-calibrate (const Stripes *s, gboolean forced, DsCalibration *out)
+add_phase_set (DsCalibrator *cal, const Stripes *s, DsSampleType type, const double level[2], double offset,
+               double noise_dn, double clip, guint32 seed)
 {
   g_autoptr (GError) error = NULL;
-  g_autoptr (DsCalibrator) cal = ds_calibrator_new (N, W, H, &error);
-  g_assert_no_error (error);
-  GRand *r = g_rand_new_with_seed (7);
+  GRand *r = g_rand_new_with_seed (seed);
   for (guint k = 0; k < N; k++) {
-    g_autoptr (DsImage) img = ds_image_new (DS_SAMPLE_F32, W, H, NULL);
+    g_autoptr (DsImage) img = ds_image_new (type, W, H, NULL);
     for (guint y = 0; y < H; y++) {
-      float *row = ds_image_row (img, y);
+      void *row = ds_image_row (img, y);
       for (guint x = 0; x < W; x++) {
         double v = 0;
         for (guint i = 0; i < SUB; i++) {
           double px = x - 0.5 + (i + 0.5) / SUB;
           v += lit (s, px - (0.3 + (double) k / N) * s->period) / SUB;
         }
-        row[x] = (float) (1000 * (s->black + (1 - s->black) * v + s->noise * test_normal (r)));
+        double dn = offset + level[x >= W / 2] * (s->black + (1 - s->black) * v) + noise_dn * test_normal (r);
+        if (type == DS_SAMPLE_F32)
+          ((float *) row)[x] = (float) dn;
+        else
+          ((guint16 *) row)[x] = (guint16) CLAMP (round (dn), 0, clip);
       }
     }
     g_assert_true (ds_calibrator_add (cal, k, img, &error));
     g_assert_no_error (error);
   }
   g_rand_free (r);
+}
+
+static void
+calibrate (const Stripes *s, gboolean forced, DsCalibration *out)
+{
+  g_autoptr (GError) error = NULL;
+  g_autoptr (DsCalibrator) cal = ds_calibrator_new (N, W, H, &error);
+  g_assert_no_error (error);
+  add_phase_set (cal, s, DS_SAMPLE_F32, (const double[2]) { 1000, 1000 }, 0, 1000 * s->noise, INFINITY, 7);
   DsCalibrationHints hints;
   ds_calibration_hints_init (&hints);
   if (forced) {
@@ -239,19 +254,7 @@ clipped_set (double left_dn, double right_dn)
   g_autoptr (GError) error = NULL;
   DsCalibrator *cal = ds_calibrator_new (N, W, H, &error);
   g_assert_no_error (error);
-  GRand *r = g_rand_new_with_seed (11);
-  for (guint k = 0; k < N; k++) {
-    g_autoptr (DsImage) img = ds_image_new (DS_SAMPLE_U16, W, H, NULL);
-    for (guint y = 0; y < H; y++) {
-      guint16 *row = ds_image_row (img, y);
-      for (guint x = 0; x < W; x++) {
-        double v = lit (&s, x - (0.3 + (double) k / N) * s.period) * (x < W / 2 ? left_dn : right_dn);
-        row[x] = (guint16) CLAMP (round (100 + v + 5 * test_normal (r)), 0, 4095);
-      }
-    }
-    g_assert_true (ds_calibrator_add (cal, k, img, &error));
-  }
-  g_rand_free (r);
+  add_phase_set (cal, &s, DS_SAMPLE_U16, (const double[2]) { left_dn, right_dn }, 100, 5, 4095, 11);
   g_autoptr (DsImage) dark = ds_image_new (DS_SAMPLE_U16, W, H, NULL);
   for (guint y = 0; y < H; y++)
     for (guint x = 0; x < W; x++)
