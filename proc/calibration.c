@@ -16,6 +16,12 @@
 #include "proc/stripe_period.h"
 #include "proc/stripe_phase.h"
 
+/* A clip below the format's top is a pile of 1 % of a frame's samples at its top: a reference
+ * clips over its lit stripes, a share of tens of percent; an unclipped frame's top holds 1 % of
+ * its samples only if nothing lies above 2.3 standard deviations of its brightest part, which
+ * noise spreads further. Clips of fewer pixels are left in, their few samples low. */
+#define DS_CALIBRATION_CLIP_PERCENTILE 99.0
+
 struct DsCalibrator {
   guint n, w, h;
   gsize npix;
@@ -123,9 +129,13 @@ ds_calibrator_add (DsCalibrator *c, guint phase, const DsImage *frame, GError **
   c->bit_depth = frame->bit_depth;
   /* A sensor whose full well fills before its ADC's last code clips below the format's top (a
    * 12-bit sensor in Mono16 at 4095, say): its frames pile samples at that level. The dark frame,
-   * which would vouch for the sensor's noise, may come later: each frame's own noise does. */
+   * which would vouch for the sensor's noise, may come later: each frame's own noise does. A
+   * pixel is left out where its largest sample over the set reaches the level, so the pile must
+   * be one no noise makes (DS_CALIBRATION_CLIP_PERCENTILE): the last code of a noise tail holds a
+   * few samples of a frame (all of them in a small frame), and taking it for a clip would leave
+   * out every pixel whose maximum over N frames reaches it. */
   double top;
-  if (ds_clip_level_pile_top (frame, TRUE, &top))
+  if (ds_clip_level_pile_top (frame, DS_CALIBRATION_CLIP_PERCENTILE, TRUE, &top))
     c->pile_top = MIN (c->pile_top, top);
   double *plane = c->sum + (gsize) phase * c->npix;
   for (guint y = 0; y < c->h; y++)

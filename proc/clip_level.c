@@ -10,12 +10,12 @@
 #define NOISE_MIN_DN 0.5
 
 gboolean
-ds_clip_level_pile_top (const DsImage *f, gboolean need_own_noise, double *top)
+ds_clip_level_pile_top (const DsImage *f, double pile_percentile, gboolean need_own_noise, double *top)
 {
   if (f->type == DS_SAMPLE_F32)
     return FALSE;
   *top = ds_image_percentile (f, 100);
-  double near = ds_image_percentile (f, DS_CLIP_PILE_PERCENTILE);
+  double near = ds_image_percentile (f, pile_percentile);
   return near >= *top && (!need_own_noise || ds_column_stats_noise_dn (f, NULL, *top) >= NOISE_MIN_DN);
 }
 
@@ -28,7 +28,7 @@ ds_clip_level_find (const DsImage *dark, const DsImage *const *lit, guint n_lit,
   out->piled = FALSE;
   for (guint i = 0; i < n_lit; i++) {
     double top;
-    if (ds_clip_level_pile_top (lit[i], !dark_noisy, &top) && top > dark_dn && top <= clip) {
+    if (ds_clip_level_pile_top (lit[i], DS_CLIP_PILE_PERCENTILE, !dark_noisy, &top) && top > dark_dn && top <= clip) {
       clip = top;
       out->piled = TRUE;
     }

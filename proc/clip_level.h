@@ -28,10 +28,11 @@ typedef struct {
   gboolean piled;    /* a pile-up was found (level is where the sensor clips, measured) */
 } DsClipLevel;
 
-/* Where frame f (integer samples) may clip: TRUE, with *top its highest sample value, where at
- * least 0.02 % of its samples hold that value and, with need_own_noise (no noisy dark frame to
- * vouch for the sensor's noise), its own noise spreads its other samples over 0.5 DN or more. */
-gboolean ds_clip_level_pile_top (const DsImage *f, gboolean need_own_noise, double *top);
+/* Where frame f (integer samples) may clip: TRUE, with *top its highest sample value, where the
+ * percentile pile_percentile of its samples reaches that value (DS_CLIP_PILE_PERCENTILE: 0.02 % of
+ * them hold it) and, with need_own_noise (no noisy dark frame to vouch for the sensor's noise),
+ * its own noise spreads its other samples over 0.5 DN or more. */
+gboolean ds_clip_level_pile_top (const DsImage *f, double pile_percentile, gboolean need_own_noise, double *top);
 
 /* The clip level of lit[0..n_lit) given the dark frame and saturation (the format's top or a
  * configured clip level; 0 = none). */

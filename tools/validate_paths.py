@@ -397,8 +397,8 @@ def report(rows, phase, header):
         # apart, with the same factor at each end.
         held = [r for r in flagged if r.get("upper") and r.get("achieved")
                 and float(r["predicted"]) / FACTOR <= float(r["achieved"]) <= FACTOR * float(r["upper"])]
-        with_upper = [r for r in sel if r["outcome"] == "chosen" and r.get("upper")]
-        md.append(f"Chosen points given as an interval (lower bound, upper end): {len(with_upper)}; misses whose "
+        with_upper = [r for r in sel if r["outcome"] == "chosen" and r.get("upper") and str(r.get("lower_bound")) == "1"]
+        md.append(f"Chosen points given as a lower bound with an upper end: {len(with_upper)}; misses whose "
                   f"achieved error lies within their interval (x{FACTOR} at each end): {len(held)} of {len(flagged)} "
                   "flagged.")
         md.append("")

@@ -63,6 +63,8 @@ add_phase_set (DsCalibrator *cal, const Stripes *s, DsSampleType type, const dou
         double dn = offset + level[x >= W / 2] * (s->black + (1 - s->black) * v) + noise_dn * test_normal (r);
         if (type == DS_SAMPLE_F32)
           ((float *) row)[x] = (float) dn;
+        else if (type == DS_SAMPLE_U8)
+          ((guint8 *) row)[x] = (guint8) CLAMP (round (dn), 0, clip);
         else
           ((guint16 *) row)[x] = (guint16) CLAMP (round (dn), 0, clip);
       }
@@ -287,6 +289,28 @@ test_clip_below_format_top (void)
   g_assert_nonnull (strstr (error->message, "clips (at 4095 DN)"));
 }
 
+/* An 8-bit camera's reference far below its clip level: fine stripes (3 px, duty 0.23) lit to 150
+ * DN with 2 DN of noise. Each frame's top value is a noise tail's last code, which in a frame of
+ * 1920 pixels holds the 0.02 % a probe pair's pile asks for: it is no clip, and the set is
+ * measured (the lit level within 2 %). */
+static void
+test_noise_top_is_no_clip (void)
+{
+  const Stripes s = { DS_PATTERN_SQUARE, 3.0, 0.23, 0.0, 0.22, 0.0 };
+  g_autoptr (GError) error = NULL;
+  g_autoptr (DsCalibrator) cal = ds_calibrator_new (N, W, H, &error);
+  g_assert_no_error (error);
+  add_phase_set (cal, &s, DS_SAMPLE_U8, (const double[2]) { 150, 150 }, 0, 2, 255, 13);
+  DsCalibrationHints hints;
+  ds_calibration_hints_init (&hints);
+  hints.period_px = 3.0;
+  DsCalibration out;
+  g_assert_true (ds_calibrator_finish (cal, &hints, &out, &error));
+  g_assert_no_error (error);
+  g_test_message ("lit level %.1f DN over %" G_GUINT64_FORMAT " pixels (150)", out.lit_level_dn, out.pixels_used);
+  g_assert_cmpfloat (fabs (out.lit_level_dn - 150), <=, 0.02 * 150);
+}
+
 int
 main (int argc, char **argv)
 {
@@ -297,5 +321,6 @@ main (int argc, char **argv)
   g_test_add_func ("/calibration-pattern/blurred-square-is-sine", test_blurred_square_is_sine);
   g_test_add_func ("/calibration-pattern/forced", test_forced);
   g_test_add_func ("/calibration-pattern/clip-below-format-top", test_clip_below_format_top);
+  g_test_add_func ("/calibration-pattern/noise-top-is-no-clip", test_noise_top_is_no_clip);
   return g_test_run ();
 }
