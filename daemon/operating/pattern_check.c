@@ -3,6 +3,7 @@
 
 #include <math.h>
 #include <stdarg.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "proc/calibration_scatter.h"
@@ -234,6 +235,29 @@ typedef struct {
   double *brightness, *off;
 } Centres;
 
+static int
+compare_doubles (const void *a, const void *b)
+{
+  double x = *(const double *) a, y = *(const double *) b;
+  return x < y ? -1 : x > y;
+}
+
+/* The median of the finite values of off (n of them, NaN where not usable); NaN when fewer than
+ * 64 are. */
+static double
+centre_median (const double *off, gsize n)
+{
+  g_autofree double *v = g_new (double, n);
+  gsize m = 0;
+  for (gsize i = 0; i < n; i++)
+    if (isfinite (off[i]))
+      v[m++] = off[i];
+  if (m < 64)
+    return NAN;
+  qsort (v, m, sizeof (double), compare_doubles);
+  return m % 2 ? v[m / 2] : 0.5 * (v[m / 2 - 1] + v[m / 2]);
+}
+
 /* g1, the first harmonic's factor from the blur sigma and the whole pixel at period P. */
 static double
 trough_gain (double period, double blur)
@@ -383,12 +407,19 @@ check_pair (const DsImage *dark, const DsImage *l0, const DsImage *l1, double pe
   /* g1 below 0.1 leaves the troughs too shallow to read a level at all; the floor keeps a
    * black level far off (a few tenths) refused there */
   out->level_tolerance = LEVEL_TOLERANCE / MAX (0.1, trough_gain (period, free.blur));
-  if (!centres)
-    return;
   gsize npix = (gsize) l0->width * l0->height;
-  centres->brightness = g_new (double, npix);
-  centres->off = g_new (double, npix);
-  ds_stripe_profile_centres (prof, dark, l0, l1, out->duty, centres->brightness, centres->off);
+  Centres own = { g_new (double, npix), g_new (double, npix) };
+  /* the narrower window of the fitted and the configured duty: the pixels nearest the centres */
+  double window_duty = conf->kind == DS_PATTERN_SQUARE ? MIN (out->duty, conf->duty) : 0.5;
+  ds_stripe_profile_centres (prof, dark, l0, l1, window_duty, own.brightness, own.off);
+  out->centre_off = centre_median (own.off, npix);
+  if (centres) {
+    ds_stripe_profile_centres (prof, dark, l0, l1, out->duty, own.brightness, own.off);
+    *centres = own;
+  } else {
+    g_free (own.brightness);
+    g_free (own.off);
+  }
 }
 
 #define REMEDY                                                                                                   \
@@ -437,6 +468,27 @@ static gboolean
 duty_refused (const DsPatternPair *p, const DsPatternPair *q)
 {
   return p->measured && duty_differs (p) && (!q->measured || duty_differs (q));
+}
+
+/* The pair shows an off-stripe level below the black level b. Every pixel's off-stripe light is
+ * at least b times its lit light, whatever blurs or scatters it: blur, the pixel and scattered
+ * light only mix the illuminator's light, each part of which is at least b of the lit level, so
+ * no pixel's off phase falls below b of its lit phase (noise aside, which the median of the
+ * centres' pixels does not move). The fit reads the level through the pattern's shape; where an
+ * object removes the direct light of some pixels (opaque at the entry face), these keep only
+ * light scattered in from their sides, whose stripes are weaker or shifted, and the profile's
+ * bins mix them with the others in shares that vary along the period (the object's pitch beats
+ * with the stripes'): at a few pixels per period the free fit trades that mixture's shape for a
+ * lower level. So a square fit below b - tolerance refuses the black level only when the
+ * pixels nearest the stripe centres show it too (their median off fraction below b -
+ * tolerance); too few centre pixels leave the fit alone to decide. A sine's level fits no shape:
+ * it is its contrast over the calibrated gain, which such a mixture only lowers (raising the
+ * level), and its centres keep the sine's own off light, so the reading decides alone. */
+static gboolean
+level_low (const DsPatternPair *pair, double black_level, DsPatternKind kind)
+{
+  double floor = black_level - pair->level_tolerance;
+  return pair->off_level < floor && (kind != DS_PATTERN_SQUARE || !(pair->centre_off >= floor));
 }
 
 gboolean
@@ -509,9 +561,9 @@ ds_pattern_check (const DsProbeFrames *f, DsPatternCheck *out, GError **error)
     return TRUE;
   }
   /* Neither blur nor scattered light lowers the level: a pair reading it below the black level
-   * by more than its own tolerance (LEVEL_TOLERANCE / g1 at its period) is a wrong one. */
-  if (p->off_level < conf->black_level - p->level_tolerance ||
-      (q->measured && q->off_level < conf->black_level - q->level_tolerance)) {
+   * by more than its own tolerance (LEVEL_TOLERANCE / g1 at its period), in its fit and in its
+   * stripe centres' own fractions (level_low ()), is a wrong one. */
+  if (level_low (p, conf->black_level, conf->kind) || (q->measured && level_low (q, conf->black_level, conf->kind))) {
     g_autofree char *low = conf->kind == DS_PATTERN_SINE
                              ? g_strdup (seen)
                              : g_strdup_printf ("the pilot frames show an off-stripe level of only %.2f of the lit level",

@@ -11,7 +11,10 @@
  * g the light that does not keep the stripes relative to the direct light. So:
  * - the duty is read from where the stripes overlap or leave gaps, which scattered light does
  *   not move: a fitted duty far from the configured one is a wrong configuration;
- * - b' is at least the black level: b' well below the configured b is a wrong configuration;
+ * - b' is at least the black level: b' well below the configured b is a wrong configuration
+ *   when the pixels nearest the stripe centres show it too (each pixel's off fraction is at
+ *   least b whatever blurs or scatters its light; the fit's shape is not where an opaque object
+ *   leaves some pixels only light scattered in from their sides);
  *   b' well above it is either a black level left unconfigured or scattered light. A black
  *   level is a fixed fraction of each pixel's lit level; scattered light comes from around the
  *   pixel, so it is a larger fraction where the scene is dark. Dim and bright pixels showing
@@ -61,6 +64,8 @@ typedef struct {
                                     own spread is read only where duty is further than the model's
                                     part, else the replicas' stands for it */
   double level_tolerance;        /* how far b' may fall below b: LEVEL_TOLERANCE / g1 (pattern_check.c) */
+  double centre_off;             /* median off-stripe fraction of the pixels nearest the stripe centres
+                                    (no model: each is at least the black level); NaN: too few */
   double clipped_share;          /* pixels with a sample at the clip level (or a pile-up below it) */
   guint64 pixels;
 } DsPatternPair;
