@@ -10,6 +10,7 @@
 #include "proc/calibration_sine.h"
 #include "proc/calibration_steps.h"
 #include "proc/harmonic_gain.h"
+#include "proc/image_stats.h"
 #include "proc/lit_level.h"
 #include "proc/proc_error.h"
 #include "proc/separation_internal.h"
@@ -186,22 +187,6 @@ compare_doubles (gconstpointer a, gconstpointer b)
 }
 
 /* Mean of the middle 80 % (sorts v). */
-/* The open field's lit level is the bright quantile of the pixels' levels the scene probe takes
- * of the scene's (DS_LIT_LEVEL_QUANTILE, proc/lit_level.h). brightness: NaN where not used. */
-static double
-lit_quantile (const double *brightness, gsize npix)
-{
-  g_autofree double *v = g_new (double, npix);
-  gsize n = 0;
-  for (gsize i = 0; i < npix; i++)
-    if (isfinite (brightness[i]))
-      v[n++] = brightness[i];
-  if (n == 0)
-    return NAN;
-  qsort (v, n, sizeof (double), compare_doubles);
-  return v[(gsize) (DS_LIT_LEVEL_QUANTILE * (n - 1))];
-}
-
 static double
 trimmed_mean (double *v, gsize n)
 {
@@ -449,7 +434,10 @@ ds_calibrator_finish (DsCalibrator *c, const DsCalibrationHints *hints, DsCalibr
     out->edge_blur_px = xq[2] < 1e-3 ? 0 : xq[2];
   }
   out->harmonic_gain = ds_pattern_mean (out->pattern, out->duty, out->black_level) * out->contrast;
-  out->lit_level_dn = lit_quantile (brightness, c->npix) / ds_pattern_mean (out->pattern, out->duty, out->black_level);
+  /* the open field's lit level: the bright quantile of the pixels' levels the scene probe takes of
+   * the scene's (DS_LIT_LEVEL_QUANTILE, proc/lit_level.h); brightness is NaN where not used */
+  out->lit_level_dn = ds_finite_quantile (brightness, c->npix, DS_LIT_LEVEL_QUANTILE, 1) /
+                      ds_pattern_mean (out->pattern, out->duty, out->black_level);
   out->harmonic_gain_theory = ds_harmonic_gain_theory (out->pattern, out->duty, out->black_level);
   ds_calibration_scatter_check (brightness, off, c->w, c->h, period, &out->scatter);
   /* scattered light that keeps square stripes has tails no blurred edge has; a sine stays a sine */

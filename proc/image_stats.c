@@ -1,6 +1,7 @@
 #include "proc/image_stats.h"
 
 #include <math.h>
+#include <stdlib.h>
 
 double
 ds_image_mean (const DsImage *img)
@@ -50,4 +51,27 @@ ds_image_percentile (const DsImage *img, double p)
   }
   g_array_unref (v);
   return r;
+}
+
+static int
+compare_double (const void *a, const void *b)
+{
+  double x = *(const double *) a, y = *(const double *) b;
+  return (x > y) - (x < y);
+}
+
+double
+ds_finite_quantile (const double *v, gsize n, double q, gsize min_count)
+{
+  g_autofree double *f = g_new (double, MAX (n, 1));
+  gsize m = 0;
+  for (gsize i = 0; i < n; i++)
+    if (isfinite (v[i]))
+      f[m++] = v[i];
+  if (m == 0 || m < min_count)
+    return NAN;
+  qsort (f, m, sizeof (double), compare_double);
+  double at = CLAMP (q, 0.0, 1.0) * (double) (m - 1);
+  gsize k = (gsize) floor (at);
+  return k + 1 < m ? f[k] + (at - (double) k) * (f[k + 1] - f[k]) : f[k];
 }

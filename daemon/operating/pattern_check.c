@@ -3,10 +3,10 @@
 
 #include <math.h>
 #include <stdarg.h>
-#include <stdlib.h>
 #include <string.h>
 
 #include "proc/calibration_scatter.h"
+#include "proc/image_stats.h"
 #include "proc/calibration_sine.h"
 #include "proc/clip_level.h"
 #include "proc/column_stats.h"
@@ -235,29 +235,6 @@ typedef struct {
   double *brightness, *off;
 } Centres;
 
-static int
-compare_doubles (const void *a, const void *b)
-{
-  double x = *(const double *) a, y = *(const double *) b;
-  return x < y ? -1 : x > y;
-}
-
-/* The median of the finite values of off (n of them, NaN where not usable); NaN when fewer than
- * 64 are. */
-static double
-centre_median (const double *off, gsize n)
-{
-  g_autofree double *v = g_new (double, n);
-  gsize m = 0;
-  for (gsize i = 0; i < n; i++)
-    if (isfinite (off[i]))
-      v[m++] = off[i];
-  if (m < 64)
-    return NAN;
-  qsort (v, m, sizeof (double), compare_doubles);
-  return m % 2 ? v[m / 2] : 0.5 * (v[m / 2 - 1] + v[m / 2]);
-}
-
 /* g1, the first harmonic's factor from the blur sigma and the whole pixel at period P. */
 static double
 trough_gain (double period, double blur)
@@ -412,7 +389,8 @@ check_pair (const DsImage *dark, const DsImage *l0, const DsImage *l1, double pe
   /* the narrower window of the fitted and the configured duty: the pixels nearest the centres */
   double window_duty = conf->kind == DS_PATTERN_SQUARE ? MIN (out->duty, conf->duty) : 0.5;
   ds_stripe_profile_centres (prof, dark, l0, l1, window_duty, own.brightness, own.off);
-  out->centre_off = centre_median (own.off, npix);
+  /* the median of the centres' off fractions; too few (under 64) leave it unknown */
+  out->centre_off = ds_finite_quantile (own.off, npix, 0.5, 64);
   if (centres) {
     ds_stripe_profile_centres (prof, dark, l0, l1, out->duty, own.brightness, own.off);
     *centres = own;
