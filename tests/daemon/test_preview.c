@@ -18,6 +18,7 @@
 #include <string.h>
 
 #include "tests/common/daemon_harness.h"
+#include "tests/common/test_tree.h"
 
 #define PHASES 4
 #define PERIOD_PX 6.0  /* the scene's [illuminator] period-px */
@@ -212,6 +213,7 @@ test_preview_lights (void)
   TestDaemon *d = test_daemon_start (conf, NULL);
   check_lights (d, spool);
   test_daemon_stop_clean (d);
+  test_remove_tree (tmp);
 }
 
 static const char *labsim_path, *scene_path;
@@ -234,6 +236,7 @@ test_preview_labsim (void)
   check_lights (d, spool);
   test_daemon_stop_clean (d);
   test_labsim_stop (l);
+  test_remove_tree (tmp);
 }
 
 /* Cancel ends preview; a capture sent during preview ends it and runs; preview over a running
