@@ -120,14 +120,14 @@ def main():
     #    one line is expected).
     for u in ("descatterd.service", "descatterd@.service"):
         path = os.path.join(units, u)
-        tmp = tempfile.mkdtemp()
-        # verify wants the socket unit next to the service it requires
-        for f in (path, os.path.join(SRC, "systemd", u.replace(".service", ".socket"))):
-            os.symlink(f, os.path.join(tmp, os.path.basename(f)))
-        target = os.path.join(tmp, u.replace("@", "@rig1") if "@" in u else u)
-        if "@" in u:
-            os.symlink(path, target)
-        r = subprocess.run(["systemd-analyze", "verify", "--man=no", target], capture_output=True, text=True)
+        with tempfile.TemporaryDirectory() as tmp:
+            # verify wants the socket unit next to the service it requires
+            for f in (path, os.path.join(SRC, "systemd", u.replace(".service", ".socket"))):
+                os.symlink(f, os.path.join(tmp, os.path.basename(f)))
+            target = os.path.join(tmp, u.replace("@", "@rig1") if "@" in u else u)
+            if "@" in u:
+                os.symlink(path, target)
+            r = subprocess.run(["systemd-analyze", "verify", "--man=no", target], capture_output=True, text=True)
         other = [l for l in r.stderr.splitlines() if not re.search(r"Command \S+ is not executable", l)]
         check(not other, f"systemd-analyze verify {os.path.basename(target)}: {other}")
 
