@@ -24,9 +24,14 @@ class Browser:
         if not exe:
             raise RuntimeError("chromium is not installed (Debian package chromium; tools/lab.sh deps)")
         self.profile = tempfile.mkdtemp(prefix="ds-chromium-")
+        # Chromium's own temporary files (its singleton socket folder, org.chromium.Chromium.*)
+        # go in TMPDIR and outlive a terminated browser: kept inside the profile, they go with it.
+        own_tmp = os.path.join(self.profile, "tmp")
+        os.mkdir(own_tmp)
         self.proc = subprocess.Popen([exe, *CHROMIUM_FLAGS, f"--user-data-dir={self.profile}",
                                       f"--window-size={width},{height}", "about:blank"],
-                                     stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                                     stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                     env={**os.environ, "TMPDIR": own_tmp})
         port_file = os.path.join(self.profile, "DevToolsActivePort")
         deadline = time.time() + 60
         while not (os.path.exists(port_file) and "\n" in open(port_file).read()):
@@ -127,4 +132,11 @@ class Browser:
             except subprocess.TimeoutExpired:
                 self.proc.kill()
                 self.proc.wait()
-            shutil.rmtree(self.profile, ignore_errors=True)
+            # The browser's helper processes may still write in the profile for a moment after
+            # the main one exited: removed until nothing is left (30 s at most).
+            deadline = time.time() + 30
+            while True:
+                shutil.rmtree(self.profile, ignore_errors=True)
+                if not os.path.exists(self.profile) or time.time() > deadline:
+                    break
+                time.sleep(0.2)
