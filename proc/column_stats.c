@@ -71,8 +71,10 @@ compare_float (const void *x, const void *y)
   return (a > b) - (a < b);
 }
 
+/* One second difference d at its level (what sorts it into a stratum), with, for a weighted
+ * combination, its weights' sum of squares w2 and its shot weight (sum_i w_i^2 (f_i - dark)). */
 typedef struct {
-  float level, d;
+  float level, d, w2, shot;
 } LevelSample;
 
 static int
@@ -126,39 +128,16 @@ level_beside (const DsImage *const *f, const void *const *rows, guint n_f, guint
   return k ? sum / k : 0.0;
 }
 
-/* The noise (1 sigma, DN) of sum_i sign[i] f[i], from its second difference along y. */
+/* The robust mean square of the second differences d[0..n) (sorted in place by level), over 6:
+ * the variance of the combination they were taken of. The means of level, w2 and shot over the
+ * samples kept go to *kept (may be NULL). */
+typedef struct {
+  double level, w2, shot;
+} KeptMeans;
+
 static double
-noise_of_combination (const DsImage *const *f, const double *sign, guint n_f, double ceiling, guint max_strata,
-                      double *mean_level)
+robust_variance (LevelSample *d, gsize n, guint max_strata, KeptMeans *kept)
 {
-  const DsImage *a = f[0];
-  if (a->height < 3)
-    return NAN;
-  for (guint i = 1; i < n_f; i++)
-    if (f[i]->width != a->width || f[i]->height != a->height)
-      return NAN;
-  const double top = ceiling > 0 ? ceiling : INFINITY;
-  gsize cap = (gsize) a->width * (a->height - 2);
-  g_autofree LevelSample *d = g_new (LevelSample, cap);
-  gsize n = 0;
-  const void *rows[3][DS_NOISE_MAX_FRAMES];
-  for (guint y = 1; y + 1 < a->height; y++) {
-    for (guint j = 0; j < 3; j++)
-      for (guint i = 0; i < n_f; i++)
-        rows[j][i] = ds_image_row (f[i], y - 1 + j);
-    for (guint x = 0; x < a->width; x++) {
-      double v[3] = { 0, 0, 0 };
-      gboolean ok = TRUE;
-      for (guint j = 0; j < 3 && ok; j++)
-        for (guint i = 0; i < n_f && ok; i++) {
-          double s = ds_image_sample (f[i], rows[j][i], x);
-          ok = isfinite (s) && s < top;
-          v[j] += sign[i] * s;
-        }
-      if (ok)
-        d[n++] = (LevelSample){ (float) level_beside (f, rows[1], n_f, x), (float) (v[0] - 2.0 * v[1] + v[2]) };
-    }
-  }
   if (n == 0)
     return NAN;
   /* Shot noise makes the variance grow with the signal: where dim places (objects' shadows) are
@@ -204,13 +183,15 @@ noise_of_combination (const DsImage *const *f, const double *sign, guint n_f, do
   double intercept = median_of (slopes, strata);
   /* Cut at 5 sigma: narrow enough to drop sharp scene edges. */
   const double c = 5.0;
-  double sum = 0, sum_level = 0;
+  double sum = 0, sum_level = 0, sum_w2 = 0, sum_shot = 0;
   gsize used = 0;
   for (gsize i = 0; i < n; i++) {
     double scale = sqrt (MAX (intercept + slope * d[i].level, DS_NOISE_SCALE_FLOOR * DS_NOISE_SCALE_FLOOR));
     if (fabs (d[i].d) < c * scale) {
       sum += (double) d[i].d * d[i].d;
       sum_level += d[i].level;
+      sum_w2 += d[i].w2;
+      sum_shot += d[i].shot;
       used++;
     }
   }
@@ -219,10 +200,51 @@ noise_of_combination (const DsImage *const *f, const double *sign, guint n_f, do
   /* E[z^2 ; |z| < c] / P(|z| < c) = 1 - 2 c phi(c) / (2 Phi(c) - 1) for a unit normal. */
   double phi = exp (-0.5 * c * c) / sqrt (2 * G_PI), inside = erf (c / G_SQRT2);
   double shrink = 1.0 - 2 * c * phi / inside;
-  if (mean_level)
-    *mean_level = sum_level / (double) used;
-  return sqrt (sum / (double) used / shrink / 6.0);
+  if (kept)
+    *kept = (KeptMeans){ sum_level / (double) used, sum_w2 / (double) used, sum_shot / (double) used };
+  return sum / (double) used / shrink / 6.0;
 }
+
+/* The noise (1 sigma, DN) of sum_i sign[i] f[i], from its second difference along y. */
+static double
+noise_of_combination (const DsImage *const *f, const double *sign, guint n_f, double ceiling, guint max_strata,
+                      double *mean_level)
+{
+  const DsImage *a = f[0];
+  if (a->height < 3)
+    return NAN;
+  for (guint i = 1; i < n_f; i++)
+    if (f[i]->width != a->width || f[i]->height != a->height)
+      return NAN;
+  const double top = ceiling > 0 ? ceiling : INFINITY;
+  gsize cap = (gsize) a->width * (a->height - 2);
+  g_autofree LevelSample *d = g_new (LevelSample, cap);
+  gsize n = 0;
+  const void *rows[3][DS_NOISE_MAX_FRAMES];
+  for (guint y = 1; y + 1 < a->height; y++) {
+    for (guint j = 0; j < 3; j++)
+      for (guint i = 0; i < n_f; i++)
+        rows[j][i] = ds_image_row (f[i], y - 1 + j);
+    for (guint x = 0; x < a->width; x++) {
+      double v[3] = { 0, 0, 0 };
+      gboolean ok = TRUE;
+      for (guint j = 0; j < 3 && ok; j++)
+        for (guint i = 0; i < n_f && ok; i++) {
+          double s = ds_image_sample (f[i], rows[j][i], x);
+          ok = isfinite (s) && s < top;
+          v[j] += sign[i] * s;
+        }
+      if (ok)
+        d[n++] = (LevelSample){ (float) level_beside (f, rows[1], n_f, x), (float) (v[0] - 2.0 * v[1] + v[2]), 0, 0 };
+    }
+  }
+  KeptMeans kept;
+  double var = robust_variance (d, n, max_strata, &kept);
+  if (mean_level && isfinite (var))
+    *mean_level = kept.level;
+  return sqrt (var);
+}
+
 
 double
 ds_column_stats_noise_dn (const DsImage *a, const DsImage *b, double ceiling)
@@ -244,4 +266,71 @@ ds_column_stats_noise_sets_dn (const DsImage *const set_a[2], const DsImage *con
   if (mean_level)
     *mean_level = NAN;
   return noise_of_combination (f, sign, 4, ceiling, DS_NOISE_STRATA, mean_level);
+}
+
+/* The shot weight of one sample of a weighted pair: sum_i w_i^2 (f_i - dark). */
+static double
+pair_shot (const DsImage *const f[2], const void *const rows[2], const double w[2], double dark_dn, guint x)
+{
+  double s = 0;
+  for (guint i = 0; i < 2; i++)
+    s += w[i] * w[i] * (ds_image_sample (f[i], rows[i], x) - dark_dn);
+  return s;
+}
+
+double
+ds_column_stats_noise_pair_dn (const DsImage *a, const DsImage *b, const double *rho, double dark_dn, double ceiling,
+                               double *mean_w2, double *mean_shot)
+{
+  const DsImage *f[2] = { a, b };
+  if (mean_w2)
+    *mean_w2 = NAN;
+  if (mean_shot)
+    *mean_shot = NAN;
+  if (a->height < 3 || b->width != a->width || b->height != a->height)
+    return NAN;
+  const double top = ceiling > 0 ? ceiling : INFINITY;
+  guint w = a->width, h = a->height;
+  g_autofree LevelSample *d = g_new (LevelSample, (gsize) w * (h - 2));
+  gsize n = 0;
+  for (guint y = 1; y + 1 < h; y++) {
+    const void *rows[3][2], *level_rows[2][2];
+    for (guint i = 0; i < 2; i++) {
+      for (guint j = 0; j < 3; j++)
+        rows[j][i] = ds_image_row (f[i], y - 1 + j);
+      /* The level is read two rows away, outside the second difference, so that sorting by it
+       * does not select d's size (level_beside (): the same reason); the scene is cancelled in d,
+       * so a level across an edge only places the sample in a neighbouring stratum. */
+      level_rows[0][i] = ds_image_row (f[i], y >= 2 ? y - 2 : y + 2);
+      level_rows[1][i] = ds_image_row (f[i], y + 2 < h ? y + 2 : y - 2);
+    }
+    for (guint x = 0; x < w; x++) {
+      double r = rho[x];
+      if (!isfinite (r))
+        continue;
+      r = CLAMP (r, -1.0, 1.0);
+      const double wt[2] = { 1 - r, -(1 + r) };
+      double v[3] = { 0, 0, 0 };
+      gboolean ok = TRUE;
+      for (guint j = 0; j < 3 && ok; j++)
+        for (guint i = 0; i < 2 && ok; i++) {
+          double s = ds_image_sample (f[i], rows[j][i], x);
+          ok = isfinite (s) && s < top;
+          v[j] += wt[i] * s;
+        }
+      double level = 0.5 * (pair_shot (f, level_rows[0], wt, dark_dn, x) + pair_shot (f, level_rows[1], wt, dark_dn, x));
+      if (ok && isfinite (level))
+        d[n++] = (LevelSample){ (float) level, (float) (v[0] - 2.0 * v[1] + v[2]), (float) (wt[0] * wt[0] + wt[1] * wt[1]),
+                                (float) pair_shot (f, rows[1], wt, dark_dn, x) };
+    }
+  }
+  KeptMeans kept;
+  double var = robust_variance (d, n, DS_NOISE_STRATA, &kept);
+  if (isfinite (var)) {
+    if (mean_w2)
+      *mean_w2 = kept.w2;
+    if (mean_shot)
+      *mean_shot = kept.shot;
+  }
+  return sqrt (var);
 }

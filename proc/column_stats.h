@@ -53,4 +53,20 @@ double ds_column_stats_noise_dn (const DsImage *a, const DsImage *b, double ceil
 double ds_column_stats_noise_sets_dn (const DsImage *const set_a[2], const DsImage *const set_b[2], double ceiling,
                                       double *mean_level);
 
+/* The temporal noise (DN, 1 sigma) of one pair of opposite phases a, b with the scene cancelled,
+ * for any pattern: per column c = (1 - rho) a - (1 + rho) b, with rho[x] the column's ratio of
+ * a - b to a + b - 2 dark_dn (NAN: the column is left out; clamped to [-1, 1]). Where an object's
+ * transmittance T(x, y) multiplies the stripes p(x), a - b and a + b - 2 dark both scale with T
+ * down a column, so c holds no T and its second difference along y only the two frames' noise
+ * (a - b alone keeps T's soft edges and shading inside any cut, and reads them as noise).
+ * Scattered light adds to a and b alike and is cancelled only where it is smooth along y. The
+ * reading is ds_column_stats_noise_sets_dn ()'s (strata by level, each sample cut at its own
+ * level's scale). With each frame's variance var0 + K (f - dark), c's mean square over the
+ * samples read is var0 * mean_w2 + K * mean_shot: mean_w2 the mean of (1 - rho)^2 + (1 + rho)^2,
+ * mean_shot of (1 - rho)^2 (a - dark) + (1 + rho)^2 (b - dark) (either may be NULL; NAN when the
+ * result is). Samples at or above `ceiling` (0: none) are left out; NAN below 3 rows, on a size
+ * mismatch or without samples. */
+double ds_column_stats_noise_pair_dn (const DsImage *a, const DsImage *b, const double *rho, double dark_dn,
+                                      double ceiling, double *mean_w2, double *mean_shot);
+
 G_END_DECLS

@@ -398,6 +398,21 @@ stage_noise (const DsProbeFrames *fr, const ProbePairs *pairs, DsSceneProbe *out
       noise_signal = level / 2 - 2 * out->noise.dark_dn;
     }
   }
+  if (!isfinite (var_diff) && noise_signal > 0) {
+    /* One pair, the scene cancelled column by column (proc/column_stats.h): c's mean square is
+     * var0 w2 + gain shot, which gives the gain, and with it what the pair's difference holds. */
+    g_autofree double *rho = g_new (double, fine->width);
+    double floor_dn = 3 * sqrt (2 * out->noise.var0);
+    for (guint x = 0; x < fine->width; x++) {
+      double sum = fine->mean_sum[x] - 2 * out->noise.dark_dn;
+      rho[x] = fine->count[x] && sum > floor_dn ? fine->mean_diff[x] / sum : NAN;
+    }
+    double w2 = NAN, shot = NAN;
+    double noise_pair = ds_column_stats_noise_pair_dn (pairs->stat[0], pairs->stat[1], rho, out->noise.dark_dn,
+                                                       out->clip.saturation_dn, &w2, &shot);
+    if (isfinite (noise_pair) && shot > 0)
+      var_diff = 2 * out->noise.var0 + MAX (0.0, noise_pair * noise_pair - w2 * out->noise.var0) / shot * noise_signal;
+  }
   if (!isfinite (var_diff)) {
     double noise_diff = ds_column_stats_noise_dn (pairs->stat[0], pairs->stat[1], out->clip.saturation_dn);
     var_diff = isfinite (noise_diff) ? noise_diff * noise_diff : 2 * out->noise.var0;

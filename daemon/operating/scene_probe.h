@@ -189,8 +189,10 @@ typedef struct {
 } DsProbeClip;
 
 /* Noise (stage_dark, stage_noise): one frame's variance is var0 + gain * signal. Relies on the
- * dark frame having no stripes (its temporal noise is the floor) and on the photons being
- * Poisson (the variance grows linearly with the signal). */
+ * dark frame having no stripes (its temporal noise is the floor), on the photons being Poisson
+ * (the variance grows linearly with the signal) and on objects multiplying the stripes (their
+ * transmittance scales both phases of a pair alike, so a combination of the two cancels them:
+ * proc/column_stats.h). */
 typedef struct {
   double dark_dn;                 /* the dark frame's mean: every offset the lit frames carry */
   double var0;                    /* DN^2 of one frame without signal (read, dark, quantisation) */

@@ -161,6 +161,94 @@ test_uniform_noise (void)
   g_assert_cmpfloat (fabs (got / want - 1), <, 0.03);
 }
 
+/* One phase (0 or 1/2) of square stripes of duty 0.23 at 3.25 px, each pixel integrating the
+ * pattern over its width (so a pixel's share of the lit stripe varies from column to column),
+ * on the scene, with the noise of its signal. Opposite phases of such stripes do not sum flat, so
+ * no second period cancels the scene; only the pair's own ratio does. */
+static DsImage *
+frame_square (GRand *r, guint phase, double dark_from, double edge_rows, gboolean soft)
+{
+  const double period = 3.25, duty = 0.23;
+  DsImage *f = ds_image_new (DS_SAMPLE_F32, W, H, NULL);
+  for (guint y = 0; y < H; y++) {
+    float *row = ds_image_row (f, y);
+    for (guint x = 0; x < W; x++) {
+      double lit = 0;
+      for (guint k = 0; k < 64; k++) {
+        double u = (x + (k + 0.5) / 64) / period - 0.5 * phase;
+        lit += (u - floor (u) < duty) / 64.0;
+      }
+      double s = scene_ld (x, y, dark_from, edge_rows, soft) * (0.05 + 0.95 * lit);
+      double sd = sqrt (READ_DN * READ_DN + K_DN * s);
+      double u1 = 1.0 - g_rand_double (r), u2 = g_rand_double (r);
+      row[x] = (float) (DARK_DN + s + sd * sqrt (-2 * log (u1)) * cos (2 * G_PI * u2));
+    }
+  }
+  return f;
+}
+
+/* The pair's ratio per column, as the probe takes it from its column statistics. */
+static double *
+pair_ratio (const DsImage *a, const DsImage *b)
+{
+  DsColumnStats st;
+  g_assert_true (ds_column_stats_compute (a, b, 0, &st, NULL));
+  double *rho = g_new (double, W);
+  for (guint x = 0; x < W; x++) {
+    double sum = st.mean_sum[x] - 2 * DARK_DN;
+    rho[x] = st.count[x] && sum > 1 ? st.mean_diff[x] / sum : NAN;
+  }
+  ds_column_stats_clear (&st);
+  return rho;
+}
+
+/* Square stripes of duty 0.23 over soft structure along y (an edge over 4 rows, a 12-row
+ * shading) and a dark object below `dark_from` of the rows: the pair's difference keeps the
+ * structure, and where the dark object is the majority its one scale cuts into the bright places'
+ * noise (asserted: its reading over the closed form is above `single_above` or below
+ * `single_below`); the ratio-weighted pair cancels the structure and reads each level at its own
+ * scale. The gain it gives, (noise^2 - var0 mean_w2) / mean_shot, must be the frames' K within
+ * 8 %, and its mean square the closed form of c's variance over the samples within 5 %. */
+static void
+check_pair_weighted (guint seed, double dark_share, double single_above, double single_below)
+{
+  g_autoptr (GRand) r = g_rand_new_with_seed (seed);
+  g_autoptr (DsImage) a = frame_square (r, 0, dark_share * H, 4, TRUE);
+  g_autoptr (DsImage) b = frame_square (r, 1, dark_share * H, 4, TRUE);
+  g_autofree double *rho = pair_ratio (a, b);
+  double w2 = NAN, shot = NAN;
+  double noise = ds_column_stats_noise_pair_dn (a, b, rho, DARK_DN, 0, &w2, &shot);
+  double gain = (noise * noise - READ_DN * READ_DN * w2) / shot;
+  /* The closed form of c's variance, sample by sample: (1 - rho)^2 var a + (1 + rho)^2 var b. */
+  double want = 0;
+  guint n = 0;
+  for (guint y = 1; y + 1 < H; y++) {
+    const float *ra = ds_image_row (a, y), *rb = ds_image_row (b, y);
+    for (guint x = 0; x < W; x++) {
+      if (!isfinite (rho[x]))
+        continue;
+      double p = CLAMP (rho[x], -1.0, 1.0), wa = (1 - p) * (1 - p), wb = (1 + p) * (1 + p);
+      want += wa * (READ_DN * READ_DN + K_DN * (ra[x] - DARK_DN)) + wb * (READ_DN * READ_DN + K_DN * (rb[x] - DARK_DN));
+      n++;
+    }
+  }
+  want /= n;
+  double single = ds_column_stats_noise_dn (a, b, 0), single_want = expected_var_diff (a, b);
+  g_test_message ("pair weighted (dark below %.0f %% of the rows): gain %.4f (K %.4f), var %.3f against %.3f; the difference alone "
+                  "%.3f against %.3f",
+                  100 * dark_share, gain, K_DN, noise * noise, want, single * single, single_want);
+  g_assert_true (single * single > single_above * single_want || single * single < single_below * single_want);
+  g_assert_cmpfloat (fabs (gain / K_DN - 1), <, 0.08);
+  g_assert_cmpfloat (fabs (noise * noise / want - 1), <, 0.05);
+}
+
+static void
+test_pair_weighted (void)
+{
+  check_pair_weighted (14, 0.45, 1.2, 0);
+  check_pair_weighted (15, 0.3, INFINITY, 0.95);
+}
+
 int
 main (int argc, char **argv)
 {
@@ -168,5 +256,6 @@ main (int argc, char **argv)
   g_test_add_func ("/column-noise/dark-majority", test_dark_majority);
   g_test_add_func ("/column-noise/sets-cancel-the-scene", test_sets_cancel_the_scene);
   g_test_add_func ("/column-noise/uniform", test_uniform_noise);
+  g_test_add_func ("/column-noise/pair-weighted", test_pair_weighted);
   return g_test_run ();
 }
