@@ -25,7 +25,9 @@ of part of the field, an 8-bit sensor in Mono8. Independent expectations:
 - without the angle: a lower bound still, no upper end, the note saying the angle is not known;
 - the same scene without the film (the object kept) passes the open field's light (within 0.03
   of 1) and is not flagged; its achieved error is its prediction within 1.5 times either way
-  (tools/validate_paths.py's criterion), where the film's is many times its lower bound."""
+  (tools/validate_paths.py's criterion), where the film's is many times its lower bound;
+- calibrate names the pixel format its open field's DN are in (Mono8), and a daemon whose camera
+  delivers Mono16 does not use it and says why (Mono8 holds a 12-bit sensor's top 8 bits)."""
 import math
 import os
 import re
@@ -113,11 +115,11 @@ class Daemon:
     """descatterd on labsim's camera (Mono8: the sensor's 8 bits as they are) and illuminator;
     `camera` and `illuminator` are extra lines of those groups."""
 
-    def __init__(self, tmp, name, labsim, env, camera="", illuminator=""):
+    def __init__(self, tmp, name, labsim, env, camera="", illuminator="", pixel_format="Mono8"):
         self.sock = os.path.join(tmp, name + ".sock")
         conf = os.path.join(tmp, name + ".conf")
         with open(conf, "w") as f:
-            f.write("[camera]\nbackend=aravis\naddress=127.0.0.1\npixel-format=Mono8\n"
+            f.write(f"[camera]\nbackend=aravis\naddress=127.0.0.1\npixel-format={pixel_format}\n"
                     f"exposure-us={SENSOR['exposure_us']}\ngrab-timeout-ms=2000\n" + camera +
                     f"[illuminator]\nbackend=modbus\nmodbus-uri=tcp://127.0.0.1:{labsim.port}\n"
                     "modbus-timeout-ms=300\n" + illuminator)
@@ -290,12 +292,22 @@ def clear_checks(tmp, env, lines):
             op, achieved = capture(d, clear, tmp, env, "clear")
         finally:
             d.stop()
+        # The same open field under another pixel format: its DN are Mono8's, so it is not used.
+        d = Daemon(tmp, "clear-mono16", labsim, env, camera=f"acceptance-half-angle-deg={CONE_DEG}\n",
+                   illuminator=lines, pixel_format="Mono16")
+        try:
+            other, _ = capture(d, clear, tmp, env, "clear, Mono16")
+        finally:
+            d.stop()
     finally:
         labsim.stop()
     t = op["scene"]["open_field_transmittance"]
     check(t is not None and abs(t - 1) <= 0.03, f"clear: the probe's transmittance {t} is 1 within 0.03")
     check(not loss_named(op) and "light_scattered_into_cone" not in op["assumed"]
           and op["scene"]["film_bias_upper"] is None, "clear: not flagged")
+    check(other["scene"]["open_field_transmittance"] is None and other["scene"]["open_field_note"].startswith(
+          "not measured: [illuminator] open-field-dn-per-ms was measured in Mono8 and the camera delivers Mono16"),
+          "clear in Mono16: the open field calibrated in Mono8 is not used, the note naming both")
     ratio = achieved / op["predicted_error"]
     check(1 / 1.5 <= ratio <= 1.5, f"clear: the achieved error {achieved:.4f} is the prediction "
           f"{op['predicted_error']:.4f} within 1.5 times ({ratio:.2f})")
@@ -306,7 +318,8 @@ def main():
         env = dict(os.environ, DESCATTER_CACHE_DIR=os.path.join(tmp, "cache"))
         lines = calibrate(tmp, env)
         print("     calibrated: " + lines.strip().replace("\n", "; "), flush=True)
-        check("open-field-dn-per-ms=" in lines, "calibrate printed [illuminator] open-field-dn-per-ms")
+        check("open-field-dn-per-ms=" in lines and "open-field-pixel-format=Mono8" in lines,
+              "calibrate printed [illuminator] open-field-dn-per-ms and the pixel format it is in")
         film_checks(tmp, env, lines)
         clear_checks(tmp, env, lines)
     if failures:
