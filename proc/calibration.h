@@ -66,6 +66,9 @@ typedef struct {
   double open_field_dn_per_ms;/* lit_level_dn per ms of exposure at 0 dB gain, where the set's
                                  exposure and gain are known and it had a dark frame (the daemon's
                                  calibrate); 0 = not measured */
+  char open_field_pixel_format[32]; /* the camera's pixel format those DN are in ("Mono8" holds a
+                                 12-bit sensor's top 8 bits, "Mono16" all 12: the same light reads
+                                 16 times apart); "" = not said */
   DsScatterCheck scatter;     /* does the reference scatter? (calibration_scatter.h): then b and h
                                  hold scattered light and are not to be used */
 } DsCalibration;

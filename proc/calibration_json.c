@@ -159,6 +159,10 @@ ds_calibration_add_json_members (JsonBuilder *b, const DsCalibration *cal)
   if (cal->open_field_dn_per_ms > 0) {
     json_builder_set_member_name (b, "open_field_dn_per_ms");
     json_builder_add_double_value (b, cal->open_field_dn_per_ms);
+    if (cal->open_field_pixel_format[0]) {
+      json_builder_set_member_name (b, "open_field_pixel_format");
+      json_builder_add_string_value (b, cal->open_field_pixel_format);
+    }
   }
   g_autofree char *notice = ds_calibration_pattern_notice (cal);
   if (notice) {
@@ -207,6 +211,18 @@ ds_calibration_from_json (JsonObject *obj, DsCalibration *cal, GError **error)
     }
     cal->open_field_dn_per_ms = v;
   }
+  /* absent (not said, or an older daemon): "" */
+  n = json_object_get_member (obj, "open_field_pixel_format");
+  if (n) {
+    if (!JSON_NODE_HOLDS_VALUE (n) || json_node_get_value_type (n) != G_TYPE_STRING ||
+        !*json_node_get_string (n) ||
+        g_strlcpy (cal->open_field_pixel_format, json_node_get_string (n), sizeof cal->open_field_pixel_format) >=
+          sizeof cal->open_field_pixel_format) {
+      g_set_error (error, DS_PROC_ERROR, DS_PROC_ERROR_INVALID_ARGUMENT,
+                   "calibration: \"open_field_pixel_format\" is not a pixel format's name");
+      return FALSE;
+    }
+  }
   /* absent (an older daemon): the pattern was not detected, it is what was expected */
   cal->pattern_check.expected = cal->pattern;
   n = json_object_get_member (obj, "pattern_check");
@@ -243,9 +259,12 @@ ds_calibration_from_json (JsonObject *obj, DsCalibration *cal, GError **error)
 char *
 ds_calibration_config_lines (const DsCalibration *cal)
 {
-  g_autofree char *open = cal->open_field_dn_per_ms > 0
-                             ? g_strdup_printf ("open-field-dn-per-ms=%.6g\n", cal->open_field_dn_per_ms)
-                             : g_strdup ("");
+  /* The open field's DN are its pixel format's: the line naming it travels with it. */
+  g_autofree char *open = cal->open_field_dn_per_ms <= 0 ? g_strdup ("")
+                          : cal->open_field_pixel_format[0]
+                            ? g_strdup_printf ("open-field-dn-per-ms=%.6g\nopen-field-pixel-format=%s\n",
+                                               cal->open_field_dn_per_ms, cal->open_field_pixel_format)
+                            : g_strdup_printf ("open-field-dn-per-ms=%.6g\n", cal->open_field_dn_per_ms);
   /* sine stripes have no duty, and their blur is in the harmonic gain */
   if (cal->pattern == DS_PATTERN_SINE)
     return g_strdup_printf ("[illuminator]\npattern=sine\nperiod-px=%.4f\nblack-level=%.4f\nharmonic-gain=%.4f\n%s",

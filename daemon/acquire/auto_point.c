@@ -279,6 +279,7 @@ ds_seq_choose_operating_point (DsAcquisition *acq, DsCaptureSettings *s, DsFrame
     .calibrated_blur_px = s->edge_blur_px,
     /* The open field at the pilot's exposure and gain (the key is per ms at 0 dB). */
     .open_field_dn = s->open_field_dn_per_ms * s->exposure_us / 1000 * pow (10, s->gain_db / 20),
+    .open_field_unused = s->open_field_unused[0] ? s->open_field_unused : NULL,
     .acceptance_half_angle_deg = s->acceptance_half_angle_deg,
     .n_finer = got,
     .finer_missing = finer_missing,

@@ -16,6 +16,7 @@ ds_capture_settings_take_knowledge (DsCaptureSettings *s, const DsPatternKnowled
   s->edge_blur_known = k->edge_blur_known;
   s->edge_blur_px = k->edge_blur_known ? k->edge_blur_px : 0;
   s->open_field_dn_per_ms = k->open_field_dn_per_ms;
+  s->open_field_unused[0] = '\0';
   s->acceptance_half_angle_deg = k->acceptance_half_angle_deg;
 }
 
@@ -32,14 +33,26 @@ ds_capture_settings_from_config (DsCaptureSettings *s, const DsConfig *c)
   s->pattern = strcmp (c->pattern, "sine") == 0 ? DS_PATTERN_SINE : DS_PATTERN_SQUARE;
   s->period_px = c->period_px;
   s->duty = c->duty;
+  /* The open field's DN are the pixel format's it was measured in: under another one the same
+   * light reads other DN (Mono8 holds a 12-bit sensor's top 8 bits, Mono16 all 12), so it is not
+   * used. Where the configuration does not say, it is taken as the camera's. */
+  const char *format = ds_config_camera_pixel_format (c);
+  gboolean other_format = !isnan (c->open_field_dn_per_ms) && c->open_field_pixel_format &&
+                          g_ascii_strcasecmp (c->open_field_pixel_format, format) != 0;
   DsPatternKnowledge known = { .black_level = c->black_level,
                                .harmonic_gain = isnan (c->harmonic_gain) ? 0 : c->harmonic_gain,
                                .edge_blur_known = !isnan (c->edge_blur_px),
                                .edge_blur_px = isnan (c->edge_blur_px) ? 0 : c->edge_blur_px,
-                               .open_field_dn_per_ms = isnan (c->open_field_dn_per_ms) ? 0 : c->open_field_dn_per_ms,
+                               .open_field_dn_per_ms =
+                                 isnan (c->open_field_dn_per_ms) || other_format ? 0 : c->open_field_dn_per_ms,
                                .acceptance_half_angle_deg =
                                  isnan (c->acceptance_half_angle_deg) ? 0 : c->acceptance_half_angle_deg };
   ds_capture_settings_take_knowledge (s, &known);
+  if (other_format)
+    g_snprintf (s->open_field_unused, sizeof s->open_field_unused,
+                "[illuminator] open-field-dn-per-ms was measured in %s and the camera delivers %s, whose DN "
+                "differ (descatterctl calibrate again in %s)",
+                c->open_field_pixel_format, format, format);
   s->saturation_dn = isnan (c->saturation_dn) ? 0 : c->saturation_dn;
   s->system_gain = isnan (c->gain_dn_per_e) ? 0 : c->gain_dn_per_e;
   s->read_noise_dn = isnan (c->read_noise_dn) || s->system_gain <= 0 ? 0 : c->read_noise_dn;
@@ -169,6 +182,7 @@ ds_capture_settings_equal (const DsCaptureSettings *a, const DsCaptureSettings *
          a->period_px == b->period_px && a->duty == b->duty && a->black_level == b->black_level &&
          a->harmonic_gain == b->harmonic_gain && a->edge_blur_known == b->edge_blur_known &&
          a->edge_blur_px == b->edge_blur_px && a->open_field_dn_per_ms == b->open_field_dn_per_ms &&
+         strcmp (a->open_field_unused, b->open_field_unused) == 0 &&
          a->acceptance_half_angle_deg == b->acceptance_half_angle_deg &&
          a->saturation_dn == b->saturation_dn && a->system_gain == b->system_gain &&
          a->read_noise_dn == b->read_noise_dn &&

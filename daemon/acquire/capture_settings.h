@@ -30,6 +30,7 @@ typedef struct {
   gboolean edge_blur_known;
   double edge_blur_px;
   double open_field_dn_per_ms; /* [illuminator] open-field-dn-per-ms; 0 = not known */
+  char open_field_unused[200]; /* why the configured open field is not used (then 0); "" = none */
   double acceptance_half_angle_deg; /* [camera] acceptance-half-angle-deg; 0 = not known */
   double saturation_dn;
   /* The camera's noise model ([camera] gain-dn-per-e, read-noise-dn): 0 = none (the separation

@@ -182,6 +182,9 @@ static const KeySpec keys[] = {
     "lit level of a fully lit pixel on a clear path above dark, DN per ms of exposure at 0 dB gain "
     "(descatterctl calibrate on a clear reference); the automatic operating point compares the scene's "
     "with it; empty = not measured" },
+  { "illuminator", "open-field-pixel-format", K_STRING, RESTART, F (open_field_pixel_format), NULL, 0, 0, NULL,
+    "the camera's pixel format open-field-dn-per-ms was measured in (descatterctl calibrate): its DN are that "
+    "format's, so under another [camera] pixel-format it is not used; empty = not said (taken as the camera's)" },
   { "illuminator", "intensity", K_DOUBLE, RESTART, F (intensity), "1", 0, 1, NULL, "drive level" },
   { "illuminator", "settle-timeout-ms", K_UINT, RESTART, F (settle_timeout_ms), "500", 1, 60000, NULL,
     "deadline for a phase to be applied and read back" },

@@ -82,6 +82,7 @@ typedef struct {
   double harmonic_gain;   /* NAN: not calibrated */
   double edge_blur_px;    /* NAN: not calibrated */
   double open_field_dn_per_ms; /* NAN: not calibrated (descatterctl calibrate's open field) */
+  char *open_field_pixel_format; /* the camera's pixel format it was measured in; NULL: not said */
   double intensity;
   guint settle_timeout_ms;
   /* [trigger] */
@@ -128,6 +129,10 @@ G_DEFINE_AUTOPTR_CLEANUP_FUNC (DsConfig, ds_config_free)
 gboolean ds_config_parse_roi (const char *roi, guint v[4], GError **error);
 /* "IP:PORT" (IPv6 in brackets allowed) -> host (newly allocated, may be NULL) and port. */
 gboolean ds_config_parse_host_port (const char *text, char **host, guint16 *port);
+
+/* The pixel format the camera delivers as results name it: "simulated" for the simulated camera
+ * (the scene's sensor depth whatever [camera] pixel-format asks), else [camera] pixel-format. */
+const char *ds_config_camera_pixel_format (const DsConfig *config);
 
 /* A configuration file larger than this is refused (it is not one). */
 #define DS_CONFIG_MAX_BYTES (1024 * 1024)

@@ -1,5 +1,5 @@
 /* The values of the configuration that are more than one number (config.h): a region of the
- * sensor, a host and port. Pure functions, any thread. */
+ * sensor, a host and port, the pixel format the camera delivers. Pure functions, any thread. */
 #include "daemon/config/config.h"
 
 #include <string.h>
@@ -42,4 +42,10 @@ ds_config_parse_host_port (const char *text, char **host, guint16 *port)
   if (host)
     *host = g_steal_pointer (&h);
   return TRUE;
+}
+
+const char *
+ds_config_camera_pixel_format (const DsConfig *config)
+{
+  return strcmp (config->camera_backend, "sim") == 0 ? "simulated" : config->pixel_format;
 }

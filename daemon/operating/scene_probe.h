@@ -164,6 +164,7 @@ typedef struct {
   double calibrated_blur_px;      /* Gaussian sigma (descatterctl calibrate); wins over the gain's */
   double open_field_dn;           /* the open field's lit level (a fully lit pixel on a clear path, above
                                      dark) at the pilot's exposure and gain, DN; 0 = not known */
+  const char *open_field_unused;  /* why a configured open field is not used (0 above); NULL: none */
   double acceptance_half_angle_deg; /* the lens's acceptance cone, object side ([camera]
                                        acceptance-half-angle-deg); 0 = not known */
 } DsProbeFrames;

@@ -69,6 +69,10 @@ ds_probe_loss_measure (const DsProbeFrames *fr, DsSceneProbe *out)
   DsProbeLoss *l = &out->loss;
   memset (l, 0, sizeof *l);
   l->transmittance = NAN;
+  if (!(fr->open_field_dn > 0) && fr->open_field_unused) {
+    g_snprintf (l->note, sizeof l->note, "not measured: %s", fr->open_field_unused);
+    return;
+  }
   if (!(fr->open_field_dn > 0)) {
     g_strlcpy (l->note, "not measured: the open field's lit level is not known (descatterctl calibrate on a clear "
                         "reference prints it as [illuminator] open-field-dn-per-ms)", sizeof l->note);

@@ -16,8 +16,7 @@ ds_provenance_fill (DsResultProvenance *p, const DsConfig *config, const char *c
   g_strlcpy (p->trigger_backend, config->trigger_backend, sizeof p->trigger_backend);
   p->camera = st->camera_info;
   /* The simulated camera delivers the scene's sensor depth whatever the configuration asks. */
-  g_strlcpy (p->pixel_format, strcmp (config->camera_backend, "sim") == 0 ? "simulated" : config->pixel_format,
-             sizeof p->pixel_format);
+  g_strlcpy (p->pixel_format, ds_config_camera_pixel_format (config), sizeof p->pixel_format);
   /* devices.c refused a malformed ROI at start-up: this one parses. */
   guint v[4];
   if (config->roi && sscanf (config->roi, "%u,%u,%u,%u", &v[0], &v[1], &v[2], &v[3]) == 4) {

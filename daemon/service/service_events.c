@@ -80,6 +80,9 @@ calibration_step (DsService *svc, PendingCapture *p, DsResult *result)
     return FALSE;
   }
   p->calibrate_first_set = ds_result_set_id (result);
+  /* The open field's DN are the pixel format's the camera delivered the set in (proc/calibration.h). */
+  g_strlcpy (p->calibrate_first.open_field_pixel_format, ds_config_camera_pixel_format (svc->config),
+             sizeof p->calibrate_first.open_field_pixel_format);
   /* A cancel since the request: no second set (the first one completed before the cancel). */
   if (p->cancels_before != svc->cancels) {
     error = g_error_new (DS_PROTOCOL_ERROR, DS_PROTOCOL_ERROR_CANCELLED, "cancelled by a cancel request");

@@ -397,6 +397,75 @@ test_open_field_line (void)
                 (const char *const[]) { "open-field-dn-per-ms", NULL });
 }
 
+/* The open field in the settings a capture takes from `text` (the rig's groups) and lines. */
+static void
+open_field_settings (const char *rig, const char *lines, DsCaptureSettings *s)
+{
+  g_autofree char *text = g_strconcat (rig, lines, NULL);
+  g_autoptr (GError) error = NULL;
+  g_autoptr (DsConfig) c = load_data (text, "format.conf", &error);
+  g_assert_no_error (error);
+  ds_capture_settings_from_config (s, c);
+}
+
+/* The open field's DN are the pixel format's it was measured in: calibrate names the format (in its
+ * lines and its JSON), and under another [camera] pixel-format the settings carry no open field but
+ * the reason, naming both; under the same one (in any case), or where the lines do not say (older
+ * lines), it is used. The simulated camera's format is "simulated", whatever pixel-format says. */
+static void
+test_open_field_format (void)
+{
+  DsCalibration cal = { .pattern = DS_PATTERN_SQUARE, .period_px = 12, .duty = 0.5, .harmonic_gain = 0.6,
+                        .open_field_dn_per_ms = 80.5 };
+  g_strlcpy (cal.open_field_pixel_format, "Mono16", sizeof cal.open_field_pixel_format);
+  g_autofree char *lines = ds_calibration_config_lines (&cal);
+  g_assert_nonnull (strstr (lines, "\nopen-field-dn-per-ms=80.5\nopen-field-pixel-format=Mono16\n"));
+#define ARAVIS(format)                                                                                            \
+  "[camera]\nbackend=aravis\naddress=10.0.0.2\npixel-format=" format                                           \
+  "\n[illuminator]\nbackend=modbus\nmodbus-uri=tcp://127.0.0.1:1502\n"
+  const char *mono16 = ARAVIS ("Mono16"), *mono8 = ARAVIS ("Mono8");
+#undef ARAVIS
+  g_autofree char *body = g_strdup (strchr (lines, '\n') + 1); /* the lines without their group */
+  DsCaptureSettings s;
+  open_field_settings (mono16, body, &s);
+  g_assert_cmpfloat (s.open_field_dn_per_ms, ==, 80.5);
+  g_assert_cmpstr (s.open_field_unused, ==, "");
+  open_field_settings (mono8, body, &s);
+  g_assert_cmpfloat (s.open_field_dn_per_ms, ==, 0);
+  g_assert_nonnull (strstr (s.open_field_unused, "measured in Mono16 and the camera delivers Mono8"));
+  g_assert_nonnull (strstr (s.open_field_unused, "calibrate again in Mono8"));
+  open_field_settings (mono16, "open-field-dn-per-ms=80.5\nopen-field-pixel-format=mono16\n", &s);
+  g_assert_cmpfloat (s.open_field_dn_per_ms, ==, 80.5);
+  open_field_settings (mono8, "open-field-dn-per-ms=80.5\n", &s);
+  g_assert_cmpfloat (s.open_field_dn_per_ms, ==, 80.5);
+  g_assert_cmpstr (s.open_field_unused, ==, "");
+  open_field_settings (SIM, "[illuminator]\nopen-field-dn-per-ms=80.5\nopen-field-pixel-format=simulated\n", &s);
+  g_assert_cmpfloat (s.open_field_dn_per_ms, ==, 80.5);
+  open_field_settings (SIM "[camera]\npixel-format=Mono16\n",
+                       "[illuminator]\nopen-field-dn-per-ms=80.5\nopen-field-pixel-format=Mono16\n", &s);
+  g_assert_cmpfloat (s.open_field_dn_per_ms, ==, 0);
+  g_assert_nonnull (strstr (s.open_field_unused, "camera delivers simulated"));
+  /* The JSON carries the format and refuses one that is not a name. */
+  g_autoptr (JsonBuilder) b = json_builder_new ();
+  json_builder_begin_object (b);
+  ds_calibration_add_json_members (b, &cal);
+  json_builder_end_object (b);
+  g_autoptr (JsonNode) root = json_builder_get_root (b);
+  g_autoptr (GError) error = NULL;
+  DsCalibration back;
+  g_assert_true (ds_calibration_from_json (json_node_get_object (root), &back, &error));
+  g_assert_no_error (error);
+  g_assert_cmpstr (back.open_field_pixel_format, ==, "Mono16");
+  json_object_set_int_member (json_node_get_object (root), "open_field_pixel_format", 16);
+  g_assert_false (ds_calibration_from_json (json_node_get_object (root), &back, &error));
+  g_assert_nonnull (strstr (error->message, "open_field_pixel_format"));
+  /* Not said (an older daemon's JSON): "" */
+  json_object_remove_member (json_node_get_object (root), "open_field_pixel_format");
+  g_clear_error (&error);
+  g_assert_true (ds_calibration_from_json (json_node_get_object (root), &back, &error));
+  g_assert_cmpstr (back.open_field_pixel_format, ==, "");
+}
+
 /* The lens's acceptance angle: loaded, written back and loaded again to the same value, carried
  * by the capture settings (and their JSON) to the probe; absent, 0 (not known); a value outside
  * (0, 90] degrees or no number is refused naming the key, the range and the line. */
@@ -498,6 +567,7 @@ main (int argc, char **argv)
   g_test_add_func ("/config/file-limits", test_file_limits);
   g_test_add_func ("/config/noise-model-and-speed", test_noise_model_and_speed);
   g_test_add_func ("/config/open-field-line", test_open_field_line);
+  g_test_add_func ("/config/open-field-format", test_open_field_format);
   g_test_add_func ("/config/acceptance-angle", test_acceptance_angle);
   g_test_add_func ("/config/groups-given-twice", test_groups_given_twice);
   return g_test_run ();
