@@ -557,12 +557,23 @@ ds_pattern_check (const DsProbeFrames *f, DsPatternCheck *out, GError **error)
     /* scattered light shows: a larger fraction on the dim parts */
     if (scatter.spatial)
       return TRUE;
+    /* A black level calibrated on a clear reference (its harmonic gain with it) is the
+     * illuminator's own, so more off-stripe light in the scene is light the scene scattered.
+     * Equal shares on dim and bright parts do not contradict that: an object behind the medium
+     * darkens the scattered light with the direct. */
+    if (f->calibrated_gain > 0) {
+      conclude (out, DS_PATTERN_OFF_LEVEL_ASSUMED,
+                "%s where the calibrated black level is %.2f; taken as scattered light (the calibration on a clear "
+                "reference measured the illuminator's own). If the illuminator has changed since, calibrate again",
+                seen, conf->black_level);
+      return TRUE;
+    }
     if (out->brightness_ratio >= MIN_BRIGHTNESS_RATIO && fabs (out->off_dim - out->off_bright) <= tolerance) {
       conclude (out, DS_PATTERN_WRONG_BLACK_LEVEL,
                 "the configured stripe pattern does not match the frames: black level %.2f is configured, %s, the "
-                "same on dim and bright parts of the scene (%.2f and %.2f, brightness x%.1f apart): that is the "
-                "illuminator's black level, not scattered light, which would be a larger fraction where the scene "
-                "is dark",
+                "same on dim and bright parts of the scene (%.2f and %.2f, brightness x%.1f apart): an "
+                "illuminator's black level shows so, and scattered light only where every object lies behind the "
+                "medium; a calibration tells the two apart",
                 conf->black_level, seen, out->off_dim, out->off_bright, out->brightness_ratio);
       return TRUE;
     }

@@ -17,10 +17,13 @@
  *   leaves some pixels only light scattered in from their sides);
  *   b' well above it is either a black level left unconfigured or scattered light. A black
  *   level is a fixed fraction of each pixel's lit level; scattered light comes from around the
- *   pixel, so it is a larger fraction where the scene is dark. Dim and bright pixels showing
- *   the same off-stripe fraction is a black level; when the scene has too little contrast to
- *   tell, the light is taken as scattered; descatterd's log and the result's
- *   operating_point.assumptions name that assumption.
+ *   pixel, so it is a larger fraction where an object in front of the medium darkens the scene
+ *   (one behind it darkens the scattered light with the direct). With a calibrated black level
+ *   (the harmonic gain calibrate measured with it) the excess is scattered light; without one,
+ *   dim and bright pixels showing the same off-stripe fraction are refused as a black level
+ *   left unconfigured, and when the scene has too little contrast to tell, the light is taken
+ *   as scattered; descatterd's log and the result's operating_point.assumptions name that
+ *   assumption.
  * The duty is compared with what the configured pattern, rendered through the same blur, pixel,
  * phases and noise, reads by the same fit, within that reading's spread: a few pixels wide, the
  * fit's duty trades against its blur and level.

@@ -19,6 +19,7 @@
 #include "daemon/operating/scene_probe.h"
 #include "daemon/operating/operating_error.h"
 #include "proc/clip_level.h"
+#include "proc/harmonic_gain.h"
 #include "tests/daemon/calibrate_lines.h"
 #include "tests/common/test_random.h"
 
@@ -40,6 +41,7 @@ typedef struct {
   double calibrated_blur; /* what calibration configured when blur_known (0: the stripes' own blur) */
   guint entry_grid;    /* > 0: an opaque grid of this pitch (lines 3 px) at the medium's entry face; the
                           scattered light is then of the light the grid passes */
+  gboolean behind;     /* the objects lie behind the medium: they darken its scattered light too */
 } Scene;
 
 static double
@@ -132,7 +134,8 @@ render (const Scene *s, double period, double shift, gboolean on, GRand *rng)
     guint16 *row = ds_image_row (img, y);
     for (guint x = 0; x < W; x++) {
       gsize i = y * W + x;
-      double light = direct[i] + (on ? s->scatter * (s->keep * narrow[i] + (1 - s->keep) * wide[i]) : 0);
+      double scattered = on ? s->scatter * (s->keep * narrow[i] + (1 - s->keep) * wide[i]) : 0;
+      double light = direct[i] + (s->behind ? transmittance (s, x, y) : 1.0) * scattered;
       double e = s->photons * light + 200; /* 200 e of dark signal */
       double dn = e + sqrt (e + s->read_e * s->read_e) * test_normal (rng);
       double scale = s->dn_per_e > 0 ? s->dn_per_e : 0.5, top = s->ceiling_dn > 0 ? s->ceiling_dn : 65534;
@@ -677,6 +680,36 @@ test_entry_grid (void)
     }
 }
 
+/* Objects behind a medium that scatters widely: its light reaches them already scattered, so
+ * they darken it with the direct light, and dim and bright parts show the same extra off-stripe
+ * share as a black level would. Configured with the right black level but no calibration, the
+ * check refuses (it cannot tell the two: the message must say a calibration does); with the
+ * calibrated harmonic gain that goes with that black level, the excess is taken as scattered
+ * light and the pilot runs. A black level configured above the truth is still refused with it. */
+static void
+test_objects_behind_medium (void)
+{
+  Scene s = { .period = 14, .duty = 0.45, .black = 0.03, .blur = 0.5, .scatter = 0.12, .keep = 0.0,
+              .photons = 8000, .read_e = 10, .seed = 131, .behind = TRUE };
+  char what[480];
+  DsPatternCheck c = run (&s, s.duty, s.black, TRUE);
+  describe (&s, &c, what, sizeof what, s.duty, s.black);
+  check (c.verdict == DS_PATTERN_WRONG_BLACK_LEVEL && strstr (c.message, "calibration tells the two apart"), what);
+  printf ("     %s\n", c.message);
+  double h = ds_harmonic_gain_theory (DS_PATTERN_SQUARE, s.duty, s.black);
+  for (int coarse = 0; coarse < 2; coarse++) {
+    c = run_configured (&s, DS_PATTERN_SQUARE, s.duty, s.black, h, coarse);
+    describe (&s, &c, what, sizeof what, s.duty, s.black);
+    check (c.verdict == DS_PATTERN_OFF_LEVEL_ASSUMED && strstr (c.message, "calibrated black level is 0.03"), what);
+  }
+  printf ("     %s\n", c.message);
+  double high = 0.25;
+  c = run_configured (&s, DS_PATTERN_SQUARE, s.duty, high, ds_harmonic_gain_theory (DS_PATTERN_SQUARE, s.duty, high),
+                      TRUE);
+  describe (&s, &c, what, sizeof what, s.duty, high);
+  check (c.verdict == DS_PATTERN_WRONG_BLACK_LEVEL, what);
+}
+
 int
 main (void)
 {
@@ -690,6 +723,7 @@ main (void)
   test_narrow_stripes ();
   test_calibration_wider ();
   test_clip_rule ();
+  test_objects_behind_medium ();
   printf ("%d failure(s)\n", failures);
   return failures ? 1 : 0;
 }
