@@ -1,12 +1,14 @@
 """What the Python tests of tests/daemon share: a list of failed checks, child processes that
-cannot outlive the test, a subscription read by hand, the share of still pixels the motion bit
+cannot outlive the test, descatter-labsim as a child, a subscription read by hand, the share of still pixels the motion bit
 flags and the checks of its noise model. Import it after putting this folder on sys.path; a
 test reports `failures` at its end, so it sees every check, its own and those made here."""
 import ctypes
 import json
 import signal
+import os
 import socket
 import subprocess
+import threading
 
 failures = []
 
@@ -23,6 +25,48 @@ def die_with_parent():
 
 def spawn(argv, **kw):
     return subprocess.Popen(argv, preexec_fn=die_with_parent, **kw)
+
+
+def stop_process(proc, what):
+    """Terminates proc (killed after 60 s) and checks that it exits cleanly."""
+    if proc.poll() is None:
+        proc.terminate()
+        try:
+            code = proc.wait(60)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+            code = None
+    else:
+        code = proc.returncode
+    check(code == 0, f"{what} exits cleanly ({code})")
+
+
+class Labsim:
+    """descatter-labsim (the binary `labsim`) on 127.0.0.1 showing one scene: its camera on UDP
+    3956 with a serial of this process's own (so the daemon's camera is this labsim's), its
+    Modbus TCP port from its ready line."""
+
+    def __init__(self, labsim, tmp, scene, serial_prefix, env=None):
+        self.log_path = os.path.join(tmp, "labsim-" + os.path.basename(scene) + ".log")
+        self.serial = f"{serial_prefix}{os.getpid() % 100000:05d}"
+        self.proc = spawn([labsim, "--scene", scene, "--camera-address", "127.0.0.1", "--camera-serial", self.serial,
+                           "--modbus", "127.0.0.1:0"],
+                          stdout=subprocess.PIPE, stderr=open(self.log_path, "w"), text=True, env=env)
+        self.port = None
+        for line in self.proc.stdout:
+            if "ready camera=" in line:
+                self.port = int(line.split(" modbus=127.0.0.1:")[1].split()[0])
+                break
+        assert self.port, "descatter-labsim did not get ready: " + open(self.log_path).read()[-2000:]
+        # What it prints later is drained, so that a full pipe never blocks it.
+        self.drain = threading.Thread(target=lambda: [None for _ in self.proc.stdout], daemon=True)
+        self.drain.start()
+
+    def stop(self):
+        stop_process(self.proc, "descatter-labsim")
+        self.drain.join(10)
+        self.proc.stdout.close()
 
 
 class RawSubscriber:

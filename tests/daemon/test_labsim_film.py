@@ -35,7 +35,6 @@ import shutil
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 
 BIN, PYDIR = sys.argv[1:3]
@@ -45,7 +44,7 @@ import numpy  # noqa: E402
 import tifffile  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from daemon_checks import check, failures, spawn  # noqa: E402
+from daemon_checks import Labsim, check, failures, spawn, stop_process  # noqa: E402
 
 DAEMON = os.path.join(BIN, "descatterd")
 CTL = os.path.join(BIN, "descatterctl")
@@ -71,44 +70,6 @@ def scene_text(name, medium, objects):
             f"irradiance={IRRADIANCE}\n\n" + medium +
             f"[camera]\nmagnification={MAGNIFICATION}\nacceptance-half-angle-deg={CONE_DEG}\n\n" + objects)
 
-
-def stop_process(proc, what):
-    if proc.poll() is None:
-        proc.terminate()
-        try:
-            code = proc.wait(60)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
-            code = None
-    else:
-        code = proc.returncode
-    check(code == 0, f"{what} exits cleanly ({code})")
-
-
-class Labsim:
-    """descatter-labsim on 127.0.0.1 showing one scene: its camera on UDP 3956, its Modbus TCP
-    port from its ready line."""
-
-    def __init__(self, tmp, scene, env):
-        self.log_path = os.path.join(tmp, "labsim-" + os.path.basename(scene) + ".log")
-        self.serial = f"DSLF{os.getpid() % 100000:05d}"
-        self.proc = spawn([LABSIM, "--scene", scene, "--camera-address", "127.0.0.1", "--camera-serial", self.serial,
-                           "--modbus", "127.0.0.1:0"],
-                          stdout=subprocess.PIPE, stderr=open(self.log_path, "w"), text=True, env=env)
-        self.port = None
-        for line in self.proc.stdout:
-            if "ready camera=" in line:
-                self.port = int(line.split(" modbus=127.0.0.1:")[1].split()[0])
-                break
-        assert self.port, "descatter-labsim did not get ready: " + open(self.log_path).read()[-2000:]
-        self.drain = threading.Thread(target=lambda: [None for _ in self.proc.stdout], daemon=True)
-        self.drain.start()
-
-    def stop(self):
-        stop_process(self.proc, "descatter-labsim")
-        self.drain.join(10)
-        self.proc.stdout.close()
 
 
 class Daemon:
@@ -189,7 +150,7 @@ def calibrate(tmp, env):
     want = IRRADIANCE * footprint ** 2 * SENSOR["qe"] * SENSOR["gain"]
     clip = min(SENSOR["full_well"] * SENSOR["gain"], 2 ** SENSOR["bits"] - 1)
     exposure = 0.5 * clip / want * 1000
-    labsim = Labsim(tmp, ref, env)
+    labsim = Labsim(LABSIM, tmp, ref, "DSLF", env)
     try:
         d = Daemon(tmp, "calibrate", labsim, env, illuminator=f"pattern=square\nperiod-px={PERIOD}\nduty={DUTY}\n")
         try:
@@ -230,6 +191,14 @@ def capture(d, scene, tmp, env, what):
     return op, achieved
 
 
+def capture_on(tmp, name, labsim, env, scene, what, **daemon_args):
+    """One descatterd of its own configuration on labsim (Daemon's arguments), one capture."""
+    d = Daemon(tmp, name, labsim, env, **daemon_args)
+    try:
+        return capture(d, scene, tmp, env, what)
+    finally:
+        d.stop()
+
 def loss_named(op):
     return any("open field" in r and "lower bound" in r for r in op["lower_bound_reasons"])
 
@@ -240,13 +209,10 @@ def film_checks(tmp, env, lines):
         f.write(scene_text("film", MEDIUM, OBJECT))
     t_truth, bias_truth = describe(film, env)
     print(f"     film: the simulator's transmittance into the lens {t_truth:.4f}, bias {bias_truth:.4f}", flush=True)
-    labsim = Labsim(tmp, film, env)
+    labsim = Labsim(LABSIM, tmp, film, "DSLF", env)
     try:
-        d = Daemon(tmp, "film", labsim, env, camera=f"acceptance-half-angle-deg={CONE_DEG}\n", illuminator=lines)
-        try:
-            op, achieved = capture(d, film, tmp, env, "film, angle known")
-        finally:
-            d.stop()
+        op, achieved = capture_on(tmp, "film", labsim, env, film, "film, angle known",
+                                  camera=f"acceptance-half-angle-deg={CONE_DEG}\n", illuminator=lines)
         t = op["scene"]["open_field_transmittance"]
         check(t is not None and abs(t - t_truth) <= 0.03,
               f"film: the probe's transmittance {t} is the simulator's {t_truth:.4f} within 0.03")
@@ -264,11 +230,7 @@ def film_checks(tmp, env, lines):
         check(b is not None and bias_truth <= b, f"film: the bias bound {b} holds the simulator's bias "
               f"{bias_truth:.4f}")
 
-        d = Daemon(tmp, "film-no-angle", labsim, env, illuminator=lines)
-        try:
-            op, achieved = capture(d, film, tmp, env, "film, angle not known")
-        finally:
-            d.stop()
+        op, achieved = capture_on(tmp, "film-no-angle", labsim, env, film, "film, angle not known", illuminator=lines)
         check(op["lower_bound"] and loss_named(op) and "light_scattered_into_cone" in op["assumed"],
               "film without the angle: a lower bound for the light lost")
         check(op["predicted_error_upper"] is None and op["scene"]["film_bias_upper"] is None,
@@ -285,20 +247,14 @@ def clear_checks(tmp, env, lines):
     clear = os.path.join(tmp, "clear.scene")
     with open(clear, "w") as f:
         f.write(scene_text("clear", "", OBJECT))
-    labsim = Labsim(tmp, clear, env)
+    labsim = Labsim(LABSIM, tmp, clear, "DSLF", env)
     try:
-        d = Daemon(tmp, "clear", labsim, env, camera=f"acceptance-half-angle-deg={CONE_DEG}\n", illuminator=lines)
-        try:
-            op, achieved = capture(d, clear, tmp, env, "clear")
-        finally:
-            d.stop()
+        op, achieved = capture_on(tmp, "clear", labsim, env, clear, "clear",
+                                  camera=f"acceptance-half-angle-deg={CONE_DEG}\n", illuminator=lines)
         # The same open field under another pixel format: its DN are Mono8's, so it is not used.
-        d = Daemon(tmp, "clear-mono16", labsim, env, camera=f"acceptance-half-angle-deg={CONE_DEG}\n",
-                   illuminator=lines, pixel_format="Mono16")
-        try:
-            other, _ = capture(d, clear, tmp, env, "clear, Mono16")
-        finally:
-            d.stop()
+        other, _ = capture_on(tmp, "clear-mono16", labsim, env, clear, "clear, Mono16",
+                              camera=f"acceptance-half-angle-deg={CONE_DEG}\n", illuminator=lines,
+                              pixel_format="Mono16")
     finally:
         labsim.stop()
     t = op["scene"]["open_field_transmittance"]

@@ -46,7 +46,6 @@ import signal
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 
 BIN, PYDIR, SRC, MODE = sys.argv[1:5]
@@ -54,8 +53,8 @@ sys.path.insert(0, PYDIR)
 import descatter  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from daemon_checks import (RawSubscriber, check, check_no_speed, check_noise_model, failures,  # noqa: E402
-                           flagged_fraction, set_id, spawn)
+from daemon_checks import (Labsim, RawSubscriber, check, check_no_speed, check_noise_model, failures,  # noqa: E402
+                           flagged_fraction, set_id, spawn, stop_process)
 
 DAEMON = os.path.join(BIN, "descatterd")
 CTL = os.path.join(BIN, "descatterctl")
@@ -68,46 +67,6 @@ WIDTH, BAR_X, BAR_W, BAR_T = 128, 40, 24, 0.2
 EDGE_MSE = {"sine": 1 / 12 + 1 / (2 * math.pi ** 2), "maxmin": 3 / 8}
 PAUSE_RESULTS = 40
 
-
-def stop_process(proc, what):
-    if proc.poll() is None:
-        proc.terminate()
-        try:
-            code = proc.wait(60)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
-            code = None
-    else:
-        code = proc.returncode
-    check(code == 0, f"{what} exits cleanly ({code})")
-
-
-class Labsim:
-    """descatter-labsim on 127.0.0.1: its camera on UDP 3956, its Modbus TCP port from its
-    ready line."""
-
-    def __init__(self, tmp, scene):
-        self.log_path = os.path.join(tmp, "labsim.log")
-        # A serial of this process's own: the daemon's camera is then this labsim's.
-        self.serial = f"DSLM{os.getpid() % 100000:05d}"
-        self.proc = spawn([LABSIM, "--scene", scene, "--camera-address", "127.0.0.1", "--camera-serial", self.serial,
-                           "--modbus", "127.0.0.1:0"],
-                          stdout=subprocess.PIPE, stderr=open(self.log_path, "w"), text=True)
-        self.port = None
-        for line in self.proc.stdout:
-            if "ready camera=" in line:
-                self.port = int(line.split(" modbus=127.0.0.1:")[1].split()[0])
-                break
-        assert self.port, "descatter-labsim did not get ready: " + open(self.log_path).read()[-2000:]
-        # What it prints later is drained, so that a full pipe never blocks it.
-        self.drain = threading.Thread(target=lambda: [None for _ in self.proc.stdout], daemon=True)
-        self.drain.start()
-
-    def stop(self):
-        stop_process(self.proc, "descatter-labsim")
-        self.drain.join(10)
-        self.proc.stdout.close()
 
 
 class Daemon:
@@ -208,7 +167,7 @@ def check_motion(s, v, what):
 
 
 def speed_checks(tmp):
-    labsim = Labsim(tmp, BAR)
+    labsim = Labsim(LABSIM, tmp, BAR, "DSLM")
     model = model_file(tmp, "bar-model.conf", [3, 4, 6, 8, 12, 16, 24, 32])
     d = Daemon(tmp, "speed", labsim, f"[acquisition]\noperating-model={model}\n")
     try:
@@ -254,7 +213,7 @@ def speed_checks(tmp):
 
 
 def noise_checks(tmp):
-    labsim = Labsim(tmp, BAR)
+    labsim = Labsim(LABSIM, tmp, BAR, "DSLM")
     try:
         conf = "[acquisition]\ndetect-motion=true\n"
         d = Daemon(tmp, "median", labsim, conf)
@@ -284,7 +243,7 @@ def check_steps(what, ids, skipped):
 
 
 def slow_checks(tmp):
-    labsim = Labsim(tmp, BAR)
+    labsim = Labsim(LABSIM, tmp, BAR, "DSLM")
     d = Daemon(tmp, "slow", labsim, "[acquisition]\nphases=4\ndark-frame=false\n")
     try:
         with open("/proc/sys/net/core/wmem_default") as f:
