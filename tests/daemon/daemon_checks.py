@@ -9,6 +9,7 @@ import os
 import socket
 import subprocess
 import threading
+import time
 
 failures = []
 
@@ -40,6 +41,25 @@ def stop_process(proc, what):
     else:
         code = proc.returncode
     check(code == 0, f"{what} exits cleanly ({code})")
+
+
+def wait_ready_on_labsim(descatter, proc, sock, log, name, labsim):
+    """Waits (120 s at most) until descatterd `proc` answers ready on `sock`, and checks that its
+    camera is labsim's; `descatter` is the Python client module, `log` the daemon's output."""
+    deadline = time.time() + 120
+    while True:
+        try:
+            with descatter.Client(sock) as c:
+                st = c.status()
+                if st["ready"]:
+                    serial = st["devices"]["camera"].get("serial")
+                    check(serial == labsim.serial, f"{name}: the daemon's camera is labsim's ({serial})")
+                    return
+        except (OSError, descatter.DescatterError):
+            pass
+        assert proc.poll() is None, "descatterd exited: " + open(log).read()[-2000:]
+        assert time.time() < deadline, "descatterd not ready: " + open(log).read()[-2000:]
+        time.sleep(0.2)
 
 
 class Labsim:

@@ -35,7 +35,6 @@ import shutil
 import subprocess
 import sys
 import tempfile
-import time
 
 BIN, PYDIR = sys.argv[1:3]
 sys.path.insert(0, PYDIR)
@@ -44,7 +43,7 @@ import numpy  # noqa: E402
 import tifffile  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from daemon_checks import Labsim, check, failures, spawn, stop_process  # noqa: E402
+from daemon_checks import Labsim, check, failures, spawn, stop_process, wait_ready_on_labsim  # noqa: E402
 
 DAEMON = os.path.join(BIN, "descatterd")
 CTL = os.path.join(BIN, "descatterctl")
@@ -87,20 +86,7 @@ class Daemon:
         self.log = os.path.join(tmp, name + ".log")
         self.proc = spawn([DAEMON, "--config", conf, "--socket", self.sock, "--no-socket-activation"],
                           stdout=open(self.log, "w"), stderr=subprocess.STDOUT, env=env)
-        deadline = time.time() + 120
-        while True:
-            try:
-                with descatter.Client(self.sock) as c:
-                    st = c.status()
-                    if st["ready"]:
-                        serial = st["devices"]["camera"].get("serial")
-                        check(serial == labsim.serial, f"{name}: the daemon's camera is labsim's ({serial})")
-                        return
-            except (OSError, descatter.DescatterError):
-                pass
-            assert self.proc.poll() is None, "descatterd exited: " + open(self.log).read()[-2000:]
-            assert time.time() < deadline, "descatterd not ready: " + open(self.log).read()[-2000:]
-            time.sleep(0.2)
+        wait_ready_on_labsim(descatter, self.proc, self.sock, self.log, name, labsim)
 
     def stop(self):
         stop_process(self.proc, "descatterd")

@@ -54,7 +54,7 @@ import descatter  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from daemon_checks import (Labsim, RawSubscriber, check, check_no_speed, check_noise_model, failures,  # noqa: E402
-                           flagged_fraction, set_id, spawn, stop_process)
+                           flagged_fraction, set_id, spawn, stop_process, wait_ready_on_labsim)
 
 DAEMON = os.path.join(BIN, "descatterd")
 CTL = os.path.join(BIN, "descatterctl")
@@ -85,20 +85,7 @@ class Daemon:
         self.log = os.path.join(tmp, name + ".log")
         self.proc = spawn([DAEMON, "--config", self.conf, "--socket", self.sock, "--no-socket-activation"],
                           stdout=open(self.log, "w"), stderr=subprocess.STDOUT)
-        deadline = time.time() + 120
-        while True:
-            try:
-                with descatter.Client(self.sock) as c:
-                    st = c.status()
-                    if st["ready"]:
-                        serial = st["devices"]["camera"].get("serial")
-                        check(serial == labsim.serial, f"{name}: the daemon's camera is labsim's ({serial})")
-                        return
-            except (OSError, descatter.DescatterError):
-                pass
-            assert self.proc.poll() is None, "descatterd exited: " + open(self.log).read()[-2000:]
-            assert time.time() < deadline, "descatterd not ready: " + open(self.log).read()[-2000:]
-            time.sleep(0.2)
+        wait_ready_on_labsim(descatter, self.proc, self.sock, self.log, name, labsim)
 
     def status(self):
         with descatter.Client(self.sock) as c:
