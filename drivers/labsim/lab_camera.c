@@ -16,6 +16,9 @@
 #define REG_SENSOR_PIXEL_WIDTH_NM 0x800c
 #define SOURCE_SOFTWARE 16
 
+/* --camera-vanish-after: asked once by the camera thread, carried out by the main loop. */
+enum { VANISH_NONE, VANISH_ASKED, VANISH_DONE };
+
 typedef struct {
   guint line;
   gboolean rising;
@@ -31,7 +34,7 @@ struct DsLabCamera {
 
   GMutex gv_lock;          /* gv: swapped on the main thread, used by the trigger router */
   ArvGvFakeCamera *gv;     /* NULL while vanished */
-  gint vanish_requested;   /* atomic: set once by the camera thread */
+  gint vanish_requested;   /* atomic: VANISH_NONE, then VANISH_ASKED (camera thread), VANISH_DONE */
   guint vanish_source, appear_source;
 
   /* The trigger router: software commands and line edges become frames. */
@@ -54,7 +57,7 @@ fill_pattern (ArvBuffer *buffer, void *data, guint32 exposure_time_us, guint32 g
   guint64 n = ds_lab_fill_buffer (c->fill, buffer, exposure_time_us > 0 ? exposure_time_us : c->default_exposure_us,
                                   gain_centi_db / 100.0, (guint32) pixel_format);
   if (c->cfg.vanish_after_frames && n + 1 == c->cfg.vanish_after_frames)
-    g_atomic_int_set (&c->vanish_requested, 1);
+    g_atomic_int_set (&c->vanish_requested, VANISH_ASKED);
 }
 
 /* ---- trigger router ------------------------------------------------------------------------ */
@@ -95,7 +98,11 @@ router_thread (gpointer data)
     g_mutex_unlock (&c->trig_lock);
 
     g_mutex_lock (&c->gv_lock);
-    ArvFakeCamera *fake = c->gv ? arv_gv_fake_camera_get_fake_camera (c->gv) : NULL;
+    /* A camera asked to vanish takes no trigger more: the main loop takes it away when it next
+     * runs, which on a loaded machine can be after the client's next trigger; the frame count
+     * it vanishes after must not depend on that. */
+    gboolean vanishing = g_atomic_int_get (&c->vanish_requested) == VANISH_ASKED;
+    ArvFakeCamera *fake = c->gv && !vanishing ? arv_gv_fake_camera_get_fake_camera (c->gv) : NULL;
     guint32 source = SOURCE_SOFTWARE, activation = 0, sw = 0;
     if (fake) {
       arv_fake_camera_read_register (fake, REG_TRIGGER_SOURCE, &source);
@@ -291,11 +298,12 @@ static gboolean
 vanish_watch (gpointer data)
 {
   DsLabCamera *c = data;
-  if (!g_atomic_int_get (&c->vanish_requested) || !c->gv)
+  if (g_atomic_int_get (&c->vanish_requested) != VANISH_ASKED || !c->gv)
     return G_SOURCE_CONTINUE;
   g_message ("labsim camera: vanishing for %.1f s after %u frames", c->cfg.vanish_for_s,
              c->cfg.vanish_after_frames);
   disappear (c);
+  g_atomic_int_set (&c->vanish_requested, VANISH_DONE);
   c->appear_source = g_timeout_add ((guint) (c->cfg.vanish_for_s * 1000), appear_cb, c);
   c->vanish_source = 0;
   return G_SOURCE_REMOVE;

@@ -87,6 +87,9 @@ const char *ds_modbus_server_rtu_path (const DsModbusServer *server);
 /* The serial line goes away now for ms milliseconds, then comes back (a cable pulled and
  * plugged back). */
 void ds_modbus_server_rtu_vanish (DsModbusServer *server, guint ms);
+/* How often the serial line has gone away so far (0 without a serial side): a caller waits for
+ * it to count a vanish instead of watching for the short time the device path is missing. */
+guint ds_modbus_server_rtu_times_away (DsModbusServer *server);
 /* Changes the knobs at run time (the register state is kept). */
 void ds_modbus_server_set_config (DsModbusServer *server, const DsModbusServerConfig *config);
 void ds_modbus_server_get_state (DsModbusServer *server, DsModbusServerState *state);

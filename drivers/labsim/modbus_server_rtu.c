@@ -32,6 +32,7 @@ struct DsModbusRtu {
   guint64 requests;        /* on this line, for vanish_after */
   gboolean vanished_once;
   gint vanish_ms;          /* atomic: > 0 asks the thread to take the line away this long */
+  gint times_away;         /* atomic: the line was closed by go_away this often */
   GThread *thread;
 };
 
@@ -152,6 +153,7 @@ go_away (DsModbusRtu *r, guint ms)
 {
   g_message ("Modbus RTU %s: line away for %u ms", r->path, ms);
   line_close (r);
+  g_atomic_int_inc (&r->times_away);
   struct pollfd p = { .fd = r->server->wake[0], .events = POLLIN };
   (void) poll (&p, 1, (int) ms);
   g_autoptr (GError) error = NULL;
@@ -264,6 +266,12 @@ ds_modbus_server_rtu_vanish (DsModbusServer *s, guint ms)
 {
   if (s->rtu)
     g_atomic_int_set (&s->rtu->vanish_ms, (gint) MAX (ms, 1u));
+}
+
+guint
+ds_modbus_server_rtu_times_away (DsModbusServer *s)
+{
+  return s->rtu ? (guint) g_atomic_int_get (&s->rtu->times_away) : 0;
 }
 
 void

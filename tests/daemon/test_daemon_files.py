@@ -266,7 +266,8 @@ def check_stream(d, tmp):
     out = os.path.join(tmp, "stream")
     p = subprocess.Popen([d.ctl_path, "--address", d.sock, "stream", "--count", "3", "--out", out, "--files",
                           "hdf5-run"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    time.sleep(0.5)
+    # Subscribed before the start: waited for in the daemon's count, not for a fixed time.
+    wait_for(lambda: d.status()["clients"]["subscribers"] >= 1 or p.poll() is not None, "stream subscribed")
     d.ctl("start", "--phases", "4")
     p.wait(120)
     d.ctl("stop")

@@ -238,7 +238,12 @@ def slow_checks(tmp):
         slow = RawSubscriber(d.sock)
         stream = spawn([CTL, "--address", d.sock, "stream", "--delay-ms", "100"], stdout=subprocess.PIPE,
                        stderr=subprocess.PIPE, text=True)
-        time.sleep(1)  # subscribed before the first result
+        # Subscribed before the first result: waited for in the daemon's count (the hand-read one
+        # and descatterctl's), not for a fixed time a loaded machine may need more than.
+        deadline = time.time() + 60
+        while d.status()["clients"]["subscribers"] < 2 and time.time() < deadline and stream.poll() is None:
+            time.sleep(0.05)
+        check(d.status()["clients"]["subscribers"] == 2, "descatterctl stream subscribed")
         r = d.ctl("start", "--results", "per-frame")
         check(r.returncode == 0, "start --results per-frame: " + r.stderr.strip())
         for _ in range(5):

@@ -68,7 +68,7 @@ def main():
             b.click("#capture")
             b.wait(f"Number({BODY}.replies || 0) > {n}", "the capture's reply", timeout=60)
             assert b.js(f"{BODY}.lastReply") == "error"
-            b.wait(f"({BODY}.banner || '').startsWith('reply-')", "the capture's banner", timeout=10)
+            b.wait(f"({BODY}.banner || '').startsWith('reply-')", "the capture's banner", timeout=60)
             bn = banner(b)
             reply = b.js("document.getElementById('reply').textContent")
             code = reply.split(": ")[1]

@@ -346,10 +346,11 @@ def cancelled(tmp):
     out = []
     with d.client() as c:
         c.capture(phases=2)  # the kernels are cached: the next set starts at once
+        started = threading.Event()
 
         def capture():
             try:
-                c.capture(phases=64, averages=16, timeout=120)
+                c.capture(phases=64, averages=16, timeout=120, on_progress=lambda ev: started.set())
                 out.append("result")
             except descatter.DescatterError as e:
                 out.append(e)
@@ -357,7 +358,9 @@ def cancelled(tmp):
                 out.append(e)
         t = threading.Thread(target=capture)
         t.start()
-        time.sleep(0.5)
+        # The SIGTERM goes once the daemon has the capture (its first phase reported), not after
+        # a fixed wait: on a loaded machine the request may not have arrived yet.
+        check(started.wait(120), "the capture reports a phase")
         d.proc.send_signal(signal.SIGTERM)
         t.join(120)
     d.proc.wait(30)

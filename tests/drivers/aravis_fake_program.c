@@ -43,8 +43,9 @@ fake_start (Fake *f, const char *loss)
   g_subprocess_launcher_set_child_setup (launcher, die_with_parent, NULL, NULL);
   f->proc = g_subprocess_launcher_spawnv (launcher, (const char *const *) argv->pdata, &error);
   g_assert_no_error (error);
-  /* The program needs a moment to bind its sockets: try for up to ~10 s. */
-  for (guint i = 0; i < 50 && !f->cam; i++) {
+  /* The program needs a moment to bind its sockets: try for up to ~60 s (a loaded machine
+   * can take seconds to start it; the bound is for one that never does). */
+  for (guint i = 0; i < 300 && !f->cam; i++) {
     g_clear_error (&error);
     f->cam = ds_aravis_camera_open (ADDRESS, N_BUFFERS, &error);
     if (!f->cam) {

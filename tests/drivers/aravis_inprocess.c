@@ -367,14 +367,17 @@ test_flush (Rig *r, gconstpointer data)
   for (guint i = 0; i < 3; i++) {
     g_assert_true (r->cam->ops->trigger (r->cam->backend, &error));
     g_assert_no_error (error);
-    /* wait for the frame to land so that flush has something to drop */
-    for (guint t = 0; t < 200; t++) {
-      guint in, out, pool;
+    /* Wait for the frame to land so that flush has something to drop (30 s: a bound for a
+     * hang; the stream thread can take seconds on a loaded machine). */
+    guint in = 0, out = 0, pool = 0;
+    gint64 deadline = g_get_monotonic_time () + 30 * G_USEC_PER_SEC;
+    for (;;) {
       ds_aravis_camera_pool_counts (r->cam, &in, &out, &pool);
-      if (out == i + 1)
+      if (out == i + 1 || g_get_monotonic_time () >= deadline)
         break;
       g_usleep (10000);
     }
+    g_assert_cmpuint (out, ==, i + 1);
   }
   g_assert_cmpuint (r->cam->ops->flush (r->cam->backend), ==, 3);
   g_assert_null (r->cam->ops->grab (r->cam->backend, 50, &error));
@@ -724,15 +727,16 @@ send_stray_packet (Rig *r, guint16 id)
   const guint8 packet[8] = { 0, 0, (guint8) (id >> 8), (guint8) (id & 0xff), 0x05, 0, 0, 0 };
   g_assert_cmpint (g_socket_send_to (sock, to, (const char *) packet, sizeof packet, NULL, &error), ==, sizeof packet);
   g_assert_no_error (error);
-  /* Wait until the stream has handed the buffer out. */
-  for (guint t = 0; t < 200; t++) {
+  /* Wait until the stream has handed the buffer out (30 s: a bound for a hang). */
+  gint64 deadline = g_get_monotonic_time () + 30 * G_USEC_PER_SEC;
+  while (g_get_monotonic_time () < deadline) {
     guint in, out, pool;
     ds_aravis_camera_pool_counts (r->cam, &in, &out, &pool);
     if (out == 1)
       return;
     g_usleep (10000);
   }
-  g_error ("the stream handed out no buffer for the stray packet");
+  g_error ("the stream handed out no buffer for the stray packet within 30 s");
 }
 
 /* A frame id ahead of frame f's on the 16-bit circle without 0, as a new frame's would be. */
