@@ -301,8 +301,9 @@ ds_column_stats_noise_pair_dn (const DsImage *a, const DsImage *b, const double 
       /* The level is read two rows away, outside the second difference, so that sorting by it
        * does not select d's size (level_beside (): the same reason); the scene is cancelled in d,
        * so a level across an edge only places the sample in a neighbouring stratum. */
-      level_rows[0][i] = ds_image_row (f[i], y >= 2 ? y - 2 : y + 2);
-      level_rows[1][i] = ds_image_row (f[i], y + 2 < h ? y + 2 : y - 2);
+      guint above = y >= 2 ? y - 2 : MIN (y + 2, h - 1), below = y + 2 < h ? y + 2 : (y >= 2 ? y - 2 : 0);
+      level_rows[0][i] = ds_image_row (f[i], above);
+      level_rows[1][i] = ds_image_row (f[i], below);
     }
     for (guint x = 0; x < w; x++) {
       double r = rho[x];

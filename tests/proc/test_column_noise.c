@@ -247,6 +247,14 @@ test_pair_weighted (void)
 {
   check_pair_weighted (14, 0.45, 1.2, 0);
   check_pair_weighted (15, 0.3, INFINITY, 0.95);
+  /* Three rows, the fewest a second difference needs (its level is then read in the rows it
+   * spans): a value, and on frames of zeros, no noise. */
+  g_autoptr (DsImage) a = ds_image_new (DS_SAMPLE_F32, W, 3, NULL);
+  g_autoptr (DsImage) b = ds_image_new (DS_SAMPLE_F32, W, 3, NULL);
+  g_autofree double *rho = g_new0 (double, W);
+  double w2 = NAN, shot = NAN;
+  g_assert_cmpfloat (ds_column_stats_noise_pair_dn (a, b, rho, 0, 0, &w2, &shot), ==, 0.0);
+  g_assert_cmpfloat (w2, ==, 2.0);
 }
 
 int
