@@ -440,9 +440,10 @@ test_automatic_operating_point (void)
 }
 
 /* A featureless milky medium (no objects) with an illuminator of black level 0: its scattered
- * light raises the off-stripe level, and with no dim and bright parts to compare the pilot's
- * pattern check cannot tell it from a black level left unconfigured. It takes it as scattered
- * light, and the result's operating_point.assumptions says so (daemon/operating/pattern_check.h). */
+ * light raises the off-stripe level. descatterd --sim knows the simulated illuminator as a
+ * calibration would, so the pilot's pattern check takes the excess over that calibrated black
+ * level as scattered light, and the result's operating_point.assumptions says so
+ * (daemon/operating/pattern_check.h). */
 static void
 test_automatic_assumption_in_result (void)
 {
@@ -472,7 +473,7 @@ test_automatic_assumption_in_result (void)
   for (guint i = 0; i < json_array_get_length (assumed); i++) {
     const char *a = json_array_get_string_element (assumed, i);
     g_test_message ("assumption: %s", a);
-    named |= strstr (a, "taken as scattered light") != NULL && strstr (a, "black level 0.00 is configured") != NULL;
+    named |= strstr (a, "taken as scattered light") != NULL && strstr (a, "calibrated black level is 0.00") != NULL;
   }
   g_assert_true (named);
   g_assert_cmpint (test_daemon_stop (d), ==, 0);
