@@ -333,7 +333,7 @@ ds_validate_config (const DsSimRig *rig, const DsValidateScene *vs, DsErrorModel
   p->upper_bounded = !stripes_lower && (!loss->unexplained || loss->bounded);
   if (p->upper_bounded && loss->unexplained)
     p->predicted_error_upper += loss->bias_upper;
-  p->uncertainty = ds_operating_point_uncertainty (model, &vs->probe, &p->parts);
+  p->uncertainty = ds_operating_point_uncertainty (model, &vs->probe, &p->parts, p->period_px);
   if (!ds_validate_run (rig, vs, estimator, phases, averages, p->exposure_us, seed, &out->achieved,
                         &out->achieved_systematic, error))
     return FALSE;

@@ -97,7 +97,7 @@ predict (const DsOperatingModel *m, const Models *em, const DsSceneProbe *probe,
    * is undetermined at best, ds_operating_point_choose ()). */
   if (!p->upper_bounded)
     p->predicted_error_upper = INFINITY;
-  p->uncertainty = ds_operating_point_uncertainty (m, probe, &p->parts);
+  p->uncertainty = ds_operating_point_uncertainty (m, probe, &p->parts, p->period_px);
   add_motion (em, t, w, h, p);
   return TRUE;
 }
@@ -108,22 +108,30 @@ predict (const DsOperatingModel *m, const Models *em, const DsSceneProbe *probe,
 #define ROBUST_SCALE_EFFICIENCY 0.37
 
 double
-ds_operating_point_uncertainty (const DsOperatingModel *m, const DsSceneProbe *probe, const DsErrorParts *parts)
+ds_operating_point_uncertainty (const DsOperatingModel *m, const DsSceneProbe *probe, const DsErrorParts *parts,
+                                double period_px)
 {
   double spread = m->scale_spread, e2 = parts->total * parts->total;
   if (!(e2 > 0))
     return spread;
+  double d = MAX (0.0, probe->light.ld_uncertainty);
   /* total^2 = noise^2 + systematic^2, so d ln total = sum (part^2 / total^2) d ln part. The noise
-   * (shot and read noise over Ld) moves by at most Ld's own relative error d. The scattered
-   * stripes' part grows with the leak L at P, the light keeping the stripes over Ld, and what the
-   * pilot measures is their sum, the modulated light Ld (1 + L): Ld read d too high leaves
-   * (1 + L)/(1 - d) - 1 = L + (1 + L) d, so d ln L = (1 + L)/L d (a leak of 1 % with Ld known to
-   * 1 % is known to 2 %), and the part, near proportional to L, moves as much. The sampling part
+   * (shot and read noise over Ld) moves by at most Ld's own relative error d. The sampling part
    * is the pattern's and does not move. */
-  double leak = ds_scene_probe_leak (probe, probe->geometry.period_px, 1);
-  double s2 = parts->scattered_stripes * parts->scattered_stripes * (leak > 0 ? (1 + leak) / leak : 1.0);
-  double ld_share = (MIN (parts->noise * parts->noise, e2) + s2) / e2;
-  double u_ld = ld_share * MAX (0.0, probe->light.ld_uncertainty);
+  double u_ld = MIN (parts->noise * parts->noise, e2) / e2 * d;
+  /* The scattered stripes' part grows with the leak L at the point's period (the error model reads
+   * it there, ds_error_model_predict ()), and what the pilot measures is the sum of the light
+   * keeping the stripes and Ld, the modulated light Ld (1 + L): Ld read d too high leaves
+   * (1 + L)/(1 - d) - 1 = L + (1 + L) d, so d ln L = (1 + L)/L d (a leak of 1 % with Ld known to
+   * 1 % is known to 2 %), and the part, near proportional to L, moves as much. A leak smaller
+   * than its own uncertainty may be none: the part's share s of total^2 can then at most vanish,
+   * which moves ln total by -ln (1 - s)/2, however small L is. */
+  double leak = ds_scene_probe_leak (probe, period_px > 0 ? period_px : probe->geometry.period_px, 1);
+  double share = MIN (parts->scattered_stripes * parts->scattered_stripes / e2, 1.0);
+  if (share > 0) {
+    double linear = leak > 0 ? share * (1 + leak) / leak * d : INFINITY;
+    u_ld += MIN (linear, -0.5 * log1p (-MIN (share, 1 - 1e-9)));
+  }
   /* The frame noise is a robust scale read on about every unclipped pixel. */
   double n = (double) probe->width * probe->height * (1 - CLAMP (probe->clip.saturated_fraction, 0.0, 1.0));
   double u_noise = n >= 2 ? MIN (1.0, parts->noise * parts->noise / e2) / sqrt (2 * ROBUST_SCALE_EFFICIENCY * n) : 0;

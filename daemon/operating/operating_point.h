@@ -84,13 +84,15 @@ typedef struct {
   const char *motion_why;
 } DsOperatingPoint;
 
-/* The relative standard uncertainty of a prediction with these parts on this probe's scene: the
- * model's scale_spread, Ld's uncertainty (probe->light.ld_uncertainty) on the parts relative to Ld (the
- * noise, and the scattered stripes, whose leak L the pilot measures as part of the modulated light
- * Ld (1 + L), so that they move by (1 + L)/L times Ld's relative error), and the sampling error of the frame noise's estimate, added in
- * quadrature (docs/accuracy.md, "Decisions on the margin"). */
+/* The relative standard uncertainty of a prediction with these parts at this period (px; 0: the
+ * probe's) on this probe's scene: the model's scale_spread, Ld's uncertainty
+ * (probe->light.ld_uncertainty) on the parts relative to Ld (the noise, and the scattered stripes,
+ * whose leak L at the period the pilot measures as part of the modulated light Ld (1 + L), so that
+ * they move by (1 + L)/L times Ld's relative error, and at most vanish where L is smaller than its
+ * own uncertainty), and the sampling error of the frame noise's estimate, added in quadrature
+ * (docs/accuracy.md, "Decisions on the margin"). Any thread; never fails. */
 double ds_operating_point_uncertainty (const DsOperatingModel *model, const DsSceneProbe *probe,
-                                       const DsErrorParts *parts);
+                                       const DsErrorParts *parts, double period_px);
 
 /* The longest exposure (µs) that keeps the probe's brightest pixels (99.9th percentile) below
  * 90 % of its clip level; when that level is only the pixel format's top (not configured, no

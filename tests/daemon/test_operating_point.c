@@ -223,9 +223,9 @@ test_uncertainty_ld (void)
     g_assert_true (ds_error_model_predict (eq, DS_ESTIMATOR_SINE, 8, 1, 1, 0, &b, NULL));
     double moved = log (a.total / b.total);
     /* The Ld term alone: the uncertainty without it (the noise estimate's term) taken out in quadrature. */
-    double with = ds_operating_point_uncertainty (&m, &p, &a);
+    double with = ds_operating_point_uncertainty (&m, &p, &a, 0);
     p.light.ld_uncertainty = 0;
-    double without = ds_operating_point_uncertainty (&m, &p, &a);
+    double without = ds_operating_point_uncertainty (&m, &p, &a, 0);
     double term = sqrt (with * with - without * without);
     g_test_message ("Ld %g Lg %g read %g: prediction %.5f -> %.5f (%.4f), Ld term %.4f", scenes[i].ld, scenes[i].lg,
                     scenes[i].read_dn, a.total, b.total, moved, term);
@@ -237,44 +237,60 @@ test_uncertainty_ld (void)
    * leaves a leak L' = (1 + L)/(1 + u) - 1. sine on sine stripes, with the harmonic gain the
    * pixels see, reads the modulated light: its noise-free error is L, and it moves by
    * ln (L / L') ~ (1 + L)/L u: 0.115 for L = 0.1, u = 0.01, eleven times Ld's own move (noise is
-   * small here). */
-  {
-    const double L = 0.1, u = 0.01, P = 12;
+   * small here). At twice the pilot's period the leak is (1 + L)^2 - 1 (an exponential kernel
+   * tail), and the move is that leak's. */
+  const double L = 0.1, u = 0.01, P = 12;
+  for (guint k = 1; k <= 2; k++) {
+    double period = k * P, leak = pow (1 + L, k) - 1;
     DsSceneProbe p = probe_of (3000, 3000, 1, log1p (L) / P);
     p.geometry.kind = DS_PATTERN_SINE;
     DsSeparationParams sp;
     ds_separation_params_init (&sp, 8);
     sp.pattern = DS_PATTERN_SINE;
     sp.duty = 0.5;
-    sp.harmonic_gain = ds_stripe_harmonic (&p.geometry, 1);
+    DsStripeModel at_period = p.geometry; /* the pixels' gain at the period the sets run at */
+    at_period.period_px = period;
+    sp.harmonic_gain = ds_stripe_harmonic (&at_period, 1);
     p.light.ld_uncertainty = u;
     DsSceneProbe q = p;
     q.light.ld_mean *= 1 + u;
-    q.leak.per_px = log1p ((1 + L) / (1 + u) - 1) / P;
-    g_assert_cmpfloat_with_epsilon (ds_scene_probe_leak (&p, P, 1), L, 1e-12);
+    q.leak.per_px = log1p ((1 + leak) / (1 + u) - 1) / period;
+    g_assert_cmpfloat_with_epsilon (ds_scene_probe_leak (&p, period, 1), leak, 1e-12);
     g_autoptr (DsErrorModel) ep = ds_error_model_new (&p, &sp);
     g_autoptr (DsErrorModel) eq = ds_error_model_new (&q, &sp);
     DsErrorParts a, b;
-    g_assert_true (ds_error_model_predict (ep, DS_ESTIMATOR_SINE, 8, 1, 1, 0, &a, NULL));
-    g_assert_true (ds_error_model_predict (eq, DS_ESTIMATOR_SINE, 8, 1, 1, 0, &b, NULL));
-    g_assert_cmpfloat_with_epsilon (a.systematic, L, 0.01 * L);
-    double closed = log (L / ((1 + L) / (1 + u) - 1)), moved = log (a.systematic / b.systematic);
-    double with = ds_operating_point_uncertainty (&m, &p, &a);
+    g_assert_true (ds_error_model_predict (ep, DS_ESTIMATOR_SINE, 8, 1, 1, period, &a, NULL));
+    g_assert_true (ds_error_model_predict (eq, DS_ESTIMATOR_SINE, 8, 1, 1, period, &b, NULL));
+    g_assert_cmpfloat_with_epsilon (a.systematic, leak, 0.01 * leak);
+    double closed = log (leak / ((1 + leak) / (1 + u) - 1)), moved = log (a.systematic / b.systematic);
+    double with = ds_operating_point_uncertainty (&m, &p, &a, period);
     p.light.ld_uncertainty = 0;
-    double without = ds_operating_point_uncertainty (&m, &p, &a);
+    double without = ds_operating_point_uncertainty (&m, &p, &a, period);
     double term = sqrt (with * with - without * without);
-    g_test_message ("leak %g: prediction %.5f -> %.5f (%.4f, closed form %.4f), Ld term %.4f", L, a.total, b.total,
-                    moved, closed, term);
-    g_assert_cmpfloat (closed, >, 10 * u);
+    g_test_message ("leak %g at %g px: prediction %.5f -> %.5f (%.4f, closed form %.4f), Ld term %.4f", leak, period,
+                    a.total, b.total, moved, closed, term);
+    g_assert_cmpfloat (closed, >, 5 * u);
     g_assert_cmpfloat (fabs (moved / closed - 1), <, 0.1);
     g_assert_cmpfloat (fabs (term / closed - 1), <, 0.1);
+  }
+  /* A leak far smaller than Ld's uncertainty (1e-4 against 1 %) may be none, and the stripes'
+   * part then vanishes: the prediction falls at most to the error without it, here the sampling
+   * error alone (noise-free parts: 0.05 with 0.04 of stripes over 0.03 of sampling), by
+   * ln (0.05 / 0.03), not by (1 + L)/L times 1 %, a hundredfold. */
+  {
+    DsSceneProbe p = probe_of (3000, 0, 1, log1p (1e-4) / P);
+    p.light.ld_uncertainty = u;
+    DsErrorParts parts = { .total = 0.05, .systematic = 0.05, .sampling = 0.03, .scattered_stripes = 0.04 };
+    DsOperatingModel exact = m;
+    exact.scale_spread = 0;
+    g_assert_cmpfloat_with_epsilon (ds_operating_point_uncertainty (&exact, &p, &parts, 0), log (0.05 / 0.03), 1e-9);
   }
   /* The spread adds in quadrature. */
   DsSceneProbe p = probe_of (400, 800, 3, 0);
   DsErrorParts noise_free = { .total = 0.05, .sampling = 0.05, .systematic = 0.05 };
   m.scale_spread = 0.15;
   p.light.ld_uncertainty = 0.3;
-  g_assert_cmpfloat_with_epsilon (ds_operating_point_uncertainty (&m, &p, &noise_free), 0.15, 1e-12);
+  g_assert_cmpfloat_with_epsilon (ds_operating_point_uncertainty (&m, &p, &noise_free, 0), 0.15, 1e-12);
 }
 
 static void
