@@ -27,6 +27,31 @@ put (GString *s, const char *key, double v)
   g_string_append_printf (s, "%s=%s\n", key, g_ascii_formatd (buf, sizeof buf, "%.6g", v));
 }
 
+/* Object i's section header, shape and geometry from the random stream; both versions draw them
+ * in this order, so a seed still means the same scenes. */
+static void
+put_object_shape (GString *s, GRand *r, guint w, guint h, guint i)
+{
+  static const char *const shapes[] = { "rect", "disc", "grid", "lines" };
+  const char *shape = shapes[g_rand_int_range (r, 0, 4)];
+  g_string_append_printf (s, "\n[object.o%u]\nshape=%s\n", i, shape);
+  if (strcmp (shape, "rect") == 0) {
+    double ow = uniform (r, 0.1, 0.6) * w, oh = uniform (r, 0.1, 0.6) * h;
+    g_string_append_printf (s, "position=%.0f;%.0f\nsize=%.0f;%.0f\n", uniform (r, 0, w - ow),
+                            uniform (r, 0, h - oh), ow, oh);
+  } else if (strcmp (shape, "disc") == 0) {
+    double rad = uniform (r, 0.05, 0.3) * MIN (w, h);
+    g_string_append_printf (s, "position=%.0f;%.0f\nradius=%.0f\n", uniform (r, rad, w - rad),
+                            uniform (r, rad, h - rad), rad);
+  } else {
+    double pitch = uniform (r, 12, 64);
+    put (s, "pitch", round (pitch));
+    put (s, "line-width", round (uniform (r, 1, pitch / 4)));
+    if (strcmp (shape, "lines") == 0)
+      put (s, "amplitude", round (uniform (r, 0, pitch / 4)));
+  }
+}
+
 static void
 add_objects_v1 (GString *s, GRand *r, guint w, guint h, double thickness_mm, gboolean has_medium)
 {
@@ -34,24 +59,7 @@ add_objects_v1 (GString *s, GRand *r, guint w, guint h, double thickness_mm, gbo
   for (guint i = 0; i < n; i++) {
     /* Each object at a depth of its own (docs/scene-format.md: several object planes). */
     double depth = has_medium ? uniform (r, 0, thickness_mm) : 0;
-    static const char *const shapes[] = { "rect", "disc", "grid", "lines" };
-    const char *shape = shapes[g_rand_int_range (r, 0, 4)];
-    g_string_append_printf (s, "\n[object.o%u]\nshape=%s\n", i, shape);
-    if (strcmp (shape, "rect") == 0) {
-      double ow = uniform (r, 0.1, 0.6) * w, oh = uniform (r, 0.1, 0.6) * h;
-      g_string_append_printf (s, "position=%.0f;%.0f\nsize=%.0f;%.0f\n", uniform (r, 0, w - ow),
-                              uniform (r, 0, h - oh), ow, oh);
-    } else if (strcmp (shape, "disc") == 0) {
-      double rad = uniform (r, 0.05, 0.3) * MIN (w, h);
-      g_string_append_printf (s, "position=%.0f;%.0f\nradius=%.0f\n", uniform (r, rad, w - rad),
-                              uniform (r, rad, h - rad), rad);
-    } else {
-      double pitch = uniform (r, 12, 64);
-      put (s, "pitch", round (pitch));
-      put (s, "line-width", round (uniform (r, 1, pitch / 4)));
-      if (strcmp (shape, "lines") == 0)
-        put (s, "amplitude", round (uniform (r, 0, pitch / 4)));
-    }
+    put_object_shape (s, r, w, h, i);
     if (has_medium)
       put (s, "depth-mm", depth);
     put (s, "transmittance", g_rand_double (r) < 0.3 ? 0.0 : uniform (r, 0.05, 0.8));
@@ -249,24 +257,7 @@ add_objects_v2 (GString *s, GRand *r, guint w, guint h, double thickness_mm)
   for (guint i = 0; i < n; i++) {
     double where = g_rand_double (r);
     double depth = where < 0.35 ? 0 : where < 0.5 ? thickness_mm : uniform (r, 0.05, 0.95) * thickness_mm;
-    static const char *const shapes[] = { "rect", "disc", "grid", "lines" };
-    const char *shape = shapes[g_rand_int_range (r, 0, 4)];
-    g_string_append_printf (s, "\n[object.o%u]\nshape=%s\n", i, shape);
-    if (strcmp (shape, "rect") == 0) {
-      double ow = uniform (r, 0.1, 0.6) * w, oh = uniform (r, 0.1, 0.6) * h;
-      g_string_append_printf (s, "position=%.0f;%.0f\nsize=%.0f;%.0f\n", uniform (r, 0, w - ow),
-                              uniform (r, 0, h - oh), ow, oh);
-    } else if (strcmp (shape, "disc") == 0) {
-      double rad = uniform (r, 0.05, 0.3) * MIN (w, h);
-      g_string_append_printf (s, "position=%.0f;%.0f\nradius=%.0f\n", uniform (r, rad, w - rad),
-                              uniform (r, rad, h - rad), rad);
-    } else {
-      double pitch = uniform (r, 12, 64);
-      put (s, "pitch", round (pitch));
-      put (s, "line-width", round (uniform (r, 1, pitch / 4)));
-      if (strcmp (shape, "lines") == 0)
-        put (s, "amplitude", round (uniform (r, 0, pitch / 4)));
-    }
+    put_object_shape (s, r, w, h, i);
     if (thickness_mm > 0)
       put (s, "depth-mm", depth);
     put (s, "transmittance", g_rand_double (r) < 0.3 ? 0.0 : uniform (r, 0.05, 0.8));
