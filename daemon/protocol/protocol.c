@@ -314,6 +314,22 @@ add_id (JsonBuilder *b, JsonNode *id)
     json_builder_add_null_value (b);
 }
 
+/* "ok": true and the named member: a copy of node, or an empty object so that a reader may
+ * always index it. */
+static void
+add_ok_member (JsonBuilder *b, const char *name, JsonNode *node)
+{
+  json_builder_set_member_name (b, "ok");
+  json_builder_add_boolean_value (b, TRUE);
+  json_builder_set_member_name (b, name);
+  if (node)
+    json_builder_add_value (b, json_node_copy (node));
+  else {
+    json_builder_begin_object (b);
+    json_builder_end_object (b);
+  }
+}
+
 char *
 ds_reply_build_ok (JsonNode *id, JsonNode *result, const DsPayloadInfo *payloads, guint n_payloads,
                    gsize *len)
@@ -321,15 +337,7 @@ ds_reply_build_ok (JsonNode *id, JsonNode *result, const DsPayloadInfo *payloads
   g_autoptr (JsonBuilder) b = json_builder_new ();
   json_builder_begin_object (b);
   add_id (b, id);
-  json_builder_set_member_name (b, "ok");
-  json_builder_add_boolean_value (b, TRUE);
-  json_builder_set_member_name (b, "result");
-  if (result)
-    json_builder_add_value (b, json_node_copy (result));
-  else {
-    json_builder_begin_object (b);
-    json_builder_end_object (b);
-  }
+  add_ok_member (b, "result", result);
   add_payloads (b, payloads, n_payloads);
   json_builder_end_object (b);
   return finish_line (b, len);
@@ -372,15 +380,7 @@ event_build (const char *event, guint64 seq, gint64 skipped, JsonNode *body, con
     json_builder_set_member_name (b, "skipped");
     json_builder_add_int_value (b, skipped);
   }
-  json_builder_set_member_name (b, "ok");
-  json_builder_add_boolean_value (b, TRUE);
-  json_builder_set_member_name (b, "body");
-  if (body)
-    json_builder_add_value (b, json_node_copy (body));
-  else {
-    json_builder_begin_object (b);
-    json_builder_end_object (b);
-  }
+  add_ok_member (b, "body", body);
   add_payloads (b, payloads, n_payloads);
   json_builder_end_object (b);
   return finish_line (b, len);
