@@ -294,6 +294,33 @@ do_stats (gpointer data)
   return TRUE;
 }
 
+/* Asks the server's loop for its stats until done () holds or `seconds` pass (a bound for a hang,
+ * not a timing: the loop runs on its own thread, and a loaded machine can take seconds); the
+ * caller asserts on sc->stats. */
+static void
+wait_stats (StatsCall *sc, gboolean (*done) (const DsServerStats *), double seconds)
+{
+  gint64 deadline = g_get_monotonic_time () + (gint64) (seconds * G_USEC_PER_SEC);
+  for (;;) {
+    harness_call (sc->h, do_stats, sc);
+    if (done (&sc->stats) || g_get_monotonic_time () >= deadline)
+      return;
+    g_usleep (2000);
+  }
+}
+
+static gboolean
+queue_drained (const DsServerStats *st)
+{
+  return st->queued_bytes == 0;
+}
+
+static gboolean
+one_client (const DsServerStats *st)
+{
+  return st->clients == 1;
+}
+
 static void
 test_slow_subscriber_loses_results_not_memory (void)
 {
@@ -475,12 +502,7 @@ test_newest_result (void)
   /* The client can read a write's last byte before the server's loop runs that write's
    * completion, which is when the bytes leave the queue: wait for the loop, not a clock. */
   StatsCall sc = { .h = h };
-  gint64 deadline = g_get_monotonic_time () + 10 * G_USEC_PER_SEC;
-  do {
-    harness_call (h, do_stats, &sc);
-    if (sc.stats.queued_bytes != 0)
-      g_usleep (1000);
-  } while (sc.stats.queued_bytes != 0 && g_get_monotonic_time () < deadline);
+  wait_stats (&sc, queue_drained, 10);
   g_assert_cmpuint (sc.stats.dropped, ==, n_results - 2);
   g_assert_cmpuint (sc.stats.queued_bytes, ==, 0);
   /* Nothing else was queued for it. */
@@ -512,12 +534,7 @@ test_client_limit (void)
   /* The server's loop frees the place when it reads the EOF, on its own thread: asked until it
    * has (a bound for a hang, not a timing: a loaded machine can take seconds). */
   StatsCall sc = { .h = h };
-  gint64 deadline = g_get_monotonic_time () + 30 * G_USEC_PER_SEC;
-  do {
-    harness_call (h, do_stats, &sc);
-    if (sc.stats.clients != 1)
-      g_usleep (10000);
-  } while (sc.stats.clients != 1 && g_get_monotonic_time () < deadline);
+  wait_stats (&sc, one_client, 30);
   g_assert_cmpuint (sc.stats.clients, ==, 1);
   Client *d = client_connect (h);
   client_send (d, "{\"cmd\":\"hello\"}\n");
