@@ -65,11 +65,18 @@ def main():
             b.js("document.getElementById('banner-dismiss').click()")
             assert not banner(b)["shown"]
             n = int(b.js(f"Number({BODY}.replies || 0)"))
+            banners = int(b.js(f"Number({BODY}.banners || 0)"))
+            failed = d.status()["sets_failed"]
             b.click("#capture")
             b.wait(f"Number({BODY}.replies || 0) > {n}", "the capture's reply", timeout=60)
             assert b.js(f"{BODY}.lastReply") == "error"
-            # The reply raises the banner, and the status that counts the failed set may raise it
-            # again after it (which comes first depends on the machine's load): either names the cause.
+            # The reply and the status that counts the failed set both report the failure (which
+            # comes first depends on the machine's load): one banner, raised by the first.
+            failed_now = d.wait_for(lambda s: s["sets_failed"] > failed, "the failed set counted",
+                                    timeout=60)["sets_failed"]
+            assert failed_now == failed + 1, (failed, failed_now)
+            b.wait(f"Number({BODY}.setsFailed) === {failed_now}", "the page seeing the failed set", timeout=60)
+            assert int(b.js(f"Number({BODY}.banners || 0)")) == banners + 1, (banners, b.js(f"{BODY}.banners"))
             b.wait(f"({BODY}.banner || '').startsWith('reply-') || {BODY}.banner === 'set-failed'",
                    "the capture's banner", timeout=60)
             bn = banner(b)
