@@ -159,14 +159,15 @@ def check_entries(f, spool):
     return [s for _, s, _ in entries], checked
 
 
-def check_whole_sets(spool, reserve_kept=False):
-    """All-or-nothing: a set with a sidecar has every file its sidecar lists; no temporaries (the
-    run's reserve file only after kill -9: the next start removes it)."""
+def check_whole_sets(spool, killed=False):
+    """All-or-nothing: a set with a sidecar has every file its sidecar lists; no temporaries. After
+    kill -9 the hidden temporaries of the writes it interrupted (and the run's reserve) may stay:
+    the next start removes them, which kill_mid_run checks."""
     for stem in stems(spool):
         side = json.load(open(os.path.join(spool, stem + ".json")))
         for name in side["files"]:
             assert os.path.exists(os.path.join(spool, name)), (stem, name)
-    hidden = [n for n in os.listdir(spool) if n.startswith(".") and not (reserve_kept and ".reserve." in n)]
+    hidden = [n for n in os.listdir(spool) if n.startswith(".") and not (killed and ".tmp" in n)]
     assert not hidden, hidden
 
 
@@ -240,12 +241,25 @@ def kill_mid_run(daemon, ctl, scene, tmp, spool):
     wait_for(lambda: spool_stats(d)["sets_written"] >= written + 2, "sets of the run")
     d.kill()
     (partial,) = [n for n in os.listdir(spool) if n.endswith(".h5.partial")]
-    check_whole_sets(spool, reserve_kept=True)
+    check_whole_sets(spool, killed=True)
     with h5py.File(os.path.join(spool, partial), "r", swmr=True) as f:
         ids, checked = check_entries(f, spool)
     assert ids and checked, (ids, checked)
+    # Whatever the kill interrupted: a temporary of a set's file, of its phase folder, the reserve.
+    planted = [".set-20000101T000000Z-000999-transmissive.tmp-1-0badf00d.tiff",
+               ".set-20000101T000000Z-000999-phases.tmp-1-0badf00d", ".run-20000101T000000Z-000001.reserve.tmp"]
+    for name in planted:
+        if "phases" in name:
+            os.mkdir(os.path.join(spool, name))
+            open(os.path.join(spool, name, "phase-00.png"), "wb").write(b"half")
+        else:
+            open(os.path.join(spool, name), "wb").write(b"half")
+    hidden = sorted(n for n in os.listdir(spool) if n.startswith("."))
+    Daemon(daemon, ctl, tmp, conf_text(spool, scene, 6)).stop()
+    check_whole_sets(spool)
+    assert partial in os.listdir(spool), os.listdir(spool)
     print(f"after kill -9: h5py opens {partial} (swmr=True, no h5clear): {len(ids)} sets, "
-          f"{len(checked)} equal to their own files")
+          f"{len(checked)} equal to their own files; the next start removed {len(hidden)} temporaries")
 
 
 def conf_text(spool, scene, seed):
