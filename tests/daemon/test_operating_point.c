@@ -284,6 +284,14 @@ test_uncertainty_ld (void)
     DsOperatingModel exact = m;
     exact.scale_spread = 0;
     g_assert_cmpfloat_with_epsilon (ds_operating_point_uncertainty (&exact, &p, &parts, 0), log (0.05 / 0.03), 1e-9);
+    /* A fitted leak of none, or below none (the fit's noise), says no more: the same bound, never a
+     * negative or undefined term. */
+    for (int sign = 0; sign >= -1; sign--) {
+      p.leak.per_px = sign * log1p (1e-4) / P;
+      double u0 = ds_operating_point_uncertainty (&exact, &p, &parts, 0);
+      g_assert_true (isfinite (u0));
+      g_assert_cmpfloat_with_epsilon (u0, log (0.05 / 0.03), 1e-9);
+    }
   }
   /* The spread adds in quadrature. */
   DsSceneProbe p = probe_of (400, 800, 3, 0);
