@@ -207,8 +207,8 @@ robust_variance (LevelSample *d, gsize n, guint max_strata, KeptMeans *kept)
 
 /* The noise (1 sigma, DN) of sum_i sign[i] f[i], from its second difference along y. */
 static double
-noise_of_combination (const DsImage *const *f, const double *sign, guint n_f, double ceiling, guint max_strata,
-                      double *mean_level)
+noise_of_combination (const DsImage *const *f, const double *sign, guint n_f, const guint8 *columns, double ceiling,
+                      guint max_strata, double *mean_level)
 {
   const DsImage *a = f[0];
   if (a->height < 3)
@@ -226,6 +226,8 @@ noise_of_combination (const DsImage *const *f, const double *sign, guint n_f, do
       for (guint i = 0; i < n_f; i++)
         rows[j][i] = ds_image_row (f[i], y - 1 + j);
     for (guint x = 0; x < a->width; x++) {
+      if (columns && !columns[x])
+        continue;
       double v[3] = { 0, 0, 0 };
       gboolean ok = TRUE;
       for (guint j = 0; j < 3 && ok; j++)
@@ -254,18 +256,18 @@ ds_column_stats_noise_dn (const DsImage *a, const DsImage *b, double ceiling)
   /* One stratum: a single frame or pair holds the scene, whose structure can fill whole strata
    * (a few strata at tens of times the others' scale tilt even a robust line, and the shot noise
    * reads above the sensor's gain); one scale for all keeps it out. */
-  return noise_of_combination (f, sign, b ? 2 : 1, ceiling, 1, NULL);
+  return noise_of_combination (f, sign, b ? 2 : 1, NULL, ceiling, 1, NULL);
 }
 
 double
-ds_column_stats_noise_sets_dn (const DsImage *const set_a[2], const DsImage *const set_b[2], double ceiling,
-                               double *mean_level)
+ds_column_stats_noise_sets_dn (const DsImage *const set_a[2], const DsImage *const set_b[2], const guint8 *columns,
+                               double ceiling, double *mean_level)
 {
   const DsImage *f[4] = { set_a[0], set_a[1], set_b[0], set_b[1] };
   const double sign[4] = { 1, 1, -1, -1 };
   if (mean_level)
     *mean_level = NAN;
-  return noise_of_combination (f, sign, 4, ceiling, DS_NOISE_STRATA, mean_level);
+  return noise_of_combination (f, sign, 4, columns, ceiling, DS_NOISE_STRATA, mean_level);
 }
 
 /* The shot weight of one sample of a weighted pair: sum_i w_i^2 (f_i - dark). */

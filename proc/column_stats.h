@@ -39,19 +39,21 @@ void ds_column_stats_clear (DsColumnStats *stats);
 double ds_column_stats_noise_dn (const DsImage *a, const DsImage *b, double ceiling);
 
 /* The temporal noise (DN, 1 sigma) of (a0 + a1) - (b0 + b1), as ds_column_stats_noise_dn () reads
- * it, for two pairs of opposite phases of stripes whose two opposite phases sum to a constant
- * (sine stripes, square ones of duty 1/2, blurred or not) at two periods: each pair sums to the
- * scene under the pattern's mean, whatever the period, so the scene itself cancels, its soft
- * structure along y too (objects' blurred edges, which the second difference of one pair keeps
- * within its cut, and reads as shot noise above the sensor's), and only the four
- * frames' noise is left: var = var a0 + var a1 + var b0 + var b1, the rms over the samples of a
- * noise that grows with the signal: each sample is cut at its own level's scale (a robust line
- * in the level, column_stats.c), so dim places in the majority do not cut into the bright ones'
- * core. All four of one size.
+ * it, for two pairs of opposite phases at two periods, on the columns where the two pairs' sums
+ * are equal: there each pair sums to the scene under the same light, so the scene itself cancels,
+ * its soft structure along y too (objects' blurred edges, which the second difference of one pair
+ * keeps within its cut, and reads as shot noise above the sensor's), and only the four frames'
+ * noise is left: var = var a0 + var a1 + var b0 + var b1, the rms over the samples of a noise that
+ * grows with the signal: each sample is cut at its own level's scale (a robust line in the level,
+ * column_stats.c), so dim places in the majority do not cut into the bright ones' core. Sine
+ * stripes and square ones of duty 1/2 sum to a constant at every column (columns NULL: all are
+ * read); square stripes of another duty leave gaps or overlaps, at other columns for each period,
+ * which the caller leaves out (columns[x] 0). All four of one size; columns, where given, holds
+ * one flag per column.
  * mean_level (NULL: not wanted): the mean of a0 + a1 + b0 + b1 over the samples the noise was read
  * on (the signal whose shot noise it holds; a frame's dark level not taken off). */
-double ds_column_stats_noise_sets_dn (const DsImage *const set_a[2], const DsImage *const set_b[2], double ceiling,
-                                      double *mean_level);
+double ds_column_stats_noise_sets_dn (const DsImage *const set_a[2], const DsImage *const set_b[2],
+                                      const guint8 *columns, double ceiling, double *mean_level);
 
 /* The temporal noise (DN, 1 sigma) of one pair of opposite phases a, b with the scene cancelled,
  * for any pattern: per column c = (1 - rho) a - (1 + rho) b, with rho[x] the column's ratio of

@@ -82,58 +82,6 @@ opposite_phases_sum_flat (const DsStripeModel *g)
   return g->kind == DS_PATTERN_SINE || fabs (g->duty - 0.5) < 1e-3;
 }
 
-/* Whether the noise is read on the two pairs' sums (ds_column_stats_noise_sets_dn) rather than on
- * the fine pair's difference: where the sums are flat, and for square stripes of a duty a near 1/2.
- * Their opposite phases sum to 1 - b but in gaps (a < 1/2) or overlaps (a > 1/2) of width
- * |1/2 - a| P per half period, so the two pairs' sums differ by at most 2 |1/2 - a| (1 - b) of Ld,
- * where the pair's difference is (1 - b) of Ld: scene structure along y (the rows of a grid) enters
- * the sets' combination at that share, its variance at the square (1 % at |1/2 - a| = 0.05), and
- * the second difference along y cannot tell it from noise. On the pair's difference it enters
- * whole, and a grid's rows read as shot noise several times the sensor's gain, which would make
- * every prediction several times too pessimistic. */
-static gboolean
-noise_on_sets (const DsStripeModel *g)
-{
-  return opposite_phases_sum_flat (g) || fabs (g->duty - 0.5) <= DS_PROBE_SETS_DUTY;
-}
-
-/* The spread of Ld from one column to the next, mean_x (Ld(x)^2) / mean_x (Ld(x))^2 over the
- * columns' mean Ld: the column statistics' mean square holds only the spread within each column
- * (an object that spans the rows, a vertical grid line, is not in it, and the spread would read
- * low). The columns' mean differences are Ld(x) Dp(x); their energy against the
- * fitted harmonics' (a uniform Ld times the pattern) is the spread across columns, once the
- * same ratio for the model's own profile, whose harmonics the fit leaves out (those at or
- * above the Nyquist frequency, aliased), divides out. */
-static double
-spread_across_columns (const DsProbePairFit *f, const DsStripeModel *geometry, const DsSceneProbe *out)
-{
-  DsStripeModel g = *geometry;
-  guint w = f->stats.width;
-  double offset = f->fit.phase[1];
-  g_autofree double *model = g_new (double, w);
-  for (guint x = 0; x < w; x++)
-    model[x] = ds_stripe_value (&g, x, offset) - ds_stripe_value (&g, x, offset + 0.5);
-  DsStripeHarmonics mf;
-  if (!ds_stripe_harmonics_fit (model, f->stats.count, 0, w, g.period_px, f->fit.n_harmonics, &mf, NULL))
-    return 1.0;
-  double data = 0, data_fit = 0, model_all = 0, model_fit = 0;
-  for (guint x = 0; x < w; x++) {
-    guint32 c = f->stats.count[x];
-    if (!c)
-      continue;
-    double v = 2 * out->noise.var0 + out->noise.gain * MAX (0.0, f->stats.mean_sum[x] - 2 * out->noise.dark_dn);
-    double d = f->stats.mean_diff[x], df = ds_stripe_harmonics_eval (&f->fit, g.period_px, x) - f->fit.mean;
-    double mfit = ds_stripe_harmonics_eval (&mf, g.period_px, x) - mf.mean;
-    data += (d * d - v / c) * c;
-    data_fit += df * df * c;
-    model_all += model[x] * model[x] * c;
-    model_fit += mfit * mfit * c;
-  }
-  if (!(data > 0 && data_fit > 0 && model_all > 0 && model_fit > 0))
-    return 1.0;
-  return MAX (1.0, (data / data_fit) / (model_all / model_fit));
-}
-
 /* Whether a kernel narrower than the periods measured could hide scattered light in Ld (then the
  * prediction is a lower bound), and why. Only a scene that shows scattered light at all (Lg or
  * the leak at P at 1 % of Ld) is suspected: without any, a medium whose every scattered photon
@@ -371,9 +319,31 @@ stage_pairs (const DsProbeFrames *fr, DsSceneProbe *out, ProbePairs *pairs, GErr
   return TRUE;
 }
 
+/* The columns where the noise is read on the two pairs' sums (ds_column_stats_noise_sets_dn), as a
+ * flag per column, or NULL for all of them (opposite phases that sum flat: sine stripes, square ones
+ * of duty 1/2). Square stripes of another duty a sum to 1 - b but in gaps (a < 1/2) or overlaps
+ * (a > 1/2) of width |1/2 - a| P per half period, at other columns for P and 2P: where the two
+ * pairs' sums differ, the scene's structure along y (the rows of a grid, an object's shading)
+ * enters their combination at that share and passes for noise. Kept are the columns where the
+ * model's two sums, at the pairs' fitted offsets, agree within DS_PROBE_SETS_MATCH. The one-pair
+ * reading that remains where too few are kept cancels the scene less well: a pixel lit by one
+ * phase and dark in the other carries almost no shot noise in its combination, so the gain rests
+ * on few samples. */
+static guint8 *
+sets_columns (const DsStripeModel *g, const ProbePairs *pairs, guint width, guint *kept)
+{
+  *kept = width;
+  if (opposite_phases_sum_flat (g))
+    return NULL;
+  guint8 *keep = g_new0 (guint8, width);
+  *kept = ds_stripe_pair_sums_agree (g, pairs->fine.fit.phase[1], pairs->coarse.fit.phase[1], DS_PROBE_SETS_MATCH,
+                                     width, keep);
+  return keep;
+}
+
 /* Noise: one frame's variance is var0 + gain * signal (read noise and quantisation, then the
  * photons' Poisson noise); the difference of the two phases has twice var0 plus the gain times
- * their summed signal. Where the scene cancels between two pairs' sums (noise_on_sets ()), the
+ * their summed signal. Where the scene cancels between two pairs' sums (sets_columns ()), the
  * noise is read there, since the scene's own structure along y would otherwise pass for noise.
  * Returns the fine pair's mean summed signal over the dark, DN: twice the pattern's mean times the
  * light the scene holds. */
@@ -388,16 +358,21 @@ stage_noise (const DsProbeFrames *fr, const ProbePairs *pairs, DsSceneProbe *out
   }
   double mean_sum = sum_w > 0 ? sum_signal / sum_w : 0;
   double var_diff = NAN, noise_signal = mean_sum;
-  if (fr->coarse[0] && noise_on_sets (&fr->geometry)) {
+  guint kept = 0;
+  g_autofree guint8 *columns = fr->coarse[0] ? sets_columns (&fr->geometry, pairs, fine->width, &kept) : NULL;
+  if (fr->coarse[0] && kept >= MAX (DS_PROBE_SETS_MIN_COLUMNS, fine->width / 8)) {
     /* The coarse pair's sum has the fine pair's mean: var (a - b) = var a + var b is half of it,
      * over the samples it was read on, whose signal is half their level. */
     double level = NAN;
-    double noise_sets = ds_column_stats_noise_sets_dn (pairs->stat, pairs->stat + 2, out->clip.saturation_dn, &level);
+    double noise_sets =
+      ds_column_stats_noise_sets_dn (pairs->stat, pairs->stat + 2, columns, out->clip.saturation_dn, &level);
     if (isfinite (noise_sets) && isfinite (level)) {
       var_diff = noise_sets * noise_sets / 2;
       noise_signal = level / 2 - 2 * out->noise.dark_dn;
     }
   }
+  g_debug ("scene probe: noise read on %s (%u of %u columns where the two pairs' sums agree)",
+           isfinite (var_diff) ? "the two pairs' sums" : "one pair", fr->coarse[0] ? kept : 0, fine->width);
   if (!isfinite (var_diff) && noise_signal > 0) {
     /* One pair, the scene cancelled column by column (proc/column_stats.h): c's mean square is
      * var0 w2 + gain shot, which gives the gain, and with it what the pair's difference holds. */
@@ -679,7 +654,7 @@ leak_note_measured (const DsProbeFrames *fr, const ProbeHarmonics *h, const Prob
  * sum to the pattern's mean twice over whole periods), never negative. The spread of Ld across
  * the scene: per column, mean (D^2) - noise = mean (Ld^2) Dp(x)^2 and the column's mean
  * D = mean (Ld) Dp(x), whose square carries the noise over count rows; times the spread from one
- * column to the next (spread_across_columns ()). Both at most 25. */
+ * column to the next (ds_probe_pair_spread_across_columns ()). Both at most 25. */
 static void
 stage_light (const ProbePairs *pairs, const ProbeTransfer *t, DsSceneProbe *out)
 {
@@ -696,7 +671,7 @@ stage_light (const ProbePairs *pairs, const ProbeTransfer *t, DsSceneProbe *out)
     den += (d * d - v / c) * c;
   }
   out->light.ld_spread = den > 0 && num > den ? MIN (num / den, 25.0) : 1.0;
-  out->light.ld_spread = MIN (out->light.ld_spread * spread_across_columns (&pairs->fine, &out->geometry, out), 25.0);
+  out->light.ld_spread = MIN (out->light.ld_spread * ds_probe_pair_spread_across_columns (&pairs->fine, &out->geometry, out), 25.0);
 }
 
 /* The leak's bound: a scattered stripe is scattered light, A_n = G_n (Ld + S T_n) with T_n <= 1,

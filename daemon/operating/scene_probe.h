@@ -111,9 +111,12 @@ G_BEGIN_DECLS
  * modulation from the coarsest period to the finest under 3 times this (with the fit's noise) is
  * no sign of a kernel at the edge of what the pilot resolves. */
 #define DS_PROBE_PAIR_SCATTER 0.01
-/* Square stripes of a duty within this of 1/2 have the probe read the noise on two pairs' sums, in
- * which the scene nearly cancels (scene_probe.c: noise_on_sets). */
-#define DS_PROBE_SETS_DUTY 0.05
+/* The probe reads the noise on two pairs' sums at the columns where the pattern model's sums agree
+ * within this share of the stripes' swing 1 - b (scene_probe.c: sets_columns): the scene's
+ * structure then enters the combination at most at this share, its variance at the square. */
+#define DS_PROBE_SETS_MATCH 0.01
+/* ... and on at least this many columns (and an eighth of the frame's), else on one pair. */
+#define DS_PROBE_SETS_MIN_COLUMNS 16u
 /* The normal quantile of the fit's consistency test (transfer.inconsistent): 99.9 %. */
 #define DS_PROBE_FIT_Z 3.09
 /* The form of the narrow kernel's transfer (DsSceneProbe's narrow.form). */

@@ -226,3 +226,33 @@ ds_probe_count_clipped_places (DsSceneProbe *out, const DsProbeClippedPlaces *c,
   out->light.ld_mean = mean;
   out->light.ld_spread = mean > 0 ? CLAMP (mean_sq / (mean * mean), 1.0, 25.0) : 1.0;
 }
+
+double
+ds_probe_pair_spread_across_columns (const DsProbePairFit *f, const DsStripeModel *geometry, const DsSceneProbe *out)
+{
+  DsStripeModel g = *geometry;
+  guint w = f->stats.width;
+  double offset = f->fit.phase[1];
+  g_autofree double *model = g_new (double, w);
+  for (guint x = 0; x < w; x++)
+    model[x] = ds_stripe_value (&g, x, offset) - ds_stripe_value (&g, x, offset + 0.5);
+  DsStripeHarmonics mf;
+  if (!ds_stripe_harmonics_fit (model, f->stats.count, 0, w, g.period_px, f->fit.n_harmonics, &mf, NULL))
+    return 1.0;
+  double data = 0, data_fit = 0, model_all = 0, model_fit = 0;
+  for (guint x = 0; x < w; x++) {
+    guint32 c = f->stats.count[x];
+    if (!c)
+      continue;
+    double v = 2 * out->noise.var0 + out->noise.gain * MAX (0.0, f->stats.mean_sum[x] - 2 * out->noise.dark_dn);
+    double d = f->stats.mean_diff[x], df = ds_stripe_harmonics_eval (&f->fit, g.period_px, x) - f->fit.mean;
+    double mfit = ds_stripe_harmonics_eval (&mf, g.period_px, x) - mf.mean;
+    data += (d * d - v / c) * c;
+    data_fit += df * df * c;
+    model_all += model[x] * model[x] * c;
+    model_fit += mfit * mfit * c;
+  }
+  if (!(data > 0 && data_fit > 0 && model_all > 0 && model_fit > 0))
+    return 1.0;
+  return MAX (1.0, (data / data_fit) / (model_all / model_fit));
+}

@@ -54,3 +54,13 @@ void ds_probe_mask_clipped_places (const DsImage *const *lit, guint n_lit, doubl
  * change appended to leak_note (the leak's note as it is built). */
 void ds_probe_count_clipped_places (DsSceneProbe *out, const DsProbeClippedPlaces *c, double black_level,
                                     double pattern_mean, GString *leak_note);
+
+/* The spread of Ld from one column to the next, mean_x (Ld(x)^2) / mean_x (Ld(x))^2 over the
+ * columns' mean Ld: the column statistics' mean square holds only the spread within each column
+ * (an object that spans the rows, a vertical grid line, is not in it, and the spread would read
+ * low). The columns' mean differences are Ld(x) Dp(x); their energy against the
+ * fitted harmonics' (a uniform Ld times the pattern) is the spread across columns, once the
+ * same ratio for the model's own profile, whose harmonics the fit leaves out (those at or
+ * above the Nyquist frequency, aliased), divides out. */
+double ds_probe_pair_spread_across_columns (const DsProbePairFit *f, const DsStripeModel *geometry,
+                                           const DsSceneProbe *out);

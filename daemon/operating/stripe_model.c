@@ -53,6 +53,26 @@ ds_stripe_value (const DsStripeModel *g, double x, double shift)
   return b + (1.0 - b) * p;
 }
 
+guint
+ds_stripe_pair_sums_agree (const DsStripeModel *g, double shift_fine, double shift_coarse, double tol, guint width,
+                           guint8 *columns)
+{
+  DsStripeModel coarse = *g;
+  coarse.period_px = 2 * g->period_px;
+  g_autofree guint8 *match = g_new0 (guint8, width);
+  for (guint x = 0; x < width; x++) {
+    double sf = ds_stripe_value (g, x, shift_fine) + ds_stripe_value (g, x, shift_fine + 0.5);
+    double sc = ds_stripe_value (&coarse, x, shift_coarse) + ds_stripe_value (&coarse, x, shift_coarse + 0.5);
+    match[x] = fabs (sf - sc) <= tol * (1 - g->black_level);
+  }
+  guint kept = 0;
+  for (guint x = 0; x < width; x++) {
+    columns[x] = x > 0 && x + 1 < width && match[x - 1] && match[x] && match[x + 1];
+    kept += columns[x];
+  }
+  return kept;
+}
+
 double
 ds_stripe_harmonic (const DsStripeModel *g, guint n)
 {

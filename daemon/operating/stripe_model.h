@@ -33,6 +33,13 @@ typedef struct {
 /* The pattern's value at pixel x for phase shift `shift` (cycles), in [b, 1]. */
 double ds_stripe_value (const DsStripeModel *g, double x, double shift);
 
+/* Flags (columns[x] = 1) the columns 0 .. width - 1 where two opposite phases at g's period,
+ * shifted by shift_fine, and two at twice it, shifted by shift_coarse, sum alike within tol of the
+ * swing 1 - b, and so do both neighbours (a pixel of margin for the shifts' error); 0 elsewhere.
+ * Returns how many are flagged. */
+guint ds_stripe_pair_sums_agree (const DsStripeModel *g, double shift_fine, double shift_coarse, double tol,
+                                 guint width, guint8 *columns);
+
 /* Cosine coefficient of harmonic n (>= 1) of the pattern as pixels see it:
  * pattern(x) = m + sum_n C_n cos (2 pi n (x/P - shift)), with
  * C_n = (1 - b) (2 / (n pi)) sin (n pi a) B_n S_n for square stripes (B_n the blur's
