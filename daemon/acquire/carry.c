@@ -115,8 +115,7 @@ ds_seq_carry_discard (DsAcquisition *acq)
   }
   if (cy->error) {
     /* The set it belonged to failed on its first frame (carry_device_error). */
-    ds_seq_account (acq->shared, &cy->counters, FALSE);
-    ds_seq_record_error (acq->shared, cy->error);
+    ds_seq_account_failed (acq->shared, &cy->counters, cy->error);
     ds_seq_refresh_device_status (acq);
     ds_seq_emit (acq->shared, DS_SEQUENCER_EVENT_FAILED, 0, NULL, g_steal_pointer (&cy->error), NULL);
   } else {

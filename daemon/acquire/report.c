@@ -176,6 +176,18 @@ ds_seq_account (DsSequencerShared *shared, const DsFrameCounters *c, gboolean ok
   g_mutex_unlock (&shared->lock);
 }
 
+/* Under one lock: a status that counts the set failed carries its error as last_error, which
+ * is how the live view tells a failed capture's status from another failure's. */
+void
+ds_seq_account_failed (DsSequencerShared *shared, const DsFrameCounters *c, const GError *error)
+{
+  g_mutex_lock (&shared->lock);
+  ds_frame_counters_add (&shared->status.frames, c);
+  shared->status.sets_failed++;
+  g_strlcpy (shared->status.last_error, error->message, sizeof shared->status.last_error);
+  g_mutex_unlock (&shared->lock);
+}
+
 gboolean
 ds_seq_error_is_cancel (const GError *error)
 {
@@ -186,16 +198,14 @@ void
 ds_seq_account_unfinished (DsSequencerShared *shared, DsFrameCounters *c, const GError *error)
 {
   ds_frame_counters_abort_rest (c);
-  gboolean cancelled = ds_seq_error_is_cancel (error);
+  if (!ds_seq_error_is_cancel (error)) {
+    ds_seq_account_failed (shared, c, error);
+    return;
+  }
   g_mutex_lock (&shared->lock);
   ds_frame_counters_add (&shared->status.frames, c);
-  if (cancelled)
-    shared->status.sets_cancelled++;
-  else
-    shared->status.sets_failed++;
+  shared->status.sets_cancelled++;
   g_mutex_unlock (&shared->lock);
-  if (!cancelled)
-    ds_seq_record_error (shared, error);
 }
 
 void

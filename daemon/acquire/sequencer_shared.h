@@ -76,6 +76,9 @@ void ds_seq_record_error (DsSequencerShared *shared, const GError *error);
 /* Adds a set's (or a dark frame's) counters to the totals; ok counts the set as done, else
  * as failed. */
 void ds_seq_account (DsSequencerShared *shared, const DsFrameCounters *c, gboolean ok);
+/* Adds a failed set's counters to the totals, counts it failed and makes `error` last_error,
+ * all at once: no status shows the count without the error. */
+void ds_seq_account_failed (DsSequencerShared *shared, const DsFrameCounters *c, const GError *error);
 /* Adds frame counters to the totals without counting a set (frames of no set, a dark frame). */
 void ds_seq_account_frames (DsSequencerShared *shared, const DsFrameCounters *c);
 /* Whether an error ends work because it was cancelled (a cancel, or the daemon stopping):
