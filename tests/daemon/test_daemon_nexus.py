@@ -17,7 +17,6 @@ parser written here with struct and zlib):
     log2(scale), and file value / scale gives the TIFF's counts.
 Usage: test_daemon_nexus.py DESCATTERD DESCATTERCTL SCENE"""
 import configparser
-import json
 import math
 import os
 import struct

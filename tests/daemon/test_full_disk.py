@@ -31,7 +31,6 @@ import shutil
 import subprocess
 import sys
 import tempfile
-import time
 
 SKIP = 77
 NS_MARK = "DS_FULL_DISK_NAMESPACE"

@@ -25,8 +25,8 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from cdp_browser import Browser  # noqa: E402
 from live_daemon import LiveDaemon  # noqa: E402
 from live_messages import frames  # noqa: E402
+from live_page import BODY  # noqa: E402
 
-BODY = "document.body.dataset"
 ROI = (32, 16, 192, 160)
 RECT = "(() => {{ const r = document.getElementById('{0}').getBoundingClientRect(); return [r.left, r.top, r.width, r.height]; }})()"
 

@@ -16,15 +16,7 @@ import tempfile
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from cdp_browser import Browser  # noqa: E402
 from live_daemon import LiveDaemon  # noqa: E402
-
-BODY = "document.body.dataset"
-
-
-def banner(b):
-    return b.js("(() => { const e = document.getElementById('banner'); const r = e.getBoundingClientRect();"
-                " return { text: e.textContent, cls: e.className, shown: e.style.display !== 'none' && r.height > 0,"
-                " top: r.top, when: document.getElementById('banner-when').textContent,"
-                " remedy: document.getElementById('banner-remedy').textContent }; })()")
+from live_page import BODY, banner  # noqa: E402
 
 
 def main():

@@ -21,13 +21,7 @@ import tempfile
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from cdp_browser import Browser  # noqa: E402
 from live_daemon import LiveDaemon  # noqa: E402
-
-BODY = "document.body.dataset"
-
-
-def banner(b):
-    return b.js("(() => { const e = document.getElementById('banner');"
-                " return { text: e.textContent, shown: e.style.display !== 'none' }; })()")
+from live_page import BODY, banner  # noqa: E402
 
 
 def banners(b):

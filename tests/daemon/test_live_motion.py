@@ -16,9 +16,9 @@ import tempfile
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from cdp_browser import Browser  # noqa: E402
 from live_daemon import LiveDaemon  # noqa: E402
+from live_page import BODY  # noqa: E402
 
 TOKEN = "live-motion-token-0123456789"
-BODY = "document.body.dataset"
 MAGENTA = (217, 70, 239)
 
 # A 3 x 2 grey picture at offset 0 and its mask at offset 6, drawn with the page's draw().

@@ -23,8 +23,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from cdp_browser import Browser  # noqa: E402
 from live_daemon import LiveDaemon  # noqa: E402
 from live_messages import LiveMessage  # noqa: E402
-
-BODY = "document.body.dataset"
+from live_page import BODY  # noqa: E402
 
 
 def main():

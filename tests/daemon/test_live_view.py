@@ -15,9 +15,9 @@ import tempfile
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from cdp_browser import Browser  # noqa: E402
 from live_daemon import LiveDaemon  # noqa: E402
+from live_page import BODY  # noqa: E402
 
 TOKEN = "live-view-token-0123456789"
-BODY = "document.body.dataset"
 # A checksum of the pixels drawn on a canvas.
 CANVAS_SUM = ("(() => {{ const c = document.getElementById('{0}'); const d = c.getContext('2d')"
               ".getImageData(0, 0, c.width, c.height).data; let s = 0; for (let i = 0; i < d.length; i += 4)"
