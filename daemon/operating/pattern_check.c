@@ -22,7 +22,7 @@
  * the blur and off-stripe level the frames show, integrated over the pixel and sampled on the
  * pilot's columns and phases, is rendered with the pilot's noise and read by the same fit
  * (expected_duty ()). The tolerance is DUTY_SPREADS of the spread of the difference (the frames'
- * own reading's, duty_spread (), and the rendering's) plus DUTY_MODEL, what the rendering
+ * own reading's, band_spread () with read_duty (), and the rendering's) plus DUTY_MODEL, what the rendering
  * leaves out: the true edge's shape against a Gaussian, and scattered light that keeps the
  * stripes blurred wider than the edge (readings 0.01-0.02 off on clear scenes and under
  * scattering, tests/daemon/test_pattern_check.c). */
@@ -30,6 +30,9 @@
 #define DUTY_SPREADS 2.0
 #define DUTY_REPLICAS 2
 #define DUTY_BANDS 4u
+/* The kernel-free reading's own error (mean_position ()): its peak and trough are read at bins
+ * a fortieth of a period wide, on pixels a pixel wide. */
+#define MEAN_POSITION_MODEL 0.02
 /* The same for the off-stripe level against the black level where the stripes reach it. The
  * level is read from the troughs, whose depth the blur and the pixel scale by the first
  * harmonic's factor g1 = exp (-2 pi^2 sigma^2 / P^2) sinc (1 / P) (stripe_model.h): the fit
@@ -283,16 +286,68 @@ expected_duty (const DsStripeModel *m, const DsStripeProfile *real, double noise
   *sd = sqrt (ss / (DUTY_REPLICAS - 1));
 }
 
-/* The spread of the duty fit's reading on this pair: the pair cut into DUTY_BANDS bands of rows,
- * each read by the same fit at the same offset; the whole pair's reading spreads by their
- * standard deviation over sqrt (DUTY_BANDS). It holds everything the reading varies with that
- * the frames carry: noise, and the scene's own detail, which the fit reads with the stripes. NAN
- * when fewer than two bands can be read. */
+/* Where the mean of one phase's profile lies between its trough and its peak, (mean - min) /
+ * (max - min), over n values at even positions across one period. For square stripes of duty
+ * a seen through any kernel K (blur, the pixel, scattered light that keeps the stripes), the
+ * peak is K's mass over a window of width aP about the stripe's centre and the trough its mass
+ * over the same window half a period away, and the mean is a whatever K is. A level and a gain
+ * divide out, and so does light any kernel spreads over periods: the reading stays a for sharp
+ * stripes plus a kernel as wide as the scene, and a kernel about a period wide moves it
+ * towards 1/2 (at a = 1/2 the windows split K's mass, and it is 1/2 exactly). So whatever the
+ * kernel's shape, the reading lies between what the calibrated edge blur and the pixel give the
+ * configured duty and 1/2. NaN for a flat profile. */
 static double
-duty_spread (const DsImage *dark, const DsImage *l0, const DsImage *l1, double period, double offset,
-             double saturation, DsPatternKind kind, double blur_min)
+mean_position (const double *v, guint n)
 {
-  double duty[DUTY_BANDS], sum = 0, ss = 0;
+  double lo = INFINITY, hi = -INFINITY, sum = 0;
+  for (guint i = 0; i < n; i++) {
+    lo = MIN (lo, v[i]);
+    hi = MAX (hi, v[i]);
+    sum += v[i];
+  }
+  return n && hi > lo ? (sum / n - lo) / (hi - lo) : NAN;
+}
+
+/* The kernel-free reading of a measured profile: phase 0's light at bin j, relative to its mean,
+ * is r t (r its share of the pair's sum, t that sum against its mean nearby); the bins that hold
+ * both. */
+static double
+profile_mean_position (const DsStripeProfile *p)
+{
+  double v[N_BINS];
+  guint n = 0;
+  for (guint j = 0; j < N_BINS; j++)
+    if (p->n[j] && p->nt[j])
+      v[n++] = p->r[j] * p->t[j];
+  return n >= 4 ? mean_position (v, n) : NAN;
+}
+
+/* The same reading on the configured pattern m through its blur and the pixel, noise-free. */
+static double
+model_mean_position (const DsStripeModel *m)
+{
+  double v[200];
+  for (guint i = 0; i < G_N_ELEMENTS (v); i++)
+    v[i] = ds_stripe_value (m, (i + 0.5) / G_N_ELEMENTS (v) * m->period_px, 0);
+  return mean_position (v, G_N_ELEMENTS (v));
+}
+
+/* How a reading of the pair spreads: the pair cut into DUTY_BANDS bands of rows, each read the
+ * same way at the same offset; the whole pair's reading spreads by their standard deviation over
+ * sqrt (DUTY_BANDS). It holds everything the reading varies with that the frames carry: noise,
+ * and the scene's own detail, which the reading takes with the stripes. The standard deviation
+ * of the bands' readings (read () gives NaN for a band it cannot read); NaN when fewer than two
+ * bands can be read. */
+typedef struct {
+  double (*read) (const DsStripeProfile *p, gconstpointer data);
+  gconstpointer data;
+} BandReading;
+
+static double
+band_spread (const DsImage *dark, const DsImage *l0, const DsImage *l1, double period, double offset,
+             double saturation, const BandReading *how)
+{
+  double reading[DUTY_BANDS], sum = 0, ss = 0;
   guint n = 0, rows = l0->height / DUTY_BANDS;
   for (guint k = 0; k < DUTY_BANDS && rows >= 4; k++) {
     const DsImage *f[3] = { dark, l0, l1 };
@@ -306,17 +361,38 @@ duty_spread (const DsImage *dark, const DsImage *l0, const DsImage *l1, double p
     g_autoptr (DsStripeProfile) p = ds_stripe_profile_bin (&band[0], &band[1], &band[2], period, offset, saturation, N_BINS, NULL);
     if (!p || p->pixels < 64)
       continue;
-    Fit fit = fit_profile (p, kind, period, -1, 0, blur_min);
-    if (!isfinite (fit.rms))
+    double r = how->read (p, how->data);
+    if (!isfinite (r))
       continue;
-    duty[n] = fit.duty;
-    sum += duty[n++];
+    reading[n] = r;
+    sum += reading[n++];
   }
   if (n < 2)
     return NAN;
   for (guint k = 0; k < n; k++)
-    ss += (duty[k] - sum / n) * (duty[k] - sum / n);
+    ss += (reading[k] - sum / n) * (reading[k] - sum / n);
   return sqrt (ss / (n - 1));
+}
+
+typedef struct {
+  DsPatternKind kind;
+  double period, blur_min;
+} DutyFit;
+
+/* The duty fit's reading of a band (the whole pair's fit). */
+static double
+read_duty (const DsStripeProfile *p, gconstpointer data)
+{
+  const DutyFit *d = data;
+  Fit fit = fit_profile (p, d->kind, d->period, -1, 0, d->blur_min);
+  return isfinite (fit.rms) ? fit.duty : NAN;
+}
+
+static double
+read_mean_position (const DsStripeProfile *p, gconstpointer data)
+{
+  (void) data;
+  return profile_mean_position (p);
 }
 
 /* One pair: the binned profile (proc/stripe_profile.h) and its fits; with centres, also the
@@ -367,11 +443,24 @@ check_pair (const DsImage *dark, const DsImage *l0, const DsImage *l1, double pe
     expected_duty (&m, prof, noise, known_blur, &out->expected_duty, &sd);
     /* the difference's spread: the pair's reading's and the replicas' mean's. The bands' fits
      * only widen the tolerance beyond DUTY_MODEL: a reading within it needs none */
+    DutyFit how_fit = { conf->kind, period, known_blur };
+    BandReading how = { read_duty, &how_fit };
     double spread = fabs (free.duty - out->expected_duty) > DUTY_MODEL
-                      ? duty_spread (dark, l0, l1, period, offset, saturation, conf->kind, known_blur)
+                      ? band_spread (dark, l0, l1, period, offset, saturation, &how)
                       : NAN;
     double var = (isfinite (spread) ? spread * spread : DUTY_BANDS * sd * sd) + sd * sd / DUTY_REPLICAS;
     out->duty_tolerance = DUTY_MODEL + DUTY_SPREADS * sqrt (var);
+    /* the kernel-free reading and what any kernel leaves the configured duty at (mean_position ()) */
+    DsStripeModel edge = { .kind = conf->kind, .period_px = period, .duty = conf->duty, .blur_px = known_blur };
+    double at_edge = model_mean_position (&edge);
+    BandReading how_position = { read_mean_position, NULL };
+    double position_spread = band_spread (dark, l0, l1, period, offset, saturation, &how_position);
+    double allow = MEAN_POSITION_MODEL + DUTY_SPREADS * position_spread;
+    out->mean_position = isfinite (allow) ? profile_mean_position (prof) : NAN;
+    out->mean_position_lo = MIN (at_edge, 0.5) - allow;
+    out->mean_position_hi = MAX (at_edge, 0.5) + allow;
+  } else {
+    out->mean_position = NAN;
   }
   out->measured = isfinite (free.rms);
   if (!out->measured)
@@ -440,12 +529,29 @@ duty_differs (const DsPatternPair *pair)
   return fabs (pair->duty - pair->expected_duty) > pair->duty_tolerance;
 }
 
-/* Each measured pair reads the duty away from the configured pattern's reading (a duty the blur
- * at P hides is read at 2P; the configured duty must fit neither). */
+/* The fit reads the duty through one Gaussian blur and a level. Where the frames hold light
+ * beyond the black level, some of it may be scattered light that keeps the stripes through a
+ * kernel of its own shape (a forward-peaked medium's has a sharp core and long tails), which no
+ * Gaussian renders. At twice the period such a kernel covers half as much of a stripe, and a
+ * reading confirmed there stands; a pair read alone must then be confirmed by the kernel-free
+ * reading (mean_position ()): outside what any kernel leaves the configured duty at. */
 static gboolean
-duty_refused (const DsPatternPair *p, const DsPatternPair *q)
+kernel_free_differs (const DsPatternPair *pair, double black_level)
 {
-  return p->measured && duty_differs (p) && (!q->measured || duty_differs (q));
+  if (!(pair->off_level > black_level + LEVEL_TOLERANCE) || !isfinite (pair->mean_position))
+    return TRUE;
+  return pair->mean_position < pair->mean_position_lo || pair->mean_position > pair->mean_position_hi;
+}
+
+/* Each measured pair reads the duty away from the configured pattern's reading (a duty the blur
+ * at P hides is read at 2P; the configured duty must fit neither); a pair read alone under
+ * light beyond the black level, the kernel-free reading too. */
+static gboolean
+duty_refused (const DsPatternPair *p, const DsPatternPair *q, double black_level)
+{
+  if (!p->measured || !duty_differs (p))
+    return FALSE;
+  return q->measured ? duty_differs (q) : kernel_free_differs (p, black_level);
 }
 
 /* The pair shows an off-stripe level below the black level b. Every pixel's off-stripe light is
@@ -499,14 +605,14 @@ ds_pattern_check (const DsProbeFrames *f, DsPatternCheck *out, GError **error)
    * the blur (the unfloored reading's tolerance within twice what the model leaves out), the
    * duty stands when the fit without the floor reads it as configured: a wrong duty is read
    * wrong at any blur. Where they cannot (stripes of a few pixels), the floor decides. */
-  if (conf->kind == DS_PATTERN_SQUARE && known_blur > 0 && duty_refused (&out->pair[0], &out->pair[1])) {
+  if (conf->kind == DS_PATTERN_SQUARE && known_blur > 0 && duty_refused (&out->pair[0], &out->pair[1], conf->black_level)) {
     DsPatternPair unfloored[2] = { 0 };
     check_pair (f->dark, l0, l1, conf->period_px, f->saturation_dn, conf, sine_gain, 0, &unfloored[0], NULL);
     if (f->coarse[0])
       check_pair (f->dark, f->coarse[0], f->coarse[1], 2 * conf->period_px, f->saturation_dn, conf, sine_gain, 0,
                   &unfloored[1], NULL);
     const DsPatternPair *u = unfloored[1].measured ? &unfloored[1] : &unfloored[0];
-    if (unfloored[0].measured && u->duty_tolerance <= 2 * DUTY_MODEL && !duty_refused (&unfloored[0], &unfloored[1]))
+    if (unfloored[0].measured && u->duty_tolerance <= 2 * DUTY_MODEL && !duty_refused (&unfloored[0], &unfloored[1], conf->black_level))
       memcpy (out->pair, unfloored, sizeof unfloored);
   }
   const DsPatternPair *p = &out->pair[0], *q = &out->pair[1];
@@ -527,7 +633,7 @@ ds_pattern_check (const DsProbeFrames *f, DsPatternCheck *out, GError **error)
 
   /* The duty: each measured pair must read it further from what the configured pattern reads
    * through the same measurement than that reading's spread. */
-  if (conf->kind == DS_PATTERN_SQUARE && duty_refused (p, q)) {
+  if (conf->kind == DS_PATTERN_SQUARE && duty_refused (p, q, conf->black_level)) {
     const DsPatternPair *shown = q->measured ? q : p;
     conclude (out, DS_PATTERN_WRONG_DUTY,
               "the configured stripe pattern does not match the frames: duty %.2f is configured, the pilot frames "

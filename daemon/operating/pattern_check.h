@@ -67,6 +67,10 @@ typedef struct {
                                     own spread is read only where duty is further than the model's
                                     part, else the replicas' stands for it */
   double level_tolerance;        /* how far b' may fall below b: LEVEL_TOLERANCE / g1 (pattern_check.c) */
+  double mean_position;          /* the kernel-free reading (square): where the profile's mean lies
+                                    between its trough and its peak; NaN where not read */
+  double mean_position_lo, mean_position_hi; /* what any kernel wider than the edge blur leaves it
+                                    at on the configured pattern, widened by its spread */
   double centre_off;             /* median off-stripe fraction of the pixels nearest the stripe centres
                                     (no model: each is at least the black level); NaN: too few */
   double clipped_share;          /* pixels with a sample at the clip level (or a pile-up below it) */
