@@ -11,7 +11,8 @@ Independent expectations:
   paths: its error is noise and sampling only, which the model holds in closed form;
 - every verdict of the CSV follows from its numbers by the issue's measure, recomputed here;
 - the simulated lab's frames are all right, so the phase check drops none of them;
-- the report's per-path totals are the CSV's, counted here;
+- the report's per-path totals are the CSV's, counted here, and so is its split by the medium a
+  generated scene draws (the description's last clause, read here);
 - the generated scene comes from generator version 2 (its description says so)."""
 import csv
 import importlib.util
@@ -79,6 +80,13 @@ def main():
                 mine = [r for r in sel if r["path"] == path]
                 ok = sum(r["verdict"] == "ok" for r in mine)
                 assert f"| {len(mine)} | {ok} | {100 * ok / len(mine):.0f} % |" in md, (path, md)
+                if d == a:
+                    medium = "not generated"
+                else:
+                    text = open(os.path.join(b, "scenes", scene[0])).read()
+                    line = [x for x in text.splitlines() if x.startswith("description=")][0]
+                    medium = line.rsplit(", ", 1)[1].strip()
+                assert f"| {medium} | {len(mine)} | {ok} | {100 * ok / len(mine):.0f} % |" in md, (path, medium, md)
     print("validate-paths: ok")
 
 
