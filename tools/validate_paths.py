@@ -50,7 +50,7 @@ POINT = re.compile(r"([0-9.]+)(?: to (?:[0-9.]+|unbounded))? \((maxmin|sine|robu
                    r"period ([0-9.]+) px")
 FIELDS = ["scene", "path", "request", "outcome", "estimator", "phases", "averages", "exposure_us", "predicted",
           "lower_bound", "margin", "achieved", "best_achieved", "remedy", "remedy_achieved", "verdict", "reason",
-          "chosen_ms", "upper"]
+          "chosen_ms", "upper", "medium"]
 
 
 # ----- scene files -------------------------------------------------------------------------------
@@ -368,8 +368,7 @@ def scene_medium(path):
     return m.group(1).strip() if m else "not generated"
 
 
-def report(rows, phase, header, media):
-    """media: each scene's medium class (scene_medium), by the scene's file name."""
+def report(rows, phase, header):
     md = [header, ""]
     for path in ("sim", "rig"):
         sel = [r for r in rows if r["path"] == path]
@@ -390,8 +389,8 @@ def report(rows, phase, header, media):
         # (thin forward-peaked films, docs/accuracy.md "Limits") is told apart from the rest.
         md.append("| scene's medium | requests | OK | % OK |")
         md.append("|---|---|---|---|")
-        for medium in sorted({media.get(r["scene"], "not generated") for r in sel}):
-            mine = [r for r in sel if media.get(r["scene"], "not generated") == medium]
+        for medium in sorted({r["medium"] for r in sel}):
+            mine = [r for r in sel if r["medium"] == medium]
             n_ok = sum(1 for r in mine if r["verdict"] == "ok")
             md.append(f"| {medium} | {len(mine)} | {n_ok} | {100 * n_ok / len(mine):.0f} % |")
         md.append("")
@@ -437,19 +436,21 @@ def report(rows, phase, header, media):
 
 
 def read_runs(dirs):
-    """The rows, frame counts and scene media of finished runs (a scene given with --scene is not
-    kept in DIR/scenes, so it reads "not generated")."""
-    rows, phase, media = [], {}, {}
+    """The rows and frame counts of finished runs. A run written before rows named their medium
+    has it read from its DIR/scenes (a scene given with --scene, not kept there, reads "not
+    generated")."""
+    rows, phase = [], {}
     for d in dirs:
         mine = list(csv.DictReader(open(os.path.join(d, "paths.csv"))))
         rows += mine
         for r in mine:
-            media.setdefault(r["scene"], scene_medium(os.path.join(d, "scenes", r["scene"])))
+            if not r.get("medium"):
+                r["medium"] = scene_medium(os.path.join(d, "scenes", r["scene"]))
         for path, v in json.load(open(os.path.join(d, "phase.json"))).items():
             p = phase.setdefault(path, [0, 0])
             p[0] += v[0]
             p[1] += v[1]
-    return rows, phase, media
+    return rows, phase
 
 
 def main():
@@ -466,10 +467,10 @@ def main():
     ap.add_argument("--summary", nargs="+", help="print the tables of these finished runs together")
     a = ap.parse_args()
     if a.summary:
-        rows, phase, media = read_runs(a.summary)
+        rows, phase = read_runs(a.summary)
         cross_check(rows)
         sys.stdout.write(report(rows, phase, "# Validation through both start-up paths (" +
-                                ", ".join(a.summary) + ")", media))
+                                ", ".join(a.summary) + ")"))
         return 0
     if not a.bin or not a.out:
         ap.error("--bin and --out are needed (or --summary)")
@@ -491,6 +492,9 @@ def main():
         for path in a.paths.split(","):
             run_path(tools, path, scene, name, requests, rows, phase)
     cross_check(rows)
+    media = {name: scene_medium(scene) for scene, name in scenes}
+    for r in rows:
+        r["medium"] = media[r["scene"]]
     with open(os.path.join(a.out, "paths.csv"), "w", newline="") as f:
         w = csv.DictWriter(f, FIELDS, extrasaction="ignore")
         w.writeheader()
@@ -500,8 +504,7 @@ def main():
     cmd = "tools/validate_paths.py " + " ".join(sys.argv[1:])
     with open(os.path.join(a.out, "paths.md"), "w") as f:
         f.write(report(rows, phase, f"# Validation through both start-up paths\n\nMade by `{cmd}` "
-                                    f"({len(scenes)} scenes, generator {a.generator}).",
-                       {name: scene_medium(scene) for scene, name in scenes}))
+                                    f"({len(scenes)} scenes, generator {a.generator})."))
     shutil.rmtree(work, ignore_errors=True)
     print(f"validate_paths: {len(rows)} requests; {a.out}/paths.md", file=sys.stderr)
     return 0

@@ -86,6 +86,7 @@ def main():
                     text = open(os.path.join(b, "scenes", scene[0])).read()
                     line = [x for x in text.splitlines() if x.startswith("description=")][0]
                     medium = line.rsplit(", ", 1)[1].strip()
+                assert all(r["medium"] == medium for r in mine), (path, medium)
                 assert f"| {medium} | {len(mine)} | {ok} | {100 * ok / len(mine):.0f} % |" in md, (path, medium, md)
     print("validate-paths: ok")
 
