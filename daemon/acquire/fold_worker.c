@@ -10,7 +10,9 @@
  * writes none of the acquisition thread's fields: its findings go into the job's out fields;
  * the acquisition thread owns the frame (and returns its buffer to the camera) and does the
  * accounting after collect. The only shared state it writes is the stage times, under the
- * shared lock. */
+ * shared lock. The exception is a per-frame result (fold_worker.h, window_done): the worker
+ * publishes it, with what the job lends for it, so that it does not wait for the next
+ * frame. */
 #include <string.h>
 
 #include "daemon/acquire/fold_worker.h"
@@ -65,6 +67,8 @@ run_job (DsSequencerShared *shared, DsFoldJob *job, gboolean overlapped)
     return;
   job->times.folded_us = g_get_monotonic_time ();
   ds_seq_stage_add (shared, DS_STAGE_FOLD, t);
+  if (job->window_done)
+    job->window_done (job, job->window_data);
   /* Copies made here overlap with the next exposure instead of delaying it. */
   const DsFrame *f = job->frame;
   if (job->raw && !ds_raw_frames_add (job->raw, job->phase, f->frame_id, f->timestamp_ns, f->image, NULL))
@@ -136,7 +140,7 @@ ds_fold_worker_submit (DsFoldWorker *w, const DsFoldJob *job, gboolean here)
                          .applied_at_us = job->applied_at_us, .set = job->set,
                          .phase_check = job->phase_check, .raw = job->raw,
                          .finalize_into = job->finalize_into, .window_step = job->window_step,
-                         .window_data = job->window_data };
+                         .window_data = job->window_data, .window_done = job->window_done };
   if (here) {
     /* Nothing to overlap with (the last frame of a set): no hand-over, no wake-up latency.
      * The worker is idle (no job), so the phase set is this thread's. */

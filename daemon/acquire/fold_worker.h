@@ -7,6 +7,9 @@
  * worker finds (verdict, fold error, a raw copy that failed, timestamps) goes into the job's
  * out fields, which the acquisition thread reads after collect. The worker writes no field of
  * the acquisition thread's (DsAcquisition) and only the shared status's stage times, under its
+ * lock; but a per-frame job's window_done publishes its result from the worker, which takes the
+ * next result id (DsAcquisition.next_set_id, lent with the job: a per-frame run's acquisition
+ * thread takes none) and counts the result and its frames in the shared status, under its
  * lock. */
 #pragma once
 #include <glib.h>
@@ -57,6 +60,12 @@ typedef struct DsFoldJobS {
    * sets finalized when it finalized a result into finalize_into. window_data is lent too. */
   gboolean (*window_step) (struct DsFoldJobS *job, gpointer window_data);
   gpointer window_data;
+  /* Run at the end of a job whose window_step took the frame, once the job's times are
+   * stamped (window_stream.c publishes the result the step made): a result then does not wait
+   * until the acquisition thread, which meanwhile waits for the next frame, collects the job.
+   * It uses what the job lends (window_data, the frame, finalize_into) and calls no driver.
+   * NULL: none. */
+  void (*window_done) (struct DsFoldJobS *job, gpointer window_data);
   /* Out: the worker's findings, read by the acquisition thread after collect. */
   DsFrameVerdict verdict;
   gboolean folded;                   /* verified and folded */

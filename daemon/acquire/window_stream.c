@@ -45,6 +45,10 @@ typedef struct {
   guint in_flight_phase;
   DsSeparation *in_flight_planes;
   gboolean reapply;            /* a refused frame: the illuminator may show another phase */
+  guint64 result_span;         /* the window's span and frames since the break at its last
+                                  push (set by window_step, for the result) */
+  guint64 result_since_break;
+  gboolean published_in_job;   /* window_done published the job's result */
   /* save_phases: a copy of the window's frames, so that each result carries the N frames it
    * was made from (and the dark frame), as a set's result carries its set's. */
   DsImage **kept;
@@ -89,6 +93,8 @@ window_step (DsFoldJob *job, gpointer data)
     return FALSE;
   }
   ws->pushes++;
+  ws->result_span = ds_phase_window_span (window);
+  ws->result_since_break = ds_phase_window_frames_since_break (window);
   if (ws->kept) {
     /* A copy failed: the results go without their raw frames (kept_push 0 never matches). */
     g_clear_pointer (&ws->kept[k], ds_image_free);
@@ -151,7 +157,7 @@ static DsRawFrames *
 window_raw_frames (WindowStream *ws)
 {
   g_autoptr (DsRawFrames) raw = ds_raw_frames_new (ws->n);
-  guint64 since = ws->pushes - ds_phase_window_span (ws->acq->window);
+  guint64 since = ws->pushes - ws->result_span;
   for (guint64 push = since + 1; push <= ws->pushes; push++)
     for (guint k = 0; k < ws->n; k++)
       if (ws->kept_push[k] == push && !ds_raw_frames_add (raw, k, ws->kept_id[k], ws->kept_ts[k], ws->kept[k], NULL))
@@ -175,8 +181,8 @@ publish (WindowStream *ws, DsSeparation *planes, guint k, guint64 frame_id, cons
    * window's frames since the break, the dark frame of the run's first result. */
   ds_frame_counters_fold_rest (&ws->c);
   ds_seq_account_frames (acq->shared, &ws->c);
-  DsResultWindow w = { .frames = ws->n, .span = ds_phase_window_span (acq->window), .newest_frame_id = frame_id,
-                       .since_break = ds_phase_window_frames_since_break (acq->window) };
+  DsResultWindow w = { .frames = ws->n, .span = ws->result_span, .newest_frame_id = frame_id,
+                       .since_break = ws->result_since_break };
   g_mutex_lock (&acq->shared->lock);
   acq->shared->status.frame_results++;
   w.breaks = acq->shared->status.window_breaks;
@@ -192,11 +198,26 @@ publish (WindowStream *ws, DsSeparation *planes, guint k, guint64 frame_id, cons
   memset (&ws->c, 0, sizeof ws->c);
   ws->unpublished = 0;
   ws->retries_left = ws->settings.phase_retries;
-  if (now - ws->last_refresh_us > G_USEC_PER_SEC / 2) {
-    ds_seq_refresh_device_status (acq);
-    ws->last_refresh_us = now;
-  }
   ds_seq_emit (acq->shared, DS_SEQUENCER_EVENT_RESULT, 0, result, NULL, NULL);
+}
+
+/* Fold thread, at the end of a job whose frame went in (DsFoldJob.window_done): the result the
+ * job made is published now, not when the acquisition thread collects the job after the next
+ * frame arrived. What publish touches is lent with ws during the job: the counters since the
+ * last result (the acquisition thread counts the next frame apart until it collects), the
+ * window's frames and the planes; the shared status and the events take their own lock. A
+ * result collect would refuse (a failed finalize, a cycle refused as a whole) is left to it. */
+static void
+window_done (DsFoldJob *job, gpointer data)
+{
+  WindowStream *ws = data;
+  if (!job->finalized || job->fold_error || ws->confirm_error)
+    return;
+  guint k = job->phase;
+  ws->unpublished++;
+  ws->arrival[k] = job->frame->host_time_us ? (gint64) job->frame->host_time_us : g_get_monotonic_time ();
+  publish (ws, g_steal_pointer (&ws->in_flight_planes), k, job->frame->frame_id, &job->times);
+  ws->published_in_job = TRUE;
 }
 
 /* Waits for the frame in the worker and accounts for it: a refused frame breaks the window, a
@@ -213,6 +234,17 @@ collect (WindowStream *ws, GError **error)
   g_autoptr (DsFrame) frame = g_steal_pointer (&ws->in_flight_frame);
   DsSeparation *planes = g_steal_pointer (&ws->in_flight_planes);
   guint k = ws->in_flight_phase;
+  if (ws->published_in_job) {
+    /* the worker published it (window_done); the device status is read here, by the thread
+     * that owns the devices, at most twice a second */
+    ws->published_in_job = FALSE;
+    gint64 now = g_get_monotonic_time ();
+    if (now - ws->last_refresh_us > G_USEC_PER_SEC / 2) {
+      ds_seq_refresh_device_status (acq);
+      ws->last_refresh_us = now;
+    }
+    return TRUE;
+  }
   if (job.verdict.reason != DS_DROP_N_REASONS) {
     ds_plane_pool_give (acq->planes, planes);
     ds_frame_counters_drop (&ws->c, job.verdict.reason, 1);
@@ -245,11 +277,8 @@ collect (WindowStream *ws, GError **error)
     window_break (ws, "phase_check", why->message);
     return retry_or_fail (ws, &why, error);
   }
-  if (!job.finalized) {
-    ds_plane_pool_give (acq->planes, planes);
-    return TRUE;
-  }
-  publish (ws, planes, k, frame->frame_id, &job.times);
+  /* a result is published by the worker (window_done) */
+  ds_plane_pool_give (acq->planes, planes);
   return TRUE;
 }
 
@@ -276,7 +305,7 @@ submit (WindowStream *ws, guint k, DsFrame *frame, gint64 applied_at, GError **e
   ws->in_flight_planes = planes;
   DsFoldJob job = { .settings = &ws->settings, .phase = k, .frame = frame, .applied_at_us = applied_at,
                     .phase_check = &acq->phase_check, .finalize_into = planes, .window_step = window_step,
-                    .window_data = ws };
+                    .window_data = ws, .window_done = window_done };
   ds_fold_worker_submit (acq->worker, &job, FALSE);
   return TRUE;
 }
@@ -335,13 +364,18 @@ run_frames (WindowStream *ws, GError **error)
       ws->reapply = FALSE;
     }
     GError *why = NULL;
+    /* Counted apart until the frame before is collected: the worker may publish that frame's
+     * result meanwhile (window_done), which holds the frames before it, not what happens now. */
+    DsFrameCounters fc = { 0 };
     if (applied != (int) k) {
       /* Overlaps with the worker verifying the previous frame. */
       gint64 t = g_get_monotonic_time ();
       if (!ds_seq_set_phase (acq, k, &why)) {
-        ws->c.device_errors++;
+        fc.device_errors++;
         g_prefix_error (&why, "phase %u: illuminator: ", k);
-        if (!collect (ws, error)) {
+        gboolean collected = collect (ws, error);
+        ds_frame_counters_add (&ws->c, &fc);
+        if (!collected) {
           g_clear_error (&why);
           return FALSE;
         }
@@ -351,14 +385,11 @@ run_frames (WindowStream *ws, GError **error)
         continue;
       }
       ds_seq_stage_add (acq->shared, DS_STAGE_SET_PHASE, t);
-      ds_seq_flush_stale (acq, &ws->c);
+      ds_seq_flush_stale (acq, &fc);
       applied = (int) k;
       applied_at = g_get_monotonic_time ();
     }
     gint64 frame_applied_at = applied_at;
-    /* Counted apart until the frame before is collected: a result that frame publishes holds
-     * the frames before it, not this one. */
-    DsFrameCounters fc = { 0 };
     DsFrame *frame = trigger_and_grab (ws, k, &fc, &applied, &applied_at, &why);
     gboolean collected = collect (ws, error);
     ds_frame_counters_add (&ws->c, &fc);
