@@ -86,6 +86,7 @@ ds_sim_faults_parse (const char *text, DsSimFaults *out, GError **error)
       const char *name;
       guint *field;
     } counts[] = { { "disconnect-after", &out->disconnect_after }, { "faults-after", &out->faults_after },
+                   { "drop-every", &out->drop_every },
                    { "stale-next", &out->stale_next },
                    { "incomplete-next", &out->incomplete_next }, { "timeout-next", &out->timeout_next },
                    { "drop-next", &out->drop_next }, { "wrong-phase-next", &out->wrong_phase_next },
@@ -103,7 +104,7 @@ ds_sim_faults_parse (const char *text, DsSimFaults *out, GError **error)
     if (!known) {
       g_set_error (error, G_KEY_FILE_ERROR, G_KEY_FILE_ERROR_INVALID_VALUE,
                    "faults: unknown fault \"%s\" (stale, incomplete, timeout, drop, wrong-phase, "
-                   "not-ready, disconnect-after, faults-after, open-delay-ms, and <name>-next counts)", name);
+                   "not-ready, disconnect-after, faults-after, drop-every, open-delay-ms, and <name>-next counts)", name);
       return FALSE;
     }
   }
@@ -295,7 +296,8 @@ cam_trigger (gpointer b, GError **error)
   DsSimFaults *lf = &lab->faults;
   gboolean spared = lab->frames_triggered < lf->faults_after;
   gboolean timeout = !spared && dice (lab, lf->timeout, &lf->timeout_next),
-           drop = !spared && dice (lab, lf->drop, &lf->drop_next),
+           drop = !spared && (dice (lab, lf->drop, &lf->drop_next) ||
+                              (lf->drop_every && (lab->frames_triggered - lf->faults_after + 1) % lf->drop_every == 0)),
            incomplete = !spared && dice (lab, lf->incomplete, &lf->incomplete_next),
            stale = !spared && dice (lab, lf->stale, &lf->stale_next);
   g_mutex_unlock (&lab->lock);

@@ -23,6 +23,9 @@ typedef struct {
   guint disconnect_after;  /* frames; 0 = never. The camera is gone until reconnect. */
   guint faults_after;      /* triggers: the camera's faults (stale, incomplete, timeout, drop,
                               and their counts) spare the first N triggers; 0 = none spared */
+  guint drop_every;        /* triggers: every Nth one after faults_after is lost in transit, as
+                              drop (a camera that loses frames at a steady rate, with no chance in
+                              it); 0 = none */
   /* Counted faults: the next N triggers (camera knobs) or set_phase calls (illuminator knobs)
    * get the fault for sure, before the probabilities above are rolled. Counted down under the
    * lab's lock; 0 = none. */

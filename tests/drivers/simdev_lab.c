@@ -210,6 +210,30 @@ test_fault_drop_unaccounted (Lab *l, gconstpointer data)
   g_assert_cmpuint (c->ids_skipped, ==, 1);
 }
 
+/* drop-every=3 after faults-after=1: triggers 4, 7 and 10 are lost in transit (grab TIMEOUT,
+ * their ids skipped), every other one delivers. */
+static void
+test_drop_every (Lab *l, gconstpointer data)
+{
+  (void) data;
+  set_phase (l, 0);
+  set_faults (l, "faults-after=1,drop-every=3");
+  guint64 last_id = 0;
+  for (guint t = 1; t <= 10; t++) {
+    g_autoptr (GError) error = NULL;
+    g_autoptr (DsFrame) f = shoot (l, &error);
+    if (t == 4 || t == 7 || t == 10) {
+      g_assert_null (f);
+      g_assert_error (error, DS_CAMERA_ERROR, DS_DEVICE_ERROR_TIMEOUT);
+      continue;
+    }
+    g_assert_no_error (error);
+    if (last_id)
+      g_assert_cmpuint (f->frame_id, ==, last_id + (t == 5 || t == 8 ? 2 : 1));
+    last_id = f->frame_id;
+  }
+}
+
 /* faults-after=N spares the first N triggers: the counted fault hits trigger N + 1. */
 static void
 test_faults_after (Lab *l, gconstpointer data)
@@ -425,6 +449,7 @@ main (int argc, char **argv)
   ADD ("/simdev/exposure-doubles-signal", test_exposure_doubles_signal);
   ADD ("/simdev/fault/drop", test_fault_drop);
   ADD ("/simdev/fault/drop-unaccounted", test_fault_drop_unaccounted);
+  ADD ("/simdev/fault/drop-every", test_drop_every);
   ADD ("/simdev/fault/faults-after", test_faults_after);
   ADD ("/simdev/fault/timeout", test_fault_timeout);
   ADD ("/simdev/fault/incomplete", test_fault_incomplete);
