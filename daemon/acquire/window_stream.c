@@ -18,6 +18,12 @@
  *   - a lost frame, a refused frame, a cycle refused as a whole, or settings other than the last
  *     run's break the window: no result mixes frames from both sides of a gap, and the next one
  *     needs a good frame of every phase again. Each break is told (WINDOW_BROKEN) and counted.
+ * Retries: as in a set, a phase may fail phase-retries times in a row (no good frame of it in
+ * between) and the run fails at the next. A set retakes the failed phase at once, so a set fails
+ * exactly when one phase does; a window goes on in turn after a refused frame, so its failures
+ * are charged to the phase that failed, and the count of a phase restarts with its next good
+ * frame. A budget shared by all phases until the next result would instead end a run whose
+ * losses are spread over the phases (a camera losing a frame in five) that sets get through.
  * Accounting: acquired = folded + dropped holds as for sets. A frame is folded once a
  * published result holds it; the frames of a window broken before they made a result are
  * aborted. The counters of each result are those since the result before it. */
@@ -33,7 +39,7 @@ typedef struct {
   guint width, height;
   DsFrameCounters c;           /* since the last result */
   guint64 unpublished;         /* good frames since the last result or break */
-  guint retries_left;          /* failures allowed before the next result */
+  guint *retries_left;         /* per phase: failures allowed before its next good frame */
   gint64 *arrival;             /* per phase: when the window's frame of it arrived */
   /* Lent to the fold worker with the window during a job (window_step). */
   gboolean *confirmed;         /* per phase: the phase check confirmed the window's frame of it */
@@ -124,10 +130,11 @@ window_step (DsFoldJob *job, gpointer data)
   return TRUE;
 }
 
+/* After a failure of phase k (its frame lost or refused, or the illuminator could not light it). */
 static gboolean
-retry_or_fail (WindowStream *ws, GError **why, GError **error)
+retry_or_fail (WindowStream *ws, guint k, GError **why, GError **error)
 {
-  return ds_seq_retry_or_fail (ws->acq, &ws->retries_left, &ws->c, why, error, "per-frame results");
+  return ds_seq_retry_or_fail (ws->acq, &ws->retries_left[k], &ws->c, why, error, "per-frame results");
 }
 
 /* No result until a good frame of every phase follows; told to subscribers and counted. */
@@ -197,7 +204,6 @@ publish (WindowStream *ws, DsSeparation *planes, guint k, guint64 frame_id, cons
     ds_result_set_raw_frames (result, window_raw_frames (ws));
   memset (&ws->c, 0, sizeof ws->c);
   ws->unpublished = 0;
-  ws->retries_left = ws->settings.phase_retries;
   ds_seq_emit (acq->shared, DS_SEQUENCER_EVENT_RESULT, 0, result, NULL, NULL);
 }
 
@@ -238,6 +244,7 @@ collect (WindowStream *ws, GError **error)
     /* the worker published it (window_done); the device status is read here, by the thread
      * that owns the devices, at most twice a second */
     ws->published_in_job = FALSE;
+    ws->retries_left[k] = ws->settings.phase_retries;
     gint64 now = g_get_monotonic_time ();
     if (now - ws->last_refresh_us > G_USEC_PER_SEC / 2) {
       ds_seq_refresh_device_status (acq);
@@ -255,7 +262,7 @@ collect (WindowStream *ws, GError **error)
     window_break (ws, reason, why->message);
     ws->reapply = ws->reapply || job.verdict.reapply_phase;
     ds_frame_verdict_clear (&job.verdict);
-    return retry_or_fail (ws, &why, error);
+    return retry_or_fail (ws, k, &why, error);
   }
   if (!job.folded) {
     ds_plane_pool_give (acq->planes, planes);
@@ -275,10 +282,11 @@ collect (WindowStream *ws, GError **error)
     GError *why = g_error_new (DS_SEQUENCER_ERROR, DS_SEQUENCER_ERROR_FRAME_REJECTED, "%s", ws->confirm_error);
     g_clear_pointer (&ws->confirm_error, g_free);
     window_break (ws, "phase_check", why->message);
-    return retry_or_fail (ws, &why, error);
+    return retry_or_fail (ws, k, &why, error);
   }
   /* a result is published by the worker (window_done) */
   ds_plane_pool_give (acq->planes, planes);
+  ws->retries_left[k] = ws->settings.phase_retries;
   return TRUE;
 }
 
@@ -380,7 +388,7 @@ run_frames (WindowStream *ws, GError **error)
           return FALSE;
         }
         window_break (ws, "device_error", why->message);
-        if (!retry_or_fail (ws, &why, error))
+        if (!retry_or_fail (ws, k, &why, error))
           return FALSE;
         continue;
       }
@@ -401,7 +409,7 @@ run_frames (WindowStream *ws, GError **error)
         return FALSE;
       }
       window_break (ws, "lost", why->message);
-      if (!retry_or_fail (ws, &why, error))
+      if (!retry_or_fail (ws, k, &why, error))
         return FALSE;
       /* A late buffer of the lost trigger may still arrive: flushed before the next trigger,
        * which takes phase k again. */
@@ -502,8 +510,7 @@ note_settings (DsAcquisition *acq, const DsCaptureSettings *s)
 void
 ds_seq_run_window_stream (DsAcquisition *acq, const DsCaptureSettings *requested)
 {
-  WindowStream ws = { .acq = acq, .settings = *requested, .n = requested->phases,
-                      .retries_left = requested->phase_retries };
+  WindowStream ws = { .acq = acq, .settings = *requested, .n = requested->phases };
   DsCaptureSettings *s = &ws.settings;
   /* The stripe geometry is the illuminator's, as for a set (set_runner.c). */
   s->pattern = acq->dev->pattern.kind == DS_STRIPES_SINE ? DS_PATTERN_SINE : DS_PATTERN_SQUARE;
@@ -513,6 +520,9 @@ ds_seq_run_window_stream (DsAcquisition *acq, const DsCaptureSettings *requested
   /* Per-frame mode triggers nothing ahead; a frame a set triggered ahead goes down. */
   ds_seq_carry_discard (acq);
   ws.arrival = g_new0 (gint64, ws.n);
+  ws.retries_left = g_new (guint, ws.n);
+  for (guint k = 0; k < ws.n; k++)
+    ws.retries_left[k] = requested->phase_retries;
   ws.confirmed = g_new0 (gboolean, ws.n);
   ws.last_refresh_us = g_get_monotonic_time ();
   if (requested->save_phases) {
@@ -533,6 +543,7 @@ ds_seq_run_window_stream (DsAcquisition *acq, const DsCaptureSettings *requested
   }
   g_free (ws.confirm_error);
   g_free (ws.arrival);
+  g_free (ws.retries_left);
   g_free (ws.confirmed);
   for (guint k = 0; ws.kept && k < ws.n; k++)
     ds_image_free (ws.kept[k]);

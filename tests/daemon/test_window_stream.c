@@ -11,6 +11,13 @@
  *   result comes only N good frames after the bad one, says so (window.since_break = N, the
  *   reason in window.last_break), and a window_broken event names the reason. The frame
  *   accounting stays exact (acquired = folded + dropped).
+ * - spread-losses: a camera losing every 4th frame at N = 4 (drop-every) never gives N good
+ *   frames in a row, so no result comes; but each phase's lost frame is retaken at once and
+ *   comes (the loss moves back one phase each time), so no phase fails twice in a row, and the
+ *   run goes on past twice phase-retries + 1 losses, each a window_broken naming its phase, as
+ *   sets get through such a camera (retries per phase, docs/design.md, "The pipeline").
+ * - phase-retries-exhausted: phase-retries + 1 losses of one phase in a row (drop-next) end the
+ *   run as they end a set: a failed event naming the phase, counted in sets_failed.
  * - set-breaks: `set` exposure breaks the window (reason settings); the next result has the new
  *   exposure and comes N frames later.
  * - averages-refused: per-frame results with M > 1 are refused as bad_argument. */
@@ -244,6 +251,100 @@ test_break (gconstpointer data)
   test_daemon_stop_clean (d);
 }
 
+/* The phase a window_broken event's message names ("lost: phase K: camera: ..."). */
+static gint64
+broken_phase (JsonNode *body)
+{
+  const char *msg = json_object_get_string_member (json_node_get_object (body), "message");
+  const char *p = strstr (msg, "phase ");
+  g_assert_nonnull (p);
+  return g_ascii_strtoll (p + strlen ("phase "), NULL, 10);
+}
+
+static void
+test_spread_losses (void)
+{
+  /* phase-retries=3 (start_daemon): a shared budget would end the run at the 4th loss. */
+  TestDaemon *d = start_daemon ("faults-after=13,drop-every=4");
+  g_autoptr (DsClient) sub = test_daemon_connect (d);
+  g_autoptr (DsClient) c = test_daemon_connect (d);
+  g_autoptr (DsMessage) s = test_daemon_call_ok (sub, "subscribe", NULL);
+  start_per_frame (c, FALSE, FALSE);
+  guint breaks = 0, results_after = 0;
+  gint64 last_phase = -1;
+  while (breaks < 2 * (3 + 1) + 1) {
+    g_autoptr (GError) error = NULL;
+    g_autoptr (DsMessage) ev = ds_client_read (sub, 0, &error);
+    g_assert_no_error (error);
+    JsonNode *body = ev->reply->body;
+    if (g_strcmp0 (ev->reply->event, "failed") == 0)
+      g_error ("failed: %s", json_object_get_string_member (json_node_get_object (body), "reason"));
+    if (g_strcmp0 (ev->reply->event, "result") == 0 && breaks > 0)
+      results_after++;
+    if (g_strcmp0 (ev->reply->event, "window_broken") != 0)
+      continue;
+    g_assert_cmpstr (json_object_get_string_member (json_node_get_object (body), "reason"), ==, "lost");
+    gint64 phase = broken_phase (body);
+    g_test_message ("loss %u: phase %" G_GINT64_FORMAT, breaks + 1, phase);
+    /* Three good frames, then the fourth trigger is lost: one phase before the last loss's. */
+    if (last_phase >= 0)
+      g_assert_cmpint (phase, ==, (last_phase + N_PHASES - 1) % N_PHASES);
+    last_phase = phase;
+    breaks++;
+  }
+  /* Never N good frames in a row after the first loss. */
+  g_assert_cmpuint (results_after, ==, 0);
+  g_autoptr (DsMessage) st = test_daemon_call_ok (c, "status", NULL);
+  g_assert_true (json_object_get_boolean_member (json_node_get_object (st->reply->body), "continuous"));
+  g_assert_cmpint (test_json_int (st->reply->body, "sets_failed"), ==, 0);
+  g_autoptr (DsMessage) stop = test_daemon_call_ok (c, "stop", NULL);
+  /* The window's frames are counted in status when the run returns for the command. */
+  for (;;) {
+    g_autoptr (DsMessage) now = test_daemon_call_ok (c, "status", NULL);
+    if (strcmp (json_object_get_string_member (json_node_get_object (now->reply->body), "state"), "idle") == 0)
+      break;
+    g_usleep (20 * 1000);
+  }
+  TestFrames f = test_daemon_frames (c); /* asserts acquired = folded + dropped */
+  g_assert_cmpint (f.timeouts, >=, breaks);
+  test_daemon_stop_clean (d);
+}
+
+static void
+test_retries_exhausted (void)
+{
+  /* The 14th trigger is phase 1's (main); it and its three retakes are lost. */
+  TestDaemon *d = start_daemon ("faults-after=13,drop-next=4");
+  g_autoptr (DsClient) sub = test_daemon_connect (d);
+  g_autoptr (DsClient) c = test_daemon_connect (d);
+  g_autoptr (DsMessage) s = test_daemon_call_ok (sub, "subscribe", NULL);
+  start_per_frame (c, FALSE, FALSE);
+  guint breaks = 0;
+  for (;;) {
+    g_autoptr (GError) error = NULL;
+    g_autoptr (DsMessage) ev = ds_client_read (sub, 0, &error);
+    g_assert_no_error (error);
+    JsonNode *body = ev->reply->body;
+    if (g_strcmp0 (ev->reply->event, "window_broken") == 0) {
+      g_assert_cmpint (broken_phase (body), ==, 1);
+      breaks++;
+      continue;
+    }
+    if (g_strcmp0 (ev->reply->event, "failed") != 0)
+      continue;
+    const char *reason = json_object_get_string_member (json_node_get_object (body), "reason");
+    g_test_message ("failed: %s", reason);
+    g_assert_true (g_str_has_prefix (reason, "per-frame results: retries exhausted: phase 1: camera: "));
+    break;
+  }
+  /* phase-retries = 3 retakes, each a break, and the 4th loss ends the run. */
+  g_assert_cmpuint (breaks, ==, 4);
+  g_autoptr (DsMessage) st = test_daemon_call_ok (c, "status", NULL);
+  g_assert_cmpint (test_json_int (st->reply->body, "sets_failed"), ==, 1);
+  g_autoptr (DsMessage) stop = test_daemon_call_ok (c, "stop", NULL);
+  test_daemon_stop_clean (d);
+}
+
 /* `set` changes the exposure between two frames: the window breaks ("settings"), and the next
  * result, N frames after it, has the new exposure. */
 static void
@@ -303,6 +404,8 @@ main (int argc, char **argv)
   g_test_add_func ("/window-stream/equals-fresh-set", test_equals_fresh_set);
   g_test_add_data_func ("/window-stream/lost-frame", lost, test_break);
   g_test_add_data_func ("/window-stream/refused-frame", refused, test_break);
+  g_test_add_func ("/window-stream/spread-losses", test_spread_losses);
+  g_test_add_func ("/window-stream/phase-retries-exhausted", test_retries_exhausted);
   g_test_add_func ("/window-stream/set-breaks", test_set_breaks);
   g_test_add_func ("/window-stream/averages-refused", test_averages_refused);
   return g_test_run ();
